@@ -1,0 +1,427 @@
+use bytemuck::{Pod, Zeroable};
+
+use super::INVALID_ID;
+
+// ---------------------------------------------------------------------------------------------
+// G-buffer
+// ---------------------------------------------------------------------------------------------
+
+/// [`GBufferTexel::flags`]: a triangle covers this pixel's centre (a primary hit).
+pub const GBUF_HIT: u32 = 1 << 0;
+/// [`GBufferTexel::flags`]: the covering object is shaded by the ray tracer.
+pub const GBUF_RAY_TRACED: u32 = 1 << 1;
+/// [`GBufferTexel::flags`]: the visible face is a back face (seen from behind).
+pub const GBUF_BACK_FACE: u32 = 1 << 2;
+
+/// One pixel of the visibility G-buffer written by `visibility_raster` (paper 3.2).
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `bary_u` | f32 | barycentric weight of v1 (perspective-correct, at the pixel centre) |
+/// | 4 | `bary_v` | f32 | barycentric weight of v2; the weight of v0 is `w = 1 - u - v` |
+/// | 8 | `depth` | f32 | window-space depth in [0, 1] (z/w, linear in screen space) |
+/// | 12 | `triangle` | u32 | triangle index within its object's mesh, [`INVALID_ID`] on miss |
+/// | 16 | `object` | u32 | object id, [`INVALID_ID`] on miss |
+/// | 20 | `flags` | u32 | [`GBUF_HIT`], [`GBUF_RAY_TRACED`], [`GBUF_BACK_FACE`] |
+///
+/// 24 bytes. A miss texel is [`GBufferTexel::MISS`]: zero barycentrics, depth 1.0,
+/// invalid ids, no flags.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct GBufferTexel {
+    pub bary_u: f32,
+    pub bary_v: f32,
+    pub depth: f32,
+    pub triangle: u32,
+    pub object: u32,
+    pub flags: u32,
+}
+const _: () = assert!(std::mem::size_of::<GBufferTexel>() == 24);
+
+impl GBufferTexel {
+    /// The texel of a pixel no triangle covers.
+    pub const MISS: GBufferTexel = GBufferTexel {
+        bary_u: 0.0,
+        bary_v: 0.0,
+        depth: 1.0,
+        triangle: INVALID_ID,
+        object: INVALID_ID,
+        flags: 0,
+    };
+
+    /// True if a triangle covers the pixel centre.
+    #[inline]
+    pub fn is_hit(&self) -> bool {
+        self.flags & GBUF_HIT != 0
+    }
+
+    /// True if the covering object is ray traced.
+    #[inline]
+    pub fn is_ray_traced(&self) -> bool {
+        self.flags & GBUF_RAY_TRACED != 0
+    }
+
+    /// Check the invariants: a miss is exactly [`Self::MISS`]; a hit has valid ids,
+    /// finite barycentrics and a depth in [0, 1].
+    pub fn validate(&self) -> Result<(), String> {
+        if !self.is_hit() {
+            if self.to_bits() != Self::MISS.to_bits() {
+                return Err(format!("miss texel is not GBufferTexel::MISS: {self:?}"));
+            }
+            return Ok(());
+        }
+        if self.triangle == INVALID_ID || self.object == INVALID_ID {
+            return Err(format!("hit texel with invalid id: {self:?}"));
+        }
+        if !(self.bary_u.is_finite() && self.bary_v.is_finite()) {
+            return Err(format!("hit texel with non-finite barycentrics: {self:?}"));
+        }
+        if !(0.0..=1.0).contains(&self.depth) {
+            return Err(format!("hit texel depth outside [0, 1]: {self:?}"));
+        }
+        if self.flags & !(GBUF_HIT | GBUF_RAY_TRACED | GBUF_BACK_FACE) != 0 {
+            return Err(format!("hit texel with unknown flags: {self:?}"));
+        }
+        Ok(())
+    }
+
+    /// The raw bits, for exact comparisons (floats compared by bit pattern).
+    pub fn to_bits(&self) -> [u32; 6] {
+        bytemuck::cast(*self)
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Ray list
+// ---------------------------------------------------------------------------------------------
+
+/// [`RayRecord::kind`]: a shadow ray (any hit, early exit).
+pub const RAY_KIND_SHADOW: u32 = 0;
+/// [`RayRecord::kind`]: a primary ray (closest hit).
+pub const RAY_KIND_PRIMARY: u32 = 1;
+/// [`RayRecord::kind`]: a reflection ray (closest hit; not traced yet).
+pub const RAY_KIND_REFLECTION: u32 = 2;
+/// [`RayRecord::kind`]: a refraction ray (closest hit; not traced yet).
+pub const RAY_KIND_REFRACTION: u32 = 3;
+/// Number of ray kinds (for per-kind counters).
+pub const RAY_KIND_COUNT: usize = 4;
+
+/// One ray of the compacted ray list (paper 3.3: one thread per active ray).
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `origin` | [f32; 3] | world-space origin, already offset off the surface |
+/// | 12 | `t_min` | f32 | the ray hits only for `t_min < t < t_max` (Vulkan RT rule) |
+/// | 16 | `direction` | [f32; 3] | world-space direction, *not* normalized (shadow rays to a point light reach it at t = 1) |
+/// | 28 | `t_max` | f32 | see `t_min`; `+inf` for directional lights |
+/// | 32 | `pixel` | u32 | linear pixel index `y * width + x` this ray contributes to |
+/// | 36 | `kind` | u32 | `RAY_KIND_*` |
+/// | 40 | `depth` | u32 | bounce depth: 0 for rays from primary hits |
+/// | 44 | `light` | u32 | light index for shadow rays, [`INVALID_ID`] otherwise |
+/// | 48 | `throughput` | [f32; 3] | path weight carried by reflection/refraction rays; 1 for shadow rays |
+/// | 60 | `pad` | u32 | zero |
+///
+/// 64 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct RayRecord {
+    pub origin: [f32; 3],
+    pub t_min: f32,
+    pub direction: [f32; 3],
+    pub t_max: f32,
+    pub pixel: u32,
+    pub kind: u32,
+    pub depth: u32,
+    pub light: u32,
+    pub throughput: [f32; 3],
+    pub pad: u32,
+}
+const _: () = assert!(std::mem::size_of::<RayRecord>() == 64);
+
+impl RayRecord {
+    /// Check: finite origin and direction, non-zero direction, `0 <= t_min < t_max`,
+    /// known kind, a light index exactly on shadow rays.
+    pub fn validate(&self) -> Result<(), String> {
+        let o = self.origin;
+        let d = self.direction;
+        if !o.iter().chain(d.iter()).all(|c| c.is_finite()) {
+            return Err(format!("ray with non-finite origin or direction: {self:?}"));
+        }
+        if d == [0.0; 3] {
+            return Err(format!("ray with zero direction: {self:?}"));
+        }
+        if !(self.t_min >= 0.0 && self.t_min < self.t_max) {
+            return Err(format!("ray with empty or negative t range: {self:?}"));
+        }
+        if self.kind as usize >= RAY_KIND_COUNT {
+            return Err(format!("ray with unknown kind: {self:?}"));
+        }
+        if (self.kind == RAY_KIND_SHADOW) != (self.light != INVALID_ID) {
+            return Err(format!("light index must be set exactly on shadow rays: {self:?}"));
+        }
+        if self.pad != 0 {
+            return Err(format!("ray padding not zero: {self:?}"));
+        }
+        Ok(())
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Scene tables
+// ---------------------------------------------------------------------------------------------
+
+/// [`TriangleRecord::flags`]: the triangle's object is ray traced.
+pub const TRI_RAY_TRACED: u32 = 1 << 0;
+
+/// One world-space triangle of the scene table that the raster, the BVH and
+/// reconstruction all read. Triangles of one object are contiguous, in mesh order.
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `v0` | [f32; 3] | world-space vertex 0 |
+/// | 12 | `object` | u32 | object id |
+/// | 16 | `v1` | [f32; 3] | world-space vertex 1 |
+/// | 28 | `triangle` | u32 | triangle index within the object's mesh |
+/// | 32 | `v2` | [f32; 3] | world-space vertex 2 |
+/// | 44 | `flags` | u32 | [`TRI_RAY_TRACED`] |
+///
+/// 48 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct TriangleRecord {
+    pub v0: [f32; 3],
+    pub object: u32,
+    pub v1: [f32; 3],
+    pub triangle: u32,
+    pub v2: [f32; 3],
+    pub flags: u32,
+}
+const _: () = assert!(std::mem::size_of::<TriangleRecord>() == 48);
+
+impl TriangleRecord {
+    /// Vertices as glam vectors.
+    #[inline]
+    pub fn vertices(&self) -> [glam::Vec3; 3] {
+        [self.v0.into(), self.v1.into(), self.v2.into()]
+    }
+    /// Check: valid object id and known flags. Non-finite vertices are allowed here
+    /// (the stages must survive them) and reported by [`crate::geometry::WorldGeometry`].
+    pub fn validate(&self) -> Result<(), String> {
+        if self.object == INVALID_ID || self.triangle == INVALID_ID {
+            return Err(format!("triangle with invalid id: {self:?}"));
+        }
+        if self.flags & !TRI_RAY_TRACED != 0 {
+            return Err(format!("triangle with unknown flags: {self:?}"));
+        }
+        Ok(())
+    }
+}
+
+/// [`ObjectRecord::flags`]: the object is ray traced.
+pub const OBJ_RAY_TRACED: u32 = 1 << 0;
+
+/// Per-object data: where its triangles are and how it is shaded.
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `first_triangle` | u32 | index of its first triangle in the triangle table |
+/// | 4 | `triangle_count` | u32 | number of triangles |
+/// | 8 | `flags` | u32 | [`OBJ_RAY_TRACED`] |
+/// | 12 | `material_kind` | u32 | [`crate::scene::MaterialKind::code`] |
+/// | 16 | `base_color` | [f32; 3] | linear RGB |
+/// | 28 | `metallic` | f32 | [0, 1] |
+/// | 32 | `roughness` | f32 | [0, 1] |
+/// | 36 | `transmission` | f32 | [0, 1] |
+/// | 40 | `ior` | f32 | index of refraction (1.5 unless glass says otherwise) |
+/// | 44 | `pad` | u32 | zero |
+///
+/// 48 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct ObjectRecord {
+    pub first_triangle: u32,
+    pub triangle_count: u32,
+    pub flags: u32,
+    pub material_kind: u32,
+    pub base_color: [f32; 3],
+    pub metallic: f32,
+    pub roughness: f32,
+    pub transmission: f32,
+    pub ior: f32,
+    pub pad: u32,
+}
+const _: () = assert!(std::mem::size_of::<ObjectRecord>() == 48);
+
+impl ObjectRecord {
+    /// Check: known flags and kind, finite non-negative colour, factors in [0, 1], ior >= 1.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.flags & !OBJ_RAY_TRACED != 0 || self.material_kind > 2 || self.pad != 0 {
+            return Err(format!("object record with unknown flags or kind: {self:?}"));
+        }
+        if !self.base_color.iter().all(|c| c.is_finite() && *c >= 0.0) {
+            return Err(format!("object record with invalid colour: {self:?}"));
+        }
+        let unit = 0.0..=1.0;
+        if !(unit.contains(&self.metallic) && unit.contains(&self.roughness) && unit.contains(&self.transmission)) {
+            return Err(format!("object record with factor outside [0, 1]: {self:?}"));
+        }
+        if !(self.ior >= 1.0 && self.ior.is_finite()) {
+            return Err(format!("object record with ior < 1: {self:?}"));
+        }
+        Ok(())
+    }
+}
+
+/// [`LightRecord::kind`]: point light at `position_or_direction`.
+pub const LIGHT_POINT: u32 = 0;
+/// [`LightRecord::kind`]: directional light travelling along `position_or_direction` (unit).
+pub const LIGHT_DIRECTIONAL: u32 = 1;
+
+/// One light of the light list.
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `position_or_direction` | [f32; 3] | point: world position; directional: unit travel direction |
+/// | 12 | `kind` | u32 | [`LIGHT_POINT`] or [`LIGHT_DIRECTIONAL`] |
+/// | 16 | `radiance` | [f32; 3] | colour x intensity (linear RGB); point lights divide by d^2 |
+/// | 28 | `pad` | u32 | zero |
+///
+/// 32 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct LightRecord {
+    pub position_or_direction: [f32; 3],
+    pub kind: u32,
+    pub radiance: [f32; 3],
+    pub pad: u32,
+}
+const _: () = assert!(std::mem::size_of::<LightRecord>() == 32);
+
+impl LightRecord {
+    /// Build the record of a scene light (directions are normalized here).
+    pub fn from_light(light: &crate::scene::Light) -> Self {
+        use crate::scene::Light;
+        match *light {
+            Light::Point { position, color, intensity } => LightRecord {
+                position_or_direction: position.into(),
+                kind: LIGHT_POINT,
+                radiance: (color * intensity).into(),
+                pad: 0,
+            },
+            Light::Directional { direction, color, intensity } => LightRecord {
+                position_or_direction: direction.normalize_or_zero().into(),
+                kind: LIGHT_DIRECTIONAL,
+                radiance: (color * intensity).into(),
+                pad: 0,
+            },
+        }
+    }
+    /// Check: known kind, finite values, unit direction for directional lights.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.kind > LIGHT_DIRECTIONAL || self.pad != 0 {
+            return Err(format!("light with unknown kind: {self:?}"));
+        }
+        let p = glam::Vec3::from(self.position_or_direction);
+        if !p.is_finite() || !glam::Vec3::from(self.radiance).is_finite() {
+            return Err(format!("light with non-finite values: {self:?}"));
+        }
+        if self.kind == LIGHT_DIRECTIONAL && (p.length() - 1.0).abs() > 1e-5 {
+            return Err(format!("directional light without a unit direction: {self:?}"));
+        }
+        Ok(())
+    }
+}
+
+/// The camera as the stages see it (for the GPU, one uniform buffer).
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `view_proj` | [f32; 16] | world-to-clip, column-major (glam / WGSL `mat4x4<f32>`) |
+/// | 64 | `inv_view_proj` | [f32; 16] | clip-to-world |
+/// | 128 | `eye` | [f32; 3] | world-space eye position |
+/// | 140 | `width` | u32 | image width in pixels |
+/// | 144 | `height` | u32 | image height in pixels |
+/// | 148 | `near` | f32 | near clip distance |
+/// | 152 | `far` | f32 | far clip distance |
+/// | 156 | `pad` | u32 | zero |
+///
+/// 160 bytes. Pixel (x, y) has its centre at window coordinates (x + 0.5, y + 0.5);
+/// row 0 is the top row; NDC y = +1 is the top edge.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct CameraRecord {
+    pub view_proj: [f32; 16],
+    pub inv_view_proj: [f32; 16],
+    pub eye: [f32; 3],
+    pub width: u32,
+    pub height: u32,
+    pub near: f32,
+    pub far: f32,
+    pub pad: u32,
+}
+const _: () = assert!(std::mem::size_of::<CameraRecord>() == 160);
+
+impl CameraRecord {
+    /// Build the record for a camera and an image size.
+    pub fn new(camera: &crate::scene::Camera, width: u32, height: u32) -> Self {
+        let vp = camera.view_projection(width, height);
+        CameraRecord {
+            view_proj: vp.to_cols_array(),
+            inv_view_proj: vp.inverse().to_cols_array(),
+            eye: camera.eye.into(),
+            width,
+            height,
+            near: camera.near,
+            far: camera.far,
+            pad: 0,
+        }
+    }
+    /// Check: non-empty image, finite matrices, 0 < near < far.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.width == 0 || self.height == 0 {
+            return Err(format!("camera with empty image {}x{}", self.width, self.height));
+        }
+        if !self.view_proj.iter().chain(self.inv_view_proj.iter()).all(|v| v.is_finite()) {
+            return Err("camera with non-finite matrices".into());
+        }
+        if !(self.near > 0.0 && self.near < self.far) {
+            return Err(format!("camera needs 0 < near < far, got {} and {}", self.near, self.far));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn miss_texel_validates() {
+        GBufferTexel::MISS.validate().unwrap();
+    }
+
+    #[test]
+    fn hit_texel_without_id_is_rejected() {
+        let t = GBufferTexel { flags: GBUF_HIT, ..GBufferTexel::MISS };
+        assert!(t.validate().is_err());
+    }
+
+    #[test]
+    fn shadow_ray_needs_light() {
+        let r = RayRecord {
+            origin: [0.0; 3],
+            t_min: 0.0,
+            direction: [0.0, 1.0, 0.0],
+            t_max: 1.0,
+            pixel: 0,
+            kind: RAY_KIND_SHADOW,
+            depth: 0,
+            light: INVALID_ID,
+            throughput: [1.0; 3],
+            pad: 0,
+        };
+        assert!(r.validate().is_err());
+        assert!(RayRecord { light: 0, ..r }.validate().is_ok());
+        assert!(RayRecord { t_max: 0.0, ..r }.validate().is_err());
+    }
+}

@@ -1,0 +1,9 @@
+//! Core kernels: small pure functions that are the specification of every stage.
+//! The CPU backend calls them; each WGSL function of the GPU backend mirrors one
+//! by name and says so in a comment.
+
+pub mod barycentric;
+pub mod raster;
+pub mod ray;
+pub mod scan;
+pub mod shading;

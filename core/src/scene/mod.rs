@@ -1,0 +1,292 @@
+//! The scene model: meshes (indexed triangles), objects (mesh + world transform +
+//! material + object id), materials with a render mode and a kind, lights and a
+//! perspective camera; plus the loaders.
+//!
+//! * [`Scene::load`] picks the loader from the file extension: `.glb`/`.gltf`
+//!   ([`gltf_loader`]) or `.toml` ([`manifest`]).
+//! * [`Scene::default_scene`] is the built-in scene (paper Figure 8).
+//! * [`Scene::ensure_camera_and_lights`] frames a scene that has no camera and adds
+//!   default lights to one that has none, and records a note saying so.
+
+pub mod default_scene;
+pub mod gltf_loader;
+pub mod manifest;
+
+use std::path::{Path, PathBuf};
+
+use glam::{Mat4, Vec3};
+
+use crate::SceneError;
+
+/// An indexed triangle mesh in its own (object) space.
+#[derive(Clone, Debug, Default)]
+pub struct Mesh {
+    /// A readable name (glTF mesh name, or a generated one).
+    pub name: String,
+    /// Object-space vertex positions.
+    pub positions: Vec<Vec3>,
+    /// Object-space vertex normals, one per position, when the source has them.
+    /// Without them shading uses the geometric (face) normal.
+    pub normals: Option<Vec<Vec3>>,
+    /// Triangles as three indices into `positions`.
+    pub indices: Vec<[u32; 3]>,
+}
+
+impl Mesh {
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len()
+    }
+}
+
+/// Whether an object is shaded by the ray tracer or by the ordinary raster shader.
+/// Every object is rasterized for primary visibility either way (paper 3.3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RenderMode {
+    /// Shaded by the raster shader (paper 3.4); still casts and receives ray-traced shadows.
+    Raster,
+    /// Shaded by the ray tracer (paper 3.3).
+    RayTraced,
+}
+
+impl RenderMode {
+    /// The name used in manifests, `frame.json` and the CLI.
+    pub const fn name(self) -> &'static str {
+        match self {
+            RenderMode::Raster => "raster",
+            RenderMode::RayTraced => "ray_traced",
+        }
+    }
+}
+
+/// What light does at a surface. Kinds whose secondary rays are not traced yet
+/// (reflection, refraction) still load and are shaded with their local terms.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum MaterialKind {
+    /// Lambertian.
+    Diffuse,
+    /// Specular / mirror (metallic in glTF terms).
+    Specular,
+    /// Glass: transmissive with an index of refraction.
+    Glass {
+        /// Index of refraction (glTF `KHR_materials_ior`, default 1.5).
+        ior: f32,
+    },
+}
+
+impl MaterialKind {
+    /// Numeric code used in [`crate::formats::ObjectRecord::material_kind`].
+    pub const fn code(self) -> u32 {
+        match self {
+            MaterialKind::Diffuse => 0,
+            MaterialKind::Specular => 1,
+            MaterialKind::Glass { .. } => 2,
+        }
+    }
+    /// The name used in manifests and `frame.json`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            MaterialKind::Diffuse => "diffuse",
+            MaterialKind::Specular => "specular",
+            MaterialKind::Glass { .. } => "glass",
+        }
+    }
+}
+
+/// A surface material.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    pub name: String,
+    /// Linear RGB base colour (glTF `baseColorFactor`).
+    pub base_color: Vec3,
+    /// glTF metallic factor in [0, 1].
+    pub metallic: f32,
+    /// glTF roughness factor in [0, 1].
+    pub roughness: f32,
+    /// `KHR_materials_transmission` factor in [0, 1].
+    pub transmission: f32,
+    pub kind: MaterialKind,
+}
+
+impl Material {
+    /// A grey diffuse material (the paper's grey Sponza).
+    pub fn grey() -> Self {
+        Material {
+            name: "grey".into(),
+            base_color: Vec3::splat(0.8),
+            metallic: 0.0,
+            roughness: 1.0,
+            transmission: 0.0,
+            kind: MaterialKind::Diffuse,
+        }
+    }
+
+    /// The documented default rule for glTF materials without a `hyrt` extra:
+    /// metallic (factor >= 0.5) or transmissive (factor > 0) materials are ray traced,
+    /// everything else is rasterized.
+    pub fn default_render_mode(&self) -> RenderMode {
+        if self.metallic >= 0.5 || self.transmission > 0.0 {
+            RenderMode::RayTraced
+        } else {
+            RenderMode::Raster
+        }
+    }
+}
+
+/// Where an object came from, for the `frame.json` object table.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ObjectSource {
+    /// The file it was loaded from; `None` for built-in geometry.
+    pub file: Option<PathBuf>,
+    /// glTF node index.
+    pub node: Option<usize>,
+    /// glTF mesh index.
+    pub mesh: Option<usize>,
+    /// glTF primitive index within the mesh.
+    pub primitive: Option<usize>,
+}
+
+/// A mesh placed in the world with a material and a render mode.
+#[derive(Clone, Debug)]
+pub struct Object {
+    /// Object id: its index in [`Scene::objects`]; written to the G-buffer.
+    pub id: u32,
+    pub name: String,
+    /// Index into [`Scene::meshes`].
+    pub mesh: usize,
+    /// Object-to-world transform.
+    pub transform: Mat4,
+    /// Index into [`Scene::materials`].
+    pub material: usize,
+    pub render_mode: RenderMode,
+    pub source: ObjectSource,
+}
+
+/// A punctual light. `intensity` scales `color`; point lights fall off with 1/d^2.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Light {
+    Point { position: Vec3, color: Vec3, intensity: f32 },
+    /// `direction` is the direction the light travels (from the light into the scene).
+    Directional { direction: Vec3, color: Vec3, intensity: f32 },
+}
+
+/// A perspective camera (right-handed, looking from `eye` to `target`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    pub eye: Vec3,
+    pub target: Vec3,
+    pub up: Vec3,
+    /// Vertical field of view in degrees.
+    pub fov_y_deg: f32,
+    /// Near and far clip distances (> 0, near < far).
+    pub near: f32,
+    pub far: f32,
+}
+
+impl Camera {
+    /// World-to-view matrix (right-handed, -Z forward).
+    pub fn view(&self) -> Mat4 {
+        glam::camera::rh::view::look_at_mat4(self.eye, self.target, self.up)
+    }
+    /// View-to-clip matrix in the WebGPU convention: NDC y up, depth in [0, 1]
+    /// (glam's right-handed `directx` projection; the viewport flips y).
+    pub fn projection(&self, aspect: f32) -> Mat4 {
+        glam::camera::rh::proj::directx::perspective(self.fov_y_deg.to_radians(), aspect, self.near, self.far)
+    }
+    /// World-to-clip matrix for an image of `width` x `height` pixels.
+    pub fn view_projection(&self, width: u32, height: u32) -> Mat4 {
+        self.projection(width as f32 / height as f32) * self.view()
+    }
+}
+
+/// A loaded scene.
+#[derive(Clone, Debug, Default)]
+pub struct Scene {
+    pub meshes: Vec<Mesh>,
+    pub materials: Vec<Material>,
+    pub objects: Vec<Object>,
+    pub lights: Vec<Light>,
+    pub camera: Option<Camera>,
+    /// Human-readable notes about what the loader decided (default lights added,
+    /// camera framed automatically, primitives skipped, ...). The CLI prints them.
+    pub notes: Vec<String>,
+}
+
+impl Scene {
+    /// Load a scene from a `.glb`, `.gltf` or `.toml` file.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase());
+        match ext.as_deref() {
+            Some("glb") | Some("gltf") => gltf_loader::load_gltf(path),
+            Some("toml") => manifest::load_manifest(path),
+            _ => Err(SceneError::UnknownFormat { path: path.to_path_buf() }),
+        }
+    }
+
+    /// Total triangle count over all objects.
+    pub fn triangle_count(&self) -> usize {
+        self.objects.iter().map(|o| self.meshes[o.mesh].triangle_count()).sum()
+    }
+
+    /// World-space bounds (min, max) of all finite object vertices; `None` if there are none.
+    pub fn world_bounds(&self) -> Option<(Vec3, Vec3)> {
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for o in &self.objects {
+            for p in &self.meshes[o.mesh].positions {
+                let w = o.transform.transform_point3(*p);
+                if w.is_finite() {
+                    lo = lo.min(w);
+                    hi = hi.max(w);
+                }
+            }
+        }
+        (lo.x <= hi.x).then_some((lo, hi))
+    }
+
+    /// Frame the scene if it has no camera and add default lights if it has none;
+    /// each decision is recorded in [`Scene::notes`].
+    pub fn ensure_camera_and_lights(&mut self) {
+        let (lo, hi) = self.world_bounds().unwrap_or((Vec3::splat(-1.0), Vec3::splat(1.0)));
+        let center = (lo + hi) * 0.5;
+        let radius = ((hi - lo).length() * 0.5).max(1e-3);
+        if self.camera.is_none() {
+            let fov_y_deg = 45.0f32;
+            // Distance at which a sphere of `radius` fits the vertical field of view.
+            let dist = radius / (fov_y_deg.to_radians() * 0.5).sin();
+            let dir = Vec3::new(0.35, 0.3, 1.0).normalize();
+            let cam = Camera {
+                eye: center + dir * dist,
+                target: center,
+                up: Vec3::Y,
+                fov_y_deg,
+                near: (dist - radius).max(dist * 1e-3).max(1e-4) * 0.5,
+                far: (dist + radius) * 2.0,
+            };
+            self.notes.push(format!(
+                "no camera in the scene: framed automatically (eye {:.3?}, target {:.3?}, fov {fov_y_deg} deg)",
+                cam.eye, cam.target
+            ));
+            self.camera = Some(cam);
+        }
+        if self.lights.is_empty() {
+            // A key light above and to the side of the camera, and a weaker fill light.
+            let eye = self.camera.map(|c| c.eye).unwrap_or(center + Vec3::Z * radius * 3.0);
+            let side = (eye - center).cross(Vec3::Y).normalize_or(Vec3::X);
+            let key = center + Vec3::Y * radius * 2.0 + side * radius * 1.5 + (eye - center) * 0.5;
+            let fill = center + Vec3::Y * radius * 1.5 - side * radius * 2.0 + (eye - center) * 0.3;
+            let key_d2 = (key - center).length_squared();
+            let fill_d2 = (fill - center).length_squared();
+            self.lights.push(Light::Point { position: key, color: Vec3::ONE, intensity: 2.5 * key_d2 });
+            self.lights.push(Light::Point { position: fill, color: Vec3::ONE, intensity: 0.8 * fill_d2 });
+            self.notes.push(format!(
+                "no lights in the scene: added two default point lights at {key:.3?} and {fill:.3?}"
+            ));
+        }
+    }
+}

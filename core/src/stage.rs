@@ -1,0 +1,58 @@
+//! The stages of a hybrid frame. Each has exactly one name, used for the module
+//! in each backend, the timing label in [`crate::formats`]' frame statistics,
+//! the `--dump` file names and the test names.
+
+/// One stage of the pipeline, in execution order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Stage {
+    /// Build the BVH over the whole scene (once per scene, not per frame).
+    BvhBuild,
+    /// Rasterize every object into the G-buffer: barycentrics, depth, ids, flags (paper 3.2).
+    VisibilityRaster,
+    /// Rebuild world-space hit points and normals from barycentrics (paper eq. 1).
+    Reconstruction,
+    /// Compact active (pixel, light) pairs into the shadow-ray list (paper 3.3).
+    Compaction,
+    /// Trace the shadow-ray list through the BVH, any hit with early exit.
+    ShadowRays,
+    /// Shade the pixels of ray-traced objects (paper 3.3).
+    RtShading,
+    /// Shade the pixels of rasterized objects with an ordinary shader (paper 3.4).
+    RasterShading,
+    /// Weighted mean of the raster and ray-traced images (paper 3.5).
+    Composition,
+}
+
+impl Stage {
+    /// Every stage, in execution order.
+    pub const ALL: [Stage; 8] = [
+        Stage::BvhBuild,
+        Stage::VisibilityRaster,
+        Stage::Reconstruction,
+        Stage::Compaction,
+        Stage::ShadowRays,
+        Stage::RtShading,
+        Stage::RasterShading,
+        Stage::Composition,
+    ];
+
+    /// The stage's one name (snake case), as used by modules, timings and tests.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Stage::BvhBuild => "bvh_build",
+            Stage::VisibilityRaster => "visibility_raster",
+            Stage::Reconstruction => "reconstruction",
+            Stage::Compaction => "compaction",
+            Stage::ShadowRays => "shadow_rays",
+            Stage::RtShading => "rt_shading",
+            Stage::RasterShading => "raster_shading",
+            Stage::Composition => "composition",
+        }
+    }
+}
+
+impl std::fmt::Display for Stage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
