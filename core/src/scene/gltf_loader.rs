@@ -1,3 +1,673 @@
-//! (in progress)
-use std::path::Path; use crate::{scene::Scene, SceneError};
-pub fn load_gltf(path: &Path) -> Result<Scene, SceneError> { Err(SceneError::UnknownFormat{path: path.into()}) }
+//! glTF 2.0 loader (`.gltf` with external or embedded buffers, and `.glb`).
+//!
+//! What is read, and how it maps onto the [scene model](super):
+//!
+//! * **Hierarchy.** The default scene (`scene`), else the first scene, else (with a note)
+//!   every node that is no other node's child. Nodes are walked depth first, children in
+//!   file order, with world transforms accumulated as `parent * node.matrix()`. A node
+//!   reached twice (a cycle, or a node with two parents) is a [`SceneError::Content`] error.
+//! * **Geometry.** Each primitive of mode `TRIANGLES` becomes one [`Mesh`] and, per node that
+//!   instances it, one [`Object`]; a `(mesh, primitive)` pair instanced by several nodes shares
+//!   one [`Mesh`]. Other modes (points, lines, strips, fans) are skipped with a note.
+//!   `POSITION` must be float32 `VEC3`; `NORMAL` is kept when it is float32 `VEC3` with one
+//!   normal per position (otherwise dropped, with a note); indices may be u8/u16/u32, and a
+//!   primitive without indices gets `0..n`. Sparse accessors and accessors without a buffer
+//!   view (all zeros) are supported. Texture coordinates, textures, skins and morph targets
+//!   are ignored; images are never decoded.
+//! * **Names.** Object name: node name, else mesh name, else `node<i>`, then `#<primitive>`.
+//!   Mesh name: mesh name (else `mesh<i>`), then `#<primitive>`.
+//! * **Materials.** `baseColorFactor` RGB, `metallicFactor`, `roughnessFactor`,
+//!   `KHR_materials_transmission` factor (default 0) and `KHR_materials_ior` (default 1.5).
+//!   Kind: transmission > 0 gives [`MaterialKind::Glass`], else metallic >= 0.5 gives
+//!   [`MaterialKind::Specular`], else [`MaterialKind::Diffuse`]. Primitives without a material
+//!   get [`Material::grey`].
+//! * **Render mode.** An `extras` object `{"hyrt": {"ray_traced": true | false}}` on the node,
+//!   the mesh or the material decides, in that order of precedence (node over mesh over
+//!   material); without one, [`Material::default_render_mode`]. Any other key inside `"hyrt"`
+//!   is an error (it catches typos); other keys of `extras` are ignored.
+//! * **Camera.** The first perspective camera met in the walk: eye = the node's world
+//!   translation, target = eye + the node's world -Z, up = the node's world +Y, `yfov`
+//!   (radians) converted to degrees, `znear`; `zfar`, or when absent (infinite projection)
+//!   twice the distance from the eye to the farthest corner of the scene bounds (at least
+//!   twice `znear`; 1000 `znear` for a scene without finite vertices), with a note.
+//!   `aspectRatio` is ignored: the output image decides. Orthographic cameras are skipped.
+//! * **Lights** (`KHR_lights_punctual`). Point: the node's world translation. Directional:
+//!   travels along the node's world -Z. Spot: loaded as a point light, with a note.
+//!   Units: glTF gives point/spot intensity in candela (lm/sr) and directional intensity in
+//!   lux (lm/m^2). Both are used as-is as [`Light`] `intensity`, which scales `color` (with
+//!   1/d^2 falloff for point lights): the renderer is not photometric, so a point light of
+//!   intensity I lights a surface facing it at distance d like a directional light of
+//!   intensity I / d^2. `range` is ignored (no cutoff).
+//! * **Not added here:** a default camera or default lights; the caller decides
+//!   ([`Scene::ensure_camera_and_lights`]).
+//!
+//! Errors name the file: it cannot be read ([`SceneError::Io`]); it does not parse or
+//! validate as glTF 2.0, or a buffer cannot be loaded or an accessor lies outside its buffer
+//! ([`SceneError::Gltf`]); content hyrt cannot render: no `POSITION`, a position type other
+//! than float32 `VEC3`, an index out of range, an index count not a multiple of 3
+//! ([`SceneError::Content`]). NaN or infinite positions are loaded and counted in a note:
+//! triangles using them are never hit nor covered.
+
+use std::collections::HashMap;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::Path;
+
+use glam::{Mat4, Vec3};
+use gltf::accessor::{DataType, Dimensions};
+use gltf::mesh::{Mode, Semantic};
+
+use super::{Camera, Light, Material, MaterialKind, Mesh, Object, ObjectSource, RenderMode, Scene};
+use crate::SceneError;
+
+/// `KHR_materials_ior` default (the extension's specification: 1.5).
+const DEFAULT_IOR: f32 = 1.5;
+
+/// A material is specular when its metallic factor is at least this (the same threshold as
+/// [`Material::default_render_mode`]).
+const METALLIC_SPECULAR_THRESHOLD: f32 = 0.5;
+
+/// Load a `.gltf` or `.glb` file; see the module docs for what is read.
+pub fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
+    load_gltf_detailed(path).map(|loaded| loaded.scene)
+}
+
+/// A loaded glTF file plus what the manifest loader needs to apply its overrides.
+pub(crate) struct LoadedGltf {
+    pub scene: Scene,
+    /// Per object: whether its render mode came from a `hyrt` extra (true) or from
+    /// [`Material::default_render_mode`] (false).
+    pub mode_from_extras: Vec<bool>,
+}
+
+/// [`load_gltf`], also telling which render modes came from `extras`.
+pub(crate) fn load_gltf_detailed(path: &Path) -> Result<LoadedGltf, SceneError> {
+    let bytes = std::fs::read(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
+    let gltf_err = |message: String| SceneError::Gltf { path: path.to_path_buf(), message };
+    let gltf::Gltf { document, mut blob } =
+        gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| gltf_err(e.to_string()))?;
+    drop(bytes);
+    let tolerated_note = validate(&document).map_err(gltf_err)?;
+    // The gltf crate asserts on a few malformed layouts (bad URI escapes, index types); turn
+    // such a panic into an error naming the file rather than taking the caller down.
+    let converted = catch_unwind(AssertUnwindSafe(|| -> Result<LoadedGltf, SceneError> {
+        let base = path.parent().unwrap_or(Path::new(""));
+        let mut buffers = Vec::new();
+        for buffer in document.buffers() {
+            let what = match buffer.source() {
+                gltf::buffer::Source::Bin => "the GLB binary chunk".to_string(),
+                gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => "an embedded data URI".to_string(),
+                gltf::buffer::Source::Uri(uri) => format!("'{}'", base.join(uri).display()),
+            };
+            let data = gltf::buffer::Data::from_source_and_blob(buffer.source(), Some(base), &mut blob)
+                .map_err(|e| gltf_err(format!("buffer {} ({what}): cannot load: {e}", buffer.index())))?;
+            if data.len() < buffer.length() {
+                return Err(gltf_err(format!(
+                    "buffer {} ({what}) holds {} bytes, the file declares {}",
+                    buffer.index(),
+                    data.len(),
+                    buffer.length()
+                )));
+            }
+            buffers.push(data);
+        }
+        let mut converter = Converter::new(path, &buffers);
+        converter.scene.notes.extend(tolerated_note.map(|n| format!("{}: {n}", path.display())));
+        converter.run(&document)
+    }));
+    converted.unwrap_or_else(|_| Err(gltf_err("malformed data made the glTF reader fail".into())))
+}
+
+/// Run the gltf crate's validation, tolerating two of its findings that the loader handles
+/// itself: a `POSITION` accessor without `min`/`max` (required by the specification but not
+/// needed here; a note is returned) and a primitive without `POSITION` (reported by the loader
+/// as [`SceneError::Content`]). Any other finding is an error message listing them all.
+fn validate(document: &gltf::Document) -> Result<Option<String>, String> {
+    use gltf::json::validation::{Error, Validate};
+    let root = document.as_json();
+    let mut fatal = Vec::new();
+    let mut missing_bounds = 0usize;
+    root.validate(root, gltf::json::Path::new, &mut |path, error| {
+        let path = path().to_string();
+        let position = path.contains("attributes[\"POSITION\"]");
+        match error {
+            Error::Missing if position && (path.ends_with(".min") || path.ends_with(".max")) => missing_bounds += 1,
+            Error::Missing if path.ends_with("attributes[\"POSITION\"]") => {}
+            _ => fatal.push(format!("{path}: {error}")),
+        }
+    });
+    if !fatal.is_empty() {
+        return Err(fatal.join("; "));
+    }
+    Ok((missing_bounds > 0).then(|| {
+        format!("{missing_bounds} POSITION accessor bounds (min/max) are missing; tolerated, they are not used")
+    }))
+}
+
+/// The state of one conversion.
+struct Converter<'a> {
+    path: &'a Path,
+    buffers: &'a [gltf::buffer::Data],
+    scene: Scene,
+    mode_from_extras: Vec<bool>,
+    /// (glTF mesh, primitive) -> index in `scene.meshes`.
+    meshes: HashMap<(usize, usize), usize>,
+    /// glTF material index (`None`: the default grey) -> index in `scene.materials`.
+    materials: HashMap<Option<usize>, usize>,
+    /// A camera without `zfar`: its far distance is derived from the bounds at the end.
+    camera_needs_far: bool,
+}
+
+impl<'a> Converter<'a> {
+    fn new(path: &'a Path, buffers: &'a [gltf::buffer::Data]) -> Self {
+        Converter {
+            path,
+            buffers,
+            scene: Scene::default(),
+            mode_from_extras: Vec::new(),
+            meshes: HashMap::new(),
+            materials: HashMap::new(),
+            camera_needs_far: false,
+        }
+    }
+
+    fn content(&self, message: String) -> SceneError {
+        SceneError::Content { path: self.path.to_path_buf(), message }
+    }
+
+    fn run(mut self, document: &gltf::Document) -> Result<LoadedGltf, SceneError> {
+        let roots: Vec<gltf::Node> = match document.default_scene().or_else(|| document.scenes().next()) {
+            Some(scene) => scene.nodes().collect(),
+            None => {
+                let mut is_child = vec![false; document.nodes().len()];
+                for node in document.nodes() {
+                    for child in node.children() {
+                        is_child[child.index()] = true;
+                    }
+                }
+                self.scene.notes.push(format!(
+                    "{}: the file has no scene: using every node that has no parent",
+                    self.path.display()
+                ));
+                document.nodes().filter(|n| !is_child[n.index()]).collect()
+            }
+        };
+        // Depth-first, children in file order: a stack popped from the back, pushed reversed.
+        let mut visited = vec![false; document.nodes().len()];
+        let mut stack: Vec<(gltf::Node, Mat4)> = roots.into_iter().rev().map(|n| (n, Mat4::IDENTITY)).collect();
+        while let Some((node, parent)) = stack.pop() {
+            if std::mem::replace(&mut visited[node.index()], true) {
+                return Err(self.content(format!(
+                    "node {} is reached twice in the node hierarchy (a cycle, or a node with two parents)",
+                    node.index()
+                )));
+            }
+            let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+            self.visit(&node, world)?;
+            let children: Vec<gltf::Node> = node.children().collect();
+            stack.extend(children.into_iter().rev().map(|c| (c, world)));
+        }
+        if self.camera_needs_far {
+            self.derive_camera_far();
+        }
+        Ok(LoadedGltf { scene: self.scene, mode_from_extras: self.mode_from_extras })
+    }
+
+    fn visit(&mut self, node: &gltf::Node, world: Mat4) -> Result<(), SceneError> {
+        let node_label = match node.name() {
+            Some(name) => format!("node {} '{name}'", node.index()),
+            None => format!("node {}", node.index()),
+        };
+        if let Some(camera) = node.camera() {
+            self.camera(&camera, &node_label, world);
+        }
+        if let Some(light) = node.light() {
+            self.light(&light, &node_label, world);
+        }
+        let Some(mesh) = node.mesh() else {
+            return Ok(());
+        };
+        let node_mode = self.hyrt_ray_traced(node.extras(), &node_label)?;
+        let mesh_label = match mesh.name() {
+            Some(name) => format!("mesh {} '{name}'", mesh.index()),
+            None => format!("mesh {}", mesh.index()),
+        };
+        let mesh_mode = self.hyrt_ray_traced(mesh.extras(), &mesh_label)?;
+        let base_name =
+            node.name().or(mesh.name()).map(str::to_string).unwrap_or_else(|| format!("node{}", node.index()));
+        for primitive in mesh.primitives() {
+            let prim_label = format!("{mesh_label} primitive {}", primitive.index());
+            if primitive.mode() != Mode::Triangles {
+                let note = format!(
+                    "{}: {prim_label}: mode {:?} is not TRIANGLES: skipped",
+                    self.path.display(),
+                    primitive.mode()
+                );
+                if !self.scene.notes.contains(&note) {
+                    self.scene.notes.push(note);
+                }
+                continue;
+            }
+            let key = (mesh.index(), primitive.index());
+            let mesh_index = match self.meshes.get(&key) {
+                Some(&i) => i,
+                None => {
+                    let name = format!(
+                        "{}#{}",
+                        mesh.name().map(str::to_string).unwrap_or_else(|| format!("mesh{}", mesh.index())),
+                        primitive.index()
+                    );
+                    let m = self.read_primitive(&primitive, name, &prim_label)?;
+                    self.scene.meshes.push(m);
+                    self.meshes.insert(key, self.scene.meshes.len() - 1);
+                    self.scene.meshes.len() - 1
+                }
+            };
+            let gltf_material = primitive.material();
+            let (material, material_mode) = self.material(&gltf_material)?;
+            let from_extras = node_mode.or(mesh_mode).or(material_mode);
+            let render_mode = match from_extras {
+                Some(true) => RenderMode::RayTraced,
+                Some(false) => RenderMode::Raster,
+                None => self.scene.materials[material].default_render_mode(),
+            };
+            let id = self.scene.objects.len() as u32;
+            self.scene.objects.push(Object {
+                id,
+                name: format!("{base_name}#{}", primitive.index()),
+                mesh: mesh_index,
+                transform: world,
+                material,
+                render_mode,
+                source: ObjectSource {
+                    file: Some(self.path.to_path_buf()),
+                    node: Some(node.index()),
+                    mesh: Some(mesh.index()),
+                    primitive: Some(primitive.index()),
+                },
+            });
+            self.mode_from_extras.push(from_extras.is_some());
+        }
+        Ok(())
+    }
+
+    /// Read one triangle-list primitive into a [`Mesh`].
+    fn read_primitive(&mut self, primitive: &gltf::Primitive, name: String, label: &str) -> Result<Mesh, SceneError> {
+        let file = self.path.display().to_string();
+        let Some(pos_acc) = primitive.get(&Semantic::Positions) else {
+            return Err(self.content(format!("{label}: has no POSITION attribute")));
+        };
+        if pos_acc.data_type() != DataType::F32 || pos_acc.dimensions() != Dimensions::Vec3 {
+            return Err(self.content(format!(
+                "{label}: POSITION must be float32 VEC3, found {:?} {:?}",
+                pos_acc.data_type(),
+                pos_acc.dimensions()
+            )));
+        }
+        let positions: Vec<Vec3> = read_accessor(&pos_acc, self.buffers, 12, read_vec3)
+            .map_err(|e| self.gltf_error(format!("{label}: POSITION accessor {}: {e}", pos_acc.index())))?;
+        let non_finite = positions.iter().filter(|p| !p.is_finite()).count();
+        if non_finite > 0 {
+            self.scene.notes.push(format!(
+                "{file}: {label}: {non_finite} vertex positions are NaN or infinite; triangles using them are never hit"
+            ));
+        }
+        let normals = match primitive.get(&Semantic::Normals) {
+            None => None,
+            Some(acc) if acc.data_type() != DataType::F32 || acc.dimensions() != Dimensions::Vec3 => {
+                self.scene.notes.push(format!(
+                    "{file}: {label}: NORMAL is {:?} {:?}, not float32 VEC3: ignored (face normals used)",
+                    acc.data_type(),
+                    acc.dimensions()
+                ));
+                None
+            }
+            Some(acc) if acc.count() != positions.len() => {
+                self.scene.notes.push(format!(
+                    "{file}: {label}: {} normals for {} positions: ignored (face normals used)",
+                    acc.count(),
+                    positions.len()
+                ));
+                None
+            }
+            Some(acc) => Some(
+                read_accessor(&acc, self.buffers, 12, read_vec3)
+                    .map_err(|e| self.gltf_error(format!("{label}: NORMAL accessor {}: {e}", acc.index())))?,
+            ),
+        };
+        let flat: Vec<u32> = match primitive.indices() {
+            None => {
+                let n = u32::try_from(positions.len())
+                    .map_err(|_| self.content(format!("{label}: more than 2^32 vertices")))?;
+                (0..n).collect()
+            }
+            Some(acc) => {
+                if acc.dimensions() != Dimensions::Scalar {
+                    return Err(self.content(format!("{label}: indices must be SCALAR, found {:?}", acc.dimensions())));
+                }
+                let read = match acc.data_type() {
+                    DataType::U8 => read_accessor(&acc, self.buffers, 1, |b| b[0] as u32),
+                    DataType::U16 => read_accessor(&acc, self.buffers, 2, |b| u16::from_le_bytes([b[0], b[1]]) as u32),
+                    DataType::U32 => {
+                        read_accessor(&acc, self.buffers, 4, |b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                    }
+                    other => {
+                        return Err(self.content(format!(
+                            "{label}: indices must be unsigned 8/16/32-bit integers, found {other:?}"
+                        )))
+                    }
+                };
+                read.map_err(|e| self.gltf_error(format!("{label}: indices accessor {}: {e}", acc.index())))?
+            }
+        };
+        if !flat.chunks_exact(3).remainder().is_empty() {
+            return Err(
+                self.content(format!("{label}: {} indices is not a multiple of 3 (mode TRIANGLES)", flat.len()))
+            );
+        }
+        if let Some((k, &bad)) = flat.iter().enumerate().find(|(_, &i)| i as usize >= positions.len()) {
+            return Err(self.content(format!(
+                "{label}: index {bad} (at position {k} of the index list) is out of range: the primitive has {} vertices",
+                positions.len()
+            )));
+        }
+        let indices = flat.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+        Ok(Mesh { name, positions, normals, indices })
+    }
+
+    fn gltf_error(&self, message: String) -> SceneError {
+        SceneError::Gltf { path: self.path.to_path_buf(), message }
+    }
+
+    /// The index in `scene.materials` of a glTF material (converted once), and its `hyrt` extra.
+    fn material(&mut self, m: &gltf::Material) -> Result<(usize, Option<bool>), SceneError> {
+        let mode = match m.index() {
+            Some(i) => {
+                let label = match m.name() {
+                    Some(name) => format!("material {i} '{name}'"),
+                    None => format!("material {i}"),
+                };
+                self.hyrt_ray_traced(m.extras(), &label)?
+            }
+            None => None,
+        };
+        if let Some(&i) = self.materials.get(&m.index()) {
+            return Ok((i, mode));
+        }
+        let material = match m.index() {
+            None => Material::grey(),
+            Some(i) => convert_material(m, i),
+        };
+        self.scene.materials.push(material);
+        self.materials.insert(m.index(), self.scene.materials.len() - 1);
+        Ok((self.scene.materials.len() - 1, mode))
+    }
+
+    /// Parse `{"hyrt": {"ray_traced": bool}}` out of an `extras` value.
+    fn hyrt_ray_traced(&self, extras: &gltf::json::Extras, what: &str) -> Result<Option<bool>, SceneError> {
+        let Some(raw) = extras else { return Ok(None) };
+        let value: serde_json::Value = serde_json::from_str(raw.get())
+            .map_err(|e| self.gltf_error(format!("{what}: extras are not valid JSON: {e}")))?;
+        let Some(hyrt) = value.get("hyrt") else {
+            return Ok(None);
+        };
+        let bad = || self.content(format!("{what}: extras.hyrt must be {{\"ray_traced\": true|false}}, found {hyrt}"));
+        let obj = hyrt.as_object().ok_or_else(bad)?;
+        if obj.keys().any(|k| k != "ray_traced") {
+            return Err(bad());
+        }
+        match obj.get("ray_traced") {
+            None => Ok(None),
+            Some(v) => v.as_bool().map(Some).ok_or_else(bad),
+        }
+    }
+
+    fn camera(&mut self, camera: &gltf::Camera, node_label: &str, world: Mat4) {
+        if self.scene.camera.is_some() {
+            return;
+        }
+        let file = self.path.display().to_string();
+        let gltf::camera::Projection::Perspective(p) = camera.projection() else {
+            self.scene.notes.push(format!("{file}: {node_label}: orthographic camera ignored"));
+            return;
+        };
+        let eye = world.transform_point3(Vec3::ZERO);
+        let forward = world.transform_vector3(Vec3::NEG_Z).normalize_or_zero();
+        let up = world.transform_vector3(Vec3::Y).normalize_or_zero();
+        let fov_y_deg = p.yfov().to_degrees();
+        let near = p.znear();
+        let usable = eye.is_finite()
+            && forward != Vec3::ZERO
+            && up != Vec3::ZERO
+            && forward.cross(up).length_squared() > 0.0
+            && fov_y_deg > 0.0
+            && fov_y_deg < 180.0
+            && near > 0.0
+            && near.is_finite();
+        if !usable {
+            self.scene.notes.push(format!(
+                "{file}: {node_label}: camera ignored (degenerate transform, yfov {} rad or znear {near})",
+                p.yfov()
+            ));
+            return;
+        }
+        let far = match p.zfar() {
+            Some(far) if far > near && far.is_finite() => far,
+            _ => {
+                self.camera_needs_far = true;
+                f32::INFINITY
+            }
+        };
+        self.scene.camera = Some(Camera { eye, target: eye + forward, up, fov_y_deg, near, far });
+    }
+
+    /// Give a camera without a usable `zfar` a far distance from the scene bounds.
+    fn derive_camera_far(&mut self) {
+        let bounds = self.scene.world_bounds();
+        let Some(cam) = self.scene.camera.as_mut() else {
+            return;
+        };
+        let reach = bounds
+            .map(|(lo, hi)| {
+                let mut d: f32 = 0.0;
+                for k in 0..8 {
+                    let corner = Vec3::new(
+                        if k & 1 == 0 { lo.x } else { hi.x },
+                        if k & 2 == 0 { lo.y } else { hi.y },
+                        if k & 4 == 0 { lo.z } else { hi.z },
+                    );
+                    d = d.max((corner - cam.eye).length());
+                }
+                d
+            })
+            .unwrap_or(0.0);
+        // Twice the farthest corner (beyond twice near); 1000 near distances without geometry.
+        cam.far = if reach > 0.0 { (2.0 * reach).max(2.0 * cam.near) } else { 1000.0 * cam.near };
+        self.scene.notes.push(format!(
+            "{}: camera has no finite zfar: far set to {:.4} from the scene bounds",
+            self.path.display(),
+            cam.far
+        ));
+    }
+
+    fn light(&mut self, light: &gltf::khr_lights_punctual::Light, node_label: &str, world: Mat4) {
+        use gltf::khr_lights_punctual::Kind;
+        let file = self.path.display().to_string();
+        let color = Vec3::from(light.color());
+        let intensity = light.intensity();
+        if light.range().is_some() {
+            self.scene.notes.push(format!("{file}: {node_label}: light range ignored (1/d^2 falloff, no cutoff)"));
+        }
+        let position = world.transform_point3(Vec3::ZERO);
+        match light.kind() {
+            Kind::Directional => {
+                let direction = world.transform_vector3(Vec3::NEG_Z).normalize_or_zero();
+                if direction == Vec3::ZERO || !direction.is_finite() {
+                    self.scene.notes.push(format!("{file}: {node_label}: directional light with no direction ignored"));
+                    return;
+                }
+                self.scene.lights.push(Light::Directional { direction, color, intensity });
+            }
+            kind => {
+                if matches!(kind, Kind::Spot { .. }) {
+                    self.scene
+                        .notes
+                        .push(format!("{file}: {node_label}: spot light loaded as a point light (cone ignored)"));
+                }
+                self.scene.lights.push(Light::Point { position, color, intensity });
+            }
+        }
+    }
+}
+
+/// Convert a glTF material (see the module docs for the rule).
+fn convert_material(m: &gltf::Material, index: usize) -> Material {
+    let pbr = m.pbr_metallic_roughness();
+    let [r, g, b, _a] = pbr.base_color_factor();
+    let metallic = pbr.metallic_factor();
+    let transmission = m.transmission().map(|t| t.transmission_factor()).unwrap_or(0.0);
+    let ior = m.ior().unwrap_or(DEFAULT_IOR);
+    Material {
+        name: m.name().map(str::to_string).unwrap_or_else(|| format!("material{index}")),
+        base_color: Vec3::new(r, g, b),
+        metallic,
+        roughness: pbr.roughness_factor(),
+        transmission,
+        kind: material_kind(metallic, transmission, ior),
+    }
+}
+
+/// The kind rule shared with the manifest: transmission > 0 is glass, metallic >= 0.5 is
+/// specular, everything else is diffuse.
+pub(crate) fn material_kind(metallic: f32, transmission: f32, ior: f32) -> MaterialKind {
+    if transmission > 0.0 {
+        MaterialKind::Glass { ior }
+    } else if metallic >= METALLIC_SPECULAR_THRESHOLD {
+        MaterialKind::Specular
+    } else {
+        MaterialKind::Diffuse
+    }
+}
+
+fn read_vec3(b: &[u8]) -> Vec3 {
+    let f = |k: usize| f32::from_le_bytes([b[k], b[k + 1], b[k + 2], b[k + 3]]);
+    Vec3::new(f(0), f(4), f(8))
+}
+
+/// Read every element of an accessor (`elem` bytes each, decoded by `decode`), with its
+/// sparse substitutions, checking every byte range; an accessor without a buffer view is
+/// all zeros. Errors say what is out of range.
+fn read_accessor<T: Copy>(
+    acc: &gltf::Accessor,
+    buffers: &[gltf::buffer::Data],
+    elem: usize,
+    decode: impl Fn(&[u8]) -> T,
+) -> Result<Vec<T>, String> {
+    let count = acc.count();
+    let zero = decode(&[0u8; 16][..elem]);
+    let mut out = match acc.view() {
+        None => {
+            // Bounded by the file size: more zeros than bytes in the whole file is an error.
+            let budget: usize = buffers.iter().map(|b| b.len()).sum::<usize>().max(1 << 20);
+            if count > budget {
+                return Err(format!("{count} elements without a buffer view is implausible"));
+            }
+            vec![zero; count]
+        }
+        Some(view) => {
+            let stride = view.stride().unwrap_or(elem);
+            let bytes = view_bytes(&view, buffers)?;
+            if stride < elem {
+                return Err(format!("byte stride {stride} is smaller than the element size {elem}"));
+            }
+            strided(bytes, acc.offset(), stride, count, elem, &decode)?
+        }
+    };
+    if let Some(sparse) = acc.sparse() {
+        let n = sparse.count();
+        let indices = sparse.indices();
+        let index_bytes = view_bytes(&indices.view(), buffers)?;
+        let index_size = match indices.index_type() {
+            gltf::accessor::sparse::IndexType::U8 => 1,
+            gltf::accessor::sparse::IndexType::U16 => 2,
+            gltf::accessor::sparse::IndexType::U32 => 4,
+        };
+        let targets = strided(index_bytes, indices.offset(), index_size, n, index_size, |b: &[u8]| {
+            b.iter().rev().fold(0usize, |acc, &x| (acc << 8) | x as usize)
+        })?;
+        let values = sparse.values();
+        let value_bytes = view_bytes(&values.view(), buffers)?;
+        let values = strided(value_bytes, values.offset(), elem, n, elem, &decode)?;
+        for (target, value) in targets.into_iter().zip(values) {
+            let slot = out.get_mut(target).ok_or_else(|| format!("sparse index {target} >= count {count}"))?;
+            *slot = value;
+        }
+    }
+    Ok(out)
+}
+
+/// The bytes of a buffer view, range-checked against its buffer.
+fn view_bytes<'b>(view: &gltf::buffer::View, buffers: &'b [gltf::buffer::Data]) -> Result<&'b [u8], String> {
+    let buffer = buffers
+        .get(view.buffer().index())
+        .ok_or_else(|| format!("buffer view {} names a missing buffer", view.index()))?;
+    view.offset().checked_add(view.length()).and_then(|end| buffer.get(view.offset()..end)).ok_or_else(|| {
+        format!(
+            "buffer view {} (bytes {}..+{}) lies outside buffer {} ({} bytes)",
+            view.index(),
+            view.offset(),
+            view.length(),
+            view.buffer().index(),
+            buffer.len()
+        )
+    })
+}
+
+/// `count` elements of `elem` bytes at `offset + i * stride` within `bytes`, all range-checked.
+fn strided<T>(
+    bytes: &[u8],
+    offset: usize,
+    stride: usize,
+    count: usize,
+    elem: usize,
+    decode: impl Fn(&[u8]) -> T,
+) -> Result<Vec<T>, String> {
+    if count == 0 {
+        return Ok(Vec::new());
+    }
+    let end = (count - 1).checked_mul(stride).and_then(|x| x.checked_add(offset)).and_then(|x| x.checked_add(elem));
+    match end {
+        Some(end) if end <= bytes.len() => {}
+        _ => {
+            return Err(format!(
+            "{count} elements of {elem} bytes (stride {stride}, offset {offset}) do not fit in a {}-byte buffer view",
+            bytes.len()
+        ))
+        }
+    }
+    Ok((0..count).map(|i| decode(&bytes[offset + i * stride..offset + i * stride + elem])).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn strided_reads_are_range_checked_without_overflow() {
+        let bytes: Vec<u8> = (0..16).collect();
+        let first = |b: &[u8]| b[0];
+        assert_eq!(strided(&bytes, 1, 5, 3, 2, first), Ok(vec![1, 6, 11]));
+        assert_eq!(strided(&bytes, 0, 4, 0, 4, first), Ok(vec![]));
+        assert!(strided(&bytes, 0, 4, 5, 4, first).is_err(), "one element too many");
+        assert!(strided(&bytes, 13, 4, 1, 4, first).is_err(), "offset pushes it out");
+        assert!(strided(&bytes, 0, usize::MAX / 2, 3, 4, first).is_err(), "count * stride overflows");
+        assert!(strided(&bytes, usize::MAX, 4, 1, 4, first).is_err(), "offset + elem overflows");
+    }
+
+    #[test]
+    fn material_kind_rule() {
+        assert_eq!(material_kind(0.0, 0.0, 1.5), MaterialKind::Diffuse);
+        assert_eq!(material_kind(0.49, 0.0, 1.5), MaterialKind::Diffuse);
+        assert_eq!(material_kind(0.5, 0.0, 1.5), MaterialKind::Specular);
+        assert_eq!(material_kind(1.0, 0.01, 1.33), MaterialKind::Glass { ior: 1.33 }, "transmission wins");
+    }
+}
