@@ -19,6 +19,18 @@ pub enum SceneError {
     /// The TOML manifest does not parse or does not match the manifest schema.
     #[error("{path}: invalid scene manifest: {message}")]
     Manifest { path: PathBuf, message: String },
+    /// An entry of a TOML manifest (a model file) could not be loaded. The message names the
+    /// manifest, the entry (e.g. `model[1] 'bunny'`) and the underlying error, which names
+    /// the model file.
+    #[error("{path}: {entry}: {error}")]
+    ManifestEntry {
+        /// The manifest.
+        path: PathBuf,
+        /// The entry, e.g. `model[1] 'bunny'`.
+        entry: String,
+        /// Why it failed (an error naming the model file).
+        error: Box<SceneError>,
+    },
     /// The file parses but its content cannot be rendered (e.g. NaN vertex positions,
     /// indices out of range, a primitive mode other than triangles).
     #[error("{path}: {message}")]

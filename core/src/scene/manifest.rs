@@ -1,3 +1,687 @@
-//! (in progress)
-use std::path::Path; use crate::{scene::Scene, SceneError};
-pub fn load_manifest(path: &Path) -> Result<Scene, SceneError> { Err(SceneError::UnknownFormat{path: path.into()}) }
+//! The TOML scene manifest: a scene composed of glTF/GLB files and built-in shapes, each
+//! placed with its own transform, render mode and material override, plus a camera and lights.
+//!
+//! ```toml
+//! description = "golden bunny in the grey Sponza atrium"   # optional, free text
+//!
+//! [camera]                      # optional; without it: the first camera of a model file, else none
+//! eye = [9.0, 2.6, 3.0]
+//! target = [0.0, 1.8, 0.0]
+//! up = [0.0, 1.0, 0.0]          # default +Y
+//! fov_deg = 55.0                # vertical field of view, default 45
+//! near = 0.05                   # default: far / 1000
+//! far = 80.0                    # default: twice the distance from the eye to the farthest corner of the scene bounds
+//!
+//! [[light]]                     # zero or more; without any: the model files' lights, else none
+//! type = "point"                # "point" | "directional"
+//! position = [3.0, 9.0, 3.0]    # point lights only
+//! color = [1.0, 0.95, 0.9]      # linear RGB, default [1, 1, 1]
+//! intensity = 150.0             # scales color; point lights fall off with 1/d^2
+//!
+//! [[light]]
+//! type = "directional"
+//! direction = [-0.3, -1.0, -0.2] # the direction the light travels; normalised on load
+//! intensity = 0.5
+//!
+//! [[model]]                     # one or more
+//! file = "../../../shared/assets/sponza.glb"   # relative to this manifest's folder (or absolute)
+//! name = "sponza"               # optional; default: the file stem, or the builtin's name
+//! render_mode = "raster"        # optional: "raster" | "ray_traced"
+//! material = { base_color = [0.8, 0.8, 0.8], metallic = 0.0, roughness = 0.9 }
+//!
+//! [[model]]
+//! file = "../../../shared/assets/bunny.glb"
+//! translate = [0.42, -0.73, 0.04]            # metres, default [0, 0, 0]
+//! rotate_deg = [0.0, 30.0, 0.0]              # Euler angles in degrees, see below
+//! # rotate_axis_angle = { axis = [0, 1, 0], angle_deg = 30 }   # or this, not both
+//! scale = 25.0                               # uniform, or per axis: [sx, sy, sz]; default 1
+//! render_mode = "ray_traced"
+//! [model.material]
+//! base_color = [1.0, 0.76, 0.33]
+//! metallic = 1.0
+//! roughness = 0.2
+//! kind = "specular"             # "diffuse" | "specular" | "glass"; default: derived, see below
+//! # transmission = 1.0, ior = 1.5, name = "gold" are the other keys
+//!
+//! [[model]]
+//! builtin = "grid"              # instead of file: "grid" | "sphere" | "cube" | "torus"
+//! scale = [20.0, 1.0, 20.0]
+//! ```
+//!
+//! Unknown keys are errors everywhere (`deny_unknown_fields`), so typos do not pass silently.
+//!
+//! * **Paths.** `file` is resolved against the folder holding the manifest (an absolute path is
+//!   used as is). There is no variable substitution. The same file used by several models is
+//!   read once, and its meshes are shared.
+//! * **Transform.** Model matrix = translate * rotate * scale (scale first). `rotate_deg =
+//!   [rx, ry, rz]` rotates about the world X axis first, then Y, then Z, i.e.
+//!   `R = Rz(rz) * Ry(ry) * Rx(rx)`. `rotate_axis_angle` rotates right-handedly about `axis`
+//!   (normalised). Scales must be non-zero (negative mirrors). Each object of the file is placed
+//!   at `model * object_transform`.
+//! * **Built-ins** (the procedural meshes of the default scene, grey diffuse material):
+//!   `grid` is a unit square in the XZ plane centred at the origin facing +Y (16 x 16 quads),
+//!   `sphere` a UV sphere of radius 1 (48 x 24), `cube` spans -1..1 on each axis, `torus`
+//!   lies in the XZ plane with ring radius 1 and tube radius 0.35 (48 x 24).
+//! * **Material override.** Applies to every material of the model; keys left out keep the
+//!   file's values. `kind` left out is derived from the resulting factors with the glTF
+//!   loader's rule (transmission > 0: glass; metallic >= 0.5: specular; else diffuse). `ior`
+//!   (>= 1) is used by glass; left out, it keeps the file's glass ior, else 1.5.
+//! * **Render mode** of each object: the model's `render_mode`, else the glTF `hyrt` extra,
+//!   else [`Material::default_render_mode`] of the (overridden) material.
+//! * **Names and ids.** Objects are named `<model name>/<object name>` (a built-in: the model
+//!   name) and numbered in manifest order, so ids stay equal to their index.
+//! * **Cameras and lights in model files.** When the manifest has no `[camera]`, the first
+//!   model file camera is used, moved by its model transform (near/far scaled by the cube root
+//!   of the transform's volume scale). When it has no `[[light]]`, the model files' lights are
+//!   used, moved by their model transform; intensities are not changed. Notes record both.
+//!   No default camera or lights are added here ([`super::Scene::ensure_camera_and_lights`]).
+//!
+//! Errors name the manifest and the entry, e.g.
+//! `scenes/teaser.toml: model[1] 'bunny': scenes/../x.glb: cannot read file: No such file or directory`.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use glam::{Mat4, Quat, Vec3};
+use serde::Deserialize;
+
+use super::gltf_loader::{load_gltf_detailed, material_kind, LoadedGltf};
+use super::{Camera, Light, Material, MaterialKind, Mesh, Object, ObjectSource, RenderMode, Scene};
+use crate::SceneError;
+
+/// `KHR_materials_ior` default, used when a manifest makes a material glass without an ior.
+const DEFAULT_IOR: f32 = 1.5;
+
+/// Default vertical field of view in degrees (the same as [`Scene::ensure_camera_and_lights`]).
+const DEFAULT_FOV_DEG: f32 = 45.0;
+
+/// Derived far plane: this many times the distance from the eye to the farthest bounds corner,
+/// so that the whole scene lies well inside the frustum depth range.
+const DERIVED_FAR_FACTOR: f32 = 2.0;
+
+/// Derived near plane: far divided by this. 1000 keeps float32 depth in [0, 1] resolving
+/// millimetres at metres (the depth buffer is not reversed).
+const DERIVED_NEAR_DIVISOR: f32 = 1000.0;
+
+/// A scene manifest, as parsed from TOML; see the module docs for the schema.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Manifest {
+    /// Free text, ignored.
+    #[serde(default)]
+    pub description: Option<String>,
+    /// `[camera]`.
+    #[serde(default)]
+    pub camera: Option<CameraEntry>,
+    /// `[[light]]` tables.
+    #[serde(default, rename = "light")]
+    pub lights: Vec<LightEntry>,
+    /// `[[model]]` tables, at least one.
+    #[serde(default, rename = "model")]
+    pub models: Vec<ModelEntry>,
+}
+
+/// `[camera]`: a perspective camera.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraEntry {
+    pub eye: [f32; 3],
+    pub target: [f32; 3],
+    /// Default +Y.
+    #[serde(default = "default_up")]
+    pub up: [f32; 3],
+    /// Vertical field of view in degrees, in (0, 180); default 45.
+    #[serde(default = "default_fov")]
+    pub fov_deg: f32,
+    /// Default: `far / 1000`.
+    #[serde(default)]
+    pub near: Option<f32>,
+    /// Default: twice the distance from the eye to the farthest corner of the scene bounds.
+    #[serde(default)]
+    pub far: Option<f32>,
+}
+
+/// The kind of a `[[light]]`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LightType {
+    Point,
+    Directional,
+}
+
+/// `[[light]]`: a point light (`position`) or a directional light (`direction`).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LightEntry {
+    #[serde(rename = "type")]
+    pub kind: LightType,
+    /// Point lights: world position.
+    #[serde(default)]
+    pub position: Option<[f32; 3]>,
+    /// Directional lights: the direction the light travels (normalised on load).
+    #[serde(default)]
+    pub direction: Option<[f32; 3]>,
+    /// Linear RGB, default white.
+    #[serde(default = "default_color")]
+    pub color: [f32; 3],
+    /// Scales `color`, >= 0.
+    pub intensity: f32,
+}
+
+/// A built-in procedural shape.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Builtin {
+    /// Unit square in XZ centred at the origin, facing +Y, 16 x 16 quads.
+    Grid,
+    /// UV sphere of radius 1, 48 segments x 24 rings.
+    Sphere,
+    /// Cube from -1 to 1.
+    Cube,
+    /// Torus in XZ, ring radius 1, tube radius 0.35, 48 x 24.
+    Torus,
+}
+
+impl Builtin {
+    fn name(self) -> &'static str {
+        match self {
+            Builtin::Grid => "grid",
+            Builtin::Sphere => "sphere",
+            Builtin::Cube => "cube",
+            Builtin::Torus => "torus",
+        }
+    }
+
+    fn mesh(self) -> Mesh {
+        match self {
+            Builtin::Grid => Mesh::grid("grid", 16),
+            Builtin::Sphere => Mesh::uv_sphere("sphere", 48, 24),
+            Builtin::Cube => Mesh::cube("cube"),
+            Builtin::Torus => Mesh::torus("torus", 1.0, 0.35, 48, 24),
+        }
+    }
+}
+
+/// `rotate_axis_angle = { axis = [x, y, z], angle_deg = a }`.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AxisAngle {
+    pub axis: [f32; 3],
+    pub angle_deg: f32,
+}
+
+/// `scale = s` or `scale = [sx, sy, sz]`.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(untagged, expecting = "a number or an array of 3 numbers")]
+pub enum Scale {
+    Uniform(f32),
+    PerAxis([f32; 3]),
+}
+
+/// `kind` in a material override.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum KindName {
+    Diffuse,
+    Specular,
+    Glass,
+}
+
+/// `material = { ... }`: overrides for every material of a model.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialOverride {
+    pub name: Option<String>,
+    /// Linear RGB, each >= 0.
+    pub base_color: Option<[f32; 3]>,
+    /// In [0, 1].
+    pub metallic: Option<f32>,
+    /// In [0, 1].
+    pub roughness: Option<f32>,
+    /// In [0, 1].
+    pub transmission: Option<f32>,
+    /// >= 1.
+    pub ior: Option<f32>,
+    pub kind: Option<KindName>,
+}
+
+/// `[[model]]`: a glTF/GLB file or a built-in shape, placed in the world.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelEntry {
+    /// A `.glb`/`.gltf` file, relative to the manifest's folder. Exactly one of `file`, `builtin`.
+    #[serde(default)]
+    pub file: Option<PathBuf>,
+    #[serde(default)]
+    pub builtin: Option<Builtin>,
+    /// Default: the file stem, or the built-in's name.
+    #[serde(default)]
+    pub name: Option<String>,
+    #[serde(default)]
+    pub translate: [f32; 3],
+    /// Euler angles in degrees: X first, then Y, then Z (world axes).
+    #[serde(default)]
+    pub rotate_deg: Option<[f32; 3]>,
+    #[serde(default)]
+    pub rotate_axis_angle: Option<AxisAngle>,
+    #[serde(default)]
+    pub scale: Option<Scale>,
+    #[serde(default)]
+    pub render_mode: Option<RenderMode>,
+    #[serde(default)]
+    pub material: Option<MaterialOverride>,
+}
+
+fn default_up() -> [f32; 3] {
+    [0.0, 1.0, 0.0]
+}
+fn default_fov() -> f32 {
+    DEFAULT_FOV_DEG
+}
+fn default_color() -> [f32; 3] {
+    [1.0, 1.0, 1.0]
+}
+
+/// Load a TOML scene manifest; see the module docs for the schema.
+pub fn load_manifest(path: &Path) -> Result<Scene, SceneError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
+    let manifest: Manifest =
+        toml::from_str(&text).map_err(|e| SceneError::Manifest { path: path.to_path_buf(), message: e.to_string() })?;
+    build(&manifest, path)
+}
+
+/// A finite vector, or an error message naming `what`.
+fn finite(v: [f32; 3], what: &str) -> Result<Vec3, String> {
+    let v = Vec3::from(v);
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(format!("{what} {v} is not finite"))
+    }
+}
+
+fn unit_interval(v: Option<f32>, what: &str) -> Result<(), String> {
+    match v {
+        Some(x) if !(0.0..=1.0).contains(&x) => Err(format!("material.{what} = {x} is not in [0, 1]")),
+        _ => Ok(()),
+    }
+}
+
+impl ModelEntry {
+    /// The model matrix, validated.
+    fn matrix(&self) -> Result<Mat4, String> {
+        let t = finite(self.translate, "translate")?;
+        let r = match (self.rotate_deg, self.rotate_axis_angle) {
+            (Some(_), Some(_)) => return Err("give rotate_deg or rotate_axis_angle, not both".into()),
+            (Some(e), None) => {
+                let e = finite(e, "rotate_deg")?;
+                Quat::from_rotation_z(e.z.to_radians())
+                    * Quat::from_rotation_y(e.y.to_radians())
+                    * Quat::from_rotation_x(e.x.to_radians())
+            }
+            (None, Some(aa)) => {
+                let axis = finite(aa.axis, "rotate_axis_angle.axis")?;
+                let axis = axis.try_normalize().ok_or("rotate_axis_angle.axis is zero")?;
+                if !aa.angle_deg.is_finite() {
+                    return Err(format!("rotate_axis_angle.angle_deg {} is not finite", aa.angle_deg));
+                }
+                Quat::from_axis_angle(axis, aa.angle_deg.to_radians())
+            }
+            (None, None) => Quat::IDENTITY,
+        };
+        let s = match self.scale {
+            None => Vec3::ONE,
+            Some(Scale::Uniform(s)) => Vec3::splat(s),
+            Some(Scale::PerAxis(s)) => Vec3::from(s),
+        };
+        if !s.is_finite() || s.cmpeq(Vec3::ZERO).any() {
+            return Err(format!("scale {s} must be finite and non-zero"));
+        }
+        Ok(Mat4::from_scale_rotation_translation(s, r, t))
+    }
+}
+
+impl MaterialOverride {
+    fn validate(&self) -> Result<(), String> {
+        if let Some(c) = self.base_color {
+            let c = finite(c, "material.base_color")?;
+            if c.min_element() < 0.0 {
+                return Err(format!("material.base_color {c} has a negative component"));
+            }
+        }
+        unit_interval(self.metallic, "metallic")?;
+        unit_interval(self.roughness, "roughness")?;
+        unit_interval(self.transmission, "transmission")?;
+        match self.ior {
+            Some(ior) if !(ior >= 1.0 && ior.is_finite()) => {
+                Err(format!("material.ior = {ior} must be finite and >= 1"))
+            }
+            _ => Ok(()),
+        }
+    }
+
+    fn apply(&self, m: &Material) -> Material {
+        let metallic = self.metallic.unwrap_or(m.metallic);
+        let transmission = self.transmission.unwrap_or(m.transmission);
+        let ior = self.ior.unwrap_or(match m.kind {
+            MaterialKind::Glass { ior } => ior,
+            _ => DEFAULT_IOR,
+        });
+        Material {
+            name: self.name.clone().unwrap_or_else(|| m.name.clone()),
+            base_color: self.base_color.map(Vec3::from).unwrap_or(m.base_color),
+            metallic,
+            roughness: self.roughness.unwrap_or(m.roughness),
+            transmission,
+            kind: match self.kind {
+                Some(KindName::Diffuse) => MaterialKind::Diffuse,
+                Some(KindName::Specular) => MaterialKind::Specular,
+                Some(KindName::Glass) => MaterialKind::Glass { ior },
+                None => material_kind(metallic, transmission, ior),
+            },
+        }
+    }
+}
+
+impl CameraEntry {
+    fn validate(&self) -> Result<(Vec3, Vec3, Vec3), String> {
+        let eye = finite(self.eye, "camera.eye")?;
+        let target = finite(self.target, "camera.target")?;
+        let up = finite(self.up, "camera.up")?;
+        if (target - eye).cross(up).length_squared() <= 0.0 {
+            return Err("camera: eye equals target, or up is parallel to the view direction".into());
+        }
+        if !(self.fov_deg > 0.0 && self.fov_deg < 180.0) {
+            return Err(format!("camera.fov_deg = {} must lie in (0, 180)", self.fov_deg));
+        }
+        if let Some(near) = self.near {
+            if !(near > 0.0 && near.is_finite()) {
+                return Err(format!("camera.near = {near} must be finite and > 0"));
+            }
+        }
+        if let Some(far) = self.far {
+            if !(far.is_finite() && far > self.near.unwrap_or(0.0)) {
+                return Err(format!("camera.far = {far} must be finite and > near"));
+            }
+        }
+        Ok((eye, target, up))
+    }
+}
+
+impl LightEntry {
+    fn to_light(&self) -> Result<Light, String> {
+        let color = finite(self.color, "color")?;
+        if color.min_element() < 0.0 {
+            return Err(format!("color {color} has a negative component"));
+        }
+        if !(self.intensity >= 0.0 && self.intensity.is_finite()) {
+            return Err(format!("intensity {} must be finite and >= 0", self.intensity));
+        }
+        let intensity = self.intensity;
+        match (self.kind, self.position, self.direction) {
+            (LightType::Point, Some(p), None) => {
+                Ok(Light::Point { position: finite(p, "position")?, color, intensity })
+            }
+            (LightType::Directional, None, Some(d)) => {
+                let direction = finite(d, "direction")?.try_normalize().ok_or("direction is zero")?;
+                Ok(Light::Directional { direction, color, intensity })
+            }
+            (LightType::Point, _, _) => Err("a point light needs `position` and no `direction`".into()),
+            (LightType::Directional, _, _) => Err("a directional light needs `direction` and no `position`".into()),
+        }
+    }
+}
+
+/// The largest distance from `eye` to a corner of the box `lo..hi`.
+fn farthest_corner(eye: Vec3, lo: Vec3, hi: Vec3) -> f32 {
+    (0..8)
+        .map(|k| {
+            let c = Vec3::new(
+                if k & 1 == 0 { lo.x } else { hi.x },
+                if k & 2 == 0 { lo.y } else { hi.y },
+                if k & 4 == 0 { lo.z } else { hi.z },
+            );
+            (c - eye).length()
+        })
+        .fold(0.0, f32::max)
+}
+
+/// Build the scene a parsed manifest describes; `path` is the manifest (for relative paths
+/// and error messages).
+fn build(manifest: &Manifest, path: &Path) -> Result<Scene, SceneError> {
+    let invalid = |message: String| SceneError::Manifest { path: path.to_path_buf(), message };
+    if manifest.models.is_empty() {
+        return Err(invalid("no [[model]] entries: a scene needs at least one".into()));
+    }
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let mut scene = Scene::default();
+    // Resolved file -> (index of its first mesh in `scene.meshes`, the loaded file).
+    let mut files: HashMap<PathBuf, (usize, LoadedGltf)> = HashMap::new();
+    let mut model_lights: Vec<Light> = Vec::new();
+    let mut model_camera: Option<Camera> = None;
+
+    for (i, entry) in manifest.models.iter().enumerate() {
+        let name = match (&entry.name, &entry.file, entry.builtin) {
+            (Some(n), _, _) => n.clone(),
+            (None, Some(f), _) => f.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
+            (None, None, Some(b)) => b.name().to_string(),
+            (None, None, None) => String::new(),
+        };
+        let label = format!("model[{i}] '{name}'");
+        let at = |message: String| invalid(format!("{label}: {message}"));
+        let model = entry.matrix().map_err(at)?;
+        if let Some(o) = &entry.material {
+            o.validate().map_err(at)?;
+        }
+        let builtin_scene;
+        let (mesh_offset, source, from_extras): (usize, &Scene, &[bool]) = match (&entry.file, entry.builtin) {
+            (Some(_), Some(_)) => return Err(at("give `file` or `builtin`, not both".into())),
+            (None, None) => return Err(at("needs `file` or `builtin`".into())),
+            (None, Some(b)) => {
+                let mut s = Scene::default();
+                s.meshes.push(b.mesh());
+                s.materials.push(Material::grey());
+                s.objects.push(Object {
+                    id: 0,
+                    name: String::new(),
+                    mesh: 0,
+                    transform: Mat4::IDENTITY,
+                    material: 0,
+                    render_mode: RenderMode::Raster,
+                    source: ObjectSource::default(),
+                });
+                scene.meshes.push(s.meshes[0].clone());
+                builtin_scene = s;
+                (scene.meshes.len() - 1, &builtin_scene, &[false][..])
+            }
+            (Some(file), None) => {
+                let resolved = dir.join(file);
+                if !files.contains_key(&resolved) {
+                    let loaded = load_gltf_detailed(&resolved).map_err(|e| SceneError::ManifestEntry {
+                        path: path.to_path_buf(),
+                        entry: label.clone(),
+                        error: Box::new(e),
+                    })?;
+                    let offset = scene.meshes.len();
+                    scene.meshes.extend(loaded.scene.meshes.iter().cloned());
+                    scene.notes.extend(loaded.scene.notes.iter().map(|n| format!("{label}: {n}")));
+                    files.insert(resolved.clone(), (offset, loaded));
+                }
+                let (offset, loaded) = &files[&resolved];
+                (*offset, &loaded.scene, &loaded.mode_from_extras[..])
+            }
+        };
+        let material_offset = scene.materials.len();
+        scene.materials.extend(source.materials.iter().map(|m| match &entry.material {
+            Some(o) => o.apply(m),
+            None => m.clone(),
+        }));
+        for (object, &decided_by_extras) in source.objects.iter().zip(from_extras) {
+            let material = material_offset + object.material;
+            let render_mode = match entry.render_mode {
+                Some(mode) => mode,
+                None if decided_by_extras => object.render_mode,
+                None => scene.materials[material].default_render_mode(),
+            };
+            scene.objects.push(Object {
+                id: scene.objects.len() as u32,
+                name: if entry.builtin.is_some() { name.clone() } else { format!("{name}/{}", object.name) },
+                mesh: mesh_offset + object.mesh,
+                transform: model * object.transform,
+                material,
+                render_mode,
+                source: object.source.clone(),
+            });
+        }
+        model_lights.extend(source.lights.iter().map(|l| match *l {
+            Light::Point { position, color, intensity } => {
+                Light::Point { position: model.transform_point3(position), color, intensity }
+            }
+            Light::Directional { direction, color, intensity } => Light::Directional {
+                direction: model.transform_vector3(direction).normalize_or(direction),
+                color,
+                intensity,
+            },
+        }));
+        if model_camera.is_none() {
+            if let Some(c) = source.camera {
+                let volume_scale = model.determinant().abs().cbrt();
+                model_camera = Some(Camera {
+                    eye: model.transform_point3(c.eye),
+                    target: model.transform_point3(c.target),
+                    up: model.transform_vector3(c.up).normalize_or(c.up),
+                    fov_y_deg: c.fov_y_deg,
+                    near: c.near * volume_scale,
+                    far: c.far * volume_scale,
+                });
+                scene.notes.push(format!("camera taken from {label}"));
+            }
+        }
+    }
+
+    if manifest.lights.is_empty() {
+        if !model_lights.is_empty() {
+            scene.notes.push(format!("{} lights taken from the model files", model_lights.len()));
+        }
+        scene.lights = model_lights;
+    } else {
+        for (i, l) in manifest.lights.iter().enumerate() {
+            scene.lights.push(l.to_light().map_err(|m| invalid(format!("light[{i}]: {m}")))?);
+        }
+    }
+
+    scene.camera = match &manifest.camera {
+        None => model_camera,
+        Some(c) => {
+            let (eye, target, up) = c.validate().map_err(invalid)?;
+            let bounds_far = scene
+                .world_bounds()
+                .map(|(lo, hi)| DERIVED_FAR_FACTOR * farthest_corner(eye, lo, hi))
+                .filter(|&f| f > 0.0);
+            let far = match (c.far, c.near) {
+                (Some(far), _) => far,
+                (None, near) => {
+                    let near = near.unwrap_or(0.0);
+                    let far = bounds_far.unwrap_or(DERIVED_FAR_FACTOR * (target - eye).length()).max(2.0 * near);
+                    scene.notes.push(format!("camera.far not given: {far:.4} from the scene bounds"));
+                    far
+                }
+            };
+            let near = c.near.unwrap_or_else(|| {
+                let near = far / DERIVED_NEAR_DIVISOR;
+                scene.notes.push(format!("camera.near not given: far / {DERIVED_NEAR_DIVISOR} = {near:.5}"));
+                near
+            });
+            Some(Camera { eye, target, up: up.normalize(), fov_y_deg: c.fov_deg, near, far })
+        }
+    };
+    Ok(scene)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn model(text: &str) -> ModelEntry {
+        toml::from_str(text).unwrap()
+    }
+
+    /// Tolerance for rotations through quaternions of right angles: a few ulp of 1.
+    const ROTATION_TOLERANCE: f32 = 1e-6;
+
+    #[test]
+    fn module_doc_example_matches_the_schema() {
+        let source = include_str!("manifest.rs");
+        let example: String = source
+            .lines()
+            .skip_while(|l| *l != "//! ```toml")
+            .skip(1)
+            .take_while(|l| *l != "//! ```")
+            .map(|l| format!("{}\n", l.trim_start_matches("//!").strip_prefix(' ').unwrap_or("")))
+            .collect();
+        let m: Manifest = toml::from_str(&example).unwrap_or_else(|e| panic!("{e}\n{example}"));
+        assert_eq!((m.models.len(), m.lights.len()), (3, 2));
+        assert_eq!(m.models[1].render_mode, Some(RenderMode::RayTraced));
+        assert_eq!(m.models[2].builtin, Some(Builtin::Grid));
+        for (i, model) in m.models.iter().enumerate() {
+            model.matrix().unwrap_or_else(|e| panic!("model[{i}]: {e}"));
+        }
+        m.camera.unwrap().validate().unwrap();
+        assert!(m.lights.iter().all(|l| l.to_light().is_ok()));
+    }
+
+    #[test]
+    fn euler_rotation_applies_x_then_y_then_z() {
+        // X first then Z: Y -> Z -> Z and Z -> -Y -> X. (Z first then X would send Z to -Y.)
+        let m = model("builtin = 'cube'\nrotate_deg = [90.0, 0.0, 90.0]").matrix().unwrap();
+        assert!(m.transform_vector3(Vec3::Y).abs_diff_eq(Vec3::Z, ROTATION_TOLERANCE));
+        assert!(m.transform_vector3(Vec3::Z).abs_diff_eq(Vec3::X, ROTATION_TOLERANCE));
+    }
+
+    #[test]
+    fn transform_scales_then_rotates_then_translates() {
+        let m = model("builtin = 'cube'\ntranslate = [1.0, 2.0, 3.0]\nrotate_axis_angle = { axis = [0.0, 0.0, 5.0], angle_deg = 90.0 }\nscale = [2.0, 1.0, 1.0]")
+            .matrix()
+            .unwrap();
+        // (1, 0, 0) -> scale (2, 0, 0) -> rotate about Z (0, 2, 0) -> translate (1, 4, 3).
+        assert!(m.transform_point3(Vec3::X).abs_diff_eq(Vec3::new(1.0, 4.0, 3.0), ROTATION_TOLERANCE));
+        let uniform = model("builtin = 'cube'\nscale = 3.0").matrix().unwrap();
+        assert_eq!(uniform, Mat4::from_scale(Vec3::splat(3.0)));
+        assert_eq!(model("builtin = 'cube'").matrix().unwrap(), Mat4::IDENTITY);
+    }
+
+    #[test]
+    fn material_override_keeps_unset_fields_and_derives_the_kind() {
+        let gold = Material {
+            name: "gold".into(),
+            base_color: Vec3::new(1.0, 0.8, 0.2),
+            metallic: 1.0,
+            roughness: 0.3,
+            transmission: 0.0,
+            kind: MaterialKind::Specular,
+        };
+        let glassy = MaterialOverride { transmission: Some(1.0), ..Default::default() }.apply(&gold);
+        assert_eq!(glassy.kind, MaterialKind::Glass { ior: DEFAULT_IOR });
+        assert_eq!((glassy.name.as_str(), glassy.base_color, glassy.roughness), ("gold", gold.base_color, 0.3));
+        let denser = MaterialOverride { ior: Some(1.9), ..Default::default() }.apply(&glassy);
+        assert_eq!(denser.kind, MaterialKind::Glass { ior: 1.9 });
+        let kept_ior = MaterialOverride { roughness: Some(0.1), ..Default::default() }.apply(&denser);
+        assert_eq!(kept_ior.kind, MaterialKind::Glass { ior: 1.9 }, "a glass material keeps its ior");
+        let matte = MaterialOverride { metallic: Some(0.0), ..Default::default() }.apply(&gold);
+        assert_eq!(matte.kind, MaterialKind::Diffuse);
+        let forced = MaterialOverride { kind: Some(KindName::Diffuse), ..Default::default() }.apply(&gold);
+        assert_eq!((forced.kind, forced.metallic), (MaterialKind::Diffuse, 1.0), "explicit kind wins");
+    }
+
+    #[test]
+    fn light_entries_validate_their_shape() {
+        let light = |text: &str| toml::from_str::<LightEntry>(text).unwrap().to_light();
+        assert_eq!(
+            light("type = 'directional'\ndirection = [0.0, 0.0, -4.0]\nintensity = 2.0"),
+            Ok(Light::Directional { direction: Vec3::NEG_Z, color: Vec3::ONE, intensity: 2.0 })
+        );
+        assert!(light("type = 'point'\nposition = [0.0, 1.0, 0.0]\nintensity = -1.0").is_err());
+        assert!(light("type = 'point'\nposition = [0.0, 1.0, 0.0]\ncolor = [1.0, -1.0, 0.0]\nintensity = 1.0").is_err());
+        assert!(light("type = 'directional'\nposition = [0.0, 1.0, 0.0]\nintensity = 1.0").is_err());
+    }
+}
