@@ -40,14 +40,8 @@ const _: () = assert!(std::mem::size_of::<GBufferTexel>() == 24);
 
 impl GBufferTexel {
     /// The texel of a pixel no triangle covers.
-    pub const MISS: GBufferTexel = GBufferTexel {
-        bary_u: 0.0,
-        bary_v: 0.0,
-        depth: 1.0,
-        triangle: INVALID_ID,
-        object: INVALID_ID,
-        flags: 0,
-    };
+    pub const MISS: GBufferTexel =
+        GBufferTexel { bary_u: 0.0, bary_v: 0.0, depth: 1.0, triangle: INVALID_ID, object: INVALID_ID, flags: 0 };
 
     /// True if a triangle covers the pixel centre.
     #[inline]
@@ -423,5 +417,78 @@ mod tests {
         assert!(r.validate().is_err());
         assert!(RayRecord { light: 0, ..r }.validate().is_ok());
         assert!(RayRecord { t_max: 0.0, ..r }.validate().is_err());
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reconstructed surface
+// ---------------------------------------------------------------------------------------------
+
+/// One pixel of the surface buffer written by `reconstruction` (paper eq. 1).
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `position` | [f32; 3] | world-space hit point `w*v0 + u*v1 + v*v2` |
+/// | 12 | `position_error` | f32 | max component of its absolute error bound ([`crate::kernels::barycentric::position_error_bound`]) |
+/// | 16 | `normal` | [f32; 3] | unit shading normal, facing the viewer |
+/// | 28 | `object` | u32 | object id ([`INVALID_ID`] on miss) |
+/// | 32 | `geometric_normal` | [f32; 3] | unit geometric normal, facing the viewer (zero for a degenerate triangle) |
+/// | 44 | `triangle` | u32 | global triangle index into the triangle table ([`INVALID_ID`] on miss) |
+///
+/// 48 bytes. A miss is [`SurfaceRecord::MISS`] (all zero, invalid ids).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct SurfaceRecord {
+    pub position: [f32; 3],
+    pub position_error: f32,
+    pub normal: [f32; 3],
+    pub object: u32,
+    pub geometric_normal: [f32; 3],
+    pub triangle: u32,
+}
+const _: () = assert!(std::mem::size_of::<SurfaceRecord>() == 48);
+
+impl SurfaceRecord {
+    /// The record of a pixel without a primary hit.
+    pub const MISS: SurfaceRecord = SurfaceRecord {
+        position: [0.0; 3],
+        position_error: 0.0,
+        normal: [0.0; 3],
+        object: INVALID_ID,
+        geometric_normal: [0.0; 3],
+        triangle: INVALID_ID,
+    };
+
+    /// True if this pixel has a primary hit.
+    #[inline]
+    pub fn is_hit(&self) -> bool {
+        self.object != INVALID_ID
+    }
+
+    /// Check: a miss is [`Self::MISS`]; a hit has both ids, a finite position,
+    /// a non-negative error bound and unit (or, for the geometric normal of a
+    /// degenerate triangle, zero) normals.
+    pub fn validate(&self) -> Result<(), String> {
+        if !self.is_hit() {
+            return if bytemuck::bytes_of(self) == bytemuck::bytes_of(&Self::MISS) {
+                Ok(())
+            } else {
+                Err(format!("miss surface is not SurfaceRecord::MISS: {self:?}"))
+            };
+        }
+        if self.triangle == INVALID_ID {
+            return Err(format!("surface hit without a triangle: {self:?}"));
+        }
+        if !glam::Vec3::from(self.position).is_finite() || !(self.position_error >= 0.0) {
+            return Err(format!("surface hit with non-finite position or error: {self:?}"));
+        }
+        // Unit length within a few ulp of normalize's rounding.
+        const UNIT_TOLERANCE: f32 = 1e-5;
+        let n = glam::Vec3::from(self.normal).length();
+        let g = glam::Vec3::from(self.geometric_normal).length();
+        if (n - 1.0).abs() > UNIT_TOLERANCE || !((g - 1.0).abs() <= UNIT_TOLERANCE || g == 0.0) {
+            return Err(format!("surface hit with non-unit normals: {self:?}"));
+        }
+        Ok(())
     }
 }

@@ -1,1 +1,168 @@
-//! (in progress)
+//! Shading kernels: the ray-traced shader (Lambert + Blinn-Phong specular with
+//! ray-traced shadows, paper 3.3) and the ordinary raster shader (Lambert with
+//! ambient, paper 3.4), light evaluation and colour encoding.
+//!
+//! WGSL mirrors: `light_incidence`, `shade_ray_traced`, `shade_raster`,
+//! `linear_to_srgb8` in the GPU backend's shading shaders.
+
+use glam::Vec3;
+
+use crate::formats::{LightRecord, ObjectRecord, LIGHT_DIRECTIONAL};
+
+/// Constant ambient term, as a fraction of the base colour, so that fully
+/// shadowed surfaces stay readable (a stand-in for indirect light).
+pub const AMBIENT: f32 = 0.06;
+
+/// Background colour (linear RGB) of pixels no primary ray hits.
+pub const BACKGROUND: [f32; 3] = [0.02, 0.025, 0.035];
+
+/// Fresnel reflectance at normal incidence of dielectrics (4%, the usual
+/// glTF metallic-roughness convention).
+pub const DIELECTRIC_F0: f32 = 0.04;
+
+/// Smallest distance² a point light is evaluated at, so a light sitting on a
+/// surface does not produce an infinite irradiance (1e-8 = (1e-4 units)²).
+pub const MIN_LIGHT_DISTANCE_SQ: f32 = 1e-8;
+
+/// Direction from a surface point towards a light and the irradiance scale:
+/// `(L, E)` with `L` a unit vector and `E` the light's radiance over d² for
+/// point lights, or its radiance for directional lights.
+#[inline]
+pub fn light_incidence(light: &LightRecord, p: Vec3) -> (Vec3, Vec3) {
+    let radiance = Vec3::from(light.radiance);
+    let pd = Vec3::from(light.position_or_direction);
+    if light.kind == LIGHT_DIRECTIONAL {
+        (-pd, radiance)
+    } else {
+        let d = pd - p;
+        let d2 = d.length_squared().max(MIN_LIGHT_DISTANCE_SQ);
+        (d / d2.sqrt(), radiance / d2)
+    }
+}
+
+/// Orient the geometric and shading normals towards the viewer: both are flipped
+/// when the geometric normal faces away from `to_eye` (double-sided surfaces).
+#[inline]
+pub fn face_forward(geometric: Vec3, shading: Vec3, to_eye: Vec3) -> (Vec3, Vec3) {
+    if geometric.dot(to_eye) < 0.0 {
+        (-geometric, -shading)
+    } else {
+        (geometric, shading)
+    }
+}
+
+/// Whether a light can contribute at a point, so a shadow ray is worth tracing:
+/// the light is on the front side of both the (viewer-facing) geometric and
+/// shading normals and carries energy.
+#[inline]
+pub fn light_can_contribute(n_geo: Vec3, n_shade: Vec3, l: Vec3, e: Vec3) -> bool {
+    n_geo.dot(l) > 0.0 && n_shade.dot(l) > 0.0 && e.max_element() > 0.0
+}
+
+/// Blinn-Phong exponent from a glTF roughness (the common 2/alpha^2 - 2 mapping
+/// with alpha = roughness^2), clamped to a finite range.
+#[inline]
+pub fn blinn_phong_exponent(roughness: f32) -> f32 {
+    let a = (roughness * roughness).max(1e-3);
+    (2.0 / (a * a) - 2.0).clamp(1.0, 1e4)
+}
+
+/// Ray-traced shader, one light: Lambert diffuse plus a normalized Blinn-Phong
+/// specular lobe, times the light's irradiance scale `e` and `n.l`. The caller
+/// multiplies by the shadow visibility and sums over lights.
+#[inline]
+pub fn shade_ray_traced(obj: &ObjectRecord, n: Vec3, v: Vec3, l: Vec3, e: Vec3) -> Vec3 {
+    let ndl = n.dot(l);
+    if ndl <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let base = Vec3::from(obj.base_color);
+    let diffuse = base * ((1.0 - obj.metallic) * std::f32::consts::FRAC_1_PI);
+    let f0 = Vec3::splat(DIELECTRIC_F0).lerp(base, obj.metallic);
+    let h = (l + v).normalize_or_zero();
+    let s = blinn_phong_exponent(obj.roughness);
+    let spec = f0 * ((s + 8.0) / (8.0 * std::f32::consts::PI) * n.dot(h).max(0.0).powf(s));
+    (diffuse + spec) * e * ndl
+}
+
+/// Ordinary raster shader, one light: Lambert diffuse times `n.l` and the
+/// irradiance scale (the paper's grey Sponza shader). The caller multiplies by
+/// the ray-traced shadow visibility, so raster objects receive RT shadows.
+#[inline]
+pub fn shade_raster(obj: &ObjectRecord, n: Vec3, l: Vec3, e: Vec3) -> Vec3 {
+    let ndl = n.dot(l);
+    if ndl <= 0.0 {
+        return Vec3::ZERO;
+    }
+    Vec3::from(obj.base_color) * std::f32::consts::FRAC_1_PI * e * ndl
+}
+
+/// Ambient term of any object.
+#[inline]
+pub fn ambient(obj: &ObjectRecord) -> Vec3 {
+    Vec3::from(obj.base_color) * AMBIENT
+}
+
+/// Composition (paper 3.5): the weighted mean `(1 - weight) * raster + weight * rt`.
+#[inline]
+pub fn compose(raster: Vec3, rt: Vec3, weight: f32) -> Vec3 {
+    raster * (1.0 - weight) + rt * weight
+}
+
+/// Linear value to an 8-bit sRGB code (clamped to [0, 1]; IEC 61966-2-1 curve).
+#[inline]
+pub fn linear_to_srgb8(x: f32) -> u8 {
+    let x = if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) };
+    let s = if x <= 0.003_130_8 { 12.92 * x } else { 1.055 * x.powf(1.0 / 2.4) - 0.055 };
+    (s * 255.0 + 0.5) as u8
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::formats::LIGHT_POINT;
+
+    fn grey() -> ObjectRecord {
+        ObjectRecord {
+            first_triangle: 0,
+            triangle_count: 1,
+            flags: 0,
+            material_kind: 0,
+            base_color: [0.5; 3],
+            metallic: 0.0,
+            roughness: 1.0,
+            transmission: 0.0,
+            ior: 1.5,
+            pad: 0,
+        }
+    }
+
+    #[test]
+    fn point_light_falls_off_with_distance_squared() {
+        let l = LightRecord { position_or_direction: [0.0, 2.0, 0.0], kind: LIGHT_POINT, radiance: [8.0; 3], pad: 0 };
+        let (dir, e) = light_incidence(&l, Vec3::ZERO);
+        assert_eq!(dir, Vec3::Y);
+        assert_eq!(e, Vec3::splat(2.0));
+    }
+
+    #[test]
+    fn lambert_matches_closed_form() {
+        let l = Vec3::new(0.0, 1.0, 1.0).normalize();
+        let c = shade_raster(&grey(), Vec3::Y, l, Vec3::ONE);
+        assert!((c.x - 0.5 * std::f32::consts::FRAC_1_PI * l.y).abs() < 1e-7);
+        assert_eq!(shade_raster(&grey(), Vec3::Y, -Vec3::Y, Vec3::ONE), Vec3::ZERO);
+    }
+
+    #[test]
+    fn srgb_endpoints() {
+        assert_eq!(linear_to_srgb8(0.0), 0);
+        assert_eq!(linear_to_srgb8(1.0), 255);
+        assert_eq!(linear_to_srgb8(f32::NAN), 0);
+        assert_eq!(linear_to_srgb8(0.5), 188);
+    }
+
+    #[test]
+    fn composition_is_a_weighted_mean() {
+        assert_eq!(compose(Vec3::ONE, Vec3::ZERO, 0.25), Vec3::splat(0.75));
+    }
+}
