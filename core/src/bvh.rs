@@ -870,6 +870,76 @@ mod tests {
         }
     }
 
+    /// Pinned (found by a randomized search): with spatial splits and few triangles,
+    /// obvhs skips the leaf collapse and two leaves name slot 0 (both pieces of triangle
+    /// 0) while slot 5 (also triangle 0) is in no leaf. The flattened copy gives every
+    /// leaf its own slots, and both pieces are still found.
+    #[test]
+    fn pinned_presplit_leaves_sharing_a_slot_are_flattened() {
+        let tris = [
+            [
+                [9.329468, 9.269577, -5.326501],
+                [8.254894, 6.7223434, -9.476224],
+                [3.8572035, -6.653434, 5.7591],
+            ],
+            [
+                [5.275055, 2.4031878, 4.9783344],
+                [5.4808893, 2.0498235, 5.2556744],
+                [5.461748, 2.077035, 5.35121],
+            ],
+            [
+                [9.347248, 0.5261822, -9.408352],
+                [8.874341, 0.3317358, -9.209116],
+                [9.638064, 0.6561403, -9.3794775],
+            ],
+            [
+                [-5.1863933, -3.3541927, -7.999065],
+                [-3.774321, -7.2043858, 7.141865],
+                [0.9800291, -2.453792, -0.87600136],
+            ],
+            [
+                [8.208429, -7.1369004, 6.1280994],
+                [8.461, -7.592343, 6.125361],
+                [8.697524, -6.8933563, 5.9329395],
+            ],
+        ]
+        .map(|t| t.map(Vec3::from));
+        let g = geometry(&tris);
+        let obvhs_tris: Vec<Triangle> = tris
+            .iter()
+            .map(|t| Triangle {
+                v0: t[0].into(),
+                v1: t[1].into(),
+                v2: t[2].into(),
+            })
+            .collect();
+        let raw = build_bvh2_from_tris(
+            &obvhs_tris,
+            BvhPreset::Slow.params(),
+            &mut Duration::default(),
+        );
+        assert_eq!(raw.primitive_indices, [0, 1, 2, 3, 4, 0]);
+        let leaf_firsts: Vec<u32> = raw
+            .nodes
+            .iter()
+            .filter(|n| n.is_leaf())
+            .map(|n| n.first_index)
+            .collect();
+        assert_eq!(leaf_firsts.iter().filter(|&&f| f == 0).count(), 2);
+        for preset in [BvhPreset::Slow, BvhPreset::VerySlow] {
+            let bvh = Bvh::build(&g, preset);
+            bvh.validate(&g).unwrap();
+            assert_eq!(bvh.prim_indices.iter().filter(|&&p| p == 0).count(), 2);
+            let t = tris[0];
+            for (u, v) in [(0.1, 0.1), (0.8, 0.1), (0.1, 0.8), (0.4, 0.4), (0.0, 0.5)] {
+                let p = t[0] * (1.0 - u - v) + t[1] * u + t[2] * v;
+                let o = p + Vec3::new(0.3, 20.0, 0.1);
+                let hit = bvh.closest_hit(&g.triangles, &ray(o, p - o)).unwrap();
+                assert_eq!(hit.triangle, 0, "{preset:?} ({u}, {v})");
+            }
+        }
+    }
+
     #[test]
     fn empty_and_untraceable_geometry_gives_empty_bvh() {
         let nan = Vec3::splat(f32::NAN);
