@@ -865,3 +865,44 @@ fn pinned_exact_hits() {
     )
     .is_none());
 }
+
+/// Pinned: the f32 edge function of v1-v2 rounds to exactly 0 (both products round to
+/// 1 + 2^-22) while its exact value is -2^-46, so the ray passes a hair outside the
+/// edge. The f64 fallback sees that and misses; a plain f32 test would report a hit.
+/// The mirrored triangle (v0 on the other side) contains the ray and is hit.
+#[test]
+fn pinned_f64_fallback_decides_rounded_zero_edge() {
+    let (o, d) = (Vec3::new(0.0, 0.0, 1.0), Vec3::NEG_Z);
+    let ulp = f32::EPSILON; // 2^-23
+    let v1 = Vec3::new(1.0 + ulp, 1.0 + 2.0 * ulp, 0.0);
+    let v2 = Vec3::new(-1.0, -(1.0 + ulp), 0.0);
+    assert_eq!(v1.x * v2.y - v1.y * v2.x, 0.0);
+    let outside = Vec3::new(1.0, -1.0, 0.0);
+    let inside = Vec3::new(-1.0, 1.0, 0.0);
+    assert_eq!(
+        intersect_triangle_watertight(o, d, 0.0, f32::INFINITY, outside, v1, v2),
+        None
+    );
+    let h = intersect_triangle_watertight(o, d, 0.0, f32::INFINITY, inside, v1, v2).unwrap();
+    assert_eq!(h.t, 1.0);
+}
+
+proptest! {
+    /// The origin lies exactly on the triangle's (tilted) plane, so the exact t is 0 and
+    /// `t_min = 0` excludes it; the shear rounds, so the computed t can come out a tiny
+    /// positive number. The conservative bound (t > deltaT) must reject it for every
+    /// direction.
+    #[test]
+    fn origin_exactly_on_the_plane_never_hits(
+        y in 1u32..63, z in 1u32..63,
+        d in unit_dir(),
+    ) {
+        prop_assume!(y + z < 64);
+        let (y, z) = (y as f32 / 64.0, z as f32 / 64.0);
+        // On the plane x + y + z = 1 (exact: dyadic coordinates).
+        let o = Vec3::new(1.0 - y - z, y, z);
+        let (v0, v1, v2) = (Vec3::X, Vec3::Y, Vec3::Z);
+        let h = intersect_triangle_watertight(o, d, 0.0, f32::INFINITY, v0, v1, v2);
+        prop_assert!(h.is_none(), "{o:?} {d:?}: {h:?}");
+    }
+}
