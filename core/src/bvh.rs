@@ -1,1 +1,990 @@
-//! (in progress)
+//! The flattened, GPU-ready BVH over the world triangle table, and its reference
+//! traversal.
+//!
+//! Built once per scene with [obvhs](https://github.com/DGriffin91/obvhs) (PLOC +
+//! reinsertion + leaf collapse, optional spatial pre-splits), then flattened into two
+//! storage buffers both backends read:
+//!
+//! * `nodes`: [`BvhNode`], 32 bytes each; node 0 is the root. Siblings are stored as
+//!   adjacent pairs, so an inner node needs only the index of its left child.
+//! * `prim_indices`: u32 global triangle indices into
+//!   [`WorldGeometry::triangles`](crate::geometry::WorldGeometry::triangles). A leaf owns
+//!   the slots `prim_indices[left_or_first .. left_or_first + count]`; every slot belongs to
+//!   exactly one leaf. Both arrays are in depth-first order (left child first): children
+//!   follow their parent and leaves' slots follow each other in the order a traversal
+//!   reaches them. With spatial pre-splits (presets [`BvhPreset::Slow`] and
+//!   [`BvhPreset::VerySlow`]) one triangle may appear in several leaves.
+//!
+//! The leaves keep this one indirection rather than a reordered copy of the triangles:
+//! the triangle table stays the single source of every vertex (the raster, the BVH and
+//! reconstruction see the same bits), and a hit reports the global index directly.
+//!
+//! Only *traceable* triangles are in the tree ([`triangle_is_traceable`]): finite
+//! vertices and no two equal vertices (such triangles have `det == 0` for every ray, see
+//! [`crate::kernels::ray`], so leaving them out changes no result). A scene without
+//! traceable triangles gives a BVH with no nodes; every query on it misses.
+//!
+//! Traversal ([`Bvh::occluded`], [`Bvh::closest_hit`]) uses a fixed stack of
+//! [`BVH_STACK_SIZE`] entries (no allocation per ray), visits the nearer child first,
+//! and calls the conservative slab test and the watertight triangle test of
+//! [`crate::kernels::ray`]. The tree depth is bounded by the stack size: if obvhs ever
+//! returns a deeper tree (pathological input), the build falls back to a balanced
+//! object-median split whose depth is logarithmic.
+//!
+//! ```
+//! use hyrt_core::{bvh::{Bvh, BvhPreset}, geometry::WorldGeometry, scene::Scene};
+//! use hyrt_core::formats::{RayRecord, RAY_KIND_PRIMARY, INVALID_ID};
+//! let geometry = WorldGeometry::build(&Scene::default_scene());
+//! let bvh = Bvh::build(&geometry, BvhPreset::default());
+//! bvh.validate(&geometry).unwrap();
+//! let eye = Scene::default_scene().camera.unwrap().eye;
+//! let ray = RayRecord {
+//!     origin: eye.into(), t_min: 0.0, direction: (-eye).into(), t_max: f32::INFINITY,
+//!     pixel: 0, kind: RAY_KIND_PRIMARY, depth: 0, light: INVALID_ID, throughput: [1.0; 3], pad: 0,
+//! };
+//! let hit = bvh.closest_hit(&geometry.triangles, &ray);
+//! assert_eq!(hit.is_some(), bvh.occluded(&geometry.triangles, &ray));
+//! ```
+
+use std::time::Duration;
+
+use bytemuck::{Pod, Zeroable};
+use glam::{Vec3, Vec3A};
+use obvhs::{bvh2::builder::build_bvh2_from_tris, triangle::Triangle, BvhBuildParams};
+
+use crate::formats::{RayRecord, TriangleRecord, INVALID_ID};
+use crate::geometry::WorldGeometry;
+use crate::kernels::ray::{gamma, ray_aabb_conservative, safe_inverse_dir, WatertightRay};
+
+/// Entries of the fixed traversal stack, and therefore the largest allowed tree depth
+/// (root at depth 0): descending pushes at most one sibling per level, so a leaf at depth
+/// `d` is reached with at most `d` entries on the stack. 64 covers any balanced tree of
+/// up to 2^64 leaves; obvhs' PLOC trees stay far below it on real scenes (its own default
+/// traversal stack is 96). A GPU mirror can use the same bound (64 x 8 bytes of private
+/// memory for closest hit, 64 x 4 for any hit).
+pub const BVH_STACK_SIZE: usize = 64;
+
+/// Largest number of triangle slots in one leaf: the `max_prims_per_leaf` of every obvhs
+/// preset (`fastest_build` uses 1, the others 8), and the leaf size of the median
+/// fallback.
+pub const BVH_MAX_LEAF_SIZE: u32 = 8;
+
+/// Relative margin added around the leaf boxes of a pre-split BVH. obvhs computes the
+/// boxes of triangle pieces from clipped vertices (`splits.rs`: `v0 + s * (v1 - v0)`, a
+/// handful of rounded operations, and repeated splits re-clip the original triangle
+/// against the previous piece's box), so a piece box can miss its exact piece by a few
+/// ulps of the coordinates, which would leave a crack between pieces. gamma(16) of the
+/// coordinate magnitude bounds those errors with room to spare; the widened box is then
+/// clipped back to the union of its triangles' full boxes, so it never grows past them.
+pub const SPLIT_LEAF_MARGIN: f32 = gamma(16);
+
+/// Relative slack of box culling during traversal: a box is skipped only if the ray's
+/// interval, widened to `[t_min * (1 - slack), t_bound * (1 + slack)]`, misses it (where
+/// `t_bound` is `t_max`, or the closest hit so far).
+///
+/// The slab test and the triangle test round differently: a hit on a triangle vertex or
+/// edge that lies on its leaf's box boundary can come out a few ulps *before* the box's
+/// computed entry. Without slack such a box would be culled against an equal-`t` hit
+/// already found (breaking the lower-index tie rule) or against `t_max` (a shadow ray
+/// missing an occluder at the light). The triangle's `t` error is a few ulps of
+/// `max(t, triangle size)` (pbrt-v4's `deltaT`), so 2^-12 (4096 ulps) covers triangles up
+/// to about a thousand times larger than their distance; the cost is a rare extra box
+/// visit. It is a heuristic bound, not a proof: for a sliver or huge triangle right at the
+/// origin two hits within its rounding error in different leaves can still resolve
+/// differently than a brute-force search would (deterministically either way).
+pub const BVH_CULL_SLACK: f32 = 1.0 / 4096.0;
+
+/// One BVH node, inner or leaf.
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `aabb_min` | [f32; 3] | box minimum (world space, finite) |
+/// | 12 | `left_or_first` | u32 | inner: index of the left child, the right child is `left_or_first + 1`; leaf: first slot in `prim_indices` |
+/// | 16 | `aabb_max` | [f32; 3] | box maximum |
+/// | 28 | `count` | u32 | 0: inner node; > 0: leaf with `count` slots `prim_indices[left_or_first ..][.. count]` |
+///
+/// 32 bytes; two siblings fill one 64-byte cache line when the array is 64-byte aligned.
+/// Boxes are closed and conservative: a child's box lies inside its parent's, a leaf's
+/// box contains its triangles (or, with spatial splits, the parts of them the leaf is
+/// responsible for).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct BvhNode {
+    pub aabb_min: [f32; 3],
+    pub left_or_first: u32,
+    pub aabb_max: [f32; 3],
+    pub count: u32,
+}
+const _: () = assert!(std::mem::size_of::<BvhNode>() == 32);
+
+impl BvhNode {
+    /// True for a leaf (`count > 0`).
+    #[inline]
+    pub fn is_leaf(&self) -> bool {
+        self.count > 0
+    }
+
+    /// Box minimum as a vector.
+    #[inline]
+    pub fn min(&self) -> Vec3 {
+        Vec3::from(self.aabb_min)
+    }
+
+    /// Box maximum as a vector.
+    #[inline]
+    pub fn max(&self) -> Vec3 {
+        Vec3::from(self.aabb_max)
+    }
+
+    /// Check: finite box with `min <= max`, leaf size at most [`BVH_MAX_LEAF_SIZE`].
+    /// (Links are checked by [`Bvh::validate`].)
+    pub fn validate(&self) -> Result<(), String> {
+        if !(self.min().is_finite() && self.max().is_finite()) {
+            return Err(format!("node with a non-finite box: {self:?}"));
+        }
+        if !self.min().cmple(self.max()).all() {
+            return Err(format!("node with min > max: {self:?}"));
+        }
+        if self.count > BVH_MAX_LEAF_SIZE {
+            return Err(format!(
+                "leaf with more than {BVH_MAX_LEAF_SIZE} slots: {self:?}"
+            ));
+        }
+        Ok(())
+    }
+
+    #[inline]
+    fn from_box(min: Vec3, max: Vec3, left_or_first: u32, count: u32) -> BvhNode {
+        BvhNode {
+            aabb_min: min.into(),
+            left_or_first,
+            aabb_max: max.into(),
+            count,
+        }
+    }
+}
+
+/// obvhs build presets, fastest build to best tree.
+///
+/// The default is [`BvhPreset::Medium`]: the BVH is built once per scene, so tree quality
+/// pays off on every frame, but the pre-split presets ([`BvhPreset::Slow`] and
+/// [`BvhPreset::VerySlow`]) cost several times the build for a few percent of shadow-ray
+/// throughput on typical scenes and duplicate triangles in leaves. obvhs describes
+/// `medium_build` as "around the same build time as embree but with faster traversal".
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum BvhPreset {
+    Fastest,
+    VeryFast,
+    Fast,
+    #[default]
+    Medium,
+    Slow,
+    VerySlow,
+}
+
+impl BvhPreset {
+    /// Every preset, fastest build first.
+    pub const ALL: [BvhPreset; 6] = [
+        BvhPreset::Fastest,
+        BvhPreset::VeryFast,
+        BvhPreset::Fast,
+        BvhPreset::Medium,
+        BvhPreset::Slow,
+        BvhPreset::VerySlow,
+    ];
+
+    /// The obvhs build parameters of this preset.
+    pub const fn params(self) -> BvhBuildParams {
+        match self {
+            BvhPreset::Fastest => BvhBuildParams::fastest_build(),
+            BvhPreset::VeryFast => BvhBuildParams::very_fast_build(),
+            BvhPreset::Fast => BvhBuildParams::fast_build(),
+            BvhPreset::Medium => BvhBuildParams::medium_build(),
+            BvhPreset::Slow => BvhBuildParams::slow_build(),
+            BvhPreset::VerySlow => BvhBuildParams::very_slow_build(),
+        }
+    }
+
+    /// Whether the preset splits large triangles into several leaves.
+    pub const fn uses_spatial_splits(self) -> bool {
+        self.params().pre_split
+    }
+
+    /// Snake-case name (CLI, `frame.json`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            BvhPreset::Fastest => "fastest",
+            BvhPreset::VeryFast => "very_fast",
+            BvhPreset::Fast => "fast",
+            BvhPreset::Medium => "medium",
+            BvhPreset::Slow => "slow",
+            BvhPreset::VerySlow => "very_slow",
+        }
+    }
+}
+
+/// The closest hit of a ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClosestHit {
+    /// Global triangle index into `WorldGeometry::triangles`.
+    pub triangle: u32,
+    /// Ray parameter of the hit.
+    pub t: f32,
+    /// Barycentric weight of the triangle's `v1`.
+    pub u: f32,
+    /// Barycentric weight of the triangle's `v2`.
+    pub v: f32,
+}
+
+/// A flattened BVH; see the module docs for the layout.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Bvh {
+    /// Nodes, root first; empty when the scene has no traceable triangle.
+    pub nodes: Vec<BvhNode>,
+    /// Global triangle index into `WorldGeometry::triangles`, per leaf slot.
+    pub prim_indices: Vec<u32>,
+    /// The preset it was built with.
+    pub build_preset: BvhPreset,
+    /// Depth of the deepest leaf (root = 0); at most [`BVH_STACK_SIZE`].
+    pub max_depth: u32,
+}
+
+/// True if a triangle can ever be hit: all vertices finite and no two vertices equal.
+/// (A triangle with two equal vertices has `det == 0` in every ray space: its three edge
+/// functions are `0, e, -e` exactly.) Only these go into the BVH.
+#[inline]
+pub fn triangle_is_traceable(t: &TriangleRecord) -> bool {
+    let [a, b, c] = t.vertices();
+    a.is_finite() && b.is_finite() && c.is_finite() && a != b && b != c && c != a
+}
+
+/// Re-emit a tree in depth-first order (left child first): sibling pairs allocated as
+/// they are reached, leaf slots written out in the order the leaves are reached.
+///
+/// obvhs' raw output can hold nodes no longer reachable (a root collapsed into a leaf)
+/// and, with spatial splits, leaves sharing slots (two leaves naming slot 0 when both hold
+/// pieces of the same triangle, while another slot of that triangle goes unused). The
+/// flattened copy has neither: every node is reachable exactly once, every slot belongs
+/// to exactly one leaf, and children always follow their parent.
+fn flatten(nodes: &[BvhNode], prims: &[u32]) -> (Vec<BvhNode>, Vec<u32>) {
+    let mut out_nodes = vec![BvhNode::zeroed()];
+    let mut out_prims = Vec::with_capacity(prims.len());
+    // (source node, destination node)
+    let mut todo = vec![(0usize, 0usize)];
+    while let Some((src, dst)) = todo.pop() {
+        let n = nodes[src];
+        if n.is_leaf() {
+            let first = n.left_or_first as usize;
+            out_nodes[dst] = BvhNode {
+                left_or_first: out_prims.len() as u32,
+                ..n
+            };
+            out_prims.extend_from_slice(&prims[first..first + n.count as usize]);
+        } else {
+            let left = out_nodes.len();
+            out_nodes.push(BvhNode::zeroed());
+            out_nodes.push(BvhNode::zeroed());
+            out_nodes[dst] = BvhNode {
+                left_or_first: left as u32,
+                ..n
+            };
+            todo.push((n.left_or_first as usize + 1, left + 1));
+            todo.push((n.left_or_first as usize, left));
+        }
+    }
+    (out_nodes, out_prims)
+}
+
+/// Bounds of a triangle's vertices.
+#[inline]
+fn triangle_box(t: &TriangleRecord) -> (Vec3, Vec3) {
+    let [a, b, c] = t.vertices();
+    (a.min(b).min(c), a.max(b).max(c))
+}
+
+/// A ray prepared for traversal (checked once, constants precomputed).
+#[derive(Clone, Copy, Debug)]
+struct TraversalRay {
+    wt: WatertightRay,
+    inv_dir: Vec3,
+    t_min: f32,
+    t_max: f32,
+    /// `t_min * (1 - BVH_CULL_SLACK)`: the near bound of box tests.
+    box_t_min: f32,
+}
+
+impl TraversalRay {
+    /// `None` for a ray that can hit nothing: non-finite origin or direction, zero
+    /// direction, or an empty / NaN `(t_min, t_max)` interval.
+    #[inline]
+    fn new(ray: &RayRecord) -> Option<TraversalRay> {
+        let dir = Vec3::from(ray.direction);
+        let wt = WatertightRay::new(Vec3::from(ray.origin), dir)?;
+        // Positive form, so that NaN bounds reject.
+        let non_empty = ray.t_min < ray.t_max;
+        non_empty.then(|| TraversalRay {
+            wt,
+            inv_dir: safe_inverse_dir(dir),
+            t_min: ray.t_min,
+            t_max: ray.t_max,
+            box_t_min: ray.t_min * (1.0 - BVH_CULL_SLACK),
+        })
+    }
+
+    /// Entry distance into a node's box for the interval `[t_min, t_far]`, both ends
+    /// widened by [`BVH_CULL_SLACK`].
+    #[inline]
+    fn enter(&self, node: &BvhNode, t_far: f32) -> Option<f32> {
+        let t_far = t_far * (1.0 + BVH_CULL_SLACK);
+        ray_aabb_conservative(
+            self.wt.origin,
+            self.inv_dir,
+            self.box_t_min,
+            t_far,
+            node.min(),
+            node.max(),
+        )
+    }
+}
+
+impl Bvh {
+    /// Build the BVH over the traceable triangles of `geometry` (see the module docs).
+    /// Deterministic: the same geometry and preset give the same buffers. Validated in
+    /// debug builds.
+    pub fn build(geometry: &WorldGeometry, preset: BvhPreset) -> Bvh {
+        let triangles = &geometry.triangles;
+        let mut ids = Vec::new();
+        let mut obvhs_tris = Vec::new();
+        for (i, t) in triangles.iter().enumerate() {
+            if triangle_is_traceable(t) {
+                ids.push(i as u32);
+                let [a, b, c] = t.vertices();
+                obvhs_tris.push(Triangle {
+                    v0: Vec3A::from(a),
+                    v1: Vec3A::from(b),
+                    v2: Vec3A::from(c),
+                });
+            }
+        }
+        let mut bvh = Bvh {
+            build_preset: preset,
+            ..Bvh::default()
+        };
+        if !ids.is_empty() {
+            let bvh2 = build_bvh2_from_tris(&obvhs_tris, preset.params(), &mut Duration::default());
+            let nodes: Vec<BvhNode> = bvh2
+                .nodes
+                .iter()
+                .map(|n| {
+                    let b = n.aabb();
+                    BvhNode::from_box(b.min.into(), b.max.into(), n.first_index, n.prim_count)
+                })
+                .collect();
+            let prims: Vec<u32> = bvh2
+                .primitive_indices
+                .iter()
+                .map(|&p| ids[p as usize])
+                .collect();
+            (bvh.nodes, bvh.prim_indices) = flatten(&nodes, &prims);
+            if bvh2.uses_spatial_splits {
+                bvh.widen_split_leaves(triangles);
+            }
+            bvh.max_depth = bvh.compute_max_depth();
+            if bvh.max_depth as usize > BVH_STACK_SIZE {
+                bvh = Bvh::build_median(triangles, &ids, preset);
+            }
+        }
+        if cfg!(debug_assertions) {
+            bvh.validate(geometry).expect("BVH invariants");
+        }
+        bvh
+    }
+
+    /// The fallback builder: balanced object-median splits on the longest centroid axis,
+    /// leaves of at most [`BVH_MAX_LEAF_SIZE`] triangles, depth `ceil(log2(n / 8))`.
+    /// `ids` are the traceable global triangle indices.
+    pub(crate) fn build_median(
+        triangles: &[TriangleRecord],
+        ids: &[u32],
+        preset: BvhPreset,
+    ) -> Bvh {
+        let mut items: Vec<(Vec3, u32)> = ids
+            .iter()
+            .map(|&i| {
+                let [a, b, c] = triangles[i as usize].vertices();
+                ((a + b + c) * (1.0 / 3.0), i)
+            })
+            .collect();
+        let mut nodes = vec![BvhNode::zeroed()];
+        // (node index, item range)
+        let mut todo = vec![(0usize, 0usize, items.len())];
+        while let Some((node, start, end)) = todo.pop() {
+            let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+            let (mut clo, mut chi) = (lo, hi);
+            for &(c, i) in &items[start..end] {
+                let (a, b) = triangle_box(&triangles[i as usize]);
+                lo = lo.min(a);
+                hi = hi.max(b);
+                clo = clo.min(c);
+                chi = chi.max(c);
+            }
+            if (end - start) as u32 <= BVH_MAX_LEAF_SIZE {
+                nodes[node] = BvhNode::from_box(lo, hi, start as u32, (end - start) as u32);
+                continue;
+            }
+            let extent = chi - clo;
+            let axis = if extent.x >= extent.y && extent.x >= extent.z {
+                0
+            } else if extent.y >= extent.z {
+                1
+            } else {
+                2
+            };
+            items[start..end]
+                .sort_unstable_by(|a, b| a.0[axis].total_cmp(&b.0[axis]).then(a.1.cmp(&b.1)));
+            let left = nodes.len();
+            nodes.push(BvhNode::zeroed());
+            nodes.push(BvhNode::zeroed());
+            nodes[node] = BvhNode::from_box(lo, hi, left as u32, 0);
+            let mid = start + (end - start) / 2;
+            todo.push((left + 1, mid, end));
+            todo.push((left, start, mid));
+        }
+        let mut bvh = Bvh {
+            nodes,
+            prim_indices: items.iter().map(|&(_, i)| i).collect(),
+            build_preset: preset,
+            max_depth: 0,
+        };
+        bvh.max_depth = bvh.compute_max_depth();
+        bvh
+    }
+
+    /// Nodes in an order where every child comes after its parent (pre-order), with depths.
+    fn preorder(&self) -> Vec<(u32, u32)> {
+        let mut out = Vec::with_capacity(self.nodes.len());
+        if self.nodes.is_empty() {
+            return out;
+        }
+        let mut todo = vec![(0u32, 0u32)];
+        while let Some((n, d)) = todo.pop() {
+            out.push((n, d));
+            let node = &self.nodes[n as usize];
+            if !node.is_leaf() {
+                todo.push((node.left_or_first + 1, d + 1));
+                todo.push((node.left_or_first, d + 1));
+            }
+        }
+        out
+    }
+
+    fn compute_max_depth(&self) -> u32 {
+        self.preorder().iter().map(|&(_, d)| d).max().unwrap_or(0)
+    }
+
+    /// Make pre-split leaf boxes conservative (see [`SPLIT_LEAF_MARGIN`]) and refit the
+    /// inner boxes.
+    fn widen_split_leaves(&mut self, triangles: &[TriangleRecord]) {
+        let order = self.preorder();
+        for &(n, _) in order.iter().rev() {
+            let node = self.nodes[n as usize];
+            let (lo, hi) = if node.is_leaf() {
+                let (mut ulo, mut uhi) =
+                    (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+                for slot in node.left_or_first..node.left_or_first + node.count {
+                    let (a, b) =
+                        triangle_box(&triangles[self.prim_indices[slot as usize] as usize]);
+                    ulo = ulo.min(a);
+                    uhi = uhi.max(b);
+                }
+                let margin = ulo.abs().max(uhi.abs()) * SPLIT_LEAF_MARGIN;
+                (
+                    (node.min() - margin).max(ulo),
+                    (node.max() + margin).min(uhi),
+                )
+            } else {
+                let l = &self.nodes[node.left_or_first as usize];
+                let r = &self.nodes[node.left_or_first as usize + 1];
+                (l.min().min(r.min()), l.max().max(r.max()))
+            };
+            self.nodes[n as usize].aabb_min = lo.into();
+            self.nodes[n as usize].aabb_max = hi.into();
+        }
+    }
+
+    /// Check every invariant against the geometry it was built from: node boxes finite and
+    /// ordered; every node reachable exactly once from the root, children inside their
+    /// parent; leaves partition `prim_indices`; every slot names a traceable triangle whose
+    /// box lies in the leaf box (with spatial splits: the leaf box lies in the union of its
+    /// triangles' boxes); every traceable triangle is in some leaf; depth within
+    /// [`BVH_STACK_SIZE`] and equal to `max_depth`.
+    pub fn validate(&self, geometry: &WorldGeometry) -> Result<(), String> {
+        let triangles = &geometry.triangles;
+        let traceable = triangles
+            .iter()
+            .filter(|t| triangle_is_traceable(t))
+            .count();
+        if self.nodes.is_empty() {
+            if !self.prim_indices.is_empty() || self.max_depth != 0 {
+                return Err("BVH without nodes has slots or depth".into());
+            }
+            if traceable != 0 {
+                return Err(format!(
+                    "BVH without nodes but {traceable} traceable triangles"
+                ));
+            }
+            return Ok(());
+        }
+        let splits = self.build_preset.uses_spatial_splits();
+        let mut node_seen = vec![false; self.nodes.len()];
+        let mut slot_seen = vec![false; self.prim_indices.len()];
+        let mut tri_seen = vec![false; triangles.len()];
+        let mut depth = 0u32;
+        // (node, depth, parent)
+        let mut todo = vec![(0u32, 0u32, 0u32)];
+        while let Some((n, d, parent)) = todo.pop() {
+            let node = self
+                .nodes
+                .get(n as usize)
+                .ok_or_else(|| format!("node {n} out of range"))?;
+            if std::mem::replace(&mut node_seen[n as usize], true) {
+                return Err(format!("node {n} reachable twice"));
+            }
+            node.validate().map_err(|e| format!("node {n}: {e}"))?;
+            let p = &self.nodes[parent as usize];
+            if !(node.min().cmpge(p.min()).all() && node.max().cmple(p.max()).all()) {
+                return Err(format!(
+                    "node {n} not inside its parent {parent}: {node:?} vs {p:?}"
+                ));
+            }
+            depth = depth.max(d);
+            if !node.is_leaf() {
+                let l = node.left_or_first;
+                if l == 0 || l as usize + 1 >= self.nodes.len() {
+                    return Err(format!(
+                        "inner node {n} with children {l}, {} out of range",
+                        l + 1
+                    ));
+                }
+                todo.push((l, d + 1, n));
+                todo.push((l + 1, d + 1, n));
+                continue;
+            }
+            let (first, count) = (node.left_or_first as usize, node.count as usize);
+            if first + count > self.prim_indices.len() {
+                return Err(format!(
+                    "leaf {n} slots {first}..{} out of range",
+                    first + count
+                ));
+            }
+            let (mut ulo, mut uhi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+            for (slot, &ti) in self.prim_indices.iter().enumerate().skip(first).take(count) {
+                if std::mem::replace(&mut slot_seen[slot], true) {
+                    return Err(format!("slot {slot} in two leaves"));
+                }
+                let ti = ti as usize;
+                let t = triangles
+                    .get(ti)
+                    .ok_or_else(|| format!("slot {slot}: triangle {ti} out of range"))?;
+                if !triangle_is_traceable(t) {
+                    return Err(format!(
+                        "slot {slot}: triangle {ti} is not traceable: {t:?}"
+                    ));
+                }
+                tri_seen[ti] = true;
+                let (a, b) = triangle_box(t);
+                let inside = a.cmpge(node.min()).all() && b.cmple(node.max()).all();
+                if !splits && !inside {
+                    return Err(format!("triangle {ti} not inside its leaf {n}: {node:?}"));
+                }
+                ulo = ulo.min(a);
+                uhi = uhi.max(b);
+            }
+            if splits && !(node.min().cmpge(ulo).all() && node.max().cmple(uhi).all()) {
+                return Err(format!(
+                    "split leaf {n} larger than its triangles: {node:?}"
+                ));
+            }
+        }
+        if let Some(n) = node_seen.iter().position(|s| !s) {
+            return Err(format!("node {n} unreachable"));
+        }
+        if let Some(s) = slot_seen.iter().position(|s| !s) {
+            return Err(format!("slot {s} in no leaf"));
+        }
+        if let Some(t) =
+            (0..triangles.len()).find(|&t| triangle_is_traceable(&triangles[t]) && !tri_seen[t])
+        {
+            return Err(format!("traceable triangle {t} in no leaf"));
+        }
+        if depth as usize > BVH_STACK_SIZE {
+            return Err(format!(
+                "depth {depth} exceeds the traversal stack ({BVH_STACK_SIZE})"
+            ));
+        }
+        if depth != self.max_depth {
+            return Err(format!(
+                "max_depth is {} but the tree is {depth} deep",
+                self.max_depth
+            ));
+        }
+        Ok(())
+    }
+
+    /// Any hit with `t_min < t < t_max` (shadow rays): early exit on the first hit found.
+    /// Invalid rays (non-finite, zero direction, empty interval) hit nothing.
+    pub fn occluded(&self, triangles: &[TriangleRecord], ray: &RayRecord) -> bool {
+        let Some(r) = TraversalRay::new(ray) else {
+            return false;
+        };
+        let Some(root) = self.nodes.first() else {
+            return false;
+        };
+        if r.enter(root, r.t_max).is_none() {
+            return false;
+        }
+        let mut stack = [0u32; BVH_STACK_SIZE];
+        let mut sp = 0usize;
+        let mut n = 0usize;
+        loop {
+            let node = &self.nodes[n];
+            if node.is_leaf() {
+                for slot in node.left_or_first..node.left_or_first + node.count {
+                    let t = &triangles[self.prim_indices[slot as usize] as usize];
+                    if r.wt
+                        .intersect(r.t_min, r.t_max, t.v0.into(), t.v1.into(), t.v2.into())
+                        .is_some()
+                    {
+                        return true;
+                    }
+                }
+            } else {
+                let l = node.left_or_first as usize;
+                let hit_l = r.enter(&self.nodes[l], r.t_max);
+                let hit_r = r.enter(&self.nodes[l + 1], r.t_max);
+                match (hit_l, hit_r) {
+                    (Some(tl), Some(tr)) => {
+                        // Nearer child first; ties go left.
+                        let (near, far) = if tr < tl { (l + 1, l) } else { (l, l + 1) };
+                        stack[sp] = far as u32;
+                        sp += 1;
+                        n = near;
+                        continue;
+                    }
+                    (Some(_), None) => {
+                        n = l;
+                        continue;
+                    }
+                    (None, Some(_)) => {
+                        n = l + 1;
+                        continue;
+                    }
+                    (None, None) => {}
+                }
+            }
+            if sp == 0 {
+                return false;
+            }
+            sp -= 1;
+            n = stack[sp] as usize;
+        }
+    }
+
+    /// The closest hit with `t_min < t < t_max`. Hits at exactly equal `t` (a ray through a
+    /// shared edge or vertex) go to the lower global triangle index. Invalid rays hit
+    /// nothing.
+    ///
+    /// Boxes are pruned against the closest `t` found so far, widened by
+    /// [`BVH_CULL_SLACK`], so the result is the brute-force minimum of `(t, triangle)` over
+    /// all triangles except in the corner case that constant's docs describe.
+    pub fn closest_hit(&self, triangles: &[TriangleRecord], ray: &RayRecord) -> Option<ClosestHit> {
+        let r = TraversalRay::new(ray)?;
+        let root = self.nodes.first()?;
+        r.enter(root, r.t_max)?;
+        let mut best = ClosestHit {
+            triangle: INVALID_ID,
+            t: r.t_max,
+            u: 0.0,
+            v: 0.0,
+        };
+        let mut stack = [(0u32, 0f32); BVH_STACK_SIZE];
+        let mut sp = 0usize;
+        let mut n = 0usize;
+        loop {
+            let node = &self.nodes[n];
+            if node.is_leaf() {
+                for slot in node.left_or_first..node.left_or_first + node.count {
+                    let id = self.prim_indices[slot as usize];
+                    let t = &triangles[id as usize];
+                    if let Some(h) =
+                        r.wt.intersect(r.t_min, r.t_max, t.v0.into(), t.v1.into(), t.v2.into())
+                    {
+                        if h.t < best.t || (h.t == best.t && id < best.triangle) {
+                            best = ClosestHit {
+                                triangle: id,
+                                t: h.t,
+                                u: h.u,
+                                v: h.v,
+                            };
+                        }
+                    }
+                }
+            } else {
+                let l = node.left_or_first as usize;
+                let hit_l = r.enter(&self.nodes[l], best.t);
+                let hit_r = r.enter(&self.nodes[l + 1], best.t);
+                match (hit_l, hit_r) {
+                    (Some(tl), Some(tr)) => {
+                        let (near, far, t_far) = if tr < tl {
+                            (l + 1, l, tl)
+                        } else {
+                            (l, l + 1, tr)
+                        };
+                        stack[sp] = (far as u32, t_far);
+                        sp += 1;
+                        n = near;
+                        continue;
+                    }
+                    (Some(_), None) => {
+                        n = l;
+                        continue;
+                    }
+                    (None, Some(_)) => {
+                        n = l + 1;
+                        continue;
+                    }
+                    (None, None) => {}
+                }
+            }
+            // Pop the next node still in front of the closest hit.
+            loop {
+                if sp == 0 {
+                    return (best.triangle != INVALID_ID).then_some(best);
+                }
+                sp -= 1;
+                let (next, t_enter) = stack[sp];
+                if t_enter <= best.t * (1.0 + BVH_CULL_SLACK) {
+                    n = next as usize;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// True if the BVH has no nodes (no traceable triangle).
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+
+    /// The node buffer as bytes, for upload.
+    pub fn node_bytes(&self) -> &[u8] {
+        bytemuck::cast_slice(&self.nodes)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::formats::{RAY_KIND_PRIMARY, TRI_RAY_TRACED};
+
+    fn geometry(tris: &[[Vec3; 3]]) -> WorldGeometry {
+        let mut g = WorldGeometry::default();
+        for (i, t) in tris.iter().enumerate() {
+            g.triangles.push(TriangleRecord {
+                v0: t[0].into(),
+                object: 0,
+                v1: t[1].into(),
+                triangle: i as u32,
+                v2: t[2].into(),
+                flags: TRI_RAY_TRACED,
+            });
+            g.normals.push([Vec3::Y; 3]);
+        }
+        g
+    }
+
+    fn ray(o: Vec3, d: Vec3) -> RayRecord {
+        RayRecord {
+            origin: o.into(),
+            t_min: 0.0,
+            direction: d.into(),
+            t_max: f32::INFINITY,
+            pixel: 0,
+            kind: RAY_KIND_PRIMARY,
+            depth: 0,
+            light: INVALID_ID,
+            throughput: [1.0; 3],
+            pad: 0,
+        }
+    }
+
+    /// Triangles growing geometrically along x: obvhs' PLOC chains them into a tree
+    /// deeper than the traversal stack, so the build must fall back to median splits.
+    #[test]
+    fn deep_chain_falls_back_to_median_split() {
+        let tris: Vec<[Vec3; 3]> = (0..600)
+            .map(|i| {
+                let x = 1.13f32.powi(i) - 1.0;
+                let s = 1.13f32.powi(i) * 0.01;
+                [
+                    Vec3::new(x, 0.0, 0.0),
+                    Vec3::new(x + s, 0.0, 0.0),
+                    Vec3::new(x, s, 0.0),
+                ]
+            })
+            .collect();
+        let g = geometry(&tris);
+        let obvhs_tris: Vec<Triangle> = tris
+            .iter()
+            .map(|t| Triangle {
+                v0: t[0].into(),
+                v1: t[1].into(),
+                v2: t[2].into(),
+            })
+            .collect();
+        let ids: Vec<u32> = (0..tris.len() as u32).collect();
+        let median = Bvh::build_median(&g.triangles, &ids, BvhPreset::Medium);
+        median.validate(&g).unwrap();
+        // 600 / 8 = 75 leaves: depth ceil(log2(75)) = 7.
+        assert_eq!(median.max_depth, 7);
+        for preset in BvhPreset::ALL {
+            let raw = build_bvh2_from_tris(&obvhs_tris, preset.params(), &mut Duration::default());
+            // `depth` counts levels (a lone leaf is 1); the stack bound is on edges.
+            assert!(
+                raw.depth(0) - 1 > BVH_STACK_SIZE,
+                "{preset:?}: obvhs tree not deep"
+            );
+            let bvh = Bvh::build(&g, preset);
+            bvh.validate(&g).unwrap();
+            assert_eq!(bvh.nodes, median.nodes, "{preset:?}");
+            assert_eq!(bvh.prim_indices, median.prim_indices, "{preset:?}");
+        }
+        // Beyond i = 350 the triangles are larger than 1e16 and their edge functions
+        // (products of two coordinates) overflow f32: unhittable by design.
+        for (i, t) in tris.iter().enumerate().take(350) {
+            let c = (t[0] + t[1] + t[2]) / 3.0;
+            let hit = median
+                .closest_hit(&g.triangles, &ray(c + Vec3::Z, Vec3::NEG_Z))
+                .unwrap();
+            assert_eq!(hit.triangle, i as u32);
+        }
+    }
+
+    /// Pinned (found by a randomized search): with spatial splits and few triangles,
+    /// obvhs skips the leaf collapse and two leaves name slot 0 (both pieces of triangle
+    /// 0) while slot 5 (also triangle 0) is in no leaf. The flattened copy gives every
+    /// leaf its own slots, and both pieces are still found.
+    #[test]
+    fn pinned_presplit_leaves_sharing_a_slot_are_flattened() {
+        let tris = [
+            [
+                [9.329468, 9.269577, -5.326501],
+                [8.254894, 6.7223434, -9.476224],
+                [3.8572035, -6.653434, 5.7591],
+            ],
+            [
+                [5.275055, 2.4031878, 4.9783344],
+                [5.4808893, 2.0498235, 5.2556744],
+                [5.461748, 2.077035, 5.35121],
+            ],
+            [
+                [9.347248, 0.5261822, -9.408352],
+                [8.874341, 0.3317358, -9.209116],
+                [9.638064, 0.6561403, -9.3794775],
+            ],
+            [
+                [-5.1863933, -3.3541927, -7.999065],
+                [-3.774321, -7.2043858, 7.141865],
+                [0.9800291, -2.453792, -0.87600136],
+            ],
+            [
+                [8.208429, -7.1369004, 6.1280994],
+                [8.461, -7.592343, 6.125361],
+                [8.697524, -6.8933563, 5.9329395],
+            ],
+        ]
+        .map(|t| t.map(Vec3::from));
+        let g = geometry(&tris);
+        let obvhs_tris: Vec<Triangle> = tris
+            .iter()
+            .map(|t| Triangle {
+                v0: t[0].into(),
+                v1: t[1].into(),
+                v2: t[2].into(),
+            })
+            .collect();
+        let raw = build_bvh2_from_tris(
+            &obvhs_tris,
+            BvhPreset::Slow.params(),
+            &mut Duration::default(),
+        );
+        assert_eq!(raw.primitive_indices, [0, 1, 2, 3, 4, 0]);
+        let leaf_firsts: Vec<u32> = raw
+            .nodes
+            .iter()
+            .filter(|n| n.is_leaf())
+            .map(|n| n.first_index)
+            .collect();
+        assert_eq!(leaf_firsts.iter().filter(|&&f| f == 0).count(), 2);
+        for preset in [BvhPreset::Slow, BvhPreset::VerySlow] {
+            let bvh = Bvh::build(&g, preset);
+            bvh.validate(&g).unwrap();
+            assert_eq!(bvh.prim_indices.iter().filter(|&&p| p == 0).count(), 2);
+            let t = tris[0];
+            for (u, v) in [(0.1, 0.1), (0.8, 0.1), (0.1, 0.8), (0.4, 0.4), (0.0, 0.5)] {
+                let p = t[0] * (1.0 - u - v) + t[1] * u + t[2] * v;
+                let o = p + Vec3::new(0.3, 20.0, 0.1);
+                let hit = bvh.closest_hit(&g.triangles, &ray(o, p - o)).unwrap();
+                assert_eq!(hit.triangle, 0, "{preset:?} ({u}, {v})");
+            }
+        }
+    }
+
+    #[test]
+    fn empty_and_untraceable_geometry_gives_empty_bvh() {
+        let nan = Vec3::splat(f32::NAN);
+        let g = geometry(&[
+            [Vec3::ZERO, Vec3::X, nan],
+            [Vec3::ZERO, Vec3::ZERO, Vec3::Y],
+        ]);
+        for preset in BvhPreset::ALL {
+            let bvh = Bvh::build(&g, preset);
+            assert!(bvh.is_empty());
+            bvh.validate(&g).unwrap();
+            let r = ray(Vec3::new(0.1, 0.1, 1.0), Vec3::NEG_Z);
+            assert!(!bvh.occluded(&g.triangles, &r));
+            assert_eq!(bvh.closest_hit(&g.triangles, &r), None);
+        }
+        let empty = WorldGeometry::default();
+        assert!(Bvh::build(&empty, BvhPreset::default()).is_empty());
+    }
+
+    #[test]
+    fn validate_catches_broken_trees() {
+        let tris: Vec<[Vec3; 3]> = (0..40)
+            .map(|i| {
+                [
+                    Vec3::new(i as f32, 0.0, 0.0),
+                    Vec3::new(i as f32 + 0.5, 0.0, 0.0),
+                    Vec3::new(i as f32, 1.0, 0.0),
+                ]
+            })
+            .collect();
+        let g = geometry(&tris);
+        let bvh = Bvh::build(&g, BvhPreset::Medium);
+        bvh.validate(&g).unwrap();
+        let mut b = bvh.clone();
+        b.prim_indices[0] = 10_000;
+        assert!(b.validate(&g).is_err());
+        let mut b = bvh.clone();
+        b.nodes[1].aabb_max[0] += 1000.0;
+        assert!(b.validate(&g).is_err());
+        let mut b = bvh.clone();
+        b.max_depth += 1;
+        assert!(b.validate(&g).is_err());
+        let mut b = bvh.clone();
+        let leaf = b.nodes.iter().position(|n| n.is_leaf()).unwrap();
+        b.nodes[leaf].aabb_min[1] += 0.25;
+        assert!(b.validate(&g).is_err());
+    }
+}

@@ -1,1 +1,449 @@
-//! (in progress)
+//! Ray kernels: the watertight ray/triangle test, the conservative ray/box slab
+//! test and the robust secondary-ray origin offset.
+//!
+//! These are the specification of every ray query in hyrt: the CPU BVH traversal
+//! ([`crate::bvh`]) calls them and the WGSL traversal mirrors each function by
+//! name. All arithmetic is plain f32 with the operation order written out (no
+//! `mul_add`, no reassociation); the only exception is the double-precision
+//! fallback of [`intersect_triangle_watertight`], which the GPU cannot mirror
+//! (see there).
+//!
+//! Conventions:
+//! * A ray is `origin + t * dir`, `dir` not necessarily normalized.
+//! * A triangle is hit only for `t_min < t < t_max` (the Vulkan ray-tracing rule).
+//! * Barycentrics follow the G-buffer: `u` is the weight of `v1`, `v` the weight
+//!   of `v2`, `w = 1 - u - v` the weight of `v0`.
+//! * Non-finite inputs never hit and never panic.
+//!
+//! ```
+//! use hyrt_core::glam::Vec3;
+//! use hyrt_core::kernels::ray::intersect_triangle_watertight;
+//! let hit = intersect_triangle_watertight(
+//!     Vec3::new(0.25, 0.25, 1.0), Vec3::NEG_Z, 0.0, f32::INFINITY,
+//!     Vec3::ZERO, Vec3::X, Vec3::Y,
+//! ).unwrap();
+//! assert_eq!((hit.t, hit.u, hit.v), (1.0, 0.25, 0.25));
+//! ```
+
+use glam::Vec3;
+
+// ---------------------------------------------------------------------------------------------
+// Floating-point error bounds
+// ---------------------------------------------------------------------------------------------
+
+/// Unit roundoff of f32, 2^-24: the largest relative error of one correctly rounded
+/// operation (pbrt-v4 `MachineEpsilon`, `util/float.h`; Higham's *u*).
+pub const MACHINE_EPSILON: f32 = f32::EPSILON * 0.5;
+
+/// pbrt-v4 `gamma(n) = n u / (1 - n u)`: a bound on the relative error accumulated by
+/// `n` successive rounded operations (Higham, *Accuracy and Stability of Numerical
+/// Algorithms*, lemma 3.1; pbrt-v4 `util/float.h`).
+#[inline]
+pub const fn gamma(n: i32) -> f32 {
+    let nu = n as f32 * MACHINE_EPSILON;
+    nu / (1.0 - nu)
+}
+
+/// Scale applied to every far slab distance in [`ray_aabb_conservative`]:
+/// `1 + 2 gamma(3)` (pbrt-v4 `Bounds3::IntersectP`, after Ize 2013, "Robust BVH Ray
+/// Traversal"). Each slab distance carries at most gamma(3) relative error (the
+/// subtraction, the rounded reciprocal and the product), so widening the far bound by
+/// twice that keeps the interval conservative.
+pub const SLAB_FAR_SCALE: f32 = 1.0 + 2.0 * gamma(3);
+
+// ---------------------------------------------------------------------------------------------
+// Watertight ray/triangle intersection
+// ---------------------------------------------------------------------------------------------
+
+/// A ray/triangle hit: distance and barycentrics.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriangleHit {
+    /// Ray parameter of the hit: `t_min < t < t_max`.
+    pub t: f32,
+    /// Barycentric weight of `v1`.
+    pub u: f32,
+    /// Barycentric weight of `v2` (the weight of `v0` is `1 - u - v`).
+    pub v: f32,
+}
+
+/// The per-ray constants of the watertight test (Woop, Benthin, Wald 2013, "Watertight
+/// Ray/Triangle Intersection", JCGT 2(1), section 3: computed once per ray).
+///
+/// The ray's space is: translate by `-origin`, permute the axes so that the largest
+/// `|dir|` component becomes z, then shear so that the ray becomes the +z axis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WatertightRay {
+    /// The ray origin (the translation).
+    pub origin: Vec3,
+    /// Index of the largest `|dir|` component; the permutation is
+    /// `(kx, ky, kz) = ((kz + 1) % 3, (kz + 2) % 3, kz)` (see [`permute_axes`]).
+    pub kz: u32,
+    /// Shear constants `(dir[kx] / dir[kz], dir[ky] / dir[kz], 1 / dir[kz])`.
+    pub shear: Vec3,
+}
+
+/// Index of the largest of three values, ties going to the later axis (pbrt-v4
+/// `MaxComponentIndex`): `x > y ? (x > z ? 0 : 2) : (y > z ? 1 : 2)`.
+#[inline]
+pub fn max_component_index(v: Vec3) -> u32 {
+    if v.x > v.y {
+        if v.x > v.z {
+            0
+        } else {
+            2
+        }
+    } else if v.y > v.z {
+        1
+    } else {
+        2
+    }
+}
+
+/// Permute the axes of `v` so that axis `kz` comes last:
+/// `kz = 0: (y, z, x)`, `kz = 1: (z, x, y)`, `kz = 2: (x, y, z)`.
+#[inline]
+pub fn permute_axes(v: Vec3, kz: u32) -> Vec3 {
+    match kz {
+        0 => Vec3::new(v.y, v.z, v.x),
+        1 => Vec3::new(v.z, v.x, v.y),
+        _ => v,
+    }
+}
+
+/// The 2D edge function `a.x * b.y - a.y * b.x` of sheared vertices, in f32.
+///
+/// Written as a plain difference of two rounded products (as in Woop et al.; pbrt-v4 uses
+/// Kahan's `DifferenceOfProducts` instead) so that it is exactly antisymmetric:
+/// `edge_function(b, a) == -edge_function(a, b)` bit for bit. Two triangles sharing an
+/// edge therefore see the same edge value with opposite signs, which is what makes the
+/// test watertight. A GPU mirror must not let the compiler fuse either product into an
+/// FMA.
+#[inline]
+fn edge_function(a: Vec3, b: Vec3) -> f32 {
+    a.x * b.y - a.y * b.x
+}
+
+/// [`edge_function`] in double precision: both products are exact in f64, so the sign
+/// (and zero-ness) of the result is exact. Used only when an f32 edge function is
+/// exactly zero.
+#[inline]
+fn edge_function_f64(a: Vec3, b: Vec3) -> f32 {
+    (a.x as f64 * b.y as f64 - a.y as f64 * b.x as f64) as f32
+}
+
+impl WatertightRay {
+    /// Precompute the ray space. `None` (the ray hits nothing) for a non-finite origin
+    /// or direction, or a zero direction.
+    #[inline]
+    pub fn new(origin: Vec3, dir: Vec3) -> Option<WatertightRay> {
+        if !(origin.is_finite() && dir.is_finite()) || dir == Vec3::ZERO {
+            return None;
+        }
+        let kz = max_component_index(dir.abs());
+        let d = permute_axes(dir, kz);
+        let shear = Vec3::new(d.x / d.z, d.y / d.z, 1.0 / d.z);
+        Some(WatertightRay { origin, kz, shear })
+    }
+
+    /// Translate, permute and shear a vertex (x and y only; z is left unscaled).
+    #[inline]
+    fn transform(&self, p: Vec3) -> Vec3 {
+        let q = permute_axes(p - self.origin, self.kz);
+        Vec3::new(q.x - self.shear.x * q.z, q.y - self.shear.y * q.z, q.z)
+    }
+
+    /// The watertight test against one triangle, for this precomputed ray; see
+    /// [`intersect_triangle_watertight`], which is exactly this after [`Self::new`].
+    #[inline]
+    pub fn intersect(
+        &self,
+        t_min: f32,
+        t_max: f32,
+        v0: Vec3,
+        v1: Vec3,
+        v2: Vec3,
+    ) -> Option<TriangleHit> {
+        // Vertices in ray space (x, y sheared; z still unscaled).
+        let p0 = self.transform(v0);
+        let p1 = self.transform(v1);
+        let p2 = self.transform(v2);
+
+        // Edge functions: e_i is twice the signed area of the sub-triangle opposite v_i,
+        // seen from the ray (the ray is the point (0, 0) of the sheared xy plane).
+        let mut e0 = edge_function(p1, p2);
+        let mut e1 = edge_function(p2, p0);
+        let mut e2 = edge_function(p0, p1);
+
+        // The ray passes (to f32 precision) exactly through an edge or vertex: decide it
+        // exactly in f64 (Woop et al. section 3; pbrt-v4 `IntersectTriangle`). WGSL has
+        // no f64: the GPU needs a deterministic tie rule for e == 0 instead (e.g. a
+        // top-left style rule on the sheared edge), and will differ from this reference
+        // exactly on such rays.
+        if e0 == 0.0 || e1 == 0.0 || e2 == 0.0 {
+            e0 = edge_function_f64(p1, p2);
+            e1 = edge_function_f64(p2, p0);
+            e2 = edge_function_f64(p0, p1);
+        }
+
+        // Inside test: all edge functions of the same sign (zeros accepted: edges are
+        // shared, both neighbours report the hit and the caller breaks the tie).
+        if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
+            return None;
+        }
+        // Degenerate in ray space (det == 0; always the case for a triangle with two equal
+        // vertices), or non-finite (a NaN or infinite vertex makes det non-finite).
+        let det = e0 + e1 + e2;
+        if det == 0.0 || !det.is_finite() {
+            return None;
+        }
+
+        // Scaled hit distance: t * det, signs compared before dividing.
+        let z0 = self.shear.z * p0.z;
+        let z1 = self.shear.z * p1.z;
+        let z2 = self.shear.z * p2.z;
+        let t_scaled = e0 * z0 + e1 * z1 + e2 * z2;
+        if det < 0.0 && t_scaled >= 0.0 {
+            return None;
+        }
+        if det > 0.0 && t_scaled <= 0.0 {
+            return None;
+        }
+
+        let inv_det = 1.0 / det;
+        let t = t_scaled * inv_det;
+        // Written so that a NaN anywhere rejects.
+        if !(t > t_min && t < t_max) {
+            return None;
+        }
+
+        // Conservative t > 0: reject hits closer to the origin than the error bound of t
+        // (pbrt-v4 `IntersectTriangle`, "Ensure that computed triangle t is
+        // conservatively greater than zero"; PBR 4th ed. section 6.8.7).
+        let max_zt = z0.abs().max(z1.abs()).max(z2.abs());
+        let delta_z = gamma(3) * max_zt;
+        let max_xt = p0.x.abs().max(p1.x.abs()).max(p2.x.abs());
+        let max_yt = p0.y.abs().max(p1.y.abs()).max(p2.y.abs());
+        let delta_x = gamma(5) * (max_xt + max_zt);
+        let delta_y = gamma(5) * (max_yt + max_zt);
+        let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+        let max_e = e0.abs().max(e1.abs()).max(e2.abs());
+        let delta_t =
+            3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
+        // Positive form, so that a NaN bound rejects.
+        if t > delta_t {
+            Some(TriangleHit {
+                t,
+                u: e1 * inv_det,
+                v: e2 * inv_det,
+            })
+        } else {
+            None
+        }
+    }
+}
+
+/// Watertight ray/triangle intersection (Woop, Benthin, Wald 2013; pbrt-v4
+/// `IntersectTriangle`): translate the vertices to the ray origin, permute the axes so the
+/// largest `|dir|` component is z, shear so the ray is the +z axis, then evaluate the three
+/// 2D edge functions at the origin. Edge functions are exactly antisymmetric (see
+/// `edge_function`), and exactly-zero ones are recomputed in f64, so a ray through a
+/// shared edge or vertex of a closed mesh always hits at least one of its triangles.
+///
+/// Returns a hit only for `t_min < t < t_max` and only if `t` is conservatively positive
+/// (larger than its rounding-error bound, pbrt-v4). Never hits a triangle with `det == 0`
+/// in ray space (in particular any triangle with two equal vertices), nor for NaN or
+/// infinite inputs, a zero direction, or NaN bounds.
+///
+/// Both faces are hit (no culling). `u` and `v` are the weights of `v1` and `v2`.
+///
+/// Range: the edge functions are products of two vertex coordinates relative to the ray
+/// origin, so triangles extending more than about 1e19 from the origin overflow f32 and
+/// are never hit (a non-finite `det` rejects).
+#[inline]
+pub fn intersect_triangle_watertight(
+    origin: Vec3,
+    dir: Vec3,
+    t_min: f32,
+    t_max: f32,
+    v0: Vec3,
+    v1: Vec3,
+    v2: Vec3,
+) -> Option<TriangleHit> {
+    WatertightRay::new(origin, dir)?.intersect(t_min, t_max, v0, v1, v2)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Conservative slab test
+// ---------------------------------------------------------------------------------------------
+
+/// Component-wise `1 / dir`, keeping the sign of zero: `1 / +0 = +inf`, `1 / -0 = -inf`
+/// (IEEE 754 division does exactly this; the function exists so that the GPU mirror,
+/// where WGSL does not promise signed zeros or infinities, has one place to fix it).
+#[inline]
+pub fn safe_inverse_dir(dir: Vec3) -> Vec3 {
+    Vec3::new(1.0 / dir.x, 1.0 / dir.y, 1.0 / dir.z)
+}
+
+/// Conservative ray/box slab test (Kay-Kajiya slabs; robustness after Ize 2013 and
+/// pbrt-v4 `Bounds3::IntersectP`). Returns the entry distance `max(t_min, near planes)`
+/// if the ray's interval `[t_min, t_max]` overlaps the closed box, else `None`.
+///
+/// * The near and far plane of each axis are chosen by the sign bit of `inv_dir`, so a
+///   `-0` direction component (inverse `-inf`) is handled like any negative one.
+/// * Far distances are scaled by [`SLAB_FAR_SCALE`] so that rounding never loses a box
+///   the exact test would hit.
+/// * An origin exactly on a slab plane with an infinite inverse gives `0 * inf = NaN`;
+///   the running max/min are written as `if candidate > acc { acc = candidate }` so a NaN
+///   candidate is dropped: that axis then does not constrain the interval (the ray lies
+///   in the plane, inside the closed slab). NaN `t_min` or `t_max` give `None`.
+///
+/// The origin must be finite (the BVH traversal checks rays once up front).
+#[inline]
+pub fn ray_aabb_conservative(
+    origin: Vec3,
+    inv_dir: Vec3,
+    t_min: f32,
+    t_max: f32,
+    bmin: Vec3,
+    bmax: Vec3,
+) -> Option<f32> {
+    let (near_x, far_x) = if inv_dir.x.is_sign_negative() {
+        (bmax.x, bmin.x)
+    } else {
+        (bmin.x, bmax.x)
+    };
+    let (near_y, far_y) = if inv_dir.y.is_sign_negative() {
+        (bmax.y, bmin.y)
+    } else {
+        (bmin.y, bmax.y)
+    };
+    let (near_z, far_z) = if inv_dir.z.is_sign_negative() {
+        (bmax.z, bmin.z)
+    } else {
+        (bmin.z, bmax.z)
+    };
+    let tn_x = (near_x - origin.x) * inv_dir.x;
+    let tn_y = (near_y - origin.y) * inv_dir.y;
+    let tn_z = (near_z - origin.z) * inv_dir.z;
+    let tf_x = (far_x - origin.x) * inv_dir.x * SLAB_FAR_SCALE;
+    let tf_y = (far_y - origin.y) * inv_dir.y * SLAB_FAR_SCALE;
+    let tf_z = (far_z - origin.z) * inv_dir.z * SLAB_FAR_SCALE;
+
+    let mut t_enter = t_min;
+    if tn_x > t_enter {
+        t_enter = tn_x;
+    }
+    if tn_y > t_enter {
+        t_enter = tn_y;
+    }
+    if tn_z > t_enter {
+        t_enter = tn_z;
+    }
+    let mut t_exit = t_max;
+    if tf_x < t_exit {
+        t_exit = tf_x;
+    }
+    if tf_y < t_exit {
+        t_exit = tf_y;
+    }
+    if tf_z < t_exit {
+        t_exit = tf_z;
+    }
+    if t_enter <= t_exit {
+        Some(t_enter)
+    } else {
+        None
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Secondary-ray origins
+// ---------------------------------------------------------------------------------------------
+
+/// Below this magnitude a coordinate is offset by a fixed amount instead of in ulps
+/// (Wächter and Binder 2019, "A Fast and Robust Method for Avoiding Self-Intersection",
+/// Ray Tracing Gems ch. 6, listing 6-1: `origin()`), because ulps shrink towards zero.
+pub const OFFSET_ORIGIN: f32 = 1.0 / 32.0;
+/// Fixed offset per unit of normal near zero (Wächter and Binder, `float_scale()`).
+pub const OFFSET_FLOAT_SCALE: f32 = 1.0 / 65536.0;
+/// Offset in ulps per unit of normal away from zero (Wächter and Binder, `int_scale()`).
+pub const OFFSET_INT_SCALE: f32 = 256.0;
+
+/// One coordinate of [`offset_ray_origin`].
+#[inline]
+fn offset_coordinate(p: f32, n: f32) -> f32 {
+    if p.abs() < OFFSET_ORIGIN {
+        p + OFFSET_FLOAT_SCALE * n
+    } else {
+        // `as i32` truncates towards zero like the C original (and saturates; NaN -> 0).
+        let of_i = (OFFSET_INT_SCALE * n) as i32;
+        let step = if p < 0.0 { of_i.wrapping_neg() } else { of_i };
+        f32::from_bits((p.to_bits() as i32).wrapping_add(step) as u32)
+    }
+}
+
+/// Move a surface point off its surface, to the side `n` points to (Wächter and Binder,
+/// Ray Tracing Gems ch. 6): each coordinate moves by `OFFSET_INT_SCALE * n_i` ulps
+/// (truncated to an integer), or by `OFFSET_FLOAT_SCALE * n_i` when `|p_i| <
+/// OFFSET_ORIGIN`.
+///
+/// `n` is the unit *geometric* normal of the triangle, oriented by the caller towards the
+/// side the new ray leaves from (flip it for transmission). Rays from the result, leaving
+/// into that side, start with `t_min = 0`. `p` should be finite (non-finite points give
+/// non-finite results, no panic).
+#[inline]
+pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
+    Vec3::new(
+        offset_coordinate(p.x, n.x),
+        offset_coordinate(p.y, n.y),
+        offset_coordinate(p.z, n.z),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gamma_matches_pbrt() {
+        assert_eq!(MACHINE_EPSILON, 2f32.powi(-24));
+        let g3 = gamma(3);
+        assert!(g3 > 3.0 * MACHINE_EPSILON && g3 < 3.0001 * MACHINE_EPSILON);
+        let far_scale = SLAB_FAR_SCALE;
+        assert!(far_scale > 1.0 && far_scale < 1.0 + 4.0 * f32::EPSILON);
+    }
+
+    #[test]
+    fn permutation_puts_largest_axis_last() {
+        let v = Vec3::new(1.0, 2.0, 3.0);
+        assert_eq!(permute_axes(v, 0), Vec3::new(2.0, 3.0, 1.0));
+        assert_eq!(permute_axes(v, 1), Vec3::new(3.0, 1.0, 2.0));
+        assert_eq!(permute_axes(v, 2), v);
+        assert_eq!(max_component_index(Vec3::new(1.0, 1.0, 1.0)), 2);
+        assert_eq!(max_component_index(Vec3::new(2.0, 2.0, 1.0)), 1);
+        assert_eq!(max_component_index(Vec3::new(3.0, 2.0, 1.0)), 0);
+    }
+
+    #[test]
+    fn edge_function_is_antisymmetric() {
+        let a = Vec3::new(0.1, 0.7, 0.0);
+        let b = Vec3::new(-0.3, 1.0 / 3.0, 0.0);
+        assert_eq!(
+            edge_function(a, b).to_bits(),
+            (-edge_function(b, a)).to_bits()
+        );
+    }
+
+    #[test]
+    fn offset_moves_whole_ulps() {
+        let p = Vec3::new(1.0, -2.0, 0.01);
+        let o = offset_ray_origin(p, Vec3::new(1.0, 0.0, 1.0));
+        assert_eq!(o.x.to_bits(), 1.0f32.to_bits() + 256);
+        assert_eq!(o.y, -2.0);
+        assert_eq!(o.z, 0.01 + OFFSET_FLOAT_SCALE);
+        let o = offset_ray_origin(p, Vec3::new(0.0, 1.0, -1.0));
+        // Towards +y from a negative coordinate: the magnitude shrinks by 256 ulps.
+        assert_eq!(o.y.to_bits(), (-2.0f32).to_bits() - 256);
+        assert_eq!(o.z, 0.01 - OFFSET_FLOAT_SCALE);
+    }
+}
