@@ -146,21 +146,14 @@ impl BvhNode {
             return Err(format!("node with min > max: {self:?}"));
         }
         if self.count > BVH_MAX_LEAF_SIZE {
-            return Err(format!(
-                "leaf with more than {BVH_MAX_LEAF_SIZE} slots: {self:?}"
-            ));
+            return Err(format!("leaf with more than {BVH_MAX_LEAF_SIZE} slots: {self:?}"));
         }
         Ok(())
     }
 
     #[inline]
     fn from_box(min: Vec3, max: Vec3, left_or_first: u32, count: u32) -> BvhNode {
-        BvhNode {
-            aabb_min: min.into(),
-            left_or_first,
-            aabb_max: max.into(),
-            count,
-        }
+        BvhNode { aabb_min: min.into(), left_or_first, aabb_max: max.into(), count }
     }
 }
 
@@ -275,19 +268,13 @@ fn flatten(nodes: &[BvhNode], prims: &[u32]) -> (Vec<BvhNode>, Vec<u32>) {
         let n = nodes[src];
         if n.is_leaf() {
             let first = n.left_or_first as usize;
-            out_nodes[dst] = BvhNode {
-                left_or_first: out_prims.len() as u32,
-                ..n
-            };
+            out_nodes[dst] = BvhNode { left_or_first: out_prims.len() as u32, ..n };
             out_prims.extend_from_slice(&prims[first..first + n.count as usize]);
         } else {
             let left = out_nodes.len();
             out_nodes.push(BvhNode::zeroed());
             out_nodes.push(BvhNode::zeroed());
-            out_nodes[dst] = BvhNode {
-                left_or_first: left as u32,
-                ..n
-            };
+            out_nodes[dst] = BvhNode { left_or_first: left as u32, ..n };
             todo.push((n.left_or_first as usize + 1, left + 1));
             todo.push((n.left_or_first as usize, left));
         }
@@ -336,14 +323,7 @@ impl TraversalRay {
     #[inline]
     fn enter(&self, node: &BvhNode, t_far: f32) -> Option<f32> {
         let t_far = t_far * (1.0 + BVH_CULL_SLACK);
-        ray_aabb_conservative(
-            self.wt.origin,
-            self.inv_dir,
-            self.box_t_min,
-            t_far,
-            node.min(),
-            node.max(),
-        )
+        ray_aabb_conservative(self.wt.origin, self.inv_dir, self.box_t_min, t_far, node.min(), node.max())
     }
 }
 
@@ -359,17 +339,10 @@ impl Bvh {
             if triangle_is_traceable(t) {
                 ids.push(i as u32);
                 let [a, b, c] = t.vertices();
-                obvhs_tris.push(Triangle {
-                    v0: Vec3A::from(a),
-                    v1: Vec3A::from(b),
-                    v2: Vec3A::from(c),
-                });
+                obvhs_tris.push(Triangle { v0: Vec3A::from(a), v1: Vec3A::from(b), v2: Vec3A::from(c) });
             }
         }
-        let mut bvh = Bvh {
-            build_preset: preset,
-            ..Bvh::default()
-        };
+        let mut bvh = Bvh { build_preset: preset, ..Bvh::default() };
         if !ids.is_empty() {
             let bvh2 = build_bvh2_from_tris(&obvhs_tris, preset.params(), &mut Duration::default());
             let nodes: Vec<BvhNode> = bvh2
@@ -380,11 +353,7 @@ impl Bvh {
                     BvhNode::from_box(b.min.into(), b.max.into(), n.first_index, n.prim_count)
                 })
                 .collect();
-            let prims: Vec<u32> = bvh2
-                .primitive_indices
-                .iter()
-                .map(|&p| ids[p as usize])
-                .collect();
+            let prims: Vec<u32> = bvh2.primitive_indices.iter().map(|&p| ids[p as usize]).collect();
             (bvh.nodes, bvh.prim_indices) = flatten(&nodes, &prims);
             if bvh2.uses_spatial_splits {
                 bvh.widen_split_leaves(triangles);
@@ -403,11 +372,7 @@ impl Bvh {
     /// The fallback builder: balanced object-median splits on the longest centroid axis,
     /// leaves of at most [`BVH_MAX_LEAF_SIZE`] triangles, depth `ceil(log2(n / 8))`.
     /// `ids` are the traceable global triangle indices.
-    pub(crate) fn build_median(
-        triangles: &[TriangleRecord],
-        ids: &[u32],
-        preset: BvhPreset,
-    ) -> Bvh {
+    pub(crate) fn build_median(triangles: &[TriangleRecord], ids: &[u32], preset: BvhPreset) -> Bvh {
         let mut items: Vec<(Vec3, u32)> = ids
             .iter()
             .map(|&i| {
@@ -440,8 +405,7 @@ impl Bvh {
             } else {
                 2
             };
-            items[start..end]
-                .sort_unstable_by(|a, b| a.0[axis].total_cmp(&b.0[axis]).then(a.1.cmp(&b.1)));
+            items[start..end].sort_unstable_by(|a, b| a.0[axis].total_cmp(&b.0[axis]).then(a.1.cmp(&b.1)));
             let left = nodes.len();
             nodes.push(BvhNode::zeroed());
             nodes.push(BvhNode::zeroed());
@@ -450,12 +414,8 @@ impl Bvh {
             todo.push((left + 1, mid, end));
             todo.push((left, start, mid));
         }
-        let mut bvh = Bvh {
-            nodes,
-            prim_indices: items.iter().map(|&(_, i)| i).collect(),
-            build_preset: preset,
-            max_depth: 0,
-        };
+        let mut bvh =
+            Bvh { nodes, prim_indices: items.iter().map(|&(_, i)| i).collect(), build_preset: preset, max_depth: 0 };
         bvh.max_depth = bvh.compute_max_depth();
         bvh
     }
@@ -489,19 +449,14 @@ impl Bvh {
         for &(n, _) in order.iter().rev() {
             let node = self.nodes[n as usize];
             let (lo, hi) = if node.is_leaf() {
-                let (mut ulo, mut uhi) =
-                    (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+                let (mut ulo, mut uhi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
                 for slot in node.left_or_first..node.left_or_first + node.count {
-                    let (a, b) =
-                        triangle_box(&triangles[self.prim_indices[slot as usize] as usize]);
+                    let (a, b) = triangle_box(&triangles[self.prim_indices[slot as usize] as usize]);
                     ulo = ulo.min(a);
                     uhi = uhi.max(b);
                 }
                 let margin = ulo.abs().max(uhi.abs()) * SPLIT_LEAF_MARGIN;
-                (
-                    (node.min() - margin).max(ulo),
-                    (node.max() + margin).min(uhi),
-                )
+                ((node.min() - margin).max(ulo), (node.max() + margin).min(uhi))
             } else {
                 let l = &self.nodes[node.left_or_first as usize];
                 let r = &self.nodes[node.left_or_first as usize + 1];
@@ -520,18 +475,13 @@ impl Bvh {
     /// [`BVH_STACK_SIZE`] and equal to `max_depth`.
     pub fn validate(&self, geometry: &WorldGeometry) -> Result<(), String> {
         let triangles = &geometry.triangles;
-        let traceable = triangles
-            .iter()
-            .filter(|t| triangle_is_traceable(t))
-            .count();
+        let traceable = triangles.iter().filter(|t| triangle_is_traceable(t)).count();
         if self.nodes.is_empty() {
             if !self.prim_indices.is_empty() || self.max_depth != 0 {
                 return Err("BVH without nodes has slots or depth".into());
             }
             if traceable != 0 {
-                return Err(format!(
-                    "BVH without nodes but {traceable} traceable triangles"
-                ));
+                return Err(format!("BVH without nodes but {traceable} traceable triangles"));
             }
             return Ok(());
         }
@@ -543,28 +493,20 @@ impl Bvh {
         // (node, depth, parent)
         let mut todo = vec![(0u32, 0u32, 0u32)];
         while let Some((n, d, parent)) = todo.pop() {
-            let node = self
-                .nodes
-                .get(n as usize)
-                .ok_or_else(|| format!("node {n} out of range"))?;
+            let node = self.nodes.get(n as usize).ok_or_else(|| format!("node {n} out of range"))?;
             if std::mem::replace(&mut node_seen[n as usize], true) {
                 return Err(format!("node {n} reachable twice"));
             }
             node.validate().map_err(|e| format!("node {n}: {e}"))?;
             let p = &self.nodes[parent as usize];
             if !(node.min().cmpge(p.min()).all() && node.max().cmple(p.max()).all()) {
-                return Err(format!(
-                    "node {n} not inside its parent {parent}: {node:?} vs {p:?}"
-                ));
+                return Err(format!("node {n} not inside its parent {parent}: {node:?} vs {p:?}"));
             }
             depth = depth.max(d);
             if !node.is_leaf() {
                 let l = node.left_or_first;
                 if l == 0 || l as usize + 1 >= self.nodes.len() {
-                    return Err(format!(
-                        "inner node {n} with children {l}, {} out of range",
-                        l + 1
-                    ));
+                    return Err(format!("inner node {n} with children {l}, {} out of range", l + 1));
                 }
                 todo.push((l, d + 1, n));
                 todo.push((l + 1, d + 1, n));
@@ -572,10 +514,7 @@ impl Bvh {
             }
             let (first, count) = (node.left_or_first as usize, node.count as usize);
             if first + count > self.prim_indices.len() {
-                return Err(format!(
-                    "leaf {n} slots {first}..{} out of range",
-                    first + count
-                ));
+                return Err(format!("leaf {n} slots {first}..{} out of range", first + count));
             }
             let (mut ulo, mut uhi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
             for (slot, &ti) in self.prim_indices.iter().enumerate().skip(first).take(count) {
@@ -583,13 +522,9 @@ impl Bvh {
                     return Err(format!("slot {slot} in two leaves"));
                 }
                 let ti = ti as usize;
-                let t = triangles
-                    .get(ti)
-                    .ok_or_else(|| format!("slot {slot}: triangle {ti} out of range"))?;
+                let t = triangles.get(ti).ok_or_else(|| format!("slot {slot}: triangle {ti} out of range"))?;
                 if !triangle_is_traceable(t) {
-                    return Err(format!(
-                        "slot {slot}: triangle {ti} is not traceable: {t:?}"
-                    ));
+                    return Err(format!("slot {slot}: triangle {ti} is not traceable: {t:?}"));
                 }
                 tri_seen[ti] = true;
                 let (a, b) = triangle_box(t);
@@ -601,9 +536,7 @@ impl Bvh {
                 uhi = uhi.max(b);
             }
             if splits && !(node.min().cmpge(ulo).all() && node.max().cmple(uhi).all()) {
-                return Err(format!(
-                    "split leaf {n} larger than its triangles: {node:?}"
-                ));
+                return Err(format!("split leaf {n} larger than its triangles: {node:?}"));
             }
         }
         if let Some(n) = node_seen.iter().position(|s| !s) {
@@ -612,21 +545,14 @@ impl Bvh {
         if let Some(s) = slot_seen.iter().position(|s| !s) {
             return Err(format!("slot {s} in no leaf"));
         }
-        if let Some(t) =
-            (0..triangles.len()).find(|&t| triangle_is_traceable(&triangles[t]) && !tri_seen[t])
-        {
+        if let Some(t) = (0..triangles.len()).find(|&t| triangle_is_traceable(&triangles[t]) && !tri_seen[t]) {
             return Err(format!("traceable triangle {t} in no leaf"));
         }
         if depth as usize > BVH_STACK_SIZE {
-            return Err(format!(
-                "depth {depth} exceeds the traversal stack ({BVH_STACK_SIZE})"
-            ));
+            return Err(format!("depth {depth} exceeds the traversal stack ({BVH_STACK_SIZE})"));
         }
         if depth != self.max_depth {
-            return Err(format!(
-                "max_depth is {} but the tree is {depth} deep",
-                self.max_depth
-            ));
+            return Err(format!("max_depth is {} but the tree is {depth} deep", self.max_depth));
         }
         Ok(())
     }
@@ -651,10 +577,7 @@ impl Bvh {
             if node.is_leaf() {
                 for slot in node.left_or_first..node.left_or_first + node.count {
                     let t = &triangles[self.prim_indices[slot as usize] as usize];
-                    if r.wt
-                        .intersect(r.t_min, r.t_max, t.v0.into(), t.v1.into(), t.v2.into())
-                        .is_some()
-                    {
+                    if r.wt.intersect(r.t_min, r.t_max, t.v0.into(), t.v1.into(), t.v2.into()).is_some() {
                         return true;
                     }
                 }
@@ -701,12 +624,7 @@ impl Bvh {
         let r = TraversalRay::new(ray)?;
         let root = self.nodes.first()?;
         r.enter(root, r.t_max)?;
-        let mut best = ClosestHit {
-            triangle: INVALID_ID,
-            t: r.t_max,
-            u: 0.0,
-            v: 0.0,
-        };
+        let mut best = ClosestHit { triangle: INVALID_ID, t: r.t_max, u: 0.0, v: 0.0 };
         let mut stack = [(0u32, 0f32); BVH_STACK_SIZE];
         let mut sp = 0usize;
         let mut n = 0usize;
@@ -716,16 +634,9 @@ impl Bvh {
                 for slot in node.left_or_first..node.left_or_first + node.count {
                     let id = self.prim_indices[slot as usize];
                     let t = &triangles[id as usize];
-                    if let Some(h) =
-                        r.wt.intersect(r.t_min, r.t_max, t.v0.into(), t.v1.into(), t.v2.into())
-                    {
+                    if let Some(h) = r.wt.intersect(r.t_min, r.t_max, t.v0.into(), t.v1.into(), t.v2.into()) {
                         if h.t < best.t || (h.t == best.t && id < best.triangle) {
-                            best = ClosestHit {
-                                triangle: id,
-                                t: h.t,
-                                u: h.u,
-                                v: h.v,
-                            };
+                            best = ClosestHit { triangle: id, t: h.t, u: h.u, v: h.v };
                         }
                     }
                 }
@@ -735,11 +646,7 @@ impl Bvh {
                 let hit_r = r.enter(&self.nodes[l + 1], best.t);
                 match (hit_l, hit_r) {
                     (Some(tl), Some(tr)) => {
-                        let (near, far, t_far) = if tr < tl {
-                            (l + 1, l, tl)
-                        } else {
-                            (l, l + 1, tr)
-                        };
+                        let (near, far, t_far) = if tr < tl { (l + 1, l, tl) } else { (l, l + 1, tr) };
                         stack[sp] = (far as u32, t_far);
                         sp += 1;
                         n = near;
@@ -826,22 +733,12 @@ mod tests {
             .map(|i| {
                 let x = 1.13f32.powi(i) - 1.0;
                 let s = 1.13f32.powi(i) * 0.01;
-                [
-                    Vec3::new(x, 0.0, 0.0),
-                    Vec3::new(x + s, 0.0, 0.0),
-                    Vec3::new(x, s, 0.0),
-                ]
+                [Vec3::new(x, 0.0, 0.0), Vec3::new(x + s, 0.0, 0.0), Vec3::new(x, s, 0.0)]
             })
             .collect();
         let g = geometry(&tris);
-        let obvhs_tris: Vec<Triangle> = tris
-            .iter()
-            .map(|t| Triangle {
-                v0: t[0].into(),
-                v1: t[1].into(),
-                v2: t[2].into(),
-            })
-            .collect();
+        let obvhs_tris: Vec<Triangle> =
+            tris.iter().map(|t| Triangle { v0: t[0].into(), v1: t[1].into(), v2: t[2].into() }).collect();
         let ids: Vec<u32> = (0..tris.len() as u32).collect();
         let median = Bvh::build_median(&g.triangles, &ids, BvhPreset::Medium);
         median.validate(&g).unwrap();
@@ -850,10 +747,7 @@ mod tests {
         for preset in BvhPreset::ALL {
             let raw = build_bvh2_from_tris(&obvhs_tris, preset.params(), &mut Duration::default());
             // `depth` counts levels (a lone leaf is 1); the stack bound is on edges.
-            assert!(
-                raw.depth(0) - 1 > BVH_STACK_SIZE,
-                "{preset:?}: obvhs tree not deep"
-            );
+            assert!(raw.depth(0) - 1 > BVH_STACK_SIZE, "{preset:?}: obvhs tree not deep");
             let bvh = Bvh::build(&g, preset);
             bvh.validate(&g).unwrap();
             assert_eq!(bvh.nodes, median.nodes, "{preset:?}");
@@ -863,9 +757,7 @@ mod tests {
         // (products of two coordinates) overflow f32: unhittable by design.
         for (i, t) in tris.iter().enumerate().take(350) {
             let c = (t[0] + t[1] + t[2]) / 3.0;
-            let hit = median
-                .closest_hit(&g.triangles, &ray(c + Vec3::Z, Vec3::NEG_Z))
-                .unwrap();
+            let hit = median.closest_hit(&g.triangles, &ray(c + Vec3::Z, Vec3::NEG_Z)).unwrap();
             assert_eq!(hit.triangle, i as u32);
         }
     }
@@ -877,54 +769,23 @@ mod tests {
     #[test]
     fn pinned_presplit_leaves_sharing_a_slot_are_flattened() {
         let tris = [
-            [
-                [9.329468, 9.269577, -5.326501],
-                [8.254894, 6.7223434, -9.476224],
-                [3.8572035, -6.653434, 5.7591],
-            ],
-            [
-                [5.275055, 2.4031878, 4.9783344],
-                [5.4808893, 2.0498235, 5.2556744],
-                [5.461748, 2.077035, 5.35121],
-            ],
-            [
-                [9.347248, 0.5261822, -9.408352],
-                [8.874341, 0.3317358, -9.209116],
-                [9.638064, 0.6561403, -9.3794775],
-            ],
+            [[9.329468, 9.269577, -5.326501], [8.254894, 6.7223434, -9.476224], [3.8572035, -6.653434, 5.7591]],
+            [[5.275055, 2.4031878, 4.9783344], [5.4808893, 2.0498235, 5.2556744], [5.461748, 2.077035, 5.35121]],
+            [[9.347248, 0.5261822, -9.408352], [8.874341, 0.3317358, -9.209116], [9.638064, 0.6561403, -9.3794775]],
             [
                 [-5.1863933, -3.3541927, -7.999065],
                 [-3.774321, -7.2043858, 7.141865],
                 [0.9800291, -2.453792, -0.87600136],
             ],
-            [
-                [8.208429, -7.1369004, 6.1280994],
-                [8.461, -7.592343, 6.125361],
-                [8.697524, -6.8933563, 5.9329395],
-            ],
+            [[8.208429, -7.1369004, 6.1280994], [8.461, -7.592343, 6.125361], [8.697524, -6.8933563, 5.9329395]],
         ]
         .map(|t| t.map(Vec3::from));
         let g = geometry(&tris);
-        let obvhs_tris: Vec<Triangle> = tris
-            .iter()
-            .map(|t| Triangle {
-                v0: t[0].into(),
-                v1: t[1].into(),
-                v2: t[2].into(),
-            })
-            .collect();
-        let raw = build_bvh2_from_tris(
-            &obvhs_tris,
-            BvhPreset::Slow.params(),
-            &mut Duration::default(),
-        );
+        let obvhs_tris: Vec<Triangle> =
+            tris.iter().map(|t| Triangle { v0: t[0].into(), v1: t[1].into(), v2: t[2].into() }).collect();
+        let raw = build_bvh2_from_tris(&obvhs_tris, BvhPreset::Slow.params(), &mut Duration::default());
         assert_eq!(raw.primitive_indices, [0, 1, 2, 3, 4, 0]);
-        let leaf_firsts: Vec<u32> = raw
-            .nodes
-            .iter()
-            .filter(|n| n.is_leaf())
-            .map(|n| n.first_index)
-            .collect();
+        let leaf_firsts: Vec<u32> = raw.nodes.iter().filter(|n| n.is_leaf()).map(|n| n.first_index).collect();
         assert_eq!(leaf_firsts.iter().filter(|&&f| f == 0).count(), 2);
         for preset in [BvhPreset::Slow, BvhPreset::VerySlow] {
             let bvh = Bvh::build(&g, preset);
@@ -943,10 +804,7 @@ mod tests {
     #[test]
     fn empty_and_untraceable_geometry_gives_empty_bvh() {
         let nan = Vec3::splat(f32::NAN);
-        let g = geometry(&[
-            [Vec3::ZERO, Vec3::X, nan],
-            [Vec3::ZERO, Vec3::ZERO, Vec3::Y],
-        ]);
+        let g = geometry(&[[Vec3::ZERO, Vec3::X, nan], [Vec3::ZERO, Vec3::ZERO, Vec3::Y]]);
         for preset in BvhPreset::ALL {
             let bvh = Bvh::build(&g, preset);
             assert!(bvh.is_empty());
@@ -963,11 +821,7 @@ mod tests {
     fn validate_catches_broken_trees() {
         let tris: Vec<[Vec3; 3]> = (0..40)
             .map(|i| {
-                [
-                    Vec3::new(i as f32, 0.0, 0.0),
-                    Vec3::new(i as f32 + 0.5, 0.0, 0.0),
-                    Vec3::new(i as f32, 1.0, 0.0),
-                ]
+                [Vec3::new(i as f32, 0.0, 0.0), Vec3::new(i as f32 + 0.5, 0.0, 0.0), Vec3::new(i as f32, 1.0, 0.0)]
             })
             .collect();
         let g = geometry(&tris);

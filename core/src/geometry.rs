@@ -7,9 +7,7 @@
 
 use glam::{Mat3, Vec3};
 
-use crate::formats::{
-    LightRecord, ObjectRecord, TriangleRecord, OBJ_RAY_TRACED, TRI_RAY_TRACED,
-};
+use crate::formats::{LightRecord, ObjectRecord, TriangleRecord, OBJ_RAY_TRACED, TRI_RAY_TRACED};
 use crate::scene::{MaterialKind, RenderMode, Scene};
 
 /// World-space tables of a scene.
@@ -43,8 +41,7 @@ impl WorldGeometry {
             let mat = &scene.materials[obj.material];
             let rt = obj.render_mode == RenderMode::RayTraced;
             let normal_matrix = Mat3::from_mat4(obj.transform).inverse().transpose();
-            let world: Vec<Vec3> =
-                mesh.positions.iter().map(|p| obj.transform.transform_point3(*p)).collect();
+            let world: Vec<Vec3> = mesh.positions.iter().map(|p| obj.transform.transform_point3(*p)).collect();
             for w in &world {
                 if w.is_finite() {
                     lo = lo.min(*w);
@@ -69,7 +66,11 @@ impl WorldGeometry {
                 let n = match &mesh.normals {
                     Some(ns) => idx.map(|i| {
                         let n = (normal_matrix * ns[i as usize]).normalize_or_zero();
-                        if n == Vec3::ZERO { face } else { n }
+                        if n == Vec3::ZERO {
+                            face
+                        } else {
+                            n
+                        }
                     }),
                     None => [face; 3],
                 };

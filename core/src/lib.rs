@@ -24,6 +24,7 @@
 pub mod bvh;
 pub mod error;
 pub mod formats;
+pub mod frame;
 pub mod geometry;
 pub mod kernels;
 pub mod scene;

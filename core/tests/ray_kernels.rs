@@ -7,13 +7,10 @@ use std::collections::HashMap;
 
 use glam::{Mat4, Quat, Vec3};
 use hyrt_core::bvh::{Bvh, BvhPreset, ClosestHit};
-use hyrt_core::formats::{
-    RayRecord, TriangleRecord, INVALID_ID, RAY_KIND_PRIMARY, RAY_KIND_SHADOW, TRI_RAY_TRACED,
-};
+use hyrt_core::formats::{RayRecord, TriangleRecord, INVALID_ID, RAY_KIND_PRIMARY, RAY_KIND_SHADOW, TRI_RAY_TRACED};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::ray::{
-    intersect_triangle_watertight, offset_ray_origin, ray_aabb_conservative, safe_inverse_dir,
-    TriangleHit,
+    intersect_triangle_watertight, offset_ray_origin, ray_aabb_conservative, safe_inverse_dir, TriangleHit,
 };
 use hyrt_core::scene::{Material, Mesh, Object, ObjectSource, RenderMode, Scene};
 use proptest::prelude::*;
@@ -93,12 +90,7 @@ fn brute_closest(g: &WorldGeometry, r: &RayRecord) -> Option<ClosestHit> {
     for (i, tri) in g.triangles.iter().enumerate() {
         if let Some(h) = hit_on(tri, r) {
             if best.is_none_or(|b| h.t < b.t) {
-                best = Some(ClosestHit {
-                    triangle: i as u32,
-                    t: h.t,
-                    u: h.u,
-                    v: h.v,
-                });
+                best = Some(ClosestHit { triangle: i as u32, t: h.t, u: h.u, v: h.v });
             }
         }
     }
@@ -175,15 +167,8 @@ fn assert_no_leaks(g: &WorldGeometry, outward: impl Fn(Vec3) -> Vec3, label: &st
                 let Some(h) = hit else {
                     panic!("{label} {preset:?}: leak: ray {r:?} aimed at {p:?} hits nothing");
                 };
-                assert!(
-                    h.t < 1.01,
-                    "{label} {preset:?}: ray aimed at {p:?} first hits at t = {}",
-                    h.t
-                );
-                assert!(
-                    bvh.occluded(&g.triangles, &r),
-                    "{label}: occluded disagrees with closest_hit"
-                );
+                assert!(h.t < 1.01, "{label} {preset:?}: ray aimed at {p:?} first hits at t = {}", h.t);
+                assert!(bvh.occluded(&g.triangles, &r), "{label}: occluded disagrees with closest_hit");
                 assert!(brute_any(g, &r), "{label}: brute force leaks at {p:?}");
                 rays += 1;
             }
@@ -200,12 +185,8 @@ fn sphere_outward(c: Vec3) -> impl Fn(Vec3) -> Vec3 {
 fn watertight_closed_meshes_never_leak() {
     let far = Vec3::new(148376.0, 1234.0, -223423.0);
     let rot = Quat::from_euler(glam::EulerRot::XYZ, 0.3, -0.7, 1.1);
-    let placements: [(&str, Vec3, f32); 4] = [
-        ("origin", Vec3::ZERO, 1.0),
-        ("tiny", Vec3::ZERO, 1e-3),
-        ("far", far, 1.0),
-        ("far_large", far, 50.0),
-    ];
+    let placements: [(&str, Vec3, f32); 4] =
+        [("origin", Vec3::ZERO, 1.0), ("tiny", Vec3::ZERO, 1e-3), ("far", far, 1.0), ("far_large", far, 50.0)];
     for (name, centre, scale) in placements {
         let m = Mat4::from_scale_rotation_translation(Vec3::splat(scale), rot, centre);
         let world_centre = m.transform_point3(Vec3::ZERO);
@@ -233,20 +214,11 @@ fn watertight_closed_meshes_never_leak() {
 /// triangles at exactly the same t, and the lower index wins (pinned exact floats).
 #[test]
 fn shared_diagonal_tie_goes_to_lower_index() {
-    let (a, b, c, d) = (
-        Vec3::new(-1.0, 0.0, -1.0),
-        Vec3::new(1.0, 0.0, -1.0),
-        Vec3::new(1.0, 0.0, 1.0),
-        Vec3::new(-1.0, 0.0, 1.0),
-    );
+    let (a, b, c, d) =
+        (Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 0.0, -1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(-1.0, 0.0, 1.0));
     for order in [[[b, c, d], [a, b, d]], [[a, b, d], [b, c, d]]] {
         let g = soup(&order);
-        let r = ray(
-            Vec3::new(0.25, 3.0, -0.25),
-            Vec3::new(0.0, -1.0, 0.0),
-            0.0,
-            f32::INFINITY,
-        );
+        let r = ray(Vec3::new(0.25, 3.0, -0.25), Vec3::new(0.0, -1.0, 0.0), 0.0, f32::INFINITY);
         let h0 = hit_on(&g.triangles[0], &r).unwrap();
         let h1 = hit_on(&g.triangles[1], &r).unwrap();
         assert_eq!(h0.t.to_bits(), h1.t.to_bits());
@@ -263,34 +235,18 @@ fn shared_diagonal_tie_goes_to_lower_index() {
 /// exactly what brute force returns (lower index on equal t), for every preset.
 #[test]
 fn ties_at_shared_vertices_match_brute_force() {
-    let m = Mat4::from_scale_rotation_translation(
-        Vec3::splat(3.0),
-        Quat::from_rotation_y(0.4),
-        Vec3::new(5.0, -2.0, 1.0),
-    );
-    for mesh in [
-        Mesh::uv_sphere("sphere", 32, 16),
-        Mesh::torus("torus", 1.0, 0.3, 32, 16),
-    ] {
+    let m =
+        Mat4::from_scale_rotation_translation(Vec3::splat(3.0), Quat::from_rotation_y(0.4), Vec3::new(5.0, -2.0, 1.0));
+    for mesh in [Mesh::uv_sphere("sphere", 32, 16), Mesh::torus("torus", 1.0, 0.3, 32, 16)] {
         let g = placed(mesh, m);
         let eye = Vec3::new(40.0, 30.0, 20.0);
-        let rays: Vec<RayRecord> = aim_points(&g)
-            .into_iter()
-            .map(|p| ray(eye, p - eye, 0.0, f32::INFINITY))
-            .collect();
-        let want: Vec<_> = rays
-            .iter()
-            .map(|r| hit_bits(brute_closest(&g, r)))
-            .collect();
+        let rays: Vec<RayRecord> = aim_points(&g).into_iter().map(|p| ray(eye, p - eye, 0.0, f32::INFINITY)).collect();
+        let want: Vec<_> = rays.iter().map(|r| hit_bits(brute_closest(&g, r))).collect();
         assert!(want.iter().filter(|w| w.is_some()).count() > 500);
         for preset in BvhPreset::ALL {
             let bvh = Bvh::build(&g, preset);
             for (r, w) in rays.iter().zip(&want) {
-                assert_eq!(
-                    hit_bits(bvh.closest_hit(&g.triangles, r)),
-                    *w,
-                    "{preset:?} {r:?}"
-                );
+                assert_eq!(hit_bits(bvh.closest_hit(&g.triangles, r)), *w, "{preset:?} {r:?}");
             }
         }
     }
@@ -327,11 +283,7 @@ fn exact_box(o: Vec3, d: Vec3, t_min: f32, t_max: f32, lo: Vec3, hi: Vec3) -> Op
                 return None;
             }
         } else {
-            let (n, f) = if d > 0.0 {
-                ((lo - o) / d, (hi - o) / d)
-            } else {
-                ((hi - o) / d, (lo - o) / d)
-            };
+            let (n, f) = if d > 0.0 { ((lo - o) / d, (hi - o) / d) } else { ((hi - o) / d, (lo - o) / d) };
             t0 = t0.max(n);
             t1 = t1.min(f);
         }
@@ -361,10 +313,7 @@ fn axis_rays_against_boxes_match_exact_reference() {
                         for (blo, bhi) in [(lo, hi), (flat_lo, flat_hi)] {
                             let got = ray_aabb_conservative(o, inv, 0.0, t_max, blo, bhi);
                             let want = exact_box(o, d, 0.0, t_max, blo, bhi);
-                            assert_eq!(
-                                got, want,
-                                "o {o:?} d {d:?} t_max {t_max} box {blo:?}..{bhi:?}"
-                            );
+                            assert_eq!(got, want, "o {o:?} d {d:?} t_max {t_max} box {blo:?}..{bhi:?}");
                             hits += got.is_some() as u32;
                         }
                     }
@@ -386,25 +335,18 @@ fn slab_nan_from_origin_on_plane_is_dropped() {
             let d = Vec3::new(zero, 0.0, 1.0);
             let inv = safe_inverse_dir(d);
             assert!(((plane - o.x) * inv.x).is_nan());
-            assert_eq!(
-                ray_aabb_conservative(o, inv, 0.0, f32::INFINITY, lo, hi),
-                Some(1.0)
-            );
+            assert_eq!(ray_aabb_conservative(o, inv, 0.0, f32::INFINITY, lo, hi), Some(1.0));
         }
         // Just outside the plane: miss.
         let o = Vec3::new(-f32::MIN_POSITIVE, 0.5, -1.0);
         let inv = safe_inverse_dir(Vec3::new(zero, 0.0, 1.0));
-        assert_eq!(
-            ray_aabb_conservative(o, inv, 0.0, f32::INFINITY, lo, hi),
-            None
-        );
+        assert_eq!(ray_aabb_conservative(o, inv, 0.0, f32::INFINITY, lo, hi), None);
     }
 }
 
 /// Exact (f64) closed point-in-triangle test in the plane of two axes.
 fn exact_inside_2d(p: [f64; 2], t: [[f64; 2]; 3]) -> bool {
-    let e =
-        |a: [f64; 2], b: [f64; 2]| (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]);
+    let e = |a: [f64; 2], b: [f64; 2]| (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]);
     let (e0, e1, e2) = (e(t[0], t[1]), e(t[1], t[2]), e(t[2], t[0]));
     (e0 >= 0.0 && e1 >= 0.0 && e2 >= 0.0) || (e0 <= 0.0 && e1 <= 0.0 && e2 <= 0.0)
 }
@@ -415,11 +357,7 @@ fn exact_inside_2d(p: [f64; 2], t: [[f64; 2]; 3]) -> bool {
 #[test]
 fn axis_rays_against_triangles_match_exact_inside_test() {
     let quad = [[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
-    let tris2d = [
-        [quad[0], quad[1], quad[2]],
-        [quad[0], quad[2], quad[3]],
-        [[-1.0, -1.0], [0.5, -0.25], [0.0, 1.0]],
-    ];
+    let tris2d = [[quad[0], quad[1], quad[2]], [quad[0], quad[2], quad[3]], [[-1.0, -1.0], [0.5, -0.25], [0.0, 1.0]]];
     let grid: Vec<f64> = (-6..=6).map(|i| i as f64 * 0.25).collect();
     let mut hits = 0;
     for axis in 0..3 {
@@ -442,21 +380,9 @@ fn axis_rays_against_triangles_match_exact_inside_test() {
                     for &u in &grid {
                         for &w in &grid {
                             let o = lift(u, w, 0.5 - 2.0 * sign);
-                            let got = intersect_triangle_watertight(
-                                o,
-                                d,
-                                0.0,
-                                f32::INFINITY,
-                                v[0],
-                                v[1],
-                                v[2],
-                            );
+                            let got = intersect_triangle_watertight(o, d, 0.0, f32::INFINITY, v[0], v[1], v[2]);
                             let want = exact_inside_2d([u, w], *t2);
-                            assert_eq!(
-                                got.is_some(),
-                                want,
-                                "axis {axis} d {d:?} o {o:?} tri {t2:?}"
-                            );
+                            assert_eq!(got.is_some(), want, "axis {axis} d {d:?} o {o:?} tri {t2:?}");
                             if let Some(h) = got {
                                 assert!((h.t - 2.0).abs() <= 4.0 * f32::EPSILON, "t = {}", h.t);
                                 hits += 1;
@@ -478,11 +404,7 @@ const BAD: [f32; 3] = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY];
 
 #[test]
 fn non_finite_inputs_never_hit_and_never_panic() {
-    let (v0, v1, v2) = (
-        Vec3::new(-1.0, -1.0, 0.0),
-        Vec3::new(1.0, -1.0, 0.0),
-        Vec3::new(0.0, 1.0, 0.0),
-    );
+    let (v0, v1, v2) = (Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(0.0, 1.0, 0.0));
     let (o, d) = (Vec3::new(0.0, 0.0, 1.0), Vec3::NEG_Z);
     assert!(intersect_triangle_watertight(o, d, 0.0, f32::INFINITY, v0, v1, v2).is_some());
     for bad in BAD {
@@ -499,23 +421,14 @@ fn non_finite_inputs_never_hit_and_never_panic() {
                 intersect_triangle_watertight(o, d, 0.0, f32::INFINITY, v0, poison(v1), v2),
                 intersect_triangle_watertight(o, d, 0.0, f32::INFINITY, v0, v1, poison(v2)),
             ];
-            assert!(
-                cases.iter().all(|c| c.is_none()),
-                "bad {bad} axis {axis}: {cases:?}"
-            );
+            assert!(cases.iter().all(|c| c.is_none()), "bad {bad} axis {axis}: {cases:?}");
         }
         if bad.is_nan() {
             assert!(intersect_triangle_watertight(o, d, bad, f32::INFINITY, v0, v1, v2).is_none());
             assert!(intersect_triangle_watertight(o, d, 0.0, bad, v0, v1, v2).is_none());
             let inv = safe_inverse_dir(d);
-            assert_eq!(
-                ray_aabb_conservative(o, inv, bad, 1e9, v0, v1.max(v2)),
-                None
-            );
-            assert_eq!(
-                ray_aabb_conservative(o, inv, 0.0, bad, v0, v1.max(v2)),
-                None
-            );
+            assert_eq!(ray_aabb_conservative(o, inv, bad, 1e9, v0, v1.max(v2)), None);
+            assert_eq!(ray_aabb_conservative(o, inv, 0.0, bad, v0, v1.max(v2)), None);
         }
     }
     // Huge but finite vertices: no panic, no overflow garbage (the translated coordinates
@@ -526,11 +439,7 @@ fn non_finite_inputs_never_hit_and_never_panic() {
 
     // Through the BVH: non-finite triangles are left out, non-finite rays hit nothing.
     let nan = Vec3::splat(f32::NAN);
-    let g = soup(&[
-        [v0, v1, v2],
-        [v0 + Vec3::Z, nan, v2 + Vec3::Z],
-        [Vec3::INFINITY, v1, v2],
-    ]);
+    let g = soup(&[[v0, v1, v2], [v0 + Vec3::Z, nan, v2 + Vec3::Z], [Vec3::INFINITY, v1, v2]]);
     for preset in BvhPreset::ALL {
         let bvh = Bvh::build(&g, preset);
         bvh.validate(&g).unwrap();
@@ -541,16 +450,7 @@ fn non_finite_inputs_never_hit_and_never_panic() {
             for r in [
                 ray(Vec3::new(bad, 0.0, 1.0), d, 0.0, f32::INFINITY),
                 ray(o, Vec3::new(0.0, bad, -1.0), 0.0, f32::INFINITY),
-                ray(
-                    o,
-                    d,
-                    if bad == f32::NEG_INFINITY {
-                        f32::INFINITY
-                    } else {
-                        bad
-                    },
-                    f32::INFINITY,
-                ),
+                ray(o, d, if bad == f32::NEG_INFINITY { f32::INFINITY } else { bad }, f32::INFINITY),
                 ray(o, d, 0.0, -bad.abs()),
                 ray(o, d, 0.0, if bad.is_nan() { bad } else { -1.0 }),
                 ray(o, Vec3::ZERO, 0.0, f32::INFINITY),
@@ -562,10 +462,7 @@ fn non_finite_inputs_never_hit_and_never_panic() {
         // t_min = -inf is a legal (if odd) interval: same as 0, hits are still
         // conservatively in front of the origin.
         let wide = ray(o + Vec3::Z, d, f32::NEG_INFINITY, f32::INFINITY);
-        assert_eq!(
-            bvh.closest_hit(&g.triangles, &wide),
-            bvh.closest_hit(&g.triangles, &good)
-        );
+        assert_eq!(bvh.closest_hit(&g.triangles, &wide), bvh.closest_hit(&g.triangles, &good));
     }
 }
 
@@ -611,21 +508,8 @@ fn vec3() -> impl Strategy<Value = Vec3> {
 /// a few degenerate or non-finite ones.
 fn triangle_soup() -> impl Strategy<Value = Vec<[Vec3; 3]>> {
     let pool = prop::collection::vec(vec3(), 4..12);
-    (
-        pool,
-        prop::collection::vec(
-            (
-                vec3(),
-                vec3(),
-                vec3(),
-                0u8..10,
-                0.01f32..3.0,
-                any::<[u8; 3]>(),
-            ),
-            1..80,
-        ),
-    )
-        .prop_map(|(pool, specs)| {
+    (pool, prop::collection::vec((vec3(), vec3(), vec3(), 0u8..10, 0.01f32..3.0, any::<[u8; 3]>()), 1..80)).prop_map(
+        |(pool, specs)| {
             specs
                 .into_iter()
                 .map(|(c, a, b, kind, size, pick)| match kind {
@@ -641,7 +525,8 @@ fn triangle_soup() -> impl Strategy<Value = Vec<[Vec3; 3]>> {
                     _ => [c, Vec3::new(f32::NAN, a.y, a.z), b],
                 })
                 .collect()
-        })
+        },
+    )
 }
 
 /// Random rays: aimed at a point of a random triangle (so most hit), or in a random
@@ -704,8 +589,7 @@ fn face_normal(t: [Vec3; 3]) -> Vec3 {
 }
 
 fn unit_dir() -> impl Strategy<Value = Vec3> {
-    prop::array::uniform3(-1.0f32..1.0)
-        .prop_filter_map("non-zero", |a| Vec3::from(a).try_normalize())
+    prop::array::uniform3(-1.0f32..1.0).prop_filter_map("non-zero", |a| Vec3::from(a).try_normalize())
 }
 
 /// Place a unit-ish triangle at `centre` with `scale`; `None` if quantization made it a
@@ -716,10 +600,7 @@ fn placed_triangle(centre: Vec3, scale: f32, a: Vec3, b: Vec3, c: Vec3) -> Optio
     // Shape check on the placed (rounded) vertices: every height at least 5% of the
     // longest edge.
     let area2 = (t[1] - t[0]).cross(t[2] - t[0]).length();
-    let longest = (t[1] - t[0])
-        .length()
-        .max((t[2] - t[1]).length())
-        .max((t[0] - t[2]).length());
+    let longest = (t[1] - t[0]).length().max((t[2] - t[1]).length()).max((t[0] - t[2]).length());
     (n != Vec3::ZERO && area2 >= 0.05 * longest * longest).then_some(t)
 }
 
@@ -808,62 +689,26 @@ fn pinned_exact_hits() {
     let o = Vec3::new(0.25, 0.5, 2.0);
     let h = intersect_triangle_watertight(o, Vec3::NEG_Z, 0.0, f32::INFINITY, v0, v1, v2).unwrap();
     assert_eq!((h.t, h.u, h.v), (2.0, 0.25, 0.5));
-    let back = intersect_triangle_watertight(
-        Vec3::new(0.25, 0.5, -2.0),
-        Vec3::Z,
-        0.0,
-        f32::INFINITY,
-        v0,
-        v1,
-        v2,
-    );
+    let back = intersect_triangle_watertight(Vec3::new(0.25, 0.5, -2.0), Vec3::Z, 0.0, f32::INFINITY, v0, v1, v2);
     assert_eq!(back.map(|h| (h.t, h.u, h.v)), Some((2.0, 0.25, 0.5)));
     // Strict interval.
     assert!(intersect_triangle_watertight(o, Vec3::NEG_Z, 0.0, 2.0, v0, v1, v2).is_none());
     assert!(intersect_triangle_watertight(o, Vec3::NEG_Z, 2.0, 3.0, v0, v1, v2).is_none());
-    assert!(
-        intersect_triangle_watertight(o, Vec3::NEG_Z, 1.999_999_9, 2.000_000_2, v0, v1, v2)
-            .is_some()
-    );
+    assert!(intersect_triangle_watertight(o, Vec3::NEG_Z, 1.999_999_9, 2.000_000_2, v0, v1, v2).is_some());
     // Exactly through vertex v1 and along the edge v0-v2.
-    let h = intersect_triangle_watertight(
-        Vec3::new(1.0, 0.0, 1.0),
-        Vec3::NEG_Z,
-        0.0,
-        f32::INFINITY,
-        v0,
-        v1,
-        v2,
-    )
-    .unwrap();
+    let h =
+        intersect_triangle_watertight(Vec3::new(1.0, 0.0, 1.0), Vec3::NEG_Z, 0.0, f32::INFINITY, v0, v1, v2).unwrap();
     assert_eq!((h.t, h.u, h.v), (1.0, 1.0, 0.0));
-    let h = intersect_triangle_watertight(
-        Vec3::new(0.0, 0.5, 1.0),
-        Vec3::NEG_Z,
-        0.0,
-        f32::INFINITY,
-        v0,
-        v1,
-        v2,
-    )
-    .unwrap();
+    let h =
+        intersect_triangle_watertight(Vec3::new(0.0, 0.5, 1.0), Vec3::NEG_Z, 0.0, f32::INFINITY, v0, v1, v2).unwrap();
     assert_eq!((h.t, h.u, h.v), (1.0, 0.0, 0.5));
     // A hair outside the edge: miss.
     let eps = Vec3::new(-f32::MIN_POSITIVE, 0.5, 1.0);
-    assert!(
-        intersect_triangle_watertight(eps, Vec3::NEG_Z, 0.0, f32::INFINITY, v0, v1, v2).is_none()
-    );
+    assert!(intersect_triangle_watertight(eps, Vec3::NEG_Z, 0.0, f32::INFINITY, v0, v1, v2).is_none());
     // Origin on the triangle: t would be 0, rejected (conservatively positive t).
-    assert!(intersect_triangle_watertight(
-        Vec3::new(0.25, 0.25, 0.0),
-        Vec3::Z,
-        0.0,
-        f32::INFINITY,
-        v0,
-        v1,
-        v2
-    )
-    .is_none());
+    assert!(
+        intersect_triangle_watertight(Vec3::new(0.25, 0.25, 0.0), Vec3::Z, 0.0, f32::INFINITY, v0, v1, v2).is_none()
+    );
 }
 
 /// Pinned: the f32 edge function of v1-v2 rounds to exactly 0 (both products round to
@@ -879,10 +724,7 @@ fn pinned_f64_fallback_decides_rounded_zero_edge() {
     assert_eq!(v1.x * v2.y - v1.y * v2.x, 0.0);
     let outside = Vec3::new(1.0, -1.0, 0.0);
     let inside = Vec3::new(-1.0, 1.0, 0.0);
-    assert_eq!(
-        intersect_triangle_watertight(o, d, 0.0, f32::INFINITY, outside, v1, v2),
-        None
-    );
+    assert_eq!(intersect_triangle_watertight(o, d, 0.0, f32::INFINITY, outside, v1, v2), None);
     let h = intersect_triangle_watertight(o, d, 0.0, f32::INFINITY, inside, v1, v2).unwrap();
     assert_eq!(h.t, 1.0);
 }

@@ -1,1 +1,27 @@
-//! (in progress)
+//! Stage `composition`: the final image as the weighted mean of the raster and
+//! ray-traced images (paper 3.5): `(1 - weight) * raster + weight * rt` where the
+//! ray-traced image has coverage (alpha > 0), the raster image elsewhere.
+//!
+//! Inputs: both images and the weight in [0, 1]. Output: the final linear RGBA image.
+
+use glam::Vec4;
+use hyrt_core::kernels::shading::compose;
+use rayon::prelude::*;
+
+/// The stage.
+pub fn composition(raster: &[[f32; 4]], rt: &[[f32; 4]], weight: f32) -> Vec<[f32; 4]> {
+    assert_eq!(raster.len(), rt.len(), "images of different sizes");
+    raster
+        .par_iter()
+        .zip(rt.par_iter())
+        .with_min_len(1024)
+        .map(|(r, t)| {
+            if t[3] > 0.0 {
+                let (r, t) = (Vec4::from(*r), Vec4::from(*t));
+                compose(r.truncate(), t.truncate(), weight).extend(1.0).into()
+            } else {
+                *r
+            }
+        })
+        .collect()
+}

@@ -5,6 +5,7 @@
 //! on without a GPU. One module per stage, named as in [`hyrt_core::stage::Stage`];
 //! each stage is a function from its declared inputs to its declared outputs.
 
+pub mod backend;
 pub mod bvh_build;
 pub mod compaction;
 pub mod composition;

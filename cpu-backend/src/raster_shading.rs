@@ -1,1 +1,57 @@
-//! (in progress)
+//! Stage `raster_shading`: the ordinary raster shader (paper 3.4): Lambert from
+//! every light plus ambient, on the pixels of rasterized objects. Rasterized
+//! objects receive ray-traced shadows: the shader multiplies each light by the
+//! shadow mask. Ray-traced objects are shaded here too only when the
+//! composition weight is below 1 (the frame models only what it needs).
+//!
+//! Inputs: surfaces, the shadow mask, objects, lights, the composition weight.
+//! Output: the raster image (linear RGBA, background where nothing is shaded).
+
+use glam::Vec3;
+use hyrt_core::formats::{LightRecord, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
+use hyrt_core::frame::SHADOW_LIT;
+use hyrt_core::kernels::shading::{ambient, light_incidence, shade_raster, BACKGROUND};
+use rayon::prelude::*;
+
+/// Shade one pixel with the raster shader.
+#[inline]
+pub fn shade_raster_pixel(s: &SurfaceRecord, obj: &ObjectRecord, shadow: &[u8], lights: &[LightRecord]) -> Vec3 {
+    let p = Vec3::from(s.position);
+    let n = Vec3::from(s.normal);
+    let mut c = ambient(obj);
+    for (li, light) in lights.iter().enumerate() {
+        if shadow[li] == SHADOW_LIT {
+            let (l, e) = light_incidence(light, p);
+            c += shade_raster(obj, n, l, e);
+        }
+    }
+    c
+}
+
+/// The stage. `shadow` is indexed `pixel * lights.len() + light`.
+pub fn raster_shading(
+    surfaces: &[SurfaceRecord],
+    shadow: &[u8],
+    objects: &[ObjectRecord],
+    lights: &[LightRecord],
+    weight: f32,
+) -> Vec<[f32; 4]> {
+    let nl = lights.len();
+    let shade_rt_objects = weight < 1.0;
+    let background = Vec3::from(BACKGROUND).extend(1.0).into();
+    surfaces
+        .par_iter()
+        .enumerate()
+        .with_min_len(1024)
+        .map(|(i, s)| {
+            if !s.is_hit() {
+                return background;
+            }
+            let obj = &objects[s.object as usize];
+            if obj.flags & OBJ_RAY_TRACED != 0 && !shade_rt_objects {
+                return [0.0; 4];
+            }
+            shade_raster_pixel(s, obj, &shadow[i * nl..(i + 1) * nl], lights).extend(1.0).into()
+        })
+        .collect()
+}

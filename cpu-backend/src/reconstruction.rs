@@ -1,1 +1,56 @@
-//! (in progress)
+//! Stage `reconstruction`: G-buffer + triangle table -> world-space hit points
+//! and normals (paper eq. 1), one [`SurfaceRecord`] per pixel.
+//!
+//! Inputs: the G-buffer, the world geometry, the camera eye. Output: the surface
+//! buffer. Pure per-pixel map over [`hyrt_core::kernels::barycentric`].
+
+use glam::Vec3;
+use hyrt_core::formats::{GBufferTexel, SurfaceRecord};
+use hyrt_core::geometry::WorldGeometry;
+use hyrt_core::kernels::barycentric::{
+    geometric_normal, interpolate_normal, position_error_bound, reconstruct_position,
+};
+use hyrt_core::kernels::shading::face_forward;
+use rayon::prelude::*;
+
+/// Rebuild the surface at one G-buffer texel.
+#[inline]
+pub fn reconstruct_texel(t: &GBufferTexel, geometry: &WorldGeometry, eye: Vec3) -> SurfaceRecord {
+    if !t.is_hit() {
+        return SurfaceRecord::MISS;
+    }
+    let gi = geometry.global_triangle(t.object, t.triangle);
+    let [v0, v1, v2] = geometry.triangles[gi].vertices();
+    let p = reconstruct_position(t.bary_u, t.bary_v, v0, v1, v2);
+    let err = position_error_bound(t.bary_u, t.bary_v, v0, v1, v2).max_element();
+    let ng = geometric_normal(v0, v1, v2);
+    let ns = interpolate_normal(t.bary_u, t.bary_v, geometry.normals[gi], ng);
+    // A degenerate triangle has no geometric normal: shade with the shading normal.
+    let ns = if ns == Vec3::ZERO { (eye - p).normalize_or(Vec3::Y) } else { ns };
+    let (ng, ns) = face_forward(ng, ns, eye - p);
+    // Keep the shading normal in the viewer's hemisphere of the geometric normal
+    // (interpolated normals can point away at silhouettes).
+    let ns = if ng != Vec3::ZERO && ns.dot(ng) < 0.0 { ng } else { ns };
+    SurfaceRecord {
+        position: p.into(),
+        position_error: err,
+        normal: ns.into(),
+        object: t.object,
+        geometric_normal: ng.into(),
+        triangle: gi as u32,
+    }
+}
+
+/// The stage: reconstruct every pixel in parallel.
+pub fn reconstruction(gbuffer: &[GBufferTexel], geometry: &WorldGeometry, eye: Vec3) -> Vec<SurfaceRecord> {
+    let out: Vec<SurfaceRecord> =
+        gbuffer.par_iter().with_min_len(1024).map(|t| reconstruct_texel(t, geometry, eye)).collect();
+    if cfg!(debug_assertions) {
+        for (i, s) in out.iter().enumerate() {
+            if let Err(e) = s.validate() {
+                panic!("reconstruction: pixel {i}: {e}");
+            }
+        }
+    }
+    out
+}

@@ -26,21 +26,15 @@ pub const SHADOW_RAY_CHUNK: usize = 1024;
 pub fn shadow_rays(bvh: &Bvh, geometry: &WorldGeometry, rays: &[RayRecord]) -> Vec<u32> {
     let triangles = &geometry.triangles;
     let mut out = vec![SHADOW_VISIBLE; rays.len()];
-    out.par_chunks_mut(SHADOW_RAY_CHUNK)
-        .zip(rays.par_chunks(SHADOW_RAY_CHUNK))
-        .for_each(|(out, rays)| {
-            for (o, ray) in out.iter_mut().zip(rays) {
-                if cfg!(debug_assertions) {
-                    if let Err(e) = ray.validate() {
-                        panic!("shadow_rays: invalid ray: {e}");
-                    }
+    out.par_chunks_mut(SHADOW_RAY_CHUNK).zip(rays.par_chunks(SHADOW_RAY_CHUNK)).for_each(|(out, rays)| {
+        for (o, ray) in out.iter_mut().zip(rays) {
+            if cfg!(debug_assertions) {
+                if let Err(e) = ray.validate() {
+                    panic!("shadow_rays: invalid ray: {e}");
                 }
-                *o = if bvh.occluded(triangles, ray) {
-                    SHADOW_OCCLUDED
-                } else {
-                    SHADOW_VISIBLE
-                };
             }
-        });
+            *o = if bvh.occluded(triangles, ray) { SHADOW_OCCLUDED } else { SHADOW_VISIBLE };
+        }
+    });
     out
 }

@@ -37,15 +37,14 @@
 //! ```
 
 use hyrt_core::formats::{
-    CameraRecord, GBufferTexel, TriangleRecord, GBUF_BACK_FACE, GBUF_HIT, GBUF_RAY_TRACED,
-    TRI_RAY_TRACED,
+    CameraRecord, GBufferTexel, TriangleRecord, GBUF_BACK_FACE, GBUF_HIT, GBUF_RAY_TRACED, TRI_RAY_TRACED,
 };
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::raster::{
-    barycentrics_in_original, clip_plane_distance, clip_polygon_against_plane, clip_position,
-    clip_to_window, edge_bias, edge_function, guard_band_ndc, interpolate_depth,
-    perspective_barycentrics, pixel_center_fixed, pixel_span, snap_to_fixed, triangle_area2,
-    ClipVertex, CLIP_PLANES, FIXED_ONE, MAX_CLIP_VERTICES, MAX_FIXED_COORD, MAX_IMAGE_DIM,
+    barycentrics_in_original, clip_plane_distance, clip_polygon_against_plane, clip_position, clip_to_window,
+    edge_bias, edge_function, guard_band_ndc, interpolate_depth, perspective_barycentrics, pixel_center_fixed,
+    pixel_span, snap_to_fixed, triangle_area2, ClipVertex, CLIP_PLANES, FIXED_ONE, MAX_CLIP_VERTICES, MAX_FIXED_COORD,
+    MAX_IMAGE_DIM,
 };
 use rayon::prelude::*;
 
@@ -177,12 +176,7 @@ pub fn visibility_raster(geometry: &WorldGeometry, camera: &CameraRecord) -> Vis
     // written by its tile, in parallel.
     let mut gbuffer: Vec<GBufferTexel> = bytemuck::zeroed_vec(w * h);
     if w == 0 || h == 0 {
-        return VisibilityOutput {
-            gbuffer,
-            width: camera.width,
-            height: camera.height,
-            covered_pixels: 0,
-        };
+        return VisibilityOutput { gbuffer, width: camera.width, height: camera.height, covered_pixels: 0 };
     }
     let frame = Frame::new(camera);
     if frame.width as usize != w || frame.height as usize != h {
@@ -211,12 +205,7 @@ pub fn visibility_raster(geometry: &WorldGeometry, camera: &CameraRecord) -> Vis
             resolve_tile(&tris, scratch, rect, rows)
         })
         .sum();
-    VisibilityOutput {
-        gbuffer,
-        width: camera.width,
-        height: camera.height,
-        covered_pixels: covered,
-    }
+    VisibilityOutput { gbuffer, width: camera.width, height: camera.height, covered_pixels: covered }
 }
 
 /// Count, per pixel, the front- and back-facing rasterized triangles covering its
@@ -232,18 +221,15 @@ pub fn coverage_counts(geometry: &WorldGeometry, camera: &CameraRecord) -> Cover
         let tris = setup_triangles(geometry, camera, &frame);
         let bins = bin_triangles(&tris, &frame);
         let slices = tile_slices(&mut counts, w, &frame);
-        slices
-            .into_par_iter()
-            .enumerate()
-            .for_each(|(tile, mut rows)| {
-                let rect = frame.tile_rect(tile);
-                rasterize_tile(&tris, &bins[tile], rect, |i, t, _| {
-                    let row = i / TILE_SIZE as usize;
-                    let col = i % TILE_SIZE as usize;
-                    let back = (t.tri.flags & GBUF_BACK_FACE != 0) as usize;
-                    rows[row][col][back] += 1;
-                });
+        slices.into_par_iter().enumerate().for_each(|(tile, mut rows)| {
+            let rect = frame.tile_rect(tile);
+            rasterize_tile(&tris, &bins[tile], rect, |i, t, _| {
+                let row = i / TILE_SIZE as usize;
+                let col = i % TILE_SIZE as usize;
+                let back = (t.tri.flags & GBUF_BACK_FACE != 0) as usize;
+                rows[row][col][back] += 1;
             });
+        });
     }
     CoverageCounts {
         front: counts.iter().map(|c| c[0]).collect(),
@@ -272,24 +258,18 @@ struct SetupTriangles {
 impl SetupTriangles {
     #[inline]
     fn get(&self, reference: u32) -> &RasterTriangle {
-        &self.chunks[(reference >> CHUNK_INDEX_BITS) as usize]
-            [(reference & ((1 << CHUNK_INDEX_BITS) - 1)) as usize]
+        &self.chunks[(reference >> CHUNK_INDEX_BITS) as usize][(reference & ((1 << CHUNK_INDEX_BITS) - 1)) as usize]
     }
     fn iter(&self) -> impl Iterator<Item = (u32, &RasterTriangle)> {
-        self.chunks.iter().enumerate().flat_map(|(c, v)| {
-            v.iter()
-                .enumerate()
-                .map(move |(i, t)| (((c as u32) << CHUNK_INDEX_BITS) | i as u32, t))
-        })
+        self.chunks
+            .iter()
+            .enumerate()
+            .flat_map(|(c, v)| v.iter().enumerate().map(move |(i, t)| (((c as u32) << CHUNK_INDEX_BITS) | i as u32, t)))
     }
 }
 
 /// Set up every triangle, in parallel.
-fn setup_triangles(
-    geometry: &WorldGeometry,
-    camera: &CameraRecord,
-    frame: &Frame,
-) -> SetupTriangles {
+fn setup_triangles(geometry: &WorldGeometry, camera: &CameraRecord, frame: &Frame) -> SetupTriangles {
     // Triangle counts beyond the packed reference range (2^32 / 2^14 chunks of
     // SETUP_CHUNK, about 5e8 triangles) are not rasterized.
     let max_chunks = 1usize << (32 - CHUNK_INDEX_BITS);
@@ -309,27 +289,13 @@ fn setup_triangles(
 }
 
 /// Clip, project and snap one triangle; push zero or more sub-triangles.
-fn setup_triangle(
-    tri: &TriangleRecord,
-    camera: &CameraRecord,
-    frame: &Frame,
-    out: &mut Vec<RasterTriangle>,
-) {
+fn setup_triangle(tri: &TriangleRecord, camera: &CameraRecord, frame: &Frame, out: &mut Vec<RasterTriangle>) {
     let m = &camera.view_proj;
-    let clip = [
-        clip_position(m, tri.v0),
-        clip_position(m, tri.v1),
-        clip_position(m, tri.v2),
-    ];
+    let clip = [clip_position(m, tri.v0), clip_position(m, tri.v1), clip_position(m, tri.v2)];
     if !clip.iter().flatten().all(|c| c.is_finite()) {
         return;
     }
-    let flags = GBUF_HIT
-        | if tri.flags & TRI_RAY_TRACED != 0 {
-            GBUF_RAY_TRACED
-        } else {
-            0
-        };
+    let flags = GBUF_HIT | if tri.flags & TRI_RAY_TRACED != 0 { GBUF_RAY_TRACED } else { 0 };
     // Planes some vertex lies outside of; all three outside one plane: nothing left.
     let mut outside = 0u32;
     for (p, plane) in CLIP_PLANES.iter().enumerate() {
@@ -368,13 +334,7 @@ fn setup_triangle(
 }
 
 /// Project, snap, cull and normalize one (sub-)triangle.
-fn emit_triangle(
-    src: &TriangleRecord,
-    flags: u32,
-    v: [ClipVertex; 3],
-    frame: &Frame,
-    out: &mut Vec<RasterTriangle>,
-) {
+fn emit_triangle(src: &TriangleRecord, flags: u32, v: [ClipVertex; 3], frame: &Frame, out: &mut Vec<RasterTriangle>) {
     let win = v.map(|c| clip_to_window(c.pos, frame.width_f, frame.height_f));
     if !win.iter().flatten().all(|c| c.is_finite()) || !v.iter().all(|c| c.pos[3] > 0.0) {
         return;
@@ -389,22 +349,13 @@ fn emit_triangle(
     }
     // Counter-clockwise on screen is a front face (see the kernel docs); normalize
     // clockwise triangles (back faces) by swapping v1 and v2.
-    let (order, flags) = if area > 0 {
-        ([0, 1, 2], flags)
-    } else {
-        ([0, 2, 1], flags | GBUF_BACK_FACE)
-    };
+    let (order, flags) = if area > 0 { ([0, 1, 2], flags) } else { ([0, 2, 1], flags | GBUF_BACK_FACE) };
     let p = order.map(|i| fixed[i]);
     let xs = p.map(|q| q[0]);
     let ys = p.map(|q| q[1]);
     let [x0, x1] = pixel_span(min3(xs), max3(xs));
     let [y0, y1] = pixel_span(min3(ys), max3(ys));
-    let bbox = [
-        x0.max(0),
-        y0.max(0),
-        x1.min(frame.width as i64 - 1),
-        y1.min(frame.height as i64 - 1),
-    ];
+    let bbox = [x0.max(0), y0.max(0), x1.min(frame.width as i64 - 1), y1.min(frame.height as i64 - 1)];
     if bbox[0] > bbox[2] || bbox[1] > bbox[3] {
         return;
     }
@@ -453,12 +404,7 @@ impl EdgeStepper {
     #[inline]
     fn new(t: &RasterTriangle, px: i64, py: i64) -> EdgeStepper {
         let p = pixel_center_fixed(px, py);
-        let mut s = EdgeStepper {
-            start: [0; 3],
-            bias: [0; 3],
-            step_x: [0; 3],
-            step_y: [0; 3],
-        };
+        let mut s = EdgeStepper { start: [0; 3], bias: [0; 3], step_x: [0; 3], step_y: [0; 3] };
         for i in 0..3 {
             let a = t.vertex((i + 1) % 3);
             let b = t.vertex((i + 2) % 3);
@@ -474,10 +420,7 @@ impl EdgeStepper {
     /// starting at the start pixel (the block is then certainly not covered).
     #[inline]
     fn may_cover_block(&self, nx: i64, ny: i64) -> bool {
-        (0..3).all(|i| {
-            self.start[i] + (self.step_x[i] * (nx - 1)).max(0) + (self.step_y[i] * (ny - 1)).max(0)
-                >= 0
-        })
+        (0..3).all(|i| self.start[i] + (self.step_x[i] * (nx - 1)).max(0) + (self.step_y[i] * (ny - 1)).max(0) >= 0)
     }
 }
 
@@ -588,11 +531,7 @@ fn rasterize_tile<F: FnMut(usize, &Fragment<'_>, [i64; 3])>(
                 let mut e = row;
                 for k in 0..n as usize {
                     if (e[0] | e[1] | e[2]) >= 0 {
-                        f(
-                            base + k,
-                            &frag,
-                            [e[0] - s.bias[0], e[1] - s.bias[1], e[2] - s.bias[2]],
-                        );
+                        f(base + k, &frag, [e[0] - s.bias[0], e[1] - s.bias[1], e[2] - s.bias[2]]);
                     }
                     e[0] += s.step_x[0];
                     e[1] += s.step_x[1];
@@ -611,18 +550,10 @@ fn rasterize_tile<F: FnMut(usize, &Fragment<'_>, [i64; 3])>(
                         hi = hi.min(last_inside(e, d, inv[i], n));
                     }
                 }
-                let mut e = [
-                    row[0] + lo * s.step_x[0],
-                    row[1] + lo * s.step_x[1],
-                    row[2] + lo * s.step_x[2],
-                ];
+                let mut e = [row[0] + lo * s.step_x[0], row[1] + lo * s.step_x[1], row[2] + lo * s.step_x[2]];
                 for k in lo..=hi {
                     debug_assert!((e[0] | e[1] | e[2]) >= 0);
-                    f(
-                        base + k as usize,
-                        &frag,
-                        [e[0] - s.bias[0], e[1] - s.bias[1], e[2] - s.bias[2]],
-                    );
+                    f(base + k as usize, &frag, [e[0] - s.bias[0], e[1] - s.bias[1], e[2] - s.bias[2]]);
                     e[0] += s.step_x[0];
                     e[1] += s.step_x[1];
                     e[2] += s.step_x[2];
@@ -687,9 +618,7 @@ fn resolve_tile(
                 flags: t.flags,
             };
             if cfg!(debug_assertions) {
-                texel
-                    .validate()
-                    .expect("visibility_raster texel invariants");
+                texel.validate().expect("visibility_raster texel invariants");
             }
             covered += 1;
         }
@@ -701,15 +630,10 @@ fn resolve_tile(
 /// Split a row-major image into per-tile lists of row slices (tile-major order), so
 /// tiles can be written in parallel without copying.
 fn tile_slices<'a, T>(buf: &'a mut [T], width: usize, frame: &Frame) -> Vec<Vec<&'a mut [T]>> {
-    let mut tiles: Vec<Vec<&mut [T]>> = (0..frame.tile_count())
-        .map(|_| Vec::with_capacity(TILE_SIZE as usize))
-        .collect();
+    let mut tiles: Vec<Vec<&mut [T]>> =
+        (0..frame.tile_count()).map(|_| Vec::with_capacity(TILE_SIZE as usize)).collect();
     let raster_w = frame.width as usize;
-    for (y, row) in buf
-        .chunks_mut(width)
-        .enumerate()
-        .take(frame.height as usize)
-    {
+    for (y, row) in buf.chunks_mut(width).enumerate().take(frame.height as usize) {
         let ty = y / TILE_SIZE as usize;
         for (tx, seg) in row[..raster_w].chunks_mut(TILE_SIZE as usize).enumerate() {
             tiles[ty * frame.tiles_x as usize + tx].push(seg);

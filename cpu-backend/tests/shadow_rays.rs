@@ -51,11 +51,7 @@ fn occluder_scene() -> (WorldGeometry, Vec3) {
                     * Mat4::from_scale(Vec3::splat(2.0 * OCCLUDER_HALF)),
             ),
         ],
-        lights: vec![Light::Point {
-            position: light,
-            color: Vec3::ONE,
-            intensity: 1.0,
-        }],
+        lights: vec![Light::Point { position: light, color: Vec3::ONE, intensity: 1.0 }],
         ..Scene::default()
     };
     (WorldGeometry::build(&scene), light)
@@ -82,8 +78,7 @@ fn shadow_ray(target: Vec3, normal: Vec3, light: Vec3, pixel: u32) -> RayRecord 
 fn closed_form(x: f32, z: f32) -> Option<bool> {
     let s = 1.0 - OCCLUDER_HEIGHT / LIGHT_HEIGHT;
     let (cx, cz) = ((x * s).abs(), (z * s).abs());
-    if (cx - OCCLUDER_HALF).abs() < BOUNDARY_MARGIN || (cz - OCCLUDER_HALF).abs() < BOUNDARY_MARGIN
-    {
+    if (cx - OCCLUDER_HALF).abs() < BOUNDARY_MARGIN || (cz - OCCLUDER_HALF).abs() < BOUNDARY_MARGIN {
         return None;
     }
     Some(cx < OCCLUDER_HALF && cz < OCCLUDER_HALF)
@@ -101,26 +96,13 @@ fn shadow_rays_match_closed_form_occluder() {
         for i in 0..=n {
             let (x, z) = (-FLOOR_HALF + i as f32 * 0.05, -FLOOR_HALF + j as f32 * 0.05);
             if let Some(blocked) = closed_form(x, z) {
-                rays.push(shadow_ray(
-                    Vec3::new(x, 0.0, z),
-                    Vec3::Y,
-                    light,
-                    rays.len() as u32,
-                ));
-                expected.push(if blocked {
-                    SHADOW_OCCLUDED
-                } else {
-                    SHADOW_VISIBLE
-                });
+                rays.push(shadow_ray(Vec3::new(x, 0.0, z), Vec3::Y, light, rays.len() as u32));
+                expected.push(if blocked { SHADOW_OCCLUDED } else { SHADOW_VISIBLE });
             }
         }
     }
     let occluded = expected.iter().filter(|&&e| e == SHADOW_OCCLUDED).count();
-    assert!(
-        occluded > 1000 && occluded < rays.len() / 2,
-        "{occluded} of {}",
-        rays.len()
-    );
+    assert!(occluded > 1000 && occluded < rays.len() / 2, "{occluded} of {}", rays.len());
     for preset in BvhPreset::ALL {
         let bvh = bvh_build(&g, preset);
         let got = shadow_rays(&bvh, &g, &rays);
@@ -140,22 +122,14 @@ fn shadow_rays_from_the_occluder_itself() {
     let mut rays = Vec::new();
     for j in 0..=8 {
         for i in 0..=8 {
-            let p = Vec3::new(
-                -1.0 + i as f32 * 0.25,
-                OCCLUDER_HEIGHT,
-                -1.0 + j as f32 * 0.25,
-            );
+            let p = Vec3::new(-1.0 + i as f32 * 0.25, OCCLUDER_HEIGHT, -1.0 + j as f32 * 0.25);
             rays.push(shadow_ray(p, Vec3::Y, light, 0));
             rays.push(shadow_ray(p, Vec3::NEG_Y, light, 1));
         }
     }
     let got = shadow_rays(&bvh, &g, &rays);
     for (r, o) in rays.iter().zip(got) {
-        let want = if r.pixel == 0 {
-            SHADOW_VISIBLE
-        } else {
-            SHADOW_OCCLUDED
-        };
+        let want = if r.pixel == 0 { SHADOW_VISIBLE } else { SHADOW_OCCLUDED };
         assert_eq!(o, want, "{r:?}");
     }
 }
@@ -167,26 +141,14 @@ fn shadow_rays_are_deterministic_across_thread_counts() {
     // Rays from a pseudo-random set of floor points (a fixed LCG, no RNG dependency).
     let mut state = 0x2545_f491_4f6c_dd1du64;
     let mut next = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
         ((state >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
     };
     let rays: Vec<RayRecord> = (0..10_000)
-        .map(|k| {
-            shadow_ray(
-                Vec3::new(next() * FLOOR_HALF, 0.0, next() * FLOOR_HALF),
-                Vec3::Y,
-                light,
-                k,
-            )
-        })
+        .map(|k| shadow_ray(Vec3::new(next() * FLOOR_HALF, 0.0, next() * FLOOR_HALF), Vec3::Y, light, k))
         .collect();
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
         pool.install(|| shadow_rays(&bvh, &g, &rays))
     };
     let one = run(1);

@@ -10,9 +10,7 @@ use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::glam::{DMat4, DVec3, DVec4, Mat4, Quat, Vec3, Vec4};
 use hyrt_core::kernels::raster::FIXED_ONE;
 use hyrt_core::scene::{Camera, Material, Mesh, Object, ObjectSource, RenderMode, Scene};
-use hyrt_cpu::visibility_raster::{
-    coverage_counts, visibility_raster, CoverageCounts, VisibilityOutput,
-};
+use hyrt_cpu::visibility_raster::{coverage_counts, visibility_raster, CoverageCounts, VisibilityOutput};
 use proptest::prelude::*;
 
 // ---------------------------------------------------------------------------------------------
@@ -98,14 +96,10 @@ fn window_camera(width: u32, height: u32) -> CameraRecord {
 
 /// A mesh of separate triangles given by window-space corners (depth `z`).
 fn triangles_mesh(tris: &[[[f32; 2]; 3]], z: f32) -> Mesh {
-    let mut m = Mesh {
-        name: "tris".into(),
-        ..Default::default()
-    };
+    let mut m = Mesh { name: "tris".into(), ..Default::default() };
     for t in tris {
         let base = m.positions.len() as u32;
-        m.positions
-            .extend(t.iter().map(|p| Vec3::new(p[0], p[1], z)));
+        m.positions.extend(t.iter().map(|p| Vec3::new(p[0], p[1], z)));
         m.indices.push([base, base + 1, base + 2]);
     }
     m
@@ -127,14 +121,7 @@ fn weld(mut mesh: Mesh) -> Mesh {
 }
 
 fn look_camera(eye: Vec3, target: Vec3, fov_y_deg: f32, near: f32, far: f32) -> Camera {
-    Camera {
-        eye,
-        target,
-        up: Vec3::Y,
-        fov_y_deg,
-        near,
-        far,
-    }
+    Camera { eye, target, up: Vec3::Y, fov_y_deg, near, far }
 }
 
 fn render(scene: &Scene, cam: &CameraRecord) -> (WorldGeometry, VisibilityOutput) {
@@ -189,8 +176,7 @@ fn ref_snap(v: f32) -> i64 {
 /// the triangle on its right). Degenerate triangles cover nothing.
 fn d3d_covered(v: [[i64; 2]; 3], p: [i64; 2]) -> bool {
     let orient = |a: [i64; 2], b: [i64; 2], c: [i64; 2]| -> i128 {
-        (b[0] - a[0]) as i128 * (c[1] - a[1]) as i128
-            - (b[1] - a[1]) as i128 * (c[0] - a[0]) as i128
+        (b[0] - a[0]) as i128 * (c[1] - a[1]) as i128 - (b[1] - a[1]) as i128 * (c[0] - a[0]) as i128
     };
     if orient(v[0], v[1], v[2]) == 0 {
         return false;
@@ -204,8 +190,7 @@ fn d3d_covered(v: [[i64; 2]; 3], p: [i64; 2]) -> bool {
         if side == 0 {
             let top = a[1] == b[1] && c[1] > a[1];
             let left = a[1] != b[1] && {
-                let num = (c[0] - a[0]) as i128 * (b[1] - a[1]) as i128
-                    - (b[0] - a[0]) as i128 * (c[1] - a[1]) as i128;
+                let num = (c[0] - a[0]) as i128 * (b[1] - a[1]) as i128 - (b[0] - a[0]) as i128 * (c[1] - a[1]) as i128;
                 num * ((b[1] - a[1]) as i128).signum() > 0
             };
             if !(top || left) {
@@ -292,13 +277,7 @@ fn ray_cast(g: &WorldGeometry, near: DVec3, far: DVec3) -> Option<(RayHit, f64)>
                 if let Some(b) = &best {
                     second = second.min(b.t);
                 }
-                best = Some(RayHit {
-                    global: i,
-                    t,
-                    u,
-                    v,
-                    back,
-                });
+                best = Some(RayHit { global: i, t, u, v, back });
             }
         }
     }
@@ -331,16 +310,7 @@ fn clipped_window_polygon(cam: &CameraRecord, vp: &DMat4, tri: [[f32; 3]; 3]) ->
     }
     let (w, h) = (cam.width as f64, cam.height as f64);
     poly.iter()
-        .map(|p| {
-            (
-                DVec3::new(
-                    (p.x / p.w * 0.5 + 0.5) * w,
-                    (0.5 - p.y / p.w * 0.5) * h,
-                    p.z / p.w,
-                ),
-                p.w,
-            )
-        })
+        .map(|p| (DVec3::new((p.x / p.w * 0.5 + 0.5) * w, (0.5 - p.y / p.w * 0.5) * h, p.z / p.w), p.w))
         .collect()
 }
 
@@ -348,11 +318,7 @@ fn segment_distance(p: (f64, f64), a: DVec3, b: DVec3) -> f64 {
     let (ax, ay, bx, by) = (a.x, a.y, b.x, b.y);
     let (dx, dy) = (bx - ax, by - ay);
     let len2 = dx * dx + dy * dy;
-    let t = if len2 > 0.0 {
-        (((p.0 - ax) * dx + (p.1 - ay) * dy) / len2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
+    let t = if len2 > 0.0 { (((p.0 - ax) * dx + (p.1 - ay) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
     let (cx, cy) = (ax + t * dx - p.0, ay + t * dy - p.1);
     (cx * cx + cy * cy).sqrt()
 }
@@ -396,8 +362,7 @@ fn edge_mask_and_tolerances(g: &WorldGeometry, cam: &CameraRecord) -> (Vec<bool>
             h_min = h_min.min(area2 / longest);
         }
         let ws: Vec<f64> = poly.iter().map(|p| p.1).collect();
-        let w_ratio = ws.iter().cloned().fold(0.0, f64::max)
-            / ws.iter().cloned().fold(f64::INFINITY, f64::min);
+        let w_ratio = ws.iter().cloned().fold(0.0, f64::max) / ws.iter().cloned().fold(f64::INFINITY, f64::min);
         tol[ti] = BARY_ERROR_GAIN * VERTEX_ERROR_PX / h_min * w_ratio + BARY_ROUNDING;
     }
     (near_edge, tol)
@@ -410,13 +375,7 @@ fn assert_matches_ray_cast(g: &WorldGeometry, cam: &CameraRecord, out: &Visibili
     let vp = view_proj_f64(cam);
     let inv = vp.inverse();
     let inv32 = DMat4::from_cols_array(&cam.inv_view_proj.map(|c| c as f64));
-    assert!(inv.abs_diff_eq(
-        inv32,
-        1e-3 * inv
-            .to_cols_array()
-            .iter()
-            .fold(0.0f64, |m, c| m.max(c.abs()))
-    ));
+    assert!(inv.abs_diff_eq(inv32, 1e-3 * inv.to_cols_array().iter().fold(0.0f64, |m, c| m.max(c.abs()))));
     let (near_edge, tol) = edge_mask_and_tolerances(g, cam);
     let mut compared = 0;
     for y in 0..cam.height {
@@ -430,39 +389,24 @@ fn assert_matches_ray_cast(g: &WorldGeometry, cam: &CameraRecord, out: &Visibili
             let texel = out.gbuffer[i];
             match hit {
                 None => {
-                    assert!(
-                        !texel.is_hit(),
-                        "pixel ({x}, {y}): raster hit {texel:?}, ray cast missed"
-                    );
+                    assert!(!texel.is_hit(), "pixel ({x}, {y}): raster hit {texel:?}, ray cast missed");
                     compared += 1;
                 }
                 Some((hit, second)) => {
                     let len = (f - n).length();
-                    if (second - hit.t) * len
-                        <= DEPTH_TIE_RELATIVE * (hit.t * len + cam.near as f64)
-                    {
+                    if (second - hit.t) * len <= DEPTH_TIE_RELATIVE * (hit.t * len + cam.near as f64) {
                         continue;
                     }
                     let rec = &g.triangles[hit.global];
-                    assert!(
-                        texel.is_hit(),
-                        "pixel ({x}, {y}): raster missed, ray cast hit {rec:?}"
-                    );
+                    assert!(texel.is_hit(), "pixel ({x}, {y}): raster missed, ray cast hit {rec:?}");
                     assert_eq!(
                         (texel.object, texel.triangle),
                         (rec.object, rec.triangle),
                         "pixel ({x}, {y}): ids differ from the ray cast"
                     );
-                    assert_eq!(
-                        texel.flags & GBUF_BACK_FACE != 0,
-                        hit.back,
-                        "pixel ({x}, {y}): facing"
-                    );
+                    assert_eq!(texel.flags & GBUF_BACK_FACE != 0, hit.back, "pixel ({x}, {y}): facing");
                     let t = tol[hit.global];
-                    let (du, dv) = (
-                        (texel.bary_u as f64 - hit.u).abs(),
-                        (texel.bary_v as f64 - hit.v).abs(),
-                    );
+                    let (du, dv) = ((texel.bary_u as f64 - hit.u).abs(), (texel.bary_v as f64 - hit.v).abs());
                     assert!(
                         du <= t && dv <= t,
                         "pixel ({x}, {y}): barycentrics ({}, {}) vs ray cast ({}, {}), tolerance {t}",
@@ -490,28 +434,11 @@ fn visibility_raster_empty_geometry_is_all_miss() {
         let cam = window_camera(w, h);
         let (_, out) = render(&scene, &cam);
         assert_eq!(out.covered_pixels, 0);
-        assert!(out
-            .gbuffer
-            .iter()
-            .all(|t| t.to_bits() == GBufferTexel::MISS.to_bits()));
+        assert!(out.gbuffer.iter().all(|t| t.to_bits() == GBufferTexel::MISS.to_bits()));
     }
     // Geometry entirely behind the camera: all miss too.
-    let cam = Camera {
-        eye: Vec3::ZERO,
-        target: -Vec3::Z,
-        up: Vec3::Y,
-        fov_y_deg: 60.0,
-        near: 0.1,
-        far: 100.0,
-    };
-    let scene = scene_with(
-        vec![(
-            Mesh::cube("c"),
-            Mat4::from_translation(Vec3::Z * 5.0),
-            RenderMode::Raster,
-        )],
-        None,
-    );
+    let cam = Camera { eye: Vec3::ZERO, target: -Vec3::Z, up: Vec3::Y, fov_y_deg: 60.0, near: 0.1, far: 100.0 };
+    let scene = scene_with(vec![(Mesh::cube("c"), Mat4::from_translation(Vec3::Z * 5.0), RenderMode::Raster)], None);
     let (_, out) = render(&scene, &CameraRecord::new(&cam, 32, 24));
     assert_eq!(out.covered_pixels, 0);
 }
@@ -520,15 +447,7 @@ fn visibility_raster_empty_geometry_is_all_miss() {
 fn visibility_raster_one_pixel_and_odd_sized_images() {
     // A quad larger than the image, split along a diagonal: every pixel of every
     // image size is covered exactly once, including the last partial tiles.
-    for (w, h) in [
-        (1, 1),
-        (1, 7),
-        (7, 1),
-        (63, 65),
-        (65, 33),
-        (129, 127),
-        (200, 1),
-    ] {
+    for (w, h) in [(1, 1), (1, 7), (7, 1), (63, 65), (65, 33), (129, 127), (200, 1)] {
         let (fw, fh) = (w as f32, h as f32);
         let tris = [
             [[-0.75, -0.25], [-0.75, fh + 0.5], [fw + 1.0, fh + 0.5]],
@@ -578,11 +497,7 @@ fn visibility_raster_top_left_rule_on_pixel_centres() {
             for y in 0..h {
                 for x in 0..w {
                     let inside = (2..10).contains(&x) && (2..10).contains(&y);
-                    assert_eq!(
-                        total(&c, at(x, y)),
-                        inside as u32,
-                        "split {split:?} flip {flip} pixel ({x}, {y})"
-                    );
+                    assert_eq!(total(&c, at(x, y)), inside as u32, "split {split:?} flip {flip} pixel ({x}, {y})");
                 }
             }
             assert_eq!(c.front.iter().sum::<u32>() + c.back.iter().sum::<u32>(), 64);
@@ -643,38 +558,22 @@ fn visibility_raster_subpixel_ties_snap_to_even() {
     for (k, col4) in [(1, 1), (3, 0), (-1, 1), (-3, 1), (5, 0), (-5, 1)] {
         let x = 4.5 + k as f32 * tie;
         let c = run([[x, 1.5], [x, 13.5], [12.0, 7.0]]);
-        assert_eq!(
-            total(&c, (7 * w + 4) as usize),
-            col4,
-            "left edge at 4.5 + {k}/512"
-        );
+        assert_eq!(total(&c, (7 * w + 4) as usize), col4, "left edge at 4.5 + {k}/512");
     }
     for (k, col4) in [(1, 0), (3, 1), (-1, 0), (-3, 0)] {
         let x = 4.5 + k as f32 * tie;
         let c = run([[x, 1.5], [0.5, 7.0], [x, 13.5]]);
-        assert_eq!(
-            total(&c, (7 * w + 4) as usize),
-            col4,
-            "right edge at 4.5 + {k}/512"
-        );
+        assert_eq!(total(&c, (7 * w + 4) as usize), col4, "right edge at 4.5 + {k}/512");
     }
     for (k, row3) in [(1, 1), (3, 0), (5, 0), (-1, 1)] {
         let y = 3.5 + k as f32 * tie;
         let c = run([[1.5, y], [12.5, y], [6.0, 11.0]]);
-        assert_eq!(
-            total(&c, (3 * w + 6) as usize),
-            row3,
-            "top edge at 3.5 + {k}/512"
-        );
+        assert_eq!(total(&c, (3 * w + 6) as usize), row3, "top edge at 3.5 + {k}/512");
     }
     for (k, row9) in [(1, 0), (3, 1), (-1, 0)] {
         let y = 9.5 + k as f32 * tie;
         let c = run([[6.0, 1.0], [12.5, y], [1.5, y]]);
-        assert_eq!(
-            total(&c, (9 * w + 6) as usize),
-            row9,
-            "bottom edge at 9.5 + {k}/512"
-        );
+        assert_eq!(total(&c, (9 * w + 6) as usize), row9, "bottom edge at 9.5 + {k}/512");
     }
 }
 
@@ -688,11 +587,7 @@ fn visibility_raster_subpixel_and_sliver_triangles() {
         // Tiny triangle between centres: nothing.
         [[5.7, 5.7], [5.9, 5.7], [5.8, 5.9]],
         // Zero area after snapping (all within 1/512 of each other): nothing.
-        [
-            [7.5, 7.5],
-            [7.5 + 1.0 / 1024.0, 7.5],
-            [7.5, 7.5 + 1.0 / 1024.0],
-        ],
+        [[7.5, 7.5], [7.5 + 1.0 / 1024.0, 7.5], [7.5, 7.5 + 1.0 / 1024.0]],
         // Collinear: nothing.
         [[1.0, 1.0], [10.0, 10.0], [20.0, 20.0]],
         // Slivers along a row of centres, 1/256 px thick, both sides of it.
@@ -711,28 +606,17 @@ fn visibility_raster_subpixel_and_sliver_triangles() {
             assert_coverage_eq!(c, d3d_mask(&[t], w, h), "{t:?}");
             let out = visibility_raster(&g, &cam);
             check_output(&out, &cam);
-            assert_eq!(
-                out.covered_pixels as u32,
-                c.front.iter().sum::<u32>() + c.back.iter().sum::<u32>()
-            );
+            assert_eq!(out.covered_pixels as u32, c.front.iter().sum::<u32>() + c.back.iter().sum::<u32>());
         }
     }
-    let single = |t| {
-        coverage_counts(
-            &WorldGeometry::build(&scene_with(vec![raster(triangles_mesh(&[t], 0.25))], None)),
-            &cam,
-        )
-    };
+    let single =
+        |t| coverage_counts(&WorldGeometry::build(&scene_with(vec![raster(triangles_mesh(&[t], 0.25))], None)), &cam);
     let c = single(cases[0]);
     assert_eq!(total(&c, (5 * w + 5) as usize), 1);
     assert_eq!((0..(w * h) as usize).map(|i| total(&c, i)).sum::<u32>(), 1);
     for k in [1, 2, 3] {
         let c = single(cases[k]);
-        assert_eq!(
-            (0..(w * h) as usize).map(|i| total(&c, i)).sum::<u32>(),
-            0,
-            "case {k}"
-        );
+        assert_eq!((0..(w * h) as usize).map(|i| total(&c, i)).sum::<u32>(), 0, "case {k}");
     }
 }
 
@@ -744,10 +628,7 @@ fn visibility_raster_subpixel_and_sliver_triangles() {
 /// interior vertices moved by `jitter(i, j)` (boundary vertices stay on the
 /// outline, so the covered area is exactly the snapped rectangle).
 fn window_grid(n: u32, origin: [f32; 2], cell: f32, jitter: impl Fn(u32, u32) -> [f32; 2]) -> Mesh {
-    let mut m = Mesh {
-        name: "grid".into(),
-        ..Default::default()
-    };
+    let mut m = Mesh { name: "grid".into(), ..Default::default() };
     for j in 0..=n {
         for i in 0..=n {
             let mut p = [origin[0] + i as f32 * cell, origin[1] + j as f32 * cell];
@@ -790,10 +671,7 @@ fn assert_window_grid_covered_once(
     let scene = scene_with(vec![raster(mesh)], None);
     let c = coverage_counts(&WorldGeometry::build(&scene), &cam);
     let (x0, y0) = (ref_snap(origin[0]), ref_snap(origin[1]));
-    let (x1, y1) = (
-        ref_snap(origin[0] + n as f32 * cell),
-        ref_snap(origin[1] + n as f32 * cell),
-    );
+    let (x1, y1) = (ref_snap(origin[0] + n as f32 * cell), ref_snap(origin[1] + n as f32 * cell));
     for y in 0..h {
         for x in 0..w {
             let (px, py) = (x as i64 * FIXED_ONE, y as i64 * FIXED_ONE);
@@ -826,24 +704,12 @@ fn visibility_raster_grid_on_pixel_centres_and_ties_covered_once() {
         10,
         [1.5 + t, 0.5 + 3.0 * t],
         5.0 + 2.0 * t,
-        |i, j| {
-            [
-                ((i * 7 + j) % 5) as f32 * t,
-                ((i + j * 3) % 7) as f32 * t - 3.0 * t,
-            ]
-        },
+        |i, j| [((i * 7 + j) % 5) as f32 * t, ((i + j * 3) % 7) as f32 * t - 3.0 * t],
         64,
         64,
     );
     // Cells of one pixel and of half a pixel: every vertex on a centre or a tie.
-    assert_window_grid_covered_once(
-        40,
-        [4.5, 4.5],
-        1.0,
-        |i, j| [if (i + j) % 2 == 0 { t } else { -t }, 0.0],
-        64,
-        64,
-    );
+    assert_window_grid_covered_once(40, [4.5, 4.5], 1.0, |i, j| [if (i + j) % 2 == 0 { t } else { -t }, 0.0], 64, 64);
     assert_window_grid_covered_once(
         40,
         [4.5 + t, 4.5 - t],
@@ -874,16 +740,11 @@ fn visibility_raster_closed_mesh_covered_once() {
         (Mesh::torus("torus", 1.0, 0.35, 32, 16), false),
         (weld(Mesh::uv_sphere("coarse", 7, 4)), true),
     ];
-    let eyes = [
-        Vec3::new(0.3, 0.4, 4.0),
-        Vec3::new(-3.0, 2.0, -1.0),
-        Vec3::new(0.0, 5.0, 0.01),
-        Vec3::new(2.5, -1.0, 2.5),
-    ];
+    let eyes =
+        [Vec3::new(0.3, 0.4, 4.0), Vec3::new(-3.0, 2.0, -1.0), Vec3::new(0.0, 5.0, 0.01), Vec3::new(2.5, -1.0, 2.5)];
     for (mesh, convex) in &meshes {
         for (k, eye) in eyes.iter().enumerate() {
-            let transform = Mat4::from_quat(Quat::from_rotation_y(0.3 * k as f32))
-                * Mat4::from_scale(Vec3::splat(0.9));
+            let transform = Mat4::from_quat(Quat::from_rotation_y(0.3 * k as f32)) * Mat4::from_scale(Vec3::splat(0.9));
             let scene = scene_with(vec![(mesh.clone(), transform, RenderMode::Raster)], None);
             let g = WorldGeometry::build(&scene);
             for (w, h) in [(96, 64), (37, 41)] {
@@ -893,33 +754,16 @@ fn visibility_raster_closed_mesh_covered_once() {
                 check_output(&out, &cam);
                 let mut covered = 0;
                 for i in 0..(w * h) as usize {
-                    assert_eq!(
-                        c.front[i], c.back[i],
-                        "{} eye {eye} {w}x{h}: pixel {i}",
-                        mesh.name
-                    );
-                    assert!(
-                        c.front[i] <= if *convex { 1 } else { 2 },
-                        "{} pixel {i}",
-                        mesh.name
-                    );
-                    assert_eq!(
-                        out.gbuffer[i].is_hit(),
-                        c.front[i] > 0,
-                        "{} pixel {i}",
-                        mesh.name
-                    );
+                    assert_eq!(c.front[i], c.back[i], "{} eye {eye} {w}x{h}: pixel {i}", mesh.name);
+                    assert!(c.front[i] <= if *convex { 1 } else { 2 }, "{} pixel {i}", mesh.name);
+                    assert_eq!(out.gbuffer[i].is_hit(), c.front[i] > 0, "{} pixel {i}", mesh.name);
                     covered += (c.front[i] > 0) as usize;
                     // Seen from outside, the visible surface is a front face.
                     if out.gbuffer[i].is_hit() {
                         assert_eq!(out.gbuffer[i].flags & GBUF_BACK_FACE, 0);
                     }
                 }
-                assert!(
-                    covered > (w * h) as usize / 20,
-                    "{} eye {eye}: mesh barely visible",
-                    mesh.name
-                );
+                assert!(covered > (w * h) as usize / 20, "{} eye {eye}: mesh barely visible", mesh.name);
             }
         }
     }
@@ -927,22 +771,9 @@ fn visibility_raster_closed_mesh_covered_once() {
 
 #[test]
 fn visibility_raster_camera_inside_cube_sees_back_faces() {
-    let scene = scene_with(
-        vec![(
-            Mesh::cube("room"),
-            Mat4::from_scale(Vec3::splat(5.0)),
-            RenderMode::RayTraced,
-        )],
-        None,
-    );
+    let scene = scene_with(vec![(Mesh::cube("room"), Mat4::from_scale(Vec3::splat(5.0)), RenderMode::RayTraced)], None);
     let cam = CameraRecord::new(
-        &look_camera(
-            Vec3::new(0.5, 0.2, 1.0),
-            Vec3::new(-1.0, 0.0, -3.0),
-            70.0,
-            0.05,
-            100.0,
-        ),
+        &look_camera(Vec3::new(0.5, 0.2, 1.0), Vec3::new(-1.0, 0.0, -3.0), 70.0, 0.05, 100.0),
         48,
         32,
     );
@@ -1001,15 +832,8 @@ fn convex_signed_distance(poly: &[DVec3], p: (f64, f64)) -> f64 {
     }
 }
 
-fn assert_perspective_grid_covered_once(
-    n: u32,
-    transform: Mat4,
-    cam: &CameraRecord,
-) -> Result<(), TestCaseError> {
-    let scene = scene_with(
-        vec![(Mesh::grid("g", n), transform, RenderMode::Raster)],
-        None,
-    );
+fn assert_perspective_grid_covered_once(n: u32, transform: Mat4, cam: &CameraRecord) -> Result<(), TestCaseError> {
+    let scene = scene_with(vec![(Mesh::grid("g", n), transform, RenderMode::Raster)], None);
     let g = WorldGeometry::build(&scene);
     let c = coverage_counts(&g, cam);
     let outline = grid_outline(cam, transform).expect("grid inside the depth range");
@@ -1031,11 +855,7 @@ fn assert_perspective_grid_covered_once(
 
 #[test]
 fn visibility_raster_perspective_grid_covered_once() {
-    let cam = CameraRecord::new(
-        &look_camera(Vec3::new(0.2, 1.0, 1.5), Vec3::ZERO, 60.0, 0.01, 100.0),
-        80,
-        60,
-    );
+    let cam = CameraRecord::new(&look_camera(Vec3::new(0.2, 1.0, 1.5), Vec3::ZERO, 60.0, 0.01, 100.0), 80, 60);
     for n in [1, 3, 16, 40] {
         let t = Mat4::from_quat(Quat::from_rotation_y(0.4)) * Mat4::from_scale(Vec3::splat(1.3));
         assert_perspective_grid_covered_once(n, t, &cam).unwrap();
@@ -1123,40 +943,21 @@ fn visibility_raster_near_plane_crossing_matches_analytic() {
     // rows with ndc_y < -1/2 are clipped by the near plane; the grid ends at
     // distance 200, i.e. at ndc_y = -1/200.
     let (w, h) = (64u32, 64u32);
-    let camera = look_camera(
-        Vec3::new(0.0, 1.0, 0.0),
-        Vec3::new(0.0, 1.0, -1.0),
-        90.0,
-        2.0,
-        1000.0,
-    );
+    let camera = look_camera(Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 1.0, -1.0), 90.0, 2.0, 1000.0);
     let cam = CameraRecord::new(&camera, w, h);
-    let scene = scene_with(
-        vec![(
-            Mesh::grid("ground", 16),
-            Mat4::from_scale(Vec3::splat(400.0)),
-            RenderMode::Raster,
-        )],
-        None,
-    );
+    let scene =
+        scene_with(vec![(Mesh::grid("ground", 16), Mat4::from_scale(Vec3::splat(400.0)), RenderMode::Raster)], None);
     let (g, out) = render(&scene, &cam);
     let c = coverage_counts(&g, &cam);
     let mut clipped_rows = 0;
     for y in 0..h {
         let ndc_y = 1.0 - (y as f64 + 0.5) / h as f64 * 2.0;
         let expect = ndc_y > -0.5 && ndc_y < -1.0 / 200.0;
-        assert!(
-            (ndc_y + 0.5).abs() > 0.01 && (ndc_y + 1.0 / 200.0).abs() > 0.01,
-            "test rows too close to a boundary"
-        );
+        assert!((ndc_y + 0.5).abs() > 0.01 && (ndc_y + 1.0 / 200.0).abs() > 0.01, "test rows too close to a boundary");
         clipped_rows += (ndc_y < -0.5) as u32;
         for x in 0..w {
             let i = (y * w + x) as usize;
-            assert_eq!(
-                out.gbuffer[i].is_hit(),
-                expect,
-                "pixel ({x}, {y}) ndc_y {ndc_y}"
-            );
+            assert_eq!(out.gbuffer[i].is_hit(), expect, "pixel ({x}, {y}) ndc_y {ndc_y}");
             assert_eq!(total(&c, i), expect as u32, "pixel ({x}, {y}) coverage");
             if expect {
                 // Analytic depth of the ground at this row (directx projection):
@@ -1173,11 +974,7 @@ fn visibility_raster_near_plane_crossing_matches_analytic() {
                     "pixel ({x}, {y}) depth {} vs {z}",
                     out.gbuffer[i].depth
                 );
-                assert_eq!(
-                    out.gbuffer[i].flags & GBUF_BACK_FACE,
-                    0,
-                    "the ground is seen from above"
-                );
+                assert_eq!(out.gbuffer[i].flags & GBUF_BACK_FACE, 0, "the ground is seen from above");
             }
         }
     }
@@ -1190,23 +987,9 @@ fn visibility_raster_near_and_far_clipped_closed_mesh() {
     // A long box crossing both the near and the far plane: the clipped shapes
     // stay watertight (at most one front and one back covering per pixel) and
     // agree with the analytic ray cast restricted to depth 0..1.
-    let box_t = Mat4::from_translation(Vec3::new(0.0, 0.0, -10.0))
-        * Mat4::from_scale(Vec3::new(1.0, 0.7, 12.0));
-    let scene = scene_with(
-        vec![(
-            weld(Mesh::uv_sphere("s", 24, 12)),
-            box_t,
-            RenderMode::Raster,
-        )],
-        None,
-    );
-    let camera = look_camera(
-        Vec3::new(0.9, 0.2, 0.0),
-        Vec3::new(-0.3, 0.0, -10.0),
-        60.0,
-        0.5,
-        18.0,
-    );
+    let box_t = Mat4::from_translation(Vec3::new(0.0, 0.0, -10.0)) * Mat4::from_scale(Vec3::new(1.0, 0.7, 12.0));
+    let scene = scene_with(vec![(weld(Mesh::uv_sphere("s", 24, 12)), box_t, RenderMode::Raster)], None);
+    let camera = look_camera(Vec3::new(0.9, 0.2, 0.0), Vec3::new(-0.3, 0.0, -10.0), 60.0, 0.5, 18.0);
     let cam = CameraRecord::new(&camera, 72, 56);
     let (g, out) = render(&scene, &cam);
     let c = coverage_counts(&g, &cam);
@@ -1245,11 +1028,7 @@ fn visibility_raster_huge_coordinates_use_the_guard_band() {
 
 #[test]
 fn visibility_raster_non_finite_and_degenerate_triangles_cover_nothing() {
-    let cam = CameraRecord::new(
-        &look_camera(Vec3::new(0.0, 1.0, 3.0), Vec3::ZERO, 60.0, 0.1, 50.0),
-        64,
-        48,
-    );
+    let cam = CameraRecord::new(&look_camera(Vec3::new(0.0, 1.0, 3.0), Vec3::ZERO, 60.0, 0.1, 50.0), 64, 48);
     let good = (Mesh::cube("cube"), Mat4::IDENTITY, RenderMode::Raster);
     let nan = f32::NAN;
     let inf = f32::INFINITY;
@@ -1267,16 +1046,7 @@ fn visibility_raster_non_finite_and_degenerate_triangles_cover_nothing() {
         ],
         normals: None,
         // NaN, Inf, overflowing, repeated-index and collinear triangles.
-        indices: vec![
-            [0, 3, 4],
-            [1, 3, 4],
-            [2, 4, 3],
-            [3, 3, 4],
-            [3, 4, 5],
-            [6, 6, 3],
-            [7, 0, 1],
-            [4, 4, 4],
-        ],
+        indices: vec![[0, 3, 4], [1, 3, 4], [2, 4, 3], [3, 3, 4], [3, 4, 5], [6, 6, 3], [7, 0, 1], [4, 4, 4]],
     };
     let (_, reference) = render(&scene_with(vec![good.clone()], None), &cam);
     let scene = scene_with(vec![good, (bad, Mat4::IDENTITY, RenderMode::Raster)], None);
@@ -1286,11 +1056,7 @@ fn visibility_raster_non_finite_and_degenerate_triangles_cover_nothing() {
     check_output(&out, &cam);
     assert_eq!(
         out.gbuffer.iter().map(|t| t.to_bits()).collect::<Vec<_>>(),
-        reference
-            .gbuffer
-            .iter()
-            .map(|t| t.to_bits())
-            .collect::<Vec<_>>()
+        reference.gbuffer.iter().map(|t| t.to_bits()).collect::<Vec<_>>()
     );
     // A transform full of NaN: nothing at all.
     let mut nan_t = Mat4::IDENTITY;
@@ -1303,23 +1069,14 @@ fn visibility_raster_non_finite_and_degenerate_triangles_cover_nothing() {
 fn visibility_raster_far_from_origin_and_tiny_scales_stay_watertight() {
     // Embree's verify offset and 1e6: f32 world positions are coarse there, but
     // shared vertices are shared bits, so closed meshes stay watertight.
-    for offset in [
-        Vec3::new(148376.0, 1234.0, -223423.0),
-        Vec3::new(1.0e6, -1.0e6, 5.0e5),
-    ] {
-        for (mesh, scale) in [
-            (weld(Mesh::uv_sphere("s", 32, 16)), 50.0f32),
-            (Mesh::torus("t", 1.0, 0.4, 24, 12), 80.0),
-        ] {
+    for offset in [Vec3::new(148376.0, 1234.0, -223423.0), Vec3::new(1.0e6, -1.0e6, 5.0e5)] {
+        for (mesh, scale) in [(weld(Mesh::uv_sphere("s", 32, 16)), 50.0f32), (Mesh::torus("t", 1.0, 0.4, 24, 12), 80.0)]
+        {
             let t = Mat4::from_translation(offset) * Mat4::from_scale(Vec3::splat(scale));
             let scene = scene_with(vec![(mesh, t, RenderMode::Raster)], None);
             let g = WorldGeometry::build(&scene);
             let eye = offset + Vec3::new(1.0, 0.6, 3.0) * scale * 1.3;
-            let cam = CameraRecord::new(
-                &look_camera(eye, offset, 55.0, scale * 0.1, scale * 20.0),
-                72,
-                48,
-            );
+            let cam = CameraRecord::new(&look_camera(eye, offset, 55.0, scale * 0.1, scale * 20.0), 72, 48);
             let c = coverage_counts(&g, &cam);
             let out = visibility_raster(&g, &cam);
             check_output(&out, &cam);
@@ -1334,28 +1091,17 @@ fn visibility_raster_far_from_origin_and_tiny_scales_stay_watertight() {
     let s = 1.0e-3f32;
     let scene = scene_with(
         vec![
-            (
-                weld(Mesh::uv_sphere("s", 24, 12)),
-                Mat4::from_scale(Vec3::splat(s)),
-                RenderMode::Raster,
-            ),
+            (weld(Mesh::uv_sphere("s", 24, 12)), Mat4::from_scale(Vec3::splat(s)), RenderMode::Raster),
             (
                 Mesh::cube("c"),
-                Mat4::from_translation(Vec3::new(2.5, 0.0, -1.0) * s)
-                    * Mat4::from_scale(Vec3::splat(0.8 * s)),
+                Mat4::from_translation(Vec3::new(2.5, 0.0, -1.0) * s) * Mat4::from_scale(Vec3::splat(0.8 * s)),
                 RenderMode::RayTraced,
             ),
         ],
         None,
     );
     let cam = CameraRecord::new(
-        &look_camera(
-            Vec3::new(0.5, 1.0, 5.0) * s,
-            Vec3::new(1.0, 0.0, 0.0) * s,
-            60.0,
-            0.01 * s,
-            100.0 * s,
-        ),
+        &look_camera(Vec3::new(0.5, 1.0, 5.0) * s, Vec3::new(1.0, 0.0, 0.0) * s, 60.0, 0.01 * s, 100.0 * s),
         64,
         40,
     );
@@ -1375,61 +1121,29 @@ fn visibility_raster_depth_less_keeps_the_earlier_triangle() {
     let cam = window_camera(w, h);
     let big = [[-1.0f32, -1.0], [40.0, -1.0], [-1.0, 40.0]];
     // Same triangle twice at the same depth: the first object wins everywhere.
-    let scene = scene_with(
-        vec![
-            raster(triangles_mesh(&[big], 0.5)),
-            raster(triangles_mesh(&[big], 0.5)),
-        ],
-        None,
-    );
+    let scene = scene_with(vec![raster(triangles_mesh(&[big], 0.5)), raster(triangles_mesh(&[big], 0.5))], None);
     let (_, out) = render(&scene, &cam);
     assert!(out.covered_pixels > 0);
-    assert!(out
-        .gbuffer
-        .iter()
-        .filter(|t| t.is_hit())
-        .all(|t| t.object == 0));
+    assert!(out.gbuffer.iter().filter(|t| t.is_hit()).all(|t| t.object == 0));
     // A nearer triangle wins whatever the order; within one mesh too.
     for order in [[0.25f32, 0.75], [0.75, 0.25]] {
-        let scene = scene_with(
-            vec![
-                raster(triangles_mesh(&[big], order[0])),
-                raster(triangles_mesh(&[big], order[1])),
-            ],
-            None,
-        );
+        let scene =
+            scene_with(vec![raster(triangles_mesh(&[big], order[0])), raster(triangles_mesh(&[big], order[1]))], None);
         let (_, out) = render(&scene, &cam);
         let nearer = if order[0] < order[1] { 0 } else { 1 };
-        assert!(out
-            .gbuffer
-            .iter()
-            .filter(|t| t.is_hit())
-            .all(|t| t.object == nearer && t.depth == 0.25));
+        assert!(out.gbuffer.iter().filter(|t| t.is_hit()).all(|t| t.object == nearer && t.depth == 0.25));
         let mut mesh = triangles_mesh(&[big], order[0]);
-        mesh.positions.extend(
-            [big[0], big[1], big[2]]
-                .iter()
-                .map(|p| Vec3::new(p[0], p[1], order[1])),
-        );
+        mesh.positions.extend([big[0], big[1], big[2]].iter().map(|p| Vec3::new(p[0], p[1], order[1])));
         mesh.indices.push([3, 4, 5]);
         let (_, out) = render(&scene_with(vec![raster(mesh)], None), &cam);
         let first_nearer = if order[0] < order[1] { 0 } else { 1 };
-        assert!(out
-            .gbuffer
-            .iter()
-            .filter(|t| t.is_hit())
-            .all(|t| t.triangle == first_nearer));
+        assert!(out.gbuffer.iter().filter(|t| t.is_hit()).all(|t| t.triangle == first_nearer));
     }
     // Depth exactly 1 (the clear value) fails LESS; depth 0 passes.
     let scene = scene_with(vec![raster(triangles_mesh(&[big], 1.0))], None);
     assert_eq!(render(&scene, &cam).1.covered_pixels, 0);
     let scene = scene_with(vec![raster(triangles_mesh(&[big], 0.0))], None);
-    assert!(render(&scene, &cam)
-        .1
-        .gbuffer
-        .iter()
-        .filter(|t| t.is_hit())
-        .all(|t| t.depth == 0.0));
+    assert!(render(&scene, &cam).1.gbuffer.iter().filter(|t| t.is_hit()).all(|t| t.depth == 0.0));
 }
 
 #[test]
@@ -1438,21 +1152,11 @@ fn visibility_raster_texel_values_on_a_window_space_triangle() {
     // depth interpolates linearly; flags carry the render mode and the facing.
     let (w, h) = (64u32, 64u32);
     let cam = window_camera(w, h);
-    let tri = [
-        Vec3::new(2.5, 2.5, 0.25),
-        Vec3::new(60.5, 6.5, 0.5),
-        Vec3::new(10.5, 58.5, 0.75),
-    ];
-    let mesh = Mesh {
-        name: "t".into(),
-        positions: tri.to_vec(),
-        normals: None,
-        indices: vec![[0, 1, 2]],
-    };
+    let tri = [Vec3::new(2.5, 2.5, 0.25), Vec3::new(60.5, 6.5, 0.5), Vec3::new(10.5, 58.5, 0.75)];
+    let mesh = Mesh { name: "t".into(), positions: tri.to_vec(), normals: None, indices: vec![[0, 1, 2]] };
     let scene = scene_with(vec![(mesh, Mat4::IDENTITY, RenderMode::RayTraced)], None);
     let (_, out) = render(&scene, &cam);
-    let area = ((tri[1].x - tri[0].x) * (tri[2].y - tri[0].y)
-        - (tri[1].y - tri[0].y) * (tri[2].x - tri[0].x)) as f64;
+    let area = ((tri[1].x - tri[0].x) * (tri[2].y - tri[0].y) - (tri[1].y - tri[0].y) * (tri[2].x - tri[0].x)) as f64;
     let mut seen = 0;
     for y in 0..h {
         for x in 0..w {
@@ -1463,8 +1167,7 @@ fn visibility_raster_texel_values_on_a_window_space_triangle() {
             seen += 1;
             let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
             let e = |a: Vec3, b: Vec3| {
-                ((b.x - a.x) as f64 * (py - a.y as f64) - (b.y - a.y) as f64 * (px - a.x as f64))
-                    / area
+                ((b.x - a.x) as f64 * (py - a.y as f64) - (b.y - a.y) as f64 * (px - a.x as f64)) / area
             };
             let (u, v) = (e(tri[2], tri[0]), e(tri[0], tri[1]));
             // All vertices are on pixel centres, so snapping is exact: only f32
@@ -1487,25 +1190,10 @@ fn visibility_raster_texel_values_on_a_window_space_triangle() {
 fn determinism_scenes() -> Vec<(Scene, CameraRecord)> {
     let default = Scene::default_scene();
     let cam = CameraRecord::new(&default.camera.unwrap(), 203, 117);
-    let ground = scene_with(
-        vec![(
-            Mesh::grid("ground", 24),
-            Mat4::from_scale(Vec3::splat(400.0)),
-            RenderMode::Raster,
-        )],
-        None,
-    );
-    let gcam = CameraRecord::new(
-        &look_camera(
-            Vec3::new(0.0, 1.0, 0.0),
-            Vec3::new(0.3, 0.8, -1.0),
-            80.0,
-            0.5,
-            300.0,
-        ),
-        130,
-        70,
-    );
+    let ground =
+        scene_with(vec![(Mesh::grid("ground", 24), Mat4::from_scale(Vec3::splat(400.0)), RenderMode::Raster)], None);
+    let gcam =
+        CameraRecord::new(&look_camera(Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.3, 0.8, -1.0), 80.0, 0.5, 300.0), 130, 70);
     vec![(default, cam), (ground, gcam)]
 }
 
@@ -1514,15 +1202,8 @@ fn visibility_raster_deterministic_across_thread_counts() {
     for (scene, cam) in determinism_scenes() {
         let g = WorldGeometry::build(&scene);
         let run = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| visibility_raster(&g, &cam))
-                .gbuffer
-                .iter()
-                .map(|t| t.to_bits())
-                .collect::<Vec<_>>()
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| visibility_raster(&g, &cam)).gbuffer.iter().map(|t| t.to_bits()).collect::<Vec<_>>()
         };
         let one = run(1);
         assert_eq!(one, run(2));
@@ -1539,10 +1220,7 @@ fn visibility_raster_matches_ray_cast_default_scene() {
         let cam = CameraRecord::new(&scene.camera.unwrap(), w, h);
         let (g, out) = render(&scene, &cam);
         let compared = assert_matches_ray_cast(&g, &cam, &out);
-        assert!(
-            compared > (w * h) as usize / 2,
-            "only {compared} pixels compared"
-        );
+        assert!(compared > (w * h) as usize / 2, "only {compared} pixels compared");
         assert!(
             out.gbuffer.iter().any(|t| t.is_ray_traced())
                 && out.gbuffer.iter().any(|t| t.is_hit() && !t.is_ray_traced())
@@ -1561,47 +1239,28 @@ fn visibility_raster_matches_ray_cast_floating_objects() {
             ),
             (
                 Mesh::torus("t", 1.0, 0.3, 40, 16),
-                Mat4::from_translation(Vec3::new(1.3, 0.0, -0.5))
-                    * Mat4::from_quat(Quat::from_rotation_x(1.1)),
+                Mat4::from_translation(Vec3::new(1.3, 0.0, -0.5)) * Mat4::from_quat(Quat::from_rotation_x(1.1)),
                 RenderMode::Raster,
             ),
             (
                 Mesh::cube("c"),
-                Mat4::from_translation(Vec3::new(0.2, -0.2, -3.0))
-                    * Mat4::from_scale(Vec3::splat(0.7)),
+                Mat4::from_translation(Vec3::new(0.2, -0.2, -3.0)) * Mat4::from_scale(Vec3::splat(0.7)),
                 RenderMode::Raster,
             ),
             (
                 Mesh::grid("floor", 6),
-                Mat4::from_translation(Vec3::new(0.0, -1.6, 0.0))
-                    * Mat4::from_scale(Vec3::splat(9.0)),
+                Mat4::from_translation(Vec3::new(0.0, -1.6, 0.0)) * Mat4::from_scale(Vec3::splat(9.0)),
                 RenderMode::Raster,
             ),
         ],
         None,
     );
-    let cam = CameraRecord::new(
-        &look_camera(
-            Vec3::new(0.4, 1.5, 4.5),
-            Vec3::new(0.0, -0.2, -0.5),
-            55.0,
-            0.1,
-            40.0,
-        ),
-        120,
-        80,
-    );
+    let cam =
+        CameraRecord::new(&look_camera(Vec3::new(0.4, 1.5, 4.5), Vec3::new(0.0, -0.2, -0.5), 55.0, 0.1, 40.0), 120, 80);
     let (g, out) = render(&scene, &cam);
     let compared = assert_matches_ray_cast(&g, &cam, &out);
-    assert!(
-        compared > 120 * 80 * 3 / 4,
-        "only {compared} pixels compared"
-    );
+    assert!(compared > 120 * 80 * 3 / 4, "only {compared} pixels compared");
     // The floor is seen from above, the objects from outside: no back faces except
     // the torus' inner side seen through its hole is still its outer surface.
-    assert!(out
-        .gbuffer
-        .iter()
-        .filter(|t| t.is_hit())
-        .all(|t| t.flags & GBUF_BACK_FACE == 0));
+    assert!(out.gbuffer.iter().filter(|t| t.is_hit()).all(|t| t.flags & GBUF_BACK_FACE == 0));
 }

@@ -1,1 +1,205 @@
-fn main(){}
+//! The `hyrt` command-line program.
+//!
+//! `hyrt render [SCENE] --out frame.png --size 1280x720 --backend cpu --weight W
+//! --eye X,Y,Z --target X,Y,Z --fov DEG --dump DIR`: with no SCENE it renders the
+//! built-in default scene.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand, ValueEnum};
+use hyrt::{glam::Vec3, BvhPreset, FrameOptions, Renderer, Scene, Stage};
+
+#[derive(Parser)]
+#[command(name = "hyrt", version, about = "Hybrid rasterization + ray-tracing renderer")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene (.glb, .gltf or .toml manifest; the built-in default scene if none) to a PNG.
+    Render(RenderArgs),
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum BackendArg {
+    /// The CPU reference backend.
+    Cpu,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum PresetArg {
+    Fastest,
+    VeryFast,
+    Fast,
+    Medium,
+    Slow,
+    VerySlow,
+}
+
+#[derive(clap::Args)]
+struct RenderArgs {
+    /// Scene file: .glb, .gltf or .toml manifest. Omit for the built-in default scene.
+    scene: Option<PathBuf>,
+    /// Output PNG.
+    #[arg(long, default_value = "frame.png")]
+    out: PathBuf,
+    /// Image size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1280x720", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Backend.
+    #[arg(long, value_enum, default_value = "cpu")]
+    backend: BackendArg,
+    /// Composition weight of the ray-traced image in [0, 1] (paper 3.5).
+    #[arg(long, default_value_t = 1.0, value_parser = parse_weight)]
+    weight: f32,
+    /// Camera position X,Y,Z (overrides the scene's camera).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    eye: Option<Vec3>,
+    /// Camera target X,Y,Z (overrides the scene's camera).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    target: Option<Vec3>,
+    /// Vertical field of view in degrees (overrides the scene's camera).
+    #[arg(long, value_parser = parse_fov)]
+    fov: Option<f32>,
+    /// Write every stage's output (npy, png, frame.json) into this directory.
+    #[arg(long)]
+    dump: Option<PathBuf>,
+    /// Worker threads (default: one per core).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// BVH build preset (obvhs).
+    #[arg(long, value_enum)]
+    bvh_preset: Option<PresetArg>,
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| format!("expected WIDTHxHEIGHT, got '{s}'"))?;
+    let w: u32 = w.trim().parse().map_err(|_| format!("bad width in '{s}'"))?;
+    let h: u32 = h.trim().parse().map_err(|_| format!("bad height in '{s}'"))?;
+    const MAX: u32 = 16384;
+    if w == 0 || h == 0 || w > MAX || h > MAX {
+        return Err(format!("size must be between 1x1 and {MAX}x{MAX}, got {w}x{h}"));
+    }
+    Ok((w, h))
+}
+
+fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|c| c.trim().parse::<f32>().map_err(|_| format!("bad number '{c}' in '{s}'")))
+        .collect::<Result<_, _>>()?;
+    match v[..] {
+        [x, y, z] if x.is_finite() && y.is_finite() && z.is_finite() => Ok(Vec3::new(x, y, z)),
+        [_, _, _] => Err(format!("coordinates must be finite, got '{s}'")),
+        _ => Err(format!("expected X,Y,Z, got '{s}'")),
+    }
+}
+
+fn parse_weight(s: &str) -> Result<f32, String> {
+    let w: f32 = s.parse().map_err(|_| format!("bad number '{s}'"))?;
+    if (0.0..=1.0).contains(&w) {
+        Ok(w)
+    } else {
+        Err(format!("weight must be in [0, 1], got {s}"))
+    }
+}
+
+fn parse_fov(s: &str) -> Result<f32, String> {
+    let f: f32 = s.parse().map_err(|_| format!("bad number '{s}'"))?;
+    if f > 0.0 && f < 180.0 {
+        Ok(f)
+    } else {
+        Err(format!("field of view must be in (0, 180) degrees, got {s}"))
+    }
+}
+
+fn render(args: RenderArgs) -> Result<(), String> {
+    let mut scene = match &args.scene {
+        Some(path) => Scene::load(path).map_err(|e| e.to_string())?,
+        None => Scene::default_scene(),
+    };
+    scene.ensure_camera_and_lights();
+    for note in &scene.notes {
+        eprintln!("note: {note}");
+    }
+    let mut camera = scene.camera.expect("ensure_camera_and_lights sets a camera");
+    if let Some(eye) = args.eye {
+        camera.eye = eye;
+    }
+    if let Some(target) = args.target {
+        camera.target = target;
+    }
+    if let Some(fov) = args.fov {
+        camera.fov_y_deg = fov;
+    }
+    if (camera.target - camera.eye).length_squared() == 0.0 {
+        return Err("camera eye and target are the same point".into());
+    }
+    if (camera.target - camera.eye).cross(camera.up).length_squared() == 0.0 {
+        camera.up = if camera.up.dot(Vec3::Z).abs() < 0.9 { Vec3::Z } else { Vec3::X };
+    }
+    let preset = match args.bvh_preset {
+        None => BvhPreset::default(),
+        Some(PresetArg::Fastest) => BvhPreset::Fastest,
+        Some(PresetArg::VeryFast) => BvhPreset::VeryFast,
+        Some(PresetArg::Fast) => BvhPreset::Fast,
+        Some(PresetArg::Medium) => BvhPreset::Medium,
+        Some(PresetArg::Slow) => BvhPreset::Slow,
+        Some(PresetArg::VerySlow) => BvhPreset::VerySlow,
+    };
+    let renderer = match args.backend {
+        BackendArg::Cpu => Renderer::cpu(args.threads).with_bvh_preset(preset),
+    };
+    let (w, h) = args.size;
+    let prepared = renderer.prepare(&scene);
+    let options = FrameOptions { weight: args.weight };
+    let frame = renderer.render(&prepared, &camera, w, h, &options).map_err(|e| e.to_string())?;
+    hyrt::image_io::write_png(&args.out, w, h, &frame.final_image).map_err(|e| e.to_string())?;
+
+    let s = &frame.stats;
+    let name = args.scene.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| "default scene".into());
+    println!(
+        "{name}: {} objects, {} triangles, {} lights; {}x{} on {} ({} threads)",
+        scene.objects.len(),
+        prepared.geometry.triangle_count(),
+        prepared.geometry.lights.len(),
+        w,
+        h,
+        renderer.backend_name(),
+        renderer.threads()
+    );
+    println!(
+        "covered pixels {}, valid rays (ray-traced pixels) {}, raster pixels {}, shadow rays {} ({} occluded)",
+        s.covered_pixels, s.ray_traced_pixels, s.raster_pixels, s.rays_per_kind[0], s.occluded_shadow_rays
+    );
+    for st in Stage::ALL {
+        if let Some(ms) = s.ms(st) {
+            println!("  {:<18} {:>9.2} ms", st.name(), ms);
+        }
+    }
+    println!("  {:<18} {:>9.2} ms (per frame, without bvh_build)", "frame", s.frame_ms());
+    println!("wrote {}", args.out.display());
+    if let Some(dir) = &args.dump {
+        let files = hyrt::dump::write_dump(dir, &scene, &prepared, &camera, &frame, &renderer.backend_name())
+            .map_err(|e| e.to_string())?;
+        println!("dumped {} files to {}", files.len(), dir.display());
+    }
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Render(args) => render(args),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -117,18 +117,9 @@ impl ClipVertex {
     #[inline]
     pub fn triangle(p: [[f32; 4]; 3]) -> [ClipVertex; 3] {
         [
-            ClipVertex {
-                pos: p[0],
-                bary: [0.0, 0.0],
-            },
-            ClipVertex {
-                pos: p[1],
-                bary: [1.0, 0.0],
-            },
-            ClipVertex {
-                pos: p[2],
-                bary: [0.0, 1.0],
-            },
+            ClipVertex { pos: p[0], bary: [0.0, 0.0] },
+            ClipVertex { pos: p[1], bary: [1.0, 0.0] },
+            ClipVertex { pos: p[2], bary: [0.0, 1.0] },
         ]
     }
 }
@@ -252,11 +243,7 @@ pub fn clip_to_window(p: [f32; 4], width: f32, height: f32) -> [f32; 3] {
     let ndc_x = p[0] / p[3];
     let ndc_y = p[1] / p[3];
     let ndc_z = p[2] / p[3];
-    [
-        (ndc_x * 0.5 + 0.5) * width,
-        (0.5 - ndc_y * 0.5) * height,
-        ndc_z,
-    ]
+    [(ndc_x * 0.5 + 0.5) * width, (0.5 - ndc_y * 0.5) * height, ndc_z]
 }
 
 /// Snap a window coordinate to fixed point in the pixel-centre frame:
@@ -381,10 +368,7 @@ pub fn interpolate_depth(e: [i64; 3], area2: i64, z: [f32; 3]) -> f32 {
 /// Empty when `hi < lo`. WGSL: `pixel_span`.
 #[inline]
 pub fn pixel_span(min: i64, max: i64) -> [i64; 2] {
-    [
-        (min + (FIXED_ONE - 1)) >> SUBPIXEL_BITS,
-        (max - 1) >> SUBPIXEL_BITS,
-    ]
+    [(min + (FIXED_ONE - 1)) >> SUBPIXEL_BITS, (max - 1) >> SUBPIXEL_BITS]
 }
 
 #[cfg(test)]
@@ -428,9 +412,7 @@ mod tests {
         assert_eq!(triangle_area2(a, b, c), 2560 * 2560);
         assert_eq!(triangle_area2(a, c, b), -2560 * 2560);
         let p = [256, 256];
-        assert!(
-            edge_function(a, b, p) > 0 && edge_function(b, c, p) > 0 && edge_function(c, a, p) > 0
-        );
+        assert!(edge_function(a, b, p) > 0 && edge_function(b, c, p) > 0 && edge_function(c, a, p) > 0);
         // The three edge values sum to the doubled area anywhere.
         for p in [[0, 0], [-999, 12345], [700, 900]] {
             let s = edge_function(b, c, p) + edge_function(c, a, p) + edge_function(a, b, p);
@@ -442,18 +424,9 @@ mod tests {
     fn top_left_classification() {
         // Triangle (0,0) (0,10) (10,0), counter-clockwise on screen.
         let (a, b, c) = ([0, 0], [0, 10], [10, 0]);
-        assert!(
-            is_top_left_edge(a, b),
-            "vertical edge going down the left side is a left edge"
-        );
-        assert!(
-            !is_top_left_edge(b, c),
-            "the hypotenuse on the bottom right is neither"
-        );
-        assert!(
-            is_top_left_edge(c, a),
-            "horizontal edge on top, right to left, is a top edge"
-        );
+        assert!(is_top_left_edge(a, b), "vertical edge going down the left side is a left edge");
+        assert!(!is_top_left_edge(b, c), "the hypotenuse on the bottom right is neither");
+        assert!(is_top_left_edge(c, a), "horizontal edge on top, right to left, is a top edge");
         // Triangle (0,10) (10,10) (5,0): bottom horizontal edge (left to right) is not top.
         let (a, b, c) = ([0, 10], [10, 10], [5, 0]);
         assert!(triangle_area2(a, b, c) > 0);
@@ -472,11 +445,7 @@ mod tests {
         let tris = [[q[0], q[3], q[2]], [q[0], q[2], q[1]]];
         let mut n = 0;
         for t in tris {
-            let [v0, v1, v2] = if triangle_area2(t[0], t[1], t[2]) > 0 {
-                t
-            } else {
-                [t[0], t[2], t[1]]
-            };
+            let [v0, v1, v2] = if triangle_area2(t[0], t[1], t[2]) > 0 { t } else { [t[0], t[2], t[1]] };
             let p = [256, 256];
             let biased = [
                 edge_function(v1, v2, p) + edge_bias(v1, v2),
@@ -509,10 +478,7 @@ mod tests {
         assert_eq!(b, [0.25, 0.25, 0.5]);
         // Perspective: halfway on screen between w=1 and w=3 is 1/4 of the way in 3D.
         let b = perspective_barycentrics([500, 500, 0], [1.0, 3.0, 1.0]);
-        assert!(
-            (b[0] - 0.75).abs() < 1e-15 && (b[1] - 0.25).abs() < 1e-15 && b[2] == 0.0,
-            "{b:?}"
-        );
+        assert!((b[0] - 0.75).abs() < 1e-15 && (b[1] - 0.25).abs() < 1e-15 && b[2] == 0.0, "{b:?}");
         let ident = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
         let b = [0.2f64, 0.3, 0.5];
         assert_eq!(barycentrics_in_original(b, ident), [0.3f32, 0.5f32]);
@@ -521,11 +487,7 @@ mod tests {
     #[test]
     fn clip_triangle_crossing_near_plane() {
         let guard = guard_band_ndc(64, 64);
-        let tri = ClipVertex::triangle([
-            [0.0, 0.0, -1.0, 1.0],
-            [1.0, 0.0, 1.0, 2.0],
-            [0.0, 1.0, 1.0, 2.0],
-        ]);
+        let tri = ClipVertex::triangle([[0.0, 0.0, -1.0, 1.0], [1.0, 0.0, 1.0, 2.0], [0.0, 1.0, 1.0, 2.0]]);
         let mut out = [tri[0]; MAX_CLIP_VERTICES];
         let n = clip_polygon_against_plane(ClipPlane::Near, guard, &tri, &mut out);
         assert_eq!(n, 4);
@@ -541,15 +503,8 @@ mod tests {
             }
         }
         // Entirely outside: nothing left.
-        let behind = ClipVertex::triangle([
-            [0.0, 0.0, -1.0, 1.0],
-            [1.0, 0.0, -1.0, 1.0],
-            [0.0, 1.0, -0.5, 1.0],
-        ]);
-        assert_eq!(
-            clip_polygon_against_plane(ClipPlane::Near, guard, &behind, &mut out),
-            0
-        );
+        let behind = ClipVertex::triangle([[0.0, 0.0, -1.0, 1.0], [1.0, 0.0, -1.0, 1.0], [0.0, 1.0, -0.5, 1.0]]);
+        assert_eq!(clip_polygon_against_plane(ClipPlane::Near, guard, &behind, &mut out), 0);
     }
 
     proptest! {

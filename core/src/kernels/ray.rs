@@ -155,14 +155,7 @@ impl WatertightRay {
     /// The watertight test against one triangle, for this precomputed ray; see
     /// [`intersect_triangle_watertight`], which is exactly this after [`Self::new`].
     #[inline]
-    pub fn intersect(
-        &self,
-        t_min: f32,
-        t_max: f32,
-        v0: Vec3,
-        v1: Vec3,
-        v2: Vec3,
-    ) -> Option<TriangleHit> {
+    pub fn intersect(&self, t_min: f32, t_max: f32, v0: Vec3, v1: Vec3, v2: Vec3) -> Option<TriangleHit> {
         // Vertices in ray space (x, y sheared; z still unscaled).
         let p0 = self.transform(v0);
         let p1 = self.transform(v1);
@@ -227,15 +220,10 @@ impl WatertightRay {
         let delta_y = gamma(5) * (max_yt + max_zt);
         let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
         let max_e = e0.abs().max(e1.abs()).max(e2.abs());
-        let delta_t =
-            3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
+        let delta_t = 3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
         // Positive form, so that a NaN bound rejects.
         if t > delta_t {
-            Some(TriangleHit {
-                t,
-                u: e1 * inv_det,
-                v: e2 * inv_det,
-            })
+            Some(TriangleHit { t, u: e1 * inv_det, v: e2 * inv_det })
         } else {
             None
         }
@@ -307,21 +295,9 @@ pub fn ray_aabb_conservative(
     bmin: Vec3,
     bmax: Vec3,
 ) -> Option<f32> {
-    let (near_x, far_x) = if inv_dir.x.is_sign_negative() {
-        (bmax.x, bmin.x)
-    } else {
-        (bmin.x, bmax.x)
-    };
-    let (near_y, far_y) = if inv_dir.y.is_sign_negative() {
-        (bmax.y, bmin.y)
-    } else {
-        (bmin.y, bmax.y)
-    };
-    let (near_z, far_z) = if inv_dir.z.is_sign_negative() {
-        (bmax.z, bmin.z)
-    } else {
-        (bmin.z, bmax.z)
-    };
+    let (near_x, far_x) = if inv_dir.x.is_sign_negative() { (bmax.x, bmin.x) } else { (bmin.x, bmax.x) };
+    let (near_y, far_y) = if inv_dir.y.is_sign_negative() { (bmax.y, bmin.y) } else { (bmin.y, bmax.y) };
+    let (near_z, far_z) = if inv_dir.z.is_sign_negative() { (bmax.z, bmin.z) } else { (bmin.z, bmax.z) };
     let tn_x = (near_x - origin.x) * inv_dir.x;
     let tn_y = (near_y - origin.y) * inv_dir.y;
     let tn_z = (near_z - origin.z) * inv_dir.z;
@@ -393,11 +369,7 @@ fn offset_coordinate(p: f32, n: f32) -> f32 {
 /// non-finite results, no panic).
 #[inline]
 pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
-    Vec3::new(
-        offset_coordinate(p.x, n.x),
-        offset_coordinate(p.y, n.y),
-        offset_coordinate(p.z, n.z),
-    )
+    Vec3::new(offset_coordinate(p.x, n.x), offset_coordinate(p.y, n.y), offset_coordinate(p.z, n.z))
 }
 
 #[cfg(test)]
@@ -428,10 +400,7 @@ mod tests {
     fn edge_function_is_antisymmetric() {
         let a = Vec3::new(0.1, 0.7, 0.0);
         let b = Vec3::new(-0.3, 1.0 / 3.0, 0.0);
-        assert_eq!(
-            edge_function(a, b).to_bits(),
-            (-edge_function(b, a)).to_bits()
-        );
+        assert_eq!(edge_function(a, b).to_bits(), (-edge_function(b, a)).to_bits());
     }
 
     #[test]

@@ -13,6 +13,11 @@ use crate::formats::{LightRecord, ObjectRecord, LIGHT_DIRECTIONAL};
 /// shadowed surfaces stay readable (a stand-in for indirect light).
 pub const AMBIENT: f32 = 0.06;
 
+/// Radiance of the uniform environment that specular surfaces reflect until
+/// reflection rays are traced: the specular counterpart of [`AMBIENT`]. A metal
+/// then shows its colour (F0 x this) instead of black between highlights.
+pub const ENVIRONMENT_SPECULAR: f32 = 0.35;
+
 /// Background colour (linear RGB) of pixels no primary ray hits.
 pub const BACKGROUND: [f32; 3] = [0.02, 0.025, 0.035];
 
@@ -97,10 +102,14 @@ pub fn shade_raster(obj: &ObjectRecord, n: Vec3, l: Vec3, e: Vec3) -> Vec3 {
     Vec3::from(obj.base_color) * std::f32::consts::FRAC_1_PI * e * ndl
 }
 
-/// Ambient term of any object.
+/// Ambient term of any object: diffuse albedo times [`AMBIENT`] plus the
+/// specular reflectance F0 times [`ENVIRONMENT_SPECULAR`] (a uniform environment
+/// reflected by the specular lobe, which integrates to F0).
 #[inline]
 pub fn ambient(obj: &ObjectRecord) -> Vec3 {
-    Vec3::from(obj.base_color) * AMBIENT
+    let base = Vec3::from(obj.base_color);
+    let f0 = Vec3::splat(DIELECTRIC_F0).lerp(base, obj.metallic);
+    base * ((1.0 - obj.metallic) * AMBIENT) + f0 * ENVIRONMENT_SPECULAR
 }
 
 /// Composition (paper 3.5): the weighted mean `(1 - weight) * raster + weight * rt`.

@@ -167,9 +167,17 @@ pub struct Object {
 /// A punctual light. `intensity` scales `color`; point lights fall off with 1/d^2.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Light {
-    Point { position: Vec3, color: Vec3, intensity: f32 },
+    Point {
+        position: Vec3,
+        color: Vec3,
+        intensity: f32,
+    },
     /// `direction` is the direction the light travels (from the light into the scene).
-    Directional { direction: Vec3, color: Vec3, intensity: f32 },
+    Directional {
+        direction: Vec3,
+        color: Vec3,
+        intensity: f32,
+    },
 }
 
 /// A perspective camera (right-handed, looking from `eye` to `target`).
@@ -217,10 +225,7 @@ pub struct Scene {
 impl Scene {
     /// Load a scene from a `.glb`, `.gltf` or `.toml` file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let ext = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(|e| e.to_ascii_lowercase());
+        let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
         match ext.as_deref() {
             Some("glb") | Some("gltf") => gltf_loader::load_gltf(path),
             Some("toml") => manifest::load_manifest(path),
@@ -284,9 +289,8 @@ impl Scene {
             let fill_d2 = (fill - center).length_squared();
             self.lights.push(Light::Point { position: key, color: Vec3::ONE, intensity: 2.5 * key_d2 });
             self.lights.push(Light::Point { position: fill, color: Vec3::ONE, intensity: 0.8 * fill_d2 });
-            self.notes.push(format!(
-                "no lights in the scene: added two default point lights at {key:.3?} and {fill:.3?}"
-            ));
+            self.notes
+                .push(format!("no lights in the scene: added two default point lights at {key:.3?} and {fill:.3?}"));
         }
     }
 }

@@ -1,0 +1,176 @@
+//! `--dump DIR`: every stage's output, in formats outside tools read
+//! (NumPy `.npy`, PNG, JSON). File by file:
+//!
+//! | file | dtype, shape | content |
+//! |---|---|---|
+//! | `ids.npy` | u32, H x W x 2 | triangle index within its object, object id; `0xFFFFFFFF` on miss |
+//! | `bary.npy` | f32, H x W x 2 | barycentrics (u, v) of v1, v2; w = 1 - u - v |
+//! | `depth.npy` | f32, H x W | window depth in [0, 1]; 1 on miss |
+//! | `position.npy` | f32, H x W x 3 | world-space hit point (0 on miss) |
+//! | `normal.npy` | f32, H x W x 3 | viewer-facing unit shading normal (0 on miss) |
+//! | `rays.npy` | structured, N | the ray list: `origin` (3,)f4, `t_min` f4, `direction` (3,)f4, `t_max` f4, `pixel` u4, `kind` u4, `depth` u4, `light` u4, `throughput` (3,)f4, `occluded` u4 |
+//! | `shadow.npy` | u8, H x W x L | per light: 0 no ray (miss or light behind the surface), 1 lit, 2 occluded |
+//! | `raster.png`, `rt.png`, `final.png` | sRGB RGBA8 | the three images (`rt.png` alpha = ray-traced coverage) |
+//! | `frame.json` | | image size, camera (matrices and conventions), object table, counts, times |
+
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+use hyrt_core::formats::CameraRecord;
+use hyrt_core::frame::{Frame, PreparedScene};
+use hyrt_core::scene::{Camera, Scene};
+use npyz::WriterBuilder;
+use serde_json::{json, Value};
+
+use crate::image_io::write_png;
+use crate::Error;
+
+/// One row of `rays.npy` (a NumPy structured dtype).
+#[derive(npyz::Serialize, npyz::AutoSerialize, Clone, Copy)]
+struct RayRow {
+    origin: [f32; 3],
+    t_min: f32,
+    direction: [f32; 3],
+    t_max: f32,
+    pixel: u32,
+    kind: u32,
+    depth: u32,
+    light: u32,
+    throughput: [f32; 3],
+    occluded: u32,
+}
+
+fn write_npy<T: npyz::AutoSerialize + Copy>(
+    path: &Path,
+    shape: &[u64],
+    data: impl IntoIterator<Item = T>,
+) -> Result<(), Error> {
+    let io = |source| Error::Write { path: path.to_path_buf(), source };
+    let file = File::create(path).map_err(io)?;
+    let mut w =
+        npyz::WriteOptions::new().default_dtype().shape(shape).writer(BufWriter::new(file)).begin_nd().map_err(io)?;
+    w.extend(data).map_err(io)?;
+    w.finish().map_err(io)
+}
+
+/// Write every dump file of `frame` into `dir` (created if needed).
+pub fn write_dump(
+    dir: &Path,
+    scene: &Scene,
+    prepared: &PreparedScene,
+    camera: &Camera,
+    frame: &Frame,
+    backend: &str,
+) -> Result<Vec<PathBuf>, Error> {
+    std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
+    let (w, h) = (frame.width as u64, frame.height as u64);
+    let lights = prepared.geometry.lights.len() as u64;
+    let mut written = Vec::new();
+    let mut out = |name: &str| {
+        let p = dir.join(name);
+        written.push(p.clone());
+        p
+    };
+    let g = &frame.gbuffer;
+    write_npy(&out("ids.npy"), &[h, w, 2], g.iter().flat_map(|t| [t.triangle, t.object]))?;
+    write_npy(&out("bary.npy"), &[h, w, 2], g.iter().flat_map(|t| [t.bary_u, t.bary_v]))?;
+    write_npy(&out("depth.npy"), &[h, w], g.iter().map(|t| t.depth))?;
+    write_npy(&out("position.npy"), &[h, w, 3], frame.surfaces.iter().flat_map(|s| s.position))?;
+    write_npy(&out("normal.npy"), &[h, w, 3], frame.surfaces.iter().flat_map(|s| s.normal))?;
+    let rows = frame.rays.iter().zip(&frame.occluded).map(|(r, &o)| RayRow {
+        origin: r.origin,
+        t_min: r.t_min,
+        direction: r.direction,
+        t_max: r.t_max,
+        pixel: r.pixel,
+        kind: r.kind,
+        depth: r.depth,
+        light: r.light,
+        throughput: r.throughput,
+        occluded: o,
+    });
+    write_npy(&out("rays.npy"), &[frame.rays.len() as u64], rows)?;
+    write_npy(&out("shadow.npy"), &[h, w, lights], frame.shadow.iter().copied())?;
+    write_png(&out("raster.png"), frame.width, frame.height, &frame.raster)?;
+    write_png(&out("rt.png"), frame.width, frame.height, &frame.rt)?;
+    write_png(&out("final.png"), frame.width, frame.height, &frame.final_image)?;
+    let json_path = out("frame.json");
+    let doc = frame_json(scene, prepared, camera, frame, backend);
+    let text = serde_json::to_string_pretty(&doc).expect("frame.json serializes");
+    std::fs::write(&json_path, text).map_err(|source| Error::Write { path: json_path.clone(), source })?;
+    Ok(written)
+}
+
+/// The `frame.json` document.
+pub fn frame_json(scene: &Scene, prepared: &PreparedScene, camera: &Camera, frame: &Frame, backend: &str) -> Value {
+    let rec = CameraRecord::new(camera, frame.width, frame.height);
+    let view = camera.view();
+    let proj = camera.projection(frame.width as f32 / frame.height as f32);
+    let objects: Vec<Value> = scene
+        .objects
+        .iter()
+        .map(|o| {
+            json!({
+                "id": o.id,
+                "name": o.name,
+                "source_file": o.source.file.as_ref().map(|f| f.display().to_string()),
+                "node": o.source.node,
+                "mesh": o.source.mesh,
+                "primitive": o.source.primitive,
+                "triangle_count": scene.meshes[o.mesh].triangle_count(),
+                "first_triangle": prepared.geometry.objects[o.id as usize].first_triangle,
+                "render_mode": o.render_mode.name(),
+                "material": scene.materials[o.material].name,
+                "material_kind": scene.materials[o.material].kind.name(),
+            })
+        })
+        .collect();
+    let s = &frame.stats;
+    let times: serde_json::Map<String, Value> =
+        s.stage_ms.iter().map(|t| (t.stage.name().to_string(), json!(t.ms))).collect();
+    json!({
+        "backend": backend,
+        "threads": s.threads,
+        "width": frame.width,
+        "height": frame.height,
+        "camera": {
+            "eye": camera.eye.to_array(),
+            "target": camera.target.to_array(),
+            "up": camera.up.to_array(),
+            "fov_y_deg": camera.fov_y_deg,
+            "near": camera.near,
+            "far": camera.far,
+            "view": view.to_cols_array_2d(),
+            "projection": proj.to_cols_array_2d(),
+            "view_projection": rec.view_proj,
+            "matrix_layout": "column-major: view[c][r] is column c, row r (glam / WGSL)",
+            "conventions": "right-handed world; clip = projection * view * world; NDC y up, depth z/w in [0, 1]; \
+    window x = (ndc_x * 0.5 + 0.5) * width, y = (0.5 - ndc_y * 0.5) * height; row 0 is the top row; \
+    pixel (x, y) is sampled at its centre (x + 0.5, y + 0.5)",
+        },
+        "lights": prepared.geometry.lights.iter().map(|l| json!({
+            "kind": if l.kind == hyrt_core::formats::LIGHT_DIRECTIONAL { "directional" } else { "point" },
+            "position_or_direction": l.position_or_direction,
+            "radiance": l.radiance,
+        })).collect::<Vec<_>>(),
+        "objects": objects,
+        "triangles": prepared.geometry.triangle_count(),
+        "bvh": { "nodes": prepared.bvh.nodes.len(), "preset": format!("{:?}", prepared.bvh.build_preset) },
+        "counts": {
+            "covered_pixels": s.covered_pixels,
+            "ray_traced_pixels": s.ray_traced_pixels,
+            "valid_rays": s.ray_traced_pixels,
+            "raster_pixels": s.raster_pixels,
+            "shadow_rays": s.rays_per_kind[hyrt_core::formats::RAY_KIND_SHADOW as usize],
+            "occluded_shadow_rays": s.occluded_shadow_rays,
+            "rays_per_kind": {
+                "shadow": s.rays_per_kind[0], "primary": s.rays_per_kind[1],
+                "reflection": s.rays_per_kind[2], "refraction": s.rays_per_kind[3],
+            },
+        },
+        "stage_ms": times,
+        "frame_ms": s.frame_ms(),
+        "notes": scene.notes,
+    })
+}

@@ -1,0 +1,123 @@
+//! The `hyrt` program: rendering, `--dump`, and clear errors for bad input.
+
+use std::path::Path;
+use std::process::Command;
+
+fn hyrt() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_hyrt"))
+}
+
+fn read_npy_shape(path: &Path) -> (Vec<u64>, String) {
+    let bytes = std::fs::read(path).unwrap();
+    let npy = npyz::NpyFile::new(&bytes[..]).unwrap();
+    (npy.shape().to_vec(), format!("{}", npy.dtype().descr()))
+}
+
+#[test]
+fn cli_render_default_scene_with_dump() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("frame.png");
+    let dump = dir.path().join("dump");
+    let o = hyrt()
+        .args(["render", "--size", "67x41", "--threads", "2", "--out"])
+        .arg(&out)
+        .arg("--dump")
+        .arg(&dump)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("valid rays"), "{stdout}");
+    let img = image::open(&out).unwrap();
+    assert_eq!((img.width(), img.height()), (67, 41));
+
+    for (file, shape, dtype) in [
+        ("ids.npy", vec![41, 67, 2], "<u4"),
+        ("bary.npy", vec![41, 67, 2], "<f4"),
+        ("depth.npy", vec![41, 67], "<f4"),
+        ("position.npy", vec![41, 67, 3], "<f4"),
+        ("shadow.npy", vec![41, 67, 2], "|u1"),
+    ] {
+        let (s, d) = read_npy_shape(&dump.join(file));
+        assert_eq!(s, shape, "{file}");
+        assert!(d.contains(dtype), "{file}: dtype {d}");
+    }
+    let (rays_shape, rays_dtype) = read_npy_shape(&dump.join("rays.npy"));
+    assert_eq!(rays_shape.len(), 1);
+    for field in ["origin", "direction", "t_max", "pixel", "light", "occluded"] {
+        assert!(rays_dtype.contains(field), "rays.npy lacks {field}: {rays_dtype}");
+    }
+    for png in ["raster.png", "rt.png", "final.png"] {
+        let i = image::open(dump.join(png)).unwrap();
+        assert_eq!((i.width(), i.height()), (67, 41), "{png}");
+    }
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(dump.join("frame.json")).unwrap()).unwrap();
+    assert_eq!(json["width"], 67);
+    assert_eq!(json["height"], 41);
+    assert_eq!(json["objects"].as_array().unwrap().len(), 6);
+    assert_eq!(json["objects"][0]["render_mode"], "ray_traced");
+    assert!(json["camera"]["view"].is_array() && json["camera"]["projection"].is_array());
+    assert!(json["camera"]["conventions"].as_str().unwrap().contains("centre"));
+    assert!(json["counts"]["valid_rays"].as_u64().unwrap() > 0);
+    assert!(json["stage_ms"]["shadow_rays"].as_f64().is_some());
+    // ids.npy holds (triangle, object) and 0xFFFFFFFF on miss, consistent with frame.json.
+    let bytes = std::fs::read(dump.join("ids.npy")).unwrap();
+    let ids: Vec<u32> = npyz::NpyFile::new(&bytes[..]).unwrap().into_vec().unwrap();
+    let objects = json["objects"].as_array().unwrap();
+    for px in ids.chunks(2) {
+        if px[1] == u32::MAX {
+            assert_eq!(px[0], u32::MAX);
+        } else {
+            assert!(px[0] < objects[px[1] as usize]["triangle_count"].as_u64().unwrap() as u32);
+        }
+    }
+}
+
+#[test]
+fn cli_camera_overrides_change_the_view() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |extra: &[&str]| {
+        let out = dir.path().join(format!("f{}.png", extra.len()));
+        let o = hyrt().args(["render", "--size", "32x24", "--out"]).arg(&out).args(extra).output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        image::open(&out).unwrap().to_rgba8().into_raw()
+    };
+    let a = run(&[]);
+    let b = run(&["--eye", "-6,3,6", "--target", "0,1,0", "--fov", "30", "--weight", "0.5"]);
+    assert_ne!(a, b);
+}
+
+#[test]
+fn cli_errors_name_the_file_and_the_problem() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("nope.glb");
+    let o = hyrt().arg("render").arg(&missing).output().unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("nope.glb"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+
+    let garbage = dir.path().join("garbage.glb");
+    std::fs::write(&garbage, b"this is not a glb file").unwrap();
+    let o = hyrt().arg("render").arg(&garbage).arg("--out").arg(dir.path().join("x.png")).output().unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("garbage.glb") && !err.contains("panicked"), "{err}");
+
+    let unknown = dir.path().join("scene.obj");
+    std::fs::write(&unknown, b"v 0 0 0").unwrap();
+    let o = hyrt().arg("render").arg(&unknown).output().unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("scene.obj"));
+
+    for bad in [["--size", "0x10"], ["--size", "12"], ["--weight", "2"], ["--eye", "1,2"], ["--fov", "0"]] {
+        let o = hyrt().arg("render").args(bad).output().unwrap();
+        assert!(!o.status.success(), "{bad:?} accepted");
+        assert!(!String::from_utf8_lossy(&o.stderr).contains("panicked"));
+    }
+
+    let o =
+        hyrt().args(["render", "--size", "8x8", "--out"]).arg(dir.path().join("no/such/dir/x.png")).output().unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("x.png"));
+}
