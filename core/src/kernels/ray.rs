@@ -154,7 +154,9 @@ impl WatertightRay {
 
     /// The watertight test against one triangle, for this precomputed ray; see
     /// [`intersect_triangle_watertight`], which is exactly this after [`Self::new`].
-    #[inline]
+    /// (`inline(always)`: it is the body of the traversal's leaf loop, which LLVM otherwise
+    /// keeps out of line; inlining it measured about a third more shadow rays per second.)
+    #[inline(always)]
     pub fn intersect(
         &self,
         t_min: f32,
