@@ -9,8 +9,7 @@
 
 use glam::Vec3;
 use hyrt_core::formats::{LightRecord, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
-use hyrt_core::frame::SHADOW_LIT;
-use hyrt_core::kernels::shading::{ambient, light_incidence, shade_raster, BACKGROUND};
+use hyrt_core::kernels::shading::{ambient, shade_raster, sum_visible_lights, BACKGROUND};
 use rayon::prelude::*;
 
 /// Shade one pixel with the raster shader.
@@ -18,14 +17,7 @@ use rayon::prelude::*;
 pub fn shade_raster_pixel(s: &SurfaceRecord, obj: &ObjectRecord, shadow: &[u8], lights: &[LightRecord]) -> Vec3 {
     let p = Vec3::from(s.position);
     let n = Vec3::from(s.normal);
-    let mut c = ambient(obj);
-    for (li, light) in lights.iter().enumerate() {
-        if shadow[li] == SHADOW_LIT {
-            let (l, e) = light_incidence(light, p);
-            c += shade_raster(obj, n, l, e);
-        }
-    }
-    c
+    ambient(obj) + sum_visible_lights(shadow, lights, p, |l, e| shade_raster(obj, n, l, e))
 }
 
 /// The stage. `shadow` is indexed `pixel * lights.len() + light`.

@@ -7,8 +7,7 @@
 
 use glam::Vec3;
 use hyrt_core::formats::{LightRecord, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
-use hyrt_core::frame::SHADOW_LIT;
-use hyrt_core::kernels::shading::{ambient, light_incidence, shade_ray_traced};
+use hyrt_core::kernels::shading::{ambient, shade_ray_traced, sum_visible_lights};
 use rayon::prelude::*;
 
 /// Shade one pixel with the ray-traced shader (ambient plus every visible light).
@@ -17,14 +16,7 @@ pub fn shade_rt_pixel(s: &SurfaceRecord, obj: &ObjectRecord, shadow: &[u8], ligh
     let p = Vec3::from(s.position);
     let n = Vec3::from(s.normal);
     let v = (eye - p).normalize_or_zero();
-    let mut c = ambient(obj);
-    for (li, light) in lights.iter().enumerate() {
-        if shadow[li] == SHADOW_LIT {
-            let (l, e) = light_incidence(light, p);
-            c += shade_ray_traced(obj, n, v, l, e);
-        }
-    }
-    c
+    ambient(obj) + sum_visible_lights(shadow, lights, p, |l, e| shade_ray_traced(obj, n, v, l, e))
 }
 
 /// The stage. `shadow` is indexed `pixel * lights.len() + light`.

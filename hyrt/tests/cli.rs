@@ -10,7 +10,7 @@ fn hyrt() -> Command {
 fn read_npy_shape(path: &Path) -> (Vec<u64>, String) {
     let bytes = std::fs::read(path).unwrap();
     let npy = npyz::NpyFile::new(&bytes[..]).unwrap();
-    (npy.shape().to_vec(), format!("{}", npy.dtype().descr()))
+    (npy.shape().to_vec(), npy.dtype().descr().to_string())
 }
 
 #[test]

@@ -479,7 +479,7 @@ impl SurfaceRecord {
         if self.triangle == INVALID_ID {
             return Err(format!("surface hit without a triangle: {self:?}"));
         }
-        if !glam::Vec3::from(self.position).is_finite() || !(self.position_error >= 0.0) {
+        if !glam::Vec3::from(self.position).is_finite() || self.position_error.is_nan() || self.position_error < 0.0 {
             return Err(format!("surface hit with non-finite position or error: {self:?}"));
         }
         // Unit length within a few ulp of normalize's rounding.

@@ -24,6 +24,18 @@ pub fn compact_sequential(flags: &[u32]) -> Vec<u32> {
     flags.iter().enumerate().filter(|(_, f)| **f != 0).map(|(i, _)| i as u32).collect()
 }
 
+/// Exclusive prefix sum of counts (not flags): `out[i] = counts[0] + .. + counts[i-1]`.
+/// Used over per-block counts by the parallel compaction.
+pub fn exclusive_scan_sums(counts: &[u32]) -> (Vec<u32>, u32) {
+    let mut out = Vec::with_capacity(counts.len());
+    let mut sum = 0u32;
+    for &c in counts {
+        out.push(sum);
+        sum += c;
+    }
+    (out, sum)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -36,16 +48,4 @@ mod tests {
         assert_eq!(compact_sequential(&[1, 0, 7, 1, 0]), vec![0, 2, 3]);
         assert_eq!(exclusive_scan(&[]), (vec![], 0));
     }
-}
-
-/// Exclusive prefix sum of counts (not flags): `out[i] = counts[0] + .. + counts[i-1]`.
-/// Used over per-block counts by the parallel compaction.
-pub fn exclusive_scan_sums(counts: &[u32]) -> (Vec<u32>, u32) {
-    let mut out = Vec::with_capacity(counts.len());
-    let mut sum = 0u32;
-    for &c in counts {
-        out.push(sum);
-        sum += c;
-    }
-    (out, sum)
 }

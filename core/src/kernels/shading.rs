@@ -102,6 +102,26 @@ pub fn shade_raster(obj: &ObjectRecord, n: Vec3, l: Vec3, e: Vec3) -> Vec3 {
     Vec3::from(obj.base_color) * std::f32::consts::FRAC_1_PI * e * ndl
 }
 
+/// Sum `shade(l, e)` over the lights whose shadow ray reached them
+/// (`shadow[i] == SHADOW_LIT`), with `(l, e)` from [`light_incidence`] at `p`.
+/// Both shaders use it, so they agree on which lights count.
+#[inline]
+pub fn sum_visible_lights(
+    shadow: &[u8],
+    lights: &[LightRecord],
+    p: Vec3,
+    mut shade: impl FnMut(Vec3, Vec3) -> Vec3,
+) -> Vec3 {
+    let mut c = Vec3::ZERO;
+    for (light, &s) in lights.iter().zip(shadow) {
+        if s == crate::frame::SHADOW_LIT {
+            let (l, e) = light_incidence(light, p);
+            c += shade(l, e);
+        }
+    }
+    c
+}
+
 /// Ambient term of any object: diffuse albedo times [`AMBIENT`] plus the
 /// specular reflectance F0 times [`ENVIRONMENT_SPECULAR`] (a uniform environment
 /// reflected by the specular lobe, which integrates to F0).
