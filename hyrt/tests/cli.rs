@@ -121,3 +121,27 @@ fn cli_errors_name_the_file_and_the_problem() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("x.png"));
 }
+
+#[test]
+fn cli_renders_shared_sponza_and_says_what_it_added() {
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets");
+    if !assets.is_dir() {
+        eprintln!("skipping: {} not found", assets.display());
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("sponza.png");
+    let o = hyrt()
+        .arg("render")
+        .arg(assets.join("sponza.glb"))
+        .args(["--size", "96x54", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("no camera") && err.contains("no lights"), "notes missing: {err}");
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("66454 triangles"), "{stdout}");
+    assert_eq!(image::open(&out).unwrap().width(), 96);
+}
