@@ -12,15 +12,19 @@
 //! against a clear value of 1.0.
 //!
 //! How it runs:
-//! 1. *Setup*, in parallel over chunks of triangles: clip, project, snap, normalize
-//!    the winding, cull; one [`RasterTriangle`]-like record per (sub-)triangle, in
-//!    global triangle order (sub-triangles of a clipped triangle in fan order).
-//! 2. *Binning* into [`TILE_SIZE`]-square tiles by the snapped pixel bounding box,
-//!    skipping tiles the triangle provably misses; each bin keeps global order.
-//! 3. *Tiles*, in parallel: each tile walks its bin in order with incremental
-//!    integer edge stepping over the bounding box, keeps per pixel the nearest
-//!    fragment (strictly smaller depth wins, so ties keep the earlier triangle), and
-//!    then resolves barycentrics once per covered pixel.
+//! 1. *Setup and binning*, in parallel over chunks of `SETUP_CHUNK` source
+//!    triangles: reject triangles wholly outside one frustum side, clip the rest,
+//!    project, snap, cull zero-area ones, normalize the winding (one record per
+//!    (sub-)triangle, in order; sub-triangles of a clipped triangle in fan order),
+//!    then bin the chunk's triangles into [`TILE_SIZE`]-square tiles by their snapped
+//!    pixel bounding box, skipping tiles a triangle provably misses.
+//! 2. *Tiles*, in parallel: each tile walks its bins chunk by chunk, i.e. in global
+//!    triangle order. Per triangle and row it gets the exact run of covered pixels
+//!    from incremental integer edge walks (narrow boxes test each pixel instead),
+//!    steps the exact edge values along it, skips fragments whose approximate depth
+//!    certainly fails, and keeps per pixel the nearest fragment (strictly smaller
+//!    exact depth wins, so ties keep the earlier triangle). Barycentrics are then
+//!    computed once per covered pixel.
 //!
 //! Every pixel is decided by one tile and every tile processes triangles in global
 //! order, so the output does not depend on the number of threads.
@@ -56,8 +60,8 @@ use rayon::prelude::*;
 pub const TILE_SIZE: u32 = 64;
 const TILE_PIXELS: usize = (TILE_SIZE * TILE_SIZE) as usize;
 const _: () = assert!(TILE_PIXELS.is_power_of_two());
-/// Triangles per parallel setup task: large enough to amortize the task, small
-/// enough to balance two to sixteen threads on 10^4 to 10^6 triangles.
+/// Triangles per parallel setup task: large enough to amortize the task and its
+/// bins, small enough to balance two to sixteen threads on 10^4 to 10^6 triangles.
 const SETUP_CHUNK: usize = 2048;
 /// Depth buffer clear value: the far plane, like a GPU depth buffer cleared to 1.0.
 /// With the LESS test a fragment at depth exactly 1.0 is therefore never visible.

@@ -46,6 +46,20 @@
 //! far inside `i64`. Pixel centres inside the image are below
 //! `MAX_IMAGE_DIM * FIXED_ONE = 2^28`.
 //!
+//! ## Where this differs from lavapipe
+//!
+//! The integer part (snapping of given window coordinates, edge functions, fill
+//! rule, zero-area culling) is llvmpipe's exactly. The float part cannot be: lavapipe
+//! runs the vertex shader through LLVM (which may fuse multiply-adds) and maps to
+//! the window as `x * (1/w) * scale + translate`, so its window coordinates can
+//! differ from [`clip_to_window`]'s by f32 ulps, and a snapped coordinate can then
+//! differ by one subpixel where the value lies on a rounding boundary. Further:
+//! lavapipe's draw module clips x and y to the viewport (its guard band is only
+//! enabled for the linear rasterizer), where we clip to a guard band only when
+//! needed, which moves clipped vertices off-screen instead of onto the screen edge
+//! (coverage can differ only within a rounding error of the original edges); and
+//! our clipper puts new vertices exactly on the near/far plane.
+//!
 //! WGSL mirrors: each function names its WGSL twin (same name). WGSL has no 64-bit
 //! integers or floats; the GPU version will need wider emulation and is checked
 //! against these functions bit for bit on the integer parts.
