@@ -12,15 +12,19 @@
 //! against a clear value of 1.0.
 //!
 //! How it runs:
-//! 1. *Setup*, in parallel over chunks of triangles: clip, project, snap, normalize
-//!    the winding, cull; one [`RasterTriangle`]-like record per (sub-)triangle, in
-//!    global triangle order (sub-triangles of a clipped triangle in fan order).
-//! 2. *Binning* into [`TILE_SIZE`]-square tiles by the snapped pixel bounding box,
-//!    skipping tiles the triangle provably misses; each bin keeps global order.
-//! 3. *Tiles*, in parallel: each tile walks its bin in order with incremental
-//!    integer edge stepping over the bounding box, keeps per pixel the nearest
-//!    fragment (strictly smaller depth wins, so ties keep the earlier triangle), and
-//!    then resolves barycentrics once per covered pixel.
+//! 1. *Setup and binning*, in parallel over chunks of `SETUP_CHUNK` source
+//!    triangles: reject triangles wholly outside one frustum side, clip the rest,
+//!    project, snap, cull zero-area ones, normalize the winding (one record per
+//!    (sub-)triangle, in order; sub-triangles of a clipped triangle in fan order),
+//!    then bin the chunk's triangles into [`TILE_SIZE`]-square tiles by their snapped
+//!    pixel bounding box, skipping tiles a triangle provably misses.
+//! 2. *Tiles*, in parallel: each tile walks its bins chunk by chunk, i.e. in global
+//!    triangle order. Per triangle and row it gets the exact run of covered pixels
+//!    from incremental integer edge walks (narrow boxes test each pixel instead),
+//!    steps the exact edge values along it, skips fragments whose approximate depth
+//!    certainly fails, and keeps per pixel the nearest fragment (strictly smaller
+//!    exact depth wins, so ties keep the earlier triangle). Barycentrics are then
+//!    computed once per covered pixel.
 //!
 //! Every pixel is decided by one tile and every tile processes triangles in global
 //! order, so the output does not depend on the number of threads.
@@ -42,9 +46,9 @@ use hyrt_core::formats::{
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::raster::{
     barycentrics_in_original, clip_plane_distance, clip_polygon_against_plane, clip_position, clip_to_window,
-    edge_bias, edge_function, guard_band_ndc, interpolate_depth, perspective_barycentrics, pixel_center_fixed,
-    pixel_span, snap_to_fixed, triangle_area2, ClipVertex, CLIP_PLANES, FIXED_ONE, MAX_CLIP_VERTICES, MAX_FIXED_COORD,
-    MAX_IMAGE_DIM,
+    edge_bias, edge_function, guard_band_ndc, interpolate_depth, perspective_barycentrics,
+    perspective_barycentrics_of_corners, pixel_center_fixed, pixel_span, snap_to_fixed, triangle_area2, ClipVertex,
+    CLIP_PLANES, FIXED_ONE, MAX_CLIP_VERTICES, MAX_FIXED_COORD, MAX_IMAGE_DIM,
 };
 use rayon::prelude::*;
 
@@ -53,12 +57,15 @@ use rayon::prelude::*;
 /// stay in L2.
 pub const TILE_SIZE: u32 = 64;
 const TILE_PIXELS: usize = (TILE_SIZE * TILE_SIZE) as usize;
-/// Triangles per parallel setup task: large enough to amortize the task, small
-/// enough to balance two to sixteen threads on 10^4 to 10^6 triangles.
+const _: () = assert!(TILE_PIXELS.is_power_of_two());
+/// Triangles per parallel setup task: large enough to amortize the task and its
+/// bins, small enough to balance two to sixteen threads on 10^4 to 10^6 triangles.
 const SETUP_CHUNK: usize = 2048;
 /// Depth buffer clear value: the far plane, like a GPU depth buffer cleared to 1.0.
 /// With the LESS test a fragment at depth exactly 1.0 is therefore never visible.
 const DEPTH_CLEAR: f32 = 1.0;
+/// [`RasterTriangle::corners`] of a clipped triangle.
+const NOT_CORNERS: [u8; 2] = [u8::MAX; 2];
 /// Marks a pixel no fragment has won yet.
 const NO_WINNER: u32 = u32::MAX;
 
@@ -105,6 +112,9 @@ struct RasterTriangle {
     w: [f32; 3],
     /// Barycentrics `(u, v)` of each vertex in the original triangle.
     bary: [[f32; 2]; 3],
+    /// For an unclipped triangle, the indices of the original v1 and v2 among the
+    /// (reordered) vertices; `NOT_CORNERS` for a clipped one.
+    corners: [u8; 2],
     /// `TriangleRecord::object` and `TriangleRecord::triangle` of the source triangle.
     object: u32,
     triangle: u32,
@@ -171,6 +181,12 @@ impl Frame {
 /// area after snapping or nothing inside the view are skipped. An empty image
 /// (width or height 0) gives an empty G-buffer.
 pub fn visibility_raster(geometry: &WorldGeometry, camera: &CameraRecord) -> VisibilityOutput {
+    raster_frame(geometry, camera, true)
+}
+
+/// [`visibility_raster`], with or without the early depth rejection (which must not
+/// change a single bit; the unit tests compare both).
+fn raster_frame(geometry: &WorldGeometry, camera: &CameraRecord, early_reject: bool) -> VisibilityOutput {
     let (w, h) = (camera.width as usize, camera.height as usize);
     // Zeroed (calloc) rather than filled: every texel of the rasterized area is
     // written by its tile, in parallel.
@@ -184,7 +200,6 @@ pub fn visibility_raster(geometry: &WorldGeometry, camera: &CameraRecord) -> Vis
         gbuffer.fill(GBufferTexel::MISS);
     }
     let tris = setup_triangles(geometry, camera, &frame);
-    let bins = bin_triangles(&tris, &frame);
     let slices = tile_slices(&mut gbuffer, w, &frame);
     let covered: usize = slices
         .into_par_iter()
@@ -192,16 +207,11 @@ pub fn visibility_raster(geometry: &WorldGeometry, camera: &CameraRecord) -> Vis
         .map_init(TileScratch::new, |scratch, (tile, rows)| {
             scratch.clear();
             let rect = frame.tile_rect(tile);
-            rasterize_tile(&tris, &bins[tile], rect, |i, t, e| {
-                let depth = interpolate_depth(e, t.area2, t.z);
-                // LESS against the stored depth (clear value 1.0); NaN and negative
-                // depths are never written.
-                if depth < scratch.depth[i] && depth >= 0.0 {
-                    scratch.depth[i] = depth;
-                    scratch.winner[i] = t.reference;
-                    scratch.e12[i] = [e[1], e[2]];
-                }
-            });
+            if early_reject {
+                rasterize_tile(&tris, tile, rect, scratch);
+            } else {
+                rasterize_tile(&tris, tile, rect, &mut NoEarlyReject(scratch));
+            }
             resolve_tile(&tris, scratch, rect, rows)
         })
         .sum();
@@ -219,16 +229,10 @@ pub fn coverage_counts(geometry: &WorldGeometry, camera: &CameraRecord) -> Cover
     if w > 0 && h > 0 {
         let frame = Frame::new(camera);
         let tris = setup_triangles(geometry, camera, &frame);
-        let bins = bin_triangles(&tris, &frame);
         let slices = tile_slices(&mut counts, w, &frame);
         slices.into_par_iter().enumerate().for_each(|(tile, mut rows)| {
             let rect = frame.tile_rect(tile);
-            rasterize_tile(&tris, &bins[tile], rect, |i, t, _| {
-                let row = i / TILE_SIZE as usize;
-                let col = i % TILE_SIZE as usize;
-                let back = (t.tri.flags & GBUF_BACK_FACE != 0) as usize;
-                rows[row][col][back] += 1;
-            });
+            rasterize_tile(&tris, tile, rect, &mut CountSink { rows: &mut rows });
         });
     }
     CoverageCounts {
@@ -248,27 +252,39 @@ const CHUNK_INDEX_BITS: u32 = 14;
 // A chunk's triangles can all be clipped into fans of up to MAX_CLIP_VERTICES - 2.
 const _: () = assert!(SETUP_CHUNK * (MAX_CLIP_VERTICES - 2) <= 1 << CHUNK_INDEX_BITS);
 
-/// Set-up triangles, in global triangle order, as one vector per setup chunk
-/// (no copy into one array). A reference packs `chunk << CHUNK_INDEX_BITS | index`,
-/// so references compare in global order.
+/// The set-up triangles of one setup chunk (consecutive source triangles), in
+/// order, and their bins: for each tile, the ascending indices (within the chunk)
+/// of the triangles that may cover it.
+struct SetupChunk {
+    tris: Vec<RasterTriangle>,
+    /// `bin_items[bin_start[tile]..bin_start[tile + 1]]` is the bin of `tile`.
+    bin_start: Vec<u32>,
+    bin_items: Vec<u16>,
+}
+
+impl SetupChunk {
+    #[inline]
+    fn bin(&self, tile: usize) -> &[u16] {
+        &self.bin_items[self.bin_start[tile] as usize..self.bin_start[tile + 1] as usize]
+    }
+}
+
+/// All set-up triangles, chunk by chunk, so in global triangle order. A triangle is
+/// referred to as `chunk << CHUNK_INDEX_BITS | index`; references compare in
+/// global order.
 struct SetupTriangles {
-    chunks: Vec<Vec<RasterTriangle>>,
+    chunks: Vec<SetupChunk>,
 }
 
 impl SetupTriangles {
     #[inline]
     fn get(&self, reference: u32) -> &RasterTriangle {
-        &self.chunks[(reference >> CHUNK_INDEX_BITS) as usize][(reference & ((1 << CHUNK_INDEX_BITS) - 1)) as usize]
-    }
-    fn iter(&self) -> impl Iterator<Item = (u32, &RasterTriangle)> {
-        self.chunks
-            .iter()
-            .enumerate()
-            .flat_map(|(c, v)| v.iter().enumerate().map(move |(i, t)| (((c as u32) << CHUNK_INDEX_BITS) | i as u32, t)))
+        &self.chunks[(reference >> CHUNK_INDEX_BITS) as usize].tris
+            [(reference & ((1 << CHUNK_INDEX_BITS) - 1)) as usize]
     }
 }
 
-/// Set up every triangle, in parallel.
+/// Set up and bin every triangle, in parallel over chunks of source triangles.
 fn setup_triangles(geometry: &WorldGeometry, camera: &CameraRecord, frame: &Frame) -> SetupTriangles {
     // Triangle counts beyond the packed reference range (2^32 / 2^14 chunks of
     // SETUP_CHUNK, about 5e8 triangles) are not rasterized.
@@ -282,36 +298,98 @@ fn setup_triangles(geometry: &WorldGeometry, camera: &CameraRecord, frame: &Fram
             for t in tris {
                 setup_triangle(t, camera, frame, &mut out);
             }
-            out
+            bin_chunk(out, frame)
         })
         .collect();
     SetupTriangles { chunks }
 }
 
+/// Bin the triangles of one chunk into tiles by their bounding box, skipping tiles
+/// a triangle provably misses (a counting sort by tile, stable in triangle order).
+fn bin_chunk(tris: Vec<RasterTriangle>, frame: &Frame) -> SetupChunk {
+    let ts = TILE_SIZE as i32;
+    let mut pairs: Vec<(u32, u16)> = Vec::with_capacity(tris.len() + tris.len() / 4);
+    for (index, t) in tris.iter().enumerate() {
+        let [x0, y0, x1, y1] = t.bbox;
+        let (tx0, ty0, tx1, ty1) = (x0 / ts, y0 / ts, x1 / ts, y1 / ts);
+        if tx0 == tx1 && ty0 == ty1 {
+            pairs.push((ty0 as u32 * frame.tiles_x + tx0 as u32, index as u16));
+            continue;
+        }
+        for ty in ty0..=ty1 {
+            for tx in tx0..=tx1 {
+                let tile = ty as u32 * frame.tiles_x + tx as u32;
+                let r = frame.tile_rect(tile as usize);
+                let (cx0, cy0) = (x0.max(r[0]), y0.max(r[1]));
+                let (cx1, cy1) = (x1.min(r[2]), y1.min(r[3]));
+                let e = EdgeStepper::new(t, cx0 as i64, cy0 as i64);
+                if e.may_cover_block((cx1 - cx0 + 1) as i64, (cy1 - cy0 + 1) as i64) {
+                    pairs.push((tile, index as u16));
+                }
+            }
+        }
+    }
+    let mut bin_start = vec![0u32; frame.tile_count() + 1];
+    for &(tile, _) in &pairs {
+        bin_start[tile as usize + 1] += 1;
+    }
+    for i in 1..bin_start.len() {
+        bin_start[i] += bin_start[i - 1];
+    }
+    let mut cursor = bin_start.clone();
+    let mut bin_items = vec![0u16; pairs.len()];
+    for (tile, index) in pairs {
+        bin_items[cursor[tile as usize] as usize] = index;
+        cursor[tile as usize] += 1;
+    }
+    SetupChunk { tris, bin_start, bin_items }
+}
+
+/// Outcode bits beyond the clip planes' (bit p for `CLIP_PLANES[p]`): the viewport
+/// sides `x > w`, `x < -w`, `y > w`, `y < -w`. Used only to reject triangles wholly
+/// beyond one side (in homogeneous space, so valid for any sign of w): such a
+/// triangle cannot cover a pixel centre, whose NDC coordinates are inside (-1, 1).
+const VIEWPORT_OUTCODES: [u32; 4] = [1 << 6, 1 << 7, 1 << 8, 1 << 9];
+/// Outcode bits of the clip planes (`CLIP_PLANES`).
+const CLIP_OUTCODES: u32 = (1 << CLIP_PLANES.len()) - 1;
+
 /// Clip, project and snap one triangle; push zero or more sub-triangles.
 fn setup_triangle(tri: &TriangleRecord, camera: &CameraRecord, frame: &Frame, out: &mut Vec<RasterTriangle>) {
     let m = &camera.view_proj;
     let clip = [clip_position(m, tri.v0), clip_position(m, tri.v1), clip_position(m, tri.v2)];
-    if !clip.iter().flatten().all(|c| c.is_finite()) {
+    let mut finite = true;
+    for c in &clip {
+        finite &= c[0].is_finite() & c[1].is_finite() & c[2].is_finite() & c[3].is_finite();
+    }
+    if !finite {
+        return;
+    }
+    // Outcodes; all three vertices beyond one plane: nothing to draw.
+    let (mut all, mut any) = (u32::MAX, 0u32);
+    for c in &clip {
+        let mut code = 0;
+        for (p, plane) in CLIP_PLANES.iter().enumerate() {
+            // Distances of finite positions are never NaN (at worst infinite).
+            if clip_plane_distance(*plane, *c, frame.guard) < 0.0 {
+                code |= 1 << p;
+            }
+        }
+        let (x, y, w) = (c[0], c[1], c[3]);
+        code |= if x > w { VIEWPORT_OUTCODES[0] } else { 0 };
+        code |= if x < -w { VIEWPORT_OUTCODES[1] } else { 0 };
+        code |= if y > w { VIEWPORT_OUTCODES[2] } else { 0 };
+        code |= if y < -w { VIEWPORT_OUTCODES[3] } else { 0 };
+        all &= code;
+        any |= code;
+    }
+    if all != 0 {
         return;
     }
     let flags = GBUF_HIT | if tri.flags & TRI_RAY_TRACED != 0 { GBUF_RAY_TRACED } else { 0 };
-    // Planes some vertex lies outside of; all three outside one plane: nothing left.
-    let mut outside = 0u32;
-    for (p, plane) in CLIP_PLANES.iter().enumerate() {
-        let d = clip.map(|c| clip_plane_distance(*plane, c, frame.guard));
-        // A NaN distance counts as outside (the polygon clipper treats it so).
-        let out_count = d.iter().filter(|d| d.is_nan() || **d < 0.0).count();
-        if out_count == 3 {
-            return;
-        }
-        if out_count > 0 {
-            outside |= 1 << p;
-        }
-    }
     let corners = ClipVertex::triangle(clip);
+    let outside = any & CLIP_OUTCODES;
     if outside == 0 {
-        emit_triangle(tri, flags, corners, frame, out);
+        emit_triangle(tri, flags, true, [&corners[0], &corners[1], &corners[2]], frame, out);
         return;
     }
     let mut poly = [corners[0]; MAX_CLIP_VERTICES];
@@ -329,19 +407,31 @@ fn setup_triangle(tri: &TriangleRecord, camera: &CameraRecord, frame: &Frame, ou
     }
     // Fan from the first vertex, like llvmpipe's clipper.
     for i in 1..n - 1 {
-        emit_triangle(tri, flags, [poly[0], poly[i], poly[i + 1]], frame, out);
+        emit_triangle(tri, flags, false, [&poly[0], &poly[i], &poly[i + 1]], frame, out);
     }
 }
 
 /// Project, snap, cull and normalize one (sub-)triangle.
-fn emit_triangle(src: &TriangleRecord, flags: u32, v: [ClipVertex; 3], frame: &Frame, out: &mut Vec<RasterTriangle>) {
-    let win = v.map(|c| clip_to_window(c.pos, frame.width_f, frame.height_f));
-    if !win.iter().flatten().all(|c| c.is_finite()) || !v.iter().all(|c| c.pos[3] > 0.0) {
-        return;
-    }
-    let fixed = win.map(|p| [snap_to_fixed(p[0]), snap_to_fixed(p[1])]);
-    if fixed.iter().flatten().any(|c| c.abs() > MAX_FIXED_COORD) {
-        return;
+fn emit_triangle(
+    src: &TriangleRecord,
+    flags: u32,
+    unclipped: bool,
+    v: [&ClipVertex; 3],
+    frame: &Frame,
+    out: &mut Vec<RasterTriangle>,
+) {
+    let mut win = [[0.0f32; 3]; 3];
+    let mut fixed = [[0i64; 2]; 3];
+    for k in 0..3 {
+        let p = clip_to_window(v[k].pos, frame.width_f, frame.height_f);
+        if !(p[0].is_finite() && p[1].is_finite() && p[2].is_finite() && v[k].pos[3] > 0.0) {
+            return;
+        }
+        fixed[k] = [snap_to_fixed(p[0]), snap_to_fixed(p[1])];
+        if fixed[k][0].abs() > MAX_FIXED_COORD || fixed[k][1].abs() > MAX_FIXED_COORD {
+            return;
+        }
+        win[k] = p;
     }
     let area = triangle_area2(fixed[0], fixed[1], fixed[2]);
     if area == 0 {
@@ -349,10 +439,9 @@ fn emit_triangle(src: &TriangleRecord, flags: u32, v: [ClipVertex; 3], frame: &F
     }
     // Counter-clockwise on screen is a front face (see the kernel docs); normalize
     // clockwise triangles (back faces) by swapping v1 and v2.
-    let (order, flags) = if area > 0 { ([0, 1, 2], flags) } else { ([0, 2, 1], flags | GBUF_BACK_FACE) };
-    let p = order.map(|i| fixed[i]);
-    let xs = p.map(|q| q[0]);
-    let ys = p.map(|q| q[1]);
+    let (a, b, flags) = if area > 0 { (1, 2, flags) } else { (2, 1, flags | GBUF_BACK_FACE) };
+    let xs = [fixed[0][0], fixed[a][0], fixed[b][0]];
+    let ys = [fixed[0][1], fixed[a][1], fixed[b][1]];
     let [x0, x1] = pixel_span(min3(xs), max3(xs));
     let [y0, y1] = pixel_span(min3(ys), max3(ys));
     let bbox = [x0.max(0), y0.max(0), x1.min(frame.width as i64 - 1), y1.min(frame.height as i64 - 1)];
@@ -360,13 +449,14 @@ fn emit_triangle(src: &TriangleRecord, flags: u32, v: [ClipVertex; 3], frame: &F
         return;
     }
     out.push(RasterTriangle {
-        x: xs.map(|c| c as i32),
-        y: ys.map(|c| c as i32),
-        bbox: bbox.map(|c| c as i32),
+        x: [xs[0] as i32, xs[1] as i32, xs[2] as i32],
+        y: [ys[0] as i32, ys[1] as i32, ys[2] as i32],
+        bbox: [bbox[0] as i32, bbox[1] as i32, bbox[2] as i32, bbox[3] as i32],
         area2: area.abs(),
-        z: order.map(|i| win[i][2]),
-        w: order.map(|i| v[i].pos[3]),
-        bary: order.map(|i| v[i].bary),
+        z: [win[0][2], win[a][2], win[b][2]],
+        w: [v[0].pos[3], v[a].pos[3], v[b].pos[3]],
+        bary: [v[0].bary, v[a].bary, v[b].bary],
+        corners: if unclipped { [if a == 1 { 1 } else { 2 }, if a == 1 { 2 } else { 1 }] } else { NOT_CORNERS },
         object: src.object,
         triangle: src.triangle,
         flags,
@@ -424,33 +514,6 @@ impl EdgeStepper {
     }
 }
 
-/// Per tile, the references of the set-up triangles that may cover it, ascending.
-fn bin_triangles(tris: &SetupTriangles, frame: &Frame) -> Vec<Vec<u32>> {
-    let mut bins = vec![Vec::new(); frame.tile_count()];
-    let ts = TILE_SIZE as i32;
-    for (reference, t) in tris.iter() {
-        let [x0, y0, x1, y1] = t.bbox;
-        let (tx0, ty0, tx1, ty1) = (x0 / ts, y0 / ts, x1 / ts, y1 / ts);
-        if tx0 == tx1 && ty0 == ty1 {
-            bins[(ty0 as u32 * frame.tiles_x + tx0 as u32) as usize].push(reference);
-            continue;
-        }
-        for ty in ty0..=ty1 {
-            for tx in tx0..=tx1 {
-                let tile = (ty as u32 * frame.tiles_x + tx as u32) as usize;
-                let r = frame.tile_rect(tile);
-                let (cx0, cy0) = (x0.max(r[0]), y0.max(r[1]));
-                let (cx1, cy1) = (x1.min(r[2]), y1.min(r[3]));
-                let e = EdgeStepper::new(t, cx0 as i64, cy0 as i64);
-                if e.may_cover_block((cx1 - cx0 + 1) as i64, (cy1 - cy0 + 1) as i64) {
-                    bins[tile].push(reference);
-                }
-            }
-        }
-    }
-    bins
-}
-
 /// A triangle as the per-fragment callback sees it.
 struct Fragment<'a> {
     tri: &'a RasterTriangle,
@@ -464,122 +527,275 @@ impl std::ops::Deref for Fragment<'_> {
     }
 }
 
-/// Triangles whose clipped bounding box in a tile is at most this many pixels wide
-/// are traversed by testing every pixel; wider ones compute each row's covered span
-/// first (a division estimate corrected by exact tests), which skips the empty
-/// parts of large bounding boxes. Both give exactly the same pixels.
-const SPAN_MIN_WIDTH: i32 = 8;
-
-/// Smallest `k` in `[0, n)` with `e + k * s >= 0` for an edge with `s > 0`
-/// (`n` when there is none). `inv_s = 1 / s`; the estimate is corrected exactly.
-#[inline]
-fn first_inside(e: i64, s: i64, inv_s: f64, n: i64) -> i64 {
-    if e >= 0 {
-        return 0;
-    }
-    let mut k = ((-e) as f64 * inv_s).ceil().clamp(0.0, n as f64) as i64;
-    while k < n && e + k * s < 0 {
-        k += 1;
-    }
-    while k > 0 && e + (k - 1) * s >= 0 {
-        k -= 1;
-    }
-    k
+/// Exact per-row bound of the covered run `[lo, hi]` contributed by one edge,
+/// stepped from row to row without division (a Bresenham-style quotient and
+/// remainder). With `E(y)` the biased edge value at the row's first pixel and `d`
+/// its change per pixel, the edge admits pixel `k` iff `E + k d >= 0`:
+/// for `d > 0` that is `k >= ceil(-E / d) = floor((-E + d - 1) / d)` (a lower
+/// bound), for `d < 0` it is `k <= floor(E / -d)` (an upper bound), for `d = 0` all
+/// or nothing. `quotient` is the bound for the current row.
+#[derive(Clone, Copy, Debug)]
+struct EdgeWalk {
+    kind: WalkKind,
+    quotient: i64,
+    remainder: i64,
+    divisor: i64,
+    step_quotient: i64,
+    step_remainder: i64,
 }
 
-/// Largest `k` in `[0, n)` with `e + k * s >= 0` for an edge with `s < 0` and
-/// `e >= 0`. `inv_s = 1 / s`; the estimate is corrected exactly.
-#[inline]
-fn last_inside(e: i64, s: i64, inv_s: f64, n: i64) -> i64 {
-    let mut k = (e as f64 * -inv_s).floor().clamp(0.0, (n - 1) as f64) as i64;
-    while k > 0 && e + k * s < 0 {
-        k -= 1;
-    }
-    while k + 1 < n && e + (k + 1) * s >= 0 {
-        k += 1;
-    }
-    k
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum WalkKind {
+    Lower,
+    Upper,
+    Flat,
 }
 
-/// Walk the bin of the tile `rect` in order and call `f(local_pixel, triangle,
-/// exact_edge_values)` for every covered pixel centre, `local_pixel` being
-/// `(y - rect.y0) * TILE_SIZE + (x - rect.x0)`.
-#[inline]
-fn rasterize_tile<F: FnMut(usize, &Fragment<'_>, [i64; 3])>(
-    tris: &SetupTriangles,
-    bin: &[u32],
-    rect: [i32; 4],
-    mut f: F,
-) {
-    for &reference in bin {
-        let t = tris.get(reference);
-        let x0 = t.bbox[0].max(rect[0]);
-        let y0 = t.bbox[1].max(rect[1]);
-        let x1 = t.bbox[2].min(rect[2]);
-        let y1 = t.bbox[3].min(rect[3]);
-        if x0 > x1 || y0 > y1 {
-            continue;
+impl EdgeWalk {
+    /// `e`: biased value at the first pixel of the first row; `dx`, `dy`: change per
+    /// pixel right and per row down. `multi_row`: whether `step` will be called (its
+    /// division is skipped otherwise).
+    #[inline]
+    fn new(e: i64, dx: i64, dy: i64, multi_row: bool) -> EdgeWalk {
+        // Numerator at the first row and its change per row, and the divisor.
+        let (kind, num, step, divisor) = if dx > 0 {
+            (WalkKind::Lower, -e + dx - 1, -dy, dx)
+        } else if dx < 0 {
+            (WalkKind::Upper, e, dy, -dx)
+        } else {
+            (WalkKind::Flat, e, dy, 1)
+        };
+        let quotient = num.div_euclid(divisor);
+        let (step_quotient, step_remainder) = if multi_row {
+            let q = step.div_euclid(divisor);
+            (q, step - q * divisor)
+        } else {
+            (0, 0)
+        };
+        EdgeWalk { kind, quotient, remainder: num - quotient * divisor, divisor, step_quotient, step_remainder }
+    }
+
+    /// Move to the next row.
+    #[inline]
+    fn step(&mut self) {
+        self.quotient += self.step_quotient;
+        self.remainder += self.step_remainder;
+        if self.remainder >= self.divisor {
+            self.remainder -= self.divisor;
+            self.quotient += 1;
         }
-        let frag = Fragment { tri: t, reference };
-        let s = EdgeStepper::new(t, x0 as i64, y0 as i64);
-        let n = (x1 - x0 + 1) as i64;
-        let inv = s.step_x.map(|d| if d != 0 { 1.0 / d as f64 } else { 0.0 });
-        let mut row = s.start;
-        for y in y0..=y1 {
+    }
+
+    /// Narrow the run `[lo, hi]` of the current row by this edge.
+    #[inline]
+    fn clip_run(&self, lo: &mut i64, hi: &mut i64) {
+        match self.kind {
+            WalkKind::Lower => *lo = (*lo).max(self.quotient),
+            WalkKind::Upper => *hi = (*hi).min(self.quotient),
+            // divisor 1: quotient is the edge value itself.
+            WalkKind::Flat => {
+                if self.quotient < 0 {
+                    *hi = -1;
+                }
+            }
+        }
+    }
+}
+
+/// Triangles whose bounding box within a tile is at most this many pixels wide are
+/// traversed by testing every pixel of the box; wider ones get each row's covered
+/// run from their [`EdgeWalk`]s. Both visit exactly the same covered pixels.
+const NARROW_BOX_WIDTH: i64 = 4;
+
+/// Margin of the early depth rejection. The approximate depth is `num / area2`
+/// with `num = sum e_i z_i` evaluated in f64 at a covered pixel, or stepped along a
+/// covered run by `sum step_x_i z_i` (at most 64 steps). On covered pixels every
+/// `e_i` lies in `[0, area2]` and every `z_i` in `[0, 1]`, and along a covered run
+/// `|step_x_i| * steps <= area2`, so the f64 rounding errors add up to less than
+/// `70 * 2^-52` of the depth range: far below this margin. If the approximate depth
+/// exceeds the stored one by more than the margin, the exact depth
+/// ([`interpolate_depth`]) is at least the stored depth and fails LESS, so skipping
+/// it changes nothing.
+const DEPTH_REJECT_MARGIN: f64 = 1.0 / (1u64 << 30) as f64;
+
+/// What the tile traversal does with covered pixel centres. `local_pixel` is
+/// `(y - rect.y0) * TILE_SIZE + (x - rect.x0)`.
+trait FragmentSink {
+    /// False if the fragment certainly fails (its approximate depth, see
+    /// [`DEPTH_REJECT_MARGIN`], is too far); `fragment` is then not called.
+    fn early(&self, local_pixel: usize, approx_depth: f64) -> bool;
+    /// A covered pixel centre with the exact (unbiased) edge values.
+    fn fragment(&mut self, local_pixel: usize, t: &Fragment<'_>, e: [i64; 3]);
+}
+
+impl FragmentSink for TileScratch {
+    #[inline]
+    fn early(&self, i: usize, approx_depth: f64) -> bool {
+        approx_depth < self.depth[tile_index(i)] as f64 + DEPTH_REJECT_MARGIN
+    }
+    #[inline]
+    fn fragment(&mut self, i: usize, t: &Fragment<'_>, e: [i64; 3]) {
+        let i = tile_index(i);
+        let d = interpolate_depth(e, t.area2, t.z);
+        // LESS against the stored depth (clear value 1.0); NaN and negative depths
+        // are never written.
+        if d < self.depth[i] && d >= 0.0 {
+            self.depth[i] = d;
+            self.winner[i] = t.reference;
+            self.e12[i] = [e[1], e[2]];
+        }
+    }
+}
+
+/// The depth test without the early rejection.
+struct NoEarlyReject<'a>(&'a mut TileScratch);
+
+impl FragmentSink for NoEarlyReject<'_> {
+    #[inline]
+    fn early(&self, _: usize, _: f64) -> bool {
+        true
+    }
+    #[inline]
+    fn fragment(&mut self, i: usize, t: &Fragment<'_>, e: [i64; 3]) {
+        self.0.fragment(i, t, e);
+    }
+}
+
+/// Counts front and back coverings of each pixel of a tile (no depth test).
+struct CountSink<'a, 'b> {
+    rows: &'a mut Vec<&'b mut [[u32; 2]]>,
+}
+
+impl FragmentSink for CountSink<'_, '_> {
+    #[inline]
+    fn early(&self, _: usize, _: f64) -> bool {
+        true
+    }
+    #[inline]
+    fn fragment(&mut self, i: usize, t: &Fragment<'_>, _: [i64; 3]) {
+        let (row, col) = (i / TILE_SIZE as usize, i % TILE_SIZE as usize);
+        self.rows[row][col][(t.flags & GBUF_BACK_FACE != 0) as usize] += 1;
+    }
+}
+
+/// Walk the bin of the tile `rect` in order and hand every covered pixel centre to
+/// `sink` (first `early`, then, if that passes, `fragment`).
+#[inline]
+fn rasterize_tile<S: FragmentSink>(tris: &SetupTriangles, tile: usize, rect: [i32; 4], sink: &mut S) {
+    for (c, chunk) in tris.chunks.iter().enumerate() {
+        for &index in chunk.bin(tile) {
+            let t = &chunk.tris[index as usize];
+            let reference = ((c as u32) << CHUNK_INDEX_BITS) | index as u32;
+            rasterize_triangle(t, reference, rect, sink);
+        }
+    }
+}
+
+/// Hand the covered pixel centres of one triangle inside tile `rect` to `sink`.
+#[inline]
+fn rasterize_triangle<S: FragmentSink>(t: &RasterTriangle, reference: u32, rect: [i32; 4], sink: &mut S) {
+    let x0 = t.bbox[0].max(rect[0]);
+    let y0 = t.bbox[1].max(rect[1]);
+    let x1 = t.bbox[2].min(rect[2]);
+    let y1 = t.bbox[3].min(rect[3]);
+    if x0 > x1 || y0 > y1 {
+        return;
+    }
+    let frag = Fragment { tri: t, reference };
+    let s = EdgeStepper::new(t, x0 as i64, y0 as i64);
+    let n = (x1 - x0 + 1) as i64;
+    // Narrow boxes test every pixel (cheaper than the walks' divisions).
+    let narrow = n <= NARROW_BOX_WIDTH;
+    let multi_row = y1 > y0;
+    let mut walks = (!narrow).then(|| {
+        [
+            EdgeWalk::new(s.start[0], s.step_x[0], s.step_y[0], multi_row),
+            EdgeWalk::new(s.start[1], s.step_x[1], s.step_y[1], multi_row),
+            EdgeWalk::new(s.start[2], s.step_x[2], s.step_y[2], multi_row),
+        ]
+    });
+    let inv_area = 1.0 / t.area2 as f64;
+    let z = t.z.map(f64::from);
+    let dz = s.step_x[0] as f64 * z[0] + s.step_x[1] as f64 * z[1] + s.step_x[2] as f64 * z[2];
+    let mut row = s.start;
+    for y in y0..=y1 {
+        // The covered pixels of a row of a convex shape are one run [lo, hi].
+        let (mut lo, mut hi) = (0i64, n - 1);
+        if let Some(walks) = &walks {
+            for walk in walks {
+                walk.clip_run(&mut lo, &mut hi);
+            }
+        }
+        if lo <= hi {
             let base = (y - rect[1]) as usize * TILE_SIZE as usize + (x0 - rect[0]) as usize;
-            if n <= SPAN_MIN_WIDTH as i64 {
-                let mut e = row;
-                for k in 0..n as usize {
+            let mut e = [row[0] + lo * s.step_x[0], row[1] + lo * s.step_x[1], row[2] + lo * s.step_x[2]];
+            let raw = |e: [i64; 3]| [e[0] - s.bias[0], e[1] - s.bias[1], e[2] - s.bias[2]];
+            let approx = |r: [i64; 3]| r[0] as f64 * z[0] + r[1] as f64 * z[1] + r[2] as f64 * z[2];
+            if narrow {
+                // Test every pixel; the approximate depth is computed afresh at
+                // covered ones only (see DEPTH_REJECT_MARGIN).
+                for k in lo..=hi {
                     if (e[0] | e[1] | e[2]) >= 0 {
-                        f(base + k, &frag, [e[0] - s.bias[0], e[1] - s.bias[1], e[2] - s.bias[2]]);
+                        let i = base + k as usize;
+                        let r = raw(e);
+                        if sink.early(i, approx(r) * inv_area) {
+                            sink.fragment(i, &frag, r);
+                        }
                     }
                     e[0] += s.step_x[0];
                     e[1] += s.step_x[1];
                     e[2] += s.step_x[2];
                 }
             } else {
-                // The covered pixels of a row of a convex shape are one run [lo, hi].
-                let (mut lo, mut hi) = (0i64, n - 1);
-                for i in 0..3 {
-                    let (e, d) = (row[i], s.step_x[i]);
-                    if d > 0 {
-                        lo = lo.max(first_inside(e, d, inv[i], n));
-                    } else if e < 0 {
-                        hi = -1;
-                    } else if d < 0 {
-                        hi = hi.min(last_inside(e, d, inv[i], n));
-                    }
-                }
-                let mut e = [row[0] + lo * s.step_x[0], row[1] + lo * s.step_x[1], row[2] + lo * s.step_x[2]];
+                // Every pixel of the run is covered; the approximate depth's
+                // numerator steps along it.
+                let mut num = approx(raw(e));
                 for k in lo..=hi {
-                    debug_assert!((e[0] | e[1] | e[2]) >= 0);
-                    f(base + k as usize, &frag, [e[0] - s.bias[0], e[1] - s.bias[1], e[2] - s.bias[2]]);
+                    debug_assert!((e[0] | e[1] | e[2]) >= 0, "run outside the triangle");
+                    let i = base + k as usize;
+                    if sink.early(i, num * inv_area) {
+                        sink.fragment(i, &frag, raw(e));
+                    }
                     e[0] += s.step_x[0];
                     e[1] += s.step_x[1];
                     e[2] += s.step_x[2];
+                    num += dz;
                 }
             }
-            row[0] += s.step_y[0];
-            row[1] += s.step_y[1];
-            row[2] += s.step_y[2];
         }
+        if let Some(walks) = &mut walks {
+            for walk in walks {
+                walk.step();
+            }
+        }
+        row[0] += s.step_y[0];
+        row[1] += s.step_y[1];
+        row[2] += s.step_y[2];
     }
 }
 
 /// Depth-test state of one tile.
 struct TileScratch {
-    depth: Vec<f32>,
-    winner: Vec<u32>,
+    depth: Box<[f32; TILE_PIXELS]>,
+    winner: Box<[u32; TILE_PIXELS]>,
     /// Exact edge values e1, e2 of the winning fragment (e0 = area2 - e1 - e2).
-    e12: Vec<[i64; 2]>,
+    e12: Box<[[i64; 2]; TILE_PIXELS]>,
+}
+
+/// Index into a tile buffer: local pixels are below `TILE_PIXELS` by construction;
+/// the mask (a no-op then) lets the compiler drop the bounds checks.
+#[inline]
+fn tile_index(i: usize) -> usize {
+    debug_assert!(i < TILE_PIXELS);
+    i & (TILE_PIXELS - 1)
 }
 
 impl TileScratch {
     fn new() -> TileScratch {
         TileScratch {
-            depth: vec![DEPTH_CLEAR; TILE_PIXELS],
-            winner: vec![NO_WINNER; TILE_PIXELS],
-            e12: vec![[0; 2]; TILE_PIXELS],
+            depth: Box::new([DEPTH_CLEAR; TILE_PIXELS]),
+            winner: Box::new([NO_WINNER; TILE_PIXELS]),
+            e12: Box::new([[0; 2]; TILE_PIXELS]),
         }
     }
     fn clear(&mut self) {
@@ -598,7 +814,7 @@ fn resolve_tile(
     let mut covered = 0;
     for (ly, row) in rows.iter_mut().enumerate() {
         for (lx, texel) in row.iter_mut().enumerate() {
-            let i = ly * TILE_SIZE as usize + lx;
+            let i = tile_index(ly * TILE_SIZE as usize + lx);
             let winner = scratch.winner[i];
             if winner == NO_WINNER {
                 *texel = GBufferTexel::MISS;
@@ -607,8 +823,11 @@ fn resolve_tile(
             let t = tris.get(winner);
             let [e1, e2] = scratch.e12[i];
             let e = [t.area2 - e1 - e2, e1, e2];
-            let b = perspective_barycentrics(e, t.w);
-            let [u, v] = barycentrics_in_original(b, t.bary);
+            let [u, v] = if t.corners == NOT_CORNERS {
+                barycentrics_in_original(perspective_barycentrics(e, t.w), t.bary)
+            } else {
+                perspective_barycentrics_of_corners(e, t.w, t.corners[0] as usize, t.corners[1] as usize)
+            };
             *texel = GBufferTexel {
                 bary_u: u,
                 bary_v: v,
@@ -640,4 +859,97 @@ fn tile_slices<'a, T>(buf: &'a mut [T], width: usize, frame: &Frame) -> Vec<Vec<
         }
     }
     tiles
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hyrt_core::glam::{Mat4, Quat, Vec3};
+    use hyrt_core::scene::{Camera, Material, Mesh, Object, ObjectSource, RenderMode, Scene};
+    use proptest::prelude::*;
+
+    fn bits(out: &VisibilityOutput) -> Vec<[u32; 6]> {
+        out.gbuffer.iter().map(|t| t.to_bits()).collect()
+    }
+
+    /// Many overlapping objects in arbitrary depth order, some crossing the near
+    /// plane: lots of fragments the early rejection skips.
+    fn cluttered_scene() -> Scene {
+        let mut s = Scene::default();
+        for k in 0..24u32 {
+            let f = k as f32;
+            let mesh = match k % 3 {
+                0 => Mesh::uv_sphere("s", 12, 6),
+                1 => Mesh::cube("c"),
+                _ => Mesh::torus("t", 1.0, 0.3, 12, 6),
+            };
+            s.meshes.push(mesh);
+            s.materials.push(Material::grey());
+            s.objects.push(Object {
+                id: k,
+                name: format!("o{k}"),
+                mesh: k as usize,
+                transform: Mat4::from_translation(Vec3::new((f * 1.7).sin() * 2.0, (f * 0.9).cos(), -f * 0.4 + 3.0))
+                    * Mat4::from_quat(Quat::from_rotation_y(f)),
+                material: k as usize,
+                render_mode: if k % 4 == 0 { RenderMode::RayTraced } else { RenderMode::Raster },
+                source: ObjectSource::default(),
+            });
+        }
+        s.camera = Some(Camera {
+            eye: Vec3::new(0.3, 0.5, 5.0),
+            target: Vec3::new(0.0, 0.0, -3.0),
+            up: Vec3::Y,
+            fov_y_deg: 70.0,
+            near: 0.3,
+            far: 40.0,
+        });
+        s
+    }
+
+    #[test]
+    fn early_depth_rejection_changes_nothing() {
+        for scene in [cluttered_scene(), Scene::default_scene()] {
+            let g = WorldGeometry::build(&scene);
+            for (w, h) in [(160, 90), (67, 131)] {
+                let cam = CameraRecord::new(&scene.camera.unwrap(), w, h);
+                let fast = raster_frame(&g, &cam, true);
+                let slow = raster_frame(&g, &cam, false);
+                assert!(fast.covered_pixels > 0);
+                assert_eq!(fast.covered_pixels, slow.covered_pixels);
+                assert_eq!(bits(&fast), bits(&slow));
+            }
+        }
+    }
+
+    /// The run of one edge over `n` pixels for `rows` rows, by brute force.
+    fn brute_runs(e: i64, dx: i64, dy: i64, n: i64, rows: i64) -> Vec<Option<(i64, i64)>> {
+        (0..rows)
+            .map(|r| {
+                let ks: Vec<i64> = (0..n).filter(|k| e + r * dy + k * dx >= 0).collect();
+                ks.first().map(|lo| (*lo, *ks.last().unwrap()))
+            })
+            .collect()
+    }
+
+    proptest! {
+        #[test]
+        fn edge_walk_matches_brute_force(
+            e in -100_000i64..100_000,
+            dx in -3000i64..3000,
+            dy in -3000i64..3000,
+            n in 1i64..65,
+            rows in 1i64..65,
+        ) {
+            let mut walk = EdgeWalk::new(e, dx, dy, rows > 1);
+            let expect = brute_runs(e, dx, dy, n, rows);
+            for row in expect {
+                let (mut lo, mut hi) = (0, n - 1);
+                walk.clip_run(&mut lo, &mut hi);
+                let got = (lo <= hi).then_some((lo, hi));
+                prop_assert_eq!(got, row);
+                walk.step();
+            }
+        }
+    }
 }

@@ -46,6 +46,20 @@
 //! far inside `i64`. Pixel centres inside the image are below
 //! `MAX_IMAGE_DIM * FIXED_ONE = 2^28`.
 //!
+//! ## Where this differs from lavapipe
+//!
+//! The integer part (snapping of given window coordinates, edge functions, fill
+//! rule, zero-area culling) is llvmpipe's exactly. The float part cannot be: lavapipe
+//! runs the vertex shader through LLVM (which may fuse multiply-adds) and maps to
+//! the window as `x * (1/w) * scale + translate`, so its window coordinates can
+//! differ from [`clip_to_window`]'s by f32 ulps, and a snapped coordinate can then
+//! differ by one subpixel where the value lies on a rounding boundary. Further:
+//! lavapipe's draw module clips x and y to the viewport (its guard band is only
+//! enabled for the linear rasterizer), where we clip to a guard band only when
+//! needed, which moves clipped vertices off-screen instead of onto the screen edge
+//! (coverage can differ only within a rounding error of the original edges); and
+//! our clipper puts new vertices exactly on the near/far plane.
+//!
 //! WGSL mirrors: each function names its WGSL twin (same name). WGSL has no 64-bit
 //! integers or floats; the GPU version will need wider emulation and is checked
 //! against these functions bit for bit on the integer parts.
@@ -260,7 +274,27 @@ pub fn clip_to_window(p: [f32; 4], width: f32, height: f32) -> [f32; 3] {
 /// WGSL: `snap_to_fixed`.
 #[inline]
 pub fn snap_to_fixed(v: f32) -> i64 {
-    ((v - PIXEL_CENTER_OFFSET) * FIXED_ONE_F32).round_ties_even() as i64
+    round_ties_even_f32((v - PIXEL_CENTER_OFFSET) * FIXED_ONE_F32) as i64
+}
+
+/// 2^23: from here on every f32 is an integer.
+const F32_INTEGER_THRESHOLD: f32 = 8_388_608.0;
+
+/// Round to the nearest integer, ties to even: `f32::round_ties_even`, written as
+/// `(|x| + 2^23) - 2^23` with the sign restored, which lets the addition's own
+/// round-to-nearest-even do the work (the sum lies in [2^23, 2^24), where the f32
+/// spacing is exactly 1, and 2^23 is even). Without SSE4.1 `round_ties_even` is a
+/// libm call; this is two additions. NaN stays NaN. WGSL: the built-in `round`,
+/// which rounds ties to even (the addition trick is not safe there: WGSL may
+/// reassociate it away).
+#[inline]
+pub fn round_ties_even_f32(x: f32) -> f32 {
+    let a = x.abs();
+    if a < F32_INTEGER_THRESHOLD {
+        ((a + F32_INTEGER_THRESHOLD) - F32_INTEGER_THRESHOLD).copysign(x)
+    } else {
+        x
+    }
 }
 
 /// Fixed-point position of the centre of pixel `(x, y)`. WGSL: `pixel_center_fixed`.
@@ -349,6 +383,18 @@ pub fn barycentrics_in_original(b: [f64; 3], attrs: [[f32; 2]; 3]) -> [f32; 2] {
         *o = v as f32;
     }
     out
+}
+
+/// [`barycentrics_in_original`] of [`perspective_barycentrics`] for a triangle whose
+/// vertices are the original corners in some order (barycentric attributes exactly
+/// (0,0), (1,0), (0,1)): `iu` and `iv` are the indices of the original v1 and v2.
+/// Bit-identical to the general pair (the zero terms add exact zeros), with two
+/// divisions and no mapping. WGSL: `perspective_barycentrics_of_corners`.
+#[inline]
+pub fn perspective_barycentrics_of_corners(e: [i64; 3], w: [f32; 3], iu: usize, iv: usize) -> [f32; 2] {
+    let q = [e[0] as f64 / w[0] as f64, e[1] as f64 / w[1] as f64, e[2] as f64 / w[2] as f64];
+    let s = q[0] + q[1] + q[2];
+    [(q[iu] / s) as f32, (q[iv] / s) as f32]
 }
 
 /// Window depth at a covered sample: the vertices' `z/w` interpolated linearly in
@@ -539,6 +585,40 @@ mod tests {
             let x1 = cross(&o1[..n1]);
             let x2 = cross(&o2[..n2]);
             prop_assert!(x1.iter().any(|p| x2.contains(p)), "{:?} vs {:?}", x1, x2);
+        }
+
+        #[test]
+        fn corner_barycentrics_match_the_general_path(
+            e in prop::array::uniform3(0i64..(1i64 << 40)),
+            w in prop::array::uniform3(1e-3f32..1e4),
+            perm in 0usize..6,
+        ) {
+            prop_assume!(e.iter().sum::<i64>() > 0);
+            let orders = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]];
+            let o = orders[perm];
+            // Vertex i is original corner o[i].
+            let corner = [[0.0f32, 0.0], [1.0, 0.0], [0.0, 1.0]];
+            let attrs = [corner[o[0]], corner[o[1]], corner[o[2]]];
+            let iu = o.iter().position(|&c| c == 1).unwrap();
+            let iv = o.iter().position(|&c| c == 2).unwrap();
+            let general = barycentrics_in_original(perspective_barycentrics(e, w), attrs);
+            let fast = perspective_barycentrics_of_corners(e, w, iu, iv);
+            prop_assert_eq!(general.map(f32::to_bits), fast.map(f32::to_bits));
+        }
+
+        #[test]
+        fn round_ties_even_matches_std(bits in any::<u32>()) {
+            let x = f32::from_bits(bits);
+            let (ours, std) = (round_ties_even_f32(x), x.round_ties_even());
+            prop_assert!(ours.to_bits() == std.to_bits() || (ours.is_nan() && std.is_nan()), "{} -> {} vs {}", x, ours, std);
+        }
+
+        #[test]
+        fn round_ties_even_matches_std_near_ties(k in -(1i64 << 26)..(1i64 << 26)) {
+            let x = k as f32 * 0.5;
+            prop_assert_eq!(round_ties_even_f32(x).to_bits(), x.round_ties_even().to_bits());
+            let y = f32::from_bits(x.to_bits().wrapping_add(1));
+            prop_assert_eq!(round_ties_even_f32(y).to_bits(), y.round_ties_even().to_bits());
         }
 
         #[test]

@@ -40,11 +40,20 @@ impl Mesh {
     pub fn uv_sphere(name: &str, segments: u32, rings: u32) -> Mesh {
         let (segments, rings) = (segments.max(3), rings.max(2));
         let mut positions = Vec::new();
+        // Seam (s = segments) and pole (r = 0, rings) vertices take exact values, so
+        // they are bit-identical to their twins: sin(2 pi) and sin(pi) are not 0 in f32,
+        // and a seam off by 1e-7 would not be watertight.
         for r in 0..=rings {
             let theta = PI * r as f32 / rings as f32;
+            let (st, ct) = match r {
+                0 => (0.0, 1.0),
+                _ if r == rings => (0.0, -1.0),
+                _ => (theta.sin(), theta.cos()),
+            };
             for s in 0..=segments {
                 let phi = TAU * s as f32 / segments as f32;
-                positions.push(Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()));
+                let (sp, cp) = if s == segments { (0.0, 1.0) } else { (phi.sin(), phi.cos()) };
+                positions.push(Vec3::new(st * cp, ct, st * sp));
             }
         }
         let row = segments + 1;
