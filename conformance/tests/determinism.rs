@@ -27,3 +27,26 @@ fn determinism_default_scene_same_bits_across_runs_and_threads() {
         }
     }
 }
+
+#[test]
+fn determinism_reused_frame_buffers_give_the_same_bits() {
+    // Buffers left from a frame of another size, scene and weight must not leak
+    // into the next frame.
+    let scene = Scene::default_scene();
+    let cam = scene.camera.unwrap();
+    let r = Renderer::cpu(Some(2));
+    let prepared = r.prepare(&scene);
+    let opts = FrameOptions { weight: 0.4 };
+    let fresh = r.render(&prepared, &cam, 83, 59, &opts).unwrap();
+    let mut reused = r.render(&prepared, &cam, 120, 90, &FrameOptions { weight: 1.0 }).unwrap();
+    let mut other = Scene::default_scene();
+    other.objects.truncate(2);
+    let other = r.prepare(&other);
+    r.render_into(&other, &cam, 83, 59, &FrameOptions::default(), &mut reused).unwrap();
+    r.render_into(&prepared, &cam, 83, 59, &opts, &mut reused).unwrap();
+    for cmp in compare_frames(&fresh, &reused) {
+        assert!(cmp.is_exact(), "{} mismatches, first {}", cmp.mismatches, cmp.first.unwrap());
+    }
+    assert_eq!(fresh.stats.covered_pixels, reused.stats.covered_pixels);
+    assert_eq!(fresh.stats.rays_per_kind, reused.stats.rays_per_kind);
+}

@@ -117,11 +117,26 @@ pub struct Frame {
 pub trait Backend {
     /// Short name for reports ("cpu", "gpu").
     fn name(&self) -> &str;
-    /// Render one frame of `scene` seen by `camera`.
+    /// Render one frame of `scene` seen by `camera` into `frame`, reusing its
+    /// buffers: a frame of the same size renders without allocating. Every field of
+    /// `frame` is overwritten.
+    fn render_into(
+        &mut self,
+        scene: &PreparedScene,
+        camera: &CameraRecord,
+        options: &FrameOptions,
+        frame: &mut Frame,
+    ) -> Result<(), RenderError>;
+
+    /// Render one frame into new buffers.
     fn render(
         &mut self,
         scene: &PreparedScene,
         camera: &CameraRecord,
         options: &FrameOptions,
-    ) -> Result<Frame, RenderError>;
+    ) -> Result<Frame, RenderError> {
+        let mut frame = Frame::default();
+        self.render_into(scene, camera, options, &mut frame)?;
+        Ok(frame)
+    }
 }

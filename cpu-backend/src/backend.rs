@@ -9,16 +9,25 @@ use hyrt_core::frame::{Backend, Frame, FrameOptions, FrameStats, PreparedScene, 
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::stage::Stage;
 
+use rayon::prelude::*;
+
 use crate::{
-    bvh_build::bvh_build, compaction, composition::composition, raster_shading::raster_shading,
-    reconstruction::reconstruction, rt_shading::rt_shading, shadow_rays::shadow_rays,
-    visibility_raster::visibility_raster,
+    bvh_build::bvh_build,
+    compaction::{compaction_into, shadow_mask_into, CompactionScratch},
+    composition::composition_into,
+    raster_shading::raster_shading_into,
+    reconstruction::reconstruction_into,
+    rt_shading::rt_shading_into,
+    shadow_rays::shadow_rays_into,
+    visibility_raster::visibility_raster_into,
 };
 
 /// The CPU backend. Owns a rayon pool so that thread counts are explicit and a
 /// frame never depends on whatever global pool the caller configured.
 pub struct CpuBackend {
     pool: rayon::ThreadPool,
+    /// Stage buffers that are not part of a [`Frame`], kept between frames.
+    scratch: CompactionScratch,
 }
 
 impl CpuBackend {
@@ -28,7 +37,7 @@ impl CpuBackend {
         if let Some(n) = threads {
             b = b.num_threads(n.max(1));
         }
-        CpuBackend { pool: b.build().expect("rayon thread pool") }
+        CpuBackend { pool: b.build().expect("rayon thread pool"), scratch: CompactionScratch::default() }
     }
 
     /// Number of worker threads.
@@ -65,12 +74,13 @@ impl Backend for CpuBackend {
         "cpu"
     }
 
-    fn render(
+    fn render_into(
         &mut self,
         scene: &PreparedScene,
         camera: &CameraRecord,
         options: &FrameOptions,
-    ) -> Result<Frame, RenderError> {
+        frame: &mut Frame,
+    ) -> Result<(), RenderError> {
         if !(0.0..=1.0).contains(&options.weight) {
             return Err(RenderError::InvalidOptions(format!(
                 "composition weight must be in [0, 1], got {}",
@@ -81,53 +91,47 @@ impl Backend for CpuBackend {
         let g = &scene.geometry;
         let eye = Vec3::from(camera.eye);
         let threads = self.threads();
-        Ok(self.pool.install(|| {
+        let scratch = &mut self.scratch;
+        let f = frame;
+        self.pool.install(|| {
             let mut t = vec![StageTime { stage: Stage::BvhBuild, ms: scene.bvh_build_ms }];
-            let vis = timed(&mut t, Stage::VisibilityRaster, || visibility_raster(g, camera));
-            let surfaces = timed(&mut t, Stage::Reconstruction, || reconstruction(&vis.gbuffer, g, eye));
-            let rays = timed(&mut t, Stage::Compaction, || compaction::compaction(&surfaces, &g.lights));
-            let (occluded, shadow) = timed(&mut t, Stage::ShadowRays, || {
-                let occluded = shadow_rays(&scene.bvh, g, &rays);
-                let mask = compaction::shadow_mask(&rays, &occluded, surfaces.len(), g.lights.len());
-                (occluded, mask)
+            let covered = timed(&mut t, Stage::VisibilityRaster, || visibility_raster_into(g, camera, &mut f.gbuffer));
+            timed(&mut t, Stage::Reconstruction, || reconstruction_into(&f.gbuffer, g, eye, &mut f.surfaces));
+            timed(&mut t, Stage::Compaction, || compaction_into(&f.surfaces, &g.lights, scratch, &mut f.rays));
+            timed(&mut t, Stage::ShadowRays, || {
+                shadow_rays_into(&scene.bvh, g, &f.rays, &mut f.occluded);
+                shadow_mask_into(&f.rays, &f.occluded, f.surfaces.len(), g.lights.len(), &mut f.shadow);
             });
-            let rt = timed(&mut t, Stage::RtShading, || rt_shading(&surfaces, &shadow, &g.objects, &g.lights, eye));
-            let raster = timed(&mut t, Stage::RasterShading, || {
-                raster_shading(&surfaces, &shadow, &g.objects, &g.lights, options.weight)
+            timed(&mut t, Stage::RtShading, || {
+                rt_shading_into(&f.surfaces, &f.shadow, &g.objects, &g.lights, eye, &mut f.rt)
             });
-            let final_image = timed(&mut t, Stage::Composition, || composition(&raster, &rt, options.weight));
+            timed(&mut t, Stage::RasterShading, || {
+                raster_shading_into(&f.surfaces, &f.shadow, &g.objects, &g.lights, options.weight, &mut f.raster)
+            });
+            timed(&mut t, Stage::Composition, || {
+                composition_into(&f.raster, &f.rt, options.weight, &mut f.final_image)
+            });
 
-            let mut stats =
-                FrameStats { width: vis.width, height: vis.height, threads, stage_ms: t, ..FrameStats::default() };
-            for texel in &vis.gbuffer {
-                if texel.is_hit() {
-                    stats.covered_pixels += 1;
-                    if texel.is_ray_traced() {
-                        stats.ray_traced_pixels += 1;
-                    } else {
-                        stats.raster_pixels += 1;
-                    }
-                }
-            }
+            let mut stats = FrameStats {
+                width: camera.width,
+                height: camera.height,
+                threads,
+                stage_ms: t,
+                ..FrameStats::default()
+            };
+            stats.covered_pixels = covered as u64;
+            stats.ray_traced_pixels = f.gbuffer.par_iter().filter(|t| t.is_hit() && t.is_ray_traced()).count() as u64;
+            stats.raster_pixels = stats.covered_pixels - stats.ray_traced_pixels;
             let mut per_kind = [0u64; RAY_KIND_COUNT];
-            for r in &rays {
+            for r in &f.rays {
                 per_kind[r.kind as usize] += 1;
             }
             stats.rays_per_kind = per_kind;
-            stats.occluded_shadow_rays = occluded.iter().filter(|&&o| o != 0).count() as u64;
-            Frame {
-                width: vis.width,
-                height: vis.height,
-                gbuffer: vis.gbuffer,
-                surfaces,
-                rays,
-                occluded,
-                shadow,
-                raster,
-                rt,
-                final_image,
-                stats,
-            }
-        }))
+            stats.occluded_shadow_rays = f.occluded.par_iter().filter(|&&o| o != 0).count() as u64;
+            f.width = camera.width;
+            f.height = camera.height;
+            f.stats = stats;
+        });
+        Ok(())
     }
 }

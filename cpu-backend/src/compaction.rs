@@ -29,13 +29,21 @@ pub const SHADOW_T_MAX_POINT: f32 = 1.0 - 1.0 / 65536.0;
 /// Indices of the non-zero `flags`, in increasing order: a parallel exclusive
 /// scan over per-block counts, then a parallel scatter. Stable and deterministic.
 pub fn compact(flags: &[u32]) -> Vec<u32> {
+    let mut out = Vec::new();
+    compact_into(flags, &mut out);
+    out
+}
+
+/// [`compact`] into a caller-owned buffer, reusing its allocation.
+pub fn compact_into(flags: &[u32], out: &mut Vec<u32>) {
     let counts: Vec<u32> =
         flags.par_chunks(COMPACTION_BLOCK).map(|c| c.iter().filter(|&&f| f != 0).count() as u32).collect();
     let (offsets, total) = hyrt_core::kernels::scan::exclusive_scan_sums(&counts);
-    let mut out = vec![0u32; total as usize];
+    out.clear();
+    out.resize(total as usize, 0);
     // Split the output into the disjoint ranges each block writes.
     let mut slices = Vec::with_capacity(counts.len());
-    let mut rest: &mut [u32] = &mut out;
+    let mut rest: &mut [u32] = out;
     for &c in &counts {
         let (head, tail) = rest.split_at_mut(c as usize);
         slices.push(head);
@@ -53,7 +61,6 @@ pub fn compact(flags: &[u32]) -> Vec<u32> {
         debug_assert_eq!(k, dst.len());
     });
     debug_assert_eq!(offsets.len(), counts.len());
-    out
 }
 
 /// Whether the pixel's surface needs a shadow ray towards `light`: it has a
@@ -93,45 +100,72 @@ pub fn shadow_ray(s: &SurfaceRecord, light: &LightRecord, light_index: u32, pixe
     }
 }
 
+/// Buffers [`compaction_into`] keeps between frames: the flags and the indices
+/// of the active (light, pixel) pairs.
+#[derive(Clone, Debug, Default)]
+pub struct CompactionScratch {
+    pub flags: Vec<u32>,
+    pub active: Vec<u32>,
+}
+
 /// The stage: flag every (light, pixel) pair whose light can contribute at the
 /// pixel's surface, compact the flags, and build one shadow ray per survivor.
 pub fn compaction(surfaces: &[SurfaceRecord], lights: &[LightRecord]) -> Vec<RayRecord> {
+    let mut rays = Vec::new();
+    compaction_into(surfaces, lights, &mut CompactionScratch::default(), &mut rays);
+    rays
+}
+
+/// [`compaction`] into caller-owned buffers, reusing their allocations.
+pub fn compaction_into(
+    surfaces: &[SurfaceRecord],
+    lights: &[LightRecord],
+    scratch: &mut CompactionScratch,
+    rays: &mut Vec<RayRecord>,
+) {
     let n = surfaces.len();
-    let flags: Vec<u32> = (0..n * lights.len())
+    (0..n * lights.len())
         .into_par_iter()
         .with_min_len(4096)
         .map(|k| {
             let (l, p) = (k / n, k % n);
             needs_shadow_ray(&surfaces[p], &lights[l]) as u32
         })
-        .collect();
-    let active = compact(&flags);
-    let rays: Vec<RayRecord> = active
+        .collect_into_vec(&mut scratch.flags);
+    compact_into(&scratch.flags, &mut scratch.active);
+    scratch
+        .active
         .par_iter()
         .with_min_len(1024)
         .map(|&k| {
             let (l, p) = (k as usize / n, k as usize % n);
             shadow_ray(&surfaces[p], &lights[l], l as u32, p as u32)
         })
-        .collect();
+        .collect_into_vec(rays);
     if cfg!(debug_assertions) {
-        for r in &rays {
+        for r in rays.iter() {
             if let Err(e) = r.validate() {
                 panic!("compaction: {e}");
             }
         }
     }
-    rays
 }
 
 /// Scatter the traced shadow rays back to a per-(pixel, light) mask of
 /// `SHADOW_*` values, indexed `pixel * lights + light`.
 pub fn shadow_mask(rays: &[RayRecord], occluded: &[u32], pixels: usize, lights: usize) -> Vec<u8> {
+    let mut mask = Vec::new();
+    shadow_mask_into(rays, occluded, pixels, lights, &mut mask);
+    mask
+}
+
+/// [`shadow_mask`] into a caller-owned buffer, reusing its allocation.
+pub fn shadow_mask_into(rays: &[RayRecord], occluded: &[u32], pixels: usize, lights: usize, mask: &mut Vec<u8>) {
     assert_eq!(rays.len(), occluded.len(), "one occlusion result per ray");
-    let mut mask = vec![SHADOW_NO_RAY; pixels * lights];
+    mask.clear();
+    mask.resize(pixels * lights, SHADOW_NO_RAY);
     for (r, &o) in rays.iter().zip(occluded) {
         debug_assert!(r.light != INVALID_ID);
         mask[r.pixel as usize * lights + r.light as usize] = if o != 0 { SHADOW_OCCLUDED } else { SHADOW_LIT };
     }
-    mask
 }

@@ -10,6 +10,13 @@ use rayon::prelude::*;
 
 /// The stage.
 pub fn composition(raster: &[[f32; 4]], rt: &[[f32; 4]], weight: f32) -> Vec<[f32; 4]> {
+    let mut out = Vec::new();
+    composition_into(raster, rt, weight, &mut out);
+    out
+}
+
+/// [`composition`] into a caller-owned image, reusing its allocation.
+pub fn composition_into(raster: &[[f32; 4]], rt: &[[f32; 4]], weight: f32, out: &mut Vec<[f32; 4]>) {
     assert_eq!(raster.len(), rt.len(), "images of different sizes");
     raster
         .par_iter()
@@ -23,5 +30,5 @@ pub fn composition(raster: &[[f32; 4]], rt: &[[f32; 4]], weight: f32) -> Vec<[f3
                 *r
             }
         })
-        .collect()
+        .collect_into_vec(out);
 }

@@ -28,6 +28,20 @@ pub fn raster_shading(
     lights: &[LightRecord],
     weight: f32,
 ) -> Vec<[f32; 4]> {
+    let mut out = Vec::new();
+    raster_shading_into(surfaces, shadow, objects, lights, weight, &mut out);
+    out
+}
+
+/// [`raster_shading`] into a caller-owned image, reusing its allocation.
+pub fn raster_shading_into(
+    surfaces: &[SurfaceRecord],
+    shadow: &[u8],
+    objects: &[ObjectRecord],
+    lights: &[LightRecord],
+    weight: f32,
+    out: &mut Vec<[f32; 4]>,
+) {
     let nl = lights.len();
     let shade_rt_objects = weight < 1.0;
     let background = Vec3::from(BACKGROUND).extend(1.0).into();
@@ -45,5 +59,5 @@ pub fn raster_shading(
             }
             shade_raster_pixel(s, obj, &shadow[i * nl..(i + 1) * nl], lights).extend(1.0).into()
         })
-        .collect()
+        .collect_into_vec(out);
 }

@@ -43,8 +43,19 @@ pub fn reconstruct_texel(t: &GBufferTexel, geometry: &WorldGeometry, eye: Vec3) 
 
 /// The stage: reconstruct every pixel in parallel.
 pub fn reconstruction(gbuffer: &[GBufferTexel], geometry: &WorldGeometry, eye: Vec3) -> Vec<SurfaceRecord> {
-    let out: Vec<SurfaceRecord> =
-        gbuffer.par_iter().with_min_len(1024).map(|t| reconstruct_texel(t, geometry, eye)).collect();
+    let mut out = Vec::new();
+    reconstruction_into(gbuffer, geometry, eye, &mut out);
+    out
+}
+
+/// [`reconstruction`] into a caller-owned buffer, reusing its allocation.
+pub fn reconstruction_into(
+    gbuffer: &[GBufferTexel],
+    geometry: &WorldGeometry,
+    eye: Vec3,
+    out: &mut Vec<SurfaceRecord>,
+) {
+    gbuffer.par_iter().with_min_len(1024).map(|t| reconstruct_texel(t, geometry, eye)).collect_into_vec(out);
     if cfg!(debug_assertions) {
         for (i, s) in out.iter().enumerate() {
             if let Err(e) = s.validate() {
@@ -52,5 +63,4 @@ pub fn reconstruction(gbuffer: &[GBufferTexel], geometry: &WorldGeometry, eye: V
             }
         }
     }
-    out
 }

@@ -27,6 +27,20 @@ pub fn rt_shading(
     lights: &[LightRecord],
     eye: Vec3,
 ) -> Vec<[f32; 4]> {
+    let mut out = Vec::new();
+    rt_shading_into(surfaces, shadow, objects, lights, eye, &mut out);
+    out
+}
+
+/// [`rt_shading`] into a caller-owned image, reusing its allocation.
+pub fn rt_shading_into(
+    surfaces: &[SurfaceRecord],
+    shadow: &[u8],
+    objects: &[ObjectRecord],
+    lights: &[LightRecord],
+    eye: Vec3,
+    out: &mut Vec<[f32; 4]>,
+) {
     let nl = lights.len();
     surfaces
         .par_iter()
@@ -42,5 +56,5 @@ pub fn rt_shading(
             }
             shade_rt_pixel(s, obj, &shadow[i * nl..(i + 1) * nl], lights, eye).extend(1.0).into()
         })
-        .collect()
+        .collect_into_vec(out);
 }

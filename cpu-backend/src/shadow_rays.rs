@@ -24,8 +24,16 @@ pub const SHADOW_RAY_CHUNK: usize = 1024;
 /// [`RayRecord::validate`] in debug builds (an invalid ray is a bug of the stage that
 /// made it); in release builds an invalid ray is reported visible.
 pub fn shadow_rays(bvh: &Bvh, geometry: &WorldGeometry, rays: &[RayRecord]) -> Vec<u32> {
+    let mut out = Vec::new();
+    shadow_rays_into(bvh, geometry, rays, &mut out);
+    out
+}
+
+/// [`shadow_rays`] into a caller-owned buffer, reusing its allocation.
+pub fn shadow_rays_into(bvh: &Bvh, geometry: &WorldGeometry, rays: &[RayRecord], out: &mut Vec<u32>) {
     let triangles = &geometry.triangles;
-    let mut out = vec![SHADOW_VISIBLE; rays.len()];
+    out.clear();
+    out.resize(rays.len(), SHADOW_VISIBLE);
     out.par_chunks_mut(SHADOW_RAY_CHUNK).zip(rays.par_chunks(SHADOW_RAY_CHUNK)).for_each(|(out, rays)| {
         for (o, ray) in out.iter_mut().zip(rays) {
             if cfg!(debug_assertions) {
@@ -36,5 +44,4 @@ pub fn shadow_rays(bvh: &Bvh, geometry: &WorldGeometry, rays: &[RayRecord]) -> V
             *o = if bvh.occluded(triangles, ray) { SHADOW_OCCLUDED } else { SHADOW_VISIBLE };
         }
     });
-    out
 }

@@ -181,18 +181,38 @@ impl Frame {
 /// area after snapping or nothing inside the view are skipped. An empty image
 /// (width or height 0) gives an empty G-buffer.
 pub fn visibility_raster(geometry: &WorldGeometry, camera: &CameraRecord) -> VisibilityOutput {
-    raster_frame(geometry, camera, true)
+    let mut gbuffer = Vec::new();
+    let covered_pixels = raster_frame(geometry, camera, true, &mut gbuffer);
+    VisibilityOutput { gbuffer, width: camera.width, height: camera.height, covered_pixels }
+}
+
+/// [`visibility_raster`] into a caller-owned G-buffer, reusing its allocation from
+/// frame to frame (no page faults on a buffer of the same size). Returns the number
+/// of covered pixels. Every texel is written, whatever the buffer held before.
+pub fn visibility_raster_into(
+    geometry: &WorldGeometry,
+    camera: &CameraRecord,
+    gbuffer: &mut Vec<GBufferTexel>,
+) -> usize {
+    raster_frame(geometry, camera, true, gbuffer)
 }
 
 /// [`visibility_raster`], with or without the early depth rejection (which must not
 /// change a single bit; the unit tests compare both).
-fn raster_frame(geometry: &WorldGeometry, camera: &CameraRecord, early_reject: bool) -> VisibilityOutput {
+fn raster_frame(
+    geometry: &WorldGeometry,
+    camera: &CameraRecord,
+    early_reject: bool,
+    gbuffer: &mut Vec<GBufferTexel>,
+) -> usize {
     let (w, h) = (camera.width as usize, camera.height as usize);
-    // Zeroed (calloc) rather than filled: every texel of the rasterized area is
-    // written by its tile, in parallel.
-    let mut gbuffer: Vec<GBufferTexel> = bytemuck::zeroed_vec(w * h);
+    // Sized, not filled: every texel of the rasterized area is written by its tile,
+    // in parallel. A fresh buffer is zeroed (calloc); a reused one keeps its pages.
+    if gbuffer.len() != w * h {
+        *gbuffer = bytemuck::zeroed_vec(w * h);
+    }
     if w == 0 || h == 0 {
-        return VisibilityOutput { gbuffer, width: camera.width, height: camera.height, covered_pixels: 0 };
+        return 0;
     }
     let frame = Frame::new(camera);
     if frame.width as usize != w || frame.height as usize != h {
@@ -200,7 +220,7 @@ fn raster_frame(geometry: &WorldGeometry, camera: &CameraRecord, early_reject: b
         gbuffer.fill(GBufferTexel::MISS);
     }
     let tris = setup_triangles(geometry, camera, &frame);
-    let slices = tile_slices(&mut gbuffer, w, &frame);
+    let slices = tile_slices(gbuffer, w, &frame);
     let covered: usize = slices
         .into_par_iter()
         .enumerate()
@@ -215,7 +235,7 @@ fn raster_frame(geometry: &WorldGeometry, camera: &CameraRecord, early_reject: b
             resolve_tile(&tris, scratch, rect, rows)
         })
         .sum();
-    VisibilityOutput { gbuffer, width: camera.width, height: camera.height, covered_pixels: covered }
+    covered
 }
 
 /// Count, per pixel, the front- and back-facing rasterized triangles covering its
@@ -913,8 +933,12 @@ mod tests {
             let g = WorldGeometry::build(&scene);
             for (w, h) in [(160, 90), (67, 131)] {
                 let cam = CameraRecord::new(&scene.camera.unwrap(), w, h);
-                let fast = raster_frame(&g, &cam, true);
-                let slow = raster_frame(&g, &cam, false);
+                let run = |early_reject| {
+                    let mut gbuffer = Vec::new();
+                    let covered_pixels = raster_frame(&g, &cam, early_reject, &mut gbuffer);
+                    VisibilityOutput { gbuffer, width: w, height: h, covered_pixels }
+                };
+                let (fast, slow) = (run(true), run(false));
                 assert!(fast.covered_pixels > 0);
                 assert_eq!(fast.covered_pixels, slow.covered_pixels);
                 assert_eq!(bits(&fast), bits(&slow));

@@ -1264,3 +1264,23 @@ fn visibility_raster_matches_ray_cast_floating_objects() {
     // the torus' inner side seen through its hole is still its outer surface.
     assert!(out.gbuffer.iter().filter(|t| t.is_hit()).all(|t| t.flags & GBUF_BACK_FACE == 0));
 }
+
+#[test]
+fn visibility_raster_into_a_reused_buffer_equals_a_fresh_one() {
+    // A buffer left over from another scene (and filled with garbage) must not leak
+    // into the next frame: every texel is written.
+    let scene = hyrt_core::scene::Scene::default_scene();
+    let g = hyrt_core::geometry::WorldGeometry::build(&scene);
+    let cam = CameraRecord::new(&scene.camera.unwrap(), 97, 61);
+    let fresh = hyrt_cpu::visibility_raster::visibility_raster(&g, &cam);
+    let garbage = GBufferTexel { bary_u: 7.0, bary_v: -3.0, depth: 0.25, triangle: 5, object: 1, flags: 3 };
+    let mut reused = vec![garbage; 97 * 61];
+    let covered = hyrt_cpu::visibility_raster::visibility_raster_into(&g, &cam, &mut reused);
+    assert_eq!(covered, fresh.covered_pixels);
+    let bits = |b: &[GBufferTexel]| b.iter().map(|t| t.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&reused), bits(&fresh.gbuffer));
+    // A buffer of another size is replaced.
+    let mut wrong_size = vec![garbage; 3];
+    hyrt_cpu::visibility_raster::visibility_raster_into(&g, &cam, &mut wrong_size);
+    assert_eq!(bits(&wrong_size), bits(&fresh.gbuffer));
+}

@@ -100,10 +100,26 @@ impl Renderer {
         height: u32,
         options: &FrameOptions,
     ) -> Result<Frame, RenderError> {
+        let mut frame = Frame::default();
+        self.render_into(prepared, camera, width, height, options, &mut frame)?;
+        Ok(frame)
+    }
+
+    /// Render into `frame`, reusing its buffers from an earlier frame (the way to
+    /// render many frames: a frame of the same size then allocates nothing).
+    pub fn render_into(
+        &self,
+        prepared: &PreparedScene,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+        options: &FrameOptions,
+        frame: &mut Frame,
+    ) -> Result<(), RenderError> {
         if width == 0 || height == 0 {
             return Err(RenderError::InvalidOptions(format!("image size must be non-zero, got {width}x{height}")));
         }
         let record = formats::CameraRecord::new(camera, width, height);
-        self.backend.borrow_mut().render(prepared, &record, options)
+        self.backend.borrow_mut().render_into(prepared, &record, options, frame)
     }
 }
