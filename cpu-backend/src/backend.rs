@@ -122,11 +122,18 @@ impl Backend for CpuBackend {
             stats.covered_pixels = covered as u64;
             stats.ray_traced_pixels = f.gbuffer.par_iter().filter(|t| t.is_hit() && t.is_ray_traced()).count() as u64;
             stats.raster_pixels = stats.covered_pixels - stats.ray_traced_pixels;
-            let mut per_kind = [0u64; RAY_KIND_COUNT];
-            for r in &f.rays {
-                per_kind[r.kind as usize] += 1;
-            }
-            stats.rays_per_kind = per_kind;
+            stats.rays_per_kind = f
+                .rays
+                .par_iter()
+                .with_min_len(16384)
+                .fold(
+                    || [0u64; RAY_KIND_COUNT],
+                    |mut k, r| {
+                        k[r.kind as usize] += 1;
+                        k
+                    },
+                )
+                .reduce(|| [0u64; RAY_KIND_COUNT], |a, b| std::array::from_fn(|i| a[i] + b[i]));
             stats.occluded_shadow_rays = f.occluded.par_iter().filter(|&&o| o != 0).count() as u64;
             f.width = camera.width;
             f.height = camera.height;
