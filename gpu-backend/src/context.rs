@@ -1,0 +1,136 @@
+//! Adapter and device selection.
+
+use crate::GpuError;
+
+/// Environment variable that allows a software adapter (Mesa lavapipe) when set to `1`.
+pub const ALLOW_SOFTWARE_ENV: &str = "HYRT_GPU_ALLOW_SOFTWARE";
+
+/// Which adapters [`GpuContext::new`] accepts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AdapterPolicy {
+    /// A hardware GPU only (integrated, discrete or virtual).
+    HardwareOnly,
+    /// Hardware preferred; a software (CPU) adapter such as lavapipe is accepted.
+    AllowSoftware,
+}
+
+impl AdapterPolicy {
+    /// `AllowSoftware` when [`ALLOW_SOFTWARE_ENV`] is `1`, else `HardwareOnly`.
+    pub fn from_env() -> Self {
+        match std::env::var(ALLOW_SOFTWARE_ENV).as_deref() {
+            Ok("1") => AdapterPolicy::AllowSoftware,
+            _ => AdapterPolicy::HardwareOnly,
+        }
+    }
+}
+
+/// A device and queue plus what the adapter offers.
+pub struct GpuContext {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub info: wgpu::AdapterInfo,
+    pub limits: wgpu::Limits,
+    /// `@builtin(primitive_index)` is available (wgpu `PRIMITIVE_INDEX`); without it
+    /// the raster pass uses flat-interpolated ids on unshared vertices.
+    pub primitive_index: bool,
+    /// GPU timestamp queries are available for per-stage timings.
+    pub timestamps: bool,
+}
+
+impl std::fmt::Debug for GpuContext {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GpuContext")
+            .field("adapter", &self.info.name)
+            .field("device_type", &self.info.device_type)
+            .field("driver", &self.info.driver)
+            .field("primitive_index", &self.primitive_index)
+            .field("timestamps", &self.timestamps)
+            .finish()
+    }
+}
+
+/// True for adapters that run on the CPU (lavapipe, llvmpipe, SwiftShader).
+pub fn is_software(info: &wgpu::AdapterInfo) -> bool {
+    info.device_type == wgpu::DeviceType::Cpu
+}
+
+impl GpuContext {
+    /// Pick a Vulkan adapter under `policy` and create a device with the features
+    /// hyrt uses where the adapter has them (primitive index, timestamp queries).
+    pub fn new(policy: AdapterPolicy) -> Result<GpuContext, GpuError> {
+        // Vulkan only, asked for explicitly: with default backends a missing Vulkan
+        // driver silently falls back to GL.
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+            backends: wgpu::Backends::VULKAN,
+            ..wgpu::InstanceDescriptor::new_without_display_handle()
+        });
+        let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN));
+        // Hardware first (discrete, integrated, virtual), software last.
+        let rank = |a: &wgpu::Adapter| match a.get_info().device_type {
+            wgpu::DeviceType::DiscreteGpu => 0,
+            wgpu::DeviceType::IntegratedGpu => 1,
+            wgpu::DeviceType::VirtualGpu => 2,
+            wgpu::DeviceType::Other => 3,
+            wgpu::DeviceType::Cpu => 4,
+        };
+        let adapter = adapters.into_iter().min_by_key(rank).ok_or(GpuError::NoAdapter)?;
+        let info = adapter.get_info();
+        if is_software(&info) && policy == AdapterPolicy::HardwareOnly {
+            return Err(GpuError::SoftwareOnly { name: format!("{} ({})", info.name, info.driver) });
+        }
+        let offered = adapter.features();
+        let wanted = wgpu::Features::PRIMITIVE_INDEX | wgpu::Features::TIMESTAMP_QUERY;
+        let features = offered & wanted;
+        let limits = wgpu::Limits {
+            max_storage_buffer_binding_size: adapter.limits().max_storage_buffer_binding_size,
+            max_buffer_size: adapter.limits().max_buffer_size,
+            max_storage_buffers_per_shader_stage: adapter.limits().max_storage_buffers_per_shader_stage.min(16),
+            max_compute_workgroup_storage_size: adapter.limits().max_compute_workgroup_storage_size,
+            ..wgpu::Limits::default()
+        };
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("hyrt"),
+            required_features: features,
+            required_limits: limits.clone(),
+            ..Default::default()
+        }))
+        .map_err(|e| GpuError::RequestDevice { adapter: info.name.clone(), message: e.to_string() })?;
+        Ok(GpuContext {
+            device,
+            queue,
+            info,
+            limits,
+            primitive_index: features.contains(wgpu::Features::PRIMITIVE_INDEX),
+            timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
+        })
+    }
+
+    /// A one-line description: adapter, type, driver, and the features in use.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} ({:?}, {} {}); triangle ids via {}; timings via {}",
+            self.info.name,
+            self.info.device_type,
+            self.info.driver,
+            self.info.driver_info,
+            if self.primitive_index { "@builtin(primitive_index)" } else { "flat-interpolated vertex ids" },
+            if self.timestamps { "timestamp queries" } else { "wall clock" },
+        )
+    }
+
+    /// Run `f` and turn any wgpu validation or out-of-memory error it raised into a
+    /// [`GpuError`] instead of wgpu's default panic.
+    pub fn checked<T>(&self, f: impl FnOnce() -> T) -> Result<T, GpuError> {
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let r = f();
+        if let Some(e) = pollster::block_on(validation.pop()) {
+            let _ = pollster::block_on(oom.pop());
+            return Err(GpuError::Validation(e.to_string()));
+        }
+        if let Some(e) = pollster::block_on(oom.pop()) {
+            return Err(GpuError::OutOfMemory(e.to_string()));
+        }
+        Ok(r)
+    }
+}

@@ -1,0 +1,79 @@
+//! Storage buffers of core formats: creation, upload and readback.
+
+use bytemuck::Pod;
+use wgpu::util::DeviceExt;
+
+use crate::{GpuContext, GpuError};
+
+/// Usage of every hyrt storage buffer: read and written by shaders, copied to and
+/// from for uploads, readbacks and `--dump`.
+pub const STORAGE: wgpu::BufferUsages =
+    wgpu::BufferUsages::STORAGE.union(wgpu::BufferUsages::COPY_SRC).union(wgpu::BufferUsages::COPY_DST);
+
+/// WebGPU forbids zero-sized bindings: empty tables get one zeroed element.
+fn non_empty<T: Pod>(data: &[T]) -> std::borrow::Cow<'_, [T]> {
+    if data.is_empty() {
+        std::borrow::Cow::Owned(vec![T::zeroed()])
+    } else {
+        std::borrow::Cow::Borrowed(data)
+    }
+}
+
+/// A storage buffer initialized with `data` (one zeroed element if empty).
+pub fn upload<T: Pod>(ctx: &GpuContext, label: &str, data: &[T]) -> wgpu::Buffer {
+    ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: bytemuck::cast_slice(&non_empty(data)),
+        usage: STORAGE,
+    })
+}
+
+/// An uninitialized (zeroed by wgpu) storage buffer of `count` elements of `T`
+/// (at least one), checked against the device's limits.
+pub fn storage<T: Pod>(ctx: &GpuContext, label: &str, count: usize) -> Result<wgpu::Buffer, GpuError> {
+    let size = (count.max(1) * std::mem::size_of::<T>()) as u64;
+    let max = ctx.limits.max_storage_buffer_binding_size.min(ctx.limits.max_buffer_size);
+    if size > max {
+        return Err(GpuError::Limits(format!(
+            "{label}: {size} bytes exceeds the device's {max}-byte storage buffer limit"
+        )));
+    }
+    Ok(ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size,
+        usage: STORAGE,
+        mapped_at_creation: false,
+    }))
+}
+
+/// Copy the first `count` elements of `buffer` back to the CPU (waits for the GPU).
+pub fn read_back<T: Pod>(ctx: &GpuContext, buffer: &wgpu::Buffer, count: usize) -> Result<Vec<T>, GpuError> {
+    let size = (count * std::mem::size_of::<T>()) as u64;
+    if size == 0 {
+        return Ok(Vec::new());
+    }
+    let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("hyrt readback"),
+        size,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("readback") });
+    encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, size);
+    ctx.queue.submit([encoder.finish()]);
+    let slice = staging.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    ctx.device
+        .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
+        .map_err(|e| GpuError::Readback(e.to_string()))?;
+    rx.recv().map_err(|e| GpuError::Readback(e.to_string()))?.map_err(|e| GpuError::Readback(e.to_string()))?;
+    let out = {
+        let view = slice.get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
+        bytemuck::pod_collect_to_vec::<u8, T>(&view[..])
+    };
+    staging.unmap();
+    Ok(out)
+}

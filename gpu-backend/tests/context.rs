@@ -1,0 +1,41 @@
+//! The GPU context: an adapter is found (lavapipe in CI) and buffers round-trip.
+//!
+//! GPU tests need a Vulkan adapter. In CI (`CI` set) a missing adapter is a
+//! failure; locally the test says so and skips.
+
+use hyrt_gpu::{gpu_buffer, AdapterPolicy, GpuContext};
+
+/// The context for GPU tests: software adapters allowed; a missing adapter fails
+/// in CI and skips, visibly, elsewhere.
+pub fn test_context() -> Option<GpuContext> {
+    match GpuContext::new(AdapterPolicy::AllowSoftware) {
+        Ok(ctx) => Some(ctx),
+        Err(e) if std::env::var_os("CI").is_some() => panic!("CI needs a GPU adapter (lavapipe): {e}"),
+        Err(e) => {
+            eprintln!("SKIPPED: no GPU adapter: {e}");
+            None
+        }
+    }
+}
+
+#[test]
+fn context_finds_an_adapter_and_round_trips_a_buffer() {
+    let Some(ctx) = test_context() else { return };
+    eprintln!("adapter: {}", ctx.describe());
+    let data: Vec<u32> = (0..1000).map(|i| i * 3 + 1).collect();
+    let buf = gpu_buffer::upload(&ctx, "test", &data);
+    assert_eq!(gpu_buffer::read_back::<u32>(&ctx, &buf, data.len()).unwrap(), data);
+    let empty = gpu_buffer::upload::<u32>(&ctx, "empty", &[]);
+    assert_eq!(empty.size(), 4, "empty tables get one element");
+}
+
+#[test]
+fn context_hardware_only_policy_rejects_software_adapters() {
+    match GpuContext::new(AdapterPolicy::HardwareOnly) {
+        Ok(ctx) => assert!(!hyrt_gpu::context::is_software(&ctx.info), "{}", ctx.describe()),
+        Err(e) => {
+            let msg = e.to_string();
+            assert!(msg.contains("HYRT_GPU_ALLOW_SOFTWARE") || msg.contains("no GPU adapter"), "{msg}");
+        }
+    }
+}
