@@ -3,20 +3,10 @@
 //! GPU tests need a Vulkan adapter. In CI (`CI` set) a missing adapter is a
 //! failure; locally the test says so and skips.
 
-use hyrt_gpu::{gpu_buffer, AdapterPolicy, GpuContext};
+mod common;
 
-/// The context for GPU tests: software adapters allowed; a missing adapter fails
-/// in CI and skips, visibly, elsewhere.
-pub fn test_context() -> Option<GpuContext> {
-    match GpuContext::new(AdapterPolicy::AllowSoftware) {
-        Ok(ctx) => Some(ctx),
-        Err(e) if std::env::var_os("CI").is_some() => panic!("CI needs a GPU adapter (lavapipe): {e}"),
-        Err(e) => {
-            eprintln!("SKIPPED: no GPU adapter: {e}");
-            None
-        }
-    }
-}
+use common::test_context;
+use hyrt_gpu::{gpu_buffer, AdapterPolicy, GpuContext};
 
 #[test]
 fn context_finds_an_adapter_and_round_trips_a_buffer() {
