@@ -23,6 +23,25 @@ pub struct PreparedScene {
     pub bvh: Bvh,
     /// Time the `bvh_build` stage took, in milliseconds.
     pub bvh_build_ms: f64,
+    /// Unique per prepared scene (clones share it: same content): backends that keep the scene's
+    /// tables on a device key their caches by it. Fields are public for reading;
+    /// build with [`PreparedScene::new`] so the id stays unique.
+    id: u64,
+}
+
+impl PreparedScene {
+    /// A prepared scene with a fresh id.
+    pub fn new(geometry: WorldGeometry, bvh: Bvh, bvh_build_ms: f64) -> Self {
+        static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+        let id = NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        PreparedScene { geometry, bvh, bvh_build_ms, id }
+    }
+
+    /// The id device caches are keyed by. Mutating the public fields after a
+    /// backend has seen the scene is not supported: prepare a new scene instead.
+    pub fn id(&self) -> u64 {
+        self.id
+    }
 }
 
 /// Per-frame settings.
@@ -46,6 +65,9 @@ pub enum RenderError {
     InvalidOptions(String),
     #[error("invalid camera: {0}")]
     InvalidCamera(String),
+    /// The backend's device failed (GPU: no adapter, device lost, out of memory, ...).
+    #[error(transparent)]
+    Backend(Box<dyn std::error::Error + Send + Sync>),
 }
 
 /// Milliseconds one stage took.

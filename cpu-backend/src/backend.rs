@@ -50,7 +50,7 @@ impl CpuBackend {
         self.pool.install(|| {
             let t = Instant::now();
             let bvh = bvh_build(&geometry, preset);
-            PreparedScene { geometry, bvh, bvh_build_ms: t.elapsed().as_secs_f64() * 1e3 }
+            PreparedScene::new(geometry, bvh, t.elapsed().as_secs_f64() * 1e3)
         })
     }
 }
