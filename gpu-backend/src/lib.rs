@@ -10,6 +10,7 @@
 //! preferred; a software adapter (Mesa lavapipe) only when the caller allows it
 //! ([`context::AdapterPolicy::AllowSoftware`], or `HYRT_GPU_ALLOW_SOFTWARE=1`).
 
+pub mod backend;
 pub mod buffers;
 pub mod context;
 pub mod error;

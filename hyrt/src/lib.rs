@@ -33,12 +33,19 @@ pub use hyrt_core::scene::{Camera, Light, Material, MaterialKind, Mesh, Object, 
 pub use hyrt_core::stage::Stage;
 pub use hyrt_core::{glam, SceneError};
 pub use hyrt_cpu::backend::CpuBackend;
+pub use hyrt_gpu::backend::GpuBackend;
+pub use hyrt_gpu::{AdapterPolicy, GpuError};
 
 /// Which backend renders.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BackendKind {
     /// The CPU reference backend (rayon).
     Cpu,
+    /// The GPU backend (wgpu, Vulkan); fails when no adapter fits the policy.
+    Gpu,
+    /// A hardware GPU when there is one (or a software one if the policy allows),
+    /// the CPU backend otherwise.
+    Auto,
 }
 
 /// Everything that can go wrong in the facade and the command-line program.
@@ -56,18 +63,53 @@ pub enum Error {
     },
     #[error("{path}: cannot encode image: {message}")]
     Image { path: std::path::PathBuf, message: String },
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
 }
 
-/// A backend plus the BVH preset it prepares scenes with.
+/// A backend plus the BVH preset it prepares scenes with. Scenes are always
+/// prepared (world tables, BVH) on the CPU, once, and fed to either backend, so
+/// both trace the very same BVH.
 pub struct Renderer {
-    backend: RefCell<CpuBackend>,
+    cpu: RefCell<CpuBackend>,
+    gpu: Option<RefCell<GpuBackend>>,
     preset: BvhPreset,
+    choice: String,
 }
 
 impl Renderer {
     /// The CPU backend with `threads` workers (`None`: one per core).
     pub fn cpu(threads: Option<usize>) -> Self {
-        Renderer { backend: RefCell::new(CpuBackend::new(threads)), preset: BvhPreset::default() }
+        let cpu = CpuBackend::new(threads);
+        let choice = format!("cpu ({} threads)", cpu.threads());
+        Renderer { cpu: RefCell::new(cpu), gpu: None, preset: BvhPreset::default(), choice }
+    }
+
+    /// The backend `kind` asks for. `policy` says whether a software GPU adapter
+    /// (lavapipe) is acceptable. [`Renderer::choice`] says what was taken and why.
+    pub fn new(kind: BackendKind, threads: Option<usize>, policy: AdapterPolicy) -> Result<Self, Error> {
+        let mut r = Renderer::cpu(threads);
+        match kind {
+            BackendKind::Cpu => {}
+            BackendKind::Gpu => {
+                let gpu = GpuBackend::new(policy)?;
+                r.choice = format!("gpu: {}", gpu.describe());
+                r.gpu = Some(RefCell::new(gpu));
+            }
+            BackendKind::Auto => match GpuBackend::new(policy) {
+                Ok(gpu) => {
+                    r.choice = format!("auto -> gpu: {}", gpu.describe());
+                    r.gpu = Some(RefCell::new(gpu));
+                }
+                Err(e) => r.choice = format!("auto -> {} (no usable GPU: {e})", r.choice),
+            },
+        }
+        Ok(r)
+    }
+
+    /// Which backend renders, on what, and why (for the user).
+    pub fn choice(&self) -> &str {
+        &self.choice
     }
 
     /// Use another BVH build preset for [`Renderer::prepare`].
@@ -76,19 +118,22 @@ impl Renderer {
         self
     }
 
-    /// The backend's name.
+    /// The rendering backend's name ("cpu" or "gpu").
     pub fn backend_name(&self) -> String {
-        self.backend.borrow().name().to_string()
+        match &self.gpu {
+            Some(g) => g.borrow().name().to_string(),
+            None => self.cpu.borrow().name().to_string(),
+        }
     }
 
-    /// Worker threads of the backend.
+    /// Worker threads of the CPU backend (which also prepares scenes).
     pub fn threads(&self) -> usize {
-        self.backend.borrow().threads()
+        self.cpu.borrow().threads()
     }
 
-    /// World tables + BVH of a scene (the `bvh_build` stage), built once per scene.
+    /// World tables + BVH of a scene (the `bvh_build` stage, on the CPU), built once per scene.
     pub fn prepare(&self, scene: &Scene) -> PreparedScene {
-        self.backend.borrow().prepare(WorldGeometry::build(scene), self.preset)
+        self.cpu.borrow().prepare(WorldGeometry::build(scene), self.preset)
     }
 
     /// Render one frame of `width` x `height` pixels.
@@ -120,6 +165,9 @@ impl Renderer {
             return Err(RenderError::InvalidOptions(format!("image size must be non-zero, got {width}x{height}")));
         }
         let record = formats::CameraRecord::new(camera, width, height);
-        self.backend.borrow_mut().render_into(prepared, &record, options, frame)
+        match &self.gpu {
+            Some(g) => g.borrow_mut().render_into(prepared, &record, options, frame),
+            None => self.cpu.borrow_mut().render_into(prepared, &record, options, frame),
+        }
     }
 }

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
-use hyrt::{glam::Vec3, BvhPreset, FrameOptions, Renderer, Scene, Stage};
+use hyrt::{glam::Vec3, AdapterPolicy, BackendKind, BvhPreset, FrameOptions, Renderer, Scene, Stage};
 
 #[derive(Parser)]
 #[command(name = "hyrt", version, about = "Hybrid rasterization + ray-tracing renderer")]
@@ -27,6 +27,10 @@ enum Command {
 enum BackendArg {
     /// The CPU reference backend.
     Cpu,
+    /// The GPU backend (Vulkan); fails when no adapter is found.
+    Gpu,
+    /// A hardware GPU if there is one, else the CPU backend (says which it took).
+    Auto,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -52,6 +56,10 @@ struct RenderArgs {
     /// Backend.
     #[arg(long, value_enum, default_value = "cpu")]
     backend: BackendArg,
+    /// Accept a software GPU adapter (Mesa lavapipe) for --backend gpu/auto
+    /// (also: environment HYRT_GPU_ALLOW_SOFTWARE=1).
+    #[arg(long)]
+    allow_software_gpu: bool,
     /// Composition weight of the ray-traced image in [0, 1] (paper 3.5).
     #[arg(long, default_value_t = 1.0, value_parser = parse_weight)]
     weight: f32,
@@ -150,9 +158,14 @@ fn render(args: RenderArgs) -> Result<(), String> {
         Some(PresetArg::Slow) => BvhPreset::Slow,
         Some(PresetArg::VerySlow) => BvhPreset::VerySlow,
     };
-    let renderer = match args.backend {
-        BackendArg::Cpu => Renderer::cpu(args.threads).with_bvh_preset(preset),
+    let kind = match args.backend {
+        BackendArg::Cpu => BackendKind::Cpu,
+        BackendArg::Gpu => BackendKind::Gpu,
+        BackendArg::Auto => BackendKind::Auto,
     };
+    let policy = if args.allow_software_gpu { AdapterPolicy::AllowSoftware } else { AdapterPolicy::from_env() };
+    let renderer = Renderer::new(kind, args.threads, policy).map_err(|e| e.to_string())?.with_bvh_preset(preset);
+    eprintln!("backend: {}", renderer.choice());
     let (w, h) = args.size;
     let prepared = renderer.prepare(&scene);
     let options = FrameOptions { weight: args.weight };
@@ -162,14 +175,13 @@ fn render(args: RenderArgs) -> Result<(), String> {
     let s = &frame.stats;
     let name = args.scene.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| "default scene".into());
     println!(
-        "{name}: {} objects, {} triangles, {} lights; {}x{} on {} ({} threads)",
+        "{name}: {} objects, {} triangles, {} lights; {}x{} on {}",
         scene.objects.len(),
         prepared.geometry.triangle_count(),
         prepared.geometry.lights.len(),
         w,
         h,
         renderer.backend_name(),
-        renderer.threads()
     );
     println!(
         "covered pixels {}, valid rays (ray-traced pixels) {}, raster pixels {}, shadow rays {} ({} occluded)",

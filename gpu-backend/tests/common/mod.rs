@@ -15,4 +15,3 @@ pub fn test_context() -> Option<GpuContext> {
         }
     }
 }
-
