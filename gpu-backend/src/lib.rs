@@ -11,9 +11,11 @@
 //! ([`context::AdapterPolicy::AllowSoftware`], or `HYRT_GPU_ALLOW_SOFTWARE=1`).
 
 pub mod buffers;
+pub mod compaction;
 pub mod context;
 pub mod error;
 pub mod gpu_buffer;
+pub mod shadow_rays;
 
 pub use context::{AdapterPolicy, GpuContext};
 pub use error::GpuError;
