@@ -12,9 +12,11 @@
 
 pub mod backend;
 pub mod buffers;
+pub mod compaction;
 pub mod context;
 pub mod error;
 pub mod gpu_buffer;
+pub mod shadow_rays;
 
 pub use context::{AdapterPolicy, GpuContext};
 pub use error::GpuError;

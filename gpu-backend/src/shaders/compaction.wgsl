@@ -1,0 +1,326 @@
+// Stage `compaction` (mirrors hyrt_cpu::compaction): flag every (light, pixel)
+// pair whose light can contribute at the pixel's surface (k = light * pixels +
+// pixel), then a deterministic reduce-then-scan over the flags and a scatter of
+// one shadow ray per active pair, light-major then pixel order.
+//
+// Prepended at pipeline creation: the generated constants (WG, ITEMS, TILE,
+// SHADOW_WG, ...) and ray.wgsl.
+//
+// Passes (one compute pass, one dispatch each, in order):
+//   flags_reduce  level 0: flags[k] = needs_shadow_ray, per-tile counts -> level 1
+//   reduce        level i -> level i + 1 (per-tile sums), while level i + 1 > TILE
+//   scan_top      one workgroup: exclusive scan of the top level in place; writes
+//                 ray_count = [count, dispatch_x, dispatch_y, 1]
+//   downsweep     level i, top-1 .. 1: exclusive scan of each tile in place plus
+//                 the tile's offset from level i + 1
+//   scatter_rays  level 0: local scan of the flags plus the tile offset; writes rays
+// Each tile is TILE = WG * ITEMS elements; thread `lid` owns ITEMS consecutive
+// elements. Integer sums only: the result is exact and independent of scheduling.
+
+struct Level {
+    // Elements at this level.
+    n: u32,
+    // Offset of this level in `levels` (unused at level 0, which is `flags`).
+    src_off: u32,
+    // Offset of the level above (one value per tile of this level) in `levels`.
+    dst_off: u32,
+    // 1: this level is the flags (values count as 0 or 1); 0: counts.
+    src_is_flags: u32,
+}
+
+struct FrameParams {
+    width: u32,
+    height: u32,
+    light_count: u32,
+    weight: f32,
+}
+
+// mirrors hyrt_core::formats::SurfaceRecord
+struct SurfaceRecord {
+    position: vec3<f32>,
+    position_error: f32,
+    normal: vec3<f32>,
+    object: u32,
+    geometric_normal: vec3<f32>,
+    triangle: u32,
+}
+
+// mirrors hyrt_core::formats::LightRecord
+struct LightRecord {
+    position_or_direction: vec3<f32>,
+    kind: u32,
+    radiance: vec3<f32>,
+    pad: u32,
+}
+
+// mirrors hyrt_core::formats::RayRecord, with t_max as its bits (the directional
+// t_max is +inf, which no WGSL constant may hold).
+struct RayRecordOut {
+    origin: vec3<f32>,
+    t_min: f32,
+    direction: vec3<f32>,
+    t_max_bits: u32,
+    pixel: u32,
+    kind: u32,
+    depth: u32,
+    light: u32,
+    throughput: vec3<f32>,
+    pad: u32,
+}
+
+@group(0) @binding(0) var<uniform> level: Level;
+@group(0) @binding(1) var<storage, read_write> flags: array<u32>;
+@group(0) @binding(2) var<storage, read_write> levels: array<u32>;
+@group(0) @binding(3) var<storage, read_write> ray_count: array<u32, 4>;
+
+@group(1) @binding(0) var<uniform> frame: FrameParams;
+@group(1) @binding(1) var<storage, read> surfaces: array<SurfaceRecord>;
+@group(1) @binding(2) var<storage, read> lights: array<LightRecord>;
+@group(1) @binding(3) var<storage, read_write> rays: array<RayRecordOut>;
+// Test entry point `scatter_indices` only: the compacted indices.
+@group(1) @binding(4) var<storage, read_write> out_indices: array<u32>;
+
+var<workgroup> scan_buf: array<u32, 2 * WG>;
+
+// Exclusive workgroup scan of one value per thread (Hillis-Steele, ping-pong
+// buffers: log2(WG) barriers). Returns (exclusive prefix, workgroup total).
+fn workgroup_scan(lid: u32, v: u32) -> vec2<u32> {
+    var src = 0u;
+    scan_buf[lid] = v;
+    workgroupBarrier();
+    for (var off = 1u; off < WG; off = off * 2u) {
+        let dst = 1u - src;
+        var x = scan_buf[src * WG + lid];
+        if lid >= off {
+            x = x + scan_buf[src * WG + lid - off];
+        }
+        scan_buf[dst * WG + lid] = x;
+        src = dst;
+        workgroupBarrier();
+    }
+    let inclusive = scan_buf[src * WG + lid];
+    let total = scan_buf[src * WG + WG - 1u];
+    // The next call overwrites scan_buf.
+    workgroupBarrier();
+    return vec2<u32>(inclusive - v, total);
+}
+
+// Tile index of a 2D dispatch (x-major), the same rule the host uses.
+fn tile_index(wid: vec3<u32>, nwg: vec3<u32>) -> u32 {
+    return wid.y * nwg.x + wid.x;
+}
+
+fn tiles_of(n: u32) -> u32 {
+    return (n + TILE - 1u) / TILE;
+}
+
+// mirrors hyrt_core::kernels::shading::light_incidence; returns (L, max_element(E)).
+fn light_incidence(light: LightRecord, p: vec3<f32>) -> vec4<f32> {
+    let radiance = light.radiance;
+    let pd = light.position_or_direction;
+    var l: vec3<f32>;
+    var e: vec3<f32>;
+    if light.kind == LIGHT_DIRECTIONAL {
+        l = -pd;
+        e = radiance;
+    } else {
+        let d = pd - p;
+        // glam's length_squared: (x * x + y * y) + z * z
+        let d2 = max((d.x * d.x + d.y * d.y) + d.z * d.z, MIN_LIGHT_DISTANCE_SQ);
+        l = d / sqrt(d2);
+        e = radiance / d2;
+    }
+    // glam's max_element: max(x, max(y, z)) with `if a > b { a } else { b }`
+    let m_yz = select(e.z, e.y, e.y > e.z);
+    let m = select(m_yz, e.x, e.x > m_yz);
+    return vec4<f32>(l, m);
+}
+
+fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    // glam's dot: (x * x') + (y * y') + (z * z'), left to right
+    return (a.x * b.x + a.y * b.y) + a.z * b.z;
+}
+
+// mirrors hyrt_core::kernels::shading::light_can_contribute
+fn light_can_contribute(n_geo: vec3<f32>, n_shade: vec3<f32>, l: vec3<f32>, e_max: f32) -> bool {
+    return dot3(n_geo, l) > 0.0 && dot3(n_shade, l) > 0.0 && e_max > 0.0;
+}
+
+// mirrors hyrt_cpu::compaction::needs_shadow_ray
+fn needs_shadow_ray(s: SurfaceRecord, light: LightRecord) -> bool {
+    if s.object == INVALID_ID {
+        return false;
+    }
+    let le = light_incidence(light, s.position);
+    return light_can_contribute(s.geometric_normal, s.normal, le.xyz, le.w);
+}
+
+// mirrors hyrt_cpu::compaction::shadow_ray
+fn shadow_ray(s: SurfaceRecord, light: LightRecord, light_index: u32, pixel: u32) -> RayRecordOut {
+    let origin = offset_ray_origin(s.position, s.geometric_normal);
+    var direction: vec3<f32>;
+    var t_max_bits: u32;
+    if light.kind == LIGHT_DIRECTIONAL {
+        direction = -light.position_or_direction;
+        t_max_bits = F32_EXP_MASK; // +inf
+    } else {
+        direction = light.position_or_direction - origin;
+        t_max_bits = SHADOW_T_MAX_POINT_BITS;
+    }
+    return RayRecordOut(origin, 0.0, direction, t_max_bits, pixel, RAY_KIND_SHADOW, 0u, light_index,
+        vec3<f32>(1.0, 1.0, 1.0), 0u);
+}
+
+fn pair_flag(k: u32, pixels: u32) -> u32 {
+    let l = k / pixels;
+    let p = k - l * pixels;
+    return select(0u, 1u, needs_shadow_ray(surfaces[p], lights[l]));
+}
+
+// Level 0 of the stage: compute and store the flags, count them per tile.
+@compute @workgroup_size(WG)
+fn flags_reduce(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wid: vec3<u32>,
+                @builtin(num_workgroups) nwg: vec3<u32>) {
+    let t = tile_index(wid, nwg);
+    let pixels = frame.width * frame.height;
+    let base = t * TILE + lid * ITEMS;
+    var sum = 0u;
+    for (var j = 0u; j < ITEMS; j = j + 1u) {
+        let k = base + j;
+        if k < level.n {
+            let f = pair_flag(k, pixels);
+            flags[k] = f;
+            sum = sum + f;
+        }
+    }
+    let s = workgroup_scan(lid, sum);
+    if lid == 0u && t < tiles_of(level.n) {
+        levels[level.dst_off + t] = s.y;
+    }
+}
+
+fn level_value(i: u32) -> u32 {
+    if level.src_is_flags != 0u {
+        return select(0u, 1u, flags[i] != 0u);
+    }
+    return levels[level.src_off + i];
+}
+
+// Per-tile sums of one level into the level above.
+@compute @workgroup_size(WG)
+fn reduce(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wid: vec3<u32>,
+          @builtin(num_workgroups) nwg: vec3<u32>) {
+    let t = tile_index(wid, nwg);
+    let base = t * TILE + lid * ITEMS;
+    var sum = 0u;
+    for (var j = 0u; j < ITEMS; j = j + 1u) {
+        let i = base + j;
+        if i < level.n {
+            sum = sum + level_value(i);
+        }
+    }
+    let s = workgroup_scan(lid, sum);
+    if lid == 0u && t < tiles_of(level.n) {
+        levels[level.dst_off + t] = s.y;
+    }
+}
+
+// Exclusive scan of one tile of `levels` in place, each value plus `offset`.
+fn scan_tile_in_place(lid: u32, t: u32, offset: u32) -> u32 {
+    let base = t * TILE + lid * ITEMS;
+    var sum = 0u;
+    for (var j = 0u; j < ITEMS; j = j + 1u) {
+        let i = base + j;
+        if i < level.n {
+            sum = sum + levels[level.src_off + i];
+        }
+    }
+    let s = workgroup_scan(lid, sum);
+    var run = offset + s.x;
+    for (var j = 0u; j < ITEMS; j = j + 1u) {
+        let i = base + j;
+        if i < level.n {
+            let v = levels[level.src_off + i];
+            levels[level.src_off + i] = run;
+            run = run + v;
+        }
+    }
+    return s.y;
+}
+
+// The top level (at most TILE values), one workgroup: scan in place, write the
+// ray count and the indirect dispatch arguments of `shadow_rays`.
+@compute @workgroup_size(WG)
+fn scan_top(@builtin(local_invocation_index) lid: u32) {
+    let total = scan_tile_in_place(lid, 0u, 0u);
+    if lid == 0u {
+        let groups = (total + SHADOW_WG - 1u) / SHADOW_WG;
+        let x = min(groups, MAX_DISPATCH);
+        let y = select(1u, (groups + x - 1u) / max(x, 1u), groups > 0u);
+        ray_count[0] = total;
+        ray_count[1] = x;
+        ray_count[2] = y;
+        ray_count[3] = 1u;
+    }
+}
+
+// Levels below the top: scan each tile in place, offset by the (already scanned)
+// level above.
+@compute @workgroup_size(WG)
+fn downsweep(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wid: vec3<u32>,
+             @builtin(num_workgroups) nwg: vec3<u32>) {
+    let t = tile_index(wid, nwg);
+    // Out-of-range tiles of a 2D dispatch read a harmless offset and write nothing.
+    let offset = levels[level.dst_off + min(t, tiles_of(level.n) - 1u)];
+    scan_tile_in_place(lid, t, offset);
+}
+
+// Level 0: the destination index of each active element of this thread. Returns
+// the thread's first destination; the caller walks its ITEMS flags.
+fn scatter_base(lid: u32, t: u32) -> u32 {
+    let base = t * TILE + lid * ITEMS;
+    var sum = 0u;
+    for (var j = 0u; j < ITEMS; j = j + 1u) {
+        let i = base + j;
+        if i < level.n {
+            sum = sum + level_value(i);
+        }
+    }
+    let s = workgroup_scan(lid, sum);
+    let tile_offset = levels[level.dst_off + min(t, tiles_of(level.n) - 1u)];
+    return tile_offset + s.x;
+}
+
+@compute @workgroup_size(WG)
+fn scatter_rays(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wid: vec3<u32>,
+                @builtin(num_workgroups) nwg: vec3<u32>) {
+    let t = tile_index(wid, nwg);
+    var dst = scatter_base(lid, t);
+    let pixels = frame.width * frame.height;
+    let base = t * TILE + lid * ITEMS;
+    for (var j = 0u; j < ITEMS; j = j + 1u) {
+        let k = base + j;
+        if k < level.n && flags[k] != 0u {
+            let l = k / pixels;
+            let p = k - l * pixels;
+            rays[dst] = shadow_ray(surfaces[p], lights[l], l, p);
+            dst = dst + 1u;
+        }
+    }
+}
+
+// Scan-only test entry point: the indices of the non-zero flags, in order.
+@compute @workgroup_size(WG)
+fn scatter_indices(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wid: vec3<u32>,
+                   @builtin(num_workgroups) nwg: vec3<u32>) {
+    let t = tile_index(wid, nwg);
+    var dst = scatter_base(lid, t);
+    let base = t * TILE + lid * ITEMS;
+    for (var j = 0u; j < ITEMS; j = j + 1u) {
+        let k = base + j;
+        if k < level.n && flags[k] != 0u {
+            out_indices[dst] = k;
+            dst = dst + 1u;
+        }
+    }
+}

@@ -1,0 +1,151 @@
+// Stage `shadow_rays` (mirrors hyrt_cpu::shadow_rays, i.e.
+// hyrt_core::bvh::Bvh::occluded): one thread per ray of the compacted list, any
+// hit with early exit. Indirect dispatch from `ray_count`; threads past the count
+// exit. Writes `occluded[ray]` (1/0) and `shadow[pixel * light_count + light]`
+// (SHADOW_LIT or SHADOW_OCCLUDED; the caller cleared it to SHADOW_NO_RAY).
+//
+// Prepended at pipeline creation: the generated constants and ray.wgsl.
+
+struct FrameParams {
+    width: u32,
+    height: u32,
+    light_count: u32,
+    weight: f32,
+}
+
+// mirrors hyrt_core::formats::RayRecord
+struct RayRecord {
+    origin: vec3<f32>,
+    t_min: f32,
+    direction: vec3<f32>,
+    t_max: f32,
+    pixel: u32,
+    kind: u32,
+    depth: u32,
+    light: u32,
+    throughput: vec3<f32>,
+    pad: u32,
+}
+
+// mirrors hyrt_core::bvh::BvhNode
+struct BvhNode {
+    aabb_min: vec3<f32>,
+    left_or_first: u32,
+    aabb_max: vec3<f32>,
+    count: u32,
+}
+
+// mirrors hyrt_core::formats::TriangleRecord
+struct TriangleRecord {
+    v0: vec3<f32>,
+    object: u32,
+    v1: vec3<f32>,
+    triangle: u32,
+    v2: vec3<f32>,
+    flags: u32,
+}
+
+@group(0) @binding(0) var<uniform> frame: FrameParams;
+@group(0) @binding(1) var<storage, read> rays: array<RayRecord>;
+@group(0) @binding(2) var<storage, read> ray_count: array<u32, 4>;
+@group(0) @binding(3) var<storage, read> bvh_nodes: array<BvhNode>;
+@group(0) @binding(4) var<storage, read> bvh_leaf_triangles: array<TriangleRecord>;
+@group(0) @binding(5) var<storage, read_write> occluded: array<u32>;
+@group(0) @binding(6) var<storage, read_write> shadow: array<u32>;
+
+// mirrors hyrt_core::bvh::TraversalRay
+struct TraversalRay {
+    wt: WatertightRay,
+    inv_dir: vec3<f32>,
+    t_min: f32,
+    t_max: f32,
+    box_t_min: f32,
+}
+
+// mirrors hyrt_core::bvh::TraversalRay::enter: (hit, t_enter) for [t_min, t_far],
+// both ends widened by BVH_CULL_SLACK.
+fn enter(r: TraversalRay, node: BvhNode, t_far: f32) -> vec2<f32> {
+    let far = t_far * (1.0 + BVH_CULL_SLACK);
+    return ray_aabb_conservative(r.wt.origin, r.inv_dir, r.box_t_min, far, node.aabb_min, node.aabb_max);
+}
+
+// mirrors hyrt_core::bvh::Bvh::occluded. An empty BVH is uploaded as one zero
+// node: an inner node whose left child would be itself, which no real tree has
+// (children always follow their parent), so it is recognized from the data.
+fn occluded_any(ray: RayRecord) -> bool {
+    // TraversalRay::new: finite origin and direction, non-zero direction, t_min < t_max.
+    if !(is_finite_vec3(ray.origin) && is_finite_vec3(ray.direction)) {
+        return false;
+    }
+    if all(ray.direction == vec3<f32>(0.0)) {
+        return false;
+    }
+    if !(ray.t_min < ray.t_max) {
+        return false;
+    }
+    let root = bvh_nodes[0];
+    if root.count == 0u && root.left_or_first == 0u {
+        return false;
+    }
+    let r = TraversalRay(watertight_ray_new(ray.origin, ray.direction), safe_inverse_dir(ray.direction),
+        ray.t_min, ray.t_max, ray.t_min * (1.0 - BVH_CULL_SLACK));
+    if enter(r, root, r.t_max).x == 0.0 {
+        return false;
+    }
+    var stack: array<u32, BVH_STACK_SIZE>;
+    var sp = 0u;
+    var n = 0u;
+    loop {
+        let node = bvh_nodes[n];
+        if node.count > 0u {
+            for (var slot = node.left_or_first; slot < node.left_or_first + node.count; slot = slot + 1u) {
+                let t = bvh_leaf_triangles[slot];
+                if watertight_hit(r.wt, r.t_min, r.t_max, t.v0, t.v1, t.v2) {
+                    return true;
+                }
+            }
+        } else {
+            let l = node.left_or_first;
+            let hit_l = enter(r, bvh_nodes[l], r.t_max);
+            let hit_r = enter(r, bvh_nodes[l + 1u], r.t_max);
+            if hit_l.x != 0.0 && hit_r.x != 0.0 {
+                // Nearer child first; ties go left.
+                let right_first = hit_r.y < hit_l.y;
+                // A tree deeper than the stack fails Bvh::validate; never overflow anyway.
+                if sp < BVH_STACK_SIZE {
+                    stack[sp] = select(l + 1u, l, right_first);
+                    sp = sp + 1u;
+                }
+                n = select(l, l + 1u, right_first);
+                continue;
+            }
+            if hit_l.x != 0.0 {
+                n = l;
+                continue;
+            }
+            if hit_r.x != 0.0 {
+                n = l + 1u;
+                continue;
+            }
+        }
+        if sp == 0u {
+            return false;
+        }
+        sp = sp - 1u;
+        n = stack[sp];
+    }
+    return false;
+}
+
+@compute @workgroup_size(SHADOW_WG)
+fn shadow_rays(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wid: vec3<u32>,
+               @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = (wid.y * nwg.x + wid.x) * SHADOW_WG + lid;
+    if i >= ray_count[0] {
+        return;
+    }
+    let ray = rays[i];
+    let o = occluded_any(ray);
+    occluded[i] = select(0u, 1u, o);
+    shadow[ray.pixel * frame.light_count + ray.light] = select(SHADOW_LIT, SHADOW_OCCLUDED, o);
+}

@@ -1,0 +1,181 @@
+//! Stage `shadow_rays` on the GPU: trace the compacted shadow-ray list through the
+//! BVH, any hit with early exit (mirrors `hyrt_cpu::shadow_rays`, i.e.
+//! [`hyrt_core::bvh::Bvh::occluded`]).
+//!
+//! Reads `frame.rays`, `frame.ray_count` (indirect dispatch: one thread per ray,
+//! [`SHADOW_RAYS_WORKGROUP_SIZE`] per workgroup, threads past the count exit),
+//! `frame.params` (light count), `scene.bvh_nodes`, `scene.bvh_leaf_triangles`.
+//! Writes `frame.occluded` (1 occluded, 0 reached the light, per ray) and
+//! `frame.shadow` (cleared to `SHADOW_NO_RAY`, then `SHADOW_LIT` or
+//! `SHADOW_OCCLUDED` at `pixel * light_count + light` for every ray).
+//!
+//! The WGSL (`shaders/ray.wgsl`, `shaders/shadow_rays.wgsl`) mirrors the core ray
+//! kernels function by function. Where it cannot: the CPU decides an exactly-zero
+//! f32 edge function in f64; WGSL has no f64, so the GPU counts a zero edge
+//! function as on the edge (inside) — see `watertight_hit` in `ray.wgsl`. Edge
+//! functions are evaluated in a canonical vertex order so that a fused
+//! multiply-add cannot break their antisymmetry (watertightness).
+
+use hyrt_core::bvh::{BVH_CULL_SLACK, BVH_STACK_SIZE};
+use hyrt_core::formats::{INVALID_ID, LIGHT_DIRECTIONAL, RAY_KIND_SHADOW};
+use hyrt_core::frame::{SHADOW_LIT, SHADOW_OCCLUDED};
+use hyrt_core::kernels::ray::{gamma, OFFSET_FLOAT_SCALE, OFFSET_INT_SCALE, OFFSET_ORIGIN, SLAB_FAR_SCALE};
+use hyrt_core::kernels::shading::MIN_LIGHT_DISTANCE_SQ;
+
+use crate::buffers::{FrameBuffers, SceneBuffers};
+use crate::GpuContext;
+
+/// Threads per workgroup of the `shadow_rays` kernel (one ray each). 64 is a
+/// multiple of every common SIMD width (32 NVIDIA, 64 AMD, 8-16 lavapipe lanes).
+pub const SHADOW_RAYS_WORKGROUP_SIZE: u32 = 64;
+
+/// Largest workgroup count per dispatch dimension (WebGPU's default limit).
+pub const MAX_WORKGROUPS_PER_DIMENSION: u32 = 65_535;
+
+/// An f32 as a WGSL literal that parses back to the same bits (Rust's `Debug`
+/// prints the shortest round-trip decimal).
+fn f32_literal(x: f32) -> String {
+    assert!(x.is_finite(), "WGSL constants must be finite");
+    format!("{x:?}f")
+}
+
+/// The WGSL prelude both ray stages share: the core constants, generated from
+/// their Rust values so they cannot drift, followed by `ray.wgsl`.
+pub(crate) fn ray_wgsl() -> String {
+    let consts = [
+        ("SLAB_FAR_SCALE", f32_literal(SLAB_FAR_SCALE)),
+        ("GAMMA_2", f32_literal(gamma(2))),
+        ("GAMMA_3", f32_literal(gamma(3))),
+        ("GAMMA_5", f32_literal(gamma(5))),
+        ("OFFSET_ORIGIN", f32_literal(OFFSET_ORIGIN)),
+        ("OFFSET_FLOAT_SCALE", f32_literal(OFFSET_FLOAT_SCALE)),
+        ("OFFSET_INT_SCALE", f32_literal(OFFSET_INT_SCALE)),
+        ("MIN_LIGHT_DISTANCE_SQ", f32_literal(MIN_LIGHT_DISTANCE_SQ)),
+        ("BVH_CULL_SLACK", f32_literal(BVH_CULL_SLACK)),
+        ("SHADOW_T_MAX_POINT_BITS", format!("{}u", SHADOW_T_MAX_POINT.to_bits())),
+        ("BVH_STACK_SIZE", format!("{}u", BVH_STACK_SIZE)),
+        ("SHADOW_WG", format!("{SHADOW_RAYS_WORKGROUP_SIZE}u")),
+        ("MAX_DISPATCH", format!("{MAX_WORKGROUPS_PER_DIMENSION}u")),
+        ("LIGHT_DIRECTIONAL", format!("{LIGHT_DIRECTIONAL}u")),
+        ("INVALID_ID", format!("{INVALID_ID}u")),
+        ("RAY_KIND_SHADOW", format!("{RAY_KIND_SHADOW}u")),
+        ("SHADOW_LIT", format!("{}u", SHADOW_LIT as u32)),
+        ("SHADOW_OCCLUDED", format!("{}u", SHADOW_OCCLUDED as u32)),
+    ];
+    let mut s = String::from("// Generated from the hyrt_core constants (gpu-backend/src/shadow_rays.rs).\n");
+    for (name, value) in consts {
+        s += &format!("const {name} = {value};\n");
+    }
+    s + include_str!("shaders/ray.wgsl")
+}
+
+/// `hyrt_cpu::compaction::SHADOW_T_MAX_POINT` (the GPU crate does not depend on
+/// the CPU backend): shadow rays to point lights end at `1 - 2^-16` of the
+/// origin-to-light segment. The compaction test checks it against the CPU's.
+pub const SHADOW_T_MAX_POINT: f32 = 1.0 - 1.0 / 65536.0;
+
+/// The `shadow_rays` stage: one pipeline, one bind group layout.
+pub struct ShadowRaysStage {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+}
+
+pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+pub(crate) fn uniform_entry(binding: u32, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: dynamic,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl ShadowRaysStage {
+    pub fn new(ctx: &GpuContext) -> Self {
+        let source = ray_wgsl() + include_str!("shaders/shadow_rays.wgsl");
+        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("shadow_rays"),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        });
+        let layout = ctx.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("shadow_rays"),
+            entries: &[
+                uniform_entry(0, false),
+                storage_entry(1, true),
+                storage_entry(2, true),
+                storage_entry(3, true),
+                storage_entry(4, true),
+                storage_entry(5, false),
+                storage_entry(6, false),
+            ],
+        });
+        let pipeline_layout = ctx.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("shadow_rays"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("shadow_rays"),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("shadow_rays"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        ShadowRaysStage { pipeline, layout }
+    }
+
+    /// Clear `frame.shadow`, then trace every ray of `frame.rays` (count and
+    /// dispatch size from `frame.ray_count`, written by `compaction`).
+    pub fn encode(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &SceneBuffers,
+        frame: &FrameBuffers,
+        timing: Option<(&wgpu::QuerySet, u32)>,
+    ) {
+        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("shadow_rays"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: frame.params.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: frame.rays.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: frame.ray_count.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 3, resource: scene.bvh_nodes.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 4, resource: scene.bvh_leaf_triangles.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 5, resource: frame.occluded.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 6, resource: frame.shadow.as_entire_binding() },
+            ],
+        });
+        // SHADOW_NO_RAY is 0.
+        encoder.clear_buffer(&frame.shadow, 0, None);
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("shadow_rays"),
+            timestamp_writes: timing.map(|(query_set, i)| wgpu::ComputePassTimestampWrites {
+                query_set,
+                beginning_of_pass_write_index: Some(i),
+                end_of_pass_write_index: Some(i + 1),
+            }),
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &bind_group, &[]);
+        pass.dispatch_workgroups_indirect(&frame.ray_count, 4);
+    }
+}
