@@ -19,7 +19,7 @@ use hyrt_gpu::GpuContext;
 fn prepare(scene: &Scene) -> PreparedScene {
     let geometry = WorldGeometry::build(scene);
     let bvh = Bvh::build(&geometry, BvhPreset::default());
-    PreparedScene { geometry, bvh, bvh_build_ms: 0.0 }
+    PreparedScene::new(geometry, bvh, 0.0)
 }
 
 /// CPU surfaces of a frame: visibility raster then reconstruction.
