@@ -11,9 +11,13 @@
 //! ([`context::AdapterPolicy::AllowSoftware`], or `HYRT_GPU_ALLOW_SOFTWARE=1`).
 
 pub mod buffers;
+pub mod composition;
 pub mod context;
 pub mod error;
 pub mod gpu_buffer;
+pub mod raster_shading;
+pub mod rt_shading;
+pub mod timing;
 
 pub use context::{AdapterPolicy, GpuContext};
 pub use error::GpuError;
