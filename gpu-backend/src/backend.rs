@@ -67,7 +67,7 @@ impl GpuBackend {
                     CompositionStage::new(&ctx),
                 )
             })?;
-        let timer = StageTimer::new(&ctx, FRAME_STAGES.len() as u32);
+        let timer = StageTimer::new(&ctx, FRAME_STAGES.len() as u32)?;
         Ok(GpuBackend {
             ctx,
             visibility_raster,
@@ -118,7 +118,7 @@ impl GpuBackend {
         // With timestamp queries the frame is one command buffer and the GPU times each
         // stage. Without them each stage is submitted alone and waited for, so the wall
         // clock can time it (slower: it serializes CPU and GPU).
-        let timed_by_gpu = self.timer.enabled();
+        let timed_by_gpu = self.timer.is_active();
         let mut wall_ms = Vec::with_capacity(FRAME_STAGES.len());
         ctx.checked(|| -> Result<(), GpuError> {
             let t = &self.timer;
@@ -126,7 +126,7 @@ impl GpuBackend {
                 ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("hyrt frame") });
             for (i, stage) in FRAME_STAGES.iter().enumerate() {
                 let start = Instant::now();
-                let slot = t.slot(i as u32);
+                let slot = t.stage(i as u32);
                 match stage {
                     Stage::VisibilityRaster => self.visibility_raster.encode(ctx, &mut enc, sb, fb, slot),
                     Stage::Reconstruction => self.reconstruction.encode(ctx, &mut enc, sb, fb, slot),
@@ -167,7 +167,7 @@ impl GpuBackend {
         out.raster = read_back::<[f32; 4]>(ctx, &fb.raster, pixels)?;
         out.final_image = read_back::<[f32; 4]>(ctx, &fb.final_image, pixels)?;
         let mut stage_ms = vec![StageTime { stage: Stage::BvhBuild, ms: scene.bvh_build_ms }];
-        let ms = if timed_by_gpu { self.timer.read_ms(ctx)? } else { wall_ms };
+        let ms = if timed_by_gpu { self.timer.read_ms(ctx)?.unwrap_or_default() } else { wall_ms };
         stage_ms.extend(FRAME_STAGES.iter().zip(ms).map(|(&stage, ms)| StageTime { stage, ms }));
         let mut stats =
             FrameStats { width: camera.width, height: camera.height, threads: 0, stage_ms, ..Default::default() };

@@ -13,10 +13,16 @@
 pub mod backend;
 pub mod buffers;
 pub mod compaction;
+pub mod composition;
 pub mod context;
 pub mod error;
 pub mod gpu_buffer;
+pub mod raster_shading;
+pub mod reconstruction;
+pub mod rt_shading;
 pub mod shadow_rays;
+pub mod timing;
+pub mod visibility_raster;
 
 pub use context::{AdapterPolicy, GpuContext};
 pub use error::GpuError;

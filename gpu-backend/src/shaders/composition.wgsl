@@ -1,0 +1,24 @@
+// Stage `composition` (mirrors hyrt_cpu::composition): where the ray-traced image
+// has coverage (alpha > 0) the weighted mean `compose(raster, rt, weight)` with
+// alpha 1, elsewhere the raster texel unchanged. One invocation per pixel.
+// Appended to shading.wgsl (structs, constants, kernels).
+
+@group(0) @binding(0) var<storage, read> raster: array<vec4<f32>>;
+@group(0) @binding(1) var<storage, read> rt: array<vec4<f32>>;
+@group(0) @binding(2) var<uniform> params: FrameParams;
+@group(0) @binding(3) var<storage, read_write> final_image: array<vec4<f32>>;
+
+@compute @workgroup_size(8, 8, 1)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (!pixel_in_image(id, params.width, params.height)) {
+        return;
+    }
+    let pixel = id.y * params.width + id.x;
+    let r = raster[pixel];
+    let t = rt[pixel];
+    if (t.w > 0.0) {
+        final_image[pixel] = vec4<f32>(compose(r.xyz, t.xyz, params.weight), 1.0);
+    } else {
+        final_image[pixel] = r;
+    }
+}

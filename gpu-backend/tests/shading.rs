@@ -1,0 +1,443 @@
+//! GPU stages `rt_shading`, `raster_shading`, `composition` against the CPU
+//! reference (`hyrt_cpu`), on the CPU's own inputs (surfaces, shadow mask, images),
+//! and the GPU stage timer.
+//!
+//! Float channels are compared in ulp (ordered-bits distance) with a named
+//! tolerance per cause; everything that must be exact is asserted exact: alpha,
+//! pixels without a hit, pixels a stage leaves to the other one, composition
+//! with weight 0 and 1.
+
+mod common;
+
+use common::test_context;
+use glam::Vec3;
+use hyrt_core::bvh::{Bvh, BvhPreset};
+use hyrt_core::formats::{CameraRecord, ObjectRecord, OBJ_RAY_TRACED};
+use hyrt_core::frame::{Backend, Frame, FrameOptions, PreparedScene};
+use hyrt_core::geometry::WorldGeometry;
+use hyrt_core::kernels::shading::{blinn_phong_exponent, BACKGROUND};
+use hyrt_core::scene::{Light, Scene};
+use hyrt_cpu::backend::CpuBackend;
+use hyrt_gpu::buffers::{FrameBuffers, FrameParams, SceneBuffers};
+use hyrt_gpu::composition::CompositionStage;
+use hyrt_gpu::gpu_buffer::read_back;
+use hyrt_gpu::raster_shading::RasterShadingStage;
+use hyrt_gpu::rt_shading::RtShadingStage;
+use hyrt_gpu::timing::StageTimer;
+use hyrt_gpu::GpuContext;
+
+/// Unit roundoff of f32 (2^-24) and one ulp at 1 (2^-23).
+const F32_ULP_AT_1: f32 = f32::EPSILON;
+
+/// Ulps allowed on a Lambert + ambient channel (raster shader; the diffuse part of
+/// the RT shader). Causes: WGSL division `d / sqrt(d2)` and `radiance / d2` accurate
+/// to 2.5 ulp and `sqrt` to its own bound (Vulkan: inherited from 1/inversesqrt,
+/// a few ulp), the normalization of the view vector, and multiply-adds the
+/// compiler may fuse in the dot products and sums (each fusion changes one
+/// rounding). Every one of them is a relative error of a few ulp on a term; the
+/// sum of non-negative terms keeps that relative bound, except the `n.l` dot
+/// product near grazing incidence (see [`DOT_ABS_TOL`]).
+const LAMBERT_ULP_TOL: u32 = 16;
+
+/// Absolute error allowed on `n.l` and `n.h` (unit vectors) relative to 1: a fused
+/// multiply-add in a dot product of unit vectors changes the result by at most the
+/// rounding of one product, <= 2^-24 each; at grazing incidence `n.l` is near 0 and
+/// that is a large relative error of a small term. Applied to the largest value the
+/// light's term could take (n.l = 1).
+const DOT_ABS_TOL: f32 = 4.0 * F32_ULP_AT_1;
+
+/// Relative error of WGSL `pow(x, s)` for exponent `s`. Vulkan's precision
+/// requirements define `pow` as `exp2(s * log2(x))` with `log2` exact to an
+/// absolute 2^-21 on [0.5, 2] (3 ulp elsewhere) and `exp2` to 3 + 2|y| ulp: the
+/// absolute log2 error times `s` is an error of the exponent, i.e. a relative
+/// error ln(2) * s * 2^-21 of the result (4e-4 for the gold sphere, s = 1248), and
+/// `exp2` adds (3 + 2|y|) ulp with |y| <= 150 before the result underflows. The CPU
+/// uses libm `powf` (< 1 ulp). This is the specular term's relative tolerance; the
+/// colour is a sum of non-negative terms, so it bounds the relative error of the
+/// colour too.
+fn pow_rel_tol(s: f32) -> f32 {
+    std::f32::consts::LN_2 * s * 2f32.powi(-21) + (3.0 + 2.0 * 150.0) * F32_ULP_AT_1
+}
+
+/// Blinn-Phong exponents up to this (roughness >= ~0.7, the default scene's
+/// diffuse walls: 2.88) make the pow error a few ulp: such pixels must meet
+/// [`LAMBERT_ULP_TOL`] alone.
+const LOW_EXPONENT: f32 = 4.0;
+
+/// Ulps allowed on composition channels with 0 < weight < 1: `raster * (1 - w) +
+/// rt * w` may be fused into one multiply-add (one rounding less).
+const COMPOSE_ULP_TOL: u32 = 1;
+
+/// f32 bits as integers ordered like the floats (-0 and +0 adjacent).
+fn ordered(x: f32) -> i64 {
+    let b = x.to_bits() as i32;
+    (if b < 0 { i32::MIN - b } else { b }) as i64
+}
+
+/// Distance in ulp between two floats (u32::MAX if either is NaN).
+fn ulp_distance(a: f32, b: f32) -> u32 {
+    if a.is_nan() || b.is_nan() {
+        return u32::MAX;
+    }
+    (ordered(a) - ordered(b)).unsigned_abs().min(u32::MAX as u64) as u32
+}
+
+/// A scene rendered by the CPU backend: the inputs and outputs of every stage.
+struct Case {
+    name: String,
+    scene: PreparedScene,
+    camera: CameraRecord,
+    weight: f32,
+    cpu: Frame,
+}
+
+fn cpu_case(name: &str, scene: &Scene, width: u32, height: u32, weight: f32) -> Case {
+    let geometry = WorldGeometry::build(scene);
+    let bvh = Bvh::build(&geometry, BvhPreset::default());
+    let prepared = PreparedScene { geometry, bvh, bvh_build_ms: 0.0 };
+    let camera = CameraRecord::new(&scene.camera.expect("scene camera"), width, height);
+    let cpu = CpuBackend::new(Some(1)).render(&prepared, &camera, &FrameOptions { weight }).expect("cpu render");
+    Case { name: format!("{name} {width}x{height} w={weight}"), scene: prepared, camera, weight, cpu }
+}
+
+/// The default scene with a directional light (and one of its point lights).
+fn directional_scene() -> Scene {
+    let mut s = Scene::default_scene();
+    s.lights = vec![
+        Light::Directional {
+            direction: Vec3::new(-0.4, -1.0, -0.3).normalize(),
+            color: Vec3::new(1.0, 0.9, 0.8),
+            intensity: 2.5,
+        },
+        s.lights[0],
+    ];
+    s
+}
+
+/// The default scene without lights: ambient only, an empty shadow mask.
+fn unlit_scene() -> Scene {
+    let mut s = Scene::default_scene();
+    s.lights.clear();
+    s
+}
+
+fn cases() -> Vec<Case> {
+    let mut v = Vec::new();
+    for (w, h) in [(67, 41), (160, 90)] {
+        for weight in [1.0, 0.5, 0.0] {
+            v.push(cpu_case("default", &Scene::default_scene(), w, h, weight));
+        }
+    }
+    for weight in [1.0, 0.5] {
+        v.push(cpu_case("directional", &directional_scene(), 67, 41, weight));
+    }
+    v.push(cpu_case("unlit", &unlit_scene(), 33, 17, 0.5));
+    v
+}
+
+/// GPU buffers holding the CPU's surfaces, shadow mask (u8 -> u32) and images.
+struct Gpu {
+    scene: SceneBuffers,
+    frame: FrameBuffers,
+}
+
+fn upload_case(ctx: &GpuContext, c: &Case) -> Gpu {
+    let (w, h) = (c.camera.width, c.camera.height);
+    let lights = c.scene.geometry.lights.len() as u32;
+    let scene = SceneBuffers::new(ctx, &c.scene);
+    let frame = FrameBuffers::new(ctx, w, h, lights).expect("frame buffers");
+    frame.write_uniforms(ctx, &c.camera, &FrameParams { width: w, height: h, light_count: lights, weight: c.weight });
+    ctx.queue.write_buffer(&frame.surfaces, 0, bytemuck::cast_slice(&c.cpu.surfaces));
+    let shadow: Vec<u32> = c.cpu.shadow.iter().map(|&s| s as u32).collect();
+    if !shadow.is_empty() {
+        ctx.queue.write_buffer(&frame.shadow, 0, bytemuck::cast_slice(&shadow));
+    }
+    ctx.queue.write_buffer(&frame.raster, 0, bytemuck::cast_slice(&c.cpu.raster));
+    ctx.queue.write_buffer(&frame.rt, 0, bytemuck::cast_slice(&c.cpu.rt));
+    // Poison the outputs so that a pixel a stage forgets to write cannot match.
+    let nan = vec![[f32::NAN; 4]; (w * h) as usize];
+    ctx.queue.write_buffer(&frame.final_image, 0, bytemuck::cast_slice(&nan));
+    Gpu { scene, frame }
+}
+
+/// Run one stage's `encode` and submit.
+fn run(ctx: &GpuContext, encode: impl FnOnce(&mut wgpu::CommandEncoder)) {
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    encode(&mut encoder);
+    ctx.queue.submit([encoder.finish()]);
+}
+
+fn image(ctx: &GpuContext, buffer: &wgpu::Buffer, pixels: usize) -> Vec<[f32; 4]> {
+    read_back::<[f32; 4]>(ctx, buffer, pixels).expect("readback")
+}
+
+/// Worst errors over a comparison.
+#[derive(Default, Debug)]
+struct Worst {
+    ulp: u32,
+    rel: f32,
+    compared: usize,
+}
+
+/// Compare RGB channels: each within `ulp_tol` ulp, or within `abs_tol(pixel, channel)`
+/// absolute; alpha exactly equal. Returns the worst errors.
+fn compare_rgb(
+    what: &str,
+    gpu: &[[f32; 4]],
+    cpu: &[[f32; 4]],
+    ulp_tol: u32,
+    abs_tol: impl Fn(usize, usize) -> f32,
+) -> Worst {
+    assert_eq!(gpu.len(), cpu.len());
+    let mut worst = Worst::default();
+    let mut failures = Vec::new();
+    for (i, (g, c)) in gpu.iter().zip(cpu).enumerate() {
+        assert_eq!(g[3].to_bits(), c[3].to_bits(), "{what}: pixel {i} alpha gpu {g:?} cpu {c:?}");
+        for ch in 0..3 {
+            let d = ulp_distance(g[ch], c[ch]);
+            let rel = if c[ch] != 0.0 { ((g[ch] - c[ch]) / c[ch]).abs() } else { (g[ch] - c[ch]).abs() };
+            worst.ulp = worst.ulp.max(d);
+            worst.rel = worst.rel.max(rel);
+            worst.compared += 1;
+            let within_abs = (g[ch] - c[ch]).abs() <= abs_tol(i, ch);
+            if d > ulp_tol && !within_abs {
+                failures.push(format!("pixel {i} ch {ch}: gpu {} cpu {} ({d} ulp, rel {rel:e})", g[ch], c[ch]));
+            }
+        }
+    }
+    eprintln!(
+        "{what}: {} channels, worst {} ulp, worst relative {:e}, {} over tolerance",
+        worst.compared,
+        worst.ulp,
+        worst.rel,
+        failures.len()
+    );
+    assert!(
+        failures.is_empty(),
+        "{what}: {} channels over tolerance, first: {:?}",
+        failures.len(),
+        &failures[..failures.len().min(5)]
+    );
+    worst
+}
+
+fn object_of(c: &Case, pixel: usize) -> Option<&ObjectRecord> {
+    let s = &c.cpu.surfaces[pixel];
+    s.is_hit().then(|| &c.scene.geometry.objects[s.object as usize])
+}
+
+/// The largest value each light term of a pixel could take with `n.l = 1` (and,
+/// for the RT shader, the specular peak), per channel: the scale of the absolute
+/// error a dot product near 0 causes (see [`DOT_ABS_TOL`]).
+fn light_term_scale(c: &Case, pixel: usize, obj: &ObjectRecord, ray_traced: bool) -> [f32; 3] {
+    let s = &c.cpu.surfaces[pixel];
+    let p = Vec3::from(s.position);
+    let nl = c.scene.geometry.lights.len();
+    let base = Vec3::from(obj.base_color);
+    let per_e = if ray_traced {
+        let f0 = Vec3::splat(0.04).lerp(base, obj.metallic);
+        let sx = blinn_phong_exponent(obj.roughness);
+        base * ((1.0 - obj.metallic) * std::f32::consts::FRAC_1_PI) + f0 * ((sx + 8.0) / (8.0 * std::f32::consts::PI))
+    } else {
+        base * std::f32::consts::FRAC_1_PI
+    };
+    let mut m = Vec3::ZERO;
+    for (l, light) in c.scene.geometry.lights.iter().enumerate() {
+        if c.cpu.shadow[pixel * nl + l] == hyrt_core::frame::SHADOW_LIT {
+            let (_, e) = hyrt_core::kernels::shading::light_incidence(light, p);
+            m += per_e * e;
+        }
+    }
+    m.into()
+}
+
+#[test]
+fn rt_shading_matches_cpu() {
+    let Some(ctx) = test_context() else { return };
+    let stage = RtShadingStage::new(&ctx);
+    let mut overall = Worst::default();
+    let mut overall_low = 0;
+    for c in cases() {
+        let gpu = upload_case(&ctx, &c);
+        // Poison: every pixel must be written.
+        let pixels = c.cpu.rt.len();
+        ctx.queue.write_buffer(&gpu.frame.rt, 0, bytemuck::cast_slice(&vec![[f32::NAN; 4]; pixels]));
+        run(&ctx, |e| stage.encode(&ctx, e, &gpu.scene, &gpu.frame, None));
+        let out = image(&ctx, &gpu.frame.rt, pixels);
+        let mut shaded = 0;
+        for (i, (g, cp)) in out.iter().zip(&c.cpu.rt).enumerate() {
+            match object_of(&c, i) {
+                Some(obj) if obj.flags & OBJ_RAY_TRACED != 0 => {
+                    shaded += 1;
+                    assert_eq!(g[3], 1.0, "{}: pixel {i}", c.name);
+                }
+                // Misses and raster objects: exactly zero, as the CPU writes them.
+                _ => {
+                    assert_eq!(bytemuck::cast::<_, [u32; 4]>(*g), [0; 4], "{}: pixel {i}", c.name);
+                    assert_eq!(*cp, [0.0; 4]);
+                }
+            }
+        }
+        assert!(shaded > 0, "{}: no ray-traced pixels", c.name);
+        let w = compare_rgb(&format!("rt_shading {}", c.name), &out, &c.cpu.rt, LAMBERT_ULP_TOL, |i, ch| {
+            let Some(obj) = object_of(&c, i) else { return 0.0 };
+            let cpu = c.cpu.rt[i][ch];
+            pow_rel_tol(blinn_phong_exponent(obj.roughness)) * cpu
+                + DOT_ABS_TOL * light_term_scale(&c, i, obj, true)[ch] * (1.0 + blinn_phong_exponent(obj.roughness))
+        });
+        overall.ulp = overall.ulp.max(w.ulp);
+        overall.rel = overall.rel.max(w.rel);
+        // Worst error on the objects whose specular exponent is small (no large
+        // pow error): the Lambert tolerance alone must hold there.
+        let mut low_exponent_ulp = 0;
+        for (i, (g, cp)) in out.iter().zip(&c.cpu.rt).enumerate() {
+            if let Some(obj) = object_of(&c, i) {
+                if obj.flags & OBJ_RAY_TRACED != 0 && blinn_phong_exponent(obj.roughness) <= LOW_EXPONENT {
+                    for ch in 0..3 {
+                        low_exponent_ulp = low_exponent_ulp.max(ulp_distance(g[ch], cp[ch]));
+                    }
+                }
+            }
+        }
+        eprintln!("rt_shading {}: worst {low_exponent_ulp} ulp on objects with exponent <= {LOW_EXPONENT}", c.name);
+        overall_low = overall_low.max(low_exponent_ulp);
+    }
+    assert!(overall_low <= LAMBERT_ULP_TOL, "{overall_low} ulp on low-exponent objects");
+    eprintln!("rt_shading overall worst on low-exponent objects: {overall_low} ulp");
+    eprintln!("rt_shading overall worst: {} ulp, relative {:e}", overall.ulp, overall.rel);
+}
+
+#[test]
+fn raster_shading_matches_cpu() {
+    let Some(ctx) = test_context() else { return };
+    let stage = RasterShadingStage::new(&ctx);
+    let mut overall = Worst::default();
+    for c in cases() {
+        let gpu = upload_case(&ctx, &c);
+        let pixels = c.cpu.raster.len();
+        ctx.queue.write_buffer(&gpu.frame.raster, 0, bytemuck::cast_slice(&vec![[f32::NAN; 4]; pixels]));
+        run(&ctx, |e| stage.encode(&ctx, e, &gpu.scene, &gpu.frame, None));
+        let out = image(&ctx, &gpu.frame.raster, pixels);
+        let background = [BACKGROUND[0], BACKGROUND[1], BACKGROUND[2], 1.0];
+        let (mut misses, mut skipped) = (0, 0);
+        for (i, g) in out.iter().enumerate() {
+            match object_of(&c, i) {
+                None => {
+                    misses += 1;
+                    assert_eq!(
+                        bytemuck::cast::<_, [u32; 4]>(*g),
+                        bytemuck::cast::<_, [u32; 4]>(background),
+                        "{}: miss {i}",
+                        c.name
+                    );
+                }
+                // The weight < 1 rule: ray-traced objects are left at zero with weight 1.
+                Some(obj) if obj.flags & OBJ_RAY_TRACED != 0 && c.weight >= 1.0 => {
+                    skipped += 1;
+                    assert_eq!(bytemuck::cast::<_, [u32; 4]>(*g), [0; 4], "{}: pixel {i}", c.name);
+                }
+                Some(_) => assert_eq!(g[3], 1.0, "{}: pixel {i}", c.name),
+            }
+        }
+        assert!(misses > 0, "{}: the test wants background pixels", c.name);
+        assert_eq!(skipped > 0, c.weight >= 1.0, "{}", c.name);
+        let w = compare_rgb(&format!("raster_shading {}", c.name), &out, &c.cpu.raster, LAMBERT_ULP_TOL, |i, ch| {
+            let Some(obj) = object_of(&c, i) else { return 0.0 };
+            DOT_ABS_TOL * light_term_scale(&c, i, obj, false)[ch]
+        });
+        overall.ulp = overall.ulp.max(w.ulp);
+        overall.rel = overall.rel.max(w.rel);
+    }
+    eprintln!("raster_shading overall worst: {} ulp, relative {:e}", overall.ulp, overall.rel);
+}
+
+#[test]
+fn composition_matches_cpu() {
+    let Some(ctx) = test_context() else { return };
+    let stage = CompositionStage::new(&ctx);
+    let mut overall = Worst::default();
+    for c in cases() {
+        let gpu = upload_case(&ctx, &c);
+        let pixels = c.cpu.final_image.len();
+        run(&ctx, |e| stage.encode(&ctx, e, &gpu.scene, &gpu.frame, None));
+        let out = image(&ctx, &gpu.frame.final_image, pixels);
+        for (i, (g, cp)) in out.iter().zip(&c.cpu.final_image).enumerate() {
+            let t = c.cpu.rt[i];
+            // Exact: no RT coverage (the raster texel copied), and weights 0 and 1
+            // (x * 0 + y * 1 has one rounding-free product, fused or not).
+            let rt_covered = t[3] > 0.0;
+            if !rt_covered || c.weight == 0.0 || c.weight == 1.0 {
+                assert_eq!(
+                    bytemuck::cast::<_, [u32; 4]>(*g),
+                    bytemuck::cast::<_, [u32; 4]>(*cp),
+                    "{}: pixel {i} gpu {g:?} cpu {cp:?}",
+                    c.name
+                );
+            }
+        }
+        let w = compare_rgb(&format!("composition {}", c.name), &out, &c.cpu.final_image, COMPOSE_ULP_TOL, |_, _| 0.0);
+        overall.ulp = overall.ulp.max(w.ulp);
+        overall.rel = overall.rel.max(w.rel);
+    }
+    eprintln!("composition overall worst: {} ulp, relative {:e}", overall.ulp, overall.rel);
+}
+
+/// The three stages chained on the GPU (rt -> raster -> composition) give the
+/// CPU's final image within the shading tolerances.
+#[test]
+fn composition_after_gpu_shading_matches_cpu_final_image() {
+    let Some(ctx) = test_context() else { return };
+    let (rt, raster, comp) = (RtShadingStage::new(&ctx), RasterShadingStage::new(&ctx), CompositionStage::new(&ctx));
+    let c = cpu_case("default", &Scene::default_scene(), 67, 41, 0.5);
+    let gpu = upload_case(&ctx, &c);
+    let pixels = c.cpu.final_image.len();
+    let nan = vec![[f32::NAN; 4]; pixels];
+    for b in [&gpu.frame.rt, &gpu.frame.raster, &gpu.frame.final_image] {
+        ctx.queue.write_buffer(b, 0, bytemuck::cast_slice(&nan));
+    }
+    run(&ctx, |e| {
+        rt.encode(&ctx, e, &gpu.scene, &gpu.frame, None);
+        raster.encode(&ctx, e, &gpu.scene, &gpu.frame, None);
+        comp.encode(&ctx, e, &gpu.scene, &gpu.frame, None);
+    });
+    let out = image(&ctx, &gpu.frame.final_image, pixels);
+    compare_rgb("chained final image", &out, &c.cpu.final_image, LAMBERT_ULP_TOL + COMPOSE_ULP_TOL, |i, ch| {
+        let Some(obj) = object_of(&c, i) else { return 0.0 };
+        let cpu = c.cpu.final_image[i][ch];
+        let s = blinn_phong_exponent(obj.roughness);
+        pow_rel_tol(s) * cpu + DOT_ABS_TOL * light_term_scale(&c, i, obj, true)[ch] * (1.0 + s)
+    });
+}
+
+#[test]
+fn timing_stage_timer_times_a_compute_pass() {
+    let Some(ctx) = test_context() else { return };
+    let stage = CompositionStage::new(&ctx);
+    let c = cpu_case("default", &Scene::default_scene(), 33, 17, 0.5);
+    let gpu = upload_case(&ctx, &c);
+    let timer = StageTimer::new(&ctx, 3).expect("timer");
+    assert_eq!(timer.stages(), 3);
+    assert_eq!(timer.is_active(), ctx.timestamps);
+    assert!(timer.stage(3).is_none(), "out of range");
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    for i in 0..3 {
+        stage.encode(&ctx, &mut encoder, &gpu.scene, &gpu.frame, timer.stage(i));
+    }
+    timer.resolve(&mut encoder);
+    ctx.queue.submit([encoder.finish()]);
+    let ms = timer.read_ms(&ctx).expect("read");
+    eprintln!("timestamps: {} -> {ms:?}", ctx.timestamps);
+    match ms {
+        None => assert!(!ctx.timestamps, "timestamps available but no times"),
+        Some(ms) => {
+            assert_eq!(ms.len(), 3);
+            assert!(ms.iter().all(|t| t.is_finite() && *t >= 0.0), "{ms:?}");
+        }
+    }
+    // The pass still ran correctly with timestamps.
+    let out = image(&ctx, &gpu.frame.final_image, c.cpu.final_image.len());
+    assert_eq!(out.len(), c.cpu.final_image.len());
+    assert!(out.iter().all(|p| p[3] == 1.0));
+    // Too many stages is an error, not a panic.
+    assert!(StageTimer::new(&ctx, wgpu::QUERY_SET_MAX_QUERIES).is_err());
+}

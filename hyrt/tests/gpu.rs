@@ -1,0 +1,139 @@
+//! The GPU backend end to end, against the CPU reference, on whatever Vulkan
+//! adapter is present (lavapipe in CI). Stage-by-stage tolerances live in the
+//! gpu-backend crate's tests; here: whole frames and the command line.
+
+use std::process::Command;
+
+use hyrt::{AdapterPolicy, BackendKind, FrameOptions, Renderer, Scene};
+
+/// The GPU renderer for tests: fails in CI without an adapter, skips visibly elsewhere.
+fn gpu_renderer() -> Option<Renderer> {
+    match Renderer::new(BackendKind::Gpu, Some(2), AdapterPolicy::AllowSoftware) {
+        Ok(r) => Some(r),
+        Err(e) if std::env::var_os("CI").is_some() => panic!("CI needs a GPU adapter (lavapipe): {e}"),
+        Err(e) => {
+            eprintln!("SKIPPED: no GPU adapter: {e}");
+            None
+        }
+    }
+}
+
+#[test]
+fn gpu_frame_matches_cpu_frame_on_the_default_scene() {
+    let Some(gpu) = gpu_renderer() else { return };
+    eprintln!("{}", gpu.choice());
+    let cpu = Renderer::cpu(Some(2));
+    let scene = Scene::default_scene();
+    let cam = scene.camera.unwrap();
+    let prepared = cpu.prepare(&scene);
+    for (w, h, weight) in [(96, 54, 1.0), (67, 41, 0.5)] {
+        let opts = FrameOptions { weight };
+        let c = cpu.render(&prepared, &cam, w, h, &opts).unwrap();
+        let g = gpu.render(&prepared, &cam, w, h, &opts).unwrap();
+        assert_eq!((g.width, g.height), (w, h));
+        let pixels = (w * h) as usize;
+        // Primary visibility: ids and flags per pixel.
+        let id_mismatch = c
+            .gbuffer
+            .iter()
+            .zip(&g.gbuffer)
+            .filter(|(a, b)| (a.triangle, a.object, a.flags) != (b.triangle, b.object, b.flags))
+            .count();
+        // Lavapipe's vertex math may snap a vertex one subpixel differently on rounding
+        // boundaries (core/src/kernels/raster.rs), so a few edge pixels may differ.
+        const MAX_ID_MISMATCH_FRACTION: f64 = 0.002;
+        assert!(
+            (id_mismatch as f64) <= MAX_ID_MISMATCH_FRACTION * pixels as f64,
+            "{w}x{h}: {id_mismatch} of {pixels} pixels differ in ids"
+        );
+        // Same shadow rays up to those pixels, and images close.
+        let rays_diff = (c.rays.len() as i64 - g.rays.len() as i64).unsigned_abs();
+        assert!(rays_diff as f64 <= 2.0 * id_mismatch as f64 + 0.001 * c.rays.len() as f64, "{} vs {} rays", c.rays.len(), g.rays.len());
+        let mean_abs: f64 = c
+            .final_image
+            .iter()
+            .zip(&g.final_image)
+            .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).abs() as f64).sum::<f64>() / 3.0)
+            .sum::<f64>()
+            / pixels as f64;
+        // Mean absolute difference of linear colour: float differences (FMA, WGSL pow) are
+        // ~1e-6; the bound leaves room for the few edge pixels that see another triangle.
+        const MAX_MEAN_ABS_DIFF: f64 = 0.01;
+        assert!(mean_abs < MAX_MEAN_ABS_DIFF, "{w}x{h}: mean |cpu - gpu| = {mean_abs}");
+        assert!(g.stats.stage_ms.len() == 8, "{:?}", g.stats.stage_ms);
+        eprintln!("{w}x{h} weight {weight}: {id_mismatch} id mismatches, mean |diff| {mean_abs:.2e}, rays cpu {} gpu {}", c.rays.len(), g.rays.len());
+    }
+}
+
+#[test]
+fn gpu_renders_again_with_reused_buffers_and_a_new_scene() {
+    let Some(gpu) = gpu_renderer() else { return };
+    let scene = Scene::default_scene();
+    let cam = scene.camera.unwrap();
+    let p1 = gpu.prepare(&scene);
+    let a = gpu.render(&p1, &cam, 40, 30, &FrameOptions::default()).unwrap();
+    let mut small = Scene::default_scene();
+    small.objects.truncate(3);
+    let p2 = gpu.prepare(&small);
+    let b = gpu.render(&p2, &cam, 40, 30, &FrameOptions::default()).unwrap();
+    assert_ne!(a.stats.covered_pixels, 0);
+    assert!(b.gbuffer.iter().all(|t| !t.is_hit() || t.object < 3), "stale scene buffers");
+    let c = gpu.render(&p1, &cam, 40, 30, &FrameOptions::default()).unwrap();
+    assert_eq!(bytemuck_bits(&a.final_image), bytemuck_bits(&c.final_image), "same frame twice differs");
+}
+
+fn bytemuck_bits(img: &[[f32; 4]]) -> Vec<u32> {
+    img.iter().flat_map(|p| p.map(f32::to_bits)).collect()
+}
+
+#[test]
+fn cli_backend_auto_says_what_it_took_and_gpu_fails_clearly() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("a.png");
+    let o = Command::new(env!("CARGO_BIN_EXE_hyrt"))
+        .env_remove("HYRT_GPU_ALLOW_SOFTWARE")
+        .args(["render", "--backend", "auto", "--size", "32x18", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("auto -> "), "auto must say which backend it took: {err}");
+    // Without permission for software adapters, `gpu` either finds hardware or says how to allow lavapipe.
+    let o = Command::new(env!("CARGO_BIN_EXE_hyrt"))
+        .env_remove("HYRT_GPU_ALLOW_SOFTWARE")
+        .args(["render", "--backend", "gpu", "--size", "32x18", "--out"])
+        .arg(dir.path().join("g.png"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    if !o.status.success() {
+        assert!(err.contains("HYRT_GPU_ALLOW_SOFTWARE") || err.contains("no GPU adapter"), "{err}");
+    }
+}
+
+#[test]
+fn cli_backend_gpu_renders_default_scene_and_sponza_with_software_allowed() {
+    if gpu_renderer().is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let assets = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets");
+    let mut scenes = vec![None];
+    if assets.is_dir() {
+        scenes.push(Some(assets.join("sponza.glb")));
+    }
+    for (i, scene) in scenes.iter().enumerate() {
+        let out = dir.path().join(format!("gpu{i}.png"));
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_hyrt"));
+        cmd.args(["render", "--backend", "gpu", "--allow-software-gpu", "--size", "64x36", "--out"]).arg(&out);
+        if let Some(s) = scene {
+            cmd.arg(s);
+        }
+        let o = cmd.output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert!(String::from_utf8_lossy(&o.stderr).contains("backend: gpu"));
+        assert_eq!(image::open(&out).unwrap().width(), 64);
+    }
+}
