@@ -14,6 +14,8 @@ pub mod buffers;
 pub mod context;
 pub mod error;
 pub mod gpu_buffer;
+pub mod reconstruction;
+pub mod visibility_raster;
 
 pub use context::{AdapterPolicy, GpuContext};
 pub use error::GpuError;
