@@ -94,7 +94,7 @@ struct Case {
 fn cpu_case(name: &str, scene: &Scene, width: u32, height: u32, weight: f32) -> Case {
     let geometry = WorldGeometry::build(scene);
     let bvh = Bvh::build(&geometry, BvhPreset::default());
-    let prepared = PreparedScene { geometry, bvh, bvh_build_ms: 0.0 };
+    let prepared = PreparedScene::new(geometry, bvh, 0.0);
     let camera = CameraRecord::new(&scene.camera.expect("scene camera"), width, height);
     let cpu = CpuBackend::new(Some(1)).render(&prepared, &camera, &FrameOptions { weight }).expect("cpu render");
     Case { name: format!("{name} {width}x{height} w={weight}"), scene: prepared, camera, weight, cpu }

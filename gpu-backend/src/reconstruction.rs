@@ -1,0 +1,100 @@
+//! `reconstruction` (paper eq. 1): rebuild the world-space surface at every pixel
+//! from the visibility G-buffer, one thread per pixel (8x8 groups), mirroring
+//! `hyrt_cpu::reconstruction::reconstruct_texel` and the kernels it calls
+//! (`hyrt_core::kernels::barycentric::{reconstruct_position, position_error_bound,
+//! interpolate_normal, geometric_normal}`, `hyrt_core::kernels::shading::face_forward`)
+//! in `shaders/reconstruction.wgsl`, operation for operation. Normalization is
+//! `sqrt` then division, as on the CPU (WGSL's `inverseSqrt` is not exact).
+//!
+//! Reads: `frame.gbuffer`, `frame.camera` (eye, image size), `scene.triangles`,
+//! `scene.normals`, `scene.objects` (`first_triangle`). Writes: `frame.surfaces`
+//! (every texel of the camera's image).
+//!
+//! Differences from the CPU: the driver may fuse multiply-adds and WGSL's division
+//! is accurate to 2.5 ulp, so positions and normals can differ by a few ulp (the
+//! bounds are in `tests/reconstruction.rs`); ids are identical.
+
+use hyrt_core::kernels::barycentric::gamma;
+
+use crate::buffers::{FrameBuffers, SceneBuffers};
+use crate::GpuContext;
+
+/// Side of the square workgroup (`@workgroup_size(8, 8, 1)`).
+const GROUP: u32 = 8;
+
+const SHADER: &str = include_str!("shaders/reconstruction.wgsl");
+
+/// The WGSL of the stage: the shader with the exact f32 constants of the error bound
+/// prepended (`{:?}` prints the shortest decimal that parses back to the same f32).
+pub fn shader_source() -> String {
+    format!(
+        "const GAMMA_2: f32 = {:?};\nconst GAMMA_3: f32 = {:?};\nconst ONE_PLUS_GAMMA_3: f32 = {:?};\n{}",
+        gamma(2),
+        gamma(3),
+        1.0f32 + gamma(3),
+        SHADER
+    )
+}
+
+/// The `reconstruction` stage: one compute pipeline.
+pub struct ReconstructionStage {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+}
+
+impl ReconstructionStage {
+    /// Build the pipeline.
+    pub fn new(ctx: &GpuContext) -> Self {
+        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("reconstruction"),
+            source: wgpu::ShaderSource::Wgsl(shader_source().into()),
+        });
+        let pipeline = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("reconstruction"),
+            layout: None,
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        ReconstructionStage { layout: pipeline.get_bind_group_layout(0), pipeline }
+    }
+
+    /// Record the pass. The camera uniform must describe a `frame.width` x
+    /// `frame.height` image.
+    pub fn encode(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &SceneBuffers,
+        frame: &FrameBuffers,
+        timing: Option<(&wgpu::QuerySet, u32)>,
+    ) {
+        if frame.width == 0 || frame.height == 0 {
+            return;
+        }
+        let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("reconstruction"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: scene.triangles.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: scene.normals.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: scene.objects.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 3, resource: frame.camera.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 4, resource: frame.gbuffer.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 5, resource: frame.surfaces.as_entire_binding() },
+            ],
+        });
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("reconstruction"),
+            timestamp_writes: timing.map(|(query_set, i)| wgpu::ComputePassTimestampWrites {
+                query_set,
+                beginning_of_pass_write_index: Some(i),
+                end_of_pass_write_index: Some(i + 1),
+            }),
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &group, &[]);
+        pass.dispatch_workgroups(frame.width.div_ceil(GROUP), frame.height.div_ceil(GROUP), 1);
+    }
+}

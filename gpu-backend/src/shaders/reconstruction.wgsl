@@ -1,0 +1,200 @@
+// reconstruction (paper eq. 1): rebuild the surface at every G-buffer texel.
+// Rust side: gpu-backend/src/reconstruction.rs; CPU reference:
+// hyrt_cpu::reconstruction::reconstruct_texel. Every product and sum is written in
+// the Rust kernels' order (the driver may still fuse multiply-adds).
+//
+// GAMMA_2, GAMMA_3 and ONE_PLUS_GAMMA_3 are prepended by the Rust side with the
+// exact f32 values of hyrt_core::kernels::barycentric::gamma.
+
+struct TriangleRecord {
+    v0: vec3<f32>,
+    object: u32,
+    v1: vec3<f32>,
+    triangle: u32,
+    v2: vec3<f32>,
+    flags: u32,
+}
+
+// hyrt_core::formats::ObjectRecord, scalar fields (48 bytes).
+struct ObjectRecord {
+    first_triangle: u32,
+    triangle_count: u32,
+    flags: u32,
+    material_kind: u32,
+    base_color_r: f32,
+    base_color_g: f32,
+    base_color_b: f32,
+    metallic: f32,
+    roughness: f32,
+    transmission: f32,
+    ior: f32,
+    pad: u32,
+}
+
+struct CameraRecord {
+    view_proj: mat4x4<f32>,
+    inv_view_proj: mat4x4<f32>,
+    eye: vec3<f32>,
+    width: u32,
+    height: u32,
+    near: f32,
+    far: f32,
+    pad: u32,
+}
+
+struct GBufferTexel {
+    bary_u: f32,
+    bary_v: f32,
+    depth: f32,
+    triangle: u32,
+    object: u32,
+    flags: u32,
+}
+
+struct SurfaceRecord {
+    position: vec3<f32>,
+    position_error: f32,
+    normal: vec3<f32>,
+    object: u32,
+    geometric_normal: vec3<f32>,
+    triangle: u32,
+}
+
+const GBUF_HIT: u32 = 1u;
+const INVALID_ID: u32 = 0xffffffffu;
+const F32_EXPONENT_MASK: u32 = 0x7f800000u;
+
+@group(0) @binding(0) var<storage, read> triangles: array<TriangleRecord>;
+@group(0) @binding(1) var<storage, read> normals: array<f32>;
+@group(0) @binding(2) var<storage, read> objects: array<ObjectRecord>;
+@group(0) @binding(3) var<uniform> camera: CameraRecord;
+@group(0) @binding(4) var<storage, read> gbuffer: array<GBufferTexel>;
+@group(0) @binding(5) var<storage, read_write> surfaces: array<SurfaceRecord>;
+
+fn is_finite(x: f32) -> bool {
+    return (bitcast<u32>(x) & F32_EXPONENT_MASK) != F32_EXPONENT_MASK;
+}
+
+// glam's Vec3::dot: (x * x') + (y * y') + (z * z'), left to right.
+fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    return ((a.x * b.x) + (a.y * b.y)) + (a.z * b.z);
+}
+
+// glam's Vec3::cross.
+fn cross3(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(a.y * b.z - b.y * a.z, a.z * b.x - b.z * a.x, a.x * b.y - b.x * a.y);
+}
+
+// glam's Vec3::normalize_or: self * (1 / length) if that reciprocal is finite and > 0.
+fn normalize_or(a: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
+    let len = sqrt(dot3(a, a));
+    // 1 / len is finite and positive exactly when len is positive, finite and not
+    // so small that the reciprocal overflows; the explicit test keeps a division by
+    // zero (or NaN) out of the shader.
+    if !(len > 0.0) || !is_finite(len) {
+        return fallback;
+    }
+    let rcp = 1.0 / len;
+    if is_finite(rcp) && rcp > 0.0 {
+        return a * rcp;
+    }
+    return fallback;
+}
+
+// mirrors hyrt_core::kernels::barycentric::bary_w
+fn bary_w(u: f32, v: f32) -> f32 {
+    return (1.0 - u) - v;
+}
+
+// mirrors hyrt_core::kernels::barycentric::reconstruct_position
+fn reconstruct_position(u: f32, v: f32, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> vec3<f32> {
+    let w = bary_w(u, v);
+    return vec3<f32>(
+        (w * v0.x + u * v1.x) + v * v2.x,
+        (w * v0.y + u * v1.y) + v * v2.y,
+        (w * v0.z + u * v1.z) + v * v2.z,
+    );
+}
+
+// mirrors hyrt_core::kernels::barycentric::position_error_bound
+fn position_error_bound(u: f32, v: f32, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> vec3<f32> {
+    let w = bary_w(u, v);
+    let sum = (abs(w * v0) + abs(u * v1)) + abs(v * v2);
+    let w_err = GAMMA_2 * ((1.0 + abs(u)) + abs(v));
+    return (sum * GAMMA_3 + abs(v0) * (w_err * ONE_PLUS_GAMMA_3)) * ONE_PLUS_GAMMA_3;
+}
+
+// mirrors hyrt_core::kernels::barycentric::interpolate_normal
+fn interpolate_normal(u: f32, v: f32, n0: vec3<f32>, n1: vec3<f32>, n2: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
+    let w = bary_w(u, v);
+    let s = vec3<f32>(
+        (w * n0.x + u * n1.x) + v * n2.x,
+        (w * n0.y + u * n1.y) + v * n2.y,
+        (w * n0.z + u * n1.z) + v * n2.z,
+    );
+    // sqrt + division, as the CPU (not inverseSqrt, which is not exact).
+    let len = sqrt(dot3(s, s));
+    if len > 0.0 && is_finite(len) {
+        return vec3<f32>(s.x / len, s.y / len, s.z / len);
+    }
+    return fallback;
+}
+
+// mirrors hyrt_core::kernels::barycentric::geometric_normal
+fn geometric_normal(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> vec3<f32> {
+    return normalize_or(cross3(v1 - v0, v2 - v0), vec3<f32>(0.0));
+}
+
+fn max_element(a: vec3<f32>) -> f32 {
+    return max(max(a.x, a.y), a.z);
+}
+
+fn corner_normal(gi: u32, k: u32) -> vec3<f32> {
+    let b = gi * 9u + k * 3u;
+    return vec3<f32>(normals[b], normals[b + 1u], normals[b + 2u]);
+}
+
+fn any_nonzero(a: vec3<f32>) -> bool {
+    return a.x != 0.0 || a.y != 0.0 || a.z != 0.0;
+}
+
+// mirrors hyrt_cpu::reconstruction::reconstruct_texel
+fn reconstruct_texel(t: GBufferTexel) -> SurfaceRecord {
+    if (t.flags & GBUF_HIT) == 0u {
+        return SurfaceRecord(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), INVALID_ID, vec3<f32>(0.0), INVALID_ID);
+    }
+    let gi = objects[t.object].first_triangle + t.triangle;
+    let tri = triangles[gi];
+    let v0 = tri.v0;
+    let v1 = tri.v1;
+    let v2 = tri.v2;
+    let eye = camera.eye;
+    let p = reconstruct_position(t.bary_u, t.bary_v, v0, v1, v2);
+    let err = max_element(position_error_bound(t.bary_u, t.bary_v, v0, v1, v2));
+    var ng = geometric_normal(v0, v1, v2);
+    var ns = interpolate_normal(t.bary_u, t.bary_v, corner_normal(gi, 0u), corner_normal(gi, 1u), corner_normal(gi, 2u), ng);
+    let to_eye = eye - p;
+    // A degenerate triangle has no geometric normal: shade with the shading normal.
+    if !any_nonzero(ns) {
+        ns = normalize_or(to_eye, vec3<f32>(0.0, 1.0, 0.0));
+    }
+    // mirrors hyrt_core::kernels::shading::face_forward
+    if dot3(ng, to_eye) < 0.0 {
+        ng = -ng;
+        ns = -ns;
+    }
+    // Keep the shading normal in the viewer's hemisphere of the geometric normal.
+    if any_nonzero(ng) && dot3(ns, ng) < 0.0 {
+        ns = ng;
+    }
+    return SurfaceRecord(p, err, ns, t.object, ng, gi);
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x >= camera.width || gid.y >= camera.height {
+        return;
+    }
+    let pixel = gid.y * camera.width + gid.x;
+    surfaces[pixel] = reconstruct_texel(gbuffer[pixel]);
+}
