@@ -46,7 +46,7 @@
 use std::sync::Mutex;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
-use crate::GpuContext;
+use crate::{GpuContext, GpuError};
 
 /// Render target of the triangle ids: global triangle index + 1, 0 = miss.
 pub const ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
@@ -211,6 +211,18 @@ impl VisibilityRasterStage {
         }
     }
 
+    /// Check that a `width` x `height` frame fits the device's render targets
+    /// (`max_texture_dimension_2d`); [`Self::encode`] assumes it does.
+    pub fn check_size(ctx: &GpuContext, width: u32, height: u32) -> Result<(), GpuError> {
+        let max = ctx.limits.max_texture_dimension_2d;
+        if width > max || height > max {
+            return Err(GpuError::Limits(format!(
+                "visibility_raster: {width}x{height} exceeds the device's {max}-pixel render target side"
+            )));
+        }
+        Ok(())
+    }
+
     /// The render targets for `width` x `height`, created on a size change.
     fn targets(&self, ctx: &GpuContext, width: u32, height: u32) -> std::sync::Arc<Targets> {
         let mut guard = self.targets.lock().unwrap_or_else(|e| e.into_inner());
@@ -225,7 +237,7 @@ impl VisibilityRasterStage {
     }
 
     /// Record the raster pass and the resolve pass. The camera uniform must describe a
-    /// `frame.width` x `frame.height` image.
+    /// `frame.width` x `frame.height` image, which must pass [`Self::check_size`].
     pub fn encode(
         &self,
         ctx: &GpuContext,
@@ -292,7 +304,8 @@ impl VisibilityRasterStage {
             if scene.triangle_count > 0 {
                 pass.set_pipeline(&self.raster);
                 pass.set_bind_group(0, &raster_group, &[]);
-                pass.draw(0..scene.triangle_count * 3, 0..1);
+                // Saturating: a table that large exceeds the storage binding limits anyway.
+                pass.draw(0..scene.triangle_count.saturating_mul(3), 0..1);
             }
         }
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
