@@ -27,6 +27,17 @@
 //! level above), `scatter_rays` (each active pair writes its ray at its scanned
 //! index). Integer sums are exact, so the list is stable and identical on every
 //! run and backend. Dispatches use 2D grids past 65535 tiles.
+//!
+//! # Agreement with the CPU
+//!
+//! The ray records are exact on any conformant device: the origin offset is
+//! integer arithmetic on the bits (its near-zero branch adds an exact product, so
+//! a fused multiply-add changes nothing), the direction is one correctly rounded
+//! subtraction, the rest are constants. The flags use `light_incidence`'s
+//! `sqrt` and divisions and two dot products, which a GPU may fuse or round
+//! within 2.5 ulp: a flag can then differ only where `n . l` is within a few ulps
+//! of zero (grazing light), or where `radiance / d^2` is subnormal and flushed.
+//! On lavapipe the default-scene tests find no difference.
 
 use std::sync::Mutex;
 
@@ -356,5 +367,39 @@ impl CompactionStage {
         });
         self.encode_passes(encoder, &scratch, &scan_group, &test_group, &self.reduce, &self.scatter_indices, None);
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The level structure: each level holds one value per tile of the level
+    /// below, the top fits one tile, levels do not overlap in the scratch.
+    #[test]
+    fn scan_plan_levels_cover_the_largest_frame() {
+        let t = COMPACTION_TILE;
+        for n in [0, 1, t - 1, t, t + 1, t * t, t * t + 1, 1280 * 720 * 4, t * t * t + 7] {
+            let plan = ScanPlan::new(n);
+            let mut below = n;
+            let mut next_off = 0;
+            for &(count, off) in &plan.levels {
+                assert_eq!(count, below.div_ceil(t), "n = {n}");
+                assert_eq!(off, next_off, "n = {n}");
+                next_off += count.max(1);
+                below = count;
+            }
+            assert!(plan.levels.last().unwrap().0 <= t, "n = {n}: top fits one tile");
+            assert!(plan.levels.len() == 1 || plan.levels[plan.levels.len() - 2].0 > t, "n = {n}: no extra level");
+            assert_eq!(plan.levels_len(), next_off);
+            let params = plan.params();
+            assert_eq!(params.len(), plan.levels.len() + 1);
+            assert_eq!((params[0].n, params[0].src_is_flags, params[0].dst_off), (n, 1, 0));
+        }
+        // 1280 x 720 x 4 flags: 7200 tiles, then 15, then the top.
+        assert_eq!(ScanPlan::new(1280 * 720 * 4).levels, vec![(7200, 0), (15, 7200)]);
+        assert_eq!(grid(7200), (7200, 1));
+        assert_eq!(grid(65_536), (65_535, 2));
+        assert_eq!(grid(0), (0, 1));
     }
 }

@@ -12,7 +12,10 @@
 //! The WGSL (`shaders/ray.wgsl`, `shaders/shadow_rays.wgsl`) mirrors the core ray
 //! kernels function by function. Where it cannot: the CPU decides an exactly-zero
 //! f32 edge function in f64; WGSL has no f64, so the GPU counts a zero edge
-//! function as on the edge (inside) — see `watertight_hit` in `ray.wgsl`. Edge
+//! function as on the edge (inside) — see `watertight_hit` in `ray.wgsl`: the
+//! GPU then reports occluded where the CPU, exactly, finds a miss by less than
+//! one rounding at an open edge; never the other way round (up to t rounding at
+//! the ends of the interval). Edge
 //! functions are evaluated in a canonical vertex order so that a fused
 //! multiply-add cannot break their antisymmetry (watertightness).
 

@@ -85,6 +85,7 @@ fn compaction_default_scene_matches_cpu() {
     let scene = Scene::default_scene();
     let prepared = prepare(&scene);
     assert_eq!(prepared.geometry.lights.len(), 2);
+    assert_eq!(hyrt_gpu::shadow_rays::SHADOW_T_MAX_POINT.to_bits(), hyrt_cpu::compaction::SHADOW_T_MAX_POINT.to_bits());
     for (w, h) in [(67, 41), (160, 90), (1, 1), (13, 7)] {
         let surfaces = cpu_surfaces(&prepared, &scene, w, h);
         let n = compare(&ctx, &prepared, &surfaces, w, h);
@@ -186,5 +187,32 @@ fn compaction_scan_matches_sequential() {
         let first_diff = got.iter().zip(&expected).position(|(a, b)| a != b);
         assert_eq!(first_diff, None, "n = {}: first differing index", flags.len());
         assert_eq!(got.len(), expected.len());
+    }
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::test_runner::Config { cases: 24, ..Default::default() })]
+    /// Random lengths (tile boundaries included by the range) and densities.
+    #[test]
+    fn compaction_scan_prop_equals_sequential(
+        n in 0usize..3 * COMPACTION_TILE as usize + 5,
+        density in 0u32..=8,
+        seed in proptest::prelude::any::<u32>(),
+    ) {
+        let Some(ctx) = test_context() else { return Ok(()) };
+        let stage = CompactionStage::new(&ctx);
+        let mut rng = seed | 1;
+        let flags: Vec<u32> = (0..n)
+            .map(|_| {
+                rng ^= rng << 13;
+                rng ^= rng >> 17;
+                rng ^= rng << 5;
+                (rng % 8 < density) as u32
+            })
+            .collect();
+        let (got, count) = run_scan(&ctx, &stage, &flags);
+        let expected = compact_sequential(&flags);
+        proptest::prop_assert_eq!(count, expected_dispatch(expected.len() as u32));
+        proptest::prop_assert_eq!(got, expected);
     }
 }

@@ -185,10 +185,13 @@ fn edge_function(a: vec3<f32>, b: vec3<f32>) -> f32 {
 // values: a zero edge function counts as on the edge, i.e. inside (as the CPU
 // does for an exactly-zero f64 value). Both triangles sharing that edge see the
 // same zero (canonical edge order), so a ray through a shared edge or vertex of a
-// closed mesh still hits. The GPU can differ from the CPU only when the two
-// products of an edge function round to the same f32 while their exact
-// difference has the sign that rejects (the ray passes within about one ulp of a
-// silhouette edge), and on t (f32 vs f64-rounded edge values) at the t bounds.
+// closed mesh still hits. A non-zero f32 edge function always has the exact
+// sign (rounding is monotone), so the GPU can differ from the CPU only when the
+// two products of an edge function round to the same f32 while their exact
+// difference has the sign that rejects: the ray passes within about one rounding
+// of an open (silhouette) edge, the CPU misses and the GPU hits (pinned in
+// tests/shadow_rays.rs). Apart from t at the interval ends (f32 vs f64-rounded
+// edge values give t a few ulps apart), GPU hits are a superset of CPU hits.
 fn watertight_hit(r: WatertightRay, t_min: f32, t_max: f32, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> bool {
     let p0 = watertight_transform(r, v0);
     let p1 = watertight_transform(r, v1);
