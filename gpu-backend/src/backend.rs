@@ -85,7 +85,16 @@ impl GpuBackend {
 
     /// The adapter, the triangle-id source and the timing method, in one line.
     pub fn describe(&self) -> String {
-        format!("{}; raster ids from {}", self.ctx.describe(), self.visibility_raster.triangle_id_source())
+        let timing = if self.timer.is_active() && !crate::context::is_software(&self.ctx.info) {
+            "GPU timestamp queries"
+        } else {
+            "wall clock per stage (submit and wait)"
+        };
+        format!(
+            "{}; raster ids from {}; stage times from {timing}",
+            self.ctx.describe(),
+            self.visibility_raster.triangle_id_source()
+        )
     }
 
     /// The device context.
@@ -101,6 +110,7 @@ impl GpuBackend {
         out: &mut Frame,
     ) -> Result<(), GpuError> {
         let ctx = &self.ctx;
+        VisibilityRasterStage::check_size(ctx, camera.width, camera.height)?;
         if self.scene.as_ref().map(|(id, _)| *id) != Some(scene.id()) {
             self.scene = Some((scene.id(), ctx.checked(|| SceneBuffers::new(ctx, scene))?));
         }
@@ -118,7 +128,10 @@ impl GpuBackend {
         // With timestamp queries the frame is one command buffer and the GPU times each
         // stage. Without them each stage is submitted alone and waited for, so the wall
         // clock can time it (slower: it serializes CPU and GPU).
-        let timed_by_gpu = self.timer.is_active();
+        // Lavapipe's timestamps do not measure its passes (it reported 0.07 ms for
+        // reconstructing 921,600 pixels on a CPU): on software adapters each stage is
+        // timed by the wall clock instead.
+        let timed_by_gpu = self.timer.is_active() && !crate::context::is_software(&ctx.info);
         let mut wall_ms = Vec::with_capacity(FRAME_STAGES.len());
         ctx.checked(|| -> Result<(), GpuError> {
             let t = &self.timer;

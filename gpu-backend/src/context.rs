@@ -108,13 +108,13 @@ impl GpuContext {
     /// A one-line description: adapter, type, driver, and the features in use.
     pub fn describe(&self) -> String {
         format!(
-            "{} ({:?}, {} {}); triangle ids via {}; timings via {}",
+            "{} ({:?}, {} {}); triangle ids via {}; timestamp queries {}",
             self.info.name,
             self.info.device_type,
             self.info.driver,
             self.info.driver_info,
             if self.primitive_index { "@builtin(primitive_index)" } else { "flat-interpolated vertex ids" },
-            if self.timestamps { "timestamp queries" } else { "wall clock" },
+            if self.timestamps { "available" } else { "unavailable" },
         )
     }
 

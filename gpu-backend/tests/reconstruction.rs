@@ -61,7 +61,7 @@ fn ulp_distance(a: f32, b: f32) -> u64 {
 fn prepare(scene: &Scene) -> PreparedScene {
     let geometry = WorldGeometry::build(scene);
     let bvh = Bvh::build(&geometry, BvhPreset::default());
-    PreparedScene { geometry, bvh, bvh_build_ms: 0.0 }
+    PreparedScene::new(geometry, bvh, 0.0)
 }
 
 /// Run the GPU stage on `gbuffer` and read the surfaces back.

@@ -48,7 +48,12 @@ fn gpu_frame_matches_cpu_frame_on_the_default_scene() {
         );
         // Same shadow rays up to those pixels, and images close.
         let rays_diff = (c.rays.len() as i64 - g.rays.len() as i64).unsigned_abs();
-        assert!(rays_diff as f64 <= 2.0 * id_mismatch as f64 + 0.001 * c.rays.len() as f64, "{} vs {} rays", c.rays.len(), g.rays.len());
+        assert!(
+            rays_diff as f64 <= 2.0 * id_mismatch as f64 + 0.001 * c.rays.len() as f64,
+            "{} vs {} rays",
+            c.rays.len(),
+            g.rays.len()
+        );
         let mean_abs: f64 = c
             .final_image
             .iter()
@@ -61,7 +66,11 @@ fn gpu_frame_matches_cpu_frame_on_the_default_scene() {
         const MAX_MEAN_ABS_DIFF: f64 = 0.01;
         assert!(mean_abs < MAX_MEAN_ABS_DIFF, "{w}x{h}: mean |cpu - gpu| = {mean_abs}");
         assert!(g.stats.stage_ms.len() == 8, "{:?}", g.stats.stage_ms);
-        eprintln!("{w}x{h} weight {weight}: {id_mismatch} id mismatches, mean |diff| {mean_abs:.2e}, rays cpu {} gpu {}", c.rays.len(), g.rays.len());
+        eprintln!(
+            "{w}x{h} weight {weight}: {id_mismatch} id mismatches, mean |diff| {mean_abs:.2e}, rays cpu {} gpu {}",
+            c.rays.len(),
+            g.rays.len()
+        );
     }
 }
 
