@@ -16,7 +16,7 @@ fn determinism_default_scene_same_bits_across_runs_and_threads() {
         bytemuck::cast_slice::<_, u8>(&p2.bvh.nodes),
         "BVH build differs across thread counts"
     );
-    let opts = FrameOptions { weight: 0.7 };
+    let opts = FrameOptions { weight: 0.7, ..FrameOptions::default() };
     // 131x77: not a multiple of any tile or block size.
     let a = one.render(&p1, &cam, 131, 77, &opts).unwrap();
     let b = one.render(&p1, &cam, 131, 77, &opts).unwrap();
@@ -36,9 +36,10 @@ fn determinism_reused_frame_buffers_give_the_same_bits() {
     let cam = scene.camera.unwrap();
     let r = Renderer::cpu(Some(2));
     let prepared = r.prepare(&scene);
-    let opts = FrameOptions { weight: 0.4 };
+    let opts = FrameOptions { weight: 0.4, ..FrameOptions::default() };
     let fresh = r.render(&prepared, &cam, 83, 59, &opts).unwrap();
-    let mut reused = r.render(&prepared, &cam, 120, 90, &FrameOptions { weight: 1.0 }).unwrap();
+    let mut reused =
+        r.render(&prepared, &cam, 120, 90, &FrameOptions { weight: 1.0, ..FrameOptions::default() }).unwrap();
     let mut other = Scene::default_scene();
     other.objects.truncate(2);
     let other = r.prepare(&other);

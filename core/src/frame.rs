@@ -50,11 +50,15 @@ pub struct FrameOptions {
     /// Composition weight of the ray-traced image in [0, 1] (paper 3.5):
     /// final = (1 - weight) * raster + weight * rt on ray-traced pixels.
     pub weight: f32,
+    /// Return every stage's output in the [`Frame`] (for `--dump`, conformance).
+    /// When false, a backend may return only the final image, the G-buffer and the
+    /// counts: the GPU backend then reads back one combined buffer per frame.
+    pub stage_outputs: bool,
 }
 
 impl Default for FrameOptions {
     fn default() -> Self {
-        FrameOptions { weight: 1.0 }
+        FrameOptions { weight: 1.0, stage_outputs: true }
     }
 }
 

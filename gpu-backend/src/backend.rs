@@ -10,7 +10,7 @@ use hyrt_core::stage::Stage;
 use crate::buffers::{FrameBuffers, FrameParams, SceneBuffers};
 use crate::compaction::CompactionStage;
 use crate::composition::CompositionStage;
-use crate::gpu_buffer::read_back;
+use crate::gpu_buffer::read_back_many;
 use crate::raster_shading::RasterShadingStage;
 use crate::reconstruction::ReconstructionStage;
 use crate::rt_shading::RtShadingStage;
@@ -167,18 +167,55 @@ impl GpuBackend {
             ctx.queue.submit([enc.finish()]);
             Ok(())
         })??;
-        // One readback at the end: every stage's output (the Frame holds them all).
+        // One readback at the end: the ray count, the occlusion results, the G-buffer
+        // (for the pixel counts) and the final image, in one staging buffer. The other
+        // stage outputs only when asked (`--dump`, conformance).
         let pixels = camera.width as usize * camera.height as usize;
-        let count = read_back::<u32>(ctx, &fb.ray_count, 1)?[0] as usize;
-        out.gbuffer = read_back::<GBufferTexel>(ctx, &fb.gbuffer, pixels)?;
-        out.surfaces = read_back::<SurfaceRecord>(ctx, &fb.surfaces, pixels)?;
-        out.rays = read_back::<RayRecord>(ctx, &fb.rays, count)?;
-        out.occluded = read_back::<u32>(ctx, &fb.occluded, count)?;
-        out.shadow =
-            read_back::<u32>(ctx, &fb.shadow, pixels * lights as usize)?.into_iter().map(|s| s as u8).collect();
-        out.rt = read_back::<[f32; 4]>(ctx, &fb.rt, pixels)?;
-        out.raster = read_back::<[f32; 4]>(ctx, &fb.raster, pixels)?;
-        out.final_image = read_back::<[f32; 4]>(ctx, &fb.final_image, pixels)?;
+        let pairs = pixels * lights as usize;
+        let bytes = |n: usize, size: usize| (n * size) as u64;
+        let mut parts = read_back_many(
+            ctx,
+            &[
+                (&fb.ray_count, 4),
+                (&fb.occluded, bytes(pairs, 4)),
+                (&fb.gbuffer, bytes(pixels, std::mem::size_of::<GBufferTexel>())),
+                (&fb.final_image, bytes(pixels, 16)),
+            ],
+        )?
+        .into_iter();
+        let mut next = || parts.next().expect("one part per request");
+        let count = (bytemuck::pod_read_unaligned::<u32>(&next()) as usize).min(pairs);
+        let mut occluded: Vec<u32> = bytemuck::pod_collect_to_vec(&next());
+        occluded.truncate(count);
+        out.occluded = occluded;
+        out.gbuffer = bytemuck::pod_collect_to_vec(&next());
+        out.final_image = bytemuck::pod_collect_to_vec(&next());
+        if options.stage_outputs {
+            let mut parts = read_back_many(
+                ctx,
+                &[
+                    (&fb.surfaces, bytes(pixels, std::mem::size_of::<SurfaceRecord>())),
+                    (&fb.rays, bytes(count, std::mem::size_of::<RayRecord>())),
+                    (&fb.shadow, bytes(pairs, 4)),
+                    (&fb.rt, bytes(pixels, 16)),
+                    (&fb.raster, bytes(pixels, 16)),
+                ],
+            )?
+            .into_iter();
+            let mut next = || parts.next().expect("one part per request");
+            out.surfaces = bytemuck::pod_collect_to_vec(&next());
+            out.rays = bytemuck::pod_collect_to_vec(&next());
+            out.shadow = bytemuck::pod_collect_to_vec::<u8, u32>(&next()).into_iter().map(|s| s as u8).collect();
+            out.rt = bytemuck::pod_collect_to_vec(&next());
+            out.raster = bytemuck::pod_collect_to_vec(&next());
+        } else {
+            for v in [&mut out.rt, &mut out.raster] {
+                v.clear();
+            }
+            out.surfaces.clear();
+            out.rays.clear();
+            out.shadow.clear();
+        }
         let mut stage_ms = vec![StageTime { stage: Stage::BvhBuild, ms: scene.bvh_build_ms }];
         let ms = if timed_by_gpu { self.timer.read_ms(ctx)?.unwrap_or_default() } else { wall_ms };
         stage_ms.extend(FRAME_STAGES.iter().zip(ms).map(|(&stage, ms)| StageTime { stage, ms }));
@@ -191,10 +228,9 @@ impl GpuBackend {
             }
         }
         stats.raster_pixels = stats.covered_pixels - stats.ray_traced_pixels;
+        // The GPU ray list holds shadow rays only (compaction makes no other kind yet).
         let mut per_kind = [0u64; RAY_KIND_COUNT];
-        for r in &out.rays {
-            per_kind[r.kind as usize] += 1;
-        }
+        per_kind[hyrt_core::formats::RAY_KIND_SHADOW as usize] = count as u64;
         stats.rays_per_kind = per_kind;
         stats.occluded_shadow_rays = out.occluded.iter().filter(|&&o| o != 0).count() as u64;
         out.width = camera.width;

@@ -46,6 +46,55 @@ pub fn storage<T: Pod>(ctx: &GpuContext, label: &str, count: usize) -> Result<wg
     }))
 }
 
+/// Copy byte ranges `[0, len)` of several buffers back to the CPU with one staging
+/// buffer, one submission and one map (waits for the GPU). Lengths are rounded up to
+/// wgpu's copy alignment; the returned vectors have the requested lengths.
+pub fn read_back_many(ctx: &GpuContext, parts: &[(&wgpu::Buffer, u64)]) -> Result<Vec<Vec<u8>>, GpuError> {
+    let align = |n: u64| n.div_ceil(wgpu::COPY_BUFFER_ALIGNMENT) * wgpu::COPY_BUFFER_ALIGNMENT;
+    let total: u64 = parts.iter().map(|(_, n)| align(*n)).sum();
+    if total == 0 {
+        return Ok(parts.iter().map(|_| Vec::new()).collect());
+    }
+    let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("hyrt readback"),
+        size: total,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("readback") });
+    let mut offset = 0;
+    for (buffer, n) in parts {
+        if *n > 0 {
+            encoder.copy_buffer_to_buffer(buffer, 0, &staging, offset, align(*n));
+        }
+        offset += align(*n);
+    }
+    ctx.queue.submit([encoder.finish()]);
+    let slice = staging.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    ctx.device
+        .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
+        .map_err(|e| GpuError::Readback(e.to_string()))?;
+    rx.recv().map_err(|e| GpuError::Readback(e.to_string()))?.map_err(|e| GpuError::Readback(e.to_string()))?;
+    let out = {
+        let view = slice.get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
+        let mut offset = 0usize;
+        parts
+            .iter()
+            .map(|(_, n)| {
+                let v = view[offset..offset + *n as usize].to_vec();
+                offset += align(*n) as usize;
+                v
+            })
+            .collect()
+    };
+    staging.unmap();
+    Ok(out)
+}
+
 /// Copy the first `count` elements of `buffer` back to the CPU (waits for the GPU).
 pub fn read_back<T: Pod>(ctx: &GpuContext, buffer: &wgpu::Buffer, count: usize) -> Result<Vec<T>, GpuError> {
     let size = (count * std::mem::size_of::<T>()) as u64;

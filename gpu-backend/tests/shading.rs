@@ -96,7 +96,9 @@ fn cpu_case(name: &str, scene: &Scene, width: u32, height: u32, weight: f32) -> 
     let bvh = Bvh::build(&geometry, BvhPreset::default());
     let prepared = PreparedScene::new(geometry, bvh, 0.0);
     let camera = CameraRecord::new(&scene.camera.expect("scene camera"), width, height);
-    let cpu = CpuBackend::new(Some(1)).render(&prepared, &camera, &FrameOptions { weight }).expect("cpu render");
+    let cpu = CpuBackend::new(Some(1))
+        .render(&prepared, &camera, &FrameOptions { weight, ..FrameOptions::default() })
+        .expect("cpu render");
     Case { name: format!("{name} {width}x{height} w={weight}"), scene: prepared, camera, weight, cpu }
 }
 

@@ -168,7 +168,8 @@ fn render(args: RenderArgs) -> Result<(), String> {
     eprintln!("backend: {}", renderer.choice());
     let (w, h) = args.size;
     let prepared = renderer.prepare(&scene);
-    let options = FrameOptions { weight: args.weight };
+    // Every stage's output is kept only for --dump (the GPU then reads them back too).
+    let options = FrameOptions { weight: args.weight, stage_outputs: args.dump.is_some() };
     let frame = renderer.render(&prepared, &camera, w, h, &options).map_err(|e| e.to_string())?;
     hyrt::image_io::write_png(&args.out, w, h, &frame.final_image).map_err(|e| e.to_string())?;
 

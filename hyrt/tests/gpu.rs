@@ -27,7 +27,7 @@ fn gpu_frame_matches_cpu_frame_on_the_default_scene() {
     let cam = scene.camera.unwrap();
     let prepared = cpu.prepare(&scene);
     for (w, h, weight) in [(96, 54, 1.0), (67, 41, 0.5)] {
-        let opts = FrameOptions { weight };
+        let opts = FrameOptions { weight, ..FrameOptions::default() };
         let c = cpu.render(&prepared, &cam, w, h, &opts).unwrap();
         let g = gpu.render(&prepared, &cam, w, h, &opts).unwrap();
         assert_eq!((g.width, g.height), (w, h));
@@ -145,4 +145,20 @@ fn cli_backend_gpu_renders_default_scene_and_sponza_with_software_allowed() {
         assert!(String::from_utf8_lossy(&o.stderr).contains("backend: gpu"));
         assert_eq!(image::open(&out).unwrap().width(), 64);
     }
+}
+
+#[test]
+fn gpu_final_image_only_readback_gives_the_same_image_and_counts() {
+    let Some(gpu) = gpu_renderer() else { return };
+    let scene = Scene::default_scene();
+    let cam = scene.camera.unwrap();
+    let p = gpu.prepare(&scene);
+    let all = gpu.render(&p, &cam, 48, 32, &FrameOptions::default()).unwrap();
+    let lean = gpu.render(&p, &cam, 48, 32, &FrameOptions { stage_outputs: false, ..FrameOptions::default() }).unwrap();
+    assert_eq!(bytemuck_bits(&all.final_image), bytemuck_bits(&lean.final_image));
+    assert_eq!(all.stats.covered_pixels, lean.stats.covered_pixels);
+    assert_eq!(all.stats.rays_per_kind, lean.stats.rays_per_kind);
+    assert_eq!(all.stats.occluded_shadow_rays, lean.stats.occluded_shadow_rays);
+    assert_eq!(all.rays.len() as u64, all.stats.rays_per_kind[0]);
+    assert!(lean.rays.is_empty() && lean.surfaces.is_empty() && lean.rt.is_empty());
 }

@@ -138,7 +138,7 @@ fn end_to_end_weight_blends_raster_and_rt() {
     let r = Renderer::cpu(Some(1));
     let prepared = r.prepare(&scene);
     let cam = scene.camera.unwrap();
-    let half = r.render(&prepared, &cam, 96, 64, &FrameOptions { weight: 0.5 }).unwrap();
+    let half = r.render(&prepared, &cam, 96, 64, &FrameOptions { weight: 0.5, ..FrameOptions::default() }).unwrap();
     for i in 0..half.final_image.len() {
         if half.rt[i][3] > 0.0 {
             for c in 0..3 {
@@ -149,7 +149,7 @@ fn end_to_end_weight_blends_raster_and_rt() {
             assert_eq!(half.final_image[i], half.raster[i]);
         }
     }
-    assert!(r.render(&prepared, &cam, 96, 64, &FrameOptions { weight: 1.5 }).is_err());
+    assert!(r.render(&prepared, &cam, 96, 64, &FrameOptions { weight: 1.5, ..FrameOptions::default() }).is_err());
     assert!(r.render(&prepared, &cam, 0, 64, &FrameOptions::default()).is_err());
 }
 
