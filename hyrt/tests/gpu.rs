@@ -19,14 +19,20 @@ fn gpu_renderer() -> Option<Renderer> {
 }
 
 #[test]
-fn gpu_frame_matches_cpu_frame_on_the_default_scene() {
+fn gpu_frame_matches_cpu_frame_on_the_default_scene_and_sponza() {
     let Some(gpu) = gpu_renderer() else { return };
     eprintln!("{}", gpu.choice());
     let cpu = Renderer::cpu(Some(2));
-    let scene = Scene::default_scene();
-    let cam = scene.camera.unwrap();
-    let prepared = cpu.prepare(&scene);
-    for (w, h, weight) in [(96, 54, 1.0), (67, 41, 0.5)] {
+    let mut cases = vec![(Scene::default_scene(), 96, 54, 1.0), (Scene::default_scene(), 67, 41, 0.5)];
+    let sponza = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets/sponza.glb");
+    if sponza.is_file() {
+        let mut s = Scene::load(&sponza).unwrap();
+        s.ensure_camera_and_lights();
+        cases.push((s, 96, 54, 1.0));
+    }
+    for (scene, w, h, weight) in cases {
+        let cam = scene.camera.unwrap();
+        let prepared = cpu.prepare(&scene);
         let opts = FrameOptions { weight, ..FrameOptions::default() };
         let c = cpu.render(&prepared, &cam, w, h, &opts).unwrap();
         let g = gpu.render(&prepared, &cam, w, h, &opts).unwrap();
