@@ -78,6 +78,10 @@ struct RenderArgs {
     /// Worker threads (default: one per core).
     #[arg(long)]
     threads: Option<usize>,
+    /// Render this many frames (reusing every buffer) and report the median time of
+    /// each stage over them; the image is the last frame's.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    frames: u32,
     /// BVH build preset (obvhs).
     #[arg(long, value_enum)]
     bvh_preset: Option<PresetArg>,
@@ -170,7 +174,19 @@ fn render(args: RenderArgs) -> Result<(), String> {
     let prepared = renderer.prepare(&scene);
     // Every stage's output is kept only for --dump (the GPU then reads them back too).
     let options = FrameOptions { weight: args.weight, stage_outputs: args.dump.is_some() };
-    let frame = renderer.render(&prepared, &camera, w, h, &options).map_err(|e| e.to_string())?;
+    let mut frame = hyrt::Frame::default();
+    let mut per_frame = Vec::with_capacity(args.frames as usize);
+    for _ in 0..args.frames {
+        renderer.render_into(&prepared, &camera, w, h, &options, &mut frame).map_err(|e| e.to_string())?;
+        per_frame.push(frame.stats.stage_ms.clone());
+    }
+    // Median per stage over the frames (the lower middle for an even count).
+    let median = |stage: Stage| -> Option<f64> {
+        let mut v: Vec<f64> =
+            per_frame.iter().filter_map(|f| f.iter().find(|t| t.stage == stage).map(|t| t.ms)).collect();
+        v.sort_by(f64::total_cmp);
+        (!v.is_empty()).then(|| v[(v.len() - 1) / 2])
+    };
     hyrt::image_io::write_png(&args.out, w, h, &frame.final_image).map_err(|e| e.to_string())?;
 
     let s = &frame.stats;
@@ -188,12 +204,19 @@ fn render(args: RenderArgs) -> Result<(), String> {
         "covered pixels {}, valid rays (ray-traced pixels) {}, raster pixels {}, shadow rays {} ({} occluded)",
         s.covered_pixels, s.ray_traced_pixels, s.raster_pixels, s.rays_per_kind[0], s.occluded_shadow_rays
     );
+    if args.frames > 1 {
+        println!("median of {} frames:", args.frames);
+    }
+    let mut frame_ms = 0.0;
     for st in Stage::ALL {
-        if let Some(ms) = s.ms(st) {
+        if let Some(ms) = median(st) {
             println!("  {:<18} {:>9.2} ms", st.name(), ms);
+            if st != Stage::BvhBuild {
+                frame_ms += ms;
+            }
         }
     }
-    println!("  {:<18} {:>9.2} ms (per frame, without bvh_build)", "frame", s.frame_ms());
+    println!("  {:<18} {:>9.2} ms (sum of the stages above, without bvh_build)", "frame", frame_ms);
     println!("wrote {}", args.out.display());
     if let Some(dir) = &args.dump {
         let files = hyrt::dump::write_dump(dir, &scene, &prepared, &camera, &frame, &renderer.backend_name())

@@ -145,3 +145,18 @@ fn cli_renders_shared_sponza_and_says_what_it_added() {
     assert!(stdout.contains("66454 triangles"), "{stdout}");
     assert_eq!(image::open(&out).unwrap().width(), 96);
 }
+
+#[test]
+fn cli_frames_reports_the_median_of_several_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = hyrt()
+        .args(["render", "--size", "24x16", "--frames", "3", "--out"])
+        .arg(dir.path().join("f.png"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("median of 3 frames") && stdout.contains("shadow_rays"), "{stdout}");
+    let o = hyrt().args(["render", "--frames", "0"]).output().unwrap();
+    assert!(!o.status.success());
+}
