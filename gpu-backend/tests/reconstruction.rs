@@ -5,6 +5,7 @@
 mod common;
 
 use common::test_context;
+use hyrt_conformance::ulp_distance;
 use hyrt_core::bvh::{Bvh, BvhPreset};
 use hyrt_core::formats::{CameraRecord, GBufferTexel, SurfaceRecord, GBUF_HIT};
 use hyrt_core::frame::PreparedScene;
@@ -40,23 +41,6 @@ const NORMAL_ULPS_OF_ONE: f64 = 16.0;
 // ---------------------------------------------------------------------------------------------
 // Helpers
 // ---------------------------------------------------------------------------------------------
-
-/// Map f32 bits to integers ordered like the floats (as `hyrt_conformance::ordered_bits`).
-fn ordered_bits(x: f32) -> i64 {
-    let b = x.to_bits() as i32;
-    if b < 0 {
-        -((b & 0x7fff_ffff) as i64)
-    } else {
-        b as i64
-    }
-}
-
-fn ulp_distance(a: f32, b: f32) -> u64 {
-    if a.is_nan() || b.is_nan() {
-        return if a.to_bits() == b.to_bits() { 0 } else { u64::MAX };
-    }
-    (ordered_bits(a) - ordered_bits(b)).unsigned_abs()
-}
 
 fn prepare(scene: &Scene) -> PreparedScene {
     let geometry = WorldGeometry::build(scene);
