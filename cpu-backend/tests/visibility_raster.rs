@@ -9,7 +9,7 @@ use hyrt_core::formats::{CameraRecord, GBufferTexel, GBUF_BACK_FACE, GBUF_HIT, G
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::glam::{DMat4, DVec3, DVec4, Mat4, Quat, Vec3, Vec4};
 use hyrt_core::kernels::raster::FIXED_ONE;
-use hyrt_core::scene::{Camera, Material, Mesh, Object, ObjectSource, RenderMode, Scene};
+use hyrt_core::scene::{Camera, Material, Mesh, RenderMode, Scene};
 use hyrt_cpu::visibility_raster::{coverage_counts, visibility_raster, CoverageCounts, VisibilityOutput};
 use proptest::prelude::*;
 
@@ -50,18 +50,8 @@ const FOOTPRINT_MARGIN_PX: f64 = 1.0 / 64.0;
 
 fn scene_with(objects: Vec<(Mesh, Mat4, RenderMode)>, camera: Option<Camera>) -> Scene {
     let mut s = Scene::default();
-    for (i, (mesh, transform, render_mode)) in objects.into_iter().enumerate() {
-        s.meshes.push(mesh);
-        s.materials.push(Material::grey());
-        s.objects.push(Object {
-            id: i as u32,
-            name: format!("object{i}"),
-            mesh: i,
-            transform,
-            material: i,
-            render_mode,
-            source: ObjectSource::default(),
-        });
+    for (mesh, transform, render_mode) in objects {
+        s.add_object(mesh, Material::grey(), transform, render_mode);
     }
     s.camera = camera;
     s

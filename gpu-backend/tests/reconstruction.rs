@@ -11,7 +11,7 @@ use hyrt_core::formats::{CameraRecord, GBufferTexel, SurfaceRecord, GBUF_HIT};
 use hyrt_core::frame::PreparedScene;
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::glam::{Mat4, Vec3};
-use hyrt_core::scene::{Camera, Material, Mesh, Object, ObjectSource, RenderMode, Scene};
+use hyrt_core::scene::{Camera, Material, Mesh, RenderMode, Scene};
 use hyrt_cpu::reconstruction::reconstruction;
 use hyrt_cpu::visibility_raster::visibility_raster;
 use hyrt_gpu::buffers::{FrameBuffers, FrameParams, SceneBuffers};
@@ -138,18 +138,8 @@ fn compare(
 
 fn scene_with(objects: Vec<(Mesh, Mat4, RenderMode)>, camera: Option<Camera>) -> Scene {
     let mut s = Scene::default();
-    for (i, (mesh, transform, render_mode)) in objects.into_iter().enumerate() {
-        s.meshes.push(mesh);
-        s.materials.push(Material::grey());
-        s.objects.push(Object {
-            id: i as u32,
-            name: format!("object{i}"),
-            mesh: i,
-            transform,
-            material: i,
-            render_mode,
-            source: ObjectSource::default(),
-        });
+    for (mesh, transform, render_mode) in objects {
+        s.add_object(mesh, Material::grey(), transform, render_mode);
     }
     s.camera = camera;
     s

@@ -66,18 +66,8 @@ const DEPTH_SNAP_GAIN: f64 = 6.0;
 
 fn scene_with(objects: Vec<(Mesh, Mat4, RenderMode)>, camera: Option<Camera>) -> Scene {
     let mut s = Scene::default();
-    for (i, (mesh, transform, render_mode)) in objects.into_iter().enumerate() {
-        s.meshes.push(mesh);
-        s.materials.push(Material::grey());
-        s.objects.push(Object {
-            id: i as u32,
-            name: format!("object{i}"),
-            mesh: i,
-            transform,
-            material: i,
-            render_mode,
-            source: ObjectSource::default(),
-        });
+    for (mesh, transform, render_mode) in objects {
+        s.add_object(mesh, Material::grey(), transform, render_mode);
     }
     s.camera = camera;
     s

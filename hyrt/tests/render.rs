@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use hyrt::formats::{GBUF_RAY_TRACED, RAY_KIND_SHADOW};
 use hyrt::glam::{Mat4, Vec3};
-use hyrt::{Camera, FrameOptions, Light, Material, Mesh, Object, RenderMode, Renderer, Scene, Stage};
+use hyrt::{Camera, FrameOptions, Light, Material, Mesh, RenderMode, Renderer, Scene, Stage};
 
 fn shared_assets() -> Option<PathBuf> {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets");
@@ -17,18 +17,7 @@ fn shared_assets() -> Option<PathBuf> {
 }
 
 fn add(scene: &mut Scene, mesh: Mesh, transform: Mat4, mode: RenderMode) {
-    let id = scene.objects.len() as u32;
-    scene.meshes.push(mesh);
-    scene.materials.push(Material::grey());
-    scene.objects.push(Object {
-        id,
-        name: format!("object{id}"),
-        mesh: scene.meshes.len() - 1,
-        transform,
-        material: scene.materials.len() - 1,
-        render_mode: mode,
-        source: Default::default(),
-    });
+    scene.add_object(mesh, Material::grey(), transform, mode);
 }
 
 #[test]

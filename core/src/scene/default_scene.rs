@@ -9,7 +9,7 @@ use std::f32::consts::{PI, TAU};
 
 use glam::{Mat4, Quat, Vec3};
 
-use super::{Camera, Light, Material, MaterialKind, Mesh, Object, ObjectSource, RenderMode, Scene};
+use super::{Camera, Light, Material, MaterialKind, Mesh, RenderMode, Scene};
 
 impl Mesh {
     /// A unit square in the XZ plane centred at the origin, facing +Y, split into
@@ -135,20 +135,6 @@ impl Scene {
     /// The built-in default scene (paper Figure 8); see the module docs.
     pub fn default_scene() -> Scene {
         let mut scene = Scene::default();
-        let add = |scene: &mut Scene, mesh: Mesh, material: Material, transform: Mat4, mode: RenderMode| {
-            let id = scene.objects.len() as u32;
-            scene.meshes.push(mesh);
-            scene.materials.push(material);
-            scene.objects.push(Object {
-                id,
-                name: scene.meshes.last().unwrap().name.clone(),
-                mesh: scene.meshes.len() - 1,
-                transform,
-                material: scene.materials.len() - 1,
-                render_mode: mode,
-                source: ObjectSource::default(),
-            });
-        };
         let diffuse = |name: &str, rgb: Vec3| Material {
             name: name.into(),
             base_color: rgb,
@@ -160,15 +146,13 @@ impl Scene {
         let rt = RenderMode::RayTraced;
         // Three planes forming a corner: floor (blue), back wall (red), left wall (green).
         let size = 8.0;
-        add(
-            &mut scene,
+        scene.add_object(
             Mesh::grid("blue_floor", 8),
             diffuse("blue", Vec3::new(0.15, 0.25, 0.8)),
             Mat4::from_scale(Vec3::splat(size)),
             rt,
         );
-        add(
-            &mut scene,
+        scene.add_object(
             Mesh::grid("red_wall", 8),
             diffuse("red", Vec3::new(0.8, 0.15, 0.12)),
             Mat4::from_translation(Vec3::new(0.0, size * 0.5, -size * 0.5))
@@ -176,8 +160,7 @@ impl Scene {
                 * Mat4::from_scale(Vec3::splat(size)),
             rt,
         );
-        add(
-            &mut scene,
+        scene.add_object(
             Mesh::grid("green_wall", 8),
             diffuse("green", Vec3::new(0.15, 0.7, 0.2)),
             Mat4::from_translation(Vec3::new(-size * 0.5, size * 0.5, 0.0))
@@ -186,8 +169,7 @@ impl Scene {
             rt,
         );
         // The golden specular object (the paper's golden bunny).
-        add(
-            &mut scene,
+        scene.add_object(
             Mesh::uv_sphere("golden_sphere", 48, 24),
             Material {
                 name: "gold".into(),
@@ -202,8 +184,7 @@ impl Scene {
         );
         // Two purple rasterized objects (the paper's teapots).
         let purple = Vec3::new(0.55, 0.2, 0.7);
-        add(
-            &mut scene,
+        scene.add_object(
             Mesh::torus("purple_torus", 1.0, 0.35, 48, 24),
             diffuse("purple", purple),
             Mat4::from_translation(Vec3::new(2.0, 0.9, 1.2))
@@ -211,8 +192,7 @@ impl Scene {
                 * Mat4::from_scale(Vec3::splat(0.8)),
             RenderMode::Raster,
         );
-        add(
-            &mut scene,
+        scene.add_object(
             Mesh::cube("purple_cube"),
             diffuse("purple", purple),
             Mat4::from_translation(Vec3::new(1.6, 0.6, -1.8))

@@ -233,6 +233,25 @@ impl Scene {
         }
     }
 
+    /// Add a mesh with its own material as a new object (id = its index, name =
+    /// the mesh's name, no source file). Returns the object id.
+    pub fn add_object(&mut self, mesh: Mesh, material: Material, transform: Mat4, render_mode: RenderMode) -> u32 {
+        let id = self.objects.len() as u32;
+        let name = mesh.name.clone();
+        self.meshes.push(mesh);
+        self.materials.push(material);
+        self.objects.push(Object {
+            id,
+            name,
+            mesh: self.meshes.len() - 1,
+            transform,
+            material: self.materials.len() - 1,
+            render_mode,
+            source: ObjectSource::default(),
+        });
+        id
+    }
+
     /// Total triangle count over all objects.
     pub fn triangle_count(&self) -> usize {
         self.objects.iter().map(|o| self.meshes[o.mesh].triangle_count()).sum()
