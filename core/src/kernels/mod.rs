@@ -3,6 +3,7 @@
 //! by name and says so in a comment.
 
 pub mod barycentric;
+pub mod camera;
 pub mod raster;
 pub mod ray;
 pub mod scan;
