@@ -1,16 +1,22 @@
 //! Determinism: the same frame rendered twice, and with 1 or 2 rayon threads,
-//! gives identical bits in every stage's output.
+//! gives identical bits in every stage's output (the corpus-wide version is in
+//! `corpus.rs`; this one checks BVH builds and reused buffers).
 
-use hyrt::{FrameOptions, Renderer, Scene};
 use hyrt_conformance::compare_frames;
+use hyrt_core::bvh::BvhPreset;
+use hyrt_core::formats::CameraRecord;
+use hyrt_core::frame::{Backend, FrameOptions};
+use hyrt_core::geometry::WorldGeometry;
+use hyrt_core::scene::Scene;
+use hyrt_cpu::backend::CpuBackend;
 
 #[test]
 fn determinism_default_scene_same_bits_across_runs_and_threads() {
     let scene = Scene::default_scene();
-    let cam = scene.camera.unwrap();
-    let one = Renderer::cpu(Some(1));
-    let two = Renderer::cpu(Some(2));
-    let (p1, p2) = (one.prepare(&scene), two.prepare(&scene));
+    let mut one = CpuBackend::new(Some(1));
+    let mut two = CpuBackend::new(Some(2));
+    let p1 = one.prepare(WorldGeometry::build(&scene), BvhPreset::default());
+    let p2 = two.prepare(WorldGeometry::build(&scene), BvhPreset::default());
     assert_eq!(
         bytemuck::cast_slice::<_, u8>(&p1.bvh.nodes),
         bytemuck::cast_slice::<_, u8>(&p2.bvh.nodes),
@@ -18,9 +24,10 @@ fn determinism_default_scene_same_bits_across_runs_and_threads() {
     );
     let opts = FrameOptions { weight: 0.7, ..FrameOptions::default() };
     // 131x77: not a multiple of any tile or block size.
-    let a = one.render(&p1, &cam, 131, 77, &opts).unwrap();
-    let b = one.render(&p1, &cam, 131, 77, &opts).unwrap();
-    let c = two.render(&p2, &cam, 131, 77, &opts).unwrap();
+    let cam = CameraRecord::new(&scene.camera.unwrap(), 131, 77);
+    let a = one.render(&p1, &cam, &opts).unwrap();
+    let b = one.render(&p1, &cam, &opts).unwrap();
+    let c = two.render(&p2, &cam, &opts).unwrap();
     for (x, y, what) in [(&a, &b, "run twice"), (&a, &c, "1 vs 2 threads")] {
         for cmp in compare_frames(x, y) {
             assert!(cmp.is_exact(), "{what}: {} mismatches, first {}", cmp.mismatches, cmp.first.unwrap());
@@ -33,18 +40,19 @@ fn determinism_reused_frame_buffers_give_the_same_bits() {
     // Buffers left from a frame of another size, scene and weight must not leak
     // into the next frame.
     let scene = Scene::default_scene();
-    let cam = scene.camera.unwrap();
-    let r = Renderer::cpu(Some(2));
-    let prepared = r.prepare(&scene);
+    let camera = scene.camera.unwrap();
+    let mut r = CpuBackend::new(Some(2));
+    let prepared = r.prepare(WorldGeometry::build(&scene), BvhPreset::default());
     let opts = FrameOptions { weight: 0.4, ..FrameOptions::default() };
-    let fresh = r.render(&prepared, &cam, 83, 59, &opts).unwrap();
-    let mut reused =
-        r.render(&prepared, &cam, 120, 90, &FrameOptions { weight: 1.0, ..FrameOptions::default() }).unwrap();
+    let small = CameraRecord::new(&camera, 83, 59);
+    let fresh = r.render(&prepared, &small, &opts).unwrap();
+    let big = CameraRecord::new(&camera, 120, 90);
+    let mut reused = r.render(&prepared, &big, &FrameOptions { weight: 1.0, ..FrameOptions::default() }).unwrap();
     let mut other = Scene::default_scene();
     other.objects.truncate(2);
-    let other = r.prepare(&other);
-    r.render_into(&other, &cam, 83, 59, &FrameOptions::default(), &mut reused).unwrap();
-    r.render_into(&prepared, &cam, 83, 59, &opts, &mut reused).unwrap();
+    let other = r.prepare(WorldGeometry::build(&other), BvhPreset::default());
+    r.render_into(&other, &small, &FrameOptions::default(), &mut reused).unwrap();
+    r.render_into(&prepared, &small, &opts, &mut reused).unwrap();
     for cmp in compare_frames(&fresh, &reused) {
         assert!(cmp.is_exact(), "{} mismatches, first {}", cmp.mismatches, cmp.first.unwrap());
     }

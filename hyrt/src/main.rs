@@ -21,6 +21,33 @@ struct Cli {
 enum Command {
     /// Render a scene (.glb, .gltf or .toml manifest; the built-in default scene if none) to a PNG.
     Render(RenderArgs),
+    /// Run the conformance corpus: every stage of a candidate backend against the CPU
+    /// reference, with a report (report.md, difference images).
+    Conformance(ConformanceArgs),
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum CandidateArg {
+    /// The GPU backend (Vulkan; lavapipe with --allow-software-gpu).
+    Gpu,
+    /// The CPU backend on one thread (determinism against the two-thread reference).
+    Cpu1,
+}
+
+#[derive(clap::Args)]
+struct ConformanceArgs {
+    /// Directory for report.md and the difference images.
+    #[arg(long, default_value = "conformance-report")]
+    out: PathBuf,
+    /// What to compare with the CPU reference (two threads).
+    #[arg(long, value_enum, default_value = "gpu")]
+    against: CandidateArg,
+    /// Accept a software GPU adapter (Mesa lavapipe), as for `render`.
+    #[arg(long)]
+    allow_software_gpu: bool,
+    /// Only the cases whose name contains this text.
+    #[arg(long)]
+    filter: Option<String>,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -226,10 +253,60 @@ fn render(args: RenderArgs) -> Result<(), String> {
     Ok(())
 }
 
+fn conformance(args: ConformanceArgs) -> Result<(), String> {
+    use hyrt_conformance::report::{known_deviations_path, run_case, KnownDeviations, Report};
+    let mut cases = hyrt_conformance::corpus::corpus();
+    if let Some(f) = &args.filter {
+        cases.retain(|c| c.name.contains(f.as_str()));
+        if cases.is_empty() {
+            return Err(format!("no corpus case matches '{f}'"));
+        }
+    }
+    let mut reference = hyrt::CpuBackend::new(Some(2));
+    let (mut candidate, name): (Box<dyn hyrt::Backend>, String) = match args.against {
+        CandidateArg::Gpu => {
+            let policy = if args.allow_software_gpu { AdapterPolicy::AllowSoftware } else { AdapterPolicy::from_env() };
+            let gpu = hyrt::GpuBackend::new(policy).map_err(|e| e.to_string())?;
+            let name = format!("gpu: {}", gpu.describe());
+            (Box::new(gpu), name)
+        }
+        CandidateArg::Cpu1 => (Box::new(hyrt::CpuBackend::new(Some(1))), "cpu, 1 thread".into()),
+    };
+    eprintln!("reference: cpu, 2 threads; candidate: {name}; {} cases", cases.len());
+    let mut results = Vec::with_capacity(cases.len());
+    for (i, case) in cases.iter().enumerate() {
+        eprintln!("[{}/{}] {} ({}x{})", i + 1, cases.len(), case.name, case.width, case.height);
+        results.push(run_case(&mut reference, candidate.as_mut(), case));
+    }
+    let report = Report { reference: "cpu, 2 threads".into(), candidate: name, results };
+    // The recorded deviations describe the GPU backend on lavapipe; any other candidate
+    // (another driver, the CPU on one thread) is held to exact agreement.
+    let known = match args.against {
+        CandidateArg::Gpu => KnownDeviations::load(&known_deviations_path()).unwrap_or_else(|e| {
+            eprintln!("note: no recorded deviations ({e}); holding the candidate to exact agreement");
+            KnownDeviations::default()
+        }),
+        CandidateArg::Cpu1 => KnownDeviations::default(),
+    };
+    let files = report.write(&args.out, &known).map_err(|e| format!("{}: {e}", args.out.display()))?;
+    println!("{}", report.summary_markdown());
+    println!("wrote {} files to {} (report.md)", files.len(), args.out.display());
+    let (violations, _) = report.check(&known);
+    if violations.is_empty() {
+        Ok(())
+    } else {
+        for v in &violations {
+            eprintln!("  {v}");
+        }
+        Err(format!("{} differences beyond the recorded deviations", violations.len()))
+    }
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render(args),
+        Command::Conformance(args) => conformance(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -160,3 +160,22 @@ fn cli_frames_reports_the_median_of_several_frames() {
     let o = hyrt().args(["render", "--frames", "0"]).output().unwrap();
     assert!(!o.status.success());
 }
+
+#[test]
+fn cli_conformance_writes_a_report_and_fails_on_an_unknown_filter() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("conf");
+    // The CPU on one thread against the two-thread reference must be exact.
+    let o = hyrt().args(["conformance", "--against", "cpu1", "--filter", "size_", "--out"]).arg(&out).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(report.contains("### size_1x1") && report.contains("| visibility_raster | gbuffer |"), "{report}");
+    assert!(report.contains("Beyond the recorded deviations: 0"), "{report}");
+    let o = hyrt()
+        .args(["conformance", "--against", "cpu1", "--filter", "no_such_case", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("no corpus case matches 'no_such_case'"));
+}

@@ -1,0 +1,671 @@
+//! The conformance corpus: scenes built by code, each named for what it stresses.
+//!
+//! Families (the prefix of every case name):
+//! - `paper_*`: the default scene and the paper-like scenes of `../shared/assets`
+//!   (Sponza with a ray-traced bunny, the bunny near and far, the horse) and its hard
+//!   models, when that folder is present;
+//! - `raster_*`: shared edges and vertices, vertices on pixel centres and on subpixel
+//!   ties, top-left rule, sub-pixel and sliver triangles, the near and far planes,
+//!   coplanar overlap, back faces, huge coordinates and tiny scales;
+//! - `ray_*`: shadow rays through shared edges and vertices, grazing rays,
+//!   axis-parallel directions with +0 and -0 components, large coordinates, lights on
+//!   surfaces;
+//! - `degenerate_*`: zero-area, NaN and Inf triangles, an empty scene, a scene without
+//!   lights, all-miss and all-hit frames;
+//! - `size_*`: 1x1, odd sizes (not multiples of tile or workgroup sizes), rows wider
+//!   than 256 bytes, a tall single column.
+//!
+//! Images are small (lavapipe runs the GPU side on the CI's two cores).
+
+use std::path::{Path, PathBuf};
+
+use glam::{DMat4, DVec4, Mat4, Quat, Vec3};
+use hyrt_core::formats::CameraRecord;
+use hyrt_core::scene::{Camera, Light, Material, MaterialKind, Mesh, RenderMode, Scene};
+
+/// One scene of the corpus with the image it is rendered at.
+#[derive(Clone, Debug)]
+pub struct Case {
+    /// Unique name; the prefix says the family (module docs).
+    pub name: String,
+    /// What the case stresses, in a sentence.
+    pub stresses: &'static str,
+    pub scene: Scene,
+    pub camera: Camera,
+    pub width: u32,
+    pub height: u32,
+    /// Composition weight (paper 3.5).
+    pub weight: f32,
+}
+
+/// The shared models folder (`<repo>/../shared/assets`), if present.
+pub fn shared_assets() -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets");
+    p.is_dir().then_some(p)
+}
+
+fn diffuse(name: &str, rgb: Vec3) -> Material {
+    Material {
+        name: name.into(),
+        base_color: rgb,
+        metallic: 0.0,
+        roughness: 0.8,
+        transmission: 0.0,
+        kind: MaterialKind::Diffuse,
+    }
+}
+
+fn gold() -> Material {
+    Material {
+        name: "gold".into(),
+        base_color: Vec3::new(1.0, 0.76, 0.33),
+        metallic: 1.0,
+        roughness: 0.2,
+        transmission: 0.0,
+        kind: MaterialKind::Specular,
+    }
+}
+
+const RT: RenderMode = RenderMode::RayTraced;
+const RASTER: RenderMode = RenderMode::Raster;
+
+fn point(position: Vec3, intensity: f32) -> Light {
+    Light::Point { position, color: Vec3::ONE, intensity }
+}
+
+fn mesh(name: &str, positions: Vec<Vec3>, indices: Vec<[u32; 3]>) -> Mesh {
+    Mesh { name: name.into(), positions, normals: None, indices }
+}
+
+fn camera(eye: Vec3, target: Vec3, near: f32, far: f32) -> Camera {
+    Camera { eye, target, up: Vec3::Y, fov_y_deg: 45.0, near, far }
+}
+
+/// The world point seen at window position `(wx, wy)` (pixel units, row 0 on top) at
+/// NDC depth `depth`, unprojected in f64 and rounded once to f32. Projecting it back in
+/// f32 lands within rounding error of `(wx, wy)`, which is what these cases want: vertices
+/// *at* rounding boundaries, where two implementations disagree if any.
+fn unproject(cam: &Camera, width: u32, height: u32, wx: f64, wy: f64, depth: f64) -> Vec3 {
+    let rec = CameraRecord::new(cam, width, height);
+    let inv = DMat4::from_cols_array(&rec.view_proj.map(|x| x as f64)).inverse();
+    let ndc = DVec4::new(wx / width as f64 * 2.0 - 1.0, 1.0 - wy / height as f64 * 2.0, depth, 1.0);
+    let p = inv * ndc;
+    (p.truncate() / p.w).as_vec3()
+}
+
+/// Two triangles over the window rectangle `[x0, x1] x [y0, y1]` at NDC depth `depth`.
+fn window_quad(cam: &Camera, w: u32, h: u32, name: &str, r: [f64; 4], depth: f64) -> Mesh {
+    let [x0, y0, x1, y1] = r;
+    let p = [(x0, y0), (x1, y0), (x1, y1), (x0, y1)].map(|(x, y)| unproject(cam, w, h, x, y, depth));
+    // Counter-clockwise on screen (y down): front faces.
+    mesh(name, p.to_vec(), vec![[0, 3, 2], [0, 2, 1]])
+}
+
+struct Builder {
+    cases: Vec<Case>,
+}
+
+impl Builder {
+    fn add(&mut self, name: &str, stresses: &'static str, scene: Scene, camera: Camera, w: u32, h: u32) {
+        self.cases.push(Case { name: name.into(), stresses, scene, camera, width: w, height: h, weight: 1.0 });
+    }
+}
+
+/// A floor (ray traced) and a back wall (rasterized) for cases to put things on.
+fn stage_set(scene: &mut Scene, size: f32) {
+    scene.add_object(
+        Mesh::grid("floor", 8),
+        diffuse("blue", Vec3::new(0.2, 0.3, 0.8)),
+        Mat4::from_scale(Vec3::splat(size)),
+        RT,
+    );
+    scene.add_object(
+        Mesh::grid("wall", 8),
+        diffuse("red", Vec3::new(0.8, 0.2, 0.15)),
+        Mat4::from_translation(Vec3::new(0.0, size * 0.5, -size * 0.5))
+            * Mat4::from_quat(Quat::from_rotation_x(std::f32::consts::FRAC_PI_2))
+            * Mat4::from_scale(Vec3::splat(size)),
+        RASTER,
+    );
+}
+
+/// The default scene moved by `offset` and scaled by `scale` (camera, lights and clip
+/// planes with it).
+fn transformed_default(offset: Vec3, scale: f32) -> (Scene, Camera) {
+    let mut s = Scene::default_scene();
+    let m = Mat4::from_translation(offset) * Mat4::from_scale(Vec3::splat(scale));
+    for o in &mut s.objects {
+        o.transform = m * o.transform;
+    }
+    for l in &mut s.lights {
+        if let Light::Point { position, intensity, .. } = l {
+            *position = m.transform_point3(*position);
+            *intensity *= scale * scale;
+        }
+    }
+    let c = s.camera.unwrap();
+    let cam = Camera {
+        eye: m.transform_point3(c.eye),
+        target: m.transform_point3(c.target),
+        near: c.near * scale,
+        far: c.far * scale,
+        ..c
+    };
+    s.camera = Some(cam);
+    (s, cam)
+}
+
+fn default_case(b: &mut Builder) {
+    let s = Scene::default_scene();
+    let cam = s.camera.unwrap();
+    b.add("paper_default_scene", "the built-in Figure-8 scene: every stage on mixed objects", s.clone(), cam, 96, 54);
+    b.cases.push(Case {
+        name: "paper_default_scene_weight_half".into(),
+        stresses: "composition with weight 0.5 (both images on ray-traced pixels)",
+        scene: s,
+        camera: cam,
+        width: 67,
+        height: 41,
+        weight: 0.5,
+    });
+}
+
+fn paper_cases(b: &mut Builder, shared: &Path) {
+    let scenes_dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes");
+    for (name, file, stresses, w, h) in [
+        ("paper_teaser", "teaser.toml", "Sponza rasterized + the bunny ray traced (paper teaser)", 128, 72),
+        ("paper_bunny_near", "bunny_near.toml", "the bunny filling the frame (paper Bunny 1)", 96, 54),
+        ("paper_bunny_far", "bunny_far.toml", "the bunny small and far: sub-pixel triangles (paper Bunny 2)", 96, 54),
+        ("paper_horse_near", "horse_near.toml", "the horse scan (stand-in for the paper's toad)", 96, 54),
+    ] {
+        match Scene::load(&scenes_dir.join(file)) {
+            Ok(mut s) => {
+                s.ensure_camera_and_lights();
+                let cam = s.camera.unwrap();
+                b.add(name, stresses, s, cam, w, h);
+            }
+            Err(e) => eprintln!("conformance corpus: skipping {name}: {e}"),
+        }
+    }
+    for (name, file, stresses) in [
+        ("paper_hard_teapot", "teapot.glb", "108 zero-area triangles and 1,113 slivers in a real model"),
+        ("paper_hard_cycloidal", "hard_cycloidal.glb", "CAD tessellation: non-manifold edges and slivers"),
+        ("paper_hard_dragon_res3", "hard_dragon_res3.glb", "a non-manifold decimated scan"),
+        ("paper_hard_bunny_far", "hard_bunny_far.glb", "the bunny 100 m from the origin in millimetres"),
+    ] {
+        match Scene::load(&shared.join(file)) {
+            Ok(mut s) => {
+                // Every object ray traced: the hard geometry is traced as well as rasterized.
+                for o in &mut s.objects {
+                    o.render_mode = RT;
+                }
+                s.ensure_camera_and_lights();
+                let cam = s.camera.unwrap();
+                b.add(name, stresses, s, cam, 80, 60);
+            }
+            Err(e) => eprintln!("conformance corpus: skipping {name}: {e}"),
+        }
+    }
+}
+
+fn raster_cases(b: &mut Builder) {
+    let (w, h) = (64u32, 48u32);
+    let cam = camera(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO, 0.1, 100.0);
+    let lights = vec![point(Vec3::new(1.0, 3.0, 4.0), 20.0), point(Vec3::new(-2.0, 1.0, 3.0), 8.0)];
+
+    // A fan of 24 triangles around one shared vertex, seen face on, and a dense grid.
+    let mut s = Scene { lights: lights.clone(), ..Scene::default() };
+    let n = 24;
+    let mut pos = vec![Vec3::ZERO];
+    for i in 0..n {
+        let a = std::f32::consts::TAU * i as f32 / n as f32;
+        pos.push(Vec3::new(a.cos(), a.sin(), 0.0) * 1.3);
+    }
+    let idx = (0..n).map(|i| [0, 1 + i, 1 + (i + 1) % n]).collect();
+    s.add_object(mesh("fan", pos, idx), diffuse("fan", Vec3::new(0.8, 0.6, 0.2)), Mat4::IDENTITY, RT);
+    s.add_object(
+        Mesh::grid("grid", 24),
+        diffuse("grid", Vec3::splat(0.7)),
+        Mat4::from_translation(Vec3::new(0.0, -1.0, -1.0)) * Mat4::from_scale(Vec3::splat(6.0)),
+        RASTER,
+    );
+    b.add("raster_shared_edges_fan_and_grid", "a 24-triangle fan and a 24x24 grid: every pixel once", s, cam, w, h);
+
+    // Closed meshes: sphere, torus, cube, half of them ray traced.
+    let mut s = Scene { lights: lights.clone(), ..Scene::default() };
+    s.add_object(
+        Mesh::uv_sphere("sphere", 32, 16),
+        gold(),
+        Mat4::from_translation(Vec3::new(-1.2, 0.0, 0.0)) * Mat4::from_scale(Vec3::splat(0.8)),
+        RT,
+    );
+    s.add_object(
+        Mesh::torus("torus", 0.7, 0.25, 32, 16),
+        diffuse("torus", Vec3::new(0.5, 0.2, 0.7)),
+        Mat4::from_translation(Vec3::new(1.1, 0.2, 0.0)) * Mat4::from_quat(Quat::from_rotation_x(1.0)),
+        RASTER,
+    );
+    s.add_object(
+        Mesh::cube("cube"),
+        diffuse("cube", Vec3::splat(0.6)),
+        Mat4::from_translation(Vec3::new(0.0, -1.0, -1.5)) * Mat4::from_scale(Vec3::splat(0.5)),
+        RT,
+    );
+    b.add("raster_closed_meshes", "closed meshes (sphere, torus, cube): shared edges, silhouettes", s, cam, w, h);
+
+    // Vertices on pixel centres, on 1/256 and on 1/512 ties (exactly between two subpixel
+    // positions: the rounding rule decides).
+    for (name, frac, stresses) in [
+        ("raster_vertices_on_pixel_centres", 0.5, "vertices exactly on pixel centres"),
+        ("raster_vertices_on_subpixel_256", 0.5 + 1.0 / 256.0, "vertices on 1/256-pixel subpixel positions"),
+        ("raster_vertices_on_subpixel_ties_512", 0.5 + 1.0 / 512.0, "vertices on 1/512 ties between subpixels"),
+    ] {
+        let mut s = Scene { lights: lights.clone(), ..Scene::default() };
+        let mut k = 0u32;
+        for j in 0..4u32 {
+            for i in 0..6u32 {
+                let (x0, y0) = (2.0 + 10.0 * i as f64 + frac, 2.0 + 11.0 * j as f64 + frac);
+                let depth = 0.9 + 0.01 * (i + j) as f64;
+                let p = [
+                    unproject(&cam, w, h, x0, y0, depth),
+                    unproject(&cam, w, h, x0 + 7.0, y0 + 2.0, depth),
+                    unproject(&cam, w, h, x0 + 3.0, y0 + 8.0, depth),
+                    unproject(&cam, w, h, x0 + 8.0, y0 + 9.0, depth),
+                ];
+                let rt = if k.is_multiple_of(2) { RT } else { RASTER };
+                s.add_object(
+                    mesh("tris", p.to_vec(), vec![[0, 2, 1], [1, 2, 3]]),
+                    diffuse("t", Vec3::splat(0.7)),
+                    Mat4::IDENTITY,
+                    rt,
+                );
+                k += 1;
+            }
+        }
+        b.add(name, stresses, s, cam, w, h);
+    }
+
+    // Top-left rule: axis-aligned quads whose edges run exactly through pixel centres,
+    // sharing edges with their neighbours.
+    let mut s = Scene { lights: lights.clone(), ..Scene::default() };
+    for j in 0..3u32 {
+        for i in 0..4u32 {
+            let r = [4.5 + 14.0 * i as f64, 3.5 + 14.0 * j as f64, 18.5 + 14.0 * i as f64, 17.5 + 14.0 * j as f64];
+            let rt = if (i + j) % 2 == 0 { RT } else { RASTER };
+            s.add_object(
+                window_quad(&cam, w, h, "cell", r, 0.95),
+                diffuse("cell", Vec3::splat(0.3 + 0.1 * i as f32)),
+                Mat4::IDENTITY,
+                rt,
+            );
+        }
+    }
+    b.add("raster_top_left_rule", "edges exactly through pixel centres, shared by neighbouring quads", s, cam, w, h);
+
+    // Sub-pixel triangles and slivers.
+    let mut s = Scene { lights: lights.clone(), ..Scene::default() };
+    let mut pos = Vec::new();
+    let mut idx = Vec::new();
+    for k in 0..200u32 {
+        let x = 1.0 + (k % 20) as f64 * 3.1 + 0.37 * (k / 20) as f64;
+        let y = 1.0 + (k / 20) as f64 * 4.6;
+        let size = 0.15 + 0.05 * (k % 7) as f64;
+        let base = pos.len() as u32;
+        pos.push(unproject(&cam, w, h, x, y, 0.9));
+        pos.push(unproject(&cam, w, h, x + size, y + 0.3 * size, 0.9));
+        pos.push(unproject(&cam, w, h, x + 0.2 * size, y + size, 0.9));
+        idx.push([base, base + 2, base + 1]);
+    }
+    s.add_object(mesh("subpixel", pos, idx), diffuse("s", Vec3::splat(0.8)), Mat4::IDENTITY, RT);
+    let mut pos = Vec::new();
+    let mut idx = Vec::new();
+    for k in 0..12u32 {
+        let y = 2.0 + 3.7 * k as f64;
+        let t = 0.01 + 0.03 * k as f64;
+        let base = pos.len() as u32;
+        pos.push(unproject(&cam, w, h, -3.0, y, 0.92));
+        pos.push(unproject(&cam, w, h, 70.0, y + 1.3, 0.92));
+        pos.push(unproject(&cam, w, h, 70.0, y + 1.3 + t, 0.92));
+        idx.push([base, base + 2, base + 1]);
+    }
+    s.add_object(mesh("slivers", pos, idx), diffuse("s", Vec3::splat(0.5)), Mat4::IDENTITY, RASTER);
+    b.add(
+        "raster_subpixel_and_sliver_triangles",
+        "triangles smaller than a pixel and slivers 0.01-0.34 px thick",
+        s,
+        cam,
+        w,
+        h,
+    );
+
+    // Near and far planes: a floor running through the camera and past the far plane.
+    let mut s = Scene { lights: vec![point(Vec3::new(0.0, 3.0, 0.0), 10.0)], ..Scene::default() };
+    s.add_object(Mesh::grid("floor", 6), diffuse("floor", Vec3::splat(0.7)), Mat4::from_scale(Vec3::splat(40.0)), RT);
+    s.add_object(
+        Mesh::cube("box"),
+        diffuse("box", Vec3::new(0.8, 0.4, 0.2)),
+        Mat4::from_translation(Vec3::new(0.3, 0.5, -3.0)) * Mat4::from_scale(Vec3::splat(0.5)),
+        RASTER,
+    );
+    // A wall the near plane cuts through diagonally.
+    s.add_object(
+        Mesh::grid("wall", 4),
+        diffuse("wall", Vec3::new(0.3, 0.7, 0.3)),
+        Mat4::from_translation(Vec3::new(-0.8, 0.6, 1.0))
+            * Mat4::from_quat(Quat::from_rotation_z(1.2) * Quat::from_rotation_x(0.9))
+            * Mat4::from_scale(Vec3::splat(3.0)),
+        RASTER,
+    );
+    let c = camera(Vec3::new(0.0, 0.6, 1.5), Vec3::new(0.0, 0.3, -5.0), 0.5, 15.0);
+    b.add("raster_near_and_far_plane_crossing", "triangles crossing the near plane and the far plane", s, c, w, h);
+
+    // Coplanar overlap: two quads in one plane, triangulated differently, and a duplicated triangle.
+    let mut s = Scene { lights: lights.clone(), ..Scene::default() };
+    // The same rectangle corners, split along the other diagonal in q2.
+    let rect = |name: &str, x0: f32, y0: f32, x1: f32, y1: f32, tris: Vec<[u32; 3]>| {
+        let corners =
+            vec![Vec3::new(x0, y0, 0.0), Vec3::new(x1, y0, 0.0), Vec3::new(x1, y1, 0.0), Vec3::new(x0, y1, 0.0)];
+        mesh(name, corners, tris)
+    };
+    let q1 = rect("q1", -1.5, -1.0, 0.5, 1.0, vec![[0, 1, 2], [0, 2, 3]]);
+    let q2 = rect("q2", -0.5, -1.2, 1.5, 0.8, vec![[0, 1, 3], [1, 2, 3]]);
+    let tri = mesh(
+        "dup",
+        vec![Vec3::new(-1.0, 0.2, 0.3), Vec3::new(1.0, 0.4, 0.3), Vec3::new(0.0, 1.3, 0.3)],
+        vec![[0, 1, 2], [0, 1, 2]],
+    );
+    let tilt = Mat4::from_quat(Quat::from_rotation_y(0.4) * Quat::from_rotation_x(-0.3));
+    s.add_object(q1, diffuse("a", Vec3::new(0.8, 0.2, 0.2)), tilt, RT);
+    s.add_object(q2, diffuse("b", Vec3::new(0.2, 0.8, 0.2)), tilt, RASTER);
+    s.add_object(tri, diffuse("c", Vec3::new(0.2, 0.2, 0.8)), tilt, RT);
+    b.add(
+        "raster_coplanar_overlap",
+        "coplanar overlapping triangles and a duplicated triangle: depth ties",
+        s,
+        cam,
+        w,
+        h,
+    );
+
+    // Back faces: inside a cube, and single triangles wound clockwise.
+    let mut s = Scene { lights: vec![point(Vec3::new(0.3, 0.5, 0.2), 2.0)], ..Scene::default() };
+    s.add_object(Mesh::cube("room"), diffuse("room", Vec3::splat(0.7)), Mat4::from_scale(Vec3::splat(2.0)), RT);
+    s.add_object(
+        mesh(
+            "cw",
+            vec![Vec3::new(-0.5, -0.5, -1.0), Vec3::new(0.0, 0.6, -1.0), Vec3::new(0.5, -0.5, -1.0)],
+            vec![[0, 1, 2]],
+        ),
+        diffuse("cw", Vec3::new(0.9, 0.5, 0.1)),
+        Mat4::IDENTITY,
+        RASTER,
+    );
+    let c = camera(Vec3::new(0.1, 0.2, 1.2), Vec3::new(0.0, 0.0, -1.0), 0.05, 10.0);
+    b.add("raster_back_faces", "back faces: the inside of a cube and clockwise triangles", s, c, w, h);
+
+    // Huge coordinates and tiny scales.
+    for (name, offset, scale, stresses) in [
+        ("raster_huge_coordinates_1e5", Vec3::new(1e5, 0.0, -1e5), 1.0, "the default scene 1e5 from the origin"),
+        ("raster_huge_coordinates_1e6", Vec3::new(-1e6, 1e6, 0.0), 1.0, "the default scene 1e6 from the origin"),
+        ("raster_tiny_scale_1e-3", Vec3::ZERO, 1e-3, "the default scene scaled by 1e-3"),
+    ] {
+        let (s, c) = transformed_default(offset, scale);
+        b.add(name, stresses, s, c, w, h);
+    }
+}
+
+fn ray_cases(b: &mut Builder) {
+    let (w, h) = (64u32, 48u32);
+    let cam = camera(Vec3::new(0.0, 3.0, 4.5), Vec3::new(0.0, 0.0, 0.0), 0.1, 100.0);
+
+    // Shadow rays through the shared edges and vertices of an occluder grid: the light
+    // sits straight above a grid vertex, the receiver's pixels look through the grid.
+    let mut s = Scene {
+        lights: vec![point(Vec3::new(0.0, 4.0, 0.0), 30.0), point(Vec3::new(0.25, 4.0, 0.25), 10.0)],
+        ..Scene::default()
+    };
+    s.add_object(Mesh::grid("floor", 16), diffuse("floor", Vec3::splat(0.8)), Mat4::from_scale(Vec3::splat(8.0)), RT);
+    s.add_object(
+        Mesh::grid("occluder", 4),
+        diffuse("occ", Vec3::new(0.6, 0.6, 0.2)),
+        Mat4::from_translation(Vec3::new(0.0, 2.0, 0.0)) * Mat4::from_scale(Vec3::splat(2.0)),
+        RASTER,
+    );
+    s.add_object(
+        Mesh::uv_sphere("ball", 16, 8),
+        gold(),
+        Mat4::from_translation(Vec3::new(1.5, 0.5, 1.0)) * Mat4::from_scale(Vec3::splat(0.5)),
+        RT,
+    );
+    b.add(
+        "ray_shadow_through_shared_edges_and_vertices",
+        "shadow rays through an occluder grid's edges and vertices, light above a vertex",
+        s,
+        cam,
+        w,
+        h,
+    );
+
+    // Grazing: a light barely above a long floor, and a light in the plane of a wall.
+    let mut s = Scene {
+        lights: vec![point(Vec3::new(-6.0, 0.02, 0.0), 40.0), point(Vec3::new(0.0, 1.0, -1.0), 10.0)],
+        ..Scene::default()
+    };
+    stage_set(&mut s, 8.0);
+    s.add_object(
+        Mesh::cube("block"),
+        diffuse("block", Vec3::new(0.7, 0.5, 0.3)),
+        Mat4::from_translation(Vec3::new(0.5, 0.3, 0.5)) * Mat4::from_scale(Vec3::splat(0.3)),
+        RT,
+    );
+    b.add("ray_grazing_light", "shadow rays grazing a floor and a light in the plane of a wall", s, cam, w, h);
+
+    // Axis-parallel shadow rays with +0 and -0 direction components (directional lights
+    // straight down and along x, with signed zeros) over axis-aligned boxes.
+    let lights = vec![
+        Light::Directional { direction: Vec3::new(0.0, -1.0, -0.0), color: Vec3::ONE, intensity: 2.0 },
+        Light::Directional { direction: Vec3::new(-0.0, -1.0, 0.0), color: Vec3::new(0.5, 0.5, 1.0), intensity: 1.0 },
+        Light::Directional { direction: Vec3::new(-1.0, -0.0, 0.0), color: Vec3::new(1.0, 0.5, 0.5), intensity: 1.0 },
+    ];
+    let mut s = Scene { lights, ..Scene::default() };
+    s.add_object(Mesh::grid("floor", 8), diffuse("floor", Vec3::splat(0.8)), Mat4::from_scale(Vec3::splat(8.0)), RT);
+    s.add_object(
+        Mesh::cube("box_a"),
+        diffuse("a", Vec3::new(0.8, 0.3, 0.3)),
+        Mat4::from_translation(Vec3::new(-1.0, 1.0, 0.0)) * Mat4::from_scale(Vec3::splat(0.5)),
+        RASTER,
+    );
+    s.add_object(
+        Mesh::cube("box_b"),
+        diffuse("b", Vec3::new(0.3, 0.8, 0.3)),
+        Mat4::from_translation(Vec3::new(1.0, 0.5, 0.0)) * Mat4::from_scale(Vec3::splat(0.5)),
+        RT,
+    );
+    s.add_object(
+        Mesh::grid("wall_x", 4),
+        diffuse("w", Vec3::splat(0.6)),
+        Mat4::from_translation(Vec3::new(3.0, 1.0, 0.0))
+            * Mat4::from_quat(Quat::from_rotation_z(std::f32::consts::FRAC_PI_2))
+            * Mat4::from_scale(Vec3::splat(2.0)),
+        RT,
+    );
+    b.add(
+        "ray_axis_parallel_signed_zero",
+        "axis-parallel shadow rays with +0 and -0 components over axis-aligned boxes",
+        s,
+        cam,
+        w,
+        h,
+    );
+
+    // Large coordinates: the shadow part of the huge-coordinate scenes, with a nearby light.
+    let (mut s, c) = transformed_default(Vec3::new(3e5, -2e5, 7e5), 1.0);
+    s.lights.push(point(Vec3::new(3e5 + 1.0, -2e5 + 2.5, 7e5 + 1.0), 20.0));
+    b.add("ray_shadows_at_large_coordinates", "shadow rays from surfaces 7e5 from the origin", s, c, w, h);
+
+    // Lights exactly on surfaces: on the floor plane and on a box's top face.
+    let mut s = Scene {
+        lights: vec![point(Vec3::new(0.5, 0.0, 0.5), 10.0), point(Vec3::new(-1.0, 1.0, 0.0), 10.0)],
+        ..Scene::default()
+    };
+    s.add_object(Mesh::grid("floor", 8), diffuse("floor", Vec3::splat(0.8)), Mat4::from_scale(Vec3::splat(8.0)), RT);
+    s.add_object(
+        Mesh::cube("box"),
+        diffuse("box", Vec3::new(0.4, 0.4, 0.8)),
+        Mat4::from_translation(Vec3::new(-1.0, 0.5, 0.0)) * Mat4::from_scale(Vec3::splat(0.5)),
+        RT,
+    );
+    b.add("ray_light_on_surface", "point lights exactly on the floor plane and on a box face", s, cam, w, h);
+}
+
+/// A rasterized floor under the degenerate cases' objects.
+fn add_floor(s: &mut Scene) {
+    let floor = Mat4::from_translation(Vec3::new(0.0, -1.0, 0.0)) * Mat4::from_scale(Vec3::splat(6.0));
+    s.add_object(Mesh::grid("floor", 4), diffuse("f", Vec3::splat(0.6)), floor, RASTER);
+}
+
+fn degenerate_cases(b: &mut Builder) {
+    let (w, h) = (48u32, 32u32);
+    let cam = camera(Vec3::new(0.0, 0.5, 4.0), Vec3::ZERO, 0.1, 100.0);
+    let lights = vec![point(Vec3::new(1.0, 3.0, 3.0), 20.0)];
+
+    // Zero-area triangles (repeated vertex, collinear, all equal) among normal ones.
+    let mut s = Scene { lights: lights.clone(), ..Scene::default() };
+    let p = vec![
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(1.0, -1.0, 0.0),
+        Vec3::new(0.0, 1.0, 0.0),
+        Vec3::new(0.0, 0.0, 0.0),
+        Vec3::new(0.5, 0.0, 0.0),
+        Vec3::new(1.0, 0.0, 0.0),
+    ];
+    let idx = vec![[0, 0, 1], [3, 4, 5], [2, 2, 2], [0, 1, 2], [1, 1, 2], [5, 4, 3]];
+    s.add_object(mesh("zero_area", p, idx), diffuse("z", Vec3::splat(0.8)), Mat4::IDENTITY, RT);
+    add_floor(&mut s);
+    b.add(
+        "degenerate_zero_area_triangles",
+        "zero-area triangles (repeated and collinear vertices) among normal ones",
+        s,
+        cam,
+        w,
+        h,
+    );
+
+    // NaN and Inf vertices.
+    let mut s = Scene { lights: lights.clone(), ..Scene::default() };
+    let p = vec![
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(1.0, -1.0, 0.0),
+        Vec3::new(0.0, 1.0, 0.0),
+        Vec3::new(f32::NAN, 0.0, 0.0),
+        Vec3::new(0.0, f32::INFINITY, 0.0),
+        Vec3::new(f32::NEG_INFINITY, f32::NAN, 1.0),
+    ];
+    let idx = vec![[0, 1, 3], [0, 1, 2], [1, 4, 2], [3, 4, 5], [5, 0, 2]];
+    s.add_object(mesh("non_finite", p, idx), diffuse("n", Vec3::splat(0.8)), Mat4::IDENTITY, RT);
+    add_floor(&mut s);
+    b.add(
+        "degenerate_nan_and_inf_vertices",
+        "triangles with NaN and Inf vertices are neither covered nor hit",
+        s,
+        cam,
+        w,
+        h,
+    );
+
+    b.add(
+        "degenerate_empty_scene",
+        "no objects: every stage runs on nothing",
+        Scene { lights: lights.clone(), ..Scene::default() },
+        cam,
+        w,
+        h,
+    );
+
+    let mut s = Scene::default();
+    stage_set(&mut s, 6.0);
+    b.add("degenerate_no_lights", "no lights: no shadow rays at all", s, cam, w, h);
+
+    let (s, mut c) = transformed_default(Vec3::ZERO, 1.0);
+    c.target = c.eye + (c.eye - c.target);
+    b.add("degenerate_all_miss", "the camera looks away: no pixel covered", s, c, w, h);
+
+    let mut s = Scene { lights: vec![point(Vec3::new(0.0, 0.0, 1.0), 5.0)], ..Scene::default() };
+    s.add_object(
+        Mesh::grid("wall", 4),
+        diffuse("w", Vec3::splat(0.8)),
+        Mat4::from_quat(Quat::from_rotation_x(std::f32::consts::FRAC_PI_2)) * Mat4::from_scale(Vec3::splat(20.0)),
+        RT,
+    );
+    s.add_object(
+        Mesh::uv_sphere("ball", 16, 8),
+        diffuse("b", Vec3::new(0.9, 0.5, 0.2)),
+        Mat4::from_translation(Vec3::new(0.3, 0.0, 0.5)) * Mat4::from_scale(Vec3::splat(0.3)),
+        RASTER,
+    );
+    let c = camera(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 0.1, 100.0);
+    b.add("degenerate_all_hit", "a wall fills the frame: every pixel covered", s, c, w, h);
+}
+
+fn size_cases(b: &mut Builder) {
+    let s = Scene::default_scene();
+    let cam = s.camera.unwrap();
+    for (name, w, h, stresses) in [
+        ("size_1x1", 1, 1, "a single pixel"),
+        ("size_odd_67x41", 67, 41, "odd size: no multiple of any tile or workgroup size"),
+        ("size_wide_rows_257x3", 257, 3, "rows of 1,028 bytes of u32 and 6,168 bytes of texels: not multiples of 256"),
+        ("size_tall_1x97", 1, 97, "a single column"),
+    ] {
+        b.add(name, stresses, s.clone(), cam, w, h);
+    }
+}
+
+/// The whole corpus. Paper scenes are included when `../shared/assets` is present
+/// (`shared`), with a message otherwise.
+pub fn corpus() -> Vec<Case> {
+    let mut b = Builder { cases: Vec::new() };
+    default_case(&mut b);
+    match shared_assets() {
+        Some(dir) => paper_cases(&mut b, &dir),
+        None => eprintln!("conformance corpus: ../shared/assets not found: paper scenes skipped"),
+    }
+    raster_cases(&mut b);
+    ray_cases(&mut b);
+    degenerate_cases(&mut b);
+    size_cases(&mut b);
+    b.cases
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn corpus_names_are_unique_and_carry_their_family() {
+        let c = corpus();
+        let mut names: Vec<&str> = c.iter().map(|c| c.name.as_str()).collect();
+        names.sort();
+        names.dedup();
+        assert_eq!(names.len(), c.len());
+        for case in &c {
+            assert!(
+                ["paper_", "raster_", "ray_", "degenerate_", "size_"].iter().any(|p| case.name.starts_with(p)),
+                "{}",
+                case.name
+            );
+        }
+        assert!(c.len() >= 30, "{} cases", c.len());
+    }
+
+    #[test]
+    fn unprojected_vertices_land_on_their_window_position() {
+        let cam = camera(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO, 0.1, 100.0);
+        let p = unproject(&cam, 64, 48, 10.5, 20.5, 0.9);
+        let rec = CameraRecord::new(&cam, 64, 48);
+        let c = Mat4::from_cols_array(&rec.view_proj) * p.extend(1.0);
+        let (x, y) = ((c.x / c.w * 0.5 + 0.5) * 64.0, (0.5 - c.y / c.w * 0.5) * 48.0);
+        // f32 rounding of the world position and of the projection: well under 1/256 px.
+        const PROJECTION_ROUNDING_PX: f32 = 1e-4;
+        assert!((x - 10.5).abs() < PROJECTION_ROUNDING_PX && (y - 20.5).abs() < PROJECTION_ROUNDING_PX, "({x}, {y})");
+    }
+}

@@ -1,0 +1,87 @@
+//! The corpus on the GPU backend against the CPU reference, stage by stage
+//! (lavapipe in CI), and determinism of each backend over the whole corpus.
+//!
+//! The report is written to `target/tmp/conformance/report.md` (with difference
+//! images); a failing test prints every violation with its case, stage and pixel.
+
+use hyrt_conformance::compare::compare_stages;
+use hyrt_conformance::corpus::corpus;
+use hyrt_conformance::report::{known_deviations_path, render_case, render_pair, run_case, KnownDeviations, Report};
+use hyrt_core::bvh::BvhPreset;
+use hyrt_core::geometry::WorldGeometry;
+use hyrt_cpu::backend::CpuBackend;
+use hyrt_gpu::backend::GpuBackend;
+use hyrt_gpu::AdapterPolicy;
+
+/// The GPU backend for tests: fails in CI without an adapter, skips visibly elsewhere.
+fn gpu() -> Option<GpuBackend> {
+    match GpuBackend::new(AdapterPolicy::AllowSoftware) {
+        Ok(g) => Some(g),
+        Err(e) if std::env::var_os("CI").is_some() => panic!("CI needs a GPU adapter (lavapipe): {e}"),
+        Err(e) => {
+            eprintln!("SKIPPED: no GPU adapter: {e}");
+            None
+        }
+    }
+}
+
+#[test]
+fn conformance_gpu_matches_cpu_on_every_stage_of_the_corpus() {
+    let Some(mut gpu) = gpu() else { return };
+    let mut cpu = CpuBackend::new(Some(2));
+    let candidate = format!("gpu: {}", gpu.describe());
+    let results = corpus().iter().map(|case| run_case(&mut cpu, &mut gpu, case)).collect();
+    let report = Report { reference: "cpu, 2 threads".into(), candidate, results };
+    let path = known_deviations_path();
+    if std::env::var_os("HYRT_CONFORMANCE_BLESS").is_some() {
+        std::fs::write(&path, KnownDeviations::from_report(&report).to_toml()).expect("write known deviations");
+        eprintln!("wrote {}", path.display());
+    }
+    let known = KnownDeviations::load(&path).unwrap();
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("conformance");
+    report.write(&dir, &known).expect("write the conformance report");
+    eprintln!("{}\nreport: {}", report.summary_markdown(), dir.join("report.md").display());
+    let (violations, improvements) = report.check(&known);
+    for i in &improvements {
+        eprintln!("better than recorded (tighten known_deviations.toml): {i}");
+    }
+    assert!(violations.is_empty(), "{} beyond the recorded deviations:\n{}", violations.len(), violations.join("\n"));
+}
+
+#[test]
+fn determinism_cpu_same_bits_twice_and_on_1_or_2_threads_over_the_corpus() {
+    let mut one = CpuBackend::new(Some(1));
+    let mut two = CpuBackend::new(Some(2));
+    for case in corpus() {
+        let p1 = one.prepare(WorldGeometry::build(&case.scene), BvhPreset::default());
+        let p2 = two.prepare(WorldGeometry::build(&case.scene), BvhPreset::default());
+        assert_eq!(
+            bytemuck::cast_slice::<_, u8>(&p1.bvh.nodes),
+            bytemuck::cast_slice::<_, u8>(&p2.bvh.nodes),
+            "{}: BVH build differs across thread counts",
+            case.name
+        );
+        let (a, b) = render_pair(&mut one, &mut two, &p1, &case);
+        let (a, b) = (a.unwrap(), b.unwrap());
+        let c = render_case(&mut two, &p1, &case).unwrap();
+        for (x, y, what) in [(&a, &b, "1 vs 2 threads"), (&b, &c, "run twice")] {
+            for cmp in compare_stages(x, y) {
+                assert!(cmp.is_exact(), "{}: {what}: {} / {} differs: {cmp:?}", case.name, cmp.stage, cmp.buffer);
+            }
+        }
+    }
+}
+
+#[test]
+fn determinism_gpu_same_bits_twice_over_the_corpus() {
+    let Some(mut gpu) = gpu() else { return };
+    let cpu = CpuBackend::new(Some(2));
+    for case in corpus() {
+        let p = cpu.prepare(WorldGeometry::build(&case.scene), BvhPreset::default());
+        let a = render_case(&mut gpu, &p, &case).unwrap();
+        let b = render_case(&mut gpu, &p, &case).unwrap();
+        for cmp in compare_stages(&a, &b) {
+            assert!(cmp.is_exact(), "{}: gpu run twice: {} / {} differs: {cmp:?}", case.name, cmp.stage, cmp.buffer);
+        }
+    }
+}
