@@ -32,47 +32,28 @@ pub struct Cause {
     pub floats: &'static str,
 }
 
-/// Lavapipe's hardware raster interpolates from plane equations; the reference does not.
-const RASTER_FLOATS: &str = "lavapipe interpolates barycentrics and z/w in f32 from plane equations set up on the \
-unsnapped window positions (values outside [0, 1] at pixel centres outside the unsnapped triangle); the reference \
-evaluates exact 64-bit edge functions of the snapped positions and rounds once";
-/// What follows from [`RASTER_FLOATS`] for every stage downstream of the G-buffer.
-const INHERITED_FLOATS: &str = "inherits the G-buffer's barycentric differences (a hit point moves by up to the \
-barycentric difference times the triangle size), plus fused multiply-adds in lavapipe's LLVM code";
+/// Lavapipe fuses products into multiply-adds where the WGSL does not keep them apart.
+const FUSED_MULTIPLY_ADD: &str = "fused multiply-adds in lavapipe's code for the shader's dot products and \
+error-bound sums (a few ulp)";
+/// The shaders' transcendental functions.
+const SHADING_FLOATS: &str = "WGSL `pow` (lavapipe: exp2(y * log2(x)) with its own approximations) against \
+Rust's `powf` in the specular and sRGB terms (up to about 2^11 ulp on bright highlights), plus fused multiply-adds";
 
 /// The cause of each buffer's differences (see [`Cause`]).
 pub const CAUSES: [Cause; 8] = [
+    Cause { stage: Stage::VisibilityRaster, buffer: "gbuffer", integers: "", floats: "" },
+    Cause { stage: Stage::Reconstruction, buffer: "surfaces", integers: "", floats: FUSED_MULTIPLY_ADD },
+    Cause { stage: Stage::Compaction, buffer: "rays", integers: "", floats: "" },
+    Cause { stage: Stage::ShadowRays, buffer: "occluded", integers: "", floats: "" },
+    Cause { stage: Stage::ShadowRays, buffer: "shadow", integers: "", floats: "" },
+    Cause { stage: Stage::RtShading, buffer: "rt", integers: "", floats: SHADING_FLOATS },
+    Cause { stage: Stage::RasterShading, buffer: "raster", integers: "", floats: FUSED_MULTIPLY_ADD },
     Cause {
-        stage: Stage::VisibilityRaster,
-        buffer: "gbuffer",
-        integers: "the depth test compares lavapipe's interpolated f32 z, not the reference's exact z: \
-near-equal depths (coplanar overlap, scenes 1e5-1e6 from the origin where z is quantized) can resolve to the \
-other triangle; lavapipe's vertex maths (FMA, x * (1/w)) can snap a vertex on a 1/512 tie to the other subpixel",
-        floats: RASTER_FLOATS,
+        stage: Stage::Composition,
+        buffer: "final",
+        integers: "",
+        floats: "the shading stages' differences, passed on",
     },
-    Cause { stage: Stage::Reconstruction, buffer: "surfaces", integers: "", floats: INHERITED_FLOATS },
-    Cause {
-        stage: Stage::Compaction,
-        buffer: "rays",
-        integers: "a light exactly on (or within rounding of) a surface: the hit point moved by the G-buffer \
-difference puts it on the other side (no ray)",
-        floats: INHERITED_FLOATS,
-    },
-    Cause {
-        stage: Stage::ShadowRays,
-        buffer: "occluded",
-        integers: "ray origins moved by the G-buffer difference pass an occluder's edge on the other side",
-        floats: "",
-    },
-    Cause {
-        stage: Stage::ShadowRays,
-        buffer: "shadow",
-        integers: "as occluded, and lights on surfaces as in compaction",
-        floats: "",
-    },
-    Cause { stage: Stage::RtShading, buffer: "rt", integers: "", floats: INHERITED_FLOATS },
-    Cause { stage: Stage::RasterShading, buffer: "raster", integers: "", floats: INHERITED_FLOATS },
-    Cause { stage: Stage::Composition, buffer: "final", integers: "", floats: INHERITED_FLOATS },
 ];
 
 /// The cause of a buffer's differences.

@@ -48,7 +48,7 @@ use hyrt_core::kernels::raster::{
     barycentrics_in_original, clip_plane_distance, clip_polygon_against_plane, clip_position, clip_to_window,
     edge_bias, edge_function, guard_band_ndc, interpolate_depth, perspective_barycentrics,
     perspective_barycentrics_of_corners, pixel_center_fixed, pixel_span, snap_to_fixed, triangle_area2, ClipVertex,
-    CLIP_PLANES, FIXED_ONE, MAX_CLIP_VERTICES, MAX_FIXED_COORD, MAX_IMAGE_DIM,
+    CLIP_PLANES, DEPTH_INTERPOLATION_REL_ERROR, FIXED_ONE, MAX_CLIP_VERTICES, MAX_FIXED_COORD, MAX_IMAGE_DIM,
 };
 use rayon::prelude::*;
 
@@ -632,11 +632,13 @@ const NARROW_BOX_WIDTH: i64 = 4;
 /// covered run by `sum step_x_i z_i` (at most 64 steps). On covered pixels every
 /// `e_i` lies in `[0, area2]` and every `z_i` in `[0, 1]`, and along a covered run
 /// `|step_x_i| * steps <= area2`, so the f64 rounding errors add up to less than
-/// `70 * 2^-52` of the depth range: far below this margin. If the approximate depth
-/// exceeds the stored one by more than the margin, the exact depth
-/// ([`interpolate_depth`]) is at least the stored depth and fails LESS, so skipping
-/// it changes nothing.
-const DEPTH_REJECT_MARGIN: f64 = 1.0 / (1u64 << 30) as f64;
+/// `70 * 2^-52` of the depth range. The exact depth ([`interpolate_depth`], f32) is
+/// within [`DEPTH_INTERPOLATION_REL_ERROR`] (8 * 2^-24) of the true value, which is at
+/// most 1. If the approximate depth exceeds the stored one by more than the sum of both
+/// (rounded up to 2^-20), the exact depth is at least the stored depth and fails LESS,
+/// so skipping it changes nothing.
+const DEPTH_REJECT_MARGIN: f64 = 1.0 / (1u64 << 20) as f64;
+const _: () = assert!(DEPTH_REJECT_MARGIN > DEPTH_INTERPOLATION_REL_ERROR + 70.0 * f64::EPSILON);
 
 /// What the tile traversal does with covered pixel centres. `local_pixel` is
 /// `(y - rect.y0) * TILE_SIZE + (x - rect.x0)`.

@@ -38,28 +38,14 @@ fn gpu_frame_matches_cpu_frame_on_the_default_scene_and_sponza() {
         let g = gpu.render(&prepared, &cam, w, h, &opts).unwrap();
         assert_eq!((g.width, g.height), (w, h));
         let pixels = (w * h) as usize;
-        // Primary visibility: ids and flags per pixel.
-        let id_mismatch = c
-            .gbuffer
-            .iter()
-            .zip(&g.gbuffer)
-            .filter(|(a, b)| (a.triangle, a.object, a.flags) != (b.triangle, b.object, b.flags))
-            .count();
-        // Lavapipe's vertex math may snap a vertex one subpixel differently on rounding
-        // boundaries (core/src/kernels/raster.rs), so a few edge pixels may differ.
-        const MAX_ID_MISMATCH_FRACTION: f64 = 0.002;
-        assert!(
-            (id_mismatch as f64) <= MAX_ID_MISMATCH_FRACTION * pixels as f64,
-            "{w}x{h}: {id_mismatch} of {pixels} pixels differ in ids"
-        );
-        // Same shadow rays up to those pixels, and images close.
-        let rays_diff = (c.rays.len() as i64 - g.rays.len() as i64).unsigned_abs();
-        assert!(
-            rays_diff as f64 <= 2.0 * id_mismatch as f64 + 0.001 * c.rays.len() as f64,
-            "{} vs {} rays",
-            c.rays.len(),
-            g.rays.len()
-        );
+        // Primary visibility, hit points' ids, the ray list's integers and every shadow
+        // ray's outcome are identical (the per-stage float budgets and the hard cases are
+        // in hyrt-conformance).
+        assert!(c.gbuffer.iter().zip(&g.gbuffer).all(|(a, b)| bytemuck::bytes_of(a) == bytemuck::bytes_of(b)));
+        let keys = |f: &hyrt::Frame| f.rays.iter().map(|r| (r.pixel, r.light, r.kind)).collect::<Vec<_>>();
+        assert_eq!(keys(&c), keys(&g), "{w}x{h}: ray lists differ");
+        assert_eq!(c.occluded, g.occluded, "{w}x{h}: shadow rays differ");
+        assert_eq!(c.shadow, g.shadow);
         let mean_abs: f64 = c
             .final_image
             .iter()
@@ -67,16 +53,12 @@ fn gpu_frame_matches_cpu_frame_on_the_default_scene_and_sponza() {
             .map(|(a, b)| (0..3).map(|i| (a[i] - b[i]).abs() as f64).sum::<f64>() / 3.0)
             .sum::<f64>()
             / pixels as f64;
-        // Mean absolute difference of linear colour: float differences (FMA, WGSL pow) are
-        // ~1e-6; the bound leaves room for the few edge pixels that see another triangle.
-        const MAX_MEAN_ABS_DIFF: f64 = 0.01;
+        // Mean absolute difference of linear colour: the shaders' float differences
+        // (WGSL pow, fused multiply-adds) are ~1e-6.
+        const MAX_MEAN_ABS_DIFF: f64 = 1e-4;
         assert!(mean_abs < MAX_MEAN_ABS_DIFF, "{w}x{h}: mean |cpu - gpu| = {mean_abs}");
         assert!(g.stats.stage_ms.len() == 8, "{:?}", g.stats.stage_ms);
-        eprintln!(
-            "{w}x{h} weight {weight}: {id_mismatch} id mismatches, mean |diff| {mean_abs:.2e}, rays cpu {} gpu {}",
-            c.rays.len(),
-            g.rays.len()
-        );
+        eprintln!("{w}x{h} weight {weight}: mean |diff| {mean_abs:.2e}, {} rays", c.rays.len());
     }
 }
 

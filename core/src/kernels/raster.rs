@@ -46,23 +46,21 @@
 //! far inside `i64`. Pixel centres inside the image are below
 //! `MAX_IMAGE_DIM * FIXED_ONE = 2^28`.
 //!
-//! ## Where this differs from lavapipe
+//! ## Agreement with lavapipe and the GPU backend
 //!
-//! The integer part (snapping of given window coordinates, edge functions, fill
-//! rule, zero-area culling) is llvmpipe's exactly. The float part cannot be: lavapipe
-//! runs the vertex shader through LLVM (which may fuse multiply-adds) and maps to
-//! the window as `x * (1/w) * scale + translate`, so its window coordinates can
-//! differ from [`clip_to_window`]'s by f32 ulps, and a snapped coordinate can then
-//! differ by one subpixel where the value lies on a rounding boundary. Further:
-//! lavapipe's draw module clips x and y to the viewport (its guard band is only
-//! enabled for the linear rasterizer), where we clip to a guard band only when
-//! needed, which moves clipped vertices off-screen instead of onto the screen edge
-//! (coverage can differ only within a rounding error of the original edges); and
-//! our clipper puts new vertices exactly on the near/far plane.
+//! The integer part (snapping of given window coordinates, edge functions, fill rule,
+//! zero-area culling) is llvmpipe's exactly. The float part is this module's own: the
+//! GPU backend does not rely on the hardware's vertex maths or attribute interpolation
+//! but evaluates these very functions in its fragment shader (WGSL twins of the same
+//! names, products kept from fusing) and hands the hardware pre-snapped vertices, so both
+//! backends produce the same bits. Every per-pixel float step is therefore f32 (WGSL has
+//! no f64), one correctly rounded operation at a time, in a stated order. Clipping:
+//! near and far planes in homogeneous space with new vertices exactly on the plane, and
+//! a guard band only when a vertex lies beyond it (lavapipe's own clipper is bypassed
+//! for such triangles by the GPU backend's cover triangles).
 //!
-//! WGSL mirrors: each function names its WGSL twin (same name). WGSL has no 64-bit
-//! integers or floats; the GPU version will need wider emulation and is checked
-//! against these functions bit for bit on the integer parts.
+//! WGSL mirrors: each function names its WGSL twin (same name); 64-bit integers are
+//! pairs of u32 there.
 
 /// Fractional bits of snapped window coordinates: llvmpipe `FIXED_ORDER` (`lp_rast.h`),
 /// lavapipe's `subPixelPrecisionBits`.
@@ -356,56 +354,73 @@ pub fn pixel_covered(biased: [i64; 3]) -> bool {
     (biased[0] | biased[1] | biased[2]) >= 0
 }
 
+/// An exact edge value as f32, rounded to nearest, ties to even (Rust's `as`; WGSL
+/// `edge_value_to_f32` does the same from two 32-bit words). Every float step of the
+/// per-pixel kernels below starts from these, so both backends compute the same bits.
+#[inline]
+pub fn edge_value_to_f32(e: i64) -> f32 {
+    e as f32
+}
+
 /// Perspective-correct barycentric weights of the three (clipped-triangle) vertices
 /// at a covered sample, from the exact unbiased edge values `e` (`e[i]` of the edge
 /// opposite vertex i, all `>= 0` inside, sum = the doubled area) and the vertices'
-/// clip `w` (all > 0 after clipping): `q_i = e_i / w_i`, `b_i = q_i / (q_0 + q_1 + q_2)`,
-/// in f64, in this order. WGSL: `perspective_barycentrics`.
+/// clip `w` (all > 0 after clipping): `q_i = f32(e_i) / w_i`, `s = (q_0 + q_1) + q_2`,
+/// `b_i = q_i / s`, each step one correctly rounded f32 operation, in this order.
+///
+/// All in f32 (not f64) so the GPU can mirror it bit for bit: WGSL has no f64, and
+/// every step here is one IEEE operation that lavapipe performs exactly (its division is
+/// correctly rounded; products are kept from fusing, see the WGSL). Error: each `q_i`
+/// carries 2 roundings, `s` 2 more, `b_i` 1: a few ulps of 1, far below the G-buffer's
+/// use (the hit point's own error bound, `kernels::barycentric`). WGSL:
+/// `perspective_barycentrics`.
 #[inline]
-pub fn perspective_barycentrics(e: [i64; 3], w: [f32; 3]) -> [f64; 3] {
-    let q0 = e[0] as f64 / w[0] as f64;
-    let q1 = e[1] as f64 / w[1] as f64;
-    let q2 = e[2] as f64 / w[2] as f64;
+pub fn perspective_barycentrics(e: [i64; 3], w: [f32; 3]) -> [f32; 3] {
+    let q0 = edge_value_to_f32(e[0]) / w[0];
+    let q1 = edge_value_to_f32(e[1]) / w[1];
+    let q2 = edge_value_to_f32(e[2]) / w[2];
     let s = q0 + q1 + q2;
     [q0 / s, q1 / s, q2 / s]
 }
 
 /// Map barycentric weights `b` over a clipped triangle's vertices to barycentrics
 /// `(u, v)` of the original triangle through the vertices' [`ClipVertex::bary`]:
-/// `u = b0 * u0 + b1 * u1 + b2 * u2` (likewise `v`), in f64, rounded to f32 at the end.
-/// For an unclipped triangle (bary exactly 0 or 1) this returns the weights of v1 and
-/// v2 unchanged (`0 * b` and `1 * b` are exact). WGSL: `barycentrics_in_original`.
+/// `u = (b0 * u0 + b1 * u1) + b2 * u2` (likewise `v`), in f32, products rounded
+/// separately (no fused multiply-add). WGSL: `barycentrics_in_original`.
 #[inline]
-pub fn barycentrics_in_original(b: [f64; 3], attrs: [[f32; 2]; 3]) -> [f32; 2] {
+pub fn barycentrics_in_original(b: [f32; 3], attrs: [[f32; 2]; 3]) -> [f32; 2] {
     let mut out = [0.0f32; 2];
     for (k, o) in out.iter_mut().enumerate() {
-        let v = b[0] * attrs[0][k] as f64 + b[1] * attrs[1][k] as f64 + b[2] * attrs[2][k] as f64;
-        *o = v as f32;
+        *o = b[0] * attrs[0][k] + b[1] * attrs[1][k] + b[2] * attrs[2][k];
     }
     out
 }
 
-/// [`barycentrics_in_original`] of [`perspective_barycentrics`] for a triangle whose
-/// vertices are the original corners in some order (barycentric attributes exactly
-/// (0,0), (1,0), (0,1)): `iu` and `iv` are the indices of the original v1 and v2.
-/// Bit-identical to the general pair (the zero terms add exact zeros), with two
-/// divisions and no mapping. WGSL: `perspective_barycentrics_of_corners`.
+/// [`perspective_barycentrics`] for a triangle whose vertices are the original corners
+/// in some order: `iu` and `iv` are the indices of the original v1 and v2, whose
+/// weights are the G-buffer's `(u, v)`. WGSL: `perspective_barycentrics_of_corners`.
 #[inline]
 pub fn perspective_barycentrics_of_corners(e: [i64; 3], w: [f32; 3], iu: usize, iv: usize) -> [f32; 2] {
-    let q = [e[0] as f64 / w[0] as f64, e[1] as f64 / w[1] as f64, e[2] as f64 / w[2] as f64];
-    let s = q[0] + q[1] + q[2];
-    [(q[iu] / s) as f32, (q[iv] / s) as f32]
+    let b = perspective_barycentrics(e, w);
+    [b[iu], b[iv]]
 }
 
 /// Window depth at a covered sample: the vertices' `z/w` interpolated linearly in
-/// screen space, `(e0 * z0 + e1 * z1 + e2 * z2) / area2` in f64 (in this order),
-/// rounded to f32. `area2` is the triangle's doubled area, which equals
-/// `e0 + e1 + e2` at every sample. WGSL: `interpolate_depth`.
+/// screen space, `((f32(e0) * z0 + f32(e1) * z1) + f32(e2) * z2) / f32(area2)`, each
+/// step one correctly rounded f32 operation (no fused multiply-add). `area2` is the
+/// triangle's doubled area, which equals `e0 + e1 + e2` at every sample. Every term is
+/// non-negative on covered samples (`e_i >= 0`, `z_i` in `[0, 1]`), so there is no
+/// cancellation: the relative error is at most about 7 * 2^-24 (3 conversions, 3
+/// products, 2 sums, 1 division, 1 conversion of the area). WGSL: `interpolate_depth`.
 #[inline]
 pub fn interpolate_depth(e: [i64; 3], area2: i64, z: [f32; 3]) -> f32 {
-    let num = e[0] as f64 * z[0] as f64 + e[1] as f64 * z[1] as f64 + e[2] as f64 * z[2] as f64;
-    (num / area2 as f64) as f32
+    let num = edge_value_to_f32(e[0]) * z[0] + edge_value_to_f32(e[1]) * z[1] + edge_value_to_f32(e[2]) * z[2];
+    num / edge_value_to_f32(area2)
 }
+
+/// Relative error bound of [`interpolate_depth`] against the exact value (see its
+/// docs): 8 roundings of at most 2^-24 each, rounded up.
+pub const DEPTH_INTERPOLATION_REL_ERROR: f64 = 8.0 / (1u64 << 24) as f64;
 
 /// Inclusive pixel range `[lo, hi]` along one axis whose centres can be covered by a
 /// triangle spanning fixed coordinates `[min, max]`: `lo = ceil(min / 256)`,
@@ -524,9 +539,9 @@ mod tests {
         assert_eq!(b, [0.25, 0.25, 0.5]);
         // Perspective: halfway on screen between w=1 and w=3 is 1/4 of the way in 3D.
         let b = perspective_barycentrics([500, 500, 0], [1.0, 3.0, 1.0]);
-        assert!((b[0] - 0.75).abs() < 1e-15 && (b[1] - 0.25).abs() < 1e-15 && b[2] == 0.0, "{b:?}");
+        assert_eq!(b, [0.75, 0.25, 0.0], "exact here: 500, 500/3 and their sum round to 0.75 and 0.25");
         let ident = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
-        let b = [0.2f64, 0.3, 0.5];
+        let b = [0.2f32, 0.3, 0.5];
         assert_eq!(barycentrics_in_original(b, ident), [0.3f32, 0.5f32]);
     }
 
