@@ -459,8 +459,8 @@ fn markdown(
          shadow ray from the same primary triangle. Offsets: `epsilon` moves the origin {} x extent along the \
          geometric normal; `robust` is Wachter and Binder's integer-ulp offset the pipeline uses. Shadow maps: cube \
          maps of 6 x 90 degree faces per point light (one orthographic map per directional light), rendered with \
-         the CPU `visibility_raster` stage, nearest texel, linear depth along the face axis, bias {} texel + {} \
-         texel x tan(normal, axis) (capped at {}); resolution is per face side. FLIP: LDR-FLIP of the sRGB 8-bit \
+         the CPU `visibility_raster` stage, nearest texel, linear depth (distance to a point light, distance along a directional light), bias {} texel + {} \
+         texel x tan(normal, light) (capped at {}); resolution is per face side. FLIP: LDR-FLIP of the sRGB 8-bit \
          images (`nv-flip` crate, NVIDIA's implementation, default 67 pixels per degree).\n",
         variants::CONSTANT_EPSILON_REL,
         shadow_map::SHADOW_MAP_CONSTANT_BIAS_TEXELS,

@@ -6,7 +6,9 @@
 //! Lookup, per (pixel, light) that needs a shadow ray (`hyrt_cpu::compaction::needs_shadow_ray`,
 //! the same pairs the ray tracer traces): project the reconstructed surface point into
 //! the face its direction from the light falls in, take the nearest texel, and compare
-//! depths *along the face's axis*. The occluder's depth is rebuilt from the face's
+//! linear depths: the distance to a point light (as omnidirectional shadow maps store it,
+//! e.g. LearnOpenGL's "Point Shadows"), the distance along a directional light's
+//! direction. The occluder's depth is rebuilt from the face's
 //! G-buffer (triangle and barycentrics at the texel centre, paper eq. 1) rather than read
 //! from the window depth `z / w`: linear depth in f32 is far more precise than the
 //! hyperbolic one, so the comparison isolates what resolution costs. A texel with no
@@ -17,12 +19,14 @@ use hyrt_core::formats::{CameraRecord, GBufferTexel, LightRecord, SurfaceRecord,
 use hyrt_core::frame::{SHADOW_LIT, SHADOW_NO_RAY, SHADOW_OCCLUDED};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::barycentric::reconstruct_position;
+use hyrt_core::kernels::shading::light_incidence;
 use hyrt_core::scene::Camera;
 use hyrt_cpu::compaction::needs_shadow_ray;
 use hyrt_cpu::visibility_raster::visibility_raster_into;
 use rayon::prelude::*;
 
-/// Constant depth bias, in texels of world size at the receiver's depth: covers the
+/// Constant depth bias, in texels of world size at the receiver's depth (a cube-face
+/// texel spans at most `2 d / resolution` at distance `d`): covers the
 /// occluder depth being taken at the texel centre rather than at the receiver (curvature,
 /// neighbouring triangles of a mesh). The usual starting value of a constant bias of one
 /// texel (the "normal offset" / slope-scaled scheme in Microsoft's "Common Techniques to
@@ -30,9 +34,10 @@ use rayon::prelude::*;
 pub const SHADOW_MAP_CONSTANT_BIAS_TEXELS: f32 = 1.0;
 
 /// Slope-scaled bias, in texels times `tan` of the angle between the receiver's
-/// geometric normal and the face axis: the receiver is at most half a texel diagonal
-/// (0.71 texel) from the texel centre, so a plane's depth differs there by at most
-/// 0.71 x texel x tan; 1.0 covers it (D3D's `SlopeScaledDepthBias` in world units).
+/// geometric normal and the direction to the light: the receiver is at most half a texel
+/// diagonal (0.71 texel) from the texel centre's ray, so a plane's depth differs there by
+/// at most 0.71 x texel x tan; 1.0 covers it (D3D's `SlopeScaledDepthBias` in world
+/// units; the `tan(acos(n.l))` bias of the common shadow-mapping tutorials).
 pub const SHADOW_MAP_SLOPE_BIAS_TEXELS: f32 = 1.0;
 
 /// Cap on the slope factor (`tan` 84 degrees): grazing receivers would otherwise get
@@ -72,9 +77,11 @@ pub fn cube_face(d: Vec3) -> usize {
 struct Face {
     record: CameraRecord,
     view_proj: Mat4,
-    /// Origin depths are measured from, and the axis they are measured along.
+    /// Origin depths are measured from: the light, or the orthographic camera's eye.
     origin: Vec3,
-    axis: Vec3,
+    /// `None`: depth is the distance to `origin` (point light); `Some(d)`: depth is
+    /// measured along `d` (directional light).
+    axis: Option<Vec3>,
     /// World size of one texel at depth `d`: `texel_at_depth.0 + d * texel_at_depth.1`.
     texel_at_depth: (f32, f32),
 }
@@ -87,7 +94,7 @@ fn perspective_face(light: Vec3, axis: Vec3, up: Vec3, res: u32, near: f32, far:
         view_proj: Mat4::from_cols_array(&record.view_proj),
         record,
         origin: light,
-        axis,
+        axis: None,
         texel_at_depth: (0.0, 2.0 / res as f32),
     }
 }
@@ -112,11 +119,11 @@ fn orthographic_face(geometry: &WorldGeometry, dir: Vec3, res: u32) -> Face {
         far: r * 3.5,
         pad: 0,
     };
-    Face { view_proj: vp, record, origin: eye, axis: dir, texel_at_depth: (2.0 * r / res as f32, 0.0) }
+    Face { view_proj: vp, record, origin: eye, axis: Some(dir), texel_at_depth: (2.0 * r / res as f32, 0.0) }
 }
 
 /// The shadow decision of one receiver point against one rendered face.
-fn lookup(face: &Face, gbuffer: &[GBufferTexel], geometry: &WorldGeometry, p: Vec3, ng: Vec3) -> u8 {
+fn lookup(face: &Face, gbuffer: &[GBufferTexel], geometry: &WorldGeometry, p: Vec3, ng: Vec3, l: Vec3) -> u8 {
     let res = face.record.width;
     let clip = face.view_proj * Vec4::new(p.x, p.y, p.z, 1.0);
     let (nx, ny) = (clip.x / clip.w, clip.y / clip.w);
@@ -127,10 +134,14 @@ fn lookup(face: &Face, gbuffer: &[GBufferTexel], geometry: &WorldGeometry, p: Ve
         return SHADOW_LIT;
     }
     let [v0, v1, v2] = geometry.triangles[geometry.global_triangle(t.object, t.triangle)].vertices();
-    let occluder = (reconstruct_position(t.bary_u, t.bary_v, v0, v1, v2) - face.origin).dot(face.axis);
-    let receiver = (p - face.origin).dot(face.axis);
+    let depth = |q: Vec3| match face.axis {
+        None => (q - face.origin).length(),
+        Some(d) => (q - face.origin).dot(d),
+    };
+    let occluder = depth(reconstruct_position(t.bary_u, t.bary_v, v0, v1, v2));
+    let receiver = depth(p);
     let texel_size = face.texel_at_depth.0 + receiver * face.texel_at_depth.1;
-    let cos = ng.dot(face.axis).abs();
+    let cos = ng.dot(l).abs();
     let tan = if cos > 0.0 {
         ((1.0 - cos * cos).max(0.0).sqrt() / cos).min(SHADOW_MAP_MAX_SLOPE)
     } else {
@@ -171,7 +182,8 @@ pub fn shadow_map_mask(geometry: &WorldGeometry, surfaces: &[SurfaceRecord], res
                         return;
                     }
                 }
-                m[li] = lookup(face, &gbuffer, geometry, p, Vec3::from(s.geometric_normal));
+                let l = light_incidence(light, p).0;
+                m[li] = lookup(face, &gbuffer, geometry, p, Vec3::from(s.geometric_normal), l);
             });
         }
     }
