@@ -63,7 +63,7 @@ pub struct AccuracyOptions {
 }
 
 /// Runs per configuration without `quick`; the median is reported.
-pub const FULL_RUNS: usize = 3;
+pub const FULL_RUNS: usize = 5;
 
 /// Shadow-map resolutions (texels per side of a cube face) without `quick`.
 pub const SHADOW_MAP_RESOLUTIONS: [u32; 4] = [512, 1024, 2048, 4096];
@@ -129,9 +129,9 @@ pub enum AccuracyError {
 
 /// One configuration of the frame.
 #[derive(Clone, Copy, Debug)]
-enum Config<'a> {
-    /// The pipeline as is, with this BVH (stage: shadow_rays).
-    Bvh(&'a Bvh),
+enum Config {
+    /// The pipeline as is, with a BVH built with this preset (stage: shadow_rays).
+    Bvh(BvhPreset),
     /// Barycentrics quantized or not (stage: quantization + reconstruction).
     Barycentrics { unorm16: bool },
     /// Shadow-ray origins (stage: compaction + re-offset + shadow_rays).
@@ -156,7 +156,8 @@ fn ms_since(t: Instant) -> f64 {
 }
 
 /// Render one frame with `config`, timing the whole and the varied step.
-fn run_frame(g: &WorldGeometry, bvh: &Bvh, camera: &CameraRecord, config: Config<'_>) -> FrameRun {
+/// `bvh` is the BVH to trace (for [`Config::Bvh`], one built with its preset).
+fn run_frame(g: &WorldGeometry, bvh: &Bvh, camera: &CameraRecord, config: Config) -> FrameRun {
     let eye = Vec3::from(camera.eye);
     let extent = g.scene_extent();
     let t_frame = Instant::now();
@@ -171,7 +172,6 @@ fn run_frame(g: &WorldGeometry, bvh: &Bvh, camera: &CameraRecord, config: Config
     let (mask, rays, trace_ms) = match config {
         Config::Shadows(Some(res)) => (shadow_map::shadow_map_mask(g, &surfaces, res), 0, 0.0),
         _ => {
-            let bvh = if let Config::Bvh(b) = config { b } else { bvh };
             let mut rays = compaction(&surfaces, &g.lights);
             if let Config::Offset(m) = config {
                 if m != OffsetMethod::Robust {
@@ -207,57 +207,39 @@ fn median(mut v: Vec<f64>) -> f64 {
     }
 }
 
-/// Everything a row needs that is fixed per scene.
-struct Ctx<'a> {
-    pool: &'a rayon::ThreadPool,
-    scene: &'a str,
-    geometry: &'a WorldGeometry,
-    camera: CameraRecord,
-    reference: &'a ReferenceFrame,
-    runs: usize,
+/// One configuration to measure.
+struct Job {
+    group: &'static str,
+    configuration: String,
+    stage: &'static str,
+    config: Config,
 }
 
-impl Ctx<'_> {
-    /// Run `config` `runs` times, score the last run, return the row.
-    #[allow(clippy::too_many_arguments)]
-    fn measure(
-        &self,
-        group: &str,
-        configuration: String,
-        stage: &str,
-        bvh: &Bvh,
-        config: Config<'_>,
-        build_ms: Option<f64>,
-    ) -> AccuracyRow {
-        let mut frames = Vec::new();
-        let mut stages = Vec::new();
-        let mut shadows = Vec::new();
-        let mut last = None;
-        for _ in 0..self.runs.max(1) {
-            let r = self.pool.install(|| run_frame(self.geometry, bvh, &self.camera, config));
-            frames.push(r.frame_ms);
-            stages.push(r.stage_ms);
-            shadows.push(r.shadow_ms);
-            last = Some(r);
-        }
-        let r = last.expect("at least one run");
-        let shadow_ms = median(shadows);
-        let refr = self.reference;
-        AccuracyRow {
-            scene: self.scene.to_string(),
-            group: group.to_string(),
-            configuration,
-            frame_ms: median(frames),
-            stage_ms: median(stages),
-            stage: stage.to_string(),
-            build_ms,
-            mrays_per_s: (r.rays > 0 && shadow_ms > 0.0).then(|| r.rays as f64 / (shadow_ms * 1e3)),
-            shadow: metrics::compare_shadows(refr, &r.surfaces, &r.mask),
-            primary_mismatches: metrics::primary_mismatches(refr, &r.surfaces),
-            hit_error: metrics::hit_point_error(refr, &r.surfaces, self.geometry.scene_extent() as f64),
-            rmse: metrics::rmse(&refr.image, &r.image),
-            flip: metrics::flip_mean(&refr.image, &r.image, refr.width, refr.height),
-        }
+/// Times of one run of a job.
+#[derive(Clone, Copy, Default)]
+struct RunTimes {
+    frame_ms: f64,
+    stage_ms: f64,
+    shadow_ms: f64,
+    build_ms: Option<f64>,
+}
+
+/// Score one frame against the reference: a row without times.
+fn score(scene: &str, job: &Job, g: &WorldGeometry, refr: &ReferenceFrame, r: &FrameRun) -> AccuracyRow {
+    AccuracyRow {
+        scene: scene.to_string(),
+        group: job.group.to_string(),
+        configuration: job.configuration.clone(),
+        frame_ms: 0.0,
+        stage_ms: 0.0,
+        stage: job.stage.to_string(),
+        build_ms: None,
+        mrays_per_s: None,
+        shadow: metrics::compare_shadows(refr, &r.surfaces, &r.mask),
+        primary_mismatches: metrics::primary_mismatches(refr, &r.surfaces),
+        hit_error: metrics::hit_point_error(refr, &r.surfaces, g.scene_extent() as f64),
+        rmse: metrics::rmse(&refr.image, &r.image),
+        flip: metrics::flip_mean(&refr.image, &r.image, refr.width, refr.height),
     }
 }
 
@@ -329,42 +311,58 @@ fn measure_all(
     let reference = pool.install(|| render_reference(&geometry, &bvh, camera, opts.width, opts.height));
     let reference_ms = ms_since(t);
     let runs = if opts.quick { 1 } else { FULL_RUNS };
-    let ctx = Ctx { pool, scene: scene_name, geometry: &geometry, camera: record, reference: &reference, runs };
-    let mut rows = Vec::new();
-
+    let resolutions: &[u32] = if opts.quick { &QUICK_SHADOW_MAP_RESOLUTIONS } else { &SHADOW_MAP_RESOLUTIONS };
+    let mut jobs = Vec::new();
     for preset in BvhPreset::ALL {
-        progress(&format!("{scene_name}: bvh {}", preset.name()));
-        let mut builds = Vec::new();
-        let mut built = None;
-        for _ in 0..runs {
-            let t = Instant::now();
-            let b = pool.install(|| Bvh::build(&geometry, preset));
-            builds.push(ms_since(t));
-            built = Some(b);
-        }
-        let b = built.expect("at least one build");
-        let row =
-            ctx.measure("bvh", preset.name().to_string(), "shadow_rays", &b, Config::Bvh(&b), Some(median(builds)));
-        rows.push(row);
+        let configuration = preset.name().to_string();
+        jobs.push(Job { group: "bvh", configuration, stage: "shadow_rays", config: Config::Bvh(preset) });
     }
     for unorm16 in [false, true] {
-        let name = if unorm16 { "unorm16" } else { "f32" };
-        progress(&format!("{scene_name}: barycentrics {name}"));
-        let stage = "quantize + reconstruction";
-        rows.push(ctx.measure("barycentrics", name.into(), stage, &bvh, Config::Barycentrics { unorm16 }, None));
+        let configuration = if unorm16 { "unorm16" } else { "f32" }.to_string();
+        let (group, stage, config) = ("barycentrics", "quantize + reconstruction", Config::Barycentrics { unorm16 });
+        jobs.push(Job { group, configuration, stage, config });
     }
     for m in OffsetMethod::ALL {
-        progress(&format!("{scene_name}: ray origin {}", m.name()));
-        let stage = "compaction + shadow_rays";
-        rows.push(ctx.measure("ray origin", m.name().into(), stage, &bvh, Config::Offset(m), None));
+        let (group, stage, config) = ("ray origin", "compaction + shadow_rays", Config::Offset(m));
+        jobs.push(Job { group, configuration: m.name().to_string(), stage, config });
     }
-    let resolutions: &[u32] = if opts.quick { &QUICK_SHADOW_MAP_RESOLUTIONS } else { &SHADOW_MAP_RESOLUTIONS };
-    progress(&format!("{scene_name}: ray-traced shadows"));
-    rows.push(ctx.measure("shadows", "ray traced".into(), "shadows", &bvh, Config::Shadows(None), None));
-    for &res in resolutions {
-        progress(&format!("{scene_name}: shadow maps {res}"));
-        let name = format!("shadow map {res}");
-        rows.push(ctx.measure("shadows", name, "shadows", &bvh, Config::Shadows(Some(res)), None));
+    let shadow_configs = std::iter::once(None).chain(resolutions.iter().map(|&r| Some(r)));
+    for res in shadow_configs {
+        let configuration = res.map_or_else(|| "ray traced".to_string(), |r| format!("shadow map {r}"));
+        jobs.push(Job { group: "shadows", configuration, stage: "shadows", config: Config::Shadows(res) });
+    }
+    // Runs go round-robin over the jobs, so that a change in machine load (other processes)
+    // hits every configuration alike; the first run of each job is also scored.
+    let mut rows: Vec<AccuracyRow> = Vec::new();
+    let mut times: Vec<Vec<RunTimes>> = vec![Vec::new(); jobs.len()];
+    let mut rays = vec![0usize; jobs.len()];
+    for run in 0..runs {
+        for (j, job) in jobs.iter().enumerate() {
+            progress(&format!("{scene_name}: run {}/{runs}: {} {}", run + 1, job.group, job.configuration));
+            let (built, build_ms) = match job.config {
+                Config::Bvh(preset) => {
+                    let t = Instant::now();
+                    let b = pool.install(|| Bvh::build(&geometry, preset));
+                    (Some(b), Some(ms_since(t)))
+                }
+                _ => (None, None),
+            };
+            let frame_bvh = built.as_ref().unwrap_or(&bvh);
+            let r = pool.install(|| run_frame(&geometry, frame_bvh, &record, job.config));
+            times[j].push(RunTimes { frame_ms: r.frame_ms, stage_ms: r.stage_ms, shadow_ms: r.shadow_ms, build_ms });
+            if run == 0 {
+                rays[j] = r.rays;
+                rows.push(score(scene_name, job, &geometry, &reference, &r));
+            }
+        }
+    }
+    for ((row, t), n_rays) in rows.iter_mut().zip(&times).zip(&rays) {
+        row.frame_ms = median(t.iter().map(|t| t.frame_ms).collect());
+        row.stage_ms = median(t.iter().map(|t| t.stage_ms).collect());
+        let builds: Vec<f64> = t.iter().filter_map(|t| t.build_ms).collect();
+        row.build_ms = (!builds.is_empty()).then(|| median(builds));
+        let shadow_ms = median(t.iter().map(|t| t.shadow_ms).collect());
+        row.mrays_per_s = (*n_rays > 0 && shadow_ms > 0.0).then(|| *n_rays as f64 / (shadow_ms * 1e3));
     }
     let notes = Notes {
         triangles: geometry.triangle_count(),
