@@ -458,8 +458,11 @@ fn markdown(
          geometric normal; `robust` is Wachter and Binder's integer-ulp offset the pipeline uses. Shadow maps: cube \
          maps of 6 x 90 degree faces per point light (one orthographic map per directional light), rendered with \
          the CPU `visibility_raster` stage, nearest texel, linear depth (distance to a point light, distance along a directional light), bias {} texel + {} \
-         texel x tan(normal, light) (capped at {}); resolution is per face side. FLIP: LDR-FLIP of the sRGB 8-bit \
-         images (`nv-flip` crate, NVIDIA's implementation, default 67 pixels per degree).\n",
+         texel x tan(normal, light) (capped at {}); resolution is per face side; their time is rendering every face \
+         on the CPU rasterizer each frame plus the lookups (a GPU rasterizes them far faster, and static lights \
+         could keep them), so the time axis is the CPU backend's. FLIP: LDR-FLIP of the sRGB 8-bit images \
+         (`nv-flip` crate, NVIDIA's implementation, default 67 pixels per degree). Times come from a machine \
+         possibly shared with other work: compare them within a run only.\n",
         variants::CONSTANT_EPSILON_REL,
         shadow_map::SHADOW_MAP_CONSTANT_BIAS_TEXELS,
         shadow_map::SHADOW_MAP_SLOPE_BIAS_TEXELS,
