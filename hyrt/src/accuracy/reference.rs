@@ -478,3 +478,56 @@ pub fn render_reference(
     let image = shade_image(&surfaces, &shadow, &geometry.objects, &geometry.lights, camera.eye);
     ReferenceFrame { width, height, hits, shadow, surfaces, image }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn f64_test_pins_exact_values_and_both_faces() {
+        let (a, b, c) = (Vec3::ZERO, Vec3::X, Vec3::Y);
+        let h = intersect_triangle_f64(DVec3::new(0.25, 0.25, 1.0), DVec3::NEG_Z, 0.0, f64::INFINITY, a, b, c).unwrap();
+        assert_eq!((h.t, h.u, h.v), (1.0, 0.25, 0.25));
+        // From behind: the same point.
+        let h = intersect_triangle_f64(DVec3::new(0.25, 0.25, -2.0), DVec3::Z, 0.0, f64::INFINITY, a, b, c).unwrap();
+        assert_eq!((h.t, h.u, h.v), (2.0, 0.25, 0.25));
+        // Bounds are open: t == t_max and t == t_min miss.
+        assert!(intersect_triangle_f64(DVec3::new(0.25, 0.25, 1.0), DVec3::NEG_Z, 0.0, 1.0, a, b, c).is_none());
+        assert!(intersect_triangle_f64(DVec3::new(0.25, 0.25, 1.0), DVec3::NEG_Z, 1.0, 2.0, a, b, c).is_none());
+        // Non-finite input and degenerate triangles never hit.
+        assert!(Ray64::new(DVec3::splat(f64::NAN), DVec3::Z).is_none());
+        assert!(Ray64::new(DVec3::ZERO, DVec3::ZERO).is_none());
+        assert!(intersect_triangle_f64(DVec3::new(0.0, 0.0, 1.0), DVec3::NEG_Z, 0.0, 9.0, a, a, c).is_none());
+    }
+
+    #[test]
+    fn a_ray_through_a_shared_edge_hits_both_triangles() {
+        // Two triangles sharing the diagonal (1, 0) - (0, 1) of the unit square.
+        let (p0, p1, p2, p3) = (Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(1.0, 1.0, 0.0));
+        let o = DVec3::new(0.5, 0.5, 3.0);
+        let first = intersect_triangle_f64(o, DVec3::NEG_Z, 0.0, 9.0, p0, p1, p2).unwrap();
+        let second = intersect_triangle_f64(o, DVec3::NEG_Z, 0.0, 9.0, p1, p3, p2).unwrap();
+        assert_eq!(first.t, 3.0);
+        assert_eq!(second.t, 3.0);
+    }
+
+    #[test]
+    fn camera_rays_go_from_the_eye_through_the_pixel_centre_to_the_far_plane() {
+        let cam = Camera {
+            eye: Vec3::new(0.0, 1.0, 5.0),
+            target: Vec3::new(0.0, 1.0, 0.0),
+            up: Vec3::Y,
+            fov_y_deg: 90.0,
+            near: 0.5,
+            far: 50.0,
+        };
+        let c = Camera64::new(&cam, 2, 2);
+        assert_eq!(c.t_near, 0.01);
+        // Pixel (1, 0) is right of and above the centre: at the far plane (depth 50),
+        // tan 45 deg puts it at x = y - 1 = 50 * 0.5.
+        let (o, d) = c.primary_ray(1, 0);
+        assert_eq!(o, DVec3::new(0.0, 1.0, 5.0));
+        let far = o + d;
+        assert!((far - DVec3::new(25.0, 26.0, -45.0)).length() < 1e-12, "{far}");
+    }
+}
