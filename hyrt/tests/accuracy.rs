@@ -373,6 +373,7 @@ fn speed_vs_error_on_the_default_scene_writes_a_plot_and_a_table() {
     if !std::path::Path::new(FONT_PATH).exists() {
         eprintln!("{FONT_PATH} missing: the entry point must say so");
         assert!(matches!(result, Err(AccuracyError::Plot(_))), "{result:?}");
+        assert!(std::env::var_os("CI").is_none(), "CI installs fonts-dejavu-core (.ci/run): the plot must be drawn");
         return;
     }
     let s = result.unwrap();
