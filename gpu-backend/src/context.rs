@@ -35,6 +35,9 @@ pub struct GpuContext {
     pub primitive_index: bool,
     /// GPU timestamp queries are available for per-stage timings.
     pub timestamps: bool,
+    /// Fragment shaders may declare conservative depth (wgpu `SHADER_EARLY_DEPTH_TEST`):
+    /// `visibility_raster` then keeps early depth tests while writing `frag_depth`.
+    pub early_depth_test: bool,
 }
 
 impl std::fmt::Debug for GpuContext {
@@ -45,6 +48,7 @@ impl std::fmt::Debug for GpuContext {
             .field("driver", &self.info.driver)
             .field("primitive_index", &self.primitive_index)
             .field("timestamps", &self.timestamps)
+            .field("early_depth_test", &self.early_depth_test)
             .finish()
     }
 }
@@ -79,7 +83,8 @@ impl GpuContext {
             return Err(GpuError::SoftwareOnly { name: format!("{} ({})", info.name, info.driver) });
         }
         let offered = adapter.features();
-        let wanted = wgpu::Features::PRIMITIVE_INDEX | wgpu::Features::TIMESTAMP_QUERY;
+        let wanted =
+            wgpu::Features::PRIMITIVE_INDEX | wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::SHADER_EARLY_DEPTH_TEST;
         let features = offered & wanted;
         let limits = wgpu::Limits {
             max_storage_buffer_binding_size: adapter.limits().max_storage_buffer_binding_size,
@@ -102,19 +107,21 @@ impl GpuContext {
             limits,
             primitive_index: features.contains(wgpu::Features::PRIMITIVE_INDEX),
             timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
+            early_depth_test: features.contains(wgpu::Features::SHADER_EARLY_DEPTH_TEST),
         })
     }
 
     /// A one-line description: adapter, type, driver, and the features in use.
     pub fn describe(&self) -> String {
         format!(
-            "{} ({:?}, {} {}); triangle ids via {}; timestamp queries {}",
+            "{} ({:?}, {} {}); triangle ids via {}; timestamp queries {}; conservative depth {}",
             self.info.name,
             self.info.device_type,
             self.info.driver,
             self.info.driver_info,
             if self.primitive_index { "@builtin(primitive_index)" } else { "flat-interpolated vertex ids" },
             if self.timestamps { "available" } else { "unavailable" },
+            if self.early_depth_test { "available" } else { "unavailable" },
         )
     }
 

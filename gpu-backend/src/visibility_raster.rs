@@ -78,7 +78,7 @@ fn raster_constants() -> String {
         PIXEL_CENTER_OFFSET,
     };
     format!(
-        "const MAX_IMAGE_DIM: u32 = {MAX_IMAGE_DIM}u;\nconst GUARD_BAND_PIXELS: f32 = {GUARD_BAND_PIXELS:?};\n\
+        "const HARDWARE_TRIANGLES_PER_TRIANGLE: u32 = {HARDWARE_TRIANGLES_PER_TRIANGLE}u;\nconst MAX_IMAGE_DIM: u32 = {MAX_IMAGE_DIM}u;\nconst GUARD_BAND_PIXELS: f32 = {GUARD_BAND_PIXELS:?};\n\
          const MAX_CLIP_VERTICES: u32 = {MAX_CLIP_VERTICES}u;\nconst PIXEL_CENTER_OFFSET: f32 = {PIXEL_CENTER_OFFSET:?};\n\
          const FIXED_ONE: i32 = {FIXED_ONE};\nconst FIXED_ONE_F32: f32 = {FIXED_ONE_F32:?};\n\
          const MAX_FIXED_COORD_F32: f32 = {:?};\n",
@@ -86,15 +86,19 @@ fn raster_constants() -> String {
     )
 }
 
-/// The WGSL of the stage, specialized for the triangle id source.
-pub fn shader_source(primitive_index: bool) -> String {
+/// The WGSL of the stage, specialized for the triangle id source and for conservative
+/// depth (`early_depth_test`: the fragment shader declares that the depth it writes is
+/// at least the interpolated one, so the device may keep its early depth test).
+pub fn shader_source(primitive_index: bool, early_depth_test: bool) -> String {
     let body = if primitive_index {
         SHADER
             .replace("TRIANGLE_ID_PARAMETER", "@builtin(primitive_index) primitive: u32,")
-            .replace("TRIANGLE_ID_EXPRESSION", "primitive")
+            .replace("TRIANGLE_ID_EXPRESSION", "primitive / HARDWARE_TRIANGLES_PER_TRIANGLE")
     } else {
         SHADER.replace("TRIANGLE_ID_PARAMETER", "").replace("TRIANGLE_ID_EXPRESSION", "in.triangle")
     };
+    let body = body
+        .replace("EARLY_DEPTH_TEST_ATTRIBUTE", if early_depth_test { "@early_depth_test(greater_equal)" } else { "" });
     let enable = if primitive_index { "enable primitive_index;\n" } else { "" };
     format!("{enable}{}{body}", raster_constants())
 }
@@ -135,15 +139,48 @@ impl Targets {
     }
 }
 
-/// The `visibility_raster` stage: a raster pipeline and a resolve compute pipeline.
+/// Bytes of one `RasterSetup` record of the shader (five 16-byte vectors).
+pub const RASTER_SETUP_BYTES: u64 = 80;
+/// Threads per workgroup of the setup pass (`@workgroup_size(64, 1, 1)`).
+const SETUP_GROUP: u32 = 64;
+/// Most workgroups per dispatch dimension (WebGPU's `maxComputeWorkgroupsPerDimension`).
+const MAX_GROUPS_PER_DIMENSION: u32 = 65_535;
+
+/// Hardware triangles drawn per scene triangle (`HARDWARE_TRIANGLES_PER_TRIANGLE` in the
+/// shader, which explains it).
+pub const HARDWARE_TRIANGLES_PER_TRIANGLE: u32 = 2;
+
+/// Bytes of one `ClippedSetup` record of the shader (six 16-byte vectors).
+pub const CLIPPED_SETUP_BYTES: u64 = 96;
+/// Sub-triangle slots for clipped triangles, per triangle of the scene, at least
+/// [`MIN_CLIPPED_SLOTS`]: clipping is rare (77 of 135,905 triangles in the teaser, each
+/// a fan of at most 7), and a triangle that finds the slots full is set up per fragment
+/// instead, with the same result.
+const CLIPPED_SLOTS_PER_TRIANGLE: f64 = 1.0 / 16.0;
+const MIN_CLIPPED_SLOTS: u32 = 4096;
+
+/// The setup records of one triangle count.
+struct Setups {
+    triangles: u32,
+    buffer: wgpu::Buffer,
+    clipped: wgpu::Buffer,
+    clipped_count: wgpu::Buffer,
+}
+
+/// The `visibility_raster` stage: a setup compute pipeline (one thread per triangle),
+/// a raster pipeline and a resolve compute pipeline.
 pub struct VisibilityRasterStage {
+    setup: wgpu::ComputePipeline,
     raster: wgpu::RenderPipeline,
     resolve: wgpu::ComputePipeline,
+    setup_layout: wgpu::BindGroupLayout,
     raster_layout: wgpu::BindGroupLayout,
     resolve_layout: wgpu::BindGroupLayout,
     primitive_index: bool,
     /// Render targets of the last image size.
     targets: Mutex<Option<std::sync::Arc<Targets>>>,
+    /// Setup records of the last triangle count.
+    setups: Mutex<Option<std::sync::Arc<Setups>>>,
 }
 
 impl VisibilityRasterStage {
@@ -159,7 +196,7 @@ impl VisibilityRasterStage {
         let primitive_index = primitive_index && ctx.primitive_index;
         let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("visibility_raster"),
-            source: wgpu::ShaderSource::Wgsl(shader_source(primitive_index).into()),
+            source: wgpu::ShaderSource::Wgsl(shader_source(primitive_index, ctx.early_depth_test).into()),
         });
         let raster = ctx.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("visibility_raster"),
@@ -203,21 +240,28 @@ impl VisibilityRasterStage {
             multiview_mask: None,
             cache: None,
         });
-        let resolve = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("visibility_raster resolve"),
-            layout: None,
-            module: &module,
-            entry_point: Some("resolve"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let compute = |label, entry_point| {
+            ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(label),
+                layout: None,
+                module: &module,
+                entry_point: Some(entry_point),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let setup = compute("visibility_raster setup", "setup");
+        let resolve = compute("visibility_raster resolve", "resolve");
         VisibilityRasterStage {
+            setup_layout: setup.get_bind_group_layout(0),
             raster_layout: raster.get_bind_group_layout(0),
             resolve_layout: resolve.get_bind_group_layout(0),
+            setup,
             raster,
             resolve,
             primitive_index,
             targets: Mutex::new(None),
+            setups: Mutex::new(None),
         }
     }
 
@@ -256,7 +300,35 @@ impl VisibilityRasterStage {
         }
     }
 
-    /// Record the raster pass and the resolve pass. The camera uniform must describe a
+    /// The setup records for `triangles` triangles, created when the count changes.
+    fn setups(&self, ctx: &GpuContext, triangles: u32) -> std::sync::Arc<Setups> {
+        let mut guard = self.setups.lock().unwrap_or_else(|e| e.into_inner());
+        match &*guard {
+            Some(s) if s.triangles == triangles => s.clone(),
+            _ => {
+                let make = |label, size, usage| {
+                    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some(label),
+                        size,
+                        usage,
+                        mapped_at_creation: false,
+                    })
+                };
+                let storage = wgpu::BufferUsages::STORAGE;
+                let slots = ((triangles as f64 * CLIPPED_SLOTS_PER_TRIANGLE) as u32).max(MIN_CLIPPED_SLOTS);
+                let s = std::sync::Arc::new(Setups {
+                    triangles,
+                    buffer: make("visibility_raster setups", triangles.max(1) as u64 * RASTER_SETUP_BYTES, storage),
+                    clipped: make("visibility_raster clipped setups", slots as u64 * CLIPPED_SETUP_BYTES, storage),
+                    clipped_count: make("visibility_raster clipped count", 4, storage | wgpu::BufferUsages::COPY_DST),
+                });
+                *guard = Some(s.clone());
+                s
+            }
+        }
+    }
+
+    /// Record the setup, raster and resolve passes. The camera uniform must describe a
     /// `frame.width` x `frame.height` image, which must pass [`Self::check_size`].
     pub fn encode(
         &self,
@@ -271,14 +343,40 @@ impl VisibilityRasterStage {
             return;
         }
         let targets = self.targets(ctx, width, height);
-        let raster_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("visibility_raster"),
-            layout: &self.raster_layout,
-            entries: &[
+        let setups = self.setups(ctx, scene.triangle_count);
+        let with_setups = |label, layout, first_binding: u32, count: Option<&wgpu::Buffer>| {
+            let mut entries = vec![
                 wgpu::BindGroupEntry { binding: 0, resource: scene.triangles.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 1, resource: frame.camera.as_entire_binding() },
-            ],
-        });
+                wgpu::BindGroupEntry { binding: first_binding, resource: setups.buffer.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: first_binding + 2, resource: setups.clipped.as_entire_binding() },
+            ];
+            if let Some(count) = count {
+                entries.push(wgpu::BindGroupEntry { binding: 9, resource: count.as_entire_binding() });
+            }
+            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries: &entries })
+        };
+        // Bindings: setup writes 6 (setups), 8 (clipped), 9 (count); the raster reads 5 and 7.
+        let setup_group = with_setups("visibility_raster setup", &self.setup_layout, 6, Some(&setups.clipped_count));
+        let raster_group = with_setups("visibility_raster", &self.raster_layout, 5, None);
+        encoder.clear_buffer(&setups.clipped_count, 0, None);
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("visibility_raster setup"),
+                timestamp_writes: timing.map(|(query_set, i)| wgpu::ComputePassTimestampWrites {
+                    query_set,
+                    beginning_of_pass_write_index: Some(i),
+                    end_of_pass_write_index: None,
+                }),
+            });
+            if scene.triangle_count > 0 {
+                let groups = scene.triangle_count.div_ceil(SETUP_GROUP);
+                let gx = groups.min(MAX_GROUPS_PER_DIMENSION);
+                pass.set_pipeline(&self.setup);
+                pass.set_bind_group(0, &setup_group, &[]);
+                pass.dispatch_workgroups(gx, groups.div_ceil(gx), 1);
+            }
+        }
         let resolve_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("visibility_raster resolve"),
             layout: &self.resolve_layout,
@@ -313,11 +411,7 @@ impl VisibilityRasterStage {
                     }),
                     stencil_ops: None,
                 }),
-                timestamp_writes: timing.map(|(query_set, i)| wgpu::RenderPassTimestampWrites {
-                    query_set,
-                    beginning_of_pass_write_index: Some(i),
-                    end_of_pass_write_index: None,
-                }),
+                timestamp_writes: None,
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
@@ -325,7 +419,8 @@ impl VisibilityRasterStage {
                 pass.set_pipeline(&self.raster);
                 pass.set_bind_group(0, &raster_group, &[]);
                 // Saturating: a table that large exceeds the storage binding limits anyway.
-                pass.draw(0..scene.triangle_count.saturating_mul(3), 0..1);
+                let vertices = 3 * HARDWARE_TRIANGLES_PER_TRIANGLE;
+                pass.draw(0..scene.triangle_count.saturating_mul(vertices), 0..1);
             }
         }
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {

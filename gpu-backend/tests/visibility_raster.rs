@@ -275,6 +275,37 @@ fn visibility_raster_near_plane_crossing_matches_cpu() {
 }
 
 #[test]
+fn visibility_raster_clipped_triangles_beyond_the_setup_slots_are_set_up_per_fragment() {
+    let Some(ctx) = test_context() else { return };
+    let stage = VisibilityRasterStage::new(&ctx);
+    // 6,000 thin wedges from behind the eye to the far side of the view, every one
+    // crossing the near plane: their fans need more than the 4,096 sub-triangle slots,
+    // so some are set up by the setup pass and the rest in the fragment shader (which
+    // of them depends on thread order); both must give the reference's texels.
+    let camera = Camera {
+        eye: Vec3::ZERO,
+        target: Vec3::new(0.0, 0.0, -1.0),
+        up: Vec3::Y,
+        fov_y_deg: 60.0,
+        near: 0.5,
+        far: 100.0,
+    };
+    let n = 6000;
+    let mut fan = Mesh { name: "wedges".into(), ..Default::default() };
+    for i in 0..n {
+        let a = i as f32 / n as f32 * std::f32::consts::TAU;
+        let (x, y) = (a.cos() * 4.0, a.sin() * 3.0);
+        let z = -5.0 - (i % 7) as f32;
+        let base = fan.positions.len() as u32;
+        fan.positions.extend([Vec3::new(0.0, 0.0, 1.0), Vec3::new(x, y, z), Vec3::new(x * 1.01 + 0.05, y * 1.01, z)]);
+        fan.indices.push([base, base + 1, base + 2]);
+    }
+    let scene = scene_with(vec![(fan, Mat4::IDENTITY, RenderMode::Raster)], None);
+    let r = compare(&ctx, &stage, "many clipped", &scene, &CameraRecord::new(&camera, 96, 72));
+    assert!(r.hits > 1000, "{r:?}");
+}
+
+#[test]
 fn visibility_raster_empty_and_non_finite_geometry() {
     let Some(ctx) = test_context() else { return };
     let stage = VisibilityRasterStage::new(&ctx);

@@ -67,100 +67,270 @@ fn is_finite4(p: vec4<f32>) -> bool {
     return all(e != vec4<u32>(F32_EXPONENT_MASK));
 }
 
-// Largest |window coordinate| (pixels) for which a vertex is handed to the hardware
+// ---------------------------------------------------------------- setup records
+//
+// The setup pass (`setup`, one thread per triangle) runs the reference's setup of each
+// triangle once per frame and records what the vertex and fragment shaders need.
+
+// `RasterSetup::x.w` flags.
+const SETUP_MODE_MASK: u32 = 3u;
+// Nothing to draw (non-finite, beyond one plane, zero area, no pixel centre).
+const SETUP_NONE: u32 = 0u;
+// Drawn unclipped by the reference: x, y, z, w hold its normalized setup.
+const SETUP_UNCLIPPED: u32 = 1u;
+// Clipped by the reference: `x.x` is the first of `x.y` sub-triangle setups in
+// `clipped`, in fan order.
+const SETUP_CLIPPED: u32 = 2u;
+// Clipped, but `clipped` was full: the fragment shader runs the whole setup itself
+// (the same operations, so the same result, only slower).
+const SETUP_CLIPPED_IN_FRAGMENT: u32 = 3u;
+// The normalized triangle was a back face (v1 and v2 swapped).
+const SETUP_BACK: u32 = 4u;
+// Corners handed to the hardware pre-snapped (else a cover triangle over `box_`).
+const SETUP_PRESNAP: u32 = 8u;
+// Vertex and pixel-box spans below SMALL_SPAN_FIXED: edge functions fit in i32.
+const SETUP_SMALL: u32 = 16u;
+// Largest span (fixed units) for i32 edge functions: products of two differences below
+// 2^15 stay below 2^30 and their difference below 2^31.
+const SMALL_SPAN_FIXED: i32 = 32768;
+
+struct RasterSetup {
+    // Unclipped: snapped x of the normalized vertices (v0, va, vb); w: flags.
+    x: vec4<i32>,
+    // Unclipped: snapped y of the normalized vertices; w: 0.
+    y: vec4<i32>,
+    // Unclipped: window z/w of the normalized vertices; w: the doubled area as f32.
+    z: vec4<f32>,
+    // Unclipped: clip w of the normalized vertices; w: 0.
+    w: vec4<f32>,
+    // The pixels whose centres the reference can cover, [x0, x1) x [y0, y1), in the image.
+    box_: vec4<i32>,
+}
+
+// One sub-triangle of a clipped triangle's fan (a TriSetup).
+struct ClippedSetup {
+    // Snapped x of the normalized vertices; w: 1 if valid (set up), else 0.
+    x: vec4<i32>,
+    y: vec4<i32>,
+    // z/w of the normalized vertices; w: the doubled area as f32.
+    z: vec4<f32>,
+    // Clip w of the normalized vertices; w: 1 if a back face, else 0.
+    w: vec4<f32>,
+    // Barycentrics in the original triangle of the normalized vertices 0 and 1 ...
+    b01: vec4<f32>,
+    // ... and 2.
+    b2: vec4<f32>,
+}
+
+@group(0) @binding(5) var<storage, read> setups: array<RasterSetup>;
+@group(0) @binding(6) var<storage, read_write> setups_out: array<RasterSetup>;
+@group(0) @binding(7) var<storage, read> clipped: array<ClippedSetup>;
+@group(0) @binding(8) var<storage, read_write> clipped_out: array<ClippedSetup>;
+// Sub-triangle slots of `clipped_out` handed out so far this frame (cleared before the pass).
+@group(0) @binding(9) var<storage, read_write> clipped_count: atomic<u32>;
+
+// Largest window coordinate (pixels) for which a vertex is handed to the hardware
 // pre-snapped: its NDC position is rebuilt from the reference's fixed-point position,
 // and the hardware's viewport transform (about 3 roundings of a value below 2^11, each
 // at most 2^-13 px) lands within 1/512 px of it, so the hardware's own snapping gives
 // back the same fixed-point value even where the float value sat on a rounding tie.
-const PRESNAP_LIMIT_PX: f32 = 2048.0;
+const PRESNAP_LIMIT_PX: i32 = 2048;
+
+// How far a cover triangle's edges lie outside the reference triangle's (pixels): more
+// than the hardware's own rounding when it clips a triangle to the viewport (a few ulps
+// of coordinates up to the guard band, 2^20 px: below 2^-3 px), so the hardware covers
+// every pixel centre the reference does; the fragment shader discards the rest.
+const COVER_MARGIN_PX: f32 = 1.0;
+
+// How far below the reference's depth the hardware's interpolated depth is kept, so that
+// the depth the fragment shader writes is never less than it (the promise of
+// `@early_depth_test(greater_equal)`, which lets the device reject hidden fragments
+// before shading them): both interpolate the same vertex depths in [0, 1], the
+// reference within 8 * 2^-24 (DEPTH_INTERPOLATION_REL_ERROR), the hardware within a few
+// ulps of 1; 2^-16 covers both many times over. Cover triangles use depth 0.
+const CONSERVATIVE_DEPTH_MARGIN: f32 = 1.0 / 65536.0;
 
 // The NDC position (w = 1) whose window position is `win` (pixels).
 fn window_to_ndc(win: vec2<f32>, depth: f32) -> vec4<f32> {
     return vec4<f32>(win.x / f32(camera.width) * 2.0 - 1.0, 1.0 - win.y / f32(camera.height) * 2.0, depth, 1.0);
 }
 
-// The clip position handed to the hardware for corner `k` of triangle `c` (clip space).
-//
-// - The reference draws the triangle unclipped and all of it lies inside the viewport
-//   (and within PRESNAP_LIMIT_PX): the corner pre-snapped (w = 1), so the hardware
-//   covers exactly the reference's pixel centres.
-// - Otherwise (the reference clips it against the near or far plane or the guard band,
-//   or it crosses the viewport's border, where lavapipe clips it to the viewport with
-//   its own rounding and can move an edge by an ulp): a cover triangle over the reference's pixel bounding
-//   box (every sub-triangle after clipping, as `pixel_span`, within the image) plus a
-//   pixel of margin. The fragment shader then keeps exactly the reference's pixels.
-fn hardware_position(c: array<vec4<f32>, 3>, k: u32) -> vec4<f32> {
-    let guard = guard_band_ndc();
-    var outside = 0u;
-    var presnap = true;
-    var corners: array<vec4<f32>, 3>;
-    for (var i = 0u; i < 3u; i++) {
-        for (var plane = 0u; plane < CLIP_PLANE_COUNT; plane++) {
-            if clip_plane_distance(plane, c[i], guard) < 0.0 {
-                outside |= 1u << plane;
-            }
+// pixel_span of fixed-point bounds [lo, hi] per axis, within the image, as pixel edges
+// [x0, y0, x1, y1) (mirrors hyrt_core::kernels::raster::pixel_span).
+fn pixel_box(lo: vec2<i32>, hi: vec2<i32>) -> vec4<i32> {
+    let first = max((lo + vec2<i32>(FIXED_ONE - 1)) >> vec2<u32>(8u), vec2<i32>(0));
+    let last = min((hi - vec2<i32>(1)) >> vec2<u32>(8u), vec2<i32>(i32(camera.width) - 1, i32(camera.height) - 1));
+    return vec4<i32>(first, last + vec2<i32>(1));
+}
+
+@compute @workgroup_size(64, 1, 1)
+fn setup(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let index = gid.x + gid.y * groups.x * 64u;
+    if index >= arrayLength(&setups_out) {
+        return;
+    }
+    var out: RasterSetup;
+    out.x = vec4<i32>(0, 0, 0, i32(SETUP_NONE));
+    let t = triangles[index];
+    let c = array<vec4<f32>, 3>(clip_position_exact(t.v0), clip_position_exact(t.v1), clip_position_exact(t.v2));
+    let outcodes = reference_outcodes(c);
+    if !(is_finite4(c[0]) && is_finite4(c[1]) && is_finite4(c[2])) || outcodes.x != 0u {
+        setups_out[index] = out;
+        return;
+    }
+    let outside = outcodes.y & CLIP_OUTCODES;
+    if outside == 0u {
+        let ts = setup_triangle(ClipVertex(c[0], vec2<f32>(0.0, 0.0)), ClipVertex(c[1], vec2<f32>(1.0, 0.0)),
+            ClipVertex(c[2], vec2<f32>(0.0, 1.0)));
+        if !ts.valid {
+            setups_out[index] = out;
+            return;
         }
-        let q = clip_to_window(c[i]);
-        let size = vec2<f32>(f32(camera.width), f32(camera.height));
-        presnap = presnap && all(q.xy >= vec2<f32>(0.0)) && all(q.xy <= min(size, vec2<f32>(PRESNAP_LIMIT_PX)));
-        // Back to window coordinates (exact: integers below 2^20, then a power of two).
-        let fixed = vec2<f32>(snap_to_fixed(q.x), snap_to_fixed(q.y));
-        corners[i] = window_to_ndc((fixed + vec2<f32>(PIXEL_CENTER_OFFSET * FIXED_ONE_F32)) / FIXED_ONE_F32, q.z);
-    }
-    if outside == 0u && presnap {
-        return corners[k];
-    }
-    // The reference's polygon (clipped as in sample_reference), its fixed-point box.
-    poly[0] = ClipVertex(c[0], vec2<f32>(0.0));
-    poly[1] = ClipVertex(c[1], vec2<f32>(0.0));
-    poly[2] = ClipVertex(c[2], vec2<f32>(0.0));
-    var n = 3u;
-    for (var plane = 0u; plane < CLIP_PLANE_COUNT; plane++) {
-        if (outside & (1u << plane)) != 0u {
-            n = clip_polygon_against_plane(plane, guard, n);
-            poly = next_poly;
+        let lo = vec2<i32>(min(min(ts.xs.x, ts.xs.y), ts.xs.z), min(min(ts.ys.x, ts.ys.y), ts.ys.z));
+        let hi = vec2<i32>(max(max(ts.xs.x, ts.xs.y), ts.xs.z), max(max(ts.ys.x, ts.ys.y), ts.ys.z));
+        out.box_ = pixel_box(lo, hi);
+        if any(out.box_.zw <= out.box_.xy) {
+            setups_out[index] = out;
+            return;
         }
+        var flags = SETUP_UNCLIPPED | select(0u, SETUP_BACK, ts.back);
+        // Every corner inside the viewport (window [0, size], here in the pixel-centre
+        // frame) and within the pre-snap limit.
+        let size = min(vec2<i32>(i32(camera.width), i32(camera.height)), vec2<i32>(PRESNAP_LIMIT_PX)) * FIXED_ONE;
+        let half = vec2<i32>(FIXED_ONE / 2);
+        if all(lo >= -half) && all(hi <= size - half) {
+            flags |= SETUP_PRESNAP;
+        }
+        if all(hi - lo < vec2<i32>(SMALL_SPAN_FIXED)) {
+            flags |= SETUP_SMALL;
+        }
+        out.x = vec4<i32>(ts.xs, i32(flags));
+        out.y = vec4<i32>(ts.ys, 0);
+        out.z = vec4<f32>(ts.z, edge_value_to_f32(ts.area2));
+        out.w = vec4<f32>(ts.w, 0.0);
+        setups_out[index] = out;
+        return;
     }
-    var lo = vec2<f32>(MAX_FIXED_COORD_F32);
-    var hi = vec2<f32>(-MAX_FIXED_COORD_F32);
+    // Clipped: the fixed-point box of the clipped polygon (a superset of every
+    // sub-triangle's pixels) for the cover triangle.
+    let n = clip_reference_polygon(c, outside);
+    var lo = vec2<i32>(i32(MAX_FIXED_COORD_F32));
+    var hi = vec2<i32>(-i32(MAX_FIXED_COORD_F32));
     for (var i = 0u; i < n; i++) {
         let q = clip_to_window(poly[i].pos);
         if is_finite4(vec4<f32>(q, 1.0)) && poly[i].pos.w > 0.0 {
             let f = vec2<f32>(snap_to_fixed(q.x), snap_to_fixed(q.y));
-            lo = min(lo, f);
-            hi = max(hi, f);
+            if all(abs(f) <= vec2<f32>(MAX_FIXED_COORD_F32)) {
+                lo = min(lo, vec2<i32>(f));
+                hi = max(hi, vec2<i32>(f));
+            }
         }
     }
-    // pixel_span, within the image, as pixel-edge coordinates [x0, x1) x [y0, y1).
-    let size = vec2<f32>(f32(camera.width), f32(camera.height));
-    let x0 = max(ceil(lo / FIXED_ONE_F32), vec2<f32>(0.0));
-    let x1 = min(floor((hi - 1.0) / FIXED_ONE_F32) + 1.0, size);
-    if n < 3u || any(x1 <= x0) {
+    out.box_ = pixel_box(lo, hi);
+    if n < 3u || any(out.box_.zw <= out.box_.xy) {
+        setups_out[index] = out;
+        return;
+    }
+    // The fan's sub-triangles, set up once here (cpu-backend visibility_raster
+    // `setup_triangle`: a fan from the first vertex).
+    let count = n - 2u;
+    let first = atomicAdd(&clipped_count, count);
+    if first + count > arrayLength(&clipped_out) {
+        out.x.w = i32(SETUP_CLIPPED_IN_FRAGMENT);
+        setups_out[index] = out;
+        return;
+    }
+    for (var i = 0u; i < count; i++) {
+        let ts = setup_triangle(poly[0], poly[i + 1u], poly[i + 2u]);
+        var cs: ClippedSetup;
+        if ts.valid {
+            cs.x = vec4<i32>(ts.xs, 1);
+            cs.y = vec4<i32>(ts.ys, 0);
+            cs.z = vec4<f32>(ts.z, edge_value_to_f32(ts.area2));
+            cs.w = vec4<f32>(ts.w, select(0.0, 1.0, ts.back));
+            cs.b01 = vec4<f32>(ts.b0, ts.b1);
+            cs.b2 = vec4<f32>(ts.b2, 0.0, 0.0);
+        }
+        clipped_out[first + i] = cs;
+    }
+    out.x = vec4<i32>(i32(first), i32(count), 0, i32(SETUP_CLIPPED));
+    setups_out[index] = out;
+}
+
+// HARDWARE_TRIANGLES_PER_TRIANGLE (prepended): a clipped triangle's fan is drawn as up to this
+// many grown sub-triangles (near-plane clipping makes a quad: two), in the scene's
+// order, so the depth test sees fragments in the reference's order. Larger fans, and
+// slivers, get one cover triangle over their pixel box.
+
+// Corner `k` of the triangle (xs, ys) (snapped, normalized) grown by COVER_MARGIN_PX
+// about its incentre, which moves every edge out by exactly the margin; w = 0 when the
+// triangle is a sliver (inradius below the margin) and must be covered otherwise.
+fn grown_corner(xs: vec3<i32>, ys: vec3<i32>, area2: f32, k: u32) -> vec4<f32> {
+    let v = array<vec2<f32>, 3>(vec2<f32>(f32(xs.x), f32(ys.x)), vec2<f32>(f32(xs.y), f32(ys.y)),
+        vec2<f32>(f32(xs.z), f32(ys.z)));
+    let side = vec3<f32>(distance(v[1], v[2]), distance(v[2], v[0]), distance(v[0], v[1])) / FIXED_ONE_F32;
+    let perimeter = side.x + side.y + side.z;
+    let inradius = area2 / (FIXED_ONE_F32 * FIXED_ONE_F32) / perimeter;
+    if !(inradius >= COVER_MARGIN_PX) {
+        return vec4<f32>(0.0);
+    }
+    let centre = (side.x * v[0] + side.y * v[1] + side.z * v[2]) / (perimeter * FIXED_ONE_F32);
+    let grown = centre + (v[k] / FIXED_ONE_F32 - centre) * ((inradius + COVER_MARGIN_PX) / inradius);
+    return window_to_ndc(grown + vec2<f32>(PIXEL_CENTER_OFFSET), 0.0);
+}
+
+// Corner `k` of a cover triangle over the pixel box: a right triangle whose legs are
+// twice the box plus a pixel of margin, so its hypotenuse passes outside the box's far
+// corner.
+fn box_corner(box_: vec4<i32>, k: u32) -> vec4<f32> {
+    let a = vec2<f32>(box_.xy) - 1.0;
+    let b = vec2<f32>(box_.zw) + 1.0;
+    let cover = array<vec2<f32>, 3>(a, vec2<f32>(a.x + 2.0 * (b.x - a.x), a.y), vec2<f32>(a.x, a.y + 2.0 * (b.y - a.y)));
+    return window_to_ndc(cover[k], 0.0);
+}
+
+// The clip position of corner `k` of hardware triangle `sub` of scene triangle `s`.
+fn hardware_corner(s: RasterSetup, sub: u32, k: u32) -> vec4<f32> {
+    let mode = u32(s.x.w) & SETUP_MODE_MASK;
+    if mode == SETUP_NONE {
         return OUTSIDE_CLIP;
     }
-    // A right triangle whose legs are twice the box (plus a pixel of margin): its
-    // hypotenuse passes outside the box's far corner.
-    let a = x0 - 1.0;
-    let b = x1 + 1.0;
-    let cover = array<vec2<f32>, 3>(a, vec2<f32>(a.x + 2.0 * (b.x - a.x), a.y), vec2<f32>(a.x, a.y + 2.0 * (b.y - a.y)));
-    return window_to_ndc(cover[k], 0.5);
+    if mode == SETUP_UNCLIPPED {
+        if sub != 0u {
+            return OUTSIDE_CLIP;
+        }
+        if (u32(s.x.w) & SETUP_PRESNAP) != 0u {
+            // Back to window coordinates: exact (integers below 2^20, then a power of two).
+            let fixed = vec2<f32>(f32(s.x[k]), f32(s.y[k]));
+            return window_to_ndc((fixed + vec2<f32>(PIXEL_CENTER_OFFSET * FIXED_ONE_F32)) / FIXED_ONE_F32,
+                max(s.z[k] - CONSERVATIVE_DEPTH_MARGIN, 0.0));
+        }
+        let g = grown_corner(s.x.xyz, s.y.xyz, s.z.w, k);
+        return select(g, box_corner(s.box_, k), g.w == 0.0);
+    }
+    if mode == SETUP_CLIPPED && u32(s.x.y) <= HARDWARE_TRIANGLES_PER_TRIANGLE {
+        if sub >= u32(s.x.y) {
+            return OUTSIDE_CLIP;
+        }
+        let cs = clipped[u32(s.x.x) + sub];
+        if cs.x.w == 0 {
+            return OUTSIDE_CLIP;
+        }
+        let g = grown_corner(cs.x.xyz, cs.y.xyz, cs.z.w, k);
+        return select(g, box_corner(s.box_, k), g.w == 0.0);
+    }
+    // A large fan, or set up per fragment: one cover triangle.
+    return select(OUTSIDE_CLIP, box_corner(s.box_, k), sub == 0u);
 }
 
 @vertex
 fn vs_main(@builtin(vertex_index) vertex_index: u32) -> VertexOut {
-    let tri_index = vertex_index / 3u;
-    let t = triangles[tri_index];
-    // All three corners, so every vertex of a triangle makes the same decision; the
-    // reference's clip positions (see the exact kernels below), so the hardware
-    // rasterizes the very triangle the fragment shader checks against.
-    let c = array<vec4<f32>, 3>(clip_position_exact(t.v0), clip_position_exact(t.v1), clip_position_exact(t.v2));
+    let per_triangle = 3u * HARDWARE_TRIANGLES_PER_TRIANGLE;
+    let tri_index = vertex_index / per_triangle;
+    let sub = (vertex_index % per_triangle) / 3u;
     var out: VertexOut;
     out.triangle = tri_index;
-    if !(is_finite4(c[0]) && is_finite4(c[1]) && is_finite4(c[2])) {
-        out.clip = OUTSIDE_CLIP;
-        return out;
-    }
-    out.clip = hardware_position(c, vertex_index % 3u);
+    out.clip = hardware_corner(setups[tri_index], sub, vertex_index % 3u);
     return out;
 }
 
@@ -375,17 +545,17 @@ fn edge_bias(a: vec2<i32>, b: vec2<i32>) -> vec2<u32> {
 }
 
 // mirrors hyrt_core::kernels::raster::perspective_barycentrics
-fn perspective_barycentrics(e: array<f32, 3>, w: vec3<f32>) -> vec3<f32> {
-    let q0 = e[0] / w.x;
-    let q1 = e[1] / w.y;
-    let q2 = e[2] / w.z;
+fn perspective_barycentrics(e: vec3<f32>, w: vec3<f32>) -> vec3<f32> {
+    let q0 = e.x / w.x;
+    let q1 = e.y / w.y;
+    let q2 = e.z / w.z;
     let s = rounded(q0 + q1) + q2;
     return vec3<f32>(q0 / s, q1 / s, q2 / s);
 }
 
 // mirrors hyrt_core::kernels::raster::interpolate_depth
-fn interpolate_depth(e: array<f32, 3>, area2: f32, z: vec3<f32>) -> f32 {
-    let num = rounded(rounded(mul(e[0], z.x) + mul(e[1], z.y)) + mul(e[2], z.z));
+fn interpolate_depth(e: vec3<f32>, area2: f32, z: vec3<f32>) -> f32 {
+    let num = rounded(rounded(mul(e.x, z.x) + mul(e.y, z.y)) + mul(e.z, z.z));
     return num / area2;
 }
 
@@ -398,6 +568,120 @@ fn barycentrics_in_original(b: vec3<f32>, a0: vec2<f32>, a1: vec2<f32>, a2: vec2
     return out;
 }
 
+// One (sub-)triangle set up by the reference's rules (cpu-backend visibility_raster
+// `emit_triangle`, without the pixel box): snapped, normalized counter-clockwise.
+struct TriSetup {
+    valid: bool,
+    back: bool,
+    xs: vec3<i32>,
+    ys: vec3<i32>,
+    z: vec3<f32>,
+    w: vec3<f32>,
+    // Barycentrics in the original triangle of the normalized vertices.
+    b0: vec2<f32>,
+    b1: vec2<f32>,
+    b2: vec2<f32>,
+    // The doubled area (> 0).
+    area2: vec2<u32>,
+}
+
+// mirrors cpu-backend visibility_raster::emit_triangle (project, snap, cull, normalize)
+fn setup_triangle(v0: ClipVertex, v1: ClipVertex, v2: ClipVertex) -> TriSetup {
+    var out: TriSetup;
+    out.valid = false;
+    let vs = array<ClipVertex, 3>(v0, v1, v2);
+    var win: array<vec3<f32>, 3>;
+    var fixed: array<vec2<i32>, 3>;
+    for (var k = 0u; k < 3u; k++) {
+        let q = clip_to_window(vs[k].pos);
+        if !(is_finite4(vec4<f32>(q, 1.0)) && vs[k].pos.w > 0.0) {
+            return out;
+        }
+        let fx = snap_to_fixed(q.x);
+        let fy = snap_to_fixed(q.y);
+        if abs(fx) > MAX_FIXED_COORD_F32 || abs(fy) > MAX_FIXED_COORD_F32 {
+            return out;
+        }
+        fixed[k] = vec2<i32>(i32(fx), i32(fy));
+        win[k] = q;
+    }
+    let area = edge_function(fixed[0], fixed[1], fixed[2]);
+    if area.x == 0u && area.y == 0u {
+        return out;
+    }
+    out.valid = true;
+    out.back = is_negative64(area);
+    let a = select(1u, 2u, out.back);
+    let b = select(2u, 1u, out.back);
+    out.xs = vec3<i32>(fixed[0].x, fixed[a].x, fixed[b].x);
+    out.ys = vec3<i32>(fixed[0].y, fixed[a].y, fixed[b].y);
+    out.z = vec3<f32>(win[0].z, win[a].z, win[b].z);
+    out.w = vec3<f32>(vs[0].pos.w, vs[a].pos.w, vs[b].pos.w);
+    out.b0 = vs[0].bary;
+    out.b1 = vs[a].bary;
+    out.b2 = vs[b].bary;
+    out.area2 = select(area, neg64(area), out.back);
+    return out;
+}
+
+// The edge values at a pixel centre, and whether the fill rule covers it. (Written out
+// per edge, without arrays: lavapipe runs 8 fragments in SIMD lanes, and a private array
+// indexed per lane becomes memory traffic.)
+struct Edges {
+    covered: bool,
+    e: vec3<f32>,
+}
+
+// One exact edge value with its fill-rule bias applied: (value, biased).
+fn edge_and_biased(a: vec2<i32>, b: vec2<i32>, p: vec2<i32>) -> array<vec2<u32>, 2> {
+    let e = edge_function(a, b, p);
+    return array<vec2<u32>, 2>(e, add64(e, edge_bias(a, b)));
+}
+
+// Edge `i` runs from vertex i + 1 to vertex i + 2 (opposite vertex i), as the CPU's
+// EdgeStepper; exact 64-bit values.
+fn edges_at(xs: vec3<i32>, ys: vec3<i32>, p: vec2<i32>) -> Edges {
+    let v0 = vec2<i32>(xs.x, ys.x);
+    let v1 = vec2<i32>(xs.y, ys.y);
+    let v2 = vec2<i32>(xs.z, ys.z);
+    let e0 = edge_and_biased(v1, v2, p);
+    let e1 = edge_and_biased(v2, v0, p);
+    let e2 = edge_and_biased(v0, v1, p);
+    var out: Edges;
+    out.covered = !(is_negative64(e0[1]) || is_negative64(e1[1]) || is_negative64(e2[1]));
+    if out.covered {
+        out.e = vec3<f32>(edge_value_to_f32(e0[0]), edge_value_to_f32(e1[0]), edge_value_to_f32(e2[0]));
+    }
+    return out;
+}
+
+// mirrors hyrt_core::kernels::raster::edge_function in i32: exact when every coordinate
+// difference is below SMALL_SPAN_FIXED.
+fn edge_function_small(a: vec2<i32>, b: vec2<i32>, p: vec2<i32>) -> i32 {
+    return (b.y - a.y) * (p.x - a.x) - (b.x - a.x) * (p.y - a.y);
+}
+
+// mirrors hyrt_core::kernels::raster::edge_bias in i32
+fn edge_bias_small(a: vec2<i32>, b: vec2<i32>) -> i32 {
+    let dcdx = a.y - b.y;
+    let dcdy = a.x - b.x;
+    return select(-1, 0, dcdx < 0 || (dcdx == 0 && dcdy > 0));
+}
+
+// `edges_at` in i32, valid when every coordinate difference is below SMALL_SPAN_FIXED
+// (SETUP_SMALL, pixel centre inside the pixel box): the same exact values.
+fn edges_at_small(xs: vec3<i32>, ys: vec3<i32>, p: vec2<i32>) -> Edges {
+    let v0 = vec2<i32>(xs.x, ys.x);
+    let v1 = vec2<i32>(xs.y, ys.y);
+    let v2 = vec2<i32>(xs.z, ys.z);
+    let e = vec3<i32>(edge_function_small(v1, v2, p), edge_function_small(v2, v0, p), edge_function_small(v0, v1, p));
+    let bias = vec3<i32>(edge_bias_small(v1, v2), edge_bias_small(v2, v0), edge_bias_small(v0, v1));
+    var out: Edges;
+    out.covered = all(e + bias >= vec3<i32>(0));
+    out.e = vec3<f32>(e);
+    return out;
+}
+
 // What the reference gives a covered pixel centre.
 struct Sample {
     covered: bool,
@@ -406,77 +690,32 @@ struct Sample {
     back_face: bool,
 }
 
-// mirrors cpu-backend visibility_raster::emit_triangle and the per-pixel evaluation of
-// rasterize_triangle and the tile resolve, for one (sub-)triangle at pixel centre `p`.
-fn sample_triangle(v0: ClipVertex, v1: ClipVertex, v2: ClipVertex, unclipped: bool, p: vec2<i32>) -> Sample {
-    var miss: Sample;
-    miss.covered = false;
-    let vs = array<ClipVertex, 3>(v0, v1, v2);
-    var win: array<vec3<f32>, 3>;
-    var fixed: array<vec2<i32>, 3>;
-    for (var k = 0u; k < 3u; k++) {
-        let q = clip_to_window(vs[k].pos);
-        let finite = is_finite4(vec4<f32>(q, 1.0));
-        if !(finite && vs[k].pos.w > 0.0) {
-            return miss;
-        }
-        let fx = snap_to_fixed(q.x);
-        let fy = snap_to_fixed(q.y);
-        if abs(fx) > MAX_FIXED_COORD_F32 || abs(fy) > MAX_FIXED_COORD_F32 {
-            return miss;
-        }
-        fixed[k] = vec2<i32>(i32(fx), i32(fy));
-        win[k] = q;
-    }
-    let area = edge_function(fixed[0], fixed[1], fixed[2]);
-    if area.x == 0u && area.y == 0u {
-        return miss;
-    }
-    let back = is_negative64(area);
-    let a = select(1u, 2u, back);
-    let b = select(2u, 1u, back);
-    let x = array<vec2<i32>, 3>(fixed[0], fixed[a], fixed[b]);
-    var e: array<vec2<u32>, 3>;
-    for (var i = 0u; i < 3u; i++) {
-        let ea = x[(i + 1u) % 3u];
-        let eb = x[(i + 2u) % 3u];
-        e[i] = edge_function(ea, eb, p);
-        if is_negative64(add64(e[i], edge_bias(ea, eb))) {
-            return miss;
-        }
-    }
-    let area2 = edge_value_to_f32(select(area, neg64(area), back));
-    let ef = array<f32, 3>(edge_value_to_f32(e[0]), edge_value_to_f32(e[1]), edge_value_to_f32(e[2]));
-    let w = vec3<f32>(vs[0].pos.w, vs[a].pos.w, vs[b].pos.w);
-    let bw = perspective_barycentrics(ef, w);
+// The per-pixel values of the reference (cpu-backend visibility_raster: the depth test's
+// `interpolate_depth`, the tile resolve's barycentrics) from covered edge values.
+fn sample_from(edges: Edges, back: bool, unclipped: bool, z: vec3<f32>, w: vec3<f32>, area2: f32,
+    b0: vec2<f32>, b1: vec2<f32>, b2: vec2<f32>) -> Sample {
     var out: Sample;
     out.covered = true;
     out.back_face = back;
-    out.depth = interpolate_depth(ef, area2, vec3<f32>(win[0].z, win[a].z, win[b].z));
+    out.depth = interpolate_depth(edges.e, area2, z);
+    let bw = perspective_barycentrics(edges.e, w);
     if unclipped {
-        // perspective_barycentrics_of_corners: the weights of the original v1 and v2.
-        let bws = array<f32, 3>(bw.x, bw.y, bw.z);
-        let iu = select(1u, 2u, back);
-        let iv = select(2u, 1u, back);
-        out.bary = vec2<f32>(bws[iu], bws[iv]);
+        // perspective_barycentrics_of_corners: the weights of the original v1 and v2
+        // among the normalized vertices (v0, va, vb).
+        out.bary = select(vec2<f32>(bw.y, bw.z), vec2<f32>(bw.z, bw.y), back);
     } else {
-        out.bary = barycentrics_in_original(bw, vs[0].bary, vs[a].bary, vs[b].bary);
+        out.bary = barycentrics_in_original(bw, b0, b1, b2);
     }
     return out;
 }
 
-// The reference's result for triangle `t` at pixel `pixel`: the setup of
-// cpu-backend visibility_raster::setup_triangle (outcodes, clipping, fan).
-fn sample_reference(t: TriangleRecord, pixel: vec2<u32>) -> Sample {
-    var miss: Sample;
-    miss.covered = false;
-    let c = array<vec4<f32>, 3>(clip_position_exact(t.v0), clip_position_exact(t.v1), clip_position_exact(t.v2));
-    if !(is_finite4(c[0]) && is_finite4(c[1]) && is_finite4(c[2])) {
-        return miss;
-    }
+// The reference's outcodes of a triangle's clip positions: x = the codes all three
+// share (non-zero: nothing to draw), y = the codes any has (cpu-backend visibility_raster
+// `setup_triangle`).
+fn reference_outcodes(c: array<vec4<f32>, 3>) -> vec2<u32> {
     let guard = guard_band_ndc();
-    var all = 0xffffffffu;
-    var any = 0u;
+    var all_codes = 0xffffffffu;
+    var any_codes = 0u;
     for (var k = 0u; k < 3u; k++) {
         var code = 0u;
         for (var plane = 0u; plane < CLIP_PLANE_COUNT; plane++) {
@@ -488,41 +727,47 @@ fn sample_reference(t: TriangleRecord, pixel: vec2<u32>) -> Sample {
         let y = c[k].y;
         let w = c[k].w;
         code |= select(0u, 64u, x > w) | select(0u, 128u, x < -w) | select(0u, 256u, y > w) | select(0u, 512u, y < -w);
-        all &= code;
-        any |= code;
+        all_codes &= code;
+        any_codes |= code;
     }
-    if all != 0u {
-        return miss;
-    }
-    let corners = array<ClipVertex, 3>(
-        ClipVertex(c[0], vec2<f32>(0.0, 0.0)),
-        ClipVertex(c[1], vec2<f32>(1.0, 0.0)),
-        ClipVertex(c[2], vec2<f32>(0.0, 1.0)),
-    );
-    let p = vec2<i32>(i32(pixel.x) * FIXED_ONE, i32(pixel.y) * FIXED_ONE);
-    let outside = any & CLIP_OUTCODES;
-    if outside == 0u {
-        return sample_triangle(corners[0], corners[1], corners[2], true, p);
-    }
-    poly[0] = corners[0];
-    poly[1] = corners[1];
-    poly[2] = corners[2];
+    return vec2<u32>(all_codes, any_codes);
+}
+
+// Clip the triangle against the planes in `outside` into `poly`; returns the vertex
+// count (cpu-backend visibility_raster `setup_triangle`).
+fn clip_reference_polygon(c: array<vec4<f32>, 3>, outside: u32) -> u32 {
+    let guard = guard_band_ndc();
+    poly[0] = ClipVertex(c[0], vec2<f32>(0.0, 0.0));
+    poly[1] = ClipVertex(c[1], vec2<f32>(1.0, 0.0));
+    poly[2] = ClipVertex(c[2], vec2<f32>(0.0, 1.0));
     var n = 3u;
     for (var plane = 0u; plane < CLIP_PLANE_COUNT; plane++) {
         if (outside & (1u << plane)) != 0u {
             n = clip_polygon_against_plane(plane, guard, n);
             poly = next_poly;
             if n < 3u {
-                return miss;
+                return n;
             }
         }
     }
-    // Fan from the first vertex; at most one sub-triangle covers a pixel centre (they
-    // share snapped edges and the fill rule).
+    return n;
+}
+
+// The reference at pixel centre `p` for a triangle it clips: the fan of the clipped
+// polygon; at most one sub-triangle covers a pixel centre (they share snapped edges and
+// the fill rule).
+fn sample_clipped(t: TriangleRecord, p: vec2<i32>) -> Sample {
+    var miss: Sample;
+    miss.covered = false;
+    let c = array<vec4<f32>, 3>(clip_position_exact(t.v0), clip_position_exact(t.v1), clip_position_exact(t.v2));
+    let n = clip_reference_polygon(c, reference_outcodes(c).y & CLIP_OUTCODES);
     for (var i = 1u; i + 1u < n; i++) {
-        let s = sample_triangle(poly[0], poly[i], poly[i + 1u], false, p);
-        if s.covered {
-            return s;
+        let ts = setup_triangle(poly[0], poly[i], poly[i + 1u]);
+        if ts.valid {
+            let edges = edges_at(ts.xs, ts.ys, p);
+            if edges.covered {
+                return sample_from(edges, ts.back, false, ts.z, ts.w, edge_value_to_f32(ts.area2), ts.b0, ts.b1, ts.b2);
+            }
         }
     }
     return miss;
@@ -537,20 +782,58 @@ struct FragmentOut {
     @builtin(frag_depth) depth: f32,
 }
 
-@fragment
+@fragment EARLY_DEPTH_TEST_ATTRIBUTE
 fn fs_main(
     in: VertexOut,
     TRIANGLE_ID_PARAMETER
 ) -> FragmentOut {
     let id = TRIANGLE_ID_EXPRESSION;
-    let s = sample_reference(triangles[id], vec2<u32>(in.clip.xy));
-    if !s.covered {
+    let pixel = vec2<i32>(in.clip.xy);
+    let s = setups[id];
+    let flags = u32(s.x.w);
+    if any(pixel < s.box_.xy) || any(pixel >= s.box_.zw) {
         discard;
+    }
+    let p = pixel * FIXED_ONE;
+    var sample: Sample;
+    if (flags & SETUP_MODE_MASK) == SETUP_UNCLIPPED {
+        var edges: Edges;
+        if (flags & SETUP_SMALL) != 0u {
+            edges = edges_at_small(s.x.xyz, s.y.xyz, p);
+        } else {
+            edges = edges_at(s.x.xyz, s.y.xyz, p);
+        }
+        if !edges.covered {
+            discard;
+        }
+        let zero = vec2<f32>(0.0);
+        sample = sample_from(edges, (flags & SETUP_BACK) != 0u, true, s.z.xyz, s.w.xyz, s.z.w, zero, zero, zero);
+    } else if (flags & SETUP_MODE_MASK) == SETUP_CLIPPED {
+        sample.covered = false;
+        for (var i = 0; i < s.x.y; i++) {
+            let cs = clipped[s.x.x + i];
+            if cs.x.w != 0 {
+                let edges = edges_at(cs.x.xyz, cs.y.xyz, p);
+                if edges.covered {
+                    sample = sample_from(edges, cs.w.w != 0.0, false, cs.z.xyz, cs.w.xyz, cs.z.w, cs.b01.xy, cs.b01.zw,
+                        cs.b2.xy);
+                    break;
+                }
+            }
+        }
+        if !sample.covered {
+            discard;
+        }
+    } else {
+        sample = sample_clipped(triangles[id], p);
+        if !sample.covered {
+            discard;
+        }
     }
     var out: FragmentOut;
     out.id = id + 1u;
-    out.surface = vec4<f32>(s.bary, s.depth, select(1.0, 0.0, s.back_face));
-    out.depth = s.depth;
+    out.surface = vec4<f32>(sample.bary, sample.depth, select(1.0, 0.0, sample.back_face));
+    out.depth = sample.depth;
     return out;
 }
 
