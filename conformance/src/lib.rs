@@ -13,28 +13,32 @@
 //!
 //! ## Budgets
 //!
-//! The target budget of every stage is 0: identical integers, 0 ulp. Determinism meets
-//! it: every stage's output is bit-identical run to run on each backend, and on 1 or 2
-//! CPU threads (`tests/corpus.rs`). The GPU backend on Mesa lavapipe meets it for
-//! `visibility_raster` (ids, flags, barycentrics and depth), `compaction` (the whole ray
-//! list) and `shadow_rays` on the whole corpus: its fragment shader evaluates the
-//! reference kernels itself and writes the reference depth, and vertices reach the
-//! hardware pre-snapped or as cover triangles (gpu-backend's visibility_raster.wgsl).
+//! The budget of every stage is 0: identical integers, 0 ulp, and it is met.
+//! - Determinism: every stage's output is bit-identical run to run on each backend, and
+//!   on 1 or 2 CPU threads (`tests/corpus.rs`).
+//! - The GPU backend on Mesa lavapipe against the CPU reference: every stage, every
+//!   word, on the whole corpus (`tests/corpus.rs`, also `hyrt conformance`). What makes it
+//!   so:
+//!   - `visibility_raster`: the fragment shader evaluates the reference kernels itself
+//!     (exact 64-bit edge functions of the snapped positions, f32 barycentrics and
+//!     depth) and writes the reference depth; vertices reach the hardware pre-snapped or
+//!     as grown cover triangles, so the hardware proposes every pixel the reference
+//!     covers (gpu-backend's `visibility_raster.wgsl`);
+//!   - in every shader, products that feed a sum go through an OR with an always-zero
+//!     uniform, so the compiler cannot fuse them into multiply-adds (lavapipe does fuse
+//!     plain vector expressions: measured);
+//!   - `pow` is a core kernel built from correctly rounded operations
+//!     (`hyrt_core::kernels::shading::pow_portable`), mirrored in WGSL, instead of
+//!     `powf` and WGSL `pow`, whose approximations differ;
+//!   - it relies on the device computing f32 division, `sqrt`, conversions and `round`
+//!     correctly rounded (lavapipe does; WGSL allows 2.5 ulp division and flushed
+//!     subnormals, so another driver may not) and on the device's rasterizer using 8
+//!     subpixel bits and the top-left rule (Vulkan's `subPixelPrecisionBits`).
 //!
-//! The float stages after it are not exact yet; their differences, per case and buffer,
-//! are recorded in `known_deviations.toml` as a ratchet (a run may improve on them, never
-//! exceed them, and a case or buffer not listed must be exact), with causes in
-//! [`report::CAUSES`]:
-//!
-//! | stage | float budget today | cause |
-//! |---|---|---|
-//! | reconstruction | 2 ulp | fused multiply-adds in the error bound's sums |
-//! | raster_shading | 2 ulp | fused multiply-adds in dot products |
-//! | rt_shading, composition | about 2^11 ulp on highlights | WGSL `pow` against Rust's `powf` |
-//!
-//! Closing them takes what closed the raster: products kept from fusing in the WGSL
-//! (an OR of an always-zero uniform into their bits), and `pow` replaced on both sides by
-//! one core kernel built from correctly rounded operations.
+//! Should a deviation appear (another driver, a change), `known_deviations.toml` records
+//! it per case and buffer as a ratchet (a run may improve on it, never exceed it, and a
+//! case or buffer not listed must be exact) and [`report::CAUSES`] must name its cause.
+//! The file is empty today.
 //!
 //! ```
 //! use hyrt_conformance::ulp_distance;

@@ -120,8 +120,7 @@ impl GpuBackend {
             self.frame = Some(ctx.checked(|| FrameBuffers::new(ctx, camera.width, camera.height, lights))??);
         }
         let (sb, fb) = (&self.scene.as_ref().expect("scene buffers").1, self.frame.as_ref().expect("frame buffers"));
-        let params =
-            FrameParams { width: camera.width, height: camera.height, light_count: lights, weight: options.weight };
+        let params = FrameParams::new(camera.width, camera.height, lights, options.weight);
         debug_assert_eq!(params.validate(), Ok(()));
         fb.write_uniforms(ctx, camera, &params);
 

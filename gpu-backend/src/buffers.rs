@@ -21,8 +21,10 @@ use crate::{GpuContext, GpuError};
 /// | 4 | `height` | u32 | image height |
 /// | 8 | `light_count` | u32 | lights in the light list |
 /// | 12 | `weight` | f32 | composition weight in [0, 1] |
+/// | 16 | `zero` | u32 | always 0: shaders OR it into the bits of products, which the compiler cannot see through, so it cannot fuse them into multiply-adds (the CPU kernels round every product) |
+/// | 20 | `pad` | [u32; 3] | zero (uniform structs are 16-byte multiples) |
 ///
-/// 16 bytes.
+/// 32 bytes. Build with [`FrameParams::new`].
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct FrameParams {
@@ -30,12 +32,22 @@ pub struct FrameParams {
     pub height: u32,
     pub light_count: u32,
     pub weight: f32,
+    pub zero: u32,
+    pub pad: [u32; 3],
 }
-const _: () = assert!(std::mem::size_of::<FrameParams>() == 16);
+const _: () = assert!(std::mem::size_of::<FrameParams>() == 32);
 
 impl FrameParams {
-    /// Check: a non-empty image and a weight in [0, 1].
+    /// The parameters of a `width` x `height` frame with `light_count` lights.
+    pub fn new(width: u32, height: u32, light_count: u32, weight: f32) -> Self {
+        FrameParams { width, height, light_count, weight, zero: 0, pad: [0; 3] }
+    }
+
+    /// Check: a non-empty image, a weight in [0, 1], `zero` and padding zero.
     pub fn validate(&self) -> Result<(), String> {
+        if self.zero != 0 || self.pad != [0; 3] {
+            return Err(format!("frame parameters with non-zero zero/padding: {self:?}"));
+        }
         if self.width == 0 || self.height == 0 {
             return Err(format!("empty image {}x{}", self.width, self.height));
         }

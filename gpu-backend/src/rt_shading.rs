@@ -11,7 +11,10 @@
 
 use hyrt_core::formats::{INVALID_ID, LIGHT_DIRECTIONAL, OBJ_RAY_TRACED};
 use hyrt_core::frame::SHADOW_LIT;
-use hyrt_core::kernels::shading::{AMBIENT, BACKGROUND, DIELECTRIC_F0, ENVIRONMENT_SPECULAR, MIN_LIGHT_DISTANCE_SQ};
+use hyrt_core::kernels::shading::{
+    AMBIENT, BACKGROUND, DIELECTRIC_F0, ENVIRONMENT_SPECULAR, EXP_SERIES, LOG2_SERIES, MIN_LIGHT_DISTANCE_SQ,
+    POW_FLUSH_EXPONENT, TWO_OVER_LN_2,
+};
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
 use crate::GpuContext;
@@ -45,6 +48,17 @@ fn prelude() -> String {
     s += &f("FRAC_1_PI", std::f32::consts::FRAC_1_PI);
     s += &f("PI", std::f32::consts::PI);
     s += &f("F32_MAX", f32::MAX);
+    s += &f("F32_MIN_POSITIVE", f32::MIN_POSITIVE);
+    s += &f("SQRT_2", std::f32::consts::SQRT_2);
+    s += &f("LN_2", std::f32::consts::LN_2);
+    s += &f("TWO_OVER_LN_2", TWO_OVER_LN_2);
+    s += &f("POW_FLUSH_EXPONENT", POW_FLUSH_EXPONENT);
+    let array = |name: &str, xs: &[f32]| {
+        let items: Vec<String> = xs.iter().map(|&x| f32_literal(x)).collect();
+        format!("const {name} = array<f32, {}>({});\n", xs.len(), items.join(", "))
+    };
+    s += &array("LOG2_SERIES", &LOG2_SERIES);
+    s += &array("EXP_SERIES", &EXP_SERIES);
     s += &u("LIGHT_DIRECTIONAL", LIGHT_DIRECTIONAL);
     s += &u("OBJ_RAY_TRACED", OBJ_RAY_TRACED);
     s += &u("INVALID_ID", INVALID_ID);

@@ -41,7 +41,7 @@ fn gpu_compaction(
     let lights = prepared.geometry.lights.len() as u32;
     let scene_buffers = SceneBuffers::new(ctx, prepared);
     let frame = FrameBuffers::new(ctx, width, height, lights).unwrap();
-    let params = FrameParams { width, height, light_count: lights, weight: 1.0 };
+    let params = FrameParams::new(width, height, lights, 1.0);
     ctx.queue.write_buffer(&frame.params, 0, bytemuck::bytes_of(&params));
     ctx.queue.write_buffer(&frame.surfaces, 0, bytemuck::cast_slice(surfaces));
     let stage = CompactionStage::new(ctx);

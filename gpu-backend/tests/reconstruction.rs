@@ -58,7 +58,7 @@ fn gpu_reconstruction(
 ) -> Vec<SurfaceRecord> {
     let buffers = SceneBuffers::new(ctx, scene);
     let frame = FrameBuffers::new(ctx, cam.width, cam.height, buffers.light_count).unwrap();
-    let params = FrameParams { width: cam.width, height: cam.height, light_count: buffers.light_count, weight: 0.5 };
+    let params = FrameParams::new(cam.width, cam.height, buffers.light_count, 0.5);
     frame.write_uniforms(ctx, cam, &params);
     ctx.queue.write_buffer(&frame.gbuffer, 0, bytemuck::cast_slice(gbuffer));
     // Garbage in the output first: every texel must be written.

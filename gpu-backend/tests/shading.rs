@@ -148,7 +148,7 @@ fn upload_case(ctx: &GpuContext, c: &Case) -> Gpu {
     let lights = c.scene.geometry.lights.len() as u32;
     let scene = SceneBuffers::new(ctx, &c.scene);
     let frame = FrameBuffers::new(ctx, w, h, lights).expect("frame buffers");
-    frame.write_uniforms(ctx, &c.camera, &FrameParams { width: w, height: h, light_count: lights, weight: c.weight });
+    frame.write_uniforms(ctx, &c.camera, &FrameParams::new(w, h, lights, c.weight));
     ctx.queue.write_buffer(&frame.surfaces, 0, bytemuck::cast_slice(&c.cpu.surfaces));
     let shadow: Vec<u32> = c.cpu.shadow.iter().map(|&s| s as u32).collect();
     if !shadow.is_empty() {

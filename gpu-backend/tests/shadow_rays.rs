@@ -90,7 +90,7 @@ fn gpu_shadow_rays(
 ) -> (Vec<u32>, Vec<u32>) {
     let scene_buffers = SceneBuffers::new(ctx, prepared);
     let frame = FrameBuffers::new(ctx, width, height, lights).unwrap();
-    let params = FrameParams { width, height, light_count: lights, weight: 1.0 };
+    let params = FrameParams::new(width, height, lights, 1.0);
     ctx.queue.write_buffer(&frame.params, 0, bytemuck::bytes_of(&params));
     ctx.queue.write_buffer(&frame.rays, 0, bytemuck::cast_slice(rays));
     let count = rays.len() as u32;
@@ -320,7 +320,7 @@ fn shadow_rays_after_gpu_compaction_matches_cpu() {
 
     let scene_buffers = SceneBuffers::new(&ctx, &prepared);
     let frame = FrameBuffers::new(&ctx, w, h, lights).unwrap();
-    frame.write_uniforms(&ctx, &record, &FrameParams { width: w, height: h, light_count: lights, weight: 1.0 });
+    frame.write_uniforms(&ctx, &record, &FrameParams::new(w, h, lights, 1.0));
     ctx.queue.write_buffer(&frame.surfaces, 0, bytemuck::cast_slice(&surfaces));
     let compaction = CompactionStage::new(&ctx);
     let shadow = ShadowRaysStage::new(&ctx);

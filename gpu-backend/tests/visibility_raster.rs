@@ -98,7 +98,7 @@ fn gpu_raster(
 ) -> Vec<GBufferTexel> {
     let buffers = SceneBuffers::new(ctx, scene);
     let frame = FrameBuffers::new(ctx, cam.width, cam.height, buffers.light_count).unwrap();
-    let params = FrameParams { width: cam.width, height: cam.height, light_count: buffers.light_count, weight: 0.5 };
+    let params = FrameParams::new(cam.width, cam.height, buffers.light_count, 0.5);
     frame.write_uniforms(ctx, cam, &params);
     // Garbage in the G-buffer first: every texel must be written.
     let garbage = vec![0xA5u8; (cam.width * cam.height) as usize * std::mem::size_of::<GBufferTexel>()];

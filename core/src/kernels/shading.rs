@@ -72,6 +72,78 @@ pub fn blinn_phong_exponent(roughness: f32) -> f32 {
     (2.0 / (a * a) - 2.0).clamp(1.0, 1e4)
 }
 
+/// `2 / ln 2`, the factor of the log2 series in [`log2_portable`].
+pub const TWO_OVER_LN_2: f32 = 2.0 / std::f32::consts::LN_2;
+/// Coefficients `1 / (2k + 1)`, k = 4..0, of the series `atanh(t) / t = sum t^(2k) / (2k + 1)`
+/// in [`log2_portable`] (Horner order). With `|t| <= (sqrt 2 - 1) / (sqrt 2 + 1) < 0.172`
+/// the first omitted term, `t^10 / 11`, is below 2^-29 relative: under the f32 rounding.
+pub const LOG2_SERIES: [f32; 5] = [1.0 / 9.0, 1.0 / 7.0, 1.0 / 5.0, 1.0 / 3.0, 1.0];
+/// Coefficients `1 / k!`, k = 7..0, of `e^g` in [`exp2_portable`] (Horner order). With
+/// `|g| <= ln 2 / 2 < 0.347` the first omitted term, `g^8 / 8!`, is below 2^-27 relative.
+pub const EXP_SERIES: [f32; 8] = [1.0 / 5040.0, 1.0 / 720.0, 1.0 / 120.0, 1.0 / 24.0, 1.0 / 6.0, 0.5, 1.0, 1.0];
+/// [`pow_portable`] returns 0 below `2^POW_FLUSH_EXPONENT`: far above the subnormal
+/// range (GPU drivers such as lavapipe flush subnormals to zero), and far below any
+/// visible specular term.
+pub const POW_FLUSH_EXPONENT: f32 = -100.0;
+
+/// `log2(x)` for finite `x >= f32::MIN_POSITIVE` (smaller or non-finite input is the
+/// caller's error: [`pow_portable`] never passes it), from the exponent bits and the
+/// series of [`LOG2_SERIES`] on the mantissa reduced to `[sqrt(1/2), sqrt 2)`. Built
+/// only from correctly rounded operations in a stated order, so the GPU's twin gives
+/// the same bits (unlike `powf` and WGSL `pow`, whose approximations differ). Absolute
+/// error about 2^-22 (a few f32 roundings of values below 1) plus the rounding of the
+/// final sum with the exponent (half an ulp of the result).
+/// WGSL: `log2_portable`.
+#[inline]
+pub fn log2_portable(x: f32) -> f32 {
+    let bits = x.to_bits();
+    let mut e = ((bits >> 23) & 0xff) as i32 - 127;
+    let mut m = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000);
+    if m > std::f32::consts::SQRT_2 {
+        m *= 0.5;
+        e += 1;
+    }
+    // m - 1 is exact (Sterbenz: m lies within [1/2, 2] of 1).
+    let t = (m - 1.0) / (m + 1.0);
+    let t2 = t * t;
+    let mut p = LOG2_SERIES[0];
+    for c in &LOG2_SERIES[1..] {
+        p = p * t2 + c;
+    }
+    e as f32 + (t * p) * TWO_OVER_LN_2
+}
+
+/// `2^z` for `z <= 0` (the only use: [`pow_portable`] of a base in `[0, 1]`): `2^n * e^g`
+/// with `n = round_ties_even(z)`, `g = (z - n) * ln 2` (`z - n` is exact), the series of
+/// [`EXP_SERIES`], and an exact power-of-two scale; 0 below [`POW_FLUSH_EXPONENT`].
+/// Relative error about 2^-22. WGSL: `exp2_portable`.
+#[inline]
+pub fn exp2_portable(z: f32) -> f32 {
+    // NaN compares false: flushed too.
+    if z.is_nan() || z < POW_FLUSH_EXPONENT {
+        return 0.0;
+    }
+    let n = crate::kernels::raster::round_ties_even_f32(z);
+    let g = (z - n) * std::f32::consts::LN_2;
+    let mut q = EXP_SERIES[0];
+    for c in &EXP_SERIES[1..] {
+        q = q * g + c;
+    }
+    q * f32::from_bits(((n as i32 + 127) as u32) << 23)
+}
+
+/// `x^y` for `x` in `[0, 1]` and `y >= 1` (the Blinn-Phong lobe): 0 for `x = 0`, else
+/// `exp2_portable(y * log2_portable(x))`; NaN `x` gives 0. Relative error about
+/// `2^-22 * (1 + y * |log2 x|)`, invisible in shading, and the same bits on the CPU and
+/// the GPU. WGSL: `pow_portable`.
+#[inline]
+pub fn pow_portable(x: f32, y: f32) -> f32 {
+    if x.is_nan() || x < f32::MIN_POSITIVE {
+        return 0.0;
+    }
+    exp2_portable(y * log2_portable(x.min(1.0)))
+}
+
 /// Ray-traced shader, one light: Lambert diffuse plus a normalized Blinn-Phong
 /// specular lobe, times the light's irradiance scale `e` and `n.l`. The caller
 /// multiplies by the shadow visibility and sums over lights.
@@ -86,7 +158,7 @@ pub fn shade_ray_traced(obj: &ObjectRecord, n: Vec3, v: Vec3, l: Vec3, e: Vec3) 
     let f0 = Vec3::splat(DIELECTRIC_F0).lerp(base, obj.metallic);
     let h = (l + v).normalize_or_zero();
     let s = blinn_phong_exponent(obj.roughness);
-    let spec = f0 * ((s + 8.0) / (8.0 * std::f32::consts::PI) * n.dot(h).max(0.0).powf(s));
+    let spec = f0 * ((s + 8.0) / (8.0 * std::f32::consts::PI) * pow_portable(n.dot(h).max(0.0), s));
     (diffuse + spec) * e * ndl
 }
 
@@ -149,6 +221,51 @@ pub fn linear_to_srgb8(x: f32) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    /// Accuracy of the portable kernels against f64 (see their docs): log2 within
+    /// 2^-20 absolute plus the final sum's rounding (2^-23 of the result), exp2 within
+    /// 2^-20 relative.
+    const PORTABLE_LOG2_ABS_TOL: f64 = 1.0 / (1u64 << 20) as f64;
+    const PORTABLE_EXP2_REL_TOL: f64 = 1.0 / (1u64 << 20) as f64;
+
+    proptest! {
+        #[test]
+        fn log2_portable_matches_f64(x in f32::MIN_POSITIVE..f32::MAX) {
+            let r = log2_portable(x) as f64;
+            let t = (x as f64).log2();
+            prop_assert!((r - t).abs() <= PORTABLE_LOG2_ABS_TOL + t.abs() * f32::EPSILON as f64, "log2({x}) = {r}");
+        }
+
+        #[test]
+        fn exp2_portable_matches_f64(z in -99.0f32..0.0) {
+            let r = exp2_portable(z) as f64;
+            let t = (z as f64).exp2();
+            prop_assert!((r - t).abs() <= PORTABLE_EXP2_REL_TOL * t, "exp2({z}) = {r}, not {t}");
+        }
+
+        #[test]
+        fn pow_portable_matches_f64_within_its_bound(x in 0.0f32..=1.0, y in 1.0f32..1e4) {
+            let r = pow_portable(x, y) as f64;
+            let t = (x as f64).powf(y as f64);
+            let bound = PORTABLE_EXP2_REL_TOL * (1.0 + y as f64 * (x as f64).log2().abs());
+            if t >= (POW_FLUSH_EXPONENT as f64).exp2() * 2.0 {
+                prop_assert!((r - t).abs() <= bound * t, "{x}^{y} = {r}, not {t}");
+            } else {
+                prop_assert!(r <= (POW_FLUSH_EXPONENT as f64).exp2() * 4.0, "{x}^{y} = {r}, flushed {t}");
+            }
+        }
+    }
+
+    #[test]
+    fn pow_portable_pins_exact_cases() {
+        assert_eq!(pow_portable(1.0, 5000.0), 1.0);
+        assert_eq!(pow_portable(0.0, 2.0), 0.0);
+        assert_eq!(pow_portable(f32::NAN, 2.0), 0.0);
+        assert_eq!(pow_portable(0.5, 2.0), 0.25);
+        assert_eq!(exp2_portable(-3.0), 0.125);
+        assert_eq!(log2_portable(8.0), 3.0);
+    }
     use crate::formats::LIGHT_POINT;
 
     fn grey() -> ObjectRecord {

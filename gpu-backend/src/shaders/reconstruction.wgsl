@@ -1,7 +1,9 @@
 // reconstruction (paper eq. 1): rebuild the surface at every G-buffer texel.
 // Rust side: gpu-backend/src/reconstruction.rs; CPU reference:
 // hyrt_cpu::reconstruction::reconstruct_texel. Every product and sum is written in
-// the Rust kernels' order (the driver may still fuse multiply-adds).
+// the Rust kernels' order, and every product that feeds a sum goes through `mul`, which
+// ORs the always-zero `camera.pad` into its bits so the compiler cannot fuse it into a
+// multiply-add: the results are the CPU's bits.
 //
 // GAMMA_2, GAMMA_3 and ONE_PLUS_GAMMA_3 are prepended by the Rust side with the
 // exact f32 values of hyrt_core::kernels::barycentric::gamma.
@@ -75,14 +77,26 @@ fn is_finite(x: f32) -> bool {
     return (bitcast<u32>(x) & F32_EXPONENT_MASK) != F32_EXPONENT_MASK;
 }
 
+fn rounded(x: f32) -> f32 {
+    return bitcast<f32>(bitcast<u32>(x) | camera.pad);
+}
+
+fn mul(a: f32, b: f32) -> f32 {
+    return rounded(a * b);
+}
+
+fn mul3(a: vec3<f32>, s: f32) -> vec3<f32> {
+    return vec3<f32>(mul(a.x, s), mul(a.y, s), mul(a.z, s));
+}
+
 // glam's Vec3::dot: (x * x') + (y * y') + (z * z'), left to right.
 fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
-    return ((a.x * b.x) + (a.y * b.y)) + (a.z * b.z);
+    return rounded(mul(a.x, b.x) + mul(a.y, b.y)) + mul(a.z, b.z);
 }
 
 // glam's Vec3::cross.
 fn cross3(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
-    return vec3<f32>(a.y * b.z - b.y * a.z, a.z * b.x - b.z * a.x, a.x * b.y - b.x * a.y);
+    return vec3<f32>(mul(a.y, b.z) - mul(b.y, a.z), mul(a.z, b.x) - mul(b.z, a.x), mul(a.x, b.y) - mul(b.x, a.y));
 }
 
 // glam's Vec3::normalize_or: self * (1 / length) if that reciprocal is finite and > 0.
@@ -110,27 +124,27 @@ fn bary_w(u: f32, v: f32) -> f32 {
 fn reconstruct_position(u: f32, v: f32, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> vec3<f32> {
     let w = bary_w(u, v);
     return vec3<f32>(
-        (w * v0.x + u * v1.x) + v * v2.x,
-        (w * v0.y + u * v1.y) + v * v2.y,
-        (w * v0.z + u * v1.z) + v * v2.z,
+        rounded(mul(w, v0.x) + mul(u, v1.x)) + mul(v, v2.x),
+        rounded(mul(w, v0.y) + mul(u, v1.y)) + mul(v, v2.y),
+        rounded(mul(w, v0.z) + mul(u, v1.z)) + mul(v, v2.z),
     );
 }
 
 // mirrors hyrt_core::kernels::barycentric::position_error_bound
 fn position_error_bound(u: f32, v: f32, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> vec3<f32> {
     let w = bary_w(u, v);
-    let sum = (abs(w * v0) + abs(u * v1)) + abs(v * v2);
-    let w_err = GAMMA_2 * ((1.0 + abs(u)) + abs(v));
-    return (sum * GAMMA_3 + abs(v0) * (w_err * ONE_PLUS_GAMMA_3)) * ONE_PLUS_GAMMA_3;
+    let sum = (abs(mul3(v0, w)) + abs(mul3(v1, u))) + abs(mul3(v2, v));
+    let w_err = mul(GAMMA_2, rounded(1.0 + abs(u)) + abs(v));
+    return (mul3(sum, GAMMA_3) + mul3(abs(v0), mul(w_err, ONE_PLUS_GAMMA_3))) * ONE_PLUS_GAMMA_3;
 }
 
 // mirrors hyrt_core::kernels::barycentric::interpolate_normal
 fn interpolate_normal(u: f32, v: f32, n0: vec3<f32>, n1: vec3<f32>, n2: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
     let w = bary_w(u, v);
     let s = vec3<f32>(
-        (w * n0.x + u * n1.x) + v * n2.x,
-        (w * n0.y + u * n1.y) + v * n2.y,
-        (w * n0.z + u * n1.z) + v * n2.z,
+        rounded(mul(w, n0.x) + mul(u, n1.x)) + mul(v, n2.x),
+        rounded(mul(w, n0.y) + mul(u, n1.y)) + mul(v, n2.y),
+        rounded(mul(w, n0.z) + mul(u, n1.z)) + mul(v, n2.z),
     );
     // sqrt + division, as the CPU (not inverseSqrt, which is not exact).
     let len = sqrt(dot3(s, s));

@@ -8,7 +8,10 @@
 //   SHADOW_LIT, F32_MAX.
 // Vectors are combined component by component exactly as glam's scalar Vec3 does;
 // dot products are written out (x, then y, then z) as glam's `Vec3::dot`.
-// WGSL may still fuse a multiply and an add (the tests bound that in ulp).
+// Every product that feeds a sum goes through `mul`, which ORs the always-zero
+// `params.zero` into its bits: the compiler cannot see through it, so it cannot fuse the
+// product into a multiply-add (lavapipe does fuse plain vector expressions), and the
+// results are the CPU's bits. Every stage that includes this file binds `params`.
 
 // hyrt_core::formats::SurfaceRecord (48 bytes).
 struct SurfaceRecord {
@@ -60,11 +63,74 @@ struct FrameParams {
     height: u32,
     light_count: u32,
     weight: f32,
+    // Always 0 (see `rounded`).
+    zero: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+fn rounded(x: f32) -> f32 {
+    return bitcast<f32>(bitcast<u32>(x) | params.zero);
+}
+
+fn mul(a: f32, b: f32) -> f32 {
+    return rounded(a * b);
+}
+
+fn mul3(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(mul(a.x, b.x), mul(a.y, b.y), mul(a.z, b.z));
 }
 
 // mirrors glam::Vec3::dot: (x * x') + (y * y') + (z * z').
 fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
-    return a.x * b.x + a.y * b.y + a.z * b.z;
+    return rounded(mul(a.x, b.x) + mul(a.y, b.y)) + mul(a.z, b.z);
+}
+
+// mirrors hyrt_core::kernels::shading::log2_portable
+fn log2_portable(x: f32) -> f32 {
+    let bits = bitcast<u32>(x);
+    var e = i32((bits >> 23u) & 0xffu) - 127;
+    var m = bitcast<f32>((bits & 0x007fffffu) | 0x3f800000u);
+    if m > SQRT_2 {
+        m = m * 0.5;
+        e += 1;
+    }
+    let t = (m - 1.0) / (m + 1.0);
+    let t2 = mul(t, t);
+    var p = LOG2_SERIES[0];
+    p = mul(p, t2) + LOG2_SERIES[1];
+    p = mul(p, t2) + LOG2_SERIES[2];
+    p = mul(p, t2) + LOG2_SERIES[3];
+    p = mul(p, t2) + LOG2_SERIES[4];
+    return f32(e) + mul(mul(t, p), TWO_OVER_LN_2);
+}
+
+// mirrors hyrt_core::kernels::shading::exp2_portable
+fn exp2_portable(z: f32) -> f32 {
+    // mirrors `z.is_nan() || z < POW_FLUSH_EXPONENT`
+    if !(z >= POW_FLUSH_EXPONENT) {
+        return 0.0;
+    }
+    let n = round(z);
+    let g = mul(z - n, LN_2);
+    var q = EXP_SERIES[0];
+    q = mul(q, g) + EXP_SERIES[1];
+    q = mul(q, g) + EXP_SERIES[2];
+    q = mul(q, g) + EXP_SERIES[3];
+    q = mul(q, g) + EXP_SERIES[4];
+    q = mul(q, g) + EXP_SERIES[5];
+    q = mul(q, g) + EXP_SERIES[6];
+    q = mul(q, g) + EXP_SERIES[7];
+    return q * bitcast<f32>(u32(i32(n) + 127) << 23u);
+}
+
+// mirrors hyrt_core::kernels::shading::pow_portable
+fn pow_portable(x: f32, y: f32) -> f32 {
+    if !(x >= F32_MIN_POSITIVE) {
+        return 0.0;
+    }
+    return exp2_portable(mul(y, log2_portable(min(x, 1.0))));
 }
 
 // mirrors glam::Vec3::normalize_or_zero: v * (1 / sqrt(v.v)) when that reciprocal
@@ -79,7 +145,7 @@ fn normalize_or_zero(v: vec3<f32>) -> vec3<f32> {
 
 // mirrors glam::Vec3::lerp: a * (1 - s) + b * s.
 fn lerp3(a: vec3<f32>, b: vec3<f32>, s: f32) -> vec3<f32> {
-    return a * (1.0 - s) + b * s;
+    return mul3(a, vec3<f32>(1.0 - s)) + mul3(b, vec3<f32>(s));
 }
 
 // Result of `light_incidence`: the unit direction towards the light and the irradiance scale.
@@ -102,8 +168,8 @@ fn light_incidence(light: LightRecord, p: vec3<f32>) -> Incidence {
 
 // mirrors hyrt_core::kernels::shading::blinn_phong_exponent
 fn blinn_phong_exponent(roughness: f32) -> f32 {
-    let a = max(roughness * roughness, 1e-3);
-    return clamp(2.0 / (a * a) - 2.0, 1.0, 1e4);
+    let a = max(mul(roughness, roughness), 1e-3);
+    return clamp(rounded(2.0 / mul(a, a)) - 2.0, 1.0, 1e4);
 }
 
 // mirrors hyrt_core::kernels::shading::shade_ray_traced
@@ -113,12 +179,12 @@ fn shade_ray_traced(obj: ObjectRecord, n: vec3<f32>, v: vec3<f32>, l: vec3<f32>,
         return vec3<f32>(0.0);
     }
     let base = obj.base_color;
-    let diffuse = base * ((1.0 - obj.metallic) * FRAC_1_PI);
+    let diffuse = mul3(base, vec3<f32>(mul(1.0 - obj.metallic, FRAC_1_PI)));
     let f0 = lerp3(vec3<f32>(DIELECTRIC_F0), base, obj.metallic);
     let h = normalize_or_zero(l + v);
     let s = blinn_phong_exponent(obj.roughness);
-    let spec = f0 * ((s + 8.0) / (8.0 * PI) * pow(max(dot3(n, h), 0.0), s));
-    return (diffuse + spec) * e * ndl;
+    let spec = mul3(f0, vec3<f32>(mul((s + 8.0) / (8.0 * PI), pow_portable(max(dot3(n, h), 0.0), s))));
+    return mul3(mul3(diffuse + spec, e), vec3<f32>(ndl));
 }
 
 // mirrors hyrt_core::kernels::shading::shade_raster
@@ -127,7 +193,7 @@ fn shade_raster(obj: ObjectRecord, n: vec3<f32>, l: vec3<f32>, e: vec3<f32>) -> 
     if (ndl <= 0.0) {
         return vec3<f32>(0.0);
     }
-    return obj.base_color * FRAC_1_PI * e * ndl;
+    return mul3(mul3(mul3(obj.base_color, vec3<f32>(FRAC_1_PI)), e), vec3<f32>(ndl));
 }
 
 // The light filter of hyrt_core::kernels::shading::sum_visible_lights: a light counts
@@ -142,12 +208,12 @@ fn light_is_visible(shadow_code: u32) -> bool {
 fn ambient(obj: ObjectRecord) -> vec3<f32> {
     let base = obj.base_color;
     let f0 = lerp3(vec3<f32>(DIELECTRIC_F0), base, obj.metallic);
-    return base * ((1.0 - obj.metallic) * AMBIENT) + f0 * ENVIRONMENT_SPECULAR;
+    return mul3(base, vec3<f32>(mul(1.0 - obj.metallic, AMBIENT))) + mul3(f0, vec3<f32>(ENVIRONMENT_SPECULAR));
 }
 
 // mirrors hyrt_core::kernels::shading::compose
 fn compose(raster: vec3<f32>, rt: vec3<f32>, weight: f32) -> vec3<f32> {
-    return raster * (1.0 - weight) + rt * weight;
+    return mul3(raster, vec3<f32>(1.0 - weight)) + mul3(rt, vec3<f32>(weight));
 }
 
 // True when the invocation `id` of the 2D pixel-grid dispatch is a pixel of the image

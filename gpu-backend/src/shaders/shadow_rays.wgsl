@@ -11,6 +11,11 @@ struct FrameParams {
     height: u32,
     light_count: u32,
     weight: f32,
+    // Always 0 (see `rounded`).
+    zero: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 // mirrors hyrt_core::formats::RayRecord
