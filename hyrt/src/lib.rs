@@ -20,6 +20,7 @@
 //! assert!(frame.stats.ray_traced_pixels > 0);
 //! ```
 
+pub mod bench;
 pub mod dump;
 pub mod image_io;
 
