@@ -138,6 +138,7 @@ extern "C" {
     fn rtcNewDevice(config: *const c_char) -> RTCDevice;
     fn rtcReleaseDevice(device: RTCDevice);
     fn rtcGetDeviceError(device: RTCDevice) -> c_uint;
+    fn rtcGetDeviceProperty(device: RTCDevice, prop: c_uint) -> isize;
     fn rtcNewScene(device: RTCDevice) -> RTCScene;
     fn rtcReleaseScene(scene: RTCScene);
     fn rtcNewGeometry(device: RTCDevice, kind: c_uint) -> RTCGeometry;
@@ -252,9 +253,22 @@ impl EmbreeScene {
         }
     }
 
-    /// Embree's version string (from the header the FFI was written against).
-    pub fn version() -> &'static str {
-        "3.13.5 (Debian libembree3; FFI layouts for 3.13)"
+    /// The linked library's version (`rtcGetDeviceProperty(RTC_DEVICE_PROPERTY_VERSION)`,
+    /// e.g. 31305 for 3.13.5).
+    pub fn version() -> Result<String, EmbreeError> {
+        /// `RTC_DEVICE_PROPERTY_VERSION`.
+        const RTC_DEVICE_PROPERTY_VERSION: c_uint = 0;
+        // SAFETY: a fresh device, queried and released.
+        let v = unsafe {
+            let device = rtcNewDevice(c"verbose=0".as_ptr());
+            if device.is_null() {
+                return Err(EmbreeError("rtcNewDevice returned null".into()));
+            }
+            let v = rtcGetDeviceProperty(device, RTC_DEVICE_PROPERTY_VERSION);
+            rtcReleaseDevice(device);
+            v
+        };
+        Ok(format!("{}.{}.{}", v / 10000, v / 100 % 100, v % 100))
     }
 
     fn ray(r: &RayRecord) -> RTCRay {

@@ -15,6 +15,9 @@ pub struct MachineInfo {
     pub rustc: String,
     /// hyrt's crate version, plus the git commit when run from a checkout.
     pub hyrt: String,
+    /// Load averages over 1, 5 and 15 minutes when the run started (`/proc/loadavg`):
+    /// other work on a shared machine slows every measurement.
+    pub load: String,
 }
 
 fn read(path: &str) -> Option<String> {
@@ -55,6 +58,9 @@ impl MachineInfo {
                 command("git", &["status", "--porcelain", "--untracked-files=no"]).is_some_and(|s| !s.is_empty());
             hyrt = format!("{hyrt} (git {commit}{})", if dirty { ", modified" } else { "" });
         }
-        MachineInfo { cpu, cores, os, rustc, hyrt }
+        let load = read("/proc/loadavg")
+            .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+            .unwrap_or_else(|| "unknown".into());
+        MachineInfo { cpu, cores, os, rustc, hyrt, load }
     }
 }

@@ -229,6 +229,7 @@ fn header(options: &BenchOptions, cpu: &FrameBackend, gpu: Option<&FrameBackend>
     let mut t = Table::new(["", "this run"]).align(1, report::Align::Left);
     t.row(["machine".to_string(), format!("{} ({} logical cores)", m.cpu, m.cores)]);
     t.row(["OS".to_string(), m.os]);
+    t.row(["load average at start (1, 5, 15 min)".to_string(), m.load]);
     t.row(["hyrt".to_string(), m.hyrt]);
     t.row(["rustc".to_string(), m.rustc]);
     t.row(["CPU backend".to_string(), cpu.label.clone()]);

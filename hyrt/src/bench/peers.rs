@@ -95,7 +95,12 @@ pub struct Peers {
 pub fn embree_version() -> String {
     #[cfg(feature = "embree")]
     {
-        format!("Embree {}", super::embree::EmbreeScene::version())
+        match super::embree::EmbreeScene::version() {
+            Ok(v) => format!(
+                "Embree {v} (hand-written FFI to the system's libembree3; default build quality and scene flags)"
+            ),
+            Err(e) => e.to_string(),
+        }
     }
     #[cfg(not(feature = "embree"))]
     {
@@ -405,7 +410,7 @@ impl Peers {
             }
         }
         if let Some(g) = &self.gpu_short {
-            for r in &self.raster {
+            for r in self.raster.iter().filter(|r| r.scene == s.scene) {
                 out.push([
                     format!("visibility raster, {}: at least as fast as {g}", r.scene),
                     format!("{} ms", num(r.gpu_ms, 2)),
