@@ -7,6 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
+use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 
@@ -85,17 +86,25 @@ pub fn draw(plot: &Plot, path: &Path) -> Result<(), BenchError> {
         .map(|s| {
             s.points
                 .iter()
+                .copied()
                 .filter(|(x, y)| x.is_finite() && y.is_finite() && (!log_x || *x > 0.0) && (!log_y || *y > 0.0))
-                .map(|&(x, y)| (tx(x), ty(y)))
                 .collect()
         })
         .collect();
-    let x_range = padded(pts.iter().flatten().map(|p| p.0), false);
-    let y_range = padded(pts.iter().flatten().map(|p| p.1), !log_y);
+    // Ranges padded in axis space (log10 on a log axis), then back to values.
+    let back = |r: std::ops::Range<f64>, log: bool| if log { 10f64.powf(r.start)..10f64.powf(r.end) } else { r };
+    let x_range = back(padded(pts.iter().flatten().map(|p| tx(p.0)), false), log_x);
+    let y_range = back(padded(pts.iter().flatten().map(|p| ty(p.1)), !log_y), log_y);
 
     let (w, h) = PLOT_SIZE;
     let mut rgb = vec![0u8; w as usize * h as usize * 3];
-    draw_into(plot, &mut rgb, &pts, x_range, y_range).map_err(|e| err(&e))?;
+    let drawn = match (log_x, log_y) {
+        (false, false) => draw_into(plot, &mut rgb, &pts, x_range, y_range),
+        (true, false) => draw_into(plot, &mut rgb, &pts, x_range.log_scale(), y_range),
+        (false, true) => draw_into(plot, &mut rgb, &pts, x_range, y_range.log_scale()),
+        (true, true) => draw_into(plot, &mut rgb, &pts, x_range.log_scale(), y_range.log_scale()),
+    };
+    drawn.map_err(|e| err(&e))?;
     // Encoded here rather than by plotters' image 0.24 encoder: the best PNG compression
     // keeps the plots small enough to commit.
     let file = std::fs::File::create(path).map_err(|source| BenchError::Write { path: path.to_path_buf(), source })?;
@@ -109,14 +118,14 @@ pub fn draw(plot: &Plot, path: &Path) -> Result<(), BenchError> {
 
 type DrawResult = Result<(), Box<dyn std::error::Error>>;
 
-fn draw_into(
-    plot: &Plot,
-    rgb: &mut [u8],
-    pts: &[Vec<(f64, f64)>],
-    x_range: std::ops::Range<f64>,
-    y_range: std::ops::Range<f64>,
-) -> DrawResult {
-    let (log_x, log_y) = (plot.log_x, plot.log_y);
+/// Draw into an RGB buffer with axes `x` and `y` (linear or logarithmic coordinates).
+fn draw_into<X, Y>(plot: &Plot, rgb: &mut [u8], pts: &[Vec<(f64, f64)>], x: X, y: Y) -> DrawResult
+where
+    X: AsRangedCoord<Value = f64>,
+    Y: AsRangedCoord<Value = f64>,
+    X::CoordDescType: ValueFormatter<f64>,
+    Y::CoordDescType: ValueFormatter<f64>,
+{
     let err = |e: &dyn std::fmt::Display| -> Box<dyn std::error::Error> { e.to_string().into() };
     let root = BitMapBackend::with_buffer(rgb, PLOT_SIZE).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
@@ -125,15 +134,17 @@ fn draw_into(
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(65)
-        .build_cartesian_2d(x_range, y_range)
+        .build_cartesian_2d(x, y)
         .map_err(|e| err(&e))?;
     let x_format = plot.x_format;
-    let x_label = move |v: &f64| x_format(if log_x { 10f64.powf(*v) } else { *v });
-    let y_label = move |v: &f64| if log_y { plain(10f64.powf(*v)) } else { plain(*v) };
+    let x_label = move |v: &f64| x_format(*v);
+    let y_label = |v: &f64| plain(*v);
     chart
         .configure_mesh()
         .x_desc(&plot.x_label)
         .y_desc(&plot.y_label)
+        .x_labels(6)
+        .y_labels(8)
         .x_label_formatter(&x_label)
         .y_label_formatter(&y_label)
         .label_style(("sans-serif", 14))
@@ -162,22 +173,32 @@ fn draw_into(
     Ok(())
 }
 
-/// `1234567` -> "1.23M", `25820` -> "25.8k".
+/// Thousands and millions, trailing zeros trimmed: `1234567` -> "1.23M", `25820` -> "25.8k",
+/// `100000` -> "100k".
 pub fn si(x: f64) -> String {
     let a = x.abs();
     if a >= 1e6 {
-        format!("{:.3}M", x / 1e6)
+        format!("{}M", plain_digits(x / 1e6, 2))
     } else if a >= 1e3 {
-        format!("{:.1}k", x / 1e3)
+        format!("{}k", plain_digits(x / 1e3, 1))
     } else {
-        format!("{x:.0}")
+        plain_digits(x, 0)
+    }
+}
+
+/// `x` with at most `digits` decimals, trailing zeros and point trimmed.
+fn plain_digits(x: f64, digits: usize) -> String {
+    let s = format!("{x:.digits$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
     }
 }
 
 /// A plain number with up to three decimals.
 pub fn plain(x: f64) -> String {
-    let s = format!("{x:.3}");
-    s.trim_end_matches('0').trim_end_matches('.').to_string()
+    plain_digits(x, 3)
 }
 
 #[cfg(test)]
@@ -196,7 +217,10 @@ mod tests {
     fn tick_labels() {
         assert_eq!(si(25_820.0), "25.8k");
         assert_eq!(si(871_414.0), "871.4k");
-        assert_eq!(si(1_234_567.0), "1.235M");
+        assert_eq!(si(100_000.0), "100k");
+        assert_eq!(si(1_234_567.0), "1.23M");
+        assert_eq!(si(1_000_000.0), "1M");
+        assert_eq!(si(500.0), "500");
         assert_eq!(plain(0.92), "0.92");
         assert_eq!(plain(2.0), "2");
     }

@@ -5,6 +5,7 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use hyrt_core::formats::CameraRecord;
+use hyrt_core::frame::FrameStats;
 use hyrt_core::stage::Stage;
 use indicatif::ProgressBar;
 
@@ -32,6 +33,7 @@ struct TrianglePoint {
     bvh_build_ms: f64,
     frame_ms: f64,
     shadow_ms: f64,
+    shadow_rays: u64,
 }
 
 /// Measure both scalings and draw the plots.
@@ -106,14 +108,16 @@ pub fn run(
     // Triangle count: scenes from the Table 2 run where present, the others loaded here.
     let (w, h) = options.table_size;
     let mut points: Vec<TrianglePoint> = Vec::new();
-    let point_of = |name: &str, p: &hyrt_core::frame::PreparedScene, s: &super::FrameSummary, rt: u64| TrianglePoint {
-        scene: name.to_string(),
-        triangles: p.geometry.triangle_count(),
-        valid_rays: rt,
-        bvh_build_ms: p.bvh_build_ms,
-        frame_ms: s.frame_ms,
-        shadow_ms: s.ms(Stage::ShadowRays).unwrap_or(f64::NAN),
-    };
+    let point_of =
+        |name: &str, p: &hyrt_core::frame::PreparedScene, s: &super::FrameSummary, last: &FrameStats| TrianglePoint {
+            scene: name.to_string(),
+            triangles: p.geometry.triangle_count(),
+            valid_rays: last.ray_traced_pixels,
+            shadow_rays: last.rays_per_kind.iter().sum(),
+            bvh_build_ms: p.bvh_build_ms,
+            frame_ms: s.frame_ms,
+            shadow_ms: s.ms(Stage::ShadowRays).unwrap_or(f64::NAN),
+        };
     let wanted: Vec<&str> = if options.triangle_scaling && options.scenes == SceneSet::All {
         scenes::SCALING_MANIFESTS.to_vec()
     } else {
@@ -121,13 +125,13 @@ pub fn run(
     };
     if wanted.is_empty() || scenes::shared_assets().is_none() {
         let r = &table2.rows[0];
-        points.push(point_of(&r.name, &r.prepared, &r.cpu.0, r.cpu.1.ray_traced_pixels));
+        points.push(point_of(&r.name, &r.prepared, &r.cpu.0, &r.cpu.1));
     }
     progress.inc_length(wanted.len() as u64);
     for name in wanted {
         progress.set_message(format!("scaling: {name} (triangle count)"));
         if let Some(r) = table2.rows.iter().find(|r| r.name == name) {
-            points.push(point_of(name, &r.prepared, &r.cpu.0, r.cpu.1.ray_traced_pixels));
+            points.push(point_of(name, &r.prepared, &r.cpu.0, &r.cpu.1));
         } else {
             let loaded = scenes::load_manifests([name], SceneSet::All, notes);
             if let Some(s) = loaded.first() {
@@ -135,20 +139,31 @@ pub fn run(
                 let camera = CameraRecord::new(&s.scene.camera.expect("bench scenes have a camera"), w, h);
                 let (m, last) = measure_frames(cpu.backend.as_mut(), &p, &camera, options.frames)
                     .map_err(|source| BenchError::Render { scene: name.to_string(), source })?;
-                points.push(point_of(name, &p, &m, last.ray_traced_pixels));
+                points.push(point_of(name, &p, &m, &last));
             }
         }
         progress.inc(1);
     }
     points.sort_by_key(|p| p.triangles);
-    let mut t = Table::new(["scene", "triangles", "valid rays", "bvh_build ms", "shadow_rays ms", "frame ms"]);
+    let mut t = Table::new([
+        "scene",
+        "triangles",
+        "valid rays",
+        "shadow rays",
+        "bvh_build ms",
+        "shadow_rays ms",
+        "shadow Mrays/s",
+        "frame ms",
+    ]);
     for p in &points {
         t.row([
             p.scene.clone(),
             count(p.triangles as u64),
             count(p.valid_rays),
+            count(p.shadow_rays),
             num(p.bvh_build_ms, 1),
             num(p.shadow_ms, 2),
+            num(super::stats::mrays_per_s(p.shadow_rays as usize, p.shadow_ms), 2),
             num(p.frame_ms, 1),
         ]);
     }
@@ -173,7 +188,8 @@ pub fn run(
     let _ = writeln!(
         md,
         "\n### Triangle count\n\nEach scene with its own camera at {w}x{h} on the CPU backend ({}); the valid rays \
-         differ from scene to scene, so this mixes triangle count with screen coverage.\n\n\
+         and shadow rays differ from scene to scene, so frame time mixes triangle count with screen coverage; \
+         the shadow-ray rate (Mrays/s) does not.\n\n\
          ![time against triangle count]({})\n\n{}",
         cpu.label,
         link(dir, &path),
