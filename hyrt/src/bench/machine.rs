@@ -58,9 +58,28 @@ impl MachineInfo {
                 command("git", &["status", "--porcelain", "--untracked-files=no"]).is_some_and(|s| !s.is_empty());
             hyrt = format!("{hyrt} (git {commit}{})", if dirty { ", modified" } else { "" });
         }
-        let load = read("/proc/loadavg")
-            .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
-            .unwrap_or_else(|| "unknown".into());
+        let load = load_average().map_or_else(|| "unknown".into(), |l| format!("{:.2} {:.2} {:.2}", l[0], l[1], l[2]));
         MachineInfo { cpu, cores, os, rustc, hyrt, load }
     }
+}
+
+/// Load averages over 1, 5 and 15 minutes (`/proc/loadavg`), if readable.
+pub fn load_average() -> Option<[f64; 3]> {
+    let s = read("/proc/loadavg")?;
+    let v: Vec<f64> = s.split_whitespace().take(3).filter_map(|x| x.parse().ok()).collect();
+    v.try_into().ok()
+}
+
+/// A warning when the machine was busy with other work (1-minute load average above
+/// the core count): times are then inflated and thread scaling says little.
+pub fn busy_warning(cores: usize) -> Option<String> {
+    let l = load_average()?;
+    (l[0] > cores as f64).then(|| {
+        format!(
+            "**The machine was busy**: 1-minute load average {:.2} on {cores} cores, so other work shared the \
+             cores; times are inflated and the 1- and 2-thread figures say little about thread scaling. \
+             Ratios within one table (same rays, measured back to back) are more robust than absolute times.",
+            l[0]
+        )
+    })
 }

@@ -248,6 +248,9 @@ fn header(options: &BenchOptions, cpu: &FrameBackend, gpu: Option<&FrameBackend>
         ),
     ]);
     h.push_str(&t.to_markdown());
+    if let Some(w) = machine::busy_warning(m.cores) {
+        let _ = write!(h, "\n{w}\n");
+    }
     h
 }
 
@@ -279,6 +282,10 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Report, Ben
         sections.push(Section::new("Notes", md));
     }
     progress.set_message("done");
+    let mut header = header;
+    if let Some(l) = machine::load_average() {
+        let _ = write!(header, "\nLoad average at the end of the run: {:.2} {:.2} {:.2}.\n", l[0], l[1], l[2]);
+    }
     Ok(Report { title: "hyrt benchmark report".into(), header, sections, files: scaling.files })
 }
 
