@@ -422,3 +422,74 @@ impl Peers {
         out
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(method: &str, threads: usize, ms: f64) -> RayRun {
+        let mut r = RayRun::new(method, threads, 1_000_000, ms);
+        if method.starts_with("Embree") {
+            r.disagreements = Some(0);
+        }
+        r
+    }
+
+    fn peers(scene: &str, embree: bool) -> Peers {
+        let mut shadow = vec![run("hyrt `shadow_rays`", 1, 400.0), run("hyrt `shadow_rays`", 2, 200.0)];
+        let mut primary = vec![run("hyrt `Bvh::closest_hit`", 2, 500.0)];
+        if embree {
+            shadow.push(run("Embree `rtcOccluded8` (packets of 8)", 2, 50.0));
+            shadow.push(run("Embree `rtcOccluded1`", 2, 100.0));
+            primary.push(run("Embree `rtcIntersect8` (packets of 8)", 2, 250.0));
+        }
+        Peers {
+            scenes: vec![ScenePeers {
+                scene: scene.into(),
+                shadow,
+                primary,
+                hyrt_build_ms: 1.0,
+                embree_build_ms: None,
+                occluded: 0,
+                primary_hits: 0,
+            }],
+            raster: vec![RasterRow { scene: scene.into(), cpu_ms: 10.0, gpu_ms: 30.0 }],
+            gpu_short: Some("lavapipe".into()),
+            cpu_threads: 2,
+            embree_missing: (!embree).then(|| "not built".into()),
+        }
+    }
+
+    #[test]
+    fn goals_use_this_runs_embree_figures_at_the_most_threads() {
+        let g = peers("teaser", true).goals();
+        // 1M rays: hyrt 200 ms = 5 Mrays/s, Embree packets 50 ms = 20 Mrays/s.
+        assert_eq!(g[0][1..], ["20.0 Mrays/s".to_string(), "5.0 Mrays/s".into(), "0.25".into()]);
+        assert!(g[0][0].contains("2 threads") && g[0][0].contains("this run"), "{:?}", g[0]);
+        assert_eq!(g[1][3], "0.50"); // against rtcOccluded1 (10 Mrays/s)
+        assert_eq!(g[2][3], "0.50"); // primary: 2 Mrays/s against 4 Mrays/s
+        assert_eq!(g[3][1..], ["30.00 ms".to_string(), "10.00 ms".into(), "3.00".into()]);
+        assert_eq!(g.len(), 4);
+    }
+
+    #[test]
+    fn without_embree_the_issues_figure_is_the_goal_on_the_teaser_only() {
+        let g = peers("teaser", false).goals();
+        assert!(g[0][0].contains("Embree not built"), "{:?}", g[0]);
+        assert_eq!(g[0][1], format!("{EMBREE_SHADOW_PACKET_GOAL_MRAYS:.1} Mrays/s"));
+        assert_eq!(g.len(), 2); // and the raster goal
+        let g = peers("default", false).goals();
+        assert!(g.iter().all(|r| !r[0].contains("Embree")), "{g:?}");
+    }
+
+    #[test]
+    fn ray_table_compares_each_run_with_hyrt_at_the_same_thread_count() {
+        let p = peers("teaser", true);
+        let md = ray_table(&p.scenes[0].shadow, false).to_markdown();
+        assert!(
+            md.contains("| Embree `rtcOccluded8` (packets of 8) | 2 | 1,000,000 | 50.00 | 20.00 | 4.00 | 0 |"),
+            "{md}"
+        );
+        assert!(md.contains("| hyrt `shadow_rays` | 1 | 1,000,000 | 400.00 | 2.50 | 1.00 | (reference) |"), "{md}");
+    }
+}
