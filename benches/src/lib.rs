@@ -1,7 +1,8 @@
 //! # hyrt-benches
 //!
 //! The scenes benchmarks run on, shared by the criterion benches
-//! (`cargo bench -p hyrt-benches`) and, later, the `hyrt bench` report.
+//! (`cargo bench -p hyrt-benches`); they load scenes the way `hyrt bench` does
+//! (`hyrt::bench::scenes`).
 //! Scenes from `../shared/assets` are skipped with a message when absent.
 
 use std::path::PathBuf;
@@ -16,26 +17,20 @@ pub struct BenchScene {
 
 /// The folder of shared models, if present (`<repo>/../shared/assets`).
 pub fn shared_assets() -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets");
-    p.is_dir().then_some(p)
+    hyrt::bench::scenes::shared_assets()
 }
 
 /// The default scene plus, when present, the paper's teaser manifest
-/// (`assets/scenes/teaser.toml`: Sponza rasterized, the bunny ray traced).
+/// (`assets/scenes/teaser.toml`: Sponza rasterized, the bunny ray traced), loaded as
+/// `hyrt bench` loads them.
 pub fn bench_scenes() -> Vec<BenchScene> {
-    let mut out = vec![BenchScene { name: "default", scene: Scene::default_scene() }];
-    let teaser = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes/teaser.toml");
-    if shared_assets().is_none() {
-        eprintln!("hyrt-benches: ../shared/assets not found; benchmarking the default scene only");
-        return out;
+    let mut out = vec![BenchScene { name: "default", scene: hyrt::bench::scenes::default_scene().scene }];
+    let mut notes = Vec::new();
+    let teaser = hyrt::bench::scenes::load_manifests(["teaser"], hyrt::bench::SceneSet::All, &mut notes);
+    for n in notes {
+        eprintln!("hyrt-benches: {n}");
     }
-    match Scene::load(&teaser) {
-        Ok(mut scene) => {
-            scene.ensure_camera_and_lights();
-            out.push(BenchScene { name: "teaser", scene });
-        }
-        Err(e) => eprintln!("hyrt-benches: skipping the teaser: {e}"),
-    }
+    out.extend(teaser.into_iter().map(|s| BenchScene { name: "teaser", scene: s.scene }));
     out
 }
 

@@ -21,6 +21,7 @@
 //! ```
 
 pub mod accuracy;
+pub mod bench;
 pub mod dump;
 pub mod image_io;
 

@@ -3,6 +3,9 @@
 //! `hyrt render [SCENE] --out frame.png --size 1280x720 --backend cpu --weight W
 //! --eye X,Y,Z --target X,Y,Z --fov DEG --dump DIR`: with no SCENE it renders the
 //! built-in default scene.
+//!
+//! `hyrt bench [--quick] [--out DIR]`: the benchmark report (Table 2 reproduction, peers,
+//! scaling) as `DIR/report.md` plus PNG plots; see `hyrt::bench`.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -24,6 +27,9 @@ enum Command {
     /// Run the conformance corpus: every stage of a candidate backend against the CPU
     /// reference, with a report (report.md, difference images).
     Conformance(ConformanceArgs),
+    /// Measure: the paper's Table 2 on both backends, peers (Embree, lavapipe) on the same
+    /// rays, scaling with pixels and triangles; writes DIR/report.md and PNG plots.
+    Bench(BenchArgs),
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -48,6 +54,54 @@ struct ConformanceArgs {
     /// Only the cases whose name contains this text.
     #[arg(long)]
     filter: Option<String>,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum SceneSetArg {
+    /// The built-in default scene only (no model files needed).
+    Default,
+    /// The default scene plus the manifests in assets/scenes (when ../shared/assets exists).
+    All,
+}
+
+#[derive(clap::Args)]
+struct BenchArgs {
+    /// Fewer frames, repetitions and sizes: a few minutes on a 2-core machine.
+    #[arg(long)]
+    quick: bool,
+    /// Output folder for report.md and the plots.
+    #[arg(long, default_value = "bench-report")]
+    out: PathBuf,
+    /// Frames per measurement (medians; default 5 with --quick, 21 without).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    frames: Option<u32>,
+    /// Repetitions per peer ray-tracing measurement (default 3 with --quick, 7 without).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    repeats: Option<u32>,
+    /// Image size of the Table 2 reproduction and the peers, WIDTHxHEIGHT.
+    #[arg(long, value_parser = parse_size)]
+    table_size: Option<(u32, u32)>,
+    /// Image sizes of the pixel-count scaling, comma-separated WIDTHxHEIGHT list.
+    #[arg(long, value_delimiter = ',', value_parser = parse_size)]
+    sizes: Option<Vec<(u32, u32)>>,
+    /// Thread counts of the peer comparison, comma-separated.
+    #[arg(long, value_delimiter = ',', default_value = "1,2", value_parser = clap::value_parser!(u32).range(1..=1024))]
+    peer_threads: Vec<u32>,
+    /// Worker threads of the CPU backend for whole frames (default: one per core).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Which scenes.
+    #[arg(long, value_enum, default_value = "all")]
+    scenes: SceneSetArg,
+    /// Do not measure the GPU backend.
+    #[arg(long)]
+    no_gpu: bool,
+    /// Skip the speed-against-error section (f64 reference, configurations, shadow maps).
+    #[arg(long)]
+    no_accuracy: bool,
+    /// Accept a software GPU adapter (Mesa lavapipe) (also: environment HYRT_GPU_ALLOW_SOFTWARE=1).
+    #[arg(long)]
+    allow_software_gpu: bool,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -302,11 +356,51 @@ fn conformance(args: ConformanceArgs) -> Result<(), String> {
     }
 }
 
+fn bench(args: BenchArgs) -> Result<(), String> {
+    use hyrt::bench::{BenchOptions, SceneSet};
+    let mut o = if args.quick { BenchOptions::quick(args.out.clone()) } else { BenchOptions::full(args.out.clone()) };
+    if let Some(f) = args.frames {
+        o.frames = f as usize;
+    }
+    if let Some(r) = args.repeats {
+        o.repeats = r as usize;
+    }
+    if let Some(s) = args.table_size {
+        o.table_size = s;
+    }
+    if let Some(s) = args.sizes {
+        o.pixel_sizes = s;
+    }
+    o.peer_threads = args.peer_threads.iter().map(|&t| t as usize).collect();
+    o.frame_threads = args.threads;
+    o.scenes = match args.scenes {
+        SceneSetArg::Default => SceneSet::DefaultOnly,
+        SceneSetArg::All => SceneSet::All,
+    };
+    o.gpu = !args.no_gpu;
+    o.accuracy = !args.no_accuracy;
+    if args.allow_software_gpu {
+        o.policy = AdapterPolicy::AllowSoftware;
+    }
+    o.command_line = std::env::args().collect::<Vec<_>>().join(" ");
+    let progress = indicatif::ProgressBar::new(0);
+    progress.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:30} {pos}/{len} {wide_msg}")
+            .map_err(|e| e.to_string())?,
+    );
+    progress.enable_steady_tick(std::time::Duration::from_millis(200));
+    let (report, path) = hyrt::bench::run_and_write(&o, &progress).map_err(|e| e.to_string())?;
+    progress.finish_and_clear();
+    println!("wrote {} ({} sections, {} plots)", path.display(), report.sections.len(), report.files.len());
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render(args),
         Command::Conformance(args) => conformance(args),
+        Command::Bench(args) => bench(args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

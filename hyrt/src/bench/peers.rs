@@ -1,0 +1,495 @@
+//! Peers in the same run, on the same rays, with the same threads:
+//!
+//! * shadow rays from a real frame's ray list (`Frame::rays`), traced by hyrt's CPU stage
+//!   ([`hyrt_cpu::shadow_rays::shadow_rays`]) and by Intel Embree 3 (`rtcOccluded1`, and
+//!   `rtcOccluded8` on packets of 8 consecutive rays);
+//! * primary rays (one per pixel, [`primary_rays`]) traced by [`Bvh::closest_hit`] and by
+//!   Embree (`rtcIntersect1`, `rtcIntersect8`);
+//! * the visibility raster of the CPU backend against the GPU backend's (lavapipe here),
+//!   from the Table 2 frames.
+//!
+//! Every tracer runs in a rayon pool of the given size, one call per ray (or packet) over
+//! chunks of [`SHADOW_RAY_CHUNK`] rays, and the hit/miss answers are compared ray by ray.
+//! Embree is behind the `embree` cargo feature; without it the tables say so.
+
+use std::fmt::Write as _;
+
+use hyrt_core::bvh::Bvh;
+use hyrt_core::formats::RayRecord;
+use hyrt_core::frame::{Frame, FrameOptions};
+use hyrt_core::geometry::WorldGeometry;
+use hyrt_core::kernels::camera::primary_rays;
+use hyrt_core::stage::Stage;
+use hyrt_cpu::shadow_rays::{shadow_rays, SHADOW_OCCLUDED, SHADOW_RAY_CHUNK};
+use indicatif::ProgressBar;
+use rayon::prelude::*;
+
+use super::report::{count, num, Section, Table};
+use super::stats::mrays_per_s;
+use super::table2::{Table2, Table2Row};
+use super::{median_ms, BenchError, BenchOptions};
+
+/// The shadow-ray goal when Embree is not built: Embree 3's `rtcOccluded8` on the teaser's
+/// shadow rays with 2 threads, as measured on this project's 2-core machine and quoted in
+/// its issue (Mrays/s).
+pub const EMBREE_SHADOW_PACKET_GOAL_MRAYS: f64 = 52.2;
+
+/// One tracer on one ray set with one thread count.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RayRun {
+    pub method: String,
+    pub threads: usize,
+    pub rays: usize,
+    /// Median milliseconds over the repetitions.
+    pub ms: f64,
+    /// Rays whose hit/miss differs from hyrt's (`None` for hyrt itself).
+    pub disagreements: Option<usize>,
+    /// Primary rays only: rays both hit, on different triangles.
+    pub other_triangle: Option<usize>,
+}
+
+impl RayRun {
+    /// A run not (yet) compared with hyrt.
+    pub fn new(method: &str, threads: usize, rays: usize, ms: f64) -> RayRun {
+        RayRun { method: method.to_string(), threads, rays, ms, disagreements: None, other_triangle: None }
+    }
+
+    pub fn mrays(&self) -> f64 {
+        mrays_per_s(self.rays, self.ms)
+    }
+}
+
+/// Peer measurements on one scene.
+pub struct ScenePeers {
+    pub scene: String,
+    pub shadow: Vec<RayRun>,
+    pub primary: Vec<RayRun>,
+    /// hyrt's `bvh_build` and Embree's `rtcCommitScene`, in milliseconds.
+    pub hyrt_build_ms: f64,
+    pub embree_build_ms: Option<f64>,
+    /// Shadow rays hyrt found blocked.
+    pub occluded: usize,
+    /// Primary rays that hit something (hyrt).
+    pub primary_hits: usize,
+}
+
+/// Visibility raster of the CPU backend against the GPU backend on one scene.
+pub struct RasterRow {
+    pub scene: String,
+    pub cpu_ms: f64,
+    pub gpu_ms: f64,
+}
+
+/// All peer measurements.
+pub struct Peers {
+    pub scenes: Vec<ScenePeers>,
+    pub raster: Vec<RasterRow>,
+    /// Short name of the GPU backend ("lavapipe" or "GPU"), when measured.
+    pub gpu_short: Option<String>,
+    pub cpu_threads: usize,
+    /// Why Embree is missing, when it is.
+    pub embree_missing: Option<String>,
+}
+
+/// The Embree version the peer uses, or why there is none.
+pub fn embree_version() -> String {
+    #[cfg(feature = "embree")]
+    {
+        match super::embree::EmbreeScene::version() {
+            Ok(v) => format!(
+                "Embree {v} (hand-written FFI to the system's libembree3; default build quality and scene flags)"
+            ),
+            Err(e) => e.to_string(),
+        }
+    }
+    #[cfg(not(feature = "embree"))]
+    {
+        "not built (enable the `embree` cargo feature of the hyrt crate; needs Debian's libembree-dev)".to_string()
+    }
+}
+
+/// Trace `rays` with `trace` (one call per chunk) in `pool`; `out` gets one answer per ray.
+fn in_chunks<T: Send>(
+    pool: &rayon::ThreadPool,
+    rays: &[RayRecord],
+    out: &mut [T],
+    trace: impl Fn(&[RayRecord], &mut [T]) + Sync,
+) {
+    pool.install(|| {
+        out.par_chunks_mut(SHADOW_RAY_CHUNK).zip(rays.par_chunks(SHADOW_RAY_CHUNK)).for_each(|(o, r)| trace(r, o))
+    });
+}
+
+/// Time `trace` on `rays` in `pool` (median of `repeats`); the run and the answers.
+fn timed_run<T: Clone + Send>(
+    repeats: usize,
+    pool: &rayon::ThreadPool,
+    rays: &[RayRecord],
+    method: &str,
+    init: T,
+    trace: impl Fn(&[RayRecord], &mut [T]) + Sync,
+) -> (RayRun, Vec<T>) {
+    let mut out = vec![init; rays.len()];
+    let ms = median_ms(repeats, || in_chunks(pool, rays, &mut out, &trace));
+    (RayRun::new(method, pool.current_num_threads(), rays.len(), ms), out)
+}
+
+/// The shadow rays of a real frame of the scene (the CPU backend, every stage's output kept).
+pub fn frame_shadow_rays(row: &Table2Row) -> Result<Vec<RayRecord>, BenchError> {
+    let mut backend = hyrt_cpu::backend::CpuBackend::new(None);
+    let mut frame = Frame::default();
+    hyrt_core::frame::Backend::render_into(
+        &mut backend,
+        &row.prepared,
+        &row.camera,
+        &FrameOptions { weight: 1.0, stage_outputs: true },
+        &mut frame,
+    )
+    .map_err(|source| BenchError::Render { scene: row.name.clone(), source })?;
+    Ok(frame.rays)
+}
+
+fn measure_scene(
+    options: &BenchOptions,
+    row: &Table2Row,
+    progress: &ProgressBar,
+) -> Result<(ScenePeers, Option<String>), BenchError> {
+    let g: &WorldGeometry = &row.prepared.geometry;
+    let bvh: &Bvh = &row.prepared.bvh;
+    let shadow = frame_shadow_rays(row)?;
+    let primary = primary_rays(&row.camera);
+    let max_threads = options.peer_threads.iter().copied().max().unwrap_or(1);
+    #[cfg(feature = "embree")]
+    let (embree, embree_missing) = match super::embree::EmbreeScene::new(g, &format!("threads={max_threads}")) {
+        Ok(e) => (Some(e), None),
+        Err(e) => (None, Some(e.to_string())),
+    };
+    #[cfg(not(feature = "embree"))]
+    let embree_missing = {
+        let _ = max_threads;
+        Some(embree_version())
+    };
+    let mut out = ScenePeers {
+        scene: row.name.clone(),
+        shadow: Vec::new(),
+        primary: Vec::new(),
+        hyrt_build_ms: row.prepared.bvh_build_ms,
+        embree_build_ms: None,
+        occluded: 0,
+        primary_hits: 0,
+    };
+    #[cfg(feature = "embree")]
+    {
+        out.embree_build_ms = embree.as_ref().map(|e| e.build_ms);
+    }
+    for &threads in &options.peer_threads {
+        progress.set_message(format!("peers: {} shadow and primary rays, {threads} threads", row.name));
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("rayon pool");
+        // hyrt, shadow rays: the public stage function, in a pool of `threads`.
+        let mut occluded = Vec::new();
+        let ms = median_ms(options.repeats, || occluded = pool.install(|| shadow_rays(bvh, g, &shadow)));
+        out.occluded = occluded.iter().filter(|&&o| o == SHADOW_OCCLUDED).count();
+        out.shadow.push(RayRun::new("hyrt `shadow_rays` (Bvh::occluded per ray)", threads, shadow.len(), ms));
+        // hyrt, primary rays: closest hit per ray.
+        let (run, hits) =
+            timed_run(options.repeats, &pool, &primary, "hyrt `Bvh::closest_hit` per ray", None, |r, o| {
+                for (o, ray) in o.iter_mut().zip(r) {
+                    *o = bvh.closest_hit(&g.triangles, ray).map(|h| h.triangle);
+                }
+            });
+        out.primary.push(run);
+        out.primary_hits = hits.iter().filter(|h| h.is_some()).count();
+        #[cfg(feature = "embree")]
+        if let Some(e) = &embree {
+            use super::embree::EmbreeScene;
+            let hyrt_occ: Vec<bool> = occluded.iter().map(|&o| o == SHADOW_OCCLUDED).collect();
+            type Occ = fn(&EmbreeScene, &[RayRecord], &mut [bool]);
+            let occ: [(&str, Occ); 2] = [
+                ("Embree `rtcOccluded1`", EmbreeScene::occluded1),
+                ("Embree `rtcOccluded8` (packets of 8)", EmbreeScene::occluded8),
+            ];
+            for (name, f) in occ {
+                let (mut run, o) = timed_run(options.repeats, &pool, &shadow, name, false, |r, o| f(e, r, o));
+                run.disagreements = Some(hyrt_occ.iter().zip(&o).filter(|(a, b)| a != b).count());
+                out.shadow.push(run);
+            }
+            type Hit = fn(&EmbreeScene, &[RayRecord], &mut [Option<u32>]);
+            let hit: [(&str, Hit); 2] = [
+                ("Embree `rtcIntersect1`", EmbreeScene::intersect1),
+                ("Embree `rtcIntersect8` (packets of 8)", EmbreeScene::intersect8),
+            ];
+            for (name, f) in hit {
+                let (mut run, o) = timed_run(options.repeats, &pool, &primary, name, None, |r, o| f(e, r, o));
+                run.disagreements = Some(hits.iter().zip(&o).filter(|(a, b)| a.is_some() != b.is_some()).count());
+                run.other_triangle =
+                    Some(hits.iter().zip(&o).filter(|(a, b)| a.is_some() && b.is_some() && a != b).count());
+                out.primary.push(run);
+            }
+        }
+        progress.inc(1);
+    }
+    Ok((out, embree_missing))
+}
+
+/// Which Table 2 rows the ray peers run on: the teaser (Sponza + bunny) in quick runs, every
+/// scene but the default one otherwise; the default scene when nothing else is loaded.
+fn peer_rows<'a>(options: &BenchOptions, table2: &'a Table2) -> Vec<&'a Table2Row> {
+    let named: Vec<&Table2Row> = table2.rows.iter().filter(|r| r.name != "default").collect();
+    if named.is_empty() {
+        return table2.rows.iter().take(1).collect();
+    }
+    if options.quick {
+        let teaser: Vec<&Table2Row> = named.iter().copied().filter(|r| r.name == "teaser").collect();
+        if !teaser.is_empty() {
+            return teaser;
+        }
+        return named.into_iter().take(1).collect();
+    }
+    named
+}
+
+/// Measure every peer.
+pub fn run(options: &BenchOptions, table2: &Table2, progress: &ProgressBar) -> Result<Peers, BenchError> {
+    let rows = peer_rows(options, table2);
+    progress.inc_length((rows.len() * options.peer_threads.len()) as u64);
+    let mut scenes = Vec::new();
+    let mut embree_missing = None;
+    for r in rows {
+        let (p, missing) = measure_scene(options, r, progress)?;
+        scenes.push(p);
+        embree_missing = embree_missing.or(missing);
+    }
+    let raster = table2
+        .rows
+        .iter()
+        .filter_map(|r| {
+            let g = r.gpu.as_ref()?;
+            Some(RasterRow {
+                scene: r.name.clone(),
+                cpu_ms: r.cpu.0.ms(Stage::VisibilityRaster)?,
+                gpu_ms: g.0.ms(Stage::VisibilityRaster)?,
+            })
+        })
+        .collect();
+    let cpu_threads = table2.rows.first().map_or(0, |r| r.cpu.1.threads);
+    Ok(Peers { scenes, raster, gpu_short: table2.gpu.as_ref().map(|g| g.1.clone()), cpu_threads, embree_missing })
+}
+
+fn ray_table(runs: &[RayRun], primary: bool) -> Table {
+    let mut cols = vec!["method", "threads", "rays", "ms", "Mrays/s", "speed / hyrt", "hit/miss differs from hyrt"];
+    if primary {
+        cols.push("both hit, other triangle");
+    }
+    let mut t = Table::new(cols);
+    for r in runs {
+        let base =
+            runs.iter().find(|b| b.threads == r.threads && b.disagreements.is_none()).map_or(f64::NAN, RayRun::mrays);
+        let mut row = vec![
+            r.method.clone(),
+            r.threads.to_string(),
+            count(r.rays as u64),
+            num(r.ms, 2),
+            num(r.mrays(), 2),
+            num(r.mrays() / base, 2),
+            r.disagreements.map_or("(reference)".into(), |d| count(d as u64)),
+        ];
+        if primary {
+            row.push(r.other_triangle.map_or("-".into(), |d| count(d as u64)));
+        }
+        t.row(row);
+    }
+    t
+}
+
+impl Peers {
+    /// The report section.
+    pub fn section(&self, table2: &Table2) -> Section {
+        let (w, h) = table2.size;
+        let mut md = String::new();
+        let _ = writeln!(
+            md,
+            "Same rays, same threads: each tracer runs in a rayon pool of the stated size, one call per ray \
+             (or per packet of 8 consecutive rays) over chunks of {SHADOW_RAY_CHUNK} rays; times are medians of \
+             repeated runs. Shadow rays are a real {w}x{h} frame's ray list (`Frame::rays`), primary rays one per \
+             pixel through its centre. Embree's triangle test is not watertight, hyrt's is: rays through shared \
+             edges or vertices may differ, and the count of such rays is reported as measured."
+        );
+        if let Some(m) = &self.embree_missing {
+            let _ = writeln!(md, "\nEmbree: {m}.");
+        }
+        for s in &self.scenes {
+            let _ = writeln!(
+                md,
+                "\n### {}: shadow rays\n\n{} rays, {} of them occluded (hyrt). BVH build: hyrt {} ms{}.\n\n{}",
+                s.scene,
+                count(s.shadow.first().map_or(0, |r| r.rays) as u64),
+                count(s.occluded as u64),
+                num(s.hyrt_build_ms, 1),
+                s.embree_build_ms.map(|e| format!(", Embree `rtcCommitScene` {} ms", num(e, 1))).unwrap_or_default(),
+                ray_table(&s.shadow, false).to_markdown()
+            );
+            let _ = writeln!(
+                md,
+                "\n### {}: primary rays\n\n{} rays, {} of them hit (hyrt).\n\n{}",
+                s.scene,
+                count(s.primary.first().map_or(0, |r| r.rays) as u64),
+                count(s.primary_hits as u64),
+                ray_table(&s.primary, true).to_markdown()
+            );
+        }
+        let _ = writeln!(md, "\n### Visibility raster: CPU against the GPU backend\n");
+        match &self.gpu_short {
+            Some(g) if !self.raster.is_empty() => {
+                let mut t = Table::new([
+                    "scene".to_string(),
+                    format!("CPU ms ({} threads)", self.cpu_threads),
+                    format!("{g} ms"),
+                    format!("{g} time / CPU time"),
+                ]);
+                for r in &self.raster {
+                    t.row([r.scene.clone(), num(r.cpu_ms, 2), num(r.gpu_ms, 2), num(r.gpu_ms / r.cpu_ms, 2)]);
+                }
+                let _ = writeln!(
+                    md,
+                    "The `visibility_raster` stage of the Table 2 frames ({w}x{h}, medians). {}\n\n{}",
+                    if g == "lavapipe" {
+                        "lavapipe is Mesa's software rasterizer, on the same CPU cores."
+                    } else {
+                        "Hardware GPU."
+                    },
+                    t.to_markdown()
+                );
+            }
+            _ => {
+                let _ = writeln!(md, "Not measured: no GPU backend in this run (see Notes).");
+            }
+        }
+        Section::new("Peers in the same run", md)
+    }
+
+    /// Goal rows: (goal, target, hyrt, hyrt / target).
+    pub fn goals(&self) -> Vec<[String; 4]> {
+        let mut out = Vec::new();
+        // The scene and thread count of the goals: the teaser if measured, at the most threads.
+        let Some(s) = self.scenes.iter().find(|s| s.scene == "teaser").or(self.scenes.first()) else {
+            return out;
+        };
+        let threads = s.shadow.iter().map(|r| r.threads).max().unwrap_or(1);
+        let pick = |runs: &[RayRun], prefix: &str| {
+            runs.iter().find(|r| r.threads == threads && r.method.starts_with(prefix)).map(RayRun::mrays)
+        };
+        let hyrt_shadow = pick(&s.shadow, "hyrt").unwrap_or(f64::NAN);
+        match pick(&s.shadow, "Embree `rtcOccluded8`") {
+            Some(e) => out.push([
+                format!("shadow rays, {}, {threads} threads: Embree `rtcOccluded8` (this run)", s.scene),
+                format!("{} Mrays/s", num(e, 1)),
+                format!("{} Mrays/s", num(hyrt_shadow, 1)),
+                num(hyrt_shadow / e, 2),
+            ]),
+            None if s.scene == "teaser" => out.push([
+                format!(
+                    "shadow rays, {}, {threads} threads: Embree `rtcOccluded8` (Embree not built: the issue's figure for 2 threads on the teaser, not this run)",
+                    s.scene
+                ),
+                format!("{} Mrays/s", num(EMBREE_SHADOW_PACKET_GOAL_MRAYS, 1)),
+                format!("{} Mrays/s", num(hyrt_shadow, 1)),
+                num(hyrt_shadow / EMBREE_SHADOW_PACKET_GOAL_MRAYS, 2),
+            ]),
+            None => {}
+        }
+        let hyrt_primary = pick(&s.primary, "hyrt").unwrap_or(f64::NAN);
+        for (prefix, what) in [("Embree `rtcOccluded1`", "shadow"), ("Embree `rtcIntersect8`", "primary")] {
+            let (runs, hyrt) = if what == "shadow" { (&s.shadow, hyrt_shadow) } else { (&s.primary, hyrt_primary) };
+            if let Some(e) = pick(runs, prefix) {
+                out.push([
+                    format!("{what} rays, {}, {threads} threads: {prefix} (this run)", s.scene),
+                    format!("{} Mrays/s", num(e, 1)),
+                    format!("{} Mrays/s", num(hyrt, 1)),
+                    num(hyrt / e, 2),
+                ]);
+            }
+        }
+        if let Some(g) = &self.gpu_short {
+            for r in self.raster.iter().filter(|r| r.scene == s.scene) {
+                out.push([
+                    format!("visibility raster, {}: at least as fast as {g}", r.scene),
+                    format!("{} ms", num(r.gpu_ms, 2)),
+                    format!("{} ms", num(r.cpu_ms, 2)),
+                    num(r.gpu_ms / r.cpu_ms, 2),
+                ]);
+            }
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(method: &str, threads: usize, ms: f64) -> RayRun {
+        let mut r = RayRun::new(method, threads, 1_000_000, ms);
+        if method.starts_with("Embree") {
+            r.disagreements = Some(0);
+        }
+        r
+    }
+
+    fn peers(scene: &str, embree: bool) -> Peers {
+        let mut shadow = vec![run("hyrt `shadow_rays`", 1, 400.0), run("hyrt `shadow_rays`", 2, 200.0)];
+        let mut primary = vec![run("hyrt `Bvh::closest_hit`", 2, 500.0)];
+        if embree {
+            shadow.push(run("Embree `rtcOccluded8` (packets of 8)", 2, 50.0));
+            shadow.push(run("Embree `rtcOccluded1`", 2, 100.0));
+            primary.push(run("Embree `rtcIntersect8` (packets of 8)", 2, 250.0));
+        }
+        Peers {
+            scenes: vec![ScenePeers {
+                scene: scene.into(),
+                shadow,
+                primary,
+                hyrt_build_ms: 1.0,
+                embree_build_ms: None,
+                occluded: 0,
+                primary_hits: 0,
+            }],
+            raster: vec![RasterRow { scene: scene.into(), cpu_ms: 10.0, gpu_ms: 30.0 }],
+            gpu_short: Some("lavapipe".into()),
+            cpu_threads: 2,
+            embree_missing: (!embree).then(|| "not built".into()),
+        }
+    }
+
+    #[test]
+    fn goals_use_this_runs_embree_figures_at_the_most_threads() {
+        let g = peers("teaser", true).goals();
+        // 1M rays: hyrt 200 ms = 5 Mrays/s, Embree packets 50 ms = 20 Mrays/s.
+        assert_eq!(g[0][1..], ["20.0 Mrays/s".to_string(), "5.0 Mrays/s".into(), "0.25".into()]);
+        assert!(g[0][0].contains("2 threads") && g[0][0].contains("this run"), "{:?}", g[0]);
+        assert_eq!(g[1][3], "0.50"); // against rtcOccluded1 (10 Mrays/s)
+        assert_eq!(g[2][3], "0.50"); // primary: 2 Mrays/s against 4 Mrays/s
+        assert_eq!(g[3][1..], ["30.00 ms".to_string(), "10.00 ms".into(), "3.00".into()]);
+        assert_eq!(g.len(), 4);
+    }
+
+    #[test]
+    fn without_embree_the_issues_figure_is_the_goal_on_the_teaser_only() {
+        let g = peers("teaser", false).goals();
+        assert!(g[0][0].contains("Embree not built"), "{:?}", g[0]);
+        assert_eq!(g[0][1], format!("{EMBREE_SHADOW_PACKET_GOAL_MRAYS:.1} Mrays/s"));
+        assert_eq!(g.len(), 2); // and the raster goal
+        let g = peers("default", false).goals();
+        assert!(g.iter().all(|r| !r[0].contains("Embree")), "{g:?}");
+    }
+
+    #[test]
+    fn ray_table_compares_each_run_with_hyrt_at_the_same_thread_count() {
+        let p = peers("teaser", true);
+        let md = ray_table(&p.scenes[0].shadow, false).to_markdown();
+        assert!(
+            md.contains("| Embree `rtcOccluded8` (packets of 8) | 2 | 1,000,000 | 50.00 | 20.00 | 4.00 | 0 |"),
+            "{md}"
+        );
+        assert!(md.contains("| hyrt `shadow_rays` | 1 | 1,000,000 | 400.00 | 2.50 | 1.00 | (reference) |"), "{md}");
+    }
+}

@@ -1,0 +1,114 @@
+//! Statistics of repeated measurements: medians over frames or repetitions.
+
+use hyrt_core::frame::FrameStats;
+use hyrt_core::stage::Stage;
+
+/// The median of `values` (the mean of the two middle values for an even count);
+/// `None` for an empty slice or when any value is NaN.
+pub fn median(values: &[f64]) -> Option<f64> {
+    if values.is_empty() || values.iter().any(|v| v.is_nan()) {
+        return None;
+    }
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    Some(if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) })
+}
+
+/// Per-stage and per-frame medians over several frames of the same scene and size.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameSummary {
+    /// Frames measured.
+    pub frames: usize,
+    /// Median milliseconds of each per-frame stage, in execution order (stages that
+    /// did not run in every frame are left out).
+    pub stage_ms: Vec<(Stage, f64)>,
+    /// Median of the per-frame sums of the stages (without `bvh_build`): the frame time.
+    pub frame_ms: f64,
+}
+
+impl FrameSummary {
+    /// Summarize the statistics of `frames` (at least one).
+    pub fn from_frames(frames: &[FrameStats]) -> Option<FrameSummary> {
+        let frame_ms = median(&frames.iter().map(FrameStats::frame_ms).collect::<Vec<_>>())?;
+        let stage_ms = Stage::ALL
+            .into_iter()
+            .filter(|&s| s != Stage::BvhBuild)
+            .filter_map(|s| {
+                let v: Option<Vec<f64>> = frames.iter().map(|f| f.ms(s)).collect();
+                Some((s, median(&v?)?))
+            })
+            .collect();
+        Some(FrameSummary { frames: frames.len(), stage_ms, frame_ms })
+    }
+
+    /// Median milliseconds of one stage, if it ran in every frame.
+    pub fn ms(&self, stage: Stage) -> Option<f64> {
+        self.stage_ms.iter().find(|(s, _)| *s == stage).map(|(_, ms)| *ms)
+    }
+
+    /// Frames per second at the median frame time.
+    pub fn fps(&self) -> f64 {
+        1e3 / self.frame_ms
+    }
+}
+
+/// Million rays per second for `rays` rays traced in `ms` milliseconds.
+pub fn mrays_per_s(rays: usize, ms: f64) -> f64 {
+    rays as f64 / (ms * 1e3)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use hyrt_core::frame::StageTime;
+
+    #[test]
+    fn median_of_odd_and_even_counts() {
+        assert_eq!(median(&[]), None);
+        assert_eq!(median(&[3.0]), Some(3.0));
+        assert_eq!(median(&[5.0, 1.0, 3.0]), Some(3.0));
+        assert_eq!(median(&[4.0, 1.0, 3.0, 2.0]), Some(2.5));
+        assert_eq!(median(&[1.0, f64::NAN]), None);
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn median_splits_the_values_in_halves(v in proptest::collection::vec(-1e6f64..1e6, 1..50)) {
+            let m = median(&v).unwrap();
+            let below = v.iter().filter(|&&x| x < m).count();
+            let above = v.iter().filter(|&&x| x > m).count();
+            proptest::prop_assert!(below <= v.len() / 2 && above <= v.len() / 2, "{m} of {v:?}");
+        }
+    }
+
+    fn stats(times: &[(Stage, f64)]) -> FrameStats {
+        FrameStats {
+            stage_ms: times.iter().map(|&(stage, ms)| StageTime { stage, ms }).collect(),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn frame_summary_takes_medians_per_stage_and_of_the_frame_sums() {
+        let frames = [
+            stats(&[(Stage::VisibilityRaster, 1.0), (Stage::ShadowRays, 10.0)]),
+            stats(&[(Stage::VisibilityRaster, 3.0), (Stage::ShadowRays, 2.0)]),
+            stats(&[(Stage::VisibilityRaster, 2.0), (Stage::ShadowRays, 4.0), (Stage::Composition, 1.0)]),
+        ];
+        let s = FrameSummary::from_frames(&frames).unwrap();
+        assert_eq!(s.ms(Stage::VisibilityRaster), Some(2.0));
+        assert_eq!(s.ms(Stage::ShadowRays), Some(4.0));
+        // Composition ran in one frame only: no median.
+        assert_eq!(s.ms(Stage::Composition), None);
+        // Frame sums 11, 5, 7: median 7 (not the sum of the stage medians, 6).
+        assert_eq!(s.frame_ms, 7.0);
+        assert_eq!(s.fps(), 1e3 / 7.0);
+        assert_eq!(FrameSummary::from_frames(&[]), None);
+    }
+
+    #[test]
+    fn mrays_per_second() {
+        assert_eq!(mrays_per_s(2_000_000, 1000.0), 2.0);
+    }
+}
