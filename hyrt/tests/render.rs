@@ -167,3 +167,32 @@ fn end_to_end_shared_sponza_and_bunny_render() {
         assert!(frame.stats.rays_per_kind[0] > 0, "{file}");
     }
 }
+
+#[test]
+fn paper_manifests_reproduce_table2_valid_rays() {
+    // The paper's Table 2 "valid rays" (pixels whose primary hit is ray traced), which the
+    // manifests are framed to reproduce at 1280x720 (hyrt::bench::scenes::PAPER_TABLE2).
+    const TABLE2_REL_TOL: f64 = 0.02; // framing is set by the eye position to about 1%
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    if !dir.join("../shared/assets").is_dir() {
+        eprintln!("SKIPPED: ../shared/assets not found");
+        return;
+    }
+    let r = Renderer::cpu(Some(2));
+    for (file, paper) in [
+        ("teaser.toml", 66_252u64),
+        ("horse_near.toml", 67_734),
+        ("horse_far.toml", 5_876),
+        ("bunny_near.toml", 68_203),
+        ("bunny_far.toml", 26_442),
+    ] {
+        let mut s = Scene::load(&dir.join("assets/scenes").join(file)).unwrap();
+        s.ensure_camera_and_lights();
+        let p = r.prepare(&s);
+        let f =
+            r.render(&p, &s.camera.unwrap(), 1280, 720, &FrameOptions { stage_outputs: false, ..Default::default() });
+        let rays = f.unwrap().stats.ray_traced_pixels;
+        let err = (rays as f64 - paper as f64).abs() / paper as f64;
+        assert!(err <= TABLE2_REL_TOL, "{file}: {rays} valid rays, the paper has {paper}");
+    }
+}
