@@ -2,10 +2,9 @@
 //! reference (`hyrt_cpu`), on the CPU's own inputs (surfaces, shadow mask, images),
 //! and the GPU stage timer.
 //!
-//! Float channels are compared in ulp (ordered-bits distance) with a named
-//! tolerance per cause; everything that must be exact is asserted exact: alpha,
-//! pixels without a hit, pixels a stage leaves to the other one, composition
-//! with weight 0 and 1.
+//! Every channel must be bit-identical: the shaders mirror the kernels' order, keep
+//! their products from fusing, and use the core's `pow_portable` instead of WGSL `pow`.
+//! Misses, pixels a stage leaves to the other one and alpha are checked by kind too.
 
 mod common;
 
@@ -15,7 +14,7 @@ use hyrt_core::bvh::{Bvh, BvhPreset};
 use hyrt_core::formats::{CameraRecord, ObjectRecord, OBJ_RAY_TRACED};
 use hyrt_core::frame::{Backend, Frame, FrameOptions, PreparedScene};
 use hyrt_core::geometry::WorldGeometry;
-use hyrt_core::kernels::shading::{blinn_phong_exponent, BACKGROUND};
+use hyrt_core::kernels::shading::BACKGROUND;
 use hyrt_core::scene::{Light, Scene};
 use hyrt_cpu::backend::CpuBackend;
 use hyrt_gpu::buffers::{FrameBuffers, FrameParams, SceneBuffers};
@@ -25,48 +24,6 @@ use hyrt_gpu::raster_shading::RasterShadingStage;
 use hyrt_gpu::rt_shading::RtShadingStage;
 use hyrt_gpu::timing::StageTimer;
 use hyrt_gpu::GpuContext;
-
-/// Unit roundoff of f32 (2^-24) and one ulp at 1 (2^-23).
-const F32_ULP_AT_1: f32 = f32::EPSILON;
-
-/// Ulps allowed on a Lambert + ambient channel (raster shader; the diffuse part of
-/// the RT shader). Causes: WGSL division `d / sqrt(d2)` and `radiance / d2` accurate
-/// to 2.5 ulp and `sqrt` to its own bound (Vulkan: inherited from 1/inversesqrt,
-/// a few ulp), the normalization of the view vector, and multiply-adds the
-/// compiler may fuse in the dot products and sums (each fusion changes one
-/// rounding). Every one of them is a relative error of a few ulp on a term; the
-/// sum of non-negative terms keeps that relative bound, except the `n.l` dot
-/// product near grazing incidence (see [`DOT_ABS_TOL`]).
-const LAMBERT_ULP_TOL: u32 = 16;
-
-/// Absolute error allowed on `n.l` and `n.h` (unit vectors) relative to 1: a fused
-/// multiply-add in a dot product of unit vectors changes the result by at most the
-/// rounding of one product, <= 2^-24 each; at grazing incidence `n.l` is near 0 and
-/// that is a large relative error of a small term. Applied to the largest value the
-/// light's term could take (n.l = 1).
-const DOT_ABS_TOL: f32 = 4.0 * F32_ULP_AT_1;
-
-/// Relative error of WGSL `pow(x, s)` for exponent `s`. Vulkan's precision
-/// requirements define `pow` as `exp2(s * log2(x))` with `log2` exact to an
-/// absolute 2^-21 on [0.5, 2] (3 ulp elsewhere) and `exp2` to 3 + 2|y| ulp: the
-/// absolute log2 error times `s` is an error of the exponent, i.e. a relative
-/// error ln(2) * s * 2^-21 of the result (4e-4 for the gold sphere, s = 1248), and
-/// `exp2` adds (3 + 2|y|) ulp with |y| <= 150 before the result underflows. The CPU
-/// uses libm `powf` (< 1 ulp). This is the specular term's relative tolerance; the
-/// colour is a sum of non-negative terms, so it bounds the relative error of the
-/// colour too.
-fn pow_rel_tol(s: f32) -> f32 {
-    std::f32::consts::LN_2 * s * 2f32.powi(-21) + (3.0 + 2.0 * 150.0) * F32_ULP_AT_1
-}
-
-/// Blinn-Phong exponents up to this (roughness >= ~0.7, the default scene's
-/// diffuse walls: 2.88) make the pow error a few ulp: such pixels must meet
-/// [`LAMBERT_ULP_TOL`] alone.
-const LOW_EXPONENT: f32 = 4.0;
-
-/// Ulps allowed on composition channels with 0 < weight < 1: `raster * (1 - w) +
-/// rt * w` may be fused into one multiply-add (one rounding less).
-const COMPOSE_ULP_TOL: u32 = 1;
 
 /// f32 bits as integers ordered like the floats (-0 and +0 adjacent).
 fn ordered(x: f32) -> i64 {
@@ -183,13 +140,7 @@ struct Worst {
 
 /// Compare RGB channels: each within `ulp_tol` ulp, or within `abs_tol(pixel, channel)`
 /// absolute; alpha exactly equal. Returns the worst errors.
-fn compare_rgb(
-    what: &str,
-    gpu: &[[f32; 4]],
-    cpu: &[[f32; 4]],
-    ulp_tol: u32,
-    abs_tol: impl Fn(usize, usize) -> f32,
-) -> Worst {
+fn compare_rgb(what: &str, gpu: &[[f32; 4]], cpu: &[[f32; 4]]) -> Worst {
     assert_eq!(gpu.len(), cpu.len());
     let mut worst = Worst::default();
     let mut failures = Vec::new();
@@ -201,14 +152,13 @@ fn compare_rgb(
             worst.ulp = worst.ulp.max(d);
             worst.rel = worst.rel.max(rel);
             worst.compared += 1;
-            let within_abs = (g[ch] - c[ch]).abs() <= abs_tol(i, ch);
-            if d > ulp_tol && !within_abs {
+            if d > 0 {
                 failures.push(format!("pixel {i} ch {ch}: gpu {} cpu {} ({d} ulp, rel {rel:e})", g[ch], c[ch]));
             }
         }
     }
     eprintln!(
-        "{what}: {} channels, worst {} ulp, worst relative {:e}, {} over tolerance",
+        "{what}: {} channels, worst {} ulp, worst relative {:e}, {} differ",
         worst.compared,
         worst.ulp,
         worst.rel,
@@ -216,7 +166,7 @@ fn compare_rgb(
     );
     assert!(
         failures.is_empty(),
-        "{what}: {} channels over tolerance, first: {:?}",
+        "{what}: {} channels differ, first: {:?}",
         failures.len(),
         &failures[..failures.len().min(5)]
     );
@@ -228,37 +178,11 @@ fn object_of(c: &Case, pixel: usize) -> Option<&ObjectRecord> {
     s.is_hit().then(|| &c.scene.geometry.objects[s.object as usize])
 }
 
-/// The largest value each light term of a pixel could take with `n.l = 1` (and,
-/// for the RT shader, the specular peak), per channel: the scale of the absolute
-/// error a dot product near 0 causes (see [`DOT_ABS_TOL`]).
-fn light_term_scale(c: &Case, pixel: usize, obj: &ObjectRecord, ray_traced: bool) -> [f32; 3] {
-    let s = &c.cpu.surfaces[pixel];
-    let p = Vec3::from(s.position);
-    let nl = c.scene.geometry.lights.len();
-    let base = Vec3::from(obj.base_color);
-    let per_e = if ray_traced {
-        let f0 = Vec3::splat(0.04).lerp(base, obj.metallic);
-        let sx = blinn_phong_exponent(obj.roughness);
-        base * ((1.0 - obj.metallic) * std::f32::consts::FRAC_1_PI) + f0 * ((sx + 8.0) / (8.0 * std::f32::consts::PI))
-    } else {
-        base * std::f32::consts::FRAC_1_PI
-    };
-    let mut m = Vec3::ZERO;
-    for (l, light) in c.scene.geometry.lights.iter().enumerate() {
-        if c.cpu.shadow[pixel * nl + l] == hyrt_core::frame::SHADOW_LIT {
-            let (_, e) = hyrt_core::kernels::shading::light_incidence(light, p);
-            m += per_e * e;
-        }
-    }
-    m.into()
-}
-
 #[test]
 fn rt_shading_matches_cpu() {
     let Some(ctx) = test_context() else { return };
     let stage = RtShadingStage::new(&ctx);
     let mut overall = Worst::default();
-    let mut overall_low = 0;
     for c in cases() {
         let gpu = upload_case(&ctx, &c);
         // Poison: every pixel must be written.
@@ -281,31 +205,10 @@ fn rt_shading_matches_cpu() {
             }
         }
         assert!(shaded > 0, "{}: no ray-traced pixels", c.name);
-        let w = compare_rgb(&format!("rt_shading {}", c.name), &out, &c.cpu.rt, LAMBERT_ULP_TOL, |i, ch| {
-            let Some(obj) = object_of(&c, i) else { return 0.0 };
-            let cpu = c.cpu.rt[i][ch];
-            pow_rel_tol(blinn_phong_exponent(obj.roughness)) * cpu
-                + DOT_ABS_TOL * light_term_scale(&c, i, obj, true)[ch] * (1.0 + blinn_phong_exponent(obj.roughness))
-        });
+        let w = compare_rgb(&format!("rt_shading {}", c.name), &out, &c.cpu.rt);
         overall.ulp = overall.ulp.max(w.ulp);
         overall.rel = overall.rel.max(w.rel);
-        // Worst error on the objects whose specular exponent is small (no large
-        // pow error): the Lambert tolerance alone must hold there.
-        let mut low_exponent_ulp = 0;
-        for (i, (g, cp)) in out.iter().zip(&c.cpu.rt).enumerate() {
-            if let Some(obj) = object_of(&c, i) {
-                if obj.flags & OBJ_RAY_TRACED != 0 && blinn_phong_exponent(obj.roughness) <= LOW_EXPONENT {
-                    for ch in 0..3 {
-                        low_exponent_ulp = low_exponent_ulp.max(ulp_distance(g[ch], cp[ch]));
-                    }
-                }
-            }
-        }
-        eprintln!("rt_shading {}: worst {low_exponent_ulp} ulp on objects with exponent <= {LOW_EXPONENT}", c.name);
-        overall_low = overall_low.max(low_exponent_ulp);
     }
-    assert!(overall_low <= LAMBERT_ULP_TOL, "{overall_low} ulp on low-exponent objects");
-    eprintln!("rt_shading overall worst on low-exponent objects: {overall_low} ulp");
     eprintln!("rt_shading overall worst: {} ulp, relative {:e}", overall.ulp, overall.rel);
 }
 
@@ -343,10 +246,7 @@ fn raster_shading_matches_cpu() {
         }
         assert!(misses > 0, "{}: the test wants background pixels", c.name);
         assert_eq!(skipped > 0, c.weight >= 1.0, "{}", c.name);
-        let w = compare_rgb(&format!("raster_shading {}", c.name), &out, &c.cpu.raster, LAMBERT_ULP_TOL, |i, ch| {
-            let Some(obj) = object_of(&c, i) else { return 0.0 };
-            DOT_ABS_TOL * light_term_scale(&c, i, obj, false)[ch]
-        });
+        let w = compare_rgb(&format!("raster_shading {}", c.name), &out, &c.cpu.raster);
         overall.ulp = overall.ulp.max(w.ulp);
         overall.rel = overall.rel.max(w.rel);
     }
@@ -377,7 +277,7 @@ fn composition_matches_cpu() {
                 );
             }
         }
-        let w = compare_rgb(&format!("composition {}", c.name), &out, &c.cpu.final_image, COMPOSE_ULP_TOL, |_, _| 0.0);
+        let w = compare_rgb(&format!("composition {}", c.name), &out, &c.cpu.final_image);
         overall.ulp = overall.ulp.max(w.ulp);
         overall.rel = overall.rel.max(w.rel);
     }
@@ -385,7 +285,7 @@ fn composition_matches_cpu() {
 }
 
 /// The three stages chained on the GPU (rt -> raster -> composition) give the
-/// CPU's final image within the shading tolerances.
+/// CPU's final image, bit for bit.
 #[test]
 fn composition_after_gpu_shading_matches_cpu_final_image() {
     let Some(ctx) = test_context() else { return };
@@ -403,12 +303,7 @@ fn composition_after_gpu_shading_matches_cpu_final_image() {
         comp.encode(&ctx, e, &gpu.scene, &gpu.frame, None);
     });
     let out = image(&ctx, &gpu.frame.final_image, pixels);
-    compare_rgb("chained final image", &out, &c.cpu.final_image, LAMBERT_ULP_TOL + COMPOSE_ULP_TOL, |i, ch| {
-        let Some(obj) = object_of(&c, i) else { return 0.0 };
-        let cpu = c.cpu.final_image[i][ch];
-        let s = blinn_phong_exponent(obj.roughness);
-        pow_rel_tol(s) * cpu + DOT_ABS_TOL * light_term_scale(&c, i, obj, true)[ch] * (1.0 + s)
-    });
+    compare_rgb("chained final image", &out, &c.cpu.final_image);
 }
 
 #[test]
