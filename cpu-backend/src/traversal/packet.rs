@@ -1,0 +1,424 @@
+//! Packets of [`LANES`] rays traversing the core binary [`Bvh`] together: one box test
+//! (or one triangle test) runs for all rays of the packet at once, lane by lane with the
+//! very operations of the scalar kernels in `hyrt_core::kernels::ray`, so each lane's
+//! result is the scalar one bit for bit.
+//!
+//! * Box test: [`ray_aabb_conservative`] with the widened interval of `Bvh::occluded` /
+//!   `Bvh::closest_hit` (`t_min * (1 - BVH_CULL_SLACK)`, `t_far * (1 + BVH_CULL_SLACK)`),
+//!   the near/far planes chosen per lane by the sign of the lane's inverse direction, and
+//!   the running max/min in the same order with the same NaN rule.
+//! * Triangle test: [`WatertightRay::intersect`] per lane: the axis permutation is chosen
+//!   per lane (blends), every product and sum in the scalar order, no fused multiply-add.
+//!   A lane whose f32 edge function is exactly zero is redone with the scalar kernel
+//!   (whose f64 fallback has no packet form).
+//!
+//! A lane takes part in a node while its ray entered the node's box (the traversal keeps a
+//! lane mask per stack entry). Any hit: a lane stops at its first hit, the packet when all
+//! lanes stopped. Closest hit: the per-lane culling bound is the lane's closest hit so
+//! far, widened as in the scalar code; a node popped from the stack is re-tested against
+//! the current bound, which is exactly the scalar pop test `t_enter <= best * (1 +
+//! slack)` (the entry distance does not depend on the far bound). The packet visits
+//! children in an order chosen by a majority vote of the lanes, so a lane may see nodes
+//! in another order than the scalar traversal: for any hit that changes nothing (the
+//! result is "some triangle of some reachable leaf is hit", and a child box lies inside
+//! its parent's, so the conservative test, being monotone in the box, reaches the same
+//! leaves); for closest hit the result is the minimum `(t, triangle)` over the same
+//! triangles except in the rounding corner case described at `BVH_CULL_SLACK`.
+//!
+//! [`ray_aabb_conservative`]: hyrt_core::kernels::ray::ray_aabb_conservative
+
+use glam::Vec3;
+use hyrt_core::bvh::{Bvh, BvhNode, ClosestHit, BVH_CULL_SLACK, BVH_STACK_SIZE};
+use hyrt_core::formats::{RayRecord, TriangleRecord, INVALID_ID};
+use hyrt_core::kernels::ray::{gamma, safe_inverse_dir, WatertightRay, SLAB_FAR_SCALE};
+
+use super::lanes::{Lanes, ALL_LANES, LANES};
+
+/// `gamma(n)` of the watertight test's `t` error bound, as constants (const evaluation of
+/// f32 arithmetic is IEEE 754, so the bits equal the scalar kernel's).
+const GAMMA2: f32 = gamma(2);
+const GAMMA3: f32 = gamma(3);
+const GAMMA5: f32 = gamma(5);
+
+/// A placeholder ray for lanes without a (valid) ray: finite, never used for a result.
+const IDLE_RAY: WatertightRay = WatertightRay { origin: Vec3::ZERO, kz: 2, shear: Vec3::new(0.0, 0.0, 1.0) };
+
+/// Up to [`LANES`] rays prepared for traversal, lane `i` from `rays[i]`.
+pub(crate) struct Packet<L: Lanes> {
+    /// Lanes holding a ray that can hit something (see `Packet::new`).
+    pub valid: u32,
+    origin: [L::F; 3],
+    inv_dir: [L::F; 3],
+    /// All ones where the inverse direction is negative (near plane = box max).
+    neg: [L::F; 3],
+    kz0: L::F,
+    kz1: L::F,
+    shear: [L::F; 3],
+    t_min: L::F,
+    t_max: L::F,
+    box_t_min: L::F,
+    /// `t_max * (1 + BVH_CULL_SLACK)`: the far bound of box tests for any hit.
+    box_t_max: L::F,
+    /// Scalar copies for the lanes redone with the scalar kernel.
+    wt: [WatertightRay; LANES],
+    t_min_s: [f32; LANES],
+    t_max_s: [f32; LANES],
+    /// True if all valid lanes have the same direction signs.
+    pub same_octant: bool,
+}
+
+/// Lane mask from booleans.
+#[inline(always)]
+fn lane_mask(b: bool) -> f32 {
+    f32::from_bits(if b { u32::MAX } else { 0 })
+}
+
+impl<L: Lanes> Packet<L> {
+    /// Prepare `rays` (at most [`LANES`]). A lane is valid exactly when the scalar
+    /// traversal would trace its ray: finite origin and direction, non-zero direction,
+    /// `t_min < t_max` (`TraversalRay::new` in `hyrt_core::bvh`).
+    #[inline(always)]
+    pub fn new(rays: &[RayRecord]) -> Self {
+        debug_assert!(rays.len() <= LANES);
+        let mut valid = 0u32;
+        let mut wt = [IDLE_RAY; LANES];
+        let (mut o, mut inv, mut neg, mut sh) =
+            ([[0.0; LANES]; 3], [[1.0; LANES]; 3], [[0.0; LANES]; 3], [[0.0; LANES]; 3]);
+        let (mut kz0, mut kz1) = ([0.0; LANES], [0.0; LANES]);
+        let (mut t_min, mut t_max, mut box_t_min, mut box_t_max) =
+            ([0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
+        let mut octants = [0u32; LANES];
+        for (i, r) in rays.iter().enumerate() {
+            let dir = Vec3::from(r.direction);
+            let Some(w) = WatertightRay::new(Vec3::from(r.origin), dir) else { continue };
+            if r.t_min.partial_cmp(&r.t_max) != Some(std::cmp::Ordering::Less) {
+                continue;
+            }
+            valid |= 1 << i;
+            wt[i] = w;
+            let id = safe_inverse_dir(dir);
+            for a in 0..3 {
+                o[a][i] = w.origin[a];
+                inv[a][i] = id[a];
+                neg[a][i] = lane_mask(id[a].is_sign_negative());
+                sh[a][i] = w.shear[a];
+                octants[i] |= (id[a].is_sign_negative() as u32) << a;
+            }
+            kz0[i] = lane_mask(w.kz == 0);
+            kz1[i] = lane_mask(w.kz == 1);
+            t_min[i] = r.t_min;
+            t_max[i] = r.t_max;
+            box_t_min[i] = r.t_min * (1.0 - BVH_CULL_SLACK);
+            box_t_max[i] = r.t_max * (1.0 + BVH_CULL_SLACK);
+        }
+        let first = octants[valid.trailing_zeros().min(LANES as u32 - 1) as usize];
+        let same_octant = (0..LANES).all(|i| valid & (1 << i) == 0 || octants[i] == first);
+        Packet {
+            valid,
+            origin: o.map(|v| L::load(&v)),
+            inv_dir: inv.map(|v| L::load(&v)),
+            neg: neg.map(|v| L::load(&v)),
+            kz0: L::load(&kz0),
+            kz1: L::load(&kz1),
+            shear: sh.map(|v| L::load(&v)),
+            t_min: L::load(&t_min),
+            t_max: L::load(&t_max),
+            box_t_min: L::load(&box_t_min),
+            box_t_max: L::load(&box_t_max),
+            wt,
+            t_min_s: t_min,
+            t_max_s: t_max,
+            same_octant,
+        }
+    }
+
+    /// The conservative slab test of every lane against `node`'s box for the interval
+    /// `[box_t_min, t_far]`: the entry distances and the mask of lanes that enter.
+    #[inline(always)]
+    fn enter(&self, node: &BvhNode, t_far: L::F) -> (L::F, u32) {
+        let mut t_enter = self.box_t_min;
+        let mut t_exit = t_far;
+        // The scalar order: x, y, z for both running bounds.
+        let mut tn = [t_enter; 3];
+        let mut tf = [t_exit; 3];
+        for a in 0..3 {
+            let t_lo = L::mul(L::sub(L::splat(node.aabb_min[a]), self.origin[a]), self.inv_dir[a]);
+            let t_hi = L::mul(L::sub(L::splat(node.aabb_max[a]), self.origin[a]), self.inv_dir[a]);
+            tn[a] = L::select(self.neg[a], t_hi, t_lo);
+            tf[a] = L::mul(L::select(self.neg[a], t_lo, t_hi), L::splat(SLAB_FAR_SCALE));
+        }
+        for t in tn {
+            t_enter = L::max(t, t_enter);
+        }
+        for t in tf {
+            t_exit = L::min(t, t_exit);
+        }
+        (t_enter, L::bits(L::le(t_enter, t_exit)))
+    }
+
+    /// A vertex in every lane's ray space: `WatertightRay::transform`.
+    #[inline(always)]
+    fn transform(&self, v: [f32; 3]) -> [L::F; 3] {
+        let d = [0, 1, 2].map(|a| L::sub(L::splat(v[a]), self.origin[a]));
+        // permute_axes: kz = 0: (y, z, x); kz = 1: (z, x, y); kz = 2: (x, y, z).
+        let qx = L::select(self.kz0, d[1], L::select(self.kz1, d[2], d[0]));
+        let qy = L::select(self.kz0, d[2], L::select(self.kz1, d[0], d[1]));
+        let qz = L::select(self.kz0, d[0], L::select(self.kz1, d[1], d[2]));
+        [L::sub(qx, L::mul(self.shear[0], qz)), L::sub(qy, L::mul(self.shear[1], qz)), qz]
+    }
+
+    /// `WatertightRay::intersect` for the lanes in `active` against one triangle, with the
+    /// rays' own `(t_min, t_max)`: the mask of lanes hit and, in those lanes, `t, u, v`.
+    #[inline(always)]
+    fn intersect(&self, active: u32, tri: &TriangleRecord) -> (u32, L::F, L::F, L::F) {
+        let p0 = self.transform(tri.v0);
+        let p1 = self.transform(tri.v1);
+        let p2 = self.transform(tri.v2);
+        let edge = |a: &[L::F; 3], b: &[L::F; 3]| L::sub(L::mul(a[0], b[1]), L::mul(a[1], b[0]));
+        let e0 = edge(&p1, &p2);
+        let e1 = edge(&p2, &p0);
+        let e2 = edge(&p0, &p1);
+        let zero = L::splat(0.0);
+        // Lanes with an exactly-zero edge function go to the scalar kernel (f64 fallback).
+        let exact = active & L::bits(L::or(L::or(L::eq(e0, zero), L::eq(e1, zero)), L::eq(e2, zero)));
+        let any_neg = L::or(L::or(L::lt(e0, zero), L::lt(e1, zero)), L::lt(e2, zero));
+        let any_pos = L::or(L::or(L::gt(e0, zero), L::gt(e1, zero)), L::gt(e2, zero));
+        let det = L::add(L::add(e0, e1), e2);
+        // Rejected: mixed signs, det == 0, det not finite.
+        let reject = L::or(L::and(any_neg, any_pos), L::eq(det, zero));
+        let finite = L::lt(L::abs(det), L::splat(f32::INFINITY));
+        let z0 = L::mul(self.shear[2], p0[2]);
+        let z1 = L::mul(self.shear[2], p1[2]);
+        let z2 = L::mul(self.shear[2], p2[2]);
+        let t_scaled = L::add(L::add(L::mul(e0, z0), L::mul(e1, z1)), L::mul(e2, z2));
+        let wrong_side =
+            L::or(L::and(L::lt(det, zero), L::ge(t_scaled, zero)), L::and(L::gt(det, zero), L::le(t_scaled, zero)));
+        let inv_det = L::div(L::splat(1.0), det);
+        let t = L::mul(t_scaled, inv_det);
+        let in_range = L::and(L::gt(t, self.t_min), L::lt(t, self.t_max));
+        let ok = L::andnot(L::or(reject, wrong_side), L::and(finite, in_range));
+        let mut hit = L::bits(ok) & active & !exact;
+        let (mut t_out, mut u_out, mut v_out) = (t, L::mul(e1, inv_det), L::mul(e2, inv_det));
+        if hit != 0 {
+            // Conservative t > 0 (pbrt-v4): the same expression tree as the scalar kernel.
+            // In lanes still hit every value below is finite, so MAXPS equals f32::max.
+            let amax3 = |a: L::F, b: L::F, c: L::F| L::max(L::max(L::abs(a), L::abs(b)), L::abs(c));
+            let max_zt = amax3(z0, z1, z2);
+            let delta_z = L::mul(L::splat(GAMMA3), max_zt);
+            let max_xt = amax3(p0[0], p1[0], p2[0]);
+            let max_yt = amax3(p0[1], p1[1], p2[1]);
+            let delta_x = L::mul(L::splat(GAMMA5), L::add(max_xt, max_zt));
+            let delta_y = L::mul(L::splat(GAMMA5), L::add(max_yt, max_zt));
+            let delta_e = L::mul(
+                L::splat(2.0),
+                L::add(
+                    L::add(L::mul(L::mul(L::splat(GAMMA2), max_xt), max_yt), L::mul(delta_y, max_xt)),
+                    L::mul(delta_x, max_yt),
+                ),
+            );
+            let max_e = amax3(e0, e1, e2);
+            let sum = L::add(
+                L::add(L::mul(L::mul(L::splat(GAMMA3), max_e), max_zt), L::mul(delta_e, max_zt)),
+                L::mul(delta_z, max_e),
+            );
+            let delta_t = L::mul(L::mul(L::splat(3.0), sum), L::abs(inv_det));
+            hit &= L::bits(L::gt(t, delta_t));
+        }
+        if exact != 0 {
+            let (mut ts, mut us, mut vs) = (L::store(t_out), L::store(u_out), L::store(v_out));
+            let mut lanes = exact;
+            while lanes != 0 {
+                let i = lanes.trailing_zeros() as usize;
+                lanes &= lanes - 1;
+                let h =
+                    self.wt[i].intersect(self.t_min_s[i], self.t_max_s[i], tri.v0.into(), tri.v1.into(), tri.v2.into());
+                if let Some(h) = h {
+                    hit |= 1 << i;
+                    (ts[i], us[i], vs[i]) = (h.t, h.u, h.v);
+                }
+            }
+            (t_out, u_out, v_out) = (L::load(&ts), L::load(&us), L::load(&vs));
+        }
+        (hit, t_out, u_out, v_out)
+    }
+}
+
+impl<L: Lanes> Packet<L> {
+    /// Test both children of the inner `node` for the lanes `m`: the child to visit next
+    /// with its lanes, the other one (if entered too) pushed on the stack; `None` if no
+    /// lane enters either.
+    #[inline(always)]
+    fn descend(
+        &self,
+        nodes: &[BvhNode],
+        node: &BvhNode,
+        m: u32,
+        t_far: L::F,
+        stack: &mut [(u32, u32); BVH_STACK_SIZE],
+        sp: &mut usize,
+    ) -> Option<(usize, u32)> {
+        let l = node.left_or_first as usize;
+        let (tl, ml) = self.enter(&nodes[l], t_far);
+        let (tr, mr) = self.enter(&nodes[l + 1], t_far);
+        let (ml, mr) = (ml & m, mr & m);
+        match (ml != 0, mr != 0) {
+            (true, true) => {
+                let (near, far, m_near, m_far) =
+                    if right_first::<L>(tl, tr, ml & mr) { (l + 1, l, mr, ml) } else { (l, l + 1, ml, mr) };
+                stack[*sp] = (far as u32, m_far);
+                *sp += 1;
+                Some((near, m_near))
+            }
+            (true, false) => Some((l, ml)),
+            (false, true) => Some((l + 1, mr)),
+            (false, false) => None,
+        }
+    }
+}
+
+/// True if the packet should visit the right child first: most lanes that enter both
+/// children enter the right one strictly earlier (the scalar rule per ray, ties left).
+#[inline(always)]
+fn right_first<L: Lanes>(tl: L::F, tr: L::F, both: u32) -> bool {
+    let right = L::bits(L::lt(tr, tl)) & both;
+    2 * right.count_ones() > both.count_ones()
+}
+
+/// Any hit for every valid lane: the mask of lanes whose ray hits a triangle with
+/// `t_min < t < t_max`, equal lane by lane to `Bvh::occluded`.
+#[inline(always)]
+pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, p: &Packet<L>) -> u32 {
+    let nodes = &bvh.nodes;
+    let Some(root) = nodes.first() else { return 0 };
+    let mut m = p.enter(root, p.box_t_max).1 & p.valid;
+    if m == 0 {
+        return 0;
+    }
+    let mut done = 0u32;
+    let mut stack = [(0u32, 0u32); BVH_STACK_SIZE];
+    let mut sp = 0usize;
+    let mut n = 0usize;
+    loop {
+        let node = &nodes[n];
+        if node.is_leaf() {
+            let first = node.left_or_first as usize;
+            for tri in &bvh.leaf_triangles[first..first + node.count as usize] {
+                let hit = p.intersect(m, tri).0;
+                done |= hit;
+                m &= !hit;
+                if m == 0 {
+                    break;
+                }
+            }
+            if done == p.valid {
+                return done;
+            }
+        } else {
+            if let Some(next) = p.descend(nodes, node, m, p.box_t_max, &mut stack, &mut sp) {
+                (n, m) = next;
+                continue;
+            }
+        }
+        loop {
+            if sp == 0 {
+                return done;
+            }
+            sp -= 1;
+            let (next, mask) = stack[sp];
+            m = mask & !done;
+            if m != 0 {
+                n = next as usize;
+                break;
+            }
+        }
+    }
+}
+
+/// Closest hit for every valid lane, lane `i` equal to `Bvh::closest_hit` for ray `i`
+/// (see the module docs for the one rounding corner case).
+#[inline(always)]
+pub(crate) fn closest_hit<L: Lanes>(bvh: &Bvh, p: &Packet<L>) -> [Option<ClosestHit>; LANES] {
+    let mut out = [None; LANES];
+    let nodes = &bvh.nodes;
+    let Some(root) = nodes.first() else { return out };
+    let mut m = p.enter(root, p.box_t_max).1 & p.valid;
+    if m == 0 {
+        return out;
+    }
+    let widen = L::splat(1.0 + BVH_CULL_SLACK);
+    let mut best_t = p.t_max;
+    let mut best_u = L::splat(0.0);
+    let mut best_v = L::splat(0.0);
+    let mut best_id = [INVALID_ID; LANES];
+    let mut t_far = L::mul(best_t, widen);
+    let mut stack = [(0u32, 0u32); BVH_STACK_SIZE];
+    let mut sp = 0usize;
+    let mut n = 0usize;
+    loop {
+        let node = &nodes[n];
+        if node.is_leaf() {
+            let first = node.left_or_first as usize;
+            let mut improved = false;
+            for (k, tri) in bvh.leaf_triangles[first..first + node.count as usize].iter().enumerate() {
+                let (hit, t, u, v) = p.intersect(m, tri);
+                if hit == 0 {
+                    continue;
+                }
+                let id = bvh.prim_indices[first + k];
+                let mut take = hit & L::bits(L::lt(t, best_t));
+                let mut ties = hit & L::bits(L::eq(t, best_t));
+                while ties != 0 {
+                    let i = ties.trailing_zeros() as usize;
+                    ties &= ties - 1;
+                    if id < best_id[i] {
+                        take |= 1 << i;
+                    }
+                }
+                if take == 0 {
+                    continue;
+                }
+                let mut sel = [0.0; LANES];
+                for (i, s) in sel.iter_mut().enumerate() {
+                    if take & (1 << i) != 0 {
+                        *s = lane_mask(true);
+                        best_id[i] = id;
+                    }
+                }
+                let sel = L::load(&sel);
+                best_t = L::select(sel, t, best_t);
+                best_u = L::select(sel, u, best_u);
+                best_v = L::select(sel, v, best_v);
+                improved = true;
+            }
+            if improved {
+                t_far = L::mul(best_t, widen);
+            }
+        } else {
+            if let Some(next) = p.descend(nodes, node, m, t_far, &mut stack, &mut sp) {
+                (n, m) = next;
+                continue;
+            }
+        }
+        // Pop the next node some lane still enters in front of its closest hit.
+        loop {
+            if sp == 0 {
+                let (t, u, v) = (L::store(best_t), L::store(best_u), L::store(best_v));
+                for i in 0..LANES {
+                    if best_id[i] != INVALID_ID {
+                        out[i] = Some(ClosestHit { triangle: best_id[i], t: t[i], u: u[i], v: v[i] });
+                    }
+                }
+                return out;
+            }
+            sp -= 1;
+            let (next, mask) = stack[sp];
+            m = mask & p.enter(&nodes[next as usize], t_far).1;
+            if m != 0 {
+                n = next as usize;
+                break;
+            }
+        }
+    }
+}
+
+const _: () = assert!(ALL_LANES.count_ones() as usize == LANES);
