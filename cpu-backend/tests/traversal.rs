@@ -347,3 +347,25 @@ fn shared_asset_frames_match_scalar() {
         assert!(hits > 0, "{}: no primary hit", path.display());
     }
 }
+
+/// Packets whose rays diverge: every packet mixes direction octants and dominant axes
+/// (the per-lane near planes and axis permutations of the packet code), from inside and
+/// outside a closed sphere and a cube.
+#[test]
+fn divergent_packets_match_scalar() {
+    let g = mesh_scene(vec![
+        (Mesh::uv_sphere("sphere", 16, 10), Mat4::from_scale(Vec3::splat(2.0))),
+        (Mesh::cube("cube"), Mat4::from_translation(Vec3::new(3.0, 0.0, 0.0))),
+    ]);
+    let bvh = Bvh::build(&g, BvhPreset::Medium);
+    let mut rays = Vec::new();
+    for origin in [Vec3::ZERO, Vec3::new(0.3, -0.2, 0.1), Vec3::new(6.0, 1.0, -2.0)] {
+        for k in 0..64 {
+            let a = k as f32 * 0.61;
+            let d = Vec3::new(a.cos(), (a * 1.7).sin(), (a * 0.3).cos() - 0.5);
+            rays.push(ray(origin, d, 0.0, if k % 3 == 0 { 1.5 } else { f32::INFINITY }));
+        }
+    }
+    let occluded = check(&g, &bvh, &rays);
+    assert!(occluded > rays.len() / 2, "{occluded} of {}", rays.len());
+}

@@ -135,7 +135,7 @@ impl Lanes for Portable {
     }
     #[inline(always)]
     fn abs(a: Self::F) -> Self::F {
-        a.map(f32::abs)
+        std::array::from_fn(|i| a[i].abs())
     }
     #[inline(always)]
     fn bits(m: Self::F) -> u32 {

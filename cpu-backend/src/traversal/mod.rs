@@ -256,13 +256,12 @@ unsafe fn closest_hit_packets_avx2(
 #[inline(always)]
 fn occluded_packets<L: Lanes>(bvh: &Bvh, triangles: &[TriangleRecord], rays: &[RayRecord], out: &mut [u32]) {
     for (out, rays) in out.chunks_mut(LANES).zip(rays.chunks(LANES)) {
-        let p = Packet::<L>::new(rays);
-        if p.valid.count_ones() <= 1 || !p.same_octant {
+        let Some(p) = Packet::<L>::new(rays) else {
             for (o, r) in out.iter_mut().zip(rays) {
                 *o = if bvh.occluded(triangles, r) { SHADOW_OCCLUDED } else { SHADOW_VISIBLE };
             }
             continue;
-        }
+        };
         let hit = packet::occluded(bvh, &p);
         for (i, o) in out.iter_mut().enumerate() {
             *o = if hit & (1 << i) != 0 { SHADOW_OCCLUDED } else { SHADOW_VISIBLE };
@@ -278,13 +277,12 @@ fn closest_hit_packets<L: Lanes>(
     out: &mut [Option<ClosestHit>],
 ) {
     for (out, rays) in out.chunks_mut(LANES).zip(rays.chunks(LANES)) {
-        let p = Packet::<L>::new(rays);
-        if p.valid.count_ones() <= 1 || !p.same_octant {
+        let Some(p) = Packet::<L>::new(rays) else {
             for (o, r) in out.iter_mut().zip(rays) {
                 *o = bvh.closest_hit(triangles, r);
             }
             continue;
-        }
+        };
         let hits = packet::closest_hit(bvh, &p);
         out.copy_from_slice(&hits[..out.len()]);
     }

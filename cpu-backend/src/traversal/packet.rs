@@ -30,7 +30,7 @@
 use glam::Vec3;
 use hyrt_core::bvh::{Bvh, BvhNode, ClosestHit, BVH_CULL_SLACK, BVH_STACK_SIZE};
 use hyrt_core::formats::{RayRecord, TriangleRecord, INVALID_ID};
-use hyrt_core::kernels::ray::{gamma, safe_inverse_dir, WatertightRay, SLAB_FAR_SCALE};
+use hyrt_core::kernels::ray::{gamma, permute_axes, safe_inverse_dir, WatertightRay, SLAB_FAR_SCALE};
 
 use super::lanes::{Lanes, ALL_LANES, LANES};
 
@@ -49,8 +49,19 @@ pub(crate) struct Packet<L: Lanes> {
     pub valid: u32,
     origin: [L::F; 3],
     inv_dir: [L::F; 3],
-    /// All ones where the inverse direction is negative (near plane = box max).
-    neg: [L::F; 3],
+    /// Per axis: the lanes' inverse directions are negative (near plane = box max), when
+    /// all valid lanes agree (the usual case).
+    neg: [bool; 3],
+    /// True if the valid lanes' direction signs differ on some axis: the box test then
+    /// picks the near plane per lane, from `neg_lanes`.
+    mixed: bool,
+    /// All ones where the lane's inverse direction is negative, per axis.
+    neg_lanes: [L::F; 3],
+    /// The origin with its axes permuted per lane (`permute_axes(origin, kz)`).
+    origin_perm: [L::F; 3],
+    /// The lanes' common `kz`, if they share one (the usual case).
+    kz: Option<u32>,
+    /// All ones where `kz == 0`, resp. `kz == 1` (used when the lanes' `kz` differ).
     kz0: L::F,
     kz1: L::F,
     shear: [L::F; 3],
@@ -63,8 +74,13 @@ pub(crate) struct Packet<L: Lanes> {
     wt: [WatertightRay; LANES],
     t_min_s: [f32; LANES],
     t_max_s: [f32; LANES],
-    /// True if all valid lanes have the same direction signs.
-    pub same_octant: bool,
+}
+
+/// Three lane vectors from three arrays (written out: `array::map` is not always inlined
+/// into the `target_feature` functions, which costs a call per use).
+#[inline(always)]
+fn load3<L: Lanes>(a: &[[f32; LANES]; 3]) -> [L::F; 3] {
+    [L::load(&a[0]), L::load(&a[1]), L::load(&a[2])]
 }
 
 /// Lane mask from booleans.
@@ -76,33 +92,41 @@ fn lane_mask(b: bool) -> f32 {
 impl<L: Lanes> Packet<L> {
     /// Prepare `rays` (at most [`LANES`]). A lane is valid exactly when the scalar
     /// traversal would trace its ray: finite origin and direction, non-zero direction,
-    /// `t_min < t_max` (`TraversalRay::new` in `hyrt_core::bvh`).
+    /// `t_min < t_max` (`TraversalRay::new` in `hyrt_core::bvh`). `None` when fewer than
+    /// two lanes are valid: such rays are traced alone.
     #[inline(always)]
-    pub fn new(rays: &[RayRecord]) -> Self {
+    pub fn new(rays: &[RayRecord]) -> Option<Self> {
         debug_assert!(rays.len() <= LANES);
         let mut valid = 0u32;
         let mut wt = [IDLE_RAY; LANES];
-        let (mut o, mut inv, mut neg, mut sh) =
-            ([[0.0; LANES]; 3], [[1.0; LANES]; 3], [[0.0; LANES]; 3], [[0.0; LANES]; 3]);
+        let (mut o, mut op, mut inv, mut sh, mut neg_lanes) =
+            ([[0.0; LANES]; 3], [[0.0; LANES]; 3], [[1.0; LANES]; 3], [[0.0; LANES]; 3], [[0.0; LANES]; 3]);
+        let mut mixed = false;
         let (mut kz0, mut kz1) = ([0.0; LANES], [0.0; LANES]);
         let (mut t_min, mut t_max, mut box_t_min, mut box_t_max) =
             ([0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
-        let mut octants = [0u32; LANES];
+        let mut first: Option<([bool; 3], u32)> = None;
+        let mut same_kz = true;
         for (i, r) in rays.iter().enumerate() {
             let dir = Vec3::from(r.direction);
             let Some(w) = WatertightRay::new(Vec3::from(r.origin), dir) else { continue };
             if r.t_min.partial_cmp(&r.t_max) != Some(std::cmp::Ordering::Less) {
                 continue;
             }
+            let id = safe_inverse_dir(dir);
+            let neg = [id.x.is_sign_negative(), id.y.is_sign_negative(), id.z.is_sign_negative()];
+            let (neg0, kz) = *first.get_or_insert((neg, w.kz));
+            mixed |= neg != neg0;
+            same_kz &= w.kz == kz;
             valid |= 1 << i;
             wt[i] = w;
-            let id = safe_inverse_dir(dir);
+            let perm = permute_axes(w.origin, w.kz);
             for a in 0..3 {
                 o[a][i] = w.origin[a];
+                op[a][i] = perm[a];
                 inv[a][i] = id[a];
-                neg[a][i] = lane_mask(id[a].is_sign_negative());
                 sh[a][i] = w.shear[a];
-                octants[i] |= (id[a].is_sign_negative() as u32) << a;
+                neg_lanes[a][i] = lane_mask(neg[a]);
             }
             kz0[i] = lane_mask(w.kz == 0);
             kz1[i] = lane_mask(w.kz == 1);
@@ -111,16 +135,22 @@ impl<L: Lanes> Packet<L> {
             box_t_min[i] = r.t_min * (1.0 - BVH_CULL_SLACK);
             box_t_max[i] = r.t_max * (1.0 + BVH_CULL_SLACK);
         }
-        let first = octants[valid.trailing_zeros().min(LANES as u32 - 1) as usize];
-        let same_octant = (0..LANES).all(|i| valid & (1 << i) == 0 || octants[i] == first);
-        Packet {
+        let (neg, kz) = first?;
+        if valid.count_ones() < 2 {
+            return None;
+        }
+        Some(Packet {
             valid,
-            origin: o.map(|v| L::load(&v)),
-            inv_dir: inv.map(|v| L::load(&v)),
-            neg: neg.map(|v| L::load(&v)),
+            origin: load3::<L>(&o),
+            inv_dir: load3::<L>(&inv),
+            neg,
+            mixed,
+            neg_lanes: load3::<L>(&neg_lanes),
+            origin_perm: load3::<L>(&op),
+            kz: same_kz.then_some(kz),
             kz0: L::load(&kz0),
             kz1: L::load(&kz1),
-            shear: sh.map(|v| L::load(&v)),
+            shear: load3::<L>(&sh),
             t_min: L::load(&t_min),
             t_max: L::load(&t_max),
             box_t_min: L::load(&box_t_min),
@@ -128,8 +158,7 @@ impl<L: Lanes> Packet<L> {
             wt,
             t_min_s: t_min,
             t_max_s: t_max,
-            same_octant,
-        }
+        })
     }
 
     /// The conservative slab test of every lane against `node`'s box for the interval
@@ -141,11 +170,25 @@ impl<L: Lanes> Packet<L> {
         // The scalar order: x, y, z for both running bounds.
         let mut tn = [t_enter; 3];
         let mut tf = [t_exit; 3];
-        for a in 0..3 {
-            let t_lo = L::mul(L::sub(L::splat(node.aabb_min[a]), self.origin[a]), self.inv_dir[a]);
-            let t_hi = L::mul(L::sub(L::splat(node.aabb_max[a]), self.origin[a]), self.inv_dir[a]);
-            tn[a] = L::select(self.neg[a], t_hi, t_lo);
-            tf[a] = L::mul(L::select(self.neg[a], t_lo, t_hi), L::splat(SLAB_FAR_SCALE));
+        if self.mixed {
+            for a in 0..3 {
+                let t_lo = L::mul(L::sub(L::splat(node.aabb_min[a]), self.origin[a]), self.inv_dir[a]);
+                let t_hi = L::mul(L::sub(L::splat(node.aabb_max[a]), self.origin[a]), self.inv_dir[a]);
+                tn[a] = L::select(self.neg_lanes[a], t_hi, t_lo);
+                tf[a] = L::mul(L::select(self.neg_lanes[a], t_lo, t_hi), L::splat(SLAB_FAR_SCALE));
+            }
+        } else {
+            for a in 0..3 {
+                // The near plane by the common sign of the inverse direction.
+                let (near, far) = if self.neg[a] {
+                    (node.aabb_max[a], node.aabb_min[a])
+                } else {
+                    (node.aabb_min[a], node.aabb_max[a])
+                };
+                tn[a] = L::mul(L::sub(L::splat(near), self.origin[a]), self.inv_dir[a]);
+                tf[a] =
+                    L::mul(L::mul(L::sub(L::splat(far), self.origin[a]), self.inv_dir[a]), L::splat(SLAB_FAR_SCALE));
+            }
         }
         for t in tn {
             t_enter = L::max(t, t_enter);
@@ -159,11 +202,27 @@ impl<L: Lanes> Packet<L> {
     /// A vertex in every lane's ray space: `WatertightRay::transform`.
     #[inline(always)]
     fn transform(&self, v: [f32; 3]) -> [L::F; 3] {
-        let d = [0, 1, 2].map(|a| L::sub(L::splat(v[a]), self.origin[a]));
-        // permute_axes: kz = 0: (y, z, x); kz = 1: (z, x, y); kz = 2: (x, y, z).
-        let qx = L::select(self.kz0, d[1], L::select(self.kz1, d[2], d[0]));
-        let qy = L::select(self.kz0, d[2], L::select(self.kz1, d[0], d[1]));
-        let qz = L::select(self.kz0, d[0], L::select(self.kz1, d[1], d[2]));
+        // `permute_axes(v - origin, kz)`, computed as `permute_axes(v, kz) -
+        // permute_axes(origin, kz)`: the same three subtractions, reordered.
+        let q = match self.kz {
+            Some(kz) => {
+                let v = permute_axes(Vec3::from(v), kz);
+                [
+                    L::sub(L::splat(v.x), self.origin_perm[0]),
+                    L::sub(L::splat(v.y), self.origin_perm[1]),
+                    L::sub(L::splat(v.z), self.origin_perm[2]),
+                ]
+            }
+            None => {
+                // kz = 0: (y, z, x); kz = 1: (z, x, y); kz = 2: (x, y, z).
+                let (x, y, z) = (L::splat(v[0]), L::splat(v[1]), L::splat(v[2]));
+                let vx = L::select(self.kz0, y, L::select(self.kz1, z, x));
+                let vy = L::select(self.kz0, z, L::select(self.kz1, x, y));
+                let vz = L::select(self.kz0, x, L::select(self.kz1, y, z));
+                [L::sub(vx, self.origin_perm[0]), L::sub(vy, self.origin_perm[1]), L::sub(vz, self.origin_perm[2])]
+            }
+        };
+        let (qx, qy, qz) = (q[0], q[1], q[2]);
         [L::sub(qx, L::mul(self.shear[0], qz)), L::sub(qy, L::mul(self.shear[1], qz)), qz]
     }
 
