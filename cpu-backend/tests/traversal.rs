@@ -369,3 +369,23 @@ fn divergent_packets_match_scalar() {
     let occluded = check(&g, &bvh, &rays);
     assert!(occluded > rays.len() / 2, "{occluded} of {}", rays.len());
 }
+
+/// The backend's shadow traversal setting changes nothing in the frame.
+#[test]
+fn backend_frames_are_identical_with_scalar_and_simd_shadow_rays() {
+    let scene = Scene::default_scene();
+    let g = WorldGeometry::build(&scene);
+    let bvh = Bvh::build(&g, BvhPreset::default());
+    let prepared = PreparedScene::new(g, bvh, 0.0);
+    let cam = CameraRecord::new(&scene.camera.unwrap(), 200, 120);
+    let mut backend = CpuBackend::new(Some(2));
+    assert_eq!(backend.shadow_traversal(), Traversal::simd());
+    let simd = backend.render(&prepared, &cam, &FrameOptions::default()).unwrap();
+    backend.set_shadow_traversal(Traversal::Scalar);
+    let scalar = backend.render(&prepared, &cam, &FrameOptions::default()).unwrap();
+    assert_eq!(simd.occluded, scalar.occluded);
+    assert_eq!(simd.shadow, scalar.shadow);
+    let bits = |img: &[[f32; 4]]| img.iter().flat_map(|p| p.map(f32::to_bits)).collect::<Vec<u32>>();
+    assert_eq!(bits(&simd.final_image), bits(&scalar.final_image));
+    assert!(simd.occluded.contains(&1) && simd.occluded.contains(&0));
+}
