@@ -30,7 +30,7 @@
 use glam::Vec3;
 use hyrt_core::bvh::{Bvh, BvhNode, ClosestHit, BVH_CULL_SLACK, BVH_STACK_SIZE};
 use hyrt_core::formats::{RayRecord, TriangleRecord, INVALID_ID};
-use hyrt_core::kernels::ray::{gamma, permute_axes, safe_inverse_dir, WatertightRay, SLAB_FAR_SCALE};
+use hyrt_core::kernels::ray::{gamma, max_component_index, permute_axes, WatertightRay, SLAB_FAR_SCALE};
 
 use super::lanes::{Lanes, ALL_LANES, LANES};
 
@@ -40,18 +40,18 @@ const GAMMA2: f32 = gamma(2);
 const GAMMA3: f32 = gamma(3);
 const GAMMA5: f32 = gamma(5);
 
-/// A placeholder ray for lanes without a (valid) ray: finite, never used for a result.
-const IDLE_RAY: WatertightRay = WatertightRay { origin: Vec3::ZERO, kz: 2, shear: Vec3::new(0.0, 0.0, 1.0) };
-
 /// Up to [`LANES`] rays prepared for traversal, lane `i` from `rays[i]`.
-pub(crate) struct Packet<L: Lanes> {
+pub(crate) struct Packet<'a, L: Lanes> {
+    /// The rays (lanes redone with the scalar kernel read them).
+    rays: &'a [RayRecord],
     /// Lanes holding a ray that can hit something (see `Packet::new`).
     pub valid: u32,
     origin: [L::F; 3],
     inv_dir: [L::F; 3],
-    /// Per axis: the lanes' inverse directions are negative (near plane = box max), when
-    /// all valid lanes agree (the usual case).
-    neg: [bool; 3],
+    /// Per axis: index of the near plane in a node read as `[f32; 8]`: `4 + a` (the max)
+    /// where the valid lanes' inverse directions are negative, else `a` (when they all
+    /// agree, the usual case).
+    near: [usize; 3],
     /// True if the valid lanes' direction signs differ on some axis: the box test then
     /// picks the near plane per lane, from `neg_lanes`.
     mixed: bool,
@@ -70,10 +70,6 @@ pub(crate) struct Packet<L: Lanes> {
     box_t_min: L::F,
     /// `t_max * (1 + BVH_CULL_SLACK)`: the far bound of box tests for any hit.
     box_t_max: L::F,
-    /// Scalar copies for the lanes redone with the scalar kernel.
-    wt: [WatertightRay; LANES],
-    t_min_s: [f32; LANES],
-    t_max_s: [f32; LANES],
 }
 
 /// Three lane vectors from three arrays (written out: `array::map` is not always inlined
@@ -89,18 +85,21 @@ fn lane_mask(b: bool) -> f32 {
     f32::from_bits(if b { u32::MAX } else { 0 })
 }
 
-impl<L: Lanes> Packet<L> {
+impl<'a, L: Lanes> Packet<'a, L> {
     /// Prepare `rays` (at most [`LANES`]). A lane is valid exactly when the scalar
     /// traversal would trace its ray: finite origin and direction, non-zero direction,
-    /// `t_min < t_max` (`TraversalRay::new` in `hyrt_core::bvh`). `None` when fewer than
-    /// two lanes are valid: such rays are traced alone.
+    /// `t_min < t_max` (`WatertightRay::new` and `TraversalRay::new` in `hyrt_core`).
+    /// `None` when fewer than two lanes are valid: such rays are traced alone.
+    ///
+    /// The per-ray constants are those of `WatertightRay::new` and `safe_inverse_dir`,
+    /// their six divisions done lane-wise.
     #[inline(always)]
-    pub fn new(rays: &[RayRecord]) -> Option<Self> {
+    pub fn new(rays: &'a [RayRecord]) -> Option<Self> {
         debug_assert!(rays.len() <= LANES);
         let mut valid = 0u32;
-        let mut wt = [IDLE_RAY; LANES];
-        let (mut o, mut op, mut inv, mut sh, mut neg_lanes) =
-            ([[0.0; LANES]; 3], [[0.0; LANES]; 3], [[1.0; LANES]; 3], [[0.0; LANES]; 3], [[0.0; LANES]; 3]);
+        // Idle lanes get direction 1 (finite quotients, never used).
+        let (mut o, mut op, mut d, mut dp, mut neg_lanes) =
+            ([[0.0; LANES]; 3], [[0.0; LANES]; 3], [[1.0; LANES]; 3], [[1.0; LANES]; 3], [[0.0; LANES]; 3]);
         let mut mixed = false;
         let (mut kz0, mut kz1) = ([0.0; LANES], [0.0; LANES]);
         let (mut t_min, mut t_max, mut box_t_min, mut box_t_max) =
@@ -108,28 +107,30 @@ impl<L: Lanes> Packet<L> {
         let mut first: Option<([bool; 3], u32)> = None;
         let mut same_kz = true;
         for (i, r) in rays.iter().enumerate() {
-            let dir = Vec3::from(r.direction);
-            let Some(w) = WatertightRay::new(Vec3::from(r.origin), dir) else { continue };
-            if r.t_min.partial_cmp(&r.t_max) != Some(std::cmp::Ordering::Less) {
+            let (origin, dir) = (Vec3::from(r.origin), Vec3::from(r.direction));
+            if !(origin.is_finite() && dir.is_finite())
+                || dir == Vec3::ZERO
+                || r.t_min.partial_cmp(&r.t_max) != Some(std::cmp::Ordering::Less)
+            {
                 continue;
             }
-            let id = safe_inverse_dir(dir);
-            let neg = [id.x.is_sign_negative(), id.y.is_sign_negative(), id.z.is_sign_negative()];
-            let (neg0, kz) = *first.get_or_insert((neg, w.kz));
+            let kz = max_component_index(dir.abs());
+            // 1 / x keeps the sign of x (also for +-0), so these are the inverse's signs.
+            let neg = [dir.x.is_sign_negative(), dir.y.is_sign_negative(), dir.z.is_sign_negative()];
+            let (neg0, kz_first) = *first.get_or_insert((neg, kz));
             mixed |= neg != neg0;
-            same_kz &= w.kz == kz;
+            same_kz &= kz == kz_first;
             valid |= 1 << i;
-            wt[i] = w;
-            let perm = permute_axes(w.origin, w.kz);
+            let (po, pd) = (permute_axes(origin, kz), permute_axes(dir, kz));
             for a in 0..3 {
-                o[a][i] = w.origin[a];
-                op[a][i] = perm[a];
-                inv[a][i] = id[a];
-                sh[a][i] = w.shear[a];
+                o[a][i] = origin[a];
+                op[a][i] = po[a];
+                d[a][i] = dir[a];
+                dp[a][i] = pd[a];
                 neg_lanes[a][i] = lane_mask(neg[a]);
             }
-            kz0[i] = lane_mask(w.kz == 0);
-            kz1[i] = lane_mask(w.kz == 1);
+            kz0[i] = lane_mask(kz == 0);
+            kz1[i] = lane_mask(kz == 1);
             t_min[i] = r.t_min;
             t_max[i] = r.t_max;
             box_t_min[i] = r.t_min * (1.0 - BVH_CULL_SLACK);
@@ -139,25 +140,27 @@ impl<L: Lanes> Packet<L> {
         if valid.count_ones() < 2 {
             return None;
         }
+        let one = L::splat(1.0);
+        let dpz = L::load(&dp[2]);
         Some(Packet {
+            rays,
             valid,
             origin: load3::<L>(&o),
-            inv_dir: load3::<L>(&inv),
-            neg,
+            // safe_inverse_dir: 1 / d per component.
+            inv_dir: [L::div(one, L::load(&d[0])), L::div(one, L::load(&d[1])), L::div(one, L::load(&d[2]))],
+            near: [if neg[0] { 4 } else { 0 }, if neg[1] { 5 } else { 1 }, if neg[2] { 6 } else { 2 }],
             mixed,
             neg_lanes: load3::<L>(&neg_lanes),
             origin_perm: load3::<L>(&op),
             kz: same_kz.then_some(kz),
             kz0: L::load(&kz0),
             kz1: L::load(&kz1),
-            shear: load3::<L>(&sh),
+            // WatertightRay::new: (d.x / d.z, d.y / d.z, 1 / d.z) of the permuted direction.
+            shear: [L::div(L::load(&dp[0]), dpz), L::div(L::load(&dp[1]), dpz), L::div(one, dpz)],
             t_min: L::load(&t_min),
             t_max: L::load(&t_max),
             box_t_min: L::load(&box_t_min),
             box_t_max: L::load(&box_t_max),
-            wt,
-            t_min_s: t_min,
-            t_max_s: t_max,
         })
     }
 
@@ -178,13 +181,12 @@ impl<L: Lanes> Packet<L> {
                 tf[a] = L::mul(L::select(self.neg_lanes[a], t_lo, t_hi), L::splat(SLAB_FAR_SCALE));
             }
         } else {
+            // The node as 8 floats: min at 0..3, max at 4..7 (`BvhNode` layout); the near
+            // plane by the common sign of the inverse direction.
+            let b: &[f32; 8] = bytemuck::cast_ref(node);
             for a in 0..3 {
-                // The near plane by the common sign of the inverse direction.
-                let (near, far) = if self.neg[a] {
-                    (node.aabb_max[a], node.aabb_min[a])
-                } else {
-                    (node.aabb_min[a], node.aabb_max[a])
-                };
+                let near = b[self.near[a] & 7];
+                let far = b[(self.near[a] ^ 4) & 7];
                 tn[a] = L::mul(L::sub(L::splat(near), self.origin[a]), self.inv_dir[a]);
                 tf[a] =
                     L::mul(L::mul(L::sub(L::splat(far), self.origin[a]), self.inv_dir[a]), L::splat(SLAB_FAR_SCALE));
@@ -289,8 +291,9 @@ impl<L: Lanes> Packet<L> {
             while lanes != 0 {
                 let i = lanes.trailing_zeros() as usize;
                 lanes &= lanes - 1;
-                let h =
-                    self.wt[i].intersect(self.t_min_s[i], self.t_max_s[i], tri.v0.into(), tri.v1.into(), tri.v2.into());
+                let r = &self.rays[i];
+                let h = WatertightRay::new(r.origin.into(), r.direction.into())
+                    .and_then(|w| w.intersect(r.t_min, r.t_max, tri.v0.into(), tri.v1.into(), tri.v2.into()));
                 if let Some(h) = h {
                     hit |= 1 << i;
                     (ts[i], us[i], vs[i]) = (h.t, h.u, h.v);
@@ -302,7 +305,7 @@ impl<L: Lanes> Packet<L> {
     }
 }
 
-impl<L: Lanes> Packet<L> {
+impl<L: Lanes> Packet<'_, L> {
     /// Test both children of the inner `node` for the lanes `m`: the child to visit next
     /// with its lanes, the other one (if entered too) pushed on the stack; `None` if no
     /// lane enters either.
