@@ -5,10 +5,13 @@
 //!
 //! * Box test: [`ray_aabb_conservative`] with the widened interval of `Bvh::occluded` /
 //!   `Bvh::closest_hit` (`t_min * (1 - BVH_CULL_SLACK)`, `t_far * (1 + BVH_CULL_SLACK)`),
-//!   the near/far planes chosen per lane by the sign of the lane's inverse direction, and
-//!   the running max/min in the same order with the same NaN rule.
-//! * Triangle test: [`WatertightRay::intersect`] per lane: the axis permutation is chosen
-//!   per lane (blends), every product and sum in the scalar order, no fused multiply-add.
+//!   the near/far planes chosen by the sign of each lane's inverse direction (read once per
+//!   node when the lanes agree, blended per lane when they do not), and the running
+//!   max/min in the same order with the same NaN rule (x86 `MAXPS`/`MINPS` are exactly
+//!   `if candidate > acc { acc = candidate }`).
+//! * Triangle test: [`WatertightRay::intersect`] per lane: the axis permutation of each
+//!   lane (applied to the vertex once when the lanes share it, blended otherwise), every
+//!   product and sum in the scalar order, no fused multiply-add.
 //!   A lane whose f32 edge function is exactly zero is redone with the scalar kernel
 //!   (whose f64 fallback has no packet form).
 //!
@@ -19,11 +22,12 @@
 //! the current bound, which is exactly the scalar pop test `t_enter <= best * (1 +
 //! slack)` (the entry distance does not depend on the far bound). The packet visits
 //! children in an order chosen by a majority vote of the lanes, so a lane may see nodes
-//! in another order than the scalar traversal: for any hit that changes nothing (the
-//! result is "some triangle of some reachable leaf is hit", and a child box lies inside
-//! its parent's, so the conservative test, being monotone in the box, reaches the same
-//! leaves); for closest hit the result is the minimum `(t, triangle)` over the same
-//! triangles except in the rounding corner case described at `BVH_CULL_SLACK`.
+//! in another order than the scalar traversal: for any hit that changes nothing (a lane
+//! enters a node exactly when its ray passes the box tests of the node and all its
+//! ancestors, as in the scalar traversal, so the result "some triangle of some reachable
+//! leaf is hit" is the same); for closest hit the result is the minimum `(t, triangle)`
+//! over the same triangles except in the rounding corner case described at
+//! `BVH_CULL_SLACK`.
 //!
 //! [`ray_aabb_conservative`]: hyrt_core::kernels::ray::ray_aabb_conservative
 
@@ -52,6 +56,9 @@ pub(crate) struct Packet<'a, L: Lanes> {
     /// where the valid lanes' inverse directions are negative, else `a` (when they all
     /// agree, the usual case).
     near: [usize; 3],
+    /// True if every valid lane's inverse direction is finite (no zero or subnormal
+    /// direction component): slab distances are then never NaN.
+    finite_inv: bool,
     /// True if the valid lanes' direction signs differ on some axis: the box test then
     /// picks the near plane per lane, from `neg_lanes`.
     mixed: bool,
@@ -142,12 +149,19 @@ impl<'a, L: Lanes> Packet<'a, L> {
         }
         let one = L::splat(1.0);
         let dpz = L::load(&dp[2]);
+        let inv_dir = [L::div(one, L::load(&d[0])), L::div(one, L::load(&d[1])), L::div(one, L::load(&d[2]))];
+        let inf = L::splat(f32::INFINITY);
+        let infinite = L::or(
+            L::or(L::eq(L::abs(inv_dir[0]), inf), L::eq(L::abs(inv_dir[1]), inf)),
+            L::eq(L::abs(inv_dir[2]), inf),
+        );
         Some(Packet {
+            finite_inv: L::bits(infinite) & valid == 0,
             rays,
             valid,
             origin: load3::<L>(&o),
             // safe_inverse_dir: 1 / d per component.
-            inv_dir: [L::div(one, L::load(&d[0])), L::div(one, L::load(&d[1])), L::div(one, L::load(&d[2]))],
+            inv_dir,
             near: [if neg[0] { 4 } else { 0 }, if neg[1] { 5 } else { 1 }, if neg[2] { 6 } else { 2 }],
             mixed,
             neg_lanes: load3::<L>(&neg_lanes),
@@ -192,11 +206,20 @@ impl<'a, L: Lanes> Packet<'a, L> {
                     L::mul(L::mul(L::sub(L::splat(far), self.origin[a]), self.inv_dir[a]), L::splat(SLAB_FAR_SCALE));
             }
         }
-        for t in tn {
-            t_enter = L::max(t, t_enter);
-        }
-        for t in tf {
-            t_exit = L::min(t, t_exit);
+        if self.finite_inv {
+            // No lane has an infinite inverse direction, so no distance is NaN and the
+            // maximum (minimum) does not depend on the order of evaluation except for the
+            // sign of a zero result, which neither the comparison below nor the child
+            // order can see: a shorter dependency chain with the same mask.
+            t_enter = L::max(L::max(tn[0], tn[1]), L::max(tn[2], t_enter));
+            t_exit = L::min(L::min(tf[0], tf[1]), L::min(tf[2], t_exit));
+        } else {
+            for t in tn {
+                t_enter = L::max(t, t_enter);
+            }
+            for t in tf {
+                t_exit = L::min(t, t_exit);
+            }
         }
         (t_enter, L::bits(L::le(t_enter, t_exit)))
     }
