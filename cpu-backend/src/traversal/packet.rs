@@ -19,8 +19,9 @@
 //! lane mask per stack entry). Any hit: a lane stops at its first hit, the packet when all
 //! lanes stopped. Closest hit: the per-lane culling bound is the lane's closest hit so
 //! far, widened as in the scalar code; a node popped from the stack is re-tested against
-//! the current bound, which is exactly the scalar pop test `t_enter <= best * (1 +
-//! slack)` (the entry distance does not depend on the far bound). The packet visits
+//! the current bound if some lane's closest hit improved since it was pushed, which is
+//! exactly the scalar pop test `t_enter <= best * (1 + slack)` (the entry distance does
+//! not depend on the far bound). The packet visits
 //! children in an order chosen by a majority vote of the lanes, so a lane may see nodes
 //! in another order than the scalar traversal: for any hit that changes nothing (a lane
 //! enters a node exactly when its ray passes the box tests of the node and all its
@@ -437,6 +438,9 @@ pub(crate) fn closest_hit<L: Lanes>(bvh: &Bvh, p: &Packet<L>) -> [Option<Closest
     let mut best_id = [INVALID_ID; LANES];
     let mut t_far = L::mul(best_t, widen);
     let mut stack = [(0u32, 0u32); BVH_STACK_SIZE];
+    // Entries below this stack index were pushed before the last improvement of some
+    // lane's closest hit; those at or above it were tested with the current bound.
+    let mut stale = 0usize;
     let mut sp = 0usize;
     let mut n = 0usize;
     loop {
@@ -477,6 +481,7 @@ pub(crate) fn closest_hit<L: Lanes>(bvh: &Bvh, p: &Packet<L>) -> [Option<Closest
             }
             if improved {
                 t_far = L::mul(best_t, widen);
+                stale = sp;
             }
         } else {
             if let Some(next) = p.descend(nodes, node, m, t_far, &mut stack, &mut sp) {
@@ -497,7 +502,12 @@ pub(crate) fn closest_hit<L: Lanes>(bvh: &Bvh, p: &Packet<L>) -> [Option<Closest
             }
             sp -= 1;
             let (next, mask) = stack[sp];
-            m = mask & p.enter(&nodes[next as usize], t_far).1;
+            m = mask;
+            if sp < stale {
+                // Pushed before the last improvement: the scalar pop test.
+                m &= p.enter(&nodes[next as usize], t_far).1;
+                stale = sp;
+            }
             if m != 0 {
                 n = next as usize;
                 break;
