@@ -21,9 +21,14 @@
 //! far, widened as in the scalar code; a node popped from the stack is re-tested against
 //! the current bound if some lane's closest hit improved since it was pushed, which is
 //! exactly the scalar pop test `t_enter <= best * (1 + slack)` (the entry distance does
-//! not depend on the far bound). The packet visits
-//! children in an order chosen by a majority vote of the lanes, so a lane may see nodes
-//! in another order than the scalar traversal: for any hit that changes nothing (a lane
+//! not depend on the far bound).
+//!
+//! Child order is the packet's own, so a lane may see nodes in another order than the
+//! scalar traversal (which goes to the child it enters first). Any hit: left child first,
+//! as stored (measured about 15% faster on the teaser's shadow rays than near-first by a
+//! majority vote of the lanes' entry distances). Closest hit: near first by the children's
+//! box centres along the first valid lane's direction (as fast as the vote, and it does
+//! not wait for the box tests). The order does not change results: for any hit that changes nothing (a lane
 //! enters a node exactly when its ray passes the box tests of the node and all its
 //! ancestors, as in the scalar traversal, so the result "some triangle of some reachable
 //! leaf is hit" is the same); for closest hit the result is the minimum `(t, triangle)`
@@ -53,6 +58,8 @@ pub(crate) struct Packet<'a, L: Lanes> {
     pub valid: u32,
     origin: [L::F; 3],
     inv_dir: [L::F; 3],
+    /// The direction of the first valid lane (orders children).
+    dir0: [f32; 3],
     /// Per axis: index of the near plane in a node read as `[f32; 8]`: `4 + a` (the max)
     /// where the valid lanes' inverse directions are negative, else `a` (when they all
     /// agree, the usual case).
@@ -113,6 +120,7 @@ impl<'a, L: Lanes> Packet<'a, L> {
         let (mut t_min, mut t_max, mut box_t_min, mut box_t_max) =
             ([0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
         let mut first: Option<([bool; 3], u32)> = None;
+        let mut dir0 = [0.0; 3];
         let mut same_kz = true;
         for (i, r) in rays.iter().enumerate() {
             let (origin, dir) = (Vec3::from(r.origin), Vec3::from(r.direction));
@@ -125,6 +133,9 @@ impl<'a, L: Lanes> Packet<'a, L> {
             let kz = max_component_index(dir.abs());
             // 1 / x keeps the sign of x (also for +-0), so these are the inverse's signs.
             let neg = [dir.x.is_sign_negative(), dir.y.is_sign_negative(), dir.z.is_sign_negative()];
+            if first.is_none() {
+                dir0 = [dir.x, dir.y, dir.z];
+            }
             let (neg0, kz_first) = *first.get_or_insert((neg, kz));
             mixed |= neg != neg0;
             same_kz &= kz == kz_first;
@@ -157,6 +168,7 @@ impl<'a, L: Lanes> Packet<'a, L> {
             L::eq(L::abs(inv_dir[2]), inf),
         );
         Some(Packet {
+            dir0,
             finite_inv: L::bits(infinite) & valid == 0,
             rays,
             valid,
@@ -180,9 +192,9 @@ impl<'a, L: Lanes> Packet<'a, L> {
     }
 
     /// The conservative slab test of every lane against `node`'s box for the interval
-    /// `[box_t_min, t_far]`: the entry distances and the mask of lanes that enter.
+    /// `[box_t_min, t_far]`: the mask of lanes that enter.
     #[inline(always)]
-    fn enter(&self, node: &BvhNode, t_far: L::F) -> (L::F, u32) {
+    fn enter(&self, node: &BvhNode, t_far: L::F) -> u32 {
         let mut t_enter = self.box_t_min;
         let mut t_exit = t_far;
         // The scalar order: x, y, z for both running bounds.
@@ -210,8 +222,8 @@ impl<'a, L: Lanes> Packet<'a, L> {
         if self.finite_inv {
             // No lane has an infinite inverse direction, so no distance is NaN and the
             // maximum (minimum) does not depend on the order of evaluation except for the
-            // sign of a zero result, which neither the comparison below nor the child
-            // order can see: a shorter dependency chain with the same mask.
+            // sign of a zero result, which the comparison below cannot see: a shorter
+            // dependency chain with the same mask.
             t_enter = L::max(L::max(tn[0], tn[1]), L::max(tn[2], t_enter));
             t_exit = L::min(L::min(tf[0], tf[1]), L::min(tf[2], t_exit));
         } else {
@@ -222,7 +234,7 @@ impl<'a, L: Lanes> Packet<'a, L> {
                 t_exit = L::min(t, t_exit);
             }
         }
-        (t_enter, L::bits(L::le(t_enter, t_exit)))
+        L::bits(L::le(t_enter, t_exit))
     }
 
     /// A vertex in every lane's ray space: `WatertightRay::transform`.
@@ -334,7 +346,7 @@ impl<L: Lanes> Packet<'_, L> {
     /// with its lanes, the other one (if entered too) pushed on the stack; `None` if no
     /// lane enters either.
     #[inline(always)]
-    fn descend(
+    fn descend<const NEAR_FIRST: bool>(
         &self,
         nodes: &[BvhNode],
         node: &BvhNode,
@@ -344,13 +356,20 @@ impl<L: Lanes> Packet<'_, L> {
         sp: &mut usize,
     ) -> Option<(usize, u32)> {
         let l = node.left_or_first as usize;
-        let (tl, ml) = self.enter(&nodes[l], t_far);
-        let (tr, mr) = self.enter(&nodes[l + 1], t_far);
+        let ml = self.enter(&nodes[l], t_far);
+        let mr = self.enter(&nodes[l + 1], t_far);
         let (ml, mr) = (ml & m, mr & m);
         match (ml != 0, mr != 0) {
             (true, true) => {
-                let (near, far, m_near, m_far) =
-                    if right_first::<L>(tl, tr, ml & mr) { (l + 1, l, mr, ml) } else { (l, l + 1, ml, mr) };
+                // Near first: the child whose box centre lies further back along the first
+                // valid lane's direction (computed from the boxes alone, so it does not wait
+                // for the box tests).
+                let rf = NEAR_FIRST && {
+                    let (a, b) = (&nodes[l], &nodes[l + 1]);
+                    let c = |k: usize| (b.aabb_min[k] + b.aabb_max[k]) - (a.aabb_min[k] + a.aabb_max[k]);
+                    c(0) * self.dir0[0] + c(1) * self.dir0[1] + c(2) * self.dir0[2] < 0.0
+                };
+                let (near, far, m_near, m_far) = if rf { (l + 1, l, mr, ml) } else { (l, l + 1, ml, mr) };
                 stack[*sp] = (far as u32, m_far);
                 *sp += 1;
                 Some((near, m_near))
@@ -362,21 +381,13 @@ impl<L: Lanes> Packet<'_, L> {
     }
 }
 
-/// True if the packet should visit the right child first: most lanes that enter both
-/// children enter the right one strictly earlier (the scalar rule per ray, ties left).
-#[inline(always)]
-fn right_first<L: Lanes>(tl: L::F, tr: L::F, both: u32) -> bool {
-    let right = L::bits(L::lt(tr, tl)) & both;
-    2 * right.count_ones() > both.count_ones()
-}
-
 /// Any hit for every valid lane: the mask of lanes whose ray hits a triangle with
 /// `t_min < t < t_max`, equal lane by lane to `Bvh::occluded`.
 #[inline(always)]
 pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, p: &Packet<L>) -> u32 {
     let nodes = &bvh.nodes;
     let Some(root) = nodes.first() else { return 0 };
-    let mut m = p.enter(root, p.box_t_max).1 & p.valid;
+    let mut m = p.enter(root, p.box_t_max) & p.valid;
     if m == 0 {
         return 0;
     }
@@ -400,7 +411,7 @@ pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, p: &Packet<L>) -> u32 {
                 return done;
             }
         } else {
-            if let Some(next) = p.descend(nodes, node, m, p.box_t_max, &mut stack, &mut sp) {
+            if let Some(next) = p.descend::<false>(nodes, node, m, p.box_t_max, &mut stack, &mut sp) {
                 (n, m) = next;
                 continue;
             }
@@ -427,7 +438,7 @@ pub(crate) fn closest_hit<L: Lanes>(bvh: &Bvh, p: &Packet<L>) -> [Option<Closest
     let mut out = [None; LANES];
     let nodes = &bvh.nodes;
     let Some(root) = nodes.first() else { return out };
-    let mut m = p.enter(root, p.box_t_max).1 & p.valid;
+    let mut m = p.enter(root, p.box_t_max) & p.valid;
     if m == 0 {
         return out;
     }
@@ -484,7 +495,7 @@ pub(crate) fn closest_hit<L: Lanes>(bvh: &Bvh, p: &Packet<L>) -> [Option<Closest
                 stale = sp;
             }
         } else {
-            if let Some(next) = p.descend(nodes, node, m, t_far, &mut stack, &mut sp) {
+            if let Some(next) = p.descend::<true>(nodes, node, m, t_far, &mut stack, &mut sp) {
                 (n, m) = next;
                 continue;
             }
@@ -505,7 +516,7 @@ pub(crate) fn closest_hit<L: Lanes>(bvh: &Bvh, p: &Packet<L>) -> [Option<Closest
             m = mask;
             if sp < stale {
                 // Pushed before the last improvement: the scalar pop test.
-                m &= p.enter(&nodes[next as usize], t_far).1;
+                m &= p.enter(&nodes[next as usize], t_far);
                 stale = sp;
             }
             if m != 0 {
