@@ -18,7 +18,8 @@ use crate::{
     raster_shading::raster_shading_into,
     reconstruction::reconstruction_into,
     rt_shading::rt_shading_into,
-    shadow_rays::shadow_rays_into,
+    shadow_rays::shadow_rays_with,
+    traversal::Traversal,
     visibility_raster::visibility_raster_into,
 };
 
@@ -28,6 +29,8 @@ pub struct CpuBackend {
     pool: rayon::ThreadPool,
     /// Stage buffers that are not part of a [`Frame`], kept between frames.
     scratch: CompactionScratch,
+    /// How `shadow_rays` traces (SIMD packets by default; scalar for comparisons).
+    shadow_traversal: Traversal,
 }
 
 impl CpuBackend {
@@ -37,7 +40,23 @@ impl CpuBackend {
         if let Some(n) = threads {
             b = b.num_threads(n.max(1));
         }
-        CpuBackend { pool: b.build().expect("rayon thread pool"), scratch: CompactionScratch::default() }
+        CpuBackend {
+            pool: b.build().expect("rayon thread pool"),
+            scratch: CompactionScratch::default(),
+            shadow_traversal: Traversal::simd(),
+        }
+    }
+
+    /// Trace shadow rays with `traversal` from now on ([`Traversal::simd`] by default;
+    /// [`Traversal::Scalar`] is the reference path, for before/after comparisons). Both
+    /// give the same frame.
+    pub fn set_shadow_traversal(&mut self, traversal: Traversal) {
+        self.shadow_traversal = traversal;
+    }
+
+    /// The traversal `shadow_rays` uses.
+    pub fn shadow_traversal(&self) -> Traversal {
+        self.shadow_traversal
     }
 
     /// Number of worker threads.
@@ -91,6 +110,7 @@ impl Backend for CpuBackend {
         let g = &scene.geometry;
         let eye = Vec3::from(camera.eye);
         let threads = self.threads();
+        let traversal = self.shadow_traversal;
         let scratch = &mut self.scratch;
         let f = frame;
         self.pool.install(|| {
@@ -99,7 +119,7 @@ impl Backend for CpuBackend {
             timed(&mut t, Stage::Reconstruction, || reconstruction_into(&f.gbuffer, g, eye, &mut f.surfaces));
             timed(&mut t, Stage::Compaction, || compaction_into(&f.surfaces, &g.lights, scratch, &mut f.rays));
             timed(&mut t, Stage::ShadowRays, || {
-                shadow_rays_into(&scene.bvh, g, &f.rays, &mut f.occluded);
+                shadow_rays_with(&scene.bvh, g, &f.rays, traversal, &mut f.occluded);
                 shadow_mask_into(&f.rays, &f.occluded, f.surfaces.len(), g.lights.len(), &mut f.shadow);
             });
             timed(&mut t, Stage::RtShading, || {

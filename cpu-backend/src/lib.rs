@@ -13,4 +13,5 @@ pub mod raster_shading;
 pub mod reconstruction;
 pub mod rt_shading;
 pub mod shadow_rays;
+pub mod traversal;
 pub mod visibility_raster;

@@ -1,23 +1,22 @@
 //! Stage `shadow_rays`: trace the compacted shadow-ray list through the BVH (paper 3.3),
 //! any hit with early exit.
 //!
-//! Each ray is independent, so the list is cut into fixed-size chunks traced in parallel
-//! with rayon; the output is the same whatever the thread count.
-
-use rayon::prelude::*;
+//! The rays are traced by [`crate::traversal`]: by default in SIMD packets of consecutive
+//! rays ([`Traversal::simd`]), with the scalar `Bvh::occluded` kept as
+//! [`Traversal::Scalar`]; both give the same answer for every ray. The list is cut into
+//! fixed-size chunks traced in parallel with rayon; the output is the same whatever the
+//! thread count.
 
 use hyrt_core::bvh::Bvh;
 use hyrt_core::formats::RayRecord;
 use hyrt_core::geometry::WorldGeometry;
 
+use crate::traversal::{occluded_batch_into, Traversal};
+
 /// [`shadow_rays`] output value: something lies between the ray origin and the light.
 pub const SHADOW_OCCLUDED: u32 = 1;
 /// [`shadow_rays`] output value: the light is visible.
 pub const SHADOW_VISIBLE: u32 = 0;
-
-/// Rays per rayon task: large enough to amortize scheduling (a few microseconds of work
-/// per chunk), small enough to balance uneven rays across threads.
-pub const SHADOW_RAY_CHUNK: usize = 1024;
 
 /// Trace every ray (any hit with `t_min < t < t_max`). Returns one u32 per ray, in ray
 /// order: [`SHADOW_OCCLUDED`] or [`SHADOW_VISIBLE`]. Rays are checked with
@@ -31,17 +30,21 @@ pub fn shadow_rays(bvh: &Bvh, geometry: &WorldGeometry, rays: &[RayRecord]) -> V
 
 /// [`shadow_rays`] into a caller-owned buffer, reusing its allocation.
 pub fn shadow_rays_into(bvh: &Bvh, geometry: &WorldGeometry, rays: &[RayRecord], out: &mut Vec<u32>) {
-    let triangles = &geometry.triangles;
-    out.clear();
-    out.resize(rays.len(), SHADOW_VISIBLE);
-    out.par_chunks_mut(SHADOW_RAY_CHUNK).zip(rays.par_chunks(SHADOW_RAY_CHUNK)).for_each(|(out, rays)| {
-        for (o, ray) in out.iter_mut().zip(rays) {
-            if cfg!(debug_assertions) {
-                if let Err(e) = ray.validate() {
-                    panic!("shadow_rays: invalid ray: {e}");
-                }
-            }
-            *o = if bvh.occluded(triangles, ray) { SHADOW_OCCLUDED } else { SHADOW_VISIBLE };
+    shadow_rays_with(bvh, geometry, rays, Traversal::simd(), out)
+}
+
+/// [`shadow_rays_into`] with an explicit traversal (scalar reference or packets).
+pub fn shadow_rays_with(
+    bvh: &Bvh,
+    geometry: &WorldGeometry,
+    rays: &[RayRecord],
+    traversal: Traversal,
+    out: &mut Vec<u32>,
+) {
+    if cfg!(debug_assertions) {
+        if let Some(e) = rays.iter().find_map(|r| r.validate().err()) {
+            panic!("shadow_rays: invalid ray: {e}");
         }
-    });
+    }
+    occluded_batch_into(bvh, &geometry.triangles, rays, traversal, out);
 }

@@ -1,0 +1,418 @@
+//! Eight f32 lanes, three ways: AVX2 (`__m256`, chosen at run time), SSE2 (two `__m128`,
+//! the x86-64 baseline) and plain arrays (any target). The traversal is written once,
+//! generic over [`Lanes`], and every operation here is one IEEE 754 f32 operation per lane
+//! (no fused multiply-add, no approximate reciprocal), so all three give the bits of the
+//! scalar kernels lane by lane.
+//!
+//! `max`/`min` have the x86 `MAXPS`/`MINPS` semantics `a > b ? a : b` / `a < b ? a : b`:
+//! a NaN in `a` (or equal values, `+0` vs `-0` included) gives `b`. That is exactly the
+//! running `if candidate > acc { acc = candidate }` of
+//! [`ray_aabb_conservative`](hyrt_core::kernels::ray::ray_aabb_conservative) with
+//! `a = candidate, b = acc`.
+
+/// Lanes per packet.
+pub const LANES: usize = 8;
+/// Bit mask of all lanes.
+pub const ALL_LANES: u32 = (1 << LANES) - 1;
+
+/// Eight f32 lanes; masks are lanes with all bits set (true) or clear (false).
+pub(crate) trait Lanes: Copy {
+    type F: Copy;
+    fn splat(x: f32) -> Self::F;
+    fn load(a: &[f32; LANES]) -> Self::F;
+    fn store(v: Self::F) -> [f32; LANES];
+    fn add(a: Self::F, b: Self::F) -> Self::F;
+    fn sub(a: Self::F, b: Self::F) -> Self::F;
+    fn mul(a: Self::F, b: Self::F) -> Self::F;
+    fn div(a: Self::F, b: Self::F) -> Self::F;
+    /// `a > b ? a : b` per lane.
+    fn max(a: Self::F, b: Self::F) -> Self::F;
+    /// `a < b ? a : b` per lane.
+    fn min(a: Self::F, b: Self::F) -> Self::F;
+    fn lt(a: Self::F, b: Self::F) -> Self::F;
+    fn le(a: Self::F, b: Self::F) -> Self::F;
+    fn eq(a: Self::F, b: Self::F) -> Self::F;
+    fn and(a: Self::F, b: Self::F) -> Self::F;
+    fn or(a: Self::F, b: Self::F) -> Self::F;
+    /// `!a & b`.
+    fn andnot(a: Self::F, b: Self::F) -> Self::F;
+    /// `mask ? a : b` per lane (`mask` all ones or all zeros per lane).
+    fn select(mask: Self::F, a: Self::F, b: Self::F) -> Self::F;
+    /// Clear the sign bit.
+    fn abs(a: Self::F) -> Self::F;
+    /// The lanes' sign bits as a bit mask (lane `i` is bit `i`).
+    fn bits(mask: Self::F) -> u32;
+
+    #[inline(always)]
+    fn gt(a: Self::F, b: Self::F) -> Self::F {
+        Self::lt(b, a)
+    }
+    #[inline(always)]
+    fn ge(a: Self::F, b: Self::F) -> Self::F {
+        Self::le(b, a)
+    }
+}
+
+/// Plain arrays: the fallback on every target (LLVM vectorizes most of it).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Portable;
+
+#[inline(always)]
+fn map2(a: [f32; LANES], b: [f32; LANES], f: impl Fn(f32, f32) -> f32) -> [f32; LANES] {
+    std::array::from_fn(|i| f(a[i], b[i]))
+}
+
+#[inline(always)]
+fn mask(c: bool) -> f32 {
+    f32::from_bits(if c { u32::MAX } else { 0 })
+}
+
+impl Lanes for Portable {
+    type F = [f32; LANES];
+    #[inline(always)]
+    fn splat(x: f32) -> Self::F {
+        [x; LANES]
+    }
+    #[inline(always)]
+    fn load(a: &[f32; LANES]) -> Self::F {
+        *a
+    }
+    #[inline(always)]
+    fn store(v: Self::F) -> [f32; LANES] {
+        v
+    }
+    #[inline(always)]
+    fn add(a: Self::F, b: Self::F) -> Self::F {
+        map2(a, b, |a, b| a + b)
+    }
+    #[inline(always)]
+    fn sub(a: Self::F, b: Self::F) -> Self::F {
+        map2(a, b, |a, b| a - b)
+    }
+    #[inline(always)]
+    fn mul(a: Self::F, b: Self::F) -> Self::F {
+        map2(a, b, |a, b| a * b)
+    }
+    #[inline(always)]
+    fn div(a: Self::F, b: Self::F) -> Self::F {
+        map2(a, b, |a, b| a / b)
+    }
+    #[inline(always)]
+    fn max(a: Self::F, b: Self::F) -> Self::F {
+        map2(a, b, |a, b| if a > b { a } else { b })
+    }
+    #[inline(always)]
+    fn min(a: Self::F, b: Self::F) -> Self::F {
+        map2(a, b, |a, b| if a < b { a } else { b })
+    }
+    #[inline(always)]
+    fn lt(a: Self::F, b: Self::F) -> Self::F {
+        map2(a, b, |a, b| mask(a < b))
+    }
+    #[inline(always)]
+    fn le(a: Self::F, b: Self::F) -> Self::F {
+        map2(a, b, |a, b| mask(a <= b))
+    }
+    #[inline(always)]
+    fn eq(a: Self::F, b: Self::F) -> Self::F {
+        map2(a, b, |a, b| mask(a == b))
+    }
+    #[inline(always)]
+    fn and(a: Self::F, b: Self::F) -> Self::F {
+        map2(a, b, |a, b| f32::from_bits(a.to_bits() & b.to_bits()))
+    }
+    #[inline(always)]
+    fn or(a: Self::F, b: Self::F) -> Self::F {
+        map2(a, b, |a, b| f32::from_bits(a.to_bits() | b.to_bits()))
+    }
+    #[inline(always)]
+    fn andnot(a: Self::F, b: Self::F) -> Self::F {
+        map2(a, b, |a, b| f32::from_bits(!a.to_bits() & b.to_bits()))
+    }
+    #[inline(always)]
+    fn select(m: Self::F, a: Self::F, b: Self::F) -> Self::F {
+        std::array::from_fn(|i| if m[i].to_bits() != 0 { a[i] } else { b[i] })
+    }
+    #[inline(always)]
+    fn abs(a: Self::F) -> Self::F {
+        std::array::from_fn(|i| a[i].abs())
+    }
+    #[inline(always)]
+    fn bits(m: Self::F) -> u32 {
+        m.iter().enumerate().fold(0, |acc, (i, x)| acc | ((x.to_bits() >> 31) << i))
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+pub(crate) use x86::{Avx2, Sse2};
+
+#[cfg(target_arch = "x86_64")]
+mod x86 {
+    use super::{Lanes, LANES};
+    use std::arch::x86_64::*;
+
+    /// Two SSE2 registers (x86-64 baseline: always available).
+    #[derive(Clone, Copy, Debug)]
+    pub(crate) struct Sse2;
+
+    macro_rules! sse2 {
+        ($f:ident, $a:expr, $b:expr) => {
+            // SAFETY: SSE2 is part of the x86-64 baseline.
+            unsafe { [$f($a[0], $b[0]), $f($a[1], $b[1])] }
+        };
+    }
+
+    impl Lanes for Sse2 {
+        type F = [__m128; 2];
+        #[inline(always)]
+        fn splat(x: f32) -> Self::F {
+            // SAFETY: SSE2 is baseline.
+            unsafe { [_mm_set1_ps(x); 2] }
+        }
+        #[inline(always)]
+        fn load(a: &[f32; LANES]) -> Self::F {
+            // SAFETY: SSE2 is baseline; unaligned loads of 8 in-bounds floats.
+            unsafe { [_mm_loadu_ps(a.as_ptr()), _mm_loadu_ps(a.as_ptr().add(4))] }
+        }
+        #[inline(always)]
+        fn store(v: Self::F) -> [f32; LANES] {
+            let mut out = [0.0; LANES];
+            // SAFETY: SSE2 is baseline; unaligned stores of 8 in-bounds floats.
+            unsafe {
+                _mm_storeu_ps(out.as_mut_ptr(), v[0]);
+                _mm_storeu_ps(out.as_mut_ptr().add(4), v[1]);
+            }
+            out
+        }
+        #[inline(always)]
+        fn add(a: Self::F, b: Self::F) -> Self::F {
+            sse2!(_mm_add_ps, a, b)
+        }
+        #[inline(always)]
+        fn sub(a: Self::F, b: Self::F) -> Self::F {
+            sse2!(_mm_sub_ps, a, b)
+        }
+        #[inline(always)]
+        fn mul(a: Self::F, b: Self::F) -> Self::F {
+            sse2!(_mm_mul_ps, a, b)
+        }
+        #[inline(always)]
+        fn div(a: Self::F, b: Self::F) -> Self::F {
+            sse2!(_mm_div_ps, a, b)
+        }
+        #[inline(always)]
+        fn max(a: Self::F, b: Self::F) -> Self::F {
+            sse2!(_mm_max_ps, a, b)
+        }
+        #[inline(always)]
+        fn min(a: Self::F, b: Self::F) -> Self::F {
+            sse2!(_mm_min_ps, a, b)
+        }
+        #[inline(always)]
+        fn lt(a: Self::F, b: Self::F) -> Self::F {
+            sse2!(_mm_cmplt_ps, a, b)
+        }
+        #[inline(always)]
+        fn le(a: Self::F, b: Self::F) -> Self::F {
+            sse2!(_mm_cmple_ps, a, b)
+        }
+        #[inline(always)]
+        fn eq(a: Self::F, b: Self::F) -> Self::F {
+            sse2!(_mm_cmpeq_ps, a, b)
+        }
+        #[inline(always)]
+        fn and(a: Self::F, b: Self::F) -> Self::F {
+            sse2!(_mm_and_ps, a, b)
+        }
+        #[inline(always)]
+        fn or(a: Self::F, b: Self::F) -> Self::F {
+            sse2!(_mm_or_ps, a, b)
+        }
+        #[inline(always)]
+        fn andnot(a: Self::F, b: Self::F) -> Self::F {
+            sse2!(_mm_andnot_ps, a, b)
+        }
+        #[inline(always)]
+        fn select(m: Self::F, a: Self::F, b: Self::F) -> Self::F {
+            Self::or(Self::and(m, a), Self::andnot(m, b))
+        }
+        #[inline(always)]
+        fn abs(a: Self::F) -> Self::F {
+            Self::andnot(Self::splat(-0.0), a)
+        }
+        #[inline(always)]
+        fn bits(m: Self::F) -> u32 {
+            // SAFETY: SSE2 is baseline.
+            unsafe { (_mm_movemask_ps(m[0]) | (_mm_movemask_ps(m[1]) << 4)) as u32 }
+        }
+    }
+
+    /// One AVX2 register. Only constructed behind `is_x86_feature_detected!("avx2")`, and
+    /// its code runs only inside `#[target_feature(enable = "avx2")]` functions.
+    #[derive(Clone, Copy, Debug)]
+    pub(crate) struct Avx2;
+
+    macro_rules! avx {
+        ($f:ident, $a:expr, $b:expr) => {
+            // SAFETY: `Avx2` code is only reached after run-time detection of AVX2.
+            unsafe { $f($a, $b) }
+        };
+    }
+
+    impl Lanes for Avx2 {
+        type F = __m256;
+        #[inline(always)]
+        fn splat(x: f32) -> Self::F {
+            // SAFETY: see the type's docs.
+            unsafe { _mm256_set1_ps(x) }
+        }
+        #[inline(always)]
+        fn load(a: &[f32; LANES]) -> Self::F {
+            // SAFETY: see the type's docs; unaligned load of 8 in-bounds floats.
+            unsafe { _mm256_loadu_ps(a.as_ptr()) }
+        }
+        #[inline(always)]
+        fn store(v: Self::F) -> [f32; LANES] {
+            let mut out = [0.0; LANES];
+            // SAFETY: see the type's docs; unaligned store of 8 in-bounds floats.
+            unsafe { _mm256_storeu_ps(out.as_mut_ptr(), v) };
+            out
+        }
+        #[inline(always)]
+        fn add(a: Self::F, b: Self::F) -> Self::F {
+            avx!(_mm256_add_ps, a, b)
+        }
+        #[inline(always)]
+        fn sub(a: Self::F, b: Self::F) -> Self::F {
+            avx!(_mm256_sub_ps, a, b)
+        }
+        #[inline(always)]
+        fn mul(a: Self::F, b: Self::F) -> Self::F {
+            avx!(_mm256_mul_ps, a, b)
+        }
+        #[inline(always)]
+        fn div(a: Self::F, b: Self::F) -> Self::F {
+            avx!(_mm256_div_ps, a, b)
+        }
+        #[inline(always)]
+        fn max(a: Self::F, b: Self::F) -> Self::F {
+            avx!(_mm256_max_ps, a, b)
+        }
+        #[inline(always)]
+        fn min(a: Self::F, b: Self::F) -> Self::F {
+            avx!(_mm256_min_ps, a, b)
+        }
+        #[inline(always)]
+        fn lt(a: Self::F, b: Self::F) -> Self::F {
+            // SAFETY: see the type's docs.
+            unsafe { _mm256_cmp_ps::<_CMP_LT_OQ>(a, b) }
+        }
+        #[inline(always)]
+        fn le(a: Self::F, b: Self::F) -> Self::F {
+            // SAFETY: see the type's docs.
+            unsafe { _mm256_cmp_ps::<_CMP_LE_OQ>(a, b) }
+        }
+        #[inline(always)]
+        fn eq(a: Self::F, b: Self::F) -> Self::F {
+            // SAFETY: see the type's docs.
+            unsafe { _mm256_cmp_ps::<_CMP_EQ_OQ>(a, b) }
+        }
+        #[inline(always)]
+        fn and(a: Self::F, b: Self::F) -> Self::F {
+            avx!(_mm256_and_ps, a, b)
+        }
+        #[inline(always)]
+        fn or(a: Self::F, b: Self::F) -> Self::F {
+            avx!(_mm256_or_ps, a, b)
+        }
+        #[inline(always)]
+        fn andnot(a: Self::F, b: Self::F) -> Self::F {
+            avx!(_mm256_andnot_ps, a, b)
+        }
+        #[inline(always)]
+        fn select(m: Self::F, a: Self::F, b: Self::F) -> Self::F {
+            // SAFETY: see the type's docs. blendv takes `a` where the mask's sign bit is set.
+            unsafe { _mm256_blendv_ps(b, a, m) }
+        }
+        #[inline(always)]
+        fn abs(a: Self::F) -> Self::F {
+            Self::andnot(Self::splat(-0.0), a)
+        }
+        #[inline(always)]
+        fn bits(m: Self::F) -> u32 {
+            // SAFETY: see the type's docs.
+            unsafe { _mm256_movemask_ps(m) as u32 }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Values that exercise NaN, signed zeros, infinities and rounding.
+    const SAMPLES: [f32; LANES] = [0.0, -0.0, f32::NAN, f32::INFINITY, -1.5, 1.0 / 3.0, 1e-40, -3e38];
+
+    fn check<L: Lanes>() {
+        let a = L::load(&SAMPLES);
+        let mut rot = SAMPLES;
+        rot.rotate_left(3);
+        let b = L::load(&rot);
+        let p = Portable::load(&SAMPLES);
+        let q = Portable::load(&rot);
+        let same = |x: L::F, y: [f32; LANES]| {
+            let x = L::store(x);
+            for i in 0..LANES {
+                assert_eq!(x[i].to_bits(), y[i].to_bits(), "lane {i}: {} vs {}", x[i], y[i]);
+            }
+        };
+        same(L::add(a, b), Portable::add(p, q));
+        same(L::sub(a, b), Portable::sub(p, q));
+        same(L::mul(a, b), Portable::mul(p, q));
+        same(L::div(a, b), Portable::div(p, q));
+        same(L::max(a, b), Portable::max(p, q));
+        same(L::min(a, b), Portable::min(p, q));
+        same(L::abs(a), Portable::abs(p));
+        for (x, y) in
+            [(L::lt(a, b), Portable::lt(p, q)), (L::le(a, b), Portable::le(p, q)), (L::eq(a, b), Portable::eq(p, q))]
+        {
+            same(x, y);
+            assert_eq!(L::bits(x), Portable::bits(y));
+            same(L::select(x, a, b), Portable::select(y, p, q));
+        }
+        same(L::splat(-0.0), Portable::splat(-0.0));
+    }
+
+    #[test]
+    fn portable_lanes_follow_maxps_semantics() {
+        let m = Portable::max(
+            [f32::NAN, 1.0, -0.0, 0.0, 2.0, 0.0, 0.0, 0.0],
+            [1.0, f32::NAN, 0.0, -0.0, 1.0, 0.0, 0.0, 0.0],
+        );
+        assert!(m[0] == 1.0 && m[1].is_nan() && m[2].to_bits() == 0 && m[3].to_bits() == (-0.0f32).to_bits());
+        assert_eq!(m[4], 2.0);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn sse2_lanes_equal_portable_bit_for_bit() {
+        check::<Sse2>();
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_lanes_equal_portable_bit_for_bit() {
+        if is_x86_feature_detected!("avx2") {
+            // SAFETY: AVX2 detected just above.
+            unsafe { check_avx2() }
+        } else {
+            eprintln!("no AVX2 on this machine: AVX2 lanes not checked");
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn check_avx2() {
+        check::<Avx2>();
+    }
+}

@@ -1,0 +1,296 @@
+//! Batch ray traversal: every ray of a list through the scene's [`Bvh`], either one ray
+//! at a time with the scalar reference ([`Bvh::occluded`], [`Bvh::closest_hit`]) or in
+//! packets of [`LANES`] consecutive rays traced together with SIMD (module `packet`).
+//!
+//! Both give the same answer for every ray: the packet code runs the scalar kernels'
+//! IEEE operations lane by lane (see `packet` for the argument and the one closest-hit
+//! rounding corner case that `BVH_CULL_SLACK` documents). The tests in
+//! `cpu-backend/tests/traversal.rs` compare them ray by ray.
+//!
+//! Packets need no per-scene structure: they walk the core binary BVH as it is (sibling
+//! pairs share a cache line, so one packet box test per child reads one line), which
+//! keeps `bvh_build` unchanged and the GPU and CPU on the very same tree. (A 4-wide tree
+//! collapsed from it, same boxes and leaves, was tried and measured slower for these
+//! packets: about 14 instead of 21 Mrays/s on the teaser's shadow rays, one thread. Testing
+//! four grandchildren skips the two intermediate boxes that cull for the packet, and the
+//! traversal is bound by the latency of the node-to-node dependency chain more than by
+//! instruction count.)
+//!
+//! Consecutive rays make a packet; the stage's lists are light-major then pixel-major, so
+//! a packet is a short run of neighbouring pixels and their rays are coherent. Lanes
+//! diverge gracefully: each stack entry carries the mask of lanes that entered the node,
+//! so a lane drops out of subtrees it misses, and rays with different direction signs
+//! take per-lane near planes. A packet with fewer than two valid rays is traced one ray at
+//! a time with the scalar code (the per-packet fallback).
+//!
+//! SIMD level: AVX2 (8 lanes in one register) when the CPU has it, else SSE2 (two
+//! 4-lane registers, the x86-64 baseline), else plain arrays; chosen at run time, stable
+//! Rust only. All three give the same bits.
+//!
+//! Work is split into chunks of [`TRAVERSAL_CHUNK`] rays run in parallel on the current
+//! rayon pool (use [`with_threads`] for a given thread count); results are in ray order
+//! and independent of the thread count.
+
+mod lanes;
+mod packet;
+
+use rayon::prelude::*;
+
+use hyrt_core::bvh::{Bvh, ClosestHit};
+use hyrt_core::formats::{RayRecord, TriangleRecord};
+
+pub use lanes::LANES;
+use lanes::{Lanes, Portable};
+use packet::Packet;
+
+use crate::shadow_rays::{SHADOW_OCCLUDED, SHADOW_VISIBLE};
+
+/// Rays per rayon task: a multiple of [`LANES`], large enough to amortize scheduling (tens
+/// of microseconds of work), small enough to balance uneven rays across threads.
+pub const TRAVERSAL_CHUNK: usize = 1024;
+const _: () = assert!(TRAVERSAL_CHUNK / LANES * LANES == TRAVERSAL_CHUNK);
+
+/// The instruction set the packet code runs with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SimdLevel {
+    /// 256-bit AVX2 registers (x86-64 with AVX2, detected at run time).
+    Avx2,
+    /// Two 128-bit SSE2 registers (every x86-64 CPU).
+    Sse2,
+    /// Plain `[f32; 8]` arrays (any target).
+    Portable,
+}
+
+impl SimdLevel {
+    /// The best level this CPU supports.
+    pub fn detect() -> SimdLevel {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if is_x86_feature_detected!("avx2") {
+                return SimdLevel::Avx2;
+            }
+            SimdLevel::Sse2
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        SimdLevel::Portable
+    }
+
+    /// Whether this CPU can run the level.
+    pub fn is_available(self) -> bool {
+        match self {
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx2 => is_x86_feature_detected!("avx2"),
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Sse2 => true,
+            #[cfg(not(target_arch = "x86_64"))]
+            SimdLevel::Avx2 | SimdLevel::Sse2 => false,
+            SimdLevel::Portable => true,
+        }
+    }
+
+    /// Every level this CPU can run, best first.
+    pub fn available() -> Vec<SimdLevel> {
+        [SimdLevel::Avx2, SimdLevel::Sse2, SimdLevel::Portable].into_iter().filter(|l| l.is_available()).collect()
+    }
+
+    /// Lower-case name (reports).
+    pub fn name(self) -> &'static str {
+        match self {
+            SimdLevel::Avx2 => "avx2",
+            SimdLevel::Sse2 => "sse2",
+            SimdLevel::Portable => "portable",
+        }
+    }
+}
+
+/// How a batch is traced.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Traversal {
+    /// One ray at a time with [`Bvh::occluded`] / [`Bvh::closest_hit`] (the reference).
+    Scalar,
+    /// Packets of [`LANES`] rays at the given SIMD level (an unavailable level falls back
+    /// to the best available one).
+    Packet(SimdLevel),
+}
+
+impl Traversal {
+    /// Packets at the best SIMD level of this CPU: the default of the `shadow_rays` stage.
+    pub fn simd() -> Traversal {
+        Traversal::Packet(SimdLevel::detect())
+    }
+
+    /// Short name (reports): `scalar` or `packet-<level>`.
+    pub fn name(self) -> String {
+        match self {
+            Traversal::Scalar => "scalar".into(),
+            Traversal::Packet(l) => format!("packet-{}", l.name()),
+        }
+    }
+
+    /// The packet level actually used on this CPU, `None` for scalar.
+    fn level(self) -> Option<SimdLevel> {
+        match self {
+            Traversal::Scalar => None,
+            Traversal::Packet(l) if l.is_available() => Some(l),
+            Traversal::Packet(_) => Some(SimdLevel::detect()),
+        }
+    }
+}
+
+impl Default for Traversal {
+    fn default() -> Self {
+        Traversal::simd()
+    }
+}
+
+/// Run `f` on a fresh rayon pool of `threads` workers (at least one): the batch functions
+/// use whatever pool they are called on.
+pub fn with_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
+    rayon::ThreadPoolBuilder::new().num_threads(threads.max(1)).build().expect("rayon thread pool").install(f)
+}
+
+/// Any hit for every ray (`t_min < t < t_max`), in ray order: [`SHADOW_OCCLUDED`] or
+/// [`SHADOW_VISIBLE`], into `out` (resized to `rays.len()`). `triangles` is the table
+/// `bvh` was built from. Rays the scalar traversal rejects (non-finite, zero direction,
+/// empty interval) are visible.
+pub fn occluded_batch_into(
+    bvh: &Bvh,
+    triangles: &[TriangleRecord],
+    rays: &[RayRecord],
+    traversal: Traversal,
+    out: &mut Vec<u32>,
+) {
+    out.clear();
+    out.resize(rays.len(), SHADOW_VISIBLE);
+    let level = traversal.level();
+    out.par_chunks_mut(TRAVERSAL_CHUNK).zip(rays.par_chunks(TRAVERSAL_CHUNK)).for_each(|(out, rays)| match level {
+        None => {
+            for (o, r) in out.iter_mut().zip(rays) {
+                *o = if bvh.occluded(triangles, r) { SHADOW_OCCLUDED } else { SHADOW_VISIBLE };
+            }
+        }
+        Some(level) => occluded_chunk(bvh, triangles, rays, out, level),
+    });
+}
+
+/// [`occluded_batch_into`] into a new vector.
+pub fn occluded_batch(bvh: &Bvh, triangles: &[TriangleRecord], rays: &[RayRecord], traversal: Traversal) -> Vec<u32> {
+    let mut out = Vec::new();
+    occluded_batch_into(bvh, triangles, rays, traversal, &mut out);
+    out
+}
+
+/// The closest hit of every ray (`t_min < t < t_max`, ties to the lower triangle index),
+/// in ray order, into `out` (resized to `rays.len()`). `triangles` as in
+/// [`occluded_batch_into`].
+pub fn closest_hit_batch_into(
+    bvh: &Bvh,
+    triangles: &[TriangleRecord],
+    rays: &[RayRecord],
+    traversal: Traversal,
+    out: &mut Vec<Option<ClosestHit>>,
+) {
+    out.clear();
+    out.resize(rays.len(), None);
+    let level = traversal.level();
+    out.par_chunks_mut(TRAVERSAL_CHUNK).zip(rays.par_chunks(TRAVERSAL_CHUNK)).for_each(|(out, rays)| match level {
+        None => {
+            for (o, r) in out.iter_mut().zip(rays) {
+                *o = bvh.closest_hit(triangles, r);
+            }
+        }
+        Some(level) => closest_hit_chunk(bvh, triangles, rays, out, level),
+    });
+}
+
+/// [`closest_hit_batch_into`] into a new vector.
+pub fn closest_hit_batch(
+    bvh: &Bvh,
+    triangles: &[TriangleRecord],
+    rays: &[RayRecord],
+    traversal: Traversal,
+) -> Vec<Option<ClosestHit>> {
+    let mut out = Vec::new();
+    closest_hit_batch_into(bvh, triangles, rays, traversal, &mut out);
+    out
+}
+
+/// Dispatch one chunk to the code compiled for `level` (available on this CPU).
+macro_rules! dispatch {
+    ($level:expr, $generic:ident, $avx2:ident, ($($arg:expr),*)) => {
+        match $level {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `Traversal::level` only returns available levels.
+            SimdLevel::Avx2 => unsafe { $avx2($($arg),*) },
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Sse2 => $generic::<lanes::Sse2>($($arg),*),
+            _ => $generic::<Portable>($($arg),*),
+        }
+    };
+}
+
+fn occluded_chunk(bvh: &Bvh, triangles: &[TriangleRecord], rays: &[RayRecord], out: &mut [u32], level: SimdLevel) {
+    dispatch!(level, occluded_packets, occluded_packets_avx2, (bvh, triangles, rays, out))
+}
+
+fn closest_hit_chunk(
+    bvh: &Bvh,
+    triangles: &[TriangleRecord],
+    rays: &[RayRecord],
+    out: &mut [Option<ClosestHit>],
+    level: SimdLevel,
+) {
+    dispatch!(level, closest_hit_packets, closest_hit_packets_avx2, (bvh, triangles, rays, out))
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn occluded_packets_avx2(bvh: &Bvh, triangles: &[TriangleRecord], rays: &[RayRecord], out: &mut [u32]) {
+    occluded_packets::<lanes::Avx2>(bvh, triangles, rays, out)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn closest_hit_packets_avx2(
+    bvh: &Bvh,
+    triangles: &[TriangleRecord],
+    rays: &[RayRecord],
+    out: &mut [Option<ClosestHit>],
+) {
+    closest_hit_packets::<lanes::Avx2>(bvh, triangles, rays, out)
+}
+
+#[inline(always)]
+fn occluded_packets<L: Lanes>(bvh: &Bvh, triangles: &[TriangleRecord], rays: &[RayRecord], out: &mut [u32]) {
+    for (out, rays) in out.chunks_mut(LANES).zip(rays.chunks(LANES)) {
+        let Some(p) = Packet::<L>::new(rays) else {
+            for (o, r) in out.iter_mut().zip(rays) {
+                *o = if bvh.occluded(triangles, r) { SHADOW_OCCLUDED } else { SHADOW_VISIBLE };
+            }
+            continue;
+        };
+        let hit = packet::occluded(bvh, &p);
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = if hit & (1 << i) != 0 { SHADOW_OCCLUDED } else { SHADOW_VISIBLE };
+        }
+    }
+}
+
+#[inline(always)]
+fn closest_hit_packets<L: Lanes>(
+    bvh: &Bvh,
+    triangles: &[TriangleRecord],
+    rays: &[RayRecord],
+    out: &mut [Option<ClosestHit>],
+) {
+    for (out, rays) in out.chunks_mut(LANES).zip(rays.chunks(LANES)) {
+        let Some(p) = Packet::<L>::new(rays) else {
+            for (o, r) in out.iter_mut().zip(rays) {
+                *o = bvh.closest_hit(triangles, r);
+            }
+            continue;
+        };
+        let hits = packet::closest_hit(bvh, &p);
+        out.copy_from_slice(&hits[..out.len()]);
+    }
+}
