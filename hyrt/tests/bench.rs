@@ -78,8 +78,12 @@ fn bench_cli_writes_the_report_and_plots() {
     assert!(rays > 0);
     assert!(md.contains(&format!("| default | - | 4,908 | - | {} |", hyrt::bench::report::count(rays))), "{md}");
     // Peers at both thread counts; the GPU was switched off and the report says so.
-    assert!(md.contains("| hyrt `shadow_rays` (Bvh::occluded per ray) | 1 |"), "{md}");
-    assert!(md.contains("| hyrt `Bvh::closest_hit` per ray | 2 |"), "{md}");
+    assert!(md.contains("| hyrt `Bvh::occluded` per ray (scalar reference) | 1 |"), "{md}");
+    assert!(md.contains("| hyrt `Bvh::closest_hit` per ray (scalar reference) | 2 |"), "{md}");
+    // The packets the stage uses, against the scalar reference: no ray differs.
+    let packets = format!("| hyrt packets of 8 (`{}`) | 2 |", hyrt_cpu::traversal::Traversal::simd().name());
+    let row = md.lines().find(|l| l.starts_with(&packets)).unwrap_or_else(|| panic!("no {packets} in\n{md}"));
+    assert!(row.ends_with("| 0 |") || row.ends_with("| 0 | 0 |"), "{row}");
     assert!(md.contains("GPU backend not measured"), "{md}");
     if cfg!(feature = "embree") {
         assert!(md.contains("| Embree `rtcOccluded8` (packets of 8) | 2 |"), "{md}");

@@ -20,7 +20,8 @@ use hyrt_core::frame::{Frame, FrameOptions};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::camera::primary_rays;
 use hyrt_core::stage::Stage;
-use hyrt_cpu::shadow_rays::{shadow_rays, SHADOW_OCCLUDED, SHADOW_RAY_CHUNK};
+use hyrt_cpu::shadow_rays::SHADOW_OCCLUDED;
+use hyrt_cpu::traversal::{closest_hit_batch, occluded_batch, Traversal, TRAVERSAL_CHUNK as SHADOW_RAY_CHUNK};
 use indicatif::ProgressBar;
 use rayon::prelude::*;
 
@@ -121,6 +122,15 @@ fn in_chunks<T: Send>(
 }
 
 /// Time `trace` on `rays` in `pool` (median of `repeats`); the run and the answers.
+/// The name of a hyrt traversal in the tables: the scalar reference or the packets.
+fn hyrt_method(reference: &str, traversal: Traversal) -> String {
+    match traversal {
+        Traversal::Scalar => format!("hyrt `{reference}` per ray (scalar reference)"),
+        packets => format!("hyrt packets of 8 (`{}`)", packets.name()),
+    }
+}
+
+#[cfg_attr(not(feature = "embree"), allow(dead_code))]
 fn timed_run<T: Clone + Send>(
     repeats: usize,
     pool: &rayon::ThreadPool,
@@ -185,19 +195,45 @@ fn measure_scene(
     for &threads in &options.peer_threads {
         progress.set_message(format!("peers: {} shadow and primary rays, {threads} threads", row.name));
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("rayon pool");
-        // hyrt, shadow rays: the public stage function, in a pool of `threads`.
+        // hyrt: the scalar reference traversal (one ray at a time) and the packets of 8 the
+        // `shadow_rays` stage uses, each in a pool of `threads`.
+        let packets = Traversal::simd();
         let mut occluded = Vec::new();
-        let ms = median_ms(options.repeats, || occluded = pool.install(|| shadow_rays(bvh, g, &shadow)));
-        out.occluded = occluded.iter().filter(|&&o| o == SHADOW_OCCLUDED).count();
-        out.shadow.push(RayRun::new("hyrt `shadow_rays` (Bvh::occluded per ray)", threads, shadow.len(), ms));
-        // hyrt, primary rays: closest hit per ray.
-        let (run, hits) =
-            timed_run(options.repeats, &pool, &primary, "hyrt `Bvh::closest_hit` per ray", None, |r, o| {
-                for (o, ray) in o.iter_mut().zip(r) {
-                    *o = bvh.closest_hit(&g.triangles, ray).map(|h| h.triangle);
-                }
+        for traversal in [Traversal::Scalar, packets] {
+            let mut o = Vec::new();
+            let ms = median_ms(options.repeats, || {
+                o = pool.install(|| occluded_batch(bvh, &g.triangles, &shadow, traversal))
             });
-        out.primary.push(run);
+            let mut run = RayRun::new(&hyrt_method("Bvh::occluded", traversal), threads, shadow.len(), ms);
+            if traversal == Traversal::Scalar {
+                occluded = o;
+            } else {
+                // The packets against the scalar reference: must be 0 (tests hold them to it).
+                run.disagreements = Some(occluded.iter().zip(&o).filter(|(a, b)| a != b).count());
+            }
+            out.shadow.push(run);
+        }
+        out.occluded = occluded.iter().filter(|&&o| o == SHADOW_OCCLUDED).count();
+        let mut hits: Vec<Option<u32>> = Vec::new();
+        for traversal in [Traversal::Scalar, packets] {
+            let mut h: Vec<Option<u32>> = Vec::new();
+            let ms = median_ms(options.repeats, || {
+                h = pool
+                    .install(|| closest_hit_batch(bvh, &g.triangles, &primary, traversal))
+                    .into_iter()
+                    .map(|h| h.map(|h| h.triangle))
+                    .collect()
+            });
+            let mut run = RayRun::new(&hyrt_method("Bvh::closest_hit", traversal), threads, primary.len(), ms);
+            if traversal == Traversal::Scalar {
+                hits = h;
+            } else {
+                run.disagreements = Some(hits.iter().zip(&h).filter(|(a, b)| a.is_some() != b.is_some()).count());
+                run.other_triangle =
+                    Some(hits.iter().zip(&h).filter(|(a, b)| a.is_some() && b.is_some() && a != b).count());
+            }
+            out.primary.push(run);
+        }
         out.primary_hits = hits.iter().filter(|h| h.is_some()).count();
         #[cfg(feature = "embree")]
         if let Some(e) = &embree {
@@ -378,7 +414,8 @@ impl Peers {
         let pick = |runs: &[RayRun], prefix: &str| {
             runs.iter().find(|r| r.threads == threads && r.method.starts_with(prefix)).map(RayRun::mrays)
         };
-        let hyrt_shadow = pick(&s.shadow, "hyrt").unwrap_or(f64::NAN);
+        // hyrt's figure: the packets the `shadow_rays` stage uses.
+        let hyrt_shadow = pick(&s.shadow, "hyrt packets").unwrap_or(f64::NAN);
         match pick(&s.shadow, "Embree `rtcOccluded8`") {
             Some(e) => out.push([
                 format!("shadow rays, {}, {threads} threads: Embree `rtcOccluded8` (this run)", s.scene),
@@ -397,7 +434,7 @@ impl Peers {
             ]),
             None => {}
         }
-        let hyrt_primary = pick(&s.primary, "hyrt").unwrap_or(f64::NAN);
+        let hyrt_primary = pick(&s.primary, "hyrt packets").unwrap_or(f64::NAN);
         for (prefix, what) in [("Embree `rtcOccluded1`", "shadow"), ("Embree `rtcIntersect8`", "primary")] {
             let (runs, hyrt) = if what == "shadow" { (&s.shadow, hyrt_shadow) } else { (&s.primary, hyrt_primary) };
             if let Some(e) = pick(runs, prefix) {
@@ -429,15 +466,25 @@ mod tests {
 
     fn run(method: &str, threads: usize, ms: f64) -> RayRun {
         let mut r = RayRun::new(method, threads, 1_000_000, ms);
-        if method.starts_with("Embree") {
+        if !method.contains("scalar reference") {
             r.disagreements = Some(0);
         }
         r
     }
 
     fn peers(scene: &str, embree: bool) -> Peers {
-        let mut shadow = vec![run("hyrt `shadow_rays`", 1, 400.0), run("hyrt `shadow_rays`", 2, 200.0)];
-        let mut primary = vec![run("hyrt `Bvh::closest_hit`", 2, 500.0)];
+        let scalar = hyrt_method("Bvh::occluded", Traversal::Scalar);
+        let packets = hyrt_method("Bvh::occluded", Traversal::Packet(hyrt_cpu::traversal::SimdLevel::Portable));
+        let mut shadow =
+            vec![run(&scalar, 1, 800.0), run(&packets, 1, 400.0), run(&scalar, 2, 400.0), run(&packets, 2, 200.0)];
+        let mut primary = vec![
+            run(&hyrt_method("Bvh::closest_hit", Traversal::Scalar), 2, 1000.0),
+            run(
+                &hyrt_method("Bvh::closest_hit", Traversal::Packet(hyrt_cpu::traversal::SimdLevel::Portable)),
+                2,
+                500.0,
+            ),
+        ];
         if embree {
             shadow.push(run("Embree `rtcOccluded8` (packets of 8)", 2, 50.0));
             shadow.push(run("Embree `rtcOccluded1`", 2, 100.0));
@@ -483,13 +530,20 @@ mod tests {
     }
 
     #[test]
-    fn ray_table_compares_each_run_with_hyrt_at_the_same_thread_count() {
+    fn ray_table_compares_each_run_with_hyrt_scalar_at_the_same_thread_count() {
         let p = peers("teaser", true);
         let md = ray_table(&p.scenes[0].shadow, false).to_markdown();
         assert!(
-            md.contains("| Embree `rtcOccluded8` (packets of 8) | 2 | 1,000,000 | 50.00 | 20.00 | 4.00 | 0 |"),
+            md.contains("| Embree `rtcOccluded8` (packets of 8) | 2 | 1,000,000 | 50.00 | 20.00 | 8.00 | 0 |"),
             "{md}"
         );
-        assert!(md.contains("| hyrt `shadow_rays` | 1 | 1,000,000 | 400.00 | 2.50 | 1.00 | (reference) |"), "{md}");
+        assert!(
+            md.contains("| hyrt `Bvh::occluded` per ray (scalar reference) | 1 | 1,000,000 | 800.00 | 1.25 | 1.00 | (reference) |"),
+            "{md}"
+        );
+        assert!(
+            md.contains("| hyrt packets of 8 (`packet-portable`) | 1 | 1,000,000 | 400.00 | 2.50 | 2.00 | 0 |"),
+            "{md}"
+        );
     }
 }
