@@ -106,7 +106,7 @@ fn gpu_stages(c: &mut Criterion) {
                 continue;
             }
         };
-        fb.write_uniforms(&ctx, &camera, &FrameParams { width: W, height: H, light_count: lights, weight: 1.0 });
+        fb.write_uniforms(&ctx, &camera, &FrameParams::new(W, H, lights, 1.0));
         let run = |stages: &[Stage]| {
             let mut enc = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("bench") });
             for s in stages {
