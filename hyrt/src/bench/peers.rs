@@ -15,8 +15,8 @@
 use std::fmt::Write as _;
 
 use hyrt_core::bvh::Bvh;
-use hyrt_core::formats::RayRecord;
-use hyrt_core::frame::{Frame, FrameOptions};
+use hyrt_core::formats::{CameraRecord, RayRecord};
+use hyrt_core::frame::{Frame, FrameOptions, PreparedScene};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::camera::primary_rays;
 use hyrt_core::stage::Stage;
@@ -145,7 +145,7 @@ fn timed_run<T: Clone + Send>(
 }
 
 /// The shadow rays of a real frame of the scene (the CPU backend, every stage's output kept).
-pub fn frame_shadow_rays(row: &Table2Row) -> Result<Vec<RayRecord>, BenchError> {
+pub fn frame_shadow_rays(row: &PeerScene) -> Result<Vec<RayRecord>, BenchError> {
     let mut backend = hyrt_cpu::backend::CpuBackend::new(None);
     let mut frame = Frame::default();
     hyrt_core::frame::Backend::render_into(
@@ -159,9 +159,22 @@ pub fn frame_shadow_rays(row: &Table2Row) -> Result<Vec<RayRecord>, BenchError> 
     Ok(frame.rays)
 }
 
+/// A scene the peers trace: prepared, with the camera of the image they trace.
+pub struct PeerScene {
+    pub name: String,
+    pub prepared: PreparedScene,
+    pub camera: CameraRecord,
+}
+
+impl PeerScene {
+    fn of_row(row: &Table2Row) -> PeerScene {
+        PeerScene { name: row.name.clone(), prepared: row.prepared.clone(), camera: row.camera }
+    }
+}
+
 fn measure_scene(
     options: &BenchOptions,
-    row: &Table2Row,
+    row: &PeerScene,
     progress: &ProgressBar,
 ) -> Result<(ScenePeers, Option<String>), BenchError> {
     let g: &WorldGeometry = &row.prepared.geometry;
@@ -267,6 +280,9 @@ fn measure_scene(
     Ok((out, embree_missing))
 }
 
+/// Scenes beyond Table 2's that a full run's peers trace.
+const PEER_EXTRA_MANIFESTS: [&str; 2] = ["sponza", "dragon"];
+
 /// Which Table 2 rows the ray peers run on: the teaser (Sponza + bunny) in quick runs, every
 /// scene but the default one otherwise; the default scene when nothing else is loaded.
 fn peer_rows<'a>(options: &BenchOptions, table2: &'a Table2) -> Vec<&'a Table2Row> {
@@ -286,11 +302,21 @@ fn peer_rows<'a>(options: &BenchOptions, table2: &'a Table2) -> Vec<&'a Table2Ro
 
 /// Measure every peer.
 pub fn run(options: &BenchOptions, table2: &Table2, progress: &ProgressBar) -> Result<Peers, BenchError> {
-    let rows = peer_rows(options, table2);
+    let mut rows: Vec<PeerScene> = peer_rows(options, table2).into_iter().map(PeerScene::of_row).collect();
+    // The full run also traces Sponza alone and the dragon (the traversal issue's scenes),
+    // at the Table 2 image size.
+    if !options.quick && rows.iter().any(|r| r.name != "default") {
+        for s in super::scenes::load_manifests(PEER_EXTRA_MANIFESTS, options.scenes, &mut Vec::new()) {
+            let Some(camera) = s.scene.camera else { continue };
+            let (w, h) = table2.size;
+            let prepared = super::prepare(&s.scene, options.frame_threads);
+            rows.push(PeerScene { name: s.name, prepared, camera: CameraRecord::new(&camera, w, h) });
+        }
+    }
     progress.inc_length((rows.len() * options.peer_threads.len()) as u64);
     let mut scenes = Vec::new();
     let mut embree_missing = None;
-    for r in rows {
+    for r in &rows {
         let (p, missing) = measure_scene(options, r, progress)?;
         scenes.push(p);
         embree_missing = embree_missing.or(missing);
