@@ -16,7 +16,7 @@ use crate::reconstruction::ReconstructionStage;
 use crate::rt_shading::RtShadingStage;
 use crate::shadow_rays::ShadowRaysStage;
 use crate::timing::StageTimer;
-use crate::visibility_raster::VisibilityRasterStage;
+use crate::visibility_raster::{VisibilityMode, VisibilityRasterStage};
 use crate::{AdapterPolicy, GpuContext, GpuError};
 
 /// The per-frame stages, in execution order (`bvh_build` runs on the CPU, once per scene).
@@ -95,6 +95,18 @@ impl GpuBackend {
             self.ctx.describe(),
             self.visibility_raster.triangle_id_source()
         )
+    }
+
+    /// Switch how `visibility_raster` computes the G-buffer (the pipelines are rebuilt
+    /// on a change). [`VisibilityMode::Exact`], the default, is bit-identical to the CPU
+    /// reference; [`VisibilityMode::HardwareInterpolated`] is not, and exists for
+    /// benchmarks that measure the device as a plain rasterizer.
+    pub fn set_visibility_mode(&mut self, mode: VisibilityMode) -> Result<(), GpuError> {
+        if self.visibility_raster.mode() != mode {
+            let stage = self.ctx.checked(|| VisibilityRasterStage::with_mode(&self.ctx, mode))?;
+            self.visibility_raster = stage;
+        }
+        Ok(())
     }
 
     /// The device context.

@@ -65,6 +65,21 @@ const DEPTH_CLEAR: f32 = 1.0;
 const RESOLVE_GROUP: u32 = 8;
 
 const SHADER: &str = include_str!("shaders/visibility_raster.wgsl");
+const INTERPOLATED_SHADER: &str = include_str!("shaders/visibility_raster_interpolated.wgsl");
+
+/// How the stage computes the G-buffer.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum VisibilityMode {
+    /// The CPU reference's kernels in the fragment shader: bit-identical to
+    /// `hyrt_cpu::visibility_raster` (the module docs). The default.
+    #[default]
+    Exact,
+    /// The hardware's own attribute interpolation and depth: NOT conformant (ids can
+    /// differ on rounding ties and depth near-ties, barycentrics by up to 1e-1 on
+    /// sub-pixel triangles). Only for benchmarks that measure the device as a plain
+    /// rasterizer of the same pass.
+    HardwareInterpolated,
+}
 
 /// Triangle id source names reported by [`VisibilityRasterStage::triangle_id_source`].
 pub const ID_FROM_PRIMITIVE_INDEX: &str = "@builtin(primitive_index)";
@@ -84,6 +99,20 @@ fn raster_constants() -> String {
          const MAX_FIXED_COORD_F32: f32 = {:?};\n",
         MAX_FIXED_COORD as f32
     )
+}
+
+/// The WGSL of [`VisibilityMode::HardwareInterpolated`], specialized for the triangle id source.
+fn interpolated_shader_source(primitive_index: bool) -> String {
+    if primitive_index {
+        format!(
+            "enable primitive_index;\n{}",
+            INTERPOLATED_SHADER
+                .replace("TRIANGLE_ID_PARAMETER", "@builtin(primitive_index) primitive: u32,")
+                .replace("TRIANGLE_ID_EXPRESSION", "primitive")
+        )
+    } else {
+        INTERPOLATED_SHADER.replace("TRIANGLE_ID_PARAMETER", "").replace("TRIANGLE_ID_EXPRESSION", "in.triangle")
+    }
 }
 
 /// The WGSL of the stage, specialized for the triangle id source and for conservative
@@ -170,13 +199,15 @@ struct Setups {
 /// The `visibility_raster` stage: a setup compute pipeline (one thread per triangle),
 /// a raster pipeline and a resolve compute pipeline.
 pub struct VisibilityRasterStage {
-    setup: wgpu::ComputePipeline,
+    /// The setup pass (exact mode only).
+    setup: Option<wgpu::ComputePipeline>,
     raster: wgpu::RenderPipeline,
     resolve: wgpu::ComputePipeline,
-    setup_layout: wgpu::BindGroupLayout,
+    setup_layout: Option<wgpu::BindGroupLayout>,
     raster_layout: wgpu::BindGroupLayout,
     resolve_layout: wgpu::BindGroupLayout,
     primitive_index: bool,
+    mode: VisibilityMode,
     /// Render targets of the last image size.
     targets: Mutex<Option<std::sync::Arc<Targets>>>,
     /// Setup records of the last triangle count.
@@ -193,10 +224,23 @@ impl VisibilityRasterStage {
     /// (the device must have `PRIMITIVE_INDEX`, i.e. [`GpuContext::primitive_index`]),
     /// else with flat-interpolated vertex ids (any device). For tests of both variants.
     pub fn with_id_source(ctx: &GpuContext, primitive_index: bool) -> Self {
+        Self::build(ctx, primitive_index, VisibilityMode::Exact)
+    }
+
+    /// Build the pipelines of `mode` with the device's triangle id source.
+    pub fn with_mode(ctx: &GpuContext, mode: VisibilityMode) -> Self {
+        Self::build(ctx, ctx.primitive_index, mode)
+    }
+
+    fn build(ctx: &GpuContext, primitive_index: bool, mode: VisibilityMode) -> Self {
         let primitive_index = primitive_index && ctx.primitive_index;
+        let source = match mode {
+            VisibilityMode::Exact => shader_source(primitive_index, ctx.early_depth_test),
+            VisibilityMode::HardwareInterpolated => interpolated_shader_source(primitive_index),
+        };
         let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("visibility_raster"),
-            source: wgpu::ShaderSource::Wgsl(shader_source(primitive_index, ctx.early_depth_test).into()),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
         });
         let raster = ctx.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("visibility_raster"),
@@ -250,19 +294,25 @@ impl VisibilityRasterStage {
                 cache: None,
             })
         };
-        let setup = compute("visibility_raster setup", "setup");
+        let setup = (mode == VisibilityMode::Exact).then(|| compute("visibility_raster setup", "setup"));
         let resolve = compute("visibility_raster resolve", "resolve");
         VisibilityRasterStage {
-            setup_layout: setup.get_bind_group_layout(0),
+            setup_layout: setup.as_ref().map(|p| p.get_bind_group_layout(0)),
             raster_layout: raster.get_bind_group_layout(0),
             resolve_layout: resolve.get_bind_group_layout(0),
             setup,
             raster,
             resolve,
             primitive_index,
+            mode,
             targets: Mutex::new(None),
             setups: Mutex::new(None),
         }
+    }
+
+    /// How this stage computes the G-buffer.
+    pub fn mode(&self) -> VisibilityMode {
+        self.mode
     }
 
     /// Where the triangle ids come from: [`ID_FROM_PRIMITIVE_INDEX`] or
@@ -343,40 +393,58 @@ impl VisibilityRasterStage {
             return;
         }
         let targets = self.targets(ctx, width, height);
-        let setups = self.setups(ctx, scene.triangle_count);
-        let with_setups = |label, layout, first_binding: u32, count: Option<&wgpu::Buffer>| {
-            let mut entries = vec![
-                wgpu::BindGroupEntry { binding: 0, resource: scene.triangles.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: frame.camera.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: first_binding, resource: setups.buffer.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: first_binding + 2, resource: setups.clipped.as_entire_binding() },
-            ];
-            if let Some(count) = count {
-                entries.push(wgpu::BindGroupEntry { binding: 9, resource: count.as_entire_binding() });
+        let raster_group = match (&self.setup, &self.setup_layout) {
+            (Some(setup), Some(setup_layout)) => {
+                let setups = self.setups(ctx, scene.triangle_count);
+                let with_setups = |label, layout, first_binding: u32, count: Option<&wgpu::Buffer>| {
+                    let mut entries = vec![
+                        wgpu::BindGroupEntry { binding: 0, resource: scene.triangles.as_entire_binding() },
+                        wgpu::BindGroupEntry { binding: 1, resource: frame.camera.as_entire_binding() },
+                        wgpu::BindGroupEntry { binding: first_binding, resource: setups.buffer.as_entire_binding() },
+                        wgpu::BindGroupEntry {
+                            binding: first_binding + 2,
+                            resource: setups.clipped.as_entire_binding(),
+                        },
+                    ];
+                    if let Some(count) = count {
+                        entries.push(wgpu::BindGroupEntry { binding: 9, resource: count.as_entire_binding() });
+                    }
+                    ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                        label: Some(label),
+                        layout,
+                        entries: &entries,
+                    })
+                };
+                // Bindings: setup writes 6 (setups), 8 (clipped), 9 (count); the raster reads 5 and 7.
+                let setup_group = with_setups("visibility_raster setup", setup_layout, 6, Some(&setups.clipped_count));
+                let raster_group = with_setups("visibility_raster", &self.raster_layout, 5, None);
+                encoder.clear_buffer(&setups.clipped_count, 0, None);
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("visibility_raster setup"),
+                    timestamp_writes: timing.map(|(query_set, i)| wgpu::ComputePassTimestampWrites {
+                        query_set,
+                        beginning_of_pass_write_index: Some(i),
+                        end_of_pass_write_index: None,
+                    }),
+                });
+                if scene.triangle_count > 0 {
+                    let groups = scene.triangle_count.div_ceil(SETUP_GROUP);
+                    let gx = groups.min(MAX_GROUPS_PER_DIMENSION);
+                    pass.set_pipeline(setup);
+                    pass.set_bind_group(0, &setup_group, &[]);
+                    pass.dispatch_workgroups(gx, groups.div_ceil(gx), 1);
+                }
+                raster_group
             }
-            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries: &entries })
+            _ => ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("visibility_raster (hardware interpolated)"),
+                layout: &self.raster_layout,
+                entries: &[
+                    wgpu::BindGroupEntry { binding: 0, resource: scene.triangles.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 1, resource: frame.camera.as_entire_binding() },
+                ],
+            }),
         };
-        // Bindings: setup writes 6 (setups), 8 (clipped), 9 (count); the raster reads 5 and 7.
-        let setup_group = with_setups("visibility_raster setup", &self.setup_layout, 6, Some(&setups.clipped_count));
-        let raster_group = with_setups("visibility_raster", &self.raster_layout, 5, None);
-        encoder.clear_buffer(&setups.clipped_count, 0, None);
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("visibility_raster setup"),
-                timestamp_writes: timing.map(|(query_set, i)| wgpu::ComputePassTimestampWrites {
-                    query_set,
-                    beginning_of_pass_write_index: Some(i),
-                    end_of_pass_write_index: None,
-                }),
-            });
-            if scene.triangle_count > 0 {
-                let groups = scene.triangle_count.div_ceil(SETUP_GROUP);
-                let gx = groups.min(MAX_GROUPS_PER_DIMENSION);
-                pass.set_pipeline(&self.setup);
-                pass.set_bind_group(0, &setup_group, &[]);
-                pass.dispatch_workgroups(gx, groups.div_ceil(gx), 1);
-            }
-        }
         let resolve_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("visibility_raster resolve"),
             layout: &self.resolve_layout,
@@ -411,7 +479,14 @@ impl VisibilityRasterStage {
                     }),
                     stencil_ops: None,
                 }),
-                timestamp_writes: None,
+                // The exact mode's first pass is the setup pass, which writes the start.
+                timestamp_writes: timing.filter(|_| self.setup.is_none()).map(|(query_set, i)| {
+                    wgpu::RenderPassTimestampWrites {
+                        query_set,
+                        beginning_of_pass_write_index: Some(i),
+                        end_of_pass_write_index: None,
+                    }
+                }),
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
@@ -419,7 +494,7 @@ impl VisibilityRasterStage {
                 pass.set_pipeline(&self.raster);
                 pass.set_bind_group(0, &raster_group, &[]);
                 // Saturating: a table that large exceeds the storage binding limits anyway.
-                let vertices = 3 * HARDWARE_TRIANGLES_PER_TRIANGLE;
+                let vertices = if self.setup.is_some() { 3 * HARDWARE_TRIANGLES_PER_TRIANGLE } else { 3 };
                 pass.draw(0..scene.triangle_count.saturating_mul(vertices), 0..1);
             }
         }
