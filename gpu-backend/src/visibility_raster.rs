@@ -64,6 +64,7 @@ const DEPTH_CLEAR: f32 = 1.0;
 /// Side of the resolve pass's square workgroup (`@workgroup_size(8, 8, 1)`).
 const RESOLVE_GROUP: u32 = 8;
 
+const COMMON: &str = include_str!("shaders/visibility_common.wgsl");
 const SHADER: &str = include_str!("shaders/visibility_raster.wgsl");
 const INTERPOLATED_SHADER: &str = include_str!("shaders/visibility_raster_interpolated.wgsl");
 
@@ -105,13 +106,15 @@ fn raster_constants() -> String {
 fn interpolated_shader_source(primitive_index: bool) -> String {
     if primitive_index {
         format!(
-            "enable primitive_index;\n{}",
+            "enable primitive_index;\n{COMMON}{}",
             INTERPOLATED_SHADER
                 .replace("TRIANGLE_ID_PARAMETER", "@builtin(primitive_index) primitive: u32,")
                 .replace("TRIANGLE_ID_EXPRESSION", "primitive")
         )
     } else {
-        INTERPOLATED_SHADER.replace("TRIANGLE_ID_PARAMETER", "").replace("TRIANGLE_ID_EXPRESSION", "in.triangle")
+        let body =
+            INTERPOLATED_SHADER.replace("TRIANGLE_ID_PARAMETER", "").replace("TRIANGLE_ID_EXPRESSION", "in.triangle");
+        format!("{COMMON}{body}")
     }
 }
 
@@ -129,7 +132,7 @@ pub fn shader_source(primitive_index: bool, early_depth_test: bool) -> String {
     let body = body
         .replace("EARLY_DEPTH_TEST_ATTRIBUTE", if early_depth_test { "@early_depth_test(greater_equal)" } else { "" });
     let enable = if primitive_index { "enable primitive_index;\n" } else { "" };
-    format!("{enable}{}{body}", raster_constants())
+    format!("{enable}{}{COMMON}{body}", raster_constants())
 }
 
 /// Render targets of one image size.

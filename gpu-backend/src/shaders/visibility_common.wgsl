@@ -1,0 +1,86 @@
+// visibility_raster, shared by both modes (gpu-backend/src/visibility_raster.rs puts it
+// in front of visibility_raster.wgsl or visibility_raster_interpolated.wgsl): the records,
+// the bindings of the scene and the camera, and the compute resolve of the render targets
+// into `array<GBufferTexel>`.
+
+struct TriangleRecord {
+    v0: vec3<f32>,
+    object: u32,
+    v1: vec3<f32>,
+    triangle: u32,
+    v2: vec3<f32>,
+    flags: u32,
+}
+
+struct CameraRecord {
+    view_proj: mat4x4<f32>,
+    inv_view_proj: mat4x4<f32>,
+    eye: vec3<f32>,
+    width: u32,
+    height: u32,
+    near: f32,
+    far: f32,
+    pad: u32,
+}
+
+struct GBufferTexel {
+    bary_u: f32,
+    bary_v: f32,
+    depth: f32,
+    triangle: u32,
+    object: u32,
+    flags: u32,
+}
+
+// hyrt_core::formats constants.
+const GBUF_HIT: u32 = 1u;
+const GBUF_RAY_TRACED: u32 = 2u;
+const GBUF_BACK_FACE: u32 = 4u;
+const TRI_RAY_TRACED: u32 = 1u;
+const INVALID_ID: u32 = 0xffffffffu;
+const F32_EXPONENT_MASK: u32 = 0x7f800000u;
+// A clip position outside the view volume (x > w): a triangle with a non-finite
+// vertex gets it at all three corners and is clipped away entirely.
+const OUTSIDE_CLIP: vec4<f32> = vec4<f32>(2.0, 2.0, 0.5, 1.0);
+
+// ---------------------------------------------------------------- raster pass
+
+@group(0) @binding(0) var<storage, read> triangles: array<TriangleRecord>;
+@group(0) @binding(1) var<uniform> camera: CameraRecord;
+
+fn is_finite4(p: vec4<f32>) -> bool {
+    let e = bitcast<vec4<u32>>(p) & vec4<u32>(F32_EXPONENT_MASK);
+    return all(e != vec4<u32>(F32_EXPONENT_MASK));
+}
+
+// ---------------------------------------------------------------- resolve pass
+
+// Bindings 0 and 1 (`triangles`, `camera`) are shared with the raster pass.
+@group(0) @binding(2) var id_target: texture_2d<u32>;
+@group(0) @binding(3) var surface_target: texture_2d<f32>;
+@group(0) @binding(4) var<storage, read_write> gbuffer: array<GBufferTexel>;
+
+@compute @workgroup_size(8, 8, 1)
+fn resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let width = camera.width;
+    let height = camera.height;
+    if gid.x >= width || gid.y >= height {
+        return;
+    }
+    let pixel = gid.y * width + gid.x;
+    let id = textureLoad(id_target, vec2<u32>(gid.xy), 0).r;
+    if id == 0u {
+        gbuffer[pixel] = GBufferTexel(0.0, 0.0, 1.0, INVALID_ID, INVALID_ID, 0u);
+        return;
+    }
+    let t = triangles[id - 1u];
+    let s = textureLoad(surface_target, vec2<u32>(gid.xy), 0);
+    var flags = GBUF_HIT;
+    if (t.flags & TRI_RAY_TRACED) != 0u {
+        flags |= GBUF_RAY_TRACED;
+    }
+    if s.w == 0.0 {
+        flags |= GBUF_BACK_FACE;
+    }
+    gbuffer[pixel] = GBufferTexel(s.x, s.y, s.z, t.triangle, t.object, flags);
+}
