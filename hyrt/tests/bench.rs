@@ -118,7 +118,10 @@ fn bench_cli_with_a_software_gpu_labels_it() {
     let short = if md.contains("SOFTWARE rasterizer") { "lavapipe" } else { "GPU" };
     assert!(md.contains(&format!("| {short} ms | {short} FPS |")), "{md}");
     assert!(md.contains(&format!("| default | {short} |")), "{md}");
-    assert!(md.contains(&format!("{short} time / CPU time")), "{md}");
+    // The raster peer: the device's own raster and hyrt's exact kernels, both measured.
+    assert!(md.contains(&format!("| {short} own / CPU | {short} ms, hyrt's exact kernels |")), "{md}");
+    let row = md.lines().find(|l| l.starts_with("| default | ") && l.matches('|').count() == 7).unwrap();
+    assert!(!row.contains(" - "), "both GPU modes measured: {row}");
 }
 
 #[test]
