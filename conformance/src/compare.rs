@@ -219,7 +219,8 @@ impl BufferComparison {
                 }
                 Word::Float(name) => {
                     let (ef, af) = (f32::from_bits(eb), f32::from_bits(ab));
-                    let ulp = ulp_distance(ef, af);
+                    // Bits decide: +0 against -0 is 0 ulp apart but not the same word (1 here).
+                    let ulp = if eb == ab { 0 } else { ulp_distance(ef, af).max(1) };
                     self.float_words += 1;
                     self.ulp_histogram[ulp_bucket(ulp)] += 1;
                     rec_max = rec_max.max(ulp);
@@ -488,6 +489,16 @@ mod tests {
         assert_eq!((ulp_bucket(2), ulp_bucket(3), ulp_bucket(4)), (2, 2, 3));
         assert_eq!(ulp_bucket(u64::MAX), ULP_BUCKETS - 1);
         assert_eq!(ulp_bucket_label(3), "4-7");
+    }
+
+    #[test]
+    fn the_sign_of_zero_is_a_difference() {
+        let e = frame(2, 1);
+        let mut a = e.clone();
+        a.final_image[1][0] = -0.0;
+        let c = compare_stages(&e, &a);
+        let fin = c.iter().find(|c| c.buffer == "final").unwrap();
+        assert!(!fin.is_exact() && fin.max_ulp() == 1, "{fin:?}");
     }
 
     #[test]

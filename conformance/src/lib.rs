@@ -51,9 +51,6 @@ pub mod compare;
 pub mod corpus;
 pub mod report;
 
-use hyrt_core::formats::{GBufferTexel, RayRecord, SurfaceRecord};
-use hyrt_core::frame::Frame;
-
 /// Map f32 bits to integers ordered like the floats (+0 and -0 both map to 0).
 #[inline]
 pub fn ordered_bits(x: f32) -> i64 {
@@ -75,82 +72,6 @@ pub fn ulp_distance(a: f32, b: f32) -> u64 {
     (ordered_bits(a) - ordered_bits(b)).unsigned_abs()
 }
 
-/// The first mismatch found between two buffers, with its index.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Mismatch {
-    /// Name of the buffer ("gbuffer", "rays", ...).
-    pub buffer: &'static str,
-    /// Element index (for per-pixel buffers: `y * width + x`).
-    pub index: usize,
-    /// Both values, formatted.
-    pub expected: String,
-    pub actual: String,
-}
-
-impl std::fmt::Display for Mismatch {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}[{}]: expected {}, got {}", self.buffer, self.index, self.expected, self.actual)
-    }
-}
-
-/// Summary of a comparison: how many elements differ, and the first one.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Comparison {
-    pub compared: usize,
-    pub mismatches: usize,
-    pub first: Option<Mismatch>,
-}
-
-impl Comparison {
-    /// True if nothing differs.
-    pub fn is_exact(&self) -> bool {
-        self.mismatches == 0
-    }
-}
-
-/// Compare two buffers element by element for bit-identity.
-pub fn compare_bits<T: bytemuck::Pod + std::fmt::Debug>(
-    buffer: &'static str,
-    expected: &[T],
-    actual: &[T],
-) -> Comparison {
-    let mut c = Comparison { compared: expected.len().max(actual.len()), ..Default::default() };
-    if expected.len() != actual.len() {
-        c.mismatches = c.compared;
-        c.first = Some(Mismatch {
-            buffer,
-            index: expected.len().min(actual.len()),
-            expected: format!("length {}", expected.len()),
-            actual: format!("length {}", actual.len()),
-        });
-        return c;
-    }
-    for (i, (e, a)) in expected.iter().zip(actual).enumerate() {
-        if bytemuck::bytes_of(e) != bytemuck::bytes_of(a) {
-            c.mismatches += 1;
-            if c.first.is_none() {
-                c.first = Some(Mismatch { buffer, index: i, expected: format!("{e:?}"), actual: format!("{a:?}") });
-            }
-        }
-    }
-    c
-}
-
-/// Compare every stage output of two frames bit for bit. Returns one comparison
-/// per buffer, in stage order.
-pub fn compare_frames(expected: &Frame, actual: &Frame) -> Vec<Comparison> {
-    vec![
-        compare_bits::<GBufferTexel>("gbuffer", &expected.gbuffer, &actual.gbuffer),
-        compare_bits::<SurfaceRecord>("surfaces", &expected.surfaces, &actual.surfaces),
-        compare_bits::<RayRecord>("rays", &expected.rays, &actual.rays),
-        compare_bits::<u32>("occluded", &expected.occluded, &actual.occluded),
-        compare_bits::<u8>("shadow", &expected.shadow, &actual.shadow),
-        compare_bits::<[f32; 4]>("rt", &expected.rt, &actual.rt),
-        compare_bits::<[f32; 4]>("raster", &expected.raster, &actual.raster),
-        compare_bits::<[f32; 4]>("final", &expected.final_image, &actual.final_image),
-    ]
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -162,14 +83,5 @@ mod tests {
         assert_eq!(ulp_distance(f32::NAN, 1.0), u64::MAX);
         assert_eq!(ulp_distance(f32::NAN, f32::NAN), 0);
         assert_eq!(ulp_distance(f32::MAX, f32::INFINITY), 1);
-    }
-
-    #[test]
-    fn compare_bits_reports_first_mismatch_location() {
-        let c = compare_bits::<u32>("ids", &[1, 2, 3, 4], &[1, 9, 3, 8]);
-        assert_eq!(c.mismatches, 2);
-        assert_eq!(c.first.as_ref().unwrap().index, 1);
-        assert!(compare_bits::<u32>("ids", &[1], &[1, 2]).first.unwrap().expected.contains("length"));
-        assert!(compare_bits::<f32>("d", &[0.0], &[-0.0]).mismatches == 1, "bit comparison sees the sign of zero");
     }
 }

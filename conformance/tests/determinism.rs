@@ -2,7 +2,7 @@
 //! gives identical bits in every stage's output (the corpus-wide version is in
 //! `corpus.rs`; this one checks BVH builds and reused buffers).
 
-use hyrt_conformance::compare_frames;
+use hyrt_conformance::compare::compare_stages;
 use hyrt_core::bvh::BvhPreset;
 use hyrt_core::formats::CameraRecord;
 use hyrt_core::frame::{Backend, FrameOptions};
@@ -29,8 +29,8 @@ fn determinism_default_scene_same_bits_across_runs_and_threads() {
     let b = one.render(&p1, &cam, &opts).unwrap();
     let c = two.render(&p2, &cam, &opts).unwrap();
     for (x, y, what) in [(&a, &b, "run twice"), (&a, &c, "1 vs 2 threads")] {
-        for cmp in compare_frames(x, y) {
-            assert!(cmp.is_exact(), "{what}: {} mismatches, first {}", cmp.mismatches, cmp.first.unwrap());
+        for cmp in compare_stages(x, y) {
+            assert!(cmp.is_exact(), "{what}: {} / {} differs: {cmp:?}", cmp.stage, cmp.buffer);
         }
     }
 }
@@ -53,8 +53,8 @@ fn determinism_reused_frame_buffers_give_the_same_bits() {
     let other = r.prepare(WorldGeometry::build(&other), BvhPreset::default());
     r.render_into(&other, &small, &FrameOptions::default(), &mut reused).unwrap();
     r.render_into(&prepared, &small, &opts, &mut reused).unwrap();
-    for cmp in compare_frames(&fresh, &reused) {
-        assert!(cmp.is_exact(), "{} mismatches, first {}", cmp.mismatches, cmp.first.unwrap());
+    for cmp in compare_stages(&fresh, &reused) {
+        assert!(cmp.is_exact(), "{} / {} differs: {cmp:?}", cmp.stage, cmp.buffer);
     }
     assert_eq!(fresh.stats.covered_pixels, reused.stats.covered_pixels);
     assert_eq!(fresh.stats.rays_per_kind, reused.stats.rays_per_kind);
