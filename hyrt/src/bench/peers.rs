@@ -150,36 +150,37 @@ fn timed_run<T: Clone + Send>(
 }
 
 /// The shadow rays of a real frame of the scene (the CPU backend, every stage's output kept).
-pub fn frame_shadow_rays(row: &PeerScene) -> Result<Vec<RayRecord>, BenchError> {
+pub fn frame_shadow_rays(row: &PeerScene<'_>) -> Result<Vec<RayRecord>, BenchError> {
     let mut backend = hyrt_cpu::backend::CpuBackend::new(None);
     let mut frame = Frame::default();
     hyrt_core::frame::Backend::render_into(
         &mut backend,
-        &row.prepared,
+        row.prepared,
         &row.camera,
         &FrameOptions { weight: 1.0, stage_outputs: true },
         &mut frame,
     )
-    .map_err(|source| BenchError::Render { scene: row.name.clone(), source })?;
+    .map_err(|source| BenchError::Render { scene: row.name.to_string(), source })?;
     Ok(frame.rays)
 }
 
-/// A scene the peers trace: prepared, with the camera of the image they trace.
-pub struct PeerScene {
-    pub name: String,
-    pub prepared: PreparedScene,
+/// A scene the peers trace: prepared, with the camera of the image they trace (borrowed
+/// from a Table 2 row, or from the extra scenes a full run loads).
+pub struct PeerScene<'a> {
+    pub name: &'a str,
+    pub prepared: &'a PreparedScene,
     pub camera: CameraRecord,
 }
 
-impl PeerScene {
-    fn of_row(row: &Table2Row) -> PeerScene {
-        PeerScene { name: row.name.clone(), prepared: row.prepared.clone(), camera: row.camera }
+impl<'a> PeerScene<'a> {
+    fn of_row(row: &'a Table2Row) -> PeerScene<'a> {
+        PeerScene { name: &row.name, prepared: &row.prepared, camera: row.camera }
     }
 }
 
 fn measure_scene(
     options: &BenchOptions,
-    row: &PeerScene,
+    row: &PeerScene<'_>,
     progress: &ProgressBar,
 ) -> Result<(ScenePeers, Option<String>), BenchError> {
     let g: &WorldGeometry = &row.prepared.geometry;
@@ -198,7 +199,7 @@ fn measure_scene(
         Some(embree_version())
     };
     let mut out = ScenePeers {
-        scene: row.name.clone(),
+        scene: row.name.to_string(),
         shadow: Vec::new(),
         primary: Vec::new(),
         hyrt_build_ms: row.prepared.bvh_build_ms,
@@ -307,17 +308,22 @@ fn peer_rows<'a>(options: &BenchOptions, table2: &'a Table2) -> Vec<&'a Table2Ro
 
 /// Measure every peer.
 pub fn run(options: &BenchOptions, table2: &Table2, progress: &ProgressBar) -> Result<Peers, BenchError> {
-    let mut rows: Vec<PeerScene> = peer_rows(options, table2).into_iter().map(PeerScene::of_row).collect();
+    let table_rows = peer_rows(options, table2);
     // The full run also traces Sponza alone and the dragon (the traversal issue's scenes),
     // at the Table 2 image size.
-    if !options.quick && rows.iter().any(|r| r.name != "default") {
+    let mut extra = Vec::new();
+    if !options.quick && table_rows.iter().any(|r| r.name != "default") {
         for s in super::scenes::load_manifests(PEER_EXTRA_MANIFESTS, options.scenes, &mut Vec::new()) {
             let Some(camera) = s.scene.camera else { continue };
             let (w, h) = table2.size;
-            let prepared = super::prepare(&s.scene, options.frame_threads);
-            rows.push(PeerScene { name: s.name, prepared, camera: CameraRecord::new(&camera, w, h) });
+            extra.push((s.name, super::prepare(&s.scene, options.frame_threads), CameraRecord::new(&camera, w, h)));
         }
     }
+    let rows: Vec<PeerScene<'_>> = table_rows
+        .into_iter()
+        .map(PeerScene::of_row)
+        .chain(extra.iter().map(|(name, prepared, camera)| PeerScene { name, prepared, camera: *camera }))
+        .collect();
     progress.inc_length((rows.len() * options.peer_threads.len()) as u64);
     let mut scenes = Vec::new();
     let mut embree_missing = None;
