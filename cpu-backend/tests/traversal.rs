@@ -389,3 +389,40 @@ fn backend_frames_are_identical_with_scalar_and_simd_shadow_rays() {
     assert_eq!(bits(&simd.final_image), bits(&scalar.final_image));
     assert!(simd.occluded.contains(&1) && simd.occluded.contains(&0));
 }
+
+/// The any-hit packets try the previous packet's occluder first (see `packet::occluded`):
+/// shadow rays from a fine floor grid, row by row (consecutive packets share occluders),
+/// to a point light above a board of many small triangles, a large tilted quad and a
+/// sphere. Some packets are stopped whole by the cached triangle, some only in part; every
+/// third ray ends below the occluders (the cached triangle lies beyond its interval), and
+/// with spatial splits (`Slow`) a triangle sits in several leaves, so the cached leaf's box
+/// may miss a lane the triangle would stop.
+#[test]
+fn occluder_cache_cases_match_scalar() {
+    let board = Mat4::from_translation(Vec3::new(-1.0, 1.0, 0.5)) * Mat4::from_scale(Vec3::splat(3.0));
+    let quad = Mat4::from_translation(Vec3::new(1.5, 1.2, -1.0))
+        * Mat4::from_rotation_x(0.4)
+        * Mat4::from_scale(Vec3::splat(2.5));
+    let sphere = Mat4::from_translation(Vec3::new(0.5, 1.5, 1.5)) * Mat4::from_scale(Vec3::splat(0.6));
+    let g = mesh_scene(vec![
+        (Mesh::grid("floor", 4), Mat4::from_scale(Vec3::splat(8.0))),
+        (Mesh::grid("board", 24), board),
+        (Mesh::grid("quad", 1), quad),
+        (Mesh::uv_sphere("sphere", 12, 8), sphere),
+    ]);
+    let light = Vec3::new(0.3, 4.0, 0.2);
+    let mut rays = Vec::new();
+    let n = 96;
+    for j in 0..n {
+        for i in 0..n {
+            let p = Vec3::new(i as f32 / n as f32 * 8.0 - 4.0, 0.0, j as f32 / n as f32 * 8.0 - 4.0);
+            let t_max = if (i + j) % 3 == 0 { 0.2 } else { 1.0 };
+            rays.push(ray(p, light - p, 1e-4, t_max));
+        }
+    }
+    for preset in [BvhPreset::Medium, BvhPreset::Slow] {
+        let bvh = Bvh::build(&g, preset);
+        let occluded = check(&g, &bvh, &rays);
+        assert!(occluded > rays.len() / 8 && occluded < rays.len() / 2, "{preset:?}: {occluded} of {}", rays.len());
+    }
+}

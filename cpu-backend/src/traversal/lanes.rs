@@ -42,6 +42,8 @@ pub(crate) trait Lanes: Copy {
     fn abs(a: Self::F) -> Self::F;
     /// The lanes' sign bits as a bit mask (lane `i` is bit `i`).
     fn bits(mask: Self::F) -> u32;
+    /// All ones where the lane's sign bit is set (`-0` and NaNs with the bit included).
+    fn sign_mask(a: Self::F) -> Self::F;
 
     #[inline(always)]
     fn gt(a: Self::F, b: Self::F) -> Self::F {
@@ -140,6 +142,10 @@ impl Lanes for Portable {
     #[inline(always)]
     fn bits(m: Self::F) -> u32 {
         m.iter().enumerate().fold(0, |acc, (i, x)| acc | ((x.to_bits() >> 31) << i))
+    }
+    #[inline(always)]
+    fn sign_mask(a: Self::F) -> Self::F {
+        std::array::from_fn(|i| mask(a[i].is_sign_negative()))
     }
 }
 
@@ -245,6 +251,11 @@ mod x86 {
             // SAFETY: SSE2 is baseline.
             unsafe { (_mm_movemask_ps(m[0]) | (_mm_movemask_ps(m[1]) << 4)) as u32 }
         }
+        #[inline(always)]
+        fn sign_mask(a: Self::F) -> Self::F {
+            // SAFETY: SSE2 is baseline. Arithmetic shift right by 31 spreads the sign bit.
+            unsafe { a.map(|a| _mm_castsi128_ps(_mm_srai_epi32::<31>(_mm_castps_si128(a)))) }
+        }
     }
 
     /// One AVX2 register. Only constructed behind `is_x86_feature_detected!("avx2")`, and
@@ -342,6 +353,11 @@ mod x86 {
         fn bits(m: Self::F) -> u32 {
             // SAFETY: see the type's docs.
             unsafe { _mm256_movemask_ps(m) as u32 }
+        }
+        #[inline(always)]
+        fn sign_mask(a: Self::F) -> Self::F {
+            // SAFETY: see the type's docs. Arithmetic shift right by 31 spreads the sign bit.
+            unsafe { _mm256_castsi256_ps(_mm256_srai_epi32::<31>(_mm256_castps_si256(a))) }
         }
     }
 }

@@ -32,7 +32,7 @@
 //! and independent of the thread count.
 
 mod lanes;
-mod packet;
+pub mod packet;
 
 use rayon::prelude::*;
 
@@ -160,7 +160,8 @@ pub fn occluded_batch_into(
     traversal: Traversal,
     out: &mut Vec<u32>,
 ) {
-    out.clear();
+    // Every element is written below: resizing alone keeps a reused buffer's memory
+    // untouched until the chunks write it (no serial clear of megabytes).
     out.resize(rays.len(), SHADOW_VISIBLE);
     let level = traversal.level();
     out.par_chunks_mut(TRAVERSAL_CHUNK).zip(rays.par_chunks(TRAVERSAL_CHUNK)).for_each(|(out, rays)| match level {
@@ -190,8 +191,7 @@ pub fn closest_hit_batch_into(
     traversal: Traversal,
     out: &mut Vec<Option<ClosestHit>>,
 ) {
-    out.clear();
-    out.resize(rays.len(), None);
+    out.resize(rays.len(), None); // every element is written below, as above
     let level = traversal.level();
     out.par_chunks_mut(TRAVERSAL_CHUNK).zip(rays.par_chunks(TRAVERSAL_CHUNK)).for_each(|(out, rays)| match level {
         None => {
@@ -262,6 +262,7 @@ unsafe fn closest_hit_packets_avx2(
 
 #[inline(always)]
 fn occluded_packets<L: Lanes>(bvh: &Bvh, triangles: &[TriangleRecord], rays: &[RayRecord], out: &mut [u32]) {
+    let mut cache = None;
     for (out, rays) in out.chunks_mut(LANES).zip(rays.chunks(LANES)) {
         let Some(p) = Packet::<L>::new(rays) else {
             for (o, r) in out.iter_mut().zip(rays) {
@@ -269,7 +270,7 @@ fn occluded_packets<L: Lanes>(bvh: &Bvh, triangles: &[TriangleRecord], rays: &[R
             }
             continue;
         };
-        let hit = packet::occluded(bvh, &p);
+        let hit = packet::occluded(bvh, &p, &mut cache);
         for (i, o) in out.iter_mut().enumerate() {
             *o = if hit & (1 << i) != 0 { SHADOW_OCCLUDED } else { SHADOW_VISIBLE };
         }
@@ -293,4 +294,19 @@ fn closest_hit_packets<L: Lanes>(
         let hits = packet::closest_hit(bvh, &p);
         out.copy_from_slice(&hits[..out.len()]);
     }
+}
+
+/// probe
+pub fn prep_only(rays: &[RayRecord]) -> u32 {
+    unsafe { prep_only_avx2(rays) }
+}
+#[target_feature(enable = "avx2")]
+unsafe fn prep_only_avx2(rays: &[RayRecord]) -> u32 {
+    let mut acc = 0u32;
+    for r in rays.chunks(LANES) {
+        if let Some(p) = Packet::<lanes::Avx2>::new(r) {
+            acc = acc.wrapping_add(p.valid ^ std::hint::black_box(&p).valid);
+        }
+    }
+    acc
 }
