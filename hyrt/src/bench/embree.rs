@@ -40,6 +40,9 @@ const RTC_FORMAT_UINT3: c_uint = 0x5003;
 const RTC_FORMAT_FLOAT3: c_uint = 0x9003;
 /// `RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT`: what `rtcInitIntersectContext` sets.
 const RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT: c_uint = 0;
+/// `RTC_INTERSECT_CONTEXT_FLAG_COHERENT`: the rays of a packet are coherent (Embree may then
+/// trace a packet with its frustum-based coherent traversal).
+const RTC_INTERSECT_CONTEXT_FLAG_COHERENT: c_uint = 1;
 /// Packet width of [`EmbreeScene::occluded8`] and [`EmbreeScene::intersect8`].
 pub const PACKET: usize = 8;
 
@@ -163,8 +166,12 @@ extern "C" {
 /// `rtcInitIntersectContext` is a static inline function in the header; this is its body
 /// for `RTC_MAX_INSTANCE_LEVEL_COUNT == 1`, `RTC_MIN_WIDTH == 0`.
 fn init_context() -> RTCIntersectContext {
+    context(false)
+}
+
+fn context(coherent: bool) -> RTCIntersectContext {
     RTCIntersectContext {
-        flags: RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT,
+        flags: if coherent { RTC_INTERSECT_CONTEXT_FLAG_COHERENT } else { RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT },
         filter: std::ptr::null(),
         inst_id: [RTC_INVALID_GEOMETRY_ID],
     }
@@ -313,10 +320,19 @@ impl EmbreeScene {
         (valid, p)
     }
 
-    /// Any hit with 8-wide packets of consecutive rays (`rtcOccluded8`); the last packet
-    /// may be partial.
+    /// Any hit with 8-wide packets of consecutive rays (`rtcOccluded8`, the default
+    /// incoherent context); the last packet may be partial.
     pub fn occluded8(&self, rays: &[RayRecord], out: &mut [bool]) {
-        let mut ctx = init_context();
+        self.occluded8_with(rays, out, false)
+    }
+
+    /// [`EmbreeScene::occluded8`] with the context flagged coherent.
+    pub fn occluded8_coherent(&self, rays: &[RayRecord], out: &mut [bool]) {
+        self.occluded8_with(rays, out, true)
+    }
+
+    fn occluded8_with(&self, rays: &[RayRecord], out: &mut [bool], coherent: bool) {
+        let mut ctx = context(coherent);
         for (o, r) in out.chunks_mut(PACKET).zip(rays.chunks(PACKET)) {
             let (valid, mut p) = Self::packet(r);
             // SAFETY: 32-byte aligned valid mask and packet, committed scene.
@@ -341,9 +357,19 @@ impl EmbreeScene {
         }
     }
 
-    /// Closest hit with 8-wide packets of consecutive rays (`rtcIntersect8`).
+    /// Closest hit with 8-wide packets of consecutive rays (`rtcIntersect8`, the default
+    /// incoherent context).
     pub fn intersect8(&self, rays: &[RayRecord], out: &mut [Option<u32>]) {
-        let mut ctx = init_context();
+        self.intersect8_with(rays, out, false)
+    }
+
+    /// [`EmbreeScene::intersect8`] with the context flagged coherent.
+    pub fn intersect8_coherent(&self, rays: &[RayRecord], out: &mut [Option<u32>]) {
+        self.intersect8_with(rays, out, true)
+    }
+
+    fn intersect8_with(&self, rays: &[RayRecord], out: &mut [Option<u32>], coherent: bool) {
+        let mut ctx = context(coherent);
         for (o, r) in out.chunks_mut(PACKET).zip(rays.chunks(PACKET)) {
             let (valid, ray) = Self::packet(r);
             let mut rh = RTCRayHit8 { ray, hit: RTCHit8::default() };
@@ -390,19 +416,25 @@ mod tests {
         let mut h8 = vec![None; rays.len()];
         e.intersect1(&rays, &mut h1);
         e.intersect8(&rays, &mut h8);
+        let mut h8c = vec![None; rays.len()];
+        e.intersect8_coherent(&rays, &mut h8c);
         let hyrt: Vec<Option<u32>> =
             rays.iter().map(|r| bvh.closest_hit(&g.triangles, r).map(|h| h.triangle)).collect();
         let mut o1 = vec![false; rays.len()];
         let mut o8 = vec![false; rays.len()];
         e.occluded1(&rays, &mut o1);
         e.occluded8(&rays, &mut o8);
+        let mut o8c = vec![false; rays.len()];
+        e.occluded8_coherent(&rays, &mut o8c);
         assert!(hyrt.iter().any(Option::is_some) && hyrt.iter().any(Option::is_none));
         // Hit or miss agree on every ray (the default scene has no ray through a shared
         // edge at this size); the 1-wide and 8-wide calls agree exactly.
         let disagree = hyrt.iter().zip(&h1).filter(|(a, b)| a.is_some() != b.is_some()).count();
         assert_eq!(disagree, 0);
         assert_eq!(h1, h8);
+        assert_eq!(h1, h8c);
         assert_eq!(o1, o8);
+        assert_eq!(o1, o8c);
         assert!(o1.iter().zip(&h1).all(|(o, h)| *o == h.is_some()));
     }
 }
