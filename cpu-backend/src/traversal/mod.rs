@@ -17,7 +17,16 @@
 //! instruction count.)
 //!
 //! Consecutive rays make a packet; the stage's lists are light-major then pixel-major, so
-//! a packet is a short run of neighbouring pixels and their rays are coherent. Lanes
+//! a packet is a short run of neighbouring pixels and their rays are coherent. (Packets of
+//! 4x2 pixel tiles were measured: the teaser's shadow rays, reordered into tiles
+//! beforehand, trace about 8% faster, but reordering inside the batch, a second pass over
+//! 64-byte records, cost more than it saved: 28.6 against 30.4 Mrays/s, one thread. The
+//! way to that 8% is a compaction that writes its list in tile order, in both backends.)
+//!
+//! Any hit: each packet first tries the triangle that stopped a lane of the previous
+//! packet of its chunk (neighbouring pixels, same light: often the same occluder), which
+//! changes no result (the argument is at `packet::occluded`); 12 to 18% faster on the
+//! teaser's and Sponza's shadow rays. Lanes
 //! diverge gracefully: each stack entry carries the mask of lanes that entered the node,
 //! so a lane drops out of subtrees it misses, and rays with different direction signs
 //! take per-lane near planes. A packet with fewer than two valid rays is traced one ray at
