@@ -41,7 +41,7 @@
 //! and independent of the thread count.
 
 mod lanes;
-pub mod packet;
+mod packet;
 
 use rayon::prelude::*;
 

@@ -392,7 +392,6 @@ impl<L: Lanes> Packet<'_, L> {
 
 /// The triangle that last stopped a lane of an any-hit packet: the leaf node holding it
 /// and its slot in `Bvh::leaf_triangles` (see [`occluded`]).
-pub static PROBE: [std::sync::atomic::AtomicU64; 3] = [const { std::sync::atomic::AtomicU64::new(0) }; 3];
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Occluder {
     leaf: u32,
@@ -420,7 +419,6 @@ pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, p: &Packet<L>, cache: &mut Option<Oc
         let m = p.enter(&nodes[c.leaf as usize], p.box_t_max) & p.valid;
         if m != 0 {
             done = p.intersect(m, &bvh.leaf_triangles[c.slot as usize]).0;
-            PROBE[(done != 0) as usize + (done == p.valid) as usize].fetch_add(1, std::sync::atomic::Ordering::Relaxed);
             if done == p.valid {
                 return done;
             }
