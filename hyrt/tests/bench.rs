@@ -80,6 +80,9 @@ fn bench_cli_writes_the_report_and_plots() {
     // Peers at both thread counts; the GPU was switched off and the report says so.
     assert!(md.contains("| hyrt `Bvh::occluded` per ray (scalar reference) | 1 |"), "{md}");
     assert!(md.contains("| hyrt `Bvh::closest_hit` per ray (scalar reference) | 2 |"), "{md}");
+    // The frame per stage with each shadow traversal (the default scene: no teaser here).
+    assert!(md.contains("### default: the CPU frame per stage, shadow rays scalar (before)"), "{md}");
+    assert!(md.contains("| scalar (ms) |") && md.contains("| scalar / packets |"), "{md}");
     // The packets the stage uses, against the scalar reference: no ray differs.
     let packets = format!("| hyrt packets of 8 (`{}`) | 2 |", hyrt_cpu::traversal::Traversal::simd().name());
     let row = md.lines().find(|l| l.starts_with(&packets)).unwrap_or_else(|| panic!("no {packets} in\n{md}"));
@@ -87,6 +90,7 @@ fn bench_cli_writes_the_report_and_plots() {
     assert!(md.contains("GPU backend not measured"), "{md}");
     if cfg!(feature = "embree") {
         assert!(md.contains("| Embree `rtcOccluded8` (packets of 8) | 2 |"), "{md}");
+        assert!(md.contains("| Embree `rtcOccluded8` (packets of 8, coherent context) | 2 |"), "{md}");
         assert!(md.contains("| Embree `rtcIntersect8` (packets of 8) | 1 |"), "{md}");
     } else {
         assert!(md.contains("Embree: not built"), "{md}");

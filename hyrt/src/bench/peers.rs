@@ -29,7 +29,7 @@ use indicatif::ProgressBar;
 use rayon::prelude::*;
 
 use super::report::{count, num, Section, Table};
-use super::stats::mrays_per_s;
+use super::stats::{mrays_per_s, FrameSummary};
 use super::table2::{Table2, Table2Row};
 use super::{median_ms, BenchError, BenchOptions};
 
@@ -90,9 +90,19 @@ pub struct RasterRow {
     pub gpu_interpolated_ms: Option<f64>,
 }
 
+/// The CPU frame of one scene with the `shadow_rays` stage tracing one ray at a time (the
+/// scalar reference, as before the SIMD traversal) and in packets (as it renders).
+pub struct FrameTraversals {
+    pub scene: String,
+    /// (traversal name, per-stage medians), scalar first.
+    pub runs: Vec<(String, FrameSummary)>,
+}
+
 /// All peer measurements.
 pub struct Peers {
     pub scenes: Vec<ScenePeers>,
+    /// The teaser's (or the first scene's) CPU frame per stage, scalar against packets.
+    pub frames: Option<FrameTraversals>,
     pub raster: Vec<RasterRow>,
     /// Short name of the GPU backend ("lavapipe" or "GPU"), when measured.
     pub gpu_short: Option<String>,
@@ -341,6 +351,20 @@ pub fn run(options: &BenchOptions, table2: &Table2, progress: &ProgressBar) -> R
         scenes.push(p);
         embree_missing = embree_missing.or(missing);
     }
+    // The frame with each shadow traversal, on the scene of the goals.
+    let mut frames = None;
+    if let Some(r) = rows.iter().find(|r| r.name == "teaser").or(rows.first()) {
+        progress.set_message(format!("peers: {} CPU frames, scalar and packet shadow rays", r.name));
+        let mut runs = Vec::new();
+        for traversal in [Traversal::Scalar, Traversal::simd()] {
+            let mut cpu = hyrt_cpu::backend::CpuBackend::new(options.frame_threads);
+            cpu.set_shadow_traversal(traversal);
+            let (m, _) = super::measure_frames(&mut cpu, r.prepared, &r.camera, options.frames)
+                .map_err(|source| BenchError::Render { scene: r.name.to_string(), source })?;
+            runs.push((traversal.name(), m));
+        }
+        frames = Some(FrameTraversals { scene: r.name.to_string(), runs });
+    }
     // The device as a plain rasterizer of the same pass: a second GPU backend in the
     // hardware-interpolated mode, on the Table 2 frames.
     let mut plain = None;
@@ -363,7 +387,46 @@ pub fn run(options: &BenchOptions, table2: &Table2, progress: &ProgressBar) -> R
         raster.push(RasterRow { scene: r.name.clone(), cpu_ms, gpu_ms, gpu_interpolated_ms });
     }
     let cpu_threads = table2.rows.first().map_or(0, |r| r.cpu.1.threads);
-    Ok(Peers { scenes, raster, gpu_short: table2.gpu.as_ref().map(|g| g.1.clone()), cpu_threads, embree_missing })
+    Ok(Peers {
+        scenes,
+        frames,
+        raster,
+        gpu_short: table2.gpu.as_ref().map(|g| g.1.clone()),
+        cpu_threads,
+        embree_missing,
+    })
+}
+
+/// The per-stage table of [`FrameTraversals`], with its heading and the ratio of the
+/// scalar to the packet times (how much faster each stage got).
+fn frame_traversal_table(f: &FrameTraversals, threads: usize, (w, h): (u32, u32)) -> String {
+    let mut cols = vec!["shadow traversal".to_string()];
+    cols.extend(Stage::ALL.iter().filter(|s| **s != Stage::BvhBuild).map(|s| s.name().to_string()));
+    cols.push("frame".into());
+    let mut t = Table::new(cols);
+    let cells = |m: &FrameSummary| {
+        let mut c: Vec<f64> =
+            Stage::ALL.iter().filter(|s| **s != Stage::BvhBuild).map(|s| m.ms(*s).unwrap_or(f64::NAN)).collect();
+        c.push(m.frame_ms);
+        c
+    };
+    for (name, m) in &f.runs {
+        let mut row = vec![format!("{name} (ms)")];
+        row.extend(cells(m).into_iter().map(|v| num(v, 2)));
+        t.row(row);
+    }
+    if let [(_, before), (_, after)] = &f.runs[..] {
+        let mut row = vec!["scalar / packets".to_string()];
+        row.extend(cells(before).into_iter().zip(cells(after)).map(|(b, a)| num(b / a, 2)));
+        t.row(row);
+    }
+    format!(
+        "### {}: the CPU frame per stage, shadow rays scalar (before) and in packets (after)\n\n\
+         {w}x{h}, {threads} threads, medians of frames; only `shadow_rays` changes between the rows (both \
+         give the same bits).\n\n{}",
+        f.scene,
+        t.to_markdown()
+    )
 }
 
 fn ray_table(runs: &[RayRun], primary: bool) -> Table {
@@ -429,6 +492,9 @@ impl Peers {
                 count(s.primary_hits as u64),
                 ray_table(&s.primary, true).to_markdown()
             );
+        }
+        if let Some(f) = &self.frames {
+            let _ = writeln!(md, "\n{}", frame_traversal_table(f, self.cpu_threads, (w, h)));
         }
         let _ = writeln!(md, "\n### Visibility raster: CPU against the GPU backend\n");
         match &self.gpu_short {
@@ -586,6 +652,7 @@ mod tests {
                 occluded: 0,
                 primary_hits: 0,
             }],
+            frames: None,
             raster: vec![RasterRow {
                 scene: scene.into(),
                 cpu_ms: 10.0,
@@ -629,6 +696,24 @@ mod tests {
         assert_eq!(g[1][3], "0.25");
         // The single-figure goals stay on the teaser.
         assert!(g[2][0].contains("teaser") && g[2][0].contains("rtcOccluded1"), "{:?}", g[2]);
+    }
+
+    #[test]
+    fn frame_table_has_every_frame_stage_and_the_ratio_row() {
+        let summary = |shadow: f64| FrameSummary {
+            frames: 3,
+            stage_ms: Stage::ALL.iter().map(|&s| (s, if s == Stage::ShadowRays { shadow } else { 1.0 })).collect(),
+            frame_ms: 6.0 + shadow,
+        };
+        let f = FrameTraversals {
+            scene: "teaser".into(),
+            runs: vec![("scalar".into(), summary(40.0)), ("packet-avx2".into(), summary(10.0))],
+        };
+        let md = frame_traversal_table(&f, 2, (1280, 720));
+        assert!(md.starts_with("### teaser: the CPU frame per stage"), "{md}");
+        assert!(!md.contains("bvh_build"), "{md}");
+        assert!(md.contains("| scalar (ms) | 1.00 | 1.00 | 1.00 | 40.00 | 1.00 | 1.00 | 1.00 | 46.00 |"), "{md}");
+        assert!(md.contains("| scalar / packets | 1.00 | 1.00 | 1.00 | 4.00 | 1.00 | 1.00 | 1.00 | 2.88 |"), "{md}");
     }
 
     #[test]
