@@ -9,6 +9,8 @@
 //! exclusive prefix sum over u32 flags; it equals
 //! [`hyrt_core::kernels::scan::compact_sequential`] for every input.
 
+use std::sync::atomic::{AtomicU8, Ordering};
+
 use glam::Vec3;
 use hyrt_core::formats::{LightRecord, RayRecord, SurfaceRecord, INVALID_ID, LIGHT_DIRECTIONAL, RAY_KIND_SHADOW};
 use hyrt_core::frame::{SHADOW_LIT, SHADOW_NO_RAY, SHADOW_OCCLUDED};
@@ -160,12 +162,26 @@ pub fn shadow_mask(rays: &[RayRecord], occluded: &[u32], pixels: usize, lights: 
 }
 
 /// [`shadow_mask`] into a caller-owned buffer, reusing its allocation.
+///
+/// In parallel: each ray writes its own (pixel, light) cell. The list must hold at most
+/// one ray per pair, as compaction's does (its pairs strictly increase, checked in debug
+/// builds); of two rays for one pair, either result could land.
 pub fn shadow_mask_into(rays: &[RayRecord], occluded: &[u32], pixels: usize, lights: usize, mask: &mut Vec<u8>) {
     assert_eq!(rays.len(), occluded.len(), "one occlusion result per ray");
+    debug_assert!(
+        rays.windows(2).all(|w| (w[0].light, w[0].pixel) < (w[1].light, w[1].pixel)),
+        "shadow_mask: rays not in compaction's order (light, then pixel, each pair once)"
+    );
     mask.clear();
     mask.resize(pixels * lights, SHADOW_NO_RAY);
-    for (r, &o) in rays.iter().zip(occluded) {
+    // SAFETY: `AtomicU8` has the size, alignment and bit validity of `u8`, and `mask` stays
+    // mutably borrowed while `cells` lives (what the unstable `AtomicU8::from_mut_slice`
+    // does). Relaxed stores are plain byte stores; the scope's join orders them before
+    // the return.
+    let cells: &[AtomicU8] = unsafe { &*(mask.as_mut_slice() as *mut [u8] as *const [AtomicU8]) };
+    rays.par_iter().zip(occluded).with_min_len(4096).for_each(|(r, &o)| {
         debug_assert!(r.light != INVALID_ID);
-        mask[r.pixel as usize * lights + r.light as usize] = if o != 0 { SHADOW_OCCLUDED } else { SHADOW_LIT };
-    }
+        let value = if o != 0 { SHADOW_OCCLUDED } else { SHADOW_LIT };
+        cells[r.pixel as usize * lights + r.light as usize].store(value, Ordering::Relaxed);
+    });
 }
