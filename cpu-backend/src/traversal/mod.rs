@@ -36,6 +36,16 @@
 //! 4-lane registers, the x86-64 baseline), else plain arrays; chosen at run time, stable
 //! Rust only. All three give the same bits.
 //!
+//! Where the time goes (counted per packet of the shadow rays, one thread): the teaser
+//! visits 18 inner nodes and tests 5 triangles, Sponza 16 and 3, and hyrt's packets beat
+//! Embree's there; the bunny (close up) visits 35 and tests 29, the dragon 16 and 12, and
+//! there hyrt is at 0.9 to 1.0 times Embree. Those rays leave dense scanned meshes: the
+//! leaves around each origin are entered and their triangles tested, all rejected (the
+//! hit would be at `t` near 0, under `t_min`), and a triangle test costs about as much as
+//! two box tests. Skipping tests early when no lane passes the edge tests pays off for
+//! closest hit, not here (see `Packet::intersect`). The node-to-node dependency chain (box
+//! loads from L3: the teaser's nodes are 2 MB) is the rest.
+//!
 //! Work is split into chunks of [`TRAVERSAL_CHUNK`] rays run in parallel on the current
 //! rayon pool (use [`with_threads`] for a given thread count); results are in ray order
 //! and independent of the thread count.
