@@ -5,7 +5,8 @@
 //! Both give the same answer for every ray: the packet code runs the scalar kernels'
 //! IEEE operations lane by lane (see `packet` for the argument and the one closest-hit
 //! rounding corner case that `BVH_CULL_SLACK` documents). The tests in
-//! `cpu-backend/tests/traversal.rs` compare them ray by ray.
+//! `cpu-backend/tests/traversal.rs` compare them ray by ray, and
+//! `conformance/tests/traversal.rs` over the whole conformance corpus.
 //!
 //! Packets need no per-scene structure: they walk the core binary BVH as it is (sibling
 //! pairs share a cache line, so one packet box test per child reads one line), which
