@@ -293,41 +293,32 @@ fn closest_hit_chunk(
     )
 }
 
-/// The AVX2 lanes compiled with AVX-512 available ([`SimdLevel::Avx512`]; `Avx2`'s
-/// contract holds, AVX-512F implies AVX2).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,avx512f,avx512vl,avx512dq,avx512bw")]
-unsafe fn occluded_packets_avx512(bvh: &Bvh, triangles: &[TriangleRecord], rays: &[RayRecord], out: &mut [u32]) {
-    occluded_packets::<lanes::Avx2>(bvh, triangles, rays, out)
+/// The entry points of the AVX2 lanes compiled with the given target features: any hit
+/// and closest hit over one chunk. Callers must have detected the features.
+macro_rules! avx2_entry_points {
+    ($features:literal, $occluded:ident, $closest:ident) => {
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        unsafe fn $occluded(bvh: &Bvh, triangles: &[TriangleRecord], rays: &[RayRecord], out: &mut [u32]) {
+            occluded_packets::<lanes::Avx2>(bvh, triangles, rays, out)
+        }
+
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        unsafe fn $closest(
+            bvh: &Bvh,
+            triangles: &[TriangleRecord],
+            rays: &[RayRecord],
+            out: &mut [Option<ClosestHit>],
+        ) {
+            closest_hit_packets::<lanes::Avx2>(bvh, triangles, rays, out)
+        }
+    };
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,avx512f,avx512vl,avx512dq,avx512bw")]
-unsafe fn closest_hit_packets_avx512(
-    bvh: &Bvh,
-    triangles: &[TriangleRecord],
-    rays: &[RayRecord],
-    out: &mut [Option<ClosestHit>],
-) {
-    closest_hit_packets::<lanes::Avx2>(bvh, triangles, rays, out)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn occluded_packets_avx2(bvh: &Bvh, triangles: &[TriangleRecord], rays: &[RayRecord], out: &mut [u32]) {
-    occluded_packets::<lanes::Avx2>(bvh, triangles, rays, out)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn closest_hit_packets_avx2(
-    bvh: &Bvh,
-    triangles: &[TriangleRecord],
-    rays: &[RayRecord],
-    out: &mut [Option<ClosestHit>],
-) {
-    closest_hit_packets::<lanes::Avx2>(bvh, triangles, rays, out)
-}
+avx2_entry_points!("avx2", occluded_packets_avx2, closest_hit_packets_avx2);
+// [`SimdLevel::Avx512`]: the same lanes (`Avx2`'s contract holds: AVX-512F implies AVX2).
+avx2_entry_points!("avx2,avx512f,avx512vl,avx512dq,avx512bw", occluded_packets_avx512, closest_hit_packets_avx512);
 
 #[inline(always)]
 fn occluded_packets<L: Lanes>(bvh: &Bvh, triangles: &[TriangleRecord], rays: &[RayRecord], out: &mut [u32]) {
