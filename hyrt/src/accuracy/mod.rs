@@ -1,5 +1,5 @@
 //! Speed against error: every configuration of the pipeline the paper leaves open,
-//! timed and scored against an f64 reference renderer ([`reference`]).
+//! timed and scored against an f64 reference renderer ([`reference`](mod@reference)).
 //!
 //! Groups of configurations (each a full CPU frame built from the `hyrt_cpu` stage
 //! functions, with one step changed; the pipeline itself is untouched):
