@@ -251,6 +251,18 @@ fn degenerate_triangles_and_invalid_rays() {
     rays.push(ray(nan, Vec3::NEG_Y, 0.0, 1.0));
     let occluded = check(&g, &bvh, &rays);
     assert!(occluded > 10, "{occluded}");
+    // The same rejected rays inside packets, between valid ones: the packet's lane
+    // validity must match the scalar rejection lane by lane.
+    let invalid = rays[rays.len() - 5..].to_vec();
+    let mut mixed = Vec::new();
+    for (k, r) in rays[..72].iter().enumerate() {
+        mixed.push(*r);
+        if k % 3 == 1 {
+            mixed.push(invalid[k % invalid.len()]);
+        }
+    }
+    let occluded = check(&g, &bvh, &mixed);
+    assert!(occluded > 10, "{occluded}");
 }
 
 #[test]
