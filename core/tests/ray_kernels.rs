@@ -747,3 +747,34 @@ proptest! {
         prop_assert!(h.is_none(), "{o:?} {d:?}: {h:?}");
     }
 }
+
+/// The conservative `t > error` bound of the watertight test does not depend on the
+/// length of the ray direction: a triangle 0.05 to 100 scene units in front of the origin
+/// is hit with directions of length 1e-6 to 1e6 times the scene's scale, in scenes of
+/// scale 1e-6 to 1e6. pbrt-v4's bound, which this kernel followed before, adds the z
+/// scaled by 1 / d.z (units of t) to world-space x and y: with directions 1e-6 times the
+/// scene's distances it was 0.96 t at one scene unit and 226 t at 100, so those hits were
+/// rejected.
+#[test]
+fn conservative_t_bound_holds_for_any_direction_length() {
+    for scene_exp in [-6i32, -3, 0, 3, 6] {
+        let s = 10f32.powi(scene_exp);
+        let tri = [Vec3::new(-s, -s, 0.3 * s), Vec3::new(s, -s, 0.3 * s), Vec3::new(0.0, s, 0.3 * s)];
+        // Slightly oblique, so that the shear is not trivial, towards a point well inside.
+        let (target, unit) = (Vec3::new(0.1, -0.2, 0.3) * s, Vec3::new(0.01, -0.02, 1.0).normalize());
+        for dist in [0.05f32, 1.0, 100.0] {
+            let origin = target - unit * (dist * s);
+            for dir_exp in [-6i32, -3, 0, 3, 6] {
+                let len = 10f32.powi(dir_exp) * s;
+                let dir = unit * len;
+                let want_t = dist * s / len;
+                let case = format!("scene 1e{scene_exp}, {dist} units away, |d| 1e{dir_exp} x scale");
+                let hit = intersect_triangle_watertight(origin, dir, 0.0, f32::INFINITY, tri[0], tri[1], tri[2]);
+                let hit = hit.unwrap_or_else(|| panic!("{case}: no hit"));
+                // Tolerance: f32 rounding of the origin, direction and vertices (the hit
+                // distance is recovered from sums of products of them), far below 1e-4.
+                assert!((hit.t - want_t).abs() <= want_t * 1e-4, "{case}: t {} vs {want_t}", hit.t);
+            }
+        }
+    }
+}

@@ -312,15 +312,16 @@ impl<'a, L: Lanes> Packet<'a, L> {
         let mut hit = L::bits(ok) & active & !exact;
         let (mut t_out, mut u_out, mut v_out) = (t, L::mul(e1, inv_det), L::mul(e2, inv_det));
         if hit != 0 {
-            // Conservative t > 0 (pbrt-v4): the same expression tree as the scalar kernel.
+            // Conservative t > 0: the same expression tree as the scalar kernel.
             // In lanes still hit every value below is finite, so MAXPS equals f32::max.
             let amax3 = |a: L::F, b: L::F, c: L::F| L::max(L::max(L::abs(a), L::abs(b)), L::abs(c));
             let max_zt = amax3(z0, z1, z2);
             let delta_z = L::mul(L::splat(GAMMA3), max_zt);
             let max_xt = amax3(p0[0], p1[0], p2[0]);
             let max_yt = amax3(p0[1], p1[1], p2[1]);
-            let delta_x = L::mul(L::splat(GAMMA5), L::add(max_xt, max_zt));
-            let delta_y = L::mul(L::splat(GAMMA5), L::add(max_yt, max_zt));
+            let max_zw = amax3(p0[2], p1[2], p2[2]);
+            let delta_x = L::mul(L::splat(GAMMA5), L::add(max_xt, max_zw));
+            let delta_y = L::mul(L::splat(GAMMA5), L::add(max_yt, max_zw));
             let delta_e = L::mul(
                 L::splat(2.0),
                 L::add(

@@ -230,8 +230,10 @@ fn watertight_hit(r: WatertightRay, t_min: f32, t_max: f32, v0: vec3<f32>, v1: v
     let delta_z = GAMMA_3 * max_zt;
     let max_xt = max(max(abs(p0.x), abs(p1.x)), abs(p2.x));
     let max_yt = max(max(abs(p0.y), abs(p1.y)), abs(p2.y));
-    let delta_x = GAMMA_5 * (max_xt + max_zt);
-    let delta_y = GAMMA_5 * (max_yt + max_zt);
+    // World-space z of the translated vertices (see the core kernel for why not max_zt).
+    let max_zw = max(max(abs(p0.z), abs(p1.z)), abs(p2.z));
+    let delta_x = GAMMA_5 * (max_xt + max_zw);
+    let delta_y = GAMMA_5 * (max_yt + max_zw);
     let delta_e = 2.0 * (GAMMA_2 * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
     let max_e = max(max(abs(e0), abs(e1)), abs(e2));
     let delta_t = 3.0 * (GAMMA_3 * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * abs(inv_det);
