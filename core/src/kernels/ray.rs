@@ -214,21 +214,22 @@ impl WatertightRay {
         // Conservative t > 0: reject hits closer to the origin than the error bound of t
         // (pbrt-v4 `IntersectTriangle`, "Ensure that computed triangle t is
         // conservatively greater than zero"; PBR 4th ed. section 6.8.7), with one change:
-        // the error of the sheared x and y (`x - (d.x / d.z) z`, |d.x / d.z| <= 1) is
-        // bounded with the world-space z of the translated vertices, as in the book's
-        // derivation, where pbrt-v4's code adds the z already scaled by 1 / d.z (units of
-        // t). That mix made the bound depend on the direction's length: with directions
-        // 1e-6 times the scene's distances it exceeded t and rejected real hits (226 t at
-        // 100 scene units), with directions 1e6 times longer it fell below the error.
-        // Now the bound is invariant under scaling the direction
+        // the error of the sheared x (`x - s z`, `s = d.x / d.z`, and likewise y) is
+        // bounded by `gamma(5) (|x| + |s| |z|)` with the world-space z of the translated
+        // vertices: the book's derivation before it bounds `|s|` by 1. pbrt-v4's code adds
+        // the z already scaled by 1 / d.z (units of t) instead, which made the bound depend
+        // on the direction's length: with directions 1e-6 times the scene's distances it
+        // exceeded t and rejected real hits (226 t at 100 scene units); with directions
+        // longer than the distances (shadow rays to a light several units away) it fell
+        // below the error. Now the bound is invariant under scaling the direction
         // (`conservative_t_bound_holds_for_any_direction_length`).
         let max_zt = z0.abs().max(z1.abs()).max(z2.abs());
         let delta_z = gamma(3) * max_zt;
         let max_xt = p0.x.abs().max(p1.x.abs()).max(p2.x.abs());
         let max_yt = p0.y.abs().max(p1.y.abs()).max(p2.y.abs());
         let max_zw = p0.z.abs().max(p1.z.abs()).max(p2.z.abs());
-        let delta_x = gamma(5) * (max_xt + max_zw);
-        let delta_y = gamma(5) * (max_yt + max_zw);
+        let delta_x = gamma(5) * (max_xt + self.shear.x.abs() * max_zw);
+        let delta_y = gamma(5) * (max_yt + self.shear.y.abs() * max_zw);
         let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
         let max_e = e0.abs().max(e1.abs()).max(e2.abs());
         let delta_t = 3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();

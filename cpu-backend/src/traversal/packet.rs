@@ -320,8 +320,8 @@ impl<'a, L: Lanes> Packet<'a, L> {
             let max_xt = amax3(p0[0], p1[0], p2[0]);
             let max_yt = amax3(p0[1], p1[1], p2[1]);
             let max_zw = amax3(p0[2], p1[2], p2[2]);
-            let delta_x = L::mul(L::splat(GAMMA5), L::add(max_xt, max_zw));
-            let delta_y = L::mul(L::splat(GAMMA5), L::add(max_yt, max_zw));
+            let delta_x = L::mul(L::splat(GAMMA5), L::add(max_xt, L::mul(L::abs(self.shear[0]), max_zw)));
+            let delta_y = L::mul(L::splat(GAMMA5), L::add(max_yt, L::mul(L::abs(self.shear[1]), max_zw)));
             let delta_e = L::mul(
                 L::splat(2.0),
                 L::add(

@@ -232,8 +232,8 @@ fn watertight_hit(r: WatertightRay, t_min: f32, t_max: f32, v0: vec3<f32>, v1: v
     let max_yt = max(max(abs(p0.y), abs(p1.y)), abs(p2.y));
     // World-space z of the translated vertices (see the core kernel for why not max_zt).
     let max_zw = max(max(abs(p0.z), abs(p1.z)), abs(p2.z));
-    let delta_x = GAMMA_5 * (max_xt + max_zw);
-    let delta_y = GAMMA_5 * (max_yt + max_zw);
+    let delta_x = GAMMA_5 * (max_xt + abs(r.shear.x) * max_zw);
+    let delta_y = GAMMA_5 * (max_yt + abs(r.shear.y) * max_zw);
     let delta_e = 2.0 * (GAMMA_2 * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
     let max_e = max(max(abs(e0), abs(e1)), abs(e2));
     let delta_t = 3.0 * (GAMMA_3 * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * abs(inv_det);
