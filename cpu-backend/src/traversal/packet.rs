@@ -426,29 +426,11 @@ pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, p: &Packet<L>, cache: &mut Option<Oc
     let Some(root) = nodes.first() else { return 0 };
     let mut done = 0u32;
     if let (Some(c), true) = (*cache, p.finite_inv) {
-        let leaf = &nodes[c.leaf as usize];
-        let mut m = p.enter(leaf, p.box_t_max) & p.valid;
+        let m = p.enter(&nodes[c.leaf as usize], p.box_t_max) & p.valid;
         if m != 0 {
-            done = p.intersect::<false>(m, &bvh.leaf_triangles[c.slot as usize]).0;
+            done = occluded_leaf(bvh, p, c.leaf as usize, c.slot, m, cache);
             if done == p.valid {
                 return done;
-            }
-            m &= !done;
-            if m != 0 {
-                for slot in leaf.left_or_first..leaf.left_or_first + leaf.count {
-                    if slot == c.slot {
-                        continue;
-                    }
-                    let hit = p.intersect::<false>(m, &bvh.leaf_triangles[slot as usize]).0;
-                    done |= hit;
-                    m &= !hit;
-                    if m == 0 {
-                        break;
-                    }
-                }
-                if done == p.valid {
-                    return done;
-                }
             }
         }
     }
@@ -462,18 +444,7 @@ pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, p: &Packet<L>, cache: &mut Option<Oc
     loop {
         let node = &nodes[n];
         if node.is_leaf() {
-            let first = node.left_or_first;
-            for slot in first..first + node.count {
-                let hit = p.intersect::<false>(m, &bvh.leaf_triangles[slot as usize]).0;
-                if hit != 0 {
-                    done |= hit;
-                    m &= !hit;
-                    *cache = Some(Occluder { leaf: n as u32, slot });
-                    if m == 0 {
-                        break;
-                    }
-                }
-            }
+            done |= occluded_leaf(bvh, p, n, node.left_or_first, m, cache);
             if done == p.valid {
                 return done;
             }
@@ -496,6 +467,37 @@ pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, p: &Packet<L>, cache: &mut Option<Oc
             }
         }
     }
+}
+
+/// Any hit of the lanes `m` against the triangles of leaf `n`, from slot `start` on
+/// (wrapping round to the leaf's first slot), until every lane is stopped: the lanes hit.
+/// The last triangle that stops a lane becomes the `cache`.
+#[inline(always)]
+fn occluded_leaf<L: Lanes>(
+    bvh: &Bvh,
+    p: &Packet<L>,
+    n: usize,
+    start: u32,
+    mut m: u32,
+    cache: &mut Option<Occluder>,
+) -> u32 {
+    let leaf = &bvh.nodes[n];
+    let (first, end) = (leaf.left_or_first, leaf.left_or_first + leaf.count);
+    let mut hits = 0;
+    let mut slot = start;
+    for _ in 0..leaf.count {
+        let hit = p.intersect::<false>(m, &bvh.leaf_triangles[slot as usize]).0;
+        if hit != 0 {
+            hits |= hit;
+            m &= !hit;
+            *cache = Some(Occluder { leaf: n as u32, slot });
+            if m == 0 {
+                break;
+            }
+        }
+        slot = if slot + 1 == end { first } else { slot + 1 };
+    }
+    hits
 }
 
 /// Closest hit for every valid lane, lane `i` equal to `Bvh::closest_hit` for ray `i`
