@@ -400,13 +400,14 @@ pub fn run(options: &BenchOptions, table2: &Table2, progress: &ProgressBar) -> R
 /// The per-stage table of [`FrameTraversals`], with its heading and the ratio of the
 /// scalar to the packet times (how much faster each stage got).
 fn frame_traversal_table(f: &FrameTraversals, threads: usize, (w, h): (u32, u32)) -> String {
+    // The per-frame stages (`bvh_build` runs once per scene), then the frame.
+    let stages: Vec<Stage> = Stage::ALL.into_iter().filter(|s| *s != Stage::BvhBuild).collect();
     let mut cols = vec!["shadow traversal".to_string()];
-    cols.extend(Stage::ALL.iter().filter(|s| **s != Stage::BvhBuild).map(|s| s.name().to_string()));
+    cols.extend(stages.iter().map(|s| s.name().to_string()));
     cols.push("frame".into());
     let mut t = Table::new(cols);
     let cells = |m: &FrameSummary| {
-        let mut c: Vec<f64> =
-            Stage::ALL.iter().filter(|s| **s != Stage::BvhBuild).map(|s| m.ms(*s).unwrap_or(f64::NAN)).collect();
+        let mut c: Vec<f64> = stages.iter().map(|s| m.ms(*s).unwrap_or(f64::NAN)).collect();
         c.push(m.frame_ms);
         c
     };
