@@ -87,10 +87,11 @@ fn camera(eye: Vec3, target: Vec3, near: f32, far: f32) -> Camera {
 /// *at* rounding boundaries, where two implementations disagree if any.
 fn unproject(cam: &Camera, width: u32, height: u32, wx: f64, wy: f64, depth: f64) -> Vec3 {
     let rec = CameraRecord::new(cam, width, height);
+    // The record's matrix is eye-relative: unproject to `p - eye`, then add the eye.
     let inv = DMat4::from_cols_array(&rec.view_proj.map(|x| x as f64)).inverse();
     let ndc = DVec4::new(wx / width as f64 * 2.0 - 1.0, 1.0 - wy / height as f64 * 2.0, depth, 1.0);
     let p = inv * ndc;
-    (p.truncate() / p.w).as_vec3()
+    (p.truncate() / p.w + Vec3::from(rec.eye).as_dvec3()).as_vec3()
 }
 
 /// Two triangles over the window rectangle `[x0, x1] x [y0, y1]` at NDC depth `depth`.
@@ -662,7 +663,7 @@ mod tests {
         let cam = camera(Vec3::new(0.0, 0.0, 4.0), Vec3::ZERO, 0.1, 100.0);
         let p = unproject(&cam, 64, 48, 10.5, 20.5, 0.9);
         let rec = CameraRecord::new(&cam, 64, 48);
-        let c = Mat4::from_cols_array(&rec.view_proj) * p.extend(1.0);
+        let c = Mat4::from_cols_array(&rec.view_proj) * (p - Vec3::from(rec.eye)).extend(1.0);
         let (x, y) = ((c.x / c.w * 0.5 + 0.5) * 64.0, (0.5 - c.y / c.w * 0.5) * 48.0);
         // f32 rounding of the world position and of the projection: well under 1/256 px.
         const PROJECTION_ROUNDING_PX: f32 = 1e-4;

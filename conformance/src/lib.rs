@@ -8,6 +8,8 @@
 //!   counts, ray-list keys, shadow visibility) must be identical; float words are
 //!   compared in ulp with a histogram and the worst case; a pixel whose primary
 //!   visibility differs is reported once, in `visibility_raster`.
+//! - [`leak`]: the leak corpus: closed shells with lights sealed inside (nothing outside
+//!   may be lit) or outside, from the origin to 1e6, and the leak count.
 //! - [`report`]: running the corpus on two backends, the report (`report.md`, difference
 //!   images; also `hyrt conformance --out DIR`), and the recorded deviations.
 //!
@@ -49,6 +51,7 @@
 
 pub mod compare;
 pub mod corpus;
+pub mod leak;
 pub mod report;
 
 /// Map f32 bits to integers ordered like the floats (+0 and -0 both map to 0).

@@ -209,6 +209,20 @@ pub fn render_case(backend: &mut dyn Backend, prepared: &PreparedScene, case: &C
     backend.render(prepared, &camera, &opts).map_err(|e| e.to_string())
 }
 
+/// The GPU backend for the conformance tests (software adapters allowed: lavapipe in CI).
+/// Without an adapter it panics when `CI` is set (CI installs lavapipe: a GPU test must
+/// fail there rather than skip) and otherwise says SKIPPED and returns `None`.
+pub fn gpu_for_tests() -> Option<hyrt_gpu::backend::GpuBackend> {
+    match hyrt_gpu::backend::GpuBackend::new(hyrt_gpu::AdapterPolicy::AllowSoftware) {
+        Ok(g) => Some(g),
+        Err(e) if std::env::var_os("CI").is_some() => panic!("CI needs a GPU adapter (lavapipe): {e}"),
+        Err(e) => {
+            eprintln!("SKIPPED: no GPU adapter: {e}");
+            None
+        }
+    }
+}
+
 /// Render a case on two backends with every stage output.
 pub fn render_pair(
     a: &mut dyn Backend,

@@ -6,28 +6,16 @@
 
 use hyrt_conformance::compare::compare_stages;
 use hyrt_conformance::corpus::corpus;
-use hyrt_conformance::report::{known_deviations_path, render_case, render_pair, run_case, KnownDeviations, Report};
+use hyrt_conformance::report::{
+    gpu_for_tests, known_deviations_path, render_case, render_pair, run_case, KnownDeviations, Report,
+};
 use hyrt_core::bvh::BvhPreset;
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_cpu::backend::CpuBackend;
-use hyrt_gpu::backend::GpuBackend;
-use hyrt_gpu::AdapterPolicy;
-
-/// The GPU backend for tests: fails in CI without an adapter, skips visibly elsewhere.
-fn gpu() -> Option<GpuBackend> {
-    match GpuBackend::new(AdapterPolicy::AllowSoftware) {
-        Ok(g) => Some(g),
-        Err(e) if std::env::var_os("CI").is_some() => panic!("CI needs a GPU adapter (lavapipe): {e}"),
-        Err(e) => {
-            eprintln!("SKIPPED: no GPU adapter: {e}");
-            None
-        }
-    }
-}
 
 #[test]
 fn conformance_gpu_matches_cpu_on_every_stage_of_the_corpus() {
-    let Some(mut gpu) = gpu() else { return };
+    let Some(mut gpu) = gpu_for_tests() else { return };
     let mut cpu = CpuBackend::new(Some(2));
     let candidate = format!("gpu: {}", gpu.describe());
     let results = corpus().iter().map(|case| run_case(&mut cpu, &mut gpu, case)).collect();
@@ -74,7 +62,7 @@ fn determinism_cpu_same_bits_twice_and_on_1_or_2_threads_over_the_corpus() {
 
 #[test]
 fn determinism_gpu_same_bits_twice_over_the_corpus() {
-    let Some(mut gpu) = gpu() else { return };
+    let Some(mut gpu) = gpu_for_tests() else { return };
     let cpu = CpuBackend::new(Some(2));
     for case in corpus() {
         let p = cpu.prepare(WorldGeometry::build(&case.scene), BvhPreset::default());

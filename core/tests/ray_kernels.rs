@@ -10,8 +10,10 @@ use hyrt_core::bvh::{Bvh, BvhPreset, ClosestHit};
 use hyrt_core::formats::{RayRecord, TriangleRecord, INVALID_ID, RAY_KIND_PRIMARY, RAY_KIND_SHADOW, TRI_RAY_TRACED};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::ray::{
-    intersect_triangle_watertight, offset_ray_origin, ray_aabb_conservative, safe_inverse_dir, TriangleHit,
+    intersect_triangle_watertight, offset_ray_origin, offset_ray_origin_integer_ulps, ray_aabb_conservative,
+    safe_inverse_dir, TriangleHit,
 };
+use hyrt_core::kernels::barycentric::{position_error_bound, reconstruct_position};
 use hyrt_core::scene::{Material, Mesh, Object, ObjectSource, RenderMode, Scene};
 use proptest::prelude::*;
 
@@ -579,8 +581,10 @@ proptest! {
 
 /// A hit point as the renderer computes it: barycentric combination in f32, in this
 /// order (w v0 + u v1 + v v2).
-fn bary_point(t: [Vec3; 3], u: f32, v: f32) -> Vec3 {
-    t[0] * (1.0 - u - v) + t[1] * u + t[2] * v
+/// The point at barycentrics `(u, v)` as `reconstruction` computes it, with its error
+/// bound (the record's `position_error`, the largest component).
+fn bary_point(t: [Vec3; 3], u: f32, v: f32) -> (Vec3, f32) {
+    (reconstruct_position(u, v, t[0], t[1], t[2]), position_error_bound(u, v, t[0], t[1], t[2]).max_element())
 }
 
 /// The renderer's geometric normal: `WorldGeometry::build`'s face normal.
@@ -604,6 +608,22 @@ fn placed_triangle(centre: Vec3, scale: f32, a: Vec3, b: Vec3, c: Vec3) -> Optio
     (n != Vec3::ZERO && area2 >= 0.05 * longest * longest).then_some(t)
 }
 
+/// A triangle placed at `10^dist_exp` along `dir_c` with scale `10^scale_exp`
+/// ([`placed_triangle`]) and the reconstructed point at barycentrics `bary` (folded into
+/// the triangle) with its error bound.
+fn point_on_placed_triangle(
+    dir_c: Vec3,
+    dist_exp: f32,
+    scale_exp: f32,
+    corners: [Vec3; 3],
+    bary: [f32; 2],
+) -> Option<([Vec3; 3], Vec3, f32)> {
+    let t = placed_triangle(dir_c * 10f32.powf(dist_exp), 10f32.powf(scale_exp), corners[0], corners[1], corners[2])?;
+    let (u, v) = if bary[0] + bary[1] > 1.0 { (1.0 - bary[0], 1.0 - bary[1]) } else { (bary[0], bary[1]) };
+    let (p, e) = bary_point(t, u, v);
+    Some((t, p, e))
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 512, ..ProptestConfig::default() })]
 
@@ -620,20 +640,46 @@ proptest! {
         out in unit_dir(),
         cos_min in prop_oneof![Just(0.05f32), Just(0.5)],
     ) {
-        let centre = dir_c * 10f32.powf(dist_exp);
-        let scale = 10f32.powf(scale_exp);
-        let Some(t) = placed_triangle(centre, scale, a, b, c) else { return Ok(()) };
-        let (u, v) = if bary[0] + bary[1] > 1.0 { (1.0 - bary[0], 1.0 - bary[1]) } else { (bary[0], bary[1]) };
-        let p = bary_point(t, u, v);
+        let Some((t, p, e)) = point_on_placed_triangle(dir_c, dist_exp, scale_exp, [a, b, c], bary) else { return Ok(()) };
         let n = face_normal(t);
         for side in [n, -n] {
             // A direction into `side`'s half space, at least `cos_min` away from grazing.
             let mut d = out;
             if d.dot(side) < 0.0 { d = -d; }
             if d.dot(side) < cos_min { d = (d + side * cos_min * 2.0).normalize(); }
-            let o = offset_ray_origin(p, side);
-            let h = intersect_triangle_watertight(o, d, 0.0, f32::INFINITY, t[0], t[1], t[2]);
-            prop_assert!(h.is_none(), "self hit {h:?}: tri {t:?} p {p:?} o {o:?} d {d:?}");
+            for (method, o) in [("error bound", offset_ray_origin(p, e, side)), ("integer ulps", offset_ray_origin_integer_ulps(p, side))] {
+                let h = intersect_triangle_watertight(o, d, 0.0, f32::INFINITY, t[0], t[1], t[2]);
+                prop_assert!(h.is_none(), "{method}: self hit {h:?}: tri {t:?} p {p:?} o {o:?} d {d:?}");
+            }
+        }
+    }
+
+    /// The error-bound offset puts the origin strictly on the chosen side of the
+    /// triangle's exact plane (decided in f64, where the plane through the f32 vertices is
+    /// exact to 2^-50 relative), and moves it by at most a few ulps of the coordinates:
+    /// `OFFSET_ERROR_SCALE * |n|_1 <= 1.74` error bounds plus one step per coordinate.
+    #[test]
+    fn error_bound_offset_crosses_the_exact_plane_by_a_few_ulps(
+        dir_c in unit_dir(),
+        dist_exp in prop_oneof![Just(f32::NEG_INFINITY), 0.0f32..6.0],
+        scale_exp in -3.0f32..3.0,
+        a in unit_dir(), b in unit_dir(), c in unit_dir(),
+        bary in [0.0f32..1.0, 0.0f32..1.0],
+    ) {
+        let Some((t, p, e)) = point_on_placed_triangle(dir_c, dist_exp, scale_exp, [a, b, c], bary) else { return Ok(()) };
+        let n = face_normal(t);
+        let [d0, d1, d2] = t.map(|x| x.as_dvec3());
+        let exact_n = (d1 - d0).cross(d2 - d0);
+        for side in [n, -n] {
+            let o = offset_ray_origin(p, e, side);
+            let dist = (o.as_dvec3() - d0).dot(exact_n) * exact_n.dot(side.as_dvec3()).signum();
+            prop_assert!(dist > 0.0, "origin {o:?} not beyond the plane of {t:?} (p {p:?}, error {e})");
+            let ulp = |x: f32| (f32::from_bits(x.abs().to_bits() + 1) - x.abs()) as f64;
+            for i in 0..3 {
+                let moved = (o[i] as f64 - p[i] as f64).abs();
+                prop_assert!(moved <= 1.75 * e as f64 * (1.0 + 1e-6) + 2.0 * ulp(o[i].abs().max(p[i].abs())),
+                    "axis {i}: moved {moved} for error {e}");
+            }
         }
     }
 
@@ -661,12 +707,12 @@ proptest! {
             let Some(tri) = placed_triangle(Vec3::ZERO, 1.0, tri[0], tri[1], tri[2]) else { continue };
             let n = face_normal(tri);
             let up = if n.dot(normal) < 0.0 { -n } else { n };
-            let p = bary_point(tri, bary[0] * 0.5, bary[1] * 0.5);
+            let (p, e) = bary_point(tri, bary[0] * 0.5, bary[1] * 0.5);
             let light = p + up * (height * scale);
-            let o = offset_ray_origin(p, up);
-            // The light must lie beyond the offset origin (the offset is 256 ulps, about
-            // 2 units at 1e5): a light closer to the surface than that is behind the
-            // origin and no shadow ray can reach it.
+            let o = offset_ray_origin(p, e, up);
+            // The light must lie beyond the offset origin (a few ulps of the coordinates
+            // with the error-bound offset): a light closer to the surface than that is
+            // behind the origin and no shadow ray can reach it.
             if (light - p).dot(up) < 4.0 * (o - p).dot(up) { continue; }
             let mut r = ray(o, light - o, 0.0, 1.0);
             r.kind = RAY_KIND_SHADOW;
@@ -777,4 +823,38 @@ fn conservative_t_bound_holds_for_any_direction_length() {
             }
         }
     }
+}
+
+/// `next_float_up` / `next_float_down` (pbrt-v4's `NextFloatUp` / `NextFloatDown`) at
+/// zeros, signs and infinities; the error-bound offset of pinned points.
+#[test]
+fn pinned_error_bound_offsets() {
+    use hyrt_core::kernels::ray::{next_float_down, next_float_up, OFFSET_ERROR_SCALE};
+    assert_eq!(next_float_up(0.0).to_bits(), 1);
+    assert_eq!(next_float_up(-0.0).to_bits(), 1);
+    assert_eq!(next_float_down(0.0).to_bits(), 0x8000_0001);
+    assert_eq!(next_float_up(1.0).to_bits(), 1.0f32.to_bits() + 1);
+    assert_eq!(next_float_up(-1.0).to_bits(), (-1.0f32).to_bits() - 1);
+    assert_eq!(next_float_down(-1.0).to_bits(), (-1.0f32).to_bits() + 1);
+    assert_eq!(next_float_up(f32::INFINITY), f32::INFINITY);
+    assert_eq!(next_float_down(f32::NEG_INFINITY), f32::NEG_INFINITY);
+    assert_eq!(next_float_up(f32::MAX), f32::INFINITY);
+    // A zero normal (degenerate triangle) or a zero error bound leaves the point.
+    let p = Vec3::new(1e5, -3.0, 0.5);
+    assert_eq!(offset_ray_origin(p, 0.01, Vec3::ZERO), p);
+    assert_eq!(offset_ray_origin(p, 0.0, Vec3::Y), p);
+    // Axis-aligned: only y moves, by the scaled bound and one more step up.
+    let o = offset_ray_origin(p, 0.01, Vec3::Y);
+    assert_eq!((o.x, o.z), (p.x, p.z));
+    assert_eq!(o.y, next_float_up(-3.0 + 0.01 * OFFSET_ERROR_SCALE));
+    // At 1e5 the offset of a reconstructed point is a few ulps (0.0078 each), where
+    // Wachter and Binder's 256 ulps are 2 units.
+    let t = [Vec3::new(1e5, 0.0, 0.0), Vec3::new(1e5 + 1.0, 0.0, 0.0), Vec3::new(1e5, 0.0, 1.0)];
+    let (q, e) = bary_point(t, 0.25, 0.25);
+    let o = offset_ray_origin(q, e, Vec3::Y);
+    assert!(o.y > 0.0 && o.y < 8.0 * 0.0078, "{o:?} (error {e})");
+    let w = offset_ray_origin_integer_ulps(q, Vec3::Y);
+    assert!(w.x == q.x && (w.y - q.y) < 1e-3, "near zero W-B moves y by 2^-16: {w:?}");
+    let w = offset_ray_origin_integer_ulps(q, Vec3::X);
+    assert!((w.x - q.x - 2.0).abs() < 1e-6, "256 ulps of 1e5 = 2 units: {w:?}");
 }

@@ -82,7 +82,9 @@ pub fn needs_shadow_ray(s: &SurfaceRecord, light: &LightRecord) -> bool {
 #[inline]
 pub fn shadow_ray(s: &SurfaceRecord, light: &LightRecord, light_index: u32, pixel: u32) -> RayRecord {
     let p = Vec3::from(s.position);
-    let origin = offset_ray_origin(p, Vec3::from(s.geometric_normal));
+    // Off the surface by the reconstructed point's own error bound, on the side the
+    // viewer saw (the normal is oriented by reconstruction from the raster's facing).
+    let origin = offset_ray_origin(p, s.position_error, Vec3::from(s.geometric_normal));
     let (direction, t_max) = if light.kind == LIGHT_DIRECTIONAL {
         (-Vec3::from(light.position_or_direction), f32::INFINITY)
     } else {

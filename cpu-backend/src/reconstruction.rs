@@ -5,12 +5,12 @@
 //! buffer. Pure per-pixel map over [`hyrt_core::kernels::barycentric`].
 
 use glam::Vec3;
-use hyrt_core::formats::{GBufferTexel, SurfaceRecord};
+use hyrt_core::formats::{GBufferTexel, SurfaceRecord, GBUF_BACK_FACE};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::barycentric::{
     geometric_normal, interpolate_normal, position_error_bound, reconstruct_position,
 };
-use hyrt_core::kernels::shading::face_forward;
+use hyrt_core::kernels::shading::orient_to_seen_side;
 use rayon::prelude::*;
 
 /// Rebuild the surface at one G-buffer texel.
@@ -25,9 +25,11 @@ pub fn reconstruct_texel(t: &GBufferTexel, geometry: &WorldGeometry, eye: Vec3) 
     let err = position_error_bound(t.bary_u, t.bary_v, v0, v1, v2).max_element();
     let ng = geometric_normal(v0, v1, v2);
     let ns = interpolate_normal(t.bary_u, t.bary_v, geometry.normals[gi], ng);
-    // A degenerate triangle has no geometric normal: shade with the shading normal.
+    // The side the raster saw, exactly (the sign of the snapped triangle's area).
+    let (ng, ns) = orient_to_seen_side(ng, ns, t.flags & GBUF_BACK_FACE != 0);
+    // A degenerate triangle without vertex normals has no normal at all: shade it as
+    // facing the viewer.
     let ns = if ns == Vec3::ZERO { (eye - p).normalize_or(Vec3::Y) } else { ns };
-    let (ng, ns) = face_forward(ng, ns, eye - p);
     // Keep the shading normal in the viewer's hemisphere of the geometric normal
     // (interpolated normals can point away at silhouettes).
     let ns = if ng != Vec3::ZERO && ns.dot(ng) < 0.0 { ng } else { ns };

@@ -9,7 +9,9 @@
 //! and, only for vertices beyond it, a guard band; window x, y snapped to 1/256 pixel
 //! (nearest, ties to even); exact 64-bit edge functions at pixel centres with the
 //! top-left fill rule; zero-area triangles culled; no face culling; depth test LESS
-//! against a clear value of 1.0.
+//! against a clear value of 1.0, with back faces' depths pushed back by
+//! `INTERIOR_DEPTH_BIAS_ULPS` f32 steps so that they lose near-ties at silhouettes
+//! (`depth_test_value`; the G-buffer keeps the unbiased depth).
 //!
 //! How it runs:
 //! 1. *Setup and binning*, in parallel over chunks of `SETUP_CHUNK` source
@@ -41,13 +43,15 @@
 //! ```
 
 use hyrt_core::formats::{
-    CameraRecord, GBufferTexel, TriangleRecord, GBUF_BACK_FACE, GBUF_HIT, GBUF_RAY_TRACED, TRI_RAY_TRACED,
+    CameraRecord, GBufferTexel, TriangleRecord, GBUF_BACK_FACE, GBUF_HIT, GBUF_RAY_TRACED, TRI_INWARD,
+    TRI_RAY_TRACED,
 };
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::raster::{
-    barycentrics_in_original, clip_plane_distance, clip_polygon_against_plane, clip_position, clip_to_window,
-    edge_bias, edge_function, guard_band_ndc, interpolate_depth, perspective_barycentrics,
-    perspective_barycentrics_of_corners, pixel_center_fixed, pixel_span, snap_to_fixed, triangle_area2, ClipVertex,
+    barycentrics_in_original, clip_plane_distance, clip_polygon_against_plane, clip_position_from_eye, clip_to_window,
+    depth_test_value, edge_bias, edge_function, guard_band_ndc, interpolate_depth, perspective_barycentrics,
+    INTERIOR_DEPTH_BIAS_ULPS,
+    perspective_barycentrics_of_corners, pixel_center_fixed, shows_interior, pixel_span, snap_to_fixed, triangle_area2, ClipVertex,
     CLIP_PLANES, DEPTH_INTERPOLATION_REL_ERROR, FIXED_ONE, MAX_CLIP_VERTICES, MAX_FIXED_COORD, MAX_IMAGE_DIM,
 };
 use rayon::prelude::*;
@@ -120,6 +124,9 @@ struct RasterTriangle {
     triangle: u32,
     /// `GBUF_HIT` plus `GBUF_RAY_TRACED` / `GBUF_BACK_FACE` as they apply.
     flags: u32,
+    /// The triangle shows its surface's interior side (`shows_interior`): its depth
+    /// loses near-ties (`depth_test_value`).
+    interior: bool,
 }
 
 impl RasterTriangle {
@@ -375,8 +382,12 @@ const CLIP_OUTCODES: u32 = (1 << CLIP_PLANES.len()) - 1;
 
 /// Clip, project and snap one triangle; push zero or more sub-triangles.
 fn setup_triangle(tri: &TriangleRecord, camera: &CameraRecord, frame: &Frame, out: &mut Vec<RasterTriangle>) {
-    let m = &camera.view_proj;
-    let clip = [clip_position(m, tri.v0), clip_position(m, tri.v1), clip_position(m, tri.v2)];
+    let (m, eye) = (&camera.view_proj, camera.eye);
+    let clip = [
+        clip_position_from_eye(m, eye, tri.v0),
+        clip_position_from_eye(m, eye, tri.v1),
+        clip_position_from_eye(m, eye, tri.v2),
+    ];
     let mut finite = true;
     for c in &clip {
         finite &= c[0].is_finite() & c[1].is_finite() & c[2].is_finite() & c[3].is_finite();
@@ -480,6 +491,7 @@ fn emit_triangle(
         object: src.object,
         triangle: src.triangle,
         flags,
+        interior: shows_interior(flags & GBUF_BACK_FACE != 0, src.flags & TRI_INWARD != 0),
     });
 }
 
@@ -636,7 +648,9 @@ const NARROW_BOX_WIDTH: i64 = 4;
 /// within [`DEPTH_INTERPOLATION_REL_ERROR`] (8 * 2^-24) of the true value, which is at
 /// most 1. If the approximate depth exceeds the stored one by more than the sum of both
 /// (rounded up to 2^-20), the exact depth is at least the stored depth and fails LESS,
-/// so skipping it changes nothing.
+/// so skipping it changes nothing. (The stored value may be a back face's biased depth,
+/// and a back fragment compares its biased depth: both only move the comparison further
+/// in the same direction.)
 const DEPTH_REJECT_MARGIN: f64 = 1.0 / (1u64 << 20) as f64;
 const _: () = assert!(DEPTH_REJECT_MARGIN > DEPTH_INTERPOLATION_REL_ERROR + 70.0 * f64::EPSILON);
 
@@ -659,10 +673,12 @@ impl FragmentSink for TileScratch {
     fn fragment(&mut self, i: usize, t: &Fragment<'_>, e: [i64; 3]) {
         let i = tile_index(i);
         let d = interpolate_depth(e, t.area2, t.z);
-        // LESS against the stored depth (clear value 1.0); NaN and negative depths
-        // are never written.
-        if d < self.depth[i] && d >= 0.0 {
-            self.depth[i] = d;
+        // LESS against the stored depth (clear value 1.0), interior sides pushed back
+        // (`depth_test_value`: they lose near-ties at silhouettes); NaN and negative
+        // depths are never written. The stored value is the biased one.
+        let key = depth_test_value(d, t.interior);
+        if key < self.depth[i] && d >= 0.0 {
+            self.depth[i] = key;
             self.winner[i] = t.reference;
             self.e12[i] = [e[1], e[2]];
         }
@@ -850,10 +866,18 @@ fn resolve_tile(
             } else {
                 perspective_barycentrics_of_corners(e, t.w, t.corners[0] as usize, t.corners[1] as usize)
             };
+            // The depth test stored an interior side's depth INTERIOR_DEPTH_BIAS_ULPS steps
+            // further; a winner's stored value is below 1.0, so the bias was not clamped
+            // and stepping back gives the interpolated depth exactly.
+            let depth = if t.interior {
+                f32::from_bits(scratch.depth[i].to_bits() - INTERIOR_DEPTH_BIAS_ULPS)
+            } else {
+                scratch.depth[i]
+            };
             *texel = GBufferTexel {
                 bary_u: u,
                 bary_v: v,
-                depth: scratch.depth[i],
+                depth,
                 triangle: t.triangle,
                 object: t.object,
                 flags: t.flags,

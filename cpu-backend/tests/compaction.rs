@@ -54,8 +54,10 @@ proptest! {
     }
 }
 
+/// A surface whose position is known to within 1e-6 (an error bound as reconstruction
+/// gives one for coordinates near 1).
 fn surface(p: [f32; 3], n: [f32; 3]) -> SurfaceRecord {
-    SurfaceRecord { position: p, position_error: 0.0, normal: n, object: 0, geometric_normal: n, triangle: 0 }
+    SurfaceRecord { position: p, position_error: 1e-6, normal: n, object: 0, geometric_normal: n, triangle: 0 }
 }
 
 #[test]
@@ -78,7 +80,9 @@ fn compaction_builds_one_ray_per_contributing_pair_in_light_major_order() {
     for r in &rays {
         r.validate().unwrap();
         assert_eq!(r.kind, RAY_KIND_SHADOW);
-        assert!(r.origin[1] > 0.0, "origin offset above the surface: {r:?}");
+        // Offset along the normal by the error bound (and one more step), nowhere else.
+        assert!(r.origin[1] > 1e-6 && r.origin[1] < 2e-6, "origin offset above the surface: {r:?}");
+        assert_eq!((r.origin[0], r.origin[2]), (surfaces[r.pixel as usize].position[0], 0.0));
         assert_ne!(r.light, INVALID_ID);
     }
     // Point light rays end just before the light; directional ones are unbounded.

@@ -64,7 +64,8 @@ fn raster(mesh: Mesh) -> (Mesh, Mat4, RenderMode) {
 /// A camera record whose world x, y are window x, y (pixels, y down) and whose
 /// world z is the window depth: clip = (2x/W - 1, 1 - 2y/H, z, 1). For power-of-two
 /// sizes and dyadic coordinates every f32 step of the rasterizer is exact, so
-/// vertices can be placed exactly on pixel centres and subpixel ties.
+/// vertices can be placed exactly on pixel centres and subpixel ties. The eye is at the
+/// origin, so the record's eye-relative matrix is this world-to-clip matrix.
 fn window_camera(width: u32, height: u32) -> CameraRecord {
     let m = Mat4::from_cols(
         Vec4::new(2.0 / width as f32, 0.0, 0.0, 0.0),
@@ -75,7 +76,7 @@ fn window_camera(width: u32, height: u32) -> CameraRecord {
     CameraRecord {
         view_proj: m.to_cols_array(),
         inv_view_proj: m.inverse().to_cols_array(),
-        eye: [0.0, 0.0, -1.0],
+        eye: [0.0, 0.0, 0.0],
         width,
         height,
         near: 0.5,
@@ -221,8 +222,10 @@ fn dvec(v: [f32; 3]) -> DVec3 {
     DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64)
 }
 
+/// The world-to-clip matrix the raster applies, in f64: the record's eye-relative
+/// `view_proj` after a translation by `-eye` (the raster subtracts the eye first).
 fn view_proj_f64(cam: &CameraRecord) -> DMat4 {
-    DMat4::from_cols_array(&cam.view_proj.map(|c| c as f64))
+    DMat4::from_cols_array(&cam.view_proj.map(|c| c as f64)) * DMat4::from_translation(-dvec(cam.eye))
 }
 
 /// Near and far points of the ray through the centre of pixel (x, y). The inverse is
@@ -364,8 +367,10 @@ fn edge_mask_and_tolerances(g: &WorldGeometry, cam: &CameraRecord) -> (Vec<bool>
 fn assert_matches_ray_cast(g: &WorldGeometry, cam: &CameraRecord, out: &VisibilityOutput) -> usize {
     let vp = view_proj_f64(cam);
     let inv = vp.inverse();
+    // The record's inverse is eye-relative too.
+    let inv_rel = DMat4::from_cols_array(&cam.view_proj.map(|c| c as f64)).inverse();
     let inv32 = DMat4::from_cols_array(&cam.inv_view_proj.map(|c| c as f64));
-    assert!(inv.abs_diff_eq(inv32, 1e-3 * inv.to_cols_array().iter().fold(0.0f64, |m, c| m.max(c.abs()))));
+    assert!(inv_rel.abs_diff_eq(inv32, 1e-3 * inv_rel.to_cols_array().iter().fold(0.0f64, |m, c| m.max(c.abs()))));
     let (near_edge, tol) = edge_mask_and_tolerances(g, cam);
     let mut compared = 0;
     for y in 0..cam.height {

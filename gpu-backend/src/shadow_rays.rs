@@ -22,7 +22,7 @@
 use hyrt_core::bvh::{BVH_CULL_SLACK, BVH_STACK_SIZE};
 use hyrt_core::formats::{INVALID_ID, LIGHT_DIRECTIONAL, RAY_KIND_SHADOW};
 use hyrt_core::frame::{SHADOW_LIT, SHADOW_OCCLUDED};
-use hyrt_core::kernels::ray::{gamma, OFFSET_FLOAT_SCALE, OFFSET_INT_SCALE, OFFSET_ORIGIN, SLAB_FAR_SCALE};
+use hyrt_core::kernels::ray::{gamma, OFFSET_ERROR_SCALE, SLAB_FAR_SCALE};
 use hyrt_core::kernels::shading::MIN_LIGHT_DISTANCE_SQ;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
@@ -50,9 +50,7 @@ pub(crate) fn ray_wgsl() -> String {
         ("GAMMA_2", f32_literal(gamma(2))),
         ("GAMMA_3", f32_literal(gamma(3))),
         ("GAMMA_5", f32_literal(gamma(5))),
-        ("OFFSET_ORIGIN", f32_literal(OFFSET_ORIGIN)),
-        ("OFFSET_FLOAT_SCALE", f32_literal(OFFSET_FLOAT_SCALE)),
-        ("OFFSET_INT_SCALE", f32_literal(OFFSET_INT_SCALE)),
+        ("OFFSET_ERROR_SCALE", f32_literal(OFFSET_ERROR_SCALE)),
         ("MIN_LIGHT_DISTANCE_SQ", f32_literal(MIN_LIGHT_DISTANCE_SQ)),
         ("BVH_CULL_SLACK", f32_literal(BVH_CULL_SLACK)),
         ("SHADOW_T_MAX_POINT_BITS", format!("{}u", SHADOW_T_MAX_POINT.to_bits())),

@@ -89,15 +89,16 @@ pub const ID_FROM_FLAT_VERTEX_OUTPUT: &str = "flat-interpolated vertex_index / 3
 /// The constants of `hyrt_core::kernels::raster` the shader mirrors, as WGSL (`{:?}`
 /// prints the shortest decimal that parses back to the same f32).
 fn raster_constants() -> String {
+    use hyrt_core::formats::TRI_INWARD;
     use hyrt_core::kernels::raster::{
-        FIXED_ONE, FIXED_ONE_F32, GUARD_BAND_PIXELS, MAX_CLIP_VERTICES, MAX_FIXED_COORD, MAX_IMAGE_DIM,
-        PIXEL_CENTER_OFFSET,
+        INTERIOR_DEPTH_BIAS_ULPS, FIXED_ONE, FIXED_ONE_F32, GUARD_BAND_PIXELS, MAX_CLIP_VERTICES, MAX_FIXED_COORD,
+        MAX_IMAGE_DIM, PIXEL_CENTER_OFFSET,
     };
     format!(
         "const HARDWARE_TRIANGLES_PER_TRIANGLE: u32 = {HARDWARE_TRIANGLES_PER_TRIANGLE}u;\nconst MAX_IMAGE_DIM: u32 = {MAX_IMAGE_DIM}u;\nconst GUARD_BAND_PIXELS: f32 = {GUARD_BAND_PIXELS:?};\n\
          const MAX_CLIP_VERTICES: u32 = {MAX_CLIP_VERTICES}u;\nconst PIXEL_CENTER_OFFSET: f32 = {PIXEL_CENTER_OFFSET:?};\n\
          const FIXED_ONE: i32 = {FIXED_ONE};\nconst FIXED_ONE_F32: f32 = {FIXED_ONE_F32:?};\n\
-         const MAX_FIXED_COORD_F32: f32 = {:?};\n",
+         const MAX_FIXED_COORD_F32: f32 = {:?};\nconst INTERIOR_DEPTH_BIAS_ULPS: u32 = {INTERIOR_DEPTH_BIAS_ULPS}u;\nconst TRI_INWARD: u32 = {TRI_INWARD}u;\n",
         MAX_FIXED_COORD as f32
     )
 }

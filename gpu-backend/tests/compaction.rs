@@ -131,11 +131,15 @@ fn compaction_directional_and_dark_lights_match_cpu() {
         }
         let a = i as f32 * 0.37;
         let n = glam::Vec3::new(a.cos() * 0.6, (a * 0.5).sin(), a.sin() * 0.6).normalize();
-        // Positions spanning both offset branches (|p| < 1/32 and beyond), signs.
-        let p = glam::Vec3::new((i as f32 - 200.0) * 0.013, (i % 11) as f32 * 0.004 - 0.02, -(i as f32) * 0.01);
+        // Positions near zero (where the offset steps land on tiny values), of both signs,
+        // and up to 1e6 from the origin; error bounds from zero (no offset, only the
+        // step) to a few ulps of 1e6, as reconstruction gives them.
+        let far = [1.0, 1.0, 1e3, 1e5, 1e6][(i % 5) as usize];
+        let p = glam::Vec3::new((i as f32 - 200.0) * 0.013, (i % 11) as f32 * 0.004 - 0.02, -(i as f32) * 0.01) * far;
+        let position_error = [0.0, 1e-6, 3e-7 * far, 0.3][(i % 4) as usize];
         surfaces.push(SurfaceRecord {
             position: p.into(),
-            position_error: 1e-6,
+            position_error,
             normal: n.into(),
             object: 0,
             geometric_normal: n.into(),

@@ -59,22 +59,12 @@ fn shadow_ray(origin: Vec3, direction: Vec3, t_max: f32, pixel: u32) -> RayRecor
 
 /// True if some triangle has an exactly-zero f32 edge function for this ray with
 /// the other two not of opposite signs: where the CPU falls back to f64 and the
-/// GPU applies its tie rule (recomputed here like `WatertightRay::intersect`).
+/// GPU applies its tie rule (`hyrt_core::kernels::ray::meets_zero_edge_tie`).
 fn meets_zero_edge(triangles: &[hyrt_core::formats::TriangleRecord], r: &RayRecord) -> bool {
-    use hyrt_core::kernels::ray::{max_component_index, permute_axes};
     let (o, d) = (Vec3::from(r.origin), Vec3::from(r.direction));
-    let kz = max_component_index(d.abs());
-    let dp = permute_axes(d, kz);
-    let (sx, sy) = (dp.x / dp.z, dp.y / dp.z);
-    let tr = |p: Vec3| {
-        let q = permute_axes(p - o, kz);
-        Vec3::new(q.x - sx * q.z, q.y - sy * q.z, q.z)
-    };
-    let edge = |a: Vec3, b: Vec3| a.x * b.y - a.y * b.x;
     triangles.iter().any(|t| {
-        let [p0, p1, p2] = t.vertices().map(tr);
-        let e = [edge(p1, p2), edge(p2, p0), edge(p0, p1)];
-        e.contains(&0.0) && !(e.iter().any(|&x| x < 0.0) && e.iter().any(|&x| x > 0.0))
+        let [v0, v1, v2] = t.vertices();
+        hyrt_core::kernels::ray::meets_zero_edge_tie(o, d, v0, v1, v2)
     })
 }
 

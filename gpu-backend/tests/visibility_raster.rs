@@ -37,7 +37,8 @@ fn scene_with(objects: Vec<(Mesh, Mat4, RenderMode)>, camera: Option<Camera>) ->
 
 /// A camera record whose world x, y are window x, y (pixels, y down) and whose world
 /// z is the window depth (as in the CPU raster tests): vertices can be put exactly on
-/// pixel centres.
+/// pixel centres. The eye is at the origin, so the record's eye-relative matrix is this
+/// world-to-clip matrix.
 fn window_camera(width: u32, height: u32) -> CameraRecord {
     let m = Mat4::from_cols(
         Vec4::new(2.0 / width as f32, 0.0, 0.0, 0.0),
@@ -48,7 +49,7 @@ fn window_camera(width: u32, height: u32) -> CameraRecord {
     CameraRecord {
         view_proj: m.to_cols_array(),
         inv_view_proj: m.inverse().to_cols_array(),
-        eye: [0.0, 0.0, -1.0],
+        eye: [0.0, 0.0, 0.0],
         width,
         height,
         near: 0.5,

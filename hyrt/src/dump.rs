@@ -143,9 +143,11 @@ pub fn frame_json(scene: &Scene, prepared: &PreparedScene, camera: &Camera, fram
             "far": camera.far,
             "view": view.to_cols_array_2d(),
             "projection": proj.to_cols_array_2d(),
-            "view_projection": rec.view_proj,
+            "view_projection": (proj * view).to_cols_array(),
+            "view_projection_from_eye": rec.view_proj,
             "matrix_layout": "column-major: view[c][r] is column c, row r (glam / WGSL)",
-            "conventions": "right-handed world; clip = projection * view * world; NDC y up, depth z/w in [0, 1]; \
+            "conventions": "right-handed world; clip = projection * view * world = view_projection_from_eye * (world - eye) \
+    (the stages project eye-relative positions); NDC y up, depth z/w in [0, 1]; \
     window x = (ndc_x * 0.5 + 0.5) * width, y = (0.5 - ndc_y * 0.5) * height; row 0 is the top row; \
     pixel (x, y) is sampled at its centre (x + 0.5, y + 0.5)",
         },

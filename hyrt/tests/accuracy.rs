@@ -308,7 +308,7 @@ fn tilted_plane_scene() -> Scene {
 }
 
 #[test]
-fn no_offset_gives_shadow_acne_on_a_tilted_plane_and_the_robust_offset_none() {
+fn no_offset_gives_shadow_acne_on_a_tilted_plane_and_the_robust_offsets_none() {
     let scene = tilted_plane_scene();
     let g = WorldGeometry::build(&scene);
     let bvh = Bvh::build(&g, BvhPreset::default());
@@ -324,7 +324,8 @@ fn no_offset_gives_shadow_acne_on_a_tilted_plane_and_the_robust_offset_none() {
     // Only the plane itself is in the scene: every occluded ray is a self-intersection.
     let none = occluded_with(OffsetMethod::None);
     assert!(none * 20 > rays.len(), "expected acne on over 5% of the rays without an offset, got {none}");
-    assert_eq!(occluded_with(OffsetMethod::Robust), 0);
+    assert_eq!(occluded_with(OffsetMethod::ErrorBound), 0);
+    assert_eq!(occluded_with(OffsetMethod::IntegerUlps), 0);
     assert_eq!(occluded_with(OffsetMethod::Epsilon), 0);
 }
 
@@ -377,7 +378,7 @@ fn speed_vs_error_on_the_default_scene_writes_a_plot_and_a_table() {
         return;
     }
     let s = result.unwrap();
-    let groups = [("bvh", BvhPreset::ALL.len()), ("barycentrics", 2), ("ray origin", 3), ("shadows", 3)];
+    let groups = [("bvh", BvhPreset::ALL.len()), ("barycentrics", 2), ("ray origin", 4), ("shadows", 3)];
     assert_eq!(s.rows.len(), groups.iter().map(|g| g.1).sum::<usize>());
     for (group, n) in groups {
         assert_eq!(s.rows.iter().filter(|r| r.group == group).count(), n, "{group}");
@@ -388,7 +389,8 @@ fn speed_vs_error_on_the_default_scene_writes_a_plot_and_a_table() {
         assert!(r.shadow.compared > 0 && r.hit_error.max_rel < 1e-2, "{r:?}");
     }
     let row = |c: &str| s.rows.iter().find(|r| r.configuration.starts_with(c)).unwrap();
-    assert!(row("none").shadow.false_shadow > row("robust").shadow.false_shadow);
+    assert!(row("none").shadow.false_shadow > row("error bound").shadow.false_shadow);
+    assert!(row("none").shadow.false_shadow > row("256 ulps").shadow.false_shadow);
     assert_eq!(s.plots, vec![dir.path().join("accuracy-default_scene.png")]);
     let png = image::open(&s.plots[0]).unwrap();
     assert!(png.width() > 1000 && png.height() > 500);

@@ -166,6 +166,12 @@ impl RayRecord {
 
 /// [`TriangleRecord::flags`]: the triangle's object is ray traced.
 pub const TRI_RAY_TRACED: u32 = 1 << 0;
+/// [`TriangleRecord::flags`]: the triangle's object is a closed mesh wound inward (its
+/// triangles' right-handed normals point into the volume it encloses, the opposite of
+/// glTF's counter-clockwise front faces): its exterior is the side its back faces show.
+/// The visibility raster's depth test prefers the exterior side on near-ties
+/// ([`crate::kernels::raster::depth_test_value`]); see [`crate::geometry::MeshWinding`].
+pub const TRI_INWARD: u32 = 1 << 1;
 
 /// One world-space triangle of the scene table that the raster, the BVH and
 /// reconstruction all read. Triangles of one object are contiguous, in mesh order.
@@ -177,7 +183,7 @@ pub const TRI_RAY_TRACED: u32 = 1 << 0;
 /// | 16 | `v1` | [f32; 3] | world-space vertex 1 |
 /// | 28 | `triangle` | u32 | triangle index within the object's mesh |
 /// | 32 | `v2` | [f32; 3] | world-space vertex 2 |
-/// | 44 | `flags` | u32 | [`TRI_RAY_TRACED`] |
+/// | 44 | `flags` | u32 | [`TRI_RAY_TRACED`], [`TRI_INWARD`] |
 ///
 /// 48 bytes.
 #[repr(C)]
@@ -204,7 +210,7 @@ impl TriangleRecord {
         if self.object == INVALID_ID || self.triangle == INVALID_ID {
             return Err(format!("triangle with invalid id: {self:?}"));
         }
-        if self.flags & !TRI_RAY_TRACED != 0 {
+        if self.flags & !(TRI_RAY_TRACED | TRI_INWARD) != 0 {
             return Err(format!("triangle with unknown flags: {self:?}"));
         }
         Ok(())
@@ -330,8 +336,8 @@ impl LightRecord {
 ///
 /// | offset | field | type | meaning |
 /// |---:|---|---|---|
-/// | 0 | `view_proj` | [f32; 16] | world-to-clip, column-major (glam / WGSL `mat4x4<f32>`) |
-/// | 64 | `inv_view_proj` | [f32; 16] | clip-to-world |
+/// | 0 | `view_proj` | [f32; 16] | eye-relative world-to-clip, column-major (glam / WGSL `mat4x4<f32>`): `clip = view_proj * (p - eye, 1)` |
+/// | 64 | `inv_view_proj` | [f32; 16] | its inverse: clip to `p - eye` |
 /// | 128 | `eye` | [f32; 3] | world-space eye position |
 /// | 140 | `width` | u32 | image width in pixels |
 /// | 144 | `height` | u32 | image height in pixels |
@@ -341,6 +347,12 @@ impl LightRecord {
 ///
 /// 160 bytes. Pixel (x, y) has its centre at window coordinates (x + 0.5, y + 0.5);
 /// row 0 is the top row; NDC y = +1 is the top edge.
+///
+/// The matrices are relative to the eye (camera-relative rendering): the stages project
+/// `p - eye` ([`crate::kernels::raster::clip_position_from_eye`]), which keeps full
+/// precision far from the origin, where a world-to-clip matrix loses the low bits of
+/// every position to the eye's translation (about 0.01 units at 1e5: enough to fold a
+/// closed mesh's silhouettes the wrong way, so that back faces showed and light leaked).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct CameraRecord {
@@ -358,7 +370,7 @@ const _: () = assert!(std::mem::size_of::<CameraRecord>() == 160);
 impl CameraRecord {
     /// Build the record for a camera and an image size.
     pub fn new(camera: &crate::scene::Camera, width: u32, height: u32) -> Self {
-        let vp = camera.view_projection(width, height);
+        let vp = camera.view_projection_from_eye(width, height);
         CameraRecord {
             view_proj: vp.to_cols_array(),
             inv_view_proj: vp.inverse().to_cols_array(),
@@ -430,9 +442,9 @@ mod tests {
 /// |---:|---|---|---|
 /// | 0 | `position` | [f32; 3] | world-space hit point `w*v0 + u*v1 + v*v2` |
 /// | 12 | `position_error` | f32 | max component of its absolute error bound ([`crate::kernels::barycentric::position_error_bound`]) |
-/// | 16 | `normal` | [f32; 3] | unit shading normal, facing the viewer |
+/// | 16 | `normal` | [f32; 3] | unit shading normal, on the side the raster saw (`GBUF_BACK_FACE`) |
 /// | 28 | `object` | u32 | object id ([`INVALID_ID`] on miss) |
-/// | 32 | `geometric_normal` | [f32; 3] | unit geometric normal, facing the viewer (zero for a degenerate triangle) |
+/// | 32 | `geometric_normal` | [f32; 3] | unit geometric normal, on the side the raster saw (zero for a degenerate triangle); shadow rays leave along it |
 /// | 44 | `triangle` | u32 | global triangle index into the triangle table ([`INVALID_ID`] on miss) |
 ///
 /// 48 bytes. A miss is [`SurfaceRecord::MISS`] (all zero, invalid ids).

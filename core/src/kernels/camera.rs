@@ -16,20 +16,19 @@ pub fn pixel_centre_ndc(width: u32, height: u32, x: u32, y: u32) -> (f32, f32) {
 }
 
 /// The primary ray of pixel `(x, y)`: from the eye through the pixel centre's point on
-/// the far plane (NDC depth 1, unprojected with `inv_view_proj`), so `t = 1` is the far
-/// plane and `t_min = near / far` is the near plane: the ray sees exactly the depth range
+/// the far plane (NDC depth 1, unprojected with the eye-relative `inv_view_proj`, which
+/// gives the direction directly), so `t = 1` is the far plane and `t_min = near / far` is the near plane: the ray sees exactly the depth range
 /// the raster pass keeps. `kind` is [`RAY_KIND_PRIMARY`], `pixel` is `y * width + x`.
 #[inline]
 pub fn primary_ray(camera: &CameraRecord, x: u32, y: u32) -> RayRecord {
     let (nx, ny) = pixel_centre_ndc(camera.width, camera.height, x, y);
     let inv = Mat4::from_cols_array(&camera.inv_view_proj);
     let far = inv * Vec4::new(nx, ny, 1.0, 1.0);
-    let far = far.truncate() / far.w;
-    let eye = Vec3::from(camera.eye);
+    let direction: Vec3 = far.truncate() / far.w;
     RayRecord {
         origin: camera.eye,
         t_min: camera.near / camera.far,
-        direction: (far - eye).into(),
+        direction: direction.into(),
         t_max: 1.0,
         pixel: y * camera.width + x,
         kind: RAY_KIND_PRIMARY,
@@ -87,8 +86,8 @@ mod tests {
         let rec = CameraRecord::new(&cam, 7, 5);
         let vp = Mat4::from_cols_array(&rec.view_proj);
         for r in primary_rays(&rec) {
-            let p = Vec3::from(r.origin) + Vec3::from(r.direction) * 0.5;
-            let c = vp * p.extend(1.0);
+            // Eye-relative: the point half way along the ray, minus the eye.
+            let c = vp * (Vec3::from(r.direction) * 0.5).extend(1.0);
             let (x, y) = ((c.x / c.w * 0.5 + 0.5) * 7.0, (0.5 - c.y / c.w * 0.5) * 5.0);
             let (px, py) = ((r.pixel % 7) as f32 + 0.5, (r.pixel / 7) as f32 + 0.5);
             assert!((x - px).abs() < 1e-4 && (y - py).abs() < 1e-4, "pixel {}: projects to ({x}, {y})", r.pixel);

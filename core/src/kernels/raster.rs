@@ -5,8 +5,9 @@
 //!
 //! Pipeline of one triangle, each step one function here:
 //!
-//! 1. [`clip_position`]: world to clip space, `view_proj * (v, 1)` in f32
-//!    (bit-identical to glam's `Mat4 * Vec4`).
+//! 1. [`clip_position_from_eye`]: world to clip space, `view_proj * (v - eye, 1)` in
+//!    f32 with the camera's eye-relative matrix ([`clip_position`] is glam's
+//!    `Mat4 * Vec4`, bit for bit).
 //! 2. [`clip_plane_distance`] / [`clip_polygon_against_plane`]: Sutherland-Hodgman
 //!    clipping in homogeneous space against the near (`z >= 0`) and far (`z <= w`)
 //!    planes, and against the guard band (`|x|, |y| <= g * w`) only when a vertex
@@ -20,7 +21,9 @@
 //! 5. [`edge_function`], [`triangle_area2`], [`edge_bias`] and [`is_top_left_edge`]:
 //!    exact 64-bit edge functions and the top-left fill rule; [`pixel_covered`].
 //! 6. [`perspective_barycentrics`], [`barycentrics_in_original`] and
-//!    [`interpolate_depth`]: the G-buffer values of a covered pixel centre.
+//!    [`interpolate_depth`]: the G-buffer values of a covered pixel centre;
+//!    [`depth_test_value`]: what the depth test compares (a surface's interior side loses
+//!    near-ties to its exterior, [`shows_interior`]).
 //!
 //! ## Orientation
 //!
@@ -136,7 +139,7 @@ impl ClipVertex {
     }
 }
 
-/// `view_proj * (v, 1)` in f32, column-major `m`, with glam's operation order
+/// `m * (v, 1)` in f32, column-major `m`, with glam's operation order
 /// (`((c0 * x + c1 * y) + c2 * z) + c3`, no fused multiply-add), so the result is
 /// bit-identical to `Mat4::from_cols_array(m) * v.extend(1.0)`.
 /// WGSL: `clip_position`.
@@ -147,6 +150,17 @@ pub fn clip_position(m: &[f32; 16], v: [f32; 3]) -> [f32; 4] {
         *o = m[r] * v[0] + m[4 + r] * v[1] + m[8 + r] * v[2] + m[12 + r];
     }
     out
+}
+
+/// The clip position of world point `v` seen from `eye`: [`clip_position`] of `v - eye`
+/// (three f32 subtractions, then the matrix) with the camera's eye-relative `view_proj`
+/// ([`crate::formats::CameraRecord`]). The subtraction is exact when `v` is within a factor
+/// of two of `eye` per coordinate (Sterbenz) and otherwise rounds once relative to the
+/// difference, so positions keep their precision relative to the camera at any distance
+/// from the origin. WGSL: `clip_position_exact`.
+#[inline]
+pub fn clip_position_from_eye(m: &[f32; 16], eye: [f32; 3], v: [f32; 3]) -> [f32; 4] {
+    clip_position(m, [v[0] - eye[0], v[1] - eye[1], v[2] - eye[2]])
 }
 
 /// Guard-band half-extent in NDC units, `[g_x, g_y] = 2 * GUARD_BAND_PIXELS / [width, height]`.
@@ -422,6 +436,50 @@ pub fn interpolate_depth(e: [i64; 3], area2: i64, z: [f32; 3]) -> f32 {
 /// docs): 8 roundings of at most 2^-24 each, rounded up.
 pub const DEPTH_INTERPOLATION_REL_ERROR: f64 = 8.0 / (1u64 << 24) as f64;
 
+/// How many f32 steps the depth of a fragment that shows a surface's interior side is
+/// pushed back in the depth test ([`depth_test_value`]), so that it never wins against the
+/// exterior side it lies behind: 32.
+///
+/// Where it comes from: at a silhouette of a closed mesh the face seen from outside and the
+/// face behind it, seen from inside, share an edge, and at pixel centres next to that edge
+/// their exact depths differ by less than the rounding of [`interpolate_depth`]. Each
+/// computed depth is within `8 * 2^-24` relative of its exact value
+/// ([`DEPTH_INTERPOLATION_REL_ERROR`]), which is less than 8 ulps of it (for `d` in
+/// `[2^k, 2^(k+1))`, `8 * 2^-24 * d < 2^(k-20) = 8 ulp(d)`), so two depths that are in
+/// order exactly are out of order by less than 16 ulps once computed; 32 also covers a pair
+/// that straddles a power of two. Without it the inside won a few such pixels on every
+/// silhouette, and their shadow rays started inside the mesh: light leaked out of closed
+/// shells (the leak corpus of `hyrt-conformance`). In view space 32 ulps of depth are
+/// about `32 * 2^-24 * z^2 / near`: an interior side must be nearer than that to hide an
+/// exterior side.
+pub const INTERIOR_DEPTH_BIAS_ULPS: u32 = 32;
+
+/// Whether a fragment shows the interior side of its surface: a back face
+/// (`GBUF_BACK_FACE`), unless the triangle belongs to a closed mesh wound inward
+/// (`TRI_INWARD`), whose exterior is the side its back faces show. Open meshes follow
+/// glTF: front faces are the exterior. WGSL: `shows_interior`.
+#[inline]
+pub fn shows_interior(back_face: bool, inward: bool) -> bool {
+    back_face != inward
+}
+
+/// The value the depth test (LESS against a clear value of 1.0) compares for a fragment of
+/// window depth `depth`: the depth itself where the fragment shows the exterior side; where
+/// it shows the interior side ([`shows_interior`]) the depth [`INTERIOR_DEPTH_BIAS_ULPS`]
+/// f32 steps further, at most 1.0 (which never passes LESS, as a device clamps the written
+/// depth to the viewport's [0, 1]). Integer arithmetic on the bits, monotone: fragments of
+/// one side keep their order. A NaN or negative depth is returned as it is (the test
+/// rejects it). The G-buffer keeps the unbiased depth. WGSL: `depth_test_value`.
+#[inline]
+pub fn depth_test_value(depth: f32, interior: bool) -> f32 {
+    if interior && depth >= 0.0 {
+        // `abs` turns a -0 depth into +0 before stepping.
+        f32::from_bits(depth.abs().to_bits() + INTERIOR_DEPTH_BIAS_ULPS).min(1.0)
+    } else {
+        depth
+    }
+}
+
 /// Inclusive pixel range `[lo, hi]` along one axis whose centres can be covered by a
 /// triangle spanning fixed coordinates `[min, max]`: `lo = ceil(min / 256)`,
 /// `hi = floor((max - 1) / 256)` (a centre at exactly `max` lies on a right or bottom
@@ -524,6 +582,27 @@ mod tests {
         assert_eq!(pixel_span(1, 256), [1, 0]); // empty
         assert_eq!(pixel_span(-1, 257), [0, 1]);
         assert_eq!(pixel_span(-300, -10), [-1, -1]);
+    }
+
+    #[test]
+    fn interior_sides_lose_depth_ties_by_a_fixed_number_of_steps() {
+        assert!(shows_interior(true, false) && shows_interior(false, true));
+        assert!(!shows_interior(false, false) && !shows_interior(true, true));
+        assert_eq!(depth_test_value(0.5, false), 0.5);
+        assert_eq!(depth_test_value(0.5, true).to_bits(), 0.5f32.to_bits() + INTERIOR_DEPTH_BIAS_ULPS);
+        assert_eq!(depth_test_value(-0.0, true).to_bits(), INTERIOR_DEPTH_BIAS_ULPS);
+        assert_eq!(depth_test_value(1.0 - f32::EPSILON, true), 1.0);
+        assert!(depth_test_value(f32::NAN, true).is_nan());
+        assert_eq!(depth_test_value(-0.25, true), -0.25);
+        // Monotone, and larger than every depth within 16 steps below it.
+        let d = 0.987_654_3f32;
+        assert!(depth_test_value(d, true) < depth_test_value(f32::from_bits(d.to_bits() + 1), true));
+        assert!(depth_test_value(d, true) > f32::from_bits(d.to_bits() + 16));
+        // 16 ulps of any depth exceed the stated error bound of two depths.
+        for d in [1e-6f32, 0.25, 0.4999999, 0.5, 0.75, 0.9999] {
+            let ulp = (f32::from_bits(d.to_bits() + 1) - d) as f64;
+            assert!(2.0 * DEPTH_INTERPOLATION_REL_ERROR * d as f64 <= 16.0 * ulp, "{d}");
+        }
     }
 
     #[test]

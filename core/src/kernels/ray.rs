@@ -242,6 +242,20 @@ impl WatertightRay {
     }
 }
 
+/// Whether the watertight test of the ray `origin + t dir` against the triangle meets an
+/// exactly-zero f32 edge function while the other two are not of opposite signs: where
+/// [`WatertightRay::intersect`] decides in f64 and the GPU backend, which has no f64 in
+/// WGSL, counts the zero as on the edge (its tie rule, `ray.wgsl`). These are the only
+/// rays on which the backends' ray/triangle decisions may differ: the CPU misses by less
+/// than one rounding of a silhouette edge, the GPU hits. Tests use it to tell that
+/// documented deviation from any other.
+pub fn meets_zero_edge_tie(origin: Vec3, dir: Vec3, v0: Vec3, v1: Vec3, v2: Vec3) -> bool {
+    let Some(r) = WatertightRay::new(origin, dir) else { return false };
+    let (p0, p1, p2) = (r.transform(v0), r.transform(v1), r.transform(v2));
+    let e = [edge_function(p1, p2), edge_function(p2, p0), edge_function(p0, p1)];
+    e.contains(&0.0) && !(e.iter().any(|&x| x < 0.0) && e.iter().any(|&x| x > 0.0))
+}
+
 /// Watertight ray/triangle intersection (Woop, Benthin, Wald 2013; pbrt-v4
 /// `IntersectTriangle`): translate the vertices to the ray origin, permute the axes so the
 /// largest `|dir|` component is z, shear so the ray is the +z axis, then evaluate the three
@@ -348,6 +362,84 @@ pub fn ray_aabb_conservative(
 // Secondary-ray origins
 // ---------------------------------------------------------------------------------------------
 
+/// Scale of the error bound in [`offset_ray_origin`]: `1 + 2^-8`.
+///
+/// Where it comes from: the offset must move the computed point `p` past the triangle's
+/// exact plane, whose distance from `p` along the exact unit normal `n*` is at most
+/// `e |n*|_1` (`e` bounds each coordinate's error). The offset is taken along the f32
+/// normal `n`, whose direction is off by an angle `a`, and its length is evaluated in f32
+/// (about 4 roundings, `4 u` relative). It moves `p` by `S e |n|_1 (1 - 4u) cos a` along
+/// `n*`, which exceeds `e |n*|_1 <= e (|n|_1 + sqrt(3) a)` for every `a <= 1e-3` rad when
+/// `S = 1 + 2^-8` (`|n|_1 >= 1`). An f32 cross product of two edges is that accurate
+/// unless the triangle is a sliver with an aspect ratio beyond about 1e4 (angle error
+/// about `u` times the aspect ratio). pbrt-v4 uses `S = 1` and assumes the normal exact.
+pub const OFFSET_ERROR_SCALE: f32 = 1.0 + 1.0 / 256.0;
+
+/// The next f32 above `x` (pbrt-v4 `NextFloatUp`): `-0` and `+0` step to the smallest
+/// subnormal, `+inf` and NaN stay. Integer arithmetic on the bits: exact on any device.
+#[inline]
+pub fn next_float_up(x: f32) -> f32 {
+    if x.is_nan() || x == f32::INFINITY {
+        return x;
+    }
+    let x = if x == 0.0 { 0.0 } else { x };
+    let bits = x.to_bits();
+    f32::from_bits(if x >= 0.0 { bits + 1 } else { bits - 1 })
+}
+
+/// The next f32 below `x` (pbrt-v4 `NextFloatDown`), the mirror of [`next_float_up`].
+#[inline]
+pub fn next_float_down(x: f32) -> f32 {
+    if x.is_nan() || x == f32::NEG_INFINITY {
+        return x;
+    }
+    let x = if x == 0.0 { -0.0 } else { x };
+    let bits = x.to_bits();
+    f32::from_bits(if x <= 0.0 { bits + 1 } else { bits - 1 })
+}
+
+/// Move a reconstructed surface point off its surface by its own error bound, to the side
+/// `n` points to (pbrt-v4 `OffsetRayOrigin`, PBR 4th ed. section 6.8.6).
+///
+/// * `p` is the computed point and `p_error` a bound on the absolute error of each of its
+///   coordinates against the exact point on the triangle's plane
+///   ([`crate::kernels::barycentric::position_error_bound`], the record's
+///   `position_error`).
+/// * `n` is the unit *geometric* normal oriented towards the side the new ray leaves from
+///   (for a primary hit, the side the raster saw: `GBUF_BACK_FACE`; flip it for
+///   transmission). A zero normal (degenerate triangle) leaves `p` where it is.
+///
+/// The point moves by `d = OFFSET_ERROR_SCALE * p_error * |n|_1` along `n`, which carries
+/// it past the exact plane (see [`OFFSET_ERROR_SCALE`]); each moved coordinate is then
+/// rounded one more f32 step away from the surface, so the rounding of `p + d n` cannot
+/// bring it back. Rays from the result into that side start with `t_min = 0`; the
+/// watertight test's conservative `t` rejects what is left of the triangle itself.
+///
+/// Unlike Wächter and Binder's fixed 256 ulps ([`offset_ray_origin_integer_ulps`]), the
+/// offset follows the error: a few ulps of the coordinates (about 6 at 1e5 from the
+/// origin, where 256 ulps are 2 units and jump into nearby geometry), and less near the
+/// vertices of small triangles.
+///
+/// Operation order (the WGSL mirror `offset_ray_origin` keeps it, unfused):
+/// `d = ((|n.x| + |n.y|) + |n.z|) * (p_error * OFFSET_ERROR_SCALE)`, then per coordinate
+/// `o = p + n * d` and the step away.
+#[inline]
+pub fn offset_ray_origin(p: Vec3, p_error: f32, n: Vec3) -> Vec3 {
+    let d = ((n.x.abs() + n.y.abs()) + n.z.abs()) * (p_error * OFFSET_ERROR_SCALE);
+    let coordinate = |p: f32, n: f32| {
+        let offset = n * d;
+        let o = p + offset;
+        if offset > 0.0 {
+            next_float_up(o)
+        } else if offset < 0.0 {
+            next_float_down(o)
+        } else {
+            o
+        }
+    };
+    Vec3::new(coordinate(p.x, n.x), coordinate(p.y, n.y), coordinate(p.z, n.z))
+}
+
 /// Below this magnitude a coordinate is offset by a fixed amount instead of in ulps
 /// (Wächter and Binder 2019, "A Fast and Robust Method for Avoiding Self-Intersection",
 /// Ray Tracing Gems ch. 6, listing 6-1: `origin()`), because ulps shrink towards zero.
@@ -357,9 +449,9 @@ pub const OFFSET_FLOAT_SCALE: f32 = 1.0 / 65536.0;
 /// Offset in ulps per unit of normal away from zero (Wächter and Binder, `int_scale()`).
 pub const OFFSET_INT_SCALE: f32 = 256.0;
 
-/// One coordinate of [`offset_ray_origin`].
+/// One coordinate of [`offset_ray_origin_integer_ulps`].
 #[inline]
-fn offset_coordinate(p: f32, n: f32) -> f32 {
+fn offset_coordinate_integer_ulps(p: f32, n: f32) -> f32 {
     if p.abs() < OFFSET_ORIGIN {
         p + OFFSET_FLOAT_SCALE * n
     } else {
@@ -370,18 +462,20 @@ fn offset_coordinate(p: f32, n: f32) -> f32 {
     }
 }
 
-/// Move a surface point off its surface, to the side `n` points to (Wächter and Binder,
-/// Ray Tracing Gems ch. 6): each coordinate moves by `OFFSET_INT_SCALE * n_i` ulps
+/// Wächter and Binder's offset (Ray Tracing Gems ch. 6), the pipeline's until the
+/// error-bound offset [`offset_ray_origin`] replaced it; kept as the comparison of the
+/// speed-against-error report. Each coordinate moves by `OFFSET_INT_SCALE * n_i` ulps
 /// (truncated to an integer), or by `OFFSET_FLOAT_SCALE * n_i` when `|p_i| <
-/// OFFSET_ORIGIN`.
-///
-/// `n` is the unit *geometric* normal of the triangle, oriented by the caller towards the
-/// side the new ray leaves from (flip it for transmission). Rays from the result, leaving
-/// into that side, start with `t_min = 0`. `p` should be finite (non-finite points give
-/// non-finite results, no panic).
+/// OFFSET_ORIGIN`, whatever the point's actual error: 256 ulps grow with the coordinates
+/// (2 units at 1e5), so near other geometry the origin can land behind it (light leaks
+/// out of closed shells, the leak corpus of `hyrt-conformance`).
 #[inline]
-pub fn offset_ray_origin(p: Vec3, n: Vec3) -> Vec3 {
-    Vec3::new(offset_coordinate(p.x, n.x), offset_coordinate(p.y, n.y), offset_coordinate(p.z, n.z))
+pub fn offset_ray_origin_integer_ulps(p: Vec3, n: Vec3) -> Vec3 {
+    Vec3::new(
+        offset_coordinate_integer_ulps(p.x, n.x),
+        offset_coordinate_integer_ulps(p.y, n.y),
+        offset_coordinate_integer_ulps(p.z, n.z),
+    )
 }
 
 #[cfg(test)]
@@ -416,13 +510,13 @@ mod tests {
     }
 
     #[test]
-    fn offset_moves_whole_ulps() {
+    fn integer_ulp_offset_moves_whole_ulps() {
         let p = Vec3::new(1.0, -2.0, 0.01);
-        let o = offset_ray_origin(p, Vec3::new(1.0, 0.0, 1.0));
+        let o = offset_ray_origin_integer_ulps(p, Vec3::new(1.0, 0.0, 1.0));
         assert_eq!(o.x.to_bits(), 1.0f32.to_bits() + 256);
         assert_eq!(o.y, -2.0);
         assert_eq!(o.z, 0.01 + OFFSET_FLOAT_SCALE);
-        let o = offset_ray_origin(p, Vec3::new(0.0, 1.0, -1.0));
+        let o = offset_ray_origin_integer_ulps(p, Vec3::new(0.0, 1.0, -1.0));
         // Towards +y from a negative coordinate: the magnitude shrinks by 256 ulps.
         assert_eq!(o.y.to_bits(), (-2.0f32).to_bits() - 256);
         assert_eq!(o.z, 0.01 - OFFSET_FLOAT_SCALE);

@@ -2,7 +2,7 @@
 //! ray-traced shadows, paper 3.3) and the ordinary raster shader (Lambert with
 //! ambient, paper 3.4), light evaluation and colour encoding.
 //!
-//! WGSL mirrors: `light_incidence`, `shade_ray_traced`, `shade_raster`,
+//! WGSL mirrors: `orient_to_seen_side`, `light_incidence`, `shade_ray_traced`, `shade_raster`,
 //! `linear_to_srgb8` in the GPU backend's shading shaders.
 
 use glam::Vec3;
@@ -45,11 +45,19 @@ pub fn light_incidence(light: &LightRecord, p: Vec3) -> (Vec3, Vec3) {
     }
 }
 
-/// Orient the geometric and shading normals towards the viewer: both are flipped
-/// when the geometric normal faces away from `to_eye` (double-sided surfaces).
+/// Orient the geometric and shading normals towards the side of the surface that was
+/// seen: both are flipped when it was the back of the triangle (double-sided surfaces).
+///
+/// `back_face` is decided exactly, never by a dot product with the view direction: for a
+/// primary hit it is the visibility raster's `GBUF_BACK_FACE` (the sign of the snapped
+/// triangle's area, from the integer edge functions), and secondary-ray hits will pass the
+/// sign of the ray/triangle determinant the same way. A floating-point test such as
+/// `n . (eye - p) < 0` disagrees with the raster on surfaces seen nearly edge-on: there
+/// the normal ended up pointing into a closed mesh and shadow rays started inside it
+/// (light leaking out of the shell; the leak corpus of `hyrt-conformance`).
 #[inline]
-pub fn face_forward(geometric: Vec3, shading: Vec3, to_eye: Vec3) -> (Vec3, Vec3) {
-    if geometric.dot(to_eye) < 0.0 {
+pub fn orient_to_seen_side(geometric: Vec3, shading: Vec3, back_face: bool) -> (Vec3, Vec3) {
+    if back_face {
         (-geometric, -shading)
     } else {
         (geometric, shading)

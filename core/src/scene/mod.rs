@@ -207,6 +207,16 @@ impl Camera {
     pub fn view_projection(&self, width: u32, height: u32) -> Mat4 {
         self.projection(width as f32 / height as f32) * self.view()
     }
+    /// Eye-relative world-to-clip matrix: `clip = M * (p - eye, 1)`, the projection times the
+    /// view's rotation alone (no translation). The stages project `p - eye` with it
+    /// ([`crate::formats::CameraRecord::view_proj`]): far from the origin a full matrix
+    /// would add a translation of the eye's size to products of that size, and lose the
+    /// positions' low bits (at 1e5, about 0.01 units); `p - eye` is exact or nearly so for
+    /// every point near the eye.
+    pub fn view_projection_from_eye(&self, width: u32, height: u32) -> Mat4 {
+        let view = glam::camera::rh::view::look_at_mat4(Vec3::ZERO, self.target - self.eye, self.up);
+        self.projection(width as f32 / height as f32) * view
+    }
 }
 
 /// A loaded scene.

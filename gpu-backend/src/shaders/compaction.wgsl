@@ -162,7 +162,7 @@ fn needs_shadow_ray(s: SurfaceRecord, light: LightRecord) -> bool {
 
 // mirrors hyrt_cpu::compaction::shadow_ray
 fn shadow_ray(s: SurfaceRecord, light: LightRecord, light_index: u32, pixel: u32) -> RayRecordOut {
-    let origin = offset_ray_origin(s.position, s.geometric_normal);
+    let origin = offset_ray_origin(s.position, s.position_error, s.geometric_normal, frame.zero);
     var direction: vec3<f32>;
     var t_max_bits: u32;
     if light.kind == LIGHT_DIRECTIONAL {

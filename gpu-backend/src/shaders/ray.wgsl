@@ -5,8 +5,8 @@
 // operation order. WGSL has no f64, no inf literal and no isinf/isnan: non-finite
 // tests read the exponent bits; infinities are built from bits at run time only.
 
-// The constants of hyrt_core (SLAB_FAR_SCALE, GAMMA_2/3/5 = gamma(n), OFFSET_ORIGIN,
-// OFFSET_FLOAT_SCALE, OFFSET_INT_SCALE, ...) come from a prelude the Rust side
+// The constants of hyrt_core (SLAB_FAR_SCALE, GAMMA_2/3/5 = gamma(n), OFFSET_ERROR_SCALE,
+// MIN_LIGHT_DISTANCE_SQ, ...) come from a prelude the Rust side
 // generates from the core constants as exact bit patterns (see `ray_prelude`).
 
 const F32_EXP_MASK: u32 = 0x7f800000u;
@@ -21,24 +21,58 @@ fn is_finite_vec3(v: vec3<f32>) -> bool {
     return is_finite_f32(v.x) && is_finite_f32(v.y) && is_finite_f32(v.z);
 }
 
-// mirrors hyrt_core::kernels::ray::offset_ray_origin (one coordinate): the ulp
-// step is integer arithmetic on the bits, so the result is exact. The near-zero
-// branch adds 2^-16 * n, an exact product, so a fused multiply-add gives the same
-// bits (except when 2^-16 * n is subnormal, |n| < 2^-110, which a unit normal's
-// non-zero components never are in practice).
-fn offset_coordinate(p: f32, n: f32) -> f32 {
-    if abs(p) < OFFSET_ORIGIN {
-        return p + OFFSET_FLOAT_SCALE * n;
+// mirrors hyrt_core::kernels::ray::next_float_up (bits: exact on any device)
+fn next_float_up(x: f32) -> f32 {
+    let bits = bitcast<u32>(x);
+    if (bits & F32_EXP_MASK) == F32_EXP_MASK && (bits == F32_EXP_MASK || (bits & 0x007fffffu) != 0u) {
+        return x; // +inf or NaN
     }
-    // i32(f32) truncates towards zero like Rust's `as i32`; |256 n| <= 256 here.
-    let of_i = i32(OFFSET_INT_SCALE * n);
-    let step = select(of_i, -of_i, p < 0.0);
-    return bitcast<f32>(bitcast<i32>(p) + step);
+    if (bits & 0x7fffffffu) == 0u {
+        return bitcast<f32>(1u); // +0 or -0: the smallest subnormal
+    }
+    if (bits & F32_SIGN_MASK) == 0u {
+        return bitcast<f32>(bits + 1u);
+    }
+    return bitcast<f32>(bits - 1u);
 }
 
-// mirrors hyrt_core::kernels::ray::offset_ray_origin
-fn offset_ray_origin(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
-    return vec3<f32>(offset_coordinate(p.x, n.x), offset_coordinate(p.y, n.y), offset_coordinate(p.z, n.z));
+// mirrors hyrt_core::kernels::ray::next_float_down
+fn next_float_down(x: f32) -> f32 {
+    let bits = bitcast<u32>(x);
+    if (bits & F32_EXP_MASK) == F32_EXP_MASK && (bits == (F32_EXP_MASK | F32_SIGN_MASK) || (bits & 0x007fffffu) != 0u) {
+        return x; // -inf or NaN
+    }
+    if (bits & 0x7fffffffu) == 0u {
+        return bitcast<f32>(F32_SIGN_MASK | 1u); // +0 or -0: the smallest negative subnormal
+    }
+    if (bits & F32_SIGN_MASK) == 0u {
+        return bitcast<f32>(bits - 1u);
+    }
+    return bitcast<f32>(bits + 1u);
+}
+
+// One coordinate of offset_ray_origin. `zero` is an always-zero uniform ORed into the
+// product's bits so that the compiler cannot fuse `p + n * d` into a multiply-add (which
+// rounds once where the CPU rounds twice).
+fn offset_coordinate(p: f32, n: f32, d: f32, zero: u32) -> f32 {
+    let offset = bitcast<f32>(bitcast<u32>(n * d) | zero);
+    let o = p + offset;
+    if offset > 0.0 {
+        return next_float_up(o);
+    }
+    if offset < 0.0 {
+        return next_float_down(o);
+    }
+    return o;
+}
+
+// mirrors hyrt_core::kernels::ray::offset_ray_origin (pbrt-v4's OffsetRayOrigin with the
+// point's own error bound): d = ((|n.x| + |n.y|) + |n.z|) * (p_error * OFFSET_ERROR_SCALE),
+// then each coordinate p + n * d, stepped once more away from the surface.
+fn offset_ray_origin(p: vec3<f32>, p_error: f32, n: vec3<f32>, zero: u32) -> vec3<f32> {
+    let d = ((abs(n.x) + abs(n.y)) + abs(n.z)) * (p_error * OFFSET_ERROR_SCALE);
+    return vec3<f32>(offset_coordinate(p.x, n.x, d, zero), offset_coordinate(p.y, n.y, d, zero),
+        offset_coordinate(p.z, n.z, d, zero));
 }
 
 // mirrors hyrt_core::kernels::ray::max_component_index (ties to the later axis)

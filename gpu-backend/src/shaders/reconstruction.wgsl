@@ -6,7 +6,8 @@
 // multiply-add: the results are the CPU's bits.
 //
 // GAMMA_2, GAMMA_3 and ONE_PLUS_GAMMA_3 are prepended by the Rust side with the
-// exact f32 values of hyrt_core::kernels::barycentric::gamma.
+// exact f32 values of hyrt_core::kernels::barycentric::gamma, and GBUF_HIT and
+// GBUF_BACK_FACE with those of hyrt_core::formats.
 
 struct TriangleRecord {
     v0: vec3<f32>,
@@ -62,7 +63,6 @@ struct SurfaceRecord {
     triangle: u32,
 }
 
-const GBUF_HIT: u32 = 1u;
 const INVALID_ID: u32 = 0xffffffffu;
 const F32_EXPONENT_MASK: u32 = 0x7f800000u;
 
@@ -159,6 +159,14 @@ fn geometric_normal(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> vec3<f32> {
     return normalize_or(cross3(v1 - v0, v2 - v0), vec3<f32>(0.0));
 }
 
+// mirrors hyrt_core::kernels::shading::orient_to_seen_side; returns (geometric, shading).
+fn orient_to_seen_side(geometric: vec3<f32>, shading: vec3<f32>, back_face: bool) -> array<vec3<f32>, 2> {
+    if back_face {
+        return array<vec3<f32>, 2>(-geometric, -shading);
+    }
+    return array<vec3<f32>, 2>(geometric, shading);
+}
+
 fn max_element(a: vec3<f32>) -> f32 {
     return max(max(a.x, a.y), a.z);
 }
@@ -187,15 +195,14 @@ fn reconstruct_texel(t: GBufferTexel) -> SurfaceRecord {
     let err = max_element(position_error_bound(t.bary_u, t.bary_v, v0, v1, v2));
     var ng = geometric_normal(v0, v1, v2);
     var ns = interpolate_normal(t.bary_u, t.bary_v, corner_normal(gi, 0u), corner_normal(gi, 1u), corner_normal(gi, 2u), ng);
-    let to_eye = eye - p;
-    // A degenerate triangle has no geometric normal: shade with the shading normal.
+    // The side the raster saw, exactly (the sign of the snapped triangle's area).
+    let oriented = orient_to_seen_side(ng, ns, (t.flags & GBUF_BACK_FACE) != 0u);
+    ng = oriented[0];
+    ns = oriented[1];
+    // A degenerate triangle without vertex normals has no normal at all: shade it as
+    // facing the viewer.
     if !any_nonzero(ns) {
-        ns = normalize_or(to_eye, vec3<f32>(0.0, 1.0, 0.0));
-    }
-    // mirrors hyrt_core::kernels::shading::face_forward
-    if dot3(ng, to_eye) < 0.0 {
-        ng = -ng;
-        ns = -ns;
+        ns = normalize_or(eye - p, vec3<f32>(0.0, 1.0, 0.0));
     }
     // Keep the shading normal in the viewer's hemisphere of the geometric normal.
     if any_nonzero(ng) && dot3(ns, ng) < 0.0 {

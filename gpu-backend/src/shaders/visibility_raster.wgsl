@@ -308,9 +308,11 @@ fn mul(a: f32, b: f32) -> f32 {
     return rounded(a * b);
 }
 
-// mirrors hyrt_core::kernels::raster::clip_position (glam's order, no fused multiply-add)
-fn clip_position_exact(v: vec3<f32>) -> vec4<f32> {
+// mirrors hyrt_core::kernels::raster::clip_position_from_eye: `v - eye`, then the
+// eye-relative matrix in glam's order, no fused multiply-add
+fn clip_position_exact(world: vec3<f32>) -> vec4<f32> {
     let m = camera.view_proj;
+    let v = world - camera.eye;
     var o: vec4<f32>;
     for (var r = 0u; r < 4u; r++) {
         o[r] = rounded(rounded(mul(m[0][r], v.x) + mul(m[1][r], v.y)) + mul(m[2][r], v.z)) + m[3][r];
@@ -502,6 +504,19 @@ fn perspective_barycentrics(e: vec3<f32>, w: vec3<f32>) -> vec3<f32> {
     let q2 = e.z / w.z;
     let s = rounded(q0 + q1) + q2;
     return vec3<f32>(q0 / s, q1 / s, q2 / s);
+}
+
+// mirrors hyrt_core::kernels::raster::shows_interior
+fn shows_interior(back_face: bool, inward: bool) -> bool {
+    return back_face != inward;
+}
+
+// mirrors hyrt_core::kernels::raster::depth_test_value (bits: exact on any device)
+fn depth_test_value(depth: f32, interior: bool) -> f32 {
+    if interior && depth >= 0.0 {
+        return min(bitcast<f32>(bitcast<u32>(abs(depth)) + INTERIOR_DEPTH_BIAS_ULPS), 1.0);
+    }
+    return depth;
 }
 
 // mirrors hyrt_core::kernels::raster::interpolate_depth
@@ -784,6 +799,10 @@ fn fs_main(
     var out: FragmentOut;
     out.id = id + 1u;
     out.surface = vec4<f32>(sample.bary, sample.depth, select(1.0, 0.0, sample.back_face));
-    out.depth = sample.depth;
+    // The depth test compares depth_test_value: interior sides lose near-ties (the
+    // G-buffer keeps the unbiased depth, from `surface`). Never below the reference's
+    // depth, so the early depth test's promise (greater_equal) holds.
+    let inward = (triangles[id].flags & TRI_INWARD) != 0u;
+    out.depth = depth_test_value(sample.depth, shows_interior(sample.back_face, inward));
     return out;
 }

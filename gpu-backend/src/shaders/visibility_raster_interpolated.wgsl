@@ -19,9 +19,9 @@ struct VertexOut {
 }
 
 
-// mirrors hyrt_core::kernels::raster::clip_position (the driver may fuse).
+// mirrors hyrt_core::kernels::raster::clip_position_from_eye (the driver may fuse).
 fn clip_position(v: vec3<f32>) -> vec4<f32> {
-    return camera.view_proj * vec4<f32>(v, 1.0);
+    return camera.view_proj * vec4<f32>(v - camera.eye, 1.0);
 }
 
 @vertex

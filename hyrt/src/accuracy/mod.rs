@@ -8,9 +8,14 @@
 //! * `barycentrics`: the G-buffer's f32 barycentrics against the same quantized to
 //!   16-bit unorm ([`variants::quantize_unorm16`]) before reconstruction.
 //! * `ray origin`: shadow-ray origins with no offset, a constant epsilon along the
-//!   normal, and the robust method the pipeline uses ([`variants::OffsetMethod`]).
+//!   normal, Wächter and Binder's 256 ulps, and the error-bound offset the pipeline uses
+//!   ([`variants::OffsetMethod`]).
 //! * `shadows`: ray-traced shadows against shadow maps of several resolutions
 //!   ([`shadow_map`]): the paper's claim that ray-traced shadows are more accurate.
+//!
+//! [`leaks`] compares the ray-origin offsets again on the leak corpus (closed shells far
+//! from the origin, lights sealed inside or outside), where they decide whether light
+//! escapes.
 //!
 //! Errors ([`metrics`]): shadow-mask mismatches against the reference (false shadows and
 //! light leaks, over the (pixel, light) pairs both traced), hit-point error relative to
@@ -26,6 +31,7 @@
 //! # Ok::<(), hyrt::accuracy::AccuracyError>(())
 //! ```
 
+pub mod leaks;
 pub mod metrics;
 pub mod plot;
 pub mod reference;
@@ -174,7 +180,7 @@ fn run_frame(g: &WorldGeometry, bvh: &Bvh, camera: &CameraRecord, config: Config
         _ => {
             let mut rays = compaction(&surfaces, &g.lights);
             if let Config::Offset(m) = config {
-                if m != OffsetMethod::Robust {
+                if m != OffsetMethod::PIPELINE {
                     variants::reoffset_rays(&mut rays, &surfaces, &g.lights, m, extent);
                 }
             }
@@ -455,7 +461,8 @@ fn markdown(
         s,
         "Shadow mismatches count (pixel, light) pairs where both this configuration and the reference traced a \
          shadow ray from the same primary triangle. Offsets: `epsilon` moves the origin {} x extent along the \
-         geometric normal; `robust` is Wachter and Binder's integer-ulp offset the pipeline uses. Shadow maps: cube \
+         geometric normal; `256 ulps` is Wachter and Binder's integer-ulp offset (the pipeline's before the leak fix); \
+         `error bound` is pbrt-v4's offset by the reconstructed point's own error bound, the pipeline's. Shadow maps: cube \
          maps of 6 x 90 degree faces per point light (one orthographic map per directional light), rendered with \
          the CPU `visibility_raster` stage, nearest texel, linear depth (distance to a point light, distance along a directional light), bias {} texel + {} \
          texel x tan(normal, light) (capped at {}); resolution is per face side; their time is rendering every face \

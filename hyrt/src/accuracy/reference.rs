@@ -360,7 +360,9 @@ pub struct ReferenceFrame {
 }
 
 /// The surface record of an f64 hit: mirrors `hyrt_cpu::reconstruction::reconstruct_texel`
-/// (geometric and interpolated shading normal, both facing the viewer, the shading normal
+/// (geometric and interpolated shading normal, both facing the viewer: decided here by the
+/// sign of `n . (eye - p)` in f64, exact enough to be the truth, where the pipeline takes
+/// the raster's exact `GBUF_BACK_FACE` because an f32 dot product is not; the shading normal
 /// kept in the geometric normal's hemisphere), in f64, rounded at the end.
 fn surface_of(hit: &ReferenceHit, geometry: &WorldGeometry, eye: DVec3) -> (SurfaceRecord, DVec3, DVec3) {
     let tri = &geometry.triangles[hit.triangle as usize];

@@ -89,9 +89,10 @@ struct Face {
 fn perspective_face(light: Vec3, axis: Vec3, up: Vec3, res: u32, near: f32, far: f32) -> Face {
     let cam = Camera { eye: light, target: light + axis, up, fov_y_deg: 90.0, near, far };
     let record = CameraRecord::new(&cam, res, res);
-    // A 90-degree face spans depth d by 2d in world units over `res` texels.
+    // A 90-degree face spans depth d by 2d in world units over `res` texels. Lookups
+    // project world points with the world-to-clip matrix (the record's is eye-relative).
     Face {
-        view_proj: Mat4::from_cols_array(&record.view_proj),
+        view_proj: cam.view_projection(res, res),
         record,
         origin: light,
         axis: None,
@@ -109,9 +110,11 @@ fn orthographic_face(geometry: &WorldGeometry, dir: Vec3, res: u32) -> Face {
     let view = glam::camera::rh::view::look_to_mat4(eye, dir, up);
     let proj = glam::camera::rh::proj::directx::orthographic(-r, r, -r, r, r * 0.5, r * 3.5);
     let vp = proj * view;
+    // The record's matrices are eye-relative (the raster projects `p - eye`).
+    let vp_from_eye = proj * glam::camera::rh::view::look_to_mat4(Vec3::ZERO, dir, up);
     let record = CameraRecord {
-        view_proj: vp.to_cols_array(),
-        inv_view_proj: vp.inverse().to_cols_array(),
+        view_proj: vp_from_eye.to_cols_array(),
+        inv_view_proj: vp_from_eye.inverse().to_cols_array(),
         eye: eye.into(),
         width: res,
         height: res,

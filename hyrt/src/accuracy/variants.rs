@@ -1,10 +1,10 @@
 //! Local variants of pipeline steps, applied to the stages' outputs without changing
 //! the pipeline: barycentrics quantized to 16-bit unorm before reconstruction, and
-//! shadow-ray origins offset by other methods than the pipeline's robust one.
+//! shadow-ray origins offset by other methods than the pipeline's error-bound one.
 
 use glam::Vec3;
 use hyrt_core::formats::{GBufferTexel, LightRecord, RayRecord, SurfaceRecord, LIGHT_DIRECTIONAL};
-use hyrt_core::kernels::ray::offset_ray_origin;
+use hyrt_core::kernels::ray::{offset_ray_origin, offset_ray_origin_integer_ulps};
 use hyrt_cpu::compaction::SHADOW_T_MAX_POINT;
 use rayon::prelude::*;
 
@@ -51,33 +51,44 @@ pub enum OffsetMethod {
     None,
     /// The point plus [`CONSTANT_EPSILON_REL`] x scene extent along the geometric normal.
     Epsilon,
-    /// `hyrt_core::kernels::ray::offset_ray_origin` (Wächter and Binder), the pipeline's.
-    Robust,
+    /// `hyrt_core::kernels::ray::offset_ray_origin_integer_ulps` (Wächter and Binder: 256
+    /// ulps of each coordinate), the pipeline's before the error-bound offset.
+    IntegerUlps,
+    /// `hyrt_core::kernels::ray::offset_ray_origin` (pbrt-v4: the point's own error bound,
+    /// rounded away from the surface), the pipeline's.
+    ErrorBound,
 }
 
 impl OffsetMethod {
-    pub const ALL: [OffsetMethod; 3] = [OffsetMethod::None, OffsetMethod::Epsilon, OffsetMethod::Robust];
+    pub const ALL: [OffsetMethod; 4] =
+        [OffsetMethod::None, OffsetMethod::Epsilon, OffsetMethod::IntegerUlps, OffsetMethod::ErrorBound];
+
+    /// The method `compaction` uses: its rays need no re-offset.
+    pub const PIPELINE: OffsetMethod = OffsetMethod::ErrorBound;
 
     pub const fn name(self) -> &'static str {
         match self {
             OffsetMethod::None => "none",
             OffsetMethod::Epsilon => "epsilon 1e-4 x extent",
-            OffsetMethod::Robust => "robust (Wachter-Binder)",
+            OffsetMethod::IntegerUlps => "256 ulps (Wachter-Binder)",
+            OffsetMethod::ErrorBound => "error bound (pbrt-v4)",
         }
     }
 
-    /// The origin of a shadow ray leaving `p`, whose viewer-facing unit geometric normal is `n`.
+    /// The origin of a shadow ray leaving `p` (whose coordinates are within `p_error` of
+    /// the exact surface point), whose viewer-facing unit geometric normal is `n`.
     #[inline]
-    pub fn origin(self, p: Vec3, n: Vec3, scene_extent: f32) -> Vec3 {
+    pub fn origin(self, p: Vec3, p_error: f32, n: Vec3, scene_extent: f32) -> Vec3 {
         match self {
             OffsetMethod::None => p,
             OffsetMethod::Epsilon => p + n * (CONSTANT_EPSILON_REL * scene_extent),
-            OffsetMethod::Robust => offset_ray_origin(p, n),
+            OffsetMethod::IntegerUlps => offset_ray_origin_integer_ulps(p, n),
+            OffsetMethod::ErrorBound => offset_ray_origin(p, p_error, n),
         }
     }
 }
 
-/// Re-aim the compacted shadow rays (as `hyrt_cpu::compaction` built them, robust
+/// Re-aim the compacted shadow rays (as `hyrt_cpu::compaction` built them, error-bound
 /// origins) from origins chosen by `method`: the direction and `t_max` follow
 /// `hyrt_cpu::compaction::shadow_ray` (towards a point light with
 /// `t_max = SHADOW_T_MAX_POINT`, along a directional light to infinity).
@@ -91,7 +102,8 @@ pub fn reoffset_rays(
     rays.par_iter_mut().with_min_len(4096).for_each(|r| {
         let s = &surfaces[r.pixel as usize];
         let light = &lights[r.light as usize];
-        let origin = method.origin(Vec3::from(s.position), Vec3::from(s.geometric_normal), scene_extent);
+        let origin =
+            method.origin(Vec3::from(s.position), s.position_error, Vec3::from(s.geometric_normal), scene_extent);
         let (direction, t_max) = if light.kind == LIGHT_DIRECTIONAL {
             (-Vec3::from(light.position_or_direction), f32::INFINITY)
         } else {
