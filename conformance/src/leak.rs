@@ -153,21 +153,13 @@ pub struct LeakCase {
 /// Interior points (shell space) of the convex shells, all within 0.9 of the centre: the
 /// inradius of the icosphere is 0.9966 and of the boxes 1. Two are near the bottom and the
 /// top face, so that shadow rays also cross the shell right beside a light.
-const CONVEX_INTERIOR: [Vec3; LIGHTS_PER_CASE] = [
-    Vec3::ZERO,
-    Vec3::new(0.45, 0.27, 0.18),
-    Vec3::new(0.18, -0.81, 0.09),
-    Vec3::new(0.09, 0.855, -0.045),
-];
+const CONVEX_INTERIOR: [Vec3; LIGHTS_PER_CASE] =
+    [Vec3::ZERO, Vec3::new(0.45, 0.27, 0.18), Vec3::new(0.18, -0.81, 0.09), Vec3::new(0.09, 0.855, -0.045)];
 
 /// Light positions outside, in shell space: above, beside, in front, behind; all cast the
 /// shell's shadow on the floor somewhere in view.
-const OUTSIDE: [Vec3; LIGHTS_PER_CASE] = [
-    Vec3::new(2.0, 3.5, 1.5),
-    Vec3::new(-3.0, 2.0, 0.5),
-    Vec3::new(0.5, 4.0, -2.5),
-    Vec3::new(-1.0, 2.5, 3.0),
-];
+const OUTSIDE: [Vec3; LIGHTS_PER_CASE] =
+    [Vec3::new(2.0, 3.5, 1.5), Vec3::new(-3.0, 2.0, 0.5), Vec3::new(0.5, 4.0, -2.5), Vec3::new(-1.0, 2.5, 3.0)];
 
 /// The shell meshes in shell space (within [-1, 1]^3, bottom at y = -1) with the light
 /// positions inside them. `None` for the horse without `../shared/assets`.
@@ -302,9 +294,10 @@ pub fn quad_box(n: u32) -> Mesh {
 
 /// A mesh moved and scaled (in f32, once) to fit [-1, 1]^3 with its bounding box centred.
 fn normalized(mesh: &Mesh) -> Mesh {
-    let (lo, hi) = mesh.positions.iter().fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), p| {
-        (lo.min(*p), hi.max(*p))
-    });
+    let (lo, hi) = mesh
+        .positions
+        .iter()
+        .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
     let centre = (lo + hi) * 0.5;
     let half = ((hi - lo) * 0.5).max_element();
     let positions = mesh.positions.iter().map(|p| (*p - centre) / half).collect();
@@ -483,10 +476,7 @@ impl LeakCount {
 pub fn count_leaks(frame: &Frame) -> LeakCount {
     let pixels = frame.surfaces.len();
     let lights = if pixels == 0 { 0 } else { frame.shadow.len() / pixels };
-    let mut c = LeakCount {
-        shadow_rays: frame.stats.rays_per_kind[RAY_KIND_SHADOW as usize],
-        ..LeakCount::default()
-    };
+    let mut c = LeakCount { shadow_rays: frame.stats.rays_per_kind[RAY_KIND_SHADOW as usize], ..LeakCount::default() };
     for (p, s) in frame.surfaces.iter().enumerate() {
         let mask = &frame.shadow[p * lights..(p + 1) * lights];
         let lit = mask.iter().filter(|&&m| m == SHADOW_LIT).count() as u64;

@@ -47,10 +47,8 @@ fn leaks_of(backend_name: &str, lc: &LeakCase, frame: &Frame) -> Option<String> 
 /// that it does not explain.
 fn tie_rule_differences(prepared: &PreparedScene, cpu: &Frame, gpu: &Frame) -> Result<usize, String> {
     for cmp in compare_stages(cpu, gpu) {
-        let downstream = matches!(
-            cmp.stage,
-            Stage::ShadowRays | Stage::RtShading | Stage::RasterShading | Stage::Composition
-        );
+        let downstream =
+            matches!(cmp.stage, Stage::ShadowRays | Stage::RtShading | Stage::RasterShading | Stage::Composition);
         if !cmp.is_exact() && !downstream {
             return Err(format!("{} / {}: {cmp:?}", cmp.stage, cmp.buffer));
         }
@@ -75,9 +73,16 @@ fn tie_rule_differences(prepared: &PreparedScene, cpu: &Frame, gpu: &Frame) -> R
         pairs.insert(r.pixel as usize * lights + r.light as usize);
     }
     let differ = |a: &[[f32; 4]], b: &[[f32; 4]]| {
-        a.iter().zip(b).enumerate().filter(|(_, (x, y))| bytemuck::bytes_of(*x) != bytemuck::bytes_of(*y)).map(|(i, _)| i).collect::<Vec<_>>()
+        a.iter()
+            .zip(b)
+            .enumerate()
+            .filter(|(_, (x, y))| bytemuck::bytes_of(*x) != bytemuck::bytes_of(*y))
+            .map(|(i, _)| i)
+            .collect::<Vec<_>>()
     };
-    for (name, a, b) in [("raster", &cpu.raster, &gpu.raster), ("rt", &cpu.rt, &gpu.rt), ("final", &cpu.final_image, &gpu.final_image)] {
+    for (name, a, b) in
+        [("raster", &cpu.raster, &gpu.raster), ("rt", &cpu.rt, &gpu.rt), ("final", &cpu.final_image, &gpu.final_image)]
+    {
         if let Some(p) = differ(a, b).into_iter().find(|p| !pixels.contains(p)) {
             return Err(format!("{name}: pixel {p} differs without a differing ray"));
         }

@@ -9,11 +9,11 @@ use glam::{Mat4, Quat, Vec3};
 use hyrt_core::bvh::{Bvh, BvhPreset, ClosestHit};
 use hyrt_core::formats::{RayRecord, TriangleRecord, INVALID_ID, RAY_KIND_PRIMARY, RAY_KIND_SHADOW, TRI_RAY_TRACED};
 use hyrt_core::geometry::WorldGeometry;
+use hyrt_core::kernels::barycentric::{position_error_bound, reconstruct_position};
 use hyrt_core::kernels::ray::{
     intersect_triangle_watertight, offset_ray_origin, offset_ray_origin_integer_ulps, ray_aabb_conservative,
     safe_inverse_dir, TriangleHit,
 };
-use hyrt_core::kernels::barycentric::{position_error_bound, reconstruct_position};
 use hyrt_core::scene::{Material, Mesh, Object, ObjectSource, RenderMode, Scene};
 use proptest::prelude::*;
 

@@ -43,16 +43,15 @@
 //! ```
 
 use hyrt_core::formats::{
-    CameraRecord, GBufferTexel, TriangleRecord, GBUF_BACK_FACE, GBUF_HIT, GBUF_RAY_TRACED, TRI_INWARD,
-    TRI_RAY_TRACED,
+    CameraRecord, GBufferTexel, TriangleRecord, GBUF_BACK_FACE, GBUF_HIT, GBUF_RAY_TRACED, TRI_INWARD, TRI_RAY_TRACED,
 };
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::raster::{
     barycentrics_in_original, clip_plane_distance, clip_polygon_against_plane, clip_position_from_eye, clip_to_window,
     depth_test_value, edge_bias, edge_function, guard_band_ndc, interpolate_depth, perspective_barycentrics,
-    INTERIOR_DEPTH_BIAS_ULPS,
-    perspective_barycentrics_of_corners, pixel_center_fixed, shows_interior, pixel_span, snap_to_fixed, triangle_area2, ClipVertex,
-    CLIP_PLANES, DEPTH_INTERPOLATION_REL_ERROR, FIXED_ONE, MAX_CLIP_VERTICES, MAX_FIXED_COORD, MAX_IMAGE_DIM,
+    perspective_barycentrics_of_corners, pixel_center_fixed, pixel_span, shows_interior, snap_to_fixed, triangle_area2,
+    ClipVertex, CLIP_PLANES, DEPTH_INTERPOLATION_REL_ERROR, FIXED_ONE, INTERIOR_DEPTH_BIAS_ULPS, MAX_CLIP_VERTICES,
+    MAX_FIXED_COORD, MAX_IMAGE_DIM,
 };
 use rayon::prelude::*;
 
@@ -874,14 +873,8 @@ fn resolve_tile(
             } else {
                 scratch.depth[i]
             };
-            *texel = GBufferTexel {
-                bary_u: u,
-                bary_v: v,
-                depth,
-                triangle: t.triangle,
-                object: t.object,
-                flags: t.flags,
-            };
+            *texel =
+                GBufferTexel { bary_u: u, bary_v: v, depth, triangle: t.triangle, object: t.object, flags: t.flags };
             if cfg!(debug_assertions) {
                 texel.validate().expect("visibility_raster texel invariants");
             }

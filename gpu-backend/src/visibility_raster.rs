@@ -91,7 +91,7 @@ pub const ID_FROM_FLAT_VERTEX_OUTPUT: &str = "flat-interpolated vertex_index / 3
 fn raster_constants() -> String {
     use hyrt_core::formats::TRI_INWARD;
     use hyrt_core::kernels::raster::{
-        INTERIOR_DEPTH_BIAS_ULPS, FIXED_ONE, FIXED_ONE_F32, GUARD_BAND_PIXELS, MAX_CLIP_VERTICES, MAX_FIXED_COORD,
+        FIXED_ONE, FIXED_ONE_F32, GUARD_BAND_PIXELS, INTERIOR_DEPTH_BIAS_ULPS, MAX_CLIP_VERTICES, MAX_FIXED_COORD,
         MAX_IMAGE_DIM, PIXEL_CENTER_OFFSET,
     };
     format!(

@@ -14,9 +14,7 @@
 
 use glam::{DVec3, Vec3};
 use hyrt::accuracy::reference::{occluded_f64, Ray64, REFERENCE_SHADOW_T_MIN};
-use hyrt_conformance::leak::{
-    leak_corpus, LightSide, FLOOR_OBJECT, MIN_FEATURE_ULPS, MIN_SHADOW_RAYS, SHELL_OBJECT,
-};
+use hyrt_conformance::leak::{leak_corpus, LightSide, FLOOR_OBJECT, MIN_FEATURE_ULPS, MIN_SHADOW_RAYS, SHELL_OBJECT};
 use hyrt_conformance::report::render_case;
 use hyrt_core::bvh::BvhPreset;
 use hyrt_core::frame::{PreparedScene, SHADOW_LIT, SHADOW_NO_RAY, SHADOW_OCCLUDED};
@@ -121,7 +119,10 @@ fn leak_corpus_lights_outside_light_and_shadow_what_they_should() {
                 } else {
                     t.false_light += 1;
                     if t.false_light <= 3 {
-                        eprintln!("{}: light through the shell at pixel {pixel} (object {}), light {l}", lc.case.name, s.object);
+                        eprintln!(
+                            "{}: light through the shell at pixel {pixel} (object {}), light {l}",
+                            lc.case.name, s.object
+                        );
                     }
                 }
             }

@@ -303,9 +303,10 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Report, Ben
         }
         progress.set_message("speed against error: leak corpus");
         let report = |m: &str| progress.set_message(format!("speed against error: {m}"));
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().map_err(|e| {
-            crate::accuracy::AccuracyError::Threads { threads, message: e.to_string() }
-        })?;
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .map_err(|e| crate::accuracy::AccuracyError::Threads { threads, message: e.to_string() })?;
         let rows = pool.install(|| crate::accuracy::leaks::leak_offsets(options.quick, &report));
         md += &crate::accuracy::leaks::leak_offsets_markdown(&rows);
         sections.push(Section::new("Speed against error", md));
