@@ -5,8 +5,6 @@
 //! Vertices are transformed to world space once, here, in f32, so the raster,
 //! the BVH and reconstruction (on either backend) see the very same bits.
 
-use std::collections::HashMap;
-
 use glam::{DVec3, Mat3, Vec3};
 
 use crate::formats::{LightRecord, ObjectRecord, TriangleRecord, OBJ_RAY_TRACED, TRI_INWARD, TRI_RAY_TRACED};
@@ -38,37 +36,57 @@ impl MeshWinding {
     /// Classify a mesh in its own space. Closed means every directed edge between two
     /// positions (equal positions are one vertex, so split normals or seams do not open
     /// it) is matched by as many edges the other way: the surface is a cycle, and its
-    /// signed volume (divergence theorem, in f64) tells outward from inward. O(triangles)
-    /// with hashing.
+    /// signed volume (divergence theorem, in f64) tells outward from inward. Two sorts:
+    /// about 0.2 s for the 871k-triangle dragon on the CI machine, once per mesh.
     pub fn of_mesh(mesh: &Mesh) -> MeshWinding {
-        let mut ids: HashMap<[u32; 3], u32> = HashMap::with_capacity(mesh.positions.len());
-        let canon: Vec<u32> = mesh
-            .positions
-            .iter()
-            .map(|p| {
-                let n = ids.len() as u32;
-                *ids.entry(p.to_array().map(|c| (c + 0.0).to_bits())).or_insert(n)
-            })
-            .collect();
-        let mut edges: HashMap<(u32, u32), i32> = HashMap::with_capacity(mesh.indices.len() * 3);
+        // Canonical vertex ids: positions sorted by their bits (-0 as +0), equal ones merged.
+        let key = |i: u32| mesh.positions[i as usize].to_array().map(|c| (c + 0.0).to_bits());
+        let mut order: Vec<u32> = (0..mesh.positions.len() as u32).collect();
+        order.sort_by_cached_key(|&i| key(i));
+        let mut canon = vec![0u32; mesh.positions.len()];
+        let mut id = 0u32;
+        for (k, &i) in order.iter().enumerate() {
+            if k > 0 && key(order[k - 1]) != key(i) {
+                id += 1;
+            }
+            canon[i as usize] = id;
+        }
+        // Every directed edge as (unordered pair, direction bit), sorted: each pair must have
+        // as many edges one way as the other (a cycle). Sorting, not hashing: the dragon's
+        // 2.6 million edges sort faster than they scatter into a hash table.
+        let mut edges: Vec<u64> = Vec::with_capacity(mesh.indices.len() * 3);
         for idx in &mesh.indices {
-            let Some(c) = idx.iter().map(|&i| canon.get(i as usize).copied()).collect::<Option<Vec<u32>>>() else {
+            if idx.iter().any(|&i| i as usize >= canon.len()) {
                 return MeshWinding::Open;
-            };
+            }
+            let c = idx.map(|i| canon[i as usize]);
             for (a, b) in [(c[0], c[1]), (c[1], c[2]), (c[2], c[0])] {
                 if a != b {
-                    // +1 for a -> b, -1 for b -> a, keyed by the unordered pair.
-                    *edges.entry((a.min(b), a.max(b))).or_default() += if a < b { 1 } else { -1 };
+                    edges.push((a.min(b) as u64) << 33 | (a.max(b) as u64) << 1 | (a < b) as u64);
                 }
             }
         }
-        if edges.is_empty() || edges.values().any(|&n| n != 0) {
+        if edges.is_empty() {
             return MeshWinding::Open;
+        }
+        edges.sort_unstable();
+        let mut run = 0usize;
+        while run < edges.len() {
+            let pair = edges[run] >> 1;
+            let end = run + edges[run..].iter().take_while(|&&e| e >> 1 == pair).count();
+            let forward = edges[run..end].iter().filter(|&&e| e & 1 == 1).count();
+            if 2 * forward != end - run {
+                return MeshWinding::Open;
+            }
+            run = end;
         }
         let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
         let mut volume = 0.0f64;
+        // Relative to one of its vertices (a closed surface's volume does not depend on the
+        // point), so a mesh modelled far from its origin does not cancel its volume away.
+        let o = mesh.positions[mesh.indices[0][0] as usize].as_dvec3();
         for idx in &mesh.indices {
-            let [a, b, c] = idx.map(|i| mesh.positions[i as usize].as_dvec3());
+            let [a, b, c] = idx.map(|i| mesh.positions[i as usize].as_dvec3() - o);
             if !(a.is_finite() && b.is_finite() && c.is_finite()) {
                 return MeshWinding::Open;
             }
@@ -243,5 +261,80 @@ impl WorldGeometry {
             l.validate()?;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Material;
+    use glam::Mat4;
+
+    fn flipped(mesh: &Mesh) -> Mesh {
+        Mesh { indices: mesh.indices.iter().map(|&[a, b, c]| [a, c, b]).collect(), ..mesh.clone() }
+    }
+
+    #[test]
+    fn winding_tells_closed_outward_inward_and_open_meshes_apart() {
+        // The built-in cube has 24 vertices (split per face): closed through equal positions.
+        let cube = Mesh::cube("cube");
+        assert_eq!(MeshWinding::of_mesh(&cube), MeshWinding::Outward);
+        assert_eq!(MeshWinding::of_mesh(&flipped(&cube)), MeshWinding::Inward);
+        assert_eq!(MeshWinding::of_mesh(&Mesh::uv_sphere("s", 16, 8)), MeshWinding::Outward);
+        // Open: a grid, a cube missing a face, an inconsistently wound cube.
+        assert_eq!(MeshWinding::of_mesh(&Mesh::grid("g", 4)), MeshWinding::Open);
+        let mut holed = cube.clone();
+        holed.indices.truncate(10);
+        assert_eq!(MeshWinding::of_mesh(&holed), MeshWinding::Open);
+        let mut mixed = cube.clone();
+        mixed.indices[0] = [mixed.indices[0][0], mixed.indices[0][2], mixed.indices[0][1]];
+        assert_eq!(MeshWinding::of_mesh(&mixed), MeshWinding::Open);
+        // A sheet modelled twice back to back is a cycle enclosing nothing: open.
+        let sheet = Mesh::grid("g", 2);
+        let mut twice = sheet.clone();
+        twice.indices.extend(flipped(&sheet).indices);
+        assert_eq!(MeshWinding::of_mesh(&twice), MeshWinding::Open);
+        // Out-of-range indices and empty meshes are open, not a panic.
+        let mut bad = cube.clone();
+        bad.indices[3] = [0, 1, 999];
+        assert_eq!(MeshWinding::of_mesh(&bad), MeshWinding::Open);
+        assert_eq!(MeshWinding::of_mesh(&Mesh::default()), MeshWinding::Open);
+        // Far from its own origin (1e7: the terms about the origin would be 1e21).
+        let far =
+            Mesh { positions: cube.positions.iter().map(|p| *p + Vec3::new(1e7, -3e6, 5e6)).collect(), ..cube.clone() };
+        assert_eq!(MeshWinding::of_mesh(&far), MeshWinding::Outward);
+        assert_eq!(MeshWinding::of_mesh(&flipped(&far)), MeshWinding::Inward);
+        // A mirror swaps outward and inward.
+        assert_eq!(MeshWinding::Outward.transformed(-1.0), MeshWinding::Inward);
+        assert_eq!(MeshWinding::Inward.transformed(-2.0), MeshWinding::Outward);
+        assert_eq!(MeshWinding::Open.transformed(-1.0), MeshWinding::Open);
+    }
+
+    #[test]
+    fn inward_closed_meshes_flag_their_triangles() {
+        let mut scene = Scene::default();
+        let cube = Mesh::cube("cube");
+        scene.add_object(cube.clone(), Material::grey(), Mat4::IDENTITY, RenderMode::Raster);
+        scene.add_object(flipped(&cube), Material::grey(), Mat4::IDENTITY, RenderMode::RayTraced);
+        // Mirrored by its transform: inward becomes outward.
+        scene.add_object(
+            flipped(&cube),
+            Material::grey(),
+            Mat4::from_scale(Vec3::new(-1.0, 1.0, 1.0)),
+            RenderMode::Raster,
+        );
+        scene.add_object(Mesh::grid("g", 2), Material::grey(), Mat4::IDENTITY, RenderMode::Raster);
+        let g = WorldGeometry::build(&scene);
+        let inward: Vec<bool> = g
+            .objects
+            .iter()
+            .map(|o| {
+                let tris = &g.triangles[o.first_triangle as usize..(o.first_triangle + o.triangle_count) as usize];
+                assert!(tris.iter().all(|t| t.flags & TRI_INWARD == tris[0].flags & TRI_INWARD));
+                tris[0].flags & TRI_INWARD != 0
+            })
+            .collect();
+        assert_eq!(inward, vec![false, true, false, false]);
+        assert!(g.triangles.iter().filter(|t| t.object == 1).all(|t| t.flags & TRI_RAY_TRACED != 0));
     }
 }

@@ -1279,3 +1279,46 @@ fn visibility_raster_into_a_reused_buffer_equals_a_fresh_one() {
     hyrt_cpu::visibility_raster::visibility_raster_into(&g, &cam, &mut wrong_size);
     assert_eq!(bits(&wrong_size), bits(&fresh.gbuffer));
 }
+
+/// A closed convex mesh seen from outside shows only its exterior: no pixel may show the
+/// side facing into it, even on silhouettes, where the face behind shares an edge with
+/// the visible one and their depths tie to within rounding (`depth_test_value`), and far
+/// from the origin, where only the eye-relative projection keeps the silhouettes in place.
+/// Both windings: outward (the exterior is the front faces) and inward (the back faces,
+/// `TRI_INWARD`).
+#[test]
+fn visibility_raster_closed_convex_meshes_show_no_interior_on_silhouettes() {
+    let flip = |m: &Mesh| Mesh { indices: m.indices.iter().map(|&[a, b, c]| [a, c, b]).collect(), ..m.clone() };
+    let (sphere, cube) = (Mesh::uv_sphere("sphere", 64, 32), Mesh::cube("cube"));
+    let (sphere_in, cube_in) = (flip(&sphere), flip(&cube));
+    let mut shown = 0;
+    for (mesh, back_is_outside) in [(&sphere, false), (&sphere_in, true), (&cube, false), (&cube_in, true)] {
+        for centre in [Vec3::ZERO, Vec3::new(3e4, -1e4, 2e4), Vec3::new(6e5, 2e5, -4e5)] {
+            // Half size such that the sphere spans at least 400 ulps of its coordinates.
+            let ulp = |x: f32| f32::from_bits(x.to_bits() + 1) - x;
+            let r = (400.0 * ulp(centre.abs().max_element() + 1.0)).max(1.0);
+            let mut scene = Scene::default();
+            let t = Mat4::from_translation(centre) * Mat4::from_scale(Vec3::splat(r));
+            scene.add_object(mesh.clone(), Material::grey(), t, RenderMode::Raster);
+            let g = WorldGeometry::build(&scene);
+            // Directions on a golden-angle spiral, plus two exactly in the planes of faces.
+            let dirs = (0..24).map(|k| {
+                let z = 1.0 - (k as f32 + 0.5) / 12.0;
+                let a = k as f32 * 2.399_963;
+                Vec3::new((1.0 - z * z).sqrt() * a.cos(), z, (1.0 - z * z).sqrt() * a.sin())
+            });
+            for dir in dirs.chain([Vec3::new(1.0, 1.0, 5.0), Vec3::new(0.3, 1.0, -4.0)]) {
+                let eye = centre + dir.normalize() * (3.5 * r);
+                let eye = if dir.y == 1.0 { t.transform_point3(dir) } else { eye };
+                let cam = CameraRecord::new(&look_camera(eye, centre, 40.0, 0.1 * r, 10.0 * r), 320, 240);
+                let out = visibility_raster(&g, &cam);
+                for (i, texel) in out.gbuffer.iter().enumerate().filter(|(_, t)| t.is_hit()) {
+                    shown += 1;
+                    let back = texel.flags & GBUF_BACK_FACE != 0;
+                    assert_eq!(back, back_is_outside, "centre {centre}, eye {eye}: pixel {i} shows the inside");
+                }
+            }
+        }
+    }
+    assert!(shown > 1_000_000, "{shown} pixels");
+}
