@@ -579,8 +579,6 @@ proptest! {
 // (Mitsuba 3 `test_ray_offset` spirit)
 // ---------------------------------------------------------------------------------------------
 
-/// A hit point as the renderer computes it: barycentric combination in f32, in this
-/// order (w v0 + u v1 + v v2).
 /// The point at barycentrics `(u, v)` as `reconstruction` computes it, with its error
 /// bound (the record's `position_error`, the largest component).
 fn bary_point(t: [Vec3; 3], u: f32, v: f32) -> (Vec3, f32) {

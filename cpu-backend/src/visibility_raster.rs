@@ -9,9 +9,10 @@
 //! and, only for vertices beyond it, a guard band; window x, y snapped to 1/256 pixel
 //! (nearest, ties to even); exact 64-bit edge functions at pixel centres with the
 //! top-left fill rule; zero-area triangles culled; no face culling; depth test LESS
-//! against a clear value of 1.0, with back faces' depths pushed back by
-//! `INTERIOR_DEPTH_BIAS_ULPS` f32 steps so that they lose near-ties at silhouettes
-//! (`depth_test_value`; the G-buffer keeps the unbiased depth).
+//! against a clear value of 1.0, with the depths of fragments that show a surface's
+//! interior side (`shows_interior`: a back face, or a front face of a closed mesh wound
+//! inward) pushed back by `INTERIOR_DEPTH_BIAS_ULPS` f32 steps so that they lose near-ties
+//! at silhouettes (`depth_test_value`; the G-buffer keeps the unbiased depth).
 //!
 //! How it runs:
 //! 1. *Setup and binning*, in parallel over chunks of `SETUP_CHUNK` source
@@ -647,9 +648,9 @@ const NARROW_BOX_WIDTH: i64 = 4;
 /// within [`DEPTH_INTERPOLATION_REL_ERROR`] (8 * 2^-24) of the true value, which is at
 /// most 1. If the approximate depth exceeds the stored one by more than the sum of both
 /// (rounded up to 2^-20), the exact depth is at least the stored depth and fails LESS,
-/// so skipping it changes nothing. (The stored value may be a back face's biased depth,
-/// and a back fragment compares its biased depth: both only move the comparison further
-/// in the same direction.)
+/// so skipping it changes nothing. (The stored value may be an interior side's biased
+/// depth, and an interior fragment compares its biased depth: both only move the
+/// comparison further in the same direction.)
 const DEPTH_REJECT_MARGIN: f64 = 1.0 / (1u64 << 20) as f64;
 const _: () = assert!(DEPTH_REJECT_MARGIN > DEPTH_INTERPOLATION_REL_ERROR + 70.0 * f64::EPSILON);
 

@@ -35,10 +35,11 @@
 //! additions whose product feeding the addition is kept unfused (the `zero` uniform)
 //! and a step to the next float done on the bits, the direction is one correctly
 //! rounded subtraction, the rest are constants. A device that flushes subnormals
-//! differs only where an error bound is subnormal (coordinates below about 1e-31). The flags use `light_incidence`'s
-//! `sqrt` and divisions and two dot products, which a GPU may fuse or round
-//! within 2.5 ulp: a flag can then differ only where `n . l` is within a few ulps
-//! of zero (grazing light), or where `radiance / d^2` is subnormal and flushed.
+//! differs only where an error bound is subnormal (coordinates below about 1e-31).
+//! The flags use `light_incidence`'s `sqrt` and divisions and two dot products,
+//! which a GPU may fuse or round within 2.5 ulp: a flag can then differ only where
+//! `n . l` is within a few ulps of zero (grazing light), or where `radiance / d^2` is
+//! subnormal and flushed.
 //! On lavapipe the default-scene tests find no difference.
 
 use std::sync::Mutex;

@@ -17,8 +17,8 @@ pub fn pixel_centre_ndc(width: u32, height: u32, x: u32, y: u32) -> (f32, f32) {
 
 /// The primary ray of pixel `(x, y)`: from the eye through the pixel centre's point on
 /// the far plane (NDC depth 1, unprojected with the eye-relative `inv_view_proj`, which
-/// gives the direction directly), so `t = 1` is the far plane and `t_min = near / far` is the near plane: the ray sees exactly the depth range
-/// the raster pass keeps. `kind` is [`RAY_KIND_PRIMARY`], `pixel` is `y * width + x`.
+/// gives the direction directly), so `t = 1` is the far plane and `t_min = near / far` is
+/// the near plane: the ray sees exactly the depth range the raster pass keeps. `kind` is [`RAY_KIND_PRIMARY`], `pixel` is `y * width + x`.
 #[inline]
 pub fn primary_ray(camera: &CameraRecord, x: u32, y: u32) -> RayRecord {
     let (nx, ny) = pixel_centre_ndc(camera.width, camera.height, x, y);

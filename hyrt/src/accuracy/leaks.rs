@@ -52,7 +52,7 @@ pub fn leak_offsets(quick: bool, progress: &dyn Fn(&str)) -> Vec<LeakOffsetRow> 
     for kind in ShellKind::ALL {
         let Some((mesh, inside)) = shell(kind) else { continue };
         for placement in chosen_placements(quick) {
-            if kind == ShellKind::Horse && placement.scale.is_some() {
+            if !placement.fits(kind) {
                 continue;
             }
             let sides: &[LightSide] =
