@@ -11,6 +11,7 @@
 
 use hyrt_core::formats::{GBufferTexel, RayRecord, SurfaceRecord};
 use hyrt_core::frame::Frame;
+use hyrt_core::plan::FrameBuffer;
 use hyrt_core::stage::Stage;
 
 use crate::ulp_distance;
@@ -289,15 +290,14 @@ fn compare_per_pixel<T: bytemuck::Pod>(
     c
 }
 
-/// Compare two frames of the same scene, camera and options, stage by stage.
-/// Returns one [`BufferComparison`] per stage output, in stage order:
-/// `visibility_raster` (gbuffer), `reconstruction` (surfaces), `compaction` (rays),
-/// `shadow_rays` (occluded, shadow), `rt_shading` (rt), `raster_shading` (raster),
-/// `composition` (final).
+/// Compare two frames of the same scene, camera and options, buffer by buffer.
+/// Returns one [`BufferComparison`] per frame buffer either frame holds
+/// ([`Frame::buffers`], in stage order: `gbuffer`, `surfaces`, `rays`, `occluded`,
+/// `shadow`, `rt`, `raster`, `final`), so a stage the plan skipped is not compared;
+/// a buffer only one frame holds is one `presence` difference.
 pub fn compare_stages(expected: &Frame, actual: &Frame) -> Vec<BufferComparison> {
     let width = expected.width;
     let pixels = (expected.width * expected.height) as usize;
-    let mut out = Vec::new();
     if (expected.width, expected.height) != (actual.width, actual.height) {
         let mut c = BufferComparison::new(Stage::VisibilityRaster, "gbuffer");
         c.note_int(|| Difference {
@@ -309,43 +309,109 @@ pub fn compare_stages(expected: &Frame, actual: &Frame) -> Vec<BufferComparison>
         });
         return vec![c];
     }
-
-    // visibility_raster: every pixel.
-    let gbuf = compare_per_pixel::<GBufferTexel>(
-        Stage::VisibilityRaster,
-        "gbuffer",
-        &GBUFFER_WORDS,
-        width,
-        &expected.gbuffer,
-        &actual.gbuffer,
-        &[],
-    );
     // Pixels whose primary visibility differs: everything downstream of them differs
-    // for that reason alone and is reported once, here.
+    // for that reason alone and is reported once, in the G-buffer.
     let id_differs: Vec<bool> = (0..pixels)
         .map(|i| match (expected.gbuffer.get(i), actual.gbuffer.get(i)) {
             (Some(e), Some(a)) => (e.triangle, e.object, e.flags) != (a.triangle, a.object, a.flags),
             _ => true,
         })
         .collect();
-    out.push(gbuf);
+    let (mut rays, mut occluded) = compare_rays(expected, actual, width, &id_differs);
 
-    out.push(compare_per_pixel::<SurfaceRecord>(
-        Stage::Reconstruction,
-        "surfaces",
-        &SURFACE_WORDS,
-        width,
-        &expected.surfaces,
-        &actual.surfaces,
-        &id_differs,
-    ));
+    let mut out = Vec::new();
+    for buffer in FrameBuffer::ALL {
+        let (stage, name) = (buffer.writer(), buffer.name());
+        match (expected.holds(buffer), actual.holds(buffer)) {
+            (false, false) => continue,
+            (e, a) if e != a => {
+                let mut c = BufferComparison::new(stage, name);
+                let side = |held: bool| if held { "held" } else { "absent" }.to_string();
+                c.note_int(|| Difference {
+                    at: Location { index: 0, pixel: None, light: None },
+                    word: "presence",
+                    expected: side(e),
+                    actual: side(a),
+                    ulp: None,
+                });
+                out.push(c);
+                continue;
+            }
+            _ => {}
+        }
+        out.push(match buffer {
+            FrameBuffer::GBuffer => compare_per_pixel::<GBufferTexel>(
+                stage,
+                name,
+                &GBUFFER_WORDS,
+                width,
+                &expected.gbuffer,
+                &actual.gbuffer,
+                &[],
+            ),
+            FrameBuffer::Surfaces => compare_per_pixel::<SurfaceRecord>(
+                stage,
+                name,
+                &SURFACE_WORDS,
+                width,
+                &expected.surfaces,
+                &actual.surfaces,
+                &id_differs,
+            ),
+            FrameBuffer::Rays => std::mem::replace(&mut rays, BufferComparison::new(stage, name)),
+            FrameBuffer::Occluded => std::mem::replace(&mut occluded, BufferComparison::new(stage, name)),
+            FrameBuffer::Shadow => compare_shadow(expected, actual, width, &id_differs),
+            FrameBuffer::Rt => {
+                compare_per_pixel(stage, name, &RGBA_WORDS, width, &expected.rt, &actual.rt, &id_differs)
+            }
+            FrameBuffer::Raster => {
+                compare_per_pixel(stage, name, &RGBA_WORDS, width, &expected.raster, &actual.raster, &id_differs)
+            }
+            FrameBuffer::Final => compare_per_pixel(
+                stage,
+                name,
+                &RGBA_WORDS,
+                width,
+                &expected.final_image,
+                &actual.final_image,
+                &id_differs,
+            ),
+        });
+    }
+    out
+}
 
-    // compaction: match rays by (light, pixel); the list is light-major, pixel order.
-    let mut rays = BufferComparison::new(Stage::Compaction, "rays");
-    let mut occ = BufferComparison::new(Stage::ShadowRays, "occluded");
+/// `compaction`'s rays and `shadow_rays`' occlusion results. Rays are matched by
+/// (light, pixel) (the list is light-major, pixel order), so one missing ray leaves
+/// the rest aligned; without ray lists (a frame without stage outputs) the occlusion
+/// results are compared in list order.
+fn compare_rays(
+    expected: &Frame,
+    actual: &Frame,
+    width: u32,
+    id_differs: &[bool],
+) -> (BufferComparison, BufferComparison) {
+    let mut rays = BufferComparison::new(Stage::Compaction, FrameBuffer::Rays.name());
+    let mut occ = BufferComparison::new(Stage::ShadowRays, FrameBuffer::Occluded.name());
+    let with_rays = expected.holds(FrameBuffer::Rays) && actual.holds(FrameBuffer::Rays);
+    let (eo_all, ao_all) = (&expected.occluded, &actual.occluded);
+    if !with_rays {
+        for (k, (eo, ao)) in eo_all.iter().zip(ao_all).enumerate() {
+            occ.elements += 1;
+            if eo != ao {
+                occ.note_int(|| Difference {
+                    at: Location { index: k, pixel: None, light: None },
+                    word: "occluded",
+                    expected: eo.to_string(),
+                    actual: ao.to_string(),
+                    ulp: None,
+                });
+            }
+        }
+    }
     let key = |r: &RayRecord| (r.light, r.pixel);
     let (mut i, mut j) = (0usize, 0usize);
-    let (er, ar) = (&expected.rays, &actual.rays);
+    let (er, ar): (&[RayRecord], &[RayRecord]) = if with_rays { (&expected.rays, &actual.rays) } else { (&[], &[]) };
     while i < er.len() || j < ar.len() {
         let (ke, ka) = (er.get(i).map(key), ar.get(j).map(key));
         let one_sided = |r: &RayRecord, index: usize, expected_side: bool| {
@@ -361,7 +427,7 @@ pub fn compare_stages(expected: &Frame, actual: &Frame) -> Vec<BufferComparison>
                     let at = Location { index: i, pixel: pixel_of(width, px), light: Some(er[i].light) };
                     rays.compare_words(&RAY_WORDS, at, words_of(&er[i]), words_of(&ar[j]));
                     occ.elements += 1;
-                    let (eo, ao) = (expected.occluded.get(i), actual.occluded.get(j));
+                    let (eo, ao) = (eo_all.get(i), ao_all.get(j));
                     if eo != ao {
                         occ.note_int(|| Difference {
                             at,
@@ -393,20 +459,24 @@ pub fn compare_stages(expected: &Frame, actual: &Frame) -> Vec<BufferComparison>
             }
         }
     }
-    if expected.occluded.len() != er.len() || actual.occluded.len() != ar.len() {
+    let lengths_agree =
+        if with_rays { eo_all.len() == er.len() && ao_all.len() == ar.len() } else { eo_all.len() == ao_all.len() };
+    if !lengths_agree {
         occ.note_int(|| Difference {
             at: Location { index: 0, pixel: None, light: None },
             word: "length",
-            expected: format!("{} (rays {})", expected.occluded.len(), er.len()),
-            actual: format!("{} (rays {})", actual.occluded.len(), ar.len()),
+            expected: format!("{} (rays {})", eo_all.len(), er.len()),
+            actual: format!("{} (rays {})", ao_all.len(), ar.len()),
             ulp: None,
         });
     }
-    out.push(rays);
-    out.push(occ);
+    (rays, occ)
+}
 
-    // shadow: per (pixel, light).
-    let mut shadow = BufferComparison::new(Stage::ShadowRays, "shadow");
+/// `shadow_rays`' per (pixel, light) visibility codes.
+fn compare_shadow(expected: &Frame, actual: &Frame, width: u32, id_differs: &[bool]) -> BufferComparison {
+    let pixels = (expected.width * expected.height) as usize;
+    let mut shadow = BufferComparison::new(Stage::ShadowRays, FrameBuffer::Shadow.name());
     let lights = expected.shadow.len().checked_div(pixels).unwrap_or(0);
     if expected.shadow.len() != actual.shadow.len() {
         shadow.note_int(|| Difference {
@@ -416,41 +486,33 @@ pub fn compare_stages(expected: &Frame, actual: &Frame) -> Vec<BufferComparison>
             actual: actual.shadow.len().to_string(),
             ulp: None,
         });
-    } else {
-        for (k, (e, a)) in expected.shadow.iter().zip(&actual.shadow).enumerate() {
-            let px = k / lights.max(1);
-            if id_differs.get(px).copied().unwrap_or(true) {
-                continue;
-            }
-            shadow.elements += 1;
-            if e != a {
-                let at = Location { index: k, pixel: pixel_of(width, px), light: Some((k % lights.max(1)) as u32) };
-                shadow.note_int(|| Difference {
-                    at,
-                    word: "visibility",
-                    expected: e.to_string(),
-                    actual: a.to_string(),
-                    ulp: None,
-                });
-            }
+        return shadow;
+    }
+    for (k, (e, a)) in expected.shadow.iter().zip(&actual.shadow).enumerate() {
+        let px = k / lights.max(1);
+        if id_differs.get(px).copied().unwrap_or(true) {
+            continue;
+        }
+        shadow.elements += 1;
+        if e != a {
+            let at = Location { index: k, pixel: pixel_of(width, px), light: Some((k % lights.max(1)) as u32) };
+            shadow.note_int(|| Difference {
+                at,
+                word: "visibility",
+                expected: e.to_string(),
+                actual: a.to_string(),
+                ulp: None,
+            });
         }
     }
-    out.push(shadow);
-
-    for (stage, buffer, e, a) in [
-        (Stage::RtShading, "rt", &expected.rt, &actual.rt),
-        (Stage::RasterShading, "raster", &expected.raster, &actual.raster),
-        (Stage::Composition, "final", &expected.final_image, &actual.final_image),
-    ] {
-        out.push(compare_per_pixel::<[f32; 4]>(stage, buffer, &RGBA_WORDS, width, e, a, &id_differs));
-    }
-    out
+    shadow
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use hyrt_core::formats::{GBUF_HIT, INVALID_ID, RAY_KIND_SHADOW};
+    use hyrt_core::plan::{FramePlan, SceneNeeds};
 
     fn frame(w: u32, h: u32) -> Frame {
         let n = (w * h) as usize;
@@ -463,6 +525,14 @@ mod tests {
             rt: vec![[0.0; 4]; n],
             final_image: vec![[0.0; 4]; n],
             shadow: vec![0; n],
+            plan: FramePlan::from_counts(SceneNeeds {
+                lights: 1,
+                triangles: true,
+                ray_traced: true,
+                rasterized: true,
+                weight: 0.5,
+            }),
+            stage_outputs: true,
             ..Frame::default()
         }
     }

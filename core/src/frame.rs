@@ -5,6 +5,7 @@
 use crate::bvh::Bvh;
 use crate::formats::{CameraRecord, GBufferTexel, RayRecord, SurfaceRecord, RAY_KIND_COUNT};
 use crate::geometry::WorldGeometry;
+use crate::plan::{FrameBuffer, FramePlan, Skipped, Step};
 use crate::stage::Stage;
 
 /// [`Frame::shadow`]: no shadow ray was traced for this (pixel, light): the pixel
@@ -62,6 +63,20 @@ impl Default for FrameOptions {
     }
 }
 
+impl FrameOptions {
+    /// Check the options: the weight is a number in [0, 1]. [`FramePlan::new`] calls
+    /// this, so every backend validates options in one place.
+    pub fn validate(&self) -> Result<(), RenderError> {
+        if !(0.0..=1.0).contains(&self.weight) {
+            return Err(RenderError::InvalidOptions(format!(
+                "composition weight must be in [0, 1], got {}",
+                self.weight
+            )));
+        }
+        Ok(())
+    }
+}
+
 /// Why a frame could not be rendered.
 #[derive(Debug, thiserror::Error)]
 pub enum RenderError {
@@ -74,11 +89,44 @@ pub enum RenderError {
     Backend(Box<dyn std::error::Error + Send + Sync>),
 }
 
-/// Milliseconds one stage took.
+/// Milliseconds one stage took, and the work it did.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StageTime {
     pub stage: Stage,
     pub ms: f64,
+    pub work: StageWork,
+}
+
+/// The work one stage did in a frame: the pixels it wrote or shaded, and the rays
+/// it made or traced, per `RAY_KIND_*`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StageWork {
+    /// Pixels the stage produced a result for: every pixel for `visibility_raster`
+    /// and `composition`, the covered ones for `reconstruction`, the shaded ones for
+    /// the shading stages.
+    pub pixels: u64,
+    /// Rays `compaction` listed or `shadow_rays` traced, per `RAY_KIND_*`.
+    pub rays: [u64; RAY_KIND_COUNT],
+}
+
+impl StageWork {
+    /// The work of `step` in a frame with these (complete) statistics.
+    pub fn of(step: Step, stats: &FrameStats) -> StageWork {
+        let pixels = match step {
+            Step::VisibilityRaster | Step::Composition(_) => stats.width as u64 * stats.height as u64,
+            Step::Reconstruction => stats.covered_pixels,
+            Step::Compaction | Step::ShadowRays => 0,
+            Step::RtShading => stats.ray_traced_pixels,
+            Step::RasterShading { shade_ray_traced } => {
+                stats.raster_pixels + if shade_ray_traced { stats.ray_traced_pixels } else { 0 }
+            }
+        };
+        let rays = match step {
+            Step::Compaction | Step::ShadowRays => stats.rays_per_kind,
+            _ => [0; RAY_KIND_COUNT],
+        };
+        StageWork { pixels, rays }
+    }
 }
 
 /// Counts and times of one frame.
@@ -98,9 +146,11 @@ pub struct FrameStats {
     pub occluded_shadow_rays: u64,
     /// Worker threads the backend used.
     pub threads: usize,
-    /// Milliseconds per stage, in execution order (`bvh_build` is per scene and
-    /// reported from [`PreparedScene::bvh_build_ms`]).
+    /// Milliseconds and work per stage that ran, in execution order (`bvh_build` is
+    /// per scene and reported from [`PreparedScene::bvh_build_ms`]).
     pub stage_ms: Vec<StageTime>,
+    /// The stages the frame's plan left out, and why.
+    pub skipped: Vec<Skipped>,
 }
 
 impl FrameStats {
@@ -136,6 +186,82 @@ pub struct Frame {
     /// `composition`: the final image.
     pub final_image: Vec<[f32; 4]>,
     pub stats: FrameStats,
+    /// The plan the frame ran: which stages ran, which buffers exist.
+    pub plan: FramePlan,
+    /// The frame holds every buffer its plan produced ([`FrameOptions::stage_outputs`]),
+    /// not only those a display loop needs.
+    pub stage_outputs: bool,
+}
+
+/// One frame buffer's contents, borrowed from a [`Frame`].
+#[derive(Clone, Copy, Debug)]
+pub enum BufferView<'a> {
+    GBuffer(&'a [GBufferTexel]),
+    Surfaces(&'a [SurfaceRecord]),
+    Rays(&'a [RayRecord]),
+    /// `occluded`: one word per ray.
+    Words(&'a [u32]),
+    /// `shadow`: one `SHADOW_*` code per (pixel, light).
+    Codes(&'a [u8]),
+    /// `rt`, `raster`, `final`: linear RGBA per pixel.
+    Image(&'a [[f32; 4]]),
+}
+
+impl Frame {
+    /// The contents of `buffer`, or `None` when the frame does not hold it: its stage
+    /// did not run, or the backend returned only what a display loop needs
+    /// ([`FrameOptions::stage_outputs`] false and not [`FrameBuffer::always_returned`]).
+    pub fn buffer(&self, buffer: FrameBuffer) -> Option<BufferView<'_>> {
+        if !self.holds(buffer) {
+            return None;
+        }
+        Some(match buffer {
+            FrameBuffer::GBuffer => BufferView::GBuffer(&self.gbuffer),
+            FrameBuffer::Surfaces => BufferView::Surfaces(&self.surfaces),
+            FrameBuffer::Rays => BufferView::Rays(&self.rays),
+            FrameBuffer::Occluded => BufferView::Words(&self.occluded),
+            FrameBuffer::Shadow => BufferView::Codes(&self.shadow),
+            FrameBuffer::Rt => BufferView::Image(&self.rt),
+            FrameBuffer::Raster => BufferView::Image(&self.raster),
+            FrameBuffer::Final => BufferView::Image(&self.final_image),
+        })
+    }
+
+    /// True if the frame holds `buffer` (see [`Frame::buffer`]).
+    pub fn holds(&self, buffer: FrameBuffer) -> bool {
+        self.plan.produces(buffer) && (self.stage_outputs || buffer.always_returned())
+    }
+
+    /// The buffers the frame holds, in stage order.
+    pub fn buffers(&self) -> impl Iterator<Item = FrameBuffer> + '_ {
+        FrameBuffer::ALL.into_iter().filter(|&b| self.holds(b))
+    }
+
+    /// Record the plan a backend is about to run for this frame.
+    pub fn begin(&mut self, plan: &FramePlan, options: &FrameOptions) {
+        self.plan.clone_from(plan);
+        self.stage_outputs = options.stage_outputs;
+    }
+
+    /// Empty every buffer the frame does not hold (keeping its allocation for a later
+    /// frame that needs it). Backends call this when a frame is done: a skipped
+    /// stage's buffer is absent, not zero-filled.
+    pub fn end(&mut self) {
+        for b in FrameBuffer::ALL {
+            if !self.holds(b) {
+                match b {
+                    FrameBuffer::GBuffer => self.gbuffer.clear(),
+                    FrameBuffer::Surfaces => self.surfaces.clear(),
+                    FrameBuffer::Rays => self.rays.clear(),
+                    FrameBuffer::Occluded => self.occluded.clear(),
+                    FrameBuffer::Shadow => self.shadow.clear(),
+                    FrameBuffer::Rt => self.rt.clear(),
+                    FrameBuffer::Raster => self.raster.clear(),
+                    FrameBuffer::Final => self.final_image.clear(),
+                }
+            }
+        }
+    }
 }
 
 /// A renderer of hybrid frames. Both backends implement it over the same
@@ -145,7 +271,8 @@ pub trait Backend {
     fn name(&self) -> &str;
     /// Render one frame of `scene` seen by `camera` into `frame`, reusing its
     /// buffers: a frame of the same size renders without allocating. Every field of
-    /// `frame` is overwritten.
+    /// `frame` is overwritten; the buffers of stages the frame's plan skips are
+    /// emptied (absent, see [`Frame::buffer`]).
     fn render_into(
         &mut self,
         scene: &PreparedScene,

@@ -12,6 +12,8 @@
 //!   backend calls them, the WGSL shaders mirror them by name.
 //! * [`bvh`]: the flattened, GPU-ready BVH built with obvhs, and its reference traversal.
 //! * [`stage`]: the stage names, used for modules, timing labels and tests.
+//! * [`plan`]: what each stage reads and writes, and the [`plan::FramePlan`] of
+//!   the stages a frame of a given scene needs.
 //!
 //! ```
 //! use hyrt_core::scene::Scene;
@@ -27,6 +29,7 @@ pub mod formats;
 pub mod frame;
 pub mod geometry;
 pub mod kernels;
+pub mod plan;
 pub mod scene;
 pub mod stage;
 

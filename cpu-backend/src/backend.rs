@@ -5,8 +5,9 @@ use std::time::Instant;
 use glam::Vec3;
 use hyrt_core::bvh::BvhPreset;
 use hyrt_core::formats::{CameraRecord, RAY_KIND_COUNT};
-use hyrt_core::frame::{Backend, Frame, FrameOptions, FrameStats, PreparedScene, RenderError, StageTime};
+use hyrt_core::frame::{Backend, Frame, FrameOptions, FrameStats, PreparedScene, RenderError, StageTime, StageWork};
 use hyrt_core::geometry::WorldGeometry;
+use hyrt_core::plan::{FramePlan, Step};
 use hyrt_core::stage::Stage;
 
 use rayon::prelude::*;
@@ -80,14 +81,6 @@ impl Default for CpuBackend {
     }
 }
 
-/// Run `f`, record its time under `stage`.
-fn timed<T>(times: &mut Vec<StageTime>, stage: Stage, f: impl FnOnce() -> T) -> T {
-    let t = Instant::now();
-    let r = f();
-    times.push(StageTime { stage, ms: t.elapsed().as_secs_f64() * 1e3 });
-    r
-}
-
 impl Backend for CpuBackend {
     fn name(&self) -> &str {
         "cpu"
@@ -100,12 +93,7 @@ impl Backend for CpuBackend {
         options: &FrameOptions,
         frame: &mut Frame,
     ) -> Result<(), RenderError> {
-        if !(0.0..=1.0).contains(&options.weight) {
-            return Err(RenderError::InvalidOptions(format!(
-                "composition weight must be in [0, 1], got {}",
-                options.weight
-            )));
-        }
+        let plan = FramePlan::new(scene, options)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         let g = &scene.geometry;
         let eye = Vec3::from(camera.eye);
@@ -113,33 +101,47 @@ impl Backend for CpuBackend {
         let traversal = self.shadow_traversal;
         let scratch = &mut self.scratch;
         let f = frame;
+        f.begin(&plan, options);
         self.pool.install(|| {
-            let mut t = vec![StageTime { stage: Stage::BvhBuild, ms: scene.bvh_build_ms }];
-            let covered = timed(&mut t, Stage::VisibilityRaster, || visibility_raster_into(g, camera, &mut f.gbuffer));
-            timed(&mut t, Stage::Reconstruction, || reconstruction_into(&f.gbuffer, g, eye, &mut f.surfaces));
-            timed(&mut t, Stage::Compaction, || compaction_into(&f.surfaces, &g.lights, scratch, &mut f.rays));
-            timed(&mut t, Stage::ShadowRays, || {
-                shadow_rays_with(&scene.bvh, g, &f.rays, traversal, &mut f.occluded);
-                shadow_mask_into(&f.rays, &f.occluded, f.surfaces.len(), g.lights.len(), &mut f.shadow);
-            });
-            timed(&mut t, Stage::RtShading, || {
-                rt_shading_into(&f.surfaces, &f.shadow, &g.objects, &g.lights, eye, &mut f.rt)
-            });
-            timed(&mut t, Stage::RasterShading, || {
-                raster_shading_into(&f.surfaces, &f.shadow, &g.objects, &g.lights, options.weight, &mut f.raster)
-            });
-            timed(&mut t, Stage::Composition, || {
-                composition_into(&f.raster, &f.rt, options.weight, &mut f.final_image)
-            });
+            let mut times =
+                vec![StageTime { stage: Stage::BvhBuild, ms: scene.bvh_build_ms, work: StageWork::default() }];
+            let mut covered = 0;
+            // The plan's one loop: each step runs its stage module and is timed.
+            for &step in plan.steps() {
+                let t = Instant::now();
+                match step {
+                    Step::VisibilityRaster => covered = visibility_raster_into(g, camera, &mut f.gbuffer) as u64,
+                    Step::Reconstruction => reconstruction_into(&f.gbuffer, g, eye, &mut f.surfaces),
+                    Step::Compaction => compaction_into(&f.surfaces, &g.lights, scratch, &mut f.rays),
+                    Step::ShadowRays => {
+                        shadow_rays_with(&scene.bvh, g, &f.rays, traversal, &mut f.occluded);
+                        shadow_mask_into(&f.rays, &f.occluded, f.surfaces.len(), g.lights.len(), &mut f.shadow);
+                    }
+                    Step::RtShading => rt_shading_into(&f.surfaces, &f.shadow, &g.objects, &g.lights, eye, &mut f.rt),
+                    Step::RasterShading { shade_ray_traced } => raster_shading_into(
+                        &f.surfaces,
+                        &f.shadow,
+                        &g.objects,
+                        &g.lights,
+                        shade_ray_traced,
+                        &mut f.raster,
+                    ),
+                    Step::Composition(mode) => {
+                        composition_into(mode, &f.raster, &f.rt, options.weight, &mut f.final_image)
+                    }
+                }
+                let ms = t.elapsed().as_secs_f64() * 1e3;
+                times.push(StageTime { stage: step.stage(), ms, work: StageWork::default() });
+            }
 
             let mut stats = FrameStats {
                 width: camera.width,
                 height: camera.height,
                 threads,
-                stage_ms: t,
+                skipped: plan.skipped().to_vec(),
                 ..FrameStats::default()
             };
-            stats.covered_pixels = covered as u64;
+            stats.covered_pixels = covered;
             stats.ray_traced_pixels = f.gbuffer.par_iter().filter(|t| t.is_hit() && t.is_ray_traced()).count() as u64;
             stats.raster_pixels = stats.covered_pixels - stats.ray_traced_pixels;
             stats.rays_per_kind = f
@@ -155,10 +157,15 @@ impl Backend for CpuBackend {
                 )
                 .reduce(|| [0u64; RAY_KIND_COUNT], |a, b| std::array::from_fn(|i| a[i] + b[i]));
             stats.occluded_shadow_rays = f.occluded.par_iter().filter(|&&o| o != 0).count() as u64;
+            for (time, &step) in times[1..].iter_mut().zip(plan.steps()) {
+                time.work = StageWork::of(step, &stats);
+            }
+            stats.stage_ms = times;
             f.width = camera.width;
             f.height = camera.height;
             f.stats = stats;
         });
+        f.end();
         Ok(())
     }
 }

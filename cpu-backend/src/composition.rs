@@ -3,20 +3,39 @@
 //! ray-traced image has coverage (alpha > 0), the raster image elsewhere.
 //!
 //! Inputs: both images and the weight in [0, 1]. Output: the final linear RGBA image.
+//! A plan that made only one of the images composes by copying it
+//! ([`Composition::CopyRaster`], [`Composition::RtOverBackground`]): the same bits
+//! the weighted mean gives there (see [`hyrt_core::plan`]).
 
-use glam::Vec4;
-use hyrt_core::kernels::shading::compose;
+use glam::{Vec3, Vec4};
+use hyrt_core::kernels::shading::{compose, BACKGROUND};
+use hyrt_core::plan::Composition;
 use rayon::prelude::*;
 
 /// The stage.
 pub fn composition(raster: &[[f32; 4]], rt: &[[f32; 4]], weight: f32) -> Vec<[f32; 4]> {
     let mut out = Vec::new();
-    composition_into(raster, rt, weight, &mut out);
+    composition_into(Composition::WeightedMean, raster, rt, weight, &mut out);
     out
 }
 
-/// [`composition`] into a caller-owned image, reusing its allocation.
-pub fn composition_into(raster: &[[f32; 4]], rt: &[[f32; 4]], weight: f32, out: &mut Vec<[f32; 4]>) {
+/// [`composition`] into a caller-owned image, reusing its allocation, composing as
+/// `mode` says: the weighted mean of both images, or a copy of the one image the
+/// plan made (the other is not read and may be empty).
+pub fn composition_into(mode: Composition, raster: &[[f32; 4]], rt: &[[f32; 4]], weight: f32, out: &mut Vec<[f32; 4]>) {
+    match mode {
+        Composition::WeightedMean => {}
+        Composition::CopyRaster => {
+            out.clear();
+            out.extend_from_slice(raster);
+            return;
+        }
+        Composition::RtOverBackground => {
+            let background: [f32; 4] = Vec3::from(BACKGROUND).extend(1.0).into();
+            rt.par_iter().with_min_len(1024).map(|t| if t[3] > 0.0 { *t } else { background }).collect_into_vec(out);
+            return;
+        }
+    }
     assert_eq!(raster.len(), rt.len(), "images of different sizes");
     raster
         .par_iter()

@@ -29,21 +29,23 @@ pub fn raster_shading(
     weight: f32,
 ) -> Vec<[f32; 4]> {
     let mut out = Vec::new();
-    raster_shading_into(surfaces, shadow, objects, lights, weight, &mut out);
+    raster_shading_into(surfaces, shadow, objects, lights, weight < 1.0, &mut out);
     out
 }
 
-/// [`raster_shading`] into a caller-owned image, reusing its allocation.
+/// [`raster_shading`] into a caller-owned image, reusing its allocation;
+/// `shade_ray_traced` (the weight is below 1) shades ray-traced objects too, as the
+/// plan's [`Step::RasterShading`](hyrt_core::plan::Step::RasterShading) says.
 pub fn raster_shading_into(
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
     objects: &[ObjectRecord],
     lights: &[LightRecord],
-    weight: f32,
+    shade_ray_traced: bool,
     out: &mut Vec<[f32; 4]>,
 ) {
     let nl = lights.len();
-    let shade_rt_objects = weight < 1.0;
+    let shade_rt_objects = shade_ray_traced;
     let background = Vec3::from(BACKGROUND).extend(1.0).into();
     surfaces
         .par_iter()

@@ -3,14 +3,15 @@
 
 use std::time::Instant;
 
-use hyrt_core::formats::{CameraRecord, GBufferTexel, RayRecord, SurfaceRecord, RAY_KIND_COUNT};
-use hyrt_core::frame::{Backend, Frame, FrameOptions, FrameStats, PreparedScene, RenderError, StageTime};
+use hyrt_core::formats::{CameraRecord, GBufferTexel, RayRecord, SurfaceRecord};
+use hyrt_core::frame::{Backend, Frame, FrameOptions, FrameStats, PreparedScene, RenderError, StageTime, StageWork};
+use hyrt_core::plan::{FrameBuffer, FramePlan, Step};
 use hyrt_core::stage::Stage;
 
 use crate::buffers::{FrameBuffers, FrameParams, SceneBuffers};
 use crate::compaction::CompactionStage;
 use crate::composition::CompositionStage;
-use crate::gpu_buffer::read_back_many;
+use crate::gpu_buffer::{copy_into_vec, read_back_each};
 use crate::raster_shading::RasterShadingStage;
 use crate::reconstruction::ReconstructionStage;
 use crate::rt_shading::RtShadingStage;
@@ -19,16 +20,9 @@ use crate::timing::StageTimer;
 use crate::visibility_raster::{VisibilityMode, VisibilityRasterStage};
 use crate::{AdapterPolicy, GpuContext, GpuError};
 
-/// The per-frame stages, in execution order (`bvh_build` runs on the CPU, once per scene).
-const FRAME_STAGES: [Stage; 7] = [
-    Stage::VisibilityRaster,
-    Stage::Reconstruction,
-    Stage::Compaction,
-    Stage::ShadowRays,
-    Stage::RtShading,
-    Stage::RasterShading,
-    Stage::Composition,
-];
+/// The most steps a plan has: every stage but `bvh_build` (which runs on the CPU,
+/// once per scene).
+const MAX_STEPS: u32 = Stage::ALL.len() as u32 - 1;
 
 /// The GPU backend. Pipelines are created once; scene buffers once per
 /// [`PreparedScene`]; frame buffers once per image size and light count.
@@ -44,6 +38,8 @@ pub struct GpuBackend {
     timer: StageTimer,
     scene: Option<(u64, SceneBuffers)>,
     frame: Option<FrameBuffers>,
+    /// Milliseconds per step of the last run plan.
+    stage_ms: Vec<f64>,
 }
 
 impl GpuBackend {
@@ -67,7 +63,7 @@ impl GpuBackend {
                     CompositionStage::new(&ctx),
                 )
             })?;
-        let timer = StageTimer::new(&ctx, FRAME_STAGES.len() as u32)?;
+        let timer = StageTimer::new(&ctx, MAX_STEPS)?;
         Ok(GpuBackend {
             ctx,
             visibility_raster,
@@ -80,6 +76,7 @@ impl GpuBackend {
             timer,
             scene: None,
             frame: None,
+            stage_ms: Vec::new(),
         })
     }
 
@@ -117,22 +114,49 @@ impl GpuBackend {
     fn render_frame(
         &mut self,
         scene: &PreparedScene,
+        plan: &FramePlan,
         camera: &CameraRecord,
         options: &FrameOptions,
         out: &mut Frame,
     ) -> Result<(), GpuError> {
-        let ctx = &self.ctx;
-        VisibilityRasterStage::check_size(ctx, camera.width, camera.height)?;
-        if self.scene.as_ref().map(|(id, _)| *id) != Some(scene.id()) {
-            self.scene = Some((scene.id(), ctx.checked(|| SceneBuffers::new(ctx, scene))?));
+        {
+            let ctx = &self.ctx;
+            VisibilityRasterStage::check_size(ctx, camera.width, camera.height)?;
+            if self.scene.as_ref().map(|(id, _)| *id) != Some(scene.id()) {
+                self.scene = Some((scene.id(), ctx.checked(|| SceneBuffers::new(ctx, scene))?));
+            }
         }
         let lights = scene.geometry.lights.len() as u32;
-        if !self.frame.as_ref().is_some_and(|f| f.fits(camera.width, camera.height, lights)) {
-            self.frame = None; // free the old buffers before allocating new ones
-            self.frame = Some(ctx.checked(|| FrameBuffers::new(ctx, camera.width, camera.height, lights))??);
+        let pixels = camera.width as usize * camera.height as usize;
+        let pairs = pixels * lights as usize;
+        // Ray buffers hold the rays a frame has, known only after `compaction`. A
+        // frame starts with the last frame's room (one ray per pixel at first); if
+        // `compaction` finds more, its rays past the room are not written, and the
+        // frame runs again with room for them plus a quarter (never past one per pair,
+        // which always fits). The frame that is returned traced every ray.
+        let mut want = self.frame.as_ref().map_or(0, |f| f.ray_capacity).max(pixels.min(pairs) as u32);
+        loop {
+            if !self.frame.as_ref().is_some_and(|f| f.fits(camera.width, camera.height, lights, plan, want)) {
+                self.frame = None; // free the old buffers before allocating new ones
+                let (ctx, w, h) = (&self.ctx, camera.width, camera.height);
+                self.frame = Some(ctx.checked(|| FrameBuffers::for_plan(ctx, w, h, lights, plan, want))??);
+            }
+            let count = self.run_plan(plan, camera, options)?;
+            let room = self.frame.as_ref().expect("frame buffers").ray_capacity as usize;
+            if count <= room {
+                return self.read_back(scene, plan, camera, count, out);
+            }
+            want = (count + count / 4).min(pairs) as u32;
         }
+    }
+
+    /// Encode and submit the plan's steps over the current frame buffers; the ray
+    /// count `compaction` found (0 without it). Stage times are kept for `read_back`.
+    fn run_plan(&mut self, plan: &FramePlan, camera: &CameraRecord, options: &FrameOptions) -> Result<usize, GpuError> {
+        let ctx = &self.ctx;
         let (sb, fb) = (&self.scene.as_ref().expect("scene buffers").1, self.frame.as_ref().expect("frame buffers"));
-        let params = FrameParams::new(camera.width, camera.height, lights, options.weight);
+        let params = FrameParams::new(camera.width, camera.height, fb.light_count, options.weight)
+            .with_composition(plan.composition());
         debug_assert_eq!(params.validate(), Ok(()));
         fb.write_uniforms(ctx, camera, &params);
 
@@ -143,23 +167,25 @@ impl GpuBackend {
         // reconstructing 921,600 pixels on a CPU): on software adapters each stage is
         // timed by the wall clock instead.
         let timed_by_gpu = self.timer.is_active() && !crate::context::is_software(&ctx.info);
-        let mut wall_ms = Vec::with_capacity(FRAME_STAGES.len());
+        let mut wall_ms = Vec::with_capacity(plan.steps().len());
         ctx.checked(|| -> Result<(), GpuError> {
             let t = &self.timer;
             let mut enc =
                 ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("hyrt frame") });
-            for (i, stage) in FRAME_STAGES.iter().enumerate() {
+            // The plan's one loop: each step encodes its stage module and is timed.
+            for (i, &step) in plan.steps().iter().enumerate() {
                 let start = Instant::now();
                 let slot = t.stage(i as u32);
-                match stage {
-                    Stage::VisibilityRaster => self.visibility_raster.encode(ctx, &mut enc, sb, fb, slot),
-                    Stage::Reconstruction => self.reconstruction.encode(ctx, &mut enc, sb, fb, slot),
-                    Stage::Compaction => self.compaction.encode(ctx, &mut enc, sb, fb, slot),
-                    Stage::ShadowRays => self.shadow_rays.encode(ctx, &mut enc, sb, fb, slot),
-                    Stage::RtShading => self.rt_shading.encode(ctx, &mut enc, sb, fb, slot),
-                    Stage::RasterShading => self.raster_shading.encode(ctx, &mut enc, sb, fb, slot),
-                    Stage::Composition => self.composition.encode(ctx, &mut enc, sb, fb, slot),
-                    Stage::BvhBuild => unreachable!("bvh_build is not a GPU frame stage"),
+                match step {
+                    Step::VisibilityRaster => self.visibility_raster.encode(ctx, &mut enc, sb, fb, slot),
+                    Step::Reconstruction => self.reconstruction.encode(ctx, &mut enc, sb, fb, slot),
+                    Step::Compaction => self.compaction.encode(ctx, &mut enc, sb, fb, slot),
+                    Step::ShadowRays => self.shadow_rays.encode(ctx, &mut enc, sb, fb, slot),
+                    Step::RtShading => self.rt_shading.encode(ctx, &mut enc, sb, fb, slot),
+                    // `shade_ray_traced` is the shader's `weight < 1`.
+                    Step::RasterShading { .. } => self.raster_shading.encode(ctx, &mut enc, sb, fb, slot),
+                    // The mode is the `composition` code in the frame parameters.
+                    Step::Composition(_) => self.composition.encode(ctx, &mut enc, sb, fb, slot),
                 }
                 if !timed_by_gpu {
                     let done = std::mem::replace(
@@ -178,60 +204,74 @@ impl GpuBackend {
             ctx.queue.submit([enc.finish()]);
             Ok(())
         })??;
-        // One readback at the end: the ray count, the occlusion results, the G-buffer
-        // (for the pixel counts) and the final image, in one staging buffer. The other
-        // stage outputs only when asked (`--dump`, conformance).
-        let pixels = camera.width as usize * camera.height as usize;
-        let pairs = pixels * lights as usize;
-        let bytes = |n: usize, size: usize| (n * size) as u64;
-        let mut parts = read_back_many(
-            ctx,
-            &[
-                (&fb.ray_count, 4),
-                (&fb.occluded, bytes(pairs, 4)),
-                (&fb.gbuffer, bytes(pixels, std::mem::size_of::<GBufferTexel>())),
-                (&fb.final_image, bytes(pixels, 16)),
-            ],
-        )?
-        .into_iter();
-        let mut next = || parts.next().expect("one part per request");
-        let count = (bytemuck::pod_read_unaligned::<u32>(&next()) as usize).min(pairs);
-        let mut occluded: Vec<u32> = bytemuck::pod_collect_to_vec(&next());
-        occluded.truncate(count);
-        out.occluded = occluded;
-        out.gbuffer = bytemuck::pod_collect_to_vec(&next());
-        out.final_image = bytemuck::pod_collect_to_vec(&next());
-        if options.stage_outputs {
-            let mut parts = read_back_many(
-                ctx,
-                &[
-                    (&fb.surfaces, bytes(pixels, std::mem::size_of::<SurfaceRecord>())),
-                    (&fb.rays, bytes(count, std::mem::size_of::<RayRecord>())),
-                    (&fb.shadow, bytes(pairs, 4)),
-                    (&fb.rt, bytes(pixels, 16)),
-                    (&fb.raster, bytes(pixels, 16)),
-                ],
-            )?
-            .into_iter();
-            let mut next = || parts.next().expect("one part per request");
-            out.surfaces = bytemuck::pod_collect_to_vec(&next());
-            out.rays = bytemuck::pod_collect_to_vec(&next());
-            out.shadow = bytemuck::pod_collect_to_vec::<u8, u32>(&next()).into_iter().map(|s| s as u8).collect();
-            out.rt = bytemuck::pod_collect_to_vec(&next());
-            out.raster = bytemuck::pod_collect_to_vec(&next());
-        } else {
-            for v in [&mut out.rt, &mut out.raster] {
-                v.clear();
-            }
-            out.surfaces.clear();
-            out.rays.clear();
-            out.shadow.clear();
+        self.stage_ms = if timed_by_gpu { self.timer.read_ms(ctx)?.unwrap_or_default() } else { wall_ms };
+        if !plan.produces(FrameBuffer::Rays) {
+            return Ok(0);
         }
-        let mut stage_ms = vec![StageTime { stage: Stage::BvhBuild, ms: scene.bvh_build_ms }];
-        let ms = if timed_by_gpu { self.timer.read_ms(ctx)?.unwrap_or_default() } else { wall_ms };
-        stage_ms.extend(FRAME_STAGES.iter().zip(ms).map(|(&stage, ms)| StageTime { stage, ms }));
-        let mut stats =
-            FrameStats { width: camera.width, height: camera.height, threads: 0, stage_ms, ..Default::default() };
+        let mut count = 0;
+        read_back_each(ctx, &[(&fb.ray_count, 4)], |_, b| count = bytemuck::pod_read_unaligned::<u32>(b) as usize)?;
+        Ok(count)
+    }
+
+    /// Read the buffers the frame holds back into `out` (reusing its vectors) and
+    /// fill in its statistics. One readback for what every frame returns, a second
+    /// for the other stage outputs when asked.
+    fn read_back(
+        &self,
+        scene: &PreparedScene,
+        plan: &FramePlan,
+        camera: &CameraRecord,
+        count: usize,
+        out: &mut Frame,
+    ) -> Result<(), GpuError> {
+        let ctx = &self.ctx;
+        let fb = self.frame.as_ref().expect("frame buffers");
+        let pixels = camera.width as usize * camera.height as usize;
+        let pairs = pixels * fb.light_count as usize;
+        let bytes = |b: FrameBuffer| -> u64 {
+            let (n, size) = match b {
+                FrameBuffer::GBuffer => (pixels, std::mem::size_of::<GBufferTexel>()),
+                FrameBuffer::Surfaces => (pixels, std::mem::size_of::<SurfaceRecord>()),
+                FrameBuffer::Rays => (count, std::mem::size_of::<RayRecord>()),
+                FrameBuffer::Occluded => (count, 4),
+                FrameBuffer::Shadow => (pairs, 4),
+                FrameBuffer::Rt | FrameBuffer::Raster | FrameBuffer::Final => (pixels, 16),
+            };
+            (n * size) as u64
+        };
+        for always in [true, false] {
+            let wanted: Vec<FrameBuffer> = out.buffers().filter(|b| b.always_returned() == always).collect();
+            let parts: Vec<(&wgpu::Buffer, u64)> = wanted.iter().map(|&b| (fb.get(b), bytes(b))).collect();
+            read_back_each(ctx, &parts, |i, data| match wanted[i] {
+                FrameBuffer::GBuffer => copy_into_vec(&mut out.gbuffer, data),
+                FrameBuffer::Surfaces => copy_into_vec(&mut out.surfaces, data),
+                FrameBuffer::Rays => copy_into_vec(&mut out.rays, data),
+                FrameBuffer::Occluded => copy_into_vec(&mut out.occluded, data),
+                FrameBuffer::Shadow => {
+                    // u32 codes on the GPU, u8 in the frame.
+                    out.shadow.clear();
+                    out.shadow.extend(data.chunks_exact(4).map(|w| bytemuck::pod_read_unaligned::<u32>(w) as u8));
+                }
+                FrameBuffer::Rt => copy_into_vec(&mut out.rt, data),
+                FrameBuffer::Raster => copy_into_vec(&mut out.raster, data),
+                FrameBuffer::Final => copy_into_vec(&mut out.final_image, data),
+            })?;
+        }
+        let mut stage_ms =
+            vec![StageTime { stage: Stage::BvhBuild, ms: scene.bvh_build_ms, work: StageWork::default() }];
+        stage_ms.extend(
+            plan.steps()
+                .iter()
+                .zip(self.stage_ms.iter().copied().chain(std::iter::repeat(0.0)))
+                .map(|(&step, ms)| StageTime { stage: step.stage(), ms, work: StageWork::default() }),
+        );
+        let mut stats = FrameStats {
+            width: camera.width,
+            height: camera.height,
+            threads: 0,
+            skipped: plan.skipped().to_vec(),
+            ..Default::default()
+        };
         for t in &out.gbuffer {
             if t.is_hit() {
                 stats.covered_pixels += 1;
@@ -240,10 +280,12 @@ impl GpuBackend {
         }
         stats.raster_pixels = stats.covered_pixels - stats.ray_traced_pixels;
         // The GPU ray list holds shadow rays only (compaction makes no other kind yet).
-        let mut per_kind = [0u64; RAY_KIND_COUNT];
-        per_kind[hyrt_core::formats::RAY_KIND_SHADOW as usize] = count as u64;
-        stats.rays_per_kind = per_kind;
+        stats.rays_per_kind[hyrt_core::formats::RAY_KIND_SHADOW as usize] = count as u64;
         stats.occluded_shadow_rays = out.occluded.iter().filter(|&&o| o != 0).count() as u64;
+        for (time, &step) in stage_ms[1..].iter_mut().zip(plan.steps()) {
+            time.work = StageWork::of(step, &stats);
+        }
+        stats.stage_ms = stage_ms;
         out.width = camera.width;
         out.height = camera.height;
         out.stats = stats;
@@ -263,13 +305,11 @@ impl Backend for GpuBackend {
         options: &FrameOptions,
         frame: &mut Frame,
     ) -> Result<(), RenderError> {
-        if !(0.0..=1.0).contains(&options.weight) {
-            return Err(RenderError::InvalidOptions(format!(
-                "composition weight must be in [0, 1], got {}",
-                options.weight
-            )));
-        }
+        let plan = FramePlan::new(scene, options)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
-        self.render_frame(scene, camera, options, frame).map_err(|e| RenderError::Backend(Box::new(e)))
+        frame.begin(&plan, options);
+        self.render_frame(scene, &plan, camera, options, frame).map_err(|e| RenderError::Backend(Box::new(e)))?;
+        frame.end();
+        Ok(())
     }
 }

@@ -9,6 +9,7 @@ use hyrt_core::formats::{
     CameraRecord, GBufferTexel, LightRecord, ObjectRecord, RayRecord, SurfaceRecord, TriangleRecord,
 };
 use hyrt_core::frame::PreparedScene;
+use hyrt_core::plan::{Composition, FrameBuffer, FramePlan};
 
 use crate::gpu_buffer::{storage, upload};
 use crate::{GpuContext, GpuError};
@@ -22,7 +23,8 @@ use crate::{GpuContext, GpuError};
 /// | 8 | `light_count` | u32 | lights in the light list |
 /// | 12 | `weight` | f32 | composition weight in [0, 1] |
 /// | 16 | `zero` | u32 | always 0: shaders OR it into the bits of products, which the compiler cannot see through, so it cannot fuse them into multiply-adds (the CPU kernels round every product) |
-/// | 20 | `pad` | [u32; 3] | zero (uniform structs are 16-byte multiples) |
+/// | 20 | `composition` | u32 | how `composition` composes: [`Composition::code`] of the frame's plan |
+/// | 24 | `pad` | [u32; 2] | zero (uniform structs are 16-byte multiples) |
 ///
 /// 32 bytes. Build with [`FrameParams::new`].
 #[repr(C)]
@@ -33,19 +35,31 @@ pub struct FrameParams {
     pub light_count: u32,
     pub weight: f32,
     pub zero: u32,
-    pub pad: [u32; 3],
+    pub composition: u32,
+    pub pad: [u32; 2],
 }
 const _: () = assert!(std::mem::size_of::<FrameParams>() == 32);
 
 impl FrameParams {
-    /// The parameters of a `width` x `height` frame with `light_count` lights.
+    /// The parameters of a `width` x `height` frame with `light_count` lights,
+    /// composed by the weighted mean.
     pub fn new(width: u32, height: u32, light_count: u32, weight: f32) -> Self {
-        FrameParams { width, height, light_count, weight, zero: 0, pad: [0; 3] }
+        let composition = Composition::WeightedMean.code();
+        FrameParams { width, height, light_count, weight, zero: 0, composition, pad: [0; 2] }
     }
 
-    /// Check: a non-empty image, a weight in [0, 1], `zero` and padding zero.
+    /// The same parameters, composed as `composition` says.
+    pub fn with_composition(self, composition: Composition) -> Self {
+        FrameParams { composition: composition.code(), ..self }
+    }
+
+    /// Check: a non-empty image, a weight in [0, 1], a known composition code, `zero`
+    /// and padding zero.
     pub fn validate(&self) -> Result<(), String> {
-        if self.zero != 0 || self.pad != [0; 3] {
+        if self.composition > Composition::RtOverBackground.code() {
+            return Err(format!("unknown composition code {}", self.composition));
+        }
+        if self.zero != 0 || self.pad != [0; 2] {
             return Err(format!("frame parameters with non-zero zero/padding: {self:?}"));
         }
         if self.width == 0 || self.height == 0 {
@@ -101,11 +115,20 @@ impl SceneBuffers {
     }
 }
 
-/// Per-frame buffers for one image size and light count, reused across frames.
+/// Per-frame buffers for one image size, light count and set of planned stages,
+/// reused across frames. A buffer whose stage the plan skips is not allocated: its
+/// field holds `empty` (one 16-byte buffer shared by every absent one), so bind
+/// groups stay valid while no skipped stage is encoded.
 pub struct FrameBuffers {
     pub width: u32,
     pub height: u32,
     pub light_count: u32,
+    /// Rays `rays` and `occluded` have room for (0 when the plan traces none). The
+    /// frame's rays are known only after `compaction`: a frame with more reallocates
+    /// and runs again (see `GpuBackend`).
+    pub ray_capacity: u32,
+    /// The frame buffers allocated (the plan's, in [`FrameBuffer::ALL`] order).
+    pub allocated: Vec<FrameBuffer>,
     /// Uniform `CameraRecord`.
     pub camera: wgpu::Buffer,
     /// Uniform [`FrameParams`].
@@ -114,10 +137,11 @@ pub struct FrameBuffers {
     pub gbuffer: wgpu::Buffer,
     /// `array<SurfaceRecord>`, one per pixel (`reconstruction`).
     pub surfaces: wgpu::Buffer,
-    /// `array<RayRecord>` with room for `pixels * lights` rays (`compaction`).
+    /// `array<RayRecord>` with room for `ray_capacity` rays (`compaction`).
     pub rays: wgpu::Buffer,
     /// `array<u32>`, 4 words: `[ray_count, dispatch_x, dispatch_y, dispatch_z]`, written by
     /// `compaction`; the last three are indirect-dispatch arguments for one thread per ray.
+    /// `ray_count` is the frame's true count, even past `ray_capacity`.
     pub ray_count: wgpu::Buffer,
     /// `array<u32>`, one per ray slot: 1 occluded, 0 reached the light (`shadow_rays`).
     pub occluded: wgpu::Buffer,
@@ -128,11 +152,36 @@ pub struct FrameBuffers {
     pub rt: wgpu::Buffer,
     pub raster: wgpu::Buffer,
     pub final_image: wgpu::Buffer,
+    /// The stand-in for every buffer the plan does not produce (16 bytes, never written).
+    pub empty: wgpu::Buffer,
 }
 
 impl FrameBuffers {
-    /// Allocate the buffers of a `width` x `height` frame with `light_count` lights.
+    /// Every buffer of a `width` x `height` frame with `light_count` lights, with room
+    /// for a ray per (pixel, light): what the stage tests bind.
     pub fn new(ctx: &GpuContext, width: u32, height: u32, light_count: u32) -> Result<FrameBuffers, GpuError> {
+        let everything = FramePlan::from_counts(hyrt_core::plan::SceneNeeds {
+            lights: light_count.max(1),
+            triangles: true,
+            ray_traced: true,
+            rasterized: true,
+            weight: 0.5,
+        });
+        let pairs = width as usize * height as usize * light_count as usize;
+        let capacity = u32::try_from(pairs).map_err(|_| GpuError::Limits(format!("{pairs} rays")))?;
+        Self::for_plan(ctx, width, height, light_count, &everything, capacity)
+    }
+
+    /// Allocate the buffers `plan` produces for a `width` x `height` frame with
+    /// `light_count` lights and room for `ray_capacity` rays.
+    pub fn for_plan(
+        ctx: &GpuContext,
+        width: u32,
+        height: u32,
+        light_count: u32,
+        plan: &FramePlan,
+        ray_capacity: u32,
+    ) -> Result<FrameBuffers, GpuError> {
         let pixels = width as usize * height as usize;
         let pairs = pixels * light_count as usize;
         let uniform = |label: &str, size: u64| {
@@ -143,32 +192,62 @@ impl FrameBuffers {
                 mapped_at_creation: false,
             })
         };
+        let empty = storage::<[u32; 4]>(ctx, "empty (a skipped stage's buffer)", 1)?;
+        let allocated: Vec<FrameBuffer> = plan.buffers().collect();
+        let ray_capacity = if plan.produces(FrameBuffer::Rays) { ray_capacity } else { 0 };
+        let alloc = |b: FrameBuffer, f: &dyn Fn() -> Result<wgpu::Buffer, GpuError>| {
+            if allocated.contains(&b) {
+                f()
+            } else {
+                Ok(empty.clone())
+            }
+        };
         Ok(FrameBuffers {
             width,
             height,
             light_count,
+            ray_capacity,
             camera: uniform("camera", std::mem::size_of::<CameraRecord>() as u64),
             params: uniform("frame params", std::mem::size_of::<FrameParams>() as u64),
-            gbuffer: storage::<GBufferTexel>(ctx, "gbuffer", pixels)?,
-            surfaces: storage::<SurfaceRecord>(ctx, "surfaces", pixels)?,
-            rays: storage::<RayRecord>(ctx, "rays", pairs)?,
+            gbuffer: alloc(FrameBuffer::GBuffer, &|| storage::<GBufferTexel>(ctx, "gbuffer", pixels))?,
+            surfaces: alloc(FrameBuffer::Surfaces, &|| storage::<SurfaceRecord>(ctx, "surfaces", pixels))?,
+            rays: alloc(FrameBuffer::Rays, &|| storage::<RayRecord>(ctx, "rays", ray_capacity as usize))?,
             ray_count: ctx.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("ray count"),
                 size: 16,
                 usage: crate::gpu_buffer::STORAGE | wgpu::BufferUsages::INDIRECT,
                 mapped_at_creation: false,
             }),
-            occluded: storage::<u32>(ctx, "occluded", pairs)?,
-            shadow: storage::<u32>(ctx, "shadow", pairs)?,
-            rt: storage::<[f32; 4]>(ctx, "rt image", pixels)?,
-            raster: storage::<[f32; 4]>(ctx, "raster image", pixels)?,
-            final_image: storage::<[f32; 4]>(ctx, "final image", pixels)?,
+            occluded: alloc(FrameBuffer::Occluded, &|| storage::<u32>(ctx, "occluded", ray_capacity as usize))?,
+            shadow: alloc(FrameBuffer::Shadow, &|| storage::<u32>(ctx, "shadow", pairs))?,
+            rt: alloc(FrameBuffer::Rt, &|| storage::<[f32; 4]>(ctx, "rt image", pixels))?,
+            raster: alloc(FrameBuffer::Raster, &|| storage::<[f32; 4]>(ctx, "raster image", pixels))?,
+            final_image: alloc(FrameBuffer::Final, &|| storage::<[f32; 4]>(ctx, "final image", pixels))?,
+            allocated,
+            empty,
         })
     }
 
-    /// True if these buffers fit a frame of this size and light count.
-    pub fn fits(&self, width: u32, height: u32, light_count: u32) -> bool {
+    /// True if these buffers fit a frame of this size and light count under `plan`
+    /// with `rays` rays.
+    pub fn fits(&self, width: u32, height: u32, light_count: u32, plan: &FramePlan, rays: u32) -> bool {
         (self.width, self.height, self.light_count) == (width, height, light_count)
+            && self.allocated.iter().copied().eq(plan.buffers())
+            && (!plan.produces(FrameBuffer::Rays) || rays <= self.ray_capacity)
+    }
+
+    /// The GPU buffer holding `buffer`.
+    pub fn get(&self, buffer: FrameBuffer) -> &wgpu::Buffer {
+        match buffer {
+            FrameBuffer::GBuffer => &self.gbuffer,
+            FrameBuffer::Surfaces => &self.surfaces,
+            FrameBuffer::Rays => &self.rays,
+            FrameBuffer::Occluded => &self.occluded,
+            FrameBuffer::Shadow => &self.shadow,
+            FrameBuffer::Rt => &self.rt,
+            FrameBuffer::Raster => &self.raster,
+            FrameBuffer::Final => &self.final_image,
+        }
     }
 
     /// Write the camera and frame parameters for the next frame.

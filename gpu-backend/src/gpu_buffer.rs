@@ -50,10 +50,24 @@ pub fn storage<T: Pod>(ctx: &GpuContext, label: &str, count: usize) -> Result<wg
 /// buffer, one submission and one map (waits for the GPU). Lengths are rounded up to
 /// wgpu's copy alignment; the returned vectors have the requested lengths.
 pub fn read_back_many(ctx: &GpuContext, parts: &[(&wgpu::Buffer, u64)]) -> Result<Vec<Vec<u8>>, GpuError> {
+    let mut out = Vec::with_capacity(parts.len());
+    read_back_each(ctx, parts, |_, bytes| out.push(bytes.to_vec()))?;
+    Ok(out)
+}
+
+/// [`read_back_many`] without the copies: `each(i, bytes)` sees part `i`'s bytes in
+/// the mapped staging buffer, in order (empty for a zero length), so the caller can
+/// copy them into buffers it keeps across frames.
+pub fn read_back_each(
+    ctx: &GpuContext,
+    parts: &[(&wgpu::Buffer, u64)],
+    mut each: impl FnMut(usize, &[u8]),
+) -> Result<(), GpuError> {
     let align = |n: u64| n.div_ceil(wgpu::COPY_BUFFER_ALIGNMENT) * wgpu::COPY_BUFFER_ALIGNMENT;
     let total: u64 = parts.iter().map(|(_, n)| align(*n)).sum();
     if total == 0 {
-        return Ok(parts.iter().map(|_| Vec::new()).collect());
+        (0..parts.len()).for_each(|i| each(i, &[]));
+        return Ok(());
     }
     let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("hyrt readback"),
@@ -79,20 +93,26 @@ pub fn read_back_many(ctx: &GpuContext, parts: &[(&wgpu::Buffer, u64)]) -> Resul
         .poll(wgpu::PollType::Wait { submission_index: None, timeout: None })
         .map_err(|e| GpuError::Readback(e.to_string()))?;
     rx.recv().map_err(|e| GpuError::Readback(e.to_string()))?.map_err(|e| GpuError::Readback(e.to_string()))?;
-    let out = {
+    {
         let view = slice.get_mapped_range().map_err(|e| GpuError::Readback(e.to_string()))?;
         let mut offset = 0usize;
-        parts
-            .iter()
-            .map(|(_, n)| {
-                let v = view[offset..offset + *n as usize].to_vec();
-                offset += align(*n) as usize;
-                v
-            })
-            .collect()
-    };
+        for (i, (_, n)) in parts.iter().enumerate() {
+            each(i, &view[offset..offset + *n as usize]);
+            offset += align(*n) as usize;
+        }
+    }
     staging.unmap();
-    Ok(out)
+    Ok(())
+}
+
+/// Replace the contents of `dst` with `bytes` read as `T`s, reusing its allocation
+/// (`bytes` need not be aligned for `T`; its length must be a multiple of `T`'s size).
+pub fn copy_into_vec<T: Pod>(dst: &mut Vec<T>, bytes: &[u8]) {
+    let size = std::mem::size_of::<T>();
+    debug_assert_eq!(bytes.len() % size, 0, "whole elements");
+    dst.clear();
+    dst.resize(bytes.len() / size, T::zeroed());
+    bytemuck::cast_slice_mut::<T, u8>(dst).copy_from_slice(bytes);
 }
 
 /// Copy the first `count` elements of `buffer` back to the CPU (waits for the GPU).

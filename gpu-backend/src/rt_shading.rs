@@ -15,6 +15,7 @@ use hyrt_core::kernels::shading::{
     AMBIENT, BACKGROUND, DIELECTRIC_F0, ENVIRONMENT_SPECULAR, EXP_SERIES, LOG2_SERIES, MIN_LIGHT_DISTANCE_SQ,
     POW_FLUSH_EXPONENT, TWO_OVER_LN_2,
 };
+use hyrt_core::plan::Composition;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
 use crate::GpuContext;
@@ -63,6 +64,8 @@ fn prelude() -> String {
     s += &u("OBJ_RAY_TRACED", OBJ_RAY_TRACED);
     s += &u("INVALID_ID", INVALID_ID);
     s += &u("SHADOW_LIT", SHADOW_LIT as u32);
+    s += &u("COMPOSITION_COPY_RASTER", Composition::CopyRaster.code());
+    s += &u("COMPOSITION_RT_OVER_BACKGROUND", Composition::RtOverBackground.code());
     s
 }
 

@@ -194,6 +194,37 @@ pub struct Camera {
 }
 
 impl Camera {
+    /// Vertical field of view of [`Camera::look_at`], in degrees.
+    pub const DEFAULT_FOV_Y_DEG: f32 = 45.0;
+    /// [`Camera::look_at`]'s near plane as a fraction of the eye-to-target distance:
+    /// anything nearer than 1% of the distance to what the camera looks at is clipped.
+    pub const DEFAULT_NEAR_FRACTION: f32 = 0.01;
+    /// [`Camera::look_at`]'s far plane as a multiple of the eye-to-target distance:
+    /// with near at 1% of it, depth spans a 1e5 ratio, which f32 depth holds to well
+    /// under a pixel's depth step near the target.
+    pub const DEFAULT_FAR_MULTIPLE: f32 = 1000.0;
+    /// The smallest near plane [`Camera::look_at`] sets (an eye on its target, or
+    /// nearly): the near plane of a 0.01-unit look-at distance, so scenes in metres
+    /// keep a usable depth range however close the eye is.
+    pub const MIN_NEAR: f32 = 1e-4;
+
+    /// A camera at `eye` looking at `target` with `up` roughly up, a 45 degree vertical
+    /// field of view, and near and far planes scaled to the eye-to-target distance
+    /// ([`Self::DEFAULT_NEAR_FRACTION`], [`Self::DEFAULT_FAR_MULTIPLE`]). Set the fields
+    /// afterwards to change any of them.
+    ///
+    /// ```
+    /// use hyrt_core::glam::Vec3;
+    /// use hyrt_core::scene::Camera;
+    /// let cam = Camera::look_at(Vec3::new(0.0, 2.0, 10.0), Vec3::ZERO, Vec3::Y);
+    /// assert!(cam.near > 0.0 && cam.near < 1.0 && cam.far > 100.0);
+    /// ```
+    pub fn look_at(eye: Vec3, target: Vec3, up: Vec3) -> Camera {
+        let near = ((target - eye).length() * Self::DEFAULT_NEAR_FRACTION).max(Self::MIN_NEAR);
+        let far = near * (Self::DEFAULT_FAR_MULTIPLE / Self::DEFAULT_NEAR_FRACTION);
+        Camera { eye, target, up, fov_y_deg: Self::DEFAULT_FOV_Y_DEG, near, far }
+    }
+
     /// World-to-view matrix (right-handed, -Z forward).
     pub fn view(&self) -> Mat4 {
         glam::camera::rh::view::look_at_mat4(self.eye, self.target, self.up)

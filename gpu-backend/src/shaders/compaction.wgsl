@@ -308,7 +308,11 @@ fn scatter_rays(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id
         if k < level.n && flags[k] != 0u {
             let l = k / pixels;
             let p = k - l * pixels;
-            rays[dst] = shadow_ray(surfaces[p], lights[l], l, p);
+            // Rays past the buffer's room are not written: the backend sees the
+            // count, makes room and runs the frame again.
+            if dst < arrayLength(&rays) {
+                rays[dst] = shadow_ray(surfaces[p], lights[l], l, p);
+            }
             dst = dst + 1u;
         }
     }

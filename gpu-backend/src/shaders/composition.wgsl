@@ -1,6 +1,9 @@
 // Stage `composition` (mirrors hyrt_cpu::composition): where the ray-traced image
 // has coverage (alpha > 0) the weighted mean `compose(raster, rt, weight)` with
 // alpha 1, elsewhere the raster texel unchanged. One invocation per pixel.
+// A plan that made one image only copies it (`params.composition`, the codes of
+// hyrt_core::plan::Composition): 1 the raster image; 2 the ray-traced image where it
+// has coverage, the background elsewhere. The image not made is not read.
 // Appended to shading.wgsl (structs, constants, kernels).
 
 @group(0) @binding(0) var<storage, read> raster: array<vec4<f32>>;
@@ -14,6 +17,15 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let pixel = id.y * params.width + id.x;
+    if (params.composition == COMPOSITION_COPY_RASTER) {
+        final_image[pixel] = raster[pixel];
+        return;
+    }
+    if (params.composition == COMPOSITION_RT_OVER_BACKGROUND) {
+        let t = rt[pixel];
+        final_image[pixel] = select(vec4<f32>(BACKGROUND, 1.0), t, t.w > 0.0);
+        return;
+    }
     let r = raster[pixel];
     let t = rt[pixel];
     if (t.w > 0.0) {

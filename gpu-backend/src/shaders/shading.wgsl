@@ -65,7 +65,8 @@ struct FrameParams {
     weight: f32,
     // Always 0 (see `rounded`).
     zero: u32,
-    pad0: u32,
+    // How `composition` composes: hyrt_core::plan::Composition::code.
+    composition: u32,
     pad1: u32,
     pad2: u32,
 }

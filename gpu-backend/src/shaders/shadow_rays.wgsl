@@ -146,7 +146,9 @@ fn occluded_any(ray: RayRecord) -> bool {
 fn shadow_rays(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wid: vec3<u32>,
                @builtin(num_workgroups) nwg: vec3<u32>) {
     let i = (wid.y * nwg.x + wid.x) * SHADOW_WG + lid;
-    if i >= ray_count[0] {
+    // The list may have more rays than the buffer has room for (the backend then
+    // runs the frame again with more room): trace only those written.
+    if i >= min(ray_count[0], arrayLength(&rays)) {
         return;
     }
     let ray = rays[i];

@@ -84,7 +84,7 @@ mod tests {
 
     fn stats(times: &[(Stage, f64)]) -> FrameStats {
         FrameStats {
-            stage_ms: times.iter().map(|&(stage, ms)| StageTime { stage, ms }).collect(),
+            stage_ms: times.iter().map(|&(stage, ms)| StageTime { stage, ms, work: Default::default() }).collect(),
             ..Default::default()
         }
     }
