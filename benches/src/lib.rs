@@ -1,6 +1,6 @@
 //! # hyrt-benches
 //!
-//! - [`bench`]: the benchmark report of `hyrt bench` (the paper's Table 2 on both
+//! - [`bench`](mod@bench): the benchmark report of `hyrt bench` (the paper's Table 2 on both
 //!   backends, peers with the Embree binding behind the `embree` feature, scaling, plots,
 //!   and the speed-against-error section from `hyrt-accuracy`).
 //! - The scenes benchmarks run on, shared by the criterion benches
