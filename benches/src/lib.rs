@@ -1,9 +1,14 @@
 //! # hyrt-benches
 //!
-//! The scenes benchmarks run on, shared by the criterion benches
-//! (`cargo bench -p hyrt-benches`); they load scenes the way `hyrt bench` does
-//! (`hyrt::bench::scenes`).
-//! Scenes from `../shared/assets` are skipped with a message when absent.
+//! - [`bench`](mod@bench): the benchmark report of `hyrt bench` (the paper's Table 2 on both
+//!   backends, peers with the Embree binding behind the `embree` feature, scaling, plots,
+//!   and the speed-against-error section from `hyrt-accuracy`).
+//! - The scenes benchmarks run on, shared by the criterion benches
+//!   (`cargo bench -p hyrt-benches`); they load scenes the way `hyrt bench` does
+//!   ([`bench::scenes`]). Scenes from `../shared/assets` are skipped with a message when
+//!   absent.
+
+pub mod bench;
 
 use std::path::PathBuf;
 
@@ -17,16 +22,16 @@ pub struct BenchScene {
 
 /// The folder of shared models, if present (`<repo>/../shared/assets`).
 pub fn shared_assets() -> Option<PathBuf> {
-    hyrt::bench::scenes::shared_assets()
+    crate::bench::scenes::shared_assets()
 }
 
 /// The default scene plus, when present, the paper's teaser manifest
 /// (`assets/scenes/teaser.toml`: Sponza rasterized, the bunny ray traced), loaded as
 /// `hyrt bench` loads them.
 pub fn bench_scenes() -> Vec<BenchScene> {
-    let mut out = vec![BenchScene { name: "default", scene: hyrt::bench::scenes::default_scene().scene }];
+    let mut out = vec![BenchScene { name: "default", scene: crate::bench::scenes::default_scene().scene }];
     let mut notes = Vec::new();
-    let teaser = hyrt::bench::scenes::load_manifests(["teaser"], hyrt::bench::SceneSet::All, &mut notes);
+    let teaser = crate::bench::scenes::load_manifests(["teaser"], crate::bench::SceneSet::All, &mut notes);
     for n in notes {
         eprintln!("hyrt-benches: {n}");
     }

@@ -8,7 +8,7 @@
 //! are coarse and such rays occur (a handful in 10^8); every differing ray must be one,
 //! and every other difference must be a pixel of such a ray.
 //! The light-outside scenes (expected lit and shadowed regions against an f64 reference)
-//! are checked in `hyrt/tests/leaks.rs`, where the reference renderer lives.
+//! are checked in `accuracy/tests/leaks.rs`, where the reference renderer lives.
 
 use hyrt_conformance::compare::compare_stages;
 use hyrt_conformance::leak::{count_leaks, leak_corpus, LeakCase, LightSide, MIN_SHADOW_RAYS};

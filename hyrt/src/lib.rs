@@ -20,9 +20,6 @@
 //! assert!(frame.stats.ray_traced_pixels > 0);
 //! ```
 
-pub mod accuracy;
-pub mod bench;
-pub mod dump;
 pub mod image_io;
 
 use std::cell::RefCell;

@@ -1,8 +1,7 @@
 //! The GPU backend end to end, against the CPU reference, on whatever Vulkan
 //! adapter is present (lavapipe in CI). Stage-by-stage tolerances live in the
-//! gpu-backend crate's tests; here: whole frames and the command line.
-
-use std::process::Command;
+//! gpu-backend crate's tests; here: whole frames (the command line's GPU tests are in
+//! `cli/tests/gpu.rs`).
 
 use hyrt::{AdapterPolicy, BackendKind, FrameOptions, Renderer, Scene};
 
@@ -82,58 +81,6 @@ fn gpu_renders_again_with_reused_buffers_and_a_new_scene() {
 
 fn bytemuck_bits(img: &[[f32; 4]]) -> Vec<u32> {
     img.iter().flat_map(|p| p.map(f32::to_bits)).collect()
-}
-
-#[test]
-fn cli_backend_auto_says_what_it_took_and_gpu_fails_clearly() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("a.png");
-    let o = Command::new(env!("CARGO_BIN_EXE_hyrt"))
-        .env_remove("HYRT_GPU_ALLOW_SOFTWARE")
-        .args(["render", "--backend", "auto", "--size", "32x18", "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{err}");
-    assert!(err.contains("auto -> "), "auto must say which backend it took: {err}");
-    // Without permission for software adapters, `gpu` either finds hardware or says how to allow lavapipe.
-    let o = Command::new(env!("CARGO_BIN_EXE_hyrt"))
-        .env_remove("HYRT_GPU_ALLOW_SOFTWARE")
-        .args(["render", "--backend", "gpu", "--size", "32x18", "--out"])
-        .arg(dir.path().join("g.png"))
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!err.contains("panicked"), "{err}");
-    if !o.status.success() {
-        assert!(err.contains("HYRT_GPU_ALLOW_SOFTWARE") || err.contains("no GPU adapter"), "{err}");
-    }
-}
-
-#[test]
-fn cli_backend_gpu_renders_default_scene_and_sponza_with_software_allowed() {
-    if gpu_renderer().is_none() {
-        return;
-    }
-    let dir = tempfile::tempdir().unwrap();
-    let assets = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets");
-    let mut scenes = vec![None];
-    if assets.is_dir() {
-        scenes.push(Some(assets.join("sponza.glb")));
-    }
-    for (i, scene) in scenes.iter().enumerate() {
-        let out = dir.path().join(format!("gpu{i}.png"));
-        let mut cmd = Command::new(env!("CARGO_BIN_EXE_hyrt"));
-        cmd.args(["render", "--backend", "gpu", "--allow-software-gpu", "--size", "64x36", "--out"]).arg(&out);
-        if let Some(s) = scene {
-            cmd.arg(s);
-        }
-        let o = cmd.output().unwrap();
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        assert!(String::from_utf8_lossy(&o.stderr).contains("backend: gpu"));
-        assert_eq!(image::open(&out).unwrap().width(), 64);
-    }
 }
 
 #[test]

@@ -171,7 +171,7 @@ fn end_to_end_shared_sponza_and_bunny_render() {
 #[test]
 fn paper_manifests_reproduce_table2_valid_rays() {
     // The paper's Table 2 "valid rays" (pixels whose primary hit is ray traced), which the
-    // manifests are framed to reproduce at 1280x720 (hyrt::bench::scenes::PAPER_TABLE2).
+    // manifests are framed to reproduce at 1280x720 (hyrt_benches::bench::scenes::PAPER_TABLE2).
     const TABLE2_REL_TOL: f64 = 0.02; // framing is set by the eye position to about 1%
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     if !dir.join("../shared/assets").is_dir() {

@@ -23,8 +23,8 @@ use hyrt_core::scene::{Camera, Scene};
 use npyz::WriterBuilder;
 use serde_json::{json, Value};
 
-use crate::image_io::write_png;
-use crate::Error;
+use hyrt::image_io::write_png;
+use hyrt::Error;
 
 /// One row of `rays.npy` (a NumPy structured dtype).
 #[derive(npyz::Serialize, npyz::AutoSerialize, Clone, Copy)]

@@ -3,7 +3,7 @@
 //! traced (pixel, light) pair of the CPU frame is checked against an exact decision: the
 //! segment from the pipeline's own primary hit point (its G-buffer barycentrics on its
 //! triangle, evaluated in f64: exactly on the triangle's plane) to the light, traced in f64
-//! through the BVH ([`hyrt::accuracy::reference::occluded_f64`]). A pair may disagree only
+//! through the BVH ([`hyrt_accuracy::reference::occluded_f64`]). A pair may disagree only
 //! where that decision is not stable under the pipeline's own uncertainty: where moving the
 //! light by the rounding of the ray ([`light_tolerance`]), or the start off the surface by
 //! the hit point's error ([`origin_tolerance`], the band the origin offset skips), flips it:
@@ -13,7 +13,7 @@
 //! the way. The GPU backend renders the same scenes bit for bit (`conformance/tests/leaks.rs`).
 
 use glam::{DVec3, Vec3};
-use hyrt::accuracy::reference::{occluded_f64, Ray64, REFERENCE_SHADOW_T_MIN};
+use hyrt_accuracy::reference::{occluded_f64, Ray64, REFERENCE_SHADOW_T_MIN};
 use hyrt_conformance::leak::{leak_corpus, LightSide, FLOOR_OBJECT, MIN_FEATURE_ULPS, MIN_SHADOW_RAYS, SHELL_OBJECT};
 use hyrt_conformance::report::render_case;
 use hyrt_core::bvh::BvhPreset;

@@ -5,7 +5,9 @@
 //! built-in default scene.
 //!
 //! `hyrt bench [--quick] [--out DIR]`: the benchmark report (Table 2 reproduction, peers,
-//! scaling) as `DIR/report.md` plus PNG plots; see `hyrt::bench`.
+//! scaling) as `DIR/report.md` plus PNG plots; see `hyrt_benches::bench`.
+
+mod dump;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -300,7 +302,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
     println!("  {:<18} {:>9.2} ms (sum of the stages above, without bvh_build)", "frame", frame_ms);
     println!("wrote {}", args.out.display());
     if let Some(dir) = &args.dump {
-        let files = hyrt::dump::write_dump(dir, &scene, &prepared, &camera, &frame, &renderer.backend_name())
+        let files = dump::write_dump(dir, &scene, &prepared, &camera, &frame, &renderer.backend_name())
             .map_err(|e| e.to_string())?;
         println!("dumped {} files to {}", files.len(), dir.display());
     }
@@ -357,7 +359,7 @@ fn conformance(args: ConformanceArgs) -> Result<(), String> {
 }
 
 fn bench(args: BenchArgs) -> Result<(), String> {
-    use hyrt::bench::{BenchOptions, SceneSet};
+    use hyrt_benches::bench::{BenchOptions, SceneSet};
     let mut o = if args.quick { BenchOptions::quick(args.out.clone()) } else { BenchOptions::full(args.out.clone()) };
     if let Some(f) = args.frames {
         o.frames = f as usize;
@@ -389,7 +391,7 @@ fn bench(args: BenchArgs) -> Result<(), String> {
             .map_err(|e| e.to_string())?,
     );
     progress.enable_steady_tick(std::time::Duration::from_millis(200));
-    let (report, path) = hyrt::bench::run_and_write(&o, &progress).map_err(|e| e.to_string())?;
+    let (report, path) = hyrt_benches::bench::run_and_write(&o, &progress).map_err(|e| e.to_string())?;
     progress.finish_and_clear();
     println!("wrote {} ({} sections, {} plots)", path.display(), report.sections.len(), report.files.len());
     Ok(())

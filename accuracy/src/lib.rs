@@ -22,13 +22,13 @@
 //! the scene extent, image RMSE and mean FLIP (`nv-flip`, NVIDIA's implementation).
 //!
 //! ```no_run
-//! use hyrt::accuracy::{speed_vs_error, AccuracyOptions};
+//! use hyrt_accuracy::{speed_vs_error, AccuracyOptions};
 //! let mut scene = hyrt::Scene::default_scene();
 //! scene.ensure_camera_and_lights();
 //! let opts = AccuracyOptions { quick: true, threads: 2, width: 160, height: 90 };
 //! let section = speed_vs_error("default", &scene, &opts, std::path::Path::new("report"), &|m| eprintln!("{m}"))?;
 //! println!("{}", section.markdown);
-//! # Ok::<(), hyrt::accuracy::AccuracyError>(())
+//! # Ok::<(), hyrt_accuracy::AccuracyError>(())
 //! ```
 
 pub mod leaks;

@@ -32,12 +32,12 @@ fn bench(dir: &Path, extra: &[&str]) -> Output {
 /// Plots need DejaVu Sans (Debian fonts-dejavu-core); without it `hyrt bench` must fail
 /// and say so. Returns true when the font is there.
 fn font_or_clear_error(o: &Output) -> bool {
-    if Path::new(hyrt::bench::plots::FONT_PATH).is_file() {
+    if Path::new(hyrt_benches::bench::plots::FONT_PATH).is_file() {
         return true;
     }
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("fonts-dejavu-core"), "{err}");
-    eprintln!("{} missing: checked the error message only", hyrt::bench::plots::FONT_PATH);
+    eprintln!("{} missing: checked the error message only", hyrt_benches::bench::plots::FONT_PATH);
     false
 }
 
@@ -76,7 +76,10 @@ fn bench_cli_writes_the_report_and_plots() {
     assert!(md.contains("| Bunny Scene 1 (Fig. 5) | 68,203 | 5 |"), "{md}");
     let rays = valid_rays_at(48, 32);
     assert!(rays > 0);
-    assert!(md.contains(&format!("| default | - | 4,908 | - | {} |", hyrt::bench::report::count(rays))), "{md}");
+    assert!(
+        md.contains(&format!("| default | - | 4,908 | - | {} |", hyrt_benches::bench::report::count(rays))),
+        "{md}"
+    );
     // Peers at both thread counts; the GPU was switched off and the report says so.
     assert!(md.contains("| hyrt `Bvh::occluded` per ray (scalar reference) | 1 |"), "{md}");
     assert!(md.contains("| hyrt `Bvh::closest_hit` per ray (scalar reference) | 2 |"), "{md}");
@@ -99,7 +102,7 @@ fn bench_cli_writes_the_report_and_plots() {
     for plot in ["scaling_pixels.png", "scaling_triangles.png"] {
         assert!(md.contains(&format!("]({plot})")), "{plot} not linked");
         let img = image::open(dir.path().join(plot)).unwrap();
-        assert_eq!((img.width(), img.height()), hyrt::bench::plots::PLOT_SIZE);
+        assert_eq!((img.width(), img.height()), hyrt_benches::bench::plots::PLOT_SIZE);
     }
     // Two sizes in the pixel scaling, on the CPU.
     assert!(md.contains("| 48x32 | 1,536 |") && md.contains("| 64x40 | 2,560 |"), "{md}");

@@ -1,15 +1,15 @@
 //! The speed-against-error module: the f64 reference against analytic scenes with known
 //! answers, the variants' defining properties, and the entry point end to end.
 
-use hyrt::accuracy::metrics::compare_shadows;
-use hyrt::accuracy::plot::FONT_PATH;
-use hyrt::accuracy::reference::{closest_hit_f64, render_reference, Ray64, ReferenceFrame};
-use hyrt::accuracy::shadow_map::shadow_map_mask;
-use hyrt::accuracy::variants::{reoffset_rays, OffsetMethod};
-use hyrt::accuracy::{speed_vs_error, AccuracyError, AccuracyOptions};
 use hyrt::formats::CameraRecord;
 use hyrt::glam::{DVec3, Mat4, Quat, Vec3};
 use hyrt::{Bvh, BvhPreset, Camera, Light, Material, Mesh, RenderMode, Scene, WorldGeometry};
+use hyrt_accuracy::metrics::compare_shadows;
+use hyrt_accuracy::plot::FONT_PATH;
+use hyrt_accuracy::reference::{closest_hit_f64, render_reference, Ray64, ReferenceFrame};
+use hyrt_accuracy::shadow_map::shadow_map_mask;
+use hyrt_accuracy::variants::{reoffset_rays, OffsetMethod};
+use hyrt_accuracy::{speed_vs_error, AccuracyError, AccuracyOptions};
 use hyrt_core::frame::{SHADOW_LIT, SHADOW_NO_RAY, SHADOW_OCCLUDED};
 use hyrt_cpu::compaction::compaction;
 use hyrt_cpu::reconstruction::reconstruction;
@@ -183,7 +183,7 @@ fn reference_sphere_visibility_and_shadow_match_the_inscribed_and_circumscribed_
         assert!(r_in > 0.95 * radius as f64 && r_out < 1.001 * radius as f64, "{r_in} {r_out}");
         let Light::Point { position, .. } = scene.lights[0] else { unreachable!() };
         let light = position.as_dvec3();
-        let cam = hyrt::accuracy::reference::Camera64::new(&scene.camera.unwrap(), 80, 60);
+        let cam = hyrt_accuracy::reference::Camera64::new(&scene.camera.unwrap(), 80, 60);
         let (mut sphere_pixels, mut checked_shadows) = (0, 0);
         for (i, h) in r.hits.iter().enumerate() {
             // Primary visibility: rays through the inner ball hit the sphere, rays missing the outer one do not.

@@ -63,7 +63,7 @@ pub enum BenchError {
     #[error("invalid benchmark options: {0}")]
     Options(String),
     #[error(transparent)]
-    Accuracy(#[from] crate::accuracy::AccuracyError),
+    Accuracy(#[from] hyrt_accuracy::AccuracyError),
 }
 
 /// Settings of one benchmark run.
@@ -94,7 +94,7 @@ pub struct BenchOptions {
     pub command_line: String,
     /// True for `--quick` (said in the report).
     pub quick: bool,
-    /// Run the speed-against-error section ([`crate::accuracy`]) on the default scene
+    /// Run the speed-against-error section ([`hyrt_accuracy`]) on the default scene
     /// and the teaser, at `table_size`.
     pub accuracy: bool,
 }
@@ -291,12 +291,12 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Report, Ben
     if !accuracy_scenes.is_empty() {
         let (width, height) = options.table_size;
         let threads = options.frame_threads.unwrap_or_else(rayon::current_num_threads);
-        let opts = crate::accuracy::AccuracyOptions { quick: options.quick, threads, width, height };
+        let opts = hyrt_accuracy::AccuracyOptions { quick: options.quick, threads, width, height };
         let mut md = String::new();
         for (name, scene) in &accuracy_scenes {
             progress.set_message(format!("speed against error: {name}"));
             let report = |m: &str| progress.set_message(format!("speed against error: {name}: {m}"));
-            let section = crate::accuracy::speed_vs_error(name, scene, &opts, &options.out_dir, &report)?;
+            let section = hyrt_accuracy::speed_vs_error(name, scene, &opts, &options.out_dir, &report)?;
             md += &section.markdown;
             md += "\n";
             files.extend(section.plots);
@@ -306,9 +306,9 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Report, Ben
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
-            .map_err(|e| crate::accuracy::AccuracyError::Threads { threads, message: e.to_string() })?;
-        let rows = pool.install(|| crate::accuracy::leaks::leak_offsets(options.quick, &report));
-        md += &crate::accuracy::leaks::leak_offsets_markdown(&rows);
+            .map_err(|e| hyrt_accuracy::AccuracyError::Threads { threads, message: e.to_string() })?;
+        let rows = pool.install(|| hyrt_accuracy::leaks::leak_offsets(options.quick, &report));
+        md += &hyrt_accuracy::leaks::leak_offsets_markdown(&rows);
         sections.push(Section::new("Speed against error", md));
     }
     sections.push(goals(&table2, &peers));
