@@ -32,8 +32,8 @@
 //! [`traversal`] (shared with the f64 reference and the CPU packets), which uses a fixed
 //! stack of [`BVH_STACK_SIZE`] entries (no allocation per ray); the scalar ray visits the
 //! nearer child first and calls the conservative slab test and the watertight triangle
-//! test of [`crate::kernels::ray`]. The tree depth is bounded by the stack size: if obvhs ever
-//! returns a deeper tree (pathological input), the build falls back to a balanced
+//! test of [`crate::kernels::ray`]. The tree depth is bounded by the stack size: if obvhs
+//! ever returns a deeper tree (pathological input), the build falls back to a balanced
 //! object-median split whose depth is logarithmic.
 //!
 //! ```
