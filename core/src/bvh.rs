@@ -63,7 +63,7 @@ use crate::kernels::ray::{gamma, ray_aabb_conservative, safe_inverse_dir, Watert
 
 pub mod traversal;
 
-use traversal::{traverse, LeafFlow, NodeTest};
+use traversal::{inline_leaf_test, traverse, Leaf, LeafFlow, NodeTest};
 
 /// Entries of the fixed traversal stack, and therefore the largest allowed tree depth
 /// (root at depth 0): descending pushes at most one sibling per level, so a leaf at depth
@@ -642,18 +642,20 @@ impl Bvh {
         let Some(r) = TraversalRay::new(ray) else {
             return false;
         };
-        let mut t_max = r.t_max;
-        traverse(&self.nodes, &r, &mut t_max, |leaf, _, _| {
-            let hit = leaf.slots().any(|slot| {
-                let t = self.leaf_triangle(triangles, slot);
-                r.wt.intersect(r.t_min, r.t_max, t.v0.into(), t.v1.into(), t.v2.into()).is_some()
-            });
-            if hit {
-                LeafFlow::Stop
-            } else {
+        // `inline(always)` on the leaf tests: the loop and its tests stay one function.
+        let leaf_test = inline_leaf_test(
+            #[inline(always)]
+            |leaf: Leaf, _: f32, _: &mut f32| {
+                for slot in leaf.slots() {
+                    let t = self.leaf_triangle(triangles, slot);
+                    if r.wt.intersect(r.t_min, r.t_max, t.v0.into(), t.v1.into(), t.v2.into()).is_some() {
+                        return LeafFlow::Stop;
+                    }
+                }
                 LeafFlow::Continue
-            }
-        })
+            },
+        );
+        traverse(&self.nodes, &r, &mut r.t_max.clone(), leaf_test)
     }
 
     /// The closest hit with `t_min < t < t_max`. Hits at exactly equal `t` (a ray through a
@@ -666,22 +668,25 @@ impl Bvh {
     pub fn closest_hit(&self, triangles: &[TriangleRecord], ray: &RayRecord) -> Option<ClosestHit> {
         let r = TraversalRay::new(ray)?;
         let mut best = ClosestHit { triangle: INVALID_ID, t: r.t_max, u: 0.0, v: 0.0 };
-        let mut t_best = r.t_max;
-        traverse(&self.nodes, &r, &mut t_best, |leaf, _, t_best| {
-            let mut flow = LeafFlow::Continue;
-            leaf.slots().for_each(|slot| {
-                let t = self.leaf_triangle(triangles, slot);
-                if let Some(h) = r.wt.intersect(r.t_min, r.t_max, t.v0.into(), t.v1.into(), t.v2.into()) {
-                    let id = self.prim_indices[slot as usize];
-                    if h.t < *t_best || (h.t == *t_best && id < best.triangle) {
-                        best = ClosestHit { triangle: id, t: h.t, u: h.u, v: h.v };
-                        *t_best = h.t;
-                        flow = LeafFlow::Narrowed;
+        let leaf_test = inline_leaf_test(
+            #[inline(always)]
+            |leaf: Leaf, _: f32, t_best: &mut f32| {
+                let mut flow = LeafFlow::Continue;
+                for slot in leaf.slots() {
+                    let t = self.leaf_triangle(triangles, slot);
+                    if let Some(h) = r.wt.intersect(r.t_min, r.t_max, t.v0.into(), t.v1.into(), t.v2.into()) {
+                        let id = self.prim_indices[slot as usize];
+                        if h.t < *t_best || (h.t == *t_best && id < best.triangle) {
+                            best = ClosestHit { triangle: id, t: h.t, u: h.u, v: h.v };
+                            *t_best = h.t;
+                            flow = LeafFlow::Narrowed;
+                        }
                     }
                 }
-            });
-            flow
-        });
+                flow
+            },
+        );
+        traverse(&self.nodes, &r, &mut r.t_max.clone(), leaf_test);
         (best.triangle != INVALID_ID).then_some(best)
     }
 

@@ -40,7 +40,7 @@
 //! [`ray_aabb_conservative`]: hyrt_core::kernels::ray::ray_aabb_conservative
 
 use glam::Vec3;
-use hyrt_core::bvh::traversal::{traverse, Leaf, LeafFlow, NodeTest};
+use hyrt_core::bvh::traversal::{inline_leaf_test, traverse, Leaf, LeafFlow, NodeTest};
 use hyrt_core::bvh::{Bvh, BvhNode, ClosestHit, BVH_CULL_SLACK};
 use hyrt_core::formats::{RayRecord, TriangleRecord, INVALID_ID};
 use hyrt_core::kernels::ray::{gamma, permute_axes, WatertightRay, SLAB_FAR_SCALE};
@@ -464,24 +464,29 @@ pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, p: &Packet<L>, cache: &mut Option<Oc
     let mut done = 0u32;
     // Any hit of the lanes `m` against the leaf's triangles in slot order from its start,
     // until every lane is stopped; the last triangle that stops a lane becomes the cache.
-    let mut leaf_test = |leaf: Leaf, mut m: u32, done: &mut u32| {
-        for slot in leaf.slots() {
-            let hit = p.intersect::<false>(m, &bvh.leaf_triangles[slot as usize]).0;
-            if hit != 0 {
-                *done |= hit;
-                m &= !hit;
-                *cache = Some(Occluder { leaf: leaf.node, slot });
-                if m == 0 {
-                    break;
+    // `inline(always)` on the leaf tests: a closure not inlined would be compiled without
+    // the caller's target features (AVX2), its lane operations out of line.
+    let mut leaf_test = inline_leaf_test(
+        #[inline(always)]
+        |leaf: Leaf, mut m: u32, done: &mut u32| {
+            for slot in leaf.slots() {
+                let hit = p.intersect::<false>(m, &bvh.leaf_triangles[slot as usize]).0;
+                if hit != 0 {
+                    *done |= hit;
+                    m &= !hit;
+                    *cache = Some(Occluder { leaf: leaf.node, slot });
+                    if m == 0 {
+                        break;
+                    }
                 }
             }
-        }
-        if *done == p.valid {
-            LeafFlow::Stop
-        } else {
-            LeafFlow::Continue
-        }
-    };
+            if *done == p.valid {
+                LeafFlow::Stop
+            } else {
+                LeafFlow::Continue
+            }
+        },
+    );
     if let Some(c) = cached {
         let n = c.leaf as usize;
         let m = p.enter(&nodes[n], p.box_t_max) & p.valid;
@@ -503,46 +508,50 @@ pub(crate) fn closest_hit<L: Lanes>(bvh: &Bvh, p: &Packet<L>) -> [Option<Closest
     let mut best_v = L::splat(0.0);
     let mut best_id = [INVALID_ID; LANES];
     let mut t_far = L::mul(best_t, widen);
-    traverse(&bvh.nodes, &ClosestHitLanes(p), &mut t_far, |leaf, m, t_far| {
-        let mut improved = false;
-        for slot in leaf.slots() {
-            let (hit, t, u, v) = p.intersect::<true>(m, &bvh.leaf_triangles[slot as usize]);
-            if hit == 0 {
-                continue;
-            }
-            let id = bvh.prim_indices[slot as usize];
-            let mut take = hit & L::bits(L::lt(t, best_t));
-            let mut ties = hit & L::bits(L::eq(t, best_t));
-            while ties != 0 {
-                let i = ties.trailing_zeros() as usize;
-                ties &= ties - 1;
-                if id < best_id[i] {
-                    take |= 1 << i;
+    let leaf_test = inline_leaf_test(
+        #[inline(always)]
+        |leaf: Leaf, m: u32, t_far: &mut L::F| {
+            let mut improved = false;
+            for slot in leaf.slots() {
+                let (hit, t, u, v) = p.intersect::<true>(m, &bvh.leaf_triangles[slot as usize]);
+                if hit == 0 {
+                    continue;
                 }
-            }
-            if take == 0 {
-                continue;
-            }
-            let mut sel = [0.0; LANES];
-            for (i, s) in sel.iter_mut().enumerate() {
-                if take & (1 << i) != 0 {
-                    *s = lane_mask(true);
-                    best_id[i] = id;
+                let id = bvh.prim_indices[slot as usize];
+                let mut take = hit & L::bits(L::lt(t, best_t));
+                let mut ties = hit & L::bits(L::eq(t, best_t));
+                while ties != 0 {
+                    let i = ties.trailing_zeros() as usize;
+                    ties &= ties - 1;
+                    if id < best_id[i] {
+                        take |= 1 << i;
+                    }
                 }
+                if take == 0 {
+                    continue;
+                }
+                let mut sel = [0.0; LANES];
+                for (i, s) in sel.iter_mut().enumerate() {
+                    if take & (1 << i) != 0 {
+                        *s = lane_mask(true);
+                        best_id[i] = id;
+                    }
+                }
+                let sel = L::load(&sel);
+                best_t = L::select(sel, t, best_t);
+                best_u = L::select(sel, u, best_u);
+                best_v = L::select(sel, v, best_v);
+                improved = true;
             }
-            let sel = L::load(&sel);
-            best_t = L::select(sel, t, best_t);
-            best_u = L::select(sel, u, best_u);
-            best_v = L::select(sel, v, best_v);
-            improved = true;
-        }
-        if improved {
-            *t_far = L::mul(best_t, widen);
-            LeafFlow::Narrowed
-        } else {
-            LeafFlow::Continue
-        }
-    });
+            if improved {
+                *t_far = L::mul(best_t, widen);
+                LeafFlow::Narrowed
+            } else {
+                LeafFlow::Continue
+            }
+        },
+    );
+    traverse(&bvh.nodes, &ClosestHitLanes(p), &mut t_far, leaf_test);
     let mut out = [None; LANES];
     let (t, u, v) = (L::store(best_t), L::store(best_u), L::store(best_v));
     for i in 0..LANES {
