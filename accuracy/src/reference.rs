@@ -12,9 +12,10 @@
 //!   ray through a shared edge hits both neighbours (ties at equal `t` go to the lower
 //!   global triangle index, as in [`Bvh::closest_hit`]).
 //! * Traversal: the scene's [`Bvh`] (f32 boxes, conservative for the f32 vertices),
-//!   tested in f64 with every box widened by [`REFERENCE_BOX_MARGIN`] and the far slab
-//!   distance by [`REFERENCE_SLAB_FAR_SCALE`], so rounding in the f64 slab test can only
-//!   visit more boxes, never lose a hit.
+//!   walked by the one traversal loop of `hyrt_core::bvh::traversal`, tested in f64 with
+//!   every box widened by [`REFERENCE_BOX_MARGIN`] and the far slab distance by
+//!   [`REFERENCE_SLAB_FAR_SCALE`], so rounding in the f64 slab test can only visit more
+//!   boxes, never lose a hit.
 //! * Shadows: from the f64 hit point `p = w v0 + u v1 + v v2` (barycentrics of the f64
 //!   test; `p` lies on its triangle's plane within about 1e-16 |p|) straight to each
 //!   light, no origin offset: the hit triangle itself is excluded by id, and hits closer
@@ -25,7 +26,8 @@
 //!   geometry and shadow decisions of a configuration.
 
 use glam::{DMat4, DVec3, DVec4, Vec3};
-use hyrt_core::bvh::{Bvh, BvhNode, BVH_STACK_SIZE};
+use hyrt_core::bvh::traversal::{traverse, LeafFlow, NodeTest};
+use hyrt_core::bvh::{Bvh, BvhNode};
 use hyrt_core::formats::{LightRecord, ObjectRecord, SurfaceRecord, TriangleRecord, LIGHT_DIRECTIONAL};
 use hyrt_core::frame::{SHADOW_LIT, SHADOW_NO_RAY, SHADOW_OCCLUDED};
 use hyrt_core::geometry::WorldGeometry;
@@ -178,6 +180,42 @@ pub fn intersect_triangle_f64(
     Ray64::new(origin, dir)?.intersect(t_min, t_max, v0, v1, v2)
 }
 
+/// The f64 node test of [`traverse`]: [`Ray64::enter`] over `(t_min, bound)`, where the
+/// bound is `t_max` (any hit) or the closest `t` so far; nearer child first (ties left);
+/// a stale entry is skipped when its entry distance lies beyond the bound (equal entry
+/// distance is kept: the lower-index tie rule needs those boxes).
+struct Interval64<'r> {
+    ray: &'r Ray64,
+    t_min: f64,
+}
+
+impl NodeTest for Interval64<'_> {
+    type Entry = f64;
+    type Bound = f64;
+
+    #[inline]
+    fn enter_root(&self, root: &BvhNode, t_far: &f64) -> Option<f64> {
+        self.ray.enter(root, self.t_min, *t_far)
+    }
+
+    #[inline]
+    fn enter(&self, node: &BvhNode, _parent: f64, t_far: &f64) -> Option<f64> {
+        self.ray.enter(node, self.t_min, *t_far)
+    }
+
+    #[inline]
+    fn right_first(&self, _left: &BvhNode, _right: &BvhNode, left_entry: f64, right_entry: f64) -> bool {
+        right_entry < left_entry
+    }
+
+    /// A fresh entry passed `t_enter <= t_far` when tested (the entry distance never
+    /// exceeds the far bound), so only stale ones are compared.
+    #[inline]
+    fn resume(&self, _node: &BvhNode, t_enter: f64, t_far: &f64, stale: bool) -> Option<f64> {
+        (!stale || t_enter <= *t_far).then_some(t_enter)
+    }
+}
+
 /// Closest hit `(global triangle, hit)` through the BVH in f64; ties at equal `t` go to
 /// the lower triangle index.
 pub fn closest_hit_f64(
@@ -189,20 +227,24 @@ pub fn closest_hit_f64(
 ) -> Option<(u32, Hit64)> {
     let mut best: Option<(u32, Hit64)> = None;
     let mut best_t = t_max;
-    traverse(bvh, ray, t_min, t_max, |slot| {
-        let id = bvh.prim_indices[slot];
-        let tri = &triangles[id as usize];
-        if let Some(h) = ray.intersect(t_min, t_max, tri.v0.into(), tri.v1.into(), tri.v2.into()) {
-            let better = match best {
-                None => true,
-                Some((bid, b)) => h.t < b.t || (h.t == b.t && id < bid),
-            };
-            if better {
-                best = Some((id, h));
-                best_t = h.t;
+    traverse(&bvh.nodes, &Interval64 { ray, t_min }, &mut best_t, |leaf, _, best_t| {
+        let mut flow = LeafFlow::Continue;
+        leaf.slots().for_each(|slot| {
+            let id = bvh.prim_indices[slot as usize];
+            let tri = &triangles[id as usize];
+            if let Some(h) = ray.intersect(t_min, t_max, tri.v0.into(), tri.v1.into(), tri.v2.into()) {
+                let better = match best {
+                    None => true,
+                    Some((bid, b)) => h.t < b.t || (h.t == b.t && id < bid),
+                };
+                if better {
+                    best = Some((id, h));
+                    *best_t = h.t;
+                    flow = LeafFlow::Narrowed;
+                }
             }
-        }
-        (false, best_t)
+        });
+        flow
     });
     best
 }
@@ -216,77 +258,18 @@ pub fn occluded_f64(
     t_max: f64,
     exclude: u32,
 ) -> bool {
-    let mut hit = false;
-    traverse(bvh, ray, t_min, t_max, |slot| {
-        let id = bvh.prim_indices[slot];
-        if id != exclude {
+    traverse(&bvh.nodes, &Interval64 { ray, t_min }, &mut t_max.clone(), |leaf, _, _| {
+        let hit = leaf.slots().any(|slot| {
+            let id = bvh.prim_indices[slot as usize];
             let tri = &triangles[id as usize];
-            hit = ray.intersect(t_min, t_max, tri.v0.into(), tri.v1.into(), tri.v2.into()).is_some();
-        }
-        (hit, t_max)
-    });
-    hit
-}
-
-/// Depth-first traversal, nearer child first. `leaf_slot(slot)` tests one leaf slot and
-/// returns `(stop, t_far)`: stop the traversal, and the current far bound for culling.
-fn traverse(bvh: &Bvh, ray: &Ray64, t_min: f64, t_max: f64, mut leaf_slot: impl FnMut(usize) -> (bool, f64)) {
-    let Some(root) = bvh.nodes.first() else {
-        return;
-    };
-    let mut t_far = t_max;
-    if ray.enter(root, t_min, t_far).is_none() {
-        return;
-    }
-    let mut stack = [(0u32, 0f64); BVH_STACK_SIZE];
-    let mut sp = 0usize;
-    let mut n = 0usize;
-    loop {
-        let node = &bvh.nodes[n];
-        if node.is_leaf() {
-            for slot in node.left_or_first..node.left_or_first + node.count {
-                let (stop, far) = leaf_slot(slot as usize);
-                if stop {
-                    return;
-                }
-                t_far = far;
-            }
+            id != exclude && ray.intersect(t_min, t_max, tri.v0.into(), tri.v1.into(), tri.v2.into()).is_some()
+        });
+        if hit {
+            LeafFlow::Stop
         } else {
-            let l = node.left_or_first as usize;
-            let hl = ray.enter(&bvh.nodes[l], t_min, t_far);
-            let hr = ray.enter(&bvh.nodes[l + 1], t_min, t_far);
-            match (hl, hr) {
-                (Some(tl), Some(tr)) => {
-                    let (near, far, t_enter_far) = if tr < tl { (l + 1, l, tl) } else { (l, l + 1, tr) };
-                    stack[sp] = (far as u32, t_enter_far);
-                    sp += 1;
-                    n = near;
-                    continue;
-                }
-                (Some(_), None) => {
-                    n = l;
-                    continue;
-                }
-                (None, Some(_)) => {
-                    n = l + 1;
-                    continue;
-                }
-                (None, None) => {}
-            }
+            LeafFlow::Continue
         }
-        loop {
-            if sp == 0 {
-                return;
-            }
-            sp -= 1;
-            let (next, t_enter) = stack[sp];
-            // Equal entry distance is kept: the lower-index tie rule needs those boxes.
-            if t_enter <= t_far {
-                n = next as usize;
-                break;
-            }
-        }
-    }
+    })
 }
 
 /// The camera in f64: eye and the inverse view-projection.

@@ -28,11 +28,12 @@
 //! [`crate::kernels::ray`], so leaving them out changes no result). A scene without
 //! traceable triangles gives a BVH with no nodes; every query on it misses.
 //!
-//! Traversal ([`Bvh::occluded`], [`Bvh::closest_hit`]) uses a fixed stack of
-//! [`BVH_STACK_SIZE`] entries (no allocation per ray), visits the nearer child first,
-//! and calls the conservative slab test and the watertight triangle test of
-//! [`crate::kernels::ray`]. The tree depth is bounded by the stack size: if obvhs ever
-//! returns a deeper tree (pathological input), the build falls back to a balanced
+//! Traversal ([`Bvh::occluded`], [`Bvh::closest_hit`]) runs the one traversal loop of
+//! [`traversal`] (shared with the f64 reference and the CPU packets), which uses a fixed
+//! stack of [`BVH_STACK_SIZE`] entries (no allocation per ray); the scalar ray visits the
+//! nearer child first and calls the conservative slab test and the watertight triangle
+//! test of [`crate::kernels::ray`]. The tree depth is bounded by the stack size: if obvhs
+//! ever returns a deeper tree (pathological input), the build falls back to a balanced
 //! object-median split whose depth is logarithmic.
 //!
 //! ```
@@ -59,6 +60,10 @@ use obvhs::{bvh2::builder::build_bvh2_from_tris, triangle::Triangle, BvhBuildPar
 use crate::formats::{RayRecord, TriangleRecord, INVALID_ID};
 use crate::geometry::WorldGeometry;
 use crate::kernels::ray::{gamma, ray_aabb_conservative, safe_inverse_dir, WatertightRay};
+
+pub mod traversal;
+
+use traversal::{inline_leaf_test, traverse, Leaf, LeafFlow, NodeTest};
 
 /// Entries of the fixed traversal stack, and therefore the largest allowed tree depth
 /// (root at depth 0): descending pushes at most one sibling per level, so a leaf at depth
@@ -350,6 +355,36 @@ impl TraversalRay {
     }
 }
 
+/// The scalar ray's node test: the entry distance is kept per stack entry, the bound is
+/// `t_max` (any hit) or the closest `t` so far, children go nearer first (ties left), and
+/// a stale entry is skipped when its entry distance lies beyond the widened bound.
+impl NodeTest for TraversalRay {
+    type Entry = f32;
+    type Bound = f32;
+
+    #[inline(always)]
+    fn enter_root(&self, root: &BvhNode, bound: &f32) -> Option<f32> {
+        self.enter(root, *bound)
+    }
+
+    #[inline(always)]
+    fn enter(&self, node: &BvhNode, _parent: f32, bound: &f32) -> Option<f32> {
+        TraversalRay::enter(self, node, *bound)
+    }
+
+    #[inline(always)]
+    fn right_first(&self, _left: &BvhNode, _right: &BvhNode, left_entry: f32, right_entry: f32) -> bool {
+        right_entry < left_entry
+    }
+
+    /// A fresh entry passed `t_enter <= bound * (1 + slack)` when it was tested (the slab
+    /// test's entry never exceeds its far bound), so only stale ones are compared.
+    #[inline(always)]
+    fn resume(&self, _node: &BvhNode, t_enter: f32, bound: &f32, stale: bool) -> Option<f32> {
+        (!stale || t_enter <= *bound * (1.0 + BVH_CULL_SLACK)).then_some(t_enter)
+    }
+}
+
 impl Bvh {
     /// Build the BVH over the traceable triangles of `geometry` (see the module docs).
     /// Deterministic: the same geometry and preset give the same buffers. Validated in
@@ -607,55 +642,20 @@ impl Bvh {
         let Some(r) = TraversalRay::new(ray) else {
             return false;
         };
-        let Some(root) = self.nodes.first() else {
-            return false;
-        };
-        if r.enter(root, r.t_max).is_none() {
-            return false;
-        }
-        let mut stack = [0u32; BVH_STACK_SIZE];
-        let mut sp = 0usize;
-        let mut n = 0usize;
-        loop {
-            let node = &self.nodes[n];
-            if node.is_leaf() {
-                for slot in node.left_or_first..node.left_or_first + node.count {
-                    let t = &self.leaf_triangles[slot as usize];
-                    debug_assert_eq!(*t, triangles[self.prim_indices[slot as usize] as usize]);
+        // `inline(always)` on the leaf tests: the loop and its tests stay one function.
+        let leaf_test = inline_leaf_test(
+            #[inline(always)]
+            |leaf: Leaf, _: f32, _: &mut f32| {
+                for slot in leaf.slots() {
+                    let t = self.leaf_triangle(triangles, slot);
                     if r.wt.intersect(r.t_min, r.t_max, t.v0.into(), t.v1.into(), t.v2.into()).is_some() {
-                        return true;
+                        return LeafFlow::Stop;
                     }
                 }
-            } else {
-                let l = node.left_or_first as usize;
-                let hit_l = r.enter(&self.nodes[l], r.t_max);
-                let hit_r = r.enter(&self.nodes[l + 1], r.t_max);
-                match (hit_l, hit_r) {
-                    (Some(tl), Some(tr)) => {
-                        // Nearer child first; ties go left.
-                        let (near, far) = if tr < tl { (l + 1, l) } else { (l, l + 1) };
-                        stack[sp] = far as u32;
-                        sp += 1;
-                        n = near;
-                        continue;
-                    }
-                    (Some(_), None) => {
-                        n = l;
-                        continue;
-                    }
-                    (None, Some(_)) => {
-                        n = l + 1;
-                        continue;
-                    }
-                    (None, None) => {}
-                }
-            }
-            if sp == 0 {
-                return false;
-            }
-            sp -= 1;
-            n = stack[sp] as usize;
-        }
+                LeafFlow::Continue
+            },
+        );
+        traverse(&self.nodes, &r, &mut r.t_max.clone(), leaf_test)
     }
 
     /// The closest hit with `t_min < t < t_max`. Hits at exactly equal `t` (a ray through a
@@ -667,61 +667,35 @@ impl Bvh {
     /// all triangles except in the corner case that constant's docs describe.
     pub fn closest_hit(&self, triangles: &[TriangleRecord], ray: &RayRecord) -> Option<ClosestHit> {
         let r = TraversalRay::new(ray)?;
-        let root = self.nodes.first()?;
-        r.enter(root, r.t_max)?;
         let mut best = ClosestHit { triangle: INVALID_ID, t: r.t_max, u: 0.0, v: 0.0 };
-        let mut stack = [(0u32, 0f32); BVH_STACK_SIZE];
-        let mut sp = 0usize;
-        let mut n = 0usize;
-        loop {
-            let node = &self.nodes[n];
-            if node.is_leaf() {
-                for slot in node.left_or_first..node.left_or_first + node.count {
-                    let t = &self.leaf_triangles[slot as usize];
-                    debug_assert_eq!(*t, triangles[self.prim_indices[slot as usize] as usize]);
+        let leaf_test = inline_leaf_test(
+            #[inline(always)]
+            |leaf: Leaf, _: f32, t_best: &mut f32| {
+                let mut flow = LeafFlow::Continue;
+                for slot in leaf.slots() {
+                    let t = self.leaf_triangle(triangles, slot);
                     if let Some(h) = r.wt.intersect(r.t_min, r.t_max, t.v0.into(), t.v1.into(), t.v2.into()) {
                         let id = self.prim_indices[slot as usize];
-                        if h.t < best.t || (h.t == best.t && id < best.triangle) {
+                        if h.t < *t_best || (h.t == *t_best && id < best.triangle) {
                             best = ClosestHit { triangle: id, t: h.t, u: h.u, v: h.v };
+                            *t_best = h.t;
+                            flow = LeafFlow::Narrowed;
                         }
                     }
                 }
-            } else {
-                let l = node.left_or_first as usize;
-                let hit_l = r.enter(&self.nodes[l], best.t);
-                let hit_r = r.enter(&self.nodes[l + 1], best.t);
-                match (hit_l, hit_r) {
-                    (Some(tl), Some(tr)) => {
-                        let (near, far, t_far) = if tr < tl { (l + 1, l, tl) } else { (l, l + 1, tr) };
-                        stack[sp] = (far as u32, t_far);
-                        sp += 1;
-                        n = near;
-                        continue;
-                    }
-                    (Some(_), None) => {
-                        n = l;
-                        continue;
-                    }
-                    (None, Some(_)) => {
-                        n = l + 1;
-                        continue;
-                    }
-                    (None, None) => {}
-                }
-            }
-            // Pop the next node still in front of the closest hit.
-            loop {
-                if sp == 0 {
-                    return (best.triangle != INVALID_ID).then_some(best);
-                }
-                sp -= 1;
-                let (next, t_enter) = stack[sp];
-                if t_enter <= best.t * (1.0 + BVH_CULL_SLACK) {
-                    n = next as usize;
-                    break;
-                }
-            }
-        }
+                flow
+            },
+        );
+        traverse(&self.nodes, &r, &mut r.t_max.clone(), leaf_test);
+        (best.triangle != INVALID_ID).then_some(best)
+    }
+
+    /// The triangle of leaf slot `slot` (debug builds check the copy against `triangles`).
+    #[inline(always)]
+    fn leaf_triangle(&self, triangles: &[TriangleRecord], slot: u32) -> &TriangleRecord {
+        let t = &self.leaf_triangles[slot as usize];
+        debug_assert_eq!(*t, triangles[self.prim_indices[slot as usize] as usize]);
+        t
     }
 
     /// True if the BVH has no nodes (no traceable triangle).
