@@ -51,7 +51,7 @@ fn stages(c: &mut Criterion) {
         });
         let raster = raster_shading::raster_shading(&surfaces, &mask, &g.objects, &g.lights, 1.0);
         group.bench_function("composition", |bn| bn.iter(|| composition::composition(&raster, &rt, 1.0)));
-        let r = Renderer::cpu(None);
+        let mut r = Renderer::cpu(None);
         let prepared = r.prepare(&b.scene);
         group.bench_function("frame", |bn| {
             bn.iter(|| r.render(&prepared, &cam, W, H, &FrameOptions::default()).unwrap())

@@ -58,9 +58,8 @@ fn traversal(c: &mut Criterion) {
         let geometry = WorldGeometry::build(&scene);
         let bvh = Bvh::build(&geometry, BvhPreset::default());
         let prepared = PreparedScene::new(geometry, bvh, 0.0);
-        let frame = CpuBackend::new(Some(1))
-            .render(&prepared, &cam, &FrameOptions { stage_outputs: true, ..FrameOptions::default() })
-            .expect("frame");
+        let frame =
+            CpuBackend::new(Some(1)).render(&prepared, &cam, &FrameOptions::with_stage_outputs()).expect("frame");
         let (g, bvh) = (&prepared.geometry, &prepared.bvh);
         let shadow = frame.rays;
         let primary = primary_rays(&cam);

@@ -11,14 +11,17 @@
 //! | `rays.npy` | structured, N | the ray list: `origin` (3,)f4, `t_min` f4, `direction` (3,)f4, `t_max` f4, `pixel` u4, `kind` u4, `depth` u4, `light` u4, `throughput` (3,)f4, `occluded` u4 |
 //! | `shadow.npy` | u8, H x W x L | per light: 0 no ray (miss or light behind the surface), 1 lit, 2 occluded |
 //! | `raster.png`, `rt.png`, `final.png` | sRGB RGBA8 | the three images (`rt.png` alpha = ray-traced coverage) |
-//! | `frame.json` | | image size, camera (matrices and conventions), object table, counts, times |
+//! | `frame.json` | | image size, camera (matrices and conventions), object table, counts, times, skipped stages |
+//!
+//! The files of a buffer whose stage the frame's plan skipped are not written
+//! (`frame.json` lists the skipped stages and why).
 
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
 use hyrt_core::formats::CameraRecord;
-use hyrt_core::frame::{Frame, PreparedScene};
+use hyrt_core::frame::{BufferView, Frame, PreparedScene};
 use hyrt_core::scene::{Camera, Scene};
 use npyz::WriterBuilder;
 use serde_json::{json, Value};
@@ -72,29 +75,41 @@ pub fn write_dump(
         written.push(p.clone());
         p
     };
-    let g = &frame.gbuffer;
-    write_npy(&out("ids.npy"), &[h, w, 2], g.iter().flat_map(|t| [t.triangle, t.object]))?;
-    write_npy(&out("bary.npy"), &[h, w, 2], g.iter().flat_map(|t| [t.bary_u, t.bary_v]))?;
-    write_npy(&out("depth.npy"), &[h, w], g.iter().map(|t| t.depth))?;
-    write_npy(&out("position.npy"), &[h, w, 3], frame.surfaces.iter().flat_map(|s| s.position))?;
-    write_npy(&out("normal.npy"), &[h, w, 3], frame.surfaces.iter().flat_map(|s| s.normal))?;
-    let rows = frame.rays.iter().zip(&frame.occluded).map(|(r, &o)| RayRow {
-        origin: r.origin,
-        t_min: r.t_min,
-        direction: r.direction,
-        t_max: r.t_max,
-        pixel: r.pixel,
-        kind: r.kind,
-        depth: r.depth,
-        light: r.light,
-        throughput: r.throughput,
-        occluded: o,
-    });
-    write_npy(&out("rays.npy"), &[frame.rays.len() as u64], rows)?;
-    write_npy(&out("shadow.npy"), &[h, w, lights], frame.shadow.iter().copied())?;
-    write_png(&out("raster.png"), frame.width, frame.height, &frame.raster)?;
-    write_png(&out("rt.png"), frame.width, frame.height, &frame.rt)?;
-    write_png(&out("final.png"), frame.width, frame.height, &frame.final_image)?;
+    // One file set per buffer the frame holds: a stage the plan skipped writes none.
+    for buffer in frame.buffers() {
+        match frame.buffer(buffer).expect("held") {
+            BufferView::GBuffer(g) => {
+                write_npy(&out("ids.npy"), &[h, w, 2], g.iter().flat_map(|t| [t.triangle, t.object]))?;
+                write_npy(&out("bary.npy"), &[h, w, 2], g.iter().flat_map(|t| [t.bary_u, t.bary_v]))?;
+                write_npy(&out("depth.npy"), &[h, w], g.iter().map(|t| t.depth))?;
+            }
+            BufferView::Surfaces(s) => {
+                write_npy(&out("position.npy"), &[h, w, 3], s.iter().flat_map(|s| s.position))?;
+                write_npy(&out("normal.npy"), &[h, w, 3], s.iter().flat_map(|s| s.normal))?;
+            }
+            BufferView::Rays(rays) => {
+                let rows = rays.iter().zip(&frame.occluded).map(|(r, &o)| RayRow {
+                    origin: r.origin,
+                    t_min: r.t_min,
+                    direction: r.direction,
+                    t_max: r.t_max,
+                    pixel: r.pixel,
+                    kind: r.kind,
+                    depth: r.depth,
+                    light: r.light,
+                    throughput: r.throughput,
+                    occluded: o,
+                });
+                write_npy(&out("rays.npy"), &[rays.len() as u64], rows)?;
+            }
+            // The occlusion results are the `occluded` column of rays.npy.
+            BufferView::Words(_) => {}
+            BufferView::Codes(codes) => write_npy(&out("shadow.npy"), &[h, w, lights], codes.iter().copied())?,
+            BufferView::Image(img) => {
+                write_png(&out(&format!("{}.png", buffer.name())), frame.width, frame.height, img)?
+            }
+        }
+    }
     let json_path = out("frame.json");
     let doc = frame_json(scene, prepared, camera, frame, backend);
     let text = serde_json::to_string_pretty(&doc).expect("frame.json serializes");
@@ -172,6 +187,15 @@ pub fn frame_json(scene: &Scene, prepared: &PreparedScene, camera: &Camera, fram
             },
         },
         "stage_ms": times,
+        "stage_work": s.stage_ms.iter().map(|t| json!({
+            "stage": t.stage.name(),
+            "pixels": t.work.pixels,
+            "rays_per_kind": t.work.rays,
+        })).collect::<Vec<_>>(),
+        "skipped_stages": s.skipped.iter().map(|k| json!({
+            "stage": k.stage.name(),
+            "reason": k.reason.describe(),
+        })).collect::<Vec<_>>(),
         "frame_ms": s.frame_ms(),
         "notes": scene.notes,
     })

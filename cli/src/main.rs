@@ -251,8 +251,8 @@ fn render(args: RenderArgs) -> Result<(), String> {
         BackendArg::Auto => BackendKind::Auto,
     };
     let policy = if args.allow_software_gpu { AdapterPolicy::AllowSoftware } else { AdapterPolicy::from_env() };
-    let renderer = Renderer::new(kind, args.threads, policy).map_err(|e| e.to_string())?.with_bvh_preset(preset);
-    eprintln!("backend: {}", renderer.choice());
+    let mut renderer = Renderer::new(kind, args.threads, policy).map_err(|e| e.to_string())?.with_bvh_preset(preset);
+    eprintln!("backend: {}", renderer.choice_details());
     let (w, h) = args.size;
     let prepared = renderer.prepare(&scene);
     // Every stage's output is kept only for --dump (the GPU then reads them back too).
@@ -281,7 +281,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
         prepared.geometry.lights.len(),
         w,
         h,
-        renderer.backend_name(),
+        renderer.choice(),
     );
     println!(
         "covered pixels {}, valid rays (ray-traced pixels) {}, raster pixels {}, shadow rays {} ({} occluded)",
@@ -297,6 +297,8 @@ fn render(args: RenderArgs) -> Result<(), String> {
             if st != Stage::BvhBuild {
                 frame_ms += ms;
             }
+        } else if let Some(k) = s.skipped.iter().find(|k| k.stage == st) {
+            println!("  {:<18} {:>12} ({})", st.name(), "skipped", k.reason);
         }
     }
     println!("  {:<18} {:>9.2} ms (sum of the stages above, without bvh_build)", "frame", frame_ms);

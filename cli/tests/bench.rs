@@ -44,7 +44,7 @@ fn font_or_clear_error(o: &Output) -> bool {
 fn valid_rays_at(w: u32, h: u32) -> u64 {
     let mut scene = Scene::default_scene();
     scene.ensure_camera_and_lights();
-    let r = Renderer::cpu(Some(1));
+    let mut r = Renderer::cpu(Some(1));
     let p = r.prepare(&scene);
     r.render(&p, &scene.camera.unwrap(), w, h, &FrameOptions::default()).unwrap().stats.ray_traced_pixels
 }

@@ -22,7 +22,7 @@ fn determinism_default_scene_same_bits_across_runs_and_threads() {
         bytemuck::cast_slice::<_, u8>(&p2.bvh.nodes),
         "BVH build differs across thread counts"
     );
-    let opts = FrameOptions { weight: 0.7, ..FrameOptions::default() };
+    let opts = FrameOptions { weight: 0.7, ..FrameOptions::with_stage_outputs() };
     // 131x77: not a multiple of any tile or block size.
     let cam = CameraRecord::new(&scene.camera.unwrap(), 131, 77);
     let a = one.render(&p1, &cam, &opts).unwrap();
@@ -43,15 +43,16 @@ fn determinism_reused_frame_buffers_give_the_same_bits() {
     let camera = scene.camera.unwrap();
     let mut r = CpuBackend::new(Some(2));
     let prepared = r.prepare(WorldGeometry::build(&scene), BvhPreset::default());
-    let opts = FrameOptions { weight: 0.4, ..FrameOptions::default() };
+    let opts = FrameOptions { weight: 0.4, ..FrameOptions::with_stage_outputs() };
     let small = CameraRecord::new(&camera, 83, 59);
     let fresh = r.render(&prepared, &small, &opts).unwrap();
     let big = CameraRecord::new(&camera, 120, 90);
-    let mut reused = r.render(&prepared, &big, &FrameOptions { weight: 1.0, ..FrameOptions::default() }).unwrap();
+    let mut reused =
+        r.render(&prepared, &big, &FrameOptions { weight: 1.0, ..FrameOptions::with_stage_outputs() }).unwrap();
     let mut other = Scene::default_scene();
     other.objects.truncate(2);
     let other = r.prepare(WorldGeometry::build(&other), BvhPreset::default());
-    r.render_into(&other, &small, &FrameOptions::default(), &mut reused).unwrap();
+    r.render_into(&other, &small, &FrameOptions::with_stage_outputs(), &mut reused).unwrap();
     r.render_into(&prepared, &small, &opts, &mut reused).unwrap();
     for cmp in compare_stages(&fresh, &reused) {
         assert!(cmp.is_exact(), "{} / {} differs: {cmp:?}", cmp.stage, cmp.buffer);

@@ -52,18 +52,26 @@ pub struct FrameOptions {
     /// final = (1 - weight) * raster + weight * rt on ray-traced pixels.
     pub weight: f32,
     /// Return every stage's output in the [`Frame`] (for `--dump`, conformance).
-    /// When false, a backend may return only the final image, the G-buffer and the
-    /// counts: the GPU backend then reads back one combined buffer per frame.
+    /// When false (the default: what a display loop needs), the frame holds only the
+    /// final image, the G-buffer and the occlusion results
+    /// ([`FrameBuffer::always_returned`]): the GPU backend then reads back one combined
+    /// buffer per frame.
     pub stage_outputs: bool,
 }
 
 impl Default for FrameOptions {
+    /// Weight 1 (ray-traced objects shaded by the tracer alone), no stage outputs.
     fn default() -> Self {
-        FrameOptions { weight: 1.0, stage_outputs: true }
+        FrameOptions { weight: 1.0, stage_outputs: false }
     }
 }
 
 impl FrameOptions {
+    /// The default options with every stage's output returned (`--dump`, tests).
+    pub fn with_stage_outputs() -> Self {
+        FrameOptions { stage_outputs: true, ..FrameOptions::default() }
+    }
+
     /// Check the options: the weight is a number in [0, 1]. [`FramePlan::new`] calls
     /// this, so every backend validates options in one place.
     pub fn validate(&self) -> Result<(), RenderError> {
@@ -225,6 +233,12 @@ impl Frame {
             FrameBuffer::Raster => BufferView::Image(&self.raster),
             FrameBuffer::Final => BufferView::Image(&self.final_image),
         })
+    }
+
+    /// The final image as 8-bit sRGB RGBA, row 0 on top, 4 bytes per pixel: what a
+    /// window or a PNG file shows ([`crate::kernels::shading::rgba_to_srgb8`]).
+    pub fn final_srgb8(&self) -> Vec<u8> {
+        self.final_image.iter().flat_map(|&p| crate::kernels::shading::rgba_to_srgb8(p)).collect()
     }
 
     /// True if the frame holds `buffer` (see [`Frame::buffer`]).

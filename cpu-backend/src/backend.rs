@@ -13,7 +13,6 @@ use hyrt_core::stage::Stage;
 use rayon::prelude::*;
 
 use crate::{
-    bvh_build::bvh_build,
     compaction::{compaction_into, shadow_mask_into, CompactionScratch},
     composition::composition_into,
     raster_shading::raster_shading_into,
@@ -67,11 +66,7 @@ impl CpuBackend {
 
     /// Build the world tables and run the `bvh_build` stage on this backend's pool.
     pub fn prepare(&self, geometry: WorldGeometry, preset: BvhPreset) -> PreparedScene {
-        self.pool.install(|| {
-            let t = Instant::now();
-            let bvh = bvh_build(&geometry, preset);
-            PreparedScene::new(geometry, bvh, t.elapsed().as_secs_f64() * 1e3)
-        })
+        self.pool.install(|| crate::bvh_build::prepare(geometry, preset))
     }
 }
 

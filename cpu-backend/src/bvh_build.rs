@@ -12,3 +12,12 @@ use hyrt_core::geometry::WorldGeometry;
 pub fn bvh_build(geometry: &WorldGeometry, preset: BvhPreset) -> Bvh {
     Bvh::build(geometry, preset)
 }
+
+/// A scene ready to render: `bvh_build` over `geometry`, timed, on the current rayon
+/// pool (the global one unless called inside a pool's `install`). Needs no backend:
+/// both backends render the same prepared scene.
+pub fn prepare(geometry: WorldGeometry, preset: BvhPreset) -> hyrt_core::frame::PreparedScene {
+    let t = std::time::Instant::now();
+    let bvh = bvh_build(&geometry, preset);
+    hyrt_core::frame::PreparedScene::new(geometry, bvh, t.elapsed().as_secs_f64() * 1e3)
+}

@@ -105,7 +105,7 @@ fn default_scene_frame_and_primary_rays_match_scalar() {
     let bvh = Bvh::build(&g, BvhPreset::default());
     let cam = CameraRecord::new(&scene.camera.unwrap(), 160, 90);
     let prepared = PreparedScene::new(g, bvh, 0.0);
-    let frame = CpuBackend::new(Some(2)).render(&prepared, &cam, &FrameOptions::default()).unwrap();
+    let frame = CpuBackend::new(Some(2)).render(&prepared, &cam, &FrameOptions::with_stage_outputs()).unwrap();
     let (g, bvh) = (&prepared.geometry, &prepared.bvh);
     let occluded = check(g, bvh, &frame.rays);
     assert!(occluded > 0 && occluded < frame.rays.len(), "{occluded} of {}", frame.rays.len());
@@ -350,7 +350,7 @@ fn shared_asset_frames_match_scalar() {
         let bvh = Bvh::build(&g, BvhPreset::default());
         let cam = CameraRecord::new(&scene.camera.unwrap(), 320, 180);
         let prepared = PreparedScene::new(g, bvh, 0.0);
-        let options = FrameOptions { stage_outputs: true, ..FrameOptions::default() };
+        let options = FrameOptions::with_stage_outputs();
         let frame = CpuBackend::new(Some(2)).render(&prepared, &cam, &options).unwrap();
         let (g, bvh) = (&prepared.geometry, &prepared.bvh);
         let occluded = check(g, bvh, &frame.rays);
@@ -392,9 +392,9 @@ fn backend_frames_are_identical_with_scalar_and_simd_shadow_rays() {
     let cam = CameraRecord::new(&scene.camera.unwrap(), 200, 120);
     let mut backend = CpuBackend::new(Some(2));
     assert_eq!(backend.shadow_traversal(), Traversal::simd());
-    let simd = backend.render(&prepared, &cam, &FrameOptions::default()).unwrap();
+    let simd = backend.render(&prepared, &cam, &FrameOptions::with_stage_outputs()).unwrap();
     backend.set_shadow_traversal(Traversal::Scalar);
-    let scalar = backend.render(&prepared, &cam, &FrameOptions::default()).unwrap();
+    let scalar = backend.render(&prepared, &cam, &FrameOptions::with_stage_outputs()).unwrap();
     assert_eq!(simd.occluded, scalar.occluded);
     assert_eq!(simd.shadow, scalar.shadow);
     let bits = |img: &[[f32; 4]]| img.iter().flat_map(|p| p.map(f32::to_bits)).collect::<Vec<u32>>();

@@ -12,6 +12,7 @@ use crate::buffers::{FrameBuffers, FrameParams, SceneBuffers};
 use crate::compaction::CompactionStage;
 use crate::composition::CompositionStage;
 use crate::gpu_buffer::{copy_into_vec, read_back_each};
+use crate::present::Present;
 use crate::raster_shading::RasterShadingStage;
 use crate::reconstruction::ReconstructionStage;
 use crate::rt_shading::RtShadingStage;
@@ -40,6 +41,7 @@ pub struct GpuBackend {
     frame: Option<FrameBuffers>,
     /// Milliseconds per step of the last run plan.
     stage_ms: Vec<f64>,
+    present: Present,
 }
 
 impl GpuBackend {
@@ -77,6 +79,7 @@ impl GpuBackend {
             scene: None,
             frame: None,
             stage_ms: Vec::new(),
+            present: Present::default(),
         })
     }
 
@@ -119,6 +122,18 @@ impl GpuBackend {
         options: &FrameOptions,
         out: &mut Frame,
     ) -> Result<(), GpuError> {
+        let count = self.run_with_room(scene, plan, camera, options)?;
+        self.read_back(scene, plan, camera, count, out)
+    }
+
+    /// Run the plan over frame buffers with room for its rays; the ray count.
+    fn run_with_room(
+        &mut self,
+        scene: &PreparedScene,
+        plan: &FramePlan,
+        camera: &CameraRecord,
+        options: &FrameOptions,
+    ) -> Result<usize, GpuError> {
         {
             let ctx = &self.ctx;
             VisibilityRasterStage::check_size(ctx, camera.width, camera.height)?;
@@ -144,10 +159,59 @@ impl GpuBackend {
             let count = self.run_plan(plan, camera, options)?;
             let room = self.frame.as_ref().expect("frame buffers").ray_capacity as usize;
             if count <= room {
-                return self.read_back(scene, plan, camera, count, out);
+                return Ok(count);
             }
             want = (count + count / 4).min(pairs) as u32;
         }
+    }
+
+    /// Render a frame and leave its final image on the GPU, in `target` (see
+    /// [`crate::present`] for the texture it must be): nothing but the 4-byte ray
+    /// count is read back, so a display loop pays no transfer. The statistics have
+    /// the stage times, the plan's skipped stages and the rays per kind; the pixel
+    /// counts need the G-buffer on the CPU and are 0 here (use
+    /// [`Backend::render_into`] for them).
+    pub fn render_to_texture(
+        &mut self,
+        scene: &PreparedScene,
+        camera: &CameraRecord,
+        options: &FrameOptions,
+        target: &wgpu::Texture,
+    ) -> Result<FrameStats, RenderError> {
+        let plan = FramePlan::new(scene, options)?;
+        camera.validate().map_err(RenderError::InvalidCamera)?;
+        crate::present::check_target(target, camera.width, camera.height).map_err(RenderError::InvalidOptions)?;
+        let gpu = |e: GpuError| RenderError::Backend(Box::new(e));
+        let count = self.run_with_room(scene, &plan, camera, options).map_err(gpu)?;
+        let ctx = &self.ctx;
+        let fb = self.frame.as_ref().expect("frame buffers");
+        ctx.checked(|| {
+            let mut enc = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("present") });
+            self.present.encode(ctx, &mut enc, fb, target);
+            ctx.queue.submit([enc.finish()]);
+        })
+        .map_err(gpu)?;
+        let mut stats = FrameStats {
+            width: camera.width,
+            height: camera.height,
+            skipped: plan.skipped().to_vec(),
+            ..Default::default()
+        };
+        stats.rays_per_kind[hyrt_core::formats::RAY_KIND_SHADOW as usize] = count as u64;
+        stats.stage_ms = self.stage_times(scene, &plan, &stats);
+        Ok(stats)
+    }
+
+    /// `bvh_build` and the last run plan's step times, each with its work.
+    fn stage_times(&self, scene: &PreparedScene, plan: &FramePlan, stats: &FrameStats) -> Vec<StageTime> {
+        let mut times = vec![StageTime { stage: Stage::BvhBuild, ms: scene.bvh_build_ms, work: StageWork::default() }];
+        let ms = self.stage_ms.iter().copied().chain(std::iter::repeat(0.0));
+        times.extend(plan.steps().iter().zip(ms).map(|(&step, ms)| StageTime {
+            stage: step.stage(),
+            ms,
+            work: StageWork::of(step, stats),
+        }));
+        times
     }
 
     /// Encode and submit the plan's steps over the current frame buffers; the ray
@@ -257,14 +321,6 @@ impl GpuBackend {
                 FrameBuffer::Final => copy_into_vec(&mut out.final_image, data),
             })?;
         }
-        let mut stage_ms =
-            vec![StageTime { stage: Stage::BvhBuild, ms: scene.bvh_build_ms, work: StageWork::default() }];
-        stage_ms.extend(
-            plan.steps()
-                .iter()
-                .zip(self.stage_ms.iter().copied().chain(std::iter::repeat(0.0)))
-                .map(|(&step, ms)| StageTime { stage: step.stage(), ms, work: StageWork::default() }),
-        );
         let mut stats = FrameStats {
             width: camera.width,
             height: camera.height,
@@ -282,10 +338,7 @@ impl GpuBackend {
         // The GPU ray list holds shadow rays only (compaction makes no other kind yet).
         stats.rays_per_kind[hyrt_core::formats::RAY_KIND_SHADOW as usize] = count as u64;
         stats.occluded_shadow_rays = out.occluded.iter().filter(|&&o| o != 0).count() as u64;
-        for (time, &step) in stage_ms[1..].iter_mut().zip(plan.steps()) {
-            time.work = StageWork::of(step, &stats);
-        }
-        stats.stage_ms = stage_ms;
+        stats.stage_ms = self.stage_times(scene, plan, &stats);
         out.width = camera.width;
         out.height = camera.height;
         out.stats = stats;

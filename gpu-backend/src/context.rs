@@ -111,6 +111,26 @@ impl GpuContext {
         })
     }
 
+    /// A context on a device the application already has (its own wgpu instance,
+    /// adapter, device and queue), so hyrt's passes run beside the application's and
+    /// its frames can stay on the GPU ([`crate::backend::GpuBackend::render_to_texture`]).
+    /// hyrt uses the features the device was created with: `PRIMITIVE_INDEX`,
+    /// `TIMESTAMP_QUERY` and `SHADER_EARLY_DEPTH_TEST` where present (all optional),
+    /// and its limits as they are. Stages whose buffers exceed those limits fail with
+    /// [`GpuError::Limits`].
+    pub fn from_device(adapter: &wgpu::Adapter, device: wgpu::Device, queue: wgpu::Queue) -> GpuContext {
+        let features = device.features();
+        GpuContext {
+            info: adapter.get_info(),
+            limits: device.limits(),
+            primitive_index: features.contains(wgpu::Features::PRIMITIVE_INDEX),
+            timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
+            early_depth_test: features.contains(wgpu::Features::SHADER_EARLY_DEPTH_TEST),
+            device,
+            queue,
+        }
+    }
+
     /// A one-line description: adapter, type, driver, and the features in use.
     pub fn describe(&self) -> String {
         format!(

@@ -146,3 +146,25 @@ pub fn read_back<T: Pod>(ctx: &GpuContext, buffer: &wgpu::Buffer, count: usize) 
     staging.unmap();
     Ok(out)
 }
+
+/// A 2D texture of one layer, one mip level and one sample (render targets, the
+/// raster's G-buffer attachments, an application's `present` target).
+pub fn texture_2d(
+    ctx: &GpuContext,
+    label: &str,
+    width: u32,
+    height: u32,
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
+}

@@ -17,6 +17,7 @@ pub mod composition;
 pub mod context;
 pub mod error;
 pub mod gpu_buffer;
+pub mod present;
 pub mod raster_shading;
 pub mod reconstruction;
 pub mod rt_shading;

@@ -148,17 +148,7 @@ struct Targets {
 impl Targets {
     fn new(ctx: &GpuContext, width: u32, height: u32) -> Targets {
         let make = |label: &str, format: wgpu::TextureFormat, usage: wgpu::TextureUsages| {
-            ctx.device
-                .create_texture(&wgpu::TextureDescriptor {
-                    label: Some(label),
-                    size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D2,
-                    format,
-                    usage,
-                    view_formats: &[],
-                })
+            crate::gpu_buffer::texture_2d(ctx, label, width, height, format, usage)
                 .create_view(&wgpu::TextureViewDescriptor::default())
         };
         let target = wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING;

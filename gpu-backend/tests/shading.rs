@@ -15,6 +15,7 @@ use hyrt_core::formats::{CameraRecord, ObjectRecord, OBJ_RAY_TRACED};
 use hyrt_core::frame::{Backend, Frame, FrameOptions, PreparedScene};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::shading::BACKGROUND;
+use hyrt_core::plan::FrameBuffer;
 use hyrt_core::scene::{Light, Scene};
 use hyrt_cpu::backend::CpuBackend;
 use hyrt_gpu::buffers::{FrameBuffers, FrameParams, SceneBuffers};
@@ -53,9 +54,17 @@ fn cpu_case(name: &str, scene: &Scene, width: u32, height: u32, weight: f32) -> 
     let bvh = Bvh::build(&geometry, BvhPreset::default());
     let prepared = PreparedScene::new(geometry, bvh, 0.0);
     let camera = CameraRecord::new(&scene.camera.expect("scene camera"), width, height);
-    let cpu = CpuBackend::new(Some(1))
-        .render(&prepared, &camera, &FrameOptions { weight, ..FrameOptions::default() })
+    let mut cpu = CpuBackend::new(Some(1))
+        .render(&prepared, &camera, &FrameOptions { weight, ..FrameOptions::with_stage_outputs() })
         .expect("cpu render");
+    if !cpu.holds(FrameBuffer::Rt) {
+        // The frame's plan skipped rt_shading (weight 0): the stage tests still compare
+        // the GPU stage with the CPU one, run on its own; its image, weighted by 0, leaves
+        // the final image the raster copy the plan made.
+        let g = &prepared.geometry;
+        let eye = Vec3::from(camera.eye);
+        hyrt_cpu::rt_shading::rt_shading_into(&cpu.surfaces, &cpu.shadow, &g.objects, &g.lights, eye, &mut cpu.rt);
+    }
     Case { name: format!("{name} {width}x{height} w={weight}"), scene: prepared, camera, weight, cpu }
 }
 

@@ -6,34 +6,72 @@
 //! whole scene, ray-traced objects are shaded by the tracer, the rest by an
 //! ordinary raster shader, and the two images are composed by a weighted mean.
 //!
-//! This facade re-exports what users need and picks a backend.
+//! This facade re-exports what users need and picks a backend. The example in
+//! `examples/orbit.rs` (`cargo run --release -p hyrt --example orbit`) loads a scene,
+//! orbits the camera, moves an object, switches it to ray traced and falls back to
+//! the CPU when there is no GPU; in short:
 //!
 //! ```
-//! use hyrt::{Renderer, Scene, FrameOptions};
+//! use hyrt::{BackendKind, AdapterPolicy, Camera, FrameOptions, Renderer, Scene, Stage};
+//! use hyrt::glam::Vec3;
 //! let mut scene = Scene::default_scene();
 //! scene.ensure_camera_and_lights();
-//! let renderer = Renderer::cpu(Some(1));
+//! // A GPU if there is one, else the CPU reference; `choice()` says which.
+//! let mut renderer = Renderer::new(BackendKind::Auto, None, AdapterPolicy::HardwareOnly).unwrap();
 //! let prepared = renderer.prepare(&scene);
-//! let camera = scene.camera.unwrap();
+//! let camera = Camera::look_at(Vec3::new(0.0, 2.0, 8.0), Vec3::ZERO, Vec3::Y);
 //! let frame = renderer.render(&prepared, &camera, 64, 48, &FrameOptions::default()).unwrap();
-//! assert_eq!(frame.final_image.len(), 64 * 48);
-//! assert!(frame.stats.ray_traced_pixels > 0);
+//! let rgba8: Vec<u8> = frame.final_srgb8(); // ready for a window or a PNG
+//! assert_eq!(rgba8.len(), 64 * 48 * 4);
+//! assert!(frame.stats.ms(Stage::ShadowRays).is_some());
 //! ```
+//!
+//! # Threads
+//!
+//! A [`Renderer`] is `Send`: move it to the thread that renders. It renders through
+//! `&mut self` (a backend keeps its frame buffers between frames), so sharing one
+//! between threads takes a `Mutex`; [`PreparedScene`]s are plain data, `Send + Sync`,
+//! and can be shared by several renderers. The CPU backend runs each frame on its own
+//! rayon pool of the threads it was given.
+//!
+//! # Cargo features
+//!
+//! - `gpu` (on by default): the wgpu backend. Without it `hyrt` compiles no wgpu,
+//!   [`BackendKind::Gpu`] is an error and [`BackendKind::Auto`] picks the CPU.
 
 pub mod image_io;
 
-use std::cell::RefCell;
-
 pub use hyrt_core::bvh::{Bvh, BvhPreset};
 pub use hyrt_core::formats;
-pub use hyrt_core::frame::{Backend, Frame, FrameOptions, FrameStats, PreparedScene, RenderError, StageTime};
+pub use hyrt_core::frame::{
+    Backend, BufferView, Frame, FrameOptions, FrameStats, PreparedScene, RenderError, StageTime, StageWork,
+};
 pub use hyrt_core::geometry::WorldGeometry;
+pub use hyrt_core::plan::{Composition, FrameBuffer, FramePlan, SkipReason, Skipped, Step};
 pub use hyrt_core::scene::{Camera, Light, Material, MaterialKind, Mesh, Object, RenderMode, Scene};
 pub use hyrt_core::stage::Stage;
 pub use hyrt_core::{glam, SceneError};
 pub use hyrt_cpu::backend::CpuBackend;
-pub use hyrt_gpu::backend::GpuBackend;
-pub use hyrt_gpu::{AdapterPolicy, GpuError};
+#[cfg(feature = "gpu")]
+pub use hyrt_gpu::{backend::GpuBackend, AdapterPolicy, GpuContext, GpuError};
+
+/// Which adapters a GPU backend accepts (the `gpu` feature is off: there is none).
+#[cfg(not(feature = "gpu"))]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AdapterPolicy {
+    /// A hardware GPU only.
+    HardwareOnly,
+    /// A software adapter (lavapipe) is accepted too.
+    AllowSoftware,
+}
+
+#[cfg(not(feature = "gpu"))]
+impl AdapterPolicy {
+    /// `HardwareOnly`: without the `gpu` feature the policy has no effect.
+    pub fn from_env() -> Self {
+        AdapterPolicy::HardwareOnly
+    }
+}
 
 /// Which backend renders.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -47,7 +85,7 @@ pub enum BackendKind {
     Auto,
 }
 
-/// Everything that can go wrong in the facade and the command-line program.
+/// Everything that can go wrong in the facade.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     #[error(transparent)]
@@ -62,53 +100,109 @@ pub enum Error {
     },
     #[error("{path}: cannot encode image: {message}")]
     Image { path: std::path::PathBuf, message: String },
+    /// The GPU backend could not start (no adapter, device refused, ...).
+    #[cfg(feature = "gpu")]
     #[error(transparent)]
     Gpu(#[from] GpuError),
+    /// [`BackendKind::Gpu`] was asked of a build without the `gpu` feature.
+    #[error("hyrt was built without the `gpu` cargo feature: no GPU backend")]
+    NoGpuFeature,
 }
 
-/// A backend plus the BVH preset it prepares scenes with. Scenes are always
-/// prepared (world tables, BVH) on the CPU, once, and fed to either backend, so
-/// both trace the very same BVH.
-pub struct Renderer {
-    cpu: RefCell<CpuBackend>,
-    gpu: Option<RefCell<GpuBackend>>,
-    preset: BvhPreset,
-    choice: String,
+/// The backend a [`Renderer`] drives.
+enum Active {
+    Cpu(CpuBackend),
+    #[cfg(feature = "gpu")]
+    Gpu(Box<GpuBackend>),
 }
+
+/// A backend plus the BVH preset it prepares scenes with. Scenes are prepared
+/// (world tables, BVH) on the CPU, once, and fed to either backend, so both trace
+/// the very same BVH. See the crate docs for the threading model.
+pub struct Renderer {
+    active: Active,
+    preset: BvhPreset,
+    /// Short: "cpu (8 threads)", "gpu (NVIDIA ...)".
+    choice: String,
+    /// Why, and what the backend runs on, in full.
+    details: String,
+}
+
+// A renderer moves to the thread that renders (checked at compile time).
+const _: fn() = || {
+    fn send<T: Send>() {}
+    send::<Renderer>();
+    fn send_sync<T: Send + Sync>() {}
+    send_sync::<PreparedScene>();
+};
 
 impl Renderer {
     /// The CPU backend with `threads` workers (`None`: one per core).
     pub fn cpu(threads: Option<usize>) -> Self {
-        let cpu = CpuBackend::new(threads);
+        Self::with_cpu_backend(CpuBackend::new(threads))
+    }
+
+    /// Render with a CPU backend the caller built.
+    pub fn with_cpu_backend(cpu: CpuBackend) -> Self {
         let choice = format!("cpu ({} threads)", cpu.threads());
-        Renderer { cpu: RefCell::new(cpu), gpu: None, preset: BvhPreset::default(), choice }
+        let details = format!("{choice}: the CPU reference backend");
+        Renderer { active: Active::Cpu(cpu), preset: BvhPreset::default(), choice, details }
+    }
+
+    /// Render with a GPU backend the caller built, e.g. on its own device
+    /// (`GpuBackend::with_context(GpuContext::from_device(..))`), so frames can stay on
+    /// the GPU ([`GpuBackend::render_to_texture`], through [`Renderer::gpu_backend`]).
+    #[cfg(feature = "gpu")]
+    pub fn with_gpu_backend(gpu: GpuBackend) -> Self {
+        let choice = format!("gpu ({})", gpu.context().info.name);
+        let details = format!("gpu: {}", gpu.describe());
+        Renderer { active: Active::Gpu(Box::new(gpu)), preset: BvhPreset::default(), choice, details }
     }
 
     /// The backend `kind` asks for. `policy` says whether a software GPU adapter
-    /// (lavapipe) is acceptable. [`Renderer::choice`] says what was taken and why.
+    /// (lavapipe) is acceptable. [`Renderer::choice`] says what was taken;
+    /// [`Renderer::choice_details`] why, and on what.
     pub fn new(kind: BackendKind, threads: Option<usize>, policy: AdapterPolicy) -> Result<Self, Error> {
-        let mut r = Renderer::cpu(threads);
+        #[cfg(feature = "gpu")]
         match kind {
-            BackendKind::Cpu => {}
-            BackendKind::Gpu => {
-                let gpu = GpuBackend::new(policy)?;
-                r.choice = format!("gpu: {}", gpu.describe());
-                r.gpu = Some(RefCell::new(gpu));
-            }
-            BackendKind::Auto => match GpuBackend::new(policy) {
+            BackendKind::Cpu => Ok(Renderer::cpu(threads)),
+            BackendKind::Gpu => Ok(Renderer::with_gpu_backend(GpuBackend::new(policy)?)),
+            BackendKind::Auto => Ok(match GpuBackend::new(policy) {
                 Ok(gpu) => {
-                    r.choice = format!("auto -> gpu: {}", gpu.describe());
-                    r.gpu = Some(RefCell::new(gpu));
+                    let mut r = Renderer::with_gpu_backend(gpu);
+                    r.details = format!("auto -> {}", r.details);
+                    r
                 }
-                Err(e) => r.choice = format!("auto -> {} (no usable GPU: {e})", r.choice),
-            },
+                Err(e) => {
+                    let mut r = Renderer::cpu(threads);
+                    r.details = format!("auto -> {} (no usable GPU: {e})", r.details);
+                    r
+                }
+            }),
         }
-        Ok(r)
+        #[cfg(not(feature = "gpu"))]
+        {
+            let _ = policy;
+            match kind {
+                BackendKind::Gpu => Err(Error::NoGpuFeature),
+                BackendKind::Cpu => Ok(Renderer::cpu(threads)),
+                BackendKind::Auto => {
+                    let mut r = Renderer::cpu(threads);
+                    r.details = format!("auto -> {} (built without the gpu feature)", r.details);
+                    Ok(r)
+                }
+            }
+        }
     }
 
-    /// Which backend renders, on what, and why (for the user).
+    /// Which backend renders, in a few words ("cpu (8 threads)", "gpu (llvmpipe ...)").
     pub fn choice(&self) -> &str {
         &self.choice
+    }
+
+    /// Which backend renders, why it was chosen and what it runs on, in full.
+    pub fn choice_details(&self) -> &str {
+        &self.details
     }
 
     /// Use another BVH build preset for [`Renderer::prepare`].
@@ -118,26 +212,55 @@ impl Renderer {
     }
 
     /// The rendering backend's name ("cpu" or "gpu").
-    pub fn backend_name(&self) -> String {
-        match &self.gpu {
-            Some(g) => g.borrow().name().to_string(),
-            None => self.cpu.borrow().name().to_string(),
+    pub fn backend_name(&self) -> &str {
+        self.backend().name()
+    }
+
+    /// Worker threads of the CPU backend; `None` on the GPU.
+    pub fn threads(&self) -> Option<usize> {
+        match &self.active {
+            Active::Cpu(c) => Some(c.threads()),
+            #[cfg(feature = "gpu")]
+            Active::Gpu(_) => None,
         }
     }
 
-    /// Worker threads of the CPU backend (which also prepares scenes).
-    pub fn threads(&self) -> usize {
-        self.cpu.borrow().threads()
+    /// The backend, as the trait both implement.
+    pub fn backend(&self) -> &dyn Backend {
+        match &self.active {
+            Active::Cpu(c) => c,
+            #[cfg(feature = "gpu")]
+            Active::Gpu(g) => g.as_ref(),
+        }
     }
 
-    /// World tables + BVH of a scene (the `bvh_build` stage, on the CPU), built once per scene.
+    fn backend_mut(&mut self) -> &mut dyn Backend {
+        match &mut self.active {
+            Active::Cpu(c) => c,
+            #[cfg(feature = "gpu")]
+            Active::Gpu(g) => g.as_mut(),
+        }
+    }
+
+    /// The GPU backend when it renders (for [`GpuBackend::render_to_texture`] and
+    /// its device).
+    #[cfg(feature = "gpu")]
+    pub fn gpu_backend(&mut self) -> Option<&mut GpuBackend> {
+        match &mut self.active {
+            Active::Gpu(g) => Some(g.as_mut()),
+            Active::Cpu(_) => None,
+        }
+    }
+
+    /// World tables + BVH of a scene (the `bvh_build` stage, on the CPU: rayon's
+    /// global pool), built once per scene and usable by any renderer.
     pub fn prepare(&self, scene: &Scene) -> PreparedScene {
-        self.cpu.borrow().prepare(WorldGeometry::build(scene), self.preset)
+        hyrt_cpu::bvh_build::prepare(WorldGeometry::build(scene), self.preset)
     }
 
     /// Render one frame of `width` x `height` pixels.
     pub fn render(
-        &self,
+        &mut self,
         prepared: &PreparedScene,
         camera: &Camera,
         width: u32,
@@ -152,7 +275,7 @@ impl Renderer {
     /// Render into `frame`, reusing its buffers from an earlier frame (the way to
     /// render many frames: a frame of the same size then allocates nothing).
     pub fn render_into(
-        &self,
+        &mut self,
         prepared: &PreparedScene,
         camera: &Camera,
         width: u32,
@@ -164,9 +287,11 @@ impl Renderer {
             return Err(RenderError::InvalidOptions(format!("image size must be non-zero, got {width}x{height}")));
         }
         let record = formats::CameraRecord::new(camera, width, height);
-        match &self.gpu {
-            Some(g) => g.borrow_mut().render_into(prepared, &record, options, frame),
-            None => self.cpu.borrow_mut().render_into(prepared, &record, options, frame),
-        }
+        self.backend_mut().render_into(prepared, &record, options, frame)
     }
+}
+
+/// Write a frame's final image as an 8-bit sRGB PNG ([`Frame::final_srgb8`]).
+pub fn save_png(frame: &Frame, path: &std::path::Path) -> Result<(), Error> {
+    image_io::write_png(path, frame.width, frame.height, &frame.final_image)
 }

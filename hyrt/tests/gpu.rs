@@ -19,9 +19,9 @@ fn gpu_renderer() -> Option<Renderer> {
 
 #[test]
 fn gpu_frame_matches_cpu_frame_on_the_default_scene_and_sponza() {
-    let Some(gpu) = gpu_renderer() else { return };
+    let Some(mut gpu) = gpu_renderer() else { return };
     eprintln!("{}", gpu.choice());
-    let cpu = Renderer::cpu(Some(2));
+    let mut cpu = Renderer::cpu(Some(2));
     let mut cases = vec![(Scene::default_scene(), 96, 54, 1.0), (Scene::default_scene(), 67, 41, 0.5)];
     let sponza = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets/sponza.glb");
     if sponza.is_file() {
@@ -32,7 +32,7 @@ fn gpu_frame_matches_cpu_frame_on_the_default_scene_and_sponza() {
     for (scene, w, h, weight) in cases {
         let cam = scene.camera.unwrap();
         let prepared = cpu.prepare(&scene);
-        let opts = FrameOptions { weight, ..FrameOptions::default() };
+        let opts = FrameOptions { weight, ..FrameOptions::with_stage_outputs() };
         let c = cpu.render(&prepared, &cam, w, h, &opts).unwrap();
         let g = gpu.render(&prepared, &cam, w, h, &opts).unwrap();
         assert_eq!((g.width, g.height), (w, h));
@@ -64,18 +64,18 @@ fn gpu_frame_matches_cpu_frame_on_the_default_scene_and_sponza() {
 
 #[test]
 fn gpu_renders_again_with_reused_buffers_and_a_new_scene() {
-    let Some(gpu) = gpu_renderer() else { return };
+    let Some(mut gpu) = gpu_renderer() else { return };
     let scene = Scene::default_scene();
     let cam = scene.camera.unwrap();
     let p1 = gpu.prepare(&scene);
-    let a = gpu.render(&p1, &cam, 40, 30, &FrameOptions::default()).unwrap();
+    let a = gpu.render(&p1, &cam, 40, 30, &FrameOptions::with_stage_outputs()).unwrap();
     let mut small = Scene::default_scene();
     small.objects.truncate(3);
     let p2 = gpu.prepare(&small);
-    let b = gpu.render(&p2, &cam, 40, 30, &FrameOptions::default()).unwrap();
+    let b = gpu.render(&p2, &cam, 40, 30, &FrameOptions::with_stage_outputs()).unwrap();
     assert_ne!(a.stats.covered_pixels, 0);
     assert!(b.gbuffer.iter().all(|t| !t.is_hit() || t.object < 3), "stale scene buffers");
-    let c = gpu.render(&p1, &cam, 40, 30, &FrameOptions::default()).unwrap();
+    let c = gpu.render(&p1, &cam, 40, 30, &FrameOptions::with_stage_outputs()).unwrap();
     assert_eq!(bytemuck_bits(&a.final_image), bytemuck_bits(&c.final_image), "same frame twice differs");
 }
 
@@ -85,12 +85,12 @@ fn bytemuck_bits(img: &[[f32; 4]]) -> Vec<u32> {
 
 #[test]
 fn gpu_final_image_only_readback_gives_the_same_image_and_counts() {
-    let Some(gpu) = gpu_renderer() else { return };
+    let Some(mut gpu) = gpu_renderer() else { return };
     let scene = Scene::default_scene();
     let cam = scene.camera.unwrap();
     let p = gpu.prepare(&scene);
-    let all = gpu.render(&p, &cam, 48, 32, &FrameOptions::default()).unwrap();
-    let lean = gpu.render(&p, &cam, 48, 32, &FrameOptions { stage_outputs: false, ..FrameOptions::default() }).unwrap();
+    let all = gpu.render(&p, &cam, 48, 32, &FrameOptions::with_stage_outputs()).unwrap();
+    let lean = gpu.render(&p, &cam, 48, 32, &FrameOptions::default()).unwrap();
     assert_eq!(bytemuck_bits(&all.final_image), bytemuck_bits(&lean.final_image));
     assert_eq!(all.stats.covered_pixels, lean.stats.covered_pixels);
     assert_eq!(all.stats.rays_per_kind, lean.stats.rays_per_kind);

@@ -23,9 +23,9 @@ fn add(scene: &mut Scene, mesh: Mesh, transform: Mat4, mode: RenderMode) {
 #[test]
 fn end_to_end_default_scene_renders() {
     let scene = Scene::default_scene();
-    let r = Renderer::cpu(Some(2));
+    let mut r = Renderer::cpu(Some(2));
     let prepared = r.prepare(&scene);
-    let frame = r.render(&prepared, &scene.camera.unwrap(), 320, 180, &FrameOptions::default()).unwrap();
+    let frame = r.render(&prepared, &scene.camera.unwrap(), 320, 180, &FrameOptions::with_stage_outputs()).unwrap();
     let s = &frame.stats;
     assert_eq!(frame.final_image.len(), 320 * 180);
     assert!(frame.final_image.iter().all(|p| p.iter().all(|c| c.is_finite())));
@@ -78,9 +78,9 @@ fn occluder_scene(occluder_mode: RenderMode) -> (Scene, f32) {
 fn end_to_end_shadows_are_where_the_geometry_says() {
     for mode in [RenderMode::Raster, RenderMode::RayTraced] {
         let (scene, half) = occluder_scene(mode);
-        let r = Renderer::cpu(Some(2));
+        let mut r = Renderer::cpu(Some(2));
         let prepared = r.prepare(&scene);
-        let frame = r.render(&prepared, &scene.camera.unwrap(), 240, 160, &FrameOptions::default()).unwrap();
+        let frame = r.render(&prepared, &scene.camera.unwrap(), 240, 160, &FrameOptions::with_stage_outputs()).unwrap();
         let (mut shadowed, mut lit, mut near_edge) = (0, 0, 0);
         for (i, s) in frame.surfaces.iter().enumerate() {
             if s.object != 0 {
@@ -124,10 +124,11 @@ mod hyrt_core_shadow {
 #[test]
 fn end_to_end_weight_blends_raster_and_rt() {
     let scene = Scene::default_scene();
-    let r = Renderer::cpu(Some(1));
+    let mut r = Renderer::cpu(Some(1));
     let prepared = r.prepare(&scene);
     let cam = scene.camera.unwrap();
-    let half = r.render(&prepared, &cam, 96, 64, &FrameOptions { weight: 0.5, ..FrameOptions::default() }).unwrap();
+    let half =
+        r.render(&prepared, &cam, 96, 64, &FrameOptions { weight: 0.5, ..FrameOptions::with_stage_outputs() }).unwrap();
     for i in 0..half.final_image.len() {
         if half.rt[i][3] > 0.0 {
             for c in 0..3 {
@@ -138,17 +139,19 @@ fn end_to_end_weight_blends_raster_and_rt() {
             assert_eq!(half.final_image[i], half.raster[i]);
         }
     }
-    assert!(r.render(&prepared, &cam, 96, 64, &FrameOptions { weight: 1.5, ..FrameOptions::default() }).is_err());
-    assert!(r.render(&prepared, &cam, 0, 64, &FrameOptions::default()).is_err());
+    assert!(r
+        .render(&prepared, &cam, 96, 64, &FrameOptions { weight: 1.5, ..FrameOptions::with_stage_outputs() })
+        .is_err());
+    assert!(r.render(&prepared, &cam, 0, 64, &FrameOptions::with_stage_outputs()).is_err());
 }
 
 #[test]
 fn end_to_end_empty_scene_is_all_miss() {
     let mut scene = Scene::default();
     scene.ensure_camera_and_lights();
-    let r = Renderer::cpu(Some(1));
+    let mut r = Renderer::cpu(Some(1));
     let prepared = r.prepare(&scene);
-    let frame = r.render(&prepared, &scene.camera.unwrap(), 17, 9, &FrameOptions::default()).unwrap();
+    let frame = r.render(&prepared, &scene.camera.unwrap(), 17, 9, &FrameOptions::with_stage_outputs()).unwrap();
     assert_eq!(frame.stats.covered_pixels, 0);
     assert!(frame.rays.is_empty());
 }
@@ -159,10 +162,10 @@ fn end_to_end_shared_sponza_and_bunny_render() {
     for (file, tris) in [("sponza.glb", 66_454), ("bunny.glb", 69_451)] {
         let mut scene = Scene::load(&assets.join(file)).unwrap();
         scene.ensure_camera_and_lights();
-        let r = Renderer::cpu(Some(2));
+        let mut r = Renderer::cpu(Some(2));
         let prepared = r.prepare(&scene);
         assert_eq!(prepared.geometry.triangle_count(), tris, "{file}");
-        let frame = r.render(&prepared, &scene.camera.unwrap(), 160, 90, &FrameOptions::default()).unwrap();
+        let frame = r.render(&prepared, &scene.camera.unwrap(), 160, 90, &FrameOptions::with_stage_outputs()).unwrap();
         assert!(frame.stats.covered_pixels > 160 * 90 / 10, "{file}: {:?}", frame.stats);
         assert!(frame.stats.rays_per_kind[0] > 0, "{file}");
     }
@@ -178,7 +181,7 @@ fn paper_manifests_reproduce_table2_valid_rays() {
         eprintln!("SKIPPED: ../shared/assets not found");
         return;
     }
-    let r = Renderer::cpu(Some(2));
+    let mut r = Renderer::cpu(Some(2));
     for (file, paper) in [
         ("teaser.toml", 66_252u64),
         ("horse_near.toml", 67_734),

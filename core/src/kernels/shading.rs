@@ -226,6 +226,14 @@ pub fn linear_to_srgb8(x: f32) -> u8 {
     (s * 255.0 + 0.5) as u8
 }
 
+/// A linear RGBA texel to 8-bit sRGB RGBA for display: the colour through
+/// [`linear_to_srgb8`], alpha (coverage, linear) clamped to [0, 1] and rounded.
+#[inline]
+pub fn rgba_to_srgb8(p: [f32; 4]) -> [u8; 4] {
+    let a = if p[3].is_nan() { 0.0 } else { p[3].clamp(0.0, 1.0) };
+    [linear_to_srgb8(p[0]), linear_to_srgb8(p[1]), linear_to_srgb8(p[2]), (a * 255.0 + 0.5) as u8]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
