@@ -291,12 +291,11 @@ fn render(args: RenderArgs) -> Result<(), String> {
         println!("median of {} frames:", args.frames);
     }
     let mut frame_ms = 0.0;
+    println!("  {:<18} {:>9.2} ms (once per scene)", Stage::BvhBuild.name(), prepared.bvh_build_ms);
     for st in Stage::ALL {
         if let Some(ms) = median(st) {
             println!("  {:<18} {:>9.2} ms", st.name(), ms);
-            if st != Stage::BvhBuild {
-                frame_ms += ms;
-            }
+            frame_ms += ms;
         } else if let Some(k) = s.skipped.iter().find(|k| k.stage == st) {
             println!("  {:<18} {:>12} ({})", st.name(), "skipped", k.reason);
         }

@@ -154,8 +154,8 @@ pub struct FrameStats {
     pub occluded_shadow_rays: u64,
     /// Worker threads the backend used.
     pub threads: usize,
-    /// Milliseconds and work per stage that ran, in execution order (`bvh_build` is
-    /// per scene and reported from [`PreparedScene::bvh_build_ms`]).
+    /// Milliseconds and work per stage that ran, in execution order: the frame's
+    /// stages only (`bvh_build` runs once per scene: [`PreparedScene::bvh_build_ms`]).
     pub stage_ms: Vec<StageTime>,
     /// The stages the frame's plan left out, and why.
     pub skipped: Vec<Skipped>,
@@ -166,9 +166,9 @@ impl FrameStats {
     pub fn ms(&self, stage: Stage) -> Option<f64> {
         self.stage_ms.iter().find(|s| s.stage == stage).map(|s| s.ms)
     }
-    /// Sum of the per-frame stages (everything but `bvh_build`).
+    /// Sum of the frame's stages.
     pub fn frame_ms(&self) -> f64 {
-        self.stage_ms.iter().filter(|s| s.stage != Stage::BvhBuild).map(|s| s.ms).sum()
+        self.stage_ms.iter().map(|s| s.ms).sum()
     }
 }
 

@@ -8,7 +8,6 @@ use hyrt_core::formats::{CameraRecord, RAY_KIND_COUNT};
 use hyrt_core::frame::{Backend, Frame, FrameOptions, FrameStats, PreparedScene, RenderError, StageTime, StageWork};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::plan::{FramePlan, Step};
-use hyrt_core::stage::Stage;
 
 use rayon::prelude::*;
 
@@ -98,8 +97,7 @@ impl Backend for CpuBackend {
         let f = frame;
         f.begin(&plan, options);
         self.pool.install(|| {
-            let mut times =
-                vec![StageTime { stage: Stage::BvhBuild, ms: scene.bvh_build_ms, work: StageWork::default() }];
+            let mut times = Vec::with_capacity(plan.steps().len());
             let mut covered = 0;
             // The plan's one loop: each step runs its stage module and is timed.
             for &step in plan.steps() {
@@ -152,7 +150,7 @@ impl Backend for CpuBackend {
                 )
                 .reduce(|| [0u64; RAY_KIND_COUNT], |a, b| std::array::from_fn(|i| a[i] + b[i]));
             stats.occluded_shadow_rays = f.occluded.par_iter().filter(|&&o| o != 0).count() as u64;
-            for (time, &step) in times[1..].iter_mut().zip(plan.steps()) {
+            for (time, &step) in times.iter_mut().zip(plan.steps()) {
                 time.work = StageWork::of(step, &stats);
             }
             stats.stage_ms = times;

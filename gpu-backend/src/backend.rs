@@ -123,7 +123,7 @@ impl GpuBackend {
         out: &mut Frame,
     ) -> Result<(), GpuError> {
         let count = self.run_with_room(scene, plan, camera, options)?;
-        self.read_back(scene, plan, camera, count, out)
+        self.read_back(plan, camera, count, out)
     }
 
     /// Run the plan over frame buffers with room for its rays; the ray count.
@@ -198,20 +198,18 @@ impl GpuBackend {
             ..Default::default()
         };
         stats.rays_per_kind[hyrt_core::formats::RAY_KIND_SHADOW as usize] = count as u64;
-        stats.stage_ms = self.stage_times(scene, &plan, &stats);
+        stats.stage_ms = self.stage_times(&plan, &stats);
         Ok(stats)
     }
 
-    /// `bvh_build` and the last run plan's step times, each with its work.
-    fn stage_times(&self, scene: &PreparedScene, plan: &FramePlan, stats: &FrameStats) -> Vec<StageTime> {
-        let mut times = vec![StageTime { stage: Stage::BvhBuild, ms: scene.bvh_build_ms, work: StageWork::default() }];
+    /// The last run plan's step times, each with its work.
+    fn stage_times(&self, plan: &FramePlan, stats: &FrameStats) -> Vec<StageTime> {
         let ms = self.stage_ms.iter().copied().chain(std::iter::repeat(0.0));
-        times.extend(plan.steps().iter().zip(ms).map(|(&step, ms)| StageTime {
-            stage: step.stage(),
-            ms,
-            work: StageWork::of(step, stats),
-        }));
-        times
+        plan.steps()
+            .iter()
+            .zip(ms)
+            .map(|(&step, ms)| StageTime { stage: step.stage(), ms, work: StageWork::of(step, stats) })
+            .collect()
     }
 
     /// Encode and submit the plan's steps over the current frame buffers; the ray
@@ -282,7 +280,6 @@ impl GpuBackend {
     /// for the other stage outputs when asked.
     fn read_back(
         &self,
-        scene: &PreparedScene,
         plan: &FramePlan,
         camera: &CameraRecord,
         count: usize,
@@ -338,7 +335,7 @@ impl GpuBackend {
         // The GPU ray list holds shadow rays only (compaction makes no other kind yet).
         stats.rays_per_kind[hyrt_core::formats::RAY_KIND_SHADOW as usize] = count as u64;
         stats.occluded_shadow_rays = out.occluded.iter().filter(|&&o| o != 0).count() as u64;
-        stats.stage_ms = self.stage_times(scene, plan, &stats);
+        stats.stage_ms = self.stage_times(plan, &stats);
         out.width = camera.width;
         out.height = camera.height;
         out.stats = stats;
