@@ -9,8 +9,7 @@
 //! Also home of the helpers the three shading stages share (WGSL assembly,
 //! binding layouts, the pixel-grid dispatch, timestamp writes).
 
-use hyrt_core::formats::{INVALID_ID, LIGHT_DIRECTIONAL, OBJ_RAY_TRACED};
-use hyrt_core::frame::SHADOW_LIT;
+use hyrt_core::formats::{INVALID_ID, LIGHT_DIRECTIONAL, OBJ_RAY_TRACED, SHADOW_LIT};
 use hyrt_core::kernels::shading::{
     AMBIENT, BACKGROUND, DIELECTRIC_F0, ENVIRONMENT_SPECULAR, EXP_SERIES, LOG2_SERIES, MIN_LIGHT_DISTANCE_SQ,
     POW_FLUSH_EXPONENT, TWO_OVER_LN_2,

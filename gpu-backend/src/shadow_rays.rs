@@ -20,10 +20,10 @@
 //! multiply-add cannot break their antisymmetry (watertightness).
 
 use hyrt_core::bvh::{BVH_CULL_SLACK, BVH_STACK_SIZE};
-use hyrt_core::formats::{INVALID_ID, LIGHT_DIRECTIONAL, RAY_KIND_SHADOW};
-use hyrt_core::frame::{SHADOW_LIT, SHADOW_OCCLUDED};
+use hyrt_core::formats::{INVALID_ID, LIGHT_DIRECTIONAL, RAY_KIND_SHADOW, SHADOW_LIT, SHADOW_OCCLUDED};
 use hyrt_core::kernels::ray::{gamma, OFFSET_ERROR_SCALE, SLAB_FAR_SCALE};
 use hyrt_core::kernels::shading::MIN_LIGHT_DISTANCE_SQ;
+use hyrt_core::kernels::shadow::SHADOW_T_MAX_POINT;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
 use crate::GpuContext;
@@ -69,11 +69,6 @@ pub(crate) fn ray_wgsl() -> String {
     }
     s + include_str!("shaders/ray.wgsl")
 }
-
-/// `hyrt_cpu::compaction::SHADOW_T_MAX_POINT` (the GPU crate does not depend on
-/// the CPU backend): shadow rays to point lights end at `1 - 2^-16` of the
-/// origin-to-light segment. The compaction test checks it against the CPU's.
-pub const SHADOW_T_MAX_POINT: f32 = 1.0 - 1.0 / 65536.0;
 
 /// The `shadow_rays` stage: one pipeline, one bind group layout.
 pub struct ShadowRaysStage {

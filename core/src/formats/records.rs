@@ -161,6 +161,19 @@ impl RayRecord {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Shadow mask
+// ---------------------------------------------------------------------------------------------
+
+/// Shadow mask code (`Frame::shadow`, one per pixel and light): no shadow ray was traced
+/// for this (pixel, light): the pixel has no primary hit, or the light is behind the
+/// surface (it cannot contribute).
+pub const SHADOW_NO_RAY: u8 = 0;
+/// Shadow mask code: a shadow ray was traced and reached the light.
+pub const SHADOW_LIT: u8 = 1;
+/// Shadow mask code: a shadow ray was traced and something blocked it.
+pub const SHADOW_OCCLUDED: u8 = 2;
+
+// ---------------------------------------------------------------------------------------------
 // Scene tables
 // ---------------------------------------------------------------------------------------------
 
