@@ -2,10 +2,11 @@
 //! ray-traced shadows, paper 3.3) and the ordinary raster shader (Lambert with
 //! ambient, paper 3.4), light evaluation and colour encoding.
 //!
-//! WGSL mirrors: `orient_to_seen_side` in `reconstruction.wgsl`; `light_incidence`,
-//! `light_can_contribute`, `shade_ray_traced`, `shade_raster`, `ambient`, `compose` in
-//! `shading.wgsl`; `shade_rt_pixel` and `shade_raster_pixel` in `rt_shading.wgsl` and
-//! `raster_shading.wgsl`.
+//! WGSL mirrors: `orient_to_seen_side` in `reconstruction.wgsl`; `light_incidence` and
+//! `light_can_contribute` in `shading_helpers.wgsl` (shared by the shading stages and
+//! `compaction`); `shade_ray_traced`, `shade_raster`, `ambient`, `compose` and the
+//! portable `pow` in `shading.wgsl`; `shade_rt_pixel` and `shade_raster_pixel` in
+//! `rt_shading.wgsl` and `raster_shading.wgsl`.
 
 use glam::Vec3;
 
