@@ -53,9 +53,15 @@ fn cpu_case(name: &str, scene: &Scene, width: u32, height: u32, weight: f32) -> 
     let bvh = Bvh::build(&geometry, BvhPreset::default());
     let prepared = PreparedScene::new(geometry, bvh, 0.0);
     let camera = CameraRecord::new(&scene.camera.expect("scene camera"), width, height);
-    let cpu = CpuBackend::new(Some(1))
+    let mut cpu = CpuBackend::new(Some(1))
         .render(&prepared, &camera, &FrameOptions { weight, ..FrameOptions::default() })
         .expect("cpu render");
+    // The frame's plan skips `rt_shading` at weight 0: the CPU stage still gives the
+    // reference the GPU stage is compared with (and composition reads).
+    if cpu.rt.is_empty() {
+        let g = &prepared.geometry;
+        cpu.rt = hyrt_cpu::rt_shading::rt_shading(&cpu.surfaces, &cpu.shadow, &g.objects, &g.lights, camera.eye.into());
+    }
     Case { name: format!("{name} {width}x{height} w={weight}"), scene: prepared, camera, weight, cpu }
 }
 
