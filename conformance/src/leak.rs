@@ -27,8 +27,8 @@
 use std::collections::HashMap;
 
 use glam::{DVec3, Mat4, Vec3};
-use hyrt_core::formats::RAY_KIND_SHADOW;
-use hyrt_core::frame::{Frame, SHADOW_LIT, SHADOW_OCCLUDED};
+use hyrt_core::formats::{RAY_KIND_SHADOW, SHADOW_LIT, SHADOW_OCCLUDED};
+use hyrt_core::frame::Frame;
 use hyrt_core::scene::{Camera, Light, Material, MaterialKind, Mesh, RenderMode, Scene};
 
 use crate::corpus::{shared_assets, Case};

@@ -125,6 +125,7 @@ pub struct BvhNode {
     pub count: u32,
 }
 const _: () = assert!(std::mem::size_of::<BvhNode>() == 32);
+crate::formats::wgsl::wgsl_struct!(BvhNode { aabb_min, left_or_first, aabb_max, count });
 
 impl BvhNode {
     /// True for a leaf (`count > 0`).

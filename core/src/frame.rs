@@ -8,13 +8,9 @@ use crate::geometry::WorldGeometry;
 use crate::plan::{FrameBuffer, FramePlan, Skipped, Step};
 use crate::stage::Stage;
 
-/// [`Frame::shadow`]: no shadow ray was traced for this (pixel, light): the pixel
-/// has no primary hit, or the light is behind the surface (it cannot contribute).
-pub const SHADOW_NO_RAY: u8 = 0;
-/// [`Frame::shadow`]: a shadow ray was traced and reached the light.
-pub const SHADOW_LIT: u8 = 1;
-/// [`Frame::shadow`]: a shadow ray was traced and something blocked it.
-pub const SHADOW_OCCLUDED: u8 = 2;
+/// The `SHADOW_*` codes of [`Frame::shadow`], defined in [`crate::formats`]; re-exported
+/// here for the code that still names them by their old path.
+pub use crate::formats::{SHADOW_LIT, SHADOW_NO_RAY, SHADOW_OCCLUDED};
 
 /// A scene ready to render: world-space tables and the BVH over all of them,
 /// built once and shared by every frame and by both backends.

@@ -7,26 +7,22 @@
 //!
 //! The compaction itself ([`compact`]) is a parallel, stable, deterministic
 //! exclusive prefix sum over u32 flags; it equals
-//! [`hyrt_core::kernels::scan::compact_sequential`] for every input.
+//! [`hyrt_core::kernels::scan::compact_sequential`] for every input. The per-pair
+//! kernels ([`needs_shadow_ray`], [`shadow_ray`]) are [`hyrt_core::kernels::shadow`]'s.
 
 use std::sync::atomic::{AtomicU8, Ordering};
 
-use glam::Vec3;
-use hyrt_core::formats::{LightRecord, RayRecord, SurfaceRecord, INVALID_ID, LIGHT_DIRECTIONAL, RAY_KIND_SHADOW};
-use hyrt_core::frame::{SHADOW_LIT, SHADOW_NO_RAY, SHADOW_OCCLUDED};
-use hyrt_core::kernels::ray::offset_ray_origin;
-use hyrt_core::kernels::shading::{light_can_contribute, light_incidence};
+use hyrt_core::formats::{LightRecord, RayRecord, SurfaceRecord, INVALID_ID, SHADOW_NO_RAY};
+use hyrt_core::kernels::shadow::{shadow_code, shadow_ray};
 use rayon::prelude::*;
+
+/// Kernels of [`hyrt_core::kernels::shadow`], re-exported at their old path for the
+/// `hyrt` crate's accuracy tools.
+pub use hyrt_core::kernels::shadow::{needs_shadow_ray, SHADOW_T_MAX_POINT};
 
 /// Flags per block of the parallel scan. A multiple of 64 so blocks align with
 /// cache lines; large enough that the sequential scan over block sums is cheap.
 pub const COMPACTION_BLOCK: usize = 4096;
-
-/// Shadow rays to point lights end just before the light: `t_max = 1 - 2^-16`
-/// of the origin-to-light segment. A light sitting exactly on a surface (a hard
-/// case) is then not occluded by that surface: the watertight test's t error is a
-/// few ulp (pbrt-v4's gamma(3) conservative bound), far below 2^-16.
-pub const SHADOW_T_MAX_POINT: f32 = 1.0 - 1.0 / 65536.0;
 
 /// Indices of the non-zero `flags`, in increasing order: a parallel exclusive
 /// scan over per-block counts, then a parallel scatter. Stable and deterministic.
@@ -63,45 +59,6 @@ pub fn compact_into(flags: &[u32], out: &mut Vec<u32>) {
         debug_assert_eq!(k, dst.len());
     });
     debug_assert_eq!(offsets.len(), counts.len());
-}
-
-/// Whether the pixel's surface needs a shadow ray towards `light`: it has a
-/// primary hit and the light can contribute there (front side of both normals,
-/// non-zero energy). The cheap test of the flag pass.
-#[inline]
-pub fn needs_shadow_ray(s: &SurfaceRecord, light: &LightRecord) -> bool {
-    if !s.is_hit() {
-        return false;
-    }
-    let (l, e) = light_incidence(light, Vec3::from(s.position));
-    light_can_contribute(Vec3::from(s.geometric_normal), Vec3::from(s.normal), l, e)
-}
-
-/// The shadow ray from a surface point to a light. Call only where
-/// [`needs_shadow_ray`] holds.
-#[inline]
-pub fn shadow_ray(s: &SurfaceRecord, light: &LightRecord, light_index: u32, pixel: u32) -> RayRecord {
-    let p = Vec3::from(s.position);
-    // Off the surface by the reconstructed point's own error bound, on the side the
-    // viewer saw (the normal is oriented by reconstruction from the raster's facing).
-    let origin = offset_ray_origin(p, s.position_error, Vec3::from(s.geometric_normal));
-    let (direction, t_max) = if light.kind == LIGHT_DIRECTIONAL {
-        (-Vec3::from(light.position_or_direction), f32::INFINITY)
-    } else {
-        (Vec3::from(light.position_or_direction) - origin, SHADOW_T_MAX_POINT)
-    };
-    RayRecord {
-        origin: origin.into(),
-        t_min: 0.0,
-        direction: direction.into(),
-        t_max,
-        pixel,
-        kind: RAY_KIND_SHADOW,
-        depth: 0,
-        light: light_index,
-        throughput: [1.0; 3],
-        pad: 0,
-    }
 }
 
 /// Buffers [`compaction_into`] keeps between frames: the flags and the indices
@@ -183,7 +140,6 @@ pub fn shadow_mask_into(rays: &[RayRecord], occluded: &[u32], pixels: usize, lig
     let cells: &[AtomicU8] = unsafe { &*(mask.as_mut_slice() as *mut [u8] as *const [AtomicU8]) };
     rays.par_iter().zip(occluded).with_min_len(4096).for_each(|(r, &o)| {
         debug_assert!(r.light != INVALID_ID);
-        let value = if o != 0 { SHADOW_OCCLUDED } else { SHADOW_LIT };
-        cells[r.pixel as usize * lights + r.light as usize].store(value, Ordering::Relaxed);
+        cells[r.pixel as usize * lights + r.light as usize].store(shadow_code(o != 0), Ordering::Relaxed);
     });
 }

@@ -9,16 +9,8 @@
 
 use glam::Vec3;
 use hyrt_core::formats::{LightRecord, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
-use hyrt_core::kernels::shading::{ambient, shade_raster, sum_visible_lights, BACKGROUND};
+use hyrt_core::kernels::shading::{shade_raster_pixel, BACKGROUND};
 use rayon::prelude::*;
-
-/// Shade one pixel with the raster shader.
-#[inline]
-pub fn shade_raster_pixel(s: &SurfaceRecord, obj: &ObjectRecord, shadow: &[u8], lights: &[LightRecord]) -> Vec3 {
-    let p = Vec3::from(s.position);
-    let n = Vec3::from(s.normal);
-    ambient(obj) + sum_visible_lights(shadow, lights, p, |l, e| shade_raster(obj, n, l, e))
-}
 
 /// The stage. `shadow` is indexed `pixel * lights.len() + light`.
 pub fn raster_shading(

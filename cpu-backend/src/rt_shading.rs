@@ -7,17 +7,8 @@
 
 use glam::Vec3;
 use hyrt_core::formats::{LightRecord, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
-use hyrt_core::kernels::shading::{ambient, shade_ray_traced, sum_visible_lights};
+use hyrt_core::kernels::shading::shade_rt_pixel;
 use rayon::prelude::*;
-
-/// Shade one pixel with the ray-traced shader (ambient plus every visible light).
-#[inline]
-pub fn shade_rt_pixel(s: &SurfaceRecord, obj: &ObjectRecord, shadow: &[u8], lights: &[LightRecord], eye: Vec3) -> Vec3 {
-    let p = Vec3::from(s.position);
-    let n = Vec3::from(s.normal);
-    let v = (eye - p).normalize_or_zero();
-    ambient(obj) + sum_visible_lights(shadow, lights, p, |l, e| shade_ray_traced(obj, n, v, l, e))
-}
 
 /// The stage. `shadow` is indexed `pixel * lights.len() + light`.
 pub fn rt_shading(

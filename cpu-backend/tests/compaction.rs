@@ -88,6 +88,6 @@ fn compaction_builds_one_ray_per_contributing_pair_in_light_major_order() {
     // Point light rays end just before the light; directional ones are unbounded.
     assert!(rays[0].t_max < 1.0 && rays[2].t_max.is_infinite());
     let mask = shadow_mask(&rays, &[0, 1, 0, 0], surfaces.len(), lights.len());
-    use hyrt_core::frame::{SHADOW_LIT as L, SHADOW_NO_RAY as N, SHADOW_OCCLUDED as O};
+    use hyrt_core::formats::{SHADOW_LIT as L, SHADOW_NO_RAY as N, SHADOW_OCCLUDED as O};
     assert_eq!(mask, vec![L, L, N, N, N, N, O, L, N, N, N, N]);
 }

@@ -3,74 +3,19 @@
 //! these by name. Element layouts are the core formats (documented to the byte
 //! in [`hyrt_core::formats`]) unless said otherwise here.
 
-use bytemuck::{Pod, Zeroable};
 use hyrt_core::bvh::BvhNode;
 use hyrt_core::formats::{
     CameraRecord, GBufferTexel, LightRecord, ObjectRecord, RayRecord, SurfaceRecord, TriangleRecord,
 };
 use hyrt_core::frame::PreparedScene;
-use hyrt_core::plan::{Composition, FrameBuffer, FramePlan};
+use hyrt_core::plan::{FrameBuffer, FramePlan};
 
 use crate::gpu_buffer::{storage, upload};
 use crate::{GpuContext, GpuError};
 
-/// Per-frame parameters, one uniform buffer.
-///
-/// | offset | field | type | meaning |
-/// |---:|---|---|---|
-/// | 0 | `width` | u32 | image width |
-/// | 4 | `height` | u32 | image height |
-/// | 8 | `light_count` | u32 | lights in the light list |
-/// | 12 | `weight` | f32 | composition weight in [0, 1] |
-/// | 16 | `zero` | u32 | always 0: shaders OR it into the bits of products, which the compiler cannot see through, so it cannot fuse them into multiply-adds (the CPU kernels round every product) |
-/// | 20 | `composition` | u32 | how `composition` composes: [`Composition::code`] of the frame's plan |
-/// | 24 | `pad` | [u32; 2] | zero (uniform structs are 16-byte multiples) |
-///
-/// 32 bytes. Build with [`FrameParams::new`].
-#[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
-pub struct FrameParams {
-    pub width: u32,
-    pub height: u32,
-    pub light_count: u32,
-    pub weight: f32,
-    pub zero: u32,
-    pub composition: u32,
-    pub pad: [u32; 2],
-}
-const _: () = assert!(std::mem::size_of::<FrameParams>() == 32);
-
-impl FrameParams {
-    /// The parameters of a `width` x `height` frame with `light_count` lights,
-    /// composed by the weighted mean.
-    pub fn new(width: u32, height: u32, light_count: u32, weight: f32) -> Self {
-        let composition = Composition::WeightedMean.code();
-        FrameParams { width, height, light_count, weight, zero: 0, composition, pad: [0; 2] }
-    }
-
-    /// The same parameters, composed as `composition` says.
-    pub fn with_composition(self, composition: Composition) -> Self {
-        FrameParams { composition: composition.code(), ..self }
-    }
-
-    /// Check: a non-empty image, a weight in [0, 1], a known composition code, `zero`
-    /// and padding zero.
-    pub fn validate(&self) -> Result<(), String> {
-        if self.composition > Composition::RtOverBackground.code() {
-            return Err(format!("unknown composition code {}", self.composition));
-        }
-        if self.zero != 0 || self.pad != [0; 2] {
-            return Err(format!("frame parameters with non-zero zero/padding: {self:?}"));
-        }
-        if self.width == 0 || self.height == 0 {
-            return Err(format!("empty image {}x{}", self.width, self.height));
-        }
-        if !(0.0..=1.0).contains(&self.weight) {
-            return Err(format!("weight {} outside [0, 1]", self.weight));
-        }
-        Ok(())
-    }
-}
+/// The per-frame uniform parameters, defined in [`hyrt_core::formats`] (with the
+/// other records the shaders declare); re-exported at their old path.
+pub use hyrt_core::formats::FrameParams;
 
 /// Scene tables on the GPU (from a [`PreparedScene`]; built once per scene).
 pub struct SceneBuffers {

@@ -1,6 +1,8 @@
 //! Stage `compaction` on the GPU: active (pixel, light) pairs -> the shadow-ray
 //! list, light-major then pixel order, bit for bit the list of
-//! `hyrt_cpu::compaction::compaction`.
+//! `hyrt_cpu::compaction::compaction`; per pair the kernels of
+//! [`hyrt_core::kernels::shadow`], with the shading stages' light evaluation
+//! (`shaders/shading_helpers.wgsl`).
 //!
 //! Reads `frame.surfaces`, `scene.lights`, `frame.params`. Writes `frame.rays`
 //! and `frame.ray_count` (`[count, dispatch_x, dispatch_y, 1]`: indirect-dispatch
@@ -42,10 +44,12 @@
 //! subnormal and flushed.
 //! On lavapipe the default-scene tests find no difference.
 
+use hyrt_core::formats::wgsl::declarations;
 use std::sync::Mutex;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
 use crate::gpu_buffer::storage;
+use crate::rt_shading::shading_helpers;
 use crate::shadow_rays::{ray_wgsl, storage_entry, uniform_entry, MAX_WORKGROUPS_PER_DIMENSION};
 use crate::{GpuContext, GpuError};
 
@@ -173,11 +177,16 @@ pub struct CompactionStage {
     scratch: Mutex<Option<Scratch>>,
 }
 
-/// The compaction WGSL: generated constants, `ray.wgsl`, `compaction.wgsl`.
+/// The compaction WGSL: the generated records and format constants, the stage's
+/// constants, `ray.wgsl`, the shading helpers (the light evaluation the shading stages
+/// use), `compaction.wgsl`.
 fn compaction_wgsl() -> String {
-    format!(
-        "const WG = {COMPACTION_WORKGROUP_SIZE}u;\nconst ITEMS = {COMPACTION_ITEMS_PER_THREAD}u;\nconst TILE = {COMPACTION_TILE}u;\n"
-    ) + &ray_wgsl()
+    declarations()
+        + &format!(
+            "const WG = {COMPACTION_WORKGROUP_SIZE}u;\nconst ITEMS = {COMPACTION_ITEMS_PER_THREAD}u;\nconst TILE = {COMPACTION_TILE}u;\n"
+        )
+        + &ray_wgsl()
+        + &shading_helpers()
         + include_str!("shaders/compaction.wgsl")
 }
 

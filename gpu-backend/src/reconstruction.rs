@@ -1,6 +1,6 @@
 //! `reconstruction` (paper eq. 1): rebuild the world-space surface at every pixel
 //! from the visibility G-buffer, one thread per pixel (8x8 groups), mirroring
-//! `hyrt_cpu::reconstruction::reconstruct_texel` and the kernels it calls
+//! [`hyrt_core::kernels::reconstruction::reconstruct_texel`] and the kernels it calls
 //! (`hyrt_core::kernels::barycentric::{reconstruct_position, position_error_bound,
 //! interpolate_normal, geometric_normal}`, `hyrt_core::kernels::shading::orient_to_seen_side`)
 //! in `shaders/reconstruction.wgsl`, operation for operation. Normalization is
@@ -14,7 +14,7 @@
 //! is accurate to 2.5 ulp, so positions and normals can differ by a few ulp (the
 //! bounds are in `tests/reconstruction.rs`); ids are identical.
 
-use hyrt_core::formats::{GBUF_BACK_FACE, GBUF_HIT};
+use hyrt_core::formats::wgsl::declarations;
 use hyrt_core::kernels::barycentric::gamma;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
@@ -25,13 +25,13 @@ const GROUP: u32 = 8;
 
 const SHADER: &str = include_str!("shaders/reconstruction.wgsl");
 
-/// The WGSL of the stage: the shader with the exact f32 constants of the error bound
-/// (`{:?}` prints the shortest decimal that parses back to the same f32) and the G-buffer
-/// flags it reads prepended.
+/// The WGSL of the stage: the generated records and format constants, the exact f32
+/// constants of the error bound (`{:?}` prints the shortest decimal that parses back to
+/// the same f32), then the shader.
 pub fn shader_source() -> String {
     format!(
-        "const GAMMA_2: f32 = {:?};\nconst GAMMA_3: f32 = {:?};\nconst ONE_PLUS_GAMMA_3: f32 = {:?};\n\
-         const GBUF_HIT: u32 = {GBUF_HIT}u;\nconst GBUF_BACK_FACE: u32 = {GBUF_BACK_FACE}u;\n{}",
+        "{}const GAMMA_2: f32 = {:?};\nconst GAMMA_3: f32 = {:?};\nconst ONE_PLUS_GAMMA_3: f32 = {:?};\n{}",
+        declarations(),
         gamma(2),
         gamma(3),
         1.0f32 + gamma(3),

@@ -1,6 +1,6 @@
 //! Stage `shadow_rays` on the GPU: trace the compacted shadow-ray list through the
-//! BVH, any hit with early exit (mirrors `hyrt_cpu::shadow_rays`, i.e.
-//! [`hyrt_core::bvh::Bvh::occluded`]).
+//! BVH, any hit with early exit (mirrors [`hyrt_core::bvh::Bvh::occluded`], the CPU's
+//! reference traversal, and [`hyrt_core::kernels::shadow::shadow_code`]).
 //!
 //! Reads `frame.rays`, `frame.ray_count` (indirect dispatch: one thread per ray,
 //! [`SHADOW_RAYS_WORKGROUP_SIZE`] per workgroup, threads past the count exit),
@@ -20,10 +20,9 @@
 //! multiply-add cannot break their antisymmetry (watertightness).
 
 use hyrt_core::bvh::{BVH_CULL_SLACK, BVH_STACK_SIZE};
-use hyrt_core::formats::{INVALID_ID, LIGHT_DIRECTIONAL, RAY_KIND_SHADOW};
-use hyrt_core::frame::{SHADOW_LIT, SHADOW_OCCLUDED};
+use hyrt_core::formats::wgsl::declarations;
 use hyrt_core::kernels::ray::{gamma, OFFSET_ERROR_SCALE, SLAB_FAR_SCALE};
-use hyrt_core::kernels::shading::MIN_LIGHT_DISTANCE_SQ;
+use hyrt_core::kernels::shadow::SHADOW_T_MAX_POINT;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
 use crate::GpuContext;
@@ -42,8 +41,9 @@ fn f32_literal(x: f32) -> String {
     format!("{x:?}f")
 }
 
-/// The WGSL prelude both ray stages share: the core constants, generated from
-/// their Rust values so they cannot drift, followed by `ray.wgsl`.
+/// The WGSL both ray stages share after the generated records ([`declarations`]): the
+/// ray constants, generated from their Rust values so they cannot drift, followed by
+/// `ray.wgsl`.
 pub(crate) fn ray_wgsl() -> String {
     let consts = [
         ("SLAB_FAR_SCALE", f32_literal(SLAB_FAR_SCALE)),
@@ -51,17 +51,11 @@ pub(crate) fn ray_wgsl() -> String {
         ("GAMMA_3", f32_literal(gamma(3))),
         ("GAMMA_5", f32_literal(gamma(5))),
         ("OFFSET_ERROR_SCALE", f32_literal(OFFSET_ERROR_SCALE)),
-        ("MIN_LIGHT_DISTANCE_SQ", f32_literal(MIN_LIGHT_DISTANCE_SQ)),
         ("BVH_CULL_SLACK", f32_literal(BVH_CULL_SLACK)),
         ("SHADOW_T_MAX_POINT_BITS", format!("{}u", SHADOW_T_MAX_POINT.to_bits())),
         ("BVH_STACK_SIZE", format!("{}u", BVH_STACK_SIZE)),
         ("SHADOW_WG", format!("{SHADOW_RAYS_WORKGROUP_SIZE}u")),
         ("MAX_DISPATCH", format!("{MAX_WORKGROUPS_PER_DIMENSION}u")),
-        ("LIGHT_DIRECTIONAL", format!("{LIGHT_DIRECTIONAL}u")),
-        ("INVALID_ID", format!("{INVALID_ID}u")),
-        ("RAY_KIND_SHADOW", format!("{RAY_KIND_SHADOW}u")),
-        ("SHADOW_LIT", format!("{}u", SHADOW_LIT as u32)),
-        ("SHADOW_OCCLUDED", format!("{}u", SHADOW_OCCLUDED as u32)),
     ];
     let mut s = String::from("// Generated from the hyrt_core constants (gpu-backend/src/shadow_rays.rs).\n");
     for (name, value) in consts {
@@ -69,11 +63,6 @@ pub(crate) fn ray_wgsl() -> String {
     }
     s + include_str!("shaders/ray.wgsl")
 }
-
-/// `hyrt_cpu::compaction::SHADOW_T_MAX_POINT` (the GPU crate does not depend on
-/// the CPU backend): shadow rays to point lights end at `1 - 2^-16` of the
-/// origin-to-light segment. The compaction test checks it against the CPU's.
-pub const SHADOW_T_MAX_POINT: f32 = 1.0 - 1.0 / 65536.0;
 
 /// The `shadow_rays` stage: one pipeline, one bind group layout.
 pub struct ShadowRaysStage {
@@ -109,7 +98,7 @@ pub(crate) fn uniform_entry(binding: u32, dynamic: bool) -> wgpu::BindGroupLayou
 
 impl ShadowRaysStage {
     pub fn new(ctx: &GpuContext) -> Self {
-        let source = ray_wgsl() + include_str!("shaders/shadow_rays.wgsl");
+        let source = declarations() + &ray_wgsl() + include_str!("shaders/shadow_rays.wgsl");
         let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("shadow_rays"),
             source: wgpu::ShaderSource::Wgsl(source.into()),

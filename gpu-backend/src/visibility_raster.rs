@@ -48,6 +48,7 @@
 //! elsewhere). Cost: the fragment shader's setup is per fragment, about 15x the old
 //! raster pass on lavapipe (29.6 -> 435 ms at 1280x720, default scene).
 
+use hyrt_core::formats::wgsl::declarations;
 use std::sync::Mutex;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
@@ -89,7 +90,6 @@ pub const ID_FROM_FLAT_VERTEX_OUTPUT: &str = "flat-interpolated vertex_index / 3
 /// The constants of `hyrt_core::kernels::raster` the shader mirrors, as WGSL (`{:?}`
 /// prints the shortest decimal that parses back to the same f32).
 fn raster_constants() -> String {
-    use hyrt_core::formats::TRI_INWARD;
     use hyrt_core::kernels::raster::{
         FIXED_ONE, FIXED_ONE_F32, GUARD_BAND_PIXELS, INTERIOR_DEPTH_BIAS_ULPS, MAX_CLIP_VERTICES, MAX_FIXED_COORD,
         MAX_IMAGE_DIM, PIXEL_CENTER_OFFSET,
@@ -98,7 +98,7 @@ fn raster_constants() -> String {
         "const HARDWARE_TRIANGLES_PER_TRIANGLE: u32 = {HARDWARE_TRIANGLES_PER_TRIANGLE}u;\nconst MAX_IMAGE_DIM: u32 = {MAX_IMAGE_DIM}u;\nconst GUARD_BAND_PIXELS: f32 = {GUARD_BAND_PIXELS:?};\n\
          const MAX_CLIP_VERTICES: u32 = {MAX_CLIP_VERTICES}u;\nconst PIXEL_CENTER_OFFSET: f32 = {PIXEL_CENTER_OFFSET:?};\n\
          const FIXED_ONE: i32 = {FIXED_ONE};\nconst FIXED_ONE_F32: f32 = {FIXED_ONE_F32:?};\n\
-         const MAX_FIXED_COORD_F32: f32 = {:?};\nconst INTERIOR_DEPTH_BIAS_ULPS: u32 = {INTERIOR_DEPTH_BIAS_ULPS}u;\nconst TRI_INWARD: u32 = {TRI_INWARD}u;\n",
+         const MAX_FIXED_COORD_F32: f32 = {:?};\nconst INTERIOR_DEPTH_BIAS_ULPS: u32 = {INTERIOR_DEPTH_BIAS_ULPS}u;\n",
         MAX_FIXED_COORD as f32
     )
 }
@@ -107,7 +107,8 @@ fn raster_constants() -> String {
 fn interpolated_shader_source(primitive_index: bool) -> String {
     if primitive_index {
         format!(
-            "enable primitive_index;\n{COMMON}{}",
+            "enable primitive_index;\n{}{COMMON}{}",
+            declarations(),
             INTERPOLATED_SHADER
                 .replace("TRIANGLE_ID_PARAMETER", "@builtin(primitive_index) primitive: u32,")
                 .replace("TRIANGLE_ID_EXPRESSION", "primitive")
@@ -115,7 +116,7 @@ fn interpolated_shader_source(primitive_index: bool) -> String {
     } else {
         let body =
             INTERPOLATED_SHADER.replace("TRIANGLE_ID_PARAMETER", "").replace("TRIANGLE_ID_EXPRESSION", "in.triangle");
-        format!("{COMMON}{body}")
+        format!("{}{COMMON}{body}", declarations())
     }
 }
 
@@ -133,7 +134,7 @@ pub fn shader_source(primitive_index: bool, early_depth_test: bool) -> String {
     let body = body
         .replace("EARLY_DEPTH_TEST_ATTRIBUTE", if early_depth_test { "@early_depth_test(greater_equal)" } else { "" });
     let enable = if primitive_index { "enable primitive_index;\n" } else { "" };
-    format!("{enable}{}{COMMON}{body}", raster_constants())
+    format!("{enable}{}{}{COMMON}{body}", declarations(), raster_constants())
 }
 
 /// Render targets of one image size.

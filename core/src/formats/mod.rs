@@ -5,9 +5,12 @@
 //! * documented field by field with byte offsets, so a WGSL `struct` can be
 //!   written from the comment alone (all fields are 4-byte scalars: WGSL `f32`/`u32`,
 //!   no `vec3` padding rules are involved);
-//! * a `validate()` that the stages call under `debug_assertions`.
+//! * a `validate()` that the stages call under `debug_assertions`;
+//! * fields listed once more for WGSL (`wgsl_struct!`, checked against the Rust layout):
+//!   the shaders' structs are generated from them ([`wgsl::declarations`]).
 
 mod records;
+pub mod wgsl;
 
 pub use records::*;
 

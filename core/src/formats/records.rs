@@ -1,6 +1,8 @@
 use bytemuck::{Pod, Zeroable};
 
+use super::wgsl::wgsl_struct;
 use super::INVALID_ID;
+use crate::plan::Composition;
 
 // ---------------------------------------------------------------------------------------------
 // G-buffer
@@ -37,6 +39,7 @@ pub struct GBufferTexel {
     pub flags: u32,
 }
 const _: () = assert!(std::mem::size_of::<GBufferTexel>() == 24);
+wgsl_struct!(GBufferTexel { bary_u, bary_v, depth, triangle, object, flags });
 
 impl GBufferTexel {
     /// The texel of a pixel no triangle covers.
@@ -131,6 +134,7 @@ pub struct RayRecord {
     pub pad: u32,
 }
 const _: () = assert!(std::mem::size_of::<RayRecord>() == 64);
+wgsl_struct!(RayRecord { origin, t_min, direction, t_max, pixel, kind, depth, light, throughput, pad });
 
 impl RayRecord {
     /// Check: finite origin and direction, non-zero direction, `0 <= t_min < t_max`,
@@ -159,6 +163,19 @@ impl RayRecord {
         Ok(())
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// Shadow mask
+// ---------------------------------------------------------------------------------------------
+
+/// Shadow mask code (`Frame::shadow`, one per pixel and light): no shadow ray was traced
+/// for this (pixel, light): the pixel has no primary hit, or the light is behind the
+/// surface (it cannot contribute).
+pub const SHADOW_NO_RAY: u8 = 0;
+/// Shadow mask code: a shadow ray was traced and reached the light.
+pub const SHADOW_LIT: u8 = 1;
+/// Shadow mask code: a shadow ray was traced and something blocked it.
+pub const SHADOW_OCCLUDED: u8 = 2;
 
 // ---------------------------------------------------------------------------------------------
 // Scene tables
@@ -197,6 +214,7 @@ pub struct TriangleRecord {
     pub flags: u32,
 }
 const _: () = assert!(std::mem::size_of::<TriangleRecord>() == 48);
+wgsl_struct!(TriangleRecord { v0, object, v1, triangle, v2, flags });
 
 impl TriangleRecord {
     /// Vertices as glam vectors.
@@ -251,6 +269,18 @@ pub struct ObjectRecord {
     pub pad: u32,
 }
 const _: () = assert!(std::mem::size_of::<ObjectRecord>() == 48);
+wgsl_struct!(ObjectRecord {
+    first_triangle,
+    triangle_count,
+    flags,
+    material_kind,
+    base_color,
+    metallic,
+    roughness,
+    transmission,
+    ior,
+    pad
+});
 
 impl ObjectRecord {
     /// Check: known flags and kind, finite non-negative colour, factors in [0, 1], ior >= 1.
@@ -296,6 +326,7 @@ pub struct LightRecord {
     pub pad: u32,
 }
 const _: () = assert!(std::mem::size_of::<LightRecord>() == 32);
+wgsl_struct!(LightRecord { position_or_direction, kind, radiance, pad });
 
 impl LightRecord {
     /// Build the record of a scene light (directions are normalized here).
@@ -366,6 +397,7 @@ pub struct CameraRecord {
     pub pad: u32,
 }
 const _: () = assert!(std::mem::size_of::<CameraRecord>() == 160);
+wgsl_struct!(CameraRecord { view_proj, inv_view_proj, eye, width, height, near, far, pad });
 
 impl CameraRecord {
     /// Build the record for a camera and an image size.
@@ -459,6 +491,7 @@ pub struct SurfaceRecord {
     pub triangle: u32,
 }
 const _: () = assert!(std::mem::size_of::<SurfaceRecord>() == 48);
+wgsl_struct!(SurfaceRecord { position, position_error, normal, object, geometric_normal, triangle });
 
 impl SurfaceRecord {
     /// The record of a pixel without a primary hit.
@@ -500,6 +533,69 @@ impl SurfaceRecord {
         let g = glam::Vec3::from(self.geometric_normal).length();
         if (n - 1.0).abs() > UNIT_TOLERANCE || !((g - 1.0).abs() <= UNIT_TOLERANCE || g == 0.0) {
             return Err(format!("surface hit with non-unit normals: {self:?}"));
+        }
+        Ok(())
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Frame parameters
+// ---------------------------------------------------------------------------------------------
+
+/// Per-frame parameters of the GPU stages, one uniform buffer.
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `width` | u32 | image width |
+/// | 4 | `height` | u32 | image height |
+/// | 8 | `light_count` | u32 | lights in the light list |
+/// | 12 | `weight` | f32 | composition weight in [0, 1] |
+/// | 16 | `zero` | u32 | always 0: shaders OR it into the bits of products, which the compiler cannot see through, so it cannot fuse them into multiply-adds (the CPU kernels round every product) |
+/// | 20 | `composition` | u32 | how `composition` composes: [`Composition::code`] of the frame's plan |
+/// | 24 | `pad` | [u32; 2] | zero (uniform structs are 16-byte multiples) |
+///
+/// 32 bytes. Build with [`FrameParams::new`].
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct FrameParams {
+    pub width: u32,
+    pub height: u32,
+    pub light_count: u32,
+    pub weight: f32,
+    pub zero: u32,
+    pub composition: u32,
+    pub pad: [u32; 2],
+}
+const _: () = assert!(std::mem::size_of::<FrameParams>() == 32);
+wgsl_struct!(FrameParams { width, height, light_count, weight, zero, composition, pad });
+
+impl FrameParams {
+    /// The parameters of a `width` x `height` frame with `light_count` lights,
+    /// composed by the weighted mean.
+    pub fn new(width: u32, height: u32, light_count: u32, weight: f32) -> Self {
+        let composition = Composition::WeightedMean.code();
+        FrameParams { width, height, light_count, weight, zero: 0, composition, pad: [0; 2] }
+    }
+
+    /// The same parameters, composed as `composition` says.
+    pub fn with_composition(self, composition: Composition) -> Self {
+        FrameParams { composition: composition.code(), ..self }
+    }
+
+    /// Check: a non-empty image, a weight in [0, 1], a known composition code, `zero`
+    /// and padding zero.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.composition > Composition::RtOverBackground.code() {
+            return Err(format!("unknown composition code {}", self.composition));
+        }
+        if self.zero != 0 || self.pad != [0; 2] {
+            return Err(format!("frame parameters with non-zero zero/padding: {self:?}"));
+        }
+        if self.width == 0 || self.height == 0 {
+            return Err(format!("empty image {}x{}", self.width, self.height));
+        }
+        if !(0.0..=1.0).contains(&self.weight) {
+            return Err(format!("weight {} outside [0, 1]", self.weight));
         }
         Ok(())
     }

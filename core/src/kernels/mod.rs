@@ -6,5 +6,7 @@ pub mod barycentric;
 pub mod camera;
 pub mod raster;
 pub mod ray;
+pub mod reconstruction;
 pub mod scan;
 pub mod shading;
+pub mod shadow;

@@ -2,12 +2,15 @@
 //! ray-traced shadows, paper 3.3) and the ordinary raster shader (Lambert with
 //! ambient, paper 3.4), light evaluation and colour encoding.
 //!
-//! WGSL mirrors: `orient_to_seen_side`, `light_incidence`, `shade_ray_traced`, `shade_raster`,
-//! `linear_to_srgb8` in the GPU backend's shading shaders.
+//! WGSL mirrors: `orient_to_seen_side` in `reconstruction.wgsl`; `light_incidence` and
+//! `light_can_contribute` in `shading_helpers.wgsl` (shared by the shading stages and
+//! `compaction`); `shade_ray_traced`, `shade_raster`, `ambient`, `compose` and the
+//! portable `pow` in `shading.wgsl`; `shade_rt_pixel` and `shade_raster_pixel` in
+//! `rt_shading.wgsl` and `raster_shading.wgsl`.
 
 use glam::Vec3;
 
-use crate::formats::{LightRecord, ObjectRecord, LIGHT_DIRECTIONAL};
+use crate::formats::{LightRecord, ObjectRecord, SurfaceRecord, LIGHT_DIRECTIONAL, SHADOW_LIT};
 
 /// Constant ambient term, as a fraction of the base colour, so that fully
 /// shadowed surfaces stay readable (a stand-in for indirect light).
@@ -194,12 +197,32 @@ pub fn sum_visible_lights(
 ) -> Vec3 {
     let mut c = Vec3::ZERO;
     for (light, &s) in lights.iter().zip(shadow) {
-        if s == crate::frame::SHADOW_LIT {
+        if s == SHADOW_LIT {
             let (l, e) = light_incidence(light, p);
             c += shade(l, e);
         }
     }
     c
+}
+
+/// The ray-traced shader at one pixel: [`ambient`] plus [`shade_ray_traced`] from every
+/// light its shadow ray reached (`shadow`: the pixel's `SHADOW_*` codes, one per light),
+/// seen from `eye`.
+#[inline]
+pub fn shade_rt_pixel(s: &SurfaceRecord, obj: &ObjectRecord, shadow: &[u8], lights: &[LightRecord], eye: Vec3) -> Vec3 {
+    let p = Vec3::from(s.position);
+    let n = Vec3::from(s.normal);
+    let v = (eye - p).normalize_or_zero();
+    ambient(obj) + sum_visible_lights(shadow, lights, p, |l, e| shade_ray_traced(obj, n, v, l, e))
+}
+
+/// The raster shader at one pixel: [`ambient`] plus [`shade_raster`] from every light
+/// its shadow ray reached (`shadow`: the pixel's `SHADOW_*` codes, one per light).
+#[inline]
+pub fn shade_raster_pixel(s: &SurfaceRecord, obj: &ObjectRecord, shadow: &[u8], lights: &[LightRecord]) -> Vec3 {
+    let p = Vec3::from(s.position);
+    let n = Vec3::from(s.normal);
+    ambient(obj) + sum_visible_lights(shadow, lights, p, |l, e| shade_raster(obj, n, l, e))
 }
 
 /// Ambient term of any object: diffuse albedo times [`AMBIENT`] plus the

@@ -1,10 +1,13 @@
-// Stage `compaction` (mirrors hyrt_cpu::compaction): flag every (light, pixel)
+// Stage `compaction` (per pair the kernels of hyrt_core::kernels::shadow, the scan
+// equal to hyrt_core::kernels::scan::compact_sequential): flag every (light, pixel)
 // pair whose light can contribute at the pixel's surface (k = light * pixels +
 // pixel), then a deterministic reduce-then-scan over the flags and a scatter of
 // one shadow ray per active pair, light-major then pixel order.
 //
-// Prepended at pipeline creation: the generated constants (WG, ITEMS, TILE,
-// SHADOW_WG, ...) and ray.wgsl.
+// Prepended at pipeline creation: the generated records and format constants
+// (hyrt_core::formats::wgsl), the stage's constants (WG, ITEMS, TILE, SHADOW_WG, ...),
+// ray.wgsl and shading_helpers.wgsl (`light_incidence`, `light_can_contribute`, the
+// exact arithmetic that reads `params.zero`).
 //
 // Passes (one compute pass, one dispatch each, in order):
 //   flags_reduce  level 0: flags[k] = needs_shadow_ray, per-tile counts -> level 1
@@ -28,60 +31,15 @@ struct Level {
     src_is_flags: u32,
 }
 
-struct FrameParams {
-    width: u32,
-    height: u32,
-    light_count: u32,
-    weight: f32,
-    // Always 0 (see `rounded`).
-    zero: u32,
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
-}
-
-// mirrors hyrt_core::formats::SurfaceRecord
-struct SurfaceRecord {
-    position: vec3<f32>,
-    position_error: f32,
-    normal: vec3<f32>,
-    object: u32,
-    geometric_normal: vec3<f32>,
-    triangle: u32,
-}
-
-// mirrors hyrt_core::formats::LightRecord
-struct LightRecord {
-    position_or_direction: vec3<f32>,
-    kind: u32,
-    radiance: vec3<f32>,
-    pad: u32,
-}
-
-// mirrors hyrt_core::formats::RayRecord, with t_max as its bits (the directional
-// t_max is +inf, which no WGSL constant may hold).
-struct RayRecordOut {
-    origin: vec3<f32>,
-    t_min: f32,
-    direction: vec3<f32>,
-    t_max_bits: u32,
-    pixel: u32,
-    kind: u32,
-    depth: u32,
-    light: u32,
-    throughput: vec3<f32>,
-    pad: u32,
-}
-
 @group(0) @binding(0) var<uniform> level: Level;
 @group(0) @binding(1) var<storage, read_write> flags: array<u32>;
 @group(0) @binding(2) var<storage, read_write> levels: array<u32>;
 @group(0) @binding(3) var<storage, read_write> ray_count: array<u32, 4>;
 
-@group(1) @binding(0) var<uniform> frame: FrameParams;
+@group(1) @binding(0) var<uniform> params: FrameParams;
 @group(1) @binding(1) var<storage, read> surfaces: array<SurfaceRecord>;
 @group(1) @binding(2) var<storage, read> lights: array<LightRecord>;
-@group(1) @binding(3) var<storage, read_write> rays: array<RayRecordOut>;
+@group(1) @binding(3) var<storage, read_write> rays: array<RayRecord>;
 // Test entry point `scatter_indices` only: the compacted indices.
 @group(1) @binding(4) var<storage, read_write> out_indices: array<u32>;
 
@@ -119,60 +77,29 @@ fn tiles_of(n: u32) -> u32 {
     return (n + TILE - 1u) / TILE;
 }
 
-// mirrors hyrt_core::kernels::shading::light_incidence; returns (L, max_element(E)).
-fn light_incidence(light: LightRecord, p: vec3<f32>) -> vec4<f32> {
-    let radiance = light.radiance;
-    let pd = light.position_or_direction;
-    var l: vec3<f32>;
-    var e: vec3<f32>;
-    if light.kind == LIGHT_DIRECTIONAL {
-        l = -pd;
-        e = radiance;
-    } else {
-        let d = pd - p;
-        // glam's length_squared: (x * x + y * y) + z * z
-        let d2 = max((d.x * d.x + d.y * d.y) + d.z * d.z, MIN_LIGHT_DISTANCE_SQ);
-        l = d / sqrt(d2);
-        e = radiance / d2;
-    }
-    // glam's max_element: max(x, max(y, z)) with `if a > b { a } else { b }`
-    let m_yz = select(e.z, e.y, e.y > e.z);
-    let m = select(m_yz, e.x, e.x > m_yz);
-    return vec4<f32>(l, m);
-}
-
-fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
-    // glam's dot: (x * x') + (y * y') + (z * z'), left to right
-    return (a.x * b.x + a.y * b.y) + a.z * b.z;
-}
-
-// mirrors hyrt_core::kernels::shading::light_can_contribute
-fn light_can_contribute(n_geo: vec3<f32>, n_shade: vec3<f32>, l: vec3<f32>, e_max: f32) -> bool {
-    return dot3(n_geo, l) > 0.0 && dot3(n_shade, l) > 0.0 && e_max > 0.0;
-}
-
-// mirrors hyrt_cpu::compaction::needs_shadow_ray
+// mirrors hyrt_core::kernels::shadow::needs_shadow_ray
 fn needs_shadow_ray(s: SurfaceRecord, light: LightRecord) -> bool {
     if s.object == INVALID_ID {
         return false;
     }
-    let le = light_incidence(light, s.position);
-    return light_can_contribute(s.geometric_normal, s.normal, le.xyz, le.w);
+    let inc = light_incidence(light, s.position);
+    return light_can_contribute(s.geometric_normal, s.normal, inc.l, inc.e);
 }
 
-// mirrors hyrt_cpu::compaction::shadow_ray
-fn shadow_ray(s: SurfaceRecord, light: LightRecord, light_index: u32, pixel: u32) -> RayRecordOut {
-    let origin = offset_ray_origin(s.position, s.position_error, s.geometric_normal, frame.zero);
+// mirrors hyrt_core::kernels::shadow::shadow_ray. +inf (directional lights) comes from
+// its bits at run time: no WGSL constant may hold it.
+fn shadow_ray(s: SurfaceRecord, light: LightRecord, light_index: u32, pixel: u32) -> RayRecord {
+    let origin = offset_ray_origin(s.position, s.position_error, s.geometric_normal, params.zero);
     var direction: vec3<f32>;
-    var t_max_bits: u32;
+    var t_max: f32;
     if light.kind == LIGHT_DIRECTIONAL {
         direction = -light.position_or_direction;
-        t_max_bits = F32_EXP_MASK; // +inf
+        t_max = bitcast<f32>(F32_EXP_MASK | params.zero); // +inf
     } else {
         direction = light.position_or_direction - origin;
-        t_max_bits = SHADOW_T_MAX_POINT_BITS;
+        t_max = bitcast<f32>(SHADOW_T_MAX_POINT_BITS);
     }
-    return RayRecordOut(origin, 0.0, direction, t_max_bits, pixel, RAY_KIND_SHADOW, 0u, light_index,
+    return RayRecord(origin, 0.0, direction, t_max, pixel, RAY_KIND_SHADOW, 0u, light_index,
         vec3<f32>(1.0, 1.0, 1.0), 0u);
 }
 
@@ -187,7 +114,7 @@ fn pair_flag(k: u32, pixels: u32) -> u32 {
 fn flags_reduce(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wid: vec3<u32>,
                 @builtin(num_workgroups) nwg: vec3<u32>) {
     let t = tile_index(wid, nwg);
-    let pixels = frame.width * frame.height;
+    let pixels = params.width * params.height;
     let base = t * TILE + lid * ITEMS;
     var sum = 0u;
     for (var j = 0u; j < ITEMS; j = j + 1u) {
@@ -301,7 +228,7 @@ fn scatter_rays(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id
                 @builtin(num_workgroups) nwg: vec3<u32>) {
     let t = tile_index(wid, nwg);
     var dst = scatter_base(lid, t);
-    let pixels = frame.width * frame.height;
+    let pixels = params.width * params.height;
     let base = t * TILE + lid * ITEMS;
     for (var j = 0u; j < ITEMS; j = j + 1u) {
         let k = base + j;

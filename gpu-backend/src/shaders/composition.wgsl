@@ -1,10 +1,11 @@
-// Stage `composition` (mirrors hyrt_cpu::composition): where the ray-traced image
+// Stage `composition` (per pixel hyrt_core::kernels::shading::compose): where the ray-traced image
 // has coverage (alpha > 0) the weighted mean `compose(raster, rt, weight)` with
 // alpha 1, elsewhere the raster texel unchanged. One invocation per pixel.
 // A plan that made one image only copies it (`params.composition`, the codes of
 // hyrt_core::plan::Composition): 1 the raster image; 2 the ray-traced image where it
 // has coverage, the background elsewhere. The image not made is not read.
-// Appended to shading.wgsl (structs, constants, kernels).
+// Appended to the generated records,
+// shading_helpers.wgsl and shading.wgsl.
 
 @group(0) @binding(0) var<storage, read> raster: array<vec4<f32>>;
 @group(0) @binding(1) var<storage, read> rt: array<vec4<f32>>;

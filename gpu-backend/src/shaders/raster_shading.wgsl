@@ -1,8 +1,9 @@
-// Stage `raster_shading` (mirrors hyrt_cpu::raster_shading): Lambert from every
+// Stage `raster_shading` (hyrt_core::kernels::shading::shade_raster_pixel per pixel): Lambert from every
 // visible light plus ambient on the pixels of rasterized objects, and on those of
 // ray-traced objects only when the composition weight is below 1 (else
 // (0, 0, 0, 0) there); BACKGROUND with alpha 1 where nothing was hit. One
-// invocation per pixel. Appended to shading.wgsl (structs, constants, kernels).
+// invocation per pixel. Appended to the generated records,
+// shading_helpers.wgsl and shading.wgsl.
 
 @group(0) @binding(0) var<storage, read> surfaces: array<SurfaceRecord>;
 @group(0) @binding(1) var<storage, read> shadow: array<u32>;
@@ -12,7 +13,7 @@
 @group(0) @binding(5) var<storage, read_write> raster: array<vec4<f32>>;
 
 // mirrors hyrt_core::kernels::shading::sum_visible_lights with the
-// shade_raster closure of hyrt_cpu::raster_shading::shade_raster_pixel.
+// shade_raster closure of hyrt_core::kernels::shading::shade_raster_pixel.
 fn sum_visible_lights_raster(pixel: u32, p: vec3<f32>, obj: ObjectRecord, n: vec3<f32>) -> vec3<f32> {
     var c = vec3<f32>(0.0);
     let nl = params.light_count;
@@ -25,7 +26,7 @@ fn sum_visible_lights_raster(pixel: u32, p: vec3<f32>, obj: ObjectRecord, n: vec
     return c;
 }
 
-// mirrors hyrt_cpu::raster_shading::shade_raster_pixel
+// mirrors hyrt_core::kernels::shading::shade_raster_pixel
 fn shade_raster_pixel(pixel: u32, s: SurfaceRecord, obj: ObjectRecord) -> vec3<f32> {
     let p = s.position;
     let n = s.normal;

@@ -1,69 +1,15 @@
 // reconstruction (paper eq. 1): rebuild the surface at every G-buffer texel.
-// Rust side: gpu-backend/src/reconstruction.rs; CPU reference:
-// hyrt_cpu::reconstruction::reconstruct_texel. Every product and sum is written in
+// Rust side: gpu-backend/src/reconstruction.rs; the kernel:
+// hyrt_core::kernels::reconstruction::reconstruct_texel. Every product and sum is written in
 // the Rust kernels' order, and every product that feeds a sum goes through `mul`, which
 // ORs the always-zero `camera.pad` into its bits so the compiler cannot fuse it into a
 // multiply-add: the results are the CPU's bits.
 //
-// GAMMA_2, GAMMA_3 and ONE_PLUS_GAMMA_3 are prepended by the Rust side with the
-// exact f32 values of hyrt_core::kernels::barycentric::gamma, and GBUF_HIT and
-// GBUF_BACK_FACE with those of hyrt_core::formats.
+// The records and format constants (GBUF_HIT, GBUF_BACK_FACE, INVALID_ID) are
+// prepended by the Rust side (hyrt_core::formats::wgsl::declarations), then GAMMA_2,
+// GAMMA_3 and ONE_PLUS_GAMMA_3 with the exact f32 values of
+// hyrt_core::kernels::barycentric::gamma.
 
-struct TriangleRecord {
-    v0: vec3<f32>,
-    object: u32,
-    v1: vec3<f32>,
-    triangle: u32,
-    v2: vec3<f32>,
-    flags: u32,
-}
-
-// hyrt_core::formats::ObjectRecord, scalar fields (48 bytes).
-struct ObjectRecord {
-    first_triangle: u32,
-    triangle_count: u32,
-    flags: u32,
-    material_kind: u32,
-    base_color_r: f32,
-    base_color_g: f32,
-    base_color_b: f32,
-    metallic: f32,
-    roughness: f32,
-    transmission: f32,
-    ior: f32,
-    pad: u32,
-}
-
-struct CameraRecord {
-    view_proj: mat4x4<f32>,
-    inv_view_proj: mat4x4<f32>,
-    eye: vec3<f32>,
-    width: u32,
-    height: u32,
-    near: f32,
-    far: f32,
-    pad: u32,
-}
-
-struct GBufferTexel {
-    bary_u: f32,
-    bary_v: f32,
-    depth: f32,
-    triangle: u32,
-    object: u32,
-    flags: u32,
-}
-
-struct SurfaceRecord {
-    position: vec3<f32>,
-    position_error: f32,
-    normal: vec3<f32>,
-    object: u32,
-    geometric_normal: vec3<f32>,
-    triangle: u32,
-}
-
-const INVALID_ID: u32 = 0xffffffffu;
 const F32_EXPONENT_MASK: u32 = 0x7f800000u;
 
 @group(0) @binding(0) var<storage, read> triangles: array<TriangleRecord>;
@@ -180,7 +126,7 @@ fn any_nonzero(a: vec3<f32>) -> bool {
     return a.x != 0.0 || a.y != 0.0 || a.z != 0.0;
 }
 
-// mirrors hyrt_cpu::reconstruction::reconstruct_texel
+// mirrors hyrt_core::kernels::reconstruction::reconstruct_texel
 fn reconstruct_texel(t: GBufferTexel) -> SurfaceRecord {
     if (t.flags & GBUF_HIT) == 0u {
         return SurfaceRecord(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), INVALID_ID, vec3<f32>(0.0), INVALID_ID);

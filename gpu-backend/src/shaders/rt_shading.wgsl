@@ -1,7 +1,8 @@
-// Stage `rt_shading` (mirrors hyrt_cpu::rt_shading): the pixels of ray-traced
+// Stage `rt_shading` (hyrt_core::kernels::shading::shade_rt_pixel per pixel): the pixels of ray-traced
 // objects, Lambert + Blinn-Phong from every visible light plus ambient; alpha 1
 // there, (0, 0, 0, 0) on every other pixel. One invocation per pixel.
-// Appended to shading.wgsl (structs, constants, kernels).
+// Appended to the generated records,
+// shading_helpers.wgsl and shading.wgsl.
 
 @group(0) @binding(0) var<storage, read> surfaces: array<SurfaceRecord>;
 @group(0) @binding(1) var<storage, read> shadow: array<u32>;
@@ -12,7 +13,7 @@
 @group(0) @binding(6) var<storage, read_write> rt: array<vec4<f32>>;
 
 // mirrors hyrt_core::kernels::shading::sum_visible_lights with the
-// shade_ray_traced closure of hyrt_cpu::rt_shading::shade_rt_pixel.
+// shade_ray_traced closure of hyrt_core::kernels::shading::shade_rt_pixel.
 fn sum_visible_lights_rt(pixel: u32, p: vec3<f32>, obj: ObjectRecord, n: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
     var c = vec3<f32>(0.0);
     let nl = params.light_count;
@@ -25,7 +26,7 @@ fn sum_visible_lights_rt(pixel: u32, p: vec3<f32>, obj: ObjectRecord, n: vec3<f3
     return c;
 }
 
-// mirrors hyrt_cpu::rt_shading::shade_rt_pixel
+// mirrors hyrt_core::kernels::shading::shade_rt_pixel
 fn shade_rt_pixel(pixel: u32, s: SurfaceRecord, obj: ObjectRecord, eye: vec3<f32>) -> vec3<f32> {
     let p = s.position;
     let n = s.normal;

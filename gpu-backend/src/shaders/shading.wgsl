@@ -1,92 +1,9 @@
-// Shading kernels shared by `rt_shading`, `raster_shading` and `composition`:
-// WGSL mirrors of `hyrt_core::kernels::shading`, same names, same operation order.
+// Shading kernels of `rt_shading`, `raster_shading` and `composition`: WGSL mirrors of
+// `hyrt_core::kernels::shading`, same names, same operation order.
 //
-// Prepended at pipeline creation by `hyrt_gpu::rt_shading::shading_source`, after a
-// generated prelude that defines the constants from their Rust values, bit for bit:
-//   AMBIENT, ENVIRONMENT_SPECULAR, BACKGROUND, DIELECTRIC_F0, MIN_LIGHT_DISTANCE_SQ,
-//   FRAC_1_PI, PI (std::f32::consts), LIGHT_DIRECTIONAL, OBJ_RAY_TRACED, INVALID_ID,
-//   SHADOW_LIT, F32_MAX.
-// Vectors are combined component by component exactly as glam's scalar Vec3 does;
-// dot products are written out (x, then y, then z) as glam's `Vec3::dot`.
-// Every product that feeds a sum goes through `mul`, which ORs the always-zero
-// `params.zero` into its bits: the compiler cannot see through it, so it cannot fuse the
-// product into a multiply-add (lavapipe does fuse plain vector expressions), and the
-// results are the CPU's bits. Every stage that includes this file binds `params`.
-
-// hyrt_core::formats::SurfaceRecord (48 bytes).
-struct SurfaceRecord {
-    position: vec3<f32>,
-    position_error: f32,
-    normal: vec3<f32>,
-    object: u32,
-    geometric_normal: vec3<f32>,
-    triangle: u32,
-}
-
-// hyrt_core::formats::ObjectRecord (48 bytes).
-struct ObjectRecord {
-    first_triangle: u32,
-    triangle_count: u32,
-    flags: u32,
-    material_kind: u32,
-    base_color: vec3<f32>,
-    metallic: f32,
-    roughness: f32,
-    transmission: f32,
-    ior: f32,
-    pad: u32,
-}
-
-// hyrt_core::formats::LightRecord (32 bytes).
-struct LightRecord {
-    position_or_direction: vec3<f32>,
-    kind: u32,
-    radiance: vec3<f32>,
-    pad: u32,
-}
-
-// hyrt_core::formats::CameraRecord (160 bytes).
-struct CameraRecord {
-    view_proj: mat4x4<f32>,
-    inv_view_proj: mat4x4<f32>,
-    eye: vec3<f32>,
-    width: u32,
-    height: u32,
-    near: f32,
-    far: f32,
-    pad: u32,
-}
-
-// hyrt_gpu::buffers::FrameParams (16 bytes).
-struct FrameParams {
-    width: u32,
-    height: u32,
-    light_count: u32,
-    weight: f32,
-    // Always 0 (see `rounded`).
-    zero: u32,
-    // How `composition` composes: hyrt_core::plan::Composition::code.
-    composition: u32,
-    pad1: u32,
-    pad2: u32,
-}
-
-fn rounded(x: f32) -> f32 {
-    return bitcast<f32>(bitcast<u32>(x) | params.zero);
-}
-
-fn mul(a: f32, b: f32) -> f32 {
-    return rounded(a * b);
-}
-
-fn mul3(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
-    return vec3<f32>(mul(a.x, b.x), mul(a.y, b.y), mul(a.z, b.z));
-}
-
-// mirrors glam::Vec3::dot: (x * x') + (y * y') + (z * z').
-fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
-    return rounded(mul(a.x, b.x) + mul(a.y, b.y)) + mul(a.z, b.z);
-}
+// Prepended at pipeline creation by `hyrt_gpu::rt_shading::shading_source`, after the
+// generated declarations and `shading_helpers.wgsl` (exact arithmetic, light evaluation:
+// see there for the rules every product follows).
 
 // mirrors hyrt_core::kernels::shading::log2_portable
 fn log2_portable(x: f32) -> f32 {
@@ -132,39 +49,6 @@ fn pow_portable(x: f32, y: f32) -> f32 {
         return 0.0;
     }
     return exp2_portable(mul(y, log2_portable(min(x, 1.0))));
-}
-
-// mirrors glam::Vec3::normalize_or_zero: v * (1 / sqrt(v.v)) when that reciprocal
-// is finite and positive, else zero.
-fn normalize_or_zero(v: vec3<f32>) -> vec3<f32> {
-    let rcp = 1.0 / sqrt(dot3(v, v));
-    if (rcp > 0.0 && rcp <= F32_MAX) {
-        return v * rcp;
-    }
-    return vec3<f32>(0.0);
-}
-
-// mirrors glam::Vec3::lerp: a * (1 - s) + b * s.
-fn lerp3(a: vec3<f32>, b: vec3<f32>, s: f32) -> vec3<f32> {
-    return mul3(a, vec3<f32>(1.0 - s)) + mul3(b, vec3<f32>(s));
-}
-
-// Result of `light_incidence`: the unit direction towards the light and the irradiance scale.
-struct Incidence {
-    l: vec3<f32>,
-    e: vec3<f32>,
-}
-
-// mirrors hyrt_core::kernels::shading::light_incidence
-fn light_incidence(light: LightRecord, p: vec3<f32>) -> Incidence {
-    let radiance = light.radiance;
-    let pd = light.position_or_direction;
-    if (light.kind == LIGHT_DIRECTIONAL) {
-        return Incidence(-pd, radiance);
-    }
-    let d = pd - p;
-    let d2 = max(dot3(d, d), MIN_LIGHT_DISTANCE_SQ);
-    return Incidence(d / sqrt(d2), radiance / d2);
 }
 
 // mirrors hyrt_core::kernels::shading::blinn_phong_exponent

@@ -1,54 +1,11 @@
-// Stage `shadow_rays` (mirrors hyrt_cpu::shadow_rays, i.e.
-// hyrt_core::bvh::Bvh::occluded): one thread per ray of the compacted list, any
+// Stage `shadow_rays` (mirrors hyrt_core::bvh::Bvh::occluded, the CPU's reference
+// traversal): one thread per ray of the compacted list, any
 // hit with early exit. Indirect dispatch from `ray_count`; threads past the count
 // exit. Writes `occluded[ray]` (1/0) and `shadow[pixel * light_count + light]`
 // (SHADOW_LIT or SHADOW_OCCLUDED; the caller cleared it to SHADOW_NO_RAY).
 //
-// Prepended at pipeline creation: the generated constants and ray.wgsl.
-
-struct FrameParams {
-    width: u32,
-    height: u32,
-    light_count: u32,
-    weight: f32,
-    // Always 0 (see `rounded`).
-    zero: u32,
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
-}
-
-// mirrors hyrt_core::formats::RayRecord
-struct RayRecord {
-    origin: vec3<f32>,
-    t_min: f32,
-    direction: vec3<f32>,
-    t_max: f32,
-    pixel: u32,
-    kind: u32,
-    depth: u32,
-    light: u32,
-    throughput: vec3<f32>,
-    pad: u32,
-}
-
-// mirrors hyrt_core::bvh::BvhNode
-struct BvhNode {
-    aabb_min: vec3<f32>,
-    left_or_first: u32,
-    aabb_max: vec3<f32>,
-    count: u32,
-}
-
-// mirrors hyrt_core::formats::TriangleRecord
-struct TriangleRecord {
-    v0: vec3<f32>,
-    object: u32,
-    v1: vec3<f32>,
-    triangle: u32,
-    v2: vec3<f32>,
-    flags: u32,
-}
+// Prepended at pipeline creation: the generated records and format constants
+// (hyrt_core::formats::wgsl), the ray constants and ray.wgsl.
 
 @group(0) @binding(0) var<uniform> frame: FrameParams;
 @group(0) @binding(1) var<storage, read> rays: array<RayRecord>;
@@ -142,6 +99,11 @@ fn occluded_any(ray: RayRecord) -> bool {
     return false;
 }
 
+// mirrors hyrt_core::kernels::shadow::shadow_code
+fn shadow_code(occluded: bool) -> u32 {
+    return select(SHADOW_LIT, SHADOW_OCCLUDED, occluded);
+}
+
 @compute @workgroup_size(SHADOW_WG)
 fn shadow_rays(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wid: vec3<u32>,
                @builtin(num_workgroups) nwg: vec3<u32>) {
@@ -154,5 +116,5 @@ fn shadow_rays(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id)
     let ray = rays[i];
     let o = occluded_any(ray);
     occluded[i] = select(0u, 1u, o);
-    shadow[ray.pixel * frame.light_count + ray.light] = select(SHADOW_LIT, SHADOW_OCCLUDED, o);
+    shadow[ray.pixel * frame.light_count + ray.light] = shadow_code(o);
 }

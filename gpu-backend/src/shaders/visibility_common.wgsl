@@ -1,43 +1,9 @@
 // visibility_raster, shared by both modes (gpu-backend/src/visibility_raster.rs puts it
-// in front of visibility_raster.wgsl or visibility_raster_interpolated.wgsl): the records,
-// the bindings of the scene and the camera, and the compute resolve of the render targets
-// into `array<GBufferTexel>`.
+// in front of visibility_raster.wgsl or visibility_raster_interpolated.wgsl, after the
+// generated records and format constants of hyrt_core::formats::wgsl): the bindings of
+// the scene and the camera, and the compute resolve of the render targets into
+// `array<GBufferTexel>`.
 
-struct TriangleRecord {
-    v0: vec3<f32>,
-    object: u32,
-    v1: vec3<f32>,
-    triangle: u32,
-    v2: vec3<f32>,
-    flags: u32,
-}
-
-struct CameraRecord {
-    view_proj: mat4x4<f32>,
-    inv_view_proj: mat4x4<f32>,
-    eye: vec3<f32>,
-    width: u32,
-    height: u32,
-    near: f32,
-    far: f32,
-    pad: u32,
-}
-
-struct GBufferTexel {
-    bary_u: f32,
-    bary_v: f32,
-    depth: f32,
-    triangle: u32,
-    object: u32,
-    flags: u32,
-}
-
-// hyrt_core::formats constants.
-const GBUF_HIT: u32 = 1u;
-const GBUF_RAY_TRACED: u32 = 2u;
-const GBUF_BACK_FACE: u32 = 4u;
-const TRI_RAY_TRACED: u32 = 1u;
-const INVALID_ID: u32 = 0xffffffffu;
 const F32_EXPONENT_MASK: u32 = 0x7f800000u;
 // A clip position outside the view volume (x > w): a triangle with a non-finite
 // vertex gets it at all three corners and is clipped away entirely.
