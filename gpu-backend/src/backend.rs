@@ -122,17 +122,20 @@ impl GpuBackend {
         options: &FrameOptions,
         out: &mut Frame,
     ) -> Result<(), GpuError> {
-        let count = self.run_with_room(scene, plan, camera, options)?;
-        self.read_back(plan, camera, count, out)
+        // The ray count comes back with the frame's one readback: no extra round trip.
+        self.run_with_room(scene, plan, camera, options, |b: &Self| b.read_back(plan, camera, out)).map(drop)
     }
 
-    /// Run the plan over frame buffers with room for its rays; the ray count.
+    /// Run the plan over frame buffers with room for its rays, and `finish` (the
+    /// frame's readback, which returns the ray count `compaction` found) after each
+    /// run; the ray count.
     fn run_with_room(
         &mut self,
         scene: &PreparedScene,
         plan: &FramePlan,
         camera: &CameraRecord,
         options: &FrameOptions,
+        mut finish: impl FnMut(&Self) -> Result<usize, GpuError>,
     ) -> Result<usize, GpuError> {
         {
             let ctx = &self.ctx;
@@ -156,7 +159,8 @@ impl GpuBackend {
                 let (ctx, w, h) = (&self.ctx, camera.width, camera.height);
                 self.frame = Some(ctx.checked(|| FrameBuffers::for_plan(ctx, w, h, lights, plan, want))??);
             }
-            let count = self.run_plan(plan, camera, options)?;
+            self.run_plan(plan, camera, options)?;
+            let count = finish(self)?;
             let room = self.frame.as_ref().expect("frame buffers").ray_capacity as usize;
             if count <= room {
                 return Ok(count);
@@ -182,7 +186,8 @@ impl GpuBackend {
         camera.validate().map_err(RenderError::InvalidCamera)?;
         crate::present::check_target(target, camera.width, camera.height).map_err(RenderError::InvalidOptions)?;
         let gpu = |e: GpuError| RenderError::Backend(Box::new(e));
-        let count = self.run_with_room(scene, &plan, camera, options).map_err(gpu)?;
+        let count =
+            self.run_with_room(scene, &plan, camera, options, |b: &Self| b.read_ray_count(&plan)).map_err(gpu)?;
         let ctx = &self.ctx;
         let fb = self.frame.as_ref().expect("frame buffers");
         ctx.checked(|| {
@@ -212,9 +217,9 @@ impl GpuBackend {
             .collect()
     }
 
-    /// Encode and submit the plan's steps over the current frame buffers; the ray
-    /// count `compaction` found (0 without it). Stage times are kept for `read_back`.
-    fn run_plan(&mut self, plan: &FramePlan, camera: &CameraRecord, options: &FrameOptions) -> Result<usize, GpuError> {
+    /// Encode and submit the plan's steps over the current frame buffers. Stage times
+    /// are kept for the statistics.
+    fn run_plan(&mut self, plan: &FramePlan, camera: &CameraRecord, options: &FrameOptions) -> Result<(), GpuError> {
         let ctx = &self.ctx;
         let (sb, fb) = (&self.scene.as_ref().expect("scene buffers").1, self.frame.as_ref().expect("frame buffers"));
         let params = FrameParams::new(camera.width, camera.height, fb.light_count, options.weight)
@@ -267,29 +272,36 @@ impl GpuBackend {
             Ok(())
         })??;
         self.stage_ms = if timed_by_gpu { self.timer.read_ms(ctx)?.unwrap_or_default() } else { wall_ms };
+        Ok(())
+    }
+
+    /// The ray count `compaction` found in the last run (0 without it), read back alone.
+    fn read_ray_count(&self, plan: &FramePlan) -> Result<usize, GpuError> {
         if !plan.produces(FrameBuffer::Rays) {
             return Ok(0);
         }
+        let fb = self.frame.as_ref().expect("frame buffers");
         let mut count = 0;
-        read_back_each(ctx, &[(&fb.ray_count, 4)], |_, b| count = bytemuck::pod_read_unaligned::<u32>(b) as usize)?;
+        read_back_each(&self.ctx, &[(&fb.ray_count, 4)], |_, b| {
+            count = bytemuck::pod_read_unaligned::<u32>(b) as usize
+        })?;
         Ok(count)
     }
 
     /// Read the buffers the frame holds back into `out` (reusing its vectors) and
-    /// fill in its statistics. One readback for what every frame returns, a second
-    /// for the other stage outputs when asked.
-    fn read_back(
-        &self,
-        plan: &FramePlan,
-        camera: &CameraRecord,
-        count: usize,
-        out: &mut Frame,
-    ) -> Result<(), GpuError> {
+    /// fill in its statistics; the ray count. One readback for the ray count and what
+    /// every frame returns, a second for the other stage outputs when asked. A count
+    /// past the ray buffers' room leaves `out` to be overwritten by the frame's rerun.
+    fn read_back(&self, plan: &FramePlan, camera: &CameraRecord, out: &mut Frame) -> Result<usize, GpuError> {
         let ctx = &self.ctx;
         let fb = self.frame.as_ref().expect("frame buffers");
         let pixels = camera.width as usize * camera.height as usize;
         let pairs = pixels * fb.light_count as usize;
-        let bytes = |b: FrameBuffer| -> u64 {
+        // The first readback holds the ray count: until then the ray buffers are read
+        // to their room, and cut to the count after.
+        let rays = plan.produces(FrameBuffer::Rays);
+        let mut count = fb.ray_capacity as usize;
+        let bytes = |b: FrameBuffer, count: usize| -> u64 {
             let (n, size) = match b {
                 FrameBuffer::GBuffer => (pixels, std::mem::size_of::<GBufferTexel>()),
                 FrameBuffer::Surfaces => (pixels, std::mem::size_of::<SurfaceRecord>()),
@@ -302,21 +314,37 @@ impl GpuBackend {
         };
         for always in [true, false] {
             let wanted: Vec<FrameBuffer> = out.buffers().filter(|b| b.always_returned() == always).collect();
-            let parts: Vec<(&wgpu::Buffer, u64)> = wanted.iter().map(|&b| (fb.get(b), bytes(b))).collect();
-            read_back_each(ctx, &parts, |i, data| match wanted[i] {
-                FrameBuffer::GBuffer => copy_into_vec(&mut out.gbuffer, data),
-                FrameBuffer::Surfaces => copy_into_vec(&mut out.surfaces, data),
-                FrameBuffer::Rays => copy_into_vec(&mut out.rays, data),
-                FrameBuffer::Occluded => copy_into_vec(&mut out.occluded, data),
-                FrameBuffer::Shadow => {
-                    // u32 codes on the GPU, u8 in the frame.
-                    out.shadow.clear();
-                    out.shadow.extend(data.chunks_exact(4).map(|w| bytemuck::pod_read_unaligned::<u32>(w) as u8));
-                }
-                FrameBuffer::Rt => copy_into_vec(&mut out.rt, data),
-                FrameBuffer::Raster => copy_into_vec(&mut out.raster, data),
-                FrameBuffer::Final => copy_into_vec(&mut out.final_image, data),
+            let mut parts: Vec<(&wgpu::Buffer, u64)> = wanted.iter().map(|&b| (fb.get(b), bytes(b, count))).collect();
+            // The ray count first, with the buffers every frame returns.
+            let with_count = always && rays;
+            if with_count {
+                parts.insert(0, (&fb.ray_count, 4));
+            }
+            let skip = with_count as usize;
+            read_back_each(ctx, &parts, |i, data| match i.checked_sub(skip).map(|i| wanted[i]) {
+                None => count = bytemuck::pod_read_unaligned::<u32>(data) as usize,
+                Some(b) => match b {
+                    FrameBuffer::GBuffer => copy_into_vec(&mut out.gbuffer, data),
+                    FrameBuffer::Surfaces => copy_into_vec(&mut out.surfaces, data),
+                    FrameBuffer::Rays => copy_into_vec(&mut out.rays, data),
+                    FrameBuffer::Occluded => copy_into_vec(&mut out.occluded, data),
+                    FrameBuffer::Shadow => {
+                        // u32 codes on the GPU, u8 in the frame.
+                        out.shadow.clear();
+                        out.shadow.extend(data.chunks_exact(4).map(|w| bytemuck::pod_read_unaligned::<u32>(w) as u8));
+                    }
+                    FrameBuffer::Rt => copy_into_vec(&mut out.rt, data),
+                    FrameBuffer::Raster => copy_into_vec(&mut out.raster, data),
+                    FrameBuffer::Final => copy_into_vec(&mut out.final_image, data),
+                },
             })?;
+            if !rays {
+                count = 0;
+            }
+            if count > fb.ray_capacity as usize {
+                return Ok(count); // the frame runs again with room for its rays
+            }
+            out.occluded.truncate(count);
         }
         let mut stats = FrameStats {
             width: camera.width,
@@ -339,7 +367,7 @@ impl GpuBackend {
         out.width = camera.width;
         out.height = camera.height;
         out.stats = stats;
-        Ok(())
+        Ok(count)
     }
 }
 
