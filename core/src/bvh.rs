@@ -252,6 +252,8 @@ pub struct ClosestHit {
     pub u: f32,
     /// Barycentric weight of the triangle's `v2`.
     pub v: f32,
+    /// The ray hit the triangle's back face ([`crate::kernels::ray::TriangleHit::back_face`]).
+    pub back_face: bool,
 }
 
 /// A flattened BVH; see the module docs for the layout.
@@ -668,7 +670,7 @@ impl Bvh {
     /// all triangles except in the corner case that constant's docs describe.
     pub fn closest_hit(&self, triangles: &[TriangleRecord], ray: &RayRecord) -> Option<ClosestHit> {
         let r = TraversalRay::new(ray)?;
-        let mut best = ClosestHit { triangle: INVALID_ID, t: r.t_max, u: 0.0, v: 0.0 };
+        let mut best = ClosestHit { triangle: INVALID_ID, t: r.t_max, u: 0.0, v: 0.0, back_face: false };
         let leaf_test = inline_leaf_test(
             #[inline(always)]
             |leaf: Leaf, _: f32, t_best: &mut f32| {
@@ -678,7 +680,7 @@ impl Bvh {
                     if let Some(h) = r.wt.intersect(r.t_min, r.t_max, t.v0.into(), t.v1.into(), t.v2.into()) {
                         let id = self.prim_indices[slot as usize];
                         if h.t < *t_best || (h.t == *t_best && id < best.triangle) {
-                            best = ClosestHit { triangle: id, t: h.t, u: h.u, v: h.v };
+                            best = ClosestHit { triangle: id, t: h.t, u: h.u, v: h.v, back_face: h.back_face };
                             *t_best = h.t;
                             flow = LeafFlow::Narrowed;
                         }

@@ -92,7 +92,7 @@ fn brute_closest(g: &WorldGeometry, r: &RayRecord) -> Option<ClosestHit> {
     for (i, tri) in g.triangles.iter().enumerate() {
         if let Some(h) = hit_on(tri, r) {
             if best.is_none_or(|b| h.t < b.t) {
-                best = Some(ClosestHit { triangle: i as u32, t: h.t, u: h.u, v: h.v });
+                best = Some(ClosestHit { triangle: i as u32, t: h.t, u: h.u, v: h.v, back_face: h.back_face });
             }
         }
     }
@@ -753,6 +753,32 @@ fn pinned_exact_hits() {
     assert!(
         intersect_triangle_watertight(Vec3::new(0.25, 0.25, 0.0), Vec3::Z, 0.0, f32::INFINITY, v0, v1, v2).is_none()
     );
+}
+
+/// The facing of a hit comes from the determinant's sign: the front of a triangle is the
+/// side its right-handed normal `(v1 - v0) x (v2 - v0)` points to, whichever axis the
+/// ray space puts last and whichever way the ray travels along it.
+#[test]
+fn hits_know_the_face_they_hit() {
+    let tri = [Vec3::new(0.1, -0.3, 0.2), Vec3::new(1.2, 0.4, -0.1), Vec3::new(-0.2, 1.1, 0.3)];
+    let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+    let centre = (tri[0] + tri[1] + tri[2]) / 3.0;
+    // Directions whose largest component is each axis, both signs, from both sides.
+    for d in [Vec3::new(0.3, 0.2, 1.0), Vec3::new(1.0, 0.1, 0.4), Vec3::new(0.2, 1.0, -0.3)] {
+        for d in [d, -d] {
+            let o = centre - d * 3.0;
+            let h = intersect_triangle_watertight(o, d, 0.0, f32::INFINITY, tri[0], tri[1], tri[2]).unwrap();
+            assert_eq!(h.back_face, n.dot(d) > 0.0, "direction {d}");
+            let w = hyrt_core::kernels::ray::WatertightRay::new(o, d).unwrap();
+            assert_eq!(w.facing(tri[0], tri[1], tri[2]), h.back_face, "facing, direction {d}");
+        }
+    }
+    // Through a vertex (the f64 fallback decides the edges): still the exact facing.
+    let h =
+        intersect_triangle_watertight(Vec3::new(1.0, 0.0, 1.0), Vec3::NEG_Z, 0.0, 9.0, Vec3::ZERO, Vec3::X, Vec3::Y);
+    assert!(!h.unwrap().back_face);
+    let h = intersect_triangle_watertight(Vec3::new(1.0, 0.0, -1.0), Vec3::Z, 0.0, 9.0, Vec3::ZERO, Vec3::X, Vec3::Y);
+    assert!(h.unwrap().back_face);
 }
 
 /// Pinned: the f32 edge function of v1-v2 rounds to exactly 0 (both products round to

@@ -30,7 +30,7 @@ fn check(g: &WorldGeometry, bvh: &Bvh, rays: &[RayRecord]) -> usize {
         for (i, r) in rays.iter().enumerate() {
             assert_eq!(any[i], want_any[i], "{level:?} occluded, ray {i}: {r:?}");
             let bits = |h: Option<hyrt_core::bvh::ClosestHit>| {
-                h.map(|h| (h.triangle, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
+                h.map(|h| (h.triangle, h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.back_face))
             };
             assert_eq!(bits(closest[i]), bits(want_closest[i]), "{level:?} closest hit, ray {i}: {r:?}");
             assert_eq!(any[i] != 0, closest[i].is_some(), "ray {i}: any hit and closest hit disagree");

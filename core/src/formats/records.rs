@@ -165,6 +165,96 @@ impl RayRecord {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Closest hits
+// ---------------------------------------------------------------------------------------------
+
+/// [`HitRecord::flags`]: the ray found a triangle.
+pub const HIT_FOUND: u32 = 1 << 0;
+/// [`HitRecord::flags`]: the ray hit the triangle's back face
+/// ([`crate::kernels::ray::TriangleHit::back_face`]).
+pub const HIT_BACK_FACE: u32 = 1 << 1;
+
+/// The closest hit of one ray ([`crate::bvh::Bvh::closest_hit`]): what a secondary
+/// ray's trace hands to the reconstruction of the surface it hit.
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `t` | f32 | ray parameter of the hit, `t_min < t < t_max`; 0 on a miss |
+/// | 4 | `u` | f32 | barycentric weight of the triangle's `v1`; 0 on a miss |
+/// | 8 | `v` | f32 | barycentric weight of `v2`; 0 on a miss |
+/// | 12 | `triangle` | u32 | global triangle index, [`INVALID_ID`] on a miss |
+/// | 16 | `flags` | u32 | [`HIT_FOUND`], [`HIT_BACK_FACE`] |
+/// | 20 | `pad` | u32 | zero |
+///
+/// 24 bytes. A miss is [`HitRecord::MISS`].
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct HitRecord {
+    pub t: f32,
+    pub u: f32,
+    pub v: f32,
+    pub triangle: u32,
+    pub flags: u32,
+    pub pad: u32,
+}
+const _: () = assert!(std::mem::size_of::<HitRecord>() == 24);
+wgsl_struct!(HitRecord { t, u, v, triangle, flags, pad });
+
+impl HitRecord {
+    /// The record of a ray that hit nothing.
+    pub const MISS: HitRecord = HitRecord { t: 0.0, u: 0.0, v: 0.0, triangle: INVALID_ID, flags: 0, pad: 0 };
+
+    /// The record of a closest hit, or [`Self::MISS`].
+    pub fn from_hit(hit: Option<crate::bvh::ClosestHit>) -> HitRecord {
+        match hit {
+            None => HitRecord::MISS,
+            Some(h) => HitRecord {
+                t: h.t,
+                u: h.u,
+                v: h.v,
+                triangle: h.triangle,
+                flags: HIT_FOUND | if h.back_face { HIT_BACK_FACE } else { 0 },
+                pad: 0,
+            },
+        }
+    }
+
+    /// True if the ray found a triangle.
+    #[inline]
+    pub fn is_hit(&self) -> bool {
+        self.flags & HIT_FOUND != 0
+    }
+
+    /// True if the ray hit the triangle's back face.
+    #[inline]
+    pub fn is_back_face(&self) -> bool {
+        self.flags & HIT_BACK_FACE != 0
+    }
+
+    /// Check: a miss is [`Self::MISS`]; a hit has a triangle, a positive finite `t`,
+    /// finite barycentrics and no unknown flags.
+    pub fn validate(&self) -> Result<(), String> {
+        if !self.is_hit() {
+            return if bytemuck::bytes_of(self) == bytemuck::bytes_of(&Self::MISS) {
+                Ok(())
+            } else {
+                Err(format!("miss is not HitRecord::MISS: {self:?}"))
+            };
+        }
+        if self.triangle == INVALID_ID || !(self.t > 0.0 && self.t.is_finite()) {
+            return Err(format!("hit without a triangle or a positive t: {self:?}"));
+        }
+        if !(self.u.is_finite() && self.v.is_finite()) || self.flags & !(HIT_FOUND | HIT_BACK_FACE) != 0 {
+            return Err(format!("hit with non-finite barycentrics or unknown flags: {self:?}"));
+        }
+        if self.pad != 0 {
+            return Err(format!("hit padding not zero: {self:?}"));
+        }
+        Ok(())
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
 // Shadow mask
 // ---------------------------------------------------------------------------------------------
 

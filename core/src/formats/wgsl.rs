@@ -11,7 +11,8 @@
 
 use crate::bvh::BvhNode;
 use crate::formats::{
-    CameraRecord, FrameParams, GBufferTexel, LightRecord, ObjectRecord, RayRecord, SurfaceRecord, TriangleRecord,
+    CameraRecord, FrameParams, GBufferTexel, HitRecord, LightRecord, ObjectRecord, RayRecord, SurfaceRecord,
+    TriangleRecord,
 };
 use crate::plan::Composition;
 
@@ -203,6 +204,8 @@ pub fn constant_values() -> Vec<(&'static str, u32)> {
         RAY_KIND_PRIMARY,
         RAY_KIND_REFLECTION,
         RAY_KIND_REFRACTION,
+        HIT_FOUND,
+        HIT_BACK_FACE,
         SHADOW_NO_RAY,
         SHADOW_LIT,
         SHADOW_OCCLUDED,
@@ -236,6 +239,7 @@ pub fn struct_declarations() -> String {
         LightRecord::declaration(),
         CameraRecord::declaration(),
         SurfaceRecord::declaration(),
+        HitRecord::declaration(),
         FrameParams::declaration(),
         BvhNode::declaration(),
     ]
@@ -266,6 +270,7 @@ mod tests {
         LightRecord::check_layout().unwrap();
         CameraRecord::check_layout().unwrap();
         SurfaceRecord::check_layout().unwrap();
+        HitRecord::check_layout().unwrap();
         FrameParams::check_layout().unwrap();
         BvhNode::check_layout().unwrap();
     }

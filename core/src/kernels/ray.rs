@@ -64,6 +64,10 @@ pub struct TriangleHit {
     pub u: f32,
     /// Barycentric weight of `v2` (the weight of `v0` is `1 - u - v`).
     pub v: f32,
+    /// The ray hit the triangle's back: it travels along the right-handed normal
+    /// `(v1 - v0) x (v2 - v0)`. Decided exactly, from the sign of the determinant the
+    /// test itself computed ([`WatertightRay::back_face`]), never from a dot product.
+    pub back_face: bool,
 }
 
 /// The per-ray constants of the watertight test (Woop, Benthin, Wald 2013, "Watertight
@@ -152,6 +156,35 @@ impl WatertightRay {
         Vec3::new(q.x - self.shear.x * q.z, q.y - self.shear.y * q.z, q.z)
     }
 
+    /// Whether a hit with determinant `det` (the sum of the three edge functions,
+    /// [`Self::intersect`]) is on the triangle's back face.
+    ///
+    /// In the ray space the normal's z component is `(n . d) / d_z` (the shear keeps x
+    /// and y of the normal and maps `n_z` to `n . d / d_z`; the axis permutation is
+    /// cyclic, so it keeps handedness), and `det` is twice the triangle's projected
+    /// signed area, which has the sign of that z component. So `n . d > 0` (the ray
+    /// travels along the normal: a back face) exactly when `det` and `1 / d_z`
+    /// (`shear.z`) have the same sign. Inside a triangle the three edge functions share
+    /// one sign, so `det` has it with no cancellation: the facing is as exact as the
+    /// hit itself. WGSL: `watertight_back_face`.
+    #[inline(always)]
+    pub fn back_face(&self, det: f32) -> bool {
+        (det > 0.0) == (self.shear.z > 0.0)
+    }
+
+    /// The facing of a triangle this ray hits: [`Self::back_face`] of the determinant
+    /// that [`Self::intersect`] computes (f64 where an f32 edge function is zero), with
+    /// no range test. For traversals that find the hit without keeping the determinant
+    /// (the SIMD packets).
+    pub fn facing(&self, v0: Vec3, v1: Vec3, v2: Vec3) -> bool {
+        let (p0, p1, p2) = (self.transform(v0), self.transform(v1), self.transform(v2));
+        let mut e = [edge_function(p1, p2), edge_function(p2, p0), edge_function(p0, p1)];
+        if e.contains(&0.0) {
+            e = [edge_function_f64(p1, p2), edge_function_f64(p2, p0), edge_function_f64(p0, p1)];
+        }
+        self.back_face(e[0] + e[1] + e[2])
+    }
+
     /// The watertight test against one triangle, for this precomputed ray; see
     /// [`intersect_triangle_watertight`], which is exactly this after [`Self::new`].
     /// (`inline(always)`: it is the body of the traversal's leaf loop, which LLVM otherwise
@@ -235,7 +268,7 @@ impl WatertightRay {
         let delta_t = 3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv_det.abs();
         // Positive form, so that a NaN bound rejects.
         if t > delta_t {
-            Some(TriangleHit { t, u: e1 * inv_det, v: e2 * inv_det })
+            Some(TriangleHit { t, u: e1 * inv_det, v: e2 * inv_det, back_face: self.back_face(det) })
         } else {
             None
         }

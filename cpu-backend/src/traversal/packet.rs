@@ -507,6 +507,7 @@ pub(crate) fn closest_hit<L: Lanes>(bvh: &Bvh, p: &Packet<L>) -> [Option<Closest
     let mut best_u = L::splat(0.0);
     let mut best_v = L::splat(0.0);
     let mut best_id = [INVALID_ID; LANES];
+    let mut best_slot = [0u32; LANES];
     let mut t_far = L::mul(best_t, widen);
     let leaf_test = inline_leaf_test(
         #[inline(always)]
@@ -535,6 +536,7 @@ pub(crate) fn closest_hit<L: Lanes>(bvh: &Bvh, p: &Packet<L>) -> [Option<Closest
                     if take & (1 << i) != 0 {
                         *s = lane_mask(true);
                         best_id[i] = id;
+                        best_slot[i] = slot;
                     }
                 }
                 let sel = L::load(&sel);
@@ -556,7 +558,13 @@ pub(crate) fn closest_hit<L: Lanes>(bvh: &Bvh, p: &Packet<L>) -> [Option<Closest
     let (t, u, v) = (L::store(best_t), L::store(best_u), L::store(best_v));
     for i in 0..LANES {
         if best_id[i] != INVALID_ID {
-            out[i] = Some(ClosestHit { triangle: best_id[i], t: t[i], u: u[i], v: v[i] });
+            // The packet keeps no determinant: the facing of the one winning triangle
+            // comes from the scalar kernel's determinant (the same edge functions).
+            let r = &p.rays[i];
+            let tri = &bvh.leaf_triangles[best_slot[i] as usize];
+            let back_face = WatertightRay::new(r.origin.into(), r.direction.into())
+                .is_some_and(|w| w.facing(tri.v0.into(), tri.v1.into(), tri.v2.into()));
+            out[i] = Some(ClosestHit { triangle: best_id[i], t: t[i], u: u[i], v: v[i], back_face });
         }
     }
     out
