@@ -3,6 +3,7 @@
 //! [`Backend`] trait both backends implement.
 
 use crate::bvh::Bvh;
+use crate::error::GpuError;
 use crate::formats::{CameraRecord, GBufferTexel, RayRecord, SurfaceRecord, RAY_KIND_COUNT};
 use crate::geometry::WorldGeometry;
 use crate::plan::{FrameBuffer, FramePlan, Skipped, Step};
@@ -88,9 +89,11 @@ pub enum RenderError {
     InvalidOptions(String),
     #[error("invalid camera: {0}")]
     InvalidCamera(String),
-    /// The backend's device failed (GPU: no adapter, device lost, out of memory, ...).
+    /// The GPU backend's device failed: no adapter, device lost, out of memory, a
+    /// readback that failed, a frame past the device's limits. Typed, so a caller can
+    /// react to the kind (fall back to the CPU backend on a lost device, say).
     #[error(transparent)]
-    Backend(Box<dyn std::error::Error + Send + Sync>),
+    Gpu(#[from] GpuError),
 }
 
 /// Milliseconds one stage took, and the work it did.

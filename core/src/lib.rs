@@ -33,5 +33,5 @@ pub mod plan;
 pub mod scene;
 pub mod stage;
 
-pub use error::SceneError;
+pub use error::{GpuError, SceneError};
 pub use glam;

@@ -185,17 +185,14 @@ impl GpuBackend {
         let plan = FramePlan::new(scene, options)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         crate::present::check_target(target, camera.width, camera.height).map_err(RenderError::InvalidOptions)?;
-        let gpu = |e: GpuError| RenderError::Backend(Box::new(e));
-        let count =
-            self.run_with_room(scene, &plan, camera, options, |b: &Self| b.read_ray_count(&plan)).map_err(gpu)?;
+        let count = self.run_with_room(scene, &plan, camera, options, |b: &Self| b.read_ray_count(&plan))?;
         let ctx = &self.ctx;
         let fb = self.frame.as_ref().expect("frame buffers");
         ctx.checked(|| {
             let mut enc = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("present") });
             self.present.encode(ctx, &mut enc, fb, target);
             ctx.queue.submit([enc.finish()]);
-        })
-        .map_err(gpu)?;
+        })?;
         let mut stats = FrameStats {
             width: camera.width,
             height: camera.height,
@@ -386,7 +383,7 @@ impl Backend for GpuBackend {
         let plan = FramePlan::new(scene, options)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         frame.begin(&plan, options);
-        self.render_frame(scene, &plan, camera, options, frame).map_err(|e| RenderError::Backend(Box::new(e)))?;
+        self.render_frame(scene, &plan, camera, options, frame)?;
         frame.end();
         Ok(())
     }

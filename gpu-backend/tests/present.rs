@@ -107,4 +107,13 @@ fn present_renders_on_the_applications_device_into_its_texture() {
         Err(RenderError::InvalidOptions(m)) => assert!(m.contains("8x8"), "{m}"),
         other => panic!("expected InvalidOptions, got {other:?}"),
     }
+
+    // A frame wider than the device's render targets is a typed GPU error the
+    // application can match on (here: render smaller, or fall back to the CPU).
+    let side = gpu.context().limits.max_texture_dimension_2d + 1;
+    let wide = CameraRecord::new(&scene.camera.unwrap(), side, 1);
+    match gpu.render(&prepared, &wide, &opts) {
+        Err(RenderError::Gpu(hyrt_gpu::GpuError::Limits(m))) => assert!(m.contains(&format!("{side}x1")), "{m}"),
+        other => panic!("expected RenderError::Gpu(GpuError::Limits), got {:?}", other.map(|f| f.stats)),
+    }
 }

@@ -50,10 +50,10 @@ pub use hyrt_core::geometry::WorldGeometry;
 pub use hyrt_core::plan::{Composition, FrameBuffer, FramePlan, SkipReason, Skipped, Step};
 pub use hyrt_core::scene::{Camera, Light, Material, MaterialKind, Mesh, Object, RenderMode, Scene};
 pub use hyrt_core::stage::Stage;
-pub use hyrt_core::{glam, SceneError};
+pub use hyrt_core::{glam, GpuError, SceneError};
 pub use hyrt_cpu::backend::CpuBackend;
 #[cfg(feature = "gpu")]
-pub use hyrt_gpu::{backend::GpuBackend, AdapterPolicy, GpuContext, GpuError};
+pub use hyrt_gpu::{backend::GpuBackend, AdapterPolicy, GpuContext};
 
 /// Which adapters a GPU backend accepts (the `gpu` feature is off: there is none).
 #[cfg(not(feature = "gpu"))]
