@@ -11,6 +11,13 @@
 //! | `rays.npy` | structured, N | the ray list: `origin` (3,)f4, `t_min` f4, `direction` (3,)f4, `t_max` f4, `pixel` u4, `kind` u4, `depth` u4, `light` u4, `throughput` (3,)f4, `occluded` u4 |
 //! | `shadow.npy` | u8, H x W x L | per light: 0 no ray (miss or light behind the surface), 1 lit, 2 occluded |
 //! | `raster.png`, `rt.png`, `final.png` | sRGB RGBA8 | the three images (`rt.png` alpha = ray-traced coverage) |
+//! | `bounce{d}_rays.npy` | structured, N_d | the reflection and refraction rays of bounce `d` (as `rays.npy`; `occluded` is `0xFFFFFFFF`) |
+//! | `bounce{d}_links.npy` | u32, P x 2 | per parent (pixel for `d = 1`, else ray of `d - 1`): its reflection and refraction child in `bounce{d}_rays.npy`, `0xFFFFFFFF` for none |
+//! | `bounce{d}_hits.npy` | structured, N_d | closest hit: `t`, `u`, `v` f4, `triangle` u4 (global index), `flags` u4 (1 hit, 2 back face) |
+//! | `bounce{d}_position.npy`, `bounce{d}_normal.npy` | f32, N_d x 3 | the surface each ray hit (0 on miss) |
+//! | `bounce{d}_shadow_rays.npy` | structured | shadow rays from those surfaces (as `rays.npy`; `pixel` = the secondary ray) |
+//! | `bounce{d}_shadow.npy` | u8, N_d x L | as `shadow.npy`, per secondary ray |
+//! | `bounce{d}_radiance.npy` | f32, N_d x 4 | the linear radiance each ray brings back |
 //! | `frame.json` | | image size, camera (matrices and conventions), object table, counts, times, skipped stages |
 //!
 //! The files of a buffer whose stage the frame's plan skipped are not written
@@ -22,6 +29,7 @@ use std::path::{Path, PathBuf};
 
 use hyrt_core::formats::CameraRecord;
 use hyrt_core::frame::{BufferView, Frame, PreparedScene};
+use hyrt_core::plan::{BounceBuffer, FrameBuffer};
 use hyrt_core::scene::{Camera, Scene};
 use npyz::WriterBuilder;
 use serde_json::{json, Value};
@@ -57,6 +65,76 @@ fn write_npy<T: npyz::AutoSerialize + Copy>(
     w.finish().map_err(io)
 }
 
+/// `rays.npy` or a bounce's `bounce{d}_shadow_rays.npy`: the rays with their occlusion
+/// results (`occluded` may be empty: secondary rays, whose results are their hits).
+fn write_rays(path: &Path, rays: &[hyrt_core::formats::RayRecord], occluded: &[u32]) -> Result<(), Error> {
+    let rows = rays.iter().enumerate().map(|(i, r)| RayRow {
+        origin: r.origin,
+        t_min: r.t_min,
+        direction: r.direction,
+        t_max: r.t_max,
+        pixel: r.pixel,
+        kind: r.kind,
+        depth: r.depth,
+        light: r.light,
+        throughput: r.throughput,
+        occluded: occluded.get(i).copied().unwrap_or(NOT_A_SHADOW_RAY),
+    });
+    write_npy(path, &[rays.len() as u64], rows)
+}
+
+/// The `occluded` column of reflection and refraction rays, which have no occlusion
+/// result (their closest hits are `bounce{d}_hits.npy`).
+const NOT_A_SHADOW_RAY: u32 = u32::MAX;
+
+/// One row of `bounce{d}_hits.npy`.
+#[derive(npyz::Serialize, npyz::AutoSerialize, Clone, Copy)]
+struct HitRow {
+    t: f32,
+    u: f32,
+    v: f32,
+    triangle: u32,
+    flags: u32,
+}
+
+/// The files of one bounce buffer, named `bounce{d}_<buffer>`, one row per ray of the
+/// depth (per parent for `links`).
+fn write_bounce_buffer(
+    out: &mut impl FnMut(&str) -> PathBuf,
+    frame: &Frame,
+    buffer: FrameBuffer,
+    lights: u64,
+) -> Result<(), Error> {
+    let FrameBuffer::Bounce { buffer: kind, depth } = buffer else { unreachable!("a bounce buffer") };
+    let b = &frame.bounces[depth as usize - 1];
+    let name = |file: &str| format!("bounce{depth}_{file}");
+    match kind {
+        BounceBuffer::Rays => write_rays(&out(&name("rays.npy")), &b.rays, &[]),
+        BounceBuffer::Links => {
+            write_npy(&out(&name("links.npy")), &[b.links.len() as u64, 2], b.links.iter().flatten().copied())
+        }
+        BounceBuffer::Hits => {
+            let rows = b.hits.iter().map(|h| HitRow { t: h.t, u: h.u, v: h.v, triangle: h.triangle, flags: h.flags });
+            write_npy(&out(&name("hits.npy")), &[b.hits.len() as u64], rows)
+        }
+        BounceBuffer::Surfaces => {
+            let n = b.surfaces.len() as u64;
+            write_npy(&out(&name("position.npy")), &[n, 3], b.surfaces.iter().flat_map(|s| s.position))?;
+            write_npy(&out(&name("normal.npy")), &[n, 3], b.surfaces.iter().flat_map(|s| s.normal))
+        }
+        BounceBuffer::ShadowRays => write_rays(&out(&name("shadow_rays.npy")), &b.shadow_rays, &b.occluded),
+        // The `occluded` column of bounce{d}_shadow_rays.npy.
+        BounceBuffer::Occluded => Ok(()),
+        BounceBuffer::Shadow => {
+            let n = b.surfaces.len() as u64;
+            write_npy(&out(&name("shadow.npy")), &[n, lights], b.shadow.iter().copied())
+        }
+        BounceBuffer::Radiance => {
+            write_npy(&out(&name("radiance.npy")), &[b.radiance.len() as u64, 4], b.radiance.iter().flatten().copied())
+        }
+    }
+}
+
 /// Write every dump file of `frame` into `dir` (created if needed).
 pub fn write_dump(
     dir: &Path,
@@ -77,6 +155,11 @@ pub fn write_dump(
     };
     // One file set per buffer the frame holds: a stage the plan skipped writes none.
     for buffer in frame.buffers() {
+        let depth = buffer.depth();
+        if depth > 0 {
+            write_bounce_buffer(&mut out, frame, buffer, lights)?;
+            continue;
+        }
         match frame.buffer(buffer).expect("held") {
             BufferView::GBuffer(g) => {
                 write_npy(&out("ids.npy"), &[h, w, 2], g.iter().flat_map(|t| [t.triangle, t.object]))?;
@@ -87,27 +170,14 @@ pub fn write_dump(
                 write_npy(&out("position.npy"), &[h, w, 3], s.iter().flat_map(|s| s.position))?;
                 write_npy(&out("normal.npy"), &[h, w, 3], s.iter().flat_map(|s| s.normal))?;
             }
-            BufferView::Rays(rays) => {
-                let rows = rays.iter().zip(&frame.occluded).map(|(r, &o)| RayRow {
-                    origin: r.origin,
-                    t_min: r.t_min,
-                    direction: r.direction,
-                    t_max: r.t_max,
-                    pixel: r.pixel,
-                    kind: r.kind,
-                    depth: r.depth,
-                    light: r.light,
-                    throughput: r.throughput,
-                    occluded: o,
-                });
-                write_npy(&out("rays.npy"), &[rays.len() as u64], rows)?;
-            }
+            BufferView::Rays(rays) => write_rays(&out("rays.npy"), rays, &frame.occluded)?,
             // The occlusion results are the `occluded` column of rays.npy.
             BufferView::Words(_) => {}
             BufferView::Codes(codes) => write_npy(&out("shadow.npy"), &[h, w, lights], codes.iter().copied())?,
             BufferView::Image(img) => {
                 write_png(&out(&format!("{}.png", buffer.name())), frame.width, frame.height, img)?
             }
+            BufferView::Hits(_) | BufferView::Links(_) => unreachable!("bounce buffers are written above"),
         }
     }
     let json_path = out("frame.json");
@@ -142,8 +212,7 @@ pub fn frame_json(scene: &Scene, prepared: &PreparedScene, camera: &Camera, fram
         })
         .collect();
     let s = &frame.stats;
-    let times: serde_json::Map<String, Value> =
-        s.stage_ms.iter().map(|t| (t.stage.name().to_string(), json!(t.ms))).collect();
+    let times: serde_json::Map<String, Value> = s.stage_ms.iter().map(|t| (t.label(), json!(t.ms))).collect();
     json!({
         "backend": backend,
         "threads": s.threads,
@@ -185,10 +254,18 @@ pub fn frame_json(scene: &Scene, prepared: &PreparedScene, camera: &Camera, fram
                 "shadow": s.rays_per_kind[0], "primary": s.rays_per_kind[1],
                 "reflection": s.rays_per_kind[2], "refraction": s.rays_per_kind[3],
             },
+            "bounces": s.bounces.iter().enumerate().map(|(i, b)| json!({
+                "depth": i + 1,
+                "reflection_rays": b.rays_per_kind[hyrt_core::formats::RAY_KIND_REFLECTION as usize],
+                "refraction_rays": b.rays_per_kind[hyrt_core::formats::RAY_KIND_REFRACTION as usize],
+                "hits": b.hits,
+                "shadow_rays": b.rays_per_kind[hyrt_core::formats::RAY_KIND_SHADOW as usize],
+                "occluded_shadow_rays": b.occluded_shadow_rays,
+            })).collect::<Vec<_>>(),
         },
         "stage_ms": times,
         "stage_work": s.stage_ms.iter().map(|t| json!({
-            "stage": t.stage.name(),
+            "stage": t.label(),
             "pixels": t.work.pixels,
             "rays_per_kind": t.work.rays,
         })).collect::<Vec<_>>(),

@@ -77,7 +77,7 @@ fn bench_cli_writes_the_report_and_plots() {
     let rays = valid_rays_at(48, 32);
     assert!(rays > 0);
     assert!(
-        md.contains(&format!("| default | - | 4,908 | - | {} |", hyrt_benches::bench::report::count(rays))),
+        md.contains(&format!("| default | - | 7,116 | - | {} |", hyrt_benches::bench::report::count(rays))),
         "{md}"
     );
     // Peers at both thread counts; the GPU was switched off and the report says so.

@@ -54,12 +54,26 @@ fn cli_render_default_scene_with_dump() {
     let json: serde_json::Value = serde_json::from_slice(&std::fs::read(dump.join("frame.json")).unwrap()).unwrap();
     assert_eq!(json["width"], 67);
     assert_eq!(json["height"], 41);
-    assert_eq!(json["objects"].as_array().unwrap().len(), 6);
+    assert_eq!(json["objects"].as_array().unwrap().len(), 7);
     assert_eq!(json["objects"][0]["render_mode"], "ray_traced");
     assert!(json["camera"]["view"].is_array() && json["camera"]["projection"].is_array());
     assert!(json["camera"]["conventions"].as_str().unwrap().contains("centre"));
     assert!(json["counts"]["valid_rays"].as_u64().unwrap() > 0);
     assert!(json["stage_ms"]["shadow_rays"].as_f64().is_some());
+    // The CPU's default max depth 4: the golden sphere and the glass ball bounce; each
+    // depth's buffers are dumped under its own name and counted in frame.json.
+    let bounces = json["counts"]["bounces"].as_array().unwrap();
+    assert_eq!(bounces.len(), 4, "{bounces:?}");
+    assert!(bounces[0]["reflection_rays"].as_u64().unwrap() > 0 && bounces[0]["refraction_rays"].as_u64().unwrap() > 0);
+    assert!(json["stage_ms"]["bounce_trace{4}"].as_f64().is_some(), "{}", json["stage_ms"]);
+    let (shape, dtype) = read_npy_shape(&dump.join("bounce1_rays.npy"));
+    assert_eq!(
+        shape,
+        vec![bounces[0]["reflection_rays"].as_u64().unwrap() + bounces[0]["refraction_rays"].as_u64().unwrap()]
+    );
+    assert!(dtype.contains("throughput"), "{dtype}");
+    let (shape, _) = read_npy_shape(&dump.join("bounce1_links.npy"));
+    assert_eq!(shape, vec![41 * 67, 2], "depth 1's parents are the pixels");
     // ids.npy holds (triangle, object) and 0xFFFFFFFF on miss, consistent with frame.json.
     let bytes = std::fs::read(dump.join("ids.npy")).unwrap();
     let ids: Vec<u32> = npyz::NpyFile::new(&bytes[..]).unwrap().into_vec().unwrap();

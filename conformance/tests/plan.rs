@@ -48,8 +48,18 @@ fn all(mode: RenderMode) -> Scene {
     s
 }
 
-/// Every frame stage (all but the per-scene `bvh_build`).
-const EVERY: &[Stage] = Stage::ALL.split_first().unwrap().1;
+/// The bounce stages: every case here renders at max depth 0, which skips them.
+const BOUNCES: &[Stage] = &[Stage::SecondaryRays, Stage::BounceTrace, Stage::BounceShading];
+/// Every stage of the paper's frame (all but the per-scene `bvh_build` and the bounces).
+const EVERY: &[Stage] = &[
+    Stage::VisibilityRaster,
+    Stage::Reconstruction,
+    Stage::Compaction,
+    Stage::ShadowRays,
+    Stage::RtShading,
+    Stage::RasterShading,
+    Stage::Composition,
+];
 /// Every frame stage but `rt_shading`.
 const WITHOUT_RT: &[Stage] = &[
     Stage::VisibilityRaster,
@@ -183,8 +193,21 @@ fn bits(img: &[[f32; 4]]) -> Vec<u32> {
 fn check_plan(case: &Case, backend: &str, f: &Frame) {
     let ran: Vec<Stage> = f.stats.stage_ms.iter().map(|t| t.stage).collect();
     assert_eq!(ran, case.ran, "{backend} / {}: stages that ran", case.name);
-    let skipped: Vec<(Stage, SkipReason)> = f.stats.skipped.iter().map(|s| (s.stage, s.reason)).collect();
+    let skipped: Vec<(Stage, SkipReason)> =
+        f.stats.skipped.iter().filter(|s| !BOUNCES.contains(&s.stage)).map(|s| (s.stage, s.reason)).collect();
     assert_eq!(skipped, case.skipped, "{backend} / {}: skipped stages", case.name);
+    // The bounces are skipped for `rt_shading`'s reason where it is skipped, else for
+    // the depth.
+    let rt_reason = case.skipped.iter().find(|(s, _)| *s == Stage::RtShading).map(|&(_, r)| r);
+    let bounce_reason = rt_reason.unwrap_or(SkipReason::MaxDepthZero);
+    for &stage in BOUNCES {
+        assert!(
+            f.stats.skipped.iter().any(|s| s.stage == stage && s.reason == bounce_reason),
+            "{backend} / {}: {stage} skipped for {bounce_reason:?}: {:?}",
+            case.name,
+            f.stats.skipped
+        );
+    }
     assert_eq!(f.plan.composition(), case.composition, "{backend} / {}", case.name);
     for b in FrameBuffer::ALL {
         let ran = case.ran.contains(&b.writer());
@@ -200,6 +223,7 @@ fn check_plan(case: &Case, backend: &str, f: &Frame) {
                 FrameBuffer::Rt => f.rt.len(),
                 FrameBuffer::Raster => f.raster.len(),
                 FrameBuffer::Final => f.final_image.len(),
+                FrameBuffer::Bounce { .. } => unreachable!("FrameBuffer::ALL holds the primary buffers only"),
             };
             assert_eq!(len, 0, "{backend} / {}: {b} not held is absent, not zero-filled", case.name);
         }
@@ -220,7 +244,7 @@ fn plan_each_case_runs_only_what_it_needs_and_matches_the_full_pipeline() {
     for case in cases() {
         let prepared = cpu.prepare(WorldGeometry::build(&case.scene), BvhPreset::default());
         let cam = CameraRecord::new(&case.scene.camera.unwrap(), W, H);
-        let opts = FrameOptions { weight: case.weight, stage_outputs: true };
+        let opts = FrameOptions { weight: case.weight, stage_outputs: true, max_depth: 0 };
         let f = cpu.render(&prepared, &cam, &opts).unwrap();
         check_plan(&case, "cpu", &f);
         let full = full_pipeline(&prepared, &cam, case.weight);
@@ -246,7 +270,7 @@ fn plan_each_case_is_the_same_on_the_gpu() {
         let prepared = cpu.prepare(WorldGeometry::build(&case.scene), BvhPreset::default());
         let cam = CameraRecord::new(&case.scene.camera.unwrap(), W, H);
         for stage_outputs in [true, false] {
-            let opts = FrameOptions { weight: case.weight, stage_outputs };
+            let opts = FrameOptions { weight: case.weight, stage_outputs, max_depth: 0 };
             let c = cpu.render(&prepared, &cam, &opts).unwrap();
             let g = gpu.render(&prepared, &cam, &opts).unwrap();
             check_plan(&case, "gpu", &g);
@@ -280,7 +304,7 @@ fn plan_gpu_ray_buffers_grow_with_the_rays_a_frame_has() {
         }
         s
     };
-    let opts = FrameOptions { weight: 1.0, stage_outputs: true };
+    let opts = FrameOptions { weight: 1.0, stage_outputs: true, max_depth: 0 };
     for (scene, more_than_pixels) in [(&few, false), (&many, true), (&few, false), (&many, true)] {
         let prepared = cpu.prepare(WorldGeometry::build(scene), BvhPreset::default());
         let cam = CameraRecord::new(&scene.camera.unwrap(), W, H);

@@ -4,9 +4,10 @@
 
 use crate::bvh::Bvh;
 use crate::error::GpuError;
-use crate::formats::{CameraRecord, GBufferTexel, RayRecord, SurfaceRecord, RAY_KIND_COUNT};
+use crate::formats::{CameraRecord, GBufferTexel, HitRecord, RayRecord, SurfaceRecord, RAY_KIND_COUNT};
 use crate::geometry::WorldGeometry;
-use crate::plan::{FrameBuffer, FramePlan, Skipped, Step};
+use crate::kernels::bounce::MAX_DEPTH_LIMIT;
+use crate::plan::{BounceBuffer, FrameBuffer, FramePlan, Skipped, Step};
 use crate::stage::Stage;
 
 /// The `SHADOW_*` codes of [`Frame::shadow`], defined in [`crate::formats`]; re-exported
@@ -54,12 +55,18 @@ pub struct FrameOptions {
     /// ([`FrameBuffer::always_returned`]): the GPU backend then reads back one combined
     /// buffer per frame.
     pub stage_outputs: bool,
+    /// The deepest bounce of reflection and refraction rays traced from ray-traced
+    /// mirrors and glass ([`crate::kernels::bounce`]), at most [`MAX_DEPTH_LIMIT`];
+    /// 0 traces none (the paper's frame: shadow rays only).
+    pub max_depth: u32,
 }
 
 impl Default for FrameOptions {
-    /// Weight 1 (ray-traced objects shaded by the tracer alone), no stage outputs.
+    /// Weight 1 (ray-traced objects shaded by the tracer alone), no stage outputs, no
+    /// bounces: the GPU backend does not trace them yet. The CPU backend traces any
+    /// `max_depth`; [`crate::kernels::bounce::DEFAULT_MAX_DEPTH`] is the suggested one.
     fn default() -> Self {
-        FrameOptions { weight: 1.0, stage_outputs: false }
+        FrameOptions { weight: 1.0, stage_outputs: false, max_depth: 0 }
     }
 }
 
@@ -78,6 +85,12 @@ impl FrameOptions {
                 self.weight
             )));
         }
+        if self.max_depth > MAX_DEPTH_LIMIT {
+            return Err(RenderError::InvalidOptions(format!(
+                "max depth must be at most {MAX_DEPTH_LIMIT}, got {}",
+                self.max_depth
+            )));
+        }
         Ok(())
     }
 }
@@ -89,6 +102,9 @@ pub enum RenderError {
     InvalidOptions(String),
     #[error("invalid camera: {0}")]
     InvalidCamera(String),
+    /// The backend cannot run a stage the frame's plan needs.
+    #[error("the {backend} backend cannot run {stage} yet: {why}")]
+    Unsupported { backend: &'static str, stage: String, why: &'static str },
     /// The GPU backend's device failed: no adapter, device lost, out of memory, a
     /// readback that failed, a frame past the device's limits. Typed, so a caller can
     /// react to the kind (fall back to the CPU backend on a lost device, say).
@@ -100,8 +116,20 @@ pub enum RenderError {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StageTime {
     pub stage: Stage,
+    /// The bounce depth the step worked on (0: the primary hits).
+    pub depth: u32,
     pub ms: f64,
     pub work: StageWork,
+}
+
+impl StageTime {
+    /// The step's label: the stage name, with `{depth}` for a bounce step.
+    pub fn label(&self) -> String {
+        match self.depth {
+            0 => self.stage.name().to_string(),
+            d => format!("{}{{{d}}}", self.stage.name()),
+        }
+    }
 }
 
 /// The work one stage did in a frame: the pixels it wrote or shaded, and the rays
@@ -119,21 +147,45 @@ pub struct StageWork {
 impl StageWork {
     /// The work of `step` in a frame with these (complete) statistics.
     pub fn of(step: Step, stats: &FrameStats) -> StageWork {
+        let bounce = |d: u32| stats.bounces.get(d as usize - 1).copied().unwrap_or_default();
         let pixels = match step {
             Step::VisibilityRaster | Step::Composition(_) => stats.width as u64 * stats.height as u64,
             Step::Reconstruction => stats.covered_pixels,
-            Step::Compaction | Step::ShadowRays => 0,
-            Step::RtShading => stats.ray_traced_pixels,
+            Step::RtShading { .. } => stats.ray_traced_pixels,
             Step::RasterShading { shade_ray_traced } => {
                 stats.raster_pixels + if shade_ray_traced { stats.ray_traced_pixels } else { 0 }
             }
+            _ => 0,
         };
         let rays = match step {
             Step::Compaction | Step::ShadowRays => stats.rays_per_kind,
+            Step::SecondaryRays { depth } | Step::BounceTrace { depth } | Step::BounceShading { depth, .. } => {
+                let mut r = bounce(depth).rays_per_kind;
+                r[crate::formats::RAY_KIND_SHADOW as usize] = 0;
+                r
+            }
+            Step::BounceCompaction { depth } | Step::BounceShadowRays { depth } => {
+                let mut r = [0; RAY_KIND_COUNT];
+                r[crate::formats::RAY_KIND_SHADOW as usize] =
+                    bounce(depth).rays_per_kind[crate::formats::RAY_KIND_SHADOW as usize];
+                r
+            }
             _ => [0; RAY_KIND_COUNT],
         };
         StageWork { pixels, rays }
     }
+}
+
+/// Counts of one bounce depth.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BounceStats {
+    /// Rays of the depth per `RAY_KIND_*`: its reflection and refraction rays, and the
+    /// shadow rays from the surfaces they hit.
+    pub rays_per_kind: [u64; RAY_KIND_COUNT],
+    /// Secondary rays that hit a surface (the rest left the scene and see the sky).
+    pub hits: u64,
+    /// Its shadow rays that found an occluder.
+    pub occluded_shadow_rays: u64,
 }
 
 /// Counts and times of one frame.
@@ -151,6 +203,8 @@ pub struct FrameStats {
     pub rays_per_kind: [u64; RAY_KIND_COUNT],
     /// Shadow rays that found an occluder.
     pub occluded_shadow_rays: u64,
+    /// Per bounce depth (index `d - 1`), what it traced; empty when the plan has no bounce.
+    pub bounces: Vec<BounceStats>,
     /// Worker threads the backend used.
     pub threads: usize,
     /// Milliseconds and work per stage that ran, in execution order: the frame's
@@ -161,9 +215,10 @@ pub struct FrameStats {
 }
 
 impl FrameStats {
-    /// Time of one stage, if it ran.
+    /// Time of one stage, if it ran: the sum over its depths.
     pub fn ms(&self, stage: Stage) -> Option<f64> {
-        self.stage_ms.iter().find(|s| s.stage == stage).map(|s| s.ms)
+        let mut times = self.stage_ms.iter().filter(|s| s.stage == stage).map(|s| s.ms).peekable();
+        times.peek().is_some().then(|| times.sum())
     }
     /// Sum of the frame's stages.
     pub fn frame_ms(&self) -> f64 {
@@ -192,12 +247,66 @@ pub struct Frame {
     pub rt: Vec<[f32; 4]>,
     /// `composition`: the final image.
     pub final_image: Vec<[f32; 4]>,
+    /// The bounce buffers, index `depth - 1` (a frame keeps the allocations of deeper
+    /// levels than its plan has for later frames; [`Frame::buffer`] says what it holds).
+    pub bounces: Vec<BounceBuffers>,
     pub stats: FrameStats,
     /// The plan the frame ran: which stages ran, which buffers exist.
     pub plan: FramePlan,
     /// The frame holds every buffer its plan produced ([`FrameOptions::stage_outputs`]),
     /// not only those a display loop needs.
     pub stage_outputs: bool,
+}
+
+/// The buffers of one bounce depth `d` ([`BounceBuffer`] says what each holds).
+#[derive(Clone, Debug, Default)]
+pub struct BounceBuffers {
+    /// `secondary_rays`: the reflection and refraction rays of depth `d`.
+    pub rays: Vec<RayRecord>,
+    /// `secondary_rays`: per parent of depth `d - 1`, `[reflection, refraction]` child
+    /// indices into `rays` (`INVALID_ID`: no ray).
+    pub links: Vec<[u32; 2]>,
+    /// `bounce_trace`: the closest hit of each ray.
+    pub hits: Vec<HitRecord>,
+    /// `bounce_trace`: the surface each ray hit.
+    pub surfaces: Vec<SurfaceRecord>,
+    /// `compaction`: the shadow rays from `surfaces`.
+    pub shadow_rays: Vec<RayRecord>,
+    /// `shadow_rays`: one per shadow ray, 1 = occluded.
+    pub occluded: Vec<u32>,
+    /// `shadow_rays`: per (ray, light), `ray * lights + light`: `SHADOW_*`.
+    pub shadow: Vec<u8>,
+    /// `bounce_shading`: the radiance each ray brings back (alpha 1).
+    pub radiance: Vec<[f32; 4]>,
+}
+
+impl BounceBuffers {
+    /// Empty `buffer`, keeping its allocation.
+    fn clear(&mut self, buffer: BounceBuffer) {
+        match buffer {
+            BounceBuffer::Rays => self.rays.clear(),
+            BounceBuffer::Links => self.links.clear(),
+            BounceBuffer::Hits => self.hits.clear(),
+            BounceBuffer::Surfaces => self.surfaces.clear(),
+            BounceBuffer::ShadowRays => self.shadow_rays.clear(),
+            BounceBuffer::Occluded => self.occluded.clear(),
+            BounceBuffer::Shadow => self.shadow.clear(),
+            BounceBuffer::Radiance => self.radiance.clear(),
+        }
+    }
+
+    fn view(&self, buffer: BounceBuffer) -> BufferView<'_> {
+        match buffer {
+            BounceBuffer::Rays => BufferView::Rays(&self.rays),
+            BounceBuffer::Links => BufferView::Links(&self.links),
+            BounceBuffer::Hits => BufferView::Hits(&self.hits),
+            BounceBuffer::Surfaces => BufferView::Surfaces(&self.surfaces),
+            BounceBuffer::ShadowRays => BufferView::Rays(&self.shadow_rays),
+            BounceBuffer::Occluded => BufferView::Words(&self.occluded),
+            BounceBuffer::Shadow => BufferView::Codes(&self.shadow),
+            BounceBuffer::Radiance => BufferView::Image(&self.radiance),
+        }
+    }
 }
 
 /// One frame buffer's contents, borrowed from a [`Frame`].
@@ -210,8 +319,12 @@ pub enum BufferView<'a> {
     Words(&'a [u32]),
     /// `shadow`: one `SHADOW_*` code per (pixel, light).
     Codes(&'a [u8]),
-    /// `rt`, `raster`, `final`: linear RGBA per pixel.
+    /// `rt`, `raster`, `final`: linear RGBA per pixel; a bounce's radiance per ray.
     Image(&'a [[f32; 4]]),
+    /// A bounce's closest hits.
+    Hits(&'a [HitRecord]),
+    /// A bounce's links from parents to children.
+    Links(&'a [[u32; 2]]),
 }
 
 impl Frame {
@@ -231,6 +344,7 @@ impl Frame {
             FrameBuffer::Rt => BufferView::Image(&self.rt),
             FrameBuffer::Raster => BufferView::Image(&self.raster),
             FrameBuffer::Final => BufferView::Image(&self.final_image),
+            FrameBuffer::Bounce { buffer, depth } => self.bounces[depth as usize - 1].view(buffer),
         })
     }
 
@@ -245,9 +359,18 @@ impl Frame {
         self.plan.produces(buffer) && (self.stage_outputs || buffer.always_returned())
     }
 
-    /// The buffers the frame holds, in stage order.
+    /// The buffers the frame holds, in stage order ([`FramePlan::buffers`]).
     pub fn buffers(&self) -> impl Iterator<Item = FrameBuffer> + '_ {
-        FrameBuffer::ALL.into_iter().filter(|&b| self.holds(b))
+        self.plan.buffers().filter(|&b| self.holds(b))
+    }
+
+    /// The buffers of bounce `depth` (1-based), grown on first use.
+    pub fn bounce_mut(&mut self, depth: u32) -> &mut BounceBuffers {
+        let i = depth as usize - 1;
+        if self.bounces.len() <= i {
+            self.bounces.resize_with(i + 1, BounceBuffers::default);
+        }
+        &mut self.bounces[i]
     }
 
     /// Record the plan a backend is about to run for this frame.
@@ -271,6 +394,15 @@ impl Frame {
                     FrameBuffer::Rt => self.rt.clear(),
                     FrameBuffer::Raster => self.raster.clear(),
                     FrameBuffer::Final => self.final_image.clear(),
+                    FrameBuffer::Bounce { .. } => unreachable!("FrameBuffer::ALL has no bounce buffer"),
+                }
+            }
+        }
+        for (i, level) in self.bounces.iter_mut().enumerate() {
+            for b in BounceBuffer::ALL {
+                let buffer = b.at(i as u32 + 1);
+                if !(self.plan.produces(buffer) && (self.stage_outputs || buffer.always_returned())) {
+                    level.clear(b);
                 }
             }
         }

@@ -23,6 +23,7 @@
 //! | `rt_shading` | a ray-traced object has triangles and the weight is above 0 | [`SkipReason::NoRayTracedObjects`], [`SkipReason::WeightZero`] |
 //! | `raster_shading` | unless every object with triangles is ray traced and the weight is 1 | [`SkipReason::AllRayTracedWeightOne`] |
 //! | `composition` | always, as [`Composition::WeightedMean`] when both images exist, else a copy | |
+//! | `secondary_rays`, `bounce_trace`, `bounce_shading` | `rt_shading` runs, a ray-traced object bounces ([`crate::kernels::bounce::bounces`]: specular or glass) and `max_depth > 0`; once per depth | [`SkipReason::MaxDepthZero`], [`SkipReason::NoMirrorsOrGlass`], or `rt_shading`'s reason |
 //!
 //! The reduced frames are the full frame bit for bit: with no ray-traced pixel the
 //! weighted mean returns the raster texel; with weight 0 it returns
@@ -32,24 +33,30 @@
 //!
 //! # Bounces
 //!
-//! Reflection and refraction (issue 13) repeat a stage sequence per ray depth:
-//! compaction of the secondary rays from the shaded surfaces, tracing them (closest
-//! hit), rebuilding the surfaces they hit, shadow rays from those, shading, and
-//! accumulating into the ray-traced image. They fit as steps that carry their depth:
+//! Reflection and refraction repeat the paper's idea per ray depth `d = 1..=D`
+//! (`D = max_depth`): `secondary_rays` compacts the rays the surfaces of depth `d - 1`
+//! spawn into the list of depth `d` (with each parent's links to its children),
+//! `bounce_trace` finds their closest hits and rebuilds the surfaces hit, and
+//! `compaction` and `shadow_rays` run again over those surfaces. Then `bounce_shading`
+//! runs from `D` down to 1, each ray adding its children's radiance, and `rt_shading`
+//! adds the first bounce's to the pixels:
 //!
 //! ```text
-//! visibility_raster, reconstruction,
-//! compaction{depth 0}, shadow_rays{depth 0},            // primary surfaces
-//! secondary_rays{depth 1}, trace{depth 1}, ...           // bounce 1 reads depth 0's surfaces
+//! visibility_raster, reconstruction, compaction, shadow_rays,
+//! secondary_rays{1}, bounce_trace{1}, compaction{1}, shadow_rays{1},
+//! secondary_rays{2}, bounce_trace{2}, compaction{2}, shadow_rays{2},
+//! bounce_shading{2}, bounce_shading{1},
 //! rt_shading, raster_shading, composition
 //! ```
 //!
-//! A bounce's steps read the previous depth's buffers and write their own, so the
-//! plan stays a flat list that both backends run through the same loop; a scene
-//! without a mirror or glass object plans no bounce at all.
+//! Each bounce step reads the buffers of its own depth and its neighbour's
+//! ([`FrameBuffer::Bounce`]), so the plan stays a flat list that both backends run
+//! through the same loop; a scene without a mirror or glass object plans no bounce and
+//! allocates nothing for one.
 
 use crate::formats::OBJ_RAY_TRACED;
 use crate::frame::{FrameOptions, PreparedScene, RenderError};
+use crate::kernels::bounce::bounces;
 use crate::stage::Stage;
 
 /// A frame buffer: one stage output, kept in [`Frame`](crate::frame::Frame).
@@ -71,10 +78,82 @@ pub enum FrameBuffer {
     Raster,
     /// `composition`: the final image, linear RGBA per pixel.
     Final,
+    /// A buffer of bounce `depth` (1 for the rays from primary hits).
+    Bounce { buffer: BounceBuffer, depth: u32 },
+}
+
+/// The buffers of one bounce depth `d`: what the bounce stages write.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum BounceBuffer {
+    /// `secondary_rays`: the reflection and refraction rays of depth `d`, one
+    /// [`RayRecord`](crate::formats::RayRecord) each, in their parents' order.
+    Rays,
+    /// `secondary_rays`: per parent (the pixels for `d = 1`, else the rays of depth
+    /// `d - 1`), the indices of its `[reflection, refraction]` children in
+    /// [`BounceBuffer::Rays`], `INVALID_ID` where the lobe spawned no ray.
+    Links,
+    /// `bounce_trace`: one [`HitRecord`](crate::formats::HitRecord) per ray.
+    Hits,
+    /// `bounce_trace`: one [`SurfaceRecord`](crate::formats::SurfaceRecord) per ray
+    /// (`SurfaceRecord::MISS` where the ray left the scene).
+    Surfaces,
+    /// `compaction`: the shadow rays from the surfaces of depth `d`; their `pixel` is
+    /// the index of the secondary ray whose surface they leave.
+    ShadowRays,
+    /// `shadow_rays`: one word per shadow ray, 1 occluded.
+    Occluded,
+    /// `shadow_rays`: one `SHADOW_*` code per (secondary ray, light).
+    Shadow,
+    /// `bounce_shading`: the radiance each ray brings back (linear RGB, alpha 1).
+    Radiance,
+}
+
+impl BounceBuffer {
+    /// Every bounce buffer, in the order the stages write them.
+    pub const ALL: [BounceBuffer; 8] = [
+        BounceBuffer::Rays,
+        BounceBuffer::Links,
+        BounceBuffer::Hits,
+        BounceBuffer::Surfaces,
+        BounceBuffer::ShadowRays,
+        BounceBuffer::Occluded,
+        BounceBuffer::Shadow,
+        BounceBuffer::Radiance,
+    ];
+
+    /// The buffer's name within its depth (`--dump` writes `bounce{d}_{name}`).
+    pub const fn name(self) -> &'static str {
+        match self {
+            BounceBuffer::Rays => "rays",
+            BounceBuffer::Links => "links",
+            BounceBuffer::Hits => "hits",
+            BounceBuffer::Surfaces => "surfaces",
+            BounceBuffer::ShadowRays => "shadow_rays",
+            BounceBuffer::Occluded => "occluded",
+            BounceBuffer::Shadow => "shadow",
+            BounceBuffer::Radiance => "radiance",
+        }
+    }
+
+    /// The stage that writes it.
+    pub const fn writer(self) -> Stage {
+        match self {
+            BounceBuffer::Rays | BounceBuffer::Links => Stage::SecondaryRays,
+            BounceBuffer::Hits | BounceBuffer::Surfaces => Stage::BounceTrace,
+            BounceBuffer::ShadowRays => Stage::Compaction,
+            BounceBuffer::Occluded | BounceBuffer::Shadow => Stage::ShadowRays,
+            BounceBuffer::Radiance => Stage::BounceShading,
+        }
+    }
+
+    /// The buffer at depth `depth`.
+    pub const fn at(self, depth: u32) -> FrameBuffer {
+        FrameBuffer::Bounce { buffer: self, depth }
+    }
 }
 
 impl FrameBuffer {
-    /// Every frame buffer, in the order the stages write them.
+    /// The buffers of the primary hits (no bounce), in the order the stages write them.
     pub const ALL: [FrameBuffer; 8] = [
         FrameBuffer::GBuffer,
         FrameBuffer::Surfaces,
@@ -86,9 +165,11 @@ impl FrameBuffer {
         FrameBuffer::Final,
     ];
 
-    /// The buffer's one name: `--dump` files, conformance reports.
+    /// The buffer's kind name (a bounce buffer's without its depth: see
+    /// [`FrameBuffer::label`]).
     pub const fn name(self) -> &'static str {
         match self {
+            FrameBuffer::Bounce { buffer, .. } => buffer.name(),
             FrameBuffer::GBuffer => "gbuffer",
             FrameBuffer::Surfaces => "surfaces",
             FrameBuffer::Rays => "rays",
@@ -100,9 +181,27 @@ impl FrameBuffer {
         }
     }
 
+    /// The buffer's one name: `--dump` files, conformance reports. The primary
+    /// buffers' [`FrameBuffer::name`]; `bounce{d}_{name}` for a bounce buffer.
+    pub fn label(self) -> String {
+        match self {
+            FrameBuffer::Bounce { buffer, depth } => format!("bounce{depth}_{}", buffer.name()),
+            _ => self.name().to_string(),
+        }
+    }
+
+    /// The bounce depth it belongs to: 0 for the primary buffers.
+    pub const fn depth(self) -> u32 {
+        match self {
+            FrameBuffer::Bounce { depth, .. } => depth,
+            _ => 0,
+        }
+    }
+
     /// The stage that writes it.
     pub const fn writer(self) -> Stage {
         match self {
+            FrameBuffer::Bounce { buffer, .. } => buffer.writer(),
             FrameBuffer::GBuffer => Stage::VisibilityRaster,
             FrameBuffer::Surfaces => Stage::Reconstruction,
             FrameBuffer::Rays => Stage::Compaction,
@@ -123,7 +222,7 @@ impl FrameBuffer {
 
 impl std::fmt::Display for FrameBuffer {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
+        f.write_str(&self.label())
     }
 }
 
@@ -142,7 +241,7 @@ pub enum Input {
     Bvh,
     /// The camera of the frame.
     Camera,
-    /// The frame options (the composition weight).
+    /// The frame options (the composition weight, the bounce depth).
     Options,
 }
 
@@ -177,7 +276,33 @@ pub enum Step {
     Reconstruction,
     Compaction,
     ShadowRays,
-    RtShading,
+    /// Spawn the rays of bounce `depth` from the surfaces of `depth - 1`.
+    SecondaryRays {
+        depth: u32,
+    },
+    /// Trace the rays of bounce `depth` (closest hit) and rebuild the surfaces hit.
+    BounceTrace {
+        depth: u32,
+    },
+    /// `compaction` over the surfaces of bounce `depth`.
+    BounceCompaction {
+        depth: u32,
+    },
+    /// `shadow_rays` for the shadow rays of bounce `depth`.
+    BounceShadowRays {
+        depth: u32,
+    },
+    /// Shade the hits of bounce `depth` and gather their children's radiance; `last`:
+    /// `depth` is the plan's deepest bounce (its surfaces spawn nothing).
+    BounceShading {
+        depth: u32,
+        last: bool,
+    },
+    /// `bounces`: the plan traces bounces, so bouncing pixels add their children's
+    /// radiance.
+    RtShading {
+        bounces: bool,
+    },
     /// `shade_ray_traced`: ray-traced objects are shaded by the raster shader too
     /// (the composition weight is below 1).
     RasterShading {
@@ -192,17 +317,42 @@ impl Step {
         match self {
             Step::VisibilityRaster => Stage::VisibilityRaster,
             Step::Reconstruction => Stage::Reconstruction,
-            Step::Compaction => Stage::Compaction,
-            Step::ShadowRays => Stage::ShadowRays,
-            Step::RtShading => Stage::RtShading,
+            Step::Compaction | Step::BounceCompaction { .. } => Stage::Compaction,
+            Step::ShadowRays | Step::BounceShadowRays { .. } => Stage::ShadowRays,
+            Step::SecondaryRays { .. } => Stage::SecondaryRays,
+            Step::BounceTrace { .. } => Stage::BounceTrace,
+            Step::BounceShading { .. } => Stage::BounceShading,
+            Step::RtShading { .. } => Stage::RtShading,
             Step::RasterShading { .. } => Stage::RasterShading,
             Step::Composition(_) => Stage::Composition,
         }
     }
 
+    /// The bounce depth the step works on: 0 for the primary hits.
+    pub const fn depth(self) -> u32 {
+        match self {
+            Step::SecondaryRays { depth }
+            | Step::BounceTrace { depth }
+            | Step::BounceCompaction { depth }
+            | Step::BounceShadowRays { depth }
+            | Step::BounceShading { depth, .. } => depth,
+            _ => 0,
+        }
+    }
+
+    /// The step's name with its depth: the stage name, and `{d}` after it for a bounce
+    /// step (`compaction{2}`): frame tables and errors.
+    pub fn label(self) -> String {
+        match self.depth() {
+            0 => self.stage().name().to_string(),
+            d => format!("{}{{{d}}}", self.stage().name()),
+        }
+    }
+
     /// The frame buffers this step reads, given whether the plan has shadow results
     /// (it has none without lights: shading then reads no mask).
-    pub fn reads(self, with_shadow: bool) -> Vec<FrameBuffer> {
+    fn reads(self, with_shadow: bool) -> Vec<FrameBuffer> {
+        use BounceBuffer as K;
         use FrameBuffer as B;
         let shadow: &[B] = if with_shadow { &[B::Shadow] } else { &[] };
         match self {
@@ -210,7 +360,31 @@ impl Step {
             Step::Reconstruction => vec![B::GBuffer],
             Step::Compaction => vec![B::Surfaces],
             Step::ShadowRays => vec![B::Rays],
-            Step::RtShading | Step::RasterShading { .. } => [&[B::Surfaces][..], shadow].concat(),
+            Step::SecondaryRays { depth: 1 } => vec![B::GBuffer, B::Surfaces],
+            Step::SecondaryRays { depth } => {
+                vec![K::Rays.at(depth - 1), K::Hits.at(depth - 1), K::Surfaces.at(depth - 1)]
+            }
+            Step::BounceTrace { depth } => vec![K::Rays.at(depth)],
+            Step::BounceCompaction { depth } => vec![K::Surfaces.at(depth)],
+            Step::BounceShadowRays { depth } => vec![K::ShadowRays.at(depth)],
+            Step::BounceShading { depth, last } => {
+                let mut r = vec![K::Rays.at(depth), K::Hits.at(depth), K::Surfaces.at(depth)];
+                if with_shadow {
+                    r.push(K::Shadow.at(depth));
+                }
+                if !last {
+                    r.extend([K::Links.at(depth + 1), K::Radiance.at(depth + 1)]);
+                }
+                r
+            }
+            Step::RtShading { bounces } => {
+                let mut r = [&[B::Surfaces][..], shadow].concat();
+                if bounces {
+                    r.extend([B::GBuffer, K::Links.at(1), K::Radiance.at(1)]);
+                }
+                r
+            }
+            Step::RasterShading { .. } => [&[B::Surfaces][..], shadow].concat(),
             Step::Composition(Composition::WeightedMean) => vec![B::Raster, B::Rt],
             Step::Composition(Composition::CopyRaster) => vec![B::Raster],
             Step::Composition(Composition::RtOverBackground) => vec![B::Rt],
@@ -218,16 +392,22 @@ impl Step {
     }
 
     /// The frame buffers this step writes.
-    pub const fn writes(self) -> &'static [FrameBuffer] {
+    pub fn writes(self) -> Vec<FrameBuffer> {
+        use BounceBuffer as K;
         use FrameBuffer as B;
         match self {
-            Step::VisibilityRaster => &[B::GBuffer],
-            Step::Reconstruction => &[B::Surfaces],
-            Step::Compaction => &[B::Rays],
-            Step::ShadowRays => &[B::Occluded, B::Shadow],
-            Step::RtShading => &[B::Rt],
-            Step::RasterShading { .. } => &[B::Raster],
-            Step::Composition(_) => &[B::Final],
+            Step::VisibilityRaster => vec![B::GBuffer],
+            Step::Reconstruction => vec![B::Surfaces],
+            Step::Compaction => vec![B::Rays],
+            Step::ShadowRays => vec![B::Occluded, B::Shadow],
+            Step::SecondaryRays { depth } => vec![K::Rays.at(depth), K::Links.at(depth)],
+            Step::BounceTrace { depth } => vec![K::Hits.at(depth), K::Surfaces.at(depth)],
+            Step::BounceCompaction { depth } => vec![K::ShadowRays.at(depth)],
+            Step::BounceShadowRays { depth } => vec![K::Occluded.at(depth), K::Shadow.at(depth)],
+            Step::BounceShading { depth, .. } => vec![K::Radiance.at(depth)],
+            Step::RtShading { .. } => vec![B::Rt],
+            Step::RasterShading { .. } => vec![B::Raster],
+            Step::Composition(_) => vec![B::Final],
         }
     }
 
@@ -237,9 +417,12 @@ impl Step {
         match self {
             Step::VisibilityRaster => &[I::Triangles, I::Objects, I::Camera],
             Step::Reconstruction => &[I::Triangles, I::Normals, I::Camera],
-            Step::Compaction => &[I::Lights],
-            Step::ShadowRays => &[I::Bvh, I::Triangles],
-            Step::RtShading => &[I::Objects, I::Lights, I::Camera],
+            Step::Compaction | Step::BounceCompaction { .. } => &[I::Lights],
+            Step::ShadowRays | Step::BounceShadowRays { .. } => &[I::Bvh, I::Triangles],
+            Step::SecondaryRays { .. } => &[I::Triangles, I::Objects, I::Camera, I::Options],
+            Step::BounceTrace { .. } => &[I::Bvh, I::Triangles, I::Normals],
+            Step::BounceShading { .. } => &[I::Objects, I::Lights, I::Triangles],
+            Step::RtShading { .. } => &[I::Objects, I::Lights, I::Camera, I::Triangles],
             Step::RasterShading { .. } => &[I::Objects, I::Lights, I::Options],
             Step::Composition(_) => &[I::Options],
         }
@@ -260,6 +443,10 @@ pub enum SkipReason {
     /// Every object with triangles is ray traced and the weight is 1: the raster
     /// image would only hold the background, which `composition` fills in.
     AllRayTracedWeightOne,
+    /// The frame options ask for no bounce (`max_depth` 0).
+    MaxDepthZero,
+    /// No ray-traced object with triangles has a specular or glass material.
+    NoMirrorsOrGlass,
 }
 
 impl SkipReason {
@@ -271,6 +458,8 @@ impl SkipReason {
             SkipReason::NoRayTracedObjects => "no ray-traced objects",
             SkipReason::WeightZero => "composition weight 0",
             SkipReason::AllRayTracedWeightOne => "every object ray traced, weight 1",
+            SkipReason::MaxDepthZero => "max depth 0",
+            SkipReason::NoMirrorsOrGlass => "no ray-traced mirror or glass",
         }
     }
 }
@@ -294,6 +483,7 @@ pub struct FramePlan {
     steps: Vec<Step>,
     skipped: Vec<Skipped>,
     lights: u32,
+    depth: u32,
 }
 
 impl FramePlan {
@@ -309,13 +499,15 @@ impl FramePlan {
             triangles: !g.triangles.is_empty(),
             ray_traced: any_rt,
             rasterized: any_raster,
+            bouncing: g.objects.iter().any(bounces),
             weight: options.weight,
+            max_depth: options.max_depth,
         }))
     }
 
     /// The plan for what a scene holds (see the module docs for the rules).
     pub fn from_counts(needs: SceneNeeds) -> FramePlan {
-        let SceneNeeds { lights, triangles, ray_traced, rasterized, weight } = needs;
+        let SceneNeeds { lights, triangles, ray_traced, rasterized, bouncing, weight, max_depth } = needs;
         let mut steps = vec![Step::VisibilityRaster, Step::Reconstruction];
         let mut skipped = Vec::new();
         let mut skip = |stage, reason| skipped.push(Skipped { stage, reason });
@@ -333,15 +525,40 @@ impl FramePlan {
             }
         }
         let rt = if !ray_traced {
-            skip(Stage::RtShading, SkipReason::NoRayTracedObjects);
-            false
+            Err(SkipReason::NoRayTracedObjects)
         } else if weight == 0.0 {
-            skip(Stage::RtShading, SkipReason::WeightZero);
-            false
+            Err(SkipReason::WeightZero)
         } else {
-            steps.push(Step::RtShading);
-            true
+            Ok(())
         };
+        let depth = match rt {
+            Err(reason) => Err(reason),
+            Ok(()) if max_depth == 0 => Err(SkipReason::MaxDepthZero),
+            Ok(()) if !bouncing => Err(SkipReason::NoMirrorsOrGlass),
+            Ok(()) => Ok(max_depth),
+        };
+        match depth {
+            Ok(depth) => {
+                for d in 1..=depth {
+                    steps.extend([Step::SecondaryRays { depth: d }, Step::BounceTrace { depth: d }]);
+                    if rays.is_none() {
+                        steps.extend([Step::BounceCompaction { depth: d }, Step::BounceShadowRays { depth: d }]);
+                    }
+                }
+                steps.extend((1..=depth).rev().map(|d| Step::BounceShading { depth: d, last: d == depth }));
+            }
+            Err(reason) => {
+                for stage in [Stage::SecondaryRays, Stage::BounceTrace, Stage::BounceShading] {
+                    skip(stage, reason);
+                }
+            }
+        }
+        let depth = depth.unwrap_or(0);
+        if let Err(reason) = rt {
+            skip(Stage::RtShading, reason);
+        } else {
+            steps.push(Step::RtShading { bounces: depth > 0 });
+        }
         let raster = if ray_traced && !rasterized && weight == 1.0 {
             skip(Stage::RasterShading, SkipReason::AllRayTracedWeightOne);
             false
@@ -349,13 +566,14 @@ impl FramePlan {
             steps.push(Step::RasterShading { shade_ray_traced: weight < 1.0 });
             true
         };
-        steps.push(Step::Composition(match (raster, rt) {
+        steps.push(Step::Composition(match (raster, rt.is_ok()) {
             (true, true) => Composition::WeightedMean,
             (true, false) => Composition::CopyRaster,
             (false, true) => Composition::RtOverBackground,
             (false, false) => unreachable!("raster_shading is skipped only when rt_shading runs"),
         }));
-        FramePlan { steps, skipped, lights }
+        skipped.sort_by_key(|s| s.stage);
+        FramePlan { steps, skipped, lights, depth }
     }
 
     /// The steps to run, in order.
@@ -368,29 +586,37 @@ impl FramePlan {
         &self.skipped
     }
 
-    /// True if the plan runs `stage`.
+    /// True if the plan runs `stage` (at any depth).
     pub fn runs(&self, stage: Stage) -> bool {
         self.steps.iter().any(|s| s.stage() == stage)
     }
 
-    /// The step that runs `stage`, if any.
+    /// The first step that runs `stage`, if any (for a stage that runs at several
+    /// depths, the primary one, or the shallowest bounce).
     pub fn step(&self, stage: Stage) -> Option<Step> {
         self.steps.iter().copied().find(|s| s.stage() == stage)
     }
 
     /// True if a step of the plan writes `buffer`.
     pub fn produces(&self, buffer: FrameBuffer) -> bool {
-        self.runs(buffer.writer())
+        self.steps.iter().any(|s| s.writes().contains(&buffer))
     }
 
-    /// The buffers the plan writes, in stage order.
+    /// The buffers the plan writes: the primary ones in stage order, then each bounce
+    /// depth's in [`BounceBuffer::ALL`] order.
     pub fn buffers(&self) -> impl Iterator<Item = FrameBuffer> + '_ {
-        FrameBuffer::ALL.into_iter().filter(|&b| self.produces(b))
+        let bounce = (1..=self.depth).flat_map(|d| BounceBuffer::ALL.into_iter().map(move |b| b.at(d)));
+        FrameBuffer::ALL.into_iter().chain(bounce).filter(|&b| self.produces(b))
     }
 
     /// The lights of the scene the plan was made for.
     pub fn lights(&self) -> u32 {
         self.lights
+    }
+
+    /// The deepest bounce the plan traces: 0 when it traces none.
+    pub fn bounce_depth(&self) -> u32 {
+        self.depth
     }
 
     /// The frame buffers `step` reads in this plan.
@@ -412,10 +638,10 @@ impl FramePlan {
         for &step in &self.steps {
             for b in self.reads(step) {
                 if !written.contains(&b) {
-                    return Err(format!("{} reads {b} before any step writes it", step.stage()));
+                    return Err(format!("{} reads {b} before any step writes it", step.label()));
                 }
             }
-            written.extend_from_slice(step.writes());
+            written.extend(step.writes());
         }
         Ok(())
     }
@@ -433,8 +659,13 @@ pub struct SceneNeeds {
     pub ray_traced: bool,
     /// An object with triangles is rasterized.
     pub rasterized: bool,
+    /// A ray-traced object with triangles bounces secondary rays
+    /// ([`crate::kernels::bounce::bounces`]).
+    pub bouncing: bool,
     /// The composition weight in [0, 1].
     pub weight: f32,
+    /// The deepest bounce the options allow.
+    pub max_depth: u32,
 }
 
 #[cfg(test)]
@@ -442,7 +673,27 @@ mod tests {
     use super::*;
 
     fn plan(lights: u32, triangles: bool, ray_traced: bool, rasterized: bool, weight: f32) -> FramePlan {
-        FramePlan::from_counts(SceneNeeds { lights, triangles, ray_traced, rasterized, weight })
+        FramePlan::from_counts(SceneNeeds {
+            lights,
+            triangles,
+            ray_traced,
+            rasterized,
+            bouncing: ray_traced,
+            weight,
+            max_depth: 0,
+        })
+    }
+
+    fn bouncing_plan(lights: u32, max_depth: u32) -> FramePlan {
+        FramePlan::from_counts(SceneNeeds {
+            lights,
+            triangles: true,
+            ray_traced: true,
+            rasterized: true,
+            bouncing: true,
+            weight: 1.0,
+            max_depth,
+        })
     }
 
     fn stages(p: &FramePlan) -> Vec<&'static str> {
@@ -450,10 +701,13 @@ mod tests {
     }
 
     #[test]
-    fn the_full_scene_runs_every_frame_stage() {
+    fn the_full_scene_runs_every_frame_stage_but_the_bounces_at_depth_zero() {
         let p = plan(2, true, true, true, 0.5);
-        assert_eq!(stages(&p), Stage::ALL[1..].iter().map(|s| s.name()).collect::<Vec<_>>());
-        assert!(p.skipped().is_empty());
+        let bounce = [Stage::SecondaryRays, Stage::BounceTrace, Stage::BounceShading];
+        let want: Vec<_> = Stage::ALL[1..].iter().filter(|s| !bounce.contains(s)).map(|s| s.name()).collect();
+        assert_eq!(stages(&p), want);
+        assert!(p.skipped().iter().all(|s| s.reason == SkipReason::MaxDepthZero && bounce.contains(&s.stage)));
+        assert_eq!(p.bounce_depth(), 0);
         assert_eq!(p.composition(), Composition::WeightedMean);
         assert_eq!(p.step(Stage::RasterShading), Some(Step::RasterShading { shade_ray_traced: true }));
         p.validate().unwrap();
@@ -463,7 +717,7 @@ mod tests {
     fn no_ray_traced_objects_skip_rt_shading_and_copy_the_raster_image() {
         let p = plan(2, true, false, true, 1.0);
         assert!(!p.runs(Stage::RtShading));
-        assert_eq!(p.skipped(), &[Skipped { stage: Stage::RtShading, reason: SkipReason::NoRayTracedObjects }]);
+        assert!(p.skipped().contains(&Skipped { stage: Stage::RtShading, reason: SkipReason::NoRayTracedObjects }));
         assert_eq!(p.composition(), Composition::CopyRaster);
         assert!(!p.produces(FrameBuffer::Rt));
         p.validate().unwrap();
@@ -485,7 +739,8 @@ mod tests {
     #[test]
     fn weight_zero_skips_rt_shading() {
         let p = plan(1, true, true, true, 0.0);
-        assert_eq!(p.skipped(), &[Skipped { stage: Stage::RtShading, reason: SkipReason::WeightZero }]);
+        assert!(p.skipped().iter().all(|s| s.reason == SkipReason::WeightZero));
+        assert!(p.skipped().contains(&Skipped { stage: Stage::RtShading, reason: SkipReason::WeightZero }));
         assert_eq!(p.composition(), Composition::CopyRaster);
         p.validate().unwrap();
     }
@@ -494,8 +749,8 @@ mod tests {
     fn no_lights_skip_compaction_and_shadow_rays_and_shading_reads_no_mask() {
         let p = plan(0, true, true, true, 1.0);
         assert_eq!(stages(&p), ["visibility_raster", "reconstruction", "rt_shading", "raster_shading", "composition"]);
-        assert!(p.skipped().iter().all(|s| s.reason == SkipReason::NoLights));
-        assert_eq!(p.reads(Step::RtShading), [FrameBuffer::Surfaces]);
+        assert!(p.skipped().iter().all(|s| [SkipReason::NoLights, SkipReason::MaxDepthZero].contains(&s.reason)));
+        assert_eq!(p.reads(Step::RtShading { bounces: false }), [FrameBuffer::Surfaces]);
         assert!(!p.produces(FrameBuffer::Rays) && !p.produces(FrameBuffer::Shadow));
         p.validate().unwrap();
     }
@@ -518,9 +773,99 @@ mod tests {
                             let p = plan(lights, triangles, ray_traced && triangles, rasterized && triangles, weight);
                             p.validate().unwrap();
                             assert!(p.produces(FrameBuffer::Final));
-                            let ran = p.steps().len() + p.skipped().len();
-                            assert_eq!(ran, Stage::ALL.len() - 1, "{p:?}");
+                            let mut ran: Vec<Stage> = p.steps().iter().map(|s| s.stage()).collect();
+                            ran.extend(p.skipped().iter().map(|s| s.stage));
+                            ran.sort();
+                            ran.dedup();
+                            assert_eq!(ran.len(), Stage::ALL.len() - 1, "{p:?}");
                         }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn bounces_repeat_the_ray_stages_per_depth_and_gather_deepest_first() {
+        let p = bouncing_plan(1, 2);
+        let labels: Vec<String> = p.steps().iter().map(|s| s.label()).collect();
+        assert_eq!(
+            labels,
+            [
+                "visibility_raster",
+                "reconstruction",
+                "compaction",
+                "shadow_rays",
+                "secondary_rays{1}",
+                "bounce_trace{1}",
+                "compaction{1}",
+                "shadow_rays{1}",
+                "secondary_rays{2}",
+                "bounce_trace{2}",
+                "compaction{2}",
+                "shadow_rays{2}",
+                "bounce_shading{2}",
+                "bounce_shading{1}",
+                "rt_shading",
+                "raster_shading",
+                "composition"
+            ]
+        );
+        p.validate().unwrap();
+        assert_eq!(p.bounce_depth(), 2);
+        assert!(p.produces(BounceBuffer::Radiance.at(2)) && !p.produces(BounceBuffer::Radiance.at(3)));
+        assert_eq!(p.buffers().filter(|b| b.depth() == 2).count(), BounceBuffer::ALL.len());
+        assert_eq!(BounceBuffer::Links.at(2).label(), "bounce2_links");
+        assert!(p.skipped().is_empty());
+    }
+
+    #[test]
+    fn bounces_without_lights_trace_no_shadow_rays_and_shade_without_masks() {
+        let p = bouncing_plan(0, 1);
+        p.validate().unwrap();
+        assert!(!p.produces(BounceBuffer::Shadow.at(1)));
+        assert_eq!(
+            p.reads(Step::BounceShading { depth: 1, last: true }),
+            [BounceBuffer::Rays.at(1), BounceBuffer::Hits.at(1), BounceBuffer::Surfaces.at(1)]
+        );
+    }
+
+    #[test]
+    fn no_mirror_or_glass_plans_no_bounce() {
+        let p = FramePlan::from_counts(SceneNeeds { bouncing: false, ..SceneNeeds { ..bouncing_needs() } });
+        assert_eq!(p.bounce_depth(), 0);
+        assert!(p.skipped().contains(&Skipped { stage: Stage::BounceTrace, reason: SkipReason::NoMirrorsOrGlass }));
+        assert_eq!(p.buffers().filter(|b| b.depth() > 0).count(), 0);
+    }
+
+    fn bouncing_needs() -> SceneNeeds {
+        SceneNeeds {
+            lights: 1,
+            triangles: true,
+            ray_traced: true,
+            rasterized: true,
+            bouncing: true,
+            weight: 1.0,
+            max_depth: 4,
+        }
+    }
+
+    #[test]
+    fn every_bouncing_plan_reads_only_what_it_wrote() {
+        for lights in [0, 2] {
+            for max_depth in 0..6 {
+                for weight in [0.0, 0.5, 1.0] {
+                    for rasterized in [false, true] {
+                        let p = FramePlan::from_counts(SceneNeeds {
+                            lights,
+                            max_depth,
+                            weight,
+                            rasterized,
+                            ..bouncing_needs()
+                        });
+                        p.validate().unwrap();
+                        let want = if weight == 0.0 { 0 } else { max_depth };
+                        assert_eq!(p.bounce_depth(), want);
                     }
                 }
             }

@@ -15,6 +15,15 @@ pub enum Stage {
     Compaction,
     /// Trace the shadow-ray list through the BVH, any hit with early exit.
     ShadowRays,
+    /// Spawn the reflection and refraction rays of the surfaces that bounce into the
+    /// next depth's ray list (compaction again, over the surfaces' two lobes).
+    SecondaryRays,
+    /// Trace a secondary ray list through the BVH, closest hit, and rebuild the surfaces
+    /// hit from their barycentrics (paper eq. 1 again).
+    BounceTrace,
+    /// Shade a bounce's hits (misses see the sky) and gather their children's radiance,
+    /// deepest bounce first.
+    BounceShading,
     /// Shade the pixels of ray-traced objects (paper 3.3).
     RtShading,
     /// Shade the pixels of rasterized objects with an ordinary shader (paper 3.4).
@@ -25,12 +34,15 @@ pub enum Stage {
 
 impl Stage {
     /// Every stage, in execution order.
-    pub const ALL: [Stage; 8] = [
+    pub const ALL: [Stage; 11] = [
         Stage::BvhBuild,
         Stage::VisibilityRaster,
         Stage::Reconstruction,
         Stage::Compaction,
         Stage::ShadowRays,
+        Stage::SecondaryRays,
+        Stage::BounceTrace,
+        Stage::BounceShading,
         Stage::RtShading,
         Stage::RasterShading,
         Stage::Composition,
@@ -44,6 +56,9 @@ impl Stage {
             Stage::Reconstruction => "reconstruction",
             Stage::Compaction => "compaction",
             Stage::ShadowRays => "shadow_rays",
+            Stage::SecondaryRays => "secondary_rays",
+            Stage::BounceTrace => "bounce_trace",
+            Stage::BounceShading => "bounce_shading",
             Stage::RtShading => "rt_shading",
             Stage::RasterShading => "raster_shading",
             Stage::Composition => "composition",

@@ -3,20 +3,25 @@
 use std::time::Instant;
 
 use glam::Vec3;
-use hyrt_core::bvh::BvhPreset;
-use hyrt_core::formats::{CameraRecord, RAY_KIND_COUNT};
-use hyrt_core::frame::{Backend, Frame, FrameOptions, FrameStats, PreparedScene, RenderError, StageTime, StageWork};
+use hyrt_core::bvh::{BvhPreset, ClosestHit};
+use hyrt_core::formats::{CameraRecord, RayRecord, RAY_KIND_COUNT};
+use hyrt_core::frame::{
+    Backend, BounceStats, Frame, FrameOptions, FrameStats, PreparedScene, RenderError, StageTime, StageWork,
+};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::plan::{FramePlan, Step};
 
 use rayon::prelude::*;
 
 use crate::{
+    bounce_shading::{bounce_shading_into, Children},
+    bounce_trace::bounce_trace_into,
     compaction::{compaction_into, shadow_mask_into, CompactionScratch},
     composition::composition_into,
     raster_shading::raster_shading_into,
     reconstruction::reconstruction_into,
-    rt_shading::rt_shading_into,
+    rt_shading::{rt_shading_bouncing_into, rt_shading_into, FirstBounce},
+    secondary_rays::{secondary_rays_into, Parents},
     shadow_rays::shadow_rays_with,
     traversal::Traversal,
     visibility_raster::visibility_raster_into,
@@ -28,7 +33,9 @@ pub struct CpuBackend {
     pool: rayon::ThreadPool,
     /// Stage buffers that are not part of a [`Frame`], kept between frames.
     scratch: CompactionScratch,
-    /// How `shadow_rays` traces (SIMD packets by default; scalar for comparisons).
+    /// `bounce_trace`'s closest hits before they become records, kept between frames.
+    closest: Vec<Option<ClosestHit>>,
+    /// How `shadow_rays` and `bounce_trace` trace (SIMD packets by default; scalar for comparisons).
     shadow_traversal: Traversal,
 }
 
@@ -42,6 +49,7 @@ impl CpuBackend {
         CpuBackend {
             pool: b.build().expect("rayon thread pool"),
             scratch: CompactionScratch::default(),
+            closest: Vec::new(),
             shadow_traversal: Traversal::simd(),
         }
     }
@@ -69,6 +77,21 @@ impl CpuBackend {
     }
 }
 
+/// Rays per `RAY_KIND_*` in two lists.
+fn rays_per_kind(a: &[RayRecord], b: &[RayRecord]) -> [u64; RAY_KIND_COUNT] {
+    a.par_iter()
+        .chain(b.par_iter())
+        .with_min_len(16384)
+        .fold(
+            || [0u64; RAY_KIND_COUNT],
+            |mut k, r| {
+                k[r.kind as usize] += 1;
+                k
+            },
+        )
+        .reduce(|| [0u64; RAY_KIND_COUNT], |a, b| std::array::from_fn(|i| a[i] + b[i]))
+}
+
 impl Default for CpuBackend {
     fn default() -> Self {
         CpuBackend::new(None)
@@ -94,8 +117,12 @@ impl Backend for CpuBackend {
         let threads = self.threads();
         let traversal = self.shadow_traversal;
         let scratch = &mut self.scratch;
+        let closest = &mut self.closest;
         let f = frame;
         f.begin(&plan, options);
+        if plan.bounce_depth() > 0 {
+            f.bounce_mut(plan.bounce_depth());
+        }
         self.pool.install(|| {
             let mut times = Vec::with_capacity(plan.steps().len());
             let mut covered = 0;
@@ -110,7 +137,73 @@ impl Backend for CpuBackend {
                         shadow_rays_with(&scene.bvh, g, &f.rays, traversal, &mut f.occluded);
                         shadow_mask_into(&f.rays, &f.occluded, f.surfaces.len(), g.lights.len(), &mut f.shadow);
                     }
-                    Step::RtShading => rt_shading_into(&f.surfaces, &f.shadow, &g.objects, &g.lights, eye, &mut f.rt),
+                    Step::SecondaryRays { depth } => {
+                        let (done, rest) = f.bounces.split_at_mut(depth as usize - 1);
+                        let parents = match done.last() {
+                            None => Parents::Primary { gbuffer: &f.gbuffer, surfaces: &f.surfaces, eye },
+                            Some(prev) => {
+                                Parents::Secondary { rays: &prev.rays, hits: &prev.hits, surfaces: &prev.surfaces }
+                            }
+                        };
+                        let b = &mut rest[0];
+                        secondary_rays_into(
+                            parents,
+                            &g.objects,
+                            &g.triangles,
+                            depth,
+                            scratch,
+                            &mut b.rays,
+                            &mut b.links,
+                        )
+                    }
+                    Step::BounceTrace { depth } => {
+                        let b = &mut f.bounces[depth as usize - 1];
+                        bounce_trace_into(&scene.bvh, g, &b.rays, traversal, closest, &mut b.hits, &mut b.surfaces)
+                    }
+                    Step::BounceCompaction { depth } => {
+                        let b = &mut f.bounces[depth as usize - 1];
+                        compaction_into(&b.surfaces, &g.lights, scratch, &mut b.shadow_rays)
+                    }
+                    Step::BounceShadowRays { depth } => {
+                        let b = &mut f.bounces[depth as usize - 1];
+                        shadow_rays_with(&scene.bvh, g, &b.shadow_rays, traversal, &mut b.occluded);
+                        shadow_mask_into(&b.shadow_rays, &b.occluded, b.surfaces.len(), g.lights.len(), &mut b.shadow);
+                    }
+                    Step::BounceShading { depth, last } => {
+                        let (this, deeper) = f.bounces.split_at_mut(depth as usize);
+                        let b = &mut this[depth as usize - 1];
+                        let children =
+                            (!last).then(|| Children { links: &deeper[0].links, radiance: &deeper[0].radiance });
+                        bounce_shading_into(
+                            &b.rays,
+                            &b.hits,
+                            &b.surfaces,
+                            &b.shadow,
+                            &g.objects,
+                            &g.triangles,
+                            &g.lights,
+                            children,
+                            &mut b.radiance,
+                        )
+                    }
+                    Step::RtShading { bounces: false } => {
+                        rt_shading_into(&f.surfaces, &f.shadow, &g.objects, &g.lights, eye, &mut f.rt)
+                    }
+                    Step::RtShading { bounces: true } => {
+                        let first = &f.bounces[0];
+                        let bounce =
+                            FirstBounce { gbuffer: &f.gbuffer, links: &first.links, radiance: &first.radiance };
+                        rt_shading_bouncing_into(
+                            &f.surfaces,
+                            &f.shadow,
+                            &g.objects,
+                            &g.triangles,
+                            &g.lights,
+                            eye,
+                            bounce,
+                            &mut f.rt,
+                        )
+                    }
                     Step::RasterShading { shade_ray_traced } => raster_shading_into(
                         &f.surfaces,
                         &f.shadow,
@@ -124,7 +217,7 @@ impl Backend for CpuBackend {
                     }
                 }
                 let ms = t.elapsed().as_secs_f64() * 1e3;
-                times.push(StageTime { stage: step.stage(), ms, work: StageWork::default() });
+                times.push(StageTime { stage: step.stage(), depth: step.depth(), ms, work: StageWork::default() });
             }
 
             let mut stats = FrameStats {
@@ -137,19 +230,16 @@ impl Backend for CpuBackend {
             stats.covered_pixels = covered;
             stats.ray_traced_pixels = f.gbuffer.par_iter().filter(|t| t.is_hit() && t.is_ray_traced()).count() as u64;
             stats.raster_pixels = stats.covered_pixels - stats.ray_traced_pixels;
-            stats.rays_per_kind = f
-                .rays
-                .par_iter()
-                .with_min_len(16384)
-                .fold(
-                    || [0u64; RAY_KIND_COUNT],
-                    |mut k, r| {
-                        k[r.kind as usize] += 1;
-                        k
-                    },
-                )
-                .reduce(|| [0u64; RAY_KIND_COUNT], |a, b| std::array::from_fn(|i| a[i] + b[i]));
+            stats.rays_per_kind = rays_per_kind(&f.rays, &[]);
             stats.occluded_shadow_rays = f.occluded.par_iter().filter(|&&o| o != 0).count() as u64;
+            stats.bounces = f.bounces[..plan.bounce_depth() as usize]
+                .iter()
+                .map(|b| BounceStats {
+                    rays_per_kind: rays_per_kind(&b.rays, &b.shadow_rays),
+                    hits: b.hits.par_iter().filter(|h| h.is_hit()).count() as u64,
+                    occluded_shadow_rays: b.occluded.par_iter().filter(|&&o| o != 0).count() as u64,
+                })
+                .collect();
             for (time, &step) in times.iter_mut().zip(plan.steps()) {
                 time.work = StageWork::of(step, &stats);
             }

@@ -6,7 +6,8 @@
 //! ray-traced image (linear RGBA; alpha 1 on ray-traced pixels, 0 elsewhere).
 
 use glam::Vec3;
-use hyrt_core::formats::{LightRecord, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
+use hyrt_core::formats::{GBufferTexel, LightRecord, ObjectRecord, SurfaceRecord, TriangleRecord, OBJ_RAY_TRACED};
+use hyrt_core::kernels::bounce::{primary_parent, shade_rt_pixel_bouncing};
 use hyrt_core::kernels::shading::shade_rt_pixel;
 use rayon::prelude::*;
 
@@ -32,7 +33,53 @@ pub fn rt_shading_into(
     eye: Vec3,
     out: &mut Vec<[f32; 4]>,
 ) {
-    let nl = lights.len();
+    shade_ray_traced_pixels(surfaces, shadow, objects, lights.len(), out, |_, s, obj, shadow| {
+        shade_rt_pixel(s, obj, shadow, lights, eye)
+    });
+}
+
+/// The first bounce's results `rt_shading` gathers on the pixels of mirrors and glass.
+#[derive(Clone, Copy)]
+pub struct FirstBounce<'a> {
+    /// The G-buffer (each pixel's exact facing).
+    pub gbuffer: &'a [GBufferTexel],
+    /// Per pixel, its `[reflection, refraction]` rays of depth 1.
+    pub links: &'a [[u32; 2]],
+    /// The radiance those rays bring back.
+    pub radiance: &'a [[f32; 4]],
+}
+
+/// [`rt_shading_into`] in a frame that traces bounces: pixels whose object bounces add
+/// what their reflection and refraction rays brought back
+/// ([`hyrt_core::kernels::bounce::shade_rt_pixel_bouncing`]); every other pixel is
+/// shaded as [`rt_shading_into`] shades it, bit for bit.
+#[allow(clippy::too_many_arguments)]
+pub fn rt_shading_bouncing_into(
+    surfaces: &[SurfaceRecord],
+    shadow: &[u8],
+    objects: &[ObjectRecord],
+    triangles: &[TriangleRecord],
+    lights: &[LightRecord],
+    eye: Vec3,
+    bounce: FirstBounce,
+    out: &mut Vec<[f32; 4]>,
+) {
+    shade_ray_traced_pixels(surfaces, shadow, objects, lights.len(), out, |i, s, _, shadow| {
+        let p = primary_parent(&bounce.gbuffer[i], s, eye, i as u32);
+        shade_rt_pixel_bouncing(&p, objects, triangles, shadow, lights, eye, bounce.links[i], bounce.radiance)
+    });
+}
+
+/// The pixel loop of the stage: `shade(pixel, surface, object, its shadow codes)` on the
+/// pixels of ray-traced objects (alpha 1), transparent black elsewhere.
+fn shade_ray_traced_pixels(
+    surfaces: &[SurfaceRecord],
+    shadow: &[u8],
+    objects: &[ObjectRecord],
+    nl: usize,
+    out: &mut Vec<[f32; 4]>,
+    shade: impl Fn(usize, &SurfaceRecord, &ObjectRecord, &[u8]) -> Vec3 + Sync,
+) {
     surfaces
         .par_iter()
         .enumerate()
@@ -45,7 +92,7 @@ pub fn rt_shading_into(
             if obj.flags & OBJ_RAY_TRACED == 0 {
                 return [0.0; 4];
             }
-            shade_rt_pixel(s, obj, &shadow[i * nl..(i + 1) * nl], lights, eye).extend(1.0).into()
+            shade(i, s, obj, &shadow[i * nl..(i + 1) * nl]).extend(1.0).into()
         })
         .collect_into_vec(out);
 }

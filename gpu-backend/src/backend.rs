@@ -183,6 +183,7 @@ impl GpuBackend {
         target: &wgpu::Texture,
     ) -> Result<FrameStats, RenderError> {
         let plan = FramePlan::new(scene, options)?;
+        check_supported(&plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         crate::present::check_target(target, camera.width, camera.height).map_err(RenderError::InvalidOptions)?;
         let count = self.run_with_room(scene, &plan, camera, options, |b: &Self| b.read_ray_count(&plan))?;
@@ -210,7 +211,12 @@ impl GpuBackend {
         plan.steps()
             .iter()
             .zip(ms)
-            .map(|(&step, ms)| StageTime { stage: step.stage(), ms, work: StageWork::of(step, stats) })
+            .map(|(&step, ms)| StageTime {
+                stage: step.stage(),
+                depth: step.depth(),
+                ms,
+                work: StageWork::of(step, stats),
+            })
             .collect()
     }
 
@@ -245,7 +251,15 @@ impl GpuBackend {
                     Step::Reconstruction => self.reconstruction.encode(ctx, &mut enc, sb, fb, slot),
                     Step::Compaction => self.compaction.encode(ctx, &mut enc, sb, fb, slot),
                     Step::ShadowRays => self.shadow_rays.encode(ctx, &mut enc, sb, fb, slot),
-                    Step::RtShading => self.rt_shading.encode(ctx, &mut enc, sb, fb, slot),
+                    Step::RtShading { bounces: false } => self.rt_shading.encode(ctx, &mut enc, sb, fb, slot),
+                    Step::SecondaryRays { .. }
+                    | Step::BounceTrace { .. }
+                    | Step::BounceCompaction { .. }
+                    | Step::BounceShadowRays { .. }
+                    | Step::BounceShading { .. }
+                    | Step::RtShading { bounces: true } => {
+                        unreachable!("plans with bounces are refused by `check_supported` before they run")
+                    }
                     // `shade_ray_traced` is the shader's `weight < 1`.
                     Step::RasterShading { .. } => self.raster_shading.encode(ctx, &mut enc, sb, fb, slot),
                     // The mode is the `composition` code in the frame parameters.
@@ -306,6 +320,7 @@ impl GpuBackend {
                 FrameBuffer::Occluded => (count, 4),
                 FrameBuffer::Shadow => (pairs, 4),
                 FrameBuffer::Rt | FrameBuffer::Raster | FrameBuffer::Final => (pixels, 16),
+                FrameBuffer::Bounce { .. } => unreachable!("plans with bounces are refused before they run"),
             };
             (n * size) as u64
         };
@@ -333,6 +348,7 @@ impl GpuBackend {
                     FrameBuffer::Rt => copy_into_vec(&mut out.rt, data),
                     FrameBuffer::Raster => copy_into_vec(&mut out.raster, data),
                     FrameBuffer::Final => copy_into_vec(&mut out.final_image, data),
+                    FrameBuffer::Bounce { .. } => unreachable!("plans with bounces are refused before they run"),
                 },
             })?;
             if !rays {
@@ -368,6 +384,20 @@ impl GpuBackend {
     }
 }
 
+/// Refuse a plan this backend cannot run yet: reflection and refraction bounces
+/// (`FrameOptions::max_depth` above 0 on a scene with a ray-traced mirror or glass) run on
+/// the CPU backend only so far. An error, never a frame without them.
+fn check_supported(plan: &FramePlan) -> Result<(), RenderError> {
+    match plan.steps().iter().find(|s| s.depth() > 0) {
+        Some(step) => Err(RenderError::Unsupported {
+            backend: "gpu",
+            stage: step.label(),
+            why: "reflection and refraction bounces run on the CPU backend only so far; use max depth 0 or the CPU backend",
+        }),
+        None => Ok(()),
+    }
+}
+
 impl Backend for GpuBackend {
     fn name(&self) -> &str {
         "gpu"
@@ -381,6 +411,7 @@ impl Backend for GpuBackend {
         frame: &mut Frame,
     ) -> Result<(), RenderError> {
         let plan = FramePlan::new(scene, options)?;
+        check_supported(&plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         frame.begin(&plan, options);
         self.render_frame(scene, &plan, camera, options, frame)?;

@@ -110,7 +110,9 @@ impl FrameBuffers {
             triangles: true,
             ray_traced: true,
             rasterized: true,
+            bouncing: false,
             weight: 0.5,
+            max_depth: 0,
         });
         let pairs = width as usize * height as usize * light_count as usize;
         let capacity = u32::try_from(pairs).map_err(|_| GpuError::Limits(format!("{pairs} rays")))?;
@@ -192,6 +194,7 @@ impl FrameBuffers {
             FrameBuffer::Rt => &self.rt,
             FrameBuffer::Raster => &self.raster,
             FrameBuffer::Final => &self.final_image,
+            FrameBuffer::Bounce { .. } => unreachable!("plans with bounces are refused before buffers are bound"),
         }
     }
 

@@ -44,10 +44,12 @@ pub mod image_io;
 pub use hyrt_core::bvh::{Bvh, BvhPreset};
 pub use hyrt_core::formats;
 pub use hyrt_core::frame::{
-    Backend, BufferView, Frame, FrameOptions, FrameStats, PreparedScene, RenderError, StageTime, StageWork,
+    Backend, BounceBuffers, BounceStats, BufferView, Frame, FrameOptions, FrameStats, PreparedScene, RenderError,
+    StageTime, StageWork,
 };
 pub use hyrt_core::geometry::WorldGeometry;
-pub use hyrt_core::plan::{Composition, FrameBuffer, FramePlan, SkipReason, Skipped, Step};
+pub use hyrt_core::kernels::bounce::{DEFAULT_MAX_DEPTH, MAX_DEPTH_LIMIT, MIN_THROUGHPUT};
+pub use hyrt_core::plan::{BounceBuffer, Composition, FrameBuffer, FramePlan, SkipReason, Skipped, Step};
 pub use hyrt_core::scene::{Camera, Light, Material, MaterialKind, Mesh, Object, RenderMode, Scene};
 pub use hyrt_core::stage::Stage;
 pub use hyrt_core::{glam, GpuError, SceneError};

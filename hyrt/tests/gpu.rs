@@ -98,3 +98,21 @@ fn gpu_final_image_only_readback_gives_the_same_image_and_counts() {
     assert_eq!(all.rays.len() as u64, all.stats.rays_per_kind[0]);
     assert!(lean.rays.is_empty() && lean.surfaces.is_empty() && lean.rt.is_empty());
 }
+
+/// Reflection and refraction run on the CPU backend only so far: the GPU backend refuses
+/// a plan with bounces with a typed error naming the first bounce step, never a frame
+/// without them, and renders the same scene at max depth 0.
+#[test]
+fn gpu_refuses_bounces_it_cannot_trace_yet() {
+    let Some(mut gpu) = gpu_renderer() else { return };
+    let scene = Scene::default_scene();
+    let cam = scene.camera.unwrap();
+    let prepared = gpu.prepare(&scene);
+    let opts = FrameOptions { max_depth: 2, ..FrameOptions::default() };
+    match gpu.render(&prepared, &cam, 32, 18, &opts) {
+        Err(hyrt::RenderError::Unsupported { backend: "gpu", stage, .. }) => assert_eq!(stage, "secondary_rays{1}"),
+        other => panic!("expected RenderError::Unsupported, got {:?}", other.map(|f| f.stats)),
+    }
+    let flat = gpu.render(&prepared, &cam, 32, 18, &FrameOptions::default()).unwrap();
+    assert!(flat.stats.bounces.is_empty());
+}

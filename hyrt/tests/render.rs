@@ -34,9 +34,16 @@ fn end_to_end_default_scene_renders() {
     assert_eq!(s.ray_traced_pixels + s.raster_pixels, s.covered_pixels);
     assert!(s.rays_per_kind[RAY_KIND_SHADOW as usize] > 0);
     assert!(s.occluded_shadow_rays > 0, "the objects cast shadows on the planes");
-    // Every frame stage ran (bvh_build is per scene, timed in the prepared scene).
+    // Every stage of the paper's frame ran (bvh_build is per scene, timed in the prepared
+    // scene); the bounces are skipped at the default max depth 0, and say so.
+    let bounces = [Stage::SecondaryRays, Stage::BounceTrace, Stage::BounceShading];
     for stage in Stage::ALL.into_iter().filter(|&s| s != Stage::BvhBuild) {
-        assert!(s.ms(stage).is_some(), "stage {stage} has no time");
+        if bounces.contains(&stage) {
+            assert!(s.ms(stage).is_none(), "stage {stage} ran at max depth 0");
+            assert!(s.skipped.iter().any(|k| k.stage == stage && k.reason == hyrt::SkipReason::MaxDepthZero));
+        } else {
+            assert!(s.ms(stage).is_some(), "stage {stage} has no time");
+        }
     }
     assert!(s.ms(Stage::BvhBuild).is_none() && prepared.bvh_build_ms > 0.0);
     // Every shadow ray belongs to a covered pixel, and counts match the mask.

@@ -205,7 +205,7 @@ pub fn measure_frames(
     camera: &CameraRecord,
     frames: usize,
 ) -> Result<(FrameSummary, FrameStats), RenderError> {
-    let options = FrameOptions { weight: 1.0, stage_outputs: false };
+    let options = FrameOptions { weight: 1.0, stage_outputs: false, max_depth: 0 };
     let mut frame = Frame::default();
     backend.render_into(prepared, camera, &options, &mut frame)?;
     let mut stats = Vec::with_capacity(frames);

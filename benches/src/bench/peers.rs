@@ -171,7 +171,7 @@ pub fn frame_shadow_rays(row: &PeerScene<'_>) -> Result<Vec<RayRecord>, BenchErr
         &mut backend,
         row.prepared,
         &row.camera,
-        &FrameOptions { weight: 1.0, stage_outputs: true },
+        &FrameOptions { weight: 1.0, stage_outputs: true, max_depth: 0 },
         &mut frame,
     )
     .map_err(|source| BenchError::Render { scene: row.name.to_string(), source })?;
@@ -401,7 +401,11 @@ pub fn run(options: &BenchOptions, table2: &Table2, progress: &ProgressBar) -> R
 /// scalar to the packet times (how much faster each stage got).
 fn frame_traversal_table(f: &FrameTraversals, threads: usize, (w, h): (u32, u32)) -> String {
     // The per-frame stages (`bvh_build` runs once per scene), then the frame.
-    let stages: Vec<Stage> = Stage::ALL.into_iter().filter(|s| *s != Stage::BvhBuild).collect();
+    // The per-frame stages that ran (`bvh_build` runs once per scene), then the frame.
+    let stages: Vec<Stage> = Stage::ALL
+        .into_iter()
+        .filter(|s| *s != Stage::BvhBuild && f.runs.iter().any(|(_, m)| m.ms(*s).is_some()))
+        .collect();
     let mut cols = vec!["shadow traversal".to_string()];
     cols.extend(stages.iter().map(|s| s.name().to_string()));
     cols.push("frame".into());
@@ -703,7 +707,12 @@ mod tests {
     fn frame_table_has_every_frame_stage_and_the_ratio_row() {
         let summary = |shadow: f64| FrameSummary {
             frames: 3,
-            stage_ms: Stage::ALL.iter().map(|&s| (s, if s == Stage::ShadowRays { shadow } else { 1.0 })).collect(),
+            // The paper's frame: no bounce stage ran, so the table has no column for one.
+            stage_ms: Stage::ALL
+                .iter()
+                .filter(|s| ![Stage::SecondaryRays, Stage::BounceTrace, Stage::BounceShading].contains(s))
+                .map(|&s| (s, if s == Stage::ShadowRays { shadow } else { 1.0 }))
+                .collect(),
             frame_ms: 6.0 + shadow,
         };
         let f = FrameTraversals {

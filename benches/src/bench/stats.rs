@@ -84,7 +84,10 @@ mod tests {
 
     fn stats(times: &[(Stage, f64)]) -> FrameStats {
         FrameStats {
-            stage_ms: times.iter().map(|&(stage, ms)| StageTime { stage, ms, work: Default::default() }).collect(),
+            stage_ms: times
+                .iter()
+                .map(|&(stage, ms)| StageTime { stage, depth: 0, ms, work: Default::default() })
+                .collect(),
             ..Default::default()
         }
     }

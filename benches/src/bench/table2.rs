@@ -93,9 +93,17 @@ pub fn run(
     })
 }
 
-/// The per-frame stages, in order (every stage but `bvh_build`).
-fn frame_stages() -> impl Iterator<Item = Stage> {
-    Stage::ALL.into_iter().filter(|&s| s != Stage::BvhBuild)
+/// The per-frame stages that ran in some measured frame of `rows`, in order (every
+/// stage but `bvh_build`; a stage no frame ran, such as the bounces of frames with max
+/// depth 0, gets no column).
+fn frame_stages(rows: &[Table2Row]) -> Vec<Stage> {
+    Stage::ALL
+        .into_iter()
+        .filter(|&s| s != Stage::BvhBuild)
+        .filter(|&s| {
+            rows.iter().any(|r| r.cpu.0.ms(s).is_some() || r.gpu.as_ref().is_some_and(|(g, _)| g.ms(s).is_some()))
+        })
+        .collect()
 }
 
 impl Table2 {
@@ -164,13 +172,14 @@ impl Table2 {
 
         let _ = writeln!(md, "\nMilliseconds per stage (medians):\n");
         let mut cols = vec!["scene".to_string(), "backend".into(), "bvh_build (once)".into()];
-        cols.extend(frame_stages().map(|s| s.name().to_string()));
+        let stages = frame_stages(&self.rows);
+        cols.extend(stages.iter().map(|s| s.name().to_string()));
         cols.push("frame".into());
         let mut t = Table::new(cols).align(1, super::report::Align::Left);
         for r in &self.rows {
             let mut add = |backend: &str, m: &FrameSummary| {
                 let mut row = vec![r.name.clone(), backend.to_string(), num(r.prepared.bvh_build_ms, 1)];
-                row.extend(frame_stages().map(|s| m.ms(s).map_or("-".into(), |ms| num(ms, 2))));
+                row.extend(stages.iter().map(|&s| m.ms(s).map_or("-".into(), |ms| num(ms, 2))));
                 row.push(num(m.frame_ms, 2));
                 t.row(row);
             };

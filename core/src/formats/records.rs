@@ -113,7 +113,7 @@ pub const RAY_KIND_COUNT: usize = 4;
 /// | 28 | `t_max` | f32 | see `t_min`; `+inf` for directional lights |
 /// | 32 | `pixel` | u32 | linear pixel index `y * width + x` this ray contributes to |
 /// | 36 | `kind` | u32 | `RAY_KIND_*` |
-/// | 40 | `depth` | u32 | bounce depth: 0 for rays from primary hits |
+/// | 40 | `depth` | u32 | bounce depth of reflection and refraction rays: 1 for the rays from primary hits, `d + 1` for those from the hits of depth `d`; 0 for shadow rays |
 /// | 44 | `light` | u32 | light index for shadow rays, [`INVALID_ID`] otherwise |
 /// | 48 | `throughput` | [f32; 3] | path weight carried by reflection/refraction rays; 1 for shadow rays |
 /// | 60 | `pad` | u32 | zero |
@@ -328,6 +328,13 @@ impl TriangleRecord {
 /// [`ObjectRecord::flags`]: the object is ray traced.
 pub const OBJ_RAY_TRACED: u32 = 1 << 0;
 
+/// [`ObjectRecord::material_kind`]: a diffuse material ([`crate::scene::MaterialKind::Diffuse`]).
+pub const MATERIAL_DIFFUSE: u32 = 0;
+/// [`ObjectRecord::material_kind`]: a specular material, a mirror when ray traced.
+pub const MATERIAL_SPECULAR: u32 = 1;
+/// [`ObjectRecord::material_kind`]: glass, reflecting and refracting when ray traced.
+pub const MATERIAL_GLASS: u32 = 2;
+
 /// Per-object data: where its triangles are and how it is shaded.
 ///
 /// | offset | field | type | meaning |
@@ -375,7 +382,7 @@ wgsl_struct!(ObjectRecord {
 impl ObjectRecord {
     /// Check: known flags and kind, finite non-negative colour, factors in [0, 1], ior >= 1.
     pub fn validate(&self) -> Result<(), String> {
-        if self.flags & !OBJ_RAY_TRACED != 0 || self.material_kind > 2 || self.pad != 0 {
+        if self.flags & !OBJ_RAY_TRACED != 0 || self.material_kind > MATERIAL_GLASS || self.pad != 0 {
             return Err(format!("object record with unknown flags or kind: {self:?}"));
         }
         if !self.base_color.iter().all(|c| c.is_finite() && *c >= 0.0) {

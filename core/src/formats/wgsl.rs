@@ -212,6 +212,9 @@ pub fn constant_values() -> Vec<(&'static str, u32)> {
         TRI_RAY_TRACED,
         TRI_INWARD,
         OBJ_RAY_TRACED,
+        MATERIAL_DIFFUSE,
+        MATERIAL_SPECULAR,
+        MATERIAL_GLASS,
         LIGHT_POINT,
         LIGHT_DIRECTIONAL,
     )

@@ -3,6 +3,7 @@
 //! by name and says so in a comment.
 
 pub mod barycentric;
+pub mod bounce;
 pub mod camera;
 pub mod raster;
 pub mod ray;

@@ -1,11 +1,12 @@
 //! The `reconstruction` kernel (paper eq. 1): the world-space surface at one
 //! G-buffer texel, from the [`crate::kernels::barycentric`] kernels.
 //!
-//! WGSL mirror: `reconstruct_texel` in the GPU backend's `reconstruction.wgsl`.
+//! WGSL mirror: `reconstruct_texel` in the GPU backend's `reconstruction.wgsl`;
+//! `reconstruct_hit` in `bounce.wgsl`.
 
 use glam::Vec3;
 
-use crate::formats::{GBufferTexel, SurfaceRecord, GBUF_BACK_FACE};
+use crate::formats::{GBufferTexel, HitRecord, SurfaceRecord, GBUF_BACK_FACE};
 use crate::geometry::WorldGeometry;
 use crate::kernels::barycentric::{geometric_normal, interpolate_normal, position_error_bound, reconstruct_position};
 use crate::kernels::shading::orient_to_seen_side;
@@ -19,14 +20,48 @@ pub fn reconstruct_texel(t: &GBufferTexel, geometry: &WorldGeometry, eye: Vec3) 
     let gi = geometry.global_triangle(t.object, t.triangle);
     let [v0, v1, v2] = geometry.triangles[gi].vertices();
     let p = reconstruct_position(t.bary_u, t.bary_v, v0, v1, v2);
-    let err = position_error_bound(t.bary_u, t.bary_v, v0, v1, v2).max_element();
+    // A degenerate triangle without vertex normals is shaded as facing the viewer.
+    let toward_viewer = || (eye - p).normalize_or(Vec3::Y);
+    surface_at(geometry, gi, t.bary_u, t.bary_v, t.flags & GBUF_BACK_FACE != 0, p, toward_viewer)
+}
+
+/// Rebuild the surface a secondary ray hit (`bounce_trace`): the paper's eq. 1 again,
+/// from the closest hit's barycentrics, on the side the ray saw (the hit's exact
+/// facing, `HIT_BACK_FACE`). A miss gives [`SurfaceRecord::MISS`].
+#[inline]
+pub fn reconstruct_hit(hit: &HitRecord, geometry: &WorldGeometry, direction: Vec3) -> SurfaceRecord {
+    if !hit.is_hit() {
+        return SurfaceRecord::MISS;
+    }
+    let gi = hit.triangle as usize;
+    let [v0, v1, v2] = geometry.triangles[gi].vertices();
+    let p = reconstruct_position(hit.u, hit.v, v0, v1, v2);
+    let toward_viewer = || (-direction).normalize_or(Vec3::Y);
+    surface_at(geometry, gi, hit.u, hit.v, hit.is_back_face(), p, toward_viewer)
+}
+
+/// The surface record at barycentrics `(u, v)` of global triangle `gi`, whose point
+/// `p` the caller reconstructed, seen from its back when `back_face`; a degenerate
+/// triangle without vertex normals gets the normal `toward_viewer()`.
+#[inline]
+fn surface_at(
+    geometry: &WorldGeometry,
+    gi: usize,
+    u: f32,
+    v: f32,
+    back_face: bool,
+    p: Vec3,
+    toward_viewer: impl FnOnce() -> Vec3,
+) -> SurfaceRecord {
+    let tri = &geometry.triangles[gi];
+    let [v0, v1, v2] = tri.vertices();
+    let err = position_error_bound(u, v, v0, v1, v2).max_element();
     let ng = geometric_normal(v0, v1, v2);
-    let ns = interpolate_normal(t.bary_u, t.bary_v, geometry.normals[gi], ng);
-    // The side the raster saw, exactly (the sign of the snapped triangle's area).
-    let (ng, ns) = orient_to_seen_side(ng, ns, t.flags & GBUF_BACK_FACE != 0);
-    // A degenerate triangle without vertex normals has no normal at all: shade it as
-    // facing the viewer.
-    let ns = if ns == Vec3::ZERO { (eye - p).normalize_or(Vec3::Y) } else { ns };
+    let ns = interpolate_normal(u, v, geometry.normals[gi], ng);
+    // The side the ray saw, exactly (for primary hits the sign of the snapped triangle's
+    // area, for secondary hits the sign of the watertight determinant).
+    let (ng, ns) = orient_to_seen_side(ng, ns, back_face);
+    let ns = if ns == Vec3::ZERO { toward_viewer() } else { ns };
     // Keep the shading normal in the viewer's hemisphere of the geometric normal
     // (interpolated normals can point away at silhouettes).
     let ns = if ng != Vec3::ZERO && ns.dot(ng) < 0.0 { ng } else { ns };
@@ -34,7 +69,7 @@ pub fn reconstruct_texel(t: &GBufferTexel, geometry: &WorldGeometry, eye: Vec3) 
         position: p.into(),
         position_error: err,
         normal: ns.into(),
-        object: t.object,
+        object: tri.object,
         geometric_normal: ng.into(),
         triangle: gi as u32,
     }

@@ -160,12 +160,20 @@ pub fn pow_portable(x: f32, y: f32) -> f32 {
 /// multiplies by the shadow visibility and sums over lights.
 #[inline]
 pub fn shade_ray_traced(obj: &ObjectRecord, n: Vec3, v: Vec3, l: Vec3, e: Vec3) -> Vec3 {
+    shade_ray_traced_with(obj, n, v, l, e, 1.0)
+}
+
+/// [`shade_ray_traced`] with the diffuse lobe scaled by `diffuse_scale` (`1 -
+/// transmission` on glass that refracts, [`crate::kernels::bounce::Lobes`]). A scale of 1
+/// gives [`shade_ray_traced`] bit for bit (`x * 1 = x`).
+#[inline]
+pub fn shade_ray_traced_with(obj: &ObjectRecord, n: Vec3, v: Vec3, l: Vec3, e: Vec3, diffuse_scale: f32) -> Vec3 {
     let ndl = n.dot(l);
     if ndl <= 0.0 {
         return Vec3::ZERO;
     }
     let base = Vec3::from(obj.base_color);
-    let diffuse = base * ((1.0 - obj.metallic) * std::f32::consts::FRAC_1_PI);
+    let diffuse = base * (((1.0 - obj.metallic) * std::f32::consts::FRAC_1_PI) * diffuse_scale);
     let f0 = Vec3::splat(DIELECTRIC_F0).lerp(base, obj.metallic);
     let h = (l + v).normalize_or_zero();
     let s = blinn_phong_exponent(obj.roughness);
@@ -210,9 +218,17 @@ pub fn sum_visible_lights(
 /// seen from `eye`.
 #[inline]
 pub fn shade_rt_pixel(s: &SurfaceRecord, obj: &ObjectRecord, shadow: &[u8], lights: &[LightRecord], eye: Vec3) -> Vec3 {
+    let v = (eye - Vec3::from(s.position)).normalize_or_zero();
+    shade_rt_surface(s, obj, shadow, lights, v)
+}
+
+/// The ray-traced shader at a surface seen along `-v` (`v`: unit, towards the viewer):
+/// [`ambient`] plus [`shade_ray_traced`] from every light its shadow ray reached. Primary
+/// hits ([`shade_rt_pixel`]) and secondary hits on surfaces that do not bounce use it.
+#[inline]
+pub fn shade_rt_surface(s: &SurfaceRecord, obj: &ObjectRecord, shadow: &[u8], lights: &[LightRecord], v: Vec3) -> Vec3 {
     let p = Vec3::from(s.position);
     let n = Vec3::from(s.normal);
-    let v = (eye - p).normalize_or_zero();
     ambient(obj) + sum_visible_lights(shadow, lights, p, |l, e| shade_ray_traced(obj, n, v, l, e))
 }
 

@@ -1,7 +1,8 @@
 //! The built-in default scene, in the spirit of the paper's Figure 8: three
 //! coloured diffuse ray-traced planes (red, green, blue) forming a corner, a
-//! golden specular ray-traced object, two purple rasterized objects, and two
-//! point lights that make the objects cast shadows onto the planes.
+//! golden specular ray-traced object that reflects them, two purple rasterized
+//! objects, and two point lights that make the objects cast shadows onto the planes;
+//! and, beyond the figure, a ray-traced glass ball (IOR 1.5) that refracts them.
 //!
 //! Also the procedural meshes it is made of, which tests use too.
 
@@ -182,6 +183,21 @@ impl Scene {
             Mat4::from_translation(Vec3::new(-0.6, 1.2, -0.8)) * Mat4::from_scale(Vec3::splat(1.2)),
             rt,
         );
+        // A glass ball on the floor in front of the corner (not in the paper's figure:
+        // refraction is its future work).
+        scene.add_object(
+            Mesh::uv_sphere("glass_ball", 48, 24),
+            Material {
+                name: "glass".into(),
+                base_color: Vec3::new(0.95, 0.97, 1.0),
+                metallic: 0.0,
+                roughness: 0.0,
+                transmission: 1.0,
+                kind: MaterialKind::Glass { ior: 1.5 },
+            },
+            Mat4::from_translation(Vec3::new(-0.3, 0.65, 2.0)) * Mat4::from_scale(Vec3::splat(0.65)),
+            rt,
+        );
         // Two purple rasterized objects (the paper's teapots).
         let purple = Vec3::new(0.55, 0.2, 0.7);
         scene.add_object(
@@ -225,11 +241,13 @@ mod tests {
         let s = Scene::default_scene();
         let rt = s.objects.iter().filter(|o| o.render_mode == RenderMode::RayTraced).count();
         let raster = s.objects.iter().filter(|o| o.render_mode == RenderMode::Raster).count();
-        assert_eq!((rt, raster), (4, 2));
+        assert_eq!((rt, raster), (5, 2));
         assert_eq!(s.lights.len(), 2);
         assert!(s.lights.iter().all(|l| matches!(l, Light::Point { .. })));
         let specular = s.objects.iter().filter(|o| s.materials[o.material].kind == MaterialKind::Specular).count();
         assert_eq!(specular, 1);
+        let glass = s.objects.iter().filter(|o| matches!(s.materials[o.material].kind, MaterialKind::Glass { .. }));
+        assert_eq!(glass.count(), 1);
     }
 
     #[test]

@@ -80,9 +80,9 @@ impl MaterialKind {
     /// Numeric code used in [`crate::formats::ObjectRecord::material_kind`].
     pub const fn code(self) -> u32 {
         match self {
-            MaterialKind::Diffuse => 0,
-            MaterialKind::Specular => 1,
-            MaterialKind::Glass { .. } => 2,
+            MaterialKind::Diffuse => crate::formats::MATERIAL_DIFFUSE,
+            MaterialKind::Specular => crate::formats::MATERIAL_SPECULAR,
+            MaterialKind::Glass { .. } => crate::formats::MATERIAL_GLASS,
         }
     }
     /// The name used in manifests and `frame.json`.

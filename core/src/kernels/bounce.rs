@@ -1,0 +1,518 @@
+//! Secondary-ray kernels (reflection and refraction, the paper's future work): which
+//! surfaces bounce, the directions and Fresnel weights of their two lobes, the rays
+//! they spawn, the radiance they send back, and the sky that rays leaving the scene see.
+//!
+//! # The model
+//!
+//! A ray-traced object whose material is [`MATERIAL_SPECULAR`] or [`MATERIAL_GLASS`]
+//! *bounces*: where a primary or secondary ray sees it and the frame's depth budget
+//! ([`crate::frame::FrameOptions::max_depth`]) is not spent, it spawns a reflection ray
+//! and, for glass, a refraction ray (Whitted). Its radiance towards the viewer is
+//!
+//! ```text
+//! L = diffuse_scale * (base (1 - metallic) AMBIENT + direct diffuse) + direct specular
+//!     + R * L(reflection) + T * L(refraction)
+//! ```
+//!
+//! * `R = F_dielectric(cos, eta) (1 - metallic) + Schlick(base, cos) metallic`: the exact
+//!   unpolarized dielectric Fresnel term with the glTF IOR for dielectrics
+//!   ([`fresnel_dielectric`]), Schlick's with `F0 = base colour` for metals
+//!   ([`fresnel_schlick`]);
+//! * `T = base (1 - metallic) transmission (1 - F_dielectric)`, zero under total
+//!   internal reflection; `diffuse_scale = 1 - transmission`;
+//! * a lobe whose ray is not traced (its path weight fell below [`MIN_THROUGHPUT`], or
+//!   no direction leaves on the right side of the surface) sees the uniform
+//!   [`ENVIRONMENT_SPECULAR`], as every specular surface did before secondary rays;
+//! * a surface that does not bounce (a diffuse or rasterized object, or the depth budget
+//!   spent) is shaded as a primary hit is: [`crate::kernels::shading::shade_rt_surface`]
+//!   or, for rasterized objects, the raster shader.
+//!
+//! Reflection is sharp whatever the roughness (glossy reflection is not modelled). Media
+//! are not nested: every glass surface separates its object's IOR from air (IOR 1), the
+//! exterior being the side its outward normals face ([`crate::formats::TRI_INWARD`]).
+//!
+//! Radiance is gathered bottom-up: `bounce_shading` runs from the deepest bounce to the
+//! first, each ray adding its children's radiance in a fixed order (reflection, then
+//! refraction), so the sum is the same on every backend without atomics.
+//!
+//! WGSL mirrors: the functions of `bounce.wgsl`, by the same names.
+
+use glam::Vec3;
+
+use crate::formats::{
+    GBufferTexel, HitRecord, LightRecord, ObjectRecord, RayRecord, SurfaceRecord, TriangleRecord, GBUF_BACK_FACE,
+    INVALID_ID, MATERIAL_GLASS, MATERIAL_SPECULAR, OBJ_RAY_TRACED, RAY_KIND_REFLECTION, RAY_KIND_REFRACTION,
+    TRI_INWARD,
+};
+use crate::kernels::ray::offset_ray_origin;
+use crate::kernels::shading::{
+    shade_raster_pixel, shade_rt_pixel, shade_rt_surface, sum_visible_lights, AMBIENT, ENVIRONMENT_SPECULAR,
+};
+
+/// Bounces a frame traces unless told otherwise: enough for a ray to enter and leave a
+/// glass sphere and see a mirror (4 surfaces), the issue's minimum.
+pub const DEFAULT_MAX_DEPTH: u32 = 4;
+
+/// The largest `max_depth` a frame accepts. Each bounce can double the rays (a glass
+/// surface spawns two), so the lists are bounded by `2^depth` per pixel before the
+/// throughput cut-off; 16 keeps that far beyond any visible contribution.
+pub const MAX_DEPTH_LIMIT: u32 = 16;
+
+/// A secondary ray is traced only if the largest component of its path weight (the
+/// product of the lobe weights from the pixel) is at least this: 1/256, one step of an
+/// 8-bit linear channel for radiance up to 1. Below it the lobe sees
+/// [`ENVIRONMENT_SPECULAR`] instead. The report measures what the cut costs in error.
+pub const MIN_THROUGHPUT: f32 = 1.0 / 256.0;
+
+/// Index of refraction outside every object (air).
+pub const IOR_OUTSIDE: f32 = 1.0;
+
+/// Whether an object bounces secondary rays: ray traced, with triangles, and a
+/// specular or glass material.
+#[inline]
+pub fn bounces(obj: &ObjectRecord) -> bool {
+    obj.flags & OBJ_RAY_TRACED != 0
+        && obj.triangle_count > 0
+        && (obj.material_kind == MATERIAL_SPECULAR || obj.material_kind == MATERIAL_GLASS)
+}
+
+/// `a . b` in a stated order, `(x + y) + z` of rounded products (glam's order; the WGSL
+/// mirror `dot3` keeps it unfused).
+#[inline]
+fn dot(a: Vec3, b: Vec3) -> f32 {
+    a.dot(b)
+}
+
+/// The mirror direction of `d` about the unit normal `n`: `d - n (2 (d . n))`.
+#[inline]
+pub fn reflect(d: Vec3, n: Vec3) -> Vec3 {
+    d - n * (2.0 * dot(d, n))
+}
+
+/// Snell's law: the refracted direction of the unit direction `d` through the unit
+/// normal `n` facing it (`d . n <= 0`), with `eta = ior_incident / ior_transmitted`;
+/// `None` under total internal reflection. `t = eta d + (eta cos_i - cos_t) n` with
+/// `cos_i = -d . n` and `cos_t = sqrt(1 - eta^2 (1 - cos_i^2))` (PBR 4th ed. 9.3.2).
+#[inline]
+pub fn refract(d: Vec3, n: Vec3, eta: f32) -> Option<Vec3> {
+    let cos_i = (-dot(d, n)).clamp(0.0, 1.0);
+    let sin2_t = (eta * eta) * (1.0 - cos_i * cos_i);
+    if sin2_t >= 1.0 {
+        return None;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    Some(d * eta + n * (eta * cos_i - cos_t))
+}
+
+/// The exact unpolarized Fresnel reflectance of a dielectric interface (PBR 4th ed.
+/// `FrDielectric`, eq. 9.7), for the cosine `cos_i` in `[0, 1]` on the incident side and
+/// `eta = ior_incident / ior_transmitted`: `(r_par^2 + r_perp^2) / 2` with
+/// `r_perp = (eta cos_i - cos_t) / (eta cos_i + cos_t)` and
+/// `r_par = (cos_i - eta cos_t) / (cos_i + eta cos_t)`; 1 under total internal reflection.
+#[inline]
+pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
+    let cos_i = cos_i.clamp(0.0, 1.0);
+    let sin2_t = (eta * eta) * (1.0 - cos_i * cos_i);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    let r_perp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let r_par = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    (r_par * r_par + r_perp * r_perp) * 0.5
+}
+
+/// Schlick's approximation `F0 + (1 - F0) (1 - cos)^5` (the glTF metal Fresnel), the
+/// fifth power as four rounded products.
+#[inline]
+pub fn fresnel_schlick(f0: Vec3, cos: f32) -> Vec3 {
+    let m = 1.0 - cos.clamp(0.0, 1.0);
+    let m2 = m * m;
+    let m5 = (m2 * m2) * m;
+    f0 + (Vec3::ONE - f0) * m5
+}
+
+/// The two lobes of a bouncing surface seen along `d`: weights and directions.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lobes {
+    /// Weight of the reflected radiance (`R` of the module docs).
+    pub reflection: Vec3,
+    /// Weight of the refracted radiance (`T`); zero under total internal reflection and
+    /// for objects without transmission.
+    pub refraction: Vec3,
+    /// Unit direction of the reflection ray (normalized after [`reflect`], so rounding
+    /// does not build up over bounces), on the seen side of the geometric normal; zero
+    /// when none leaves on that side.
+    pub reflect_dir: Vec3,
+    /// Unit direction of the refraction ray, on the far side of the geometric normal;
+    /// zero when none (total internal reflection, no transmission, or it would leave on
+    /// the wrong side).
+    pub refract_dir: Vec3,
+    /// Scale of the diffuse terms: `1 - transmission`.
+    pub diffuse_scale: f32,
+}
+
+/// The lobes of surface `s` of a bouncing object `obj`, seen along the unit direction
+/// `d`; `exterior` says the seen side is the object's outside (see [`sees_exterior`]).
+///
+/// The normals of `s` face the seen side (reconstruction orients them). Each direction
+/// comes from the shading normal; where that would leave on the wrong side of the
+/// geometric normal (interpolated normals at silhouettes), from the geometric normal
+/// instead, and where that fails too (grazing rounding), no ray.
+#[inline]
+pub fn lobes(obj: &ObjectRecord, s: &SurfaceRecord, d: Vec3, exterior: bool) -> Lobes {
+    let ns = Vec3::from(s.normal);
+    let ng = Vec3::from(s.geometric_normal);
+    let base = Vec3::from(obj.base_color);
+    let cos_i = -dot(d, ns);
+    let glass = obj.material_kind == MATERIAL_GLASS;
+    // Only glass has an inside; other objects are seen from outside on both faces.
+    let eta = if exterior || !glass { IOR_OUTSIDE / obj.ior } else { obj.ior / IOR_OUTSIDE };
+    let f = fresnel_dielectric(cos_i, eta);
+    // `F (1 - m) + Schlick m` rather than a lerp: exactly F for dielectrics and exactly
+    // Schlick for metals (a lerp's `f + (s - f) m` is not `s` at m = 1 in floating point).
+    let reflection = Vec3::splat(f * (1.0 - obj.metallic)) + fresnel_schlick(base, cos_i) * obj.metallic;
+
+    let mut reflect_dir = reflect(d, ns).normalize_or_zero();
+    if !(dot(reflect_dir, ng) > 0.0) {
+        reflect_dir = reflect(d, ng).normalize_or_zero();
+    }
+    if !(dot(reflect_dir, ng) > 0.0) {
+        reflect_dir = Vec3::ZERO;
+    }
+
+    let transmission = if glass { obj.transmission } else { 0.0 };
+    let mut refraction = base * (((1.0 - obj.metallic) * transmission) * (1.0 - f));
+    let mut refract_dir = Vec3::ZERO;
+    if refraction.max_element() > 0.0 {
+        let through = |n: Vec3| refract(d, n, eta).map(Vec3::normalize_or_zero).filter(|t| dot(*t, ng) < 0.0);
+        refract_dir = through(ns).or_else(|| through(ng)).unwrap_or(Vec3::ZERO);
+    }
+    if refract_dir == Vec3::ZERO {
+        refraction = Vec3::ZERO;
+    }
+    Lobes { reflection, refraction, reflect_dir, refract_dir, diffuse_scale: 1.0 - transmission }
+}
+
+/// Whether the seen side of a surface is its object's exterior: the side the outward
+/// normals face. glTF meshes face outward with their front faces; a mesh flagged
+/// [`crate::formats::TRI_INWARD`] with its back faces. `back_face` is the exact facing of
+/// the hit (`GBUF_BACK_FACE`, `HIT_BACK_FACE`).
+#[inline]
+pub fn sees_exterior(back_face: bool, inward: bool) -> bool {
+    back_face == inward
+}
+
+/// The secondary rays of a surface with lobes `l`, reached with path weight
+/// `throughput`: `[reflection, refraction]`, each `None` when its direction is missing
+/// or its path weight `throughput * weight` falls below [`MIN_THROUGHPUT`].
+///
+/// Origins are offset off the surface by the point's own error bound
+/// ([`offset_ray_origin`]): reflection rays to the seen side of the geometric normal,
+/// refraction rays to the other side. `pixel` is the pixel the path started at;
+/// `depth` the bounce the rays belong to (1 for rays from primary hits).
+#[inline]
+pub fn secondary_rays(
+    s: &SurfaceRecord,
+    l: &Lobes,
+    throughput: Vec3,
+    pixel: u32,
+    depth: u32,
+) -> [Option<RayRecord>; 2] {
+    let p = Vec3::from(s.position);
+    let ng = Vec3::from(s.geometric_normal);
+    let ray = |dir: Vec3, weight: Vec3, side: Vec3, kind: u32| {
+        let t = throughput * weight;
+        (dir != Vec3::ZERO && t.max_element() >= MIN_THROUGHPUT).then(|| RayRecord {
+            origin: offset_ray_origin(p, s.position_error, side).into(),
+            t_min: 0.0,
+            direction: dir.into(),
+            t_max: f32::INFINITY,
+            pixel,
+            kind,
+            depth,
+            light: INVALID_ID,
+            throughput: t.into(),
+            pad: 0,
+        })
+    };
+    [
+        ray(l.reflect_dir, l.reflection, ng, RAY_KIND_REFLECTION),
+        ray(l.refract_dir, l.refraction, -ng, RAY_KIND_REFRACTION),
+    ]
+}
+
+/// The radiance a lobe sees: its traced child's (`link` into `radiance`), or the uniform
+/// [`ENVIRONMENT_SPECULAR`] when the lobe's ray was not traced.
+#[inline]
+pub fn lobe_radiance(link: u32, radiance: &[[f32; 4]]) -> Vec3 {
+    if link == INVALID_ID {
+        Vec3::splat(ENVIRONMENT_SPECULAR)
+    } else {
+        Vec3::from_slice(&radiance[link as usize][..3])
+    }
+}
+
+/// The radiance a bouncing surface sends along `-d` (the module docs' `L`): its diffuse
+/// terms scaled by `l.diffuse_scale`, the specular lobe of every light its shadow ray
+/// reached (`shadow`: its `SHADOW_*` codes), and its lobes' radiance `reflected` and
+/// `refracted` ([`lobe_radiance`]) times their weights.
+#[inline]
+pub fn shade_bouncing(
+    s: &SurfaceRecord,
+    obj: &ObjectRecord,
+    l: &Lobes,
+    d: Vec3,
+    shadow: &[u8],
+    lights: &[LightRecord],
+    reflected: Vec3,
+    refracted: Vec3,
+) -> Vec3 {
+    let p = Vec3::from(s.position);
+    let n = Vec3::from(s.normal);
+    let v = -d;
+    let base = Vec3::from(obj.base_color);
+    let ambient = base * (((1.0 - obj.metallic) * AMBIENT) * l.diffuse_scale);
+    let direct = sum_visible_lights(shadow, lights, p, |li, e| {
+        crate::kernels::shading::shade_ray_traced_with(obj, n, v, li, e, l.diffuse_scale)
+    });
+    ambient + direct + l.reflection * reflected + l.refraction * refracted
+}
+
+/// A surface that can spawn the rays of the next bounce: a pixel's primary hit
+/// ([`primary_parent`]) or the hit of a secondary ray ([`secondary_parent`]). It is what
+/// `secondary_rays` spawns from and what `bounce_shading` and `rt_shading` shade.
+#[derive(Clone, Copy, Debug)]
+pub struct Parent<'a> {
+    /// The surface seen (normals oriented to the seen side), or [`SurfaceRecord::MISS`].
+    pub surface: &'a SurfaceRecord,
+    /// Unit direction it was seen along: from the eye, or the ray's direction.
+    pub d: Vec3,
+    /// The exact facing of the hit: `GBUF_BACK_FACE` of the raster, `HIT_BACK_FACE` of
+    /// the watertight ray/triangle test.
+    pub back_face: bool,
+    /// Path weight from the pixel to this surface: 1 for primary hits, the ray's
+    /// `throughput` for secondary ones.
+    pub throughput: Vec3,
+    /// The pixel the path started at.
+    pub pixel: u32,
+}
+
+/// The primary hit of pixel `pixel` as a parent: seen along `-(eye - p)` normalized
+/// (the negated view vector of [`crate::kernels::shading::shade_rt_pixel`]).
+#[inline]
+pub fn primary_parent<'a>(t: &GBufferTexel, s: &'a SurfaceRecord, eye: Vec3, pixel: u32) -> Parent<'a> {
+    let d = -(eye - Vec3::from(s.position)).normalize_or_zero();
+    Parent { surface: s, d, back_face: t.flags & GBUF_BACK_FACE != 0, throughput: Vec3::ONE, pixel }
+}
+
+/// The hit of a secondary ray as a parent (its direction is unit: [`Lobes`]).
+#[inline]
+pub fn secondary_parent<'a>(ray: &RayRecord, hit: &HitRecord, s: &'a SurfaceRecord) -> Parent<'a> {
+    Parent {
+        surface: s,
+        d: Vec3::from(ray.direction),
+        back_face: hit.is_back_face(),
+        throughput: Vec3::from(ray.throughput),
+        pixel: ray.pixel,
+    }
+}
+
+/// The lobes of a parent whose object bounces ([`bounces`]), with the object; `None`
+/// for a miss or a surface that does not bounce. `triangles` give the mesh's winding
+/// ([`TRI_INWARD`]), hence which side is the exterior.
+#[inline]
+pub fn parent_lobes<'o>(
+    p: &Parent,
+    objects: &'o [ObjectRecord],
+    triangles: &[TriangleRecord],
+) -> Option<(&'o ObjectRecord, Lobes)> {
+    let s = p.surface;
+    if !s.is_hit() {
+        return None;
+    }
+    let obj = &objects[s.object as usize];
+    if !bounces(obj) {
+        return None;
+    }
+    let inward = triangles[s.triangle as usize].flags & TRI_INWARD != 0;
+    Some((obj, lobes(obj, s, p.d, sees_exterior(p.back_face, inward))))
+}
+
+/// The rays of bounce `depth` a parent spawns: `[reflection, refraction]`, both `None`
+/// where it does not bounce ([`parent_lobes`], [`secondary_rays`]).
+#[inline]
+pub fn spawn(p: &Parent, objects: &[ObjectRecord], triangles: &[TriangleRecord], depth: u32) -> [Option<RayRecord>; 2] {
+    match parent_lobes(p, objects, triangles) {
+        Some((_, l)) => secondary_rays(p.surface, &l, p.throughput, p.pixel, depth),
+        None => [None, None],
+    }
+}
+
+/// The radiance a secondary ray brings back (`bounce_shading`), seen from its parent:
+/// the sky ([`sky`]) where it left the scene; [`shade_bouncing`] on a surface that
+/// bounces, its lobes seeing their `children` (links into the next depth's
+/// `radiance`, [`INVALID_ID`] where no ray was traced, as for every lobe at the plan's
+/// deepest bounce); the ray-traced shader on other ray-traced objects; and the raster
+/// shader ([`shade_raster_pixel`]) on rasterized objects, as a raster pass would shade
+/// them. `shadow`: the hit's `SHADOW_*` codes, one per light.
+#[inline]
+pub fn shade_secondary_hit(
+    p: &Parent,
+    objects: &[ObjectRecord],
+    triangles: &[TriangleRecord],
+    shadow: &[u8],
+    lights: &[LightRecord],
+    children: [u32; 2],
+    radiance: &[[f32; 4]],
+) -> Vec3 {
+    let s = p.surface;
+    if !s.is_hit() {
+        return sky(p.d);
+    }
+    if let Some((obj, l)) = parent_lobes(p, objects, triangles) {
+        let reflected = lobe_radiance(children[0], radiance);
+        let refracted = lobe_radiance(children[1], radiance);
+        return shade_bouncing(s, obj, &l, p.d, shadow, lights, reflected, refracted);
+    }
+    let obj = &objects[s.object as usize];
+    if obj.flags & OBJ_RAY_TRACED != 0 {
+        shade_rt_surface(s, obj, shadow, lights, -p.d)
+    } else {
+        shade_raster_pixel(s, obj, shadow, lights)
+    }
+}
+
+/// `rt_shading` with bounces, at one ray-traced pixel: [`shade_bouncing`] where its
+/// object bounces (its lobes seeing the first bounce's radiance through `children`),
+/// [`crate::kernels::shading::shade_rt_pixel`] bit for bit elsewhere.
+#[inline]
+pub fn shade_rt_pixel_bouncing(
+    p: &Parent,
+    objects: &[ObjectRecord],
+    triangles: &[TriangleRecord],
+    shadow: &[u8],
+    lights: &[LightRecord],
+    eye: Vec3,
+    children: [u32; 2],
+    radiance: &[[f32; 4]],
+) -> Vec3 {
+    let s = p.surface;
+    match parent_lobes(p, objects, triangles) {
+        Some((obj, l)) => {
+            let reflected = lobe_radiance(children[0], radiance);
+            let refracted = lobe_radiance(children[1], radiance);
+            shade_bouncing(s, obj, &l, p.d, shadow, lights, reflected, refracted)
+        }
+        None => shade_rt_pixel(s, &objects[s.object as usize], shadow, lights, eye),
+    }
+}
+
+/// Zenith colour of the default sky (linear RGB).
+pub const SKY_ZENITH: [f32; 3] = [0.18, 0.26, 0.45];
+/// Horizon colour of the default sky (linear RGB).
+pub const SKY_HORIZON: [f32; 3] = [0.55, 0.58, 0.62];
+/// Colour below the horizon (the ground) of the default sky (linear RGB).
+pub const SKY_GROUND: [f32; 3] = [0.12, 0.11, 0.10];
+
+/// The default sky a secondary ray sees when it leaves the scene: above the horizon
+/// (+y up) a blend from [`SKY_HORIZON`] to [`SKY_ZENITH`] by the height `y = d.y / |d|`
+/// of the direction, `horizon + (zenith - horizon) y`; below it, [`SKY_GROUND`]. Primary
+/// misses keep the frame's [`crate::kernels::shading::BACKGROUND`].
+#[inline]
+pub fn sky(d: Vec3) -> Vec3 {
+    let len = dot(d, d).sqrt();
+    let y = d.y / len;
+    if !(y >= 0.0) {
+        return Vec3::from(SKY_GROUND);
+    }
+    let horizon = Vec3::from(SKY_HORIZON);
+    horizon + (Vec3::from(SKY_ZENITH) - horizon) * y
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Relative tolerance of the Fresnel and Snell identities below: a few dozen
+    /// roundings of values of order 1 in f32 (2^-24 each), against f64 algebra.
+    const F32_IDENTITY_TOL: f32 = 1e-5;
+
+    fn unit(theta: f32, phi: f32) -> Vec3 {
+        Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin())
+    }
+
+    #[test]
+    fn normal_incidence_reflects_four_percent_at_ior_one_and_a_half() {
+        let f = fresnel_dielectric(1.0, 1.0 / 1.5);
+        assert!((f - 0.04).abs() < 1e-7, "{f}");
+        // The same from inside the glass (Fresnel is symmetric at normal incidence).
+        assert!((fresnel_dielectric(1.0, 1.5) - 0.04).abs() < 1e-7);
+        assert_eq!(fresnel_dielectric(0.0, 1.0 / 1.5), 1.0, "grazing incidence reflects everything");
+    }
+
+    #[test]
+    fn total_internal_reflection_starts_at_the_critical_angle() {
+        let eta = 1.5f32;
+        let critical = (1.0 / eta).asin();
+        let just_below = critical - 1e-3;
+        let just_above = critical + 1e-3;
+        let d = |a: f32| Vec3::new(a.sin(), -a.cos(), 0.0);
+        assert!(refract(d(just_below), Vec3::Y, eta).is_some());
+        assert!(refract(d(just_above), Vec3::Y, eta).is_none());
+        assert_eq!(fresnel_dielectric(just_above.cos(), eta), 1.0);
+        assert!(fresnel_dielectric(just_below.cos(), eta) < 1.0);
+    }
+
+    #[test]
+    fn schlick_is_f0_at_normal_incidence_and_one_at_grazing() {
+        let f0 = Vec3::new(1.0, 0.77, 0.34);
+        assert_eq!(fresnel_schlick(f0, 1.0), f0);
+        assert_eq!(fresnel_schlick(f0, 0.0), Vec3::ONE);
+    }
+
+    #[test]
+    fn the_sky_is_continuous_at_the_horizon_from_above() {
+        assert_eq!(sky(Vec3::X), Vec3::from(SKY_HORIZON));
+        assert_eq!(sky(Vec3::Y * 3.0), Vec3::from(SKY_ZENITH));
+        assert_eq!(sky(-Vec3::Y), Vec3::from(SKY_GROUND));
+    }
+
+    proptest! {
+        /// Snell's law (`sin_t = eta sin_i`), the refracted ray on the far side, and
+        /// energy: reflectance in [0, 1], equal from both sides of the interface along
+        /// the reciprocal path (Stokes relations).
+        #[test]
+        fn refraction_obeys_snell_and_fresnel_is_reciprocal(theta in 0.0f32..1.55, phi in 0.0f32..6.28, ior in 1.0f32..2.5) {
+            let n = Vec3::Y;
+            let d = -unit(theta, phi);
+            let eta = 1.0 / ior;
+            let t = refract(d, n, eta).expect("entering a denser medium never reflects totally");
+            prop_assert!((t.length() - 1.0).abs() < F32_IDENTITY_TOL);
+            prop_assert!(t.dot(n) < 0.0);
+            let sin_i = d.cross(n).length();
+            let sin_t = t.cross(n).length();
+            prop_assert!((sin_t - eta * sin_i).abs() < F32_IDENTITY_TOL, "sin_t {} vs {}", sin_t, eta * sin_i);
+            let f_in = fresnel_dielectric(-d.dot(n), eta);
+            // The reverse path: `-t` meets the interface from inside, where `-n` faces it.
+            let f_out = fresnel_dielectric((-t).dot(n), ior);
+            prop_assert!((0.0..=1.0).contains(&f_in));
+            prop_assert!((f_in - f_out).abs() < F32_IDENTITY_TOL * 10.0, "{} vs {}", f_in, f_out);
+            // Back along the refracted ray reversed: the original direction reversed.
+            let back = refract(-t, -n, ior).expect("the reverse path exists");
+            prop_assert!((back + d).length() < F32_IDENTITY_TOL * 10.0);
+        }
+
+        /// Reflection keeps the angle and the length and mirrors the normal component.
+        #[test]
+        fn reflection_mirrors_the_normal_component(theta in 0.0f32..1.57, phi in 0.0f32..6.28) {
+            let n = Vec3::Y;
+            let d = -unit(theta, phi);
+            let r = reflect(d, n);
+            prop_assert!((r.length() - 1.0).abs() < F32_IDENTITY_TOL);
+            prop_assert!((r.dot(n) + d.dot(n)).abs() < F32_IDENTITY_TOL);
+            prop_assert!((r - n * r.dot(n) - (d - n * d.dot(n))).length() < F32_IDENTITY_TOL);
+        }
+    }
+}

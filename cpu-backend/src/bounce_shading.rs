@@ -1,0 +1,57 @@
+//! Stage `bounce_shading`: the radiance each ray of bounce `d` brings back to its
+//! parent, deepest bounce first, so every ray can add its children's (the rays of
+//! `d + 1` it spawned) without atomics, in a fixed order: the sum is the same on every
+//! backend and thread count.
+//!
+//! Inputs: the rays, hits, surfaces and shadow codes of depth `d`; unless `d` is the
+//! plan's deepest bounce, the links and radiance of depth `d + 1`; objects, triangles,
+//! lights. Output: one linear RGBA value per ray (alpha 1). The kernel is
+//! [`hyrt_core::kernels::bounce::shade_secondary_hit`]: the sky on a miss, the
+//! bouncing shader on mirrors and glass, the ray-traced shader on other ray-traced
+//! objects and the raster shader on rasterized ones.
+
+use hyrt_core::formats::{HitRecord, LightRecord, ObjectRecord, RayRecord, SurfaceRecord, TriangleRecord, INVALID_ID};
+use hyrt_core::kernels::bounce::{secondary_parent, shade_secondary_hit};
+use rayon::prelude::*;
+
+/// The next depth's buffers a bounce gathers from.
+#[derive(Clone, Copy)]
+pub struct Children<'a> {
+    /// Per ray of this depth, its `[reflection, refraction]` children.
+    pub links: &'a [[u32; 2]],
+    /// The radiance of the next depth's rays.
+    pub radiance: &'a [[f32; 4]],
+}
+
+/// The stage into a caller-owned buffer. `shadow` is indexed `ray * lights + light`
+/// (empty without lights); `children` is `None` at the plan's deepest bounce.
+#[allow(clippy::too_many_arguments)]
+pub fn bounce_shading_into(
+    rays: &[RayRecord],
+    hits: &[HitRecord],
+    surfaces: &[SurfaceRecord],
+    shadow: &[u8],
+    objects: &[ObjectRecord],
+    triangles: &[TriangleRecord],
+    lights: &[LightRecord],
+    children: Option<Children>,
+    out: &mut Vec<[f32; 4]>,
+) {
+    let nl = if shadow.is_empty() { 0 } else { lights.len() };
+    let lights = &lights[..nl];
+    let (links, radiance): (&[[u32; 2]], &[[f32; 4]]) = match children {
+        Some(c) => (c.links, c.radiance),
+        None => (&[], &[]),
+    };
+    (0..rays.len())
+        .into_par_iter()
+        .with_min_len(1024)
+        .map(|i| {
+            let p = secondary_parent(&rays[i], &hits[i], &surfaces[i]);
+            let kids = links.get(i).copied().unwrap_or([INVALID_ID; 2]);
+            shade_secondary_hit(&p, objects, triangles, &shadow[i * nl..(i + 1) * nl], lights, kids, radiance)
+                .extend(1.0)
+                .into()
+        })
+        .collect_into_vec(out);
+}

@@ -1,0 +1,47 @@
+//! Stage `bounce_trace`: trace the reflection and refraction rays of one bounce through
+//! the BVH of the whole scene (closest hit, ties to the lower triangle index) and
+//! rebuild the surfaces they hit from the hits' barycentrics (paper eq. 1 again,
+//! [`hyrt_core::kernels::reconstruction::reconstruct_hit`]), on the side each ray saw
+//! (the sign of the watertight determinant).
+//!
+//! Inputs: the rays of depth `d`, the BVH, triangles and normals. Outputs: one
+//! [`HitRecord`] and one [`SurfaceRecord`] per ray (`MISS` where it left the scene).
+//! The rays are traced by [`crate::traversal`]: SIMD packets of consecutive rays by
+//! default (the rays of one parent's neighbours are neighbours in the list, so
+//! reflections off one mirror stay coherent), the scalar `Bvh::closest_hit` as the
+//! reference; both give the same hits.
+
+use glam::Vec3;
+use hyrt_core::bvh::{Bvh, ClosestHit};
+use hyrt_core::formats::{HitRecord, RayRecord, SurfaceRecord};
+use hyrt_core::geometry::WorldGeometry;
+use hyrt_core::kernels::reconstruction::reconstruct_hit;
+use rayon::prelude::*;
+
+use crate::traversal::{closest_hit_batch_into, Traversal};
+
+/// The stage into caller-owned buffers; `closest` is scratch kept between frames.
+pub fn bounce_trace_into(
+    bvh: &Bvh,
+    geometry: &WorldGeometry,
+    rays: &[RayRecord],
+    traversal: Traversal,
+    closest: &mut Vec<Option<ClosestHit>>,
+    hits: &mut Vec<HitRecord>,
+    surfaces: &mut Vec<SurfaceRecord>,
+) {
+    closest_hit_batch_into(bvh, &geometry.triangles, rays, traversal, closest);
+    closest.par_iter().with_min_len(4096).map(|&h| HitRecord::from_hit(h)).collect_into_vec(hits);
+    rays.par_iter()
+        .zip(hits.par_iter())
+        .with_min_len(1024)
+        .map(|(r, h)| reconstruct_hit(h, geometry, Vec3::from(r.direction)))
+        .collect_into_vec(surfaces);
+    if cfg!(debug_assertions) {
+        for (i, (h, s)) in hits.iter().zip(surfaces.iter()).enumerate() {
+            if let Err(e) = h.validate().and_then(|()| s.validate()) {
+                panic!("bounce_trace: ray {i}: {e}");
+            }
+        }
+    }
+}

@@ -1,0 +1,96 @@
+//! Stage `secondary_rays`: the surfaces of depth `d - 1` that bounce (ray-traced mirrors
+//! and glass, [`hyrt_core::kernels::bounce`]) spawn the reflection and refraction rays
+//! of depth `d`, compacted into one ray list (the paper's compaction again: one entry
+//! per ray that is traced, none for the parents that spawn nothing).
+//!
+//! Inputs: for `d = 1` the G-buffer and the primary surfaces (one parent per pixel),
+//! else the rays, hits and surfaces of depth `d - 1` (one parent per ray); objects and
+//! triangles. Outputs: the rays of depth `d`, in their parents' order, reflection before
+//! refraction; and per parent its `[reflection, refraction]` child indices
+//! (`INVALID_ID` where that lobe spawned no ray), which `bounce_shading` and
+//! `rt_shading` gather through.
+//!
+//! Each parent is examined twice, as `compaction` does: once to flag the rays that
+//! exist, once to build the survivors after the scan. The kernel is
+//! [`hyrt_core::kernels::bounce::spawn`].
+
+use glam::Vec3;
+use hyrt_core::formats::{GBufferTexel, HitRecord, ObjectRecord, RayRecord, SurfaceRecord, TriangleRecord, INVALID_ID};
+use hyrt_core::kernels::bounce::{primary_parent, secondary_parent, spawn, Parent};
+use rayon::prelude::*;
+
+use crate::compaction::{compact_into, CompactionScratch};
+
+/// The parents of one bounce: what [`secondary_rays_into`] spawns from.
+#[derive(Clone, Copy)]
+pub enum Parents<'a> {
+    /// The primary hits: one parent per pixel, seen from `eye`.
+    Primary { gbuffer: &'a [GBufferTexel], surfaces: &'a [SurfaceRecord], eye: Vec3 },
+    /// The hits of the previous bounce: one parent per ray.
+    Secondary { rays: &'a [RayRecord], hits: &'a [HitRecord], surfaces: &'a [SurfaceRecord] },
+}
+
+impl<'a> Parents<'a> {
+    /// How many parents there are.
+    pub fn len(&self) -> usize {
+        match self {
+            Parents::Primary { surfaces, .. } | Parents::Secondary { surfaces, .. } => surfaces.len(),
+        }
+    }
+
+    /// True when there is none.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Parent `i`.
+    #[inline]
+    pub fn get(&self, i: usize) -> Parent<'a> {
+        match *self {
+            Parents::Primary { gbuffer, surfaces, eye } => primary_parent(&gbuffer[i], &surfaces[i], eye, i as u32),
+            Parents::Secondary { rays, hits, surfaces } => secondary_parent(&rays[i], &hits[i], &surfaces[i]),
+        }
+    }
+}
+
+/// The stage into caller-owned buffers (allocations reused): the rays of bounce `depth`
+/// into `rays`, each parent's child indices into `links`.
+pub fn secondary_rays_into(
+    parents: Parents,
+    objects: &[ObjectRecord],
+    triangles: &[TriangleRecord],
+    depth: u32,
+    scratch: &mut CompactionScratch,
+    rays: &mut Vec<RayRecord>,
+    links: &mut Vec<[u32; 2]>,
+) {
+    let n = parents.len();
+    scratch.flags.clear();
+    scratch.flags.resize(2 * n, 0);
+    scratch.flags.par_chunks_mut(2).enumerate().with_min_len(1024).for_each(|(i, f)| {
+        let r = spawn(&parents.get(i), objects, triangles, depth);
+        f[0] = r[0].is_some() as u32;
+        f[1] = r[1].is_some() as u32;
+    });
+    compact_into(&scratch.flags, &mut scratch.active);
+    scratch
+        .active
+        .par_iter()
+        .with_min_len(1024)
+        .map(|&k| {
+            let (i, lobe) = (k as usize / 2, k as usize % 2);
+            spawn(&parents.get(i), objects, triangles, depth)[lobe].expect("flagged in the first pass")
+        })
+        .collect_into_vec(rays);
+    links.clear();
+    links.resize(n, [INVALID_ID; 2]);
+    // `active` is sorted: the child index of flag `k` is its rank in the list.
+    for (j, &k) in scratch.active.iter().enumerate() {
+        links[k as usize / 2][k as usize % 2] = j as u32;
+    }
+    if cfg!(debug_assertions) {
+        if let Some(e) = rays.iter().find_map(|r| r.validate().err()) {
+            panic!("secondary_rays: {e}");
+        }
+    }
+}
