@@ -16,7 +16,7 @@
 
 use glam::Vec3;
 use hyrt_core::formats::{GBufferTexel, HitRecord, ObjectRecord, RayRecord, SurfaceRecord, TriangleRecord, INVALID_ID};
-use hyrt_core::kernels::bounce::{primary_parent, secondary_parent, spawn, Parent};
+use hyrt_core::kernels::bounce::{bounces, primary_parent, secondary_parent, spawn, Parent};
 use rayon::prelude::*;
 
 use crate::compaction::{compact_into, CompactionScratch};
@@ -43,6 +43,17 @@ impl<'a> Parents<'a> {
         self.len() == 0
     }
 
+    /// Whether parent `i` can spawn anything: it hit an object that bounces. The cheap
+    /// test before [`Parents::get`] (which normalizes the view direction): most pixels of
+    /// a frame do not bounce.
+    #[inline]
+    pub fn may_bounce(&self, i: usize, objects: &[ObjectRecord]) -> bool {
+        let s = match self {
+            Parents::Primary { surfaces, .. } | Parents::Secondary { surfaces, .. } => &surfaces[i],
+        };
+        s.is_hit() && bounces(&objects[s.object as usize])
+    }
+
     /// Parent `i`.
     #[inline]
     pub fn get(&self, i: usize) -> Parent<'a> {
@@ -65,9 +76,14 @@ pub fn secondary_rays_into(
     links: &mut Vec<[u32; 2]>,
 ) {
     let n = parents.len();
-    scratch.flags.clear();
+    // Every flag is written below: resizing alone leaves a reused buffer untouched.
     scratch.flags.resize(2 * n, 0);
     scratch.flags.par_chunks_mut(2).enumerate().with_min_len(1024).for_each(|(i, f)| {
+        if !parents.may_bounce(i, objects) {
+            f[0] = 0;
+            f[1] = 0;
+            return;
+        }
         let r = spawn(&parents.get(i), objects, triangles, depth);
         f[0] = r[0].is_some() as u32;
         f[1] = r[1].is_some() as u32;
@@ -82,8 +98,8 @@ pub fn secondary_rays_into(
             spawn(&parents.get(i), objects, triangles, depth)[lobe].expect("flagged in the first pass")
         })
         .collect_into_vec(rays);
-    links.clear();
     links.resize(n, [INVALID_ID; 2]);
+    links.par_iter_mut().with_min_len(4096).for_each(|l| *l = [INVALID_ID; 2]);
     // `active` is sorted: the child index of flag `k` is its rank in the list.
     for (j, &k) in scratch.active.iter().enumerate() {
         links[k as usize / 2][k as usize % 2] = j as u32;
