@@ -38,6 +38,15 @@ pub enum SceneError {
     /// The file extension is not one hyrt knows.
     #[error("{path}: unknown scene format (expected .glb, .gltf or .toml)")]
     UnknownFormat { path: PathBuf },
+    /// An environment map file is not a Radiance HDR or OpenEXR image, or holds texels
+    /// that cannot be rendered (zero size, a non-finite or negative channel). A file
+    /// that cannot be read at all is [`SceneError::Io`].
+    #[error("{path}: environment map: {problem}")]
+    Environment {
+        path: PathBuf,
+        #[source]
+        problem: crate::scene::EnvironmentMapError,
+    },
 }
 
 /// A GPU backend failure: no adapter, a device that could not be created or was lost,

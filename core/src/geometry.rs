@@ -1,6 +1,7 @@
 //! The world-space scene tables every stage reads: one [`TriangleRecord`] per
 //! triangle (objects contiguous, in mesh order), per-corner world normals, one
-//! [`ObjectRecord`] per object and one [`LightRecord`] per light.
+//! [`ObjectRecord`] per object and one [`LightRecord`] per light; and the scene's
+//! [`Environment`], which `bounce_shading` reads where secondary rays leave the scene.
 //!
 //! Vertices are transformed to world space once, here, in f32, so the raster,
 //! the BVH and reconstruction (on either backend) see the very same bits.
@@ -8,7 +9,7 @@
 use glam::{DVec3, Mat3, Vec3};
 
 use crate::formats::{LightRecord, ObjectRecord, TriangleRecord, OBJ_RAY_TRACED, TRI_INWARD, TRI_RAY_TRACED};
-use crate::scene::{MaterialKind, Mesh, RenderMode, Scene};
+use crate::scene::{Environment, MaterialKind, Mesh, RenderMode, Scene};
 
 /// How a mesh's triangles are wound, as far as the renderer needs to know: which side of a
 /// closed mesh is its exterior.
@@ -132,6 +133,9 @@ pub struct WorldGeometry {
     /// Triangles with a NaN or infinite vertex. They stay in the table (ids must
     /// not shift) but no stage can hit them.
     pub non_finite_triangles: usize,
+    /// What secondary rays that leave the scene see ([`Scene::environment`]; a map is
+    /// shared, not copied).
+    pub environment: Environment,
 }
 
 impl WorldGeometry {
@@ -206,6 +210,7 @@ impl WorldGeometry {
             });
         }
         g.lights = scene.lights.iter().map(LightRecord::from_light).collect();
+        g.environment = scene.environment.clone();
         g.bounds = if lo.x <= hi.x { (lo, hi) } else { (Vec3::splat(-1.0), Vec3::splat(1.0)) };
         if cfg!(debug_assertions) {
             g.validate().expect("world geometry invariants");

@@ -5,6 +5,7 @@
 pub mod barycentric;
 pub mod bounce;
 pub mod camera;
+pub mod environment;
 pub mod raster;
 pub mod ray;
 pub mod reconstruction;

@@ -3,6 +3,8 @@
 //!
 //! ```toml
 //! description = "golden bunny in the grey Sponza atrium"   # optional, free text
+//! environment = "maps/courtyard.hdr"   # optional: what reflection and refraction rays leaving
+//!                                      # the scene see (.hdr or .exr); default: the built-in sky
 //!
 //! [camera]                      # optional; without it: the first camera of a model file, else none
 //! eye = [9.0, 2.6, 3.0]
@@ -50,8 +52,8 @@
 //!
 //! Unknown keys are errors everywhere (`deny_unknown_fields`), so typos do not pass silently.
 //!
-//! * **Paths.** `file` is resolved against the folder holding the manifest (an absolute path is
-//!   used as is). There is no variable substitution. The same file used by several models is
+//! * **Paths.** `file` and `environment` are resolved against the folder holding the manifest
+//!   (an absolute path is used as is). There is no variable substitution. The same file used by several models is
 //!   read once, and its meshes are shared.
 //! * **Transform.** Model matrix = translate * rotate * scale (scale first). `rotate_deg =
 //!   [rx, ry, rz]` rotates about the world X axis first, then Y, then Z, i.e.
@@ -75,6 +77,11 @@
 //!   of the transform's volume scale). When it has no `[[light]]`, the model files' lights are
 //!   used, moved by their model transform; intensities are not changed. Notes record both.
 //!   No default camera or lights are added here ([`super::Scene::ensure_camera_and_lights`]).
+//! * **Environment.** An equirectangular (latitude-longitude) map in a Radiance HDR or OpenEXR
+//!   file, linear RGB, oriented as [`super::environment`] documents (row 0 straight up, the
+//!   image's centre towards +Z, its left and right edges meeting at -Z; Mitsuba 3's
+//!   convention). Without it, rays leaving the scene see the default sky
+//!   ([`crate::kernels::bounce::sky`]). Primary rays that hit nothing keep the background.
 //!
 //! Errors name the manifest and the entry, e.g.
 //! `scenes/teaser.toml: model[1] 'bunny': scenes/../x.glb: cannot read file: No such file or directory`.
@@ -86,7 +93,7 @@ use glam::{Mat4, Quat, Vec3};
 use serde::Deserialize;
 
 use super::gltf_loader::{load_gltf_detailed, material_kind, LoadedGltf};
-use super::{Camera, Light, Material, MaterialKind, Mesh, Object, ObjectSource, RenderMode, Scene};
+use super::{Camera, Environment, Light, Material, MaterialKind, Mesh, Object, ObjectSource, RenderMode, Scene};
 use crate::SceneError;
 
 /// `KHR_materials_ior` default, used when a manifest makes a material glass without an ior.
@@ -110,6 +117,9 @@ pub struct Manifest {
     /// Free text, ignored.
     #[serde(default)]
     pub description: Option<String>,
+    /// An environment map (`.hdr`, `.exr`), relative to the manifest's folder.
+    #[serde(default)]
+    pub environment: Option<PathBuf>,
     /// `[camera]`.
     #[serde(default)]
     pub camera: Option<CameraEntry>,
@@ -459,6 +469,13 @@ fn build(manifest: &Manifest, path: &Path) -> Result<Scene, SceneError> {
     let mut files: HashMap<PathBuf, (usize, LoadedGltf)> = HashMap::new();
     let mut model_lights: Vec<Light> = Vec::new();
     let mut model_camera: Option<Camera> = None;
+    if let Some(file) = &manifest.environment {
+        scene.environment = Environment::load(&dir.join(file)).map_err(|e| SceneError::ManifestEntry {
+            path: path.to_path_buf(),
+            entry: "environment".into(),
+            error: Box::new(e),
+        })?;
+    }
 
     for (i, entry) in manifest.models.iter().enumerate() {
         let name = match (&entry.name, &entry.file, entry.builtin) {
@@ -621,6 +638,7 @@ mod tests {
             .collect();
         let m: Manifest = toml::from_str(&example).unwrap_or_else(|e| panic!("{e}\n{example}"));
         assert_eq!((m.models.len(), m.lights.len()), (3, 2));
+        assert_eq!(m.environment.as_deref(), Some(Path::new("maps/courtyard.hdr")));
         assert_eq!(m.models[1].render_mode, Some(RenderMode::RayTraced));
         assert_eq!(m.models[2].builtin, Some(Builtin::Grid));
         for (i, model) in m.models.iter().enumerate() {

@@ -9,8 +9,11 @@
 //!   default lights to one that has none, and records a note saying so.
 
 pub mod default_scene;
+pub mod environment;
 pub mod gltf_loader;
 pub mod manifest;
+
+pub use environment::{Environment, EnvironmentMap, EnvironmentMapError};
 
 use std::path::{Path, PathBuf};
 
@@ -258,6 +261,9 @@ pub struct Scene {
     pub objects: Vec<Object>,
     pub lights: Vec<Light>,
     pub camera: Option<Camera>,
+    /// What rays that leave the scene see: the default sky, or an environment map
+    /// (manifest key `environment`, `hyrt render --environment FILE`).
+    pub environment: Environment,
     /// Human-readable notes about what the loader decided (default lights added,
     /// camera framed automatically, primitives skipped, ...). The CLI prints them.
     pub notes: Vec<String>,
