@@ -243,6 +243,9 @@ pub enum Input {
     Camera,
     /// The frame options (the composition weight, the bounce depth).
     Options,
+    /// What secondary rays that leave the scene see: the default sky or the scene's
+    /// environment map ([`crate::geometry::WorldGeometry::environment`]).
+    Environment,
 }
 
 /// How `composition` makes the final image.
@@ -421,7 +424,7 @@ impl Step {
             Step::ShadowRays | Step::BounceShadowRays { .. } => &[I::Bvh, I::Triangles],
             Step::SecondaryRays { .. } => &[I::Triangles, I::Objects, I::Camera, I::Options],
             Step::BounceTrace { .. } => &[I::Bvh, I::Triangles, I::Normals],
-            Step::BounceShading { .. } => &[I::Objects, I::Lights, I::Triangles],
+            Step::BounceShading { .. } => &[I::Objects, I::Lights, I::Triangles, I::Environment],
             Step::RtShading { .. } => &[I::Objects, I::Lights, I::Camera, I::Triangles],
             Step::RasterShading { .. } => &[I::Objects, I::Lights, I::Options],
             Step::Composition(_) => &[I::Options],
@@ -817,6 +820,10 @@ mod tests {
         assert_eq!(p.buffers().filter(|b| b.depth() == 2).count(), BounceBuffer::ALL.len());
         assert_eq!(BounceBuffer::Links.at(2).label(), "bounce2_links");
         assert!(p.skipped().is_empty());
+        // Only the gathering of radiance reads what rays leaving the scene see.
+        let env: Vec<String> =
+            p.steps().iter().filter(|s| s.inputs().contains(&Input::Environment)).map(|s| s.label()).collect();
+        assert_eq!(env, ["bounce_shading{2}", "bounce_shading{1}"]);
     }
 
     #[test]

@@ -182,6 +182,7 @@ impl Backend for CpuBackend {
                             &g.objects,
                             &g.triangles,
                             &g.lights,
+                            &g.environment,
                             children,
                             &mut b.radiance,
                         )

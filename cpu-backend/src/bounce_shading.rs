@@ -5,13 +5,15 @@
 //!
 //! Inputs: the rays, hits, surfaces and shadow codes of depth `d`; unless `d` is the
 //! plan's deepest bounce, the links and radiance of depth `d + 1`; objects, triangles,
-//! lights. Output: one linear RGBA value per ray (alpha 1). The kernel is
-//! [`hyrt_core::kernels::bounce::shade_secondary_hit`]: the sky on a miss, the
+//! lights, the scene's environment. Output: one linear RGBA value per ray (alpha 1). The
+//! kernel is [`hyrt_core::kernels::bounce::shade_secondary_hit`]: the environment (the
+//! default sky or the scene's map) on a miss, the
 //! bouncing shader on mirrors and glass, the ray-traced shader on other ray-traced
 //! objects and the raster shader on rasterized ones.
 
 use hyrt_core::formats::{HitRecord, LightRecord, ObjectRecord, RayRecord, SurfaceRecord, TriangleRecord, INVALID_ID};
 use hyrt_core::kernels::bounce::{secondary_parent, shade_secondary_hit};
+use hyrt_core::scene::Environment;
 use rayon::prelude::*;
 
 /// The next depth's buffers a bounce gathers from.
@@ -24,7 +26,8 @@ pub struct Children<'a> {
 }
 
 /// The stage into a caller-owned buffer. `shadow` is indexed `ray * lights + light`
-/// (empty without lights); `children` is `None` at the plan's deepest bounce.
+/// (empty without lights); `children` is `None` at the plan's deepest bounce; `env` is
+/// what the rays that hit nothing see.
 #[allow(clippy::too_many_arguments)]
 pub fn bounce_shading_into(
     rays: &[RayRecord],
@@ -34,6 +37,7 @@ pub fn bounce_shading_into(
     objects: &[ObjectRecord],
     triangles: &[TriangleRecord],
     lights: &[LightRecord],
+    env: &Environment,
     children: Option<Children>,
     out: &mut Vec<[f32; 4]>,
 ) {
@@ -49,7 +53,7 @@ pub fn bounce_shading_into(
         .map(|i| {
             let p = secondary_parent(&rays[i], &hits[i], &surfaces[i]);
             let kids = links.get(i).copied().unwrap_or([INVALID_ID; 2]);
-            shade_secondary_hit(&p, objects, triangles, &shadow[i * nl..(i + 1) * nl], lights, kids, radiance)
+            shade_secondary_hit(&p, env, objects, triangles, &shadow[i * nl..(i + 1) * nl], lights, kids, radiance)
                 .extend(1.0)
                 .into()
         })

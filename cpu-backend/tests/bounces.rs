@@ -1,12 +1,14 @@
 //! The bounce stages (`secondary_rays`, `bounce_trace`, `bounce_shading`, and
 //! `rt_shading` gathering them) on scenes whose right answer is known: a mirror shows
-//! the sky in the mirror direction, two parallel mirrors reach the depth limit or the
+//! the sky in the mirror direction (and an environment map's texels when the scene has
+//! one), two parallel mirrors reach the depth limit or the
 //! throughput cut-off, a glass slab passes rays out parallel to how they came in, a
 //! glass cube reflects totally inside, no reflected or refracted ray meets the surface it
 //! left (also 1e5 from the origin), and the frame is the same for every thread count
 //! and traversal.
 
 use std::f32::consts::FRAC_PI_2;
+use std::sync::Arc;
 
 use glam::{DVec3, Mat4, Quat, Vec3};
 use hyrt_core::bvh::BvhPreset;
@@ -16,7 +18,7 @@ use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::bounce::{sky, MIN_THROUGHPUT, SKY_HORIZON, SKY_ZENITH};
 use hyrt_core::kernels::shading::ENVIRONMENT_SPECULAR;
 use hyrt_core::plan::SkipReason;
-use hyrt_core::scene::{Camera, Material, MaterialKind, Mesh, RenderMode, Scene};
+use hyrt_core::scene::{Camera, Environment, EnvironmentMap, Material, MaterialKind, Mesh, RenderMode, Scene};
 use hyrt_core::stage::Stage;
 use hyrt_cpu::backend::CpuBackend;
 use hyrt_cpu::traversal::Traversal;
@@ -119,6 +121,81 @@ fn secondary_rays_a_mirror_shows_the_sky_in_the_mirror_direction() {
     assert_eq!(f.stats.bounces[0].hits, 0);
     assert_eq!(f.stats.bounces[1].rays_per_kind, [0; 4], "nothing is hit, so nothing bounces again");
     assert_eq!(sky(Vec3::Y), Vec3::from(SKY_ZENITH));
+}
+
+/// The documented lookup of `kernels::environment` in f64, from its module docs: `u =
+/// atan2(x, -z) / 2 pi` wrapped into [0, 1), `v = atan2(sqrt(x^2 + z^2), y) / pi`, the
+/// bilinear blend around `(u W - 1/2, v H - 1/2)`, columns wrapping, rows clamped.
+fn map_f64(map: &EnvironmentMap, d: DVec3) -> DVec3 {
+    use std::f64::consts::{PI, TAU};
+    let (w, h) = (map.width() as i64, map.height() as i64);
+    let u = (d.x.atan2(-d.z) / TAU).rem_euclid(1.0);
+    let v = d.x.hypot(d.z).atan2(d.y) / PI;
+    let (x, y) = (u * w as f64 - 0.5, v * h as f64 - 0.5);
+    let (fx, fy) = (x - x.floor(), y - y.floor());
+    let (i0, j) = ((x.floor() as i64).rem_euclid(w), y.floor() as i64);
+    let i1 = (i0 + 1) % w;
+    let (j0, j1) = (j.clamp(0, h - 1), (j + 1).clamp(0, h - 1));
+    let t = |i: i64, j: i64| Vec3::from_slice(&map.texel(i as u32, j as u32)[..3]).as_dvec3();
+    let top = t(i0, j0) * (1.0 - fx) + t(i1, j0) * fx;
+    let bottom = t(i0, j1) * (1.0 - fx) + t(i1, j1) * fx;
+    top * (1.0 - fy) + bottom * fy
+}
+
+/// Tolerance of a mirror's pixels against [`map_f64`]: the f32 reflection direction is off
+/// by a few 1e-7 radians (see [`MIRROR_F32_TOL`]) and `atan2_turns` by at most 2^-24 turn,
+/// together under 1e-5 of a texel at 32 texels per turn; the test map's channels change by
+/// at most 1 from a texel to the next, so the blend is off by under 1e-5, plus its own
+/// roundings (a few 1e-8).
+const MAP_MIRROR_TOL: f64 = 1e-4;
+
+#[test]
+fn bounce_shading_a_mirror_shows_the_environment_map_in_the_mirror_direction() {
+    let (w, h) = (32u32, 16u32);
+    let texels = (0..h)
+        .flat_map(|j| {
+            (0..w).map(move |i| {
+                [(i as f32 + 0.5) / w as f32, (j as f32 + 0.5) / h as f32, ((7 * i + 3 * j) % 11) as f32 / 10.0, 1.0]
+            })
+        })
+        .collect();
+    let map = Arc::new(EnvironmentMap::new(w, h, texels).unwrap());
+    let mut scene = Scene::default();
+    add_mirror(&mut scene, mirror(1.0), 20.0, 0.0, true, Vec3::ZERO);
+    scene.environment = Environment::Map(map.clone());
+    let eye = Vec3::new(1.5, 2.5, 6.0);
+    let cam = camera(eye, Vec3::new(0.2, 0.1, 0.0), 50.0);
+    let f = render_default(&scene, &cam, (64, 48), 3);
+    let b1 = &f.bounces[0];
+    let mut checked = 0;
+    for (i, t) in f.gbuffer.iter().enumerate() {
+        if !t.is_hit() {
+            continue;
+        }
+        let refl = b1.links[i][0];
+        assert!(refl != INVALID_ID && !b1.hits[refl as usize].is_hit(), "pixel {i}: the reflection leaves the scene");
+        let p = Vec3::from(f.surfaces[i].position).as_dvec3();
+        let d = (p - eye.as_dvec3()).normalize();
+        let r = d - DVec3::Z * (2.0 * d.dot(DVec3::Z));
+        let want = map_f64(&map, r);
+        let got = Vec3::from_slice(&f.rt[i][..3]).as_dvec3();
+        assert!((got - want).abs().max_element() < MAP_MIRROR_TOL, "pixel {i}: {got} vs map {want}");
+        assert!((got - sky_f64(r)).abs().max_element() > 1e-3, "pixel {i}: the map, not the sky");
+        checked += 1;
+    }
+    assert!(checked > 64 * 48 / 2, "the mirror fills most of the frame ({checked} pixels)");
+
+    // A map of one colour: every mirror pixel is that colour, bit for bit (equal texels
+    // blend to themselves), and the pixels that see no mirror keep the background.
+    let colour = [0.75, 1.5, 3.25];
+    scene.environment = Environment::Map(Arc::new(EnvironmentMap::new(3, 2, vec![[0.75, 1.5, 3.25, 1.0]; 6]).unwrap()));
+    let g = render_default(&scene, &cam, (64, 48), 3);
+    for (i, t) in g.gbuffer.iter().enumerate() {
+        if t.is_hit() {
+            assert_eq!(g.rt[i][..3], colour, "pixel {i}");
+        }
+        assert_eq!(g.final_image[i].map(f32::to_bits) == f.final_image[i].map(f32::to_bits), !t.is_hit(), "pixel {i}");
+    }
 }
 
 /// Two mirrors facing each other 2 apart, the camera between them looking at one.

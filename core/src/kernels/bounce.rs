@@ -1,6 +1,7 @@
 //! Secondary-ray kernels (reflection and refraction, the paper's future work): which
 //! surfaces bounce, the directions and Fresnel weights of their two lobes, the rays
-//! they spawn, the radiance they send back, and the sky that rays leaving the scene see.
+//! they spawn, the radiance they send back, and the default sky that rays leaving the
+//! scene see when it has no environment map ([`crate::kernels::environment`]).
 //!
 //! # The model
 //!
@@ -44,10 +45,12 @@ use crate::formats::{
     INVALID_ID, MATERIAL_GLASS, MATERIAL_SPECULAR, OBJ_RAY_TRACED, RAY_KIND_REFLECTION, RAY_KIND_REFRACTION,
     TRI_INWARD,
 };
+use crate::kernels::environment::environment_radiance;
 use crate::kernels::ray::offset_ray_origin;
 use crate::kernels::shading::{
     shade_raster_pixel, shade_rt_pixel, shade_rt_surface, sum_visible_lights, AMBIENT, ENVIRONMENT_SPECULAR,
 };
+use crate::scene::Environment;
 
 /// Bounces a frame traces unless told otherwise: enough for a ray to enter and leave a
 /// glass sphere and see a mirror (4 surfaces), the minimum.
@@ -350,15 +353,19 @@ pub fn spawn(p: &Parent, objects: &[ObjectRecord], triangles: &[TriangleRecord],
 }
 
 /// The radiance a secondary ray brings back (`bounce_shading`), seen from its parent:
-/// the sky ([`sky`]) where it left the scene; [`shade_bouncing`] on a surface that
+/// the scene's environment `env` where it left the scene
+/// ([`crate::kernels::environment::environment_radiance`]: [`sky`] bit for bit without a
+/// map); [`shade_bouncing`] on a surface that
 /// bounces, its lobes seeing their `children` (links into the next depth's
 /// `radiance`, [`INVALID_ID`] where no ray was traced, as for every lobe at the plan's
 /// deepest bounce); the ray-traced shader on other ray-traced objects; and the raster
 /// shader ([`shade_raster_pixel`]) on rasterized objects, as a raster pass would shade
 /// them. `shadow`: the hit's `SHADOW_*` codes, one per light.
+#[allow(clippy::too_many_arguments)]
 #[inline]
 pub fn shade_secondary_hit(
     p: &Parent,
+    env: &Environment,
     objects: &[ObjectRecord],
     triangles: &[TriangleRecord],
     shadow: &[u8],
@@ -368,7 +375,7 @@ pub fn shade_secondary_hit(
 ) -> Vec3 {
     let s = p.surface;
     if !s.is_hit() {
-        return sky(p.d);
+        return environment_radiance(env, p.d);
     }
     if let Some((obj, l)) = parent_lobes(p, objects, triangles) {
         let reflected = lobe_radiance(children[0], radiance);
@@ -415,7 +422,8 @@ pub const SKY_HORIZON: [f32; 3] = [0.55, 0.58, 0.62];
 /// Colour below the horizon (the ground) of the default sky (linear RGB).
 pub const SKY_GROUND: [f32; 3] = [0.12, 0.11, 0.10];
 
-/// The default sky a secondary ray sees when it leaves the scene: above the horizon
+/// The default sky a secondary ray sees when it leaves a scene without an environment
+/// map ([`crate::scene::Environment::Sky`]): above the horizon
 /// (+y up) a blend from [`SKY_HORIZON`] to [`SKY_ZENITH`] by the height `y = d.y / |d|`
 /// of the direction, `horizon + (zenith - horizon) y`; below it, [`SKY_GROUND`]. Primary
 /// misses keep the frame's [`crate::kernels::shading::BACKGROUND`].
