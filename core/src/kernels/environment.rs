@@ -79,8 +79,8 @@ pub fn atan2_turns(y: f32, x: f32) -> f32 {
     let (ax, ay) = (x.abs(), y.abs());
     let swapped = ay > ax;
     let (num, den) = if swapped { (ax, ay) } else { (ay, ax) };
-    // Both zero (or x NaN): the direction has no angle; 0 keeps the lookup defined.
-    if !(den > 0.0) {
+    // Both zero (or NaN): the direction has no angle; 0 keeps the lookup defined.
+    if den == 0.0 || den.is_nan() {
         return 0.0;
     }
     let t = num / den;
