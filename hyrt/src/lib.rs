@@ -50,7 +50,10 @@ pub use hyrt_core::frame::{
 pub use hyrt_core::geometry::WorldGeometry;
 pub use hyrt_core::kernels::bounce::{DEFAULT_MAX_DEPTH, MAX_DEPTH_LIMIT, MIN_THROUGHPUT};
 pub use hyrt_core::plan::{BounceBuffer, Composition, FrameBuffer, FramePlan, SkipReason, Skipped, Step};
-pub use hyrt_core::scene::{Camera, Light, Material, MaterialKind, Mesh, Object, RenderMode, Scene};
+pub use hyrt_core::scene::{
+    Camera, Environment, EnvironmentMap, EnvironmentMapError, Light, Material, MaterialKind, Mesh, Object, RenderMode,
+    Scene,
+};
 pub use hyrt_core::stage::Stage;
 pub use hyrt_core::{glam, GpuError, SceneError};
 pub use hyrt_cpu::backend::CpuBackend;
@@ -296,4 +299,10 @@ impl Renderer {
 /// Write a frame's final image as an 8-bit sRGB PNG ([`Frame::final_srgb8`]).
 pub fn save_png(frame: &Frame, path: &std::path::Path) -> Result<(), Error> {
     image_io::write_png(path, frame.width, frame.height, &frame.final_image)
+}
+
+/// Write a frame's final image as a linear 32-bit float OpenEXR file, unclamped: the
+/// frame's values bit for bit ([`image_io::write_exr`]).
+pub fn save_exr(frame: &Frame, path: &std::path::Path) -> Result<(), Error> {
+    image_io::write_exr(path, frame.width, frame.height, &frame.final_image)
 }

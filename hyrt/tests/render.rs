@@ -208,3 +208,45 @@ fn paper_manifests_reproduce_table2_valid_rays() {
         assert!(err <= TABLE2_REL_TOL, "{file}: {rays} valid rays, the paper has {paper}");
     }
 }
+
+/// A fresh, empty folder for one test under Cargo's per-target temporary folder.
+fn temp_dir(test: &str) -> PathBuf {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("render").join(test);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// The RGBA f32 pixels of an OpenEXR file, read with the `image` crate.
+fn read_exr(path: &std::path::Path) -> (u32, u32, Vec<[f32; 4]>) {
+    let img = image::open(path).unwrap().into_rgba32f();
+    let (w, h) = img.dimensions();
+    (w, h, img.pixels().map(|p| p.0).collect())
+}
+
+#[test]
+fn save_exr_writes_the_final_image_bit_for_bit() {
+    let dir = temp_dir("save_exr");
+    let scene = Scene::default_scene();
+    let mut r = Renderer::cpu(Some(2));
+    let prepared = r.prepare(&scene);
+    let frame = r.render(&prepared, &scene.camera.unwrap(), 96, 54, &FrameOptions::default()).unwrap();
+    let path = dir.join("frame.exr");
+    hyrt::save_exr(&frame, &path).unwrap();
+    let (w, h, pixels) = read_exr(&path);
+    assert_eq!((w, h), (96, 54));
+    let bits = |p: &[[f32; 4]]| p.iter().map(|c| c.map(f32::to_bits)).collect::<Vec<_>>();
+    assert_eq!(bits(&pixels), bits(&frame.final_image));
+
+    // Linear and unclamped: values above 1, tiny, negative and -0 come back as written,
+    // row 0 on top.
+    let odd = [[4.5, 1e-30, 0.0, 1.0], [-0.25, 65504.5, 1e30, 0.5], [-0.0, 0.1, 0.2, 0.3]];
+    let path = dir.join("odd.exr");
+    hyrt::image_io::write_exr(&path, 1, 3, &odd).unwrap();
+    let (w, h, pixels) = read_exr(&path);
+    assert_eq!((w, h, bits(&pixels)), (1, 3, bits(&odd)));
+
+    // A wrong pixel count is an error naming the file, not a panic.
+    let e = hyrt::image_io::write_exr(&path, 2, 2, &odd).unwrap_err();
+    assert!(e.to_string().contains("odd.exr") && e.to_string().contains("3 pixels"), "{e}");
+}
