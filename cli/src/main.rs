@@ -1,8 +1,8 @@
 //! The `hyrt` command-line program.
 //!
 //! `hyrt render [SCENE] --out frame.png --size 1280x720 --backend cpu --weight W
-//! --eye X,Y,Z --target X,Y,Z --fov DEG --dump DIR`: with no SCENE it renders the
-//! built-in default scene.
+//! --eye X,Y,Z --target X,Y,Z --fov DEG --environment MAP.hdr --dump DIR`: with no SCENE
+//! it renders the built-in default scene; `--out frame.exr` writes linear OpenEXR.
 //!
 //! `hyrt bench [--quick] [--out DIR]`: the benchmark report (Table 2 reproduction, peers,
 //! scaling) as `DIR/report.md` plus PNG plots; see `hyrt_benches::bench`.
@@ -24,7 +24,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Render a scene (.glb, .gltf or .toml manifest; the built-in default scene if none) to a PNG.
+    /// Render a scene (.glb, .gltf or .toml manifest; the built-in default scene if none) to a
+    /// PNG or an OpenEXR file.
     Render(RenderArgs),
     /// Run the conformance corpus: every stage of a candidate backend against the CPU
     /// reference, with a report (report.md, difference images).
@@ -130,9 +131,15 @@ enum PresetArg {
 struct RenderArgs {
     /// Scene file: .glb, .gltf or .toml manifest. Omit for the built-in default scene.
     scene: Option<PathBuf>,
-    /// Output PNG.
+    /// Output image: a name ending in .exr writes the linear image as 32-bit float OpenEXR
+    /// (unclamped), anything else an 8-bit sRGB PNG.
     #[arg(long, default_value = "frame.png")]
     out: PathBuf,
+    /// Environment map that reflection and refraction rays leaving the scene see: an
+    /// equirectangular Radiance .hdr or OpenEXR .exr file (overrides the manifest's
+    /// `environment`; without either, the default sky).
+    #[arg(long)]
+    environment: Option<PathBuf>,
     /// Image size, WIDTHxHEIGHT.
     #[arg(long, default_value = "1280x720", value_parser = parse_size)]
     size: (u32, u32),
@@ -222,6 +229,9 @@ fn render(args: RenderArgs) -> Result<(), String> {
         None => Scene::default_scene(),
     };
     scene.ensure_camera_and_lights();
+    if let Some(path) = &args.environment {
+        scene.environment = hyrt::Environment::load(path).map_err(|e| e.to_string())?;
+    }
     for note in &scene.notes {
         eprintln!("note: {note}");
     }
@@ -285,15 +295,22 @@ fn render(args: RenderArgs) -> Result<(), String> {
         v.sort_by(f64::total_cmp);
         v[(v.len() - 1) / 2]
     };
-    hyrt::image_io::write_png(&args.out, w, h, &frame.final_image).map_err(|e| e.to_string())?;
+    let exr = args.out.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    if exr {
+        hyrt::image_io::write_exr(&args.out, w, h, &frame.final_image)
+    } else {
+        hyrt::image_io::write_png(&args.out, w, h, &frame.final_image)
+    }
+    .map_err(|e| e.to_string())?;
 
     let s = &frame.stats;
     let name = args.scene.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| "default scene".into());
     println!(
-        "{name}: {} objects, {} triangles, {} lights; {}x{} on {}",
+        "{name}: {} objects, {} triangles, {} lights, environment: {}; {}x{} on {}",
         scene.objects.len(),
         prepared.geometry.triangle_count(),
         prepared.geometry.lights.len(),
+        scene.environment.describe(),
         w,
         h,
         renderer.choice(),

@@ -56,6 +56,7 @@ fn cli_render_default_scene_with_dump() {
     assert_eq!(json["height"], 41);
     assert_eq!(json["objects"].as_array().unwrap().len(), 7);
     assert_eq!(json["objects"][0]["render_mode"], "ray_traced");
+    assert_eq!(json["environment"], "default sky");
     assert!(json["camera"]["view"].is_array() && json["camera"]["projection"].is_array());
     assert!(json["camera"]["conventions"].as_str().unwrap().contains("centre"));
     assert!(json["counts"]["valid_rays"].as_u64().unwrap() > 0);
@@ -99,6 +100,46 @@ fn cli_camera_overrides_change_the_view() {
     let a = run(&[]);
     let b = run(&["--eye", "-6,3,6", "--target", "0,1,0", "--fov", "30", "--weight", "0.5"]);
     assert_ne!(a, b);
+}
+
+#[test]
+fn cli_render_with_an_environment_map_to_openexr() {
+    let dir = tempfile::tempdir().unwrap();
+    // A 4 x 2 map: a bright upper half, a dark lower one.
+    let map = dir.path().join("sky.exr");
+    let texels: Vec<f32> = (0..8).flat_map(|k| if k < 4 { [4.0, 3.0, 2.0] } else { [0.01, 0.02, 0.03] }).collect();
+    image::Rgb32FImage::from_raw(4, 2, texels).unwrap().save(&map).unwrap();
+    let (png, exr) = (dir.path().join("frame.png"), dir.path().join("frame.EXR"));
+    let render = |out: &Path, env: Option<&Path>| {
+        let mut c = hyrt();
+        c.args(["render", "--size", "48x27", "--threads", "2", "--max-depth", "2", "--out"]).arg(out);
+        if let Some(env) = env {
+            c.arg("--environment").arg(env);
+        }
+        let o = c.output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    let stdout = render(&exr, Some(&map));
+    assert!(stdout.contains("environment: 4x2 map from") && stdout.contains("sky.exr"), "{stdout}");
+    // The OpenEXR file holds the linear frame, 32-bit float (values above 1 stay).
+    let img = image::open(&exr).unwrap();
+    assert_eq!((img.width(), img.height(), img.color()), (48, 27, image::ColorType::Rgba32F));
+    let with_map: Vec<f32> = img.into_rgba32f().into_raw();
+    render(&png, None);
+    assert_eq!(image::open(&png).unwrap().color(), image::ColorType::Rgba8, "other names are PNG");
+    let sky_exr = dir.path().join("sky_frame.exr");
+    assert!(render(&sky_exr, None).contains("environment: default sky"));
+    let with_sky: Vec<f32> = image::open(&sky_exr).unwrap().into_rgba32f().into_raw();
+    // The default scene's golden sphere reflects the map where its reflections leave.
+    assert_ne!(with_map, with_sky);
+
+    let bad = dir.path().join("sky.hdr");
+    std::fs::write(&bad, "not an image").unwrap();
+    let o = hyrt().args(["render", "--size", "8x8", "--environment"]).arg(&bad).output().unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("sky.hdr") && err.contains("environment map") && !err.contains("panicked"), "{err}");
 }
 
 #[test]
