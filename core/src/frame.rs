@@ -182,7 +182,7 @@ pub struct BounceStats {
     /// Rays of the depth per `RAY_KIND_*`: its reflection and refraction rays, and the
     /// shadow rays from the surfaces they hit.
     pub rays_per_kind: [u64; RAY_KIND_COUNT],
-    /// Secondary rays that hit a surface (the rest left the scene and see the sky).
+    /// Secondary rays that hit a surface (the rest left the scene and see the environment).
     pub hits: u64,
     /// Its shadow rays that found an occluder.
     pub occluded_shadow_rays: u64,

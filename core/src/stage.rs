@@ -21,8 +21,8 @@ pub enum Stage {
     /// Trace a secondary ray list through the BVH, closest hit, and rebuild the surfaces
     /// hit from their barycentrics (paper eq. 1 again).
     BounceTrace,
-    /// Shade a bounce's hits (misses see the sky) and gather their children's radiance,
-    /// deepest bounce first.
+    /// Shade a bounce's hits (misses see the environment: the default sky or the scene's
+    /// map) and gather their children's radiance, deepest bounce first.
     BounceShading,
     /// Shade the pixels of ray-traced objects (paper 3.3).
     RtShading,
