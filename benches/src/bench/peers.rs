@@ -6,6 +6,9 @@
 //!   and with the context flagged coherent);
 //! * primary rays (one per pixel, [`primary_rays`]) traced by [`Bvh::closest_hit`] and by
 //!   Embree (`rtcIntersect1`, `rtcIntersect8` in both contexts);
+//! * the reflection and refraction rays of a real frame (every bounce's ray list of a
+//!   frame at [`DEFAULT_MAX_DEPTH`], one after the other), traced closest-hit by the
+//!   `bounce_trace` stage's traversal and by Embree, as the primary rays;
 //! * the visibility raster of the CPU backend against the GPU backend's (lavapipe here),
 //!   from the Table 2 frames.
 //!
@@ -19,6 +22,7 @@ use hyrt_core::bvh::Bvh;
 use hyrt_core::formats::{CameraRecord, RayRecord};
 use hyrt_core::frame::{Frame, FrameOptions, PreparedScene};
 use hyrt_core::geometry::WorldGeometry;
+use hyrt_core::kernels::bounce::DEFAULT_MAX_DEPTH;
 use hyrt_core::kernels::camera::primary_rays;
 use hyrt_core::stage::Stage;
 use hyrt_cpu::shadow_rays::SHADOW_OCCLUDED;
@@ -76,6 +80,11 @@ pub struct ScenePeers {
     pub occluded: usize,
     /// Primary rays that hit something (hyrt).
     pub primary_hits: usize,
+    /// The frame's reflection and refraction rays (empty without a ray-traced mirror or
+    /// glass in view).
+    pub secondary: Vec<RayRun>,
+    /// Reflection and refraction rays that hit something (hyrt).
+    pub secondary_hits: usize,
 }
 
 /// Visibility raster of the CPU backend against the GPU backend on one scene.
@@ -165,17 +174,26 @@ fn timed_run<T: Clone + Send>(
 
 /// The shadow rays of a real frame of the scene (the CPU backend, every stage's output kept).
 pub fn frame_shadow_rays(row: &PeerScene<'_>) -> Result<Vec<RayRecord>, BenchError> {
+    Ok(frame_rays(row)?.0)
+}
+
+/// A real frame's ray lists: its shadow rays (from the primary hits), and its reflection
+/// and refraction rays of every bounce, depth 1 first (a frame at [`DEFAULT_MAX_DEPTH`] on
+/// the CPU backend, every stage's output kept).
+pub fn frame_rays(row: &PeerScene<'_>) -> Result<(Vec<RayRecord>, Vec<RayRecord>), BenchError> {
     let mut backend = hyrt_cpu::backend::CpuBackend::new(None);
     let mut frame = Frame::default();
     hyrt_core::frame::Backend::render_into(
         &mut backend,
         row.prepared,
         &row.camera,
-        &FrameOptions { weight: 1.0, stage_outputs: true, max_depth: 0 },
+        &FrameOptions { max_depth: DEFAULT_MAX_DEPTH, ..FrameOptions::with_stage_outputs() },
         &mut frame,
     )
     .map_err(|source| BenchError::Render { scene: row.name.to_string(), source })?;
-    Ok(frame.rays)
+    let secondary = frame.bounces.iter().take(frame.plan.bounce_depth() as usize).flat_map(|b| b.rays.iter().copied());
+    let secondary = secondary.collect();
+    Ok((frame.rays, secondary))
 }
 
 /// A scene the peers trace: prepared, with the camera of the image they trace (borrowed
@@ -199,7 +217,7 @@ fn measure_scene(
 ) -> Result<(ScenePeers, Option<String>), BenchError> {
     let g: &WorldGeometry = &row.prepared.geometry;
     let bvh: &Bvh = &row.prepared.bvh;
-    let shadow = frame_shadow_rays(row)?;
+    let (shadow, secondary) = frame_rays(row)?;
     let primary = primary_rays(&row.camera);
     let max_threads = options.peer_threads.iter().copied().max().unwrap_or(1);
     #[cfg(feature = "embree")]
@@ -220,11 +238,17 @@ fn measure_scene(
         embree_build_ms: None,
         occluded: 0,
         primary_hits: 0,
+        secondary: Vec::new(),
+        secondary_hits: 0,
     };
     #[cfg(feature = "embree")]
     {
         out.embree_build_ms = embree.as_ref().map(|e| e.build_ms);
     }
+    #[cfg(feature = "embree")]
+    let embree_ref = embree.as_ref();
+    #[cfg(not(feature = "embree"))]
+    let embree_ref = None;
     for &threads in &options.peer_threads {
         progress.set_message(format!("peers: {} shadow and primary rays, {threads} threads", row.name));
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("rayon pool");
@@ -249,24 +273,14 @@ fn measure_scene(
             out.shadow.push(run);
         }
         out.occluded = occluded.iter().filter(|&&o| o == SHADOW_OCCLUDED).count();
-        let mut hits: Vec<Option<u32>> = Vec::new();
-        for traversal in [Traversal::Scalar, packets] {
-            let mut closest = Vec::new();
-            let ms = median_ms(options.repeats, || {
-                pool.install(|| closest_hit_batch_into(bvh, &g.triangles, &primary, traversal, &mut closest))
-            });
-            let h: Vec<Option<u32>> = closest.iter().map(|h| h.map(|h| h.triangle)).collect();
-            let mut run = RayRun::new(&hyrt_method("Bvh::closest_hit", traversal), threads, primary.len(), ms);
-            if traversal == Traversal::Scalar {
-                hits = h;
-            } else {
-                run.disagreements = Some(hits.iter().zip(&h).filter(|(a, b)| a.is_some() != b.is_some()).count());
-                run.other_triangle =
-                    Some(hits.iter().zip(&h).filter(|(a, b)| a.is_some() && b.is_some() && a != b).count());
-            }
-            out.primary.push(run);
+        let (runs, hits) = closest_hit_runs(options.repeats, &pool, bvh, g, &primary, embree_ref);
+        out.primary.extend(runs);
+        out.primary_hits = hits;
+        if !secondary.is_empty() {
+            let (runs, hits) = closest_hit_runs(options.repeats, &pool, bvh, g, &secondary, embree_ref);
+            out.secondary.extend(runs);
+            out.secondary_hits = hits;
         }
-        out.primary_hits = hits.iter().filter(|h| h.is_some()).count();
         #[cfg(feature = "embree")]
         if let Some(e) = &embree {
             use super::embree::EmbreeScene;
@@ -285,23 +299,69 @@ fn measure_scene(
                 run.disagreements = Some(hyrt_occ.iter().zip(&o).filter(|(a, b)| a != b).count());
                 out.shadow.push(run);
             }
-            type Hit = fn(&EmbreeScene, &[RayRecord], &mut [Option<u32>]);
-            let hit: [(&str, Hit); 3] = [
-                ("Embree `rtcIntersect1`", EmbreeScene::intersect1),
-                ("Embree `rtcIntersect8` (packets of 8)", EmbreeScene::intersect8),
-                ("Embree `rtcIntersect8` (packets of 8, coherent context)", EmbreeScene::intersect8_coherent),
-            ];
-            for (name, f) in hit {
-                let (mut run, o) = timed_run(options.repeats, &pool, &primary, name, None, |r, o| f(e, r, o));
-                run.disagreements = Some(hits.iter().zip(&o).filter(|(a, b)| a.is_some() != b.is_some()).count());
-                run.other_triangle =
-                    Some(hits.iter().zip(&o).filter(|(a, b)| a.is_some() && b.is_some() && a != b).count());
-                out.primary.push(run);
-            }
         }
         progress.inc(1);
     }
     Ok((out, embree_missing))
+}
+
+#[cfg(feature = "embree")]
+type EmbreeRef<'a> = Option<&'a super::embree::EmbreeScene>;
+#[cfg(not(feature = "embree"))]
+type EmbreeRef<'a> = Option<&'a std::convert::Infallible>;
+
+/// Closest hits of `rays` in `pool`: hyrt's scalar reference and the packets the
+/// `bounce_trace` stage uses, then Embree's `rtcIntersect1` and `rtcIntersect8` (both
+/// contexts) when built; each run compared ray by ray with hyrt's reference. Also the
+/// number of rays that hit something (hyrt).
+fn closest_hit_runs(
+    repeats: usize,
+    pool: &rayon::ThreadPool,
+    bvh: &Bvh,
+    g: &WorldGeometry,
+    rays: &[RayRecord],
+    embree: EmbreeRef<'_>,
+) -> (Vec<RayRun>, usize) {
+    let threads = pool.current_num_threads();
+    let mut runs = Vec::new();
+    let mut hits: Vec<Option<u32>> = Vec::new();
+    for traversal in [Traversal::Scalar, Traversal::simd()] {
+        let mut closest = Vec::new();
+        let ms = median_ms(repeats, || {
+            pool.install(|| closest_hit_batch_into(bvh, &g.triangles, rays, traversal, &mut closest))
+        });
+        let h: Vec<Option<u32>> = closest.iter().map(|h| h.map(|h| h.triangle)).collect();
+        let mut run = RayRun::new(&hyrt_method("Bvh::closest_hit", traversal), threads, rays.len(), ms);
+        if traversal == Traversal::Scalar {
+            hits = h;
+        } else {
+            run.disagreements = Some(hits.iter().zip(&h).filter(|(a, b)| a.is_some() != b.is_some()).count());
+            run.other_triangle =
+                Some(hits.iter().zip(&h).filter(|(a, b)| a.is_some() && b.is_some() && a != b).count());
+        }
+        runs.push(run);
+    }
+    #[cfg(feature = "embree")]
+    if let Some(e) = embree {
+        use super::embree::EmbreeScene;
+        type Hit = fn(&EmbreeScene, &[RayRecord], &mut [Option<u32>]);
+        let hit: [(&str, Hit); 3] = [
+            ("Embree `rtcIntersect1`", EmbreeScene::intersect1),
+            ("Embree `rtcIntersect8` (packets of 8)", EmbreeScene::intersect8),
+            ("Embree `rtcIntersect8` (packets of 8, coherent context)", EmbreeScene::intersect8_coherent),
+        ];
+        for (name, f) in hit {
+            let (mut run, o) = timed_run(repeats, pool, rays, name, None, |r, o| f(e, r, o));
+            run.disagreements = Some(hits.iter().zip(&o).filter(|(a, b)| a.is_some() != b.is_some()).count());
+            run.other_triangle =
+                Some(hits.iter().zip(&o).filter(|(a, b)| a.is_some() && b.is_some() && a != b).count());
+            runs.push(run);
+        }
+    }
+    #[cfg(not(feature = "embree"))]
+    let _ = embree;
+    let hit_count = hits.iter().filter(|h| h.is_some()).count();
+    (runs, hit_count)
 }
 
 /// Scenes beyond Table 2's that the peers trace: the first in quick runs too.
@@ -497,6 +557,22 @@ impl Peers {
                 count(s.primary_hits as u64),
                 ray_table(&s.primary, true).to_markdown()
             );
+            if s.secondary.is_empty() {
+                let _ = writeln!(
+                    md,
+                    "\n### {}: reflection and refraction rays\n\nNone: no ray-traced mirror or glass in view.",
+                    s.scene
+                );
+            } else {
+                let _ = writeln!(
+                    md,
+                    "\n### {}: reflection and refraction rays\n\nThe frame's own secondary rays (every bounce of a frame at max depth {DEFAULT_MAX_DEPTH}, one list), {} rays, {} of them hit (hyrt).\n\n{}",
+                    s.scene,
+                    count(s.secondary.first().map_or(0, |r| r.rays) as u64),
+                    count(s.secondary_hits as u64),
+                    ray_table(&s.secondary, true).to_markdown()
+                );
+            }
         }
         if let Some(f) = &self.frames {
             let _ = writeln!(md, "\n{}", frame_traversal_table(f, self.cpu_threads, (w, h)));
@@ -597,6 +673,14 @@ impl Peers {
         if let Some((e, method)) = best(&main.primary, "Embree `rtcIntersect8`") {
             out.push(row("primary", &main.scene, &method, e, hyrt_primary));
         }
+        // Secondary rays on every scene that has them: hyrt's packets (the `bounce_trace`
+        // stage) against Embree's faster single-ray or packet run.
+        for s in self.scenes.iter().filter(|s| !s.secondary.is_empty()) {
+            let hyrt_secondary = best(&s.secondary, "hyrt packets").map_or(f64::NAN, |b| b.0);
+            if let Some((e, method)) = best(&s.secondary, "Embree `rtcIntersect") {
+                out.push(row("reflection and refraction", &s.scene, &method, e, hyrt_secondary));
+            }
+        }
         if let Some(g) = &self.gpu_short {
             for r in self.raster.iter().filter(|r| r.scene == main.scene) {
                 // The peer is the device's own raster when measured.
@@ -656,6 +740,8 @@ mod tests {
                 embree_build_ms: None,
                 occluded: 0,
                 primary_hits: 0,
+                secondary: Vec::new(),
+                secondary_hits: 0,
             }],
             frames: None,
             raster: vec![RasterRow {
@@ -682,6 +768,31 @@ mod tests {
         assert_eq!(g[2][3], "0.50"); // primary: 2 Mrays/s against 4 Mrays/s
         assert_eq!(g[3][1..], ["30.00 ms".to_string(), "10.00 ms".into(), "3.00".into()]);
         assert_eq!(g.len(), 4);
+    }
+
+    #[test]
+    fn secondary_rays_get_a_table_and_a_goal_against_embrees_faster_intersect() {
+        let mut p = peers("teaser", true);
+        let packets = hyrt_method("Bvh::closest_hit", Traversal::Packet(hyrt_cpu::traversal::SimdLevel::Portable));
+        p.scenes[0].secondary = vec![
+            run(&hyrt_method("Bvh::closest_hit", Traversal::Scalar), 2, 400.0),
+            run(&packets, 2, 250.0),
+            run("Embree `rtcIntersect1`", 2, 125.0),
+            run("Embree `rtcIntersect8` (packets of 8)", 2, 200.0),
+        ];
+        p.scenes[0].secondary_hits = 7;
+        let g = p.goals();
+        // 1M rays: hyrt packets 4 Mrays/s; Embree's faster is rtcIntersect1 at 8.
+        let row = g.iter().find(|r| r[0].starts_with("reflection and refraction rays, teaser")).expect("a goal row");
+        assert!(row[0].contains("rtcIntersect1"), "{row:?}");
+        assert_eq!(row[1..], ["8.0 Mrays/s".to_string(), "4.0 Mrays/s".into(), "0.50".into()]);
+        let table2 = Table2 { rows: vec![], size: (64, 32), cpu_label: String::new(), gpu: None, gpu_errors: vec![] };
+        let md = p.section(&table2).markdown;
+        assert!(md.contains("### teaser: reflection and refraction rays"), "{md}");
+        assert!(md.contains("1,000,000 rays, 7 of them hit (hyrt)"), "{md}");
+        // A scene without them says so instead of a table.
+        let md = peers("teaser", true).section(&table2).markdown;
+        assert!(md.contains("None: no ray-traced mirror or glass in view."), "{md}");
     }
 
     #[test]
