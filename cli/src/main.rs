@@ -350,7 +350,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
     println!("  {:<18} {:>9.2} ms (sum of the stages above, without bvh_build)", "frame", frame_ms);
     println!("wrote {}", args.out.display());
     if let Some(dir) = &args.dump {
-        let files = dump::write_dump(dir, &scene, &prepared, &camera, &frame, &renderer.backend_name())
+        let files = dump::write_dump(dir, &scene, &prepared, &camera, &frame, renderer.backend_name())
             .map_err(|e| e.to_string())?;
         println!("dumped {} files to {}", files.len(), dir.display());
     }

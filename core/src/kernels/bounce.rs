@@ -86,6 +86,12 @@ fn dot(a: Vec3, b: Vec3) -> f32 {
     a.dot(b)
 }
 
+/// `x > 0`, false for NaN (a direction that rounding made NaN or zero spawns no ray).
+#[inline]
+fn is_positive(x: f32) -> bool {
+    x > 0.0
+}
+
 /// The mirror direction of `d` about the unit normal `n`: `d - n (2 (d . n))`.
 #[inline]
 pub fn reflect(d: Vec3, n: Vec3) -> Vec3 {
@@ -177,10 +183,10 @@ pub fn lobes(obj: &ObjectRecord, s: &SurfaceRecord, d: Vec3, exterior: bool) -> 
     let reflection = Vec3::splat(f * (1.0 - obj.metallic)) + fresnel_schlick(base, cos_i) * obj.metallic;
 
     let mut reflect_dir = reflect(d, ns).normalize_or_zero();
-    if !(dot(reflect_dir, ng) > 0.0) {
+    if !is_positive(dot(reflect_dir, ng)) {
         reflect_dir = reflect(d, ng).normalize_or_zero();
     }
-    if !(dot(reflect_dir, ng) > 0.0) {
+    if !is_positive(dot(reflect_dir, ng)) {
         reflect_dir = Vec3::ZERO;
     }
 
@@ -261,6 +267,7 @@ pub fn lobe_radiance(link: u32, radiance: &[[f32; 4]]) -> Vec3 {
 /// reached (`shadow`: its `SHADOW_*` codes), and its lobes' radiance `reflected` and
 /// `refracted` ([`lobe_radiance`]) times their weights.
 #[inline]
+#[allow(clippy::too_many_arguments)]
 pub fn shade_bouncing(
     s: &SurfaceRecord,
     obj: &ObjectRecord,
@@ -394,6 +401,7 @@ pub fn shade_secondary_hit(
 /// object bounces (its lobes seeing the first bounce's radiance through `children`),
 /// [`crate::kernels::shading::shade_rt_pixel`] bit for bit elsewhere.
 #[inline]
+#[allow(clippy::too_many_arguments)]
 pub fn shade_rt_pixel_bouncing(
     p: &Parent,
     objects: &[ObjectRecord],
@@ -431,7 +439,7 @@ pub const SKY_GROUND: [f32; 3] = [0.12, 0.11, 0.10];
 pub fn sky(d: Vec3) -> Vec3 {
     let len = dot(d, d).sqrt();
     let y = d.y / len;
-    if !(y >= 0.0) {
+    if y.is_nan() || y < 0.0 {
         return Vec3::from(SKY_GROUND);
     }
     let horizon = Vec3::from(SKY_HORIZON);
