@@ -125,10 +125,7 @@ pub struct StageTime {
 impl StageTime {
     /// The step's label: the stage name, with `{depth}` for a bounce step.
     pub fn label(&self) -> String {
-        match self.depth {
-            0 => self.stage.name().to_string(),
-            d => format!("{}{{{d}}}", self.stage.name()),
-        }
+        self.stage.label_at(self.depth)
     }
 }
 
@@ -398,11 +395,10 @@ impl Frame {
                 }
             }
         }
-        for (i, level) in self.bounces.iter_mut().enumerate() {
+        for i in 0..self.bounces.len() {
             for b in BounceBuffer::ALL {
-                let buffer = b.at(i as u32 + 1);
-                if !(self.plan.produces(buffer) && (self.stage_outputs || buffer.always_returned())) {
-                    level.clear(b);
+                if !self.holds(b.at(i as u32 + 1)) {
+                    self.bounces[i].clear(b);
                 }
             }
         }

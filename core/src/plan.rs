@@ -346,10 +346,7 @@ impl Step {
     /// The step's name with its depth: the stage name, and `{d}` after it for a bounce
     /// step (`compaction{2}`): frame tables and errors.
     pub fn label(self) -> String {
-        match self.depth() {
-            0 => self.stage().name().to_string(),
-            d => format!("{}{{{d}}}", self.stage().name()),
-        }
+        self.stage().label_at(self.depth())
     }
 
     /// The frame buffers this step reads, given whether the plan has shadow results

@@ -48,6 +48,16 @@ impl Stage {
         Stage::Composition,
     ];
 
+    /// The name of the stage's step at bounce `depth`: its [`Stage::name`] for the primary
+    /// hits (depth 0), with `{depth}` after it for a bounce (`compaction{2}`): frame tables,
+    /// `frame.json`, errors.
+    pub fn label_at(self, depth: u32) -> String {
+        match depth {
+            0 => self.name().to_string(),
+            d => format!("{}{{{d}}}", self.name()),
+        }
+    }
+
     /// The stage's one name (snake case), as used by modules, timings and tests.
     pub const fn name(self) -> &'static str {
         match self {

@@ -264,8 +264,9 @@ pub fn lobe_radiance(link: u32, radiance: &[[f32; 4]]) -> Vec3 {
 
 /// The radiance a bouncing surface sends along `-d` (the module docs' `L`): its diffuse
 /// terms scaled by `l.diffuse_scale`, the specular lobe of every light its shadow ray
-/// reached (`shadow`: its `SHADOW_*` codes), and its lobes' radiance `reflected` and
-/// `refracted` ([`lobe_radiance`]) times their weights.
+/// reached (`shadow`: its `SHADOW_*` codes), and what its lobes see times their weights:
+/// [`lobe_radiance`] of its `[reflection, refraction]` `children` in `radiance` (the next
+/// depth's, [`INVALID_ID`] where a lobe traced no ray).
 #[inline]
 #[allow(clippy::too_many_arguments)]
 pub fn shade_bouncing(
@@ -275,9 +276,11 @@ pub fn shade_bouncing(
     d: Vec3,
     shadow: &[u8],
     lights: &[LightRecord],
-    reflected: Vec3,
-    refracted: Vec3,
+    children: [u32; 2],
+    radiance: &[[f32; 4]],
 ) -> Vec3 {
+    let reflected = lobe_radiance(children[0], radiance);
+    let refracted = lobe_radiance(children[1], radiance);
     let p = Vec3::from(s.position);
     let n = Vec3::from(s.normal);
     let v = -d;
@@ -385,9 +388,7 @@ pub fn shade_secondary_hit(
         return environment_radiance(env, p.d);
     }
     if let Some((obj, l)) = parent_lobes(p, objects, triangles) {
-        let reflected = lobe_radiance(children[0], radiance);
-        let refracted = lobe_radiance(children[1], radiance);
-        return shade_bouncing(s, obj, &l, p.d, shadow, lights, reflected, refracted);
+        return shade_bouncing(s, obj, &l, p.d, shadow, lights, children, radiance);
     }
     let obj = &objects[s.object as usize];
     if obj.flags & OBJ_RAY_TRACED != 0 {
@@ -414,11 +415,7 @@ pub fn shade_rt_pixel_bouncing(
 ) -> Vec3 {
     let s = p.surface;
     match parent_lobes(p, objects, triangles) {
-        Some((obj, l)) => {
-            let reflected = lobe_radiance(children[0], radiance);
-            let refracted = lobe_radiance(children[1], radiance);
-            shade_bouncing(s, obj, &l, p.d, shadow, lights, reflected, refracted)
-        }
+        Some((obj, l)) => shade_bouncing(s, obj, &l, p.d, shadow, lights, children, radiance),
         None => shade_rt_pixel(s, &objects[s.object as usize], shadow, lights, eye),
     }
 }
