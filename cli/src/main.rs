@@ -176,8 +176,7 @@ struct RenderArgs {
     #[arg(long, value_enum)]
     bvh_preset: Option<PresetArg>,
     /// Deepest bounce of the reflection and refraction rays of ray-traced mirrors and
-    /// glass; 0 traces none (the paper's frame). Default 4 on the CPU backend; the GPU
-    /// backend traces no bounce yet (default 0 there, and a larger value is an error).
+    /// glass; 0 traces none (the paper's frame). Default 4, on either backend.
     #[arg(long, value_parser = clap::value_parser!(u32).range(0..=hyrt::MAX_DEPTH_LIMIT as i64))]
     max_depth: Option<u32>,
 }
@@ -271,16 +270,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
     let (w, h) = args.size;
     let prepared = renderer.prepare(&scene);
     // Every stage's output is kept only for --dump (the GPU then reads them back too).
-    let max_depth = match args.max_depth {
-        Some(d) => d,
-        None if renderer.backend_name() == "cpu" => hyrt::DEFAULT_MAX_DEPTH,
-        None => {
-            eprintln!(
-                "note: the GPU backend traces no reflection or refraction yet: max depth 0 (--backend cpu traces them)"
-            );
-            0
-        }
-    };
+    let max_depth = args.max_depth.unwrap_or(hyrt::DEFAULT_MAX_DEPTH);
     let options = FrameOptions { weight: args.weight, stage_outputs: args.dump.is_some(), max_depth };
     let mut frame = hyrt::Frame::default();
     let mut per_frame = Vec::with_capacity(args.frames as usize);

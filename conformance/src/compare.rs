@@ -9,9 +9,9 @@
 //! `compaction`, not a cascade of shifted records), so one differing pixel is reported
 //! once, in the stage that made it.
 
-use hyrt_core::formats::{GBufferTexel, RayRecord, SurfaceRecord};
+use hyrt_core::formats::{GBufferTexel, HitRecord, RayRecord, SurfaceRecord};
 use hyrt_core::frame::Frame;
-use hyrt_core::plan::FrameBuffer;
+use hyrt_core::plan::{BounceBuffer, FrameBuffer};
 use hyrt_core::stage::Stage;
 
 use crate::ulp_distance;
@@ -70,6 +70,13 @@ pub const RAY_WORDS: [Word; 16] = [
 ];
 /// The words of an RGBA image texel.
 pub const RGBA_WORDS: [Word; 4] = [Word::Float("r"), Word::Float("g"), Word::Float("b"), Word::Float("a")];
+/// The words of a closest-hit record, in memory order.
+pub const HIT_WORDS: [Word; 6] =
+    [Word::Float("t"), Word::Float("u"), Word::Float("v"), Word::Int("triangle"), Word::Int("flags"), Word::Int("pad")];
+/// The words of a parent's links to its secondary rays.
+pub const LINK_WORDS: [Word; 2] = [Word::Int("reflection"), Word::Int("refraction")];
+/// One integer word (occlusion results, shadow codes).
+pub const WORD: [Word; 1] = [Word::Int("value")];
 
 /// Buckets of the ulp histogram: bucket 0 counts exact words, bucket `k` (1..=32)
 /// counts distances in `[2^(k-1), 2^k)`, the last bucket counts NaN-against-number
@@ -144,8 +151,9 @@ impl std::fmt::Display for Difference {
 #[derive(Clone, Debug, PartialEq)]
 pub struct BufferComparison {
     pub stage: Stage,
-    /// Buffer name ("gbuffer", "surfaces", "rays", "occluded", "shadow", "rt", "raster", "final").
-    pub buffer: &'static str,
+    /// Buffer name: [`FrameBuffer::label`] ("gbuffer", "surfaces", "rays", "occluded",
+    /// "shadow", "rt", "raster", "final", "bounce{d}_rays", ...).
+    pub buffer: String,
     /// Elements compared (records, pixels).
     pub elements: usize,
     /// Elements with at least one differing integer word (or present on one side only).
@@ -164,10 +172,10 @@ pub struct BufferComparison {
 }
 
 impl BufferComparison {
-    fn new(stage: Stage, buffer: &'static str) -> Self {
+    fn new(stage: Stage, buffer: impl Into<String>) -> Self {
         BufferComparison {
             stage,
-            buffer,
+            buffer: buffer.into(),
             elements: 0,
             int_mismatches: 0,
             first_int: None,
@@ -256,7 +264,7 @@ fn pixel_of(width: u32, index: usize) -> Option<(u32, u32)> {
 /// (reported upstream).
 fn compare_per_pixel<T: bytemuck::Pod>(
     stage: Stage,
-    buffer: &'static str,
+    buffer: &str,
     words: &[Word],
     width: u32,
     expected: &[T],
@@ -325,16 +333,7 @@ pub fn compare_stages(expected: &Frame, actual: &Frame) -> Vec<BufferComparison>
         match (expected.holds(buffer), actual.holds(buffer)) {
             (false, false) => continue,
             (e, a) if e != a => {
-                let mut c = BufferComparison::new(stage, name);
-                let side = |held: bool| if held { "held" } else { "absent" }.to_string();
-                c.note_int(|| Difference {
-                    at: Location { index: 0, pixel: None, light: None },
-                    word: "presence",
-                    expected: side(e),
-                    actual: side(a),
-                    ulp: None,
-                });
-                out.push(c);
+                out.push(presence_differs(stage, name, e));
                 continue;
             }
             _ => {}
@@ -376,12 +375,67 @@ pub fn compare_stages(expected: &Frame, actual: &Frame) -> Vec<BufferComparison>
                 &actual.final_image,
                 &id_differs,
             ),
-            // Bounce buffers are not in `FrameBuffer::ALL`: the GPU backend runs no bounce
-            // yet, so there is nothing to compare them with but the CPU itself.
             FrameBuffer::Bounce { .. } => unreachable!("FrameBuffer::ALL holds the primary buffers only"),
         });
     }
+    compare_bounces(expected, actual, &mut out);
     out
+}
+
+/// A buffer one frame holds and the other does not (`expected_holds` says which).
+fn presence_differs(stage: Stage, name: &str, expected_holds: bool) -> BufferComparison {
+    let mut c = BufferComparison::new(stage, name);
+    let side = |held: bool| if held { "held" } else { "absent" }.to_string();
+    c.note_int(|| Difference {
+        at: Location { index: 0, pixel: None, light: None },
+        word: "presence",
+        expected: side(expected_holds),
+        actual: side(!expected_holds),
+        ulp: None,
+    });
+    c
+}
+
+/// The bounce buffers of every depth either frame planned, each in list order (the
+/// lists are deterministic: the same parents spawn the same rays in the same order on
+/// every backend). A buffer one frame holds and the other does not is one difference.
+fn compare_bounces(expected: &Frame, actual: &Frame, out: &mut Vec<BufferComparison>) {
+    let depth = expected.plan.bounce_depth().max(actual.plan.bounce_depth());
+    for d in 1..=depth {
+        for b in BounceBuffer::ALL {
+            let buffer = b.at(d);
+            let (stage, name) = (buffer.writer(), buffer.label());
+            let (e, a) = (expected.holds(buffer), actual.holds(buffer));
+            if !e && !a {
+                continue;
+            }
+            if e != a {
+                out.push(presence_differs(stage, &name, e));
+                continue;
+            }
+            let (eb, ab) = (&expected.bounces[d as usize - 1], &actual.bounces[d as usize - 1]);
+            let codes = |v: &[u8]| v.iter().map(|&c| c as u32).collect::<Vec<u32>>();
+            let list = |words: &[Word], e: &[_], a: &[_]| compare_per_pixel(stage, &name, words, 0, e, a, &[]);
+            out.push(match b {
+                BounceBuffer::Rays => compare_per_pixel(stage, &name, &RAY_WORDS, 0, &eb.rays, &ab.rays, &[]),
+                BounceBuffer::Links => compare_per_pixel(stage, &name, &LINK_WORDS, 0, &eb.links, &ab.links, &[]),
+                BounceBuffer::Hits => {
+                    compare_per_pixel::<HitRecord>(stage, &name, &HIT_WORDS, 0, &eb.hits, &ab.hits, &[])
+                }
+                BounceBuffer::Surfaces => {
+                    compare_per_pixel(stage, &name, &SURFACE_WORDS, 0, &eb.surfaces, &ab.surfaces, &[])
+                }
+                BounceBuffer::ShadowRays => {
+                    compare_per_pixel(stage, &name, &RAY_WORDS, 0, &eb.shadow_rays, &ab.shadow_rays, &[])
+                }
+                BounceBuffer::Occluded => list(&WORD, &eb.occluded, &ab.occluded),
+                BounceBuffer::Shadow => list(&WORD, &codes(&eb.shadow), &codes(&ab.shadow)),
+                BounceBuffer::Radiance => {
+                    compare_per_pixel(stage, &name, &RGBA_WORDS, 0, &eb.radiance, &ab.radiance, &[])
+                }
+            });
+        }
+    }
 }
 
 /// `compaction`'s rays and `shadow_rays`' occlusion results. Rays are matched by

@@ -483,7 +483,7 @@ impl LeakCount {
 /// Count what reached a light in a frame rendered with every stage output.
 pub fn count_leaks(frame: &Frame) -> LeakCount {
     let pixels = frame.surfaces.len();
-    let lights = if pixels == 0 { 0 } else { frame.shadow.len() / pixels };
+    let lights = frame.shadow.len().checked_div(pixels).unwrap_or(0);
     let mut c = LeakCount { shadow_rays: frame.stats.rays_per_kind[RAY_KIND_SHADOW as usize], ..LeakCount::default() };
     for (p, s) in frame.surfaces.iter().enumerate() {
         let mask = &frame.shadow[p * lights..(p + 1) * lights];
@@ -546,7 +546,12 @@ mod tests {
             assert_closed_and_oriented(&horse, false);
             for p in inside {
                 let positions: Vec<DVec3> = horse.positions.iter().map(|p| p.as_dvec3()).collect();
-                assert_eq!(crossings(&horse, &positions, p.as_dvec3(), DVec3::new(0.5, 0.5, 0.70710678)) % 2, 1, "{p}");
+                assert_eq!(
+                    crossings(&horse, &positions, p.as_dvec3(), DVec3::new(0.5, 0.5, std::f64::consts::FRAC_1_SQRT_2))
+                        % 2,
+                    1,
+                    "{p}"
+                );
             }
         }
     }

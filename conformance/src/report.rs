@@ -93,7 +93,7 @@ impl KnownDeviations {
             for c in cs.iter().filter(|c| !c.is_exact()) {
                 deviations.push(Deviation {
                     case: r.name.clone(),
-                    buffer: c.buffer.into(),
+                    buffer: c.buffer.clone(),
                     int_mismatches: c.int_mismatches,
                     max_ulp: c.max_ulp(),
                 });
@@ -143,7 +143,7 @@ pub fn check(r: &CaseResult, known: &KnownDeviations) -> (Vec<String>, Vec<Strin
     };
     let (mut violations, mut improvements) = (Vec::new(), Vec::new());
     for c in comps {
-        let rec = known.get(&r.name, c.buffer);
+        let rec = known.get(&r.name, &c.buffer);
         let (max_int, max_ulp) = rec.map_or((0, 0), |d| (d.int_mismatches, d.max_ulp));
         if c.int_mismatches > max_int {
             violations.push(format!(
@@ -456,7 +456,7 @@ mod tests {
         assert_eq!(toml::from_str::<KnownDeviations>(&known.to_toml()).unwrap(), known);
         let mut g = BufferComparison {
             stage: Stage::VisibilityRaster,
-            buffer: "gbuffer",
+            buffer: "gbuffer".into(),
             elements: 9,
             int_mismatches: 3,
             first_int: None,

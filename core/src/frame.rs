@@ -63,8 +63,8 @@ pub struct FrameOptions {
 
 impl Default for FrameOptions {
     /// Weight 1 (ray-traced objects shaded by the tracer alone), no stage outputs, no
-    /// bounces: the GPU backend does not trace them yet. The CPU backend traces any
-    /// `max_depth`; [`crate::kernels::bounce::DEFAULT_MAX_DEPTH`] is the suggested one.
+    /// bounces (the paper's frame). Both backends trace any `max_depth`;
+    /// [`crate::kernels::bounce::DEFAULT_MAX_DEPTH`] is the suggested one.
     fn default() -> Self {
         FrameOptions { weight: 1.0, stage_outputs: false, max_depth: 0 }
     }

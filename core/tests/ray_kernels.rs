@@ -11,8 +11,8 @@ use hyrt_core::formats::{RayRecord, TriangleRecord, INVALID_ID, RAY_KIND_PRIMARY
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::barycentric::{position_error_bound, reconstruct_position};
 use hyrt_core::kernels::ray::{
-    intersect_triangle_watertight, offset_ray_origin, offset_ray_origin_integer_ulps, ray_aabb_conservative,
-    safe_inverse_dir, TriangleHit,
+    edge_sign_exact, intersect_triangle_watertight, offset_ray_origin, offset_ray_origin_integer_ulps, product_error,
+    ray_aabb_conservative, safe_inverse_dir, TriangleHit,
 };
 use hyrt_core::scene::{Material, Mesh, Object, ObjectSource, RenderMode, Scene};
 use proptest::prelude::*;
@@ -783,20 +783,68 @@ fn hits_know_the_face_they_hit() {
 
 /// Pinned: the f32 edge function of v1-v2 rounds to exactly 0 (both products round to
 /// 1 + 2^-22) while its exact value is -2^-46, so the ray passes a hair outside the
-/// edge. The f64 fallback sees that and misses; a plain f32 test would report a hit.
-/// The mirrored triangle (v0 on the other side) contains the ray and is hit.
+/// edge. The exact sign (Dekker's error-free products) sees that and misses; a plain f32
+/// test would report a hit. The mirrored triangle (v0 on the other side) contains the
+/// ray and is hit, with the f32 edge values (the zero one stays zero).
 #[test]
-fn pinned_f64_fallback_decides_rounded_zero_edge() {
+fn pinned_exact_sign_decides_rounded_zero_edge() {
     let (o, d) = (Vec3::new(0.0, 0.0, 1.0), Vec3::NEG_Z);
     let ulp = f32::EPSILON; // 2^-23
     let v1 = Vec3::new(1.0 + ulp, 1.0 + 2.0 * ulp, 0.0);
     let v2 = Vec3::new(-1.0, -(1.0 + ulp), 0.0);
     assert_eq!(v1.x * v2.y - v1.y * v2.x, 0.0);
+    assert_eq!(edge_sign_exact(v1, v2), -(2f32.powi(-46)), "the exact value, here representable");
+    assert_eq!(edge_sign_exact(v2, v1), 2f32.powi(-46), "antisymmetric");
     let outside = Vec3::new(1.0, -1.0, 0.0);
     let inside = Vec3::new(-1.0, 1.0, 0.0);
     assert_eq!(intersect_triangle_watertight(o, d, 0.0, f32::INFINITY, outside, v1, v2), None);
     let h = intersect_triangle_watertight(o, d, 0.0, f32::INFINITY, inside, v1, v2).unwrap();
     assert_eq!(h.t, 1.0);
+    assert_eq!(h.u + h.v, 1.0, "on the v1-v2 edge: w is exactly 0 in f32");
+}
+
+/// `a * b = p + product_error(a, b, p)` exactly, for `p` the rounded product: checked in
+/// f64, where the product of two f32 values is exact.
+#[test]
+fn product_error_is_the_exact_rounding_error() {
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        // Magnitudes 2^-40 .. 2^40, random significands and signs.
+        let m = 1.0 + (state >> 40) as f32 / (1u64 << 24) as f32;
+        let e = ((state >> 8) % 81) as i32 - 40;
+        let s = if state & 1 == 0 { 1.0 } else { -1.0 };
+        s * m * 2f32.powi(e)
+    };
+    for _ in 0..200_000 {
+        let (a, b) = (next(), next());
+        let p = a * b;
+        let exact = a as f64 * b as f64;
+        assert_eq!(p as f64 + product_error(a, b, p) as f64, exact, "{a:e} * {b:e}");
+    }
+}
+
+proptest! {
+    /// Where an f32 edge function is exactly zero, [`edge_sign_exact`] has the exact sign
+    /// (the f64 value's: both products are exact in f64) and is antisymmetric. The cases
+    /// are built to round to zero: `b` is `a` scaled by `k` (parallel), its y nudged by
+    /// the first of -8..=8 ulps that makes the f32 value exactly zero.
+    #[test]
+    fn edge_sign_exact_has_the_exact_sign(ax in -1.0e3f32..1.0e3, ay in -1.0e3f32..1.0e3, k in 0.01f32..100.0) {
+        let nudge = |x: f32, n: i32| f32::from_bits((x.to_bits() as i32 + n) as u32);
+        let a = Vec3::new(ax, ay, 0.0);
+        let b = (-8..=8)
+            .map(|n| Vec3::new(ax * k, nudge(ay * k, n), 0.0))
+            .find(|b| a.x * b.y - a.y * b.x == 0.0);
+        prop_assume!(b.is_some());
+        let b = b.unwrap();
+        let exact = a.x as f64 * b.y as f64 - a.y as f64 * b.x as f64;
+        let s = edge_sign_exact(a, b);
+        prop_assert_eq!(s.partial_cmp(&0.0), exact.partial_cmp(&0.0), "{:?} {:?}: {} vs {}", a, b, s, exact);
+        prop_assert_eq!(edge_sign_exact(b, a), -s);
+    }
 }
 
 proptest! {

@@ -3,27 +3,111 @@
 
 use std::time::Instant;
 
-use hyrt_core::formats::{CameraRecord, GBufferTexel, RayRecord, SurfaceRecord};
-use hyrt_core::frame::{Backend, Frame, FrameOptions, FrameStats, PreparedScene, RenderError, StageTime, StageWork};
-use hyrt_core::plan::{FrameBuffer, FramePlan, Step};
+use hyrt_core::formats::{
+    CameraRecord, GBufferTexel, HitRecord, RayRecord, SurfaceRecord, RAY_KIND_REFLECTION, RAY_KIND_REFRACTION,
+    RAY_KIND_SHADOW,
+};
+use hyrt_core::frame::{
+    Backend, BounceStats, Frame, FrameOptions, FrameStats, PreparedScene, RenderError, StageTime, StageWork,
+};
+use hyrt_core::kernels::bounce::MAX_DEPTH_LIMIT;
+use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan, Step};
 use hyrt_core::stage::Stage;
 
-use crate::buffers::{FrameBuffers, FrameParams, SceneBuffers};
+use crate::bounce_shading::BounceShadingStage;
+use crate::bounce_trace::BounceTraceStage;
+use crate::buffers::{
+    BounceRoom, FrameBuffers, FrameParams, Room, SceneBuffers, COUNTER_HITS, COUNTER_OCCLUDED, COUNTER_REFLECTION,
+    COUNTER_REFRACTION,
+};
 use crate::compaction::CompactionStage;
 use crate::composition::CompositionStage;
-use crate::gpu_buffer::{copy_into_vec, read_back_each};
+use crate::gpu_buffer::{copy_into_vec, read_back_each, read_back_many};
 use crate::present::Present;
 use crate::raster_shading::RasterShadingStage;
 use crate::reconstruction::ReconstructionStage;
-use crate::rt_shading::RtShadingStage;
+use crate::rt_shading::{RtShadingBouncingStage, RtShadingStage};
+use crate::secondary_rays::SecondaryRaysStage;
 use crate::shadow_rays::ShadowRaysStage;
 use crate::timing::StageTimer;
 use crate::visibility_raster::{VisibilityMode, VisibilityRasterStage};
 use crate::{AdapterPolicy, GpuContext, GpuError};
 
-/// The most steps a plan has: every stage but `bvh_build` (which runs on the CPU,
-/// once per scene).
-const MAX_STEPS: u32 = Stage::ALL.len() as u32 - 1;
+/// The most steps a plan has: every stage of the primary hits but `bvh_build` (which
+/// runs on the CPU, once per scene), and the five stages of each bounce depth
+/// (`secondary_rays`, `bounce_trace`, `compaction`, `shadow_rays`, `bounce_shading`) up
+/// to the deepest a frame accepts.
+const MAX_STEPS: u32 = Stage::ALL.len() as u32 - 1 - 3 + 5 * MAX_DEPTH_LIMIT;
+
+/// Storage buffers the bounce stages bind in one shader stage, at most: `secondary_rays`
+/// binds the scan's three (flags, levels, the list's count) and ten of its own (objects,
+/// triangles, the G-buffer, the parents' surfaces, rays, hits and count, the rays, links
+/// and counters it writes). WebGPU's default limit is 8; `GpuContext::new` asks for up to
+/// 16. On a device with fewer, the backend renders frames without bounces and refuses
+/// the others with `GpuError::Limits`.
+pub const BOUNCE_STORAGE_BUFFERS: u32 = 13;
+
+/// The pipelines of the bounce stages (and of `rt_shading` gathering the first bounce).
+struct BounceStages {
+    secondary_rays: SecondaryRaysStage,
+    bounce_trace: BounceTraceStage,
+    bounce_shading: BounceShadingStage,
+    rt_shading: RtShadingBouncingStage,
+}
+
+/// Room for the secondary rays of each bounce depth in a frame that has no earlier
+/// frame to size them by: one ray per this many pixels. The lists' counts stay on the
+/// GPU; a frame with more rays runs again with room for them (a quarter more).
+const FIRST_BOUNCE_ROOM_PIXELS_PER_RAY: u32 = 4;
+
+/// What a frame's lists held, read back with the frame: the primary shadow rays, and
+/// per bounce depth its rays, their shadow rays and its counters.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+struct Counts {
+    shadow_rays: usize,
+    bounces: Vec<BounceCounts>,
+}
+
+/// What one bounce depth's lists held.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct BounceCounts {
+    rays: usize,
+    shadow_rays: usize,
+    /// `[reflection rays, refraction rays, hits, occluded shadow rays]`.
+    counters: [u32; 4],
+}
+
+impl Counts {
+    /// The room to run again with when a list outgrew `room`: a quarter more than its
+    /// count (primary shadow rays never past one per (pixel, light) pair, which always
+    /// fits); `None` when every list fit.
+    fn grown(&self, room: &Room, pairs: usize) -> Option<Room> {
+        let more = |count: usize, have: u32| {
+            if count <= have as usize {
+                have
+            } else {
+                u32::try_from(count + count / 4).unwrap_or(u32::MAX)
+            }
+        };
+        let grown = Room {
+            shadow_rays: if self.shadow_rays > room.shadow_rays as usize {
+                (self.shadow_rays + self.shadow_rays / 4).min(pairs) as u32
+            } else {
+                room.shadow_rays
+            },
+            bounces: room
+                .bounces
+                .iter()
+                .zip(self.bounces.iter().chain(std::iter::repeat(&BounceCounts::default())))
+                .map(|(r, c)| BounceRoom {
+                    rays: more(c.rays, r.rays),
+                    shadow_rays: more(c.shadow_rays, r.shadow_rays),
+                })
+                .collect(),
+        };
+        (grown != *room).then_some(grown)
+    }
+}
 
 /// The GPU backend. Pipelines are created once; scene buffers once per
 /// [`PreparedScene`]; frame buffers once per image size and light count.
@@ -36,6 +120,9 @@ pub struct GpuBackend {
     rt_shading: RtShadingStage,
     raster_shading: RasterShadingStage,
     composition: CompositionStage,
+    /// `None` on a device with fewer than [`BOUNCE_STORAGE_BUFFERS`] storage buffers per
+    /// shader stage.
+    bounces: Option<BounceStages>,
     timer: StageTimer,
     scene: Option<(u64, SceneBuffers)>,
     frame: Option<FrameBuffers>,
@@ -65,6 +152,16 @@ impl GpuBackend {
                     CompositionStage::new(&ctx),
                 )
             })?;
+        let bounces = if ctx.limits.max_storage_buffers_per_shader_stage >= BOUNCE_STORAGE_BUFFERS {
+            Some(ctx.checked(|| BounceStages {
+                secondary_rays: SecondaryRaysStage::new(&ctx),
+                bounce_trace: BounceTraceStage::new(&ctx),
+                bounce_shading: BounceShadingStage::new(&ctx),
+                rt_shading: RtShadingBouncingStage::new(&ctx),
+            })?)
+        } else {
+            None
+        };
         let timer = StageTimer::new(&ctx, MAX_STEPS)?;
         Ok(GpuBackend {
             ctx,
@@ -75,6 +172,7 @@ impl GpuBackend {
             rt_shading,
             raster_shading,
             composition,
+            bounces,
             timer,
             scene: None,
             frame: None,
@@ -122,21 +220,20 @@ impl GpuBackend {
         options: &FrameOptions,
         out: &mut Frame,
     ) -> Result<(), GpuError> {
-        // The ray count comes back with the frame's one readback: no extra round trip.
+        // The lists' counts come back with the frame's one readback: no extra round trip.
         self.run_with_room(scene, plan, camera, options, |b: &Self| b.read_back(plan, camera, out)).map(drop)
     }
 
-    /// Run the plan over frame buffers with room for its rays, and `finish` (the
-    /// frame's readback, which returns the ray count `compaction` found) after each
-    /// run; the ray count.
+    /// Run the plan over frame buffers with room for its lists, and `finish` (the
+    /// frame's readback, which returns the lists' counts) after each run; the counts.
     fn run_with_room(
         &mut self,
         scene: &PreparedScene,
         plan: &FramePlan,
         camera: &CameraRecord,
         options: &FrameOptions,
-        mut finish: impl FnMut(&Self) -> Result<usize, GpuError>,
-    ) -> Result<usize, GpuError> {
+        mut finish: impl FnMut(&Self) -> Result<Counts, GpuError>,
+    ) -> Result<Counts, GpuError> {
         {
             let ctx = &self.ctx;
             VisibilityRasterStage::check_size(ctx, camera.width, camera.height)?;
@@ -147,32 +244,49 @@ impl GpuBackend {
         let lights = scene.geometry.lights.len() as u32;
         let pixels = camera.width as usize * camera.height as usize;
         let pairs = pixels * lights as usize;
-        // Ray buffers hold the rays a frame has, known only after `compaction`. A
-        // frame starts with the last frame's room (one ray per pixel at first); if
-        // `compaction` finds more, its rays past the room are not written, and the
-        // frame runs again with room for them plus a quarter (never past one per pair,
-        // which always fits). The frame that is returned traced every ray.
-        let mut want = self.frame.as_ref().map_or(0, |f| f.ray_capacity).max(pixels.min(pairs) as u32);
+        // Ray buffers hold the rays a frame has, known only on the GPU after each list's
+        // scan. A frame starts with the last frame's room (one shadow ray per pixel and
+        // a ray per FIRST_BOUNCE_ROOM_PIXELS_PER_RAY pixels per bounce at first); if a
+        // list finds more, its rays past the room are not written, and the frame runs
+        // again with room for them plus a quarter (primary shadow rays never past one
+        // per pair, which always fits). The frame that is returned traced every ray.
+        let mut room = self.first_room(plan, pixels, pairs, lights);
         loop {
-            if !self.frame.as_ref().is_some_and(|f| f.fits(camera.width, camera.height, lights, plan, want)) {
+            if !self.frame.as_ref().is_some_and(|f| f.fits(camera.width, camera.height, lights, plan, &room)) {
                 self.frame = None; // free the old buffers before allocating new ones
                 let (ctx, w, h) = (&self.ctx, camera.width, camera.height);
-                self.frame = Some(ctx.checked(|| FrameBuffers::for_plan(ctx, w, h, lights, plan, want))??);
+                self.frame = Some(ctx.checked(|| FrameBuffers::for_plan(ctx, w, h, lights, plan, &room))??);
             }
             self.run_plan(plan, camera, options)?;
-            let count = finish(self)?;
-            let room = self.frame.as_ref().expect("frame buffers").ray_capacity as usize;
-            if count <= room {
-                return Ok(count);
+            let counts = finish(self)?;
+            let have = self.frame.as_ref().expect("frame buffers").room();
+            match counts.grown(&have, pairs) {
+                None => return Ok(counts),
+                Some(more) => room = more,
             }
-            want = (count + count / 4).min(pairs) as u32;
         }
+    }
+
+    /// The room a frame starts with: the last frame's where it had the list.
+    fn first_room(&self, plan: &FramePlan, pixels: usize, pairs: usize, lights: u32) -> Room {
+        let last = self.frame.as_ref().map(|f| f.room()).unwrap_or_default();
+        let first_rays = (pixels as u32).div_ceil(FIRST_BOUNCE_ROOM_PIXELS_PER_RAY).max(1);
+        let bounces = (0..plan.bounce_depth() as usize)
+            .map(|d| {
+                last.bounces
+                    .get(d)
+                    .copied()
+                    .unwrap_or(BounceRoom { rays: first_rays, shadow_rays: first_rays.saturating_mul(lights.max(1)) })
+            })
+            .collect();
+        Room { shadow_rays: last.shadow_rays.max(pixels.min(pairs) as u32), bounces }
     }
 
     /// Render a frame and leave its final image on the GPU, in `target` (see
     /// [`crate::present`] for the texture it must be): nothing but the 4-byte ray
     /// count is read back, so a display loop pays no transfer. The statistics have
-    /// the stage times, the plan's skipped stages and the rays per kind; the pixel
+    /// the stage times, the plan's skipped stages, the rays per kind and the bounces'
+    /// counts (one small readback of the lists' counts); the pixel
     /// counts need the G-buffer on the CPU and are 0 here (use
     /// [`Backend::render_into`] for them).
     pub fn render_to_texture(
@@ -183,10 +297,10 @@ impl GpuBackend {
         target: &wgpu::Texture,
     ) -> Result<FrameStats, RenderError> {
         let plan = FramePlan::new(scene, options)?;
-        check_supported(&plan)?;
+        self.check_supported(&plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         crate::present::check_target(target, camera.width, camera.height).map_err(RenderError::InvalidOptions)?;
-        let count = self.run_with_room(scene, &plan, camera, options, |b: &Self| b.read_ray_count(&plan))?;
+        let counts = self.run_with_room(scene, &plan, camera, options, |b: &Self| b.read_counts(&plan))?;
         let ctx = &self.ctx;
         let fb = self.frame.as_ref().expect("frame buffers");
         ctx.checked(|| {
@@ -200,7 +314,7 @@ impl GpuBackend {
             skipped: plan.skipped().to_vec(),
             ..Default::default()
         };
-        stats.rays_per_kind[hyrt_core::formats::RAY_KIND_SHADOW as usize] = count as u64;
+        counts.fill(&mut stats);
         stats.stage_ms = self.stage_times(&plan, &stats);
         Ok(stats)
     }
@@ -238,6 +352,7 @@ impl GpuBackend {
         // timed by the wall clock instead.
         let timed_by_gpu = self.timer.is_active() && !crate::context::is_software(&ctx.info);
         let mut wall_ms = Vec::with_capacity(plan.steps().len());
+        let bounce = || self.bounces.as_ref().expect("plans with bounces need the bounce stages (check_supported)");
         ctx.checked(|| -> Result<(), GpuError> {
             let t = &self.timer;
             let mut enc =
@@ -251,15 +366,21 @@ impl GpuBackend {
                     Step::Reconstruction => self.reconstruction.encode(ctx, &mut enc, sb, fb, slot),
                     Step::Compaction => self.compaction.encode(ctx, &mut enc, sb, fb, slot),
                     Step::ShadowRays => self.shadow_rays.encode(ctx, &mut enc, sb, fb, slot),
-                    Step::RtShading { bounces: false } => self.rt_shading.encode(ctx, &mut enc, sb, fb, slot),
-                    Step::SecondaryRays { .. }
-                    | Step::BounceTrace { .. }
-                    | Step::BounceCompaction { .. }
-                    | Step::BounceShadowRays { .. }
-                    | Step::BounceShading { .. }
-                    | Step::RtShading { bounces: true } => {
-                        unreachable!("plans with bounces are refused by `check_supported` before they run")
+                    Step::SecondaryRays { depth } => bounce().secondary_rays.encode(ctx, &mut enc, sb, fb, depth, slot),
+                    Step::BounceTrace { depth } => bounce().bounce_trace.encode(ctx, &mut enc, sb, fb, depth, slot),
+                    Step::BounceCompaction { depth } => {
+                        let list = fb.bounces[depth as usize - 1].list();
+                        self.compaction.encode_list(ctx, &mut enc, sb, fb, &list, slot)
                     }
+                    Step::BounceShadowRays { depth } => {
+                        let list = fb.bounces[depth as usize - 1].list();
+                        self.shadow_rays.encode_list(ctx, &mut enc, sb, fb, &list, slot)
+                    }
+                    Step::BounceShading { depth, last } => {
+                        bounce().bounce_shading.encode(ctx, &mut enc, sb, fb, depth, last, slot)
+                    }
+                    Step::RtShading { bounces: false } => self.rt_shading.encode(ctx, &mut enc, sb, fb, slot),
+                    Step::RtShading { bounces: true } => bounce().rt_shading.encode(ctx, &mut enc, sb, fb, slot),
                     // `shade_ray_traced` is the shader's `weight < 1`.
                     Step::RasterShading { .. } => self.raster_shading.encode(ctx, &mut enc, sb, fb, slot),
                     // The mode is the `composition` code in the frame parameters.
@@ -286,78 +407,116 @@ impl GpuBackend {
         Ok(())
     }
 
-    /// The ray count `compaction` found in the last run (0 without it), read back alone.
-    fn read_ray_count(&self, plan: &FramePlan) -> Result<usize, GpuError> {
-        if !plan.produces(FrameBuffer::Rays) {
-            return Ok(0);
-        }
+    /// The lists' count buffers, in the order [`Counts::parse`] reads them: the primary
+    /// shadow rays' (when planned), then per bounce depth its rays', its shadow rays'
+    /// and its counters.
+    fn count_parts(&self, plan: &FramePlan) -> Vec<(&wgpu::Buffer, u64)> {
         let fb = self.frame.as_ref().expect("frame buffers");
-        let mut count = 0;
-        read_back_each(&self.ctx, &[(&fb.ray_count, 4)], |_, b| {
-            count = bytemuck::pod_read_unaligned::<u32>(b) as usize
-        })?;
-        Ok(count)
+        let mut parts = Vec::with_capacity(1 + 3 * fb.bounces.len());
+        if plan.produces(FrameBuffer::Rays) {
+            parts.push((&fb.ray_count, 4));
+        }
+        for b in &fb.bounces {
+            parts.extend([(&b.ray_count, 4), (&b.shadow_ray_count, 4), (&b.counters, 16)]);
+        }
+        parts
+    }
+
+    /// The lists' counts of the last run, read back alone.
+    fn read_counts(&self, plan: &FramePlan) -> Result<Counts, GpuError> {
+        let parts = self.count_parts(plan);
+        let data = read_back_many(&self.ctx, &parts)?;
+        Ok(Counts::parse(plan, data.iter().map(|d| d.as_slice())))
     }
 
     /// Read the buffers the frame holds back into `out` (reusing its vectors) and
-    /// fill in its statistics; the ray count. One readback for the ray count and what
+    /// fill in its statistics; the lists' counts. One readback for the counts and what
     /// every frame returns, a second for the other stage outputs when asked. A count
-    /// past the ray buffers' room leaves `out` to be overwritten by the frame's rerun.
-    fn read_back(&self, plan: &FramePlan, camera: &CameraRecord, out: &mut Frame) -> Result<usize, GpuError> {
+    /// past its list's room leaves `out` to be overwritten by the frame's rerun.
+    fn read_back(&self, plan: &FramePlan, camera: &CameraRecord, out: &mut Frame) -> Result<Counts, GpuError> {
         let ctx = &self.ctx;
         let fb = self.frame.as_ref().expect("frame buffers");
         let pixels = camera.width as usize * camera.height as usize;
-        let pairs = pixels * fb.light_count as usize;
-        // The first readback holds the ray count: until then the ray buffers are read
-        // to their room, and cut to the count after.
-        let rays = plan.produces(FrameBuffer::Rays);
-        let mut count = fb.ray_capacity as usize;
-        let bytes = |b: FrameBuffer, count: usize| -> u64 {
+        let lights = fb.light_count as usize;
+        let pairs = pixels * lights;
+        // The first readback holds the counts: until then the primary occlusion results
+        // are read to their room, and cut to the count after.
+        let count_parts = self.count_parts(plan);
+        let mut counts = Counts {
+            shadow_rays: fb.ray_capacity as usize,
+            bounces: fb.bounces.iter().map(|_| BounceCounts::default()).collect(),
+        };
+        let bytes = |b: FrameBuffer, counts: &Counts| -> u64 {
             let (n, size) = match b {
                 FrameBuffer::GBuffer => (pixels, std::mem::size_of::<GBufferTexel>()),
                 FrameBuffer::Surfaces => (pixels, std::mem::size_of::<SurfaceRecord>()),
-                FrameBuffer::Rays => (count, std::mem::size_of::<RayRecord>()),
-                FrameBuffer::Occluded => (count, 4),
+                FrameBuffer::Rays => (counts.shadow_rays, std::mem::size_of::<RayRecord>()),
+                FrameBuffer::Occluded => (counts.shadow_rays, 4),
                 FrameBuffer::Shadow => (pairs, 4),
                 FrameBuffer::Rt | FrameBuffer::Raster | FrameBuffer::Final => (pixels, 16),
-                FrameBuffer::Bounce { .. } => unreachable!("plans with bounces are refused before they run"),
+                FrameBuffer::Bounce { buffer, depth } => {
+                    let c = counts.bounces[depth as usize - 1];
+                    let parents = match depth {
+                        1 => pixels,
+                        _ => counts.bounces[depth as usize - 2].rays,
+                    };
+                    match buffer {
+                        BounceBuffer::Rays => (c.rays, std::mem::size_of::<RayRecord>()),
+                        BounceBuffer::Links => (parents, 8),
+                        BounceBuffer::Hits => (c.rays, std::mem::size_of::<HitRecord>()),
+                        BounceBuffer::Surfaces => (c.rays, std::mem::size_of::<SurfaceRecord>()),
+                        BounceBuffer::ShadowRays => (c.shadow_rays, std::mem::size_of::<RayRecord>()),
+                        BounceBuffer::Occluded => (c.shadow_rays, 4),
+                        BounceBuffer::Shadow => (c.rays * lights, 4),
+                        BounceBuffer::Radiance => (c.rays, 16),
+                    }
+                }
             };
             (n * size) as u64
         };
         for always in [true, false] {
             let wanted: Vec<FrameBuffer> = out.buffers().filter(|b| b.always_returned() == always).collect();
-            let mut parts: Vec<(&wgpu::Buffer, u64)> = wanted.iter().map(|&b| (fb.get(b), bytes(b, count))).collect();
-            // The ray count first, with the buffers every frame returns.
-            let with_count = always && rays;
-            if with_count {
-                parts.insert(0, (&fb.ray_count, 4));
+            let mut parts: Vec<(&wgpu::Buffer, u64)> = wanted.iter().map(|&b| (fb.get(b), bytes(b, &counts))).collect();
+            // The counts first, with the buffers every frame returns.
+            let skip = if always { count_parts.len() } else { 0 };
+            if always {
+                parts.splice(0..0, count_parts.iter().copied());
             }
-            let skip = with_count as usize;
+            let mut count_data = Vec::with_capacity(skip);
             read_back_each(ctx, &parts, |i, data| match i.checked_sub(skip).map(|i| wanted[i]) {
-                None => count = bytemuck::pod_read_unaligned::<u32>(data) as usize,
+                None => count_data.push(data.to_vec()),
                 Some(b) => match b {
                     FrameBuffer::GBuffer => copy_into_vec(&mut out.gbuffer, data),
                     FrameBuffer::Surfaces => copy_into_vec(&mut out.surfaces, data),
                     FrameBuffer::Rays => copy_into_vec(&mut out.rays, data),
                     FrameBuffer::Occluded => copy_into_vec(&mut out.occluded, data),
-                    FrameBuffer::Shadow => {
-                        // u32 codes on the GPU, u8 in the frame.
-                        out.shadow.clear();
-                        out.shadow.extend(data.chunks_exact(4).map(|w| bytemuck::pod_read_unaligned::<u32>(w) as u8));
-                    }
+                    // u32 codes on the GPU, u8 in the frame.
+                    FrameBuffer::Shadow => shadow_codes_into(&mut out.shadow, data),
                     FrameBuffer::Rt => copy_into_vec(&mut out.rt, data),
                     FrameBuffer::Raster => copy_into_vec(&mut out.raster, data),
                     FrameBuffer::Final => copy_into_vec(&mut out.final_image, data),
-                    FrameBuffer::Bounce { .. } => unreachable!("plans with bounces are refused before they run"),
+                    FrameBuffer::Bounce { buffer, depth } => {
+                        let o = out.bounce_mut(depth);
+                        match buffer {
+                            BounceBuffer::Rays => copy_into_vec(&mut o.rays, data),
+                            BounceBuffer::Links => copy_into_vec(&mut o.links, data),
+                            BounceBuffer::Hits => copy_into_vec(&mut o.hits, data),
+                            BounceBuffer::Surfaces => copy_into_vec(&mut o.surfaces, data),
+                            BounceBuffer::ShadowRays => copy_into_vec(&mut o.shadow_rays, data),
+                            BounceBuffer::Occluded => copy_into_vec(&mut o.occluded, data),
+                            BounceBuffer::Shadow => shadow_codes_into(&mut o.shadow, data),
+                            BounceBuffer::Radiance => copy_into_vec(&mut o.radiance, data),
+                        }
+                    }
                 },
             })?;
-            if !rays {
-                count = 0;
+            if always {
+                counts = Counts::parse(plan, count_data.iter().map(|d| d.as_slice()));
+                if counts.grown(&fb.room(), pairs).is_some() {
+                    return Ok(counts); // the frame runs again with room for its rays
+                }
+                out.occluded.truncate(counts.shadow_rays);
             }
-            if count > fb.ray_capacity as usize {
-                return Ok(count); // the frame runs again with room for its rays
-            }
-            out.occluded.truncate(count);
         }
         let mut stats = FrameStats {
             width: camera.width,
@@ -373,28 +532,71 @@ impl GpuBackend {
             }
         }
         stats.raster_pixels = stats.covered_pixels - stats.ray_traced_pixels;
-        // The GPU ray list holds shadow rays only (compaction makes no other kind yet).
-        stats.rays_per_kind[hyrt_core::formats::RAY_KIND_SHADOW as usize] = count as u64;
+        counts.fill(&mut stats);
         stats.occluded_shadow_rays = out.occluded.iter().filter(|&&o| o != 0).count() as u64;
         stats.stage_ms = self.stage_times(plan, &stats);
         out.width = camera.width;
         out.height = camera.height;
         out.stats = stats;
-        Ok(count)
+        Ok(counts)
     }
 }
 
-/// Refuse a plan this backend cannot run yet: reflection and refraction bounces
-/// (`FrameOptions::max_depth` above 0 on a scene with a ray-traced mirror or glass) run on
-/// the CPU backend only so far. An error, never a frame without them.
-fn check_supported(plan: &FramePlan) -> Result<(), RenderError> {
-    match plan.steps().iter().find(|s| s.depth() > 0) {
-        Some(step) => Err(RenderError::Unsupported {
-            backend: "gpu",
-            stage: step.label(),
-            why: "reflection and refraction bounces run on the CPU backend only so far; use max depth 0 or the CPU backend",
-        }),
-        None => Ok(()),
+/// `SHADOW_*` codes read back as u32 words into the frame's u8 codes.
+fn shadow_codes_into(dst: &mut Vec<u8>, data: &[u8]) {
+    dst.clear();
+    dst.extend(data.chunks_exact(4).map(|w| bytemuck::pod_read_unaligned::<u32>(w) as u8));
+}
+
+impl Counts {
+    /// The counts from the data of [`GpuBackend::count_parts`], in its order.
+    fn parse<'a>(plan: &FramePlan, mut data: impl Iterator<Item = &'a [u8]>) -> Counts {
+        let word = |d: Option<&[u8]>| d.map_or(0, |d| bytemuck::pod_read_unaligned::<u32>(&d[..4]) as usize);
+        let shadow_rays = if plan.produces(FrameBuffer::Rays) { word(data.next()) } else { 0 };
+        let mut bounces = Vec::with_capacity(plan.bounce_depth() as usize);
+        for _ in 0..plan.bounce_depth() {
+            let rays = word(data.next());
+            let shadow_rays = word(data.next());
+            let counters = data.next().map_or([0; 4], |d| bytemuck::pod_read_unaligned::<[u32; 4]>(&d[..16]));
+            bounces.push(BounceCounts { rays, shadow_rays, counters });
+        }
+        Counts { shadow_rays, bounces }
+    }
+
+    /// The frame statistics the counts give: the rays per kind of the primary list and
+    /// of each bounce depth, its hits and occluded shadow rays.
+    fn fill(&self, stats: &mut FrameStats) {
+        stats.rays_per_kind[RAY_KIND_SHADOW as usize] = self.shadow_rays as u64;
+        stats.bounces = self
+            .bounces
+            .iter()
+            .map(|c| {
+                let mut rays_per_kind = [0; hyrt_core::formats::RAY_KIND_COUNT];
+                rays_per_kind[RAY_KIND_REFLECTION as usize] = c.counters[COUNTER_REFLECTION] as u64;
+                rays_per_kind[RAY_KIND_REFRACTION as usize] = c.counters[COUNTER_REFRACTION] as u64;
+                rays_per_kind[RAY_KIND_SHADOW as usize] = c.shadow_rays as u64;
+                BounceStats {
+                    rays_per_kind,
+                    hits: c.counters[COUNTER_HITS] as u64,
+                    occluded_shadow_rays: c.counters[COUNTER_OCCLUDED] as u64,
+                }
+            })
+            .collect();
+    }
+}
+
+impl GpuBackend {
+    /// Refuse a plan this device cannot run: bounces on a device with fewer storage
+    /// buffers per shader stage than the bounce stages bind ([`BOUNCE_STORAGE_BUFFERS`]).
+    /// An error, never a frame without them.
+    fn check_supported(&self, plan: &FramePlan) -> Result<(), GpuError> {
+        match (plan.bounce_depth(), &self.bounces) {
+            (d, None) if d > 0 => Err(GpuError::Limits(format!(
+                "reflection and refraction bind {BOUNCE_STORAGE_BUFFERS} storage buffers per shader stage; this device allows {} (request more, or render with max depth 0)",
+                self.ctx.limits.max_storage_buffers_per_shader_stage
+            ))),
+            _ => Ok(()),
+        }
     }
 }
 
@@ -411,7 +613,7 @@ impl Backend for GpuBackend {
         frame: &mut Frame,
     ) -> Result<(), RenderError> {
         let plan = FramePlan::new(scene, options)?;
-        check_supported(&plan)?;
+        self.check_supported(&plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         frame.begin(&plan, options);
         self.render_frame(scene, &plan, camera, options, frame)?;

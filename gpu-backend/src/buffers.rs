@@ -5,10 +5,11 @@
 
 use hyrt_core::bvh::BvhNode;
 use hyrt_core::formats::{
-    CameraRecord, GBufferTexel, LightRecord, ObjectRecord, RayRecord, SurfaceRecord, TriangleRecord,
+    CameraRecord, EnvironmentRecord, GBufferTexel, HitRecord, LightRecord, ListParams, ObjectRecord, RayRecord,
+    SurfaceRecord, TriangleRecord,
 };
 use hyrt_core::frame::PreparedScene;
-use hyrt_core::plan::{FrameBuffer, FramePlan};
+use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan};
 
 use crate::gpu_buffer::{storage, upload};
 use crate::{GpuContext, GpuError};
@@ -33,6 +34,10 @@ pub struct SceneBuffers {
     pub bvh_leaf_triangles: wgpu::Buffer,
     /// `array<u32>`: global triangle index of each leaf slot (`Bvh::prim_indices`).
     pub bvh_prim_indices: wgpu::Buffer,
+    /// Uniform [`EnvironmentRecord`]: what secondary rays that leave the scene see.
+    pub environment: wgpu::Buffer,
+    /// `array<vec4<f32>>`: the environment map's texels (one zero texel for the sky).
+    pub environment_texels: wgpu::Buffer,
     pub triangle_count: u32,
     pub object_count: u32,
     pub light_count: u32,
@@ -44,7 +49,18 @@ impl SceneBuffers {
     pub fn new(ctx: &GpuContext, scene: &PreparedScene) -> SceneBuffers {
         let g = &scene.geometry;
         let normals: Vec<f32> = g.normals.iter().flat_map(|n| n.iter().flat_map(|v| v.to_array())).collect();
+        let (environment, texels) = EnvironmentRecord::of(&g.environment);
+        debug_assert_eq!(environment.validate(texels.len()), Ok(()));
+        let environment_header = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("environment"),
+            size: std::mem::size_of::<EnvironmentRecord>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        ctx.queue.write_buffer(&environment_header, 0, bytemuck::bytes_of(&environment));
         SceneBuffers {
+            environment: environment_header,
+            environment_texels: upload::<[f32; 4]>(ctx, "environment texels", texels),
             triangles: upload::<TriangleRecord>(ctx, "triangles", &g.triangles),
             normals: upload(ctx, "normals", &normals),
             objects: upload::<ObjectRecord>(ctx, "objects", &g.objects),
@@ -62,7 +78,7 @@ impl SceneBuffers {
 
 /// Per-frame buffers for one image size, light count and set of planned stages,
 /// reused across frames. A buffer whose stage the plan skips is not allocated: its
-/// field holds `empty` (one 16-byte buffer shared by every absent one), so bind
+/// field holds `empty` (one 64-byte buffer shared by every absent one), so bind
 /// groups stay valid while no skipped stage is encoded.
 pub struct FrameBuffers {
     pub width: u32,
@@ -72,6 +88,13 @@ pub struct FrameBuffers {
     /// frame's rays are known only after `compaction`: a frame with more reallocates
     /// and runs again (see `GpuBackend`).
     pub ray_capacity: u32,
+    /// The buffers of each bounce depth the plan traces (depth `i + 1` at `i`).
+    pub bounces: Vec<BounceBuffers>,
+    /// `array<u32, 4>`: `[pixels, 0, 0, 0]`, the live count of the primary surfaces
+    /// (the list stages read every list's count from a buffer).
+    pub pixel_count: wgpu::Buffer,
+    /// Uniform [`ListParams`] of the primary hits' list (depth 0).
+    pub list: wgpu::Buffer,
     /// The frame buffers allocated (the plan's, in [`FrameBuffer::ALL`] order).
     pub allocated: Vec<FrameBuffer>,
     /// Uniform `CameraRecord`.
@@ -97,8 +120,149 @@ pub struct FrameBuffers {
     pub rt: wgpu::Buffer,
     pub raster: wgpu::Buffer,
     pub final_image: wgpu::Buffer,
-    /// The stand-in for every buffer the plan does not produce (16 bytes, never written).
+    /// The stand-in for every buffer the plan does not produce, and for the inputs a
+    /// stage does not read in a given call (the parents' rays at depth 1, the children
+    /// of the deepest bounce): 64 bytes, never written.
     pub empty: wgpu::Buffer,
+}
+
+/// The room of a frame's ray lists: what its buffers are allocated for. The counts are
+/// known only on the GPU; a frame whose lists outgrow their room runs again with more
+/// (see `GpuBackend`).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Room {
+    /// Shadow rays of the primary hits.
+    pub shadow_rays: u32,
+    /// Per bounce depth (depth `i + 1` at `i`): its secondary rays and their shadow rays.
+    pub bounces: Vec<BounceRoom>,
+}
+
+/// The room of one bounce depth's lists.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BounceRoom {
+    /// Reflection and refraction rays (and their hits, surfaces, radiance).
+    pub rays: u32,
+    /// Shadow rays from the surfaces they hit.
+    pub shadow_rays: u32,
+}
+
+/// The GPU buffers of one bounce depth `d`: the [`BounceBuffer`]s of the plan, each
+/// with room for its list, and the lists' counts.
+pub struct BounceBuffers {
+    pub depth: u32,
+    pub room: BounceRoom,
+    /// Parents of the depth's rays: the pixels for depth 1, the ray room of depth `d - 1`.
+    pub parents: u32,
+    /// Uniform [`ListParams`] of the depth.
+    pub list: wgpu::Buffer,
+    /// `array<RayRecord>`, `room.rays` (`secondary_rays`).
+    pub rays: wgpu::Buffer,
+    /// `array<u32, 4>`: `[rays, dispatch_x, dispatch_y, 1]` of the depth's rays, written by
+    /// `secondary_rays` (the true count, even past the room).
+    pub ray_count: wgpu::Buffer,
+    /// `array<vec2<u32>>`, one per parent (`secondary_rays`).
+    pub links: wgpu::Buffer,
+    /// `array<HitRecord>`, `room.rays` (`bounce_trace`).
+    pub hits: wgpu::Buffer,
+    /// `array<SurfaceRecord>`, `room.rays` (`bounce_trace`).
+    pub surfaces: wgpu::Buffer,
+    /// `array<RayRecord>`, `room.shadow_rays` (`compaction`).
+    pub shadow_rays: wgpu::Buffer,
+    /// `array<u32, 4>`: the shadow rays' count and dispatch (`compaction`).
+    pub shadow_ray_count: wgpu::Buffer,
+    /// `array<u32>`, `room.shadow_rays` (`shadow_rays`).
+    pub occluded: wgpu::Buffer,
+    /// `array<u32>`, `room.rays * lights` `SHADOW_*` codes (`shadow_rays`).
+    pub shadow: wgpu::Buffer,
+    /// `array<vec4<f32>>`, `room.rays` (`bounce_shading`).
+    pub radiance: wgpu::Buffer,
+    /// `array<atomic<u32>, 4>`: the depth's statistics, `[reflection rays, refraction
+    /// rays, hits, occluded shadow rays]` (integer sums: the same whatever the order).
+    pub counters: wgpu::Buffer,
+}
+
+/// Indices of [`BounceBuffers::counters`].
+pub const COUNTER_REFLECTION: usize = 0;
+/// See [`COUNTER_REFLECTION`].
+pub const COUNTER_REFRACTION: usize = 1;
+/// See [`COUNTER_REFLECTION`].
+pub const COUNTER_HITS: usize = 2;
+/// See [`COUNTER_REFLECTION`].
+pub const COUNTER_OCCLUDED: usize = 3;
+
+/// The buffers of one list of shadow rays as `compaction` and `shadow_rays` bind them:
+/// the primary hits' or those of one bounce depth.
+pub struct ListBuffers<'a> {
+    /// Room of `surfaces`.
+    pub slots: u32,
+    /// Uniform [`ListParams`].
+    pub params: &'a wgpu::Buffer,
+    /// `array<u32, 4>` whose first word is the live count of `surfaces`.
+    pub live: &'a wgpu::Buffer,
+    pub surfaces: &'a wgpu::Buffer,
+    pub shadow_rays: &'a wgpu::Buffer,
+    pub shadow_ray_count: &'a wgpu::Buffer,
+    pub occluded: &'a wgpu::Buffer,
+    pub shadow: &'a wgpu::Buffer,
+    /// `array<atomic<u32>, 4>`, written at bounce depths only.
+    pub counters: &'a wgpu::Buffer,
+}
+
+impl BounceBuffers {
+    /// The depth's shadow-ray list.
+    pub fn list(&self) -> ListBuffers<'_> {
+        ListBuffers {
+            slots: self.room.rays,
+            params: &self.list,
+            live: &self.ray_count,
+            surfaces: &self.surfaces,
+            shadow_rays: &self.shadow_rays,
+            shadow_ray_count: &self.shadow_ray_count,
+            occluded: &self.occluded,
+            shadow: &self.shadow,
+            counters: &self.counters,
+        }
+    }
+
+    /// The list parameters of the depth, the deepest when `last`.
+    pub fn params(&self, last: bool) -> ListParams {
+        ListParams { slots: self.room.rays, parents: self.parents, depth: self.depth, last: last as u32 }
+    }
+
+    /// The GPU buffer holding `buffer`.
+    pub fn get(&self, buffer: BounceBuffer) -> &wgpu::Buffer {
+        match buffer {
+            BounceBuffer::Rays => &self.rays,
+            BounceBuffer::Links => &self.links,
+            BounceBuffer::Hits => &self.hits,
+            BounceBuffer::Surfaces => &self.surfaces,
+            BounceBuffer::ShadowRays => &self.shadow_rays,
+            BounceBuffer::Occluded => &self.occluded,
+            BounceBuffer::Shadow => &self.shadow,
+            BounceBuffer::Radiance => &self.radiance,
+        }
+    }
+}
+
+/// A small buffer of four u32 words: a list's count and indirect-dispatch arguments, or
+/// counters.
+fn words4(ctx: &GpuContext, label: &str) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: 16,
+        usage: crate::gpu_buffer::STORAGE | wgpu::BufferUsages::INDIRECT,
+        mapped_at_creation: false,
+    })
+}
+
+/// A uniform buffer of `size` bytes, written before each frame.
+fn uniform(ctx: &GpuContext, label: &str, size: u64) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
 }
 
 impl FrameBuffers {
@@ -116,32 +280,55 @@ impl FrameBuffers {
         });
         let pairs = width as usize * height as usize * light_count as usize;
         let capacity = u32::try_from(pairs).map_err(|_| GpuError::Limits(format!("{pairs} rays")))?;
-        Self::for_plan(ctx, width, height, light_count, &everything, capacity)
+        let room = Room { shadow_rays: capacity, bounces: Vec::new() };
+        Self::for_plan(ctx, width, height, light_count, &everything, &room)
     }
 
     /// Allocate the buffers `plan` produces for a `width` x `height` frame with
-    /// `light_count` lights and room for `ray_capacity` rays.
+    /// `light_count` lights and the lists' `room` (the primary shadow rays', and one
+    /// entry per bounce depth of the plan).
     pub fn for_plan(
         ctx: &GpuContext,
         width: u32,
         height: u32,
         light_count: u32,
         plan: &FramePlan,
-        ray_capacity: u32,
+        room: &Room,
     ) -> Result<FrameBuffers, GpuError> {
         let pixels = width as usize * height as usize;
         let pairs = pixels * light_count as usize;
-        let uniform = |label: &str, size: u64| {
-            ctx.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size,
-                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        };
-        let empty = storage::<[u32; 4]>(ctx, "empty (a skipped stage's buffer)", 1)?;
+        let uniform = |label: &str, size: u64| uniform(ctx, label, size);
+        // One element of the largest record a shader binds (`RayRecord`, 64 bytes).
+        let empty = storage::<RayRecord>(ctx, "empty (a skipped stage's buffer)", 1)?;
         let allocated: Vec<FrameBuffer> = plan.buffers().collect();
-        let ray_capacity = if plan.produces(FrameBuffer::Rays) { ray_capacity } else { 0 };
+        let ray_capacity = if plan.produces(FrameBuffer::Rays) { room.shadow_rays } else { 0 };
+        let depths = plan.bounce_depth() as usize;
+        assert_eq!(room.bounces.len(), depths, "one room per bounce depth");
+        let mut bounces = Vec::with_capacity(depths);
+        let mut parents = pixels as u32;
+        for (i, &r) in room.bounces.iter().enumerate() {
+            let depth = i as u32 + 1;
+            let label = |name: &str| format!("bounce{depth}_{name}");
+            let (rays, shadow_rays) = (r.rays as usize, r.shadow_rays as usize);
+            bounces.push(BounceBuffers {
+                depth,
+                room: r,
+                parents,
+                list: uniform(&label("list"), std::mem::size_of::<ListParams>() as u64),
+                rays: storage::<RayRecord>(ctx, &label("rays"), rays)?,
+                ray_count: words4(ctx, &label("ray_count")),
+                links: storage::<[u32; 2]>(ctx, &label("links"), parents as usize)?,
+                hits: storage::<HitRecord>(ctx, &label("hits"), rays)?,
+                surfaces: storage::<SurfaceRecord>(ctx, &label("surfaces"), rays)?,
+                shadow_rays: storage::<RayRecord>(ctx, &label("shadow_rays"), shadow_rays)?,
+                shadow_ray_count: words4(ctx, &label("shadow_ray_count")),
+                occluded: storage::<u32>(ctx, &label("occluded"), shadow_rays)?,
+                shadow: storage::<u32>(ctx, &label("shadow"), rays * light_count.max(1) as usize)?,
+                radiance: storage::<[f32; 4]>(ctx, &label("radiance"), rays)?,
+                counters: words4(ctx, &label("counters")),
+            });
+            parents = r.rays;
+        }
         let alloc = |b: FrameBuffer, f: &dyn Fn() -> Result<wgpu::Buffer, GpuError>| {
             if allocated.contains(&b) {
                 f()
@@ -149,11 +336,14 @@ impl FrameBuffers {
                 Ok(empty.clone())
             }
         };
-        Ok(FrameBuffers {
+        let frame = FrameBuffers {
             width,
             height,
             light_count,
             ray_capacity,
+            bounces,
+            pixel_count: words4(ctx, "pixel count"),
+            list: uniform("list params", std::mem::size_of::<ListParams>() as u64),
             camera: uniform("camera", std::mem::size_of::<CameraRecord>() as u64),
             params: uniform("frame params", std::mem::size_of::<FrameParams>() as u64),
             gbuffer: alloc(FrameBuffer::GBuffer, &|| storage::<GBufferTexel>(ctx, "gbuffer", pixels))?,
@@ -172,15 +362,43 @@ impl FrameBuffers {
             final_image: alloc(FrameBuffer::Final, &|| storage::<[f32; 4]>(ctx, "final image", pixels))?,
             allocated,
             empty,
-        })
+        };
+        frame.write_lists(ctx);
+        Ok(frame)
     }
 
     /// True if these buffers fit a frame of this size and light count under `plan`
-    /// with `rays` rays.
-    pub fn fits(&self, width: u32, height: u32, light_count: u32, plan: &FramePlan, rays: u32) -> bool {
+    /// with lists that need `room`.
+    pub fn fits(&self, width: u32, height: u32, light_count: u32, plan: &FramePlan, room: &Room) -> bool {
         (self.width, self.height, self.light_count) == (width, height, light_count)
             && self.allocated.iter().copied().eq(plan.buffers())
-            && (!plan.produces(FrameBuffer::Rays) || rays <= self.ray_capacity)
+            && (!plan.produces(FrameBuffer::Rays) || room.shadow_rays <= self.ray_capacity)
+            && self.bounces.len() == room.bounces.len()
+            && self
+                .bounces
+                .iter()
+                .zip(&room.bounces)
+                .all(|(b, r)| r.rays <= b.room.rays && r.shadow_rays <= b.room.shadow_rays)
+    }
+
+    /// The room these buffers have.
+    pub fn room(&self) -> Room {
+        Room { shadow_rays: self.ray_capacity, bounces: self.bounces.iter().map(|b| b.room).collect() }
+    }
+
+    /// The primary hits' shadow-ray list.
+    pub fn primary_list(&self) -> ListBuffers<'_> {
+        ListBuffers {
+            slots: self.width * self.height,
+            params: &self.list,
+            live: &self.pixel_count,
+            surfaces: &self.surfaces,
+            shadow_rays: &self.rays,
+            shadow_ray_count: &self.ray_count,
+            occluded: &self.occluded,
+            shadow: &self.shadow,
+            counters: &self.empty,
+        }
     }
 
     /// The GPU buffer holding `buffer`.
@@ -194,7 +412,7 @@ impl FrameBuffers {
             FrameBuffer::Rt => &self.rt,
             FrameBuffer::Raster => &self.raster,
             FrameBuffer::Final => &self.final_image,
-            FrameBuffer::Bounce { .. } => unreachable!("plans with bounces are refused before buffers are bound"),
+            FrameBuffer::Bounce { buffer, depth } => self.bounces[depth as usize - 1].get(buffer),
         }
     }
 
@@ -202,5 +420,19 @@ impl FrameBuffers {
     pub fn write_uniforms(&self, ctx: &GpuContext, camera: &CameraRecord, params: &FrameParams) {
         ctx.queue.write_buffer(&self.camera, 0, bytemuck::bytes_of(camera));
         ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
+    }
+
+    /// Write what the lists' room fixes: the primary surfaces' live count and every
+    /// list's [`ListParams`] (once, when the buffers are made).
+    fn write_lists(&self, ctx: &GpuContext) {
+        let pixels = self.width * self.height;
+        ctx.queue.write_buffer(&self.pixel_count, 0, bytemuck::bytes_of(&[pixels, 0, 0, 0]));
+        let primary = ListParams { slots: pixels, parents: 0, depth: 0, last: 0 };
+        ctx.queue.write_buffer(&self.list, 0, bytemuck::bytes_of(&primary));
+        for b in &self.bounces {
+            let list = b.params(b.depth as usize == self.bounces.len());
+            debug_assert_eq!(list.validate(), Ok(()));
+            ctx.queue.write_buffer(&b.list, 0, bytemuck::bytes_of(&list));
+        }
     }
 }

@@ -11,6 +11,8 @@
 //! ([`context::AdapterPolicy::AllowSoftware`], or `HYRT_GPU_ALLOW_SOFTWARE=1`).
 
 pub mod backend;
+pub mod bounce_shading;
+pub mod bounce_trace;
 pub mod buffers;
 pub mod compaction;
 pub mod composition;
@@ -21,6 +23,8 @@ pub mod present;
 pub mod raster_shading;
 pub mod reconstruction;
 pub mod rt_shading;
+pub mod scan;
+pub mod secondary_rays;
 pub mod shadow_rays;
 pub mod timing;
 pub mod visibility_raster;

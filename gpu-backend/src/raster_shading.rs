@@ -11,7 +11,7 @@
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
 use crate::rt_shading::{
-    bind_buffers, compute_pipeline, encode_pixel_pass, shading_source, storage_entry, uniform_entry,
+    bind_buffers, compute_pipeline, encode_pixel_pass, storage_entry, surface_shading_source, uniform_entry,
 };
 use crate::GpuContext;
 
@@ -24,7 +24,7 @@ pub struct RasterShadingStage {
 impl RasterShadingStage {
     /// Compile the stage's pipeline.
     pub fn new(ctx: &GpuContext) -> Self {
-        let source = shading_source(include_str!("shaders/raster_shading.wgsl"));
+        let source = surface_shading_source(include_str!("shaders/raster_shading.wgsl"));
         let (pipeline, layout) = compute_pipeline(
             ctx,
             "raster_shading",

@@ -10,9 +10,10 @@
 //! `scene.normals`, `scene.objects` (`first_triangle`). Writes: `frame.surfaces`
 //! (every texel of the camera's image).
 //!
-//! Differences from the CPU: the driver may fuse multiply-adds and WGSL's division
-//! is accurate to 2.5 ulp, so positions and normals can differ by a few ulp (the
-//! bounds are in `tests/reconstruction.rs`); ids are identical.
+//! Every product that feeds a sum is kept unfused (`mul`), so on a device that rounds
+//! f32 operations as IEEE 754 (lavapipe) the surfaces are the CPU's bits; WGSL allows
+//! a division within 2.5 ulp, where a device may differ by a few ulp (the bounds are in
+//! `tests/reconstruction.rs`); ids are identical.
 
 use hyrt_core::formats::wgsl::declarations;
 use hyrt_core::kernels::barycentric::gamma;
@@ -25,16 +26,22 @@ const GROUP: u32 = 8;
 
 const SHADER: &str = include_str!("shaders/reconstruction.wgsl");
 
+/// The surface kernels (`shaders/surface.wgsl`) after `ONE_PLUS_GAMMA_3`; they also
+/// read `GAMMA_2` and `GAMMA_3`, which the including stage defines (exact f32 values).
+pub(crate) fn surface_wgsl() -> String {
+    format!("const ONE_PLUS_GAMMA_3: f32 = {:?};\n{}", 1.0f32 + gamma(3), include_str!("shaders/surface.wgsl"))
+}
+
 /// The WGSL of the stage: the generated records and format constants, the exact f32
 /// constants of the error bound (`{:?}` prints the shortest decimal that parses back to
-/// the same f32), then the shader.
+/// the same f32), the surface kernels, then the shader.
 pub fn shader_source() -> String {
     format!(
-        "{}const GAMMA_2: f32 = {:?};\nconst GAMMA_3: f32 = {:?};\nconst ONE_PLUS_GAMMA_3: f32 = {:?};\n{}",
+        "{}const GAMMA_2: f32 = {:?};\nconst GAMMA_3: f32 = {:?};\n{}\n{}",
         declarations(),
         gamma(2),
         gamma(3),
-        1.0f32 + gamma(3),
+        surface_wgsl(),
         SHADER
     )
 }
@@ -88,14 +95,7 @@ impl ReconstructionStage {
                 wgpu::BindGroupEntry { binding: 5, resource: frame.surfaces.as_entire_binding() },
             ],
         });
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("reconstruction"),
-            timestamp_writes: timing.map(|(query_set, i)| wgpu::ComputePassTimestampWrites {
-                query_set,
-                beginning_of_pass_write_index: Some(i),
-                end_of_pass_write_index: Some(i + 1),
-            }),
-        });
+        let mut pass = crate::timing::begin_timed_pass(encoder, "reconstruction", timing);
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &group, &[]);
         pass.dispatch_workgroups(frame.width.div_ceil(GROUP), frame.height.div_ceil(GROUP), 1);

@@ -24,7 +24,7 @@ pub(crate) const TILE: u32 = 8;
 
 /// An f32 as a WGSL literal with exactly its value: the f32 widened to f64 and
 /// printed shortest-round-trip, so naga's f64 parse and f32 conversion are exact.
-fn f32_literal(x: f32) -> String {
+pub(crate) fn f32_literal(x: f32) -> String {
     format!("{:?}", x as f64)
 }
 
@@ -74,6 +74,13 @@ pub(crate) fn shading_helpers() -> String {
 /// own source.
 pub fn shading_source(stage: &str) -> String {
     format!("{}\n{}\n{}\n{}", declarations(), shading_helpers(), include_str!("shaders/shading.wgsl"), stage)
+}
+
+/// [`shading_source`] with the per-surface shaders over a `shadow` binding
+/// (`shaders/surface_shading.wgsl`) before the stage's source: for the stages that bind
+/// `shadow` and `lights` (`rt_shading`, `raster_shading`, the bounce stages).
+pub fn surface_shading_source(stage: &str) -> String {
+    shading_source(&format!("{}\n{stage}", include_str!("shaders/surface_shading.wgsl")))
 }
 
 /// A compute-visible storage buffer binding.
@@ -173,21 +180,55 @@ pub(crate) fn encode_pixel_pass(
     height: u32,
     timing: Option<(&wgpu::QuerySet, u32)>,
 ) {
-    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-        label: Some(label),
-        timestamp_writes: timing.map(|(query_set, i)| wgpu::ComputePassTimestampWrites {
-            query_set,
-            beginning_of_pass_write_index: Some(i),
-            end_of_pass_write_index: Some(i + 1),
-        }),
-    });
+    let mut pass = crate::timing::begin_timed_pass(encoder, label, timing);
     pass.set_pipeline(pipeline);
     pass.set_bind_group(0, bind_group, &[]);
     pass.dispatch_workgroups(width.div_ceil(TILE), height.div_ceil(TILE), 1);
 }
 
-/// The `rt_shading` stage.
+/// One compute pass that runs `pipeline` once per entry of a list, in workgroups of
+/// [`SHADOW_RAYS_WORKGROUP_SIZE`](crate::shadow_rays::SHADOW_RAYS_WORKGROUP_SIZE), from
+/// the indirect-dispatch arguments in `count` (`[count, x, y, 1]`, written by the scan
+/// that built the list), with the stage's timestamps as [`encode_pixel_pass`].
+pub(crate) fn encode_list_pass(
+    encoder: &mut wgpu::CommandEncoder,
+    label: &str,
+    pipeline: &wgpu::ComputePipeline,
+    bind_group: &wgpu::BindGroup,
+    count: &wgpu::Buffer,
+    timing: Option<(&wgpu::QuerySet, u32)>,
+) {
+    let mut pass = crate::timing::begin_timed_pass(encoder, label, timing);
+    pass.set_pipeline(pipeline);
+    pass.set_bind_group(0, bind_group, &[]);
+    pass.dispatch_workgroups_indirect(count, 4);
+}
+
+/// The bindings of `shaders/rt_shading.wgsl`.
+fn rt_entries() -> [wgpu::BindGroupLayoutEntry; 7] {
+    [
+        storage_entry(0, true),  // surfaces
+        storage_entry(1, true),  // shadow
+        storage_entry(2, true),  // objects
+        storage_entry(3, true),  // lights
+        uniform_entry(4),        // camera
+        uniform_entry(5),        // params
+        storage_entry(6, false), // rt
+    ]
+}
+
+/// `rt_pixel` of `shaders/rt_shading.wgsl` in the paper's frame.
+const PAPER_RT_PIXEL: &str = "// mirrors hyrt_core::kernels::shading::shade_rt_pixel\nfn rt_pixel(pixel: u32, s: SurfaceRecord, obj: ObjectRecord) -> vec3<f32> {\n    return shade_rt_pixel(pixel, s, obj, camera.eye);\n}\n";
+
+/// The `rt_shading` stage of the paper's frame.
 pub struct RtShadingStage {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+}
+
+/// The `rt_shading` stage of frames that trace bounces: mirrors and glass gather their
+/// first bounce's radiance (`shaders/rt_shading_bouncing.wgsl`).
+pub struct RtShadingBouncingStage {
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
 }
@@ -195,21 +236,8 @@ pub struct RtShadingStage {
 impl RtShadingStage {
     /// Compile the stage's pipeline.
     pub fn new(ctx: &GpuContext) -> Self {
-        let source = shading_source(include_str!("shaders/rt_shading.wgsl"));
-        let (pipeline, layout) = compute_pipeline(
-            ctx,
-            "rt_shading",
-            &source,
-            &[
-                storage_entry(0, true),  // surfaces
-                storage_entry(1, true),  // shadow
-                storage_entry(2, true),  // objects
-                storage_entry(3, true),  // lights
-                uniform_entry(4),        // camera
-                uniform_entry(5),        // params
-                storage_entry(6, false), // rt
-            ],
-        );
+        let source = surface_shading_source(&format!("{}\n{PAPER_RT_PIXEL}", include_str!("shaders/rt_shading.wgsl")));
+        let (pipeline, layout) = compute_pipeline(ctx, "rt_shading", &source, &rt_entries());
         RtShadingStage { pipeline, layout }
     }
 
@@ -228,6 +256,65 @@ impl RtShadingStage {
             "rt_shading",
             &self.layout,
             &[&frame.surfaces, &frame.shadow, &scene.objects, &scene.lights, &frame.camera, &frame.params, &frame.rt],
+        );
+        encode_pixel_pass(encoder, "rt_shading", &self.pipeline, &bind_group, frame.width, frame.height, timing);
+    }
+}
+
+impl RtShadingBouncingStage {
+    /// Compile the stage's pipeline.
+    pub fn new(ctx: &GpuContext) -> Self {
+        let source = crate::bounce_shading::radiance_source(&format!(
+            "{}\n{}",
+            include_str!("shaders/rt_shading.wgsl"),
+            include_str!("shaders/rt_shading_bouncing.wgsl")
+        ));
+        let (pipeline, layout) = compute_pipeline(
+            ctx,
+            "rt_shading (bounces)",
+            &source,
+            &[
+                rt_entries().as_slice(),
+                &[
+                    storage_entry(7, true),  // gbuffer
+                    storage_entry(8, true),  // triangles
+                    storage_entry(9, true),  // links of depth 1
+                    storage_entry(10, true), // radiance of depth 1
+                ],
+            ]
+            .concat(),
+        );
+        RtShadingBouncingStage { pipeline, layout }
+    }
+
+    /// Record the stage: as [`RtShadingStage::encode`], the pixels of mirrors and glass
+    /// adding what `frame.bounces[0]` brought back.
+    pub fn encode(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &SceneBuffers,
+        frame: &FrameBuffers,
+        timing: Option<(&wgpu::QuerySet, u32)>,
+    ) {
+        let first = &frame.bounces[0];
+        let bind_group = bind_buffers(
+            ctx,
+            "rt_shading (bounces)",
+            &self.layout,
+            &[
+                &frame.surfaces,
+                &frame.shadow,
+                &scene.objects,
+                &scene.lights,
+                &frame.camera,
+                &frame.params,
+                &frame.rt,
+                &frame.gbuffer,
+                &scene.triangles,
+                &first.links,
+                &first.radiance,
+            ],
         );
         encode_pixel_pass(encoder, "rt_shading", &self.pipeline, &bind_group, frame.width, frame.height, timing);
     }

@@ -10,21 +10,18 @@
 //! `SHADOW_OCCLUDED` at `pixel * light_count + light` for every ray).
 //!
 //! The WGSL (`shaders/ray.wgsl`, `shaders/shadow_rays.wgsl`) mirrors the core ray
-//! kernels function by function. Where it cannot: the CPU decides an exactly-zero
-//! f32 edge function in f64; WGSL has no f64, so the GPU counts a zero edge
-//! function as on the edge (inside) — see `watertight_hit` in `ray.wgsl`: the
-//! GPU then reports occluded where the CPU, exactly, finds a miss by less than
-//! one rounding at an open edge; never the other way round (up to t rounding at
-//! the ends of the interval). Edge
-//! functions are evaluated in a canonical vertex order so that a fused
-//! multiply-add cannot break their antisymmetry (watertightness).
+//! kernels function by function and operation by operation, every product kept
+//! unfused, so its decisions are the CPU's, bit for bit, on a device that rounds f32
+//! operations as IEEE 754 (lavapipe): also the tie rule of an exactly-zero edge
+//! function, decided by the exact sign both sides compute in f32
+//! (`hyrt_core::kernels::ray::edge_sign_exact`).
 
 use hyrt_core::bvh::{BVH_CULL_SLACK, BVH_STACK_SIZE};
 use hyrt_core::formats::wgsl::declarations;
-use hyrt_core::kernels::ray::{gamma, OFFSET_ERROR_SCALE, SLAB_FAR_SCALE};
+use hyrt_core::kernels::ray::{gamma, OFFSET_ERROR_SCALE, SLAB_FAR_SCALE, VELTKAMP_SPLIT};
 use hyrt_core::kernels::shadow::SHADOW_T_MAX_POINT;
 
-use crate::buffers::{FrameBuffers, SceneBuffers};
+use crate::buffers::{FrameBuffers, ListBuffers, SceneBuffers};
 use crate::GpuContext;
 
 /// Threads per workgroup of the `shadow_rays` kernel (one ray each). 64 is a
@@ -52,6 +49,7 @@ pub(crate) fn ray_wgsl() -> String {
         ("GAMMA_5", f32_literal(gamma(5))),
         ("OFFSET_ERROR_SCALE", f32_literal(OFFSET_ERROR_SCALE)),
         ("BVH_CULL_SLACK", f32_literal(BVH_CULL_SLACK)),
+        ("VELTKAMP_SPLIT", f32_literal(VELTKAMP_SPLIT)),
         ("SHADOW_T_MAX_POINT_BITS", format!("{}u", SHADOW_T_MAX_POINT.to_bits())),
         ("BVH_STACK_SIZE", format!("{}u", BVH_STACK_SIZE)),
         ("SHADOW_WG", format!("{SHADOW_RAYS_WORKGROUP_SIZE}u")),
@@ -113,6 +111,8 @@ impl ShadowRaysStage {
                 storage_entry(4, true),
                 storage_entry(5, false),
                 storage_entry(6, false),
+                uniform_entry(7, false),
+                storage_entry(8, false),
             ],
         });
         let pipeline_layout = ctx.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -141,31 +141,36 @@ impl ShadowRaysStage {
         frame: &FrameBuffers,
         timing: Option<(&wgpu::QuerySet, u32)>,
     ) {
-        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("shadow_rays"),
-            layout: &self.layout,
-            entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: frame.params.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: frame.rays.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 2, resource: frame.ray_count.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 3, resource: scene.bvh_nodes.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 4, resource: scene.bvh_leaf_triangles.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 5, resource: frame.occluded.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 6, resource: frame.shadow.as_entire_binding() },
-            ],
-        });
+        self.encode_list(ctx, encoder, scene, frame, &frame.primary_list(), timing)
+    }
+
+    /// The stage over one list: clear its shadow codes, trace its shadow rays.
+    pub fn encode_list(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &SceneBuffers,
+        frame: &FrameBuffers,
+        list: &ListBuffers,
+        timing: Option<(&wgpu::QuerySet, u32)>,
+    ) {
+        let buffers = [
+            &frame.params,
+            list.shadow_rays,
+            list.shadow_ray_count,
+            &scene.bvh_nodes,
+            &scene.bvh_leaf_triangles,
+            list.occluded,
+            list.shadow,
+            list.params,
+            list.counters,
+        ];
+        let bind_group = crate::rt_shading::bind_buffers(ctx, "shadow_rays", &self.layout, &buffers);
         // SHADOW_NO_RAY is 0.
-        encoder.clear_buffer(&frame.shadow, 0, None);
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("shadow_rays"),
-            timestamp_writes: timing.map(|(query_set, i)| wgpu::ComputePassTimestampWrites {
-                query_set,
-                beginning_of_pass_write_index: Some(i),
-                end_of_pass_write_index: Some(i + 1),
-            }),
-        });
+        encoder.clear_buffer(list.shadow, 0, None);
+        let mut pass = crate::timing::begin_timed_pass(encoder, "shadow_rays", timing);
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &bind_group, &[]);
-        pass.dispatch_workgroups_indirect(&frame.ray_count, 4);
+        pass.dispatch_workgroups_indirect(list.shadow_ray_count, 4);
     }
 }

@@ -115,3 +115,20 @@ impl StageTimer {
         Ok(Some(ticks.chunks_exact(2).map(|t| t[1].saturating_sub(t[0]) as f64 * period * 1e-6).collect()))
     }
 }
+
+/// A compute pass labelled `label`, with the stage's timestamps when `timing` is
+/// `Some((set, i))` ([`StageTimer::stage`]): query `i` at its start, `i + 1` at its end.
+pub fn begin_timed_pass<'e>(
+    encoder: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    timing: Option<(&wgpu::QuerySet, u32)>,
+) -> wgpu::ComputePass<'e> {
+    encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some(label),
+        timestamp_writes: timing.map(|(query_set, i)| wgpu::ComputePassTimestampWrites {
+            query_set,
+            beginning_of_pass_write_index: Some(i),
+            end_of_pass_write_index: Some(i + 1),
+        }),
+    })
+}

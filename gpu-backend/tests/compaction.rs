@@ -11,8 +11,9 @@ use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::scan::compact_sequential;
 use hyrt_core::scene::Scene;
 use hyrt_gpu::buffers::{FrameBuffers, FrameParams, SceneBuffers};
-use hyrt_gpu::compaction::{CompactionStage, COMPACTION_TILE};
+use hyrt_gpu::compaction::CompactionStage;
 use hyrt_gpu::gpu_buffer::{read_back, storage, upload};
+use hyrt_gpu::scan::SCAN_TILE as COMPACTION_TILE;
 use hyrt_gpu::shadow_rays::SHADOW_RAYS_WORKGROUP_SIZE;
 use hyrt_gpu::GpuContext;
 

@@ -116,4 +116,14 @@ fn present_renders_on_the_applications_device_into_its_texture() {
         Err(RenderError::Gpu(hyrt_gpu::GpuError::Limits(m))) => assert!(m.contains(&format!("{side}x1")), "{m}"),
         other => panic!("expected RenderError::Gpu(GpuError::Limits), got {:?}", other.map(|f| f.stats)),
     }
+
+    // The application's device keeps WebGPU's default of 8 storage buffers per shader
+    // stage, fewer than the bounce stages bind: a frame with bounces is a typed error
+    // naming the limit, never a frame without them; the frames above rendered all the same.
+    assert_eq!(gpu.context().limits.max_storage_buffers_per_shader_stage, 8);
+    let bouncing = FrameOptions { max_depth: 2, ..opts };
+    match gpu.render(&prepared, &cam, &bouncing) {
+        Err(RenderError::Gpu(hyrt_gpu::GpuError::Limits(m))) => assert!(m.contains("storage buffers"), "{m}"),
+        other => panic!("expected RenderError::Gpu(GpuError::Limits), got {:?}", other.map(|f| f.stats)),
+    }
 }

@@ -58,8 +58,8 @@ fn shadow_ray(origin: Vec3, direction: Vec3, t_max: f32, pixel: u32) -> RayRecor
 }
 
 /// True if some triangle has an exactly-zero f32 edge function for this ray with
-/// the other two not of opposite signs: where the CPU falls back to f64 and the
-/// GPU applies its tie rule (`hyrt_core::kernels::ray::meets_zero_edge_tie`).
+/// the other two not of opposite signs: where both backends decide by the exact sign
+/// (`hyrt_core::kernels::ray::meets_zero_edge_tie`).
 fn meets_zero_edge(triangles: &[hyrt_core::formats::TriangleRecord], r: &RayRecord) -> bool {
     let (o, d) = (Vec3::from(r.origin), Vec3::from(r.direction));
     triangles.iter().any(|t| {
@@ -245,8 +245,8 @@ fn shadow_rays_through_shared_edges_and_vertices() {
     let count = rays.len() as u32;
     let (mismatches, cpu) = compare(&ctx, "closed meshes", &prepared, &rays, (count, 1), 1);
     let ties = rays.iter().filter(|r| meets_zero_edge(&g.triangles, r)).count();
-    eprintln!("closed meshes: {ties} rays meet an exactly-zero f32 edge function (the GPU tie rule)");
-    assert!(ties > 100, "the test must exercise the tie rule");
+    eprintln!("closed meshes: {ties} rays meet an exactly-zero f32 edge function (decided by the exact sign)");
+    assert!(ties > 100, "the test must exercise the exact-sign tie rule");
     let leaks: Vec<usize> = (0..rays.len()).filter(|&i| must_hit[i] && cpu[i] == 0).collect();
     assert!(leaks.is_empty(), "CPU leaks through the closed meshes at rays {leaks:?}");
     assert!(mismatches.is_empty(), "{} mismatches", mismatches.len());
@@ -340,16 +340,15 @@ fn shadow_rays_after_gpu_compaction_matches_cpu() {
     }
 }
 
-/// Pinned: the one documented difference. In ray space (the ray is the +z axis
-/// from the origin, so the shear is exact) the edge function of p2 -> p0 is
-/// `(1 + 2^-23)(-s (1 - 2^-24)) - 1 (-s)`: the first product rounds to exactly
-/// `-s`, so the f32 value is 0, while the exact value is `-s (2^-24 - 2^-47) < 0`
-/// and the other two edge functions are positive. The CPU decides in f64: the
-/// ray misses by about 1e-10. The GPU's tie rule counts the zero as on the edge:
-/// a hit. (A closed mesh would have a neighbour across that edge, which both
-/// backends hit.)
+/// Pinned: the tie rule. In ray space (the ray is the +z axis from the origin, so the
+/// shear is exact) the edge function of p2 -> p0 is `(1 + 2^-23)(-s (1 - 2^-24)) - 1 (-s)`:
+/// the first product rounds to exactly `-s`, so the f32 value is 0, while the exact value
+/// is `-s (2^-24 - 2^-47) < 0` and the other two edge functions are positive. Both
+/// backends take the exact sign (Dekker's error-free products in f32,
+/// `hyrt_core::kernels::ray::edge_sign_exact`): the ray misses by about 1e-10. (Before,
+/// the GPU counted the zero as on the edge and reported a hit.)
 #[test]
-fn shadow_rays_pinned_zero_edge_tie_rule() {
+fn shadow_rays_pinned_zero_edge_exact_sign() {
     let Some(ctx) = test_context() else { return };
     let s = 1.0 / 1024.0;
     let p0 = Vec3::new(-s, -s * (1.0 - 2f32.powi(-24)), 1.0);
@@ -364,5 +363,5 @@ fn shadow_rays_pinned_zero_edge_tie_rule() {
     let ray = shadow_ray(Vec3::ZERO, Vec3::new(0.0, 0.0, 2.0), 1.0, 0);
     let cpu = hyrt_cpu::shadow_rays::shadow_rays(&prepared.bvh, &prepared.geometry, &[ray]);
     let (gpu, _) = gpu_shadow_rays(&ctx, &prepared, &[ray], 1, 1, 1);
-    assert_eq!((cpu[0], gpu[0]), (0, 1), "CPU exact miss, GPU tie-rule hit");
+    assert_eq!((cpu[0], gpu[0]), (0, 0), "both backends: the exact miss");
 }

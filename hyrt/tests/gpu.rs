@@ -3,6 +3,7 @@
 //! gpu-backend crate's tests; here: whole frames (the command line's GPU tests are in
 //! `cli/tests/gpu.rs`).
 
+use hyrt::glam::Vec3;
 use hyrt::{AdapterPolicy, BackendKind, FrameOptions, Renderer, Scene};
 
 /// The GPU renderer for tests: fails in CI without an adapter, skips visibly elsewhere.
@@ -99,20 +100,34 @@ fn gpu_final_image_only_readback_gives_the_same_image_and_counts() {
     assert!(lean.rays.is_empty() && lean.surfaces.is_empty() && lean.rt.is_empty());
 }
 
-/// Reflection and refraction run on the CPU backend only so far: the GPU backend refuses
-/// a plan with bounces with a typed error naming the first bounce step, never a frame
-/// without them, and renders the same scene at max depth 0.
+/// Reflection and refraction on the GPU backend through the facade: a close-up of the
+/// default scene's glass ball, where nearly every pixel spawns two rays, more than the
+/// room a first frame gives each bounce's list (a ray per four pixels), so the frame
+/// runs again with room for them; the image is the CPU's, bit for bit, and a frame
+/// without stage outputs gives the same image and bounce statistics. Depth 0 plans no
+/// bounce.
 #[test]
-fn gpu_refuses_bounces_it_cannot_trace_yet() {
+fn gpu_traces_bounces_and_makes_room_for_its_lists() {
     let Some(mut gpu) = gpu_renderer() else { return };
+    let mut cpu = Renderer::new(BackendKind::Cpu, Some(2), AdapterPolicy::AllowSoftware).unwrap();
     let scene = Scene::default_scene();
-    let cam = scene.camera.unwrap();
-    let prepared = gpu.prepare(&scene);
-    let opts = FrameOptions { max_depth: 2, ..FrameOptions::default() };
-    match gpu.render(&prepared, &cam, 32, 18, &opts) {
-        Err(hyrt::RenderError::Unsupported { backend: "gpu", stage, .. }) => assert_eq!(stage, "secondary_rays{1}"),
-        other => panic!("expected RenderError::Unsupported, got {:?}", other.map(|f| f.stats)),
-    }
-    let flat = gpu.render(&prepared, &cam, 32, 18, &FrameOptions::default()).unwrap();
+    let mut cam = scene.camera.unwrap();
+    cam.target = Vec3::new(-0.3, 0.65, 2.0);
+    cam.eye = cam.target + Vec3::new(0.0, 0.3, 1.6);
+    let (g, c) = (gpu.prepare(&scene), cpu.prepare(&scene));
+    let opts = FrameOptions { max_depth: 4, ..FrameOptions::with_stage_outputs() };
+    let (w, h) = (40, 30);
+    let expected = cpu.render(&c, &cam, w, h, &opts).unwrap();
+    let first =
+        expected.stats.bounces[0].rays_per_kind.iter().sum::<u64>() - expected.stats.bounces[0].rays_per_kind[0];
+    assert!(first > (w * h / 4) as u64, "{first} first-bounce rays must overflow the first room");
+    let all = gpu.render(&g, &cam, w, h, &opts).unwrap();
+    assert_eq!(bytemuck_bits(&all.final_image), bytemuck_bits(&expected.final_image));
+    assert_eq!(all.stats.bounces, expected.stats.bounces);
+    let lean = gpu.render(&g, &cam, w, h, &FrameOptions { max_depth: 4, ..FrameOptions::default() }).unwrap();
+    assert_eq!(bytemuck_bits(&lean.final_image), bytemuck_bits(&expected.final_image));
+    assert_eq!(lean.stats.bounces, expected.stats.bounces);
+    assert!(lean.bounces.iter().all(|b| b.rays.is_empty()), "no stage outputs: no bounce buffer comes back");
+    let flat = gpu.render(&g, &cam, w, h, &FrameOptions::default()).unwrap();
     assert!(flat.stats.bounces.is_empty());
 }

@@ -697,3 +697,105 @@ impl FrameParams {
         Ok(())
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// Environment
+// ---------------------------------------------------------------------------------------------
+
+/// [`EnvironmentRecord::kind`]: the default sky ([`crate::kernels::bounce::sky`]).
+pub const ENV_SKY: u32 = 0;
+/// [`EnvironmentRecord::kind`]: an equirectangular map
+/// ([`crate::kernels::environment::map_radiance`]).
+pub const ENV_MAP: u32 = 1;
+
+/// What secondary rays that leave the scene see ([`crate::scene::Environment`]), as the
+/// GPU reads it: this header, and the map's texels in a buffer of their own
+/// (`width * height` linear RGBA `[f32; 4]`, row 0 on top, as
+/// [`crate::scene::EnvironmentMap::texels`]; one zero texel for the sky).
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `kind` | u32 | [`ENV_SKY`] or [`ENV_MAP`] |
+/// | 4 | `width` | u32 | map width in texels (1 for the sky) |
+/// | 8 | `height` | u32 | map height in texels (1 for the sky) |
+/// | 12 | `pad` | u32 | zero |
+///
+/// 16 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Pod, Zeroable)]
+pub struct EnvironmentRecord {
+    pub kind: u32,
+    pub width: u32,
+    pub height: u32,
+    pub pad: u32,
+}
+const _: () = assert!(std::mem::size_of::<EnvironmentRecord>() == 16);
+wgsl_struct!(EnvironmentRecord { kind, width, height, pad });
+
+impl EnvironmentRecord {
+    /// The header of `env`, and its texels (one zero texel for the sky).
+    pub fn of(env: &crate::scene::Environment) -> (EnvironmentRecord, &[[f32; 4]]) {
+        const NO_TEXEL: [[f32; 4]; 1] = [[0.0; 4]];
+        match env.map() {
+            None => (EnvironmentRecord { kind: ENV_SKY, width: 1, height: 1, pad: 0 }, &NO_TEXEL),
+            Some(m) => (EnvironmentRecord { kind: ENV_MAP, width: m.width(), height: m.height(), pad: 0 }, m.texels()),
+        }
+    }
+
+    /// Check: a known kind, a non-empty size (1 x 1 for the sky), zero padding, and
+    /// `texels` of `width * height` entries.
+    pub fn validate(&self, texels: usize) -> Result<(), String> {
+        let sized = self.width > 0 && self.height > 0 && (self.kind == ENV_MAP || (self.width, self.height) == (1, 1));
+        if self.kind > ENV_MAP || !sized || self.pad != 0 {
+            return Err(format!("bad environment record {self:?}"));
+        }
+        if texels != self.width as usize * self.height as usize {
+            return Err(format!("{texels} texels for a {}x{} environment", self.width, self.height));
+        }
+        Ok(())
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Ray lists on the GPU
+// ---------------------------------------------------------------------------------------------
+
+/// Parameters of one ray list of a GPU frame: the primary hits' shadow rays (depth 0) or
+/// the rays of bounce `depth`, one uniform buffer per list. The list stages
+/// (`compaction`, `secondary_rays`, `bounce_trace`, `shadow_rays`, `bounce_shading`) size
+/// their work by it and read the live counts from the lists' count buffers, so no count
+/// comes back to the CPU mid-frame.
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `slots` | u32 | surfaces the list's surface buffer has room for: the pixels (depth 0) or the ray room of bounce `depth`; `compaction` pairs are `light * slots + surface` |
+/// | 4 | `parents` | u32 | the parents' slots of `secondary_rays`: the pixels for depth 1, the ray room of depth `depth - 1` beyond |
+/// | 8 | `depth` | u32 | the bounce depth, 0 for the primary hits |
+/// | 12 | `last` | u32 | 1 at the plan's deepest bounce (its rays have no children), else 0 |
+///
+/// 16 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Pod, Zeroable)]
+pub struct ListParams {
+    pub slots: u32,
+    pub parents: u32,
+    pub depth: u32,
+    pub last: u32,
+}
+const _: () = assert!(std::mem::size_of::<ListParams>() == 16);
+wgsl_struct!(ListParams { slots, parents, depth, last });
+
+impl ListParams {
+    /// Check: room for a surface, parents from depth 1 on, `last` 0 or 1 and 0 at depth 0.
+    pub fn validate(&self) -> Result<(), String> {
+        let ok = self.slots > 0
+            && (self.depth == 0 || self.parents > 0)
+            && self.last <= 1
+            && (self.depth > 0 || self.last == 0);
+        if ok {
+            Ok(())
+        } else {
+            Err(format!("bad list parameters {self:?}"))
+        }
+    }
+}

@@ -11,8 +11,8 @@
 
 use crate::bvh::BvhNode;
 use crate::formats::{
-    CameraRecord, FrameParams, GBufferTexel, HitRecord, LightRecord, ObjectRecord, RayRecord, SurfaceRecord,
-    TriangleRecord,
+    CameraRecord, EnvironmentRecord, FrameParams, GBufferTexel, HitRecord, LightRecord, ListParams, ObjectRecord,
+    RayRecord, SurfaceRecord, TriangleRecord,
 };
 use crate::plan::Composition;
 
@@ -217,6 +217,8 @@ pub fn constant_values() -> Vec<(&'static str, u32)> {
         MATERIAL_GLASS,
         LIGHT_POINT,
         LIGHT_DIRECTIONAL,
+        ENV_SKY,
+        ENV_MAP,
     )
     .to_vec();
     c.extend([
@@ -245,6 +247,8 @@ pub fn struct_declarations() -> String {
         HitRecord::declaration(),
         FrameParams::declaration(),
         BvhNode::declaration(),
+        EnvironmentRecord::declaration(),
+        ListParams::declaration(),
     ]
     .join("\n")
 }
@@ -276,6 +280,8 @@ mod tests {
         HitRecord::check_layout().unwrap();
         FrameParams::check_layout().unwrap();
         BvhNode::check_layout().unwrap();
+        EnvironmentRecord::check_layout().unwrap();
+        ListParams::check_layout().unwrap();
     }
 
     #[test]

@@ -497,7 +497,7 @@ mod tests {
         /// energy: reflectance in [0, 1], equal from both sides of the interface along
         /// the reciprocal path (Stokes relations).
         #[test]
-        fn refraction_obeys_snell_and_fresnel_is_reciprocal(theta in 0.0f32..1.55, phi in 0.0f32..6.28, ior in 1.0f32..2.5) {
+        fn refraction_obeys_snell_and_fresnel_is_reciprocal(theta in 0.0f32..1.55, phi in 0.0f32..std::f32::consts::TAU, ior in 1.0f32..2.5) {
             let n = Vec3::Y;
             let d = -unit(theta, phi);
             let eta = 1.0 / ior;
@@ -519,7 +519,7 @@ mod tests {
 
         /// Reflection keeps the angle and the length and mirrors the normal component.
         #[test]
-        fn reflection_mirrors_the_normal_component(theta in 0.0f32..1.57, phi in 0.0f32..6.28) {
+        fn reflection_mirrors_the_normal_component(theta in 0.0f32..1.57, phi in 0.0f32..std::f32::consts::TAU) {
             let n = Vec3::Y;
             let d = -unit(theta, phi);
             let r = reflect(d, n);

@@ -4,9 +4,11 @@
 //! These are the specification of every ray query in hyrt: the CPU BVH traversal
 //! ([`crate::bvh`]) calls them and the WGSL traversal mirrors each function by
 //! name. All arithmetic is plain f32 with the operation order written out (no
-//! `mul_add`, no reassociation); the only exception is the double-precision
-//! fallback of [`intersect_triangle_watertight`], which the GPU cannot mirror
-//! (see there).
+//! `mul_add`, no reassociation), so a GPU that rounds every operation as IEEE 754 and
+//! does not fuse products into additions computes the same bits: even the tie rule of
+//! [`intersect_triangle_watertight`] (an exactly-zero edge function) is decided exactly
+//! in f32, by Dekker's error-free product ([`product_error`]), not in f64, which WGSL
+//! lacks.
 //!
 //! Conventions:
 //! * A ray is `origin + t * dir`, `dir` not necessarily normalized.
@@ -127,12 +129,56 @@ fn edge_function(a: Vec3, b: Vec3) -> f32 {
     a.x * b.y - a.y * b.x
 }
 
-/// [`edge_function`] in double precision: both products are exact in f64, so the sign
-/// (and zero-ness) of the result is exact. Used only when an f32 edge function is
-/// exactly zero.
+/// Veltkamp's splitting constant for f32, `2^12 + 1`: `split` cuts a 24-bit significand
+/// into two halves of at most 12 bits, whose products are exact in f32 (Dekker 1971,
+/// "A floating-point technique for extending the available precision"; Ogita, Rump,
+/// Oishi 2005, `Split` with `s = 12`).
+pub const VELTKAMP_SPLIT: f32 = 4097.0;
+
+/// `a = hi + lo` exactly, each with at most 12 significant bits (Veltkamp). Exact unless
+/// `VELTKAMP_SPLIT * a` overflows (`|a|` above about 8e34).
 #[inline]
-fn edge_function_f64(a: Vec3, b: Vec3) -> f32 {
-    (a.x as f64 * b.y as f64 - a.y as f64 * b.x as f64) as f32
+pub fn veltkamp_split(a: f32) -> (f32, f32) {
+    let c = VELTKAMP_SPLIT * a;
+    let hi = c - (c - a);
+    (hi, a - hi)
+}
+
+/// The rounding error of the f32 product `p = a * b`: `a * b - p`, exactly (Dekker's
+/// `TwoProduct` without a fused multiply-add, which WGSL does not promise). Every
+/// operation below is exact or its error cancels by construction, as long as nothing
+/// overflows and the error is not subnormal: products of magnitude above about 1e-30
+/// (coordinates relative to the ray origin above about 1e-15), far below any scene the
+/// renderer accepts.
+#[inline]
+pub fn product_error(a: f32, b: f32, p: f32) -> f32 {
+    let (ah, al) = veltkamp_split(a);
+    let (bh, bl) = veltkamp_split(b);
+    ((ah * bh - p) + ah * bl + al * bh) + al * bl
+}
+
+/// A value with the exact sign of the edge function `a.x * b.y - a.y * b.x` whose f32
+/// value ([`edge_function`]) is exactly zero: both products then round to the same `p`,
+/// so the exact difference is `(a.x b.y - p) - (a.y b.x - p)`, the difference of the two
+/// exact rounding errors ([`product_error`]), which one rounded subtraction returns with
+/// its exact sign (zero only when it is exactly zero). Antisymmetric like the edge
+/// function: swapping `a` and `b` negates it exactly.
+#[inline]
+pub fn edge_sign_exact(a: Vec3, b: Vec3) -> f32 {
+    let p = a.x * b.y;
+    product_error(a.x, b.y, p) - product_error(a.y, b.x, p)
+}
+
+/// The edge functions' signs for the inside test: the f32 values where none is zero (a
+/// non-zero f32 edge function has the exact sign: rounding is monotone), else every
+/// exactly-zero one replaced by [`edge_sign_exact`].
+#[inline]
+fn exact_signs(e: [f32; 3], p0: Vec3, p1: Vec3, p2: Vec3) -> [f32; 3] {
+    if e[0] != 0.0 && e[1] != 0.0 && e[2] != 0.0 {
+        return e;
+    }
+    let fix = |e: f32, a: Vec3, b: Vec3| if e == 0.0 { edge_sign_exact(a, b) } else { e };
+    [fix(e[0], p1, p2), fix(e[1], p2, p0), fix(e[2], p0, p1)]
 }
 
 impl WatertightRay {
@@ -173,16 +219,12 @@ impl WatertightRay {
     }
 
     /// The facing of a triangle this ray hits: [`Self::back_face`] of the determinant
-    /// that [`Self::intersect`] computes (f64 where an f32 edge function is zero), with
-    /// no range test. For traversals that find the hit without keeping the determinant
+    /// that [`Self::intersect`] computes (the sum of the f32 edge functions), with no
+    /// range test. For traversals that find the hit without keeping the determinant
     /// (the SIMD packets).
     pub fn facing(&self, v0: Vec3, v1: Vec3, v2: Vec3) -> bool {
         let (p0, p1, p2) = (self.transform(v0), self.transform(v1), self.transform(v2));
-        let mut e = [edge_function(p1, p2), edge_function(p2, p0), edge_function(p0, p1)];
-        if e.contains(&0.0) {
-            e = [edge_function_f64(p1, p2), edge_function_f64(p2, p0), edge_function_f64(p0, p1)];
-        }
-        self.back_face(e[0] + e[1] + e[2])
+        self.back_face(edge_function(p1, p2) + edge_function(p2, p0) + edge_function(p0, p1))
     }
 
     /// The watertight test against one triangle, for this precomputed ray; see
@@ -198,24 +240,19 @@ impl WatertightRay {
 
         // Edge functions: e_i is twice the signed area of the sub-triangle opposite v_i,
         // seen from the ray (the ray is the point (0, 0) of the sheared xy plane).
-        let mut e0 = edge_function(p1, p2);
-        let mut e1 = edge_function(p2, p0);
-        let mut e2 = edge_function(p0, p1);
-
-        // The ray passes (to f32 precision) exactly through an edge or vertex: decide it
-        // exactly in f64 (Woop et al. section 3; pbrt-v4 `IntersectTriangle`). WGSL has
-        // no f64: the GPU needs a deterministic tie rule for e == 0 instead (e.g. a
-        // top-left style rule on the sheared edge), and will differ from this reference
-        // exactly on such rays.
-        if e0 == 0.0 || e1 == 0.0 || e2 == 0.0 {
-            e0 = edge_function_f64(p1, p2);
-            e1 = edge_function_f64(p2, p0);
-            e2 = edge_function_f64(p0, p1);
-        }
+        let e0 = edge_function(p1, p2);
+        let e1 = edge_function(p2, p0);
+        let e2 = edge_function(p0, p1);
 
         // Inside test: all edge functions of the same sign (zeros accepted: edges are
-        // shared, both neighbours report the hit and the caller breaks the tie).
-        if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
+        // shared, both neighbours report the hit and the caller breaks the tie). Where the
+        // ray passes (to f32 precision) exactly through an edge or vertex, an f32 edge
+        // function is zero and its exact sign decides ([`exact_signs`]; Woop et al.
+        // section 3 recompute in f64, which the GPU cannot mirror): a ray through a
+        // shared edge enters exactly one side, and a ray a hair outside a silhouette edge
+        // misses. The values below stay the f32 ones.
+        let [s0, s1, s2] = exact_signs([e0, e1, e2], p0, p1, p2);
+        if (s0 < 0.0 || s1 < 0.0 || s2 < 0.0) && (s0 > 0.0 || s1 > 0.0 || s2 > 0.0) {
             return None;
         }
         // Degenerate in ray space (det == 0; always the case for a triangle with two equal
@@ -277,11 +314,9 @@ impl WatertightRay {
 
 /// Whether the watertight test of the ray `origin + t dir` against the triangle meets an
 /// exactly-zero f32 edge function while the other two are not of opposite signs: where
-/// [`WatertightRay::intersect`] decides in f64 and the GPU backend, which has no f64 in
-/// WGSL, counts the zero as on the edge (its tie rule, `ray.wgsl`). These are the only
-/// rays on which the backends' ray/triangle decisions may differ: the CPU misses by less
-/// than one rounding of a silhouette edge, the GPU hits. Tests use it to tell that
-/// documented deviation from any other.
+/// [`WatertightRay::intersect`] lets the exact sign of that edge function decide
+/// ([`edge_sign_exact`]). Both backends decide these rays by the same f32 arithmetic;
+/// tests use it to show that a corpus exercises the rule.
 pub fn meets_zero_edge_tie(origin: Vec3, dir: Vec3, v0: Vec3, v1: Vec3, v2: Vec3) -> bool {
     let Some(r) = WatertightRay::new(origin, dir) else { return false };
     let (p0, p1, p2) = (r.transform(v0), r.transform(v1), r.transform(v2));
@@ -293,8 +328,9 @@ pub fn meets_zero_edge_tie(origin: Vec3, dir: Vec3, v0: Vec3, v1: Vec3, v2: Vec3
 /// `IntersectTriangle`): translate the vertices to the ray origin, permute the axes so the
 /// largest `|dir|` component is z, shear so the ray is the +z axis, then evaluate the three
 /// 2D edge functions at the origin. Edge functions are exactly antisymmetric (see
-/// `edge_function`), and exactly-zero ones are recomputed in f64, so a ray through a
-/// shared edge or vertex of a closed mesh always hits at least one of its triangles.
+/// `edge_function`), and the signs of exactly-zero ones are decided exactly
+/// ([`edge_sign_exact`]), so a ray through a shared edge or vertex of a closed mesh always
+/// hits at least one of its triangles.
 ///
 /// Returns a hit only for `t_min < t < t_max` and only if `t` is conservatively positive
 /// (larger than its rounding-error bound, pbrt-v4). Never hits a triangle with `det == 0`

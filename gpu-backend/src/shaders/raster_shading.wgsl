@@ -3,7 +3,7 @@
 // ray-traced objects only when the composition weight is below 1 (else
 // (0, 0, 0, 0) there); BACKGROUND with alpha 1 where nothing was hit. One
 // invocation per pixel. Appended to the generated records,
-// shading_helpers.wgsl and shading.wgsl.
+// shading_helpers.wgsl, shading.wgsl and surface_shading.wgsl.
 
 @group(0) @binding(0) var<storage, read> surfaces: array<SurfaceRecord>;
 @group(0) @binding(1) var<storage, read> shadow: array<u32>;
@@ -11,27 +11,6 @@
 @group(0) @binding(3) var<storage, read> lights: array<LightRecord>;
 @group(0) @binding(4) var<uniform> params: FrameParams;
 @group(0) @binding(5) var<storage, read_write> raster: array<vec4<f32>>;
-
-// mirrors hyrt_core::kernels::shading::sum_visible_lights with the
-// shade_raster closure of hyrt_core::kernels::shading::shade_raster_pixel.
-fn sum_visible_lights_raster(pixel: u32, p: vec3<f32>, obj: ObjectRecord, n: vec3<f32>) -> vec3<f32> {
-    var c = vec3<f32>(0.0);
-    let nl = params.light_count;
-    for (var i = 0u; i < nl; i++) {
-        if (light_is_visible(shadow[pixel * nl + i])) {
-            let inc = light_incidence(lights[i], p);
-            c += shade_raster(obj, n, inc.l, inc.e);
-        }
-    }
-    return c;
-}
-
-// mirrors hyrt_core::kernels::shading::shade_raster_pixel
-fn shade_raster_pixel(pixel: u32, s: SurfaceRecord, obj: ObjectRecord) -> vec3<f32> {
-    let p = s.position;
-    let n = s.normal;
-    return ambient(obj) + sum_visible_lights_raster(pixel, p, obj, n);
-}
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {

@@ -186,90 +186,173 @@ fn watertight_ray_new(origin: vec3<f32>, dir: vec3<f32>) -> WatertightRay {
     return WatertightRay(origin, kz, vec3<f32>(d.x / d.z, d.y / d.z, 1.0 / d.z));
 }
 
+// Exact arithmetic of the ray/triangle test. `zero` is an always-zero uniform word
+// (`FrameParams::zero`): ORed into a result's bits, it hides the value from the compiler,
+// which can then neither fuse a product into a multiply-add nor simplify an expression
+// algebraically (`c - (c - a)` to `a`); every operation rounds once, as on the CPU.
+fn opaque(x: f32, zero: u32) -> f32 {
+    return bitcast<f32>(bitcast<u32>(x) | zero);
+}
+
+fn mul_exact(a: f32, b: f32, zero: u32) -> f32 {
+    return opaque(a * b, zero);
+}
+
 // mirrors hyrt_core::kernels::ray::WatertightRay::transform
-fn watertight_transform(r: WatertightRay, p: vec3<f32>) -> vec3<f32> {
+fn watertight_transform(r: WatertightRay, p: vec3<f32>, zero: u32) -> vec3<f32> {
     let q = permute_axes(p - r.origin, r.kz);
-    return vec3<f32>(q.x - r.shear.x * q.z, q.y - r.shear.y * q.z, q.z);
+    return vec3<f32>(q.x - mul_exact(r.shear.x, q.z, zero), q.y - mul_exact(r.shear.y, q.z, zero), q.z);
 }
 
-// Lexicographic order of two sheared vertices (x, then y).
-fn vertex_before(a: vec3<f32>, b: vec3<f32>) -> bool {
-    return a.x < b.x || (a.x == b.x && a.y < b.y);
+// mirrors hyrt_core::kernels::ray::edge_function: a.x * b.y - a.y * b.x, both products
+// rounded (unfused), so edge_function(b, a) == -edge_function(a, b) exactly.
+fn edge_function(a: vec3<f32>, b: vec3<f32>, zero: u32) -> f32 {
+    return mul_exact(a.x, b.y, zero) - mul_exact(a.y, b.x, zero);
 }
 
-// mirrors hyrt_core::kernels::ray::edge_function: a.x * b.y - a.y * b.x.
-// WGSL may fuse either product into an FMA, which would break the exact
-// antisymmetry edge(b, a) == -edge(a, b) the watertight test relies on. So the
-// edge is always evaluated with its two vertices in one canonical
-// (lexicographic) order and negated when swapped: both triangles sharing an edge
-// then compute the very same value, fused or not. Without fusion this equals the
-// CPU's plain difference bit for bit (IEEE subtraction is exactly antisymmetric).
-fn edge_function(a: vec3<f32>, b: vec3<f32>) -> f32 {
-    if vertex_before(b, a) {
-        return -(b.x * a.y - b.y * a.x);
+// mirrors hyrt_core::kernels::ray::veltkamp_split: (hi, lo)
+fn veltkamp_split(a: f32, zero: u32) -> vec2<f32> {
+    let c = mul_exact(VELTKAMP_SPLIT, a, zero);
+    let hi = opaque(c - opaque(c - a, zero), zero);
+    return vec2<f32>(hi, opaque(a - hi, zero));
+}
+
+// mirrors hyrt_core::kernels::ray::product_error (Dekker's TwoProduct)
+fn product_error(a: f32, b: f32, p: f32, zero: u32) -> f32 {
+    let sa = veltkamp_split(a, zero);
+    let sb = veltkamp_split(b, zero);
+    let x = opaque(mul_exact(sa.x, sb.x, zero) - p, zero);
+    let y = opaque(x + mul_exact(sa.x, sb.y, zero), zero);
+    let z = opaque(y + mul_exact(sa.y, sb.x, zero), zero);
+    return opaque(z + mul_exact(sa.y, sb.y, zero), zero);
+}
+
+// mirrors hyrt_core::kernels::ray::edge_sign_exact
+fn edge_sign_exact(a: vec3<f32>, b: vec3<f32>, zero: u32) -> f32 {
+    let p = mul_exact(a.x, b.y, zero);
+    return product_error(a.x, b.y, p, zero) - product_error(a.y, b.x, p, zero);
+}
+
+// mirrors hyrt_core::kernels::ray::exact_signs
+fn exact_signs(e: vec3<f32>, p0: vec3<f32>, p1: vec3<f32>, p2: vec3<f32>, zero: u32) -> vec3<f32> {
+    if e.x != 0.0 && e.y != 0.0 && e.z != 0.0 {
+        return e;
     }
-    return a.x * b.y - a.y * b.x;
+    var s = e;
+    if e.x == 0.0 {
+        s.x = edge_sign_exact(p1, p2, zero);
+    }
+    if e.y == 0.0 {
+        s.y = edge_sign_exact(p2, p0, zero);
+    }
+    if e.z == 0.0 {
+        s.z = edge_sign_exact(p0, p1, zero);
+    }
+    return s;
 }
 
-// mirrors hyrt_core::kernels::ray::WatertightRay::intersect, any-hit form: true
-// for a hit with t_min < t < t_max that is conservatively positive.
-//
-// Tie rule (no f64 in WGSL): where an f32 edge function is exactly zero the CPU
-// recomputes all three in f64 and takes the exact signs. The GPU keeps the f32
-// values: a zero edge function counts as on the edge, i.e. inside (as the CPU
-// does for an exactly-zero f64 value). Both triangles sharing that edge see the
-// same zero (canonical edge order), so a ray through a shared edge or vertex of a
-// closed mesh still hits. A non-zero f32 edge function always has the exact
-// sign (rounding is monotone), so the GPU can differ from the CPU only when the
-// two products of an edge function round to the same f32 while their exact
-// difference has the sign that rejects: the ray passes within about one rounding
-// of an open (silhouette) edge, the CPU misses and the GPU hits (pinned in
-// tests/shadow_rays.rs). Apart from t at the interval ends (f32 vs f64-rounded
-// edge values give t a few ulps apart), GPU hits are a superset of CPU hits.
-fn watertight_hit(r: WatertightRay, t_min: f32, t_max: f32, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> bool {
-    let p0 = watertight_transform(r, v0);
-    let p1 = watertight_transform(r, v1);
-    let p2 = watertight_transform(r, v2);
+// mirrors hyrt_core::kernels::ray::WatertightRay::back_face
+fn watertight_back_face(r: WatertightRay, det: f32) -> bool {
+    return (det > 0.0) == (r.shear.z > 0.0);
+}
 
-    let e0 = edge_function(p1, p2);
-    let e1 = edge_function(p2, p0);
-    let e2 = edge_function(p0, p1);
+// mirrors hyrt_core::kernels::ray::TriangleHit (`hit` false: no hit, the rest zero)
+struct TriangleHit {
+    hit: bool,
+    t: f32,
+    u: f32,
+    v: f32,
+    back_face: bool,
+}
 
-    if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
-        return false;
+// mirrors hyrt_core::kernels::ray::WatertightRay::intersect, operation for operation:
+// the same hits, t and barycentrics as the CPU, bit for bit, on a device that rounds
+// f32 operations as IEEE 754 (lavapipe does; WGSL allows a division within 2.5 ulp).
+fn watertight_intersect(r: WatertightRay, t_min: f32, t_max: f32, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>,
+                        zero: u32) -> TriangleHit {
+    let none = TriangleHit(false, 0.0, 0.0, 0.0, false);
+    let p0 = watertight_transform(r, v0, zero);
+    let p1 = watertight_transform(r, v1, zero);
+    let p2 = watertight_transform(r, v2, zero);
+
+    let e0 = edge_function(p1, p2, zero);
+    let e1 = edge_function(p2, p0, zero);
+    let e2 = edge_function(p0, p1, zero);
+
+    let s = exact_signs(vec3<f32>(e0, e1, e2), p0, p1, p2, zero);
+    if (s.x < 0.0 || s.y < 0.0 || s.z < 0.0) && (s.x > 0.0 || s.y > 0.0 || s.z > 0.0) {
+        return none;
     }
-    let det = e0 + e1 + e2;
+    let det = opaque(e0 + e1, zero) + e2;
     if det == 0.0 || !is_finite_f32(det) {
-        return false;
+        return none;
     }
 
-    let z0 = r.shear.z * p0.z;
-    let z1 = r.shear.z * p1.z;
-    let z2 = r.shear.z * p2.z;
-    let t_scaled = e0 * z0 + e1 * z1 + e2 * z2;
+    let z0 = mul_exact(r.shear.z, p0.z, zero);
+    let z1 = mul_exact(r.shear.z, p1.z, zero);
+    let z2 = mul_exact(r.shear.z, p2.z, zero);
+    let t_scaled = opaque(mul_exact(e0, z0, zero) + mul_exact(e1, z1, zero), zero) + mul_exact(e2, z2, zero);
     if det < 0.0 && t_scaled >= 0.0 {
-        return false;
+        return none;
     }
     if det > 0.0 && t_scaled <= 0.0 {
-        return false;
+        return none;
     }
 
     let inv_det = 1.0 / det;
-    let t = t_scaled * inv_det;
+    let t = mul_exact(t_scaled, inv_det, zero);
     if !(t > t_min && t < t_max) {
-        return false;
+        return none;
     }
 
+    // The conservative t > 0 bound (see the core kernel), in its operation order.
     let max_zt = max(max(abs(z0), abs(z1)), abs(z2));
-    let delta_z = GAMMA_3 * max_zt;
+    let delta_z = mul_exact(GAMMA_3, max_zt, zero);
     let max_xt = max(max(abs(p0.x), abs(p1.x)), abs(p2.x));
     let max_yt = max(max(abs(p0.y), abs(p1.y)), abs(p2.y));
-    // World-space z of the translated vertices (see the core kernel for why not max_zt).
     let max_zw = max(max(abs(p0.z), abs(p1.z)), abs(p2.z));
-    let delta_x = GAMMA_5 * (max_xt + abs(r.shear.x) * max_zw);
-    let delta_y = GAMMA_5 * (max_yt + abs(r.shear.y) * max_zw);
-    let delta_e = 2.0 * (GAMMA_2 * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+    let delta_x = mul_exact(GAMMA_5, opaque(max_xt + mul_exact(abs(r.shear.x), max_zw, zero), zero), zero);
+    let delta_y = mul_exact(GAMMA_5, opaque(max_yt + mul_exact(abs(r.shear.y), max_zw, zero), zero), zero);
+    let de0 = mul_exact(mul_exact(GAMMA_2, max_xt, zero), max_yt, zero);
+    let de1 = opaque(de0 + mul_exact(delta_y, max_xt, zero), zero);
+    let delta_e = mul_exact(2.0, opaque(de1 + mul_exact(delta_x, max_yt, zero), zero), zero);
     let max_e = max(max(abs(e0), abs(e1)), abs(e2));
-    let delta_t = 3.0 * (GAMMA_3 * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * abs(inv_det);
-    return t > delta_t;
+    let dt0 = mul_exact(mul_exact(GAMMA_3, max_e, zero), max_zt, zero);
+    let dt1 = opaque(dt0 + mul_exact(delta_e, max_zt, zero), zero);
+    let dt2 = opaque(dt1 + mul_exact(delta_z, max_e, zero), zero);
+    let delta_t = mul_exact(mul_exact(3.0, dt2, zero), abs(inv_det), zero);
+    if !(t > delta_t) {
+        return none;
+    }
+    return TriangleHit(true, t, mul_exact(e1, inv_det, zero), mul_exact(e2, inv_det, zero),
+        watertight_back_face(r, det));
+}
+
+// mirrors hyrt_core::bvh::TraversalRay
+struct TraversalRay {
+    wt: WatertightRay,
+    inv_dir: vec3<f32>,
+    t_min: f32,
+    t_max: f32,
+    box_t_min: f32,
+}
+
+// mirrors hyrt_core::bvh::TraversalRay::enter: (hit, t_enter) for [t_min, t_far],
+// both ends widened by BVH_CULL_SLACK.
+fn enter(r: TraversalRay, node: BvhNode, t_far: f32) -> vec2<f32> {
+    let far = t_far * (1.0 + BVH_CULL_SLACK);
+    return ray_aabb_conservative(r.wt.origin, r.inv_dir, r.box_t_min, far, node.aabb_min, node.aabb_max);
+}
+
+// The validity test of hyrt_core::bvh::TraversalRay::new: finite origin and direction,
+// non-zero direction, t_min < t_max (a NaN bound fails).
+fn traversal_ray_valid(ray: RayRecord) -> bool {
+    return is_finite_vec3(ray.origin) && is_finite_vec3(ray.direction) && !all(ray.direction == vec3<f32>(0.0))
+        && ray.t_min < ray.t_max;
+}
+
+// mirrors hyrt_core::bvh::TraversalRay::new for a ray that passed `traversal_ray_valid`.
+fn traversal_ray_new(ray: RayRecord) -> TraversalRay {
+    return TraversalRay(watertight_ray_new(ray.origin, ray.direction), safe_inverse_dir(ray.direction),
+        ray.t_min, ray.t_max, ray.t_min * (1.0 - BVH_CULL_SLACK));
 }

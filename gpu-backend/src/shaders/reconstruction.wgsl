@@ -8,9 +8,7 @@
 // The records and format constants (GBUF_HIT, GBUF_BACK_FACE, INVALID_ID) are
 // prepended by the Rust side (hyrt_core::formats::wgsl::declarations), then GAMMA_2,
 // GAMMA_3 and ONE_PLUS_GAMMA_3 with the exact f32 values of
-// hyrt_core::kernels::barycentric::gamma.
-
-const F32_EXPONENT_MASK: u32 = 0x7f800000u;
+// hyrt_core::kernels::barycentric::gamma, then surface.wgsl (the kernels).
 
 @group(0) @binding(0) var<storage, read> triangles: array<TriangleRecord>;
 @group(0) @binding(1) var<storage, read> normals: array<f32>;
@@ -18,10 +16,6 @@ const F32_EXPONENT_MASK: u32 = 0x7f800000u;
 @group(0) @binding(3) var<uniform> camera: CameraRecord;
 @group(0) @binding(4) var<storage, read> gbuffer: array<GBufferTexel>;
 @group(0) @binding(5) var<storage, read_write> surfaces: array<SurfaceRecord>;
-
-fn is_finite(x: f32) -> bool {
-    return (bitcast<u32>(x) & F32_EXPONENT_MASK) != F32_EXPONENT_MASK;
-}
 
 fn rounded(x: f32) -> f32 {
     return bitcast<f32>(bitcast<u32>(x) | camera.pad);
@@ -31,101 +25,6 @@ fn mul(a: f32, b: f32) -> f32 {
     return rounded(a * b);
 }
 
-fn mul3(a: vec3<f32>, s: f32) -> vec3<f32> {
-    return vec3<f32>(mul(a.x, s), mul(a.y, s), mul(a.z, s));
-}
-
-// glam's Vec3::dot: (x * x') + (y * y') + (z * z'), left to right.
-fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
-    return rounded(mul(a.x, b.x) + mul(a.y, b.y)) + mul(a.z, b.z);
-}
-
-// glam's Vec3::cross.
-fn cross3(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
-    return vec3<f32>(mul(a.y, b.z) - mul(b.y, a.z), mul(a.z, b.x) - mul(b.z, a.x), mul(a.x, b.y) - mul(b.x, a.y));
-}
-
-// glam's Vec3::normalize_or: self * (1 / length) if that reciprocal is finite and > 0.
-fn normalize_or(a: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
-    let len = sqrt(dot3(a, a));
-    // 1 / len is finite and positive exactly when len is positive, finite and not
-    // so small that the reciprocal overflows; the explicit test keeps a division by
-    // zero (or NaN) out of the shader.
-    if !(len > 0.0) || !is_finite(len) {
-        return fallback;
-    }
-    let rcp = 1.0 / len;
-    if is_finite(rcp) && rcp > 0.0 {
-        return a * rcp;
-    }
-    return fallback;
-}
-
-// mirrors hyrt_core::kernels::barycentric::bary_w
-fn bary_w(u: f32, v: f32) -> f32 {
-    return (1.0 - u) - v;
-}
-
-// mirrors hyrt_core::kernels::barycentric::reconstruct_position
-fn reconstruct_position(u: f32, v: f32, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> vec3<f32> {
-    let w = bary_w(u, v);
-    return vec3<f32>(
-        rounded(mul(w, v0.x) + mul(u, v1.x)) + mul(v, v2.x),
-        rounded(mul(w, v0.y) + mul(u, v1.y)) + mul(v, v2.y),
-        rounded(mul(w, v0.z) + mul(u, v1.z)) + mul(v, v2.z),
-    );
-}
-
-// mirrors hyrt_core::kernels::barycentric::position_error_bound
-fn position_error_bound(u: f32, v: f32, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> vec3<f32> {
-    let w = bary_w(u, v);
-    let sum = (abs(mul3(v0, w)) + abs(mul3(v1, u))) + abs(mul3(v2, v));
-    let w_err = mul(GAMMA_2, rounded(1.0 + abs(u)) + abs(v));
-    return (mul3(sum, GAMMA_3) + mul3(abs(v0), mul(w_err, ONE_PLUS_GAMMA_3))) * ONE_PLUS_GAMMA_3;
-}
-
-// mirrors hyrt_core::kernels::barycentric::interpolate_normal
-fn interpolate_normal(u: f32, v: f32, n0: vec3<f32>, n1: vec3<f32>, n2: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
-    let w = bary_w(u, v);
-    let s = vec3<f32>(
-        rounded(mul(w, n0.x) + mul(u, n1.x)) + mul(v, n2.x),
-        rounded(mul(w, n0.y) + mul(u, n1.y)) + mul(v, n2.y),
-        rounded(mul(w, n0.z) + mul(u, n1.z)) + mul(v, n2.z),
-    );
-    // sqrt + division, as the CPU (not inverseSqrt, which is not exact).
-    let len = sqrt(dot3(s, s));
-    if len > 0.0 && is_finite(len) {
-        return vec3<f32>(s.x / len, s.y / len, s.z / len);
-    }
-    return fallback;
-}
-
-// mirrors hyrt_core::kernels::barycentric::geometric_normal
-fn geometric_normal(v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>) -> vec3<f32> {
-    return normalize_or(cross3(v1 - v0, v2 - v0), vec3<f32>(0.0));
-}
-
-// mirrors hyrt_core::kernels::shading::orient_to_seen_side; returns (geometric, shading).
-fn orient_to_seen_side(geometric: vec3<f32>, shading: vec3<f32>, back_face: bool) -> array<vec3<f32>, 2> {
-    if back_face {
-        return array<vec3<f32>, 2>(-geometric, -shading);
-    }
-    return array<vec3<f32>, 2>(geometric, shading);
-}
-
-fn max_element(a: vec3<f32>) -> f32 {
-    return max(max(a.x, a.y), a.z);
-}
-
-fn corner_normal(gi: u32, k: u32) -> vec3<f32> {
-    let b = gi * 9u + k * 3u;
-    return vec3<f32>(normals[b], normals[b + 1u], normals[b + 2u]);
-}
-
-fn any_nonzero(a: vec3<f32>) -> bool {
-    return a.x != 0.0 || a.y != 0.0 || a.z != 0.0;
-}
-
 // mirrors hyrt_core::kernels::reconstruction::reconstruct_texel
 fn reconstruct_texel(t: GBufferTexel) -> SurfaceRecord {
     if (t.flags & GBUF_HIT) == 0u {
@@ -133,28 +32,8 @@ fn reconstruct_texel(t: GBufferTexel) -> SurfaceRecord {
     }
     let gi = objects[t.object].first_triangle + t.triangle;
     let tri = triangles[gi];
-    let v0 = tri.v0;
-    let v1 = tri.v1;
-    let v2 = tri.v2;
-    let eye = camera.eye;
-    let p = reconstruct_position(t.bary_u, t.bary_v, v0, v1, v2);
-    let err = max_element(position_error_bound(t.bary_u, t.bary_v, v0, v1, v2));
-    var ng = geometric_normal(v0, v1, v2);
-    var ns = interpolate_normal(t.bary_u, t.bary_v, corner_normal(gi, 0u), corner_normal(gi, 1u), corner_normal(gi, 2u), ng);
-    // The side the raster saw, exactly (the sign of the snapped triangle's area).
-    let oriented = orient_to_seen_side(ng, ns, (t.flags & GBUF_BACK_FACE) != 0u);
-    ng = oriented[0];
-    ns = oriented[1];
-    // A degenerate triangle without vertex normals has no normal at all: shade it as
-    // facing the viewer.
-    if !any_nonzero(ns) {
-        ns = normalize_or(eye - p, vec3<f32>(0.0, 1.0, 0.0));
-    }
-    // Keep the shading normal in the viewer's hemisphere of the geometric normal.
-    if any_nonzero(ng) && dot3(ns, ng) < 0.0 {
-        ns = ng;
-    }
-    return SurfaceRecord(p, err, ns, t.object, ng, gi);
+    let p = reconstruct_position(t.bary_u, t.bary_v, tri.v0, tri.v1, tri.v2);
+    return surface_at(gi, t.bary_u, t.bary_v, (t.flags & GBUF_BACK_FACE) != 0u, p, camera.eye - p);
 }
 
 @compute @workgroup_size(8, 8, 1)

@@ -59,12 +59,18 @@ fn blinn_phong_exponent(roughness: f32) -> f32 {
 
 // mirrors hyrt_core::kernels::shading::shade_ray_traced
 fn shade_ray_traced(obj: ObjectRecord, n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, e: vec3<f32>) -> vec3<f32> {
+    return shade_ray_traced_with(obj, n, v, l, e, 1.0);
+}
+
+// mirrors hyrt_core::kernels::shading::shade_ray_traced_with
+fn shade_ray_traced_with(obj: ObjectRecord, n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, e: vec3<f32>,
+                         diffuse_scale: f32) -> vec3<f32> {
     let ndl = dot3(n, l);
     if (ndl <= 0.0) {
         return vec3<f32>(0.0);
     }
     let base = obj.base_color;
-    let diffuse = mul3(base, vec3<f32>(mul(1.0 - obj.metallic, FRAC_1_PI)));
+    let diffuse = mul3(base, vec3<f32>(mul(mul(1.0 - obj.metallic, FRAC_1_PI), diffuse_scale)));
     let f0 = lerp3(vec3<f32>(DIELECTRIC_F0), base, obj.metallic);
     let h = normalize_or_zero(l + v);
     let s = blinn_phong_exponent(obj.roughness);

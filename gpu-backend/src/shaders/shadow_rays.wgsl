@@ -2,7 +2,9 @@
 // traversal): one thread per ray of the compacted list, any
 // hit with early exit. Indirect dispatch from `ray_count`; threads past the count
 // exit. Writes `occluded[ray]` (1/0) and `shadow[pixel * light_count + light]`
-// (SHADOW_LIT or SHADOW_OCCLUDED; the caller cleared it to SHADOW_NO_RAY).
+// (SHADOW_LIT or SHADOW_OCCLUDED; the caller cleared it to SHADOW_NO_RAY); at a bounce
+// depth `pixel` is the secondary ray the shadow ray leaves from, and occluded rays are
+// counted.
 //
 // Prepended at pipeline creation: the generated records and format constants
 // (hyrt_core::formats::wgsl), the ray constants and ray.wgsl.
@@ -14,43 +16,19 @@
 @group(0) @binding(4) var<storage, read> bvh_leaf_triangles: array<TriangleRecord>;
 @group(0) @binding(5) var<storage, read_write> occluded: array<u32>;
 @group(0) @binding(6) var<storage, read_write> shadow: array<u32>;
-
-// mirrors hyrt_core::bvh::TraversalRay
-struct TraversalRay {
-    wt: WatertightRay,
-    inv_dir: vec3<f32>,
-    t_min: f32,
-    t_max: f32,
-    box_t_min: f32,
-}
-
-// mirrors hyrt_core::bvh::TraversalRay::enter: (hit, t_enter) for [t_min, t_far],
-// both ends widened by BVH_CULL_SLACK.
-fn enter(r: TraversalRay, node: BvhNode, t_far: f32) -> vec2<f32> {
-    let far = t_far * (1.0 + BVH_CULL_SLACK);
-    return ray_aabb_conservative(r.wt.origin, r.inv_dir, r.box_t_min, far, node.aabb_min, node.aabb_max);
-}
+@group(0) @binding(7) var<uniform> list: ListParams;
+// The list's statistics, [reflection, refraction, hits, occluded]; bounce depths only.
+@group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 4>;
 
 // mirrors hyrt_core::bvh::Bvh::occluded. An empty BVH is uploaded as one zero
 // node: an inner node whose left child would be itself, which no real tree has
 // (children always follow their parent), so it is recognized from the data.
 fn occluded_any(ray: RayRecord) -> bool {
-    // TraversalRay::new: finite origin and direction, non-zero direction, t_min < t_max.
-    if !(is_finite_vec3(ray.origin) && is_finite_vec3(ray.direction)) {
-        return false;
-    }
-    if all(ray.direction == vec3<f32>(0.0)) {
-        return false;
-    }
-    if !(ray.t_min < ray.t_max) {
-        return false;
-    }
     let root = bvh_nodes[0];
-    if root.count == 0u && root.left_or_first == 0u {
+    if !traversal_ray_valid(ray) || (root.count == 0u && root.left_or_first == 0u) {
         return false;
     }
-    let r = TraversalRay(watertight_ray_new(ray.origin, ray.direction), safe_inverse_dir(ray.direction),
-        ray.t_min, ray.t_max, ray.t_min * (1.0 - BVH_CULL_SLACK));
+    let r = traversal_ray_new(ray);
     if enter(r, root, r.t_max).x == 0.0 {
         return false;
     }
@@ -62,7 +40,7 @@ fn occluded_any(ray: RayRecord) -> bool {
         if node.count > 0u {
             for (var slot = node.left_or_first; slot < node.left_or_first + node.count; slot = slot + 1u) {
                 let t = bvh_leaf_triangles[slot];
-                if watertight_hit(r.wt, r.t_min, r.t_max, t.v0, t.v1, t.v2) {
+                if watertight_intersect(r.wt, r.t_min, r.t_max, t.v0, t.v1, t.v2, frame.zero).hit {
                     return true;
                 }
             }
@@ -116,5 +94,8 @@ fn shadow_rays(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id)
     let ray = rays[i];
     let o = occluded_any(ray);
     occluded[i] = select(0u, 1u, o);
+    if o && list.depth > 0u {
+        atomicAdd(&counters[3], 1u);
+    }
     shadow[ray.pixel * frame.light_count + ray.light] = shadow_code(o);
 }

@@ -1,0 +1,72 @@
+//! Stage `bounce_trace` on the GPU: the closest hit of each reflection and refraction
+//! ray of one bounce through the BVH of the whole scene (ties to the lower triangle
+//! index) and the surface it hit, rebuilt from the hit's barycentrics (paper eq. 1
+//! again) on the side the ray saw: bit for bit `hyrt_cpu::bounce_trace`
+//! ([`hyrt_core::bvh::Bvh::closest_hit`] walked as `traverse` walks it, the exact
+//! watertight test of `shaders/ray.wgsl`,
+//! [`hyrt_core::kernels::reconstruction::reconstruct_hit`] in `shaders/surface.wgsl`).
+//!
+//! Reads the depth's rays and count (indirect dispatch, one thread per ray), the BVH,
+//! triangles and normals. Writes one `HitRecord` and one `SurfaceRecord` per ray and
+//! counts the hits.
+
+use hyrt_core::formats::wgsl::declarations;
+
+use crate::buffers::{FrameBuffers, SceneBuffers};
+use crate::reconstruction::surface_wgsl;
+use crate::rt_shading::{bind_buffers, compute_pipeline};
+use crate::shadow_rays::{ray_wgsl, storage_entry, uniform_entry};
+use crate::GpuContext;
+
+/// `rounded` and `mul` of `surface.wgsl` over the frame's always-zero word.
+const EXACT_PRODUCTS: &str = "fn rounded(x: f32) -> f32 {\n    return opaque(x, params.zero);\n}\n\nfn mul(a: f32, b: f32) -> f32 {\n    return mul_exact(a, b, params.zero);\n}\n";
+
+/// The `bounce_trace` stage: one pipeline.
+pub struct BounceTraceStage {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+}
+
+impl BounceTraceStage {
+    pub fn new(ctx: &GpuContext) -> Self {
+        let source =
+            declarations() + &ray_wgsl() + EXACT_PRODUCTS + &surface_wgsl() + include_str!("shaders/bounce_trace.wgsl");
+        let mut entries = vec![uniform_entry(0, false)];
+        entries.extend((1..=7).map(|i| storage_entry(i, true)));
+        entries.extend((8..=10).map(|i| storage_entry(i, false)));
+        let (pipeline, layout) = compute_pipeline(ctx, "bounce_trace", &source, &entries);
+        BounceTraceStage { pipeline, layout }
+    }
+
+    /// Trace the rays of `frame.bounces[depth - 1]`.
+    pub fn encode(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &SceneBuffers,
+        frame: &FrameBuffers,
+        depth: u32,
+        timing: Option<(&wgpu::QuerySet, u32)>,
+    ) {
+        let b = &frame.bounces[depth as usize - 1];
+        let bind_group = bind_buffers(
+            ctx,
+            "bounce_trace",
+            &self.layout,
+            &[
+                &frame.params,
+                &b.rays,
+                &b.ray_count,
+                &scene.bvh_nodes,
+                &scene.bvh_leaf_triangles,
+                &scene.bvh_prim_indices,
+                &scene.triangles,
+                &scene.normals,
+                &b.hits,
+                &b.surfaces,
+                &b.counters,
+            ],
+        );
+        crate::rt_shading::encode_list_pass(encoder, "bounce_trace", &self.pipeline, &bind_group, &b.ray_count, timing);
+    }
+}

@@ -1,0 +1,96 @@
+//! Stage `secondary_rays` on the GPU: the surfaces of depth `d - 1` that bounce
+//! (ray-traced mirrors and glass) spawn the reflection and refraction rays of depth `d`,
+//! compacted into one list in their parents' order, reflection before refraction, bit
+//! for bit the list of `hyrt_cpu::secondary_rays` (per parent and lobe the kernels of
+//! [`hyrt_core::kernels::bounce`], mirrored in `shaders/bounce.wgsl`).
+//!
+//! Reads for `d = 1` the G-buffer, the primary surfaces and the camera (one parent per
+//! pixel), else the rays, hits and surfaces of depth `d - 1` and their count (one parent
+//! per live ray); objects, triangles. Writes the rays of depth `d`, their count
+//! (`[count, dispatch_x, dispatch_y, 1]`, the indirect-dispatch arguments of the depth's
+//! other stages: no count comes back to the CPU mid-frame), each parent's
+//! `[reflection, refraction]` links (the child's index, or `INVALID_ID`), and the
+//! depth's reflection and refraction counters. The list is compacted by the shared scan
+//! ([`crate::scan`]) over two elements per parent slot.
+
+use hyrt_core::formats::wgsl::declarations;
+use hyrt_core::kernels::bounce::{IOR_OUTSIDE, MIN_THROUGHPUT};
+
+use crate::buffers::{BounceBuffers, FrameBuffers, SceneBuffers};
+use crate::rt_shading::{f32_literal, shading_helpers};
+use crate::scan::{scan_wgsl, ListScan};
+use crate::shadow_rays::{ray_wgsl, storage_entry, uniform_entry};
+use crate::GpuContext;
+
+/// The constants of `shaders/bounce.wgsl` from their Rust values, then the file: after
+/// the generated records, `ray.wgsl` and the shading helpers.
+pub(crate) fn bounce_wgsl() -> String {
+    format!(
+        "// Generated from hyrt_core::kernels::bounce (gpu-backend/src/secondary_rays.rs).\nconst IOR_OUTSIDE: f32 = {};\nconst MIN_THROUGHPUT: f32 = {};\n{}",
+        f32_literal(IOR_OUTSIDE),
+        f32_literal(MIN_THROUGHPUT),
+        include_str!("shaders/bounce.wgsl")
+    )
+}
+
+/// The `secondary_rays` stage: the shared scan over its module.
+pub struct SecondaryRaysStage {
+    scan: ListScan,
+}
+
+impl SecondaryRaysStage {
+    pub fn new(ctx: &GpuContext) -> Self {
+        let source = declarations()
+            + &ray_wgsl()
+            + &shading_helpers()
+            + &bounce_wgsl()
+            + include_str!("shaders/secondary_rays.wgsl")
+            + &scan_wgsl();
+        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("secondary_rays"),
+            source: wgpu::ShaderSource::Wgsl(source.into()),
+        });
+        let mut entries = vec![uniform_entry(0, false), uniform_entry(1, false), uniform_entry(2, false)];
+        entries.extend((3..=9).map(|i| storage_entry(i, true)));
+        entries.extend((10..=12).map(|i| storage_entry(i, false)));
+        SecondaryRaysStage { scan: ListScan::new(ctx, "secondary_rays", &module, &entries) }
+    }
+
+    /// Spawn the rays of `frame.bounces[depth - 1]` from the parents of depth
+    /// `depth - 1`; clears the depth's counters first.
+    pub fn encode(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &SceneBuffers,
+        frame: &FrameBuffers,
+        depth: u32,
+        timing: Option<(&wgpu::QuerySet, u32)>,
+    ) {
+        let b: &BounceBuffers = &frame.bounces[depth as usize - 1];
+        let (parent_surfaces, parent_rays, parent_hits, live) = match depth {
+            1 => (&frame.surfaces, &frame.empty, &frame.empty, &frame.pixel_count),
+            _ => {
+                let p = &frame.bounces[depth as usize - 2];
+                (&p.surfaces, &p.rays, &p.hits, &p.ray_count)
+            }
+        };
+        encoder.clear_buffer(&b.counters, 0, None);
+        let buffers = [
+            &frame.params,
+            &b.list,
+            &frame.camera,
+            &scene.objects,
+            &scene.triangles,
+            &frame.gbuffer,
+            parent_surfaces,
+            parent_rays,
+            parent_hits,
+            live,
+            &b.rays,
+            &b.links,
+            &b.counters,
+        ];
+        self.scan.encode(ctx, encoder, "secondary_rays", 2 * b.parents, &buffers, &b.ray_count, timing);
+    }
+}

@@ -1,0 +1,159 @@
+// Stage `bounce_trace` (hyrt_core::bvh::Bvh::closest_hit and
+// hyrt_core::kernels::reconstruction::reconstruct_hit per ray, as hyrt_cpu::bounce_trace):
+// the closest hit of each ray of bounce `list.depth` through the BVH of the whole scene
+// (ties to the lower triangle index), and the surface it hit, rebuilt from the hit's
+// barycentrics on the side the ray saw. One thread per ray, indirect dispatch from
+// `ray_count`; threads past the count (or the room) exit.
+//
+// Prepended: the generated records and constants, ray.wgsl, `rounded` and `mul` over
+// `params.zero`, surface.wgsl.
+
+@group(0) @binding(0) var<uniform> params: FrameParams;
+@group(0) @binding(1) var<storage, read> rays: array<RayRecord>;
+@group(0) @binding(2) var<storage, read> ray_count: array<u32, 4>;
+@group(0) @binding(3) var<storage, read> bvh_nodes: array<BvhNode>;
+@group(0) @binding(4) var<storage, read> bvh_leaf_triangles: array<TriangleRecord>;
+@group(0) @binding(5) var<storage, read> bvh_prim_indices: array<u32>;
+@group(0) @binding(6) var<storage, read> triangles: array<TriangleRecord>;
+@group(0) @binding(7) var<storage, read> normals: array<f32>;
+@group(0) @binding(8) var<storage, read_write> hits: array<HitRecord>;
+@group(0) @binding(9) var<storage, read_write> surfaces: array<SurfaceRecord>;
+@group(0) @binding(10) var<storage, read_write> counters: array<atomic<u32>, 4>;
+
+// mirrors hyrt_core::bvh::ClosestHit (`triangle` INVALID_ID: no hit)
+struct ClosestHit {
+    triangle: u32,
+    t: f32,
+    u: f32,
+    v: f32,
+    back_face: bool,
+}
+
+// mirrors hyrt_core::bvh::Bvh::closest_hit, walked as hyrt_core::bvh::traversal::traverse
+// walks it with the scalar ray's node test: nearer child first (ties left), the other
+// pushed with its entry distance; a node popped after the bound narrowed is visited only
+// if its entry lies within the widened bound. An empty BVH (one zero node) is recognized
+// as in shadow_rays.wgsl.
+fn closest_hit(ray: RayRecord) -> ClosestHit {
+    var best = ClosestHit(INVALID_ID, ray.t_max, 0.0, 0.0, false);
+    let root = bvh_nodes[0];
+    if !traversal_ray_valid(ray) || (root.count == 0u && root.left_or_first == 0u) {
+        return best;
+    }
+    let r = traversal_ray_new(ray);
+    var t_best = r.t_max;
+    let root_entry = enter(r, root, t_best);
+    if root_entry.x == 0.0 {
+        return best;
+    }
+    var stack_node: array<u32, BVH_STACK_SIZE>;
+    var stack_entry: array<f32, BVH_STACK_SIZE>;
+    var sp = 0u;
+    // Entries below this stack index were pushed before the last narrowing of the bound.
+    var stale = 0u;
+    var n = 0u;
+    loop {
+        let node = bvh_nodes[n];
+        var descend = false;
+        if node.count > 0u {
+            var narrowed = false;
+            for (var slot = node.left_or_first; slot < node.left_or_first + node.count; slot = slot + 1u) {
+                let tri = bvh_leaf_triangles[slot];
+                let h = watertight_intersect(r.wt, r.t_min, r.t_max, tri.v0, tri.v1, tri.v2, params.zero);
+                if h.hit {
+                    let id = bvh_prim_indices[slot];
+                    if h.t < t_best || (h.t == t_best && id < best.triangle) {
+                        best = ClosestHit(id, h.t, h.u, h.v, h.back_face);
+                        t_best = h.t;
+                        narrowed = true;
+                    }
+                }
+            }
+            if narrowed {
+                stale = sp;
+            }
+        } else {
+            let l = node.left_or_first;
+            let el = enter(r, bvh_nodes[l], t_best);
+            let er = enter(r, bvh_nodes[l + 1u], t_best);
+            if el.x != 0.0 && er.x != 0.0 {
+                let right_first = er.y < el.y;
+                // A tree deeper than the stack fails Bvh::validate; never overflow anyway.
+                if sp < BVH_STACK_SIZE {
+                    stack_node[sp] = select(l + 1u, l, right_first);
+                    stack_entry[sp] = select(er.y, el.y, right_first);
+                    sp = sp + 1u;
+                }
+                n = select(l, l + 1u, right_first);
+                descend = true;
+            } else if el.x != 0.0 {
+                n = l;
+                descend = true;
+            } else if er.x != 0.0 {
+                n = l + 1u;
+                descend = true;
+            }
+        }
+        if descend {
+            continue;
+        }
+        // Pop the next node still worth visiting.
+        var found = false;
+        loop {
+            if sp == 0u {
+                break;
+            }
+            sp = sp - 1u;
+            let next = stack_node[sp];
+            let pushed = stack_entry[sp];
+            let is_stale = sp < stale;
+            if is_stale {
+                stale = sp;
+            }
+            if !is_stale || pushed <= t_best * (1.0 + BVH_CULL_SLACK) {
+                n = next;
+                found = true;
+                break;
+            }
+        }
+        if !found {
+            break;
+        }
+    }
+    return best;
+}
+
+// mirrors hyrt_core::formats::HitRecord::from_hit
+fn hit_record(h: ClosestHit) -> HitRecord {
+    if h.triangle == INVALID_ID {
+        return HitRecord(0.0, 0.0, 0.0, INVALID_ID, 0u, 0u);
+    }
+    return HitRecord(h.t, h.u, h.v, h.triangle, HIT_FOUND | select(0u, HIT_BACK_FACE, h.back_face), 0u);
+}
+
+// mirrors hyrt_core::kernels::reconstruction::reconstruct_hit
+fn reconstruct_hit(hit: HitRecord, direction: vec3<f32>) -> SurfaceRecord {
+    if (hit.flags & HIT_FOUND) == 0u {
+        return SurfaceRecord(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), INVALID_ID, vec3<f32>(0.0), INVALID_ID);
+    }
+    let gi = hit.triangle;
+    let tri = triangles[gi];
+    let p = reconstruct_position(hit.u, hit.v, tri.v0, tri.v1, tri.v2);
+    return surface_at(gi, hit.u, hit.v, (hit.flags & HIT_BACK_FACE) != 0u, p, -direction);
+}
+
+@compute @workgroup_size(SHADOW_WG)
+fn main(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wid: vec3<u32>,
+        @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = (wid.y * nwg.x + wid.x) * SHADOW_WG + lid;
+    if i >= min(ray_count[0], arrayLength(&rays)) {
+        return;
+    }
+    let ray = rays[i];
+    let hit = hit_record(closest_hit(ray));
+    hits[i] = hit;
+    surfaces[i] = reconstruct_hit(hit, ray.direction);
+    if (hit.flags & HIT_FOUND) != 0u {
+        atomicAdd(&counters[2], 1u);
+    }
+}
