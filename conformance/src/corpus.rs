@@ -13,7 +13,11 @@
 //! - `degenerate_*`: zero-area, NaN and Inf triangles, an empty scene, a scene without
 //!   lights, all-miss and all-hit frames;
 //! - `size_*`: 1x1, odd sizes (not multiples of tile or workgroup sizes), rows wider
-//!   than 256 bytes, a tall single column.
+//!   than 256 bytes, a tall single column;
+//! - `bounce_*`: reflection and refraction: two parallel mirrors (the depth limit
+//!   reached), a glass sphere with total internal reflection, grazing refraction, glass
+//!   inside glass, refracted rays through the shared edges and vertices of low-poly
+//!   glass, a mirror 1e5 from the origin.
 //!
 //! Images are small (lavapipe runs the GPU side on the CI's two cores).
 
@@ -21,6 +25,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{DMat4, DVec4, Mat4, Quat, Vec3};
 use hyrt_core::formats::CameraRecord;
+use hyrt_core::kernels::bounce::DEFAULT_MAX_DEPTH;
 use hyrt_core::scene::{Camera, Light, Material, MaterialKind, Mesh, RenderMode, Scene};
 
 /// One scene of the corpus with the image it is rendered at.
@@ -36,6 +41,9 @@ pub struct Case {
     pub height: u32,
     /// Composition weight (paper 3.5).
     pub weight: f32,
+    /// Deepest reflection and refraction bounce (`FrameOptions::max_depth`): the
+    /// library's default ([`DEFAULT_MAX_DEPTH`]) unless the case says otherwise.
+    pub max_depth: u32,
 }
 
 /// The shared models folder (`<repo>/../shared/assets`), if present.
@@ -108,7 +116,16 @@ struct Builder {
 
 impl Builder {
     fn add(&mut self, name: &str, stresses: &'static str, scene: Scene, camera: Camera, w: u32, h: u32) {
-        self.cases.push(Case { name: name.into(), stresses, scene, camera, width: w, height: h, weight: 1.0 });
+        self.cases.push(Case {
+            name: name.into(),
+            stresses,
+            scene,
+            camera,
+            width: w,
+            height: h,
+            weight: 1.0,
+            max_depth: DEFAULT_MAX_DEPTH,
+        });
     }
 }
 
@@ -168,6 +185,7 @@ fn default_case(b: &mut Builder) {
         width: 67,
         height: 41,
         weight: 0.5,
+        max_depth: DEFAULT_MAX_DEPTH,
     });
 }
 
@@ -634,7 +652,131 @@ pub fn corpus() -> Vec<Case> {
     ray_cases(&mut b);
     degenerate_cases(&mut b);
     size_cases(&mut b);
+    bounce_cases(&mut b);
     b.cases
+}
+
+/// A perfect mirror: metallic, roughness 0, a faint tint.
+fn mirror() -> Material {
+    Material {
+        name: "mirror".into(),
+        base_color: Vec3::new(0.95, 0.95, 0.92),
+        metallic: 1.0,
+        roughness: 0.0,
+        transmission: 0.0,
+        kind: MaterialKind::Specular,
+    }
+}
+
+/// Clear glass of index `ior`.
+fn glass(ior: f32) -> Material {
+    Material {
+        name: format!("glass {ior}"),
+        base_color: Vec3::new(0.97, 0.98, 1.0),
+        metallic: 0.0,
+        roughness: 0.0,
+        transmission: 1.0,
+        kind: MaterialKind::Glass { ior },
+    }
+}
+
+fn bounce_cases(b: &mut Builder) {
+    let (w, h) = (64u32, 48u32);
+    let with_depth = |b: &mut Builder, depth: u32| b.cases.last_mut().expect("a case").max_depth = depth;
+
+    // Two parallel mirrors facing each other with a ball between them, seen at an
+    // angle: rays bounce between the mirrors until the depth limit.
+    let mut s = Scene { lights: vec![point(Vec3::new(0.0, 3.0, 1.0), 30.0)], ..Scene::default() };
+    s.add_object(Mesh::grid("floor", 4), diffuse("floor", Vec3::splat(0.7)), Mat4::from_scale(Vec3::splat(8.0)), RT);
+    for (name, x, angle) in [("mirror_left", -1.5f32, -1.0f32), ("mirror_right", 1.5, 1.0)] {
+        s.add_object(
+            Mesh::grid(name, 2),
+            mirror(),
+            Mat4::from_translation(Vec3::new(x, 1.0, 0.0))
+                * Mat4::from_quat(Quat::from_rotation_z(angle * std::f32::consts::FRAC_PI_2))
+                * Mat4::from_scale(Vec3::new(2.0, 1.0, 12.0)),
+            RT,
+        );
+    }
+    s.add_object(
+        Mesh::uv_sphere("ball", 16, 8),
+        diffuse("ball", Vec3::new(0.9, 0.4, 0.1)),
+        Mat4::from_translation(Vec3::new(0.3, 0.5, 0.0)) * Mat4::from_scale(Vec3::splat(0.4)),
+        RASTER,
+    );
+    let cam = camera(Vec3::new(-1.2, 1.1, 2.0), Vec3::new(1.5, 0.9, 1.4), 0.05, 50.0);
+    b.add("bounce_parallel_mirrors", "rays between two parallel mirrors until the depth limit", s, cam, w, h);
+    with_depth(b, 8);
+
+    // A glass sphere of high index seen whole: its rim reflects totally inside.
+    let mut s = Scene { lights: vec![point(Vec3::new(2.0, 4.0, 3.0), 40.0)], ..Scene::default() };
+    stage_set(&mut s, 8.0);
+    s.add_object(
+        Mesh::uv_sphere("diamond_ball", 32, 16),
+        glass(2.4),
+        Mat4::from_translation(Vec3::new(0.0, 1.0, 0.0)),
+        RT,
+    );
+    let cam = camera(Vec3::new(0.0, 1.4, 3.5), Vec3::new(0.0, 1.0, 0.0), 0.05, 50.0);
+    b.add(
+        "bounce_glass_total_internal_reflection",
+        "a glass sphere of index 2.4: total internal reflection",
+        s,
+        cam,
+        w,
+        h,
+    );
+    with_depth(b, 6);
+
+    // A glass slab seen edge-on from just above its top face: refraction at grazing
+    // incidence, Fresnel near 1.
+    let mut s = Scene { lights: vec![point(Vec3::new(0.0, 3.0, -2.0), 30.0)], ..Scene::default() };
+    stage_set(&mut s, 8.0);
+    s.add_object(
+        Mesh::cube("slab"),
+        glass(1.5),
+        Mat4::from_translation(Vec3::new(0.0, 0.5, 0.0)) * Mat4::from_scale(Vec3::new(2.0, 0.25, 1.5)),
+        RT,
+    );
+    let cam = camera(Vec3::new(0.0, 0.78, 4.0), Vec3::new(0.0, 0.74, 0.0), 0.05, 50.0);
+    b.add("bounce_grazing_refraction", "refraction into a slab's top face at grazing incidence", s, cam, w, h);
+
+    // Glass inside glass: media are not nested (each surface separates its object's
+    // index from air), documented in hyrt_core::kernels::bounce; both backends agree.
+    let mut s = Scene { lights: vec![point(Vec3::new(1.0, 4.0, 2.0), 40.0)], ..Scene::default() };
+    stage_set(&mut s, 8.0);
+    s.add_object(Mesh::uv_sphere("outer", 32, 16), glass(1.5), Mat4::from_translation(Vec3::new(0.0, 1.0, 0.0)), RT);
+    s.add_object(
+        Mesh::uv_sphere("inner", 24, 12),
+        glass(1.33),
+        Mat4::from_translation(Vec3::new(0.1, 1.0, 0.1)) * Mat4::from_scale(Vec3::splat(0.5)),
+        RT,
+    );
+    let cam = camera(Vec3::new(0.0, 1.3, 3.2), Vec3::new(0.0, 1.0, 0.0), 0.05, 50.0);
+    b.add("bounce_glass_inside_glass", "a glass ball inside another (media not nested)", s, cam, w, h);
+    with_depth(b, 8);
+
+    // Low-poly glass seen along its axes: an axis-aligned cube straight on (the centre
+    // ray enters through a face's diagonal edge and leaves through the opposite one) and
+    // an octahedron-like sphere: refracted rays leave through shared edges and vertices.
+    let mut s = Scene { lights: vec![point(Vec3::new(0.5, 4.0, 0.5), 40.0)], ..Scene::default() };
+    s.add_object(Mesh::grid("floor", 8), diffuse("floor", Vec3::splat(0.8)), Mat4::from_scale(Vec3::splat(8.0)), RT);
+    s.add_object(Mesh::cube("glass_cube"), glass(1.5), Mat4::from_translation(Vec3::new(0.0, 0.0, 0.0)), RT);
+    s.add_object(Mesh::uv_sphere("octahedron", 4, 2), glass(1.5), Mat4::from_translation(Vec3::new(2.5, 0.0, 0.0)), RT);
+    let cam = camera(Vec3::new(0.0, 0.0, 6.0), Vec3::ZERO, 0.05, 50.0);
+    b.add(
+        "bounce_through_shared_edges_and_vertices",
+        "refracted rays through the shared edges and vertices of low-poly glass, on axis",
+        s,
+        cam,
+        63,
+        47,
+    );
+
+    // The default scene (a golden mirror sphere and a glass ball) 1e5 from the origin:
+    // coordinates of ulp 2^-7, where origin offsets decide self-intersection.
+    let (s, cam) = transformed_default(Vec3::new(1.0e5, 0.0, 1.0e5), 1.0);
+    b.add("bounce_mirror_far_from_origin", "mirror and glass 1e5 from the origin", s, cam, w, h);
 }
 
 #[cfg(test)]
@@ -650,7 +792,9 @@ mod tests {
         assert_eq!(names.len(), c.len());
         for case in &c {
             assert!(
-                ["paper_", "raster_", "ray_", "degenerate_", "size_"].iter().any(|p| case.name.starts_with(p)),
+                ["paper_", "raster_", "ray_", "degenerate_", "size_", "bounce_"]
+                    .iter()
+                    .any(|p| case.name.starts_with(p)),
                 "{}",
                 case.name
             );

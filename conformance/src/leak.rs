@@ -436,6 +436,8 @@ pub fn leak_case(
         width: LEAK_WIDTH,
         height: LEAK_HEIGHT,
         weight: 1.0,
+        // Shadow rays are what leaks; the shells are diffuse.
+        max_depth: 0,
     };
     let far = placement.centre.abs().max_element() + 2.0 * s;
     let feature_ulps = GAP_FRACTION * s / ulp(far);
