@@ -54,7 +54,9 @@ fn stages(c: &mut Criterion) {
         let mut r = Renderer::cpu(None);
         let prepared = r.prepare(&b.scene);
         group.bench_function("frame", |bn| {
-            bn.iter(|| r.render(&prepared, &cam, W, H, &FrameOptions::default()).unwrap())
+            // The paper's frame (shadow rays only), as the stage benches above.
+            let paper = FrameOptions { max_depth: 0, ..FrameOptions::default() };
+            bn.iter(|| r.render(&prepared, &cam, W, H, &paper).unwrap())
         });
         group.finish();
     }

@@ -62,11 +62,12 @@ pub struct FrameOptions {
 }
 
 impl Default for FrameOptions {
-    /// Weight 1 (ray-traced objects shaded by the tracer alone), no stage outputs, no
-    /// bounces (the paper's frame). Both backends trace any `max_depth`;
-    /// [`crate::kernels::bounce::DEFAULT_MAX_DEPTH`] is the suggested one.
+    /// Weight 1 (ray-traced objects shaded by the tracer alone), no stage outputs,
+    /// reflection and refraction to [`crate::kernels::bounce::DEFAULT_MAX_DEPTH`]
+    /// bounces (a scene without ray-traced mirrors or glass plans none; `max_depth: 0`
+    /// gives the paper's frame, shadow rays only).
     fn default() -> Self {
-        FrameOptions { weight: 1.0, stage_outputs: false, max_depth: 0 }
+        FrameOptions { weight: 1.0, stage_outputs: false, max_depth: crate::kernels::bounce::DEFAULT_MAX_DEPTH }
     }
 }
 

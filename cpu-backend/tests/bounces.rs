@@ -107,7 +107,7 @@ fn secondary_rays_a_mirror_shows_the_sky_in_the_mirror_direction() {
         assert_eq!(refr, INVALID_ID, "a mirror does not refract");
         assert_ne!(refl, INVALID_ID, "pixel {i}: a mirror reflects");
         assert!(!b1.hits[refl as usize].is_hit(), "pixel {i}: the reflection met the mirror itself");
-        let p = DVec3::from(Vec3::from(f.surfaces[i].position).as_dvec3());
+        let p = Vec3::from(f.surfaces[i].position).as_dvec3();
         let d = (p - eye.as_dvec3()).normalize();
         let r = d - DVec3::Z * (2.0 * d.dot(DVec3::Z));
         let want = sky_f64(r);

@@ -55,7 +55,8 @@ fn cpu_case(name: &str, scene: &Scene, width: u32, height: u32, weight: f32) -> 
     let prepared = PreparedScene::new(geometry, bvh, 0.0);
     let camera = CameraRecord::new(&scene.camera.expect("scene camera"), width, height);
     let mut cpu = CpuBackend::new(Some(1))
-        .render(&prepared, &camera, &FrameOptions { weight, ..FrameOptions::with_stage_outputs() })
+        // The paper's frame: these tests run its rt_shading (the bounce stages have theirs).
+        .render(&prepared, &camera, &FrameOptions { weight, max_depth: 0, ..FrameOptions::with_stage_outputs() })
         .expect("cpu render");
     if !cpu.holds(FrameBuffer::Rt) {
         // The frame's plan skipped rt_shading (weight 0): the stage tests still compare

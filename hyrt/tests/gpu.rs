@@ -115,7 +115,8 @@ fn gpu_traces_bounces_and_makes_room_for_its_lists() {
     cam.target = Vec3::new(-0.3, 0.65, 2.0);
     cam.eye = cam.target + Vec3::new(0.0, 0.3, 1.6);
     let (g, c) = (gpu.prepare(&scene), cpu.prepare(&scene));
-    let opts = FrameOptions { max_depth: 4, ..FrameOptions::with_stage_outputs() };
+    let opts = FrameOptions::with_stage_outputs();
+    assert_eq!(opts.max_depth, hyrt::DEFAULT_MAX_DEPTH, "frames trace bounces by default");
     let (w, h) = (40, 30);
     let expected = cpu.render(&c, &cam, w, h, &opts).unwrap();
     let first =
@@ -124,10 +125,10 @@ fn gpu_traces_bounces_and_makes_room_for_its_lists() {
     let all = gpu.render(&g, &cam, w, h, &opts).unwrap();
     assert_eq!(bytemuck_bits(&all.final_image), bytemuck_bits(&expected.final_image));
     assert_eq!(all.stats.bounces, expected.stats.bounces);
-    let lean = gpu.render(&g, &cam, w, h, &FrameOptions { max_depth: 4, ..FrameOptions::default() }).unwrap();
+    let lean = gpu.render(&g, &cam, w, h, &FrameOptions::default()).unwrap();
     assert_eq!(bytemuck_bits(&lean.final_image), bytemuck_bits(&expected.final_image));
     assert_eq!(lean.stats.bounces, expected.stats.bounces);
     assert!(lean.bounces.iter().all(|b| b.rays.is_empty()), "no stage outputs: no bounce buffer comes back");
-    let flat = gpu.render(&g, &cam, w, h, &FrameOptions::default()).unwrap();
+    let flat = gpu.render(&g, &cam, w, h, &FrameOptions { max_depth: 0, ..FrameOptions::default() }).unwrap();
     assert!(flat.stats.bounces.is_empty());
 }
