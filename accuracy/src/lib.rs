@@ -31,6 +31,7 @@
 //! # Ok::<(), hyrt_accuracy::AccuracyError>(())
 //! ```
 
+pub mod bounce_reference;
 pub mod leaks;
 pub mod metrics;
 pub mod plot;

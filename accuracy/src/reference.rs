@@ -28,7 +28,7 @@
 use glam::{DMat4, DVec3, DVec4, Vec3};
 use hyrt_core::bvh::traversal::{traverse, LeafFlow, NodeTest};
 use hyrt_core::bvh::{Bvh, BvhNode};
-use hyrt_core::formats::{LightRecord, ObjectRecord, SurfaceRecord, TriangleRecord, LIGHT_DIRECTIONAL};
+use hyrt_core::formats::{LightRecord, ObjectRecord, SurfaceRecord, TriangleRecord, INVALID_ID, LIGHT_DIRECTIONAL};
 use hyrt_core::frame::{SHADOW_LIT, SHADOW_NO_RAY, SHADOW_OCCLUDED};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::scene::Camera;
@@ -225,12 +225,28 @@ pub fn closest_hit_f64(
     t_min: f64,
     t_max: f64,
 ) -> Option<(u32, Hit64)> {
+    closest_hit_f64_excluding(bvh, triangles, ray, t_min, t_max, INVALID_ID)
+}
+
+/// [`closest_hit_f64`] ignoring triangle `exclude` (`INVALID_ID`: none): the surface a
+/// secondary ray leaves ([`crate::bounce_reference`]).
+pub fn closest_hit_f64_excluding(
+    bvh: &Bvh,
+    triangles: &[TriangleRecord],
+    ray: &Ray64,
+    t_min: f64,
+    t_max: f64,
+    exclude: u32,
+) -> Option<(u32, Hit64)> {
     let mut best: Option<(u32, Hit64)> = None;
     let mut best_t = t_max;
     traverse(&bvh.nodes, &Interval64 { ray, t_min }, &mut best_t, |leaf, _, best_t| {
         let mut flow = LeafFlow::Continue;
         leaf.slots().for_each(|slot| {
             let id = bvh.prim_indices[slot as usize];
+            if id == exclude {
+                return;
+            }
             let tri = &triangles[id as usize];
             if let Some(h) = ray.intersect(t_min, t_max, tri.v0.into(), tri.v1.into(), tri.v2.into()) {
                 let better = match best {
@@ -326,6 +342,16 @@ pub struct ReferenceHit {
     pub position: DVec3,
 }
 
+impl ReferenceHit {
+    /// The hit `h` of global triangle `id`, its point rebuilt as `w v0 + u v1 + v v2` in f64.
+    pub fn new(triangles: &[TriangleRecord], id: u32, h: Hit64) -> ReferenceHit {
+        let tri = &triangles[id as usize];
+        let [v0, v1, v2] = tri.vertices().map(|v| v.as_dvec3());
+        let position = v0 * (1.0 - h.u - h.v) + v1 * h.u + v2 * h.v;
+        ReferenceHit { object: tri.object, triangle: id, t: h.t, u: h.u, v: h.v, position }
+    }
+}
+
 /// What the reference renderer produces for one view.
 #[derive(Clone, Debug)]
 pub struct ReferenceFrame {
@@ -342,12 +368,28 @@ pub struct ReferenceFrame {
     pub image: Vec<[f32; 4]>,
 }
 
-/// The surface record of an f64 hit: mirrors `hyrt_cpu::reconstruction::reconstruct_texel`
+/// An f64 surface: the rounded record the shading kernels read, and the f64 normals
+/// (unit, facing the viewer) the reference's own decisions use.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Surface64 {
+    pub record: SurfaceRecord,
+    /// Geometric normal (zero for a degenerate triangle).
+    pub ng: DVec3,
+    /// Shading normal, in the geometric normal's hemisphere.
+    pub ns: DVec3,
+    /// The viewer sees the triangle's back (its winding's normal points away): the f64
+    /// form of `GBUF_BACK_FACE` and `HIT_BACK_FACE`.
+    pub back_face: bool,
+}
+
+/// The surface record of an f64 hit seen from the direction `to_viewer` (from the point
+/// towards the eye or the ray's origin): mirrors `hyrt_core::kernels::reconstruction`
 /// (geometric and interpolated shading normal, both facing the viewer: decided here by the
-/// sign of `n . (eye - p)` in f64, exact enough to be the truth, where the pipeline takes
-/// the raster's exact `GBUF_BACK_FACE` because an f32 dot product is not; the shading normal
-/// kept in the geometric normal's hemisphere), in f64, rounded at the end.
-fn surface_of(hit: &ReferenceHit, geometry: &WorldGeometry, eye: DVec3) -> (SurfaceRecord, DVec3, DVec3) {
+/// sign of `n . to_viewer` in f64, exact enough to be the truth, where the pipeline takes
+/// the raster's `GBUF_BACK_FACE` or the watertight test's determinant because an f32 dot
+/// product is not exact; the shading normal kept in the geometric normal's hemisphere), in
+/// f64, rounded at the end.
+pub(crate) fn surface_of(hit: &ReferenceHit, geometry: &WorldGeometry, to_viewer: DVec3) -> Surface64 {
     let tri = &geometry.triangles[hit.triangle as usize];
     let [v0, v1, v2] = tri.vertices().map(|v| v.as_dvec3());
     let ng = (v1 - v0).cross(v2 - v0).normalize_or_zero();
@@ -356,15 +398,15 @@ fn surface_of(hit: &ReferenceHit, geometry: &WorldGeometry, eye: DVec3) -> (Surf
     let ns = (n0 * w + n1 * hit.u + n2 * hit.v).normalize_or_zero();
     let ns = if ns == DVec3::ZERO {
         if ng == DVec3::ZERO {
-            (eye - hit.position).normalize_or(DVec3::Y)
+            to_viewer.normalize_or(DVec3::Y)
         } else {
             ng
         }
     } else {
         ns
     };
-    let to_eye = eye - hit.position;
-    let (ng, ns) = if ng.dot(to_eye) < 0.0 { (-ng, -ns) } else { (ng, ns) };
+    let back_face = ng.dot(to_viewer) < 0.0;
+    let (ng, ns) = if back_face { (-ng, -ns) } else { (ng, ns) };
     let ns = if ng != DVec3::ZERO && ns.dot(ng) < 0.0 { ng } else { ns };
     let s = SurfaceRecord {
         position: hit.position.as_vec3().into(),
@@ -374,13 +416,13 @@ fn surface_of(hit: &ReferenceHit, geometry: &WorldGeometry, eye: DVec3) -> (Surf
         geometric_normal: ng.as_vec3().normalize_or_zero().into(),
         triangle: hit.triangle,
     };
-    (s, ng, ns)
+    Surface64 { record: s, ng, ns, back_face }
 }
 
 /// Reference shadow decision for one (surface, light): `SHADOW_NO_RAY` where the light
 /// cannot contribute (back side of either normal, no energy: the f64 form of
 /// `hyrt_core::kernels::shading::light_can_contribute`), else traced in f64.
-fn reference_shadow(
+pub(crate) fn reference_shadow(
     bvh: &Bvh,
     triangles: &[TriangleRecord],
     hit: &ReferenceHit,
@@ -418,8 +460,20 @@ pub fn shade_image(
     eye: Vec3,
 ) -> Vec<[f32; 4]> {
     let rt = hyrt_cpu::rt_shading::rt_shading(surfaces, shadow, objects, lights, eye);
+    compose_with_raster(&rt, surfaces, shadow, objects, lights)
+}
+
+/// The rest of [`shade_image`] after `rt_shading` (with or without bounces): the raster
+/// shading stage and composition at weight 1.
+pub fn compose_with_raster(
+    rt: &[[f32; 4]],
+    surfaces: &[SurfaceRecord],
+    shadow: &[u8],
+    objects: &[ObjectRecord],
+    lights: &[LightRecord],
+) -> Vec<[f32; 4]> {
     let raster = hyrt_cpu::raster_shading::raster_shading(surfaces, shadow, objects, lights, 1.0);
-    hyrt_cpu::composition::composition(&raster, &rt, 1.0)
+    hyrt_cpu::composition::composition(&raster, rt, 1.0)
 }
 
 /// Render the f64 reference of `camera` at `width` x `height` (both > 0). `bvh` must be
@@ -444,12 +498,10 @@ pub fn render_reference(
             let Some((id, h)) = hit else {
                 return (None, SurfaceRecord::MISS, vec![SHADOW_NO_RAY; nl]);
             };
-            let [v0, v1, v2] = tris[id as usize].vertices().map(|v| v.as_dvec3());
-            let position = v0 * (1.0 - h.u - h.v) + v1 * h.u + v2 * h.v;
-            let rh = ReferenceHit { object: tris[id as usize].object, triangle: id, t: h.t, u: h.u, v: h.v, position };
-            let (s, ng, ns) = surface_of(&rh, geometry, cam.eye);
-            let shadow = geometry.lights.iter().map(|l| reference_shadow(bvh, tris, &rh, ng, ns, l)).collect();
-            (Some(rh), s, shadow)
+            let rh = ReferenceHit::new(tris, id, h);
+            let s = surface_of(&rh, geometry, cam.eye - rh.position);
+            let shadow = geometry.lights.iter().map(|l| reference_shadow(bvh, tris, &rh, s.ng, s.ns, l)).collect();
+            (Some(rh), s.record, shadow)
         })
         .collect();
     let mut hits = Vec::with_capacity(per_pixel.len());
