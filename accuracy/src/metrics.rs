@@ -118,6 +118,24 @@ pub fn srgb8(image: &[[f32; 4]]) -> Vec<u8> {
     image.iter().flat_map(|p| [linear_to_srgb8(p[0]), linear_to_srgb8(p[1]), linear_to_srgb8(p[2])]).collect()
 }
 
+/// A pixel is *wrong* ([`wrong_pixels`]) when a channel of its 8-bit sRGB encoding
+/// differs from the reference's by more than this many codes. One code is tolerated: two
+/// linear values a few f32 ulps apart (the pipeline's f32 shading against the reference's
+/// f64 paths) round to neighbouring codes whenever a code boundary falls between them,
+/// however small their difference.
+pub const WRONG_PIXEL_CODES: u8 = 1;
+
+/// Pixels of `test` whose 8-bit sRGB encoding (the PNG the renderer writes) differs from
+/// `reference`'s by more than [`WRONG_PIXEL_CODES`] in some channel.
+pub fn wrong_pixels(reference: &[[f32; 4]], test: &[[f32; 4]]) -> u64 {
+    assert_eq!(reference.len(), test.len(), "images of different sizes");
+    reference
+        .iter()
+        .zip(test)
+        .filter(|(r, t)| (0..3).any(|c| linear_to_srgb8(r[c]).abs_diff(linear_to_srgb8(t[c])) > WRONG_PIXEL_CODES))
+        .count() as u64
+}
+
 /// Mean LDR-FLIP error (Andersson et al. 2020) of `test` against `reference`, both
 /// linear RGBA of `width` x `height`, compared as the sRGB 8-bit images the renderer
 /// writes, at NVIDIA's default viewing condition (`nv_flip::DEFAULT_PIXELS_PER_DEGREE`:
@@ -144,6 +162,27 @@ mod tests {
         let b = vec![[0.75f32, 0.5, 0.25, 1.0]; 10];
         assert!((rmse(&a, &b) - 0.25).abs() < 1e-12);
         assert_eq!(rmse(&a, &a), 0.0);
+    }
+
+    #[test]
+    fn wrong_pixels_tolerate_one_srgb_code_and_count_two() {
+        // linear_to_srgb8(0.2) is 124; 0.2 and a value two codes up.
+        let a = vec![[0.2f32, 0.2, 0.2, 1.0]; 4];
+        let mut b = a.clone();
+        let code = linear_to_srgb8(0.2);
+        let up = |codes: u8| {
+            let mut x = 0.2f32;
+            while linear_to_srgb8(x) < code + codes {
+                x += 1e-4;
+            }
+            x
+        };
+        b[0][1] = up(1);
+        assert_eq!(wrong_pixels(&a, &b), 0, "one code is rounding");
+        b[1][2] = up(2);
+        b[3][0] = 1.0;
+        assert_eq!(wrong_pixels(&a, &b), 2);
+        assert_eq!(wrong_pixels(&a, &a), 0);
     }
 
     #[test]
