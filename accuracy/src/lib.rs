@@ -13,13 +13,24 @@
 //! * `shadows`: ray-traced shadows against shadow maps of several resolutions
 //!   ([`shadow_map`]): the paper's claim that ray-traced shadows are more accurate.
 //!
+//! These four groups measure the paper's frame (max depth 0). Where the scene has a
+//! ray-traced mirror or glass, three more measure the reflection and refraction bounces
+//! against the reference with bounce paths ([`bounce_reference`]):
+//!
+//! * `max depth`: the frame at `max_depth` 0 to [`MAX_DEPTHS`].
+//! * `bounce origin`: secondary-ray origins by each [`variants::OffsetMethod`]
+//!   ([`bounce_variants::reoffset_secondary_rays`]), at the CPU's default depth.
+//! * `throughput cut-off`: the path-weight cut-off below which a lobe is not traced
+//!   ([`bounce_variants::CUTOFFS_LOG2`], spawned by [`bounce_variants::spawn_with_cutoff`]).
+//!
 //! [`leaks`] compares the ray-origin offsets again on the leak corpus (closed shells far
 //! from the origin, lights sealed inside or outside), where they decide whether light
 //! escapes.
 //!
 //! Errors ([`metrics`]): shadow-mask mismatches against the reference (false shadows and
 //! light leaks, over the (pixel, light) pairs both traced), hit-point error relative to
-//! the scene extent, image RMSE and mean FLIP (`nv-flip`, NVIDIA's implementation).
+//! the scene extent, image RMSE, mean FLIP (`nv-flip`, NVIDIA's implementation) and wrong
+//! pixels (8-bit sRGB codes off by more than [`metrics::WRONG_PIXEL_CODES`]).
 //!
 //! ```no_run
 //! use hyrt_accuracy::{speed_vs_error, AccuracyOptions};
@@ -32,6 +43,7 @@
 //! ```
 
 pub mod bounce_reference;
+pub mod bounce_variants;
 pub mod leaks;
 pub mod metrics;
 pub mod plot;
@@ -47,14 +59,17 @@ use glam::Vec3;
 use hyrt_core::bvh::{Bvh, BvhPreset};
 use hyrt_core::formats::{CameraRecord, SurfaceRecord};
 use hyrt_core::geometry::WorldGeometry;
+use hyrt_core::kernels::bounce::{bounces, DEFAULT_MAX_DEPTH};
 use hyrt_core::scene::Scene;
 use hyrt_cpu::compaction::{compaction, shadow_mask};
 use hyrt_cpu::reconstruction::reconstruction;
 use hyrt_cpu::shadow_rays::shadow_rays;
 use hyrt_cpu::visibility_raster::visibility_raster;
 
+use bounce_reference::{render_reference_bounces, BounceImage, REFERENCE_MAX_DEPTH};
+use bounce_variants::{bounce_rt_image, cutoff_name, BounceVariant, PrimaryBuffers, CUTOFFS_LOG2};
 use metrics::{HitPointError, ShadowComparison};
-use reference::{render_reference, shade_image, ReferenceFrame};
+use reference::{compose_with_raster, render_reference, shade_image, ReferenceFrame};
 use variants::OffsetMethod;
 
 /// What [`speed_vs_error`] measures.
@@ -78,11 +93,24 @@ pub const SHADOW_MAP_RESOLUTIONS: [u32; 4] = [512, 1024, 2048, 4096];
 /// Shadow-map resolutions with `quick`.
 pub const QUICK_SHADOW_MAP_RESOLUTIONS: [u32; 2] = [256, 1024];
 
+/// The `max depth` group measures `max_depth` 0 to this (the issue's 0..8).
+pub const MAX_DEPTHS: u32 = 8;
+
+/// The depth of the `bounce origin` and `throughput cut-off` groups: the CPU's default.
+pub const VARIANT_MAX_DEPTH: u32 = DEFAULT_MAX_DEPTH;
+
+/// The groups of the paper's frame (max depth 0), scored against the reference without
+/// bounces.
+pub const FRAME_GROUPS: [&str; 4] = ["bvh", "barycentrics", "ray origin", "shadows"];
+
+/// The groups of bounces, scored against the reference with bounce paths.
+pub const BOUNCE_GROUPS: [&str; 3] = ["max depth", "bounce origin", "throughput cut-off"];
+
 /// One configuration's measurements.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AccuracyRow {
     pub scene: String,
-    /// `bvh`, `barycentrics`, `ray origin` or `shadows`.
+    /// One of [`FRAME_GROUPS`] or [`BOUNCE_GROUPS`].
     pub group: String,
     pub configuration: String,
     /// Median time of the whole CPU frame with this configuration, in ms.
@@ -95,12 +123,17 @@ pub struct AccuracyRow {
     pub build_ms: Option<f64>,
     /// Shadow rays traced per second (millions), where shadows are ray traced.
     pub mrays_per_s: Option<f64>,
+    /// Secondary (reflection and refraction) rays traced, all bounces; bounce groups only.
+    pub secondary_rays: Option<u64>,
     pub shadow: ShadowComparison,
     /// Pixels whose primary hit differs from the reference's.
     pub primary_mismatches: u64,
     pub hit_error: HitPointError,
     pub rmse: f64,
     pub flip: f64,
+    /// Pixels whose 8-bit sRGB codes differ from the reference's by more than
+    /// [`metrics::WRONG_PIXEL_CODES`] ([`metrics::wrong_pixels`]).
+    pub wrong_pixels: u64,
 }
 
 /// What [`speed_vs_error`] writes and returns.
@@ -145,6 +178,9 @@ enum Config {
     Offset(OffsetMethod),
     /// Shadow maps of this resolution, or ray-traced shadows for `None` (stage: shadows).
     Shadows(Option<u32>),
+    /// The pipeline's shadows and bounces down to `max_depth`, with `variant`'s change
+    /// (stage: the bounce stages).
+    Bounces { max_depth: u32, variant: BounceVariant },
 }
 
 /// The outputs of one frame and its times.
@@ -153,6 +189,8 @@ struct FrameRun {
     mask: Vec<u8>,
     image: Vec<[f32; 4]>,
     rays: usize,
+    /// Secondary rays traced ([`Config::Bounces`]).
+    secondary_rays: Option<u64>,
     frame_ms: f64,
     stage_ms: f64,
     shadow_ms: f64,
@@ -192,14 +230,36 @@ fn run_frame(g: &WorldGeometry, bvh: &Bvh, camera: &CameraRecord, config: Config
         }
     };
     let shadow_ms = ms_since(t_shadow);
-    let image = shade_image(&surfaces, &mask, &g.objects, &g.lights, eye);
+    let (image, bounce) = match config {
+        Config::Bounces { max_depth, variant } => {
+            let primary = PrimaryBuffers { gbuffer: &gbuffer, surfaces: &surfaces, shadow: &mask, eye };
+            let b = bounce_rt_image(g, bvh, primary, max_depth, variant);
+            (compose_with_raster(&b.rt, &surfaces, &mask, &g.objects, &g.lights), Some((b.rays, b.bounce_ms)))
+        }
+        _ => (shade_image(&surfaces, &mask, &g.objects, &g.lights, eye), None),
+    };
     let frame_ms = ms_since(t_frame);
     let stage_ms = match config {
         Config::Bvh(_) => trace_ms,
         Config::Barycentrics { .. } => rec_ms,
         Config::Offset(_) | Config::Shadows(_) => shadow_ms,
+        Config::Bounces { .. } => bounce.map_or(0.0, |b| b.1),
     };
-    FrameRun { surfaces, mask, image, rays, frame_ms, stage_ms, shadow_ms: trace_ms }
+    let secondary_rays = bounce.map(|b| b.0);
+    FrameRun { surfaces, mask, image, rays, secondary_rays, frame_ms, stage_ms, shadow_ms: trace_ms }
+}
+
+/// The final image of the CPU frame with bounces down to `max_depth` and `variant`'s
+/// change, as [`speed_vs_error`] measures it: with [`BounceVariant::PIPELINE`], the
+/// `CpuBackend`'s frame at `FrameOptions { max_depth, ..Default::default() }`.
+pub fn frame_image(
+    g: &WorldGeometry,
+    bvh: &Bvh,
+    camera: &CameraRecord,
+    max_depth: u32,
+    variant: BounceVariant,
+) -> Vec<[f32; 4]> {
+    run_frame(g, bvh, camera, Config::Bounces { max_depth, variant }).image
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -231,8 +291,16 @@ struct RunTimes {
     build_ms: Option<f64>,
 }
 
-/// Score one frame against the reference: a row without times.
-fn score(scene: &str, job: &Job, g: &WorldGeometry, refr: &ReferenceFrame, r: &FrameRun) -> AccuracyRow {
+/// Score one frame against the reference (its image against `image`: the reference's own,
+/// or with bounces): a row without times.
+fn score(
+    scene: &str,
+    job: &Job,
+    g: &WorldGeometry,
+    refr: &ReferenceFrame,
+    image: &[[f32; 4]],
+    r: &FrameRun,
+) -> AccuracyRow {
     AccuracyRow {
         scene: scene.to_string(),
         group: job.group.to_string(),
@@ -242,11 +310,13 @@ fn score(scene: &str, job: &Job, g: &WorldGeometry, refr: &ReferenceFrame, r: &F
         stage: job.stage.to_string(),
         build_ms: None,
         mrays_per_s: None,
+        secondary_rays: r.secondary_rays,
         shadow: metrics::compare_shadows(refr, &r.surfaces, &r.mask),
         primary_mismatches: metrics::primary_mismatches(refr, &r.surfaces),
         hit_error: metrics::hit_point_error(refr, &r.surfaces, g.scene_extent() as f64),
-        rmse: metrics::rmse(&refr.image, &r.image),
-        flip: metrics::flip_mean(&refr.image, &r.image, refr.width, refr.height),
+        rmse: metrics::rmse(image, &r.image),
+        flip: metrics::flip_mean(image, &r.image, refr.width, refr.height),
+        wrong_pixels: metrics::wrong_pixels(image, &r.image),
     }
 }
 
@@ -283,13 +353,28 @@ pub fn speed_vs_error(
         scene_name.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' { c } else { '_' }).collect();
     let plot_path = out_dir.join(format!("accuracy-{slug}.png"));
     progress(&format!("{scene_name}: plotting {}", plot_path.display()));
-    plot::pareto_plot(
-        &plot_path,
-        &format!("{scene_name}: speed against error ({}x{}, CPU, {threads} threads)", opts.width, opts.height),
-        &plot_panels(&rows),
-    )?;
-    let markdown = markdown(scene_name, opts, threads, &rows, &notes, &plot_path);
-    Ok(AccuracySection { markdown, plots: vec![plot_path], rows })
+    let size = format!("{}x{}, CPU, {threads} threads", opts.width, opts.height);
+    let frame_rows: Vec<AccuracyRow> =
+        rows.iter().filter(|r| FRAME_GROUPS.contains(&r.group.as_str())).cloned().collect();
+    plot::pareto_plot(&plot_path, &format!("{scene_name}: speed against error ({size})"), &plot_panels(&frame_rows))?;
+    let mut plots = vec![plot_path];
+    let mut markdown = markdown(scene_name, opts, threads, &frame_rows, &notes, &plots[0]);
+    let bounce_rows: Vec<AccuracyRow> =
+        rows.iter().filter(|r| BOUNCE_GROUPS.contains(&r.group.as_str())).cloned().collect();
+    match &notes.bounces {
+        Ok(b) => {
+            let path = out_dir.join(format!("accuracy-bounces-{slug}.png"));
+            progress(&format!("{scene_name}: plotting {}", path.display()));
+            let title = format!("{scene_name}: bounces, speed against error ({size})");
+            plot::pareto_plot(&path, &title, &bounce_panels(&bounce_rows, opts))?;
+            markdown += &bounce_markdown(scene_name, &bounce_rows, b, &path);
+            plots.push(path);
+        }
+        Err(reason) => {
+            let _ = writeln!(markdown, "No bounce groups on {scene_name}: {reason}.\n");
+        }
+    }
+    Ok(AccuracySection { markdown, plots, rows })
 }
 
 /// Scene-level facts for the Markdown text.
@@ -299,6 +384,15 @@ struct Notes {
     extent: f32,
     reference_ms: f64,
     runs: usize,
+    /// The reference with bounces, or why the bounce groups did not run.
+    bounces: Result<BounceNotes, &'static str>,
+}
+
+/// Facts about the bounce reference.
+struct BounceNotes {
+    reference_ms: f64,
+    paths: bounce_reference::PathCounts,
+    max_depth: u32,
 }
 
 fn measure_all(
@@ -317,6 +411,14 @@ fn measure_all(
     let t = Instant::now();
     let reference = pool.install(|| render_reference(&geometry, &bvh, camera, opts.width, opts.height));
     let reference_ms = ms_since(t);
+    let bouncing = if geometry.objects.iter().any(bounces) {
+        progress(&format!("{scene_name}: f64 reference bounce paths, max depth {REFERENCE_MAX_DEPTH}"));
+        let t = Instant::now();
+        let b = pool.install(|| render_reference_bounces(&geometry, &bvh, camera, &reference, REFERENCE_MAX_DEPTH));
+        Ok((b, ms_since(t)))
+    } else {
+        Err("the scene has no ray-traced mirror or glass (`kernels::bounce::bounces`), so no frame traces a bounce")
+    };
     let runs = if opts.quick { 1 } else { FULL_RUNS };
     let resolutions: &[u32] = if opts.quick { &QUICK_SHADOW_MAP_RESOLUTIONS } else { &SHADOW_MAP_RESOLUTIONS };
     let mut jobs = Vec::new();
@@ -337,6 +439,9 @@ fn measure_all(
     for res in shadow_configs {
         let configuration = res.map_or_else(|| "ray traced".to_string(), |r| format!("shadow map {r}"));
         jobs.push(Job { group: "shadows", configuration, stage: "shadows", config: Config::Shadows(res) });
+    }
+    if bouncing.is_ok() {
+        jobs.extend(bounce_jobs());
     }
     // Runs go round-robin over the jobs, so that a change in machine load (other processes)
     // hits every configuration alike; the first run of each job is also scored.
@@ -359,7 +464,11 @@ fn measure_all(
             times[j].push(RunTimes { frame_ms: r.frame_ms, stage_ms: r.stage_ms, shadow_ms: r.shadow_ms, build_ms });
             if run == 0 {
                 rays[j] = r.rays;
-                rows.push(score(scene_name, job, &geometry, &reference, &r));
+                let image = match (&bouncing, job.config) {
+                    (Ok((b, _)), Config::Bounces { .. }) => &b.image,
+                    _ => &reference.image,
+                };
+                rows.push(score(scene_name, job, &geometry, &reference, image, &r));
             }
         }
     }
@@ -377,12 +486,39 @@ fn measure_all(
         extent: geometry.scene_extent(),
         reference_ms,
         runs,
+        bounces: bouncing.map(|(b, ms): (BounceImage, f64)| BounceNotes {
+            reference_ms: ms,
+            paths: b.paths,
+            max_depth: b.max_depth,
+        }),
     };
     (rows, notes)
 }
 
-fn plot_panels(rows: &[AccuracyRow]) -> Vec<plot::Panel> {
-    let panel = |y_label: &str, error: &dyn Fn(&AccuracyRow) -> f64| plot::Panel {
+/// The jobs of the bounce groups.
+fn bounce_jobs() -> Vec<Job> {
+    let stage = "bounce stages";
+    let mut jobs = Vec::new();
+    for max_depth in 0..=MAX_DEPTHS {
+        let config = Config::Bounces { max_depth, variant: BounceVariant::PIPELINE };
+        jobs.push(Job { group: "max depth", configuration: max_depth.to_string(), stage, config });
+    }
+    for offset in OffsetMethod::ALL {
+        let variant = BounceVariant { offset, ..BounceVariant::PIPELINE };
+        let config = Config::Bounces { max_depth: VARIANT_MAX_DEPTH, variant };
+        jobs.push(Job { group: "bounce origin", configuration: offset.name().to_string(), stage, config });
+    }
+    for log2 in CUTOFFS_LOG2 {
+        let variant = BounceVariant { cutoff_log2: Some(log2), ..BounceVariant::PIPELINE };
+        let config = Config::Bounces { max_depth: VARIANT_MAX_DEPTH, variant };
+        jobs.push(Job { group: "throughput cut-off", configuration: cutoff_name(log2), stage, config });
+    }
+    jobs
+}
+
+/// One panel: `error` of each row against its frame time.
+fn panel(rows: &[AccuracyRow], y_label: &str, error: &dyn Fn(&AccuracyRow) -> f64) -> plot::Panel {
+    plot::Panel {
         y_label: y_label.to_string(),
         points: rows
             .iter()
@@ -393,8 +529,25 @@ fn plot_panels(rows: &[AccuracyRow]) -> Vec<plot::Panel> {
                 error: error(r),
             })
             .collect(),
-    };
-    vec![panel("shadow mismatch fraction", &|r| r.shadow.fraction()), panel("mean FLIP", &|r| r.flip)]
+    }
+}
+
+fn plot_panels(rows: &[AccuracyRow]) -> Vec<plot::Panel> {
+    vec![panel(rows, "shadow mismatch fraction", &|r| r.shadow.fraction()), panel(rows, "mean FLIP", &|r| r.flip)]
+}
+
+fn bounce_panels(rows: &[AccuracyRow], opts: &AccuracyOptions) -> Vec<plot::Panel> {
+    let pixels = (opts.width as u64 * opts.height as u64) as f64;
+    vec![
+        panel(rows, "mean FLIP", &|r| r.flip),
+        panel(rows, "RMSE (linear RGB)", &|r| r.rmse),
+        panel(rows, "wrong pixel fraction", &|r| r.wrong_pixels as f64 / pixels),
+    ]
+}
+
+/// A plot's file name, for a link from the Markdown next to it.
+fn file_name(path: &Path) -> String {
+    path.file_name().map_or_else(|| path.display().to_string(), |f| f.to_string_lossy().into())
 }
 
 fn opt(v: Option<f64>, digits: usize) -> String {
@@ -416,9 +569,11 @@ fn markdown(
         s,
         "{}x{} pixels, {} triangles, {} lights, scene extent {:.3} (bounds diagonal); CPU backend stages, {threads} \
          threads; median of {} run(s) per configuration{}. The f64 reference (ray-cast primary visibility and \
-         shadows in double precision through the default BVH) took {:.0} ms. Primary visibility of the raster \
-         differs from the reference in {primary} of {} pixels (silhouettes and shared edges); the errors below are \
-         over the other pixels, except RMSE and FLIP (whole image).\n",
+         shadows in double precision through the default BVH) took {:.0} ms. These groups measure the paper's frame \
+         (max depth 0: mirrors and glass reflect a uniform environment), scored against the reference without \
+         bounces. Primary visibility of the raster differs from the reference in {primary} of {} pixels \
+         (silhouettes and shared edges); the errors below are over the other pixels, except RMSE and FLIP (whole \
+         image).\n",
         opts.width,
         opts.height,
         notes.triangles,
@@ -456,8 +611,7 @@ fn markdown(
             r.flip,
         );
     }
-    let file = plot_path.file_name().map_or_else(|| plot_path.display().to_string(), |f| f.to_string_lossy().into());
-    let _ = writeln!(s, "\n![speed against error, {scene_name}]({file})\n");
+    let _ = writeln!(s, "\n![speed against error, {scene_name}]({})\n", file_name(plot_path));
     let _ = writeln!(
         s,
         "Shadow mismatches count (pixel, light) pairs where both this configuration and the reference traced a \
@@ -475,6 +629,60 @@ fn markdown(
         shadow_map::SHADOW_MAP_CONSTANT_BIAS_TEXELS,
         shadow_map::SHADOW_MAP_SLOPE_BIAS_TEXELS,
         shadow_map::SHADOW_MAP_MAX_SLOPE,
+    );
+    s
+}
+
+/// The Markdown of the bounce groups: table, plot link, notes.
+fn bounce_markdown(scene_name: &str, rows: &[AccuracyRow], notes: &BounceNotes, plot_path: &Path) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "#### Bounces: {scene_name}\n");
+    let p = &notes.paths;
+    let _ = writeln!(
+        s,
+        "Reflection and refraction against the f64 reference with bounce paths (every mirror and glass hit spawns \
+         its reflection and refraction in f64, no throughput cut-off, no origin offset, down to max depth {}), which \
+         took {:.0} ms more than the reference without them: {} secondary rays, the deepest at bounce {}, {} lobes \
+         still alive at the depth limit (they see the uniform environment, as at a frame's deepest bounce), of path \
+         weight at most {:.1e}. Each row is a whole CPU frame; `bounce ms` is its bounce stages (`secondary_rays` to \
+         `bounce_shading`, every depth).\n",
+        notes.max_depth, notes.reference_ms, p.rays, p.deepest, p.truncated, p.truncated_weight,
+    );
+    let _ = writeln!(
+        s,
+        "| group | configuration | frame ms | bounce ms | secondary rays | wrong pixels | RMSE | mean FLIP |"
+    );
+    let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---:|---:|");
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.1} | {:.2} | {} | {} | {:.2e} | {:.2e} |",
+            r.group,
+            r.configuration,
+            r.frame_ms,
+            r.stage_ms,
+            r.secondary_rays.map_or_else(|| "-".to_string(), |n| n.to_string()),
+            r.wrong_pixels,
+            r.rmse,
+            r.flip,
+        );
+    }
+    let _ = writeln!(s, "\n![bounces, speed against error, {scene_name}]({})\n", file_name(plot_path));
+    let _ = writeln!(
+        s,
+        "`max depth` D is the pipeline's frame at `max_depth` D (the `CpuBackend` frame bit for bit; 0 is the paper's \
+         frame, its mirrors and glass reflecting a uniform environment): the error falls as D grows until what is \
+         left is the pipeline's own, the primary visibility of the raster (silhouettes), f32 reflection directions \
+         (magnified by curved mirrors) and the throughput cut-off. `bounce origin` offsets the secondary-ray origins \
+         of the frame at max depth {VARIANT_MAX_DEPTH} (the CPU's default) as the `ray origin` group does for shadow \
+         rays (reflection rays to the seen side of the geometric normal, refraction rays to the other side); \
+         `error bound` is the pipeline's. `throughput cut-off` at max depth {VARIANT_MAX_DEPTH}: a lobe whose path \
+         weight (largest component) falls below the cut-off traces no ray and sees the uniform environment; the \
+         pipeline's is 1/256, and every row of the group (1/256 included, whose frame is the pipeline's bit for bit) \
+         spawns its rays with the accuracy lab's spawner, so their times compare with each other. Wrong pixels: a \
+         channel of the 8-bit sRGB image differs from the reference's by more than {} code(s) (one code is the \
+         rounding of nearly equal values).\n",
+        metrics::WRONG_PIXEL_CODES,
     );
     s
 }

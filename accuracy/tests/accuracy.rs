@@ -1,15 +1,19 @@
 //! The speed-against-error module: the f64 reference against analytic scenes with known
 //! answers, the variants' defining properties, and the entry point end to end.
 
+mod common;
+
+use common::reference_of;
 use hyrt::formats::CameraRecord;
 use hyrt::glam::{DVec3, Mat4, Quat, Vec3};
 use hyrt::{Bvh, BvhPreset, Camera, Light, Material, Mesh, RenderMode, Scene, WorldGeometry};
+use hyrt_accuracy::bounce_variants::CUTOFFS_LOG2;
 use hyrt_accuracy::metrics::compare_shadows;
 use hyrt_accuracy::plot::FONT_PATH;
-use hyrt_accuracy::reference::{closest_hit_f64, render_reference, Ray64, ReferenceFrame};
+use hyrt_accuracy::reference::{closest_hit_f64, Ray64};
 use hyrt_accuracy::shadow_map::shadow_map_mask;
 use hyrt_accuracy::variants::{reoffset_rays, OffsetMethod};
-use hyrt_accuracy::{speed_vs_error, AccuracyError, AccuracyOptions};
+use hyrt_accuracy::{speed_vs_error, AccuracyError, AccuracyOptions, BOUNCE_GROUPS, MAX_DEPTHS};
 use hyrt_core::frame::{SHADOW_LIT, SHADOW_NO_RAY, SHADOW_OCCLUDED};
 use hyrt_cpu::compaction::compaction;
 use hyrt_cpu::reconstruction::reconstruction;
@@ -49,13 +53,6 @@ fn quad_scene(light: Light, angle: f32) -> Scene {
         far: 40.0,
     });
     scene
-}
-
-fn reference_of(scene: &Scene, w: u32, h: u32) -> (WorldGeometry, Bvh, ReferenceFrame) {
-    let g = WorldGeometry::build(scene);
-    let bvh = Bvh::build(&g, BvhPreset::default());
-    let r = render_reference(&g, &bvh, &scene.camera.unwrap(), w, h);
-    (g, bvh, r)
 }
 
 /// Signed distance of `(x, z)` outside the square `[-s, s]^2` (negative inside).
@@ -378,7 +375,15 @@ fn speed_vs_error_on_the_default_scene_writes_a_plot_and_a_table() {
         return;
     }
     let s = result.unwrap();
-    let groups = [("bvh", BvhPreset::ALL.len()), ("barycentrics", 2), ("ray origin", 4), ("shadows", 3)];
+    let groups = [
+        ("bvh", BvhPreset::ALL.len()),
+        ("barycentrics", 2),
+        ("ray origin", 4),
+        ("shadows", 3),
+        ("max depth", MAX_DEPTHS as usize + 1),
+        ("bounce origin", 4),
+        ("throughput cut-off", CUTOFFS_LOG2.len()),
+    ];
     assert_eq!(s.rows.len(), groups.iter().map(|g| g.1).sum::<usize>());
     for (group, n) in groups {
         assert_eq!(s.rows.iter().filter(|r| r.group == group).count(), n, "{group}");
@@ -387,14 +392,50 @@ fn speed_vs_error_on_the_default_scene_writes_a_plot_and_a_table() {
         assert!(s.markdown.contains(&format!("| {} | {} |", r.group, r.configuration)), "{}", r.configuration);
         assert!(r.frame_ms > 0.0 && r.rmse.is_finite() && (0.0..=1.0).contains(&r.flip), "{r:?}");
         assert!(r.shadow.compared > 0 && r.hit_error.max_rel < 1e-2, "{r:?}");
+        assert!(r.wrong_pixels <= 64 * 36, "{r:?}");
+        assert_eq!(r.secondary_rays.is_some(), BOUNCE_GROUPS.contains(&r.group.as_str()), "{r:?}");
     }
-    let row = |c: &str| s.rows.iter().find(|r| r.configuration.starts_with(c)).unwrap();
-    assert!(row("none").shadow.false_shadow > row("error bound").shadow.false_shadow);
-    assert!(row("none").shadow.false_shadow > row("256 ulps").shadow.false_shadow);
-    assert_eq!(s.plots, vec![dir.path().join("accuracy-default_scene.png")]);
-    let png = image::open(&s.plots[0]).unwrap();
-    assert!(png.width() > 1000 && png.height() > 500);
+    let row = |g: &str, c: &str| s.rows.iter().find(|r| r.group == g && r.configuration.starts_with(c)).unwrap();
+    assert!(row("ray origin", "none").shadow.false_shadow > row("ray origin", "error bound").shadow.false_shadow);
+    assert!(row("ray origin", "none").shadow.false_shadow > row("ray origin", "256 ulps").shadow.false_shadow);
+    // The pipeline's frame at max depth 4 three times: the same image, the same errors.
+    let pipeline = row("max depth", "4");
+    for other in [row("bounce origin", "error bound"), row("throughput cut-off", "1/256")] {
+        assert_eq!((other.rmse, other.flip, other.wrong_pixels), (pipeline.rmse, pipeline.flip, pipeline.wrong_pixels));
+        assert_eq!(other.secondary_rays, pipeline.secondary_rays);
+    }
+    assert_eq!(row("max depth", "0").secondary_rays, Some(0));
+    assert!(row("max depth", "8").rmse < row("max depth", "0").rmse, "bounces bring the frame closer");
+    assert_eq!(
+        s.plots,
+        vec![dir.path().join("accuracy-default_scene.png"), dir.path().join("accuracy-bounces-default_scene.png")]
+    );
+    for plot in &s.plots {
+        let png = image::open(plot).unwrap();
+        assert!(png.width() > 1000 && png.height() > 500);
+    }
     assert!(s.markdown.contains("(accuracy-default_scene.png)"));
+    assert!(s.markdown.contains("(accuracy-bounces-default_scene.png)"));
+}
+
+#[test]
+fn speed_vs_error_skips_the_bounce_groups_without_mirror_or_glass_and_says_why() {
+    if !std::path::Path::new(FONT_PATH).exists() {
+        eprintln!("{FONT_PATH} missing: skipped (the default-scene test checks the error)");
+        return;
+    }
+    let scene =
+        quad_scene(Light::Point { position: Vec3::new(0.7, 6.0, -0.4), color: Vec3::ONE, intensity: 30.0 }, 0.37);
+    let dir = tempfile::tempdir().unwrap();
+    let opts = AccuracyOptions { quick: true, threads: 1, width: 24, height: 24 };
+    let s = speed_vs_error("quad", &scene, &opts, dir.path(), &|_| {}).unwrap();
+    assert!(s.rows.iter().all(|r| !BOUNCE_GROUPS.contains(&r.group.as_str())));
+    assert!(
+        s.markdown.contains("No bounce groups on quad: the scene has no ray-traced mirror or glass"),
+        "{}",
+        s.markdown
+    );
+    assert_eq!(s.plots.len(), 1);
 }
 
 #[test]
