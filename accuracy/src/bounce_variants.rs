@@ -28,9 +28,10 @@ use crate::variants::OffsetMethod;
 /// a test checks they agree).
 pub const PIPELINE_CUTOFF_LOG2: i32 = -8;
 
-/// `log2` of the cut-off the report calls "none": a path weight below 2^-64 changes no
-/// f32 pixel whose radiance is below 2^40 (f32 keeps 24 bits), so nothing it cuts can
-/// show. (0 itself cannot be expressed by [`spawn_with_cutoff`]'s exact scaling.)
+/// `log2` of the cut-off the report calls "none": what a lobe of path weight below 2^-64
+/// brings is below half an ulp of its pixel (2^-25 of the pixel's value) unless it sees
+/// radiance 2^39 times the pixel's, so nothing it cuts can show. (0 itself cannot be
+/// expressed by [`spawn_with_cutoff`]'s exact scaling.)
 pub const NO_CUTOFF_LOG2: i32 = -64;
 
 // The scale of the "none" cut-off (2^56) keeps path weights up to 2^71 below f32's

@@ -677,8 +677,8 @@ fn bounce_markdown(scene_name: &str, rows: &[AccuracyRow], notes: &BounceNotes, 
          of the frame at max depth {VARIANT_MAX_DEPTH} (the CPU's default) as the `ray origin` group does for shadow \
          rays (reflection rays to the seen side of the geometric normal, refraction rays to the other side); \
          `error bound` is the pipeline's. `throughput cut-off` at max depth {VARIANT_MAX_DEPTH}: a lobe whose path \
-         weight (largest component) falls below the cut-off traces no ray and sees the uniform environment; the \
-         pipeline's is 1/256, and every row of the group (1/256 included, whose frame is the pipeline's bit for bit) \
+         weight (largest component) falls below the cut-off traces no ray and sees the uniform environment (paths off \
+         a metal whose F0 has a component of 1, such as gold, never fall below any cut-off); the pipeline's is 1/256, and every row of the group (1/256 included, whose frame is the pipeline's bit for bit) \
          spawns its rays with the accuracy lab's spawner, so their times compare with each other. Wrong pixels: a \
          channel of the 8-bit sRGB image differs from the reference's by more than {} code(s) (one code is the \
          rounding of nearly equal values).\n",
