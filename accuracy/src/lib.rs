@@ -19,7 +19,7 @@
 //!
 //! * `max depth`: the frame at `max_depth` 0 to [`MAX_DEPTHS`].
 //! * `bounce origin`: secondary-ray origins by each [`variants::OffsetMethod`]
-//!   ([`bounce_variants::reoffset_secondary_rays`]), at the CPU's default depth.
+//!   ([`bounce_variants::reoffset_secondary_rays`]), at the default depth.
 //! * `throughput cut-off`: the path-weight cut-off below which a lobe is not traced
 //!   ([`bounce_variants::CUTOFFS_LOG2`], spawned by [`bounce_variants::spawn_with_cutoff`]).
 //!
@@ -96,7 +96,7 @@ pub const QUICK_SHADOW_MAP_RESOLUTIONS: [u32; 2] = [256, 1024];
 /// The `max depth` group measures `max_depth` 0 to this (the 0..8).
 pub const MAX_DEPTHS: u32 = 8;
 
-/// The depth of the `bounce origin` and `throughput cut-off` groups: the CPU's default.
+/// The depth of the `bounce origin` and `throughput cut-off` groups: the default (both backends).
 pub const VARIANT_MAX_DEPTH: u32 = DEFAULT_MAX_DEPTH;
 
 /// The groups of the paper's frame (max depth 0), scored against the reference without
@@ -674,7 +674,7 @@ fn bounce_markdown(scene_name: &str, rows: &[AccuracyRow], notes: &BounceNotes, 
          frame, its mirrors and glass reflecting a uniform environment): the error falls as D grows until what is \
          left is the pipeline's own, the primary visibility of the raster (silhouettes), f32 reflection directions \
          (magnified by curved mirrors) and the throughput cut-off. `bounce origin` offsets the secondary-ray origins \
-         of the frame at max depth {VARIANT_MAX_DEPTH} (the CPU's default) as the `ray origin` group does for shadow \
+         of the frame at max depth {VARIANT_MAX_DEPTH} (the default) as the `ray origin` group does for shadow \
          rays (reflection rays to the seen side of the geometric normal, refraction rays to the other side); \
          `error bound` is the pipeline's. `throughput cut-off` at max depth {VARIANT_MAX_DEPTH}: a lobe whose path \
          weight (largest component) falls below the cut-off traces no ray and sees the uniform environment (paths off \
