@@ -11,51 +11,9 @@
 //! Also home of the WGSL the radiance-gathering stages share (this one and `rt_shading`
 //! with bounces).
 
-use hyrt_core::kernels::bounce::{SKY_GROUND, SKY_HORIZON, SKY_ZENITH};
-use hyrt_core::kernels::environment::{ATAN_SERIES, INV_TWO_PI, TAN_PI_8};
-
 use crate::buffers::{FrameBuffers, SceneBuffers};
-use crate::rt_shading::{
-    bind_buffers, compute_pipeline, f32_literal, storage_entry, surface_shading_source, uniform_entry,
-};
-use crate::secondary_rays::bounce_wgsl;
-use crate::shadow_rays::ray_wgsl;
+use crate::shader::{bind_buffers, compute_pipeline, environment_wgsl, radiance_source, storage_entry, uniform_entry};
 use crate::GpuContext;
-
-/// The WGSL of a stage that gathers what bouncing surfaces' lobes see: the shading
-/// stages' sources ([`surface_shading_source`]), `ray.wgsl`, `bounce.wgsl`,
-/// `bounce_radiance.wgsl`, then `stage`.
-pub(crate) fn radiance_source(stage: &str) -> String {
-    surface_shading_source(&format!(
-        "{}\n{}\n{}\n{stage}",
-        ray_wgsl(),
-        bounce_wgsl(),
-        include_str!("shaders/bounce_radiance.wgsl")
-    ))
-}
-
-/// The constants of `shaders/environment.wgsl` from their Rust values, then the file.
-fn environment_wgsl() -> String {
-    let vec3 = |name: &str, v: [f32; 3]| {
-        format!(
-            "const {name}: vec3<f32> = vec3<f32>({}, {}, {});\n",
-            f32_literal(v[0]),
-            f32_literal(v[1]),
-            f32_literal(v[2])
-        )
-    };
-    let series: Vec<String> = ATAN_SERIES.iter().map(|&c| f32_literal(c)).collect();
-    let mut s = String::from(
-        "// Generated from hyrt_core::kernels::{bounce, environment} (gpu-backend/src/bounce_shading.rs).\n",
-    );
-    s += &format!("const ATAN_SERIES = array<f32, {}>({});\n", ATAN_SERIES.len(), series.join(", "));
-    s += &format!("const TAN_PI_8: f32 = {};\n", f32_literal(TAN_PI_8));
-    s += &format!("const INV_TWO_PI: f32 = {};\n", f32_literal(INV_TWO_PI));
-    s += &vec3("SKY_ZENITH", SKY_ZENITH);
-    s += &vec3("SKY_HORIZON", SKY_HORIZON);
-    s += &vec3("SKY_GROUND", SKY_GROUND);
-    s + include_str!("shaders/environment.wgsl")
-}
 
 /// The `bounce_shading` stage: one pipeline.
 pub struct BounceShadingStage {
@@ -119,13 +77,6 @@ impl BounceShadingStage {
                 &b.radiance,
             ],
         );
-        crate::rt_shading::encode_list_pass(
-            encoder,
-            "bounce_shading",
-            &self.pipeline,
-            &bind_group,
-            &b.ray_count,
-            timing,
-        );
+        crate::shader::encode_list_pass(encoder, "bounce_shading", &self.pipeline, &bind_group, &b.ray_count, timing);
     }
 }

@@ -13,9 +13,9 @@
 use hyrt_core::formats::wgsl::declarations;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
-use crate::reconstruction::surface_wgsl;
-use crate::rt_shading::{bind_buffers, compute_pipeline};
-use crate::shadow_rays::{ray_wgsl, storage_entry, uniform_entry};
+use crate::shader::surface_wgsl;
+use crate::shader::{bind_buffers, compute_pipeline};
+use crate::shader::{ray_wgsl, storage_entry, uniform_entry};
 use crate::GpuContext;
 
 /// `rounded` and `mul` of `surface.wgsl` over the frame's always-zero word.
@@ -31,7 +31,7 @@ impl BounceTraceStage {
     pub fn new(ctx: &GpuContext) -> Self {
         let source =
             declarations() + &ray_wgsl() + EXACT_PRODUCTS + &surface_wgsl() + include_str!("shaders/bounce_trace.wgsl");
-        let mut entries = vec![uniform_entry(0, false)];
+        let mut entries = vec![uniform_entry(0)];
         entries.extend((1..=7).map(|i| storage_entry(i, true)));
         entries.extend((8..=10).map(|i| storage_entry(i, false)));
         let (pipeline, layout) = compute_pipeline(ctx, "bounce_trace", &source, &entries);
@@ -67,6 +67,6 @@ impl BounceTraceStage {
                 &b.counters,
             ],
         );
-        crate::rt_shading::encode_list_pass(encoder, "bounce_trace", &self.pipeline, &bind_group, &b.ray_count, timing);
+        crate::shader::encode_list_pass(encoder, "bounce_trace", &self.pipeline, &bind_group, &b.ray_count, timing);
     }
 }

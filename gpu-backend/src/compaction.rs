@@ -35,9 +35,9 @@
 use hyrt_core::formats::wgsl::declarations;
 
 use crate::buffers::{FrameBuffers, ListBuffers, SceneBuffers};
-use crate::rt_shading::shading_helpers;
 use crate::scan::{pipeline, scan_wgsl, ListScan, Scratch};
-use crate::shadow_rays::{ray_wgsl, storage_entry, uniform_entry};
+use crate::shader::shading_helpers;
+use crate::shader::{ray_wgsl, storage_entry, uniform_entry};
 use crate::{GpuContext, GpuError};
 
 /// The compaction WGSL: the generated records and format constants, `ray.wgsl`, the
@@ -68,11 +68,11 @@ impl CompactionStage {
             "compaction",
             &module,
             &[
-                uniform_entry(0, false), // params
+                uniform_entry(0),        // params
                 storage_entry(1, true),  // surfaces
                 storage_entry(2, true),  // lights
                 storage_entry(3, false), // rays
-                uniform_entry(4, false), // list
+                uniform_entry(4),        // list
                 storage_entry(5, true),  // live
             ],
         );

@@ -8,9 +8,7 @@
 //! Writes `frame.final_image` (linear RGBA).
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
-use crate::rt_shading::{
-    bind_buffers, compute_pipeline, encode_pixel_pass, shading_source, storage_entry, uniform_entry,
-};
+use crate::shader::{bind_buffers, compute_pipeline, encode_pixel_pass, shading_source, storage_entry, uniform_entry};
 use crate::GpuContext;
 
 /// The `composition` stage.

@@ -25,6 +25,7 @@ pub mod reconstruction;
 pub mod rt_shading;
 pub mod scan;
 pub mod secondary_rays;
+pub mod shader;
 pub mod shadow_rays;
 pub mod timing;
 pub mod visibility_raster;

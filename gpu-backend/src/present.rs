@@ -14,7 +14,7 @@ use std::collections::HashMap;
 use std::sync::Mutex;
 
 use crate::buffers::FrameBuffers;
-use crate::rt_shading::{encode_pixel_pass, main_pipeline, storage_entry, uniform_entry};
+use crate::shader::{encode_pixel_pass, main_pipeline, storage_entry, uniform_entry};
 use crate::GpuContext;
 
 /// The texture formats `present` writes.

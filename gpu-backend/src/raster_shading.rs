@@ -10,7 +10,7 @@
 //! a hit, (0, 0, 0, 0) on ray-traced pixels when the weight is 1, alpha 1 where shaded.
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
-use crate::rt_shading::{
+use crate::shader::{
     bind_buffers, compute_pipeline, encode_pixel_pass, storage_entry, surface_shading_source, uniform_entry,
 };
 use crate::GpuContext;

@@ -19,18 +19,13 @@ use hyrt_core::formats::wgsl::declarations;
 use hyrt_core::kernels::barycentric::gamma;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
+use crate::shader::surface_wgsl;
 use crate::GpuContext;
 
 /// Side of the square workgroup (`@workgroup_size(8, 8, 1)`).
 const GROUP: u32 = 8;
 
 const SHADER: &str = include_str!("shaders/reconstruction.wgsl");
-
-/// The surface kernels (`shaders/surface.wgsl`) after `ONE_PLUS_GAMMA_3`; they also
-/// read `GAMMA_2` and `GAMMA_3`, which the including stage defines (exact f32 values).
-pub(crate) fn surface_wgsl() -> String {
-    format!("const ONE_PLUS_GAMMA_3: f32 = {:?};\n{}", 1.0f32 + gamma(3), include_str!("shaders/surface.wgsl"))
-}
 
 /// The WGSL of the stage: the generated records and format constants, the exact f32
 /// constants of the error bound (`{:?}` prints the shortest decimal that parses back to

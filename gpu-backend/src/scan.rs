@@ -23,7 +23,7 @@ use std::collections::HashMap;
 use std::sync::Mutex;
 
 use crate::gpu_buffer::storage;
-use crate::shadow_rays::{storage_entry, uniform_entry, MAX_WORKGROUPS_PER_DIMENSION};
+use crate::shader::{dynamic_uniform_entry, storage_entry, MAX_WORKGROUPS_PER_DIMENSION};
 use crate::{GpuContext, GpuError};
 
 /// Threads per scan workgroup. Tunable: larger means fewer tiles but more barrier
@@ -161,7 +161,7 @@ pub(crate) struct ListScan {
 pub(crate) fn scan_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some("scan"),
-        entries: &[uniform_entry(0, true), storage_entry(1, false), storage_entry(2, false), storage_entry(3, false)],
+        entries: &[dynamic_uniform_entry(0), storage_entry(1, false), storage_entry(2, false), storage_entry(3, false)],
     })
 }
 
@@ -268,7 +268,7 @@ impl ListScan {
         }
         let scratch = &cache[&n];
         let scan_group = self.scan_bind_group(ctx, scratch, &scratch.flags, count);
-        let list_group = crate::rt_shading::bind_buffers(ctx, label, &self.list_layout, list);
+        let list_group = crate::shader::bind_buffers(ctx, label, &self.list_layout, list);
         self.encode_passes(
             encoder,
             label,

@@ -14,24 +14,12 @@
 //! ([`crate::scan`]) over two elements per parent slot.
 
 use hyrt_core::formats::wgsl::declarations;
-use hyrt_core::kernels::bounce::{IOR_OUTSIDE, MIN_THROUGHPUT};
 
 use crate::buffers::{BounceBuffers, FrameBuffers, SceneBuffers};
-use crate::rt_shading::{f32_literal, shading_helpers};
 use crate::scan::{scan_wgsl, ListScan};
-use crate::shadow_rays::{ray_wgsl, storage_entry, uniform_entry};
+use crate::shader::{bounce_wgsl, shading_helpers};
+use crate::shader::{ray_wgsl, storage_entry, uniform_entry};
 use crate::GpuContext;
-
-/// The constants of `shaders/bounce.wgsl` from their Rust values, then the file: after
-/// the generated records, `ray.wgsl` and the shading helpers.
-pub(crate) fn bounce_wgsl() -> String {
-    format!(
-        "// Generated from hyrt_core::kernels::bounce (gpu-backend/src/secondary_rays.rs).\nconst IOR_OUTSIDE: f32 = {};\nconst MIN_THROUGHPUT: f32 = {};\n{}",
-        f32_literal(IOR_OUTSIDE),
-        f32_literal(MIN_THROUGHPUT),
-        include_str!("shaders/bounce.wgsl")
-    )
-}
 
 /// The `secondary_rays` stage: the shared scan over its module.
 pub struct SecondaryRaysStage {
@@ -50,7 +38,7 @@ impl SecondaryRaysStage {
             label: Some("secondary_rays"),
             source: wgpu::ShaderSource::Wgsl(source.into()),
         });
-        let mut entries = vec![uniform_entry(0, false), uniform_entry(1, false), uniform_entry(2, false)];
+        let mut entries = vec![uniform_entry(0), uniform_entry(1), uniform_entry(2)];
         entries.extend((3..=9).map(|i| storage_entry(i, true)));
         entries.extend((10..=12).map(|i| storage_entry(i, false)));
         SecondaryRaysStage { scan: ListScan::new(ctx, "secondary_rays", &module, &entries) }

@@ -16,82 +16,17 @@
 //! function, decided by the exact sign both sides compute in f32
 //! (`hyrt_core::kernels::ray::edge_sign_exact`).
 
-use hyrt_core::bvh::{BVH_CULL_SLACK, BVH_STACK_SIZE};
 use hyrt_core::formats::wgsl::declarations;
-use hyrt_core::kernels::ray::{gamma, OFFSET_ERROR_SCALE, SLAB_FAR_SCALE, VELTKAMP_SPLIT};
-use hyrt_core::kernels::shadow::SHADOW_T_MAX_POINT;
 
 use crate::buffers::{FrameBuffers, ListBuffers, SceneBuffers};
+use crate::shader::{bind_buffers, ray_wgsl, storage_entry, uniform_entry};
+pub use crate::shader::{MAX_WORKGROUPS_PER_DIMENSION, SHADOW_RAYS_WORKGROUP_SIZE};
 use crate::GpuContext;
-
-/// Threads per workgroup of the `shadow_rays` kernel (one ray each). 64 is a
-/// multiple of every common SIMD width (32 NVIDIA, 64 AMD, 8-16 lavapipe lanes).
-pub const SHADOW_RAYS_WORKGROUP_SIZE: u32 = 64;
-
-/// Largest workgroup count per dispatch dimension (WebGPU's default limit).
-pub const MAX_WORKGROUPS_PER_DIMENSION: u32 = 65_535;
-
-/// An f32 as a WGSL literal that parses back to the same bits (Rust's `Debug`
-/// prints the shortest round-trip decimal).
-fn f32_literal(x: f32) -> String {
-    assert!(x.is_finite(), "WGSL constants must be finite");
-    format!("{x:?}f")
-}
-
-/// The WGSL both ray stages share after the generated records ([`declarations`]): the
-/// ray constants, generated from their Rust values so they cannot drift, followed by
-/// `ray.wgsl`.
-pub(crate) fn ray_wgsl() -> String {
-    let consts = [
-        ("SLAB_FAR_SCALE", f32_literal(SLAB_FAR_SCALE)),
-        ("GAMMA_2", f32_literal(gamma(2))),
-        ("GAMMA_3", f32_literal(gamma(3))),
-        ("GAMMA_5", f32_literal(gamma(5))),
-        ("OFFSET_ERROR_SCALE", f32_literal(OFFSET_ERROR_SCALE)),
-        ("BVH_CULL_SLACK", f32_literal(BVH_CULL_SLACK)),
-        ("VELTKAMP_SPLIT", f32_literal(VELTKAMP_SPLIT)),
-        ("SHADOW_T_MAX_POINT_BITS", format!("{}u", SHADOW_T_MAX_POINT.to_bits())),
-        ("BVH_STACK_SIZE", format!("{}u", BVH_STACK_SIZE)),
-        ("SHADOW_WG", format!("{SHADOW_RAYS_WORKGROUP_SIZE}u")),
-        ("MAX_DISPATCH", format!("{MAX_WORKGROUPS_PER_DIMENSION}u")),
-    ];
-    let mut s = String::from("// Generated from the hyrt_core constants (gpu-backend/src/shadow_rays.rs).\n");
-    for (name, value) in consts {
-        s += &format!("const {name} = {value};\n");
-    }
-    s + include_str!("shaders/ray.wgsl")
-}
 
 /// The `shadow_rays` stage: one pipeline, one bind group layout.
 pub struct ShadowRaysStage {
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
-}
-
-pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Storage { read_only },
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
-pub(crate) fn uniform_entry(binding: u32, dynamic: bool) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty: wgpu::BufferBindingType::Uniform,
-            has_dynamic_offset: dynamic,
-            min_binding_size: None,
-        },
-        count: None,
-    }
 }
 
 impl ShadowRaysStage {
@@ -104,14 +39,14 @@ impl ShadowRaysStage {
         let layout = ctx.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("shadow_rays"),
             entries: &[
-                uniform_entry(0, false),
+                uniform_entry(0),
                 storage_entry(1, true),
                 storage_entry(2, true),
                 storage_entry(3, true),
                 storage_entry(4, true),
                 storage_entry(5, false),
                 storage_entry(6, false),
-                uniform_entry(7, false),
+                uniform_entry(7),
                 storage_entry(8, false),
             ],
         });
@@ -165,7 +100,7 @@ impl ShadowRaysStage {
             list.params,
             list.counters,
         ];
-        let bind_group = crate::rt_shading::bind_buffers(ctx, "shadow_rays", &self.layout, &buffers);
+        let bind_group = bind_buffers(ctx, "shadow_rays", &self.layout, &buffers);
         // SHADOW_NO_RAY is 0.
         encoder.clear_buffer(list.shadow, 0, None);
         let mut pass = crate::timing::begin_timed_pass(encoder, "shadow_rays", timing);

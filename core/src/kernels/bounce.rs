@@ -46,6 +46,7 @@ use crate::formats::{
     TRI_INWARD,
 };
 use crate::kernels::environment::environment_radiance;
+pub use crate::kernels::environment::{sky, SKY_GROUND, SKY_HORIZON, SKY_ZENITH};
 use crate::kernels::ray::offset_ray_origin;
 use crate::kernels::shading::{
     shade_raster_pixel, shade_rt_pixel, shade_rt_surface, sum_visible_lights, AMBIENT, ENVIRONMENT_SPECULAR,
@@ -420,29 +421,6 @@ pub fn shade_rt_pixel_bouncing(
     }
 }
 
-/// Zenith colour of the default sky (linear RGB).
-pub const SKY_ZENITH: [f32; 3] = [0.18, 0.26, 0.45];
-/// Horizon colour of the default sky (linear RGB).
-pub const SKY_HORIZON: [f32; 3] = [0.55, 0.58, 0.62];
-/// Colour below the horizon (the ground) of the default sky (linear RGB).
-pub const SKY_GROUND: [f32; 3] = [0.12, 0.11, 0.10];
-
-/// The default sky a secondary ray sees when it leaves a scene without an environment
-/// map ([`crate::scene::Environment::Sky`]): above the horizon
-/// (+y up) a blend from [`SKY_HORIZON`] to [`SKY_ZENITH`] by the height `y = d.y / |d|`
-/// of the direction, `horizon + (zenith - horizon) y`; below it, [`SKY_GROUND`]. Primary
-/// misses keep the frame's [`crate::kernels::shading::BACKGROUND`].
-#[inline]
-pub fn sky(d: Vec3) -> Vec3 {
-    let len = dot(d, d).sqrt();
-    let y = d.y / len;
-    if y.is_nan() || y < 0.0 {
-        return Vec3::from(SKY_GROUND);
-    }
-    let horizon = Vec3::from(SKY_HORIZON);
-    horizon + (Vec3::from(SKY_ZENITH) - horizon) * y
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -483,13 +461,6 @@ mod tests {
         let f0 = Vec3::new(1.0, 0.77, 0.34);
         assert_eq!(fresnel_schlick(f0, 1.0), f0);
         assert_eq!(fresnel_schlick(f0, 0.0), Vec3::ONE);
-    }
-
-    #[test]
-    fn the_sky_is_continuous_at_the_horizon_from_above() {
-        assert_eq!(sky(Vec3::X), Vec3::from(SKY_HORIZON));
-        assert_eq!(sky(Vec3::Y * 3.0), Vec3::from(SKY_ZENITH));
-        assert_eq!(sky(-Vec3::Y), Vec3::from(SKY_GROUND));
     }
 
     proptest! {

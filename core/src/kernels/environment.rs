@@ -36,7 +36,6 @@
 
 use glam::Vec3;
 
-use crate::kernels::bounce::sky;
 use crate::scene::{Environment, EnvironmentMap};
 
 /// `tan(pi / 8) = sqrt 2 - 1`: [`atan2_turns`] maps ratios above it through
@@ -163,6 +162,29 @@ pub fn environment_radiance(env: &Environment, d: Vec3) -> Vec3 {
     }
 }
 
+/// Zenith colour of the default sky (linear RGB).
+pub const SKY_ZENITH: [f32; 3] = [0.18, 0.26, 0.45];
+/// Horizon colour of the default sky (linear RGB).
+pub const SKY_HORIZON: [f32; 3] = [0.55, 0.58, 0.62];
+/// Colour below the horizon (the ground) of the default sky (linear RGB).
+pub const SKY_GROUND: [f32; 3] = [0.12, 0.11, 0.10];
+
+/// The default sky a secondary ray sees when it leaves a scene without an environment
+/// map ([`crate::scene::Environment::Sky`]): above the horizon
+/// (+y up) a blend from [`SKY_HORIZON`] to [`SKY_ZENITH`] by the height `y = d.y / |d|`
+/// of the direction, `horizon + (zenith - horizon) y`; below it, [`SKY_GROUND`]. Primary
+/// misses keep the frame's [`crate::kernels::shading::BACKGROUND`].
+#[inline]
+pub fn sky(d: Vec3) -> Vec3 {
+    let len = d.dot(d).sqrt();
+    let y = d.y / len;
+    if y.is_nan() || y < 0.0 {
+        return Vec3::from(SKY_GROUND);
+    }
+    let horizon = Vec3::from(SKY_HORIZON);
+    horizon + (Vec3::from(SKY_ZENITH) - horizon) * y
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -213,6 +235,13 @@ mod tests {
             }
         }
         assert!(worst <= ATAN2_TURNS_MAX_ERROR as f64, "worst error {worst:e} turns");
+    }
+
+    #[test]
+    fn the_sky_is_continuous_at_the_horizon_from_above() {
+        assert_eq!(sky(Vec3::X), Vec3::from(SKY_HORIZON));
+        assert_eq!(sky(Vec3::Y * 3.0), Vec3::from(SKY_ZENITH));
+        assert_eq!(sky(-Vec3::Y), Vec3::from(SKY_GROUND));
     }
 
     proptest! {

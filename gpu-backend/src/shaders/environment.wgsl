@@ -1,6 +1,6 @@
 // What secondary rays that leave the scene see: WGSL mirrors of
 // hyrt_core::kernels::environment (the portable atan2 in turns, the lat-long lookup,
-// the bilinear filter) and hyrt_core::kernels::bounce::sky, same names, same operation
+// the bilinear filter) and its `sky`, same names, same operation
 // order, every product that feeds a sum through `mul` (shading_helpers.wgsl).
 //
 // Prepended by `hyrt_gpu::bounce::bounce_source` after the shading helpers and the
@@ -13,7 +13,7 @@ fn is_nan_f32(x: f32) -> bool {
     return (bitcast<u32>(x) & 0x7fffffffu) > 0x7f800000u;
 }
 
-// mirrors hyrt_core::kernels::bounce::sky
+// mirrors hyrt_core::kernels::environment::sky
 fn sky(d: vec3<f32>) -> vec3<f32> {
     let len = sqrt(dot3(d, d));
     let y = d.y / len;
