@@ -11,8 +11,9 @@ use hyrt_gpu::backend::GpuBackend;
 use hyrt_gpu::GpuContext;
 
 /// The application's device: its own instance, adapter (any, software included),
-/// device and queue, created without hyrt.
-fn application_device() -> Option<(wgpu::Adapter, wgpu::Device, wgpu::Queue)> {
+/// device and queue, created without hyrt, with up to `storage_buffers` storage buffers
+/// per shader stage (WebGPU's default is 8).
+fn application_device(storage_buffers: u32) -> Option<(wgpu::Adapter, wgpu::Device, wgpu::Queue)> {
     let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
         backends: wgpu::Backends::VULKAN,
         ..wgpu::InstanceDescriptor::new_without_display_handle()
@@ -29,6 +30,8 @@ fn application_device() -> Option<(wgpu::Adapter, wgpu::Device, wgpu::Queue)> {
         required_limits: wgpu::Limits {
             max_storage_buffer_binding_size: adapter.limits().max_storage_buffer_binding_size,
             max_buffer_size: adapter.limits().max_buffer_size,
+            max_storage_buffers_per_shader_stage:
+                adapter.limits().max_storage_buffers_per_shader_stage.min(storage_buffers),
             ..wgpu::Limits::default()
         },
         ..Default::default()
@@ -81,7 +84,11 @@ fn read_texture(ctx: &GpuContext, texture: &wgpu::Texture) -> Vec<[f32; 4]> {
 
 #[test]
 fn present_renders_on_the_applications_device_into_its_texture() {
-    let Some((adapter, device, queue)) = application_device() else { return };
+    let Some((adapter, device, queue)) =
+        application_device(wgpu::Limits::default().max_storage_buffers_per_shader_stage)
+    else {
+        return;
+    };
     let mut gpu = GpuBackend::with_context(GpuContext::from_device(&adapter, device, queue)).expect("pipelines");
     let mut scene = Scene::default_scene();
     scene.ensure_camera_and_lights();
@@ -126,4 +133,27 @@ fn present_renders_on_the_applications_device_into_its_texture() {
         Err(RenderError::Gpu(hyrt_gpu::GpuError::Limits(m))) => assert!(m.contains("storage buffers"), "{m}"),
         other => panic!("expected RenderError::Gpu(GpuError::Limits), got {:?}", other.map(|f| f.stats)),
     }
+}
+
+/// With room for the bounce stages' storage buffers, a frame with reflection and
+/// refraction (the default max depth) stays on the GPU too: the texture holds the CPU
+/// reference's final image, and the statistics its bounces' counts.
+#[test]
+fn present_renders_bounces_into_the_applications_texture() {
+    let Some((adapter, device, queue)) = application_device(hyrt_gpu::backend::BOUNCE_STORAGE_BUFFERS) else { return };
+    let mut gpu = GpuBackend::with_context(GpuContext::from_device(&adapter, device, queue)).expect("pipelines");
+    let scene = Scene::default_scene();
+    let mut cpu = CpuBackend::new(Some(2));
+    let prepared = cpu.prepare(WorldGeometry::build(&scene), BvhPreset::default());
+    let cam = CameraRecord::new(&scene.camera.unwrap(), 64, 36);
+    let opts = FrameOptions::default();
+    let usage = wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC;
+    let texture = target(gpu.context(), 64, 36, wgpu::TextureFormat::Rgba32Float, usage);
+    let stats = gpu.render_to_texture(&prepared, &cam, &opts, &texture).expect("frame");
+    let reference = cpu.render(&prepared, &cam, &opts).unwrap();
+    assert!(!reference.stats.bounces.is_empty());
+    let bits = |v: &[[f32; 4]]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&read_texture(gpu.context(), &texture)), bits(&reference.final_image));
+    assert_eq!(stats.bounces, reference.stats.bounces);
+    assert_eq!(stats.rays_per_kind, reference.stats.rays_per_kind);
 }
