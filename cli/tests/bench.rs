@@ -62,6 +62,7 @@ fn bench_cli_writes_the_report_and_plots() {
     assert!(md.starts_with("# hyrt benchmark report\n\nCommand: `"), "{md}");
     let order = [
         "## Table 2 reproduction (48x32)",
+        "## Reflection and refraction: the frame at the default max depth",
         "## Peers in the same run",
         "## Scaling",
         "## Speed against error",
@@ -104,6 +105,10 @@ fn bench_cli_writes_the_report_and_plots() {
         let img = image::open(dir.path().join(plot)).unwrap();
         assert_eq!((img.width(), img.height()), hyrt_benches::bench::plots::PLOT_SIZE);
     }
+    // The default scene's frame with bounces, per step: each depth's stages named.
+    for step in ["| `secondary_rays{1}` |", "| `bounce_trace{4}` |", "| `bounce_shading{1}` |", "| `rt_shading` |"] {
+        assert!(md.contains(step), "no {step} in\n{md}");
+    }
     // Two sizes in the pixel scaling, on the CPU.
     assert!(md.contains("| 48x32 | 1,536 |") && md.contains("| 64x40 | 2,560 |"), "{md}");
 }
@@ -129,6 +134,9 @@ fn bench_cli_with_a_software_gpu_labels_it() {
     assert!(md.contains(&format!("| {short} own / CPU | {short} ms, hyrt's exact kernels |")), "{md}");
     let row = md.lines().find(|l| l.starts_with("| default | ") && l.matches('|').count() == 7).unwrap();
     assert!(!row.contains(" - "), "both GPU modes measured: {row}");
+    // The bounces on the GPU too: every step of the frame has a GPU time.
+    let step = md.lines().find(|l| l.starts_with("| `bounce_trace{1}` |")).unwrap_or_else(|| panic!("{md}"));
+    assert!(!step.ends_with("| - |"), "the GPU traced the bounces: {step}");
 }
 
 #[test]

@@ -7,6 +7,7 @@
 //! [`Report::write`] writes `report.md`. All times are medians over repeated frames or
 //! repetitions within this one run; nothing here asserts a speed.
 
+pub mod bounces;
 pub mod machine;
 pub mod peers;
 pub mod plots;
@@ -205,17 +206,30 @@ pub fn measure_frames(
     camera: &CameraRecord,
     frames: usize,
 ) -> Result<(FrameSummary, FrameStats), RenderError> {
+    // The paper's frame: shadow rays only (the bounces have their own section).
     let options = FrameOptions { weight: 1.0, stage_outputs: false, max_depth: 0 };
+    let (summary, mut stats) = measure_frames_with(backend, prepared, camera, frames, &options)?;
+    Ok((summary, stats.pop().expect("at least one frame")))
+}
+
+/// [`measure_frames`] with `options`; the summary and every measured frame's statistics.
+pub fn measure_frames_with(
+    backend: &mut dyn Backend,
+    prepared: &PreparedScene,
+    camera: &CameraRecord,
+    frames: usize,
+    options: &FrameOptions,
+) -> Result<(FrameSummary, Vec<FrameStats>), RenderError> {
     let mut frame = Frame::default();
-    backend.render_into(prepared, camera, &options, &mut frame)?;
+    backend.render_into(prepared, camera, options, &mut frame)?;
     let mut stats = Vec::with_capacity(frames);
     for _ in 0..frames {
-        backend.render_into(prepared, camera, &options, &mut frame)?;
+        backend.render_into(prepared, camera, options, &mut frame)?;
         stats.push(frame.stats.clone());
     }
     let summary =
         FrameSummary::from_frames(&stats).ok_or_else(|| RenderError::InvalidOptions("no frame was measured".into()))?;
-    Ok((summary, frame.stats))
+    Ok((summary, stats))
 }
 
 /// Median milliseconds of `repeats` runs of `f` (after one untimed run).
@@ -285,8 +299,10 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Report, Ben
     drop(t2_scenes);
     let peers = peers::run(options, &table2, progress)?;
     let scaling = scaling::run(options, &table2, &mut cpu, gpu.as_mut(), &mut notes, progress)?;
+    let bounces = bounces::run(options, &table2, &mut cpu, gpu.as_mut(), progress)?;
 
-    let mut sections = vec![table2.section(), peers.section(&table2), scaling.section.clone()];
+    let mut sections =
+        vec![table2.section(), bounces.section(&table2), peers.section(&table2), scaling.section.clone()];
     let mut files = scaling.files.clone();
     if !accuracy_scenes.is_empty() {
         let (width, height) = options.table_size;
