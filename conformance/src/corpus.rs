@@ -603,7 +603,20 @@ fn degenerate_cases(b: &mut Builder) {
 
     let mut s = Scene::default();
     stage_set(&mut s, 6.0);
-    b.add("degenerate_no_lights", "no lights: no shadow rays at all", s, cam, w, h);
+    // A mirror and a glass ball: their bounces run without shadow rays at any depth.
+    s.add_object(
+        Mesh::uv_sphere("gold_ball", 16, 8),
+        gold(),
+        Mat4::from_translation(Vec3::new(-0.8, 0.6, 0.0)) * Mat4::from_scale(Vec3::splat(0.5)),
+        RT,
+    );
+    s.add_object(
+        Mesh::uv_sphere("glass_ball", 16, 8),
+        glass(1.5),
+        Mat4::from_translation(Vec3::new(0.8, 0.6, 0.0)) * Mat4::from_scale(Vec3::splat(0.5)),
+        RT,
+    );
+    b.add("degenerate_no_lights", "no lights: no shadow rays at all, bounces without them", s, cam, w, h);
 
     let (s, mut c) = transformed_default(Vec3::ZERO, 1.0);
     c.target = c.eye + (c.eye - c.target);

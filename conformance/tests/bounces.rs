@@ -15,6 +15,7 @@ use hyrt_core::formats::{
 use hyrt_core::frame::{Backend, Frame, FrameOptions};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::ray::meets_zero_edge_tie;
+use hyrt_core::plan::Step;
 use hyrt_core::scene::Scene;
 use hyrt_cpu::backend::CpuBackend;
 
@@ -182,4 +183,25 @@ fn bounce_corpus_offsets_leave_every_surface_on_the_right_side() {
             _ => {}
         }
     }
+}
+
+/// A scene without lights still bounces: no shadow ray at any depth, no compaction or
+/// shadow_rays step planned for them, and the radiance gathered all the same (the GPU
+/// matches it in `tests/corpus.rs`).
+#[test]
+fn bounces_without_lights_plan_no_shadow_rays() {
+    let mut cpu = CpuBackend::new(Some(2));
+    let case = corpus().into_iter().find(|c| c.name == "degenerate_no_lights").expect("the case");
+    let prepared = cpu.prepare(WorldGeometry::build(&case.scene), BvhPreset::default());
+    let frame = render_case(&mut cpu, &prepared, &case).unwrap();
+    assert_eq!(frame.plan.bounce_depth(), case.max_depth);
+    let b = &frame.stats.bounces[0];
+    assert!(b.rays_per_kind[RAY_KIND_REFLECTION as usize] > 0 && b.rays_per_kind[RAY_KIND_REFRACTION as usize] > 0);
+    assert!(frame.stats.bounces.iter().all(|b| b.rays_per_kind[0] == 0), "no shadow ray");
+    assert!(frame
+        .plan
+        .steps()
+        .iter()
+        .all(|s| !matches!(s, Step::BounceCompaction { .. } | Step::BounceShadowRays { .. })));
+    assert!(frame.bounces[0].radiance.iter().any(|r| r[0] > 0.0), "the lobes see the sky");
 }
