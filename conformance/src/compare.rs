@@ -9,7 +9,7 @@
 //! `compaction`, not a cascade of shifted records), so one differing pixel is reported
 //! once, in the stage that made it.
 
-use hyrt_core::formats::{GBufferTexel, HitRecord, RayRecord, SurfaceRecord};
+use hyrt_core::formats::{GBufferTexel, RayRecord, SurfaceRecord};
 use hyrt_core::frame::Frame;
 use hyrt_core::plan::{BounceBuffer, FrameBuffer};
 use hyrt_core::stage::Stage;
@@ -415,27 +415,29 @@ fn compare_bounces(expected: &Frame, actual: &Frame, out: &mut Vec<BufferCompari
             }
             let (eb, ab) = (&expected.bounces[d as usize - 1], &actual.bounces[d as usize - 1]);
             let codes = |v: &[u8]| v.iter().map(|&c| c as u32).collect::<Vec<u32>>();
-            let list = |words: &[Word], e: &[_], a: &[_]| compare_per_pixel(stage, &name, words, 0, e, a, &[]);
             out.push(match b {
-                BounceBuffer::Rays => compare_per_pixel(stage, &name, &RAY_WORDS, 0, &eb.rays, &ab.rays, &[]),
-                BounceBuffer::Links => compare_per_pixel(stage, &name, &LINK_WORDS, 0, &eb.links, &ab.links, &[]),
-                BounceBuffer::Hits => {
-                    compare_per_pixel::<HitRecord>(stage, &name, &HIT_WORDS, 0, &eb.hits, &ab.hits, &[])
-                }
-                BounceBuffer::Surfaces => {
-                    compare_per_pixel(stage, &name, &SURFACE_WORDS, 0, &eb.surfaces, &ab.surfaces, &[])
-                }
-                BounceBuffer::ShadowRays => {
-                    compare_per_pixel(stage, &name, &RAY_WORDS, 0, &eb.shadow_rays, &ab.shadow_rays, &[])
-                }
-                BounceBuffer::Occluded => list(&WORD, &eb.occluded, &ab.occluded),
-                BounceBuffer::Shadow => list(&WORD, &codes(&eb.shadow), &codes(&ab.shadow)),
-                BounceBuffer::Radiance => {
-                    compare_per_pixel(stage, &name, &RGBA_WORDS, 0, &eb.radiance, &ab.radiance, &[])
-                }
+                BounceBuffer::Rays => in_list_order(stage, &name, &RAY_WORDS, &eb.rays, &ab.rays),
+                BounceBuffer::Links => in_list_order(stage, &name, &LINK_WORDS, &eb.links, &ab.links),
+                BounceBuffer::Hits => in_list_order(stage, &name, &HIT_WORDS, &eb.hits, &ab.hits),
+                BounceBuffer::Surfaces => in_list_order(stage, &name, &SURFACE_WORDS, &eb.surfaces, &ab.surfaces),
+                BounceBuffer::ShadowRays => in_list_order(stage, &name, &RAY_WORDS, &eb.shadow_rays, &ab.shadow_rays),
+                BounceBuffer::Occluded => in_list_order(stage, &name, &WORD, &eb.occluded, &ab.occluded),
+                BounceBuffer::Shadow => in_list_order(stage, &name, &WORD, &codes(&eb.shadow), &codes(&ab.shadow)),
+                BounceBuffer::Radiance => in_list_order(stage, &name, &RGBA_WORDS, &eb.radiance, &ab.radiance),
             });
         }
     }
+}
+
+/// A buffer of a ray list, compared record by record in list order (no pixel location).
+fn in_list_order<T: bytemuck::Pod>(
+    stage: Stage,
+    name: &str,
+    words: &[Word],
+    expected: &[T],
+    actual: &[T],
+) -> BufferComparison {
+    compare_per_pixel(stage, name, words, 0, expected, actual, &[])
 }
 
 /// `compaction`'s rays and `shadow_rays`' occlusion results. Rays are matched by

@@ -82,26 +82,24 @@ impl Counts {
     /// count (primary shadow rays never past one per (pixel, light) pair, which always
     /// fits); `None` when every list fit.
     fn grown(&self, room: &Room, pairs: usize) -> Option<Room> {
-        let more = |count: usize, have: u32| {
+        // A list that fit keeps its room; one that did not gets a quarter more than its
+        // count, at most `cap`.
+        let more = |count: usize, have: u32, cap: usize| {
             if count <= have as usize {
                 have
             } else {
-                u32::try_from(count + count / 4).unwrap_or(u32::MAX)
+                u32::try_from((count + count / 4).min(cap)).unwrap_or(u32::MAX)
             }
         };
         let grown = Room {
-            shadow_rays: if self.shadow_rays > room.shadow_rays as usize {
-                (self.shadow_rays + self.shadow_rays / 4).min(pairs) as u32
-            } else {
-                room.shadow_rays
-            },
+            shadow_rays: more(self.shadow_rays, room.shadow_rays, pairs),
             bounces: room
                 .bounces
                 .iter()
                 .zip(self.bounces.iter().chain(std::iter::repeat(&BounceCounts::default())))
                 .map(|(r, c)| BounceRoom {
-                    rays: more(c.rays, r.rays),
-                    shadow_rays: more(c.shadow_rays, r.shadow_rays),
+                    rays: more(c.rays, r.rays, usize::MAX),
+                    shadow_rays: more(c.shadow_rays, r.shadow_rays, usize::MAX),
                 })
                 .collect(),
         };
