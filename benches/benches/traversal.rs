@@ -1,8 +1,11 @@
 //! Criterion benchmarks of batch ray traversal (`hyrt_cpu::traversal`): scalar reference
-//! vs SIMD packets, 1 and 2 threads, in rays per second (`Throughput::Elements`).
+//! vs SIMD packets vs single rays through the wide tree, 1 and 2 threads, in rays per
+//! second (`Throughput::Elements`).
 //!
 //! * `shadow`: the shadow-ray list of a real 1280x720 CPU frame (any hit).
 //! * `primary`: one primary ray per pixel from `camera::primary_rays` (closest hit).
+//! * `secondary`: the reflection and refraction rays of every depth of the same frame at
+//!   the default max depth (closest hit), when the scene has mirrors or glass.
 //!
 //! Scenes: the default scene, and when `../shared/assets` is present Sponza and the bunny
 //! (the glTF files with `ensure_camera_and_lights`), the teaser and the dragon manifests.
@@ -52,7 +55,8 @@ fn scenes() -> Vec<(&'static str, Scene)> {
 }
 
 fn traversal(c: &mut Criterion) {
-    let kinds = [Traversal::Scalar, Traversal::simd()];
+    let level = hyrt_cpu::traversal::SimdLevel::detect();
+    let kinds = [Traversal::Scalar, Traversal::Packet(level), Traversal::Single(level)];
     for (name, scene) in scenes() {
         let cam = CameraRecord::new(&scene.camera.unwrap(), W, H);
         let geometry = WorldGeometry::build(&scene);
@@ -61,6 +65,7 @@ fn traversal(c: &mut Criterion) {
         let frame =
             CpuBackend::new(Some(1)).render(&prepared, &cam, &FrameOptions::with_stage_outputs()).expect("frame");
         let (g, bvh) = (&prepared.geometry, &prepared.bvh);
+        let secondary: Vec<_> = frame.bounces.iter().flat_map(|b| b.rays.iter().copied()).collect();
         let shadow = frame.rays;
         let primary = primary_rays(&cam);
 
@@ -76,19 +81,24 @@ fn traversal(c: &mut Criterion) {
         }
         group.finish();
 
-        let mut group = c.benchmark_group(format!("traversal/{name}/primary"));
-        group.sample_size(10).throughput(Throughput::Elements(primary.len() as u64));
-        for threads in THREADS {
-            for kind in kinds {
-                let mut out = Vec::new();
-                group.bench_function(format!("{}/{threads}t", kind.name()), |b| {
-                    with_threads(threads, || {
-                        b.iter(|| closest_hit_batch_into(bvh, &g.triangles, &primary, kind, &mut out))
-                    })
-                });
+        for (kind_of_rays, rays) in [("primary", &primary), ("secondary", &secondary)] {
+            if rays.is_empty() {
+                continue;
             }
+            let mut group = c.benchmark_group(format!("traversal/{name}/{kind_of_rays}"));
+            group.sample_size(10).throughput(Throughput::Elements(rays.len() as u64));
+            for threads in THREADS {
+                for kind in kinds {
+                    let mut out = Vec::new();
+                    group.bench_function(format!("{}/{threads}t", kind.name()), |b| {
+                        with_threads(threads, || {
+                            b.iter(|| closest_hit_batch_into(bvh, &g.triangles, rays, kind, &mut out))
+                        })
+                    });
+                }
+            }
+            group.finish();
         }
-        group.finish();
     }
 }
 

@@ -12,7 +12,7 @@ use hyrt_core::formats::CameraRecord;
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::camera::primary_rays;
 use hyrt_cpu::backend::CpuBackend;
-use hyrt_cpu::traversal::{closest_hit_batch, occluded_batch, SimdLevel, Traversal};
+use hyrt_cpu::traversal::{closest_hit_batch, occluded_batch, Traversal};
 
 fn bits(h: &Option<ClosestHit>) -> Option<(u32, u32, u32, u32)> {
     h.map(|h| (h.triangle, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
@@ -23,6 +23,7 @@ fn traversal_packets_match_scalar_over_the_corpus() {
     let mut packets = CpuBackend::new(Some(2));
     let mut scalar = CpuBackend::new(Some(2));
     scalar.set_shadow_traversal(Traversal::Scalar);
+    scalar.set_bounce_traversal(Traversal::Scalar);
     let (mut shadow_rays, mut occluded, mut primary, mut hits) = (0, 0, 0, 0);
     for case in corpus() {
         let p = packets.prepare(WorldGeometry::build(&case.scene), BvhPreset::default());
@@ -41,10 +42,11 @@ fn traversal_packets_match_scalar_over_the_corpus() {
         let cam = primary_rays(&CameraRecord::new(&case.camera, case.width, case.height));
         let want_any = occluded_batch(bvh, &g.triangles, &a.rays, Traversal::Scalar);
         let want_closest = closest_hit_batch(bvh, &g.triangles, &cam, Traversal::Scalar);
-        for level in SimdLevel::available() {
-            let any = occluded_batch(bvh, &g.triangles, &a.rays, Traversal::Packet(level));
+        for kind in Traversal::available_simd() {
+            let level = kind.name();
+            let any = occluded_batch(bvh, &g.triangles, &a.rays, kind);
             assert_eq!(any, want_any, "{}: {level:?} any hit", case.name);
-            let closest = closest_hit_batch(bvh, &g.triangles, &cam, Traversal::Packet(level));
+            let closest = closest_hit_batch(bvh, &g.triangles, &cam, kind);
             for (i, (x, y)) in closest.iter().zip(&want_closest).enumerate() {
                 assert_eq!(bits(x), bits(y), "{}: {level:?} closest hit of pixel {i}", case.name);
             }

@@ -62,6 +62,7 @@ use crate::geometry::WorldGeometry;
 use crate::kernels::ray::{gamma, ray_aabb_conservative, safe_inverse_dir, WatertightRay};
 
 pub mod traversal;
+pub mod wide;
 
 use traversal::{inline_leaf_test, traverse, Leaf, LeafFlow, NodeTest};
 
@@ -271,6 +272,9 @@ pub struct Bvh {
     /// `WorldGeometry::triangles[prim_indices[s]]`, so a leaf's triangles are contiguous
     /// in memory and traversal reads them without the indirection.
     pub leaf_triangles: Vec<TriangleRecord>,
+    /// The 8-wide view of the same tree for the CPU's single-ray traversal
+    /// ([`wide::WideBvh`]); derived from `nodes`, never uploaded.
+    pub wide: wide::WideBvh,
 }
 
 /// True if a triangle can ever be hit: all vertices finite and no two vertices equal.
@@ -481,15 +485,17 @@ impl Bvh {
             build_preset: preset,
             max_depth: 0,
             leaf_triangles: Vec::new(),
+            wide: wide::WideBvh::default(),
         };
         bvh.finish(triangles);
         bvh
     }
 
-    /// Fill the derived fields: `max_depth` and `leaf_triangles`.
+    /// Fill the derived fields: `max_depth`, `leaf_triangles` and `wide`.
     fn finish(&mut self, triangles: &[TriangleRecord]) {
         self.max_depth = self.compute_max_depth();
         self.leaf_triangles = self.prim_indices.iter().map(|&i| triangles[i as usize]).collect();
+        self.wide = wide::WideBvh::collapse(self);
     }
 
     /// Nodes in an order where every child comes after its parent (pre-order), with depths.
@@ -559,7 +565,7 @@ impl Bvh {
             if traceable != 0 {
                 return Err(format!("BVH without nodes but {traceable} traceable triangles"));
             }
-            return Ok(());
+            return self.wide.validate(self).map_err(|e| format!("wide view: {e}"));
         }
         let splits = self.build_preset.uses_spatial_splits();
         let mut node_seen = vec![false; self.nodes.len()];
@@ -633,6 +639,7 @@ impl Bvh {
         if depth != self.max_depth {
             return Err(format!("max_depth is {} but the tree is {depth} deep", self.max_depth));
         }
+        self.wide.validate(self).map_err(|e| format!("wide view: {e}"))?;
         Ok(())
     }
 

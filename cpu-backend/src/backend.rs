@@ -35,8 +35,11 @@ pub struct CpuBackend {
     scratch: CompactionScratch,
     /// `bounce_trace`'s closest hits before they become records, kept between frames.
     closest: Vec<Option<ClosestHit>>,
-    /// How `shadow_rays` and `bounce_trace` trace (SIMD packets by default; scalar for comparisons).
+    /// How `shadow_rays` and `bounce_compaction`'s shadow rays trace (any hit; SIMD packets
+    /// by default, scalar for comparisons).
     shadow_traversal: Traversal,
+    /// How `bounce_trace` traces (closest hit; single rays through the wide tree by default).
+    bounce_traversal: Traversal,
 }
 
 impl CpuBackend {
@@ -51,6 +54,7 @@ impl CpuBackend {
             scratch: CompactionScratch::default(),
             closest: Vec::new(),
             shadow_traversal: Traversal::simd(),
+            bounce_traversal: Traversal::for_bounces(),
         }
     }
 
@@ -64,6 +68,18 @@ impl CpuBackend {
     /// The traversal `shadow_rays` uses.
     pub fn shadow_traversal(&self) -> Traversal {
         self.shadow_traversal
+    }
+
+    /// Trace the reflection and refraction rays of `bounce_trace` with `traversal` from now
+    /// on ([`Traversal::for_bounces`] by default; [`Traversal::Scalar`] is the reference).
+    /// All give the same frame.
+    pub fn set_bounce_traversal(&mut self, traversal: Traversal) {
+        self.bounce_traversal = traversal;
+    }
+
+    /// The traversal `bounce_trace` uses.
+    pub fn bounce_traversal(&self) -> Traversal {
+        self.bounce_traversal
     }
 
     /// Number of worker threads.
@@ -115,7 +131,7 @@ impl Backend for CpuBackend {
         let g = &scene.geometry;
         let eye = Vec3::from(camera.eye);
         let threads = self.threads();
-        let traversal = self.shadow_traversal;
+        let (traversal, bounce_traversal) = (self.shadow_traversal, self.bounce_traversal);
         let scratch = &mut self.scratch;
         let closest = &mut self.closest;
         let f = frame;
@@ -158,7 +174,15 @@ impl Backend for CpuBackend {
                     }
                     Step::BounceTrace { depth } => {
                         let b = &mut f.bounces[depth as usize - 1];
-                        bounce_trace_into(&scene.bvh, g, &b.rays, traversal, closest, &mut b.hits, &mut b.surfaces)
+                        bounce_trace_into(
+                            &scene.bvh,
+                            g,
+                            &b.rays,
+                            bounce_traversal,
+                            closest,
+                            &mut b.hits,
+                            &mut b.surfaces,
+                        )
                     }
                     Step::BounceCompaction { depth } => {
                         let b = &mut f.bounces[depth as usize - 1];

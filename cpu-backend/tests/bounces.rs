@@ -53,6 +53,7 @@ fn camera(eye: Vec3, target: Vec3, fov_y_deg: f32) -> Camera {
 fn render(scene: &Scene, cam: &Camera, size: (u32, u32), max_depth: u32, threads: usize, t: Traversal) -> Frame {
     let mut cpu = CpuBackend::new(Some(threads));
     cpu.set_shadow_traversal(t);
+    cpu.set_bounce_traversal(t);
     let prepared = cpu.prepare(WorldGeometry::build(scene), BvhPreset::default());
     let options = FrameOptions { max_depth, ..FrameOptions::with_stage_outputs() };
     cpu.render(&prepared, &CameraRecord::new(cam, size.0, size.1), &options).expect("frame")
@@ -405,7 +406,9 @@ fn bits(f: &Frame) -> Vec<Vec<u8>> {
 fn bounce_shading_same_bits_for_every_thread_count_and_traversal() {
     let (scene, cam) = default_with_glass();
     let reference = bits(&render(&scene, &cam, (160, 90), 4, 2, Traversal::simd()));
-    for (threads, t) in [(1, Traversal::simd()), (2, Traversal::Scalar), (3, Traversal::simd())] {
+    for (threads, t) in
+        [(1, Traversal::simd()), (2, Traversal::Scalar), (3, Traversal::simd()), (2, Traversal::for_bounces())]
+    {
         assert!(reference == bits(&render(&scene, &cam, (160, 90), 4, threads, t)), "{threads} threads, {}", t.name());
     }
 }

@@ -14,7 +14,7 @@ use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::camera::primary_rays;
 use hyrt_core::scene::{Material, Mesh, RenderMode, Scene};
 use hyrt_cpu::backend::CpuBackend;
-use hyrt_cpu::traversal::{closest_hit_batch, occluded_batch, with_threads, SimdLevel, Traversal, LANES};
+use hyrt_cpu::traversal::{closest_hit_batch, occluded_batch, with_threads, Traversal, LANES};
 use proptest::prelude::*;
 
 /// Compare every available packet level with the scalar reference on `rays`; returns the
@@ -23,8 +23,8 @@ fn check(g: &WorldGeometry, bvh: &Bvh, rays: &[RayRecord]) -> usize {
     let t = &g.triangles;
     let want_any = occluded_batch(bvh, t, rays, Traversal::Scalar);
     let want_closest = closest_hit_batch(bvh, t, rays, Traversal::Scalar);
-    for level in SimdLevel::available() {
-        let kind = Traversal::Packet(level);
+    for kind in Traversal::available_simd() {
+        let level = kind.name();
         let any = occluded_batch(bvh, t, rays, kind);
         let closest = closest_hit_batch(bvh, t, rays, kind);
         for (i, r) in rays.iter().enumerate() {

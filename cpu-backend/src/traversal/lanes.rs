@@ -55,6 +55,35 @@ pub(crate) trait Lanes: Copy {
     }
 }
 
+/// The running bounds of the slab test (`ray_aabb_conservative`): the largest of the near
+/// distances `tn` and `t_enter`, the smallest of the far distances `tf` and `t_exit`, per
+/// lane, in the scalar order, so that a NaN distance (an origin on a slab plane with an
+/// infinite inverse direction) is dropped as there. With `finite_inv` (no lane's inverse
+/// direction is infinite) no distance is NaN and the order changes nothing the comparison
+/// `t_enter <= t_exit` can see (only the sign of a zero): a shorter dependency chain with
+/// the same answer.
+#[inline(always)]
+pub(crate) fn slab_bounds<L: Lanes>(
+    tn: [L::F; 3],
+    tf: [L::F; 3],
+    t_enter: L::F,
+    t_exit: L::F,
+    finite_inv: bool,
+) -> (L::F, L::F) {
+    if finite_inv {
+        (L::max(L::max(tn[0], tn[1]), L::max(tn[2], t_enter)), L::min(L::min(tf[0], tf[1]), L::min(tf[2], t_exit)))
+    } else {
+        let (mut t_enter, mut t_exit) = (t_enter, t_exit);
+        for t in tn {
+            t_enter = L::max(t, t_enter);
+        }
+        for t in tf {
+            t_exit = L::min(t, t_exit);
+        }
+        (t_enter, t_exit)
+    }
+}
+
 /// Plain arrays: the fallback on every target (LLVM vectorizes most of it).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Portable;

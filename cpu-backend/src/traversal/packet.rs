@@ -12,8 +12,9 @@
 //! * Triangle test: [`WatertightRay::intersect`] per lane: the axis permutation of each
 //!   lane (applied to the vertex once when the lanes share it, blended otherwise), every
 //!   product and sum in the scalar order, no fused multiply-add.
-//!   A lane whose f32 edge function is exactly zero is redone with the scalar kernel
-//!   (whose f64 fallback has no packet form).
+//!   The lane form is `watertight::intersect`, shared with the single-ray leaf test. A
+//!   lane whose f32 edge function is exactly zero is redone with the scalar kernel (whose
+//!   exact tie rule has no lane form).
 //!
 //! The walk is the one traversal loop of `hyrt_core::bvh::traversal` with the packets'
 //! node tests (`AnyHitLanes`, `ClosestHitLanes`) and leaf tests. A lane takes part in a
@@ -43,15 +44,10 @@ use glam::Vec3;
 use hyrt_core::bvh::traversal::{inline_leaf_test, traverse, Leaf, LeafFlow, NodeTest};
 use hyrt_core::bvh::{Bvh, BvhNode, ClosestHit, BVH_CULL_SLACK};
 use hyrt_core::formats::{RayRecord, TriangleRecord, INVALID_ID};
-use hyrt_core::kernels::ray::{gamma, permute_axes, WatertightRay, SLAB_FAR_SCALE};
+use hyrt_core::kernels::ray::{permute_axes, WatertightRay, SLAB_FAR_SCALE};
 
-use super::lanes::{Lanes, ALL_LANES, LANES};
-
-/// `gamma(n)` of the watertight test's `t` error bound, as constants (const evaluation of
-/// f32 arithmetic is IEEE 754, so the bits equal the scalar kernel's).
-const GAMMA2: f32 = gamma(2);
-const GAMMA3: f32 = gamma(3);
-const GAMMA5: f32 = gamma(5);
+use super::lanes::{slab_bounds, Lanes, ALL_LANES, LANES};
+use super::watertight;
 
 /// Up to [`LANES`] rays prepared for traversal, lane `i` from `rays[i]`.
 pub(crate) struct Packet<'a, L: Lanes> {
@@ -206,8 +202,8 @@ impl<'a, L: Lanes> Packet<'a, L> {
     /// `[box_t_min, t_far]`: the mask of lanes that enter.
     #[inline(always)]
     fn enter(&self, node: &BvhNode, t_far: L::F) -> u32 {
-        let mut t_enter = self.box_t_min;
-        let mut t_exit = t_far;
+        let t_enter = self.box_t_min;
+        let t_exit = t_far;
         // The scalar order: x, y, z for both running bounds.
         let mut tn = [t_enter; 3];
         let mut tf = [t_exit; 3];
@@ -230,21 +226,7 @@ impl<'a, L: Lanes> Packet<'a, L> {
                     L::mul(L::mul(L::sub(L::splat(far), self.origin[a]), self.inv_dir[a]), L::splat(SLAB_FAR_SCALE));
             }
         }
-        if self.finite_inv {
-            // No lane has an infinite inverse direction, so no distance is NaN and the
-            // maximum (minimum) does not depend on the order of evaluation except for the
-            // sign of a zero result, which the comparison below cannot see: a shorter
-            // dependency chain with the same mask.
-            t_enter = L::max(L::max(tn[0], tn[1]), L::max(tn[2], t_enter));
-            t_exit = L::min(L::min(tf[0], tf[1]), L::min(tf[2], t_exit));
-        } else {
-            for t in tn {
-                t_enter = L::max(t, t_enter);
-            }
-            for t in tf {
-                t_exit = L::min(t, t_exit);
-            }
-        }
+        let (t_enter, t_exit) = slab_bounds::<L>(tn, tf, t_enter, t_exit, self.finite_inv);
         L::bits(L::le(t_enter, t_exit))
     }
 
@@ -279,67 +261,10 @@ impl<'a, L: Lanes> Packet<'a, L> {
     /// rays' own `(t_min, t_max)`: the mask of lanes hit and, in those lanes, `t, u, v`.
     #[inline(always)]
     fn intersect<const EARLY_OUT: bool>(&self, active: u32, tri: &TriangleRecord) -> (u32, L::F, L::F, L::F) {
-        let p0 = self.transform(tri.v0);
-        let p1 = self.transform(tri.v1);
-        let p2 = self.transform(tri.v2);
-        let edge = |a: &[L::F; 3], b: &[L::F; 3]| L::sub(L::mul(a[0], b[1]), L::mul(a[1], b[0]));
-        let e0 = edge(&p1, &p2);
-        let e1 = edge(&p2, &p0);
-        let e2 = edge(&p0, &p1);
-        let zero = L::splat(0.0);
-        // Lanes with an exactly-zero edge function go to the scalar kernel (f64 fallback).
-        let exact = active & L::bits(L::or(L::or(L::eq(e0, zero), L::eq(e1, zero)), L::eq(e2, zero)));
-        let any_neg = L::or(L::or(L::lt(e0, zero), L::lt(e1, zero)), L::lt(e2, zero));
-        let any_pos = L::or(L::or(L::gt(e0, zero), L::gt(e1, zero)), L::gt(e2, zero));
-        let det = L::add(L::add(e0, e1), e2);
-        // Rejected: mixed signs, det == 0, det not finite.
-        let reject = L::or(L::and(any_neg, any_pos), L::eq(det, zero));
-        // With EARLY_OUT, most tests end here: no active lane passes the edge tests (and
-        // none needs the scalar kernel), so the depth, the division and the error bound are
-        // skipped. Measured: closest hit 4 to 6% faster; any hit slower (the branch
-        // mispredicts more on shadow rays grazing the surfaces they leave).
-        if EARLY_OUT && active & !L::bits(reject) & !exact == 0 && exact == 0 {
-            return (0, zero, zero, zero);
-        }
-        let finite = L::lt(L::abs(det), L::splat(f32::INFINITY));
-        let z0 = L::mul(self.shear[2], p0[2]);
-        let z1 = L::mul(self.shear[2], p1[2]);
-        let z2 = L::mul(self.shear[2], p2[2]);
-        let t_scaled = L::add(L::add(L::mul(e0, z0), L::mul(e1, z1)), L::mul(e2, z2));
-        let wrong_side =
-            L::or(L::and(L::lt(det, zero), L::ge(t_scaled, zero)), L::and(L::gt(det, zero), L::le(t_scaled, zero)));
-        let inv_det = L::div(L::splat(1.0), det);
-        let t = L::mul(t_scaled, inv_det);
-        let in_range = L::and(L::gt(t, self.t_min), L::lt(t, self.t_max));
-        let ok = L::andnot(L::or(reject, wrong_side), L::and(finite, in_range));
-        let mut hit = L::bits(ok) & active & !exact;
-        let (mut t_out, mut u_out, mut v_out) = (t, L::mul(e1, inv_det), L::mul(e2, inv_det));
-        if hit != 0 {
-            // Conservative t > 0: the same expression tree as the scalar kernel.
-            // In lanes still hit every value below is finite, so MAXPS equals f32::max.
-            let amax3 = |a: L::F, b: L::F, c: L::F| L::max(L::max(L::abs(a), L::abs(b)), L::abs(c));
-            let max_zt = amax3(z0, z1, z2);
-            let delta_z = L::mul(L::splat(GAMMA3), max_zt);
-            let max_xt = amax3(p0[0], p1[0], p2[0]);
-            let max_yt = amax3(p0[1], p1[1], p2[1]);
-            let max_zw = amax3(p0[2], p1[2], p2[2]);
-            let delta_x = L::mul(L::splat(GAMMA5), L::add(max_xt, L::mul(L::abs(self.shear[0]), max_zw)));
-            let delta_y = L::mul(L::splat(GAMMA5), L::add(max_yt, L::mul(L::abs(self.shear[1]), max_zw)));
-            let delta_e = L::mul(
-                L::splat(2.0),
-                L::add(
-                    L::add(L::mul(L::mul(L::splat(GAMMA2), max_xt), max_yt), L::mul(delta_y, max_xt)),
-                    L::mul(delta_x, max_yt),
-                ),
-            );
-            let max_e = amax3(e0, e1, e2);
-            let sum = L::add(
-                L::add(L::mul(L::mul(L::splat(GAMMA3), max_e), max_zt), L::mul(delta_e, max_zt)),
-                L::mul(delta_z, max_e),
-            );
-            let delta_t = L::mul(L::mul(L::splat(3.0), sum), L::abs(inv_det));
-            hit &= L::bits(L::gt(t, delta_t));
-        }
+        let p = [self.transform(tri.v0), self.transform(tri.v1), self.transform(tri.v2)];
+        let h = watertight::intersect::<L, EARLY_OUT>(active, p, &self.shear, self.t_min, self.t_max);
+        let (mut hit, exact) = (h.hit, h.exact);
+        let (mut t_out, mut u_out, mut v_out) = (h.t, h.u, h.v);
         if exact != 0 {
             let (mut ts, mut us, mut vs) = (L::store(t_out), L::store(u_out), L::store(v_out));
             let mut lanes = exact;

@@ -1,0 +1,451 @@
+//! An 8-wide view of the binary [`Bvh`](super::Bvh): the same boxes with up to [`WIDE`]
+//! children per node, for the CPU's single-ray SIMD traversal (one ray against the eight
+//! child boxes of a node at once, as Embree's `rtcIntersect1` does), and each leaf's
+//! triangles as structure of arrays ([`WideLeaf`]: one ray against all of a leaf's
+//! triangles at once).
+//!
+//! Built by collapsing the binary tree top down (after Wald et al. 2008, "Getting rid of
+//! packets", and Ylitie et al. 2017): a wide node starts from its binary node's two
+//! children and repeatedly replaces the inner child with the largest surface area by its
+//! two children, until it has [`WIDE`] children or none left to open. A binary subtree
+//! holding at most [`WIDE`] triangles is not opened: it becomes one wide leaf (its slots
+//! are adjacent, the tree being depth first), tested in one go with its root's box. That
+//! fills the lanes of the leaf test (the teaser's binary leaves hold 4 triangles on
+//! average) and removes the narrow wide nodes that held only two small leaves.
+//!
+//! Children keep the binary tree's depth-first order, and wide nodes are numbered depth
+//! first, so the layout keeps the binary tree's locality. No box is recomputed: every
+//! child box is a binary node's box, bit for bit, and every leaf slot is in exactly one
+//! wide leaf. The GPU walks the binary tree; this view never leaves the CPU.
+//!
+//! Skipping the intermediate binary boxes (and testing a merged leaf's triangles under
+//! one box) changes which boxes a ray is tested against, never which triangles can be its
+//! result: culling stays conservative (a box is skipped only when the ray's widened
+//! interval misses it, [`BVH_CULL_SLACK`](super::BVH_CULL_SLACK)), and closest hits
+//! resolve ties by the lower triangle index, so the traversal finds the scalar
+//! reference's closest hit in any visiting order (the one rounding corner case of
+//! `BVH_CULL_SLACK` aside, as for the packets).
+
+use bytemuck::{Pod, Zeroable};
+
+use super::{Bvh, BvhNode, BVH_MAX_LEAF_SIZE};
+
+/// Children per wide node: one AVX2 register of box distances.
+pub const WIDE: usize = 8;
+
+/// A child reference with this bit set is a leaf (see [`WideNode::child`]).
+pub const WIDE_LEAF_BIT: u32 = 1 << 31;
+/// Bits of the leaf index in a leaf reference; a tree with more leaves has no wide view.
+pub const WIDE_LEAF_INDEX_BITS: u32 = 28;
+const INDEX_MASK: u32 = (1 << WIDE_LEAF_INDEX_BITS) - 1;
+const _: () = assert!(BVH_MAX_LEAF_SIZE as usize <= 1 << (31 - WIDE_LEAF_INDEX_BITS));
+const _: () = assert!(BVH_MAX_LEAF_SIZE as usize <= WIDE);
+
+/// Entries of a single-ray traversal stack over a wide tree of binary depth at most
+/// [`BVH_STACK_SIZE`](super::BVH_STACK_SIZE): a wide level consumes at least one binary
+/// level, and visiting a node leaves at most `WIDE - 1` more entries than it took.
+pub const WIDE_STACK_SIZE: usize = (WIDE - 1) * super::BVH_STACK_SIZE + 1;
+
+/// One wide node: the boxes of up to [`WIDE`] children as structure of arrays, and their
+/// references.
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `lo` | [[f32; 8]; 3] | box minimum of each child, by axis (x, y, z) |
+/// | 96 | `hi` | [[f32; 8]; 3] | box maximum of each child, by axis |
+/// | 192 | `child` | [u32; 8] | inner: index of a wide node; leaf: [`WIDE_LEAF_BIT`], triangle count - 1 in bits 28..31, index into [`WideBvh::leaves`] in bits 0..28 |
+/// | 224 | `count` | u32 | children in use (the first `count`; 1 to 8) |
+/// | 228 | `pad` | [u32; 7] | zero |
+///
+/// 256 bytes, four cache lines. Unused children have the empty box (`lo = +inf`,
+/// `hi = -inf`), which no slab test enters, and reference 0.
+#[repr(C, align(64))]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct WideNode {
+    pub lo: [[f32; WIDE]; 3],
+    pub hi: [[f32; WIDE]; 3],
+    pub child: [u32; WIDE],
+    pub count: u32,
+    pub pad: [u32; 7],
+}
+const _: () = assert!(std::mem::size_of::<WideNode>() == 256);
+
+/// The triangles of one binary leaf, lane `k` holding its `k`-th slot (`first + k`), as
+/// structure of arrays for a one-ray, eight-triangle test.
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `v` | [[[f32; 8]; 3]; 3] | `v[i][a][k]`: coordinate `a` of vertex `v_i` of the lane's triangle, the bits of `Bvh::leaf_triangles` |
+/// | 288 | `ids` | [u32; 8] | the lane's global triangle index (`Bvh::prim_indices`) |
+///
+/// 320 bytes, five cache lines. Lanes past the leaf's count hold NaN vertices and
+/// `INVALID_ID`; the count travels in the reference.
+#[repr(C, align(64))]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct WideLeaf {
+    pub v: [[[f32; WIDE]; 3]; 3],
+    pub ids: [u32; WIDE],
+}
+const _: () = assert!(std::mem::size_of::<WideLeaf>() == 320);
+
+/// A decoded child reference.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WideChild {
+    /// A wide node's index.
+    Node(u32),
+    /// A leaf: its index in [`WideBvh::leaves`] and its triangle count (1 to 8).
+    Leaf { leaf: u32, count: u32 },
+}
+
+impl WideChild {
+    /// Decode a reference of [`WideNode::child`].
+    #[inline(always)]
+    pub fn decode(r: u32) -> WideChild {
+        if r & WIDE_LEAF_BIT == 0 {
+            WideChild::Node(r)
+        } else {
+            WideChild::Leaf { leaf: r & INDEX_MASK, count: ((r >> WIDE_LEAF_INDEX_BITS) & 7) + 1 }
+        }
+    }
+
+    /// Encode; `None` for an index that does not fit.
+    fn encode(self) -> Option<u32> {
+        match self {
+            WideChild::Node(i) => (i & WIDE_LEAF_BIT == 0).then_some(i),
+            WideChild::Leaf { leaf, count } => {
+                let fits = leaf <= INDEX_MASK && (1..=BVH_MAX_LEAF_SIZE).contains(&count);
+                fits.then(|| WIDE_LEAF_BIT | ((count - 1) << WIDE_LEAF_INDEX_BITS) | leaf)
+            }
+        }
+    }
+}
+
+/// The wide view of a binary tree: nodes, root first, and leaves in the order the
+/// collapse reaches them. Empty when the binary tree is empty, or too large to encode
+/// (more than 2^28 leaves or 2^31 nodes); traversals then use the binary tree.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct WideBvh {
+    pub nodes: Vec<WideNode>,
+    pub leaves: Vec<WideLeaf>,
+    /// The first slot of each leaf (its binary leaf's `left_or_first`).
+    pub first_slots: Vec<u32>,
+}
+
+impl WideLeaf {
+    /// The leaf of `count` slots from `first`.
+    fn new(bvh: &Bvh, first: u32, count: u32) -> WideLeaf {
+        let mut leaf = WideLeaf { v: [[[f32::NAN; WIDE]; 3]; 3], ids: [crate::formats::INVALID_ID; WIDE] };
+        for k in 0..count as usize {
+            let slot = first as usize + k;
+            let t = &bvh.leaf_triangles[slot];
+            for (lanes, v) in leaf.v.iter_mut().zip([t.v0, t.v1, t.v2]) {
+                for (lane, x) in lanes.iter_mut().zip(v) {
+                    lane[k] = x;
+                }
+            }
+            leaf.ids[k] = bvh.prim_indices[slot];
+        }
+        leaf
+    }
+
+    /// Vertex `i` of lane `k`.
+    #[inline]
+    pub fn vertex(&self, i: usize, k: usize) -> [f32; 3] {
+        [self.v[i][0][k], self.v[i][1][k], self.v[i][2][k]]
+    }
+}
+
+/// The leaf slots of every binary node's subtree as `(first, count)`: a leaf's own, an
+/// inner node's children's when they are adjacent (left first), else `None`. The flattened
+/// trees of `Bvh::build` are depth first, so every subtree's slots are adjacent.
+fn subtree_slots(nodes: &[BvhNode]) -> Vec<Option<(u32, u32)>> {
+    let mut ranges = vec![None; nodes.len()];
+    // Children follow their parents: reverse order visits children first.
+    for (i, n) in nodes.iter().enumerate().rev() {
+        ranges[i] = if n.is_leaf() {
+            Some((n.left_or_first, n.count))
+        } else {
+            let l = n.left_or_first as usize;
+            match (ranges.get(l).copied().flatten(), ranges.get(l + 1).copied().flatten()) {
+                (Some((a, m)), Some((b, k))) if a + m == b => Some((a, m + k)),
+                _ => None,
+            }
+        };
+    }
+    ranges
+}
+
+/// Surface area of a binary node's box (half of it: only compared).
+fn half_area(n: &BvhNode) -> f32 {
+    let e = n.max() - n.min();
+    e.x * e.y + e.y * e.z + e.z * e.x
+}
+
+impl WideBvh {
+    /// Collapse `bvh`'s binary tree (see the module docs).
+    pub fn collapse(bvh: &Bvh) -> WideBvh {
+        let nodes = &bvh.nodes;
+        if nodes.is_empty() || nodes.len() > INDEX_MASK as usize {
+            return WideBvh::default();
+        }
+        let ranges = subtree_slots(nodes);
+        // A binary node becomes a wide leaf when its subtree's triangles fit one leaf.
+        let is_leaf = |b: usize| ranges[b].is_some_and(|(_, count)| count as usize <= WIDE);
+        let mut wide: Vec<WideNode> = vec![WideNode::zeroed()];
+        let (mut leaves, mut first_slots) = (Vec::new(), Vec::new());
+        // (binary node, wide node to fill), depth first.
+        let mut todo = vec![(0usize, 0usize)];
+        while let Some((b, w)) = todo.pop() {
+            let children = Self::expand(nodes, b, &is_leaf);
+            let mut node = WideNode {
+                lo: [[f32::INFINITY; WIDE]; 3],
+                hi: [[f32::NEG_INFINITY; WIDE]; 3],
+                child: [0; WIDE],
+                count: children.len() as u32,
+                pad: [0; 7],
+            };
+            let mut inner = Vec::new();
+            for (k, &c) in children.iter().enumerate() {
+                let n = &nodes[c];
+                for a in 0..3 {
+                    node.lo[a][k] = n.aabb_min[a];
+                    node.hi[a][k] = n.aabb_max[a];
+                }
+                node.child[k] = match ranges[c] {
+                    Some((first, count)) if is_leaf(c) => {
+                        let r = WideChild::Leaf { leaf: leaves.len() as u32, count };
+                        leaves.push(WideLeaf::new(bvh, first, count));
+                        first_slots.push(first);
+                        match r.encode() {
+                            Some(r) => r,
+                            None => return WideBvh::default(),
+                        }
+                    }
+                    _ => {
+                        let index = wide.len() + inner.len();
+                        inner.push((c, index));
+                        index as u32
+                    }
+                };
+            }
+            wide[w] = node;
+            wide.resize(wide.len() + inner.len(), WideNode::zeroed());
+            // Depth first: the first child's subtree next.
+            todo.extend(inner.into_iter().rev());
+        }
+        WideBvh { nodes: wide, leaves, first_slots }
+    }
+
+    /// The binary nodes that become the children of the wide node of binary node `b`, in
+    /// depth-first order. A root that is a wide leaf becomes a wide root with one child.
+    fn expand(nodes: &[BvhNode], b: usize, is_leaf: &impl Fn(usize) -> bool) -> Vec<usize> {
+        if is_leaf(b) {
+            return vec![b];
+        }
+        let l = nodes[b].left_or_first as usize;
+        let mut children = vec![l, l + 1];
+        while children.len() < WIDE {
+            // The inner child with the largest area (the first of equals).
+            let mut best: Option<(usize, f32)> = None;
+            for (k, &c) in children.iter().enumerate() {
+                if !is_leaf(c) {
+                    let a = half_area(&nodes[c]);
+                    if best.is_none_or(|(_, b)| a > b) {
+                        best = Some((k, a));
+                    }
+                }
+            }
+            let Some((k, _)) = best else { break };
+            let l = nodes[children[k]].left_or_first as usize;
+            children.splice(k..=k, [l, l + 1]);
+        }
+        children
+    }
+
+    /// True if there is no wide view (use the binary tree).
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+
+    /// Check the view against its binary tree: the wide leaves partition the slots, each
+    /// the slots of one binary subtree, with that subtree's box bit for bit and its
+    /// triangles bit for bit; every wide node but the root is referenced once, after its
+    /// parent, and its children's boxes lie inside its box there; unused children are
+    /// empty.
+    pub fn validate(&self, bvh: &Bvh) -> Result<(), String> {
+        if self.nodes.is_empty() {
+            return if bvh.nodes.is_empty() || bvh.nodes.len() > INDEX_MASK as usize {
+                Ok(())
+            } else {
+                Err("no wide view of a non-empty tree".into())
+            };
+        }
+        // Every binary subtree's slots and box.
+        let subtrees: std::collections::HashMap<(u32, u32), [u32; 6]> = subtree_slots(&bvh.nodes)
+            .into_iter()
+            .zip(&bvh.nodes)
+            .filter_map(|(r, n)| r.map(|r| (r, [n.min(), n.max()].map(|v| v.to_array()).concat().try_into().unwrap())))
+            .map(|(r, b): ((u32, u32), [f32; 6])| (r, b.map(f32::to_bits)))
+            .collect();
+        let mut seen = Vec::new();
+        let mut referenced = vec![false; self.nodes.len()];
+        for (i, n) in self.nodes.iter().enumerate() {
+            if !(1..=WIDE as u32).contains(&n.count) {
+                return Err(format!("wide node {i}: {} children", n.count));
+            }
+            for k in 0..WIDE {
+                let b = [n.lo[0][k], n.lo[1][k], n.lo[2][k], n.hi[0][k], n.hi[1][k], n.hi[2][k]];
+                if k >= n.count as usize {
+                    if b[..3].iter().any(|&x| x != f32::INFINITY) || b[3..].iter().any(|&x| x != f32::NEG_INFINITY) {
+                        return Err(format!("wide node {i}: unused child {k} has a box"));
+                    }
+                    continue;
+                }
+                match WideChild::decode(n.child[k]) {
+                    WideChild::Node(c) => {
+                        let c = c as usize;
+                        if c <= i || c >= self.nodes.len() || std::mem::replace(&mut referenced[c], true) {
+                            return Err(format!("wide node {i}: child {k} names node {c} badly"));
+                        }
+                        // Boxes nest: the child node's children lie in this child's box.
+                        let m = &self.nodes[c];
+                        let inside =
+                            (0..m.count as usize).all(|j| (0..3).all(|a| m.lo[a][j] >= b[a] && m.hi[a][j] <= b[3 + a]));
+                        if !inside {
+                            return Err(format!("wide node {c} is not inside its box in node {i}"));
+                        }
+                    }
+                    WideChild::Leaf { leaf, count } => {
+                        let (Some(l), Some(&first)) =
+                            (self.leaves.get(leaf as usize), self.first_slots.get(leaf as usize))
+                        else {
+                            return Err(format!("wide node {i}: leaf {leaf} out of range"));
+                        };
+                        if first as usize + count as usize > bvh.leaf_triangles.len()
+                            || bytemuck::bytes_of(l) != bytemuck::bytes_of(&WideLeaf::new(bvh, first, count))
+                        {
+                            return Err(format!("wide leaf {leaf} differs from slots {first}.. of the binary tree"));
+                        }
+                        if subtrees.get(&(first, count)) != Some(&b.map(f32::to_bits)) {
+                            return Err(format!("wide leaf {leaf}: no binary subtree with its slots and box"));
+                        }
+                        seen.push((first, count));
+                    }
+                }
+            }
+        }
+        if seen.len() != self.leaves.len() || self.first_slots.len() != self.leaves.len() {
+            return Err(format!("{} leaves referenced, {} stored", seen.len(), self.leaves.len()));
+        }
+        if referenced.iter().skip(1).any(|r| !r) {
+            return Err("a wide node is not referenced".into());
+        }
+        // The leaves partition the slots.
+        seen.sort_unstable();
+        let mut next = 0;
+        for (first, count) in seen {
+            if first != next {
+                return Err(format!("slots {next}..{first} in no wide leaf, or in two"));
+            }
+            next = first + count;
+        }
+        if next as usize != bvh.leaf_triangles.len() {
+            return Err(format!("slots {next}.. in no wide leaf"));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::BvhPreset;
+    use crate::formats::{TriangleRecord, TRI_RAY_TRACED};
+    use crate::geometry::WorldGeometry;
+    use glam::Vec3;
+
+    /// `n` small triangles on a jittered grid of the plane z = 0 (and a few stacked in z).
+    fn grid(n: usize) -> WorldGeometry {
+        let mut g = WorldGeometry::default();
+        for i in 0..n {
+            let (x, y, z) = ((i % 37) as f32, ((i / 37) % 23) as f32, (i / (37 * 23)) as f32);
+            let o = Vec3::new(x * 1.1, y * 0.9 + 0.01 * x, z * 2.0);
+            g.triangles.push(TriangleRecord {
+                v0: o.into(),
+                object: 0,
+                v1: (o + Vec3::new(0.5, 0.0, 0.1)).into(),
+                triangle: i as u32,
+                v2: (o + Vec3::new(0.0, 0.5, 0.2)).into(),
+                flags: TRI_RAY_TRACED,
+            });
+            g.normals.push([Vec3::Z; 3]);
+        }
+        g
+    }
+
+    #[test]
+    fn references_round_trip_and_reject_what_does_not_fit() {
+        for c in [WideChild::Node(0), WideChild::Node(12345), WideChild::Leaf { leaf: 7, count: 1 }] {
+            assert_eq!(WideChild::decode(c.encode().unwrap()), c);
+        }
+        let big = WideChild::Leaf { leaf: INDEX_MASK, count: BVH_MAX_LEAF_SIZE };
+        assert_eq!(WideChild::decode(big.encode().unwrap()), big);
+        assert_eq!((WideChild::Leaf { leaf: INDEX_MASK + 1, count: 1 }).encode(), None);
+        assert_eq!((WideChild::Leaf { leaf: 0, count: 0 }).encode(), None);
+        assert_eq!((WideChild::Leaf { leaf: 0, count: BVH_MAX_LEAF_SIZE + 1 }).encode(), None);
+        assert_eq!(WideChild::Node(WIDE_LEAF_BIT).encode(), None);
+    }
+
+    /// Every preset, from one triangle (a leaf root) to a few thousand: the view validates
+    /// against its tree, nodes are wide, and subtrees of at most `WIDE` triangles are one
+    /// leaf (no wide node has only leaves that could have been one).
+    #[test]
+    fn collapsed_views_validate_and_merge_small_subtrees() {
+        for n in [1, 2, 7, 8, 9, 100, 3000] {
+            let g = grid(n);
+            for preset in BvhPreset::ALL {
+                let bvh = Bvh::build(&g, preset);
+                let wide = &bvh.wide;
+                wide.validate(&bvh).unwrap_or_else(|e| panic!("{n} triangles, {preset:?}: {e}"));
+                assert!(!wide.is_empty());
+                let slots = bvh.leaf_triangles.len();
+                if slots <= WIDE {
+                    assert_eq!((wide.nodes.len(), wide.leaves.len()), (1, 1), "{n} triangles, {preset:?}");
+                    assert_eq!(wide.nodes[0].count, 1);
+                }
+                for node in &wide.nodes {
+                    let leaf_slots: u32 = (0..node.count as usize)
+                        .map(|k| match WideChild::decode(node.child[k]) {
+                            WideChild::Leaf { count, .. } => count,
+                            WideChild::Node(_) => u32::MAX / 16,
+                        })
+                        .sum();
+                    assert!(node.count == 1 || leaf_slots as usize > WIDE, "{n} triangles, {preset:?}: {node:?}");
+                }
+                if n == 3000 {
+                    let children: u32 = wide.nodes.iter().map(|w| w.count).sum();
+                    assert!(children as f32 / wide.nodes.len() as f32 > 3.0, "{preset:?}: narrow nodes");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn validation_catches_a_changed_box_leaf_or_reference() {
+        let g = grid(500);
+        let bvh = Bvh::build(&g, BvhPreset::default());
+        let mut bad = bvh.clone();
+        // A smaller box (a larger one is only slower, still conservative).
+        bad.wide.nodes[0].lo[0][0] += 0.001;
+        assert!(bad.wide.validate(&bvh).is_err());
+        let mut bad = bvh.clone();
+        bad.wide.leaves[3].v[1][2][0] += 1.0;
+        assert!(bad.wide.validate(&bvh).is_err());
+        let mut bad = bvh.clone();
+        let k = (0..WIDE).find(|&k| matches!(WideChild::decode(bad.wide.nodes[0].child[k]), WideChild::Node(_)));
+        bad.wide.nodes[0].child[k.unwrap()] = 0;
+        assert!(bad.wide.validate(&bvh).is_err());
+        assert!(WideBvh::default().validate(&bvh).is_err());
+        assert!(WideBvh::default().validate(&Bvh::default()).is_ok());
+    }
+}

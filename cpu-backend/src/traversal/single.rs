@@ -1,0 +1,294 @@
+//! One ray at a time through the 8-wide view of the BVH ([`WideBvh`]): the ray's slab
+//! test runs against a node's eight child boxes at once, one child per lane, then the
+//! children it enters are visited nearest first (closest hit) or in stored order (any
+//! hit). This is the path for rays that do not travel together (reflections off curved
+//! mirrors, refractions), where a packet's lanes diverge and most of its box tests are
+//! wasted; Embree's `rtcIntersect1` is the peer. (Measured in one `hyrt bench --quick`,
+//! 2 threads, AVX-512 lanes: the teaser's 75,529 secondary rays at 5.4 Mrays/s against
+//! 4.3 in packets and Embree's `rtcIntersect1` at 5.5; primary rays 12.9 against
+//! `rtcIntersect1`'s 11.3; but 2 to 3 times slower than the packets on primary and shadow
+//! rays, the bunny's and the dragon's shadow rays included, so those stay in packets.)
+//!
+//! Results are the scalar reference's (`Bvh::occluded`, `Bvh::closest_hit`) ray for ray:
+//!
+//! * The box test of a child is [`ray_aabb_conservative`] with the interval of the scalar
+//!   traversal (`t_min * (1 - BVH_CULL_SLACK)`, `bound * (1 + BVH_CULL_SLACK)`), lane by lane
+//!   with the same IEEE operations as the packets (`Packet::enter`), so a child is entered
+//!   exactly when the scalar test would enter it under the same bound. The wide tree
+//!   skips the intermediate binary boxes, which only lets more leaves be tested.
+//! * A leaf's triangles (up to eight, [`WideLeaf`]) are tested at once, one per lane, with
+//!   the scalar kernel's operations (`watertight::intersect`, as the packets do; lanes
+//!   with an exactly-zero edge function are redone with [`WatertightRay::intersect`]
+//!   itself). Hits are taken in slot order with the scalar rule for equal `t` (the lower
+//!   triangle index wins), so the closest hit does not depend on the order leaves are
+//!   reached in.
+//! * A node popped from the stack is skipped when its entry distance lies beyond the
+//!   widened closest hit so far: the scalar pop test.
+//!
+//! [`ray_aabb_conservative`]: hyrt_core::kernels::ray::ray_aabb_conservative
+
+use glam::Vec3;
+use hyrt_core::bvh::wide::{WideBvh, WideChild, WideLeaf, WideNode, WIDE_STACK_SIZE};
+use hyrt_core::bvh::{ClosestHit, BVH_CULL_SLACK};
+use hyrt_core::formats::{RayRecord, INVALID_ID};
+use hyrt_core::kernels::ray::{permute_axes, safe_inverse_dir, TriangleHit, WatertightRay, SLAB_FAR_SCALE};
+
+use super::lanes::{slab_bounds, Lanes, LANES};
+use super::watertight::{self, LaneHits, RaySpace};
+
+const _: () = assert!(hyrt_core::bvh::wide::WIDE == LANES);
+
+/// The traversal stack of one ray: (child reference, entry distance). Allocated once per
+/// chunk of rays and reused.
+pub(crate) type Stack = Vec<(u32, f32)>;
+
+/// A stack with room for any tree `Bvh::build` returns.
+pub(crate) fn new_stack() -> Stack {
+    vec![(0, 0.0); WIDE_STACK_SIZE]
+}
+
+/// One ray prepared for the wide traversal: the scalar traversal's constants, and the
+/// slab test's origin and inverse direction in every lane.
+struct WideRay<L: Lanes> {
+    wt: WatertightRay,
+    t_min: f32,
+    t_max: f32,
+    origin: [L::F; 3],
+    inv_dir: [L::F; 3],
+    /// Per axis: the near plane is the box maximum (the inverse direction is negative).
+    near_is_max: [bool; 3],
+    /// No inverse direction is infinite: no slab distance is NaN.
+    finite_inv: bool,
+    box_t_min: L::F,
+    /// The watertight constants in every lane: the origin in the permuted axis order
+    /// (`permute_axes(origin, kz)`), the shear, the interval.
+    origin_perm: [L::F; 3],
+    shear: [L::F; 3],
+    t_min_lanes: L::F,
+    t_max_lanes: L::F,
+}
+
+impl<L: Lanes> WideRay<L> {
+    /// `None` for a ray the scalar traversal rejects (`TraversalRay::new`): non-finite or
+    /// zero direction, non-finite origin, empty or NaN interval.
+    #[inline(always)]
+    fn new(ray: &RayRecord) -> Option<Self> {
+        let (o, d) = (Vec3::from(ray.origin), Vec3::from(ray.direction));
+        let wt = WatertightRay::new(o, d)?;
+        // Positive form, so that NaN bounds reject.
+        let non_empty = ray.t_min < ray.t_max;
+        if !non_empty {
+            return None;
+        }
+        let inv = safe_inverse_dir(d);
+        let op = permute_axes(o, wt.kz);
+        Some(WideRay {
+            origin_perm: [L::splat(op.x), L::splat(op.y), L::splat(op.z)],
+            shear: [L::splat(wt.shear.x), L::splat(wt.shear.y), L::splat(wt.shear.z)],
+            t_min_lanes: L::splat(ray.t_min),
+            t_max_lanes: L::splat(ray.t_max),
+            wt,
+            t_min: ray.t_min,
+            t_max: ray.t_max,
+            origin: [L::splat(o.x), L::splat(o.y), L::splat(o.z)],
+            inv_dir: [L::splat(inv.x), L::splat(inv.y), L::splat(inv.z)],
+            near_is_max: [inv.x.is_sign_negative(), inv.y.is_sign_negative(), inv.z.is_sign_negative()],
+            finite_inv: inv.is_finite(),
+            box_t_min: L::splat(ray.t_min * (1.0 - BVH_CULL_SLACK)),
+        })
+    }
+
+    /// The slab test of the node's children for `[box_t_min, t_far]`: the mask of children
+    /// entered and every lane's entry distance.
+    #[inline(always)]
+    fn enter(&self, node: &WideNode, t_far: L::F) -> (u32, [f32; LANES]) {
+        let mut tn = [self.box_t_min; 3];
+        let mut tf = [t_far; 3];
+        for a in 0..3 {
+            let (near, far) = if self.near_is_max[a] { (&node.hi[a], &node.lo[a]) } else { (&node.lo[a], &node.hi[a]) };
+            tn[a] = L::mul(L::sub(L::load(near), self.origin[a]), self.inv_dir[a]);
+            tf[a] = L::mul(L::mul(L::sub(L::load(far), self.origin[a]), self.inv_dir[a]), L::splat(SLAB_FAR_SCALE));
+        }
+        let (t_enter, t_exit) = slab_bounds::<L>(tn, tf, self.box_t_min, t_far, self.finite_inv);
+        let used = (1u32 << node.count) - 1;
+        (L::bits(L::le(t_enter, t_exit)) & used, L::store(t_enter))
+    }
+}
+
+impl<L: Lanes> WideRay<L> {
+    /// The watertight test against the leaf's first `count` triangles, one per lane: the
+    /// lanes hit and their `t, u, v`, determinant. Lanes the lane form cannot decide
+    /// (`LaneHits::exact`) are left to [`Self::exact_lane`].
+    #[inline(always)]
+    fn intersect_leaf<const EARLY_OUT: bool>(&self, leaf: &WideLeaf, count: u32) -> LaneHits<L> {
+        let p = [self.transform(&leaf.v[0]), self.transform(&leaf.v[1]), self.transform(&leaf.v[2])];
+        let active = (1u32 << count) - 1;
+        watertight::intersect::<L, EARLY_OUT>(active, p, &self.shear, self.t_min_lanes, self.t_max_lanes)
+    }
+
+    /// One vertex of every lane in ray space (`WatertightRay::transform`):
+    /// `permute_axes(v - origin, kz)` is the permuted coordinates minus the permuted
+    /// origin (the same subtractions), then the shear.
+    #[inline(always)]
+    fn transform(&self, v: &[[f32; LANES]; 3]) -> RaySpace<L> {
+        let (kx, ky, kz) = match self.wt.kz {
+            0 => (1, 2, 0),
+            1 => (2, 0, 1),
+            _ => (0, 1, 2),
+        };
+        let qx = L::sub(L::load(&v[kx]), self.origin_perm[0]);
+        let qy = L::sub(L::load(&v[ky]), self.origin_perm[1]);
+        let qz = L::sub(L::load(&v[kz]), self.origin_perm[2]);
+        [L::sub(qx, L::mul(self.shear[0], qz)), L::sub(qy, L::mul(self.shear[1], qz)), qz]
+    }
+
+    /// The scalar kernel on lane `k` of a leaf.
+    #[inline(never)]
+    fn exact_lane(&self, leaf: &WideLeaf, k: usize) -> Option<TriangleHit> {
+        let v = |i| Vec3::from(leaf.vertex(i, k));
+        self.wt.intersect(self.t_min, self.t_max, v(0), v(1), v(2))
+    }
+}
+
+/// Push the children in `mask` with their entry distances, the nearest on top (ties in
+/// stored order; the order changes no result).
+#[inline(always)]
+fn push_nearest_last(node: &WideNode, mut mask: u32, t: &[f32; LANES], stack: &mut [(u32, f32)], sp: &mut usize) {
+    let base = *sp;
+    while mask != 0 {
+        let k = mask.trailing_zeros() as usize;
+        mask &= mask - 1;
+        let e = (node.child[k], t[k]);
+        // Insertion from the top: entries nearer than `e` move up.
+        let mut j = *sp;
+        while j > base && stack[j - 1].1 < e.1 {
+            stack[j] = stack[j - 1];
+            j -= 1;
+        }
+        stack[j] = e;
+        *sp += 1;
+    }
+}
+
+/// The closest hit of one ray through `wide`, equal to `Bvh::closest_hit`.
+#[inline(always)]
+pub(crate) fn closest_hit<L: Lanes>(wide: &WideBvh, ray: &RayRecord, stack: &mut [(u32, f32)]) -> Option<ClosestHit> {
+    let r = WideRay::<L>::new(ray)?;
+    let widen = 1.0 + BVH_CULL_SLACK;
+    let mut best = ClosestHit { triangle: INVALID_ID, t: r.t_max, u: 0.0, v: 0.0, back_face: false };
+    let mut t_far = r.t_max * widen;
+    let mut t_far_lanes = L::splat(t_far);
+    // The node or leaf being visited (the root first), and the stack of those entered
+    // but not visited yet.
+    let mut current = 0u32;
+    let mut sp = 0usize;
+    'walk: loop {
+        match WideChild::decode(current) {
+            WideChild::Node(n) => {
+                let node = &wide.nodes[n as usize];
+                let (mask, t) = r.enter(node, t_far_lanes);
+                if mask & mask.wrapping_sub(1) == 0 && mask != 0 {
+                    // One child entered: visit it next.
+                    current = node.child[mask.trailing_zeros() as usize];
+                    continue 'walk;
+                }
+                if mask != 0 {
+                    // Several: the nearest next, the others on the stack.
+                    push_nearest_last(node, mask, &t, stack, &mut sp);
+                    sp -= 1;
+                    current = stack[sp].0;
+                    continue 'walk;
+                }
+            }
+            WideChild::Leaf { leaf, count } => 'leaf: {
+                let leaf = &wide.leaves[leaf as usize];
+                let h = r.intersect_leaf::<true>(leaf, count);
+                if h.hit | h.exact == 0 {
+                    break 'leaf;
+                }
+                let (t, u, v, det) = (L::store(h.t), L::store(h.u), L::store(h.v), L::store(h.det));
+                let mut improved = false;
+                // Slot order, as the scalar leaf loop.
+                let mut lanes = h.hit | h.exact;
+                while lanes != 0 {
+                    let k = lanes.trailing_zeros() as usize;
+                    lanes &= lanes - 1;
+                    let hit = if h.exact >> k & 1 != 0 {
+                        r.exact_lane(leaf, k)
+                    } else {
+                        Some(TriangleHit { t: t[k], u: u[k], v: v[k], back_face: r.wt.back_face(det[k]) })
+                    };
+                    let Some(hit) = hit else { continue };
+                    let id = leaf.ids[k];
+                    if hit.t < best.t || (hit.t == best.t && id < best.triangle) {
+                        best = ClosestHit { triangle: id, t: hit.t, u: hit.u, v: hit.v, back_face: hit.back_face };
+                        improved = true;
+                    }
+                }
+                if improved {
+                    t_far = best.t * widen;
+                    t_far_lanes = L::splat(t_far);
+                }
+            }
+        }
+        // Pop the next entry still worth visiting: the scalar pop test (entries pushed
+        // under the current bound pass it).
+        loop {
+            if sp == 0 {
+                break 'walk;
+            }
+            sp -= 1;
+            let (child, t_enter) = stack[sp];
+            if t_enter <= t_far {
+                current = child;
+                continue 'walk;
+            }
+        }
+    }
+    (best.triangle != INVALID_ID).then_some(best)
+}
+
+/// Any hit of one ray through `wide`, equal to `Bvh::occluded`. Children are visited in
+/// stored order (the first hit ends the walk; ordering them would cost more than it
+/// saves on shadow rays).
+#[inline(always)]
+pub(crate) fn occluded<L: Lanes>(wide: &WideBvh, ray: &RayRecord, stack: &mut [(u32, f32)]) -> bool {
+    let Some(r) = WideRay::<L>::new(ray) else {
+        return false;
+    };
+    let t_far = L::splat(r.t_max * (1.0 + BVH_CULL_SLACK));
+    stack[0] = (0, 0.0);
+    let mut sp = 1usize;
+    while sp > 0 {
+        sp -= 1;
+        match WideChild::decode(stack[sp].0) {
+            WideChild::Node(n) => {
+                let node = &wide.nodes[n as usize];
+                let mut mask = r.enter(node, t_far).0;
+                // Stored order on top: push the last child first.
+                while mask != 0 {
+                    let k = 31 - mask.leading_zeros() as usize;
+                    mask &= !(1 << k);
+                    stack[sp] = (node.child[k], 0.0);
+                    sp += 1;
+                }
+            }
+            WideChild::Leaf { leaf, count } => {
+                let leaf = &wide.leaves[leaf as usize];
+                let h = r.intersect_leaf::<false>(leaf, count);
+                if h.hit != 0 {
+                    return true;
+                }
+                let mut exact = h.exact;
+                while exact != 0 {
+                    let k = exact.trailing_zeros() as usize;
+                    exact &= exact - 1;
+                    if r.exact_lane(leaf, k).is_some() {
+                        return true;
+                    }
+                }
+            }
+        }
+    }
+    false
+}
