@@ -201,7 +201,8 @@ pub fn bounce_rt_image(
 ) -> BounceRt {
     let PrimaryBuffers { gbuffer, surfaces, shadow, eye } = primary;
     let depth = if g.objects.iter().any(bounces) { max_depth as usize } else { 0 };
-    let traversal = Traversal::simd();
+    // The CPU frame's traversals: packets for shadow rays, single rays for bounces.
+    let (traversal, bounce_traversal) = (Traversal::simd(), Traversal::for_bounces());
     let extent = g.scene_extent();
     let mut scratch = CompactionScratch::default();
     let mut closest = Vec::new();
@@ -214,15 +215,17 @@ pub fn bounce_rt_image(
             Some(prev) => Parents::Secondary { rays: &prev.rays, hits: &prev.hits, surfaces: &prev.surfaces },
         };
         match variant.cutoff_log2 {
-            None => secondary_rays_into(parents, &g.objects, &g.triangles, d, &mut scratch, &mut b.rays, &mut b.links),
+            None => secondary_rays_into(parents, &g.objects, &g.triangles, d, &mut scratch, &mut b.rays, &mut b.links)
+                .unwrap_or_else(|e| panic!("secondary_rays: {e}")),
             Some(e) => spawn_with_cutoff(parents, &g.objects, &g.triangles, d, e, &mut b.rays, &mut b.links),
         }
         if variant.offset != OffsetMethod::PIPELINE {
             reoffset_secondary_rays(&mut b.rays, &b.links, &parents, variant.offset, extent);
         }
-        bounce_trace_into(bvh, g, &b.rays, traversal, &mut closest, &mut b.hits, &mut b.surfaces);
+        bounce_trace_into(bvh, g, &b.rays, bounce_traversal, &mut closest, &mut b.hits, &mut b.surfaces);
         if !g.lights.is_empty() {
-            compaction_into(&b.surfaces, &g.lights, &mut scratch, &mut b.shadow_rays);
+            compaction_into(&b.surfaces, &g.lights, &mut scratch, &mut b.shadow_rays)
+                .unwrap_or_else(|e| panic!("compaction: {e}"));
             shadow_rays_with(bvh, g, &b.shadow_rays, traversal, &mut b.occluded);
             shadow_mask_into(&b.shadow_rays, &b.occluded, b.surfaces.len(), g.lights.len(), &mut b.shadow);
         }

@@ -63,7 +63,8 @@ fn the_pipeline_offset_and_cutoff_leave_the_secondary_rays_bit_identical() {
     let surfaces = reconstruction(&gbuffer, &g, eye);
     let parents = Parents::Primary { gbuffer: &gbuffer, surfaces: &surfaces, eye };
     let (mut rays, mut links) = (Vec::new(), Vec::new());
-    secondary_rays_into(parents, &g.objects, &g.triangles, 1, &mut CompactionScratch::default(), &mut rays, &mut links);
+    secondary_rays_into(parents, &g.objects, &g.triangles, 1, &mut CompactionScratch::default(), &mut rays, &mut links)
+        .unwrap();
     assert!(rays.len() > 200, "{}", rays.len());
     let mut again = rays.clone();
     reoffset_secondary_rays(&mut again, &links, &parents, OffsetMethod::ErrorBound, g.scene_extent());

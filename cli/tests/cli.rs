@@ -234,3 +234,24 @@ fn cli_conformance_writes_a_report_and_fails_on_an_unknown_filter() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("no corpus case matches 'no_such_case'"));
 }
+
+/// A frame too large for the memory it may use is refused with a clear message naming the
+/// size, the bytes needed and those available, and a non-zero exit: no abort. The cap
+/// (`HYRT_MEMORY_LIMIT`, 2 GB) makes the refusal the same on every machine; the
+/// 16384x16384 default-scene frame needs at least 37 GB on the CPU backend.
+#[test]
+fn cli_refuses_a_frame_too_large_for_memory() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = hyrt()
+        .env(hyrt_cpu::memory::MEMORY_LIMIT_ENV, "2000000000")
+        .args(["render", "--size", "16384x16384", "--threads", "2", "--out"])
+        .arg(dir.path().join("huge.png"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("16384x16384 frame does not fit in memory on the cpu backend"), "{stderr}");
+    assert!(stderr.contains("bytes needed") && stderr.contains("2000000000 bytes available"), "{stderr}");
+    assert!(!stderr.contains("memory allocation of"), "{stderr}");
+    assert!(!dir.path().join("huge.png").exists());
+}

@@ -106,6 +106,24 @@ pub enum RenderError {
     /// The backend cannot run a stage the frame's plan needs.
     #[error("the {backend} backend cannot run {stage} yet: {why}")]
     Unsupported { backend: &'static str, stage: String, why: &'static str },
+    /// A frame that does not fit in memory: refused before its buffers are allocated
+    /// (its least need exceeds what the system has available), or an allocation of one of
+    /// its buffers failed. `needed` is in bytes (`None` where an allocation failed whose
+    /// size the error does not carry); `available` is what the system reported (`None`:
+    /// unknown).
+    #[error(
+        "a {width}x{height} frame does not fit in memory on the {backend} backend: {what}{}{}",
+        match needed { Some(n) => format!(": {n} bytes needed"), None => String::new() },
+        match available { Some(a) => format!(", {a} bytes available"), None => String::new() }
+    )]
+    OutOfMemory {
+        backend: &'static str,
+        width: u32,
+        height: u32,
+        needed: Option<u64>,
+        available: Option<u64>,
+        what: String,
+    },
     /// The GPU backend's device failed: no adapter, device lost, out of memory, a
     /// readback that failed, a frame past the device's limits. Typed, so a caller can
     /// react to the kind (fall back to the CPU backend on a lost device, say).

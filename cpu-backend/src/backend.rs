@@ -18,6 +18,7 @@ use crate::{
     bounce_trace::bounce_trace_into,
     compaction::{compaction_into, shadow_mask_into, CompactionScratch},
     composition::composition_into,
+    memory,
     raster_shading::raster_shading_into,
     reconstruction::reconstruction_into,
     rt_shading::{rt_shading_bouncing_into, rt_shading_into, FirstBounce},
@@ -128,6 +129,10 @@ impl Backend for CpuBackend {
     ) -> Result<(), RenderError> {
         let plan = FramePlan::new(scene, options)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
+        // A frame that cannot fit is refused before anything is allocated, and the
+        // buffers are reserved fallibly: an error, never an abort.
+        let (width, height) = (camera.width, camera.height);
+        memory::check(&plan, width, height)?;
         let g = &scene.geometry;
         let eye = Vec3::from(camera.eye);
         let threads = self.threads();
@@ -139,7 +144,13 @@ impl Backend for CpuBackend {
         if plan.bounce_depth() > 0 {
             f.bounce_mut(plan.bounce_depth());
         }
-        self.pool.install(|| {
+        memory::reserve_frame(f, &plan, width, height)?;
+        let oom = |what: &'static str| {
+            move |e: std::collections::TryReserveError| {
+                memory::out_of_memory(width, height, None, memory::available_bytes(), &format!("{what} ({e})"))
+            }
+        };
+        self.pool.install(|| -> Result<(), RenderError> {
             let mut times = Vec::with_capacity(plan.steps().len());
             let mut covered = 0;
             // The plan's one loop: each step runs its stage module and is timed.
@@ -148,7 +159,9 @@ impl Backend for CpuBackend {
                 match step {
                     Step::VisibilityRaster => covered = visibility_raster_into(g, camera, &mut f.gbuffer) as u64,
                     Step::Reconstruction => reconstruction_into(&f.gbuffer, g, eye, &mut f.surfaces),
-                    Step::Compaction => compaction_into(&f.surfaces, &g.lights, scratch, &mut f.rays),
+                    Step::Compaction => {
+                        compaction_into(&f.surfaces, &g.lights, scratch, &mut f.rays).map_err(oom("the ray list"))?
+                    }
                     Step::ShadowRays => {
                         shadow_rays_with(&scene.bvh, g, &f.rays, traversal, &mut f.occluded);
                         shadow_mask_into(&f.rays, &f.occluded, f.surfaces.len(), g.lights.len(), &mut f.shadow);
@@ -171,6 +184,7 @@ impl Backend for CpuBackend {
                             &mut b.rays,
                             &mut b.links,
                         )
+                        .map_err(oom("a bounce's ray list"))?
                     }
                     Step::BounceTrace { depth } => {
                         let b = &mut f.bounces[depth as usize - 1];
@@ -187,6 +201,7 @@ impl Backend for CpuBackend {
                     Step::BounceCompaction { depth } => {
                         let b = &mut f.bounces[depth as usize - 1];
                         compaction_into(&b.surfaces, &g.lights, scratch, &mut b.shadow_rays)
+                            .map_err(oom("a bounce's shadow rays"))?
                     }
                     Step::BounceShadowRays { depth } => {
                         let b = &mut f.bounces[depth as usize - 1];
@@ -272,7 +287,8 @@ impl Backend for CpuBackend {
             f.width = camera.width;
             f.height = camera.height;
             f.stats = stats;
-        });
+            Ok(())
+        })?;
         f.end();
         Ok(())
     }

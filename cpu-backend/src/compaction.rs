@@ -10,6 +10,7 @@
 //! [`hyrt_core::kernels::scan::compact_sequential`] for every input. The per-pair
 //! kernels ([`needs_shadow_ray`], [`shadow_ray`]) are [`hyrt_core::kernels::shadow`]'s.
 
+use std::collections::TryReserveError;
 use std::sync::atomic::{AtomicU8, Ordering};
 
 use hyrt_core::formats::{LightRecord, RayRecord, SurfaceRecord, INVALID_ID, SHADOW_NO_RAY};
@@ -26,18 +27,22 @@ pub const COMPACTION_BLOCK: usize = 4096;
 
 /// Indices of the non-zero `flags`, in increasing order: a parallel exclusive
 /// scan over per-block counts, then a parallel scatter. Stable and deterministic.
+/// Panics where the allocator refuses the output (frames use the fallible
+/// [`compact_into`]).
 pub fn compact(flags: &[u32]) -> Vec<u32> {
     let mut out = Vec::new();
-    compact_into(flags, &mut out);
+    compact_into(flags, &mut out).unwrap_or_else(|e| panic!("compact: {e}"));
     out
 }
 
-/// [`compact`] into a caller-owned buffer, reusing its allocation.
-pub fn compact_into(flags: &[u32], out: &mut Vec<u32>) {
+/// [`compact`] into a caller-owned buffer, reusing its allocation; an error (and `out`
+/// left empty) where the allocator cannot hold the indices.
+pub fn compact_into(flags: &[u32], out: &mut Vec<u32>) -> Result<(), TryReserveError> {
     let counts: Vec<u32> =
         flags.par_chunks(COMPACTION_BLOCK).map(|c| c.iter().filter(|&&f| f != 0).count() as u32).collect();
     let (offsets, total) = hyrt_core::kernels::scan::exclusive_scan_sums(&counts);
     out.clear();
+    out.try_reserve_exact(total as usize)?;
     out.resize(total as usize, 0);
     // Split the output into the disjoint ranges each block writes.
     let mut slices = Vec::with_capacity(counts.len());
@@ -59,6 +64,7 @@ pub fn compact_into(flags: &[u32], out: &mut Vec<u32>) {
         debug_assert_eq!(k, dst.len());
     });
     debug_assert_eq!(offsets.len(), counts.len());
+    Ok(())
 }
 
 /// Buffers [`compaction_into`] keeps between frames: the flags and the indices
@@ -71,20 +77,27 @@ pub struct CompactionScratch {
 
 /// The stage: flag every (light, pixel) pair whose light can contribute at the
 /// pixel's surface, compact the flags, and build one shadow ray per survivor.
+/// Panics where the allocator refuses the list (frames use the fallible
+/// [`compaction_into`]).
 pub fn compaction(surfaces: &[SurfaceRecord], lights: &[LightRecord]) -> Vec<RayRecord> {
     let mut rays = Vec::new();
-    compaction_into(surfaces, lights, &mut CompactionScratch::default(), &mut rays);
+    compaction_into(surfaces, lights, &mut CompactionScratch::default(), &mut rays)
+        .unwrap_or_else(|e| panic!("compaction: {e}"));
     rays
 }
 
-/// [`compaction`] into caller-owned buffers, reusing their allocations.
+/// [`compaction`] into caller-owned buffers, reusing their allocations; an error where
+/// the allocator cannot hold the flags, the indices or the list (the frame then fails
+/// with `RenderError::OutOfMemory` instead of aborting).
 pub fn compaction_into(
     surfaces: &[SurfaceRecord],
     lights: &[LightRecord],
     scratch: &mut CompactionScratch,
     rays: &mut Vec<RayRecord>,
-) {
+) -> Result<(), TryReserveError> {
     let n = surfaces.len();
+    scratch.flags.clear();
+    scratch.flags.try_reserve_exact(n * lights.len())?;
     (0..n * lights.len())
         .into_par_iter()
         .with_min_len(4096)
@@ -93,7 +106,9 @@ pub fn compaction_into(
             needs_shadow_ray(&surfaces[p], &lights[l]) as u32
         })
         .collect_into_vec(&mut scratch.flags);
-    compact_into(&scratch.flags, &mut scratch.active);
+    compact_into(&scratch.flags, &mut scratch.active)?;
+    rays.clear();
+    rays.try_reserve_exact(scratch.active.len())?;
     scratch
         .active
         .par_iter()
@@ -110,6 +125,7 @@ pub fn compaction_into(
             }
         }
     }
+    Ok(())
 }
 
 /// Scatter the traced shadow rays back to a per-(pixel, light) mask of

@@ -11,6 +11,7 @@ pub mod bounce_trace;
 pub mod bvh_build;
 pub mod compaction;
 pub mod composition;
+pub mod memory;
 pub mod raster_shading;
 pub mod reconstruction;
 pub mod rt_shading;

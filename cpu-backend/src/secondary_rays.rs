@@ -14,6 +14,8 @@
 //! exist, once to build the survivors after the scan. The kernel is
 //! [`hyrt_core::kernels::bounce::spawn`].
 
+use std::collections::TryReserveError;
+
 use glam::Vec3;
 use hyrt_core::formats::{GBufferTexel, HitRecord, ObjectRecord, RayRecord, SurfaceRecord, TriangleRecord, INVALID_ID};
 use hyrt_core::kernels::bounce::{bounces, primary_parent, secondary_parent, spawn, Parent};
@@ -65,7 +67,9 @@ impl<'a> Parents<'a> {
 }
 
 /// The stage into caller-owned buffers (allocations reused): the rays of bounce `depth`
-/// into `rays`, each parent's child indices into `links`.
+/// into `rays`, each parent's child indices into `links`. An error where the allocator
+/// cannot hold the flags, the list or the links (the frame then fails with
+/// `RenderError::OutOfMemory` instead of aborting).
 pub fn secondary_rays_into(
     parents: Parents,
     objects: &[ObjectRecord],
@@ -74,9 +78,10 @@ pub fn secondary_rays_into(
     scratch: &mut CompactionScratch,
     rays: &mut Vec<RayRecord>,
     links: &mut Vec<[u32; 2]>,
-) {
+) -> Result<(), TryReserveError> {
     let n = parents.len();
     // Every flag is written below: resizing alone leaves a reused buffer untouched.
+    crate::memory::reserve(&mut scratch.flags, 2 * n)?;
     scratch.flags.resize(2 * n, 0);
     scratch.flags.par_chunks_mut(2).enumerate().with_min_len(1024).for_each(|(i, f)| {
         if !parents.may_bounce(i, objects) {
@@ -88,7 +93,10 @@ pub fn secondary_rays_into(
         f[0] = r[0].is_some() as u32;
         f[1] = r[1].is_some() as u32;
     });
-    compact_into(&scratch.flags, &mut scratch.active);
+    compact_into(&scratch.flags, &mut scratch.active)?;
+    rays.clear();
+    rays.try_reserve_exact(scratch.active.len())?;
+    crate::memory::reserve(links, n)?;
     scratch
         .active
         .par_iter()
@@ -109,4 +117,5 @@ pub fn secondary_rays_into(
             panic!("secondary_rays: {e}");
         }
     }
+    Ok(())
 }

@@ -1,0 +1,155 @@
+//! What a CPU frame needs in memory, checked before anything is allocated, and the
+//! fallible reservations that keep a frame that does not fit from aborting the process.
+//!
+//! A frame's buffers are the ones its plan writes ([`FramePlan::buffers`]): the backend
+//! keeps every one of them while the frame runs (later stages read them), and
+//! [`Frame::end`](hyrt_core::frame::Frame::end) empties the ones the caller did not ask
+//! for afterwards, keeping their allocations for the next frame. Per pixel, with `L`
+//! lights:
+//!
+//! | buffer | bytes | when |
+//! |---|---:|---|
+//! | G-buffer ([`GBufferTexel`]) | 24 | always |
+//! | `visibility_raster`'s per-pixel counts (scratch) | 8 | always |
+//! | surfaces ([`SurfaceRecord`]) | 48 | always |
+//! | compaction flags (scratch, `u32` per pixel and light) | 4 L | with lights |
+//! | shadow mask (`u8` per pixel and light) | L | with lights |
+//! | raster, ray-traced and final images (`[f32; 4]`) | 16 each | as planned |
+//! | ray list ([`RayRecord`]), its indices and occlusion results | at most 72 L | with lights |
+//!
+//! so the default scene's frame (two lights, no bounce) needs at least 138 bytes per
+//! pixel and at most 282. A bounce depth adds, per ray of that depth, 64 (the ray) + 24
+//! (its hit) + 48 (its surface) + 16 (its radiance) + 8 (its link from the parent) + the
+//! flags of its parents' lobes, and its own shadow rays: how many rays a depth has is
+//! known only when it runs (at most two per parent), so bounce buffers are reserved
+//! fallibly then, and the estimate counts their least (none).
+//!
+//! [`GBufferTexel`]: hyrt_core::formats::GBufferTexel
+//! [`SurfaceRecord`]: hyrt_core::formats::SurfaceRecord
+//! [`RayRecord`]: hyrt_core::formats::RayRecord
+
+use std::collections::TryReserveError;
+use std::mem::size_of;
+
+use hyrt_core::formats::{GBufferTexel, RayRecord, SurfaceRecord};
+use hyrt_core::frame::{Frame, RenderError};
+use hyrt_core::plan::{FrameBuffer, FramePlan};
+
+/// The bytes a frame needs: `at_least` whatever the scene shows (the per-pixel buffers),
+/// `at_most` when every pixel sends a shadow ray to every light (bounce rays not
+/// counted: see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameBytes {
+    pub at_least: u64,
+    pub at_most: u64,
+}
+
+/// Bytes per pixel of [`visibility_raster`](crate::visibility_raster)'s scratch counts.
+const RASTER_COUNTS_BYTES: u64 = 8;
+
+/// What a frame of `plan` at `width` x `height` needs on this backend (the module docs'
+/// table). Saturates instead of overflowing.
+pub fn frame_bytes(plan: &FramePlan, width: u32, height: u32) -> FrameBytes {
+    let pixels = width as u64 * height as u64;
+    let lights = plan.lights() as u64;
+    let pairs = pixels.saturating_mul(lights);
+    let mut at_least = pixels.saturating_mul(RASTER_COUNTS_BYTES);
+    let mut at_most = 0u64;
+    for b in plan.buffers() {
+        let (least, most) = match b {
+            FrameBuffer::GBuffer => (pixels.saturating_mul(size_of::<GBufferTexel>() as u64), 0),
+            FrameBuffer::Surfaces => (pixels.saturating_mul(size_of::<SurfaceRecord>() as u64), 0),
+            // The list, the compacted indices (`u32`) and the flags of every pair (`u32`).
+            FrameBuffer::Rays => (pairs.saturating_mul(4), pairs.saturating_mul(size_of::<RayRecord>() as u64 + 4)),
+            FrameBuffer::Occluded => (0, pairs.saturating_mul(4)),
+            FrameBuffer::Shadow => (pairs, 0),
+            FrameBuffer::Rt | FrameBuffer::Raster | FrameBuffer::Final => (pixels.saturating_mul(16), 0),
+            FrameBuffer::Bounce { .. } => (0, 0),
+        };
+        at_least = at_least.saturating_add(least);
+        at_most = at_most.saturating_add(least.saturating_add(most));
+    }
+    FrameBytes { at_least, at_most: at_most.saturating_add(pixels.saturating_mul(RASTER_COUNTS_BYTES)) }
+}
+
+/// Environment variable capping, in bytes, the memory a frame may count on (below what
+/// the system reports): for shared machines, and for tests that must see a refusal
+/// whatever the machine has.
+pub const MEMORY_LIMIT_ENV: &str = "HYRT_MEMORY_LIMIT";
+
+/// The memory a frame may count on now: `MemAvailable` of `/proc/meminfo` on Linux
+/// (what the system can give without swapping), capped by [`MEMORY_LIMIT_ENV`]; `None`
+/// where neither is known (the check is then left to the fallible reservations).
+pub fn available_bytes() -> Option<u64> {
+    let system = std::fs::read_to_string("/proc/meminfo").ok().and_then(|info| {
+        let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+        let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+        Some(kib.saturating_mul(1024))
+    });
+    let cap = std::env::var(MEMORY_LIMIT_ENV).ok().and_then(|v| v.trim().parse::<u64>().ok());
+    match (system, cap) {
+        (Some(s), Some(c)) => Some(s.min(c)),
+        (s, c) => s.or(c),
+    }
+}
+
+/// The error of a frame that does not fit: what it needs, what is available.
+pub fn out_of_memory(width: u32, height: u32, needed: Option<u64>, available: Option<u64>, what: &str) -> RenderError {
+    RenderError::OutOfMemory { backend: "cpu", width, height, needed, available, what: what.to_string() }
+}
+
+/// Refuse a frame whose least need exceeds the available memory ([`available_bytes`]),
+/// before allocating.
+pub fn check(plan: &FramePlan, width: u32, height: u32) -> Result<FrameBytes, RenderError> {
+    check_against(plan, width, height, available_bytes())
+}
+
+/// [`check`] against a given availability (`None`: unknown, nothing is refused).
+pub fn check_against(
+    plan: &FramePlan,
+    width: u32,
+    height: u32,
+    available: Option<u64>,
+) -> Result<FrameBytes, RenderError> {
+    let need = frame_bytes(plan, width, height);
+    match available {
+        Some(avail) if need.at_least > avail => {
+            Err(out_of_memory(width, height, Some(need.at_least), Some(avail), "the frame's per-pixel buffers"))
+        }
+        _ => Ok(need),
+    }
+}
+
+/// Make room for `n` elements in `v` (its length is kept; the stages overwrite it), or
+/// say which buffer did not fit.
+pub fn reserve<T>(v: &mut Vec<T>, n: usize) -> Result<(), TryReserveError> {
+    v.try_reserve_exact(n.saturating_sub(v.len()))
+}
+
+/// Reserve the per-pixel buffers of the frame fallibly, so that the stages that fill them
+/// (`collect_into_vec`, `resize`) never allocate: a frame too large for the allocator
+/// becomes [`RenderError::OutOfMemory`] instead of an abort.
+pub fn reserve_frame(frame: &mut Frame, plan: &FramePlan, width: u32, height: u32) -> Result<(), RenderError> {
+    let pixels = width as usize * height as usize;
+    let pairs = pixels.saturating_mul(plan.lights() as usize);
+    let fail = |what: &str, bytes: usize| out_of_memory(width, height, Some(bytes as u64), available_bytes(), what);
+    for b in plan.buffers() {
+        match b {
+            FrameBuffer::GBuffer => reserve(&mut frame.gbuffer, pixels)
+                .map_err(|_| fail("the G-buffer", pixels * size_of::<GBufferTexel>()))?,
+            FrameBuffer::Surfaces => reserve(&mut frame.surfaces, pixels)
+                .map_err(|_| fail("the surfaces", pixels * size_of::<SurfaceRecord>()))?,
+            FrameBuffer::Shadow => reserve(&mut frame.shadow, pairs).map_err(|_| fail("the shadow mask", pairs))?,
+            FrameBuffer::Rt => reserve(&mut frame.rt, pixels).map_err(|_| fail("the ray-traced image", pixels * 16))?,
+            FrameBuffer::Raster => {
+                reserve(&mut frame.raster, pixels).map_err(|_| fail("the raster image", pixels * 16))?
+            }
+            FrameBuffer::Final => {
+                reserve(&mut frame.final_image, pixels).map_err(|_| fail("the final image", pixels * 16))?
+            }
+            // Sized by their ray counts: reserved by the stages that know them.
+            FrameBuffer::Rays | FrameBuffer::Occluded | FrameBuffer::Bounce { .. } => {}
+        }
+    }
+    Ok(())
+}
