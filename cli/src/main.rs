@@ -9,6 +9,7 @@
 
 mod dump;
 
+use std::time::Instant;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -222,7 +223,13 @@ fn parse_fov(s: &str) -> Result<f32, String> {
     }
 }
 
+/// Milliseconds since `t`.
+fn ms_since(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
 fn render(args: RenderArgs) -> Result<(), String> {
+    let started = Instant::now();
     let mut scene = match &args.scene {
         Some(path) => Scene::load(path).map_err(|e| e.to_string())?,
         None => Scene::default_scene(),
@@ -265,17 +272,26 @@ fn render(args: RenderArgs) -> Result<(), String> {
         BackendArg::Auto => BackendKind::Auto,
     };
     let policy = if args.allow_software_gpu { AdapterPolicy::AllowSoftware } else { AdapterPolicy::from_env() };
+    let load_ms = ms_since(started);
+    let t = Instant::now();
     let mut renderer = Renderer::new(kind, args.threads, policy).map_err(|e| e.to_string())?.with_bvh_preset(preset);
+    let start_ms = ms_since(t);
     eprintln!("backend: {}", renderer.choice_details());
     let (w, h) = args.size;
+    let t = Instant::now();
     let prepared = renderer.prepare(&scene);
+    let prepare_ms = ms_since(t);
     // Every stage's output is kept only for --dump (the GPU then reads them back too).
     let max_depth = args.max_depth.unwrap_or(hyrt::DEFAULT_MAX_DEPTH);
     let options = FrameOptions { weight: args.weight, stage_outputs: args.dump.is_some(), max_depth };
     let mut frame = hyrt::Frame::default();
     let mut per_frame = Vec::with_capacity(args.frames as usize);
+    // Wall clock of each frame (the call, readback included) and the sum of its stages.
+    let mut walls = Vec::with_capacity(args.frames as usize);
     for _ in 0..args.frames {
+        let t = Instant::now();
         renderer.render_into(&prepared, &camera, w, h, &options, &mut frame).map_err(|e| e.to_string())?;
+        walls.push((ms_since(t), frame.stats.frame_ms()));
         per_frame.push(frame.stats.stage_ms.clone());
     }
     // Median per step (stage and depth) over the frames (the lower middle for an even count).
@@ -338,6 +354,25 @@ fn render(args: RenderArgs) -> Result<(), String> {
         println!("  {:<18} {:>12} ({})", k.stage.name(), "skipped", k.reason);
     }
     println!("  {:<18} {:>9.2} ms (sum of the stages above, without bvh_build)", "frame", frame_ms);
+    // Cold against warm: what one frame costs from the command line, and what each
+    // further frame costs once buffers, pipelines and pages are in place.
+    println!(
+        "cold: scene load {load_ms:.1} ms, backend start {start_ms:.1} ms (device and shaders on the GPU), \
+         prepare {prepare_ms:.1} ms (world tables and bvh_build); first frame {:.1} ms wall clock \
+         ({:.1} ms in its stages)",
+        walls[0].0, walls[0].1
+    );
+    if walls.len() > 1 {
+        let mut warm: Vec<(f64, f64)> = walls[1..].to_vec();
+        warm.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let (wall, stages) = warm[(warm.len() - 1) / 2];
+        println!(
+            "warm: median of {} frames after the first: {wall:.1} ms wall clock ({stages:.1} ms in its stages)",
+            warm.len()
+        );
+    } else {
+        println!("warm: not measured (one frame; --frames 3 measures the frames after the first)");
+    }
     println!("wrote {}", args.out.display());
     if let Some(dir) = &args.dump {
         let files = dump::write_dump(dir, &scene, &prepared, &camera, &frame, renderer.backend_name())

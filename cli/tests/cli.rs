@@ -212,6 +212,15 @@ fn cli_frames_reports_the_median_of_several_frames() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(stdout.contains("median of 3 frames") && stdout.contains("shadow_rays"), "{stdout}");
+    // The cold cost apart from the warm one.
+    let line = |prefix: &str| stdout.lines().find(|l| l.starts_with(prefix)).map(str::to_string);
+    let cold = line("cold: ").unwrap_or_else(|| panic!("no cold line: {stdout}"));
+    assert!(cold.contains("backend start") && cold.contains("first frame") && cold.contains("wall clock"), "{cold}");
+    let warm = line("warm: ").unwrap_or_else(|| panic!("no warm line: {stdout}"));
+    assert!(warm.contains("median of 2 frames after the first"), "{warm}");
+    let o = hyrt().args(["render", "--size", "24x16", "--out"]).arg(dir.path().join("g.png")).output().unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("warm: not measured (one frame"), "{stdout}");
     let o = hyrt().args(["render", "--frames", "0"]).output().unwrap();
     assert!(!o.status.success());
 }
