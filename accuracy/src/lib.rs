@@ -6,7 +6,9 @@
 //!
 //! * `bvh`: every [`BvhPreset`]: build time, shadow-ray traversal speed.
 //! * `barycentrics`: the G-buffer's f32 barycentrics against the same quantized to
-//!   16-bit unorm ([`variants::quantize_unorm16`]) before reconstruction.
+//!   16-bit unorm ([`variants::quantize_unorm16`]) before reconstruction, and against
+//!   each pixel's camera ray re-intersected with the rasterized triangle
+//!   (`PrimaryBarycentrics::Reintersected`: hit points as exact as a ray tracer's).
 //! * `ray origin`: shadow-ray origins with no offset, a constant epsilon along the
 //!   normal, Wächter and Binder's 256 ulps, and the error-bound offset the pipeline uses
 //!   ([`variants::OffsetMethod`]).
@@ -62,7 +64,7 @@ use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::bounce::{bounces, DEFAULT_MAX_DEPTH};
 use hyrt_core::scene::Scene;
 use hyrt_cpu::compaction::{compaction, shadow_mask};
-use hyrt_cpu::reconstruction::reconstruction;
+use hyrt_cpu::reconstruction::{reconstruction, reconstruction_reintersected_into};
 use hyrt_cpu::shadow_rays::shadow_rays;
 use hyrt_cpu::visibility_raster::visibility_raster;
 
@@ -172,8 +174,9 @@ pub enum AccuracyError {
 enum Config {
     /// The pipeline as is, with a BVH built with this preset (stage: shadow_rays).
     Bvh(BvhPreset),
-    /// Barycentrics quantized or not (stage: quantization + reconstruction).
-    Barycentrics { unorm16: bool },
+    /// Where reconstruction takes barycentrics from (stage: quantization +
+    /// reconstruction).
+    Barycentrics(BarySource),
     /// Shadow-ray origins (stage: compaction + re-offset + shadow_rays).
     Offset(OffsetMethod),
     /// Shadow maps of this resolution, or ray-traced shadows for `None` (stage: shadows).
@@ -181,6 +184,18 @@ enum Config {
     /// The pipeline's shadows and bounces down to `max_depth`, with `variant`'s change
     /// (stage: the bounce stages).
     Bounces { max_depth: u32, variant: BounceVariant },
+}
+
+/// The barycentrics of the `barycentrics` group.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum BarySource {
+    /// The raster's f32 barycentrics (the pipeline's default).
+    Raster,
+    /// The raster's, quantized to 16-bit unorm first.
+    Unorm16,
+    /// Each pixel's camera ray re-intersected with the rasterized triangle
+    /// (`PrimaryBarycentrics::Reintersected`).
+    Reintersected,
 }
 
 /// The outputs of one frame and its times.
@@ -209,7 +224,12 @@ fn run_frame(g: &WorldGeometry, bvh: &Bvh, camera: &CameraRecord, config: Config
     let gbuffer = visibility_raster(g, camera).gbuffer;
     let t_rec = Instant::now();
     let surfaces = match config {
-        Config::Barycentrics { unorm16: true } => reconstruction(&variants::quantize_gbuffer(&gbuffer), g, eye),
+        Config::Barycentrics(BarySource::Unorm16) => reconstruction(&variants::quantize_gbuffer(&gbuffer), g, eye),
+        Config::Barycentrics(BarySource::Reintersected) => {
+            let mut s = Vec::new();
+            reconstruction_reintersected_into(&gbuffer, g, camera, &mut s);
+            s
+        }
         _ => reconstruction(&gbuffer, g, eye),
     };
     let rec_ms = ms_since(t_rec);
@@ -241,7 +261,7 @@ fn run_frame(g: &WorldGeometry, bvh: &Bvh, camera: &CameraRecord, config: Config
     let frame_ms = ms_since(t_frame);
     let stage_ms = match config {
         Config::Bvh(_) => trace_ms,
-        Config::Barycentrics { .. } => rec_ms,
+        Config::Barycentrics(_) => rec_ms,
         Config::Offset(_) | Config::Shadows(_) => shadow_ms,
         Config::Bounces { .. } => bounce.map_or(0.0, |b| b.1),
     };
@@ -426,10 +446,11 @@ fn measure_all(
         let configuration = preset.name().to_string();
         jobs.push(Job { group: "bvh", configuration, stage: "shadow_rays", config: Config::Bvh(preset) });
     }
-    for unorm16 in [false, true] {
-        let configuration = if unorm16 { "unorm16" } else { "f32" }.to_string();
-        let (group, stage, config) = ("barycentrics", "quantize + reconstruction", Config::Barycentrics { unorm16 });
-        jobs.push(Job { group, configuration, stage, config });
+    for (source, name) in
+        [(BarySource::Raster, "f32"), (BarySource::Unorm16, "unorm16"), (BarySource::Reintersected, "re-intersected")]
+    {
+        let (group, stage, config) = ("barycentrics", "quantize + reconstruction", Config::Barycentrics(source));
+        jobs.push(Job { group, configuration: name.to_string(), stage, config });
     }
     for m in OffsetMethod::ALL {
         let (group, stage, config) = ("ray origin", "compaction + shadow_rays", Config::Offset(m));

@@ -140,7 +140,7 @@ fn gpu_stages(c: &mut Criterion) {
         for &s in &frame_stages {
             group.bench_function(s.name(), |bn| bn.iter(|| run(&[s])));
         }
-        let options = FrameOptions { weight: 1.0, stage_outputs: false, max_depth: 0 };
+        let options = FrameOptions { weight: 1.0, stage_outputs: false, max_depth: 0, ..FrameOptions::default() };
         let mut frame = Frame::default();
         group.bench_function("frame", |bn| {
             bn.iter(|| backend.render_into(&prepared, &camera, &options, &mut frame).unwrap())

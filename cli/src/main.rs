@@ -9,9 +9,9 @@
 
 mod dump;
 
-use std::time::Instant;
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::time::Instant;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use hyrt::{glam::Vec3, AdapterPolicy, BackendKind, BvhPreset, FrameOptions, Renderer, Scene, Stage};
@@ -180,6 +180,17 @@ struct RenderArgs {
     /// glass; 0 traces none (the paper's frame). Default 4, on either backend.
     #[arg(long, value_parser = clap::value_parser!(u32).range(0..=hyrt::MAX_DEPTH_LIMIT as i64))]
     max_depth: Option<u32>,
+    /// Where primary hit points come from: the raster's barycentrics (default), or each
+    /// pixel's camera ray re-intersected with the rasterized triangle (as exact as a ray
+    /// tracer; CPU backend only for now).
+    #[arg(long, value_enum, default_value = "raster")]
+    barycentrics: BarycentricsArg,
+}
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum BarycentricsArg {
+    Raster,
+    Reintersected,
 }
 
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
@@ -283,7 +294,11 @@ fn render(args: RenderArgs) -> Result<(), String> {
     let prepare_ms = ms_since(t);
     // Every stage's output is kept only for --dump (the GPU then reads them back too).
     let max_depth = args.max_depth.unwrap_or(hyrt::DEFAULT_MAX_DEPTH);
-    let options = FrameOptions { weight: args.weight, stage_outputs: args.dump.is_some(), max_depth };
+    let barycentrics = match args.barycentrics {
+        BarycentricsArg::Raster => hyrt::PrimaryBarycentrics::Raster,
+        BarycentricsArg::Reintersected => hyrt::PrimaryBarycentrics::Reintersected,
+    };
+    let options = FrameOptions { weight: args.weight, stage_outputs: args.dump.is_some(), max_depth, barycentrics };
     let mut frame = hyrt::Frame::default();
     let mut per_frame = Vec::with_capacity(args.frames as usize);
     // Wall clock of each frame (the call, readback included) and the sum of its stages.

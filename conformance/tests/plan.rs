@@ -244,7 +244,7 @@ fn plan_each_case_runs_only_what_it_needs_and_matches_the_full_pipeline() {
     for case in cases() {
         let prepared = cpu.prepare(WorldGeometry::build(&case.scene), BvhPreset::default());
         let cam = CameraRecord::new(&case.scene.camera.unwrap(), W, H);
-        let opts = FrameOptions { weight: case.weight, stage_outputs: true, max_depth: 0 };
+        let opts = FrameOptions { weight: case.weight, stage_outputs: true, max_depth: 0, ..FrameOptions::default() };
         let f = cpu.render(&prepared, &cam, &opts).unwrap();
         check_plan(&case, "cpu", &f);
         let full = full_pipeline(&prepared, &cam, case.weight);
@@ -270,7 +270,7 @@ fn plan_each_case_is_the_same_on_the_gpu() {
         let prepared = cpu.prepare(WorldGeometry::build(&case.scene), BvhPreset::default());
         let cam = CameraRecord::new(&case.scene.camera.unwrap(), W, H);
         for stage_outputs in [true, false] {
-            let opts = FrameOptions { weight: case.weight, stage_outputs, max_depth: 0 };
+            let opts = FrameOptions { weight: case.weight, stage_outputs, max_depth: 0, ..FrameOptions::default() };
             let c = cpu.render(&prepared, &cam, &opts).unwrap();
             let g = gpu.render(&prepared, &cam, &opts).unwrap();
             check_plan(&case, "gpu", &g);
@@ -304,7 +304,7 @@ fn plan_gpu_ray_buffers_grow_with_the_rays_a_frame_has() {
         }
         s
     };
-    let opts = FrameOptions { weight: 1.0, stage_outputs: true, max_depth: 0 };
+    let opts = FrameOptions { weight: 1.0, stage_outputs: true, max_depth: 0, ..FrameOptions::default() };
     for (scene, more_than_pixels) in [(&few, false), (&many, true), (&few, false), (&many, true)] {
         let prepared = cpu.prepare(WorldGeometry::build(scene), BvhPreset::default());
         let cam = CameraRecord::new(&scene.camera.unwrap(), W, H);

@@ -59,6 +59,35 @@ pub struct FrameOptions {
     /// mirrors and glass ([`crate::kernels::bounce`]), at most [`MAX_DEPTH_LIMIT`];
     /// 0 traces none (the paper's frame: shadow rays only).
     pub max_depth: u32,
+    /// Where `reconstruction` takes the primary hits' barycentrics from.
+    pub barycentrics: PrimaryBarycentrics,
+}
+
+/// The barycentrics `reconstruction` rebuilds primary hit points from (paper eq. 1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum PrimaryBarycentrics {
+    /// The raster's: interpolated at the pixel centre in the snapped triangle (vertices on
+    /// a 1/256-pixel grid), so hit points carry the snapping error (about 7e-6 of the
+    /// scene's diagonal on the teaser).
+    #[default]
+    Raster,
+    /// The pixel's camera ray intersected with the triangle the raster found, by the
+    /// watertight kernel ([`crate::kernels::reconstruction::reintersected_barycentrics`]):
+    /// hit points as exact as a ray tracer's, visibility still the raster's. Where the ray
+    /// misses that triangle (a pixel centre the snapped triangle covers and the exact one
+    /// does not, at its edges) the raster's barycentrics are kept. CPU backend only for
+    /// now: the GPU backend refuses it.
+    Reintersected,
+}
+
+impl PrimaryBarycentrics {
+    /// Lower-case name (CLI, reports).
+    pub fn name(self) -> &'static str {
+        match self {
+            PrimaryBarycentrics::Raster => "raster",
+            PrimaryBarycentrics::Reintersected => "reintersected",
+        }
+    }
 }
 
 impl Default for FrameOptions {
@@ -67,7 +96,12 @@ impl Default for FrameOptions {
     /// bounces (a scene without ray-traced mirrors or glass plans none; `max_depth: 0`
     /// gives the paper's frame, shadow rays only).
     fn default() -> Self {
-        FrameOptions { weight: 1.0, stage_outputs: false, max_depth: crate::kernels::bounce::DEFAULT_MAX_DEPTH }
+        FrameOptions {
+            weight: 1.0,
+            stage_outputs: false,
+            max_depth: crate::kernels::bounce::DEFAULT_MAX_DEPTH,
+            barycentrics: PrimaryBarycentrics::Raster,
+        }
     }
 }
 

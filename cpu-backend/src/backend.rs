@@ -6,7 +6,8 @@ use glam::Vec3;
 use hyrt_core::bvh::{BvhPreset, ClosestHit};
 use hyrt_core::formats::{CameraRecord, RayRecord, RAY_KIND_COUNT};
 use hyrt_core::frame::{
-    Backend, BounceStats, Frame, FrameOptions, FrameStats, PreparedScene, RenderError, StageTime, StageWork,
+    Backend, BounceStats, Frame, FrameOptions, FrameStats, PreparedScene, PrimaryBarycentrics, RenderError, StageTime,
+    StageWork,
 };
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::plan::{FramePlan, Step};
@@ -20,7 +21,7 @@ use crate::{
     composition::composition_into,
     memory,
     raster_shading::raster_shading_into,
-    reconstruction::reconstruction_into,
+    reconstruction::{reconstruction_into, reconstruction_reintersected_into},
     rt_shading::{rt_shading_bouncing_into, rt_shading_into, FirstBounce},
     secondary_rays::{secondary_rays_into, Parents},
     shadow_rays::shadow_rays_with,
@@ -158,7 +159,12 @@ impl Backend for CpuBackend {
                 let t = Instant::now();
                 match step {
                     Step::VisibilityRaster => covered = visibility_raster_into(g, camera, &mut f.gbuffer) as u64,
-                    Step::Reconstruction => reconstruction_into(&f.gbuffer, g, eye, &mut f.surfaces),
+                    Step::Reconstruction => match options.barycentrics {
+                        PrimaryBarycentrics::Raster => reconstruction_into(&f.gbuffer, g, eye, &mut f.surfaces),
+                        PrimaryBarycentrics::Reintersected => {
+                            reconstruction_reintersected_into(&f.gbuffer, g, camera, &mut f.surfaces)
+                        }
+                    },
                     Step::Compaction => {
                         compaction_into(&f.surfaces, &g.lights, scratch, &mut f.rays).map_err(oom("the ray list"))?
                     }

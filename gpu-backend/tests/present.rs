@@ -96,7 +96,7 @@ fn present_renders_on_the_applications_device_into_its_texture() {
     let prepared = cpu.prepare(WorldGeometry::build(&scene), BvhPreset::default());
     // 75x41: rows of 1200 bytes, not a multiple of the 256-byte copy alignment.
     let cam = CameraRecord::new(&scene.camera.unwrap(), 75, 41);
-    let opts = FrameOptions { weight: 0.7, stage_outputs: false, max_depth: 0 };
+    let opts = FrameOptions { weight: 0.7, stage_outputs: false, max_depth: 0, ..FrameOptions::default() };
     let usage = wgpu::TextureUsages::STORAGE_BINDING | wgpu::TextureUsages::COPY_SRC;
     let texture = target(gpu.context(), 75, 41, wgpu::TextureFormat::Rgba32Float, usage);
     let stats = gpu.render_to_texture(&prepared, &cam, &opts, &texture).expect("frame");

@@ -44,8 +44,8 @@ pub mod image_io;
 pub use hyrt_core::bvh::{Bvh, BvhPreset};
 pub use hyrt_core::formats;
 pub use hyrt_core::frame::{
-    Backend, BounceBuffers, BounceStats, BufferView, Frame, FrameOptions, FrameStats, PreparedScene, RenderError,
-    StageTime, StageWork,
+    Backend, BounceBuffers, BounceStats, BufferView, Frame, FrameOptions, FrameStats, PreparedScene,
+    PrimaryBarycentrics, RenderError, StageTime, StageWork,
 };
 pub use hyrt_core::geometry::WorldGeometry;
 pub use hyrt_core::kernels::bounce::{DEFAULT_MAX_DEPTH, MAX_DEPTH_LIMIT, MIN_THROUGHPUT};

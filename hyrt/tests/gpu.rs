@@ -132,3 +132,19 @@ fn gpu_traces_bounces_and_makes_room_for_its_lists() {
     let flat = gpu.render(&g, &cam, w, h, &FrameOptions { max_depth: 0, ..FrameOptions::default() }).unwrap();
     assert!(flat.stats.bounces.is_empty());
 }
+
+/// Re-intersected primary barycentrics have no WGSL mirror yet: the GPU backend says so
+/// (a typed error naming the stage) instead of rendering the raster's, and renders the
+/// next frame as usual.
+#[test]
+fn gpu_refuses_reintersected_barycentrics_until_they_are_mirrored() {
+    let Some(mut gpu) = gpu_renderer() else { return };
+    let scene = Scene::default_scene();
+    let cam = scene.camera.unwrap();
+    let p = gpu.prepare(&scene);
+    let options = FrameOptions { barycentrics: hyrt::PrimaryBarycentrics::Reintersected, ..FrameOptions::default() };
+    let e = gpu.render(&p, &cam, 40, 30, &options).unwrap_err();
+    assert!(matches!(e, hyrt::RenderError::Unsupported { backend: "gpu", .. }), "{e:?}");
+    assert!(e.to_string().contains("re-intersected barycentrics"), "{e}");
+    gpu.render(&p, &cam, 40, 30, &FrameOptions::default()).unwrap();
+}

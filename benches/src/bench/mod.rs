@@ -207,7 +207,7 @@ pub fn measure_frames(
     frames: usize,
 ) -> Result<(FrameSummary, FrameStats), RenderError> {
     // The paper's frame: shadow rays only (the bounces have their own section).
-    let options = FrameOptions { weight: 1.0, stage_outputs: false, max_depth: 0 };
+    let options = FrameOptions { weight: 1.0, stage_outputs: false, max_depth: 0, ..FrameOptions::default() };
     let (summary, mut stats) = measure_frames_with(backend, prepared, camera, frames, &options)?;
     Ok((summary, stats.pop().expect("at least one frame")))
 }

@@ -6,23 +6,57 @@
 
 use glam::Vec3;
 
-use crate::formats::{GBufferTexel, HitRecord, SurfaceRecord, GBUF_BACK_FACE};
+use crate::formats::{GBufferTexel, HitRecord, RayRecord, SurfaceRecord, GBUF_BACK_FACE};
 use crate::geometry::WorldGeometry;
 use crate::kernels::barycentric::{geometric_normal, interpolate_normal, position_error_bound, reconstruct_position};
+use crate::kernels::ray::WatertightRay;
 use crate::kernels::shading::orient_to_seen_side;
 
-/// Rebuild the surface at one G-buffer texel seen from `eye`.
+/// Rebuild the surface at one G-buffer texel seen from `eye`, from the raster's
+/// barycentrics.
 #[inline]
 pub fn reconstruct_texel(t: &GBufferTexel, geometry: &WorldGeometry, eye: Vec3) -> SurfaceRecord {
     if !t.is_hit() {
         return SurfaceRecord::MISS;
     }
+    texel_surface(t, geometry, eye, (t.bary_u, t.bary_v))
+}
+
+/// The barycentrics `(u, v)` of the point where `ray` (the pixel's camera ray,
+/// [`crate::kernels::camera::primary_ray`]) meets the triangle the G-buffer texel `t` names,
+/// by the watertight kernel over `0 < t < inf` (the raster already chose the triangle, so
+/// the near and far planes play no part); the raster's barycentrics where the ray misses
+/// the triangle (its centre covered by the snapped triangle, not by the exact one) or the
+/// test is degenerate. `t` must be a hit.
+#[inline]
+pub fn reintersected_barycentrics(t: &GBufferTexel, geometry: &WorldGeometry, ray: &RayRecord) -> (f32, f32) {
     let gi = geometry.global_triangle(t.object, t.triangle);
     let [v0, v1, v2] = geometry.triangles[gi].vertices();
-    let p = reconstruct_position(t.bary_u, t.bary_v, v0, v1, v2);
+    WatertightRay::new(Vec3::from(ray.origin), Vec3::from(ray.direction))
+        .and_then(|w| w.intersect(0.0, f32::INFINITY, v0, v1, v2))
+        .map_or((t.bary_u, t.bary_v), |h| (h.u, h.v))
+}
+
+/// Rebuild the surface at one G-buffer texel from the barycentrics of its camera ray
+/// `ray` ([`reintersected_barycentrics`]); the facing stays the raster's (the side
+/// visibility chose).
+#[inline]
+pub fn reconstruct_texel_reintersected(t: &GBufferTexel, geometry: &WorldGeometry, ray: &RayRecord) -> SurfaceRecord {
+    if !t.is_hit() {
+        return SurfaceRecord::MISS;
+    }
+    texel_surface(t, geometry, Vec3::from(ray.origin), reintersected_barycentrics(t, geometry, ray))
+}
+
+/// The surface of a hit texel at barycentrics `(u, v)` of its triangle, seen from `eye`.
+#[inline]
+fn texel_surface(t: &GBufferTexel, geometry: &WorldGeometry, eye: Vec3, (u, v): (f32, f32)) -> SurfaceRecord {
+    let gi = geometry.global_triangle(t.object, t.triangle);
+    let [v0, v1, v2] = geometry.triangles[gi].vertices();
+    let p = reconstruct_position(u, v, v0, v1, v2);
     // A degenerate triangle without vertex normals is shaded as facing the viewer.
     let toward_viewer = || (eye - p).normalize_or(Vec3::Y);
-    surface_at(geometry, gi, t.bary_u, t.bary_v, t.flags & GBUF_BACK_FACE != 0, p, toward_viewer)
+    surface_at(geometry, gi, u, v, t.flags & GBUF_BACK_FACE != 0, p, toward_viewer)
 }
 
 /// Rebuild the surface a secondary ray hit (`bounce_trace`): the paper's eq. 1 again,
