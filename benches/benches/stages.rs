@@ -114,7 +114,9 @@ fn gpu_stages(c: &mut Criterion) {
             for s in stages {
                 match s {
                     Stage::VisibilityRaster => vis.encode(&ctx, &mut enc, &sb, &fb, None),
-                    Stage::Reconstruction => rec_stage.encode(&ctx, &mut enc, &sb, &fb, None),
+                    Stage::Reconstruction => {
+                        rec_stage.encode(&ctx, &mut enc, &sb, &fb, hyrt::PrimaryBarycentrics::Raster, None)
+                    }
                     Stage::Compaction => compact.encode(&ctx, &mut enc, &sb, &fb, None),
                     Stage::ShadowRays => shadow.encode(&ctx, &mut enc, &sb, &fb, None),
                     Stage::RtShading => rt.encode(&ctx, &mut enc, &sb, &fb, None),

@@ -182,7 +182,7 @@ struct RenderArgs {
     max_depth: Option<u32>,
     /// Where primary hit points come from: the raster's barycentrics (default), or each
     /// pixel's camera ray re-intersected with the rasterized triangle (as exact as a ray
-    /// tracer; CPU backend only for now).
+    /// tracer's hit points; visibility stays the raster's).
     #[arg(long, value_enum, default_value = "raster")]
     barycentrics: BarycentricsArg,
 }

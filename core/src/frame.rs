@@ -75,8 +75,8 @@ pub enum PrimaryBarycentrics {
     /// watertight kernel ([`crate::kernels::reconstruction::reintersected_barycentrics`]):
     /// hit points as exact as a ray tracer's, visibility still the raster's. Where the ray
     /// misses that triangle (a pixel centre the snapped triangle covers and the exact one
-    /// does not, at its edges) the raster's barycentrics are kept. CPU backend only for
-    /// now: the GPU backend refuses it.
+    /// does not, at its edges) the raster's barycentrics are kept. Both backends,
+    /// bit-identical (the GPU's `reconstruction` mirrors the camera ray and the test).
     Reintersected,
 }
 

@@ -8,8 +8,7 @@ use hyrt_core::formats::{
     RAY_KIND_SHADOW,
 };
 use hyrt_core::frame::{
-    Backend, BounceStats, Frame, FrameOptions, FrameStats, PreparedScene, PrimaryBarycentrics, RenderError, StageTime,
-    StageWork,
+    Backend, BounceStats, Frame, FrameOptions, FrameStats, PreparedScene, RenderError, StageTime, StageWork,
 };
 use hyrt_core::kernels::bounce::MAX_DEPTH_LIMIT;
 use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan, Step};
@@ -297,7 +296,6 @@ impl GpuBackend {
     ) -> Result<FrameStats, RenderError> {
         let plan = FramePlan::new(scene, options)?;
         self.check_supported(&plan)?;
-        check_options(options)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         crate::present::check_target(target, camera.width, camera.height).map_err(RenderError::InvalidOptions)?;
         let counts = self.run_with_room(scene, &plan, camera, options, |b: &Self| b.read_counts(&plan))?;
@@ -363,7 +361,9 @@ impl GpuBackend {
                 let slot = t.stage(i as u32);
                 match step {
                     Step::VisibilityRaster => self.visibility_raster.encode(ctx, &mut enc, sb, fb, slot),
-                    Step::Reconstruction => self.reconstruction.encode(ctx, &mut enc, sb, fb, slot),
+                    Step::Reconstruction => {
+                        self.reconstruction.encode(ctx, &mut enc, sb, fb, options.barycentrics, slot)
+                    }
                     Step::Compaction => self.compaction.encode(ctx, &mut enc, sb, fb, slot),
                     Step::ShadowRays => self.shadow_rays.encode(ctx, &mut enc, sb, fb, slot),
                     Step::SecondaryRays { depth } => bounce().secondary_rays.encode(ctx, &mut enc, sb, fb, depth, slot),
@@ -600,20 +600,6 @@ impl GpuBackend {
     }
 }
 
-/// Options the GPU backend does not run yet: re-intersected primary barycentrics need a
-/// WGSL mirror of `camera::primary_ray` (glam's matrix product, unfused) in
-/// `reconstruction`, which is not written.
-fn check_options(options: &FrameOptions) -> Result<(), RenderError> {
-    match options.barycentrics {
-        PrimaryBarycentrics::Raster => Ok(()),
-        PrimaryBarycentrics::Reintersected => Err(RenderError::Unsupported {
-            backend: "gpu",
-            stage: "reconstruction with re-intersected barycentrics".into(),
-            why: "its WGSL mirror (the camera ray of each pixel) is not written; render it on the CPU backend",
-        }),
-    }
-}
-
 impl Backend for GpuBackend {
     fn name(&self) -> &str {
         "gpu"
@@ -628,7 +614,6 @@ impl Backend for GpuBackend {
     ) -> Result<(), RenderError> {
         let plan = FramePlan::new(scene, options)?;
         self.check_supported(&plan)?;
-        check_options(options)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         frame.begin(&plan, options);
         self.render_frame(scene, &plan, camera, options, frame)?;

@@ -16,10 +16,10 @@
 //! `tests/reconstruction.rs`); ids are identical.
 
 use hyrt_core::formats::wgsl::declarations;
-use hyrt_core::kernels::barycentric::gamma;
+use hyrt_core::frame::PrimaryBarycentrics;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
-use crate::shader::surface_wgsl;
+use crate::shader::{ray_wgsl, surface_wgsl};
 use crate::GpuContext;
 
 /// Side of the square workgroup (`@workgroup_size(8, 8, 1)`).
@@ -27,24 +27,21 @@ const GROUP: u32 = 8;
 
 const SHADER: &str = include_str!("shaders/reconstruction.wgsl");
 
-/// The WGSL of the stage: the generated records and format constants, the exact f32
-/// constants of the error bound (`{:?}` prints the shortest decimal that parses back to
-/// the same f32), the surface kernels, then the shader.
+/// The WGSL of the stage: the generated records and format constants, the ray kernels
+/// with their exact f32 constants (the watertight test of re-intersected barycentrics),
+/// the surface kernels, then the shader.
 pub fn shader_source() -> String {
-    format!(
-        "{}const GAMMA_2: f32 = {:?};\nconst GAMMA_3: f32 = {:?};\n{}\n{}",
-        declarations(),
-        gamma(2),
-        gamma(3),
-        surface_wgsl(),
-        SHADER
-    )
+    format!("{}{}\n{}\n{}", declarations(), ray_wgsl(), surface_wgsl(), SHADER)
 }
 
-/// The `reconstruction` stage: one compute pipeline.
+/// The `reconstruction` stage: one compute pipeline per source of barycentrics
+/// (`main`: the raster's; `main_reintersected`: the camera rays', mirroring
+/// `hyrt_core::kernels::reconstruction::reconstruct_texel_reintersected` and
+/// `hyrt_core::kernels::camera::primary_ray`).
 pub struct ReconstructionStage {
-    pipeline: wgpu::ComputePipeline,
-    layout: wgpu::BindGroupLayout,
+    /// (pipeline, its bind group layout): the raster's barycentrics, then re-intersected.
+    raster: (wgpu::ComputePipeline, wgpu::BindGroupLayout),
+    reintersected: (wgpu::ComputePipeline, wgpu::BindGroupLayout),
 }
 
 impl ReconstructionStage {
@@ -54,15 +51,19 @@ impl ReconstructionStage {
             label: Some("reconstruction"),
             source: wgpu::ShaderSource::Wgsl(shader_source().into()),
         });
-        let pipeline = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("reconstruction"),
-            layout: None,
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-        ReconstructionStage { layout: pipeline.get_bind_group_layout(0), pipeline }
+        let pipeline = |entry: &str| {
+            let p = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("reconstruction"),
+                layout: None,
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            });
+            let layout = p.get_bind_group_layout(0);
+            (p, layout)
+        };
+        ReconstructionStage { raster: pipeline("main"), reintersected: pipeline("main_reintersected") }
     }
 
     /// Record the pass. The camera uniform must describe a `frame.width` x
@@ -73,14 +74,19 @@ impl ReconstructionStage {
         encoder: &mut wgpu::CommandEncoder,
         scene: &SceneBuffers,
         frame: &FrameBuffers,
+        barycentrics: PrimaryBarycentrics,
         timing: Option<(&wgpu::QuerySet, u32)>,
     ) {
         if frame.width == 0 || frame.height == 0 {
             return;
         }
+        let (pipeline, layout) = match barycentrics {
+            PrimaryBarycentrics::Raster => &self.raster,
+            PrimaryBarycentrics::Reintersected => &self.reintersected,
+        };
         let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("reconstruction"),
-            layout: &self.layout,
+            layout,
             entries: &[
                 wgpu::BindGroupEntry { binding: 0, resource: scene.triangles.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 1, resource: scene.normals.as_entire_binding() },
@@ -91,7 +97,7 @@ impl ReconstructionStage {
             ],
         });
         let mut pass = crate::timing::begin_timed_pass(encoder, "reconstruction", timing);
-        pass.set_pipeline(&self.pipeline);
+        pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &group, &[]);
         pass.dispatch_workgroups(frame.width.div_ceil(GROUP), frame.height.div_ceil(GROUP), 1);
     }

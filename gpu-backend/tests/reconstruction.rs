@@ -7,11 +7,11 @@ mod common;
 use common::test_context;
 use hyrt_core::bvh::{Bvh, BvhPreset};
 use hyrt_core::formats::{CameraRecord, GBufferTexel, SurfaceRecord, GBUF_HIT};
-use hyrt_core::frame::PreparedScene;
+use hyrt_core::frame::{PreparedScene, PrimaryBarycentrics};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::glam::{Mat4, Vec3};
 use hyrt_core::scene::{Camera, Material, Mesh, RenderMode, Scene};
-use hyrt_cpu::reconstruction::reconstruction;
+use hyrt_cpu::reconstruction::{reconstruction, reconstruction_reintersected_into};
 use hyrt_cpu::visibility_raster::visibility_raster;
 use hyrt_gpu::buffers::{FrameBuffers, FrameParams, SceneBuffers};
 use hyrt_gpu::reconstruction::ReconstructionStage;
@@ -34,6 +34,7 @@ fn gpu_reconstruction(
     scene: &PreparedScene,
     cam: &CameraRecord,
     gbuffer: &[GBufferTexel],
+    barycentrics: PrimaryBarycentrics,
 ) -> Vec<SurfaceRecord> {
     let buffers = SceneBuffers::new(ctx, scene);
     let frame = FrameBuffers::new(ctx, cam.width, cam.height, buffers.light_count).unwrap();
@@ -44,7 +45,7 @@ fn gpu_reconstruction(
     let garbage = vec![0xA5u8; gbuffer.len() * std::mem::size_of::<SurfaceRecord>()];
     ctx.queue.write_buffer(&frame.surfaces, 0, &garbage);
     let mut encoder = ctx.device.create_command_encoder(&Default::default());
-    ctx.checked(|| stage.encode(ctx, &mut encoder, &buffers, &frame, None)).unwrap();
+    ctx.checked(|| stage.encode(ctx, &mut encoder, &buffers, &frame, barycentrics, None)).unwrap();
     ctx.queue.submit([encoder.finish()]);
     gpu_buffer::read_back(ctx, &frame.surfaces, gbuffer.len()).unwrap()
 }
@@ -55,8 +56,9 @@ struct Report {
     hits: usize,
 }
 
-/// Compare the GPU and CPU surfaces of `gbuffer` record by record: every bit must agree
-/// (the shader keeps its products from fusing and mirrors the kernels' order).
+/// Compare the GPU and CPU surfaces of `gbuffer` record by record, with the raster's and
+/// with re-intersected barycentrics: every bit must agree (the shader keeps its products
+/// from fusing and mirrors the kernels' order, the camera ray's included).
 fn compare(
     ctx: &GpuContext,
     stage: &ReconstructionStage,
@@ -66,17 +68,27 @@ fn compare(
     gbuffer: &[GBufferTexel],
 ) -> Report {
     let eye = Vec3::from(cam.eye);
-    let cpu = reconstruction(gbuffer, &scene.geometry, eye);
-    let gpu = gpu_reconstruction(ctx, stage, scene, cam, gbuffer);
-    assert_eq!(cpu.len(), gpu.len());
     let mut r = Report::default();
-    for (i, (c, q)) in cpu.iter().zip(&gpu).enumerate() {
-        let at = format!("{name}: pixel {i}: cpu {c:?} gpu {q:?}");
-        if c.is_hit() {
-            q.validate().unwrap_or_else(|e| panic!("{at}: {e}"));
-            r.hits += 1;
+    for barycentrics in [PrimaryBarycentrics::Raster, PrimaryBarycentrics::Reintersected] {
+        let cpu = match barycentrics {
+            PrimaryBarycentrics::Raster => reconstruction(gbuffer, &scene.geometry, eye),
+            PrimaryBarycentrics::Reintersected => {
+                let mut out = Vec::new();
+                reconstruction_reintersected_into(gbuffer, &scene.geometry, cam, &mut out);
+                out
+            }
+        };
+        let gpu = gpu_reconstruction(ctx, stage, scene, cam, gbuffer, barycentrics);
+        assert_eq!(cpu.len(), gpu.len());
+        r.hits = 0;
+        for (i, (c, q)) in cpu.iter().zip(&gpu).enumerate() {
+            let at = format!("{name} ({barycentrics:?}): pixel {i}: cpu {c:?} gpu {q:?}");
+            if c.is_hit() {
+                q.validate().unwrap_or_else(|e| panic!("{at}: {e}"));
+                r.hits += 1;
+            }
+            assert_eq!(bytemuck::bytes_of(c), bytemuck::bytes_of(q), "{at}");
         }
-        assert_eq!(bytemuck::bytes_of(c), bytemuck::bytes_of(q), "{at}");
     }
     eprintln!("{name}: {} x {}: {r:?}", cam.width, cam.height);
     r

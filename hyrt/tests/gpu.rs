@@ -133,18 +133,21 @@ fn gpu_traces_bounces_and_makes_room_for_its_lists() {
     assert!(flat.stats.bounces.is_empty());
 }
 
-/// Re-intersected primary barycentrics have no WGSL mirror yet: the GPU backend says so
-/// (a typed error naming the stage) instead of rendering the raster's, and renders the
-/// next frame as usual.
+/// Re-intersected primary barycentrics through the facade: the GPU frame is the CPU's bit
+/// for bit, and its hit points are not the raster's.
 #[test]
-fn gpu_refuses_reintersected_barycentrics_until_they_are_mirrored() {
+fn gpu_reintersected_barycentrics_match_the_cpu() {
     let Some(mut gpu) = gpu_renderer() else { return };
+    let mut cpu = Renderer::cpu(Some(2));
     let scene = Scene::default_scene();
     let cam = scene.camera.unwrap();
-    let p = gpu.prepare(&scene);
-    let options = FrameOptions { barycentrics: hyrt::PrimaryBarycentrics::Reintersected, ..FrameOptions::default() };
-    let e = gpu.render(&p, &cam, 40, 30, &options).unwrap_err();
-    assert!(matches!(e, hyrt::RenderError::Unsupported { backend: "gpu", .. }), "{e:?}");
-    assert!(e.to_string().contains("re-intersected barycentrics"), "{e}");
-    gpu.render(&p, &cam, 40, 30, &FrameOptions::default()).unwrap();
+    let (pg, pc) = (gpu.prepare(&scene), cpu.prepare(&scene));
+    let options =
+        FrameOptions { barycentrics: hyrt::PrimaryBarycentrics::Reintersected, ..FrameOptions::with_stage_outputs() };
+    let g = gpu.render(&pg, &cam, 64, 36, &options).unwrap();
+    let c = cpu.render(&pc, &cam, 64, 36, &options).unwrap();
+    assert_eq!(bytemuck::cast_slice::<_, u8>(&g.surfaces), bytemuck::cast_slice::<_, u8>(&c.surfaces));
+    assert_eq!(bytemuck_bits(&g.final_image), bytemuck_bits(&c.final_image));
+    let raster = cpu.render(&pc, &cam, 64, 36, &FrameOptions::with_stage_outputs()).unwrap();
+    assert!(raster.surfaces.iter().zip(&c.surfaces).any(|(a, b)| a.position != b.position));
 }
