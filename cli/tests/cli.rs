@@ -264,3 +264,25 @@ fn cli_refuses_a_frame_too_large_for_memory() {
     assert!(!stderr.contains("memory allocation of"), "{stderr}");
     assert!(!dir.path().join("huge.png").exists());
 }
+
+/// `--barycentrics reintersected` renders an image of the asked size, as the raster's
+/// barycentrics do; an unknown source is refused by the argument parser.
+#[test]
+fn cli_renders_with_reintersected_barycentrics() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut images = Vec::new();
+    for source in ["raster", "reintersected"] {
+        let out = dir.path().join(format!("{source}.png"));
+        let o = hyrt()
+            .args(["render", "--size", "48x32", "--threads", "2", "--barycentrics", source, "--out"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{source}: {}", String::from_utf8_lossy(&o.stderr));
+        images.push(image::open(&out).unwrap().to_rgba8());
+    }
+    assert_eq!(images[0].dimensions(), (48, 32));
+    assert_eq!(images[0].dimensions(), images[1].dimensions());
+    let o = hyrt().args(["render", "--barycentrics", "guessed"]).output().unwrap();
+    assert!(!o.status.success());
+}
