@@ -106,6 +106,19 @@ struct BenchArgs {
     /// Accept a software GPU adapter (Mesa lavapipe) (also: environment HYRT_GPU_ALLOW_SOFTWARE=1).
     #[arg(long)]
     allow_software_gpu: bool,
+    /// Run hyrt's SIMD traversals at this level instead of this CPU's best (also:
+    /// environment HYRT_SIMD), so one machine measures each path; the report says which
+    /// ran. A level the CPU lacks is an error.
+    #[arg(long, value_enum)]
+    simd: Option<SimdArg>,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum SimdArg {
+    Avx512,
+    Avx2,
+    Sse2,
+    Portable,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -447,7 +460,17 @@ fn conformance(args: ConformanceArgs) -> Result<(), String> {
 }
 
 fn bench(args: BenchArgs) -> Result<(), String> {
+    use hyrt::SimdLevel;
     use hyrt_benches::bench::{BenchOptions, SceneSet};
+    if let Some(s) = args.simd {
+        let level = match s {
+            SimdArg::Avx512 => SimdLevel::Avx512,
+            SimdArg::Avx2 => SimdLevel::Avx2,
+            SimdArg::Sse2 => SimdLevel::Sse2,
+            SimdArg::Portable => SimdLevel::Portable,
+        };
+        hyrt::force_simd_level(Some(level))?;
+    }
     let mut o = if args.quick { BenchOptions::quick(args.out.clone()) } else { BenchOptions::full(args.out.clone()) };
     if let Some(f) = args.frames {
         o.frames = f as usize;

@@ -154,3 +154,25 @@ fn bench_cli_rejects_bad_settings() {
     }
     assert!(!dir.path().join("report.md").exists());
 }
+
+/// `--simd` forces the traversals' SIMD level and the report says which ran (SSE2 exists on
+/// every x86-64 CPU, the portable level everywhere); the peers' method names carry it.
+#[test]
+fn bench_cli_forces_a_simd_level_and_says_so() {
+    let level = if cfg!(target_arch = "x86_64") { "sse2" } else { "portable" };
+    let dir = tempfile::tempdir().unwrap();
+    let o = bench(dir.path(), &["--no-gpu", "--no-accuracy", "--simd", level]);
+    if !font_or_clear_error(&o) {
+        return;
+    }
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let md = std::fs::read_to_string(dir.path().join("report.md")).unwrap();
+    let row = md.lines().find(|l| l.starts_with("| SIMD level of hyrt's traversals |")).expect("a SIMD row");
+    let best = hyrt::SimdLevel::best();
+    if best.name() == level {
+        assert!(row.contains(&format!("{level} (this CPU's best)")), "{row}");
+    } else {
+        assert!(row.contains(&format!("{level} (forced")), "{row}");
+    }
+    assert!(md.contains(&format!("`packet-{level}`")), "the peers ran another level");
+}

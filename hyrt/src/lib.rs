@@ -57,6 +57,9 @@ pub use hyrt_core::scene::{
 pub use hyrt_core::stage::Stage;
 pub use hyrt_core::{glam, GpuError, SceneError};
 pub use hyrt_cpu::backend::CpuBackend;
+/// How the CPU backend traces rays (`CpuBackend::set_shadow_traversal`,
+/// `CpuBackend::set_bounce_traversal`) and which SIMD level it runs.
+pub use hyrt_cpu::traversal::{force_simd_level, SimdLevel, Traversal};
 #[cfg(feature = "gpu")]
 pub use hyrt_gpu::{backend::GpuBackend, AdapterPolicy, GpuContext};
 

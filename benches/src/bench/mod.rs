@@ -258,6 +258,19 @@ fn header(options: &BenchOptions, cpu: &FrameBackend, gpu: Option<&FrameBackend>
     t.row(["CPU backend".to_string(), cpu.label.clone()]);
     t.row(["GPU backend".to_string(), gpu.map_or("not measured (see notes)".to_string(), |g| g.label.clone())]);
     t.row(["Embree".to_string(), peers::embree_version()]);
+    let simd = hyrt_cpu::traversal::SimdLevel::detect();
+    t.row([
+        "SIMD level of hyrt's traversals".to_string(),
+        if hyrt_cpu::traversal::simd_level_forced() {
+            format!(
+                "{} (forced: `--simd` or HYRT_SIMD; this CPU's best is {})",
+                simd.name(),
+                hyrt_cpu::traversal::SimdLevel::best().name()
+            )
+        } else {
+            format!("{} (this CPU's best)", simd.name())
+        },
+    ]);
     t.row([
         "settings".to_string(),
         format!(

@@ -91,9 +91,63 @@ pub enum SimdLevel {
     Portable,
 }
 
+/// Environment variable forcing the SIMD level [`SimdLevel::detect`] returns (`avx512`,
+/// `avx2`, `sse2`, `portable`), so one machine measures every path; a level this CPU
+/// lacks, or an unknown name, is ignored. [`force_simd_level`] does the same from code and
+/// takes precedence.
+pub const SIMD_ENV: &str = "HYRT_SIMD";
+
+/// The level [`force_simd_level`] set: 0 none, else 1 + the index in [`SimdLevel::ALL`].
+static FORCED_LEVEL: std::sync::atomic::AtomicU8 = std::sync::atomic::AtomicU8::new(0);
+
+/// Make [`SimdLevel::detect`] (and so [`Traversal::simd`], [`Traversal::for_bounces`] and
+/// the backends made after this call) use `level`, or the best level again with `None`.
+/// Fails, changing nothing, for a level this CPU cannot run.
+pub fn force_simd_level(level: Option<SimdLevel>) -> Result<(), String> {
+    use std::sync::atomic::Ordering;
+    match level {
+        None => FORCED_LEVEL.store(0, Ordering::Relaxed),
+        Some(l) if l.is_available() => {
+            let i = SimdLevel::ALL.iter().position(|&x| x == l).expect("every level is in ALL");
+            FORCED_LEVEL.store(i as u8 + 1, Ordering::Relaxed);
+        }
+        Some(l) => return Err(format!("this CPU cannot run the {} traversal level", l.name())),
+    }
+    Ok(())
+}
+
+/// Whether [`SimdLevel::detect`] is not the best level of this CPU (forced by
+/// [`force_simd_level`] or [`SIMD_ENV`]), for reports.
+pub fn simd_level_forced() -> bool {
+    SimdLevel::detect() != SimdLevel::best()
+}
+
 impl SimdLevel {
-    /// The best level this CPU supports.
+    /// Every level, best first.
+    pub const ALL: [SimdLevel; 4] = [SimdLevel::Avx512, SimdLevel::Avx2, SimdLevel::Sse2, SimdLevel::Portable];
+
+    /// The level of a [`SimdLevel::name`].
+    pub fn from_name(name: &str) -> Option<SimdLevel> {
+        SimdLevel::ALL.into_iter().find(|l| l.name() == name.trim())
+    }
+
+    /// The level traversals use: the one [`force_simd_level`] set, else the one the
+    /// [`SIMD_ENV`] variable names (when this CPU has it), else the best this CPU supports.
     pub fn detect() -> SimdLevel {
+        let forced = FORCED_LEVEL.load(std::sync::atomic::Ordering::Relaxed);
+        if forced > 0 {
+            return SimdLevel::ALL[forced as usize - 1];
+        }
+        if let Some(l) = std::env::var(SIMD_ENV).ok().and_then(|v| SimdLevel::from_name(&v)) {
+            if l.is_available() {
+                return l;
+            }
+        }
+        SimdLevel::best()
+    }
+
+    /// The best level this CPU supports.
+    pub fn best() -> SimdLevel {
         #[cfg(target_arch = "x86_64")]
         {
             if SimdLevel::Avx512.is_available() {
@@ -131,10 +185,7 @@ impl SimdLevel {
 
     /// Every level this CPU can run, best first.
     pub fn available() -> Vec<SimdLevel> {
-        [SimdLevel::Avx512, SimdLevel::Avx2, SimdLevel::Sse2, SimdLevel::Portable]
-            .into_iter()
-            .filter(|l| l.is_available())
-            .collect()
+        SimdLevel::ALL.into_iter().filter(|l| l.is_available()).collect()
     }
 
     /// Lower-case name (reports).
