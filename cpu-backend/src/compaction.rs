@@ -42,7 +42,7 @@ pub fn compact_into(flags: &[u32], out: &mut Vec<u32>) -> Result<(), TryReserveE
         flags.par_chunks(COMPACTION_BLOCK).map(|c| c.iter().filter(|&&f| f != 0).count() as u32).collect();
     let (offsets, total) = hyrt_core::kernels::scan::exclusive_scan_sums(&counts);
     out.clear();
-    out.try_reserve_exact(total as usize)?;
+    crate::memory::reserve(out, total as usize)?;
     out.resize(total as usize, 0);
     // Split the output into the disjoint ranges each block writes.
     let mut slices = Vec::with_capacity(counts.len());
@@ -96,8 +96,7 @@ pub fn compaction_into(
     rays: &mut Vec<RayRecord>,
 ) -> Result<(), TryReserveError> {
     let n = surfaces.len();
-    scratch.flags.clear();
-    scratch.flags.try_reserve_exact(n * lights.len())?;
+    crate::memory::reserve(&mut scratch.flags, n * lights.len())?;
     (0..n * lights.len())
         .into_par_iter()
         .with_min_len(4096)
@@ -107,8 +106,7 @@ pub fn compaction_into(
         })
         .collect_into_vec(&mut scratch.flags);
     compact_into(&scratch.flags, &mut scratch.active)?;
-    rays.clear();
-    rays.try_reserve_exact(scratch.active.len())?;
+    crate::memory::reserve(rays, scratch.active.len())?;
     scratch
         .active
         .par_iter()

@@ -54,7 +54,7 @@ pub fn frame_bytes(plan: &FramePlan, width: u32, height: u32) -> FrameBytes {
     let lights = plan.lights() as u64;
     let pairs = pixels.saturating_mul(lights);
     let mut at_least = pixels.saturating_mul(RASTER_COUNTS_BYTES);
-    let mut at_most = 0u64;
+    let mut at_most = at_least;
     for b in plan.buffers() {
         let (least, most) = match b {
             FrameBuffer::GBuffer => (pixels.saturating_mul(size_of::<GBufferTexel>() as u64), 0),
@@ -69,7 +69,7 @@ pub fn frame_bytes(plan: &FramePlan, width: u32, height: u32) -> FrameBytes {
         at_least = at_least.saturating_add(least);
         at_most = at_most.saturating_add(least.saturating_add(most));
     }
-    FrameBytes { at_least, at_most: at_most.saturating_add(pixels.saturating_mul(RASTER_COUNTS_BYTES)) }
+    FrameBytes { at_least, at_most }
 }
 
 /// Environment variable capping, in bytes, the memory a frame may count on (below what
@@ -132,21 +132,22 @@ pub fn reserve<T>(v: &mut Vec<T>, n: usize) -> Result<(), TryReserveError> {
 pub fn reserve_frame(frame: &mut Frame, plan: &FramePlan, width: u32, height: u32) -> Result<(), RenderError> {
     let pixels = width as usize * height as usize;
     let pairs = pixels.saturating_mul(plan.lights() as usize);
-    let fail = |what: &str, bytes: usize| out_of_memory(width, height, Some(bytes as u64), available_bytes(), what);
+    // `n` elements of `v` for the buffer `what`; the error names its bytes.
+    fn fit<T>(v: &mut Vec<T>, n: usize, what: &str, (width, height): (u32, u32)) -> Result<(), RenderError> {
+        reserve(v, n).map_err(|_| {
+            let bytes = (n as u64).saturating_mul(size_of::<T>() as u64);
+            out_of_memory(width, height, Some(bytes), available_bytes(), what)
+        })
+    }
+    let size = (width, height);
     for b in plan.buffers() {
         match b {
-            FrameBuffer::GBuffer => reserve(&mut frame.gbuffer, pixels)
-                .map_err(|_| fail("the G-buffer", pixels * size_of::<GBufferTexel>()))?,
-            FrameBuffer::Surfaces => reserve(&mut frame.surfaces, pixels)
-                .map_err(|_| fail("the surfaces", pixels * size_of::<SurfaceRecord>()))?,
-            FrameBuffer::Shadow => reserve(&mut frame.shadow, pairs).map_err(|_| fail("the shadow mask", pairs))?,
-            FrameBuffer::Rt => reserve(&mut frame.rt, pixels).map_err(|_| fail("the ray-traced image", pixels * 16))?,
-            FrameBuffer::Raster => {
-                reserve(&mut frame.raster, pixels).map_err(|_| fail("the raster image", pixels * 16))?
-            }
-            FrameBuffer::Final => {
-                reserve(&mut frame.final_image, pixels).map_err(|_| fail("the final image", pixels * 16))?
-            }
+            FrameBuffer::GBuffer => fit(&mut frame.gbuffer, pixels, "the G-buffer", size)?,
+            FrameBuffer::Surfaces => fit(&mut frame.surfaces, pixels, "the surfaces", size)?,
+            FrameBuffer::Shadow => fit(&mut frame.shadow, pairs, "the shadow mask", size)?,
+            FrameBuffer::Rt => fit(&mut frame.rt, pixels, "the ray-traced image", size)?,
+            FrameBuffer::Raster => fit(&mut frame.raster, pixels, "the raster image", size)?,
+            FrameBuffer::Final => fit(&mut frame.final_image, pixels, "the final image", size)?,
             // Sized by their ray counts: reserved by the stages that know them.
             FrameBuffer::Rays | FrameBuffer::Occluded | FrameBuffer::Bounce { .. } => {}
         }

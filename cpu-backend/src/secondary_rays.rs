@@ -94,8 +94,7 @@ pub fn secondary_rays_into(
         f[1] = r[1].is_some() as u32;
     });
     compact_into(&scratch.flags, &mut scratch.active)?;
-    rays.clear();
-    rays.try_reserve_exact(scratch.active.len())?;
+    crate::memory::reserve(rays, scratch.active.len())?;
     crate::memory::reserve(links, n)?;
     scratch
         .active

@@ -654,13 +654,15 @@ impl Peers {
             return out;
         };
         let threads = main.shadow.iter().map(|r| r.threads).max().unwrap_or(1);
-        // The fastest run whose method starts with `prefix`, with its method.
-        let best = |runs: &'_ [RayRun], prefix: &str| {
+        // The fastest run with `t` threads whose method starts with `prefix`.
+        let fastest = |runs: &'_ [RayRun], t: usize, prefix: &str| {
             runs.iter()
-                .filter(|r| r.threads == threads && r.method.starts_with(prefix))
+                .filter(|r| r.threads == t && r.method.starts_with(prefix))
                 .max_by(|a, b| a.mrays().total_cmp(&b.mrays()))
-                .map(|r| (r.mrays(), r.method.clone()))
+                .cloned()
         };
+        // At the most threads: its rate and method.
+        let best = |runs: &'_ [RayRun], prefix: &str| fastest(runs, threads, prefix).map(|r| (r.mrays(), r.method));
         let row = |what: &str, scene: &str, peer: &str, e: f64, hyrt: f64| {
             [
                 format!("{what} rays, {scene}, {threads} threads: {peer} (this run)"),
@@ -690,18 +692,17 @@ impl Peers {
         // Embree's fastest primary-ray run plus its fastest shadow-ray run, each thread count.
         for s in self.scenes.iter() {
             for &(t, frame_ms) in &s.frames {
-                let fastest = |runs: &[RayRun]| {
-                    runs.iter()
-                        .filter(|r| r.threads == t && r.method.starts_with("Embree"))
-                        .min_by(|a, b| a.ms.total_cmp(&b.ms))
-                        .map(|r| (r.ms, r.method.clone()))
+                // Every run of a list traces the same rays: the highest rate is the least time.
+                let (Some(p), Some(sh)) = (fastest(&s.primary, t, "Embree"), fastest(&s.shadow, t, "Embree")) else {
+                    continue;
                 };
-                let (Some((p_ms, p)), Some((s_ms, sh))) = (fastest(&s.primary), fastest(&s.shadow)) else { continue };
-                let e = p_ms + s_ms;
+                let e = p.ms + sh.ms;
                 out.push([
                     format!(
-                        "hybrid frame vs Embree tracing the same frame, {}, {t} threads: {p} + {sh} (this run; 1.5 would be a {} ms frame)",
+                        "hybrid frame vs Embree tracing the same frame, {}, {t} threads: {} + {} (this run; 1.5 would be a {} ms frame)",
                         s.scene,
+                        p.method,
+                        sh.method,
                         num(e / 1.5, 1)
                     ),
                     format!("{} ms", num(e, 1)),

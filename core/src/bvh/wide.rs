@@ -281,11 +281,12 @@ impl WideBvh {
             };
         }
         // Every binary subtree's slots and box.
+        // A box as (min x, y, z, max x, y, z).
+        let corners = |lo: [f32; 3], hi: [f32; 3]| [lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]];
         let subtrees: std::collections::HashMap<(u32, u32), [u32; 6]> = subtree_slots(&bvh.nodes)
             .into_iter()
             .zip(&bvh.nodes)
-            .filter_map(|(r, n)| r.map(|r| (r, [n.min(), n.max()].map(|v| v.to_array()).concat().try_into().unwrap())))
-            .map(|(r, b): ((u32, u32), [f32; 6])| (r, b.map(f32::to_bits)))
+            .filter_map(|(r, n)| r.map(|r| (r, corners(n.aabb_min, n.aabb_max).map(f32::to_bits))))
             .collect();
         let mut seen = Vec::new();
         let mut referenced = vec![false; self.nodes.len()];
@@ -294,7 +295,7 @@ impl WideBvh {
                 return Err(format!("wide node {i}: {} children", n.count));
             }
             for k in 0..WIDE {
-                let b = [n.lo[0][k], n.lo[1][k], n.lo[2][k], n.hi[0][k], n.hi[1][k], n.hi[2][k]];
+                let b = corners([n.lo[0][k], n.lo[1][k], n.lo[2][k]], [n.hi[0][k], n.hi[1][k], n.hi[2][k]]);
                 if k >= n.count as usize {
                     if b[..3].iter().any(|&x| x != f32::INFINITY) || b[3..].iter().any(|&x| x != f32::NEG_INFINITY) {
                         return Err(format!("wide node {i}: unused child {k} has a box"));

@@ -290,7 +290,7 @@ pub fn occluded_batch_into(
     out.par_chunks_mut(TRAVERSAL_CHUNK).zip(rays.par_chunks(TRAVERSAL_CHUNK)).for_each(|(out, rays)| match level {
         None => {
             for (o, r) in out.iter_mut().zip(rays) {
-                *o = if bvh.occluded(triangles, r) { SHADOW_OCCLUDED } else { SHADOW_VISIBLE };
+                *o = occlusion(bvh.occluded(triangles, r));
             }
         }
         Some(level) if single => occluded_single_chunk(bvh, rays, out, level),
@@ -340,6 +340,16 @@ pub fn closest_hit_batch(
     out
 }
 
+/// The `shadow_rays` code of an any-hit answer.
+#[inline(always)]
+fn occlusion(hit: bool) -> u32 {
+    if hit {
+        SHADOW_OCCLUDED
+    } else {
+        SHADOW_VISIBLE
+    }
+}
+
 /// Dispatch one chunk to the code compiled for `level` (available on this CPU).
 macro_rules! dispatch {
     ($level:expr, $generic:ident, $avx512:ident, $avx2:ident, ($($arg:expr),*)) => {
@@ -385,59 +395,50 @@ fn closest_hit_single_chunk(bvh: &Bvh, rays: &[RayRecord], out: &mut [Option<Clo
     dispatch!(level, closest_hit_single, closest_hit_single_avx512, closest_hit_single_avx2, (bvh, rays, out))
 }
 
-/// The entry points of the AVX2 lanes compiled with the given target features: any hit
-/// and closest hit over one chunk. Callers must have detected the features.
+/// `$generic` on the AVX2 lanes, compiled once with AVX2 (`$avx2`) and once with the
+/// AVX-512 features of [`SimdLevel::Avx512`] (`$avx512`: the same lanes; `Avx2`'s contract
+/// holds, AVX-512F implies AVX2). Callers must have detected the features.
 macro_rules! avx2_entry_points {
-    ($features:literal, $occluded:ident, $closest:ident) => {
+    ($generic:ident, $avx2:ident, $avx512:ident, ($($arg:ident: $ty:ty),*)) => {
         #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = $features)]
-        unsafe fn $occluded(bvh: &Bvh, triangles: &[TriangleRecord], rays: &[RayRecord], out: &mut [u32]) {
-            occluded_packets::<lanes::Avx2>(bvh, triangles, rays, out)
+        #[target_feature(enable = "avx2")]
+        unsafe fn $avx2($($arg: $ty),*) {
+            $generic::<lanes::Avx2>($($arg),*)
         }
 
         #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = $features)]
-        unsafe fn $closest(
-            bvh: &Bvh,
-            triangles: &[TriangleRecord],
-            rays: &[RayRecord],
-            out: &mut [Option<ClosestHit>],
-        ) {
-            closest_hit_packets::<lanes::Avx2>(bvh, triangles, rays, out)
+        #[target_feature(enable = "avx2,avx512f,avx512vl,avx512dq,avx512bw")]
+        unsafe fn $avx512($($arg: $ty),*) {
+            $generic::<lanes::Avx2>($($arg),*)
         }
     };
 }
 
-avx2_entry_points!("avx2", occluded_packets_avx2, closest_hit_packets_avx2);
-// [`SimdLevel::Avx512`]: the same lanes (`Avx2`'s contract holds: AVX-512F implies AVX2).
-avx2_entry_points!("avx2,avx512f,avx512vl,avx512dq,avx512bw", occluded_packets_avx512, closest_hit_packets_avx512);
-
-/// The single-ray entry points compiled with the given target features, as above.
-macro_rules! avx2_single_entry_points {
-    ($features:literal, $occluded:ident, $closest:ident) => {
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = $features)]
-        unsafe fn $occluded(bvh: &Bvh, rays: &[RayRecord], out: &mut [u32]) {
-            occluded_single::<lanes::Avx2>(bvh, rays, out)
-        }
-
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = $features)]
-        unsafe fn $closest(bvh: &Bvh, rays: &[RayRecord], out: &mut [Option<ClosestHit>]) {
-            closest_hit_single::<lanes::Avx2>(bvh, rays, out)
-        }
-    };
-}
-
-avx2_single_entry_points!("avx2", occluded_single_avx2, closest_hit_single_avx2);
-avx2_single_entry_points!("avx2,avx512f,avx512vl,avx512dq,avx512bw", occluded_single_avx512, closest_hit_single_avx512);
+avx2_entry_points!(
+    occluded_packets,
+    occluded_packets_avx2,
+    occluded_packets_avx512,
+    (bvh: &Bvh, triangles: &[TriangleRecord], rays: &[RayRecord], out: &mut [u32])
+);
+avx2_entry_points!(
+    closest_hit_packets,
+    closest_hit_packets_avx2,
+    closest_hit_packets_avx512,
+    (bvh: &Bvh, triangles: &[TriangleRecord], rays: &[RayRecord], out: &mut [Option<ClosestHit>])
+);
+avx2_entry_points!(occluded_single, occluded_single_avx2, occluded_single_avx512, (bvh: &Bvh, rays: &[RayRecord], out: &mut [u32]));
+avx2_entry_points!(
+    closest_hit_single,
+    closest_hit_single_avx2,
+    closest_hit_single_avx512,
+    (bvh: &Bvh, rays: &[RayRecord], out: &mut [Option<ClosestHit>])
+);
 
 #[inline(always)]
 fn occluded_single<L: Lanes>(bvh: &Bvh, rays: &[RayRecord], out: &mut [u32]) {
     let mut stack = single::new_stack();
     for (o, r) in out.iter_mut().zip(rays) {
-        let hit = single::occluded::<L>(&bvh.wide, r, &mut stack);
-        *o = if hit { SHADOW_OCCLUDED } else { SHADOW_VISIBLE };
+        *o = occlusion(single::occluded::<L>(&bvh.wide, r, &mut stack));
     }
 }
 
@@ -455,13 +456,13 @@ fn occluded_packets<L: Lanes>(bvh: &Bvh, triangles: &[TriangleRecord], rays: &[R
     for (out, rays) in out.chunks_mut(LANES).zip(rays.chunks(LANES)) {
         let Some(p) = Packet::<L>::new(rays) else {
             for (o, r) in out.iter_mut().zip(rays) {
-                *o = if bvh.occluded(triangles, r) { SHADOW_OCCLUDED } else { SHADOW_VISIBLE };
+                *o = occlusion(bvh.occluded(triangles, r));
             }
             continue;
         };
         let hit = packet::occluded(bvh, &p, &mut cache);
         for (i, o) in out.iter_mut().enumerate() {
-            *o = if hit & (1 << i) != 0 { SHADOW_OCCLUDED } else { SHADOW_VISIBLE };
+            *o = occlusion(hit & (1 << i) != 0);
         }
     }
 }

@@ -28,15 +28,22 @@ fn mul(a: f32, b: f32) -> f32 {
     return rounded(a * b);
 }
 
+const MISS_SURFACE = SurfaceRecord(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), INVALID_ID, vec3<f32>(0.0), INVALID_ID);
+
+// mirrors hyrt_core::kernels::reconstruction::texel_surface: the surface of a hit texel
+// at barycentrics `uv` of its triangle `gi`, seen from the eye.
+fn texel_surface(t: GBufferTexel, gi: u32, tri: TriangleRecord, uv: vec2<f32>) -> SurfaceRecord {
+    let p = reconstruct_position(uv.x, uv.y, tri.v0, tri.v1, tri.v2);
+    return surface_at(gi, uv.x, uv.y, (t.flags & GBUF_BACK_FACE) != 0u, p, camera.eye - p);
+}
+
 // mirrors hyrt_core::kernels::reconstruction::reconstruct_texel
 fn reconstruct_texel(t: GBufferTexel) -> SurfaceRecord {
     if (t.flags & GBUF_HIT) == 0u {
-        return SurfaceRecord(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), INVALID_ID, vec3<f32>(0.0), INVALID_ID);
+        return MISS_SURFACE;
     }
     let gi = objects[t.object].first_triangle + t.triangle;
-    let tri = triangles[gi];
-    let p = reconstruct_position(t.bary_u, t.bary_v, tri.v0, tri.v1, tri.v2);
-    return surface_at(gi, t.bary_u, t.bary_v, (t.flags & GBUF_BACK_FACE) != 0u, p, camera.eye - p);
+    return texel_surface(t, gi, triangles[gi], vec2<f32>(t.bary_u, t.bary_v));
 }
 
 fn mul4(a: vec4<f32>, s: f32) -> vec4<f32> {
@@ -86,13 +93,11 @@ fn reintersected_barycentrics(t: GBufferTexel, tri: TriangleRecord, dir: vec3<f3
 // mirrors hyrt_core::kernels::reconstruction::reconstruct_texel_reintersected
 fn reconstruct_texel_reintersected(t: GBufferTexel, x: u32, y: u32) -> SurfaceRecord {
     if (t.flags & GBUF_HIT) == 0u {
-        return SurfaceRecord(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), INVALID_ID, vec3<f32>(0.0), INVALID_ID);
+        return MISS_SURFACE;
     }
     let gi = objects[t.object].first_triangle + t.triangle;
     let tri = triangles[gi];
-    let uv = reintersected_barycentrics(t, tri, primary_ray_direction(x, y));
-    let p = reconstruct_position(uv.x, uv.y, tri.v0, tri.v1, tri.v2);
-    return surface_at(gi, uv.x, uv.y, (t.flags & GBUF_BACK_FACE) != 0u, p, camera.eye - p);
+    return texel_surface(t, gi, tri, reintersected_barycentrics(t, tri, primary_ray_direction(x, y)));
 }
 
 @compute @workgroup_size(8, 8, 1)
