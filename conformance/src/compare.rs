@@ -584,15 +584,7 @@ mod tests {
             rt: vec![[0.0; 4]; n],
             final_image: vec![[0.0; 4]; n],
             shadow: vec![0; n],
-            plan: FramePlan::from_counts(SceneNeeds {
-                lights: 1,
-                triangles: true,
-                ray_traced: true,
-                rasterized: true,
-                bouncing: false,
-                weight: 0.5,
-                max_depth: 0,
-            }),
+            plan: FramePlan::from_counts(SceneNeeds::every_primary_stage(1)),
             stage_outputs: true,
             ..Frame::default()
         }

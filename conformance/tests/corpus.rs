@@ -13,7 +13,9 @@ use hyrt_core::bvh::BvhPreset;
 use hyrt_core::formats::CameraRecord;
 use hyrt_core::frame::{Backend, FrameOptions, PrimaryBarycentrics};
 use hyrt_core::geometry::WorldGeometry;
+use hyrt_core::plan::FramePlan;
 use hyrt_cpu::backend::CpuBackend;
+use hyrt_gpu::band::band_binding_bytes;
 
 #[test]
 fn conformance_gpu_matches_cpu_on_every_stage_of_the_corpus() {
@@ -103,4 +105,46 @@ fn conformance_gpu_matches_cpu_with_reintersected_barycentrics_over_the_corpus()
     }
     // Not the raster's frame under another name: hit points moved.
     assert!(moved > 10_000, "{moved} hit points moved");
+}
+
+/// Frames larger than the device's bindings render in bands of rows (`hyrt_gpu::band`):
+/// here every case is forced into bands of about a quarter of its rows (bounce lists
+/// that outgrow them split the band again), and every stage's buffers, merged from the
+/// bands, are the whole frame's bit for bit, and so the CPU's.
+#[test]
+fn conformance_gpu_in_bands_is_the_whole_frame_over_the_corpus() {
+    let Some(mut gpu) = gpu_for_tests() else { return };
+    let cpu = CpuBackend::new(Some(2));
+    let (mut banded, mut split) = (0, 0);
+    for case in corpus() {
+        let p = cpu.prepare(WorldGeometry::build(&case.scene), BvhPreset::default());
+        gpu.set_max_band_bytes(None);
+        let whole = render_case(&mut gpu, &p, &case).unwrap();
+        assert_eq!(gpu.last_frame_bands(), 1, "{}: a corpus frame fits whole", case.name);
+        let camera = CameraRecord::new(&case.camera, case.width, case.height);
+        let opts = FrameOptions { weight: case.weight, max_depth: case.max_depth, ..FrameOptions::default() };
+        let plan = FramePlan::new(&p, &opts).unwrap();
+        let rows = case.height.div_ceil(4);
+        let lights = p.geometry.lights.len() as u32;
+        gpu.set_max_band_bytes(Some(band_binding_bytes((camera.width * rows) as u64, lights, &plan)));
+        let bands = render_case(&mut gpu, &p, &case).unwrap();
+        let n = gpu.last_frame_bands();
+        assert!(n >= case.height.div_ceil(rows), "{}: {n} bands of {rows} rows", case.name);
+        banded += (n > 1) as u32;
+        split += (n > case.height.div_ceil(rows)) as u32;
+        for cmp in compare_stages(&whole, &bands) {
+            assert!(
+                cmp.is_exact(),
+                "{}: whole vs {n} bands: {} / {} differs: {cmp:?}",
+                case.name,
+                cmp.stage,
+                cmp.buffer
+            );
+        }
+        assert_eq!(whole.stats.rays_per_kind, bands.stats.rays_per_kind, "{}", case.name);
+        assert_eq!(whole.stats.bounces, bands.stats.bounces, "{}", case.name);
+        assert_eq!(whole.stats.covered_pixels, bands.stats.covered_pixels, "{}", case.name);
+    }
+    eprintln!("{banded} cases in bands, {split} of them split for their bounce lists");
+    assert!(banded > 20 && split > 0, "{banded} banded, {split} split");
 }

@@ -435,17 +435,7 @@ impl Frame {
     pub fn end(&mut self) {
         for b in FrameBuffer::ALL {
             if !self.holds(b) {
-                match b {
-                    FrameBuffer::GBuffer => self.gbuffer.clear(),
-                    FrameBuffer::Surfaces => self.surfaces.clear(),
-                    FrameBuffer::Rays => self.rays.clear(),
-                    FrameBuffer::Occluded => self.occluded.clear(),
-                    FrameBuffer::Shadow => self.shadow.clear(),
-                    FrameBuffer::Rt => self.rt.clear(),
-                    FrameBuffer::Raster => self.raster.clear(),
-                    FrameBuffer::Final => self.final_image.clear(),
-                    FrameBuffer::Bounce { .. } => unreachable!("FrameBuffer::ALL has no bounce buffer"),
-                }
+                self.clear(b);
             }
         }
         for i in 0..self.bounces.len() {
@@ -454,6 +444,22 @@ impl Frame {
                     self.bounces[i].clear(b);
                 }
             }
+        }
+    }
+
+    /// Empty `buffer`, keeping its allocation (a backend that appends to the frame's
+    /// buffers, as the GPU backend does band by band, starts from empty ones).
+    pub fn clear(&mut self, buffer: FrameBuffer) {
+        match buffer {
+            FrameBuffer::GBuffer => self.gbuffer.clear(),
+            FrameBuffer::Surfaces => self.surfaces.clear(),
+            FrameBuffer::Rays => self.rays.clear(),
+            FrameBuffer::Occluded => self.occluded.clear(),
+            FrameBuffer::Shadow => self.shadow.clear(),
+            FrameBuffer::Rt => self.rt.clear(),
+            FrameBuffer::Raster => self.raster.clear(),
+            FrameBuffer::Final => self.final_image.clear(),
+            FrameBuffer::Bounce { buffer, depth } => self.bounce_mut(depth).clear(buffer),
         }
     }
 }

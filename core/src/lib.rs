@@ -29,6 +29,7 @@ pub mod formats;
 pub mod frame;
 pub mod geometry;
 pub mod kernels;
+pub mod memory;
 pub mod plan;
 pub mod scene;
 pub mod stage;

@@ -668,6 +668,23 @@ pub struct SceneNeeds {
     pub max_depth: u32,
 }
 
+impl SceneNeeds {
+    /// A scene with `lights` lights that needs every stage of the primary hits (ray-traced
+    /// and rasterized objects composed at weight 0.5, no bounce): what stage tests bind
+    /// and what buffer sizes are checked against.
+    pub fn every_primary_stage(lights: u32) -> SceneNeeds {
+        SceneNeeds {
+            lights,
+            triangles: true,
+            ray_traced: true,
+            rasterized: true,
+            bouncing: false,
+            weight: 0.5,
+            max_depth: 0,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -72,26 +72,7 @@ pub fn frame_bytes(plan: &FramePlan, width: u32, height: u32) -> FrameBytes {
     FrameBytes { at_least, at_most }
 }
 
-/// Environment variable capping, in bytes, the memory a frame may count on (below what
-/// the system reports): for shared machines, and for tests that must see a refusal
-/// whatever the machine has.
-pub const MEMORY_LIMIT_ENV: &str = "HYRT_MEMORY_LIMIT";
-
-/// The memory a frame may count on now: `MemAvailable` of `/proc/meminfo` on Linux
-/// (what the system can give without swapping), capped by [`MEMORY_LIMIT_ENV`]; `None`
-/// where neither is known (the check is then left to the fallible reservations).
-pub fn available_bytes() -> Option<u64> {
-    let system = std::fs::read_to_string("/proc/meminfo").ok().and_then(|info| {
-        let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
-        let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-        Some(kib.saturating_mul(1024))
-    });
-    let cap = std::env::var(MEMORY_LIMIT_ENV).ok().and_then(|v| v.trim().parse::<u64>().ok());
-    match (system, cap) {
-        (Some(s), Some(c)) => Some(s.min(c)),
-        (s, c) => s.or(c),
-    }
-}
+pub use hyrt_core::memory::{available_bytes, MEMORY_LIMIT_ENV};
 
 /// The error of a frame that does not fit: what it needs, what is available.
 pub fn out_of_memory(width: u32, height: u32, needed: Option<u64>, available: Option<u64>, what: &str) -> RenderError {

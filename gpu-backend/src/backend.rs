@@ -1,6 +1,7 @@
 //! [`GpuBackend`]: the stages in one command buffer, all frame data on the GPU
 //! from raster to final image, one readback at the end.
 
+use std::collections::TryReserveError;
 use std::time::Instant;
 
 use hyrt_core::formats::{
@@ -14,6 +15,7 @@ use hyrt_core::kernels::bounce::MAX_DEPTH_LIMIT;
 use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan, Step};
 use hyrt_core::stage::Stage;
 
+use crate::band::{self, Band, BandMerge};
 use crate::bounce_shading::BounceShadingStage;
 use crate::bounce_trace::BounceTraceStage;
 use crate::buffers::{
@@ -22,7 +24,7 @@ use crate::buffers::{
 };
 use crate::compaction::CompactionStage;
 use crate::composition::CompositionStage;
-use crate::gpu_buffer::{copy_into_vec, read_back_each, read_back_many};
+use crate::gpu_buffer::{extend_from_bytes, read_back_each, read_back_many};
 use crate::present::Present;
 use crate::raster_shading::RasterShadingStage;
 use crate::reconstruction::ReconstructionStage;
@@ -66,6 +68,10 @@ const FIRST_BOUNCE_ROOM_PIXELS_PER_RAY: u32 = 4;
 struct Counts {
     shadow_rays: usize,
     bounces: Vec<BounceCounts>,
+    /// A band of a banded frame: where each light's rays start in its primary
+    /// shadow-ray list, and in each bounce depth's (empty otherwise).
+    primary_starts: Vec<u32>,
+    bounce_starts: Vec<Vec<u32>>,
 }
 
 /// What one bounce depth's lists held.
@@ -124,9 +130,13 @@ pub struct GpuBackend {
     timer: StageTimer,
     scene: Option<(u64, SceneBuffers)>,
     frame: Option<FrameBuffers>,
-    /// Milliseconds per step of the last run plan.
+    /// Milliseconds per step of the last run plan (of the last frame, summed over its bands).
     stage_ms: Vec<f64>,
     present: Present,
+    /// [`GpuBackend::set_max_band_bytes`].
+    max_band_bytes: Option<u64>,
+    /// [`GpuBackend::last_frame_bands`].
+    last_bands: u32,
 }
 
 impl GpuBackend {
@@ -176,6 +186,8 @@ impl GpuBackend {
             frame: None,
             stage_ms: Vec::new(),
             present: Present::default(),
+            max_band_bytes: None,
+            last_bands: 0,
         })
     }
 
@@ -210,81 +222,170 @@ impl GpuBackend {
         &self.ctx
     }
 
-    fn render_frame(
-        &mut self,
-        scene: &PreparedScene,
-        plan: &FramePlan,
-        camera: &CameraRecord,
-        options: &FrameOptions,
-        out: &mut Frame,
-    ) -> Result<(), GpuError> {
-        // The lists' counts come back with the frame's one readback: no extra round trip.
-        self.run_with_room(scene, plan, camera, options, |b: &Self| b.read_back(plan, camera, out)).map(drop)
+    /// The most bytes one storage binding of a band holds: the device's limit, or less
+    /// when [`GpuBackend::set_max_band_bytes`] asked for it.
+    fn band_binding_limit(&self) -> u64 {
+        let device = self.ctx.limits.max_storage_buffer_binding_size.min(self.ctx.limits.max_buffer_size);
+        self.max_band_bytes.map_or(device, |b| b.clamp(1, device))
     }
 
-    /// Run the plan over frame buffers with room for its lists, and `finish` (the
-    /// frame's readback, which returns the lists' counts) after each run; the counts.
-    fn run_with_room(
+    /// Render frames in bands whose storage bindings hold at most `bytes` (`None`: the
+    /// device's `max_storage_buffer_binding_size`, the default). Frames are the same bit
+    /// for bit whatever the bands ([`crate::band`]); smaller bands need less device
+    /// memory at once and take more passes. For tests of banded frames at small sizes,
+    /// and for applications that share the device's memory.
+    pub fn set_max_band_bytes(&mut self, bytes: Option<u64>) {
+        self.max_band_bytes = bytes;
+    }
+
+    /// The bands of rows the last frame was rendered in ([`crate::band`]): 1 when it fit
+    /// the device's bindings whole.
+    pub fn last_frame_bands(&self) -> u32 {
+        self.last_bands
+    }
+
+    /// Render the frame band after band ([`crate::band`]) into `sink`: the frame's
+    /// buffers, or a texture. The lists' counts of the whole frame; the stage times are
+    /// the bands' sums.
+    fn run_frame(
         &mut self,
         scene: &PreparedScene,
         plan: &FramePlan,
         camera: &CameraRecord,
         options: &FrameOptions,
-        mut finish: impl FnMut(&Self) -> Result<Counts, GpuError>,
+        sink: &mut Sink<'_>,
     ) -> Result<Counts, GpuError> {
-        {
+        if self.scene.as_ref().map(|(id, _)| *id) != Some(scene.id()) {
             let ctx = &self.ctx;
-            VisibilityRasterStage::check_size(ctx, camera.width, camera.height)?;
-            if self.scene.as_ref().map(|(id, _)| *id) != Some(scene.id()) {
-                self.scene = Some((scene.id(), ctx.checked(|| SceneBuffers::new(ctx, scene))?));
-            }
+            self.scene = Some((scene.id(), ctx.checked(|| SceneBuffers::new(ctx, scene))?));
         }
         let lights = scene.geometry.lights.len() as u32;
-        let pixels = camera.width as usize * camera.height as usize;
+        let limit = self.band_binding_limit();
+        let max_side = self.ctx.limits.max_texture_dimension_2d;
+        let mut rows = band::rows_per_band(camera.width, camera.height, lights, plan, limit, max_side)?;
+        let mut banded = rows < camera.height;
+        if let Sink::Frame(out) = sink {
+            for b in out.buffers().collect::<Vec<_>>() {
+                out.clear(b);
+            }
+        }
+        let mut merge = BandMerge::default();
+        let mut total = Counts::default();
+        let mut stage_ms = vec![0.0; plan.steps().len()];
+        let mut first_row = 0;
+        self.last_bands = 0;
+        while first_row < camera.height {
+            let band = Band { first_row, rows: rows.min(camera.height - first_row) };
+            match self.run_band(scene, plan, camera, options, band, (rows, banded), sink, &mut merge)? {
+                Some(counts) => {
+                    total.add(&counts);
+                    self.last_bands += 1;
+                    stage_ms.iter_mut().zip(&self.stage_ms).for_each(|(sum, ms)| *sum += ms);
+                    first_row += band.rows;
+                }
+                // A bounce list outgrew a binding: the band splits and runs again.
+                None if band.rows > 1 => {
+                    rows = band.rows.div_ceil(2);
+                    banded = true;
+                }
+                None => {
+                    return Err(GpuError::Limits(format!(
+                        "the bounce lists of one {}-pixel row need more than the {limit} bytes a storage binding holds",
+                        camera.width
+                    )))
+                }
+            }
+        }
+        if let Sink::Frame(out) = sink {
+            merge.finish(out);
+        }
+        self.stage_ms = stage_ms;
+        Ok(total)
+    }
+
+    /// Run the plan over `band` (of a frame of bands of `rows` rows, `banded` if more
+    /// than one) with room for its lists, then read it back or present it: its counts,
+    /// or `None` when a list needs more room than a binding holds (the band must split).
+    /// A band whose lists outgrow their room runs again with more.
+    #[allow(clippy::too_many_arguments)]
+    fn run_band(
+        &mut self,
+        scene: &PreparedScene,
+        plan: &FramePlan,
+        camera: &CameraRecord,
+        options: &FrameOptions,
+        band: Band,
+        (rows, banded): (u32, bool),
+        sink: &mut Sink<'_>,
+        merge: &mut BandMerge,
+    ) -> Result<Option<Counts>, GpuError> {
+        let lights = scene.geometry.lights.len() as u32;
+        let pixels = camera.width as usize * rows as usize;
         let pairs = pixels * lights as usize;
-        // Ray buffers hold the rays a frame has, known only on the GPU after each list's
-        // scan. A frame starts with the last frame's room (one shadow ray per pixel and
+        // Ray buffers hold the rays a band has, known only on the GPU after each list's
+        // scan. A band starts with the last band's room (one shadow ray per pixel and
         // a ray per FIRST_BOUNCE_ROOM_PIXELS_PER_RAY pixels per bounce at first); if a
-        // list finds more, its rays past the room are not written, and the frame runs
+        // list finds more, its rays past the room are not written, and the band runs
         // again with room for them plus a quarter (primary shadow rays never past one
-        // per pair, which always fits). The frame that is returned traced every ray.
+        // per pair, which always fits a band). What is returned traced every ray.
         let mut room = self.first_room(plan, pixels, pairs, lights);
         loop {
-            if !self.frame.as_ref().is_some_and(|f| f.fits(camera.width, camera.height, lights, plan, &room)) {
-                self.frame = None; // free the old buffers before allocating new ones
-                let (ctx, w, h) = (&self.ctx, camera.width, camera.height);
-                self.frame = Some(ctx.checked(|| FrameBuffers::for_plan(ctx, w, h, lights, plan, &room))??);
+            if band::bounce_binding_bytes(&room, lights) > self.band_binding_limit() {
+                return Ok(None);
             }
+            if !self.frame.as_ref().is_some_and(|f| f.fits(camera.width, rows, lights, plan, &room)) {
+                self.frame = None; // free the old buffers before allocating new ones
+                let (ctx, w) = (&self.ctx, camera.width);
+                self.frame = Some(ctx.checked(|| FrameBuffers::for_plan(ctx, w, rows, lights, plan, &room))??);
+            }
+            self.frame.as_mut().expect("frame buffers").set_band(&self.ctx, band, banded);
             self.run_plan(plan, camera, options)?;
-            let counts = finish(self)?;
+            let counts = match sink {
+                Sink::Frame(out) => self.read_back(plan, merge, out)?,
+                Sink::Texture(_) => self.read_counts(plan)?,
+            };
             let have = self.frame.as_ref().expect("frame buffers").room();
             match counts.grown(&have, pairs) {
-                None => return Ok(counts),
+                None => {
+                    if let Sink::Texture(target) = sink {
+                        let (ctx, fb) = (&self.ctx, self.frame.as_ref().expect("frame buffers"));
+                        ctx.checked(|| {
+                            let mut enc = ctx
+                                .device
+                                .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("present") });
+                            self.present.encode(ctx, &mut enc, fb, target);
+                            ctx.queue.submit([enc.finish()]);
+                        })?;
+                    }
+                    return Ok(Some(counts));
+                }
                 Some(more) => room = more,
             }
         }
     }
 
-    /// The room a frame starts with: the last frame's where it had the list.
+    /// The room a band starts with: the last band's where it had the list.
     fn first_room(&self, plan: &FramePlan, pixels: usize, pairs: usize, lights: u32) -> Room {
         let last = self.frame.as_ref().map(|f| f.room()).unwrap_or_default();
         let first_rays = (pixels as u32).div_ceil(FIRST_BOUNCE_ROOM_PIXELS_PER_RAY).max(1);
+        let first = BounceRoom { rays: first_rays, shadow_rays: first_rays.saturating_mul(lights.max(1)) };
+        // The last band's room where it fits this band's bindings (a band split in two
+        // after its lists outgrew them starts afresh).
+        let fits = |r: &BounceRoom| {
+            band::bounce_binding_bytes(&Room { shadow_rays: 0, bounces: vec![*r] }, lights) <= self.band_binding_limit()
+        };
         let bounces = (0..plan.bounce_depth() as usize)
-            .map(|d| {
-                last.bounces
-                    .get(d)
-                    .copied()
-                    .unwrap_or(BounceRoom { rays: first_rays, shadow_rays: first_rays.saturating_mul(lights.max(1)) })
-            })
+            .map(|d| last.bounces.get(d).copied().filter(fits).unwrap_or(first))
             .collect();
-        Room { shadow_rays: last.shadow_rays.max(pixels.min(pairs) as u32), bounces }
+        let shadow_rays = last.shadow_rays.clamp(pixels.min(pairs) as u32, pairs as u32);
+        Room { shadow_rays, bounces }
     }
 
     /// Render a frame and leave its final image on the GPU, in `target` (see
-    /// [`crate::present`] for the texture it must be): nothing but the 4-byte ray
-    /// count is read back, so a display loop pays no transfer. The statistics have
+    /// [`crate::present`] for the texture it must be): nothing but the lists' counts
+    /// are read back, so a display loop pays no transfer. The statistics have
     /// the stage times, the plan's skipped stages, the rays per kind and the bounces'
-    /// counts (one small readback of the lists' counts); the pixel
+    /// counts (one small readback of the lists' counts per band); the pixel
     /// counts need the G-buffer on the CPU and are 0 here (use
     /// [`Backend::render_into`] for them).
     pub fn render_to_texture(
@@ -298,14 +399,7 @@ impl GpuBackend {
         self.check_supported(&plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         crate::present::check_target(target, camera.width, camera.height).map_err(RenderError::InvalidOptions)?;
-        let counts = self.run_with_room(scene, &plan, camera, options, |b: &Self| b.read_counts(&plan))?;
-        let ctx = &self.ctx;
-        let fb = self.frame.as_ref().expect("frame buffers");
-        ctx.checked(|| {
-            let mut enc = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("present") });
-            self.present.encode(ctx, &mut enc, fb, target);
-            ctx.queue.submit([enc.finish()]);
-        })?;
+        let counts = self.run_frame(scene, &plan, camera, options, &mut Sink::Texture(target))?;
         let mut stats = FrameStats {
             width: camera.width,
             height: camera.height,
@@ -338,7 +432,8 @@ impl GpuBackend {
         let ctx = &self.ctx;
         let (sb, fb) = (&self.scene.as_ref().expect("scene buffers").1, self.frame.as_ref().expect("frame buffers"));
         let params = FrameParams::new(camera.width, camera.height, fb.light_count, options.weight)
-            .with_composition(plan.composition());
+            .with_composition(plan.composition())
+            .for_band(fb.band.first_row, fb.band.rows);
         debug_assert_eq!(params.validate(), Ok(()));
         fb.write_uniforms(ctx, camera, &params);
 
@@ -409,15 +504,24 @@ impl GpuBackend {
 
     /// The lists' count buffers, in the order [`Counts::parse`] reads them: the primary
     /// shadow rays' (when planned), then per bounce depth its rays', its shadow rays'
-    /// and its counters.
+    /// and its counters; in a banded frame then where each shadow-ray list's lights
+    /// start (the primary list's, then each depth's).
     fn count_parts(&self, plan: &FramePlan) -> Vec<(&wgpu::Buffer, u64)> {
         let fb = self.frame.as_ref().expect("frame buffers");
-        let mut parts = Vec::with_capacity(1 + 3 * fb.bounces.len());
-        if plan.produces(FrameBuffer::Rays) {
+        let mut parts = Vec::with_capacity(2 + 4 * fb.bounces.len());
+        let rays = plan.produces(FrameBuffer::Rays);
+        if rays {
             parts.push((&fb.ray_count, 4));
         }
         for b in &fb.bounces {
             parts.extend([(&b.ray_count, 4), (&b.shadow_ray_count, 4), (&b.counters, 16)]);
+        }
+        if fb.banded {
+            let starts = 4 * fb.light_count as u64;
+            if rays {
+                parts.push((&fb.light_starts, starts));
+            }
+            parts.extend(fb.bounces.iter().map(|b| (&b.light_starts, starts)));
         }
         parts
     }
@@ -426,27 +530,29 @@ impl GpuBackend {
     fn read_counts(&self, plan: &FramePlan) -> Result<Counts, GpuError> {
         let parts = self.count_parts(plan);
         let data = read_back_many(&self.ctx, &parts)?;
-        Ok(Counts::parse(plan, data.iter().map(|d| d.as_slice())))
+        let fb = self.frame.as_ref().expect("frame buffers");
+        Ok(Counts::parse(plan, fb.banded, data.iter().map(|d| d.as_slice())))
     }
 
-    /// Read the buffers the frame holds back into `out` (reusing its vectors) and
-    /// fill in its statistics; the lists' counts. One readback for the counts and what
-    /// every frame returns, a second for the other stage outputs when asked. A count
-    /// past its list's room leaves `out` to be overwritten by the frame's rerun.
-    fn read_back(&self, plan: &FramePlan, camera: &CameraRecord, out: &mut Frame) -> Result<Counts, GpuError> {
+    /// Read the band's buffers the frame holds back and append them to `out` (see
+    /// [`crate::band`] for how the bands merge); the lists' counts. One readback for the
+    /// counts and what every frame returns, a second for the other stage outputs when
+    /// asked. A count past its list's room appends nothing: the band runs again.
+    fn read_back(&self, plan: &FramePlan, merge: &mut BandMerge, out: &mut Frame) -> Result<Counts, GpuError> {
         let ctx = &self.ctx;
         let fb = self.frame.as_ref().expect("frame buffers");
-        let pixels = camera.width as usize * camera.height as usize;
+        let pixels = fb.width as usize * fb.band.rows as usize;
         let lights = fb.light_count as usize;
         let pairs = pixels * lights;
         // The first readback holds the counts: until then the primary occlusion results
-        // are read to their room, and cut to the count after.
+        // are read to their room, and appended to the count.
         let count_parts = self.count_parts(plan);
         let mut counts = Counts {
             shadow_rays: fb.ray_capacity as usize,
             bounces: fb.bounces.iter().map(|_| BounceCounts::default()).collect(),
+            ..Default::default()
         };
-        let bytes = |b: FrameBuffer, counts: &Counts| -> u64 {
+        let bytes = |b: FrameBuffer, counts: &Counts| -> usize {
             let (n, size) = match b {
                 FrameBuffer::GBuffer => (pixels, std::mem::size_of::<GBufferTexel>()),
                 FrameBuffer::Surfaces => (pixels, std::mem::size_of::<SurfaceRecord>()),
@@ -472,52 +578,98 @@ impl GpuBackend {
                     }
                 }
             };
-            (n * size) as u64
+            n * size
         };
+        // What earlier bands held: the offsets of this band's indices into the frame's lists.
+        let pixel_offset = merge.pixels;
+        let rays_before = |depth: u32| merge.rays.get(depth as usize - 1).copied().unwrap_or(0);
         for always in [true, false] {
             let wanted: Vec<FrameBuffer> = out.buffers().filter(|b| b.always_returned() == always).collect();
-            let mut parts: Vec<(&wgpu::Buffer, u64)> = wanted.iter().map(|&b| (fb.get(b), bytes(b, &counts))).collect();
+            let mut parts: Vec<(&wgpu::Buffer, u64)> =
+                wanted.iter().map(|&b| (fb.get(b), bytes(b, &counts) as u64)).collect();
             // The counts first, with the buffers every frame returns.
             let skip = if always { count_parts.len() } else { 0 };
             if always {
                 parts.splice(0..0, count_parts.iter().copied());
+                if skip == 0 {
+                    counts = Counts::parse(plan, fb.banded, std::iter::empty());
+                }
             }
             let mut count_data = Vec::with_capacity(skip);
-            read_back_each(ctx, &parts, |i, data| match i.checked_sub(skip).map(|i| wanted[i]) {
-                None => count_data.push(data.to_vec()),
-                Some(b) => match b {
-                    FrameBuffer::GBuffer => copy_into_vec(&mut out.gbuffer, data),
-                    FrameBuffer::Surfaces => copy_into_vec(&mut out.surfaces, data),
-                    FrameBuffer::Rays => copy_into_vec(&mut out.rays, data),
-                    FrameBuffer::Occluded => copy_into_vec(&mut out.occluded, data),
+            let mut fits = !always || skip == 0;
+            let mut no_room: Option<(FrameBuffer, usize)> = None;
+            read_back_each(ctx, &parts, |i, data| {
+                let Some(b) = i.checked_sub(skip).map(|i| wanted[i]) else {
+                    count_data.push(data.to_vec());
+                    if count_data.len() == skip {
+                        counts = Counts::parse(plan, fb.banded, count_data.iter().map(|d| d.as_slice()));
+                        fits = counts.grown(&fb.room(), pairs).is_none();
+                    }
+                    return;
+                };
+                if !fits || no_room.is_some() {
+                    return; // the band runs again with room for its rays, or the frame fails
+                }
+                // Lists read to their room before the counts were known: to the count.
+                let data = &data[..bytes(b, &counts).min(data.len())];
+                let appended = match b {
+                    FrameBuffer::GBuffer => extend_from_bytes(&mut out.gbuffer, data),
+                    FrameBuffer::Surfaces => extend_from_bytes(&mut out.surfaces, data),
+                    FrameBuffer::Rays => appended(&mut out.rays, data, |r| band::offset_pixels(r, pixel_offset)),
+                    FrameBuffer::Occluded => extend_from_bytes(&mut out.occluded, data),
                     // u32 codes on the GPU, u8 in the frame.
                     FrameBuffer::Shadow => shadow_codes_into(&mut out.shadow, data),
-                    FrameBuffer::Rt => copy_into_vec(&mut out.rt, data),
-                    FrameBuffer::Raster => copy_into_vec(&mut out.raster, data),
-                    FrameBuffer::Final => copy_into_vec(&mut out.final_image, data),
+                    FrameBuffer::Rt => extend_from_bytes(&mut out.rt, data),
+                    FrameBuffer::Raster => extend_from_bytes(&mut out.raster, data),
+                    FrameBuffer::Final => extend_from_bytes(&mut out.final_image, data),
                     FrameBuffer::Bounce { buffer, depth } => {
+                        // A bounce ray's `pixel` is its primary pixel at every depth; a bounce
+                        // shadow ray's, its surface in the depth's list.
+                        let own = rays_before(depth);
                         let o = out.bounce_mut(depth);
                         match buffer {
-                            BounceBuffer::Rays => copy_into_vec(&mut o.rays, data),
-                            BounceBuffer::Links => copy_into_vec(&mut o.links, data),
-                            BounceBuffer::Hits => copy_into_vec(&mut o.hits, data),
-                            BounceBuffer::Surfaces => copy_into_vec(&mut o.surfaces, data),
-                            BounceBuffer::ShadowRays => copy_into_vec(&mut o.shadow_rays, data),
-                            BounceBuffer::Occluded => copy_into_vec(&mut o.occluded, data),
+                            BounceBuffer::Rays => appended(&mut o.rays, data, |r| band::offset_pixels(r, pixel_offset)),
+                            BounceBuffer::Links => appended(&mut o.links, data, |l| band::offset_links(l, own)),
+                            BounceBuffer::Hits => extend_from_bytes(&mut o.hits, data),
+                            BounceBuffer::Surfaces => extend_from_bytes(&mut o.surfaces, data),
+                            BounceBuffer::ShadowRays => {
+                                appended(&mut o.shadow_rays, data, |r| band::offset_pixels(r, own))
+                            }
+                            BounceBuffer::Occluded => extend_from_bytes(&mut o.occluded, data),
                             BounceBuffer::Shadow => shadow_codes_into(&mut o.shadow, data),
-                            BounceBuffer::Radiance => copy_into_vec(&mut o.radiance, data),
+                            BounceBuffer::Radiance => extend_from_bytes(&mut o.radiance, data),
                         }
                     }
-                },
-            })?;
-            if always {
-                counts = Counts::parse(plan, count_data.iter().map(|d| d.as_slice()));
-                if counts.grown(&fb.room(), pairs).is_some() {
-                    return Ok(counts); // the frame runs again with room for its rays
+                };
+                if appended.is_err() {
+                    no_room = Some((b, data.len()));
                 }
-                out.occluded.truncate(counts.shadow_rays);
+            })?;
+            if let Some((b, n)) = no_room {
+                return Err(GpuError::OutOfMemory(format!(
+                    "no host memory to read back {n} more bytes of the frame's {b} (a {}x{} frame)",
+                    fb.width,
+                    fb.band.first_row + fb.band.rows
+                )));
+            }
+            if !fits {
+                return Ok(counts);
             }
         }
+        merge.add(pixels as u32, &counts.bounces.iter().map(|c| c.rays as u32).collect::<Vec<_>>());
+        if fb.banded {
+            merge.primary_lights.push(BandMerge::light_counts(&counts.primary_starts, counts.shadow_rays as u32));
+            merge.bounce_lights.resize(counts.bounces.len(), Vec::new());
+            for (d, (c, starts)) in counts.bounces.iter().zip(&counts.bounce_starts).enumerate() {
+                merge.bounce_lights[d].push(BandMerge::light_counts(starts, c.shadow_rays as u32));
+            }
+        }
+        Ok(counts)
+    }
+
+    /// The statistics of a frame read back whole (every band), from its G-buffer,
+    /// occlusion results and lists' counts.
+    fn frame_stats(&self, plan: &FramePlan, camera: &CameraRecord, counts: &Counts, out: &Frame) -> FrameStats {
         let mut stats = FrameStats {
             width: camera.width,
             height: camera.height,
@@ -535,24 +687,43 @@ impl GpuBackend {
         counts.fill(&mut stats);
         stats.occluded_shadow_rays = out.occluded.iter().filter(|&&o| o != 0).count() as u64;
         stats.stage_ms = self.stage_times(plan, &stats);
-        out.width = camera.width;
-        out.height = camera.height;
-        out.stats = stats;
-        Ok(counts)
+        stats
     }
 }
 
-/// `SHADOW_*` codes read back as u32 words into the frame's u8 codes.
-fn shadow_codes_into(dst: &mut Vec<u8>, data: &[u8]) {
-    dst.clear();
+/// Where a frame's bands go: back into a [`Frame`], or into a texture on the GPU.
+enum Sink<'a> {
+    Frame(&'a mut Frame),
+    Texture(&'a wgpu::Texture),
+}
+
+/// Append `data` read as `T`s to `dst`, then `fix` the appended elements (a band's
+/// indices made the frame's).
+fn appended<T: bytemuck::Pod>(
+    dst: &mut Vec<T>,
+    data: &[u8],
+    fix: impl FnOnce(&mut [T]),
+) -> Result<(), TryReserveError> {
+    let start = dst.len();
+    extend_from_bytes(dst, data)?;
+    fix(&mut dst[start..]);
+    Ok(())
+}
+
+/// `SHADOW_*` codes read back as u32 words, appended to the frame's u8 codes.
+fn shadow_codes_into(dst: &mut Vec<u8>, data: &[u8]) -> Result<(), TryReserveError> {
+    dst.try_reserve(data.len() / 4)?;
     dst.extend(data.chunks_exact(4).map(|w| bytemuck::pod_read_unaligned::<u32>(w) as u8));
+    Ok(())
 }
 
 impl Counts {
-    /// The counts from the data of [`GpuBackend::count_parts`], in its order.
-    fn parse<'a>(plan: &FramePlan, mut data: impl Iterator<Item = &'a [u8]>) -> Counts {
+    /// The counts from the data of [`GpuBackend::count_parts`], in its order (`banded`:
+    /// with the lists' light starts).
+    fn parse<'a>(plan: &FramePlan, banded: bool, mut data: impl Iterator<Item = &'a [u8]>) -> Counts {
         let word = |d: Option<&[u8]>| d.map_or(0, |d| bytemuck::pod_read_unaligned::<u32>(&d[..4]) as usize);
-        let shadow_rays = if plan.produces(FrameBuffer::Rays) { word(data.next()) } else { 0 };
+        let rays = plan.produces(FrameBuffer::Rays);
+        let shadow_rays = if rays { word(data.next()) } else { 0 };
         let mut bounces = Vec::with_capacity(plan.bounce_depth() as usize);
         for _ in 0..plan.bounce_depth() {
             let rays = word(data.next());
@@ -560,7 +731,27 @@ impl Counts {
             let counters = data.next().map_or([0; 4], |d| bytemuck::pod_read_unaligned::<[u32; 4]>(&d[..16]));
             bounces.push(BounceCounts { rays, shadow_rays, counters });
         }
-        Counts { shadow_rays, bounces }
+        let words = |d: Option<&[u8]>| d.map_or(Vec::new(), bytemuck::pod_collect_to_vec::<u8, u32>);
+        let (mut primary_starts, mut bounce_starts) = (Vec::new(), Vec::new());
+        if banded {
+            if rays {
+                primary_starts = words(data.next());
+            }
+            bounce_starts = bounces.iter().map(|_| words(data.next())).collect();
+        }
+        Counts { shadow_rays, bounces, primary_starts, bounce_starts }
+    }
+
+    /// Add the counts of another band of the frame (its light starts are the band's
+    /// own, kept by [`BandMerge`], not summed).
+    fn add(&mut self, band: &Counts) {
+        self.shadow_rays += band.shadow_rays;
+        self.bounces.resize(band.bounces.len().max(self.bounces.len()), BounceCounts::default());
+        for (sum, c) in self.bounces.iter_mut().zip(&band.bounces) {
+            sum.rays += c.rays;
+            sum.shadow_rays += c.shadow_rays;
+            sum.counters.iter_mut().zip(c.counters).for_each(|(s, n)| *s += n);
+        }
     }
 
     /// The frame statistics the counts give: the rays per kind of the primary list and
@@ -584,7 +775,6 @@ impl Counts {
             .collect();
     }
 }
-
 impl GpuBackend {
     /// Refuse a plan this device cannot run: bounces on a device with fewer storage
     /// buffers per shader stage than the bounce stages bind ([`BOUNCE_STORAGE_BUFFERS`]).
@@ -616,7 +806,10 @@ impl Backend for GpuBackend {
         self.check_supported(&plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         frame.begin(&plan, options);
-        self.render_frame(scene, &plan, camera, options, frame)?;
+        band::check_host_memory(frame, camera, scene.geometry.lights.len() as u32)?;
+        let counts = self.run_frame(scene, &plan, camera, options, &mut Sink::Frame(frame))?;
+        frame.stats = self.frame_stats(&plan, camera, &counts, frame);
+        (frame.width, frame.height) = (camera.width, camera.height);
         frame.end();
         Ok(())
     }

@@ -11,6 +11,7 @@ use hyrt_core::formats::{
 use hyrt_core::frame::PreparedScene;
 use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan};
 
+use crate::band::Band;
 use crate::gpu_buffer::{storage, upload};
 use crate::{GpuContext, GpuError};
 
@@ -76,13 +77,24 @@ impl SceneBuffers {
     }
 }
 
-/// Per-frame buffers for one image size, light count and set of planned stages,
-/// reused across frames. A buffer whose stage the plan skips is not allocated: its
-/// field holds `empty` (one 64-byte buffer shared by every absent one), so bind
-/// groups stay valid while no skipped stage is encoded.
+/// Per-frame buffers for one band size (image width and rows), light count and set of
+/// planned stages, reused across frames. A buffer whose stage the plan skips is not
+/// allocated: its field holds `empty` (one 64-byte buffer shared by every absent one),
+/// so bind groups stay valid while no skipped stage is encoded.
+///
+/// The per-pixel buffers hold one band of `rows` rows (the whole image when the frame
+/// fits the device's bindings, see [`crate::band`]); `band` is the band being rendered,
+/// at most `rows` rows, and the pixel stages run over `width` x `band.rows` pixels.
 pub struct FrameBuffers {
     pub width: u32,
-    pub height: u32,
+    /// Rows the per-pixel buffers hold.
+    pub rows: u32,
+    /// The band being rendered ([`FrameBuffers::set_band`]); the whole of `rows` at first.
+    pub band: Band,
+    /// The frame is rendered in more than one band: `compaction` also writes where each
+    /// light's rays start in its list (`light_starts`), so that the bands' lists can be
+    /// merged into the frame's light-major order.
+    pub banded: bool,
     pub light_count: u32,
     /// Rays `rays` and `occluded` have room for (0 when the plan traces none). The
     /// frame's rays are known only after `compaction`: a frame with more reallocates
@@ -113,6 +125,9 @@ pub struct FrameBuffers {
     pub ray_count: wgpu::Buffer,
     /// `array<u32>`, one per ray slot: 1 occluded, 0 reached the light (`shadow_rays`).
     pub occluded: wgpu::Buffer,
+    /// `array<u32>`, one per light: the index of the light's first ray in `rays`
+    /// (`compaction`, in banded frames only).
+    pub light_starts: wgpu::Buffer,
     /// `array<u32>`, `pixels * lights`, index `pixel * lights + light`: the `SHADOW_*` codes
     /// of [`hyrt_core::frame`] (u32 here; u8 on the CPU, converted on readback).
     pub shadow: wgpu::Buffer,
@@ -172,6 +187,9 @@ pub struct BounceBuffers {
     pub shadow_ray_count: wgpu::Buffer,
     /// `array<u32>`, `room.shadow_rays` (`shadow_rays`).
     pub occluded: wgpu::Buffer,
+    /// `array<u32>`, one per light: where each light's rays start in `shadow_rays`
+    /// (`compaction`, in banded frames only).
+    pub light_starts: wgpu::Buffer,
     /// `array<u32>`, `room.rays * lights` `SHADOW_*` codes (`shadow_rays`).
     pub shadow: wgpu::Buffer,
     /// `array<vec4<f32>>`, `room.rays` (`bounce_shading`).
@@ -203,6 +221,7 @@ pub struct ListBuffers<'a> {
     pub shadow_rays: &'a wgpu::Buffer,
     pub shadow_ray_count: &'a wgpu::Buffer,
     pub occluded: &'a wgpu::Buffer,
+    pub light_starts: &'a wgpu::Buffer,
     pub shadow: &'a wgpu::Buffer,
     /// `array<atomic<u32>, 4>`, written at bounce depths only.
     pub counters: &'a wgpu::Buffer,
@@ -219,6 +238,7 @@ impl BounceBuffers {
             shadow_rays: &self.shadow_rays,
             shadow_ray_count: &self.shadow_ray_count,
             occluded: &self.occluded,
+            light_starts: &self.light_starts,
             shadow: &self.shadow,
             counters: &self.counters,
         }
@@ -266,36 +286,29 @@ fn uniform(ctx: &GpuContext, label: &str, size: u64) -> wgpu::Buffer {
 }
 
 impl FrameBuffers {
-    /// Every buffer of a `width` x `height` frame with `light_count` lights, with room
-    /// for a ray per (pixel, light): what the stage tests bind.
+    /// Every buffer of a `width` x `height` frame of one band with `light_count` lights,
+    /// with room for a ray per (pixel, light): what the stage tests bind.
     pub fn new(ctx: &GpuContext, width: u32, height: u32, light_count: u32) -> Result<FrameBuffers, GpuError> {
-        let everything = FramePlan::from_counts(hyrt_core::plan::SceneNeeds {
-            lights: light_count.max(1),
-            triangles: true,
-            ray_traced: true,
-            rasterized: true,
-            bouncing: false,
-            weight: 0.5,
-            max_depth: 0,
-        });
+        let everything = FramePlan::from_counts(hyrt_core::plan::SceneNeeds::every_primary_stage(light_count.max(1)));
         let pairs = width as usize * height as usize * light_count as usize;
         let capacity = u32::try_from(pairs).map_err(|_| GpuError::Limits(format!("{pairs} rays")))?;
         let room = Room { shadow_rays: capacity, bounces: Vec::new() };
         Self::for_plan(ctx, width, height, light_count, &everything, &room)
     }
 
-    /// Allocate the buffers `plan` produces for a `width` x `height` frame with
+    /// Allocate the buffers `plan` produces for bands of `width` x `rows` pixels with
     /// `light_count` lights and the lists' `room` (the primary shadow rays', and one
-    /// entry per bounce depth of the plan).
+    /// entry per bounce depth of the plan). The band is the first `rows` rows until
+    /// [`FrameBuffers::set_band`].
     pub fn for_plan(
         ctx: &GpuContext,
         width: u32,
-        height: u32,
+        rows: u32,
         light_count: u32,
         plan: &FramePlan,
         room: &Room,
     ) -> Result<FrameBuffers, GpuError> {
-        let pixels = width as usize * height as usize;
+        let pixels = width as usize * rows as usize;
         let pairs = pixels * light_count as usize;
         let uniform = |label: &str, size: u64| uniform(ctx, label, size);
         // One element of the largest record a shader binds (`RayRecord`, 64 bytes).
@@ -323,6 +336,7 @@ impl FrameBuffers {
                 shadow_rays: storage::<RayRecord>(ctx, &label("shadow_rays"), shadow_rays)?,
                 shadow_ray_count: words4(ctx, &label("shadow_ray_count")),
                 occluded: storage::<u32>(ctx, &label("occluded"), shadow_rays)?,
+                light_starts: storage::<u32>(ctx, &label("light_starts"), light_count as usize)?,
                 shadow: storage::<u32>(ctx, &label("shadow"), rays * light_count.max(1) as usize)?,
                 radiance: storage::<[f32; 4]>(ctx, &label("radiance"), rays)?,
                 counters: words4(ctx, &label("counters")),
@@ -338,7 +352,9 @@ impl FrameBuffers {
         };
         let frame = FrameBuffers {
             width,
-            height,
+            rows,
+            band: Band { first_row: 0, rows },
+            banded: false,
             light_count,
             ray_capacity,
             bounces,
@@ -356,6 +372,7 @@ impl FrameBuffers {
                 mapped_at_creation: false,
             }),
             occluded: alloc(FrameBuffer::Occluded, &|| storage::<u32>(ctx, "occluded", ray_capacity as usize))?,
+            light_starts: storage::<u32>(ctx, "light_starts", light_count as usize)?,
             shadow: alloc(FrameBuffer::Shadow, &|| storage::<u32>(ctx, "shadow", pairs))?,
             rt: alloc(FrameBuffer::Rt, &|| storage::<[f32; 4]>(ctx, "rt image", pixels))?,
             raster: alloc(FrameBuffer::Raster, &|| storage::<[f32; 4]>(ctx, "raster image", pixels))?,
@@ -367,10 +384,10 @@ impl FrameBuffers {
         Ok(frame)
     }
 
-    /// True if these buffers fit a frame of this size and light count under `plan`
-    /// with lists that need `room`.
-    pub fn fits(&self, width: u32, height: u32, light_count: u32, plan: &FramePlan, room: &Room) -> bool {
-        (self.width, self.height, self.light_count) == (width, height, light_count)
+    /// True if these buffers fit bands of `width` x `rows` pixels with this light count
+    /// under `plan` with lists that need `room`.
+    pub fn fits(&self, width: u32, rows: u32, light_count: u32, plan: &FramePlan, room: &Room) -> bool {
+        (self.width, self.rows, self.light_count) == (width, rows, light_count)
             && self.allocated.iter().copied().eq(plan.buffers())
             && (!plan.produces(FrameBuffer::Rays) || room.shadow_rays <= self.ray_capacity)
             && self.bounces.len() == room.bounces.len()
@@ -389,13 +406,14 @@ impl FrameBuffers {
     /// The primary hits' shadow-ray list.
     pub fn primary_list(&self) -> ListBuffers<'_> {
         ListBuffers {
-            slots: self.width * self.height,
+            slots: self.width * self.rows,
             params: &self.list,
             live: &self.pixel_count,
             surfaces: &self.surfaces,
             shadow_rays: &self.rays,
             shadow_ray_count: &self.ray_count,
             occluded: &self.occluded,
+            light_starts: &self.light_starts,
             shadow: &self.shadow,
             counters: &self.empty,
         }
@@ -422,10 +440,22 @@ impl FrameBuffers {
         ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
     }
 
-    /// Write what the lists' room fixes: the primary surfaces' live count and every
-    /// list's [`ListParams`] (once, when the buffers are made).
+    /// Render `band` next (at most [`FrameBuffers::rows`] rows): the pixel stages run over
+    /// its pixels, and the primary surfaces' live count is its pixel count. The
+    /// [`FrameParams`] of the band are the caller's to write ([`FrameParams::for_band`]).
+    /// `banded`: the frame has more than one band.
+    pub fn set_band(&mut self, ctx: &GpuContext, band: Band, banded: bool) {
+        debug_assert!(band.rows <= self.rows, "{band:?} in buffers of {} rows", self.rows);
+        self.band = band;
+        self.banded = banded;
+        let pixels = self.width * band.rows;
+        ctx.queue.write_buffer(&self.pixel_count, 0, bytemuck::bytes_of(&[pixels, 0, 0, 0]));
+    }
+
+    /// Write what the lists' room fixes: the primary surfaces' live count (all `rows`)
+    /// and every list's [`ListParams`] (once, when the buffers are made).
     fn write_lists(&self, ctx: &GpuContext) {
-        let pixels = self.width * self.height;
+        let pixels = self.width * self.rows;
         ctx.queue.write_buffer(&self.pixel_count, 0, bytemuck::bytes_of(&[pixels, 0, 0, 0]));
         let primary = ListParams { slots: pixels, parents: 0, depth: 0, last: 0 };
         ctx.queue.write_buffer(&self.list, 0, bytemuck::bytes_of(&primary));

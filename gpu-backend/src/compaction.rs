@@ -10,7 +10,10 @@
 //! indirect-dispatch arguments for one thread per ray in workgroups of
 //! [`SHADOW_RAYS_WORKGROUP_SIZE`](crate::shadow_rays::SHADOW_RAYS_WORKGROUP_SIZE),
 //! `dispatch_x <= 65535`), or the bounce's shadow rays and their count. Scratch (flags
-//! and scan levels) is owned by the stage and kept per list size.
+//! and scan levels) is owned by the stage and kept per list size. In a frame rendered in
+//! bands ([`crate::band`]) it also writes where each light's rays start in the list
+//! (`light_starts`, `shaders/light_starts.wgsl`: one binary search per light), so that
+//! the bands' lists merge into the frame's light-major order.
 //!
 //! # Scan
 //!
@@ -37,7 +40,10 @@ use hyrt_core::formats::wgsl::declarations;
 use crate::buffers::{FrameBuffers, ListBuffers, SceneBuffers};
 use crate::scan::{pipeline, scan_wgsl, ListScan, Scratch};
 use crate::shader::shading_helpers;
-use crate::shader::{ray_wgsl, storage_entry, uniform_entry};
+use crate::shader::{bind_buffers, main_pipeline, ray_wgsl, storage_entry, uniform_entry};
+
+/// Threads per workgroup of `shaders/light_starts.wgsl` (one per light).
+const LIGHT_STARTS_GROUP: u32 = 64;
 use crate::{GpuContext, GpuError};
 
 /// The compaction WGSL: the generated records and format constants, `ray.wgsl`, the
@@ -51,6 +57,8 @@ fn compaction_wgsl() -> String {
 /// point that scatters the indices of given flags.
 pub struct CompactionStage {
     scan: ListScan,
+    /// Banded frames: where each light's rays start in the list (`shaders/light_starts.wgsl`).
+    light_starts: (wgpu::ComputePipeline, wgpu::BindGroupLayout),
     scatter_indices: wgpu::ComputePipeline,
     reduce_for_test: wgpu::ComputePipeline,
     test_layout: wgpu::BindGroupLayout,
@@ -81,7 +89,19 @@ impl CompactionStage {
             entries: &[storage_entry(6, false)],
         });
         let with_test = [Some(&scan.scan_layout), Some(&test_layout)];
+        let starts_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("compaction light starts"),
+            source: wgpu::ShaderSource::Wgsl((declarations() + include_str!("shaders/light_starts.wgsl")).into()),
+        });
+        let starts_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("compaction light starts"),
+            entries: &[storage_entry(0, true), storage_entry(1, true), storage_entry(2, false)],
+        });
         CompactionStage {
+            light_starts: (
+                main_pipeline(ctx, "compaction light starts", &starts_module, &starts_layout),
+                starts_layout,
+            ),
             scatter_indices: pipeline(device, &module, "scatter_indices", &with_test),
             reduce_for_test: pipeline(device, &module, "reduce", &with_test),
             scan,
@@ -102,7 +122,8 @@ impl CompactionStage {
         self.encode_list(ctx, encoder, scene, frame, &frame.primary_list(), timing)
     }
 
-    /// The stage over one list's surfaces: its shadow rays and their count.
+    /// The stage over one list's surfaces: its shadow rays and their count (and in a
+    /// banded frame where each light's rays start, [`crate::band`]).
     pub fn encode_list(
         &self,
         ctx: &GpuContext,
@@ -115,6 +136,22 @@ impl CompactionStage {
         let n = list.slots * frame.light_count;
         let buffers = [&frame.params, list.surfaces, &scene.lights, list.shadow_rays, list.params, list.live];
         self.scan.encode(ctx, encoder, "compaction", n, &buffers, list.shadow_ray_count, timing);
+        if frame.banded && frame.light_count > 0 {
+            let (pipeline, layout) = &self.light_starts;
+            let group = bind_buffers(
+                ctx,
+                "compaction light starts",
+                layout,
+                &[list.shadow_rays, list.shadow_ray_count, list.light_starts],
+            );
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("compaction light starts"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &group, &[]);
+            pass.dispatch_workgroups(frame.light_count.div_ceil(LIGHT_STARTS_GROUP), 1, 1);
+        }
     }
 
     /// The scan alone, for tests: the indices of the non-zero values among the

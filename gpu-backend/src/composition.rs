@@ -51,6 +51,6 @@ impl CompositionStage {
             &self.layout,
             &[&frame.raster, &frame.rt, &frame.params, &frame.final_image],
         );
-        encode_pixel_pass(encoder, "composition", &self.pipeline, &bind_group, frame.width, frame.height, timing);
+        encode_pixel_pass(encoder, "composition", &self.pipeline, &bind_group, frame.width, frame.band.rows, timing);
     }
 }

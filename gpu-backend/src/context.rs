@@ -86,7 +86,11 @@ impl GpuContext {
         let wanted =
             wgpu::Features::PRIMITIVE_INDEX | wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::SHADER_EARLY_DEPTH_TEST;
         let features = offered & wanted;
+        // The adapter's real limits where hyrt's frames grow with the image: the render
+        // targets' side (lavapipe: 16384, WebGPU's default 8192) and buffer sizes. Frames
+        // larger than a binding are rendered in bands (`crate::band`).
         let limits = wgpu::Limits {
+            max_texture_dimension_2d: adapter.limits().max_texture_dimension_2d,
             max_storage_buffer_binding_size: adapter.limits().max_storage_buffer_binding_size,
             max_buffer_size: adapter.limits().max_buffer_size,
             max_storage_buffers_per_shader_stage: adapter.limits().max_storage_buffers_per_shader_stage.min(16),

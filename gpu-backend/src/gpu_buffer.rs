@@ -105,14 +105,17 @@ pub fn read_back_each(
     Ok(())
 }
 
-/// Replace the contents of `dst` with `bytes` read as `T`s, reusing its allocation
-/// (`bytes` need not be aligned for `T`; its length must be a multiple of `T`'s size).
-pub fn copy_into_vec<T: Pod>(dst: &mut Vec<T>, bytes: &[u8]) {
+/// Append `bytes` read as `T`s to `dst` (`bytes` need not be aligned for `T`; its length
+/// must be a multiple of `T`'s size); an error, and `dst` unchanged, where the allocator
+/// cannot make room.
+pub fn extend_from_bytes<T: Pod>(dst: &mut Vec<T>, bytes: &[u8]) -> Result<(), std::collections::TryReserveError> {
     let size = std::mem::size_of::<T>();
     debug_assert_eq!(bytes.len() % size, 0, "whole elements");
-    dst.clear();
-    dst.resize(bytes.len() / size, T::zeroed());
-    bytemuck::cast_slice_mut::<T, u8>(dst).copy_from_slice(bytes);
+    dst.try_reserve(bytes.len() / size)?;
+    let start = dst.len();
+    dst.resize(start + bytes.len() / size, T::zeroed());
+    bytemuck::cast_slice_mut::<T, u8>(&mut dst[start..]).copy_from_slice(bytes);
+    Ok(())
 }
 
 /// Copy the first `count` elements of `buffer` back to the CPU (waits for the GPU).

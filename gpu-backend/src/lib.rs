@@ -11,6 +11,7 @@
 //! ([`context::AdapterPolicy::AllowSoftware`], or `HYRT_GPU_ALLOW_SOFTWARE=1`).
 
 pub mod backend;
+pub mod band;
 pub mod bounce_shading;
 pub mod bounce_trace;
 pub mod buffers;

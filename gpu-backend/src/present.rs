@@ -71,7 +71,8 @@ impl Present {
         let format = texture.format();
         let mut pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
         let (pipeline, layout) = pipelines.entry(format).or_insert_with(|| {
-            let source = include_str!("shaders/present.wgsl").replace("TARGET_FORMAT", format_name(format));
+            let source = hyrt_core::formats::wgsl::declarations()
+                + &include_str!("shaders/present.wgsl").replace("TARGET_FORMAT", format_name(format));
             let device = &ctx.device;
             let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
                 label: Some("present"),
@@ -103,6 +104,6 @@ impl Present {
                 wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&view) },
             ],
         });
-        encode_pixel_pass(encoder, "present", pipeline, &bind_group, frame.width, frame.height, None);
+        encode_pixel_pass(encoder, "present", pipeline, &bind_group, frame.width, frame.band.rows, None);
     }
 }

@@ -57,6 +57,6 @@ impl RasterShadingStage {
             &self.layout,
             &[&frame.surfaces, &frame.shadow, &scene.objects, &scene.lights, &frame.params, &frame.raster],
         );
-        encode_pixel_pass(encoder, "raster_shading", &self.pipeline, &bind_group, frame.width, frame.height, timing);
+        encode_pixel_pass(encoder, "raster_shading", &self.pipeline, &bind_group, frame.width, frame.band.rows, timing);
     }
 }

@@ -6,7 +6,8 @@
 //! in `shaders/reconstruction.wgsl`, operation for operation. Normalization is
 //! `sqrt` then division, as on the CPU (WGSL's `inverseSqrt` is not exact).
 //!
-//! Reads: `frame.gbuffer`, `frame.camera` (eye, image size), `scene.triangles`,
+//! Reads: `frame.gbuffer`, `frame.camera` (eye, image size), `frame.params` (the band),
+//! `scene.triangles`,
 //! `scene.normals`, `scene.objects` (`first_triangle`). Writes: `frame.surfaces`
 //! (every texel of the camera's image).
 //!
@@ -66,8 +67,8 @@ impl ReconstructionStage {
         ReconstructionStage { raster: pipeline("main"), reintersected: pipeline("main_reintersected") }
     }
 
-    /// Record the pass. The camera uniform must describe a `frame.width` x
-    /// `frame.height` image.
+    /// Record the pass over `frame.band` (the frame parameters describe it; the camera
+    /// uniform, the whole image).
     pub fn encode(
         &self,
         ctx: &GpuContext,
@@ -77,7 +78,7 @@ impl ReconstructionStage {
         barycentrics: PrimaryBarycentrics,
         timing: Option<(&wgpu::QuerySet, u32)>,
     ) {
-        if frame.width == 0 || frame.height == 0 {
+        if frame.width == 0 || frame.band.rows == 0 {
             return;
         }
         let (pipeline, layout) = match barycentrics {
@@ -94,11 +95,12 @@ impl ReconstructionStage {
                 wgpu::BindGroupEntry { binding: 3, resource: frame.camera.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 4, resource: frame.gbuffer.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 5, resource: frame.surfaces.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 6, resource: frame.params.as_entire_binding() },
             ],
         });
         let mut pass = crate::timing::begin_timed_pass(encoder, "reconstruction", timing);
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &group, &[]);
-        pass.dispatch_workgroups(frame.width.div_ceil(GROUP), frame.height.div_ceil(GROUP), 1);
+        pass.dispatch_workgroups(frame.width.div_ceil(GROUP), frame.band.rows.div_ceil(GROUP), 1);
     }
 }

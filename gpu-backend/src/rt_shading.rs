@@ -69,7 +69,7 @@ impl RtShadingStage {
             &self.layout,
             &[&frame.surfaces, &frame.shadow, &scene.objects, &scene.lights, &frame.camera, &frame.params, &frame.rt],
         );
-        encode_pixel_pass(encoder, "rt_shading", &self.pipeline, &bind_group, frame.width, frame.height, timing);
+        encode_pixel_pass(encoder, "rt_shading", &self.pipeline, &bind_group, frame.width, frame.band.rows, timing);
     }
 }
 
@@ -128,6 +128,6 @@ impl RtShadingBouncingStage {
                 &first.radiance,
             ],
         );
-        encode_pixel_pass(encoder, "rt_shading", &self.pipeline, &bind_group, frame.width, frame.height, timing);
+        encode_pixel_pass(encoder, "rt_shading", &self.pipeline, &bind_group, frame.width, frame.band.rows, timing);
     }
 }

@@ -38,8 +38,14 @@
 //! `GBufferTexel::MISS`, else the triangle's record gives `triangle`, `object` and
 //! `GBUF_RAY_TRACED` (from `TRI_RAY_TRACED`), the surface target the rest.
 //!
-//! The render targets are created per image size and cached in the stage. Image sides
-//! must be within the device's `max_texture_dimension_2d` (8192 by default).
+//! Bands ([`crate::band`]): the render targets hold one band of rows (the whole image
+//! when it fits), created per band size and cached in the stage. The vertex shader maps
+//! the band's rows onto them (`window_to_ndc`, `band_window`; a triangle is pre-snapped
+//! only when it lies inside the band, `presnap_in_band`, else covered) and skips
+//! triangles whose pixel box misses the band; the fragment shader adds the band's first
+//! row to its window position and evaluates the whole image's setup there, so a pixel's
+//! texel does not depend on its band. The image's width must be within the device's
+//! `max_texture_dimension_2d` (the adapter's own: 16384 on lavapipe).
 //!
 //! Agreement with the CPU reference: bit-identical on the conformance corpus on lavapipe
 //! (hyrt-conformance). It rests on the device rasterizing with 8 subpixel bits and the
@@ -52,7 +58,7 @@ use hyrt_core::formats::wgsl::declarations;
 use std::sync::Mutex;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
-use crate::{GpuContext, GpuError};
+use crate::GpuContext;
 
 /// Render target of the triangle ids: global triangle index + 1, 0 = miss.
 pub const ID_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::R32Uint;
@@ -320,18 +326,6 @@ impl VisibilityRasterStage {
         }
     }
 
-    /// Check that a `width` x `height` frame fits the device's render targets
-    /// (`max_texture_dimension_2d`); [`Self::encode`] assumes it does.
-    pub fn check_size(ctx: &GpuContext, width: u32, height: u32) -> Result<(), GpuError> {
-        let max = ctx.limits.max_texture_dimension_2d;
-        if width > max || height > max {
-            return Err(GpuError::Limits(format!(
-                "visibility_raster: {width}x{height} exceeds the device's {max}-pixel render target side"
-            )));
-        }
-        Ok(())
-    }
-
     /// The render targets for `width` x `height`, created on a size change.
     fn targets(&self, ctx: &GpuContext, width: u32, height: u32) -> std::sync::Arc<Targets> {
         let mut guard = self.targets.lock().unwrap_or_else(|e| e.into_inner());
@@ -373,8 +367,12 @@ impl VisibilityRasterStage {
         }
     }
 
-    /// Record the setup, raster and resolve passes. The camera uniform must describe a
-    /// `frame.width` x `frame.height` image, which must pass [`Self::check_size`].
+    /// Record the setup, raster and resolve passes of `frame.band`: render targets of
+    /// `frame.width` x `frame.rows` (at most the device's `max_texture_dimension_2d` a
+    /// side: [`crate::band::rows_per_band`]), the band's rows drawn into their top. The
+    /// camera uniform describes the whole image; the frame parameters the band. The
+    /// setup records are the whole image's, computed with the first band (`first_row`
+    /// 0) and kept for the frame's other bands.
     pub fn encode(
         &self,
         ctx: &GpuContext,
@@ -383,11 +381,12 @@ impl VisibilityRasterStage {
         frame: &FrameBuffers,
         timing: Option<(&wgpu::QuerySet, u32)>,
     ) {
-        let (width, height) = (frame.width, frame.height);
-        if width == 0 || height == 0 {
+        let (width, rows) = (frame.width, frame.band.rows);
+        if width == 0 || rows == 0 {
             return;
         }
-        let targets = self.targets(ctx, width, height);
+        let targets = self.targets(ctx, width, frame.rows);
+        let run_setup = self.setup.is_some() && frame.band.first_row == 0;
         let raster_group = match (&self.setup, &self.setup_layout) {
             (Some(setup), Some(setup_layout)) => {
                 let setups = self.setups(ctx, scene.triangle_count);
@@ -401,8 +400,13 @@ impl VisibilityRasterStage {
                             resource: setups.clipped.as_entire_binding(),
                         },
                     ];
-                    if let Some(count) = count {
-                        entries.push(wgpu::BindGroupEntry { binding: 9, resource: count.as_entire_binding() });
+                    match count {
+                        Some(count) => {
+                            entries.push(wgpu::BindGroupEntry { binding: 9, resource: count.as_entire_binding() })
+                        }
+                        // The raster pass reads the band.
+                        None => entries
+                            .push(wgpu::BindGroupEntry { binding: 10, resource: frame.params.as_entire_binding() }),
                     }
                     ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                         label: Some(label),
@@ -410,9 +414,13 @@ impl VisibilityRasterStage {
                         entries: &entries,
                     })
                 };
-                // Bindings: setup writes 6 (setups), 8 (clipped), 9 (count); the raster reads 5 and 7.
-                let setup_group = with_setups("visibility_raster setup", setup_layout, 6, Some(&setups.clipped_count));
+                // Bindings: setup writes 6 (setups), 8 (clipped), 9 (count); the raster reads 5, 7
+                // and the band (10).
                 let raster_group = with_setups("visibility_raster", &self.raster_layout, 5, None);
+                if !run_setup {
+                    return self.encode_band(ctx, encoder, scene, frame, &targets, &raster_group, timing, true);
+                }
+                let setup_group = with_setups("visibility_raster setup", setup_layout, 6, Some(&setups.clipped_count));
                 encoder.clear_buffer(&setups.clipped_count, 0, None);
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some("visibility_raster setup"),
@@ -437,18 +445,37 @@ impl VisibilityRasterStage {
                 entries: &[
                     wgpu::BindGroupEntry { binding: 0, resource: scene.triangles.as_entire_binding() },
                     wgpu::BindGroupEntry { binding: 1, resource: frame.camera.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 10, resource: frame.params.as_entire_binding() },
                 ],
             }),
         };
+        self.encode_band(ctx, encoder, scene, frame, &targets, &raster_group, timing, !run_setup)
+    }
+
+    /// The raster and resolve passes of `frame.band`; `first_timestamp`: the raster pass
+    /// writes the stage's first timestamp (no setup pass ran before it).
+    #[allow(clippy::too_many_arguments)]
+    fn encode_band(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &SceneBuffers,
+        frame: &FrameBuffers,
+        targets: &Targets,
+        raster_group: &wgpu::BindGroup,
+        timing: Option<(&wgpu::QuerySet, u32)>,
+        first_timestamp: bool,
+    ) {
+        let (width, rows) = (frame.width, frame.band.rows);
         let resolve_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("visibility_raster resolve"),
             layout: &self.resolve_layout,
             entries: &[
                 wgpu::BindGroupEntry { binding: 0, resource: scene.triangles.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: frame.camera.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&targets.id) },
                 wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::TextureView(&targets.surface) },
                 wgpu::BindGroupEntry { binding: 4, resource: frame.gbuffer.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 10, resource: frame.params.as_entire_binding() },
             ],
         });
         {
@@ -474,8 +501,8 @@ impl VisibilityRasterStage {
                     }),
                     stencil_ops: None,
                 }),
-                // The exact mode's first pass is the setup pass, which writes the start.
-                timestamp_writes: timing.filter(|_| self.setup.is_none()).map(|(query_set, i)| {
+                // Unless a setup pass ran first and wrote the start.
+                timestamp_writes: timing.filter(|_| first_timestamp).map(|(query_set, i)| {
                     wgpu::RenderPassTimestampWrites {
                         query_set,
                         beginning_of_pass_write_index: Some(i),
@@ -485,9 +512,11 @@ impl VisibilityRasterStage {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
+            // The band's rows: the top of the render targets (the last band may be shorter).
+            pass.set_viewport(0.0, 0.0, width as f32, rows as f32, 0.0, 1.0);
             if scene.triangle_count > 0 {
                 pass.set_pipeline(&self.raster);
-                pass.set_bind_group(0, &raster_group, &[]);
+                pass.set_bind_group(0, raster_group, &[]);
                 // Saturating: a table that large exceeds the storage binding limits anyway.
                 let vertices = if self.setup.is_some() { 3 * HARDWARE_TRIANGLES_PER_TRIANGLE } else { 3 };
                 pass.draw(0..scene.triangle_count.saturating_mul(vertices), 0..1);
@@ -503,6 +532,6 @@ impl VisibilityRasterStage {
         });
         pass.set_pipeline(&self.resolve);
         pass.set_bind_group(0, &resolve_group, &[]);
-        pass.dispatch_workgroups(width.div_ceil(RESOLVE_GROUP), height.div_ceil(RESOLVE_GROUP), 1);
+        pass.dispatch_workgroups(width.div_ceil(RESOLVE_GROUP), rows.div_ceil(RESOLVE_GROUP), 1);
     }
 }

@@ -120,9 +120,16 @@ fn present_renders_on_the_applications_device_into_its_texture() {
     let side = gpu.context().limits.max_texture_dimension_2d + 1;
     let wide = CameraRecord::new(&scene.camera.unwrap(), side, 1);
     match gpu.render(&prepared, &wide, &opts) {
-        Err(RenderError::Gpu(hyrt_gpu::GpuError::Limits(m))) => assert!(m.contains(&format!("{side}x1")), "{m}"),
+        Err(RenderError::Gpu(hyrt_gpu::GpuError::Limits(m))) => {
+            assert!(m.contains(&format!("{side}-pixel-wide")), "{m}")
+        }
         other => panic!("expected RenderError::Gpu(GpuError::Limits), got {:?}", other.map(|f| f.stats)),
     }
+    // One taller than them renders in bands of rows, the reference's frame.
+    let tall = CameraRecord::new(&scene.camera.unwrap(), 1, side);
+    let (on_gpu, reference) =
+        (gpu.render(&prepared, &tall, &opts).unwrap(), cpu.render(&prepared, &tall, &opts).unwrap());
+    assert_eq!(bits(&on_gpu.final_image), bits(&reference.final_image), "a frame taller than the render targets");
 
     // The application's device keeps WebGPU's default of 8 storage buffers per shader
     // stage, fewer than the bounce stages bind: a frame with bounces is a typed error

@@ -641,15 +641,21 @@ impl SurfaceRecord {
 
 /// Per-frame parameters of the GPU stages, one uniform buffer.
 ///
+/// A frame too large for the device's bindings is rendered in *bands* of whole rows
+/// (`hyrt_gpu`'s `Band`): the per-pixel buffers then hold one band, indexed
+/// `(y - first_row) * width + x`, and `height` is the band's rows. A frame of one band
+/// has `first_row` 0 and `height` the image's.
+///
 /// | offset | field | type | meaning |
 /// |---:|---|---|---|
 /// | 0 | `width` | u32 | image width |
-/// | 4 | `height` | u32 | image height |
+/// | 4 | `height` | u32 | rows of the band being rendered (the image height for a frame of one band) |
 /// | 8 | `light_count` | u32 | lights in the light list |
 /// | 12 | `weight` | f32 | composition weight in [0, 1] |
 /// | 16 | `zero` | u32 | always 0: shaders OR it into the bits of products, which the compiler cannot see through, so it cannot fuse them into multiply-adds (the CPU kernels round every product) |
 /// | 20 | `composition` | u32 | how `composition` composes: [`Composition::code`] of the frame's plan |
-/// | 24 | `pad` | [u32; 2] | zero (uniform structs are 16-byte multiples) |
+/// | 24 | `first_row` | u32 | image row of the band's first row (0 for a frame of one band) |
+/// | 28 | `pad` | u32 | zero (uniform structs are 16-byte multiples) |
 ///
 /// 32 bytes. Build with [`FrameParams::new`].
 #[repr(C)]
@@ -661,17 +667,23 @@ pub struct FrameParams {
     pub weight: f32,
     pub zero: u32,
     pub composition: u32,
-    pub pad: [u32; 2],
+    pub first_row: u32,
+    pub pad: u32,
 }
 const _: () = assert!(std::mem::size_of::<FrameParams>() == 32);
-wgsl_struct!(FrameParams { width, height, light_count, weight, zero, composition, pad });
+wgsl_struct!(FrameParams { width, height, light_count, weight, zero, composition, first_row, pad });
 
 impl FrameParams {
     /// The parameters of a `width` x `height` frame with `light_count` lights,
     /// composed by the weighted mean.
     pub fn new(width: u32, height: u32, light_count: u32, weight: f32) -> Self {
         let composition = Composition::WeightedMean.code();
-        FrameParams { width, height, light_count, weight, zero: 0, composition, pad: [0; 2] }
+        FrameParams { width, height, light_count, weight, zero: 0, composition, first_row: 0, pad: 0 }
+    }
+
+    /// The same parameters for the band of `rows` rows from image row `first_row`.
+    pub fn for_band(self, first_row: u32, rows: u32) -> Self {
+        FrameParams { first_row, height: rows, ..self }
     }
 
     /// The same parameters, composed as `composition` says.
@@ -685,7 +697,7 @@ impl FrameParams {
         if self.composition > Composition::RtOverBackground.code() {
             return Err(format!("unknown composition code {}", self.composition));
         }
-        if self.zero != 0 || self.pad != [0; 2] {
+        if self.zero != 0 || self.pad != 0 {
             return Err(format!("frame parameters with non-zero zero/padding: {self:?}"));
         }
         if self.width == 0 || self.height == 0 {

@@ -290,7 +290,7 @@ mod tests {
         assert!(d.contains("struct CameraRecord {\n    view_proj: mat4x4<f32>,\n"));
         assert!(d.contains("    eye: vec3<f32>,\n    width: u32,\n"));
         assert!(d.contains("struct FrameParams {"));
-        assert!(d.contains("    pad: vec2<u32>,\n}"));
+        assert!(d.contains("    first_row: u32,\n    pad: u32,\n}"));
         assert!(d.contains("const INVALID_ID: u32 = 4294967295u;\n"));
         assert!(d.contains("const SHADOW_OCCLUDED: u32 = 2u;\n"));
         assert!(d.contains("const COMPOSITION_RT_OVER_BACKGROUND: u32 = 2u;\n"));

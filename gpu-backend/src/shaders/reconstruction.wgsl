@@ -19,6 +19,8 @@
 @group(0) @binding(3) var<uniform> camera: CameraRecord;
 @group(0) @binding(4) var<storage, read> gbuffer: array<GBufferTexel>;
 @group(0) @binding(5) var<storage, read_write> surfaces: array<SurfaceRecord>;
+// The band being reconstructed (gpu-backend/src/band.rs).
+@group(0) @binding(6) var<uniform> params: FrameParams;
 
 fn rounded(x: f32) -> f32 {
     return bitcast<f32>(bitcast<u32>(x) | camera.pad);
@@ -100,20 +102,22 @@ fn reconstruct_texel_reintersected(t: GBufferTexel, x: u32, y: u32) -> SurfaceRe
     return texel_surface(t, gi, tri, reintersected_barycentrics(t, tri, primary_ray_direction(x, y)));
 }
 
+// One thread per pixel of the band (gpu-backend/src/band.rs): `params.width` x
+// `params.height` from image row `params.first_row`; the camera's rays are the image's.
 @compute @workgroup_size(8, 8, 1)
 fn main_reintersected(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if gid.x >= camera.width || gid.y >= camera.height {
+    if gid.x >= params.width || gid.y >= params.height {
         return;
     }
-    let pixel = gid.y * camera.width + gid.x;
-    surfaces[pixel] = reconstruct_texel_reintersected(gbuffer[pixel], gid.x, gid.y);
+    let pixel = gid.y * params.width + gid.x;
+    surfaces[pixel] = reconstruct_texel_reintersected(gbuffer[pixel], gid.x, gid.y + params.first_row);
 }
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    if gid.x >= camera.width || gid.y >= camera.height {
+    if gid.x >= params.width || gid.y >= params.height {
         return;
     }
-    let pixel = gid.y * camera.width + gid.x;
+    let pixel = gid.y * params.width + gid.x;
     surfaces[pixel] = reconstruct_texel(gbuffer[pixel]);
 }

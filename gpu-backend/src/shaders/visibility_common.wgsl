@@ -13,6 +13,9 @@ const OUTSIDE_CLIP: vec4<f32> = vec4<f32>(2.0, 2.0, 0.5, 1.0);
 
 @group(0) @binding(0) var<storage, read> triangles: array<TriangleRecord>;
 @group(0) @binding(1) var<uniform> camera: CameraRecord;
+// The band being rendered (gpu-backend/src/band.rs): `width` x `height` pixels from
+// image row `first_row`, the render targets' rows and the G-buffer's.
+@group(0) @binding(10) var<uniform> params: FrameParams;
 
 fn is_finite4(p: vec4<f32>) -> bool {
     let e = bitcast<vec4<u32>>(p) & vec4<u32>(F32_EXPONENT_MASK);
@@ -21,15 +24,15 @@ fn is_finite4(p: vec4<f32>) -> bool {
 
 // ---------------------------------------------------------------- resolve pass
 
-// Bindings 0 and 1 (`triangles`, `camera`) are shared with the raster pass.
+// Bindings 0 and 10 (`triangles`, `params`) are shared with the raster pass.
 @group(0) @binding(2) var id_target: texture_2d<u32>;
 @group(0) @binding(3) var surface_target: texture_2d<f32>;
 @group(0) @binding(4) var<storage, read_write> gbuffer: array<GBufferTexel>;
 
 @compute @workgroup_size(8, 8, 1)
 fn resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let width = camera.width;
-    let height = camera.height;
+    let width = params.width;
+    let height = params.height;
     if gid.x >= width || gid.y >= height {
         return;
     }

@@ -101,9 +101,29 @@ const COVER_MARGIN_PX: f32 = 1.0;
 // ulps of 1; 2^-16 covers both many times over. Cover triangles use depth 0.
 const CONSERVATIVE_DEPTH_MARGIN: f32 = 1.0 / 65536.0;
 
-// The NDC position (w = 1) whose window position is `win` (pixels).
+// The NDC position (w = 1) whose window position in the band's render targets is `win`
+// (pixels; the band's first row is row 0 of the targets: see band_window).
 fn window_to_ndc(win: vec2<f32>, depth: f32) -> vec4<f32> {
-    return vec4<f32>(win.x / f32(camera.width) * 2.0 - 1.0, 1.0 - win.y / f32(camera.height) * 2.0, depth, 1.0);
+    return vec4<f32>(win.x / f32(params.width) * 2.0 - 1.0, 1.0 - win.y / f32(params.height) * 2.0, depth, 1.0);
+}
+
+// The band's window position of image window position `win` (pixels). Exact for a frame
+// of one band (first_row 0); in a banded frame only cover triangles take this path,
+// whose margin is far above the rounding of a subtraction (2^-3 px at 2^20 px).
+fn band_window(win: vec2<f32>) -> vec2<f32> {
+    return win - vec2<f32>(0.0, f32(params.first_row));
+}
+
+// True if every corner of the unclipped triangle lies within the band's rows and the
+// pre-snap limit (rows [first_row, first_row + min(rows, PRESNAP_LIMIT_PX)) in the
+// pixel-centre frame); the setup checked the columns (SETUP_PRESNAP). For a frame of
+// one band, the setup's test of the whole image.
+fn presnap_in_band(s: RasterSetup) -> bool {
+    let lo = min(min(s.y.x, s.y.y), s.y.z);
+    let hi = max(max(s.y.x, s.y.y), s.y.z);
+    let top = i32(params.first_row) * FIXED_ONE;
+    let rows = min(i32(params.height), PRESNAP_LIMIT_PX) * FIXED_ONE;
+    return lo >= top - FIXED_ONE / 2 && hi <= top + rows - FIXED_ONE / 2;
 }
 
 // pixel_span of fixed-point bounds [lo, hi] per axis, within the image, as pixel edges
@@ -145,11 +165,12 @@ fn setup(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
             return;
         }
         var flags = SETUP_UNCLIPPED | select(0u, SETUP_BACK, ts.back);
-        // Every corner inside the viewport (window [0, size], here in the pixel-centre
-        // frame) and within the pre-snap limit.
-        let size = min(vec2<i32>(i32(camera.width), i32(camera.height)), vec2<i32>(PRESNAP_LIMIT_PX)) * FIXED_ONE;
-        let half = vec2<i32>(FIXED_ONE / 2);
-        if all(lo >= -half) && all(hi <= size - half) {
+        // Every corner inside the viewport's columns (window [0, size], here in the
+        // pixel-centre frame) and within the pre-snap limit; the rows are the band's
+        // (presnap_in_band, in the vertex shader).
+        let size = min(i32(camera.width), PRESNAP_LIMIT_PX) * FIXED_ONE;
+        let half = FIXED_ONE / 2;
+        if lo.x >= -half && hi.x <= size - half {
             flags |= SETUP_PRESNAP;
         }
         if all(hi - lo < vec2<i32>(SMALL_SPAN_FIXED)) {
@@ -227,7 +248,7 @@ fn grown_corner(xs: vec3<i32>, ys: vec3<i32>, area2: f32, k: u32) -> vec4<f32> {
     }
     let centre = (side.x * v[0] + side.y * v[1] + side.z * v[2]) / (perimeter * FIXED_ONE_F32);
     let grown = centre + (v[k] / FIXED_ONE_F32 - centre) * ((inradius + COVER_MARGIN_PX) / inradius);
-    return window_to_ndc(grown + vec2<f32>(PIXEL_CENTER_OFFSET), 0.0);
+    return window_to_ndc(band_window(grown + vec2<f32>(PIXEL_CENTER_OFFSET)), 0.0);
 }
 
 // Corner `k` of a cover triangle over the pixel box: a right triangle whose legs are
@@ -237,7 +258,7 @@ fn box_corner(box_: vec4<i32>, k: u32) -> vec4<f32> {
     let a = vec2<f32>(box_.xy) - 1.0;
     let b = vec2<f32>(box_.zw) + 1.0;
     let cover = array<vec2<f32>, 3>(a, vec2<f32>(a.x + 2.0 * (b.x - a.x), a.y), vec2<f32>(a.x, a.y + 2.0 * (b.y - a.y)));
-    return window_to_ndc(cover[k], 0.0);
+    return window_to_ndc(band_window(cover[k]), 0.0);
 }
 
 // The clip position of corner `k` of hardware triangle `sub` of scene triangle `s`.
@@ -246,13 +267,18 @@ fn hardware_corner(s: RasterSetup, sub: u32, k: u32) -> vec4<f32> {
     if mode == SETUP_NONE {
         return OUTSIDE_CLIP;
     }
+    // Not a pixel in the band's rows: nothing to draw in this band.
+    if s.box_.w <= i32(params.first_row) || s.box_.y >= i32(params.first_row + params.height) {
+        return OUTSIDE_CLIP;
+    }
     if mode == SETUP_UNCLIPPED {
         if sub != 0u {
             return OUTSIDE_CLIP;
         }
-        if (u32(s.x.w) & SETUP_PRESNAP) != 0u {
-            // Back to window coordinates: exact (integers below 2^20, then a power of two).
-            let fixed = vec2<f32>(f32(s.x[k]), f32(s.y[k]));
+        if (u32(s.x.w) & SETUP_PRESNAP) != 0u && presnap_in_band(s) {
+            // Back to the band's window coordinates: exact (integers below 2^20, then a
+            // power of two).
+            let fixed = vec2<f32>(f32(s.x[k]), f32(s.y[k] - i32(params.first_row) * FIXED_ONE));
             return window_to_ndc((fixed + vec2<f32>(PIXEL_CENTER_OFFSET * FIXED_ONE_F32)) / FIXED_ONE_F32,
                 max(s.z[k] - CONSERVATIVE_DEPTH_MARGIN, 0.0));
         }
@@ -754,7 +780,8 @@ fn fs_main(
     TRIANGLE_ID_PARAMETER
 ) -> FragmentOut {
     let id = TRIANGLE_ID_EXPRESSION;
-    let pixel = vec2<i32>(in.clip.xy);
+    // The image pixel: the band's window position plus its first row.
+    let pixel = vec2<i32>(in.clip.xy) + vec2<i32>(0, i32(params.first_row));
     let s = setups[id];
     let flags = u32(s.x.w);
     if any(pixel < s.box_.xy) || any(pixel >= s.box_.zw) {

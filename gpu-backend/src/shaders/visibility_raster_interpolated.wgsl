@@ -19,9 +19,16 @@ struct VertexOut {
 }
 
 
-// mirrors hyrt_core::kernels::raster::clip_position_from_eye (the driver may fuse).
+// mirrors hyrt_core::kernels::raster::clip_position_from_eye (the driver may fuse), then
+// maps the band's rows (gpu-backend/src/band.rs) onto the render targets: clip y scaled
+// by image height / band rows and shifted (for a frame of one band, by 1 and 0: the
+// image's clip position).
 fn clip_position(v: vec3<f32>) -> vec4<f32> {
-    return camera.view_proj * vec4<f32>(v - camera.eye, 1.0);
+    let c = camera.view_proj * vec4<f32>(v - camera.eye, 1.0);
+    let rows = f32(params.height);
+    let scale = f32(camera.height) / rows;
+    let shift = 1.0 - (f32(camera.height) - 2.0 * f32(params.first_row)) / rows;
+    return vec4<f32>(c.x, c.y * scale + c.w * shift, c.z, c.w);
 }
 
 @vertex
