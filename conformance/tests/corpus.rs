@@ -148,3 +148,31 @@ fn conformance_gpu_in_bands_is_the_whole_frame_over_the_corpus() {
     eprintln!("{banded} cases in bands, {split} of them split for their bounce lists");
     assert!(banded > 20 && split > 0, "{banded} banded, {split} split");
 }
+
+/// A CPU frame that does not return its shadow-ray list does not write it (`compaction`
+/// keeps the active pairs, `shadow_rays` makes each ray as it traces it): its occlusion
+/// results, shadow codes, images and statistics are the frame's that writes the list, on
+/// every case of the corpus.
+#[test]
+fn cpu_frames_without_the_ray_list_are_the_frames_with_it_over_the_corpus() {
+    let mut cpu = CpuBackend::new(Some(2));
+    for case in corpus() {
+        let p = cpu.prepare(WorldGeometry::build(&case.scene), BvhPreset::default());
+        let camera = CameraRecord::new(&case.camera, case.width, case.height);
+        let opts = |stage_outputs| FrameOptions {
+            weight: case.weight,
+            stage_outputs,
+            max_depth: case.max_depth,
+            ..FrameOptions::default()
+        };
+        let (with, without) =
+            (cpu.render(&p, &camera, &opts(true)).unwrap(), cpu.render(&p, &camera, &opts(false)).unwrap());
+        assert!(without.rays.is_empty() && without.occluded.len() == with.rays.len(), "{}", case.name);
+        let bits = |v: &[[f32; 4]]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(with.occluded, without.occluded, "{}: occluded", case.name);
+        assert_eq!(bits(&with.final_image), bits(&without.final_image), "{}: final image", case.name);
+        assert_eq!(with.stats.rays_per_kind, without.stats.rays_per_kind, "{}", case.name);
+        assert_eq!(with.stats.occluded_shadow_rays, without.stats.occluded_shadow_rays, "{}", case.name);
+        assert_eq!(with.stats.bounces, without.stats.bounces, "{}", case.name);
+    }
+}

@@ -4,27 +4,27 @@ use std::time::Instant;
 
 use glam::Vec3;
 use hyrt_core::bvh::{BvhPreset, ClosestHit};
-use hyrt_core::formats::{CameraRecord, RayRecord, RAY_KIND_COUNT};
+use hyrt_core::formats::{CameraRecord, RayRecord, RAY_KIND_COUNT, RAY_KIND_SHADOW};
 use hyrt_core::frame::{
     Backend, BounceStats, Frame, FrameOptions, FrameStats, PreparedScene, PrimaryBarycentrics, RenderError, StageTime,
     StageWork,
 };
 use hyrt_core::geometry::WorldGeometry;
-use hyrt_core::plan::{FramePlan, Step};
+use hyrt_core::plan::{FrameBuffer, FramePlan, Step};
 
 use rayon::prelude::*;
 
 use crate::{
     bounce_shading::{bounce_shading_into, Children},
     bounce_trace::bounce_trace_into,
-    compaction::{compaction_into, shadow_mask_into, CompactionScratch},
+    compaction::{active_pairs_into, compaction_into, shadow_mask_into, shadow_mask_of_pairs_into, CompactionScratch},
     composition::composition_into,
     memory,
     raster_shading::raster_shading_into,
     reconstruction::{reconstruction_into, reconstruction_reintersected_into},
     rt_shading::{rt_shading_bouncing_into, rt_shading_into, FirstBounce},
     secondary_rays::{secondary_rays_into, Parents},
-    shadow_rays::shadow_rays_with,
+    shadow_rays::{shadow_rays_of_pairs_into, shadow_rays_with},
     traversal::Traversal,
     visibility_raster::visibility_raster_into,
 };
@@ -151,9 +151,12 @@ impl Backend for CpuBackend {
                 memory::out_of_memory(width, height, None, memory::available_bytes(), &format!("{what} ({e})"))
             }
         };
+        // A frame that does not return its shadow-ray list does not write it: `compaction`
+        // keeps the active pairs and `shadow_rays` makes their rays as it traces them.
+        let list = f.holds(FrameBuffer::Rays);
         self.pool.install(|| -> Result<(), RenderError> {
             let mut times = Vec::with_capacity(plan.steps().len());
-            let mut covered = 0;
+            let (mut covered, mut shadow_rays) = (0, 0);
             // The plan's one loop: each step runs its stage module and is timed.
             for &step in plan.steps() {
                 let t = Instant::now();
@@ -165,12 +168,22 @@ impl Backend for CpuBackend {
                             reconstruction_reintersected_into(&f.gbuffer, g, camera, &mut f.surfaces)
                         }
                     },
-                    Step::Compaction => {
+                    Step::Compaction if list => {
                         compaction_into(&f.surfaces, &g.lights, scratch, &mut f.rays).map_err(oom("the ray list"))?
                     }
-                    Step::ShadowRays => {
+                    Step::Compaction => {
+                        active_pairs_into(&f.surfaces, &g.lights, scratch).map_err(oom("the active pairs"))?
+                    }
+                    Step::ShadowRays if list => {
                         shadow_rays_with(&scene.bvh, g, &f.rays, traversal, &mut f.occluded);
                         shadow_mask_into(&f.rays, &f.occluded, f.surfaces.len(), g.lights.len(), &mut f.shadow);
+                        shadow_rays = f.rays.len();
+                    }
+                    Step::ShadowRays => {
+                        let (active, lights) = (&scratch.active, g.lights.len());
+                        shadow_rays_of_pairs_into(&scene.bvh, g, &f.surfaces, active, traversal, &mut f.occluded);
+                        shadow_mask_of_pairs_into(active, &f.occluded, f.surfaces.len(), lights, &mut f.shadow);
+                        shadow_rays = active.len();
                     }
                     Step::SecondaryRays { depth } => {
                         let (done, rest) = f.bounces.split_at_mut(depth as usize - 1);
@@ -276,7 +289,7 @@ impl Backend for CpuBackend {
             stats.covered_pixels = covered;
             stats.ray_traced_pixels = f.gbuffer.par_iter().filter(|t| t.is_hit() && t.is_ray_traced()).count() as u64;
             stats.raster_pixels = stats.covered_pixels - stats.ray_traced_pixels;
-            stats.rays_per_kind = rays_per_kind(&f.rays, &[]);
+            stats.rays_per_kind[RAY_KIND_SHADOW as usize] = shadow_rays as u64;
             stats.occluded_shadow_rays = f.occluded.par_iter().filter(|&&o| o != 0).count() as u64;
             stats.bounces = f.bounces[..plan.bounce_depth() as usize]
                 .iter()

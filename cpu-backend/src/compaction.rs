@@ -9,6 +9,12 @@
 //! exclusive prefix sum over u32 flags; it equals
 //! [`hyrt_core::kernels::scan::compact_sequential`] for every input. The per-pair
 //! kernels ([`needs_shadow_ray`], [`shadow_ray`]) are [`hyrt_core::kernels::shadow`]'s.
+//!
+//! A frame that does not return its ray list (no `FrameOptions::stage_outputs`) does
+//! not write it: the stage keeps the active pairs ([`active_pairs_into`], 4 bytes a ray
+//! instead of 64), and `shadow_rays` makes each pair's ray as it traces it
+//! ([`pair_ray`], the same record bit for bit), a chunk at a time in cache
+//! (`shadow_rays::shadow_rays_of_pairs_into`).
 
 use std::collections::TryReserveError;
 use std::sync::atomic::{AtomicU8, Ordering};
@@ -95,6 +101,26 @@ pub fn compaction_into(
     scratch: &mut CompactionScratch,
     rays: &mut Vec<RayRecord>,
 ) -> Result<(), TryReserveError> {
+    active_pairs_into(surfaces, lights, scratch)?;
+    crate::memory::reserve(rays, scratch.active.len())?;
+    scratch.active.par_iter().with_min_len(1024).map(|&k| pair_ray(surfaces, lights, k)).collect_into_vec(rays);
+    if cfg!(debug_assertions) {
+        for r in rays.iter() {
+            if let Err(e) = r.validate() {
+                panic!("compaction: {e}");
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The stage without its list: the active pairs `k = light * surfaces + surface`, in
+/// the list's order, into `scratch.active` (each pair's ray is [`pair_ray`]).
+pub fn active_pairs_into(
+    surfaces: &[SurfaceRecord],
+    lights: &[LightRecord],
+    scratch: &mut CompactionScratch,
+) -> Result<(), TryReserveError> {
     let n = surfaces.len();
     crate::memory::reserve(&mut scratch.flags, n * lights.len())?;
     (0..n * lights.len())
@@ -105,25 +131,15 @@ pub fn compaction_into(
             needs_shadow_ray(&surfaces[p], &lights[l]) as u32
         })
         .collect_into_vec(&mut scratch.flags);
-    compact_into(&scratch.flags, &mut scratch.active)?;
-    crate::memory::reserve(rays, scratch.active.len())?;
-    scratch
-        .active
-        .par_iter()
-        .with_min_len(1024)
-        .map(|&k| {
-            let (l, p) = (k as usize / n, k as usize % n);
-            shadow_ray(&surfaces[p], &lights[l], l as u32, p as u32)
-        })
-        .collect_into_vec(rays);
-    if cfg!(debug_assertions) {
-        for r in rays.iter() {
-            if let Err(e) = r.validate() {
-                panic!("compaction: {e}");
-            }
-        }
-    }
-    Ok(())
+    compact_into(&scratch.flags, &mut scratch.active)
+}
+
+/// The shadow ray of active pair `k = light * surfaces.len() + surface`.
+#[inline]
+pub fn pair_ray(surfaces: &[SurfaceRecord], lights: &[LightRecord], k: u32) -> RayRecord {
+    let n = surfaces.len();
+    let (l, p) = (k as usize / n, k as usize % n);
+    shadow_ray(&surfaces[p], &lights[l], l as u32, p as u32)
 }
 
 /// Scatter the traced shadow rays back to a per-(pixel, light) mask of
@@ -145,6 +161,28 @@ pub fn shadow_mask_into(rays: &[RayRecord], occluded: &[u32], pixels: usize, lig
         rays.windows(2).all(|w| (w[0].light, w[0].pixel) < (w[1].light, w[1].pixel)),
         "shadow_mask: rays not in compaction's order (light, then pixel, each pair once)"
     );
+    debug_assert!(rays.iter().all(|r| r.light != INVALID_ID));
+    scatter_mask(occluded, |i| (rays[i].pixel as usize, rays[i].light as usize), pixels, lights, mask);
+}
+
+/// [`shadow_mask_into`] of rays given by their active pairs ([`active_pairs_into`]:
+/// `k = light * pixels + pixel`, increasing).
+pub fn shadow_mask_of_pairs_into(active: &[u32], occluded: &[u32], pixels: usize, lights: usize, mask: &mut Vec<u8>) {
+    assert_eq!(active.len(), occluded.len(), "one occlusion result per ray");
+    debug_assert!(active.windows(2).all(|w| w[0] < w[1]), "shadow_mask: pairs not increasing");
+    let pair = |i: usize| (active[i] as usize % pixels.max(1), active[i] as usize / pixels.max(1));
+    scatter_mask(occluded, pair, pixels, lights, mask);
+}
+
+/// Write `shadow_code(occluded[i])` at the (pixel, light) cell `pair(i)` of each ray `i`
+/// (every cell at most once), `SHADOW_NO_RAY` elsewhere.
+fn scatter_mask(
+    occluded: &[u32],
+    pair: impl Fn(usize) -> (usize, usize) + Sync,
+    pixels: usize,
+    lights: usize,
+    mask: &mut Vec<u8>,
+) {
     mask.clear();
     mask.resize(pixels * lights, SHADOW_NO_RAY);
     // SAFETY: `AtomicU8` has the size, alignment and bit validity of `u8`, and `mask` stays
@@ -152,8 +190,8 @@ pub fn shadow_mask_into(rays: &[RayRecord], occluded: &[u32], pixels: usize, lig
     // does). Relaxed stores are plain byte stores; the scope's join orders them before
     // the return.
     let cells: &[AtomicU8] = unsafe { &*(mask.as_mut_slice() as *mut [u8] as *const [AtomicU8]) };
-    rays.par_iter().zip(occluded).with_min_len(4096).for_each(|(r, &o)| {
-        debug_assert!(r.light != INVALID_ID);
-        cells[r.pixel as usize * lights + r.light as usize].store(shadow_code(o != 0), Ordering::Relaxed);
+    occluded.par_iter().enumerate().with_min_len(4096).for_each(|(i, &o)| {
+        let (pixel, light) = pair(i);
+        cells[pixel * lights + light].store(shadow_code(o != 0), Ordering::Relaxed);
     });
 }

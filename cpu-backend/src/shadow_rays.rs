@@ -11,7 +11,10 @@ use hyrt_core::bvh::Bvh;
 use hyrt_core::formats::RayRecord;
 use hyrt_core::geometry::WorldGeometry;
 
-use crate::traversal::{occluded_batch_into, Traversal};
+use hyrt_core::formats::SurfaceRecord;
+
+use crate::compaction::pair_ray;
+use crate::traversal::{occluded_batch_into, occluded_generated_into, Traversal};
 
 /// [`shadow_rays`] output value: something lies between the ray origin and the light.
 pub const SHADOW_OCCLUDED: u32 = 1;
@@ -47,4 +50,25 @@ pub fn shadow_rays_with(
         }
     }
     occluded_batch_into(bvh, &geometry.triangles, rays, traversal, out);
+}
+
+/// [`shadow_rays_with`] over the rays of active pairs (`compaction::active_pairs_into`:
+/// `k = light * surfaces.len() + surface`), each made as it is traced
+/// (`compaction::pair_ray`): the same answers as tracing the list `compaction` writes,
+/// without the list.
+pub fn shadow_rays_of_pairs_into(
+    bvh: &Bvh,
+    geometry: &WorldGeometry,
+    surfaces: &[SurfaceRecord],
+    active: &[u32],
+    traversal: Traversal,
+    out: &mut Vec<u32>,
+) {
+    let lights = &geometry.lights;
+    let ray = |i: usize| {
+        let r = pair_ray(surfaces, lights, active[i]);
+        debug_assert_eq!(r.validate(), Ok(()), "shadow_rays: invalid ray");
+        r
+    };
+    occluded_generated_into(bvh, &geometry.triangles, active.len(), ray, traversal, out);
 }

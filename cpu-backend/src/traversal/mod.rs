@@ -287,7 +287,44 @@ pub fn occluded_batch_into(
     // untouched until the chunks write it (no serial clear of megabytes).
     out.resize(rays.len(), SHADOW_VISIBLE);
     let (level, single) = (traversal.level(), traversal.single(bvh));
-    out.par_chunks_mut(TRAVERSAL_CHUNK).zip(rays.par_chunks(TRAVERSAL_CHUNK)).for_each(|(out, rays)| match level {
+    out.par_chunks_mut(TRAVERSAL_CHUNK)
+        .zip(rays.par_chunks(TRAVERSAL_CHUNK))
+        .for_each(|(out, rays)| occluded_any_chunk(bvh, triangles, rays, out, (level, single)));
+}
+
+/// [`occluded_batch_into`] over `count` rays made as they are traced, `ray(i)` for ray
+/// `i`, a chunk of [`TRAVERSAL_CHUNK`] at a time in a buffer that stays in cache: the
+/// answers of tracing the list `ray(0..count)`, without writing the list to memory.
+pub fn occluded_generated_into(
+    bvh: &Bvh,
+    triangles: &[TriangleRecord],
+    count: usize,
+    ray: impl Fn(usize) -> RayRecord + Sync,
+    traversal: Traversal,
+    out: &mut Vec<u32>,
+) {
+    out.resize(count, SHADOW_VISIBLE); // every element is written below, as above
+    let mode = (traversal.level(), traversal.single(bvh));
+    out.par_chunks_mut(TRAVERSAL_CHUNK).enumerate().for_each_init(
+        || Vec::with_capacity(TRAVERSAL_CHUNK),
+        |rays, (c, out)| {
+            rays.clear();
+            rays.extend((c * TRAVERSAL_CHUNK..c * TRAVERSAL_CHUNK + out.len()).map(&ray));
+            occluded_any_chunk(bvh, triangles, rays, out, mode);
+        },
+    );
+}
+
+/// Any hit for one chunk of rays with the traversal `(level, single)` of
+/// [`Traversal::level`] and [`Traversal::single`] (no level: the scalar reference).
+fn occluded_any_chunk(
+    bvh: &Bvh,
+    triangles: &[TriangleRecord],
+    rays: &[RayRecord],
+    out: &mut [u32],
+    (level, single): (Option<SimdLevel>, bool),
+) {
+    match level {
         None => {
             for (o, r) in out.iter_mut().zip(rays) {
                 *o = occlusion(bvh.occluded(triangles, r));
@@ -295,7 +332,7 @@ pub fn occluded_batch_into(
         }
         Some(level) if single => occluded_single_chunk(bvh, rays, out, level),
         Some(level) => occluded_chunk(bvh, triangles, rays, out, level),
-    });
+    }
 }
 
 /// [`occluded_batch_into`] into a new vector.
