@@ -74,7 +74,8 @@ pub struct BenchOptions {
     pub out_dir: PathBuf,
     /// Frames per measurement (after one warm-up frame); medians are taken over them.
     pub frames: usize,
-    /// Repetitions of each peer ray-tracing measurement (median taken).
+    /// Rounds of each peer ray-tracing contest: every contender of a ray list runs once
+    /// per round, interleaved (`stats::interleaved_ms`); medians and per-round ratios.
     pub repeats: usize,
     /// Image size of the Table 2 reproduction and the peers.
     pub table_size: (u32, u32),
@@ -232,19 +233,6 @@ pub fn measure_frames_with(
     Ok((summary, stats))
 }
 
-/// Median milliseconds of `repeats` runs of `f` (after one untimed run).
-pub fn median_ms(repeats: usize, mut f: impl FnMut()) -> f64 {
-    f();
-    let v: Vec<f64> = (0..repeats.max(1))
-        .map(|_| {
-            let t = std::time::Instant::now();
-            f();
-            t.elapsed().as_secs_f64() * 1e3
-        })
-        .collect();
-    median(&v).unwrap_or(f64::NAN)
-}
-
 fn header(options: &BenchOptions, cpu: &FrameBackend, gpu: Option<&FrameBackend>) -> String {
     let m = machine::MachineInfo::detect();
     let mut h = String::new();
@@ -274,7 +262,7 @@ fn header(options: &BenchOptions, cpu: &FrameBackend, gpu: Option<&FrameBackend>
     t.row([
         "settings".to_string(),
         format!(
-            "{}; {} frames per measurement (medians, after one warm-up frame), {} repetitions per peer measurement; Table 2 at {}x{}; BVH preset {}",
+            "{}; {} frames per measurement (medians, after one warm-up frame), {} interleaved rounds per peer contest (after a warm-up round; ratios taken round by round); Table 2 at {}x{}; BVH preset {}",
             if options.quick { "--quick" } else { "full" },
             options.frames,
             options.repeats,
@@ -374,7 +362,10 @@ fn goals(table2: &table2::Table2, peers: &peers::Peers) -> Section {
     }
     let md = format!(
         "Ratios above 1 mean hyrt meets the goal. Peer targets are measured in this same run with the same rays \
-         and threads (see Peers); the paper's FPS were measured on 2011 GPU hardware at an unstated image size.\n\n{}",
+         and threads (see Peers): the contenders of a ray list run interleaved, round by round, so a ray goal's \
+         ratio is the median of the rounds' ratios (hyrt's time against the fastest peer's of the same round), with \
+         the least and greatest round in brackets; rates are medians over the rounds. The paper's FPS were \
+         measured on 2011 GPU hardware at an unstated image size.\n\n{}",
         t.to_markdown()
     );
     Section::new("Goals", md)

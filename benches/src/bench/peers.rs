@@ -18,7 +18,7 @@
 
 use std::fmt::Write as _;
 
-use hyrt_core::bvh::Bvh;
+use hyrt_core::bvh::{Bvh, ClosestHit};
 use hyrt_core::formats::{CameraRecord, RayRecord};
 use hyrt_core::frame::{Frame, FrameOptions, PreparedScene};
 use hyrt_core::geometry::WorldGeometry;
@@ -33,9 +33,10 @@ use indicatif::ProgressBar;
 use rayon::prelude::*;
 
 use super::report::{count, num, Section, Table};
+use super::stats::{interleaved_ms, median, round_ratios};
 use super::stats::{mrays_per_s, FrameSummary};
 use super::table2::{Table2, Table2Row};
-use super::{median_ms, BenchError, BenchOptions};
+use super::{BenchError, BenchOptions};
 
 /// The shadow-ray goal when Embree is not built: Embree 3's `rtcOccluded8` on the teaser's
 /// shadow rays with 2 threads, as measured on this project's 2-core machine and quoted in
@@ -48,8 +49,11 @@ pub struct RayRun {
     pub method: String,
     pub threads: usize,
     pub rays: usize,
-    /// Median milliseconds over the repetitions.
+    /// Median milliseconds over the rounds.
     pub ms: f64,
+    /// Milliseconds of each round, the contenders of a ray list interleaved round by round
+    /// ([`interleaved_ms`]): ratios between contenders are taken round by round.
+    pub rounds: Vec<f64>,
     /// Rays whose hit/miss differs from hyrt's (`None` for hyrt itself).
     pub disagreements: Option<usize>,
     /// Primary rays only: rays both hit, on different triangles.
@@ -59,7 +63,25 @@ pub struct RayRun {
 impl RayRun {
     /// A run not (yet) compared with hyrt.
     pub fn new(method: &str, threads: usize, rays: usize, ms: f64) -> RayRun {
-        RayRun { method: method.to_string(), threads, rays, ms, disagreements: None, other_triangle: None }
+        RayRun {
+            method: method.to_string(),
+            threads,
+            rays,
+            ms,
+            rounds: vec![ms],
+            disagreements: None,
+            other_triangle: None,
+        }
+    }
+
+    /// A run timed in interleaved rounds: its median and its rounds.
+    pub fn of_rounds(method: &str, threads: usize, rays: usize, rounds: Vec<f64>) -> RayRun {
+        RayRun { rounds, ..RayRun::new(method, threads, rays, 0.0) }.with_median()
+    }
+
+    fn with_median(mut self) -> RayRun {
+        self.ms = median(&self.rounds).unwrap_or(f64::NAN);
+        self
     }
 
     pub fn mrays(&self) -> f64 {
@@ -142,6 +164,7 @@ pub fn embree_version() -> String {
 }
 
 /// Trace `rays` with `trace` (one call per chunk) in `pool`; `out` gets one answer per ray.
+#[cfg_attr(not(feature = "embree"), allow(dead_code))]
 fn in_chunks<T: Send>(
     pool: &rayon::ThreadPool,
     rays: &[RayRecord],
@@ -153,7 +176,6 @@ fn in_chunks<T: Send>(
     });
 }
 
-/// Time `trace` on `rays` in `pool` (median of `repeats`); the run and the answers.
 /// The name of a hyrt traversal in the tables: the scalar reference or the packets.
 fn hyrt_method(reference: &str, traversal: Traversal) -> String {
     match traversal {
@@ -170,18 +192,18 @@ fn hyrt_simd() -> [Traversal; 2] {
     [Traversal::Packet(level), Traversal::Single(level)]
 }
 
-#[cfg_attr(not(feature = "embree"), allow(dead_code))]
-fn timed_run<T: Clone + Send>(
-    repeats: usize,
-    pool: &rayon::ThreadPool,
-    rays: &[RayRecord],
-    method: &str,
-    init: T,
-    trace: impl Fn(&[RayRecord], &mut [T]) + Sync,
-) -> (RayRun, Vec<T>) {
-    let mut out = vec![init; rays.len()];
-    let ms = median_ms(repeats, || in_chunks(pool, rays, &mut out, &trace));
-    (RayRun::new(method, pool.current_num_threads(), rays.len(), ms), out)
+/// One run of a contender over its ray list.
+type Run<'a> = Box<dyn FnMut() + 'a>;
+/// A contender of a ray list's contest: its name in the tables and its run.
+type Contender<'a> = (String, Run<'a>);
+
+/// Run the contenders of one ray list in interleaved rounds ([`interleaved_ms`]): their
+/// runs, in order.
+fn contest(rounds: usize, threads: usize, rays: usize, contenders: Vec<Contender<'_>>) -> Vec<RayRun> {
+    let (names, mut runs): (Vec<String>, Vec<Run<'_>>) = contenders.into_iter().unzip();
+    let mut refs: Vec<&mut dyn FnMut()> = runs.iter_mut().map(|r| &mut **r as &mut dyn FnMut()).collect();
+    let ms = interleaved_ms(rounds, &mut refs);
+    names.iter().zip(ms).map(|(name, ms)| RayRun::of_rounds(name, threads, rays, ms)).collect()
 }
 
 /// The shadow rays of a real frame of the scene (the CPU backend, every stage's output kept).
@@ -270,26 +292,48 @@ fn measure_scene(
         let (frame, _) = super::measure_frames(&mut cpu, row.prepared, &row.camera, options.frames)
             .map_err(|source| BenchError::Render { scene: row.name.to_string(), source })?;
         out.frames.push((threads, frame.frame_ms));
-        // hyrt: the scalar reference traversal (one ray at a time) and the packets of 8 the
-        // `shadow_rays` stage uses, each in a pool of `threads`.
-        let mut occluded = Vec::new();
-        // Outputs go to a buffer reused across repeats, as in the `shadow_rays` stage (and
-        // as Embree's runs below write theirs).
-        for traversal in std::iter::once(Traversal::Scalar).chain(hyrt_simd()) {
-            let mut o = Vec::new();
-            let ms = median_ms(options.repeats, || {
-                pool.install(|| occluded_batch_into(bvh, &g.triangles, &shadow, traversal, &mut o))
-            });
-            let mut run = RayRun::new(&hyrt_method("Bvh::occluded", traversal), threads, shadow.len(), ms);
-            if traversal == Traversal::Scalar {
-                occluded = o;
-            } else {
-                // The packets against the scalar reference: must be 0 (tests hold them to it).
-                run.disagreements = Some(occluded.iter().zip(&o).filter(|(a, b)| a != b).count());
+        // hyrt: the scalar reference traversal (one ray at a time), the packets of 8 the
+        // `shadow_rays` stage uses and single rays, then Embree's, each in a pool of
+        // `threads`, interleaved round by round. Outputs go to a buffer reused across
+        // rounds, as in the `shadow_rays` stage.
+        let traversals: Vec<Traversal> = std::iter::once(Traversal::Scalar).chain(hyrt_simd()).collect();
+        let mut outs = vec![Vec::new(); traversals.len()];
+        #[cfg(feature = "embree")]
+        let occ = embree_occluders();
+        #[cfg(feature = "embree")]
+        let mut embree_outs = vec![vec![false; shadow.len()]; occ.len()];
+        let runs = {
+            let mut contenders: Vec<Contender<'_>> = Vec::new();
+            for (&traversal, o) in traversals.iter().zip(outs.iter_mut()) {
+                let (pool, shadow) = (&pool, &shadow);
+                let run = move || pool.install(|| occluded_batch_into(bvh, &g.triangles, shadow, traversal, o));
+                contenders.push((hyrt_method("Bvh::occluded", traversal), Box::new(run)));
             }
+            #[cfg(feature = "embree")]
+            if let Some(e) = &embree {
+                for (&(name, f), o) in occ.iter().zip(embree_outs.iter_mut()) {
+                    let (pool, shadow) = (&pool, &shadow);
+                    contenders
+                        .push((name.to_string(), Box::new(move || in_chunks(pool, shadow, o, |r, o| f(e, r, o)))));
+                }
+            }
+            contest(options.repeats, threads, shadow.len(), contenders)
+        };
+        let occluded = &outs[0];
+        let hyrt_occ: Vec<bool> = occluded.iter().map(|&o| o == SHADOW_OCCLUDED).collect();
+        for (i, mut run) in runs.into_iter().enumerate() {
+            // Every run against the scalar reference: hyrt's must be 0 (tests hold them to it).
+            run.disagreements = match outs.get(i) {
+                Some(_) if i == 0 => None,
+                Some(o) => Some(occluded.iter().zip(o).filter(|(a, b)| a != b).count()),
+                #[cfg(feature = "embree")]
+                None => Some(hyrt_occ.iter().zip(&embree_outs[i - outs.len()]).filter(|(a, b)| a != b).count()),
+                #[cfg(not(feature = "embree"))]
+                None => None,
+            };
             out.shadow.push(run);
         }
-        out.occluded = occluded.iter().filter(|&&o| o == SHADOW_OCCLUDED).count();
+        out.occluded = hyrt_occ.iter().filter(|&&o| o).count();
         let (runs, hits) = closest_hit_runs(options.repeats, &pool, bvh, g, &primary, embree_ref);
         out.primary.extend(runs);
         out.primary_hits = hits;
@@ -298,28 +342,24 @@ fn measure_scene(
             out.secondary.extend(runs);
             out.secondary_hits = hits;
         }
-        #[cfg(feature = "embree")]
-        if let Some(e) = &embree {
-            use super::embree::EmbreeScene;
-            let hyrt_occ: Vec<bool> = occluded.iter().map(|&o| o == SHADOW_OCCLUDED).collect();
-            type Occ = fn(&EmbreeScene, &[RayRecord], &mut [bool]);
-            // Packets both with Embree's default (incoherent) context and flagged coherent,
-            // which lets Embree trace a packet with its frustum-based coherent traversal:
-            // faster on these ray lists, so the goals take the faster of the two.
-            let occ: [(&str, Occ); 3] = [
-                ("Embree `rtcOccluded1`", EmbreeScene::occluded1),
-                ("Embree `rtcOccluded8` (packets of 8)", EmbreeScene::occluded8),
-                ("Embree `rtcOccluded8` (packets of 8, coherent context)", EmbreeScene::occluded8_coherent),
-            ];
-            for (name, f) in occ {
-                let (mut run, o) = timed_run(options.repeats, &pool, &shadow, name, false, |r, o| f(e, r, o));
-                run.disagreements = Some(hyrt_occ.iter().zip(&o).filter(|(a, b)| a != b).count());
-                out.shadow.push(run);
-            }
-        }
         progress.inc(1);
     }
     Ok((out, embree_missing))
+}
+
+/// Embree's any-hit tracers: single rays, and packets both with Embree's default
+/// (incoherent) context and flagged coherent, which lets Embree trace a packet with its
+/// frustum-based coherent traversal: faster on these ray lists, so the goals take the
+/// faster of the two.
+#[cfg(feature = "embree")]
+#[allow(clippy::type_complexity)]
+fn embree_occluders() -> [(&'static str, fn(&super::embree::EmbreeScene, &[RayRecord], &mut [bool])); 3] {
+    use super::embree::EmbreeScene;
+    [
+        ("Embree `rtcOccluded1`", EmbreeScene::occluded1),
+        ("Embree `rtcOccluded8` (packets of 8)", EmbreeScene::occluded8),
+        ("Embree `rtcOccluded8` (packets of 8, coherent context)", EmbreeScene::occluded8_coherent),
+    ]
 }
 
 #[cfg(feature = "embree")]
@@ -340,43 +380,55 @@ fn closest_hit_runs(
     embree: EmbreeRef<'_>,
 ) -> (Vec<RayRun>, usize) {
     let threads = pool.current_num_threads();
-    let mut runs = Vec::new();
-    let mut hits: Vec<Option<u32>> = Vec::new();
-    for traversal in std::iter::once(Traversal::Scalar).chain(hyrt_simd()) {
-        let mut closest = Vec::new();
-        let ms = median_ms(repeats, || {
-            pool.install(|| closest_hit_batch_into(bvh, &g.triangles, rays, traversal, &mut closest))
-        });
-        let h: Vec<Option<u32>> = closest.iter().map(|h| h.map(|h| h.triangle)).collect();
-        let mut run = RayRun::new(&hyrt_method("Bvh::closest_hit", traversal), threads, rays.len(), ms);
-        if traversal == Traversal::Scalar {
-            hits = h;
-        } else {
-            run.disagreements = Some(hits.iter().zip(&h).filter(|(a, b)| a.is_some() != b.is_some()).count());
-            run.other_triangle =
-                Some(hits.iter().zip(&h).filter(|(a, b)| a.is_some() && b.is_some() && a != b).count());
-        }
-        runs.push(run);
-    }
+    let traversals: Vec<Traversal> = std::iter::once(Traversal::Scalar).chain(hyrt_simd()).collect();
+    let mut outs = vec![Vec::new(); traversals.len()];
     #[cfg(feature = "embree")]
-    if let Some(e) = embree {
-        use super::embree::EmbreeScene;
-        type Hit = fn(&EmbreeScene, &[RayRecord], &mut [Option<u32>]);
-        let hit: [(&str, Hit); 3] = [
-            ("Embree `rtcIntersect1`", EmbreeScene::intersect1),
-            ("Embree `rtcIntersect8` (packets of 8)", EmbreeScene::intersect8),
-            ("Embree `rtcIntersect8` (packets of 8, coherent context)", EmbreeScene::intersect8_coherent),
-        ];
-        for (name, f) in hit {
-            let (mut run, o) = timed_run(repeats, pool, rays, name, None, |r, o| f(e, r, o));
-            run.disagreements = Some(hits.iter().zip(&o).filter(|(a, b)| a.is_some() != b.is_some()).count());
-            run.other_triangle =
-                Some(hits.iter().zip(&o).filter(|(a, b)| a.is_some() && b.is_some() && a != b).count());
-            runs.push(run);
+    use super::embree::EmbreeScene;
+    #[cfg(feature = "embree")]
+    type Hit = fn(&EmbreeScene, &[RayRecord], &mut [Option<u32>]);
+    #[cfg(feature = "embree")]
+    let hit: [(&str, Hit); 3] = [
+        ("Embree `rtcIntersect1`", EmbreeScene::intersect1),
+        ("Embree `rtcIntersect8` (packets of 8)", EmbreeScene::intersect8),
+        ("Embree `rtcIntersect8` (packets of 8, coherent context)", EmbreeScene::intersect8_coherent),
+    ];
+    #[cfg(feature = "embree")]
+    let mut embree_outs = vec![vec![None; rays.len()]; hit.len()];
+    let runs = {
+        let mut contenders: Vec<Contender<'_>> = Vec::new();
+        for (&traversal, o) in traversals.iter().zip(outs.iter_mut()) {
+            let run = move || pool.install(|| closest_hit_batch_into(bvh, &g.triangles, rays, traversal, o));
+            contenders.push((hyrt_method("Bvh::closest_hit", traversal), Box::new(run)));
         }
-    }
-    #[cfg(not(feature = "embree"))]
-    let _ = embree;
+        #[cfg(feature = "embree")]
+        if let Some(e) = embree {
+            for (&(name, f), o) in hit.iter().zip(embree_outs.iter_mut()) {
+                contenders.push((name.to_string(), Box::new(move || in_chunks(pool, rays, o, |r, o| f(e, r, o)))));
+            }
+        }
+        #[cfg(not(feature = "embree"))]
+        let _ = embree;
+        contest(repeats, threads, rays.len(), contenders)
+    };
+    let triangles = |o: &[Option<ClosestHit>]| o.iter().map(|h| h.map(|h| h.triangle)).collect::<Vec<_>>();
+    let hits: Vec<Option<u32>> = triangles(&outs[0]);
+    let answers: Vec<Vec<Option<u32>>> = outs.iter().map(|o| triangles(o)).collect();
+    #[cfg(feature = "embree")]
+    let answers: Vec<Vec<Option<u32>>> = answers.into_iter().chain(embree_outs).collect();
+    let runs = runs
+        .into_iter()
+        .zip(&answers)
+        .enumerate()
+        .map(|(i, (mut run, h))| {
+            // Every run against hyrt's scalar reference (run 0).
+            if i > 0 {
+                run.disagreements = Some(hits.iter().zip(h).filter(|(a, b)| a.is_some() != b.is_some()).count());
+                run.other_triangle =
+                    Some(hits.iter().zip(h).filter(|(a, b)| a.is_some() && b.is_some() && a != b).count());
+            }
+            run
+        })
+        .collect();
     let hit_count = hits.iter().filter(|h| h.is_some()).count();
     (runs, hit_count)
 }
@@ -661,21 +713,27 @@ impl Peers {
                 .max_by(|a, b| a.mrays().total_cmp(&b.mrays()))
                 .cloned()
         };
-        // At the most threads: its rate and method.
-        let best = |runs: &'_ [RayRun], prefix: &str| fastest(runs, threads, prefix).map(|r| (r.mrays(), r.method));
-        let row = |what: &str, scene: &str, peer: &str, e: f64, hyrt: f64| {
+        // At the most threads: the fastest run, and the peers' least time in each round.
+        let best = |runs: &'_ [RayRun], prefix: &str| {
+            let run = fastest(runs, threads, prefix)?;
+            Some((run, per_round_least(runs, threads, prefix)))
+        };
+        // hyrt against a peer: rates (medians over the rounds) and the ratio round by round.
+        let row = |what: &str, scene: &str, (peer, peer_rounds): (RayRun, Vec<f64>), hyrt: Option<&RayRun>| {
+            let hyrt_rate = hyrt.map_or(f64::NAN, RayRun::mrays);
             [
-                format!("{what} rays, {scene}, {threads} threads: {peer} (this run)"),
-                format!("{} Mrays/s", num(e, 1)),
-                format!("{} Mrays/s", num(hyrt, 1)),
-                num(hyrt / e, 2),
+                format!("{what} rays, {scene}, {threads} threads: {} (this run)", peer.method),
+                format!("{} Mrays/s", num(peer.mrays(), 1)),
+                format!("{} Mrays/s", num(hyrt_rate, 1)),
+                hyrt.map_or_else(|| num(f64::NAN, 2), |h| ratio_cell(&peer_rounds, &h.rounds)),
             ]
         };
         for s in self.scenes.iter() {
             // hyrt's figure: the packets the `shadow_rays` stage uses.
-            let hyrt_shadow = best(&s.shadow, "hyrt packets").map_or(f64::NAN, |b| b.0);
+            let hyrt_run = fastest(&s.shadow, threads, "hyrt packets");
+            let hyrt_shadow = hyrt_run.as_ref().map_or(f64::NAN, RayRun::mrays);
             match best(&s.shadow, "Embree `rtcOccluded8`") {
-                Some((e, method)) => out.push(row("shadow", &s.scene, &method, e, hyrt_shadow)),
+                Some(peer) => out.push(row("shadow", &s.scene, peer, hyrt_run.as_ref())),
                 None if s.scene == "teaser" => out.push([
                     format!(
                         "shadow rays, {}, {threads} threads: Embree `rtcOccluded8` (Embree not built: the issue's figure for 2 threads on the teaser, not this run)",
@@ -711,21 +769,21 @@ impl Peers {
                 ]);
             }
         }
-        let hyrt_shadow = best(&main.shadow, "hyrt packets").map_or(f64::NAN, |b| b.0);
-        let hyrt_primary = best(&main.primary, "hyrt packets").map_or(f64::NAN, |b| b.0);
-        if let Some((e, method)) = best(&main.shadow, "Embree `rtcOccluded1`") {
-            out.push(row("shadow", &main.scene, &method, e, hyrt_shadow));
+        let hyrt_shadow = fastest(&main.shadow, threads, "hyrt packets");
+        let hyrt_primary = fastest(&main.primary, threads, "hyrt packets");
+        if let Some(peer) = best(&main.shadow, "Embree `rtcOccluded1`") {
+            out.push(row("shadow", &main.scene, peer, hyrt_shadow.as_ref()));
         }
-        if let Some((e, method)) = best(&main.primary, "Embree `rtcIntersect8`") {
-            out.push(row("primary", &main.scene, &method, e, hyrt_primary));
+        if let Some(peer) = best(&main.primary, "Embree `rtcIntersect8`") {
+            out.push(row("primary", &main.scene, peer, hyrt_primary.as_ref()));
         }
         // Secondary rays on every scene that has them: the `bounce_trace` stage's traversal
         // against Embree's faster single-ray or packet run.
         let bounce_method = hyrt_method("Bvh::closest_hit", Traversal::for_bounces());
         for s in self.scenes.iter().filter(|s| !s.secondary.is_empty()) {
-            let hyrt_secondary = best(&s.secondary, &bounce_method).map_or(f64::NAN, |b| b.0);
-            if let Some((e, method)) = best(&s.secondary, "Embree `rtcIntersect") {
-                out.push(row("reflection and refraction", &s.scene, &method, e, hyrt_secondary));
+            let hyrt_secondary = fastest(&s.secondary, threads, &bounce_method);
+            if let Some(peer) = best(&s.secondary, "Embree `rtcIntersect") {
+                out.push(row("reflection and refraction", &s.scene, peer, hyrt_secondary.as_ref()));
             }
         }
         if let Some(g) = &self.gpu_short {
@@ -744,6 +802,24 @@ impl Peers {
             }
         }
         out
+    }
+}
+
+/// The least time in each round among the runs with `threads` threads whose method starts
+/// with `prefix` (the fastest of several peers, round by round).
+fn per_round_least(runs: &[RayRun], threads: usize, prefix: &str) -> Vec<f64> {
+    let matching: Vec<&RayRun> = runs.iter().filter(|r| r.threads == threads && r.method.starts_with(prefix)).collect();
+    let rounds = matching.iter().map(|r| r.rounds.len()).min().unwrap_or(0);
+    (0..rounds).map(|i| matching.iter().map(|r| r.rounds[i]).fold(f64::INFINITY, f64::min)).collect()
+}
+
+/// The speed ratio hyrt / peer, `peer / hyrt` time, taken round by round: its median,
+/// and with more than one round the least and greatest ratio of a round.
+fn ratio_cell(peer: &[f64], hyrt: &[f64]) -> String {
+    match round_ratios(peer, hyrt) {
+        Some((m, lo, hi)) if peer.len() > 1 => format!("{} ({}–{})", num(m, 2), num(lo, 2), num(hi, 2)),
+        Some((m, _, _)) => num(m, 2),
+        None => num(f64::NAN, 2),
     }
 }
 
@@ -816,6 +892,24 @@ mod tests {
         assert_eq!(g[2][3], "0.50"); // primary: 2 Mrays/s against 4 Mrays/s
         assert_eq!(g[3][1..], ["30.00 ms".to_string(), "10.00 ms".into(), "3.00".into()]);
         assert_eq!(g.len(), 4);
+    }
+
+    /// A ray goal's ratio is taken round by round against the fastest peer of each round:
+    /// rounds the machine slowed for both contenders do not move it.
+    #[test]
+    fn goal_ratios_are_the_median_of_the_rounds_against_each_rounds_fastest_peer() {
+        let mut p = peers("teaser", true);
+        let shadow = &mut p.scenes[0].shadow;
+        let rounds = |method: &str, ms: &[f64]| RayRun::of_rounds(method, 2, 1_000_000, ms.to_vec());
+        // hyrt's packets: 200, 400 (a slow round), 100 ms.
+        shadow[3] = rounds(&shadow[3].method.clone(), &[200.0, 400.0, 100.0]);
+        // Two Embree packet runs: the faster of each round is 40, 80, 25 ms.
+        shadow[4] = rounds(&shadow[4].method.clone(), &[50.0, 80.0, 25.0]);
+        shadow[5] = rounds(&shadow[5].method.clone(), &[40.0, 90.0, 30.0]);
+        let g = p.goals();
+        // Rounds: 40/200, 80/400, 25/100 = 0.20, 0.20, 0.25; median 0.20.
+        assert_eq!(g[0][3], "0.20 (0.20–0.25)", "{:?}", g[0]);
+        assert_eq!(RayRun::of_rounds("x", 1, 10, vec![3.0, 1.0, 2.0]).ms, 2.0);
     }
 
     /// The hybrid frame against Embree's fastest primary plus fastest shadow rays of the

@@ -115,3 +115,57 @@ mod tests {
         assert_eq!(mrays_per_s(2_000_000, 1000.0), 2.0);
     }
 }
+
+/// Time contenders in interleaved rounds, so that a noisy machine slows them alike: each
+/// runs once untimed (warm-up), then `rounds` rounds run every contender once, in an order
+/// rotated by one each round (no contender always runs first). Milliseconds per
+/// contender, per round (`[contender][round]`).
+pub fn interleaved_ms(rounds: usize, contenders: &mut [&mut dyn FnMut()]) -> Vec<Vec<f64>> {
+    contenders.iter_mut().for_each(|c| c());
+    let n = contenders.len();
+    let mut ms = vec![Vec::with_capacity(rounds); n];
+    for r in 0..rounds.max(1) {
+        for j in 0..n {
+            let i = (j + r) % n;
+            let t = std::time::Instant::now();
+            contenders[i]();
+            ms[i].push(t.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    ms
+}
+
+/// The ratio `peer / hyrt` of two contenders' times round by round (`peer[r]` the
+/// peer's time in round `r`): its median, least and greatest. `None` without rounds.
+pub fn round_ratios(peer: &[f64], hyrt: &[f64]) -> Option<(f64, f64, f64)> {
+    let ratios: Vec<f64> = peer.iter().zip(hyrt).map(|(p, h)| p / h).collect();
+    let lo = ratios.iter().copied().min_by(f64::total_cmp)?;
+    let hi = ratios.iter().copied().max_by(f64::total_cmp)?;
+    Some((median(&ratios)?, lo, hi))
+}
+
+#[cfg(test)]
+mod interleaving_tests {
+    use super::*;
+
+    #[test]
+    fn interleaved_rounds_time_every_contender_once_per_round_in_rotated_order() {
+        let order = std::cell::RefCell::new(Vec::new());
+        let (mut a, mut b, mut c) =
+            (|| order.borrow_mut().push('a'), || order.borrow_mut().push('b'), || order.borrow_mut().push('c'));
+        let ms = interleaved_ms(3, &mut [&mut a, &mut b, &mut c]);
+        assert!(ms.iter().all(|m| m.len() == 3));
+        // Warm-up, then rounds starting at a, b, c.
+        assert_eq!(order.into_inner().iter().collect::<String>(), "abc".to_string() + "abc" + "bca" + "cab");
+    }
+
+    #[test]
+    fn round_ratios_are_per_round() {
+        // The peer twice as slow in every round, whatever the machine did to both.
+        let (m, lo, hi) = round_ratios(&[2.0, 8.0, 4.0], &[1.0, 4.0, 2.0]).unwrap();
+        assert_eq!((m, lo, hi), (2.0, 2.0, 2.0));
+        let (m, lo, hi) = round_ratios(&[3.0, 1.0, 2.0], &[1.0, 1.0, 1.0]).unwrap();
+        assert_eq!((m, lo, hi), (2.0, 1.0, 3.0));
+        assert!(round_ratios(&[], &[]).is_none());
+    }
+}
