@@ -15,7 +15,7 @@
 //! | compaction flags (scratch, `u32` per pixel and light) | 4 L | with lights |
 //! | shadow mask (`u8` per pixel and light) | L | with lights |
 //! | raster, ray-traced and final images (`[f32; 4]`) | 16 each | as planned |
-//! | ray list ([`RayRecord`]), its indices and occlusion results | at most 72 L | with lights |
+//! | ray list ([`RayRecord`]), its indices and occlusion results | at most 72 L (8 L without stage outputs: no list is written) | with lights |
 //!
 //! so the default scene's frame (two lights, no bounce) needs at least 138 bytes per
 //! pixel and at most 282. A bounce depth adds, per ray of that depth, 64 (the ray) + 24
