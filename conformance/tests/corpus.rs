@@ -149,10 +149,11 @@ fn conformance_gpu_in_bands_is_the_whole_frame_over_the_corpus() {
     assert!(banded > 20 && split > 0, "{banded} banded, {split} split");
 }
 
-/// A CPU frame that does not return its shadow-ray list does not write it (`compaction`
-/// keeps the active pairs, `shadow_rays` makes each ray as it traces it): its occlusion
-/// results, shadow codes, images and statistics are the frame's that writes the list, on
-/// every case of the corpus.
+/// A CPU frame that does not return its shadow-ray lists (the primary hits' and each
+/// bounce depth's) does not write them (`compaction` keeps the active pairs, `shadow_rays`
+/// makes each ray as it traces it): its occlusion results, images and statistics (rays per
+/// kind and occluded rays of every depth) are the frame's that writes the lists, on every
+/// case of the corpus.
 #[test]
 fn cpu_frames_without_the_ray_list_are_the_frames_with_it_over_the_corpus() {
     let mut cpu = CpuBackend::new(Some(2));

@@ -4,13 +4,13 @@ use std::time::Instant;
 
 use glam::Vec3;
 use hyrt_core::bvh::{BvhPreset, ClosestHit};
-use hyrt_core::formats::{CameraRecord, RayRecord, RAY_KIND_COUNT, RAY_KIND_SHADOW};
+use hyrt_core::formats::{CameraRecord, RayRecord, SurfaceRecord, RAY_KIND_COUNT, RAY_KIND_SHADOW};
 use hyrt_core::frame::{
     Backend, BounceStats, Frame, FrameOptions, FrameStats, PreparedScene, PrimaryBarycentrics, RenderError, StageTime,
     StageWork,
 };
 use hyrt_core::geometry::WorldGeometry;
-use hyrt_core::plan::{FrameBuffer, FramePlan, Step};
+use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan, Step};
 
 use rayon::prelude::*;
 
@@ -96,9 +96,49 @@ impl CpuBackend {
 }
 
 /// Rays per `RAY_KIND_*` in two lists.
-fn rays_per_kind(a: &[RayRecord], b: &[RayRecord]) -> [u64; RAY_KIND_COUNT] {
+/// `compaction` of one list of surfaces: its shadow-ray list into `rays` when the frame
+/// returns it, else only the active pairs (in `scratch`, which `trace_list` reads).
+fn compact_list(
+    surfaces: &[SurfaceRecord],
+    g: &WorldGeometry,
+    scratch: &mut CompactionScratch,
+    rays: Option<&mut Vec<RayRecord>>,
+) -> Result<(), std::collections::TryReserveError> {
+    match rays {
+        Some(rays) => compaction_into(surfaces, &g.lights, scratch, rays),
+        None => active_pairs_into(surfaces, &g.lights, scratch),
+    }
+}
+
+/// `shadow_rays` of one list: the list `compact_list` wrote, or the rays of its active
+/// pairs made as they are traced; the occlusion results and the shadow mask into `out`.
+/// The number of rays.
+fn trace_list(
+    bvh: &hyrt_core::bvh::Bvh,
+    g: &WorldGeometry,
+    surfaces: &[SurfaceRecord],
+    scratch: &CompactionScratch,
+    list: Option<&[RayRecord]>,
+    traversal: Traversal,
+    (occluded, shadow): (&mut Vec<u32>, &mut Vec<u8>),
+) -> usize {
+    let lights = g.lights.len();
+    match list {
+        Some(rays) => {
+            shadow_rays_with(bvh, g, rays, traversal, occluded);
+            shadow_mask_into(rays, occluded, surfaces.len(), lights, shadow);
+        }
+        None => {
+            shadow_rays_of_pairs_into(bvh, g, surfaces, &scratch.active, traversal, occluded);
+            shadow_mask_of_pairs_into(&scratch.active, occluded, surfaces.len(), lights, shadow);
+        }
+    }
+    occluded.len()
+}
+
+/// Rays per kind of a list.
+fn rays_per_kind(a: &[RayRecord]) -> [u64; RAY_KIND_COUNT] {
     a.par_iter()
-        .chain(b.par_iter())
         .with_min_len(16384)
         .fold(
             || [0u64; RAY_KIND_COUNT],
@@ -151,12 +191,18 @@ impl Backend for CpuBackend {
                 memory::out_of_memory(width, height, None, memory::available_bytes(), &format!("{what} ({e})"))
             }
         };
-        // A frame that does not return its shadow-ray list does not write it: `compaction`
+        // A frame that does not return a shadow-ray list does not write it: `compaction`
         // keeps the active pairs and `shadow_rays` makes their rays as it traces them.
-        let list = f.holds(FrameBuffer::Rays);
+        let list = |depth: u32| match depth {
+            0 => f.holds(FrameBuffer::Rays),
+            d => f.holds(BounceBuffer::ShadowRays.at(d)),
+        };
+        let lists: Vec<bool> = (0..=plan.bounce_depth()).map(list).collect();
         self.pool.install(|| -> Result<(), RenderError> {
             let mut times = Vec::with_capacity(plan.steps().len());
-            let (mut covered, mut shadow_rays) = (0, 0);
+            let mut covered = 0;
+            // Shadow rays per list: the primary hits', then each bounce depth's.
+            let mut shadow_rays = vec![0; lists.len()];
             // The plan's one loop: each step runs its stage module and is timed.
             for &step in plan.steps() {
                 let t = Instant::now();
@@ -168,22 +214,12 @@ impl Backend for CpuBackend {
                             reconstruction_reintersected_into(&f.gbuffer, g, camera, &mut f.surfaces)
                         }
                     },
-                    Step::Compaction if list => {
-                        compaction_into(&f.surfaces, &g.lights, scratch, &mut f.rays).map_err(oom("the ray list"))?
-                    }
-                    Step::Compaction => {
-                        active_pairs_into(&f.surfaces, &g.lights, scratch).map_err(oom("the active pairs"))?
-                    }
-                    Step::ShadowRays if list => {
-                        shadow_rays_with(&scene.bvh, g, &f.rays, traversal, &mut f.occluded);
-                        shadow_mask_into(&f.rays, &f.occluded, f.surfaces.len(), g.lights.len(), &mut f.shadow);
-                        shadow_rays = f.rays.len();
-                    }
+                    Step::Compaction => compact_list(&f.surfaces, g, scratch, lists[0].then_some(&mut f.rays))
+                        .map_err(oom("the ray list"))?,
                     Step::ShadowRays => {
-                        let (active, lights) = (&scratch.active, g.lights.len());
-                        shadow_rays_of_pairs_into(&scene.bvh, g, &f.surfaces, active, traversal, &mut f.occluded);
-                        shadow_mask_of_pairs_into(active, &f.occluded, f.surfaces.len(), lights, &mut f.shadow);
-                        shadow_rays = active.len();
+                        let list = lists[0].then_some(&f.rays[..]);
+                        let out = (&mut f.occluded, &mut f.shadow);
+                        shadow_rays[0] = trace_list(&scene.bvh, g, &f.surfaces, scratch, list, traversal, out);
                     }
                     Step::SecondaryRays { depth } => {
                         let (done, rest) = f.bounces.split_at_mut(depth as usize - 1);
@@ -219,13 +255,15 @@ impl Backend for CpuBackend {
                     }
                     Step::BounceCompaction { depth } => {
                         let b = &mut f.bounces[depth as usize - 1];
-                        compaction_into(&b.surfaces, &g.lights, scratch, &mut b.shadow_rays)
+                        compact_list(&b.surfaces, g, scratch, lists[depth as usize].then_some(&mut b.shadow_rays))
                             .map_err(oom("a bounce's shadow rays"))?
                     }
                     Step::BounceShadowRays { depth } => {
                         let b = &mut f.bounces[depth as usize - 1];
-                        shadow_rays_with(&scene.bvh, g, &b.shadow_rays, traversal, &mut b.occluded);
-                        shadow_mask_into(&b.shadow_rays, &b.occluded, b.surfaces.len(), g.lights.len(), &mut b.shadow);
+                        let list = lists[depth as usize].then_some(&b.shadow_rays[..]);
+                        let out = (&mut b.occluded, &mut b.shadow);
+                        shadow_rays[depth as usize] =
+                            trace_list(&scene.bvh, g, &b.surfaces, scratch, list, traversal, out);
                     }
                     Step::BounceShading { depth, last } => {
                         let (this, deeper) = f.bounces.split_at_mut(depth as usize);
@@ -289,12 +327,17 @@ impl Backend for CpuBackend {
             stats.covered_pixels = covered;
             stats.ray_traced_pixels = f.gbuffer.par_iter().filter(|t| t.is_hit() && t.is_ray_traced()).count() as u64;
             stats.raster_pixels = stats.covered_pixels - stats.ray_traced_pixels;
-            stats.rays_per_kind[RAY_KIND_SHADOW as usize] = shadow_rays as u64;
+            stats.rays_per_kind[RAY_KIND_SHADOW as usize] = shadow_rays[0] as u64;
             stats.occluded_shadow_rays = f.occluded.par_iter().filter(|&&o| o != 0).count() as u64;
             stats.bounces = f.bounces[..plan.bounce_depth() as usize]
                 .iter()
-                .map(|b| BounceStats {
-                    rays_per_kind: rays_per_kind(&b.rays, &b.shadow_rays),
+                .zip(&shadow_rays[1..])
+                .map(|(b, &shadow)| BounceStats {
+                    rays_per_kind: {
+                        let mut k = rays_per_kind(&b.rays);
+                        k[RAY_KIND_SHADOW as usize] = shadow as u64;
+                        k
+                    },
                     hits: b.hits.par_iter().filter(|h| h.is_hit()).count() as u64,
                     occluded_shadow_rays: b.occluded.par_iter().filter(|&&o| o != 0).count() as u64,
                 })
