@@ -86,7 +86,13 @@ fn main() {
             ratios.push(p / c);
         }
     }
+    // FNV-1a over every texel's bits: the same G-buffer gives the same digest.
+    let digest = gbuffer
+        .iter()
+        .flat_map(|t| t.to_bits())
+        .fold(0xcbf2_9ce4_8422_2325u64, |h, word| (h ^ word as u64).wrapping_mul(0x0000_0100_0000_01b3));
     println!("raster_peer: {}, {W}x{H}, {threads} CPU threads, {rounds} rounds", b.name);
+    println!("  G-buffer digest {digest:016x}");
     println!("  cpu visibility_raster median {:.3} ms", median(cpu_ms));
     if !gpu_ms.is_empty() {
         println!("  gpu hardware-interpolated raster median {:.3} ms", median(gpu_ms));
