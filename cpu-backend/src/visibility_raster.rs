@@ -22,12 +22,18 @@
 //!    then bin the chunk's triangles into [`TILE_SIZE`]-square tiles by their snapped
 //!    pixel bounding box, skipping tiles a triangle provably misses.
 //! 2. *Tiles*, in parallel: each tile walks its bins chunk by chunk, i.e. in global
-//!    triangle order. Per triangle and row it gets the exact run of covered pixels
-//!    from incremental integer edge walks (narrow boxes test each pixel instead),
-//!    steps the exact edge values along it, skips fragments whose approximate depth
-//!    certainly fails, and keeps per pixel the nearest fragment (strictly smaller
-//!    exact depth wins, so ties keep the earlier triangle). Barycentrics are then
-//!    computed once per covered pixel.
+//!    triangle order (prefetching the triangle records ahead). Per triangle and row it
+//!    gets the exact run of covered pixels from incremental integer edge walks (narrow
+//!    boxes test each pixel instead), steps the exact edge values along it, skips
+//!    fragments whose approximate depth certainly fails, and keeps per pixel the
+//!    nearest fragment's depth and triangle (strictly smaller exact depth wins, so ties
+//!    keep the earlier triangle). Then, per row, each run of pixels one triangle won
+//!    gets its edge values stepped again and its barycentrics, once per pixel.
+//!
+//! With AVX-512 (run-time detection, [`SimdLevel::Avx512`]) both steps of a tile take
+//! eight pixels at a time (`avx512`: every exact depth, no early rejection; rows up to
+//! eight pixels wide without walks), lane by lane the same IEEE operations as the
+//! scalar kernels, so the same bits; elsewhere they run pixel by pixel.
 //!
 //! Every pixel is decided by one tile and every tile processes triangles in global
 //! order, so the output does not depend on the number of threads.
@@ -56,9 +62,13 @@ use hyrt_core::kernels::raster::{
 };
 use rayon::prelude::*;
 
+use crate::traversal::SimdLevel;
+
+#[cfg(target_arch = "x86_64")]
+mod avx512;
+
 /// Side of a square screen tile in pixels (llvmpipe's `TILE_SIZE` is 64 too): a
-/// tile's scratch buffers (depth, winner, edge values: 24 bytes per pixel, 96 KiB)
-/// stay in L2.
+/// tile's scratch buffers (depth and winner: 8 bytes per pixel, 32 KiB) stay in L1/L2.
 pub const TILE_SIZE: u32 = 64;
 const TILE_PIXELS: usize = (TILE_SIZE * TILE_SIZE) as usize;
 const _: () = assert!(TILE_PIXELS.is_power_of_two());
@@ -134,6 +144,19 @@ impl RasterTriangle {
     fn vertex(&self, i: usize) -> [i64; 2] {
         [self.x[i] as i64, self.y[i] as i64]
     }
+
+    /// Exact (unbiased) edge values at the centre of pixel `(px, py)` and their change
+    /// per pixel to the right: edge `i` runs from vertex `i + 1` to vertex `i + 2`, as
+    /// in [`EdgeStepper`].
+    #[inline]
+    fn edge_values(&self, px: i64, py: i64) -> ([i64; 3], [i64; 3]) {
+        let p = pixel_center_fixed(px, py);
+        let edge = |i: usize| (self.vertex((i + 1) % 3), self.vertex((i + 2) % 3));
+        (
+            std::array::from_fn(|i| edge_function(edge(i).0, edge(i).1, p)),
+            std::array::from_fn(|i| (edge(i).1[1] - edge(i).0[1]) * FIXED_ONE),
+        )
+    }
 }
 
 /// Frame constants shared by all setup tasks.
@@ -189,7 +212,7 @@ impl Frame {
 /// (width or height 0) gives an empty G-buffer.
 pub fn visibility_raster(geometry: &WorldGeometry, camera: &CameraRecord) -> VisibilityOutput {
     let mut gbuffer = Vec::new();
-    let covered_pixels = raster_frame(geometry, camera, true, &mut gbuffer);
+    let covered_pixels = raster_frame(geometry, camera, TileKernel::detect(), &mut gbuffer);
     VisibilityOutput { gbuffer, width: camera.width, height: camera.height, covered_pixels }
 }
 
@@ -201,15 +224,41 @@ pub fn visibility_raster_into(
     camera: &CameraRecord,
     gbuffer: &mut Vec<GBufferTexel>,
 ) -> usize {
-    raster_frame(geometry, camera, true, gbuffer)
+    raster_frame(geometry, camera, TileKernel::detect(), gbuffer)
 }
 
-/// [`visibility_raster`], with or without the early depth rejection (which must not
-/// change a single bit; the unit tests compare both).
+/// How the tiles are rasterized and resolved. Every kernel gives the same bits (the unit
+/// tests compare them).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum TileKernel {
+    /// Pixel by pixel, with the early depth rejection (any target).
+    Scalar,
+    /// Pixel by pixel, every fragment's exact depth tested (for tests of the early
+    /// rejection).
+    #[cfg(test)]
+    ScalarNoEarlyReject,
+    /// Eight pixels at a time with AVX-512 (`avx512`), detected at run time.
+    #[cfg(target_arch = "x86_64")]
+    Avx512,
+}
+
+impl TileKernel {
+    /// The kernel of [`SimdLevel::detect`]: AVX-512 at that level, else the scalar one
+    /// (the AVX2 and SSE2 levels lack AVX-512's conversion of i64 to f32).
+    fn detect() -> TileKernel {
+        match SimdLevel::detect() {
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx512 => TileKernel::Avx512,
+            _ => TileKernel::Scalar,
+        }
+    }
+}
+
+/// [`visibility_raster`] with the tile kernel `kernel` (available on this CPU).
 fn raster_frame(
     geometry: &WorldGeometry,
     camera: &CameraRecord,
-    early_reject: bool,
+    kernel: TileKernel,
     gbuffer: &mut Vec<GBufferTexel>,
 ) -> usize {
     let (w, h) = (camera.width as usize, camera.height as usize);
@@ -234,12 +283,20 @@ fn raster_frame(
         .map_init(TileScratch::new, |scratch, (tile, rows)| {
             scratch.clear();
             let rect = frame.tile_rect(tile);
-            if early_reject {
-                rasterize_tile(&tris, tile, rect, scratch);
-            } else {
-                rasterize_tile(&tris, tile, rect, &mut NoEarlyReject(scratch));
+            match kernel {
+                TileKernel::Scalar => {
+                    rasterize_tile(&tris, tile, rect, scratch);
+                    resolve_tile::<ScalarTexels>(&tris, scratch, rect, rows)
+                }
+                #[cfg(test)]
+                TileKernel::ScalarNoEarlyReject => {
+                    rasterize_tile(&tris, tile, rect, &mut NoEarlyReject(scratch));
+                    resolve_tile::<ScalarTexels>(&tris, scratch, rect, rows)
+                }
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: only detected or tested where the CPU has AVX-512.
+                TileKernel::Avx512 => unsafe { avx512::tile(&tris, tile, rect, scratch, rows) },
             }
-            resolve_tile(&tris, scratch, rect, rows)
         })
         .sum();
     covered
@@ -546,10 +603,28 @@ impl EdgeStepper {
     }
 }
 
-/// A triangle as the per-fragment callback sees it.
+/// A triangle as the per-span and per-fragment callbacks see it.
 struct Fragment<'a> {
     tri: &'a RasterTriangle,
     reference: u32,
+    /// Edge values over the triangle's box within the tile.
+    stepper: EdgeStepper,
+    /// The approximate depth (see [`DEPTH_REJECT_MARGIN`]): vertex depths in f64,
+    /// `1 / area2` and the numerator's change per pixel to the right.
+    z64: [f64; 3],
+    inv_area: f64,
+    dz: f64,
+}
+
+/// The pixels of one row of a triangle within a tile, `base..base + len` in tile-local
+/// indices.
+struct Span {
+    base: usize,
+    len: usize,
+    /// Biased edge values (see [`EdgeStepper`]) at the first pixel.
+    e: [i64; 3],
+    /// Every pixel is covered (a run from the [`EdgeWalk`]s); else each is tested.
+    covered: bool,
 }
 
 impl std::ops::Deref for Fragment<'_> {
@@ -657,11 +732,59 @@ const _: () = assert!(DEPTH_REJECT_MARGIN > DEPTH_INTERPOLATION_REL_ERROR + 70.0
 /// What the tile traversal does with covered pixel centres. `local_pixel` is
 /// `(y - rect.y0) * TILE_SIZE + (x - rect.x0)`.
 trait FragmentSink {
+    /// Triangles whose box within a tile is at most this many pixels wide get no
+    /// [`EdgeWalk`]s: their spans cover the box's row and [`Self::span`] tests each pixel.
+    const NARROW_BOX_WIDTH: i64 = NARROW_BOX_WIDTH;
     /// False if the fragment certainly fails (its approximate depth, see
     /// [`DEPTH_REJECT_MARGIN`], is too far); `fragment` is then not called.
     fn early(&self, local_pixel: usize, approx_depth: f64) -> bool;
     /// A covered pixel centre with the exact (unbiased) edge values.
     fn fragment(&mut self, local_pixel: usize, t: &Fragment<'_>, e: [i64; 3]);
+    /// Every pixel of `span`, with `early` and `fragment` per covered pixel centre;
+    /// a sink may do the same work its own way, with the same result.
+    #[inline(always)]
+    fn span(&mut self, span: &Span, t: &Fragment<'_>) {
+        span_scalar(self, span, t);
+    }
+}
+
+/// [`FragmentSink::span`] pixel by pixel.
+#[inline(always)]
+fn span_scalar<S: FragmentSink + ?Sized>(sink: &mut S, span: &Span, t: &Fragment<'_>) {
+    let s = &t.stepper;
+    let mut e = span.e;
+    let raw = |e: [i64; 3]| [e[0] - s.bias[0], e[1] - s.bias[1], e[2] - s.bias[2]];
+    let z = t.z64;
+    let approx = |r: [i64; 3]| r[0] as f64 * z[0] + r[1] as f64 * z[1] + r[2] as f64 * z[2];
+    if !span.covered {
+        // Test every pixel; the approximate depth is computed afresh at covered ones
+        // only (see DEPTH_REJECT_MARGIN).
+        for i in span.base..span.base + span.len {
+            if (e[0] | e[1] | e[2]) >= 0 {
+                let r = raw(e);
+                if sink.early(i, approx(r) * t.inv_area) {
+                    sink.fragment(i, t, r);
+                }
+            }
+            e[0] += s.step_x[0];
+            e[1] += s.step_x[1];
+            e[2] += s.step_x[2];
+        }
+    } else {
+        // Every pixel of the run is covered; the approximate depth's numerator steps
+        // along it.
+        let mut num = approx(raw(e));
+        for i in span.base..span.base + span.len {
+            debug_assert!((e[0] | e[1] | e[2]) >= 0, "run outside the triangle");
+            if sink.early(i, num * t.inv_area) {
+                sink.fragment(i, t, raw(e));
+            }
+            e[0] += s.step_x[0];
+            e[1] += s.step_x[1];
+            e[2] += s.step_x[2];
+            num += t.dz;
+        }
+    }
 }
 
 impl FragmentSink for TileScratch {
@@ -680,14 +803,15 @@ impl FragmentSink for TileScratch {
         if key < self.depth[i] && d >= 0.0 {
             self.depth[i] = key;
             self.winner[i] = t.reference;
-            self.e12[i] = [e[1], e[2]];
         }
     }
 }
 
 /// The depth test without the early rejection.
+#[cfg(test)]
 struct NoEarlyReject<'a>(&'a mut TileScratch);
 
+#[cfg(test)]
 impl FragmentSink for NoEarlyReject<'_> {
     #[inline]
     fn early(&self, _: usize, _: f64) -> bool {
@@ -721,12 +845,38 @@ impl FragmentSink for CountSink<'_, '_> {
 #[inline]
 fn rasterize_tile<S: FragmentSink>(tris: &SetupTriangles, tile: usize, rect: [i32; 4], sink: &mut S) {
     for (c, chunk) in tris.chunks.iter().enumerate() {
-        for &index in chunk.bin(tile) {
+        let bin = chunk.bin(tile);
+        for (k, &index) in bin.iter().enumerate() {
+            // The bin's triangles are scattered over the chunk: fetch ahead.
+            if let Some(&ahead) = bin.get(k + PREFETCH_AHEAD) {
+                prefetch(&chunk.tris[ahead as usize]);
+            }
             let t = &chunk.tris[index as usize];
             let reference = ((c as u32) << CHUNK_INDEX_BITS) | index as u32;
             rasterize_triangle(t, reference, rect, sink);
         }
     }
+}
+
+/// How many bin items ahead [`rasterize_tile`] prefetches the triangle record.
+const PREFETCH_AHEAD: usize = 4;
+
+/// Ask for the cache lines of `value` (a hint; no effect on results).
+#[inline(always)]
+fn prefetch<T>(value: &T) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let p = value as *const T as *const i8;
+        let mut offset = 0;
+        while offset < std::mem::size_of::<T>() {
+            // SAFETY: a prefetch never faults; the address lies within `value`.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.add(offset)) };
+            offset += 64;
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = value;
 }
 
 /// Hand the covered pixel centres of one triangle inside tile `rect` to `sink`.
@@ -739,11 +889,13 @@ fn rasterize_triangle<S: FragmentSink>(t: &RasterTriangle, reference: u32, rect:
     if x0 > x1 || y0 > y1 {
         return;
     }
-    let frag = Fragment { tri: t, reference };
     let s = EdgeStepper::new(t, x0 as i64, y0 as i64);
+    let z64 = t.z.map(f64::from);
+    let dz = s.step_x[0] as f64 * z64[0] + s.step_x[1] as f64 * z64[1] + s.step_x[2] as f64 * z64[2];
+    let frag = Fragment { tri: t, reference, stepper: s, z64, inv_area: 1.0 / t.area2 as f64, dz };
     let n = (x1 - x0 + 1) as i64;
     // Narrow boxes test every pixel (cheaper than the walks' divisions).
-    let narrow = n <= NARROW_BOX_WIDTH;
+    let narrow = n <= S::NARROW_BOX_WIDTH;
     let multi_row = y1 > y0;
     let mut walks = (!narrow).then(|| {
         [
@@ -752,9 +904,6 @@ fn rasterize_triangle<S: FragmentSink>(t: &RasterTriangle, reference: u32, rect:
             EdgeWalk::new(s.start[2], s.step_x[2], s.step_y[2], multi_row),
         ]
     });
-    let inv_area = 1.0 / t.area2 as f64;
-    let z = t.z.map(f64::from);
-    let dz = s.step_x[0] as f64 * z[0] + s.step_x[1] as f64 * z[1] + s.step_x[2] as f64 * z[2];
     let mut row = s.start;
     for y in y0..=y1 {
         // The covered pixels of a row of a convex shape are one run [lo, hi].
@@ -765,41 +914,13 @@ fn rasterize_triangle<S: FragmentSink>(t: &RasterTriangle, reference: u32, rect:
             }
         }
         if lo <= hi {
-            let base = (y - rect[1]) as usize * TILE_SIZE as usize + (x0 - rect[0]) as usize;
-            let mut e = [row[0] + lo * s.step_x[0], row[1] + lo * s.step_x[1], row[2] + lo * s.step_x[2]];
-            let raw = |e: [i64; 3]| [e[0] - s.bias[0], e[1] - s.bias[1], e[2] - s.bias[2]];
-            let approx = |r: [i64; 3]| r[0] as f64 * z[0] + r[1] as f64 * z[1] + r[2] as f64 * z[2];
-            if narrow {
-                // Test every pixel; the approximate depth is computed afresh at
-                // covered ones only (see DEPTH_REJECT_MARGIN).
-                for k in lo..=hi {
-                    if (e[0] | e[1] | e[2]) >= 0 {
-                        let i = base + k as usize;
-                        let r = raw(e);
-                        if sink.early(i, approx(r) * inv_area) {
-                            sink.fragment(i, &frag, r);
-                        }
-                    }
-                    e[0] += s.step_x[0];
-                    e[1] += s.step_x[1];
-                    e[2] += s.step_x[2];
-                }
-            } else {
-                // Every pixel of the run is covered; the approximate depth's
-                // numerator steps along it.
-                let mut num = approx(raw(e));
-                for k in lo..=hi {
-                    debug_assert!((e[0] | e[1] | e[2]) >= 0, "run outside the triangle");
-                    let i = base + k as usize;
-                    if sink.early(i, num * inv_area) {
-                        sink.fragment(i, &frag, raw(e));
-                    }
-                    e[0] += s.step_x[0];
-                    e[1] += s.step_x[1];
-                    e[2] += s.step_x[2];
-                    num += dz;
-                }
-            }
+            let span = Span {
+                base: (y - rect[1]) as usize * TILE_SIZE as usize + (x0 - rect[0]) as usize + lo as usize,
+                len: (hi - lo + 1) as usize,
+                e: [row[0] + lo * s.step_x[0], row[1] + lo * s.step_x[1], row[2] + lo * s.step_x[2]],
+                covered: !narrow,
+            };
+            sink.span(&span, &frag);
         }
         if let Some(walks) = &mut walks {
             for walk in walks {
@@ -812,12 +933,11 @@ fn rasterize_triangle<S: FragmentSink>(t: &RasterTriangle, reference: u32, rect:
     }
 }
 
-/// Depth-test state of one tile.
+/// Depth-test state of one tile. The winners' edge values are not kept: the resolve
+/// steps them again along each run of one winner (exact integers, the same values).
 struct TileScratch {
     depth: Box<[f32; TILE_PIXELS]>,
     winner: Box<[u32; TILE_PIXELS]>,
-    /// Exact edge values e1, e2 of the winning fragment (e0 = area2 - e1 - e2).
-    e12: Box<[[i64; 2]; TILE_PIXELS]>,
 }
 
 /// Index into a tile buffer: local pixels are below `TILE_PIXELS` by construction;
@@ -830,11 +950,7 @@ fn tile_index(i: usize) -> usize {
 
 impl TileScratch {
     fn new() -> TileScratch {
-        TileScratch {
-            depth: Box::new([DEPTH_CLEAR; TILE_PIXELS]),
-            winner: Box::new([NO_WINNER; TILE_PIXELS]),
-            e12: Box::new([[0; 2]; TILE_PIXELS]),
-        }
+        TileScratch { depth: Box::new([DEPTH_CLEAR; TILE_PIXELS]), winner: Box::new([NO_WINNER; TILE_PIXELS]) }
     }
     fn clear(&mut self) {
         self.depth.fill(DEPTH_CLEAR);
@@ -842,8 +958,55 @@ impl TileScratch {
     }
 }
 
-/// Write every texel of one tile from its depth-test state; returns the hit count.
-fn resolve_tile(
+/// Writes the texels of a run of pixels that one triangle won.
+trait TexelRun {
+    /// `out[k]` from pixel `k` of the run: exact (unbiased) edge values `e + k * step`
+    /// and stored depth-test value `depth[k]` (`depth.len() == out.len()`).
+    fn run(t: &RasterTriangle, e: [i64; 3], step: [i64; 3], depth: &[f32], out: &mut [GBufferTexel]);
+}
+
+/// [`TexelRun`] texel by texel.
+struct ScalarTexels;
+
+impl TexelRun for ScalarTexels {
+    #[inline(always)]
+    fn run(t: &RasterTriangle, mut e: [i64; 3], step: [i64; 3], depth: &[f32], out: &mut [GBufferTexel]) {
+        for (texel, &stored) in out.iter_mut().zip(depth) {
+            let [u, v] = if t.corners == NOT_CORNERS {
+                barycentrics_in_original(perspective_barycentrics(e, t.w), t.bary)
+            } else {
+                perspective_barycentrics_of_corners(e, t.w, t.corners[0] as usize, t.corners[1] as usize)
+            };
+            *texel = t.texel(u, v, stored);
+            e[0] += step[0];
+            e[1] += step[1];
+            e[2] += step[2];
+        }
+    }
+}
+
+impl RasterTriangle {
+    /// The G-buffer texel of a pixel this triangle won, from its barycentrics and the
+    /// depth test's stored value.
+    #[inline(always)]
+    fn texel(&self, bary_u: f32, bary_v: f32, stored: f32) -> GBufferTexel {
+        // The depth test stored an interior side's depth INTERIOR_DEPTH_BIAS_ULPS steps
+        // further; a winner's stored value is below 1.0, so the bias was not clamped
+        // and stepping back gives the interpolated depth exactly.
+        let depth = if self.interior { f32::from_bits(stored.to_bits() - INTERIOR_DEPTH_BIAS_ULPS) } else { stored };
+        let texel =
+            GBufferTexel { bary_u, bary_v, depth, triangle: self.triangle, object: self.object, flags: self.flags };
+        if cfg!(debug_assertions) {
+            texel.validate().expect("visibility_raster texel invariants");
+        }
+        texel
+    }
+}
+
+/// Write every texel of one tile from its depth-test state, run of one winner by run;
+/// returns the hit count.
+#[inline(always)]
+fn resolve_tile<R: TexelRun>(
     tris: &SetupTriangles,
     scratch: &TileScratch,
     rect: [i32; 4],
@@ -851,35 +1014,21 @@ fn resolve_tile(
 ) -> usize {
     let mut covered = 0;
     for (ly, row) in rows.iter_mut().enumerate() {
-        for (lx, texel) in row.iter_mut().enumerate() {
-            let i = tile_index(ly * TILE_SIZE as usize + lx);
-            let winner = scratch.winner[i];
+        let first = ly * TILE_SIZE as usize;
+        let winners = &scratch.winner[first..first + row.len()];
+        let mut lx = 0;
+        while lx < row.len() {
+            let winner = winners[lx];
+            let end = lx + winners[lx..].iter().position(|&w| w != winner).unwrap_or(row.len() - lx);
             if winner == NO_WINNER {
-                *texel = GBufferTexel::MISS;
-                continue;
-            }
-            let t = tris.get(winner);
-            let [e1, e2] = scratch.e12[i];
-            let e = [t.area2 - e1 - e2, e1, e2];
-            let [u, v] = if t.corners == NOT_CORNERS {
-                barycentrics_in_original(perspective_barycentrics(e, t.w), t.bary)
+                row[lx..end].fill(GBufferTexel::MISS);
             } else {
-                perspective_barycentrics_of_corners(e, t.w, t.corners[0] as usize, t.corners[1] as usize)
-            };
-            // The depth test stored an interior side's depth INTERIOR_DEPTH_BIAS_ULPS steps
-            // further; a winner's stored value is below 1.0, so the bias was not clamped
-            // and stepping back gives the interpolated depth exactly.
-            let depth = if t.interior {
-                f32::from_bits(scratch.depth[i].to_bits() - INTERIOR_DEPTH_BIAS_ULPS)
-            } else {
-                scratch.depth[i]
-            };
-            *texel =
-                GBufferTexel { bary_u: u, bary_v: v, depth, triangle: t.triangle, object: t.object, flags: t.flags };
-            if cfg!(debug_assertions) {
-                texel.validate().expect("visibility_raster texel invariants");
+                let t = tris.get(winner);
+                let (e, step) = t.edge_values(rect[0] as i64 + lx as i64, rect[1] as i64 + ly as i64);
+                R::run(t, e, step, &scratch.depth[first + lx..first + end], &mut row[lx..end]);
+                covered += end - lx;
             }
-            covered += 1;
+            lx = end;
         }
     }
     debug_assert_eq!(rows.len() as i32, rect[3] - rect[1] + 1);
@@ -912,6 +1061,11 @@ mod tests {
         out.gbuffer.iter().map(|t| t.to_bits()).collect()
     }
 
+    /// A camera at `eye` looking at `(0, 0, -3)`.
+    fn camera_towards_z(eye: Vec3, fov_y_deg: f32, near: f32, far: f32) -> Camera {
+        Camera { eye, target: Vec3::new(0.0, 0.0, -3.0), up: Vec3::Y, fov_y_deg, near, far }
+    }
+
     /// Many overlapping objects in arbitrary depth order, some crossing the near
     /// plane: lots of fragments the early rejection skips.
     fn cluttered_scene() -> Scene {
@@ -936,33 +1090,94 @@ mod tests {
                 source: ObjectSource::default(),
             });
         }
-        s.camera = Some(Camera {
-            eye: Vec3::new(0.3, 0.5, 5.0),
-            target: Vec3::new(0.0, 0.0, -3.0),
-            up: Vec3::Y,
-            fov_y_deg: 70.0,
-            near: 0.3,
-            far: 40.0,
-        });
+        s.camera = Some(camera_towards_z(Vec3::new(0.3, 0.5, 5.0), 70.0, 0.3, 40.0));
         s
     }
 
+    /// Every tile kernel this CPU can run.
+    fn kernels() -> Vec<TileKernel> {
+        let mut k = vec![TileKernel::Scalar, TileKernel::ScalarNoEarlyReject];
+        #[cfg(target_arch = "x86_64")]
+        if SimdLevel::Avx512.is_available() {
+            k.push(TileKernel::Avx512);
+        }
+        k
+    }
+
+    /// The G-buffer of every kernel, checked bit for bit against the first's.
+    fn assert_kernels_agree(g: &WorldGeometry, cam: &CameraRecord) -> usize {
+        let run = |kernel| {
+            let mut gbuffer = Vec::new();
+            let covered_pixels = raster_frame(g, cam, kernel, &mut gbuffer);
+            VisibilityOutput { gbuffer, width: cam.width, height: cam.height, covered_pixels }
+        };
+        let kernels = kernels();
+        let first = run(kernels[0]);
+        for &k in &kernels[1..] {
+            let other = run(k);
+            assert_eq!(first.covered_pixels, other.covered_pixels, "{k:?}");
+            assert!(bits(&first) == bits(&other), "{k:?} differs from {:?}", kernels[0]);
+        }
+        first.covered_pixels
+    }
+
+    /// The early depth rejection and the SIMD kernels change no bit.
     #[test]
-    fn early_depth_rejection_changes_nothing() {
+    fn tile_kernels_give_the_same_bits() {
         for scene in [cluttered_scene(), Scene::default_scene()] {
             let g = WorldGeometry::build(&scene);
             for (w, h) in [(160, 90), (67, 131)] {
                 let cam = CameraRecord::new(&scene.camera.unwrap(), w, h);
-                let run = |early_reject| {
-                    let mut gbuffer = Vec::new();
-                    let covered_pixels = raster_frame(&g, &cam, early_reject, &mut gbuffer);
-                    VisibilityOutput { gbuffer, width: w, height: h, covered_pixels }
-                };
-                let (fast, slow) = (run(true), run(false));
-                assert!(fast.covered_pixels > 0);
-                assert_eq!(fast.covered_pixels, slow.covered_pixels);
-                assert_eq!(bits(&fast), bits(&slow));
+                assert!(assert_kernels_agree(&g, &cam) > 0);
             }
+        }
+    }
+
+    /// A soup of random triangles: any size, orientation and depth, some crossing the
+    /// near plane or behind the eye.
+    fn triangle_soup(seed: u64, count: usize, scale: f32) -> Scene {
+        let mut state = seed | 1;
+        let mut next = move || {
+            // xorshift64*: deterministic, no dependency.
+            state ^= state >> 12;
+            state ^= state << 25;
+            state ^= state >> 27;
+            (state.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut s = Scene::default();
+        let mut mesh = Mesh { name: "soup".into(), ..Default::default() };
+        for _ in 0..count {
+            let centre = Vec3::new(next() * 6.0 - 3.0, next() * 4.0 - 2.0, next() * 8.0 - 6.0);
+            let base = mesh.positions.len() as u32;
+            for _ in 0..3 {
+                let offset = Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5) * scale;
+                mesh.positions.push(centre + offset);
+            }
+            mesh.indices.push([base, base + 1, base + 2]);
+        }
+        // The soup twice (exact depth ties everywhere: the earlier triangle keeps the
+        // pixel), and a closed mesh.
+        s.add_object(mesh.clone(), Material::grey(), Mat4::IDENTITY, RenderMode::Raster);
+        s.add_object(mesh, Material::grey(), Mat4::IDENTITY, RenderMode::RayTraced);
+        s.add_object(Mesh::cube("c"), Material::grey(), Mat4::IDENTITY, RenderMode::RayTraced);
+        s.camera = Some(camera_towards_z(Vec3::new(0.0, 0.0, 2.0), 60.0, 0.1, 20.0));
+        s
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(24))]
+        #[test]
+        fn tile_kernels_agree_on_triangle_soups(
+            seed in any::<u64>(),
+            count in 1usize..300,
+            scale in prop::sample::select(vec![0.01f32, 0.2, 1.0, 8.0]),
+            w in 1u32..200,
+            h in 1u32..140,
+        ) {
+            let scene = triangle_soup(seed, count, scale);
+            let g = WorldGeometry::build(&scene);
+            let cam = CameraRecord::new(&scene.camera.unwrap(), w, h);
+            assert_kernels_agree(&g, &cam);
         }
     }
 
