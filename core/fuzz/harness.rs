@@ -290,8 +290,7 @@ pub fn built_seeds() -> Vec<Seed> {
         serde_json::to_vec(&small_json(json!({"byteLength": bin.len(), "uri": "data%20file.bin"}))).expect("JSON"),
     );
     external.files.insert(Path::new(ROOT).join("data file.bin"), bin.clone());
-    let manifest_text = concat!(
-        "description = \"fuzz\"\nenvironment = \"sky.hdr\"\n\n[camera]\neye = [0.0, 1.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\n\
+    let manifest_text = "description = \"fuzz\"\nenvironment = \"sky.hdr\"\n\n[camera]\neye = [0.0, 1.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\n\
          fov_deg = 50.0\nnear = 0.1\nfar = 50.0\n\n[[light]]\ntype = \"point\"\nposition = [1.0, 4.0, 1.0]\nintensity = 10.0\n\n\
          [[light]]\ntype = \"directional\"\ndirection = [0.0, -1.0, 0.0]\ncolor = [1.0, 0.9, 0.8]\nintensity = 0.5\n\n\
          [[model]]\nfile = \"small.glb\"\nname = \"small\"\ntranslate = [0.0, 1.0, 0.0]\nrotate_deg = [0.0, 30.0, 0.0]\n\
@@ -299,7 +298,6 @@ pub fn built_seeds() -> Vec<Seed> {
          [[model]]\nfile = \"embedded.gltf\"\nrotate_axis_angle = { axis = [0.0, 1.0, 0.0], angle_deg = 45.0 }\nscale = [1.0, 2.0, 3.0]\n\
          material = { transmission = 1.0, ior = 1.5 }\n\n[[model]]\nbuiltin = \"grid\"\nscale = [20.0, 1.0, 20.0]\n\n\
          [[model]]\nbuiltin = \"sphere\"\n"
-    )
     .to_string();
     let mut manifest = one(Kind::Manifest, "scene.toml", manifest_text.into_bytes());
     for (name, bytes) in [("small.glb", &small_glb), ("embedded.gltf", &embedded)] {
