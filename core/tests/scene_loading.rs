@@ -22,22 +22,9 @@ fn temp_dir(test: &str) -> PathBuf {
     dir
 }
 
-fn base64(bytes: &[u8]) -> String {
-    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut out = String::new();
-    for chunk in bytes.chunks(3) {
-        let b = [chunk[0], *chunk.get(1).unwrap_or(&0), *chunk.get(2).unwrap_or(&0)];
-        let n = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
-        for k in 0..4 {
-            if k <= chunk.len() {
-                out.push(ALPHABET[(n >> (18 - 6 * k) & 63) as usize] as char);
-            } else {
-                out.push('=');
-            }
-        }
-    }
-    out
-}
+#[path = "../fuzz/harness.rs"]
+mod harness;
+use harness::base64;
 
 /// Write `doc` as a `.gltf` with `bin` embedded as a data URI in buffer 0.
 fn write_gltf(path: &Path, mut doc: Value, bin: &[u8]) {

@@ -31,6 +31,7 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use super::files::{Disk, SceneFiles};
 use crate::SceneError;
 
 /// What rays that leave the scene see. The default is [`Environment::Sky`].
@@ -50,7 +51,12 @@ impl Environment {
     /// read, [`SceneError::Environment`] when it is not such an image or holds texels
     /// that cannot be rendered (see [`EnvironmentMap::new`]).
     pub fn load(path: &Path) -> Result<Environment, SceneError> {
-        load_map(path).map(|m| Environment::Map(Arc::new(m)))
+        Environment::load_from(path, &Disk)
+    }
+
+    /// [`Environment::load`] reading the file from `files`.
+    pub fn load_from(path: &Path, files: &dyn SceneFiles) -> Result<Environment, SceneError> {
+        load_map(path, files).map(|m| Environment::Map(Arc::new(m)))
     }
 
     /// The map, if there is one.
@@ -169,7 +175,7 @@ impl EnvironmentMap {
 }
 
 /// Read and validate a map file (see [`Environment::load`]).
-fn load_map(path: &Path) -> Result<EnvironmentMap, SceneError> {
+fn load_map(path: &Path, files: &dyn SceneFiles) -> Result<EnvironmentMap, SceneError> {
     let fail = |problem| SceneError::Environment { path: path.to_path_buf(), problem };
     let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
     let (format, name) = match ext.as_deref() {
@@ -177,15 +183,17 @@ fn load_map(path: &Path) -> Result<EnvironmentMap, SceneError> {
         Some("exr") => (image::ImageFormat::OpenExr, "OpenEXR"),
         _ => return Err(fail(EnvironmentMapError::UnknownFormat)),
     };
-    let bytes = std::fs::read(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
+    let bytes = files.read(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
     // The decoders check the header against the image crate's default limits (512 MiB
     // per allocation), so a huge or lying header is an error, not an abort.
     let decoded = image::ImageReader::with_format(std::io::Cursor::new(bytes), format)
         .decode()
         .map_err(|e| fail(EnvironmentMapError::Decode { format: name, message: e.to_string() }))?;
-    let rgba = decoded.into_rgba32f();
-    let (width, height) = rgba.dimensions();
-    let texels = rgba.pixels().map(|p| [p.0[0], p.0[1], p.0[2], 1.0]).collect();
+    // RGB (what both decoders give) is taken as is; RGBA texels are built from it once.
+    let rgb = decoded.into_rgb32f();
+    let (width, height) = rgb.dimensions();
+    let texels = rgb.pixels().map(|p| [p.0[0], p.0[1], p.0[2], 1.0]).collect();
+    drop(rgb);
     let mut map = EnvironmentMap::new(width, height, texels).map_err(fail)?;
     map.source = Some(path.to_path_buf());
     Ok(map)

@@ -48,14 +48,14 @@
 //! ([`SceneError::Content`]). NaN or infinite positions are loaded and counted in a note:
 //! triangles using them are never hit nor covered.
 
-use std::collections::HashMap;
-use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::path::Path;
+use std::collections::{HashMap, HashSet};
+use std::path::{Path, PathBuf};
 
 use glam::{Mat4, Vec3};
 use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::{Mode, Semantic};
 
+use super::files::{Budget, Disk, SceneFiles};
 use super::{Camera, Light, Material, MaterialKind, Mesh, Object, ObjectSource, RenderMode, Scene};
 use crate::SceneError;
 
@@ -66,9 +66,30 @@ const DEFAULT_IOR: f32 = 1.5;
 /// [`Material::default_render_mode`]).
 const METALLIC_SPECULAR_THRESHOLD: f32 = 0.5;
 
+/// The magic number that opens a binary glTF (GLB) file.
+const GLB_MAGIC: &[u8; 4] = b"glTF";
+/// GLB header: magic, version, total length (the glTF 2.0 specification, section 4.4.2).
+const GLB_HEADER_BYTES: usize = 12;
+/// GLB chunk header: length, type (the specification, section 4.4.3).
+const GLB_CHUNK_HEADER_BYTES: usize = 8;
+/// The extension name of Draco mesh compression, which hyrt does not decode.
+const DRACO_EXTENSION: &str = "KHR_draco_mesh_compression";
+
 /// Load a `.gltf` or `.glb` file; see the module docs for what is read.
 pub fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
-    load_gltf_detailed(path).map(|loaded| loaded.scene)
+    load_gltf_from(path, &Disk)
+}
+
+/// [`load_gltf`] reading the file, and a `.gltf` file's external buffers, from `files`.
+pub fn load_gltf_from(path: &Path, files: &dyn SceneFiles) -> Result<Scene, SceneError> {
+    let bytes = files.read(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
+    load_gltf_detailed(path, &bytes, files).map(|loaded| loaded.scene)
+}
+
+/// [`load_gltf`] of a file's content already in memory. `path` names the file in errors and
+/// notes, and external buffers of a `.gltf` file are read from the disk relative to it.
+pub fn load_gltf_slice(bytes: &[u8], path: &Path) -> Result<Scene, SceneError> {
+    load_gltf_detailed(path, bytes, &Disk).map(|loaded| loaded.scene)
 }
 
 /// A loaded glTF file plus what the manifest loader needs to apply its overrides.
@@ -77,44 +98,172 @@ pub(crate) struct LoadedGltf {
     /// Per object: whether its render mode came from a `hyrt` extra (true) or from
     /// [`Material::default_render_mode`] (false).
     pub mode_from_extras: Vec<bool>,
+    /// The bytes of the file and of its buffers (what a manifest's budget grows by).
+    pub input_bytes: usize,
 }
 
-/// [`load_gltf`], also telling which render modes came from `extras`.
-pub(crate) fn load_gltf_detailed(path: &Path) -> Result<LoadedGltf, SceneError> {
-    let bytes = std::fs::read(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
+/// [`load_gltf_slice`], also telling which render modes came from `extras`.
+pub(crate) fn load_gltf_detailed(path: &Path, bytes: &[u8], files: &dyn SceneFiles) -> Result<LoadedGltf, SceneError> {
     let gltf_err = |message: String| SceneError::Gltf { path: path.to_path_buf(), message };
-    let gltf::Gltf { document, mut blob } =
-        gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| gltf_err(e.to_string()))?;
-    drop(bytes);
-    let tolerated_note = validate(&document).map_err(gltf_err)?;
-    // The gltf crate asserts on a few malformed layouts (bad URI escapes, index types); turn
-    // such a panic into an error naming the file rather than taking the caller down.
-    let converted = catch_unwind(AssertUnwindSafe(|| -> Result<LoadedGltf, SceneError> {
-        let base = path.parent().unwrap_or(Path::new(""));
-        let mut buffers = Vec::new();
-        for buffer in document.buffers() {
-            let what = match buffer.source() {
-                gltf::buffer::Source::Bin => "the GLB binary chunk".to_string(),
-                gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => "an embedded data URI".to_string(),
-                gltf::buffer::Source::Uri(uri) => format!("'{}'", base.join(uri).display()),
-            };
-            let data = gltf::buffer::Data::from_source_and_blob(buffer.source(), Some(base), &mut blob)
-                .map_err(|e| gltf_err(format!("buffer {} ({what}): cannot load: {e}", buffer.index())))?;
-            if data.len() < buffer.length() {
-                return Err(gltf_err(format!(
-                    "buffer {} ({what}) holds {} bytes, the file declares {}",
-                    buffer.index(),
-                    data.len(),
-                    buffer.length()
-                )));
+    let (json, mut bin) =
+        if bytes.starts_with(GLB_MAGIC) { split_glb(bytes).map_err(gltf_err)? } else { (bytes, None) };
+    let root =
+        gltf::json::Root::from_slice(json).map_err(|e| gltf_err(not_gltf2(json).unwrap_or_else(|| e.to_string())))?;
+    check_version_and_extensions(&root).map_err(gltf_err)?;
+    let draco_used = root.extensions_used.iter().any(|e| e == DRACO_EXTENSION);
+    let document = gltf::Document::from_json_without_validation(root);
+    // Draco-compressed primitives keep their data in the extension, so their accessors lack
+    // the buffer views validation asks for: say why rather than what is missing.
+    let tolerated_note = validate(&document).map_err(|e| {
+        gltf_err(if draco_used { format!("{}; the validator reports: {e}", draco_message()) } else { e })
+    })?;
+    let base = path.parent().unwrap_or(Path::new(""));
+    let mut buffers = Vec::new();
+    for buffer in document.buffers() {
+        let (what, data) = match buffer.source() {
+            gltf::buffer::Source::Bin => {
+                ("the GLB binary chunk".to_string(), bin.take().map(<[u8]>::to_vec).ok_or("the file has none".into()))
             }
-            buffers.push(data);
+            source @ gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => (
+                "an embedded data URI".to_string(),
+                // A data URI never reaches the file system (the gltf crate decodes it).
+                gltf::buffer::Data::from_source(source, None).map(|d| d.0).map_err(|e| e.to_string()),
+            ),
+            gltf::buffer::Source::Uri(uri) => match relative_uri_path(uri) {
+                Ok(relative) => {
+                    let file = base.join(relative);
+                    (format!("'{}'", file.display()), files.read(&file).map_err(|e| e.to_string()))
+                }
+                Err(e) => (format!("URI '{uri}'"), Err(e)),
+            },
+        };
+        let data = data.map_err(|e| gltf_err(format!("buffer {} ({what}): cannot load: {e}", buffer.index())))?;
+        if data.len() < buffer.length() {
+            return Err(gltf_err(format!(
+                "buffer {} ({what}) holds {} bytes, the file declares {}",
+                buffer.index(),
+                data.len(),
+                buffer.length()
+            )));
         }
-        let mut converter = Converter::new(path, &buffers);
-        converter.scene.notes.extend(tolerated_note.map(|n| format!("{}: {n}", path.display())));
-        converter.run(&document)
-    }));
-    converted.unwrap_or_else(|_| Err(gltf_err("malformed data made the glTF reader fail".into())))
+        buffers.push(data);
+    }
+    let input_bytes = buffers.iter().map(Vec::len).fold(bytes.len(), usize::saturating_add);
+    let mut converter = Converter::new(path, &buffers, Budget::for_input(input_bytes));
+    converter.scene.notes.extend(tolerated_note.map(|n| format!("{}: {n}", path.display())));
+    converter.run(&document).map(|(scene, mode_from_extras)| LoadedGltf { scene, mode_from_extras, input_bytes })
+}
+
+/// The JSON chunk and the binary chunk (if any) of a GLB file, every length checked
+/// against the bytes there are.
+fn split_glb(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>), String> {
+    let u32_at = |at: usize| bytes.get(at..at + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
+    let (Some(version), Some(length)) = (u32_at(4), u32_at(8)) else {
+        return Err(format!("GLB header truncated: {} bytes, a header has {GLB_HEADER_BYTES}", bytes.len()));
+    };
+    match version {
+        2 => {}
+        1 => {
+            return Err("this is a glTF 1.0 binary file (KHR_binary_glTF): hyrt reads glTF 2.0 only; convert it                         to glTF 2.0 first (for example with the Khronos glTF-Pipeline or Blender)"
+                .into())
+        }
+        v => return Err(format!("GLB version {v}: hyrt reads GLB version 2 (glTF 2.0) only")),
+    }
+    let body = match bytes.get(GLB_HEADER_BYTES..length) {
+        Some(body) => body,
+        None => return Err(format!("GLB header declares {length} bytes, the file holds {}", bytes.len())),
+    };
+    let (json, rest) = glb_chunk(body, b"JSON")?;
+    let bin = if rest.is_empty() { None } else { Some(glb_chunk(rest, b"BIN\0")?.0) };
+    Ok((json, bin))
+}
+
+/// The first chunk of `bytes`, which must be of type `ty`, and what follows it.
+fn glb_chunk<'b>(bytes: &'b [u8], ty: &[u8; 4]) -> Result<(&'b [u8], &'b [u8]), String> {
+    let name = String::from_utf8_lossy(ty).trim_end_matches('\0').to_string();
+    let Some(header) = bytes.get(..GLB_CHUNK_HEADER_BYTES) else {
+        return Err(format!("GLB {name} chunk header truncated ({} bytes left)", bytes.len()));
+    };
+    if &header[4..] != ty {
+        return Err(format!(
+            "GLB chunk of type {:?} where the {name} chunk belongs",
+            String::from_utf8_lossy(&header[4..])
+        ));
+    }
+    let length = u32::from_le_bytes([header[0], header[1], header[2], header[3]]) as usize;
+    let rest = &bytes[GLB_CHUNK_HEADER_BYTES..];
+    match rest.get(..length) {
+        Some(chunk) => Ok((chunk, &rest[length..])),
+        None => Err(format!("GLB {name} chunk declares {length} bytes, {} are left", rest.len())),
+    }
+}
+
+/// Why JSON that does not deserialize as glTF 2.0 is another thing hyrt does not read
+/// (glTF 1.0, whose top-level `meshes`, `nodes`, ... are objects keyed by id rather than
+/// arrays); `None` when it is not recognisably that.
+fn not_gltf2(json: &[u8]) -> Option<String> {
+    let value: serde_json::Value = serde_json::from_slice(json).ok()?;
+    let version = value.get("asset").and_then(|a| a.get("version")).and_then(|v| v.as_str());
+    const KEYED_IN_1_0: [&str; 7] = ["meshes", "nodes", "accessors", "bufferViews", "buffers", "materials", "scenes"];
+    let keyed = KEYED_IN_1_0.iter().any(|k| value.get(k).is_some_and(|v| v.is_object()));
+    (version.is_some_and(|v| v.starts_with("1.")) || keyed).then(|| gltf_1_message(version.unwrap_or("1.0")))
+}
+
+fn gltf_1_message(version: &str) -> String {
+    format!(
+        "this is a glTF {version} file: hyrt reads glTF 2.0 only; convert it to glTF 2.0 first (for example          with the Khronos glTF-Pipeline or Blender)"
+    )
+}
+
+/// Refuse plainly what deserializes but hyrt does not read: a major version other than 2,
+/// Draco-compressed meshes required to render.
+fn check_version_and_extensions(root: &gltf::json::Root) -> Result<(), String> {
+    let version = root.asset.version.as_str();
+    if version.starts_with("1.") {
+        return Err(gltf_1_message(version));
+    }
+    if !version.starts_with("2.") {
+        return Err(format!("asset.version is '{version}': hyrt reads glTF 2.0 only"));
+    }
+    if root.extensions_required.iter().any(|e| e == DRACO_EXTENSION) {
+        return Err(draco_message());
+    }
+    Ok(())
+}
+
+fn draco_message() -> String {
+    format!(
+        "the meshes are Draco-compressed ({DRACO_EXTENSION}), which hyrt does not decode; export the \
+         file without Draco compression (or decompress it, e.g. with gltf-transform)"
+    )
+}
+
+/// The relative file path of a buffer URI (percent-decoded, as the glTF specification
+/// says URIs are); `file:` URIs name an absolute path; other schemes are refused.
+fn relative_uri_path(uri: &str) -> Result<PathBuf, String> {
+    if let Some(rest) = uri.strip_prefix("file://").or_else(|| uri.strip_prefix("file:")) {
+        return Ok(PathBuf::from(rest));
+    }
+    if uri.contains(':') {
+        return Err("unsupported URI scheme (hyrt reads relative paths, file: and data: URIs)".into());
+    }
+    let bytes = uri.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut k = 0;
+    while k < bytes.len() {
+        let hex = |b: u8| (b as char).to_digit(16);
+        match (bytes[k], bytes.get(k + 1).copied().and_then(hex), bytes.get(k + 2).copied().and_then(hex)) {
+            (b'%', Some(hi), Some(lo)) => {
+                out.push((hi * 16 + lo) as u8);
+                k += 3;
+            }
+            (b, _, _) => {
+                out.push(b);
+                k += 1;
+            }
+        }
+    }
+    String::from_utf8(out).map(PathBuf::from).map_err(|_| "the percent-decoded URI is not UTF-8".into())
 }
 
 /// Run the gltf crate's validation, tolerating two of its findings that the loader handles
@@ -122,8 +271,25 @@ pub(crate) fn load_gltf_detailed(path: &Path) -> Result<LoadedGltf, SceneError> 
 /// needed here; a note is returned) and a primitive without `POSITION` (reported by the loader
 /// as [`SceneError::Content`]). Any other finding is an error message listing them all.
 fn validate(document: &gltf::Document) -> Result<Option<String>, String> {
-    use gltf::json::validation::{Error, Validate};
+    use gltf::json::validation::{Checked, Error, Validate};
     let root = document.as_json();
+    // gltf-json 1.4.1's primitive check indexes `accessors` by the POSITION index before
+    // anything checks that index (mesh.rs, `primitive_validate_hook`): check it first.
+    let position = Checked::Valid(gltf::json::mesh::Semantic::Positions);
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            match primitive.attributes.get(&position) {
+                Some(index) if index.value() >= root.accessors.len() => {
+                    return Err(format!(
+                    "meshes[{m}].primitives[{p}].attributes[\"POSITION\"]: accessor {} does not exist ({} accessors)",
+                    index.value(),
+                    root.accessors.len()
+                ))
+                }
+                _ => {}
+            }
+        }
+    }
     let mut fatal = Vec::new();
     let mut missing_bounds = 0usize;
     root.validate(root, gltf::json::Path::new, &mut |path, error| {
@@ -146,8 +312,12 @@ fn validate(document: &gltf::Document) -> Result<Option<String>, String> {
 /// The state of one conversion.
 struct Converter<'a> {
     path: &'a Path,
-    buffers: &'a [gltf::buffer::Data],
+    buffers: &'a [Vec<u8>],
     scene: Scene,
+    /// What may still be allocated for decoded data and objects.
+    budget: Budget,
+    /// Notes already recorded (a note said once per file, however many primitives repeat it).
+    noted: HashSet<String>,
     mode_from_extras: Vec<bool>,
     /// (glTF mesh, primitive) -> index in `scene.meshes`.
     meshes: HashMap<(usize, usize), usize>,
@@ -158,11 +328,13 @@ struct Converter<'a> {
 }
 
 impl<'a> Converter<'a> {
-    fn new(path: &'a Path, buffers: &'a [gltf::buffer::Data]) -> Self {
+    fn new(path: &'a Path, buffers: &'a [Vec<u8>], budget: Budget) -> Self {
         Converter {
             path,
             buffers,
             scene: Scene::default(),
+            budget,
+            noted: HashSet::new(),
             mode_from_extras: Vec::new(),
             meshes: HashMap::new(),
             materials: HashMap::new(),
@@ -174,7 +346,7 @@ impl<'a> Converter<'a> {
         SceneError::Content { path: self.path.to_path_buf(), message }
     }
 
-    fn run(mut self, document: &gltf::Document) -> Result<LoadedGltf, SceneError> {
+    fn run(mut self, document: &gltf::Document) -> Result<(Scene, Vec<bool>), SceneError> {
         let roots: Vec<gltf::Node> = match document.default_scene().or_else(|| document.scenes().next()) {
             Some(scene) => scene.nodes().collect(),
             None => {
@@ -209,7 +381,7 @@ impl<'a> Converter<'a> {
         if self.camera_needs_far {
             self.derive_camera_far();
         }
-        Ok(LoadedGltf { scene: self.scene, mode_from_extras: self.mode_from_extras })
+        Ok((self.scene, self.mode_from_extras))
     }
 
     fn visit(&mut self, node: &gltf::Node, world: Mat4) -> Result<(), SceneError> {
@@ -242,7 +414,7 @@ impl<'a> Converter<'a> {
                     self.path.display(),
                     primitive.mode()
                 );
-                if !self.scene.notes.contains(&note) {
+                if self.noted.insert(note.clone()) {
                     self.scene.notes.push(note);
                 }
                 continue;
@@ -270,7 +442,10 @@ impl<'a> Converter<'a> {
                 Some(false) => RenderMode::Raster,
                 None => self.scene.materials[material].default_render_mode(),
             };
-            let id = self.scene.objects.len() as u32;
+            let id = u32::try_from(self.scene.objects.len())
+                .map_err(|_| self.content("more than 2^32 objects (object ids are 32-bit)".into()))?;
+            let object_bytes = std::mem::size_of::<Object>() + base_name.len();
+            self.budget.take(1, object_bytes, "objects").map_err(|e| self.content(format!("{node_label}: {e}")))?;
             self.scene.objects.push(Object {
                 id,
                 name: format!("{base_name}#{}", primitive.index()),
@@ -303,7 +478,7 @@ impl<'a> Converter<'a> {
                 pos_acc.dimensions()
             )));
         }
-        let positions: Vec<Vec3> = read_accessor(&pos_acc, self.buffers, 12, read_vec3)
+        let positions: Vec<Vec3> = read_accessor(&pos_acc, self.buffers, &mut self.budget, 12, read_vec3)
             .map_err(|e| self.gltf_error(format!("{label}: POSITION accessor {}: {e}", pos_acc.index())))?;
         let non_finite = positions.iter().filter(|p| !p.is_finite()).count();
         if non_finite > 0 {
@@ -330,7 +505,7 @@ impl<'a> Converter<'a> {
                 None
             }
             Some(acc) => Some(
-                read_accessor(&acc, self.buffers, 12, read_vec3)
+                read_accessor(&acc, self.buffers, &mut self.budget, 12, read_vec3)
                     .map_err(|e| self.gltf_error(format!("{label}: NORMAL accessor {}: {e}", acc.index())))?,
             ),
         };
@@ -338,17 +513,23 @@ impl<'a> Converter<'a> {
             None => {
                 let n = u32::try_from(positions.len())
                     .map_err(|_| self.content(format!("{label}: more than 2^32 vertices")))?;
+                self.budget
+                    .take(positions.len(), 4, "implicit indices")
+                    .map_err(|e| self.gltf_error(format!("{label}: {e}")))?;
                 (0..n).collect()
             }
             Some(acc) => {
                 if acc.dimensions() != Dimensions::Scalar {
                     return Err(self.content(format!("{label}: indices must be SCALAR, found {:?}", acc.dimensions())));
                 }
+                let (buffers, budget) = (self.buffers, &mut self.budget);
                 let read = match acc.data_type() {
-                    DataType::U8 => read_accessor(&acc, self.buffers, 1, |b| b[0] as u32),
-                    DataType::U16 => read_accessor(&acc, self.buffers, 2, |b| u16::from_le_bytes([b[0], b[1]]) as u32),
+                    DataType::U8 => read_accessor(&acc, buffers, budget, 1, |b| b[0] as u32),
+                    DataType::U16 => {
+                        read_accessor(&acc, buffers, budget, 2, |b| u16::from_le_bytes([b[0], b[1]]) as u32)
+                    }
                     DataType::U32 => {
-                        read_accessor(&acc, self.buffers, 4, |b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                        read_accessor(&acc, buffers, budget, 4, |b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
                     }
                     other => {
                         return Err(self.content(format!(
@@ -558,21 +739,18 @@ fn read_vec3(b: &[u8]) -> Vec3 {
 /// all zeros. Errors say what is out of range.
 fn read_accessor<T: Copy>(
     acc: &gltf::Accessor,
-    buffers: &[gltf::buffer::Data],
+    buffers: &[Vec<u8>],
+    budget: &mut Budget,
     elem: usize,
     decode: impl Fn(&[u8]) -> T,
 ) -> Result<Vec<T>, String> {
     let count = acc.count();
     let zero = decode(&[0u8; 16][..elem]);
+    // Charged before anything is allocated: an accessor without a buffer view (all zeros)
+    // can declare any count, and accessors shared by many primitives are read once each.
+    budget.take(count, std::mem::size_of::<T>(), "elements")?;
     let mut out = match acc.view() {
-        None => {
-            // Bounded by the file size: more zeros than bytes in the whole file is an error.
-            let budget: usize = buffers.iter().map(|b| b.len()).sum::<usize>().max(1 << 20);
-            if count > budget {
-                return Err(format!("{count} elements without a buffer view is implausible"));
-            }
-            vec![zero; count]
-        }
+        None => vec![zero; count],
         Some(view) => {
             let stride = view.stride().unwrap_or(elem);
             let bytes = view_bytes(&view, buffers)?;
@@ -584,6 +762,7 @@ fn read_accessor<T: Copy>(
     };
     if let Some(sparse) = acc.sparse() {
         let n = sparse.count();
+        budget.take(n, std::mem::size_of::<usize>() + std::mem::size_of::<T>(), "sparse elements")?;
         let indices = sparse.indices();
         let index_bytes = view_bytes(&indices.view(), buffers)?;
         let index_size = match indices.index_type() {
@@ -606,7 +785,7 @@ fn read_accessor<T: Copy>(
 }
 
 /// The bytes of a buffer view, range-checked against its buffer.
-fn view_bytes<'b>(view: &gltf::buffer::View, buffers: &'b [gltf::buffer::Data]) -> Result<&'b [u8], String> {
+fn view_bytes<'b>(view: &gltf::buffer::View, buffers: &'b [Vec<u8>]) -> Result<&'b [u8], String> {
     let buffer = buffers
         .get(view.buffer().index())
         .ok_or_else(|| format!("buffer view {} names a missing buffer", view.index()))?;

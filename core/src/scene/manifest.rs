@@ -92,6 +92,7 @@ use std::path::{Path, PathBuf};
 use glam::{Mat4, Quat, Vec3};
 use serde::Deserialize;
 
+use super::files::{Budget, Disk, SceneFiles};
 use super::gltf_loader::{load_gltf_detailed, material_kind, LoadedGltf};
 use super::{Camera, Environment, Light, Material, MaterialKind, Mesh, Object, ObjectSource, RenderMode, Scene};
 use crate::SceneError;
@@ -179,7 +180,7 @@ pub struct LightEntry {
 }
 
 /// A built-in procedural shape.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Builtin {
     /// Unit square in XZ centred at the origin, facing +Y, 16 x 16 quads.
@@ -294,10 +295,17 @@ fn default_color() -> [f32; 3] {
 
 /// Load a TOML scene manifest; see the module docs for the schema.
 pub fn load_manifest(path: &Path) -> Result<Scene, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
-    let manifest: Manifest =
-        toml::from_str(&text).map_err(|e| SceneError::Manifest { path: path.to_path_buf(), message: e.to_string() })?;
-    build(&manifest, path)
+    load_manifest_from(path, &Disk)
+}
+
+/// [`load_manifest`] reading the manifest, its model files and its environment map from
+/// `files`.
+pub fn load_manifest_from(path: &Path, files: &dyn SceneFiles) -> Result<Scene, SceneError> {
+    let bytes = files.read(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
+    let invalid = |message: String| SceneError::Manifest { path: path.to_path_buf(), message };
+    let text = std::str::from_utf8(&bytes).map_err(|e| invalid(format!("not UTF-8 text: {e}")))?;
+    let manifest: Manifest = toml::from_str(text).map_err(|e| invalid(e.to_string()))?;
+    build(&manifest, path, files, Budget::for_input(bytes.len()))
 }
 
 /// A finite vector, or an error message naming `what`.
@@ -458,7 +466,7 @@ fn farthest_corner(eye: Vec3, lo: Vec3, hi: Vec3) -> f32 {
 
 /// Build the scene a parsed manifest describes; `path` is the manifest (for relative paths
 /// and error messages).
-fn build(manifest: &Manifest, path: &Path) -> Result<Scene, SceneError> {
+fn build(manifest: &Manifest, path: &Path, files: &dyn SceneFiles, mut budget: Budget) -> Result<Scene, SceneError> {
     let invalid = |message: String| SceneError::Manifest { path: path.to_path_buf(), message };
     if manifest.models.is_empty() {
         return Err(invalid("no [[model]] entries: a scene needs at least one".into()));
@@ -466,11 +474,14 @@ fn build(manifest: &Manifest, path: &Path) -> Result<Scene, SceneError> {
     let dir = path.parent().unwrap_or(Path::new(""));
     let mut scene = Scene::default();
     // Resolved file -> (index of its first mesh in `scene.meshes`, the loaded file).
-    let mut files: HashMap<PathBuf, (usize, LoadedGltf)> = HashMap::new();
+    let mut loaded_files: HashMap<PathBuf, (usize, LoadedGltf)> = HashMap::new();
+    // Built-in shape -> the index of its mesh in `scene.meshes` (one mesh per shape, shared
+    // by every model that uses it, as a file's meshes are).
+    let mut builtin_meshes: HashMap<Builtin, usize> = HashMap::new();
     let mut model_lights: Vec<Light> = Vec::new();
     let mut model_camera: Option<Camera> = None;
     if let Some(file) = &manifest.environment {
-        scene.environment = Environment::load(&dir.join(file)).map_err(|e| SceneError::ManifestEntry {
+        scene.environment = Environment::load_from(&dir.join(file), files).map_err(|e| SceneError::ManifestEntry {
             path: path.to_path_buf(),
             entry: "environment".into(),
             error: Box::new(e),
@@ -495,8 +506,15 @@ fn build(manifest: &Manifest, path: &Path) -> Result<Scene, SceneError> {
             (Some(_), Some(_)) => return Err(at("give `file` or `builtin`, not both".into())),
             (None, None) => return Err(at("needs `file` or `builtin`".into())),
             (None, Some(b)) => {
+                let mesh_index = match builtin_meshes.get(&b) {
+                    Some(&m) => m,
+                    None => {
+                        scene.meshes.push(b.mesh());
+                        builtin_meshes.insert(b, scene.meshes.len() - 1);
+                        scene.meshes.len() - 1
+                    }
+                };
                 let mut s = Scene::default();
-                s.meshes.push(b.mesh());
                 s.materials.push(Material::grey());
                 s.objects.push(Object {
                     id: 0,
@@ -507,27 +525,39 @@ fn build(manifest: &Manifest, path: &Path) -> Result<Scene, SceneError> {
                     render_mode: RenderMode::Raster,
                     source: ObjectSource::default(),
                 });
-                scene.meshes.push(s.meshes[0].clone());
                 builtin_scene = s;
-                (scene.meshes.len() - 1, &builtin_scene, &[false][..])
+                (mesh_index, &builtin_scene, &[false][..])
             }
             (Some(file), None) => {
                 let resolved = dir.join(file);
-                if !files.contains_key(&resolved) {
-                    let loaded = load_gltf_detailed(&resolved).map_err(|e| SceneError::ManifestEntry {
+                if !loaded_files.contains_key(&resolved) {
+                    let entry_error = |e| SceneError::ManifestEntry {
                         path: path.to_path_buf(),
                         entry: label.clone(),
                         error: Box::new(e),
-                    })?;
+                    };
+                    let bytes = files
+                        .read(&resolved)
+                        .map_err(|source| entry_error(SceneError::Io { path: resolved.clone(), source }))?;
+                    let loaded = load_gltf_detailed(&resolved, &bytes, files).map_err(entry_error)?;
+                    budget.add_input(loaded.input_bytes);
                     let offset = scene.meshes.len();
                     scene.meshes.extend(loaded.scene.meshes.iter().cloned());
                     scene.notes.extend(loaded.scene.notes.iter().map(|n| format!("{label}: {n}")));
-                    files.insert(resolved.clone(), (offset, loaded));
+                    loaded_files.insert(resolved.clone(), (offset, loaded));
                 }
-                let (offset, loaded) = &files[&resolved];
+                let (offset, loaded) = &loaded_files[&resolved];
                 (*offset, &loaded.scene, &loaded.mode_from_extras[..])
             }
         };
+        // A file's objects are placed again by every model naming it: charged before they are.
+        let placed_bytes = source.materials.len() * std::mem::size_of::<Material>()
+            + source
+                .objects
+                .iter()
+                .map(|o| std::mem::size_of::<Object>() + name.len() + 1 + o.name.len())
+                .sum::<usize>();
+        budget.take(1, placed_bytes, "objects and materials placed").map_err(at)?;
         let material_offset = scene.materials.len();
         scene.materials.extend(source.materials.iter().map(|m| match &entry.material {
             Some(o) => o.apply(m),

@@ -10,10 +10,12 @@
 
 pub mod default_scene;
 pub mod environment;
+pub mod files;
 pub mod gltf_loader;
 pub mod manifest;
 
 pub use environment::{Environment, EnvironmentMap, EnvironmentMapError};
+pub use files::{Disk, SceneFiles};
 
 use std::path::{Path, PathBuf};
 
@@ -272,10 +274,16 @@ pub struct Scene {
 impl Scene {
     /// Load a scene from a `.glb`, `.gltf` or `.toml` file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        Scene::load_from(path, &Disk)
+    }
+
+    /// [`Scene::load`] reading the file, and every file it refers to, from `files` (files
+    /// in memory, say); errors name the files as [`Scene::load`]'s do.
+    pub fn load_from(path: &Path, files: &dyn SceneFiles) -> Result<Scene, SceneError> {
         let ext = path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase());
         match ext.as_deref() {
-            Some("glb") | Some("gltf") => gltf_loader::load_gltf(path),
-            Some("toml") => manifest::load_manifest(path),
+            Some("glb") | Some("gltf") => gltf_loader::load_gltf_from(path, files),
+            Some("toml") => manifest::load_manifest_from(path, files),
             _ => Err(SceneError::UnknownFormat { path: path.to_path_buf() }),
         }
     }
