@@ -95,7 +95,6 @@ impl CpuBackend {
     }
 }
 
-/// Rays per `RAY_KIND_*` in two lists.
 /// `compaction` of one list of surfaces: its shadow-ray list into `rays` when the frame
 /// returns it, else only the active pairs (in `scratch`, which `trace_list` reads).
 fn compact_list(
@@ -136,7 +135,7 @@ fn trace_list(
     occluded.len()
 }
 
-/// Rays per kind of a list.
+/// Rays per `RAY_KIND_*` in a list.
 fn rays_per_kind(a: &[RayRecord]) -> [u64; RAY_KIND_COUNT] {
     a.par_iter()
         .with_min_len(16384)

@@ -11,10 +11,10 @@
 //! kernels ([`needs_shadow_ray`], [`shadow_ray`]) are [`hyrt_core::kernels::shadow`]'s.
 //!
 //! A frame that does not return a ray list (no `FrameOptions::stage_outputs`: the
-//! primary hits' list and every bounce depth's) does not write it: the stage keeps the active pairs ([`active_pairs_into`], 4 bytes a ray
-//! instead of 64), and `shadow_rays` makes each pair's ray as it traces it
-//! ([`pair_ray`], the same record bit for bit), a chunk at a time in cache
-//! (`shadow_rays::shadow_rays_of_pairs_into`).
+//! primary hits' list and every bounce depth's) does not write it: the stage keeps the
+//! active pairs ([`active_pairs_into`], 4 bytes a ray instead of 64), and `shadow_rays`
+//! makes each pair's ray as it traces it ([`pair_ray`], the same record bit for bit), a
+//! chunk at a time in cache (`shadow_rays::shadow_rays_of_pairs_into`).
 
 use std::collections::TryReserveError;
 use std::sync::atomic::{AtomicU8, Ordering};

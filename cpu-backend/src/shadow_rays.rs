@@ -8,10 +8,8 @@
 //! thread count.
 
 use hyrt_core::bvh::Bvh;
-use hyrt_core::formats::RayRecord;
+use hyrt_core::formats::{RayRecord, SurfaceRecord};
 use hyrt_core::geometry::WorldGeometry;
-
-use hyrt_core::formats::SurfaceRecord;
 
 use crate::compaction::pair_ray;
 use crate::traversal::{occluded_batch_into, occluded_generated_into, Traversal};

@@ -371,9 +371,7 @@ impl GpuBackend {
         let first = BounceRoom { rays: first_rays, shadow_rays: first_rays.saturating_mul(lights.max(1)) };
         // The last band's room where it fits this band's bindings (a band split in two
         // after its lists outgrew them starts afresh).
-        let fits = |r: &BounceRoom| {
-            band::bounce_binding_bytes(&Room { shadow_rays: 0, bounces: vec![*r] }, lights) <= self.band_binding_limit()
-        };
+        let fits = |r: &BounceRoom| band::bounce_room_bytes(r, lights) <= self.band_binding_limit();
         let bounces = (0..plan.bounce_depth() as usize)
             .map(|d| last.bounces.get(d).copied().filter(fits).unwrap_or(first))
             .collect();
@@ -775,6 +773,7 @@ impl Counts {
             .collect();
     }
 }
+
 impl GpuBackend {
     /// Refuse a plan this device cannot run: bounces on a device with fewer storage
     /// buffers per shader stage than the bounce stages bind ([`BOUNCE_STORAGE_BUFFERS`]).

@@ -33,7 +33,7 @@ use hyrt_core::formats::{CameraRecord, GBufferTexel, HitRecord, RayRecord, Surfa
 use hyrt_core::frame::{Frame, RenderError};
 use hyrt_core::plan::{FrameBuffer, FramePlan};
 
-use crate::buffers::Room;
+use crate::buffers::{BounceRoom, Room};
 use crate::GpuError;
 
 /// Rows `[first_row, first_row + rows)` of the image, rendered as one frame.
@@ -78,13 +78,15 @@ pub fn band_binding_bytes(pixels: u64, lights: u32, plan: &FramePlan) -> u64 {
 /// bytes each; their hits, surfaces and radiance are smaller), its shadow rays, or its
 /// shadow codes (4 bytes per ray and light).
 pub fn bounce_binding_bytes(room: &Room, lights: u32) -> u64 {
+    room.bounces.iter().map(|r| bounce_room_bytes(r, lights)).max().unwrap_or(0)
+}
+
+/// Bytes of the largest binding of one bounce depth with room `r` (see
+/// [`bounce_binding_bytes`]).
+pub fn bounce_room_bytes(r: &BounceRoom, lights: u32) -> u64 {
     let ray = std::mem::size_of::<RayRecord>().max(std::mem::size_of::<SurfaceRecord>());
     let ray = ray.max(std::mem::size_of::<HitRecord>()) as u64;
-    room.bounces
-        .iter()
-        .map(|r| (r.rays as u64 * ray).max(r.shadow_rays as u64 * ray).max(r.rays as u64 * lights.max(1) as u64 * 4))
-        .max()
-        .unwrap_or(0)
+    (r.rays as u64 * ray).max(r.shadow_rays as u64 * ray).max(r.rays as u64 * lights.max(1) as u64 * 4)
 }
 
 /// The rows of each band of a `width` x `height` frame with `lights` lights under

@@ -417,25 +417,26 @@ impl VisibilityRasterStage {
                 // Bindings: setup writes 6 (setups), 8 (clipped), 9 (count); the raster reads 5, 7
                 // and the band (10).
                 let raster_group = with_setups("visibility_raster", &self.raster_layout, 5, None);
-                if !run_setup {
-                    return self.encode_band(ctx, encoder, scene, frame, &targets, &raster_group, timing, true);
-                }
-                let setup_group = with_setups("visibility_raster setup", setup_layout, 6, Some(&setups.clipped_count));
-                encoder.clear_buffer(&setups.clipped_count, 0, None);
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("visibility_raster setup"),
-                    timestamp_writes: timing.map(|(query_set, i)| wgpu::ComputePassTimestampWrites {
-                        query_set,
-                        beginning_of_pass_write_index: Some(i),
-                        end_of_pass_write_index: None,
-                    }),
-                });
-                if scene.triangle_count > 0 {
-                    let groups = scene.triangle_count.div_ceil(SETUP_GROUP);
-                    let gx = groups.min(MAX_GROUPS_PER_DIMENSION);
-                    pass.set_pipeline(setup);
-                    pass.set_bind_group(0, &setup_group, &[]);
-                    pass.dispatch_workgroups(gx, groups.div_ceil(gx), 1);
+                // The setup records are the whole image's: the first band computes them.
+                if run_setup {
+                    let setup_group =
+                        with_setups("visibility_raster setup", setup_layout, 6, Some(&setups.clipped_count));
+                    encoder.clear_buffer(&setups.clipped_count, 0, None);
+                    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some("visibility_raster setup"),
+                        timestamp_writes: timing.map(|(query_set, i)| wgpu::ComputePassTimestampWrites {
+                            query_set,
+                            beginning_of_pass_write_index: Some(i),
+                            end_of_pass_write_index: None,
+                        }),
+                    });
+                    if scene.triangle_count > 0 {
+                        let groups = scene.triangle_count.div_ceil(SETUP_GROUP);
+                        let gx = groups.min(MAX_GROUPS_PER_DIMENSION);
+                        pass.set_pipeline(setup);
+                        pass.set_bind_group(0, &setup_group, &[]);
+                        pass.dispatch_workgroups(gx, groups.div_ceil(gx), 1);
+                    }
                 }
                 raster_group
             }
