@@ -119,3 +119,16 @@ fn missing_model_and_buffer_files_name_the_file() {
     let message = refusal("external.gltf", gltf.as_bytes());
     assert!(message.contains(&Path::new("/mem").join("gone away.bin").display().to_string()), "{message}");
 }
+
+#[test]
+fn an_openexr_header_claiming_huge_tiles_is_refused_before_decoding() {
+    // Fuzz seed 1, execution 484588 (a mutated environment map of the built-in seeds): 604
+    // bytes whose header gives a 10682432 x 64 tile; the `exr` crate sized its block buffer
+    // from it and asked for 1.7 GB before reading a pixel.
+    let path = PathBuf::from("/mem/sky.exr");
+    let bytes = include_bytes!("fuzz_inputs/exr_huge_tile.exr").to_vec();
+    let files = HashMap::from([(path.clone(), bytes)]);
+    let message = hyrt_core::scene::Environment::load_from(&path, &files).unwrap_err().to_string();
+    assert!(message.contains("/mem/sky.exr"), "the error does not name the file: {message}");
+    assert!(message.contains("10682432x64 block") && message.contains("536870912 bytes"), "{message}");
+}

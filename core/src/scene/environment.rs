@@ -101,7 +101,23 @@ pub enum EnvironmentMapError {
     /// A texel has a channel that is not finite, or is negative: radiance is neither.
     #[error("texel ({x}, {y}) is {rgb:?}: every channel must be finite and >= 0")]
     BadTexel { x: u32, y: u32, rgb: [f32; 3] },
+    /// The file's header asks the decoder for more memory than an environment map may use.
+    #[error("{what} would take {bytes} bytes, more than the {limit} bytes a decoded environment map may use")]
+    TooLarge {
+        /// What the header sizes (a layer's pixels, the output image, a block).
+        what: String,
+        /// The bytes it asks for (`usize::MAX` when the product overflows).
+        bytes: usize,
+        /// [`MAX_DECODED_MAP_BYTES`].
+        limit: usize,
+    },
 }
+
+/// The most bytes one decoded buffer of an environment map may take: the `image` crate's
+/// default allocation limit (512 MiB), which its decoders apply to the image they return.
+/// An 8192 x 4096 map in RGBA f32 takes exactly this much, the largest HDRI sizes in common
+/// use (16k x 8k) do not fit.
+pub const MAX_DECODED_MAP_BYTES: usize = 512 << 20;
 
 /// An equirectangular environment map: linear RGB radiance, laid out as the module docs
 /// say. Built through [`EnvironmentMap::new`] (or [`Environment::load`]), so every map
@@ -184,6 +200,9 @@ fn load_map(path: &Path, files: &dyn SceneFiles) -> Result<EnvironmentMap, Scene
         _ => return Err(fail(EnvironmentMapError::UnknownFormat)),
     };
     let bytes = files.read(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
+    if format == image::ImageFormat::OpenExr {
+        check_exr_header(&bytes).map_err(fail)?;
+    }
     // The decoders check the header against the image crate's default limits (512 MiB
     // per allocation), so a huge or lying header is an error, not an abort.
     let decoded = image::ImageReader::with_format(std::io::Cursor::new(bytes), format)
@@ -197,6 +216,47 @@ fn load_map(path: &Path, files: &dyn SceneFiles) -> Result<EnvironmentMap, Scene
     let mut map = EnvironmentMap::new(width, height, texels).map_err(fail)?;
     map.source = Some(path.to_path_buf());
     Ok(map)
+}
+
+/// Check what an OpenEXR file's headers make a decoder allocate before any pixel is read,
+/// against [`MAX_DECODED_MAP_BYTES`]. `image` checks only the display window (the image it
+/// returns); the `exr` crate sizes its buffers from each layer's data window and block size,
+/// so a header claiming a huge data window behind a small display window made a 604-byte
+/// file allocate 1.7 GB (fuzz seed 1, execution 484588; `loader_regressions.rs`).
+fn check_exr_header(bytes: &[u8]) -> Result<(), EnvironmentMapError> {
+    use exr::meta::attribute::LevelMode;
+    use exr::meta::BlockDescription;
+    let decode = |message: String| EnvironmentMapError::Decode { format: "OpenEXR", message };
+    let meta = exr::meta::MetaData::read_from_buffered(bytes, false).map_err(|e| decode(e.to_string()))?;
+    let check = |what: String, factors: &[usize]| {
+        let bytes = factors.iter().try_fold(1usize, |a, &f| a.checked_mul(f)).unwrap_or(usize::MAX);
+        if bytes > MAX_DECODED_MAP_BYTES {
+            return Err(EnvironmentMapError::TooLarge { what, bytes, limit: MAX_DECODED_MAP_BYTES });
+        }
+        Ok(())
+    };
+    for (k, header) in meta.headers.iter().enumerate() {
+        let (data, display) = (header.layer_size, header.shared_attributes.display_window.size);
+        // Every channel's sample is at most 4 bytes (f32, u32); the returned image is RGBA
+        // f32 at most.
+        let sample_bytes = header.channels.list.len().saturating_mul(4);
+        // Resolution levels below the full one add at most 1/3 (mip maps) or 3 (rip maps)
+        // of its pixels: `4` bounds both.
+        let levels = match header.blocks {
+            BlockDescription::Tiles(t) if t.level_mode != LevelMode::Singular => 4,
+            _ => 1,
+        };
+        check(format!("layer {k}'s {}x{} data window", data.0, data.1), &[data.0, data.1, sample_bytes, levels])?;
+        check(format!("layer {k}'s {}x{} display window", display.0, display.1), &[display.0, display.1, 16])?;
+        // A block's pixels decompressed: a tile, or a run of 1 to 256 scan lines (as many as
+        // its compression packs together: `scan_lines_per_block`).
+        let block = match header.blocks {
+            BlockDescription::Tiles(t) => [t.tile_size.0, t.tile_size.1],
+            BlockDescription::ScanLines => [data.0, header.compression.scan_lines_per_block()],
+        };
+        check(format!("layer {k}'s {}x{} block", block[0], block[1]), &[block[0], block[1], sample_bytes])?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]
