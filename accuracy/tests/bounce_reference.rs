@@ -30,6 +30,7 @@ fn mirror_material() -> Material {
         roughness: 0.0,
         transmission: 0.0,
         kind: MaterialKind::Specular,
+        ..Material::grey()
     }
 }
 
@@ -41,6 +42,7 @@ fn diffuse(rgb: Vec3) -> Material {
         roughness: 1.0,
         transmission: 0.0,
         kind: MaterialKind::Diffuse,
+        ..Material::grey()
     }
 }
 
@@ -145,6 +147,7 @@ fn furnace_scene() -> Scene {
         roughness: 0.0,
         transmission: 1.0,
         kind: MaterialKind::Glass { ior: 1.5 },
+        ..Material::grey()
     };
     scene.add_object(Mesh::uv_sphere("ball", 32, 16), glass, Mat4::IDENTITY, RenderMode::RayTraced);
     let texels = vec![[ENVIRONMENT_SPECULAR, ENVIRONMENT_SPECULAR, ENVIRONMENT_SPECULAR, 1.0]; 2];

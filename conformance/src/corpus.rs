@@ -60,6 +60,7 @@ fn diffuse(name: &str, rgb: Vec3) -> Material {
         roughness: 0.8,
         transmission: 0.0,
         kind: MaterialKind::Diffuse,
+        ..Material::grey()
     }
 }
 
@@ -71,6 +72,7 @@ fn gold() -> Material {
         roughness: 0.2,
         transmission: 0.0,
         kind: MaterialKind::Specular,
+        ..Material::grey()
     }
 }
 
@@ -82,7 +84,7 @@ fn point(position: Vec3, intensity: f32) -> Light {
 }
 
 fn mesh(name: &str, positions: Vec<Vec3>, indices: Vec<[u32; 3]>) -> Mesh {
-    Mesh { name: name.into(), positions, normals: None, indices }
+    Mesh { name: name.into(), positions, normals: None, indices, ..Default::default() }
 }
 
 fn camera(eye: Vec3, target: Vec3, near: f32, far: f32) -> Camera {
@@ -678,6 +680,7 @@ fn mirror() -> Material {
         roughness: 0.0,
         transmission: 0.0,
         kind: MaterialKind::Specular,
+        ..Material::grey()
     }
 }
 
@@ -690,6 +693,7 @@ fn glass(ior: f32) -> Material {
         roughness: 0.0,
         transmission: 1.0,
         kind: MaterialKind::Glass { ior },
+        ..Material::grey()
     }
 }
 

@@ -196,7 +196,7 @@ pub fn indexed_cube() -> Mesh {
     // Faces as quads (a, b, c, d) counter-clockwise seen from outside.
     let quads = [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]];
     let indices = quads.iter().flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]]).collect();
-    Mesh { name: "cube".into(), positions, normals: None, indices }
+    Mesh { name: "cube".into(), positions, normals: None, indices, ..Default::default() }
 }
 
 /// An icosahedron subdivided `levels` times onto the unit sphere (20 * 4^levels
@@ -258,7 +258,7 @@ pub fn icosphere(levels: u32) -> Mesh {
         faces = next;
     }
     let positions: Vec<Vec3> = pos.iter().map(|p| p.as_vec3()).collect();
-    Mesh { name: "icosphere".into(), normals: Some(positions.clone()), positions, indices: faces }
+    Mesh { name: "icosphere".into(), normals: Some(positions.clone()), positions, indices: faces, ..Default::default() }
 }
 
 /// The cube [-1, 1]^3 with each face an `n` x `n` grid of two-triangle quads; vertices are
@@ -300,7 +300,7 @@ pub fn quad_box(n: u32) -> Mesh {
             }
         }
     }
-    Mesh { name: "quad_box".into(), positions, normals: None, indices }
+    Mesh { name: "quad_box".into(), positions, normals: None, indices, ..Default::default() }
 }
 
 /// A mesh moved and scaled (in f32, once) to fit [-1, 1]^3 with its bounding box centred.
@@ -312,7 +312,13 @@ fn normalized(mesh: &Mesh) -> Mesh {
     let centre = (lo + hi) * 0.5;
     let half = ((hi - lo) * 0.5).max_element();
     let positions = mesh.positions.iter().map(|p| (*p - centre) / half).collect();
-    Mesh { name: mesh.name.clone(), positions, normals: mesh.normals.clone(), indices: mesh.indices.clone() }
+    Mesh {
+        name: mesh.name.clone(),
+        positions,
+        normals: mesh.normals.clone(),
+        indices: mesh.indices.clone(),
+        ..Default::default()
+    }
 }
 
 /// Crossings of the ray `o + t d`, t > 0, with the mesh whose positions in f64 are `p`
@@ -377,6 +383,7 @@ fn grey(name: &str) -> Material {
         roughness: 0.9,
         transmission: 0.0,
         kind: MaterialKind::Diffuse,
+        ..Material::grey()
     }
 }
 

@@ -271,6 +271,44 @@ pub fn small_exr() -> Vec<u8> {
     out.into_inner()
 }
 
+/// A small PNG (`w x h` RGBA8, a gradient with holes in its alpha) or JPEG (RGB).
+pub fn small_image(w: u32, h: u32, format: image::ImageFormat) -> Vec<u8> {
+    let texels: Vec<u8> =
+        (0..w * h).flat_map(|k| [(k * 37) as u8, (k * 11) as u8, 200, if k % 3 == 0 { 0 } else { 255 }]).collect();
+    let rgba = image::RgbaImage::from_raw(w, h, texels).expect("sized buffer");
+    let image = match format {
+        image::ImageFormat::Jpeg => image::DynamicImage::ImageRgb8(image::DynamicImage::ImageRgba8(rgba).to_rgb8()),
+        _ => image::DynamicImage::ImageRgba8(rgba),
+    };
+    let mut out = std::io::Cursor::new(Vec::new());
+    image.write_to(&mut out, format).expect("the encoder writes a small image");
+    out.into_inner()
+}
+
+/// The small scene's JSON with textures: `TEXCOORD_0` and `COLOR_0` on the quad, a masked
+/// material with a sampler and `KHR_texture_transform` sampling `first_image`, a `BLEND`
+/// material sampling a JPEG data URI, and a normal texture (not used).
+pub fn textured_json(buffer: Value, first_image: Value) -> Value {
+    let mut v = small_json(buffer);
+    let jpeg = format!("data:image/jpeg;base64,{}", base64(&small_image(8, 8, image::ImageFormat::Jpeg)));
+    v["meshes"][0]["primitives"][0]["attributes"] = json!({"POSITION": 0, "NORMAL": 1, "TEXCOORD_0": 4, "COLOR_0": 5});
+    v["accessors"].as_array_mut().expect("accessors").extend([
+        json!({"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC2"}),
+        json!({"bufferView": 2, "componentType": 5121, "normalized": true, "count": 4, "type": "VEC4"}),
+    ]);
+    v["materials"] = json!([
+        {"name": "fence", "alphaMode": "MASK", "alphaCutoff": 0.4, "normalTexture": {"index": 1},
+         "pbrMetallicRoughness": {"baseColorFactor": [1.0, 0.9, 0.8, 0.9], "metallicFactor": 0.0,
+            "baseColorTexture": {"index": 0, "extensions": {"KHR_texture_transform": {"offset": [0.5, 0.0], "rotation": 0.3, "scale": [2.0, 2.0]}}}}},
+        {"alphaMode": "BLEND", "pbrMetallicRoughness": {"baseColorTexture": {"index": 1, "texCoord": 0}}}
+    ]);
+    v["textures"] = json!([{"source": 0, "sampler": 0}, {"source": 1}]);
+    v["samplers"] = json!([{"magFilter": 9728, "minFilter": 9986, "wrapS": 33648, "wrapT": 33071}]);
+    v["images"] = json!([first_image, {"uri": jpeg}]);
+    v["extensionsUsed"].as_array_mut().expect("extensions").push(json!("KHR_texture_transform"));
+    v
+}
+
 fn one(kind: Kind, name: &str, bytes: Vec<u8>) -> Seed {
     let main = Path::new(ROOT).join(name);
     Seed { kind, main: main.clone(), files: HashMap::from([(main, bytes)]) }
@@ -304,6 +342,30 @@ pub fn built_seeds() -> Vec<Seed> {
         manifest.files.insert(Path::new(ROOT).join(name), bytes.clone());
     }
     manifest.files.insert(Path::new(ROOT).join("sky.hdr"), small_hdr(8, 4));
+    let png = small_image(4, 4, image::ImageFormat::Png);
+    let mut textured = one(
+        Kind::Gltf,
+        "textured.gltf",
+        serde_json::to_vec_pretty(&textured_json(
+            json!({"byteLength": bin.len(), "uri": data_uri}),
+            json!({"uri": "wall%20a.png"}),
+        ))
+        .expect("JSON"),
+    );
+    textured.files.insert(Path::new(ROOT).join("wall a.png"), png.clone());
+    // A GLB whose first image is a buffer view after the geometry.
+    let mut textured_bin = bin.clone();
+    textured_bin.extend(&png);
+    while !textured_bin.len().is_multiple_of(4) {
+        textured_bin.push(0);
+    }
+    let mut glb_json =
+        textured_json(json!({"byteLength": textured_bin.len()}), json!({"bufferView": 3, "mimeType": "image/png"}));
+    glb_json["bufferViews"]
+        .as_array_mut()
+        .expect("views")
+        .push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": png.len()}));
+    let textured_glb = glb(&serde_json::to_vec(&glb_json).expect("JSON"), Some(&textured_bin));
     vec![
         one(Kind::Glb, "small.glb", small_glb.clone()),
         one(Kind::Gltf, "embedded.gltf", embedded),
@@ -311,6 +373,8 @@ pub fn built_seeds() -> Vec<Seed> {
         manifest,
         one(Kind::Image, "sky.hdr", small_hdr(8, 4)),
         one(Kind::Image, "sky.exr", small_exr()),
+        textured,
+        one(Kind::Glb, "textured.glb", textured_glb),
     ]
 }
 
@@ -768,6 +832,16 @@ fn mutate_manifest(bytes: &mut Vec<u8>, rng: &mut Rng) {
 }
 
 fn mutate_image(bytes: &mut Vec<u8>, rng: &mut Rng) {
+    if bytes.starts_with(b"\x89PNG") && bytes.len() >= 33 && rng.chance(50) {
+        // The PNG header's width and height (with the chunk's checksum mended, so the
+        // decoder reads them): sizes the budget or the decoder must refuse.
+        let dims = *rng.pick(&[(16384u32, 16384u32), (0, 4), (1 << 31, 1), (65535, 65535), (4, 100_000), (1, 1)]);
+        bytes[16..20].copy_from_slice(&dims.0.to_be_bytes());
+        bytes[20..24].copy_from_slice(&dims.1.to_be_bytes());
+        let crc = crc32(&bytes[12..29]);
+        bytes[29..33].copy_from_slice(&crc.to_be_bytes());
+        return;
+    }
     if bytes.starts_with(b"#?") && rng.chance(50) {
         // The HDR header: its resolution line and format.
         if let Some(at) = bytes.windows(3).position(|w| w == b"-Y ") {
@@ -792,6 +866,18 @@ fn mutate_image(bytes: &mut Vec<u8>, rng: &mut Rng) {
     byte_mutation(bytes, rng);
 }
 
+/// CRC-32 (ISO-HDLC, PNG's chunk checksum).
+pub fn crc32(bytes: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &b in bytes {
+        crc ^= b as u32;
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 { (crc >> 1) ^ 0xEDB8_8320 } else { crc >> 1 };
+        }
+    }
+    !crc
+}
+
 /// Mutate one file of `seed` (mostly the main file) 1 to 4 times.
 pub fn mutate(seed: &Seed, rng: &mut Rng) -> Seed {
     let mut out = seed.clone();
@@ -813,7 +899,7 @@ pub fn mutate(seed: &Seed, rng: &mut Rng) -> Seed {
             "glb" => mutate_glb(bytes, rng),
             "gltf" => mutate_gltf(bytes, rng),
             "toml" => mutate_manifest(bytes, rng),
-            "hdr" | "exr" => mutate_image(bytes, rng),
+            "hdr" | "exr" | "png" => mutate_image(bytes, rng),
             _ => byte_mutation(bytes, rng),
         }
     }

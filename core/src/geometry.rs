@@ -6,10 +6,16 @@
 //! Vertices are transformed to world space once, here, in f32, so the raster,
 //! the BVH and reconstruction (on either backend) see the very same bits.
 
-use glam::{DVec3, Mat3, Vec3};
+use std::collections::HashMap;
 
-use crate::formats::{LightRecord, ObjectRecord, TriangleRecord, OBJ_RAY_TRACED, TRI_INWARD, TRI_RAY_TRACED};
-use crate::scene::{Environment, MaterialKind, Mesh, RenderMode, Scene};
+use glam::{DVec3, Mat3, Vec2, Vec3};
+
+use crate::formats::{
+    LightRecord, MaterialRecord, ObjectRecord, TextureSet, TriangleRecord, TriangleUvRecord, MAT_ALPHA_TEST,
+    MAT_TEXTURED, MAT_VERTEX_COLORS, OBJ_RAY_TRACED, TRI_ALPHA_TEST, TRI_INWARD, TRI_RAY_TRACED,
+};
+use crate::kernels::texture::triangle_lod_bias;
+use crate::scene::{Environment, Material, MaterialKind, Mesh, RenderMode, Scene};
 
 /// How a mesh's triangles are wound, as far as the renderer needs to know: which side of a
 /// closed mesh is its exterior.
@@ -136,6 +142,125 @@ pub struct WorldGeometry {
     /// What secondary rays that leave the scene see ([`Scene::environment`]; a map is
     /// shared, not copied).
     pub environment: Environment,
+    /// Textures, vertex colours and alpha tests: empty tables for a scene that has none
+    /// ([`SurfaceTables::is_empty`]).
+    pub surface: SurfaceTables,
+}
+
+/// What materials add to the plain colour of [`ObjectRecord`]: built only for a scene
+/// whose materials use textures, vertex colours or alpha tests; each table is empty when
+/// nothing needs it (a frame then binds and reads none of them).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SurfaceTables {
+    /// The sampled textures, one per (image, sampler) pair in use.
+    pub textures: TextureSet,
+    /// One per object (indexed by object id); empty when no object needs one.
+    pub materials: Vec<MaterialRecord>,
+    /// One per triangle when any object is textured (zeros for untextured ones).
+    pub uvs: Vec<TriangleUvRecord>,
+    /// The vertex colours (linear RGBA) at the three corners of each triangle when any
+    /// object has them (opaque white for the others).
+    pub colors: Vec<[[f32; 4]; 3]>,
+}
+
+impl SurfaceTables {
+    /// No material of the scene uses a texture, vertex colours or an alpha test.
+    pub fn is_empty(&self) -> bool {
+        self.materials.is_empty()
+    }
+
+    /// Whether some object is alpha-tested.
+    pub fn alpha_tested(&self) -> bool {
+        self.materials.iter().any(|m| m.flags & MAT_ALPHA_TEST != 0)
+    }
+
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        self.textures.bytes()
+            + self.materials.len() * std::mem::size_of::<MaterialRecord>()
+            + self.uvs.len() * std::mem::size_of::<TriangleUvRecord>()
+            + self.colors.len() * std::mem::size_of::<[[f32; 4]; 3]>()
+    }
+}
+
+/// What an object's material and mesh ask of [`SurfaceTables`].
+fn material_flags(material: &Material, mesh: &Mesh) -> u32 {
+    let textured = material
+        .base_color_texture
+        .is_some_and(|t| mesh.attributes.tex_coords.get(t.tex_coord as usize).is_some_and(Option::is_some));
+    (if textured { MAT_TEXTURED } else { 0 })
+        | if mesh.attributes.colors.is_some() { MAT_VERTEX_COLORS } else { 0 }
+        | if material.alpha_mode.cutoff().is_some() { MAT_ALPHA_TEST } else { 0 }
+}
+
+/// Build the [`SurfaceTables`] of `scene`, given the triangles already in world space.
+fn surface_tables(scene: &Scene, triangles: &[TriangleRecord]) -> SurfaceTables {
+    let flags: Vec<u32> =
+        scene.objects.iter().map(|o| material_flags(&scene.materials[o.material], &scene.meshes[o.mesh])).collect();
+    let mut t = SurfaceTables::default();
+    if flags.iter().all(|&f| f == 0) {
+        return t;
+    }
+    let any = |bit: u32| flags.iter().any(|&f| f & bit != 0);
+    let (textured, colored) = (any(MAT_TEXTURED), any(MAT_VERTEX_COLORS));
+    if textured {
+        t.uvs = vec![TriangleUvRecord::default(); triangles.len()];
+    }
+    if colored {
+        t.colors = vec![[[1.0; 4]; 3]; triangles.len()];
+    }
+    let mut pairs: HashMap<(usize, crate::scene::Sampler), u32> = HashMap::new();
+    let mut first = 0usize;
+    for (obj, &f) in scene.objects.iter().zip(&flags) {
+        let (mesh, material) = (&scene.meshes[obj.mesh], &scene.materials[obj.material]);
+        let range = first..first + mesh.indices.len();
+        first = range.end;
+        let mut record = MaterialRecord {
+            flags: f,
+            base_alpha: material.base_alpha,
+            alpha_cutoff: material.alpha_mode.cutoff().unwrap_or(0.0),
+            ..MaterialRecord::PLAIN
+        };
+        if f & MAT_TEXTURED != 0 {
+            let binding = material.base_color_texture.expect("MAT_TEXTURED has a binding");
+            let image = &scene.textures[binding.image];
+            let texture = *pairs
+                .entry((binding.image, binding.sampler))
+                .or_insert_with(|| t.textures.add(image, &binding.sampler));
+            record.texture = texture;
+            let coords = mesh.attributes.tex_coords[binding.tex_coord as usize].as_ref().expect("flag says so");
+            fill_uvs(&mut t.uvs[range.clone()], mesh, &triangles[range.clone()], coords, &binding.transform, image);
+        }
+        if let Some(colors) = &mesh.attributes.colors {
+            for (out, idx) in t.colors[range.clone()].iter_mut().zip(&mesh.indices) {
+                *out = idx.map(|i| colors[i as usize]);
+            }
+        }
+        t.materials.push(record);
+    }
+    t
+}
+
+/// The texture coordinates of an object's triangles (transformed) and their level-of-detail
+/// constants.
+fn fill_uvs(
+    out: &mut [TriangleUvRecord],
+    mesh: &Mesh,
+    triangles: &[TriangleRecord],
+    coords: &[Vec2],
+    transform: &crate::scene::UvTransform,
+    image: &crate::scene::TextureImage,
+) {
+    for ((out, idx), tri) in out.iter_mut().zip(&mesh.indices).zip(triangles) {
+        let uv = idx.map(|i| transform.apply(coords[i as usize]));
+        *out = TriangleUvRecord {
+            uv0: uv[0].into(),
+            uv1: uv[1].into(),
+            uv2: uv[2].into(),
+            lod_bias: triangle_lod_bias(tri.vertices(), uv, image.width, image.height),
+            pad: 0,
+        };
+    }
 }
 
 impl WorldGeometry {
@@ -154,8 +279,10 @@ impl WorldGeometry {
             let winding = windings[obj.mesh]
                 .get_or_insert_with(|| MeshWinding::of_mesh(mesh))
                 .transformed(Mat3::from_mat4(obj.transform).determinant());
-            let tri_flags =
-                if rt { TRI_RAY_TRACED } else { 0 } | if winding == MeshWinding::Inward { TRI_INWARD } else { 0 };
+            let masked = mat.alpha_mode.cutoff().is_some();
+            let tri_flags = if rt { TRI_RAY_TRACED } else { 0 }
+                | if winding == MeshWinding::Inward { TRI_INWARD } else { 0 }
+                | if masked { TRI_ALPHA_TEST } else { 0 };
             let normal_matrix = Mat3::from_mat4(obj.transform).inverse().transpose();
             let world: Vec<Vec3> = mesh.positions.iter().map(|p| obj.transform.transform_point3(*p)).collect();
             for w in &world {
@@ -211,6 +338,7 @@ impl WorldGeometry {
         }
         g.lights = scene.lights.iter().map(LightRecord::from_light).collect();
         g.environment = scene.environment.clone();
+        g.surface = surface_tables(scene, &g.triangles);
         g.bounds = if lo.x <= hi.x { (lo, hi) } else { (Vec3::splat(-1.0), Vec3::splat(1.0)) };
         if cfg!(debug_assertions) {
             g.validate().expect("world geometry invariants");
@@ -264,6 +392,29 @@ impl WorldGeometry {
         }
         for l in &self.lights {
             l.validate()?;
+        }
+        let s = &self.surface;
+        if !s.is_empty() {
+            s.textures.validate()?;
+            if s.materials.len() != self.objects.len() {
+                return Err("material records and objects differ in length".into());
+            }
+            for (k, m) in s.materials.iter().enumerate() {
+                m.validate(s.textures.records.len()).map_err(|e| format!("object {k}: {e}"))?;
+                let masked = m.flags & MAT_ALPHA_TEST != 0;
+                let o = &self.objects[k];
+                let tris = &self.triangles[o.first_triangle as usize..(o.first_triangle + o.triangle_count) as usize];
+                if tris.iter().any(|t| (t.flags & TRI_ALPHA_TEST != 0) != masked) {
+                    return Err(format!("object {k}: triangle alpha-test flags disagree with its material"));
+                }
+            }
+            for (len, what) in [(s.uvs.len(), "texture coordinates"), (s.colors.len(), "vertex colours")] {
+                if len != 0 && len != self.triangles.len() {
+                    return Err(format!("{what}: {len} records for {} triangles", self.triangles.len()));
+                }
+            }
+        } else if self.triangles.iter().any(|t| t.flags & TRI_ALPHA_TEST != 0) {
+            return Err("alpha-tested triangles in a scene without material records".into());
         }
         Ok(())
     }

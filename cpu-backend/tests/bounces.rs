@@ -31,6 +31,7 @@ fn mirror(base: f32) -> Material {
         roughness: 0.0,
         transmission: 0.0,
         kind: MaterialKind::Specular,
+        ..Material::grey()
     }
 }
 
@@ -42,6 +43,7 @@ fn glass(ior: f32) -> Material {
         roughness: 0.0,
         transmission: 1.0,
         kind: MaterialKind::Glass { ior },
+        ..Material::grey()
     }
 }
 

@@ -1042,6 +1042,7 @@ fn visibility_raster_non_finite_and_degenerate_triangles_cover_nothing() {
         normals: None,
         // NaN, Inf, overflowing, repeated-index and collinear triangles.
         indices: vec![[0, 3, 4], [1, 3, 4], [2, 4, 3], [3, 3, 4], [3, 4, 5], [6, 6, 3], [7, 0, 1], [4, 4, 4]],
+        ..Default::default()
     };
     let (_, reference) = render(&scene_with(vec![good.clone()], None), &cam);
     let scene = scene_with(vec![good, (bad, Mat4::IDENTITY, RenderMode::Raster)], None);
@@ -1148,7 +1149,13 @@ fn visibility_raster_texel_values_on_a_window_space_triangle() {
     let (w, h) = (64u32, 64u32);
     let cam = window_camera(w, h);
     let tri = [Vec3::new(2.5, 2.5, 0.25), Vec3::new(60.5, 6.5, 0.5), Vec3::new(10.5, 58.5, 0.75)];
-    let mesh = Mesh { name: "t".into(), positions: tri.to_vec(), normals: None, indices: vec![[0, 1, 2]] };
+    let mesh = Mesh {
+        name: "t".into(),
+        positions: tri.to_vec(),
+        normals: None,
+        indices: vec![[0, 1, 2]],
+        ..Default::default()
+    };
     let scene = scene_with(vec![(mesh, Mat4::IDENTITY, RenderMode::RayTraced)], None);
     let (_, out) = render(&scene, &cam);
     let area = ((tri[1].x - tri[0].x) * (tri[2].y - tri[0].y) - (tri[1].y - tri[0].y) * (tri[2].x - tri[0].x)) as f64;

@@ -157,6 +157,7 @@ fn shadow_rays_analytic_occluder() {
         ],
         normals: None,
         indices: vec![[0, 2, 1], [0, 3, 2]],
+        ..Default::default()
     };
     let prepared = prepare(&scene_of(vec![(quad, Mat4::IDENTITY)]));
     let light = Vec3::new(0.5, 2.0, 0.5);
@@ -354,7 +355,13 @@ fn shadow_rays_pinned_zero_edge_exact_sign() {
     let p0 = Vec3::new(-s, -s * (1.0 - 2f32.powi(-24)), 1.0);
     let p1 = Vec3::new(1.0, -1.0, 1.0);
     let p2 = Vec3::new(1.0 + 2f32.powi(-23), 1.0, 1.0);
-    let tri = Mesh { name: "tie".into(), positions: vec![p0, p1, p2], normals: None, indices: vec![[0, 1, 2]] };
+    let tri = Mesh {
+        name: "tie".into(),
+        positions: vec![p0, p1, p2],
+        normals: None,
+        indices: vec![[0, 1, 2]],
+        ..Default::default()
+    };
     let prepared = prepare(&scene_of(vec![(tri, Mat4::IDENTITY)]));
     assert_eq!(prepared.geometry.triangles[0].vertices(), [p0, p1, p2], "identity transform keeps the bits");
     // The f32 edge function p2 -> p0 is exactly zero.

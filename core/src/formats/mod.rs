@@ -10,9 +10,11 @@
 //!   the shaders' structs are generated from them ([`wgsl::declarations`]).
 
 mod records;
+mod textures;
 pub mod wgsl;
 
 pub use records::*;
+pub use textures::*;
 
 /// Marker for "no id" in every u32 id field (triangle, object, pixel, light).
 pub const INVALID_ID: u32 = u32::MAX;

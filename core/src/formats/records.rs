@@ -279,6 +279,10 @@ pub const TRI_RAY_TRACED: u32 = 1 << 0;
 /// The visibility raster's depth test prefers the exterior side on near-ties
 /// ([`crate::kernels::raster::depth_test_value`]); see [`crate::geometry::MeshWinding`].
 pub const TRI_INWARD: u32 = 1 << 1;
+/// [`TriangleRecord::flags`]: the triangle's material is alpha-tested
+/// ([`crate::formats::MAT_ALPHA_TEST`]): the raster and every traversal test the texel's
+/// alpha before taking a hit on it ([`crate::kernels::texture::alpha_at`]).
+pub const TRI_ALPHA_TEST: u32 = 1 << 2;
 
 /// One world-space triangle of the scene table that the raster, the BVH and
 /// reconstruction all read. Triangles of one object are contiguous, in mesh order.
@@ -290,7 +294,7 @@ pub const TRI_INWARD: u32 = 1 << 1;
 /// | 16 | `v1` | [f32; 3] | world-space vertex 1 |
 /// | 28 | `triangle` | u32 | triangle index within the object's mesh |
 /// | 32 | `v2` | [f32; 3] | world-space vertex 2 |
-/// | 44 | `flags` | u32 | [`TRI_RAY_TRACED`], [`TRI_INWARD`] |
+/// | 44 | `flags` | u32 | [`TRI_RAY_TRACED`], [`TRI_INWARD`], [`TRI_ALPHA_TEST`] |
 ///
 /// 48 bytes.
 #[repr(C)]
@@ -318,7 +322,7 @@ impl TriangleRecord {
         if self.object == INVALID_ID || self.triangle == INVALID_ID {
             return Err(format!("triangle with invalid id: {self:?}"));
         }
-        if self.flags & !(TRI_RAY_TRACED | TRI_INWARD) != 0 {
+        if self.flags & !(TRI_RAY_TRACED | TRI_INWARD | TRI_ALPHA_TEST) != 0 {
             return Err(format!("triangle with unknown flags: {self:?}"));
         }
         Ok(())

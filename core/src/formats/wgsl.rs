@@ -11,8 +11,8 @@
 
 use crate::bvh::BvhNode;
 use crate::formats::{
-    CameraRecord, EnvironmentRecord, FrameParams, GBufferTexel, HitRecord, LightRecord, ListParams, ObjectRecord,
-    RayRecord, SurfaceRecord, TriangleRecord,
+    CameraRecord, EnvironmentRecord, FrameParams, GBufferTexel, HitRecord, LightRecord, ListParams, MaterialRecord,
+    ObjectRecord, RayRecord, SurfaceRecord, TextureRecord, TriangleRecord, TriangleUvRecord,
 };
 use crate::plan::Composition;
 
@@ -25,6 +25,8 @@ pub enum WgslType {
     U32,
     /// `vec2<u32>`.
     Vec2U32,
+    /// `vec2<f32>`.
+    Vec2F32,
     /// `vec3<f32>`.
     Vec3F32,
     /// `mat4x4<f32>` (column-major).
@@ -38,6 +40,7 @@ impl WgslType {
             WgslType::F32 => "f32",
             WgslType::U32 => "u32",
             WgslType::Vec2U32 => "vec2<u32>",
+            WgslType::Vec2F32 => "vec2<f32>",
             WgslType::Vec3F32 => "vec3<f32>",
             WgslType::Mat4x4F32 => "mat4x4<f32>",
         }
@@ -47,7 +50,7 @@ impl WgslType {
     pub fn align(self) -> usize {
         match self {
             WgslType::F32 | WgslType::U32 => 4,
-            WgslType::Vec2U32 => 8,
+            WgslType::Vec2U32 | WgslType::Vec2F32 => 8,
             WgslType::Vec3F32 | WgslType::Mat4x4F32 => 16,
         }
     }
@@ -56,7 +59,7 @@ impl WgslType {
     pub fn size(self) -> usize {
         match self {
             WgslType::F32 | WgslType::U32 => 4,
-            WgslType::Vec2U32 => 8,
+            WgslType::Vec2U32 | WgslType::Vec2F32 => 8,
             WgslType::Vec3F32 => 12,
             WgslType::Mat4x4F32 => 64,
         }
@@ -77,6 +80,9 @@ impl WgslField for u32 {
 }
 impl WgslField for [u32; 2] {
     const WGSL: WgslType = WgslType::Vec2U32;
+}
+impl WgslField for [f32; 2] {
+    const WGSL: WgslType = WgslType::Vec2F32;
 }
 impl WgslField for [f32; 3] {
     const WGSL: WgslType = WgslType::Vec3F32;
@@ -211,6 +217,7 @@ pub fn constant_values() -> Vec<(&'static str, u32)> {
         SHADOW_OCCLUDED,
         TRI_RAY_TRACED,
         TRI_INWARD,
+        TRI_ALPHA_TEST,
         OBJ_RAY_TRACED,
         MATERIAL_DIFFUSE,
         MATERIAL_SPECULAR,
@@ -219,6 +226,15 @@ pub fn constant_values() -> Vec<(&'static str, u32)> {
         LIGHT_DIRECTIONAL,
         ENV_SKY,
         ENV_MAP,
+        WRAP_REPEAT,
+        WRAP_CLAMP,
+        WRAP_MIRROR,
+        FILTER_NEAREST,
+        FILTER_LINEAR,
+        FILTER_NO_MIP,
+        MAT_TEXTURED,
+        MAT_VERTEX_COLORS,
+        MAT_ALPHA_TEST,
     )
     .to_vec();
     c.extend([
@@ -249,6 +265,9 @@ pub fn struct_declarations() -> String {
         BvhNode::declaration(),
         EnvironmentRecord::declaration(),
         ListParams::declaration(),
+        TextureRecord::declaration(),
+        MaterialRecord::declaration(),
+        TriangleUvRecord::declaration(),
     ]
     .join("\n")
 }

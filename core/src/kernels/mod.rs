@@ -12,3 +12,4 @@ pub mod reconstruction;
 pub mod scan;
 pub mod shading;
 pub mod shadow;
+pub mod texture;

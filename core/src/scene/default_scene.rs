@@ -34,7 +34,7 @@ impl Mesh {
             }
         }
         let normals = Some(vec![Vec3::Y; positions.len()]);
-        Mesh { name: name.into(), positions, normals, indices }
+        Mesh { name: name.into(), positions, normals, indices, ..Default::default() }
     }
 
     /// A UV sphere of radius 1 with `segments` around and `rings` from pole to pole.
@@ -72,7 +72,7 @@ impl Mesh {
             }
         }
         let normals = Some(positions.clone());
-        Mesh { name: name.into(), positions, normals, indices }
+        Mesh { name: name.into(), positions, normals, indices, ..Default::default() }
     }
 
     /// A torus in the XZ plane: ring radius `major`, tube radius `minor`.
@@ -101,7 +101,7 @@ impl Mesh {
                 indices.push([b, d, c]);
             }
         }
-        Mesh { name: name.into(), positions, normals: Some(normals), indices }
+        Mesh { name: name.into(), positions, normals: Some(normals), indices, ..Default::default() }
     }
 
     /// An axis-aligned cube from -1 to 1 with flat faces (24 vertices, 12 triangles).
@@ -128,7 +128,7 @@ impl Mesh {
                 indices.push([base, base + 2, base + 3]);
             }
         }
-        Mesh { name: name.into(), positions, normals: Some(normals), indices }
+        Mesh { name: name.into(), positions, normals: Some(normals), indices, ..Default::default() }
     }
 }
 
@@ -143,6 +143,7 @@ impl Scene {
             roughness: 0.8,
             transmission: 0.0,
             kind: MaterialKind::Diffuse,
+            ..Material::grey()
         };
         let rt = RenderMode::RayTraced;
         // Three planes forming a corner: floor (blue), back wall (red), left wall (green).
@@ -179,6 +180,7 @@ impl Scene {
                 roughness: 0.2,
                 transmission: 0.0,
                 kind: MaterialKind::Specular,
+                ..Material::grey()
             },
             Mat4::from_translation(Vec3::new(-0.6, 1.2, -0.8)) * Mat4::from_scale(Vec3::splat(1.2)),
             rt,
@@ -194,6 +196,7 @@ impl Scene {
                 roughness: 0.0,
                 transmission: 1.0,
                 kind: MaterialKind::Glass { ior: 1.5 },
+                ..Material::grey()
             },
             Mat4::from_translation(Vec3::new(-0.3, 0.65, 2.0)) * Mat4::from_scale(Vec3::splat(0.65)),
             rt,

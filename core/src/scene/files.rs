@@ -80,6 +80,11 @@ impl Budget {
         }
     }
 
+    /// Bytes left.
+    pub(crate) fn left(&self) -> usize {
+        self.left
+    }
+
     /// Add the bytes of a further input (a buffer, a model file) to the budget.
     pub(crate) fn add_input(&mut self, input_bytes: usize) {
         self.left = self.left.saturating_add(input_bytes.saturating_mul(Self::BYTES_PER_INPUT_BYTE));

@@ -12,11 +12,22 @@
 //!   `POSITION` must be float32 `VEC3`; `NORMAL` is kept when it is float32 `VEC3` with one
 //!   normal per position (otherwise dropped, with a note); indices may be u8/u16/u32, and a
 //!   primitive without indices gets `0..n`. Sparse accessors and accessors without a buffer
-//!   view (all zeros) are supported. Texture coordinates, textures, skins and morph targets
-//!   are ignored; images are never decoded.
+//!   view (all zeros) are supported. `TEXCOORD_0`, `TEXCOORD_1` (float32, or normalized
+//!   unsigned 8/16-bit `VEC2`) and `COLOR_0` (the same types, `VEC3` or `VEC4`, linear) are
+//!   kept with one value per position; another type or count is an error. Skins and morph
+//!   targets are ignored.
+//! * **Textures.** A material's `baseColorTexture` is read with its sampler (wrap modes,
+//!   `magFilter`, `minFilter`; undefined filters are linear, mip-mapped), its `texCoord`
+//!   (0 or 1) and `KHR_texture_transform` (offset, rotation, scale, `texCoord` override).
+//!   Its image (PNG or JPEG, recognised by its signature; from a buffer view, a data URI or
+//!   a file beside a `.gltf`) is decoded once to RGBA8 ([`TextureImage`]), its texels charged
+//!   to the load's budget before the decoder allocates them. Other textures (normal,
+//!   occlusion, emissive, metallic-roughness) are not used, with a note.
 //! * **Names.** Object name: node name, else mesh name, else `node<i>`, then `#<primitive>`.
 //!   Mesh name: mesh name (else `mesh<i>`), then `#<primitive>`.
-//! * **Materials.** `baseColorFactor` RGB, `metallicFactor`, `roughnessFactor`,
+//! * **Materials.** `baseColorFactor` (RGB, and alpha), `metallicFactor`, `roughnessFactor`,
+//!   `alphaMode` with `alphaCutoff` (default 0.5; `BLEND` is rendered as a mask at 0.5,
+//!   with a note: [`AlphaMode::Blend`]),
 //!   `KHR_materials_transmission` factor (default 0) and `KHR_materials_ior` (default 1.5).
 //!   Kind: transmission > 0 gives [`MaterialKind::Glass`], else metallic >= 0.5 gives
 //!   [`MaterialKind::Specular`], else [`MaterialKind::Diffuse`]. Primitives without a material
@@ -51,11 +62,12 @@
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec2, Vec3};
 use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::{Mode, Semantic};
 
 use super::files::{Budget, Disk, SceneFiles};
+use super::texture::{AlphaMode, Filter, Sampler, TextureBinding, TextureImage, UvTransform, VertexAttributes, Wrap};
 use super::{Camera, Light, Material, MaterialKind, Mesh, Object, ObjectSource, RenderMode, Scene};
 use crate::SceneError;
 
@@ -149,7 +161,7 @@ pub(crate) fn load_gltf_detailed(path: &Path, bytes: &[u8], files: &dyn SceneFil
         buffers.push(data);
     }
     let input_bytes = buffers.iter().map(Vec::len).fold(bytes.len(), usize::saturating_add);
-    let mut converter = Converter::new(path, &buffers, Budget::for_input(input_bytes));
+    let mut converter = Converter::new(path, &buffers, files, Budget::for_input(input_bytes));
     converter.scene.notes.extend(tolerated_note.map(|n| format!("{}: {n}", path.display())));
     converter.run(&document).map(|(scene, mode_from_extras)| LoadedGltf { scene, mode_from_extras, input_bytes })
 }
@@ -325,10 +337,19 @@ struct Converter<'a> {
     materials: HashMap<Option<usize>, usize>,
     /// A camera without `zfar`: its far distance is derived from the bounds at the end.
     camera_needs_far: bool,
+    /// Where a `.gltf` file's image files are read from.
+    files: &'a dyn SceneFiles,
+    /// glTF image index -> index in `scene.textures` (each image decoded once).
+    images: HashMap<usize, usize>,
+    /// The file's images as JSON (`gltf::Image::source` unwraps fields no validation
+    /// checks: read them here instead).
+    image_json: Vec<gltf::json::Image>,
+    /// Per glTF buffer view: its bytes, or why they are out of range.
+    views: Vec<Result<&'a [u8], String>>,
 }
 
 impl<'a> Converter<'a> {
-    fn new(path: &'a Path, buffers: &'a [Vec<u8>], budget: Budget) -> Self {
+    fn new(path: &'a Path, buffers: &'a [Vec<u8>], files: &'a dyn SceneFiles, budget: Budget) -> Self {
         Converter {
             path,
             buffers,
@@ -339,6 +360,17 @@ impl<'a> Converter<'a> {
             meshes: HashMap::new(),
             materials: HashMap::new(),
             camera_needs_far: false,
+            files,
+            images: HashMap::new(),
+            image_json: Vec::new(),
+            views: Vec::new(),
+        }
+    }
+
+    /// Record a note once per file.
+    fn note_once(&mut self, note: String) {
+        if self.noted.insert(note.clone()) {
+            self.scene.notes.push(note);
         }
     }
 
@@ -347,6 +379,9 @@ impl<'a> Converter<'a> {
     }
 
     fn run(mut self, document: &gltf::Document) -> Result<(Scene, Vec<bool>), SceneError> {
+        self.image_json = document.as_json().images.clone();
+        let buffers = self.buffers;
+        self.views = document.views().map(|view| view_bytes(&view, buffers)).collect();
         let roots: Vec<gltf::Node> = match document.default_scene().or_else(|| document.scenes().next()) {
             Some(scene) => scene.nodes().collect(),
             None => {
@@ -552,7 +587,70 @@ impl<'a> Converter<'a> {
             )));
         }
         let indices = flat.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
-        Ok(Mesh { name, positions, normals, indices })
+        let mut attributes = VertexAttributes::default();
+        for set in 0..2u32 {
+            attributes.tex_coords[set as usize] = self
+                .vertex_attribute(primitive, Semantic::TexCoords(set), positions.len(), label)?
+                .map(|v| v.into_iter().map(|c| Vec2::new(c[0], c[1])).collect());
+        }
+        attributes.colors = self.vertex_attribute(primitive, Semantic::Colors(0), positions.len(), label)?;
+        Ok(Mesh { name, positions, normals, indices, attributes })
+    }
+
+    /// A `TEXCOORD_n` or `COLOR_0` attribute as floats (`[x, y, 0, 1]` for `VEC2`,
+    /// `[r, g, b, 1]` for `VEC3`), normalized integers divided by their maximum as glTF
+    /// says; `None` without one. Any other type, or a count other than the positions', is
+    /// an error: a texture mapped through a wrong attribute is silently wrong output.
+    fn vertex_attribute(
+        &mut self,
+        primitive: &gltf::Primitive,
+        semantic: Semantic,
+        vertices: usize,
+        label: &str,
+    ) -> Result<Option<Vec<[f32; 4]>>, SceneError> {
+        let Some(acc) = primitive.get(&semantic) else {
+            return Ok(None);
+        };
+        let what = semantic.to_string();
+        let dims = match (&semantic, acc.dimensions()) {
+            (Semantic::TexCoords(_), Dimensions::Vec2) => 2,
+            (Semantic::Colors(_), Dimensions::Vec3) => 3,
+            (Semantic::Colors(_), Dimensions::Vec4) => 4,
+            (_, other) => return Err(self.content(format!("{label}: {what} cannot be {other:?}"))),
+        };
+        let size = match acc.data_type() {
+            DataType::F32 => 4,
+            DataType::U8 if acc.normalized() => 1,
+            DataType::U16 if acc.normalized() => 2,
+            other => {
+                return Err(self.content(format!(
+                    "{label}: {what} must be float32 or normalized unsigned 8/16-bit, found {other:?}{}",
+                    if acc.normalized() { "" } else { " (not normalized)" }
+                )))
+            }
+        };
+        if acc.count() != vertices {
+            return Err(self.content(format!("{label}: {} {what} values for {vertices} positions", acc.count())));
+        }
+        let component = move |b: &[u8]| -> f32 {
+            match size {
+                1 => b[0] as f32 / 255.0,
+                2 => u16::from_le_bytes([b[0], b[1]]) as f32 / 65535.0,
+                _ => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+            }
+        };
+        let values = read_accessor(&acc, self.buffers, &mut self.budget, dims * size, |b| {
+            let mut v = [0.0, 0.0, 0.0, 1.0];
+            for (k, c) in v.iter_mut().take(dims).enumerate() {
+                *c = component(&b[k * size..]);
+            }
+            v
+        })
+        .map_err(|e| self.gltf_error(format!("{label}: {what} accessor {}: {e}", acc.index())))?;
+        if let Some(k) = values.iter().position(|v| !v.iter().all(|c| c.is_finite())) {
+            return Err(self.content(format!("{label}: {what} value {k} is not finite: {:?}", values[k])));
+        }
+        Ok(Some(values))
     }
 
     fn gltf_error(&self, message: String) -> SceneError {
@@ -576,11 +674,175 @@ impl<'a> Converter<'a> {
         }
         let material = match m.index() {
             None => Material::grey(),
-            Some(i) => convert_material(m, i),
+            Some(i) => self.convert_material(m, i)?,
         };
         self.scene.materials.push(material);
         self.materials.insert(m.index(), self.scene.materials.len() - 1);
         Ok((self.scene.materials.len() - 1, mode))
+    }
+
+    /// Convert a glTF material (see the module docs for the rule), decoding its base-colour
+    /// texture's image the first time one uses it.
+    fn convert_material(&mut self, m: &gltf::Material, index: usize) -> Result<Material, SceneError> {
+        let label = match m.name() {
+            Some(name) => format!("material {index} '{name}'"),
+            None => format!("material {index}"),
+        };
+        let pbr = m.pbr_metallic_roughness();
+        let [r, g, b, a] = pbr.base_color_factor();
+        let metallic = pbr.metallic_factor();
+        let transmission = m.transmission().map(|t| t.transmission_factor()).unwrap_or(0.0);
+        let ior = m.ior().unwrap_or(DEFAULT_IOR);
+        let unused: Vec<&str> = [
+            (pbr.metallic_roughness_texture().is_some(), "metallicRoughnessTexture"),
+            (m.normal_texture().is_some(), "normalTexture"),
+            (m.occlusion_texture().is_some(), "occlusionTexture"),
+            (m.emissive_texture().is_some(), "emissiveTexture"),
+        ]
+        .into_iter()
+        .filter_map(|(used, name)| used.then_some(name))
+        .collect();
+        if !unused.is_empty() {
+            self.note_once(format!(
+                "{}: textures other than baseColorTexture are not used ({} in {label}, and any other)",
+                self.path.display(),
+                unused.join(", ")
+            ));
+        }
+        let base_color_texture = match pbr.base_color_texture() {
+            None => None,
+            Some(info) => Some(self.texture_binding(&info, &label)?),
+        };
+        let alpha_mode = match m.alpha_mode() {
+            gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+            gltf::material::AlphaMode::Mask => {
+                let cutoff = m.alpha_cutoff().unwrap_or(AlphaMode::DEFAULT_CUTOFF);
+                if !(0.0..=1.0).contains(&cutoff) {
+                    return Err(self.content(format!("{label}: alphaCutoff {cutoff} is outside [0, 1]")));
+                }
+                AlphaMode::Mask { cutoff }
+            }
+            gltf::material::AlphaMode::Blend => {
+                self.note_once(format!(
+                    "{}: {label}: alphaMode BLEND is rendered as MASK at alpha {} (hyrt has no transparency sorting)",
+                    self.path.display(),
+                    AlphaMode::BLEND_CUTOFF
+                ));
+                AlphaMode::Blend
+            }
+        };
+        Ok(Material {
+            name: m.name().map(str::to_string).unwrap_or_else(|| format!("material{index}")),
+            base_color: Vec3::new(r, g, b),
+            metallic,
+            roughness: pbr.roughness_factor(),
+            transmission,
+            kind: material_kind(metallic, transmission, ior),
+            base_alpha: a,
+            base_color_texture,
+            alpha_mode,
+        })
+    }
+
+    /// A material's texture: its image (decoded once), sampler, coordinate set and
+    /// `KHR_texture_transform`.
+    fn texture_binding(&mut self, info: &gltf::texture::Info, label: &str) -> Result<TextureBinding, SceneError> {
+        use gltf::texture::{MagFilter, MinFilter, WrappingMode};
+        let texture = info.texture();
+        let image = self.image(texture.source().index(), label)?;
+        let s = texture.sampler();
+        let wrap = |w: WrappingMode| match w {
+            WrappingMode::ClampToEdge => Wrap::ClampToEdge,
+            WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
+            WrappingMode::Repeat => Wrap::Repeat,
+        };
+        let mag = match s.mag_filter() {
+            Some(MagFilter::Nearest) => Filter::Nearest,
+            _ => Filter::Linear,
+        };
+        let (min, mip) = match s.min_filter() {
+            Some(MinFilter::Nearest) => (Filter::Nearest, None),
+            Some(MinFilter::Linear) => (Filter::Linear, None),
+            Some(MinFilter::NearestMipmapNearest) => (Filter::Nearest, Some(Filter::Nearest)),
+            Some(MinFilter::LinearMipmapNearest) => (Filter::Linear, Some(Filter::Nearest)),
+            Some(MinFilter::NearestMipmapLinear) => (Filter::Nearest, Some(Filter::Linear)),
+            Some(MinFilter::LinearMipmapLinear) | None => (Filter::Linear, Some(Filter::Linear)),
+        };
+        let sampler = Sampler { wrap_s: wrap(s.wrap_s()), wrap_t: wrap(s.wrap_t()), mag, min, mip };
+        let (tex_coord, transform) = match info.texture_transform() {
+            None => (info.tex_coord(), UvTransform::default()),
+            Some(t) => (
+                t.tex_coord().unwrap_or(info.tex_coord()),
+                UvTransform { offset: t.offset().into(), rotation: t.rotation(), scale: t.scale().into() },
+            ),
+        };
+        if tex_coord > 1 {
+            return Err(self.content(format!(
+                "{label}: baseColorTexture uses TEXCOORD_{tex_coord}; hyrt reads TEXCOORD_0 and TEXCOORD_1"
+            )));
+        }
+        let finite = transform.offset.is_finite() && transform.rotation.is_finite() && transform.scale.is_finite();
+        if !finite {
+            return Err(self.content(format!("{label}: KHR_texture_transform is not finite: {transform:?}")));
+        }
+        Ok(TextureBinding { image, sampler, tex_coord, transform })
+    }
+
+    /// The index in `scene.textures` of glTF image `index`, decoded (PNG or JPEG, from a
+    /// buffer view, a data URI or a file beside a `.gltf`) the first time it is asked for.
+    fn image(&mut self, index: usize, user: &str) -> Result<usize, SceneError> {
+        if let Some(&i) = self.images.get(&index) {
+            return Ok(i);
+        }
+        let json = self
+            .image_json
+            .get(index)
+            .cloned()
+            .ok_or_else(|| self.content(format!("{user}: image {index} does not exist")))?;
+        let label = match &json.name {
+            Some(name) => format!("image {index} '{name}'"),
+            None => format!("image {index}"),
+        };
+        let fail = |message: String| SceneError::Content {
+            path: self.path.to_path_buf(),
+            message: format!("{label} (used by {user}): {message}"),
+        };
+        let (bytes, source) = match (&json.buffer_view, &json.uri) {
+            (Some(view), None) => {
+                let bytes = match self.views.get(view.value()) {
+                    Some(Ok(bytes)) => bytes.to_vec(),
+                    Some(Err(e)) => return Err(fail(e.clone())),
+                    None => return Err(fail(format!("buffer view {} does not exist", view.value()))),
+                };
+                (bytes, None)
+            }
+            (None, Some(uri)) if uri.starts_with("data:") => {
+                let data = gltf::buffer::Data::from_source(gltf::buffer::Source::Uri(uri), None)
+                    .map(|d| d.0)
+                    .map_err(|e| fail(format!("its data URI does not decode: {e}")))?;
+                (data, None)
+            }
+            (None, Some(uri)) => {
+                let relative = relative_uri_path(uri).map_err(|e| fail(format!("URI '{uri}': {e}")))?;
+                let file = self.path.parent().unwrap_or(Path::new("")).join(relative);
+                let data =
+                    self.files.read(&file).map_err(|e| fail(format!("cannot read '{}': {e}", file.display())))?;
+                self.budget.add_input(data.len());
+                (data, Some(file))
+            }
+            _ => return Err(fail("an image needs exactly one of uri and bufferView".into())),
+        };
+        let decoded = decode_image(&bytes, &mut self.budget).map_err(fail)?;
+        let name = json
+            .name
+            .clone()
+            .or(json.uri.clone().filter(|u| !u.starts_with("data:")))
+            .unwrap_or_else(|| format!("image{index}"));
+        let mut image = TextureImage::new(name, decoded.0, decoded.1, decoded.2).map_err(fail)?;
+        image.source = source;
+        self.scene.textures.push(std::sync::Arc::new(image));
+        self.images.insert(index, self.scene.textures.len() - 1);
+        Ok(self.scene.textures.len() - 1)
     }
 
     /// Parse `{"hyrt": {"ray_traced": bool}}` out of an `extras` value.
@@ -700,23 +962,6 @@ impl<'a> Converter<'a> {
     }
 }
 
-/// Convert a glTF material (see the module docs for the rule).
-fn convert_material(m: &gltf::Material, index: usize) -> Material {
-    let pbr = m.pbr_metallic_roughness();
-    let [r, g, b, _a] = pbr.base_color_factor();
-    let metallic = pbr.metallic_factor();
-    let transmission = m.transmission().map(|t| t.transmission_factor()).unwrap_or(0.0);
-    let ior = m.ior().unwrap_or(DEFAULT_IOR);
-    Material {
-        name: m.name().map(str::to_string).unwrap_or_else(|| format!("material{index}")),
-        base_color: Vec3::new(r, g, b),
-        metallic,
-        roughness: pbr.roughness_factor(),
-        transmission,
-        kind: material_kind(metallic, transmission, ior),
-    }
-}
-
 /// The kind rule shared with the manifest: transmission > 0 is glass, metallic >= 0.5 is
 /// specular, everything else is diffuse.
 pub(crate) fn material_kind(metallic: f32, transmission: f32, ior: f32) -> MaterialKind {
@@ -727,6 +972,33 @@ pub(crate) fn material_kind(metallic: f32, transmission: f32, ior: f32) -> Mater
     } else {
         MaterialKind::Diffuse
     }
+}
+
+/// Decode a PNG or JPEG image (told apart by their signatures, whatever the MIME type
+/// says) to RGBA8: `(width, height, texels)`. Its texels are charged to `budget` before the
+/// decoder allocates them (the decoder is limited to what is left of it), so a small file
+/// claiming a huge image is an error, not an allocation.
+fn decode_image(bytes: &[u8], budget: &mut Budget) -> Result<(u32, u32, Vec<[u8; 4]>), String> {
+    let format = match image::guess_format(bytes) {
+        Ok(f @ (image::ImageFormat::Png | image::ImageFormat::Jpeg)) => f,
+        Ok(other) => return Err(format!("{other:?} images are not read (PNG and JPEG are)")),
+        Err(_) => return Err("neither a PNG nor a JPEG image".into()),
+    };
+    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(TextureImage::MAX_SIDE);
+    limits.max_image_height = Some(TextureImage::MAX_SIDE);
+    limits.max_alloc = Some(budget.left() as u64);
+    reader.limits(limits);
+    let (width, height) = reader.into_dimensions().map_err(|e| format!("{format:?} header: {e}"))?;
+    budget.take(width as usize * height as usize, 4, "image texels")?;
+    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some((budget.left() as u64).saturating_add(width as u64 * height as u64 * 4));
+    reader.limits(limits);
+    let rgba = reader.decode().map_err(|e| format!("{format:?} data: {e}"))?.into_rgba8();
+    let (w, h) = rgba.dimensions();
+    Ok((w, h, rgba.pixels().map(|p| p.0).collect()))
 }
 
 fn read_vec3(b: &[u8]) -> Vec3 {

@@ -397,6 +397,8 @@ impl MaterialOverride {
                 Some(KindName::Glass) => MaterialKind::Glass { ior },
                 None => material_kind(metallic, transmission, ior),
             },
+            // Textures and alpha stay the model's: an override changes factors only.
+            ..m.clone()
         }
     }
 }
@@ -707,6 +709,7 @@ mod tests {
             roughness: 0.3,
             transmission: 0.0,
             kind: MaterialKind::Specular,
+            ..Material::grey()
         };
         let glassy = MaterialOverride { transmission: Some(1.0), ..Default::default() }.apply(&gold);
         assert_eq!(glassy.kind, MaterialKind::Glass { ior: DEFAULT_IOR });

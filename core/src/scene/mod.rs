@@ -13,11 +13,14 @@ pub mod environment;
 pub mod files;
 pub mod gltf_loader;
 pub mod manifest;
+pub mod texture;
 
 pub use environment::{Environment, EnvironmentMap, EnvironmentMapError};
 pub use files::{Disk, SceneFiles};
+pub use texture::{AlphaMode, Filter, Sampler, TextureBinding, TextureImage, UvTransform, VertexAttributes, Wrap};
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 use glam::{Mat4, Vec3};
 
@@ -35,6 +38,8 @@ pub struct Mesh {
     pub normals: Option<Vec<Vec3>>,
     /// Triangles as three indices into `positions`.
     pub indices: Vec<[u32; 3]>,
+    /// Texture coordinates and vertex colours, when the source has them.
+    pub attributes: VertexAttributes,
 }
 
 impl Mesh {
@@ -113,6 +118,12 @@ pub struct Material {
     /// `KHR_materials_transmission` factor in [0, 1].
     pub transmission: f32,
     pub kind: MaterialKind,
+    /// The base-colour factor's alpha in [0, 1] (glTF `baseColorFactor[3]`).
+    pub base_alpha: f32,
+    /// glTF `baseColorTexture`: multiplies the base colour (and its alpha the alpha).
+    pub base_color_texture: Option<TextureBinding>,
+    /// glTF `alphaMode` and `alphaCutoff`.
+    pub alpha_mode: AlphaMode,
 }
 
 impl Material {
@@ -125,6 +136,9 @@ impl Material {
             roughness: 1.0,
             transmission: 0.0,
             kind: MaterialKind::Diffuse,
+            base_alpha: 1.0,
+            base_color_texture: None,
+            alpha_mode: AlphaMode::Opaque,
         }
     }
 
@@ -266,6 +280,9 @@ pub struct Scene {
     /// What rays that leave the scene see: the default sky, or an environment map
     /// (manifest key `environment`, `hyrt render --environment FILE`).
     pub environment: Environment,
+    /// Decoded images that materials' textures sample ([`TextureBinding::image`] indexes
+    /// them); shared, so cloning a scene does not copy texels.
+    pub textures: Vec<Arc<TextureImage>>,
     /// Human-readable notes about what the loader decided (default lights added,
     /// camera framed automatically, primitives skipped, ...). The CLI prints them.
     pub notes: Vec<String>,

@@ -1,0 +1,328 @@
+//! The texture formats a frame holds only when its scene's materials use them: every
+//! sampled image with its mip chain in one texel array, one [`TextureRecord`] per
+//! (image, sampler) pair, one [`MaterialRecord`] per object and one [`TriangleUvRecord`] per
+//! triangle. A scene without textures, vertex colours or alpha-tested materials has none of
+//! them ([`TextureSet::is_empty`]) and its frame is the frame it was before textures.
+//!
+//! Texels are RGBA8 packed in a `u32` (`r | g << 8 | b << 16 | a << 24`), RGB sRGB-encoded,
+//! alpha linear; [`crate::kernels::texture`] decodes them. Level `k + 1` of a chain is
+//! `max(1, floor(w / 2)) x max(1, floor(h / 2))` texels, each the mean, in linear values,
+//! of the (up to) 2 x 2 texels of level `k` it covers ([`mip_chain`]); the levels of a
+//! texture follow each other in [`TextureSet::texels`], level 0 first.
+
+use bytemuck::{Pod, Zeroable};
+
+use super::wgsl::wgsl_struct;
+use super::INVALID_ID;
+use crate::scene::texture::{Filter, Sampler, TextureImage};
+
+/// [`TextureRecord::wrap_s`], [`TextureRecord::wrap_t`]: `REPEAT`.
+pub const WRAP_REPEAT: u32 = 0;
+/// `CLAMP_TO_EDGE`.
+pub const WRAP_CLAMP: u32 = 1;
+/// `MIRRORED_REPEAT`.
+pub const WRAP_MIRROR: u32 = 2;
+
+/// [`TextureRecord::mag_filter`], [`TextureRecord::min_filter`], [`TextureRecord::mip_filter`]:
+/// the nearest texel (level).
+pub const FILTER_NEAREST: u32 = 0;
+/// Bilinear within a level, linear between levels.
+pub const FILTER_LINEAR: u32 = 1;
+/// [`TextureRecord::mip_filter`]: no mip mapping, level 0 only.
+pub const FILTER_NO_MIP: u32 = 2;
+
+/// One sampled texture: where its levels are and how it is sampled.
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `first_texel` | u32 | index of level 0's first texel in [`TextureSet::texels`] |
+/// | 4 | `width` | u32 | level 0's width, 1..=16384 |
+/// | 8 | `height` | u32 | level 0's height, 1..=16384 |
+/// | 12 | `levels` | u32 | mip levels stored (1 when the sampler does not mip map) |
+/// | 16 | `wrap_s` | u32 | `WRAP_*` along u |
+/// | 20 | `wrap_t` | u32 | `WRAP_*` along v |
+/// | 24 | `mag_filter` | u32 | `FILTER_NEAREST` or `FILTER_LINEAR` |
+/// | 28 | `min_filter` | u32 | `FILTER_NEAREST` or `FILTER_LINEAR` |
+/// | 32 | `mip_filter` | u32 | `FILTER_NEAREST`, `FILTER_LINEAR` or `FILTER_NO_MIP` |
+///
+/// 36 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Pod, Zeroable)]
+pub struct TextureRecord {
+    pub first_texel: u32,
+    pub width: u32,
+    pub height: u32,
+    pub levels: u32,
+    pub wrap_s: u32,
+    pub wrap_t: u32,
+    pub mag_filter: u32,
+    pub min_filter: u32,
+    pub mip_filter: u32,
+}
+const _: () = assert!(std::mem::size_of::<TextureRecord>() == 36);
+wgsl_struct!(TextureRecord { first_texel, width, height, levels, wrap_s, wrap_t, mag_filter, min_filter, mip_filter });
+
+impl TextureRecord {
+    /// Width and height of level `level` (`max(1, side >> level)`).
+    #[inline]
+    pub fn level_size(&self, level: u32) -> (u32, u32) {
+        ((self.width >> level).max(1), (self.height >> level).max(1))
+    }
+
+    /// Index in [`TextureSet::texels`] of level `level`'s first texel.
+    #[inline]
+    pub fn level_offset(&self, level: u32) -> u32 {
+        let mut at = self.first_texel;
+        for k in 0..level {
+            let (w, h) = self.level_size(k);
+            at += w * h;
+        }
+        at
+    }
+
+    /// Texels of all its levels.
+    pub fn texel_count(&self) -> u64 {
+        (0..self.levels).map(|k| self.level_size(k)).map(|(w, h)| w as u64 * h as u64).sum()
+    }
+
+    /// Check: sides in range, levels no more than the chain has, known codes.
+    pub fn validate(&self) -> Result<(), String> {
+        let side = 1..=TextureImage::MAX_SIDE;
+        let full_chain = 32 - self.width.max(self.height).leading_zeros();
+        if !side.contains(&self.width) || !side.contains(&self.height) || self.levels == 0 || self.levels > full_chain {
+            return Err(format!("texture record with bad size or level count: {self:?}"));
+        }
+        let wraps = [self.wrap_s, self.wrap_t].iter().all(|&w| w <= WRAP_MIRROR);
+        let filters =
+            self.mag_filter <= FILTER_LINEAR && self.min_filter <= FILTER_LINEAR && self.mip_filter <= FILTER_NO_MIP;
+        if !wraps || !filters || (self.mip_filter == FILTER_NO_MIP && self.levels != 1) {
+            return Err(format!("texture record with unknown codes: {self:?}"));
+        }
+        Ok(())
+    }
+}
+
+/// [`MaterialRecord::flags`]: the base colour is multiplied by [`MaterialRecord::texture`].
+pub const MAT_TEXTURED: u32 = 1 << 0;
+/// The base colour is multiplied by the interpolated vertex colour.
+pub const MAT_VERTEX_COLORS: u32 = 1 << 1;
+/// Alpha-tested: texels whose alpha is below [`MaterialRecord::alpha_cutoff`] are holes.
+pub const MAT_ALPHA_TEST: u32 = 1 << 2;
+
+/// What an object's material adds to [`super::ObjectRecord`] when the scene has textures,
+/// vertex colours or alpha tests; one per object, indexed by object id.
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `texture` | u32 | index of its base-colour [`TextureRecord`], [`INVALID_ID`] without one |
+/// | 4 | `flags` | u32 | `MAT_*` |
+/// | 8 | `base_alpha` | f32 | the base-colour factor's alpha, [0, 1] |
+/// | 12 | `alpha_cutoff` | f32 | the alpha test's cutoff ([0, 1]; 0 without [`MAT_ALPHA_TEST`]) |
+///
+/// 16 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct MaterialRecord {
+    pub texture: u32,
+    pub flags: u32,
+    pub base_alpha: f32,
+    pub alpha_cutoff: f32,
+}
+const _: () = assert!(std::mem::size_of::<MaterialRecord>() == 16);
+wgsl_struct!(MaterialRecord { texture, flags, base_alpha, alpha_cutoff });
+
+impl MaterialRecord {
+    /// An untextured, opaque material without vertex colours.
+    pub const PLAIN: MaterialRecord =
+        MaterialRecord { texture: INVALID_ID, flags: 0, base_alpha: 1.0, alpha_cutoff: 0.0 };
+
+    /// Check: known flags, a texture exactly when textured, alpha and cutoff in [0, 1].
+    pub fn validate(&self, textures: usize) -> Result<(), String> {
+        let textured = self.flags & MAT_TEXTURED != 0;
+        let texture_ok = if textured { (self.texture as usize) < textures } else { self.texture == INVALID_ID };
+        let unit = 0.0..=1.0;
+        if self.flags & !(MAT_TEXTURED | MAT_VERTEX_COLORS | MAT_ALPHA_TEST) != 0
+            || !texture_ok
+            || !unit.contains(&self.base_alpha)
+            || !unit.contains(&self.alpha_cutoff)
+        {
+            return Err(format!("material record with unknown flags, texture or alpha: {self:?}"));
+        }
+        Ok(())
+    }
+}
+
+/// A triangle's texture coordinates (the set its material's texture uses, with the
+/// material's `KHR_texture_transform` applied) and the level-of-detail constant of ray
+/// cones, [`crate::kernels::texture::triangle_lod_bias`]; zeros for a triangle whose
+/// material has no texture.
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `uv0` | [f32; 2] | at vertex 0 |
+/// | 8 | `uv1` | [f32; 2] | at vertex 1 |
+/// | 16 | `uv2` | [f32; 2] | at vertex 2 |
+/// | 24 | `lod_bias` | f32 | `0.5 log2(texel area / world area)` |
+/// | 28 | `pad` | u32 | zero |
+///
+/// 32 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct TriangleUvRecord {
+    pub uv0: [f32; 2],
+    pub uv1: [f32; 2],
+    pub uv2: [f32; 2],
+    pub lod_bias: f32,
+    pub pad: u32,
+}
+const _: () = assert!(std::mem::size_of::<TriangleUvRecord>() == 32);
+wgsl_struct!(TriangleUvRecord { uv0, uv1, uv2, lod_bias, pad });
+
+/// Pack an RGBA8 texel as [`TextureSet::texels`] stores it.
+#[inline]
+pub fn pack_texel(t: [u8; 4]) -> u32 {
+    u32::from_le_bytes(t)
+}
+
+/// The mip chain of `image` down to 1 x 1: level 0 is the image; each further level
+/// averages, in linear values (sRGB decoded by the table of
+/// [`crate::kernels::texture::srgb8_to_linear`], alpha linear), the up to 2 x 2 texels of the
+/// level above that it covers (`2x, 2x + 1` by `2y, 2y + 1`, the last row or column of an
+/// odd side taken once more by the texel that reaches it), and encodes the mean again
+/// ([`crate::kernels::shading::linear_to_srgb8`]). Computed once on the CPU: the GPU is
+/// given the same texels, never recomputes them.
+pub fn mip_chain(image: &TextureImage) -> Vec<Vec<[u8; 4]>> {
+    use crate::kernels::shading::linear_to_srgb8;
+    use crate::kernels::texture::srgb8_to_linear;
+    let mut levels = vec![image.texels.clone()];
+    let (mut w, mut h) = (image.width, image.height);
+    while w > 1 || h > 1 {
+        let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
+        let above = levels.last().expect("level 0 is there");
+        let mut next = Vec::with_capacity(nw as usize * nh as usize);
+        for y in 0..nh {
+            // The rows (columns) of the level above this texel covers: two, and for the
+            // last texel of an odd side three, so no row is dropped.
+            let rows = (2 * y)..if y + 1 == nh { h } else { 2 * y + 2 };
+            for x in 0..nw {
+                let cols = (2 * x)..if x + 1 == nw { w } else { 2 * x + 2 };
+                let mut sum = [0.0f32; 4];
+                for yy in rows.clone() {
+                    for xx in cols.clone() {
+                        let t = above[(yy * w + xx) as usize];
+                        for c in 0..3 {
+                            sum[c] += srgb8_to_linear(t[c]);
+                        }
+                        sum[3] += t[3] as f32;
+                    }
+                }
+                let n = (rows.len() * cols.len()) as f32;
+                let a = (sum[3] / n + 0.5) as u8;
+                next.push([linear_to_srgb8(sum[0] / n), linear_to_srgb8(sum[1] / n), linear_to_srgb8(sum[2] / n), a]);
+            }
+        }
+        levels.push(next);
+        (w, h) = (nw, nh);
+    }
+    levels
+}
+
+/// Every texture a frame samples: the records and their texels, built once per scene.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TextureSet {
+    pub records: Vec<TextureRecord>,
+    /// All levels of all textures, packed ([`pack_texel`]).
+    pub texels: Vec<u32>,
+}
+
+impl TextureSet {
+    /// No texture at all.
+    pub fn is_empty(&self) -> bool {
+        self.records.is_empty()
+    }
+
+    /// Add `image` sampled with `sampler` (its mip chain when the sampler mip maps) and
+    /// return its record's index. Images shared by several samplers are stored once per
+    /// sampler: the caller dedupes (image, sampler) pairs.
+    pub fn add(&mut self, image: &TextureImage, sampler: &Sampler) -> u32 {
+        let first_texel =
+            u32::try_from(self.texels.len()).expect("texels beyond 2^32: the loader's budget prevents this");
+        let levels = if sampler.mip.is_some() { mip_chain(image) } else { vec![image.texels.clone()] };
+        let code = |f: Filter| match f {
+            Filter::Nearest => FILTER_NEAREST,
+            Filter::Linear => FILTER_LINEAR,
+        };
+        let record = TextureRecord {
+            first_texel,
+            width: image.width,
+            height: image.height,
+            levels: levels.len() as u32,
+            wrap_s: sampler.wrap_s.code(),
+            wrap_t: sampler.wrap_t.code(),
+            mag_filter: code(sampler.mag),
+            min_filter: code(sampler.min),
+            mip_filter: sampler.mip.map(code).unwrap_or(FILTER_NO_MIP),
+        };
+        self.texels.extend(levels.iter().flatten().map(|&t| pack_texel(t)));
+        self.records.push(record);
+        (self.records.len() - 1) as u32
+    }
+
+    /// Bytes the set holds (records and texels).
+    pub fn bytes(&self) -> usize {
+        self.records.len() * std::mem::size_of::<TextureRecord>() + self.texels.len() * 4
+    }
+
+    /// Check every record, and that its levels lie inside the texels.
+    pub fn validate(&self) -> Result<(), String> {
+        for (k, r) in self.records.iter().enumerate() {
+            r.validate().map_err(|e| format!("texture {k}: {e}"))?;
+            if r.first_texel as u64 + r.texel_count() > self.texels.len() as u64 {
+                return Err(format!("texture {k}: levels past the end of the texels ({r:?})"));
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mip_chains_average_in_linear_light_and_keep_odd_edges() {
+        // 3 x 2: black and white columns; the odd last column is folded into level 1.
+        let texels = vec![
+            [0, 0, 0, 255],
+            [255, 255, 255, 255],
+            [255, 255, 255, 0],
+            [0, 0, 0, 255],
+            [255, 255, 255, 255],
+            [255, 255, 255, 0],
+        ];
+        let image = TextureImage::new("t".into(), 3, 2, texels).unwrap();
+        let chain = mip_chain(&image);
+        assert_eq!(chain.len(), 2, "3x2 -> 1x1");
+        // Mean of 2 black and 4 white texels in linear light is 2/3: sRGB 213, not 170.
+        let expected = crate::kernels::shading::linear_to_srgb8(4.0 / 6.0);
+        assert_eq!(expected, 213);
+        assert_eq!(chain[1], vec![[213, 213, 213, 170]]);
+    }
+
+    #[test]
+    fn records_of_a_set_point_at_their_levels() {
+        let image = TextureImage::new("t".into(), 4, 2, vec![[10, 20, 30, 40]; 8]).unwrap();
+        let mut set = TextureSet::default();
+        assert_eq!(set.add(&image, &Sampler { mip: None, ..Sampler::default() }), 0);
+        assert_eq!(set.add(&image, &Sampler::default()), 1);
+        let r = set.records[1];
+        assert_eq!((r.first_texel, r.levels, r.texel_count()), (8, 3, 8 + 2 + 1));
+        assert_eq!((r.level_offset(1), r.level_offset(2), r.level_size(2)), (16, 18, (1, 1)));
+        assert_eq!(set.texels.len(), 19);
+        assert_eq!(set.texels[18], pack_texel([10, 20, 30, 40]), "a constant image keeps its texel in every level");
+        set.validate().unwrap();
+        let mut bad = set.clone();
+        bad.records[1].levels = 4;
+        assert!(bad.validate().is_err());
+    }
+}
