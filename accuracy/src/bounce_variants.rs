@@ -9,13 +9,15 @@ use std::time::Instant;
 use glam::Vec3;
 use hyrt_core::bvh::Bvh;
 use hyrt_core::formats::{
-    GBufferTexel, HitRecord, ObjectRecord, RayRecord, SurfaceRecord, TriangleRecord, INVALID_ID, RAY_KIND_REFRACTION,
+    GBufferTexel, HitRecord, RayRecord, SurfaceRecord, TriangleRecord, INVALID_ID, RAY_KIND_REFRACTION,
 };
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::bounce::{bounces, spawn, Parent};
+use hyrt_core::kernels::texture::Materials;
 use hyrt_cpu::bounce_shading::{bounce_shading_into, Children};
 use hyrt_cpu::bounce_trace::bounce_trace_into;
 use hyrt_cpu::compaction::{compaction_into, shadow_mask_into, CompactionScratch};
+use hyrt_cpu::raster_shading::Primary;
 use hyrt_cpu::rt_shading::{rt_shading_bouncing_into, rt_shading_into, FirstBounce};
 use hyrt_cpu::secondary_rays::{secondary_rays_into, Parents};
 use hyrt_cpu::shadow_rays::shadow_rays_with;
@@ -96,7 +98,7 @@ fn parent_surface<'a>(parents: &Parents<'a>, i: usize) -> &'a SurfaceRecord {
 /// `PIPELINE_CUTOFF_LOG2` it gives the stage's output (tested).
 pub fn spawn_with_cutoff(
     parents: Parents,
-    objects: &[ObjectRecord],
+    materials: &Materials,
     triangles: &[TriangleRecord],
     depth: u32,
     cutoff_log2: i32,
@@ -106,15 +108,18 @@ pub fn spawn_with_cutoff(
     let scale = pow2(PIPELINE_CUTOFF_LOG2 - cutoff_log2);
     let unscale = pow2(cutoff_log2 - PIPELINE_CUTOFF_LOG2);
     let n = parents.len();
-    let bouncing: Vec<u32> =
-        (0..n as u32).into_par_iter().with_min_len(4096).filter(|&i| parents.may_bounce(i as usize, objects)).collect();
+    let bouncing: Vec<u32> = (0..n as u32)
+        .into_par_iter()
+        .with_min_len(4096)
+        .filter(|&i| parents.may_bounce(i as usize, materials.objects))
+        .collect();
     let spawned: Vec<[Option<RayRecord>; 2]> = bouncing
         .par_iter()
         .with_min_len(256)
         .map(|&i| {
-            let p = parents.get(i as usize);
+            let p = parents.get(i as usize, materials);
             let scaled = Parent { throughput: p.throughput * scale, ..p };
-            spawn(&scaled, objects, triangles, depth)
+            spawn(&scaled, triangles, depth)
                 .map(|r| r.map(|r| RayRecord { throughput: (Vec3::from(r.throughput) * unscale).into(), ..r }))
         })
         .collect();
@@ -203,6 +208,8 @@ pub fn bounce_rt_image(
     let depth = if g.objects.iter().any(bounces) { max_depth as usize } else { 0 };
     // The CPU frame's traversals: packets for shadow rays, single rays for bounces.
     let (traversal, bounce_traversal) = (Traversal::simd(), Traversal::for_bounces());
+    // The lab's scenes are untextured: every point is its object's record.
+    let materials = Materials::plain(&g.objects);
     let extent = g.scene_extent();
     let mut scratch = CompactionScratch::default();
     let mut closest = Vec::new();
@@ -215,9 +222,9 @@ pub fn bounce_rt_image(
             Some(prev) => Parents::Secondary { rays: &prev.rays, hits: &prev.hits, surfaces: &prev.surfaces },
         };
         match variant.cutoff_log2 {
-            None => secondary_rays_into(parents, &g.objects, &g.triangles, d, &mut scratch, &mut b.rays, &mut b.links)
+            None => secondary_rays_into(parents, &materials, &g.triangles, d, &mut scratch, &mut b.rays, &mut b.links)
                 .unwrap_or_else(|e| panic!("secondary_rays: {e}")),
-            Some(e) => spawn_with_cutoff(parents, &g.objects, &g.triangles, d, e, &mut b.rays, &mut b.links),
+            Some(e) => spawn_with_cutoff(parents, &materials, &g.triangles, d, e, &mut b.rays, &mut b.links),
         }
         if variant.offset != OffsetMethod::PIPELINE {
             reoffset_secondary_rays(&mut b.rays, &b.links, &parents, variant.offset, extent);
@@ -240,7 +247,7 @@ pub fn bounce_rt_image(
             &b.hits,
             &b.surfaces,
             &b.shadow,
-            &g.objects,
+            &materials,
             &g.triangles,
             &g.lights,
             &g.environment,
@@ -251,10 +258,13 @@ pub fn bounce_rt_image(
     let bounce_ms = t.elapsed().as_secs_f64() * 1e3;
     let mut rt = Vec::new();
     match levels.first() {
-        None => rt_shading_into(surfaces, shadow, &g.objects, &g.lights, eye, &mut rt),
+        None => {
+            let primary = Primary { gbuffer, materials: &materials, eye };
+            rt_shading_into(surfaces, shadow, &primary, &g.lights, &mut rt)
+        }
         Some(first) => {
             let bounce = FirstBounce { gbuffer, links: &first.links, radiance: &first.radiance };
-            rt_shading_bouncing_into(surfaces, shadow, &g.objects, &g.triangles, &g.lights, eye, bounce, &mut rt)
+            rt_shading_bouncing_into(surfaces, shadow, &materials, &g.triangles, &g.lights, eye, bounce, &mut rt)
         }
     }
     BounceRt { rt, rays: levels.iter().map(|b| b.rays.len() as u64).sum(), bounce_ms }

@@ -62,15 +62,16 @@ fn the_pipeline_offset_and_cutoff_leave_the_secondary_rays_bit_identical() {
     let gbuffer = visibility_raster(&g, &camera).gbuffer;
     let surfaces = reconstruction(&gbuffer, &g, eye);
     let parents = Parents::Primary { gbuffer: &gbuffer, surfaces: &surfaces, eye };
+    let materials = hyrt_core::kernels::texture::Materials::plain(&g.objects);
     let (mut rays, mut links) = (Vec::new(), Vec::new());
-    secondary_rays_into(parents, &g.objects, &g.triangles, 1, &mut CompactionScratch::default(), &mut rays, &mut links)
+    secondary_rays_into(parents, &materials, &g.triangles, 1, &mut CompactionScratch::default(), &mut rays, &mut links)
         .unwrap();
     assert!(rays.len() > 200, "{}", rays.len());
     let mut again = rays.clone();
     reoffset_secondary_rays(&mut again, &links, &parents, OffsetMethod::ErrorBound, g.scene_extent());
     assert_eq!(bits(&again), bits(&rays));
     let (mut spawned, mut spawned_links) = (Vec::new(), Vec::new());
-    spawn_with_cutoff(parents, &g.objects, &g.triangles, 1, PIPELINE_CUTOFF_LOG2, &mut spawned, &mut spawned_links);
+    spawn_with_cutoff(parents, &materials, &g.triangles, 1, PIPELINE_CUTOFF_LOG2, &mut spawned, &mut spawned_links);
     assert_eq!(bits(&spawned), bits(&rays));
     assert_eq!(spawned_links, links);
     // Another method moves origins only; a lower cut-off only adds rays, a higher one only removes.
@@ -83,7 +84,7 @@ fn the_pipeline_offset_and_cutoff_leave_the_secondary_rays_bit_identical() {
         rays.iter().filter(|r| Vec3::from(r.throughput).max_element() >= c).copied().collect()
     };
     for log2 in CUTOFFS_LOG2 {
-        spawn_with_cutoff(parents, &g.objects, &g.triangles, 1, log2, &mut spawned, &mut spawned_links);
+        spawn_with_cutoff(parents, &materials, &g.triangles, 1, log2, &mut spawned, &mut spawned_links);
         let both = pow2(log2.max(PIPELINE_CUTOFF_LOG2));
         assert_eq!(bits(&at_least(&spawned, both)), bits(&at_least(&rays, both)), "cut-off 2^{log2}");
         assert_eq!(at_least(&spawned, pow2(log2)).len(), spawned.len(), "cut-off 2^{log2}");

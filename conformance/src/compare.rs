@@ -601,7 +601,7 @@ mod tests {
             depth: 0,
             light: 0,
             throughput: [1.0; 3],
-            pad: 0,
+            cone: 0.0,
         }
     }
 

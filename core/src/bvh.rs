@@ -45,7 +45,7 @@
 //! let eye = Scene::default_scene().camera.unwrap().eye;
 //! let ray = RayRecord {
 //!     origin: eye.into(), t_min: 0.0, direction: (-eye).into(), t_max: f32::INFINITY,
-//!     pixel: 0, kind: RAY_KIND_PRIMARY, depth: 0, light: INVALID_ID, throughput: [1.0; 3], pad: 0,
+//!     pixel: 0, kind: RAY_KIND_PRIMARY, depth: 0, light: INVALID_ID, throughput: [1.0; 3], cone: 0.0,
 //! };
 //! let hit = bvh.closest_hit(&geometry.triangles, &ray);
 //! assert_eq!(hit.is_some(), bvh.occluded(&geometry.triangles, &ray));
@@ -57,7 +57,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Vec3, Vec3A};
 use obvhs::{bvh2::builder::build_bvh2_from_tris, triangle::Triangle, BvhBuildParams};
 
-use crate::formats::{RayRecord, TriangleRecord, INVALID_ID};
+use crate::formats::{RayRecord, TriangleRecord, INVALID_ID, TRI_ALPHA_TEST};
 use crate::geometry::WorldGeometry;
 use crate::kernels::ray::{gamma, ray_aabb_conservative, safe_inverse_dir, WatertightRay};
 
@@ -648,7 +648,22 @@ impl Bvh {
     ///
     /// `triangles` is the table the BVH was built from. Traversal reads the slot-ordered
     /// copy in `leaf_triangles`; debug builds check every tested slot against `triangles`.
+    /// Alpha-tested triangles count as any other: [`Bvh::occluded_filtered`] tests them.
     pub fn occluded(&self, triangles: &[TriangleRecord], ray: &RayRecord) -> bool {
+        self.occluded_filtered(triangles, ray, |_, _, _, _| true)
+    }
+
+    /// [`Bvh::occluded`] where a hit on a triangle flagged [`TRI_ALPHA_TEST`] counts only
+    /// if `accept(triangle, global index, u, v)` says so (the alpha test of
+    /// [`crate::kernels::texture::alpha_accepts`]); a rejected hit neither stops the walk
+    /// nor narrows anything. Other triangles never call `accept`.
+    #[inline(always)]
+    pub fn occluded_filtered(
+        &self,
+        triangles: &[TriangleRecord],
+        ray: &RayRecord,
+        accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool,
+    ) -> bool {
         let Some(r) = TraversalRay::new(ray) else {
             return false;
         };
@@ -658,8 +673,10 @@ impl Bvh {
             |leaf: Leaf, _: f32, _: &mut f32| {
                 for slot in leaf.slots() {
                     let t = self.leaf_triangle(triangles, slot);
-                    if r.wt.intersect(r.t_min, r.t_max, t.v0.into(), t.v1.into(), t.v2.into()).is_some() {
-                        return LeafFlow::Stop;
+                    if let Some(h) = r.wt.intersect(r.t_min, r.t_max, t.v0.into(), t.v1.into(), t.v2.into()) {
+                        if t.flags & TRI_ALPHA_TEST == 0 || accept(t, self.prim_indices[slot as usize], h.u, h.v) {
+                            return LeafFlow::Stop;
+                        }
                     }
                 }
                 LeafFlow::Continue
@@ -676,6 +693,18 @@ impl Bvh {
     /// [`BVH_CULL_SLACK`], so the result is the brute-force minimum of `(t, triangle)` over
     /// all triangles except in the corner case that constant's docs describe.
     pub fn closest_hit(&self, triangles: &[TriangleRecord], ray: &RayRecord) -> Option<ClosestHit> {
+        self.closest_hit_filtered(triangles, ray, |_, _, _, _| true)
+    }
+
+    /// [`Bvh::closest_hit`] where a hit on a triangle flagged [`TRI_ALPHA_TEST`] counts
+    /// only if `accept` says so, as in [`Bvh::occluded_filtered`].
+    #[inline(always)]
+    pub fn closest_hit_filtered(
+        &self,
+        triangles: &[TriangleRecord],
+        ray: &RayRecord,
+        accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool,
+    ) -> Option<ClosestHit> {
         let r = TraversalRay::new(ray)?;
         let mut best = ClosestHit { triangle: INVALID_ID, t: r.t_max, u: 0.0, v: 0.0, back_face: false };
         let leaf_test = inline_leaf_test(
@@ -686,7 +715,8 @@ impl Bvh {
                     let t = self.leaf_triangle(triangles, slot);
                     if let Some(h) = r.wt.intersect(r.t_min, r.t_max, t.v0.into(), t.v1.into(), t.v2.into()) {
                         let id = self.prim_indices[slot as usize];
-                        if h.t < *t_best || (h.t == *t_best && id < best.triangle) {
+                        let closer = h.t < *t_best || (h.t == *t_best && id < best.triangle);
+                        if closer && (t.flags & TRI_ALPHA_TEST == 0 || accept(t, id, h.u, h.v)) {
                             best = ClosestHit { triangle: id, t: h.t, u: h.u, v: h.v, back_face: h.back_face };
                             *t_best = h.t;
                             flow = LeafFlow::Narrowed;
@@ -751,7 +781,7 @@ mod tests {
             depth: 0,
             light: INVALID_ID,
             throughput: [1.0; 3],
-            pad: 0,
+            cone: 0.0,
         }
     }
 

@@ -14,7 +14,7 @@ use crate::formats::{
     LightRecord, MaterialRecord, ObjectRecord, TextureSet, TriangleRecord, TriangleUvRecord, MAT_ALPHA_TEST,
     MAT_TEXTURED, MAT_VERTEX_COLORS, OBJ_RAY_TRACED, TRI_ALPHA_TEST, TRI_INWARD, TRI_RAY_TRACED,
 };
-use crate::kernels::texture::triangle_lod_bias;
+use crate::kernels::texture::{triangle_lod_bias, SurfaceView};
 use crate::scene::{Environment, Material, MaterialKind, Mesh, RenderMode, Scene};
 
 /// How a mesh's triangles are wound, as far as the renderer needs to know: which side of a
@@ -164,6 +164,17 @@ pub struct SurfaceTables {
 }
 
 impl SurfaceTables {
+    /// The tables as the kernels read them.
+    pub fn view(&self) -> SurfaceView<'_> {
+        SurfaceView {
+            materials: &self.materials,
+            uvs: &self.uvs,
+            colors: &self.colors,
+            textures: &self.textures.records,
+            texels: &self.textures.texels,
+        }
+    }
+
     /// No material of the scene uses a texture, vertex colours or an alpha test.
     pub fn is_empty(&self) -> bool {
         self.materials.is_empty()
@@ -360,6 +371,17 @@ impl WorldGeometry {
     #[inline]
     pub fn global_triangle(&self, object: u32, triangle: u32) -> usize {
         (self.objects[object as usize].first_triangle + triangle) as usize
+    }
+
+    /// What shading knows of materials in a frame seen by `camera`: the objects, the
+    /// surface tables and, when some object's colour varies over its surface, the frame's
+    /// cone spread ([`crate::kernels::texture::camera_pixel_spread`]; 0 otherwise, so an
+    /// untextured frame's rays carry zero cones as they did before textures).
+    pub fn materials(&self, camera: &crate::formats::CameraRecord) -> crate::kernels::texture::Materials<'_> {
+        let surface = self.surface.view();
+        let varying = surface.materials.iter().any(|m| m.flags & (MAT_TEXTURED | MAT_VERTEX_COLORS) != 0);
+        let spread = if varying { crate::kernels::texture::camera_pixel_spread(camera) } else { 0.0 };
+        crate::kernels::texture::Materials { objects: &self.objects, surface, spread }
     }
 
     /// Length of the bounds' diagonal: the scene's scale for relative errors.

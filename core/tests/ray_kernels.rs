@@ -32,7 +32,7 @@ fn ray(origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> RayRecord {
         depth: 0,
         light: INVALID_ID,
         throughput: [1.0; 3],
-        pad: 0,
+        cone: 0.0,
     }
 }
 

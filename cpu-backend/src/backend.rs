@@ -20,7 +20,7 @@ use crate::{
     compaction::{active_pairs_into, compaction_into, shadow_mask_into, shadow_mask_of_pairs_into, CompactionScratch},
     composition::composition_into,
     memory,
-    raster_shading::raster_shading_into,
+    raster_shading::{raster_shading_into, Primary},
     reconstruction::{reconstruction_into, reconstruction_reintersected_into},
     rt_shading::{rt_shading_bouncing_into, rt_shading_into, FirstBounce},
     secondary_rays::{secondary_rays_into, Parents},
@@ -202,6 +202,9 @@ impl Backend for CpuBackend {
             let mut covered = 0;
             // Shadow rays per list: the primary hits', then each bounce depth's.
             let mut shadow_rays = vec![0; lists.len()];
+            // What shading knows of materials (textures, vertex colours; the plain
+            // object records in a scene without them).
+            let materials = g.materials(camera);
             // The plan's one loop: each step runs its stage module and is timed.
             for &step in plan.steps() {
                 let t = Instant::now();
@@ -231,7 +234,7 @@ impl Backend for CpuBackend {
                         let b = &mut rest[0];
                         secondary_rays_into(
                             parents,
-                            &g.objects,
+                            &materials,
                             &g.triangles,
                             depth,
                             scratch,
@@ -274,7 +277,7 @@ impl Backend for CpuBackend {
                             &b.hits,
                             &b.surfaces,
                             &b.shadow,
-                            &g.objects,
+                            &materials,
                             &g.triangles,
                             &g.lights,
                             &g.environment,
@@ -283,7 +286,8 @@ impl Backend for CpuBackend {
                         )
                     }
                     Step::RtShading { bounces: false } => {
-                        rt_shading_into(&f.surfaces, &f.shadow, &g.objects, &g.lights, eye, &mut f.rt)
+                        let primary = Primary { gbuffer: &f.gbuffer, materials: &materials, eye };
+                        rt_shading_into(&f.surfaces, &f.shadow, &primary, &g.lights, &mut f.rt)
                     }
                     Step::RtShading { bounces: true } => {
                         let first = &f.bounces[0];
@@ -292,7 +296,7 @@ impl Backend for CpuBackend {
                         rt_shading_bouncing_into(
                             &f.surfaces,
                             &f.shadow,
-                            &g.objects,
+                            &materials,
                             &g.triangles,
                             &g.lights,
                             eye,
@@ -303,7 +307,7 @@ impl Backend for CpuBackend {
                     Step::RasterShading { shade_ray_traced } => raster_shading_into(
                         &f.surfaces,
                         &f.shadow,
-                        &g.objects,
+                        &Primary { gbuffer: &f.gbuffer, materials: &materials, eye },
                         &g.lights,
                         shade_ray_traced,
                         &mut f.raster,

@@ -4,15 +4,16 @@
 //! backend and thread count.
 //!
 //! Inputs: the rays, hits, surfaces and shadow codes of depth `d`; unless `d` is the
-//! plan's deepest bounce, the links and radiance of depth `d + 1`; objects, triangles,
+//! plan's deepest bounce, the links and radiance of depth `d + 1`; the materials, triangles,
 //! lights, the scene's environment. Output: one linear RGBA value per ray (alpha 1). The
 //! kernel is [`hyrt_core::kernels::bounce::shade_secondary_hit`]: the environment (the
 //! default sky or the scene's map) on a miss, the
 //! bouncing shader on mirrors and glass, the ray-traced shader on other ray-traced
 //! objects and the raster shader on rasterized ones.
 
-use hyrt_core::formats::{HitRecord, LightRecord, ObjectRecord, RayRecord, SurfaceRecord, TriangleRecord, INVALID_ID};
+use hyrt_core::formats::{HitRecord, LightRecord, RayRecord, SurfaceRecord, TriangleRecord, INVALID_ID};
 use hyrt_core::kernels::bounce::{secondary_parent, shade_secondary_hit};
+use hyrt_core::kernels::texture::Materials;
 use hyrt_core::scene::Environment;
 use rayon::prelude::*;
 
@@ -34,7 +35,7 @@ pub fn bounce_shading_into(
     hits: &[HitRecord],
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
-    objects: &[ObjectRecord],
+    materials: &Materials,
     triangles: &[TriangleRecord],
     lights: &[LightRecord],
     env: &Environment,
@@ -51,9 +52,9 @@ pub fn bounce_shading_into(
         .into_par_iter()
         .with_min_len(1024)
         .map(|i| {
-            let p = secondary_parent(&rays[i], &hits[i], &surfaces[i]);
+            let p = secondary_parent(&rays[i], &hits[i], &surfaces[i], materials);
             let kids = links.get(i).copied().unwrap_or([INVALID_ID; 2]);
-            shade_secondary_hit(&p, env, objects, triangles, &shadow[i * nl..(i + 1) * nl], lights, kids, radiance)
+            shade_secondary_hit(&p, env, triangles, &shadow[i * nl..(i + 1) * nl], lights, kids, radiance)
                 .extend(1.0)
                 .into()
         })

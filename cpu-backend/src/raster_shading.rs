@@ -4,15 +4,20 @@
 //! shadow mask. Ray-traced objects are shaded here too only when the
 //! composition weight is below 1 (the frame models only what it needs).
 //!
-//! Inputs: surfaces, the shadow mask, objects, lights, the composition weight.
+//! Inputs: surfaces, the shadow mask, the materials (objects; with textures or vertex
+//! colours also the G-buffer's barycentrics, the eye and the surface tables), lights, the
+//! composition weight.
 //! Output: the raster image (linear RGBA, background where nothing is shaded).
 
 use glam::Vec3;
-use hyrt_core::formats::{LightRecord, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
+use hyrt_core::formats::{GBufferTexel, LightRecord, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
+use hyrt_core::kernels::bounce::primary_parent;
 use hyrt_core::kernels::shading::{shade_raster_pixel, BACKGROUND};
+use hyrt_core::kernels::texture::Materials;
 use rayon::prelude::*;
 
-/// The stage. `shadow` is indexed `pixel * lights.len() + light`.
+/// The stage on a scene without textures or vertex colours. `shadow` is indexed
+/// `pixel * lights.len() + light`.
 pub fn raster_shading(
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
@@ -21,21 +26,45 @@ pub fn raster_shading(
     weight: f32,
 ) -> Vec<[f32; 4]> {
     let mut out = Vec::new();
-    raster_shading_into(surfaces, shadow, objects, lights, weight < 1.0, &mut out);
+    let primary = Primary { gbuffer: &[], materials: &Materials::plain(objects), eye: Vec3::ZERO };
+    raster_shading_into(surfaces, shadow, &primary, lights, weight < 1.0, &mut out);
     out
 }
 
-/// [`raster_shading`] into a caller-owned image, reusing its allocation;
-/// `shade_ray_traced` (the weight is below 1) shades ray-traced objects too, as the
-/// plan's [`Step::RasterShading`](hyrt_core::plan::Step::RasterShading) says.
+/// What shading a primary hit reads besides its surface: the materials and, where they
+/// vary over surfaces, the G-buffer's barycentrics and the eye (the footprint).
+#[derive(Clone, Copy)]
+pub struct Primary<'a> {
+    pub gbuffer: &'a [GBufferTexel],
+    pub materials: &'a Materials<'a>,
+    pub eye: Vec3,
+}
+
+impl Primary<'_> {
+    /// The record pixel `i`'s object is shaded with: [`Materials::at`] where materials
+    /// vary, the object's own record elsewhere.
+    #[inline]
+    pub fn object(&self, i: usize, s: &SurfaceRecord) -> ObjectRecord {
+        if self.materials.varying() {
+            primary_parent(&self.gbuffer[i], s, self.eye, i as u32, self.materials).object
+        } else {
+            self.materials.objects[s.object as usize]
+        }
+    }
+}
+
+/// [`raster_shading`] into a caller-owned image, reusing its allocation, with any
+/// materials; `shade_ray_traced` (the weight is below 1) shades ray-traced objects too,
+/// as the plan's [`Step::RasterShading`](hyrt_core::plan::Step::RasterShading) says.
 pub fn raster_shading_into(
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
-    objects: &[ObjectRecord],
+    primary: &Primary,
     lights: &[LightRecord],
     shade_ray_traced: bool,
     out: &mut Vec<[f32; 4]>,
 ) {
+    let objects = primary.materials.objects;
     let nl = lights.len();
     let shade_rt_objects = shade_ray_traced;
     let background = Vec3::from(BACKGROUND).extend(1.0).into();
@@ -51,7 +80,8 @@ pub fn raster_shading_into(
             if obj.flags & OBJ_RAY_TRACED != 0 && !shade_rt_objects {
                 return [0.0; 4];
             }
-            shade_raster_pixel(s, obj, &shadow[i * nl..(i + 1) * nl], lights).extend(1.0).into()
+            let obj = primary.object(i, s);
+            shade_raster_pixel(s, &obj, &shadow[i * nl..(i + 1) * nl], lights).extend(1.0).into()
         })
         .collect_into_vec(out);
 }

@@ -2,16 +2,21 @@
 //! Lambert + Blinn-Phong specular from every light, times the traced shadow
 //! visibility.
 //!
-//! Inputs: surfaces, the shadow mask, objects, lights, the eye. Output: the
-//! ray-traced image (linear RGBA; alpha 1 on ray-traced pixels, 0 elsewhere).
+//! Inputs: surfaces, the shadow mask, the materials (objects; with textures or vertex
+//! colours also the G-buffer's barycentrics and the surface tables), lights, the eye.
+//! Output: the ray-traced image (linear RGBA; alpha 1 on ray-traced pixels, 0 elsewhere).
 
 use glam::Vec3;
 use hyrt_core::formats::{GBufferTexel, LightRecord, ObjectRecord, SurfaceRecord, TriangleRecord, OBJ_RAY_TRACED};
 use hyrt_core::kernels::bounce::{primary_parent, shade_rt_pixel_bouncing};
 use hyrt_core::kernels::shading::shade_rt_pixel;
+use hyrt_core::kernels::texture::Materials;
+
+use crate::raster_shading::Primary;
 use rayon::prelude::*;
 
-/// The stage. `shadow` is indexed `pixel * lights.len() + light`.
+/// The stage on a scene without textures or vertex colours. `shadow` is indexed
+/// `pixel * lights.len() + light`.
 pub fn rt_shading(
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
@@ -20,21 +25,22 @@ pub fn rt_shading(
     eye: Vec3,
 ) -> Vec<[f32; 4]> {
     let mut out = Vec::new();
-    rt_shading_into(surfaces, shadow, objects, lights, eye, &mut out);
+    let primary = Primary { gbuffer: &[], materials: &Materials::plain(objects), eye };
+    rt_shading_into(surfaces, shadow, &primary, lights, &mut out);
     out
 }
 
-/// [`rt_shading`] into a caller-owned image, reusing its allocation.
+/// [`rt_shading`] into a caller-owned image, reusing its allocation, with any materials
+/// (each pixel's object as [`Primary::object`] sees it).
 pub fn rt_shading_into(
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
-    objects: &[ObjectRecord],
+    primary: &Primary,
     lights: &[LightRecord],
-    eye: Vec3,
     out: &mut Vec<[f32; 4]>,
 ) {
-    shade_ray_traced_pixels(surfaces, shadow, objects, lights.len(), out, |_, s, obj, shadow| {
-        shade_rt_pixel(s, obj, shadow, lights, eye)
+    shade_ray_traced_pixels(surfaces, shadow, primary.materials.objects, lights.len(), out, |i, s, _, shadow| {
+        shade_rt_pixel(s, &primary.object(i, s), shadow, lights, primary.eye)
     });
 }
 
@@ -57,16 +63,16 @@ pub struct FirstBounce<'a> {
 pub fn rt_shading_bouncing_into(
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
-    objects: &[ObjectRecord],
+    materials: &Materials,
     triangles: &[TriangleRecord],
     lights: &[LightRecord],
     eye: Vec3,
     bounce: FirstBounce,
     out: &mut Vec<[f32; 4]>,
 ) {
-    shade_ray_traced_pixels(surfaces, shadow, objects, lights.len(), out, |i, s, _, shadow| {
-        let p = primary_parent(&bounce.gbuffer[i], s, eye, i as u32);
-        shade_rt_pixel_bouncing(&p, objects, triangles, shadow, lights, eye, bounce.links[i], bounce.radiance)
+    shade_ray_traced_pixels(surfaces, shadow, materials.objects, lights.len(), out, |i, s, _, shadow| {
+        let p = primary_parent(&bounce.gbuffer[i], s, eye, i as u32, materials);
+        shade_rt_pixel_bouncing(&p, triangles, shadow, lights, eye, bounce.links[i], bounce.radiance)
     });
 }
 

@@ -4,7 +4,7 @@
 //! per ray that is traced, none for the parents that spawn nothing).
 //!
 //! Inputs: for `d = 1` the G-buffer and the primary surfaces (one parent per pixel),
-//! else the rays, hits and surfaces of depth `d - 1` (one parent per ray); objects and
+//! else the rays, hits and surfaces of depth `d - 1` (one parent per ray); the materials and
 //! triangles. Outputs: the rays of depth `d`, in their parents' order, reflection before
 //! refraction; and per parent its `[reflection, refraction]` child indices
 //! (`INVALID_ID` where that lobe spawned no ray), which `bounce_shading` and
@@ -19,6 +19,7 @@ use std::collections::TryReserveError;
 use glam::Vec3;
 use hyrt_core::formats::{GBufferTexel, HitRecord, ObjectRecord, RayRecord, SurfaceRecord, TriangleRecord, INVALID_ID};
 use hyrt_core::kernels::bounce::{bounces, primary_parent, secondary_parent, spawn, Parent};
+use hyrt_core::kernels::texture::Materials;
 use rayon::prelude::*;
 
 use crate::compaction::{compact_into, CompactionScratch};
@@ -56,12 +57,16 @@ impl<'a> Parents<'a> {
         s.is_hit() && bounces(&objects[s.object as usize])
     }
 
-    /// Parent `i`.
+    /// Parent `i`, its object shaded as `materials` see it there.
     #[inline]
-    pub fn get(&self, i: usize) -> Parent<'a> {
+    pub fn get(&self, i: usize, materials: &Materials) -> Parent<'a> {
         match *self {
-            Parents::Primary { gbuffer, surfaces, eye } => primary_parent(&gbuffer[i], &surfaces[i], eye, i as u32),
-            Parents::Secondary { rays, hits, surfaces } => secondary_parent(&rays[i], &hits[i], &surfaces[i]),
+            Parents::Primary { gbuffer, surfaces, eye } => {
+                primary_parent(&gbuffer[i], &surfaces[i], eye, i as u32, materials)
+            }
+            Parents::Secondary { rays, hits, surfaces } => {
+                secondary_parent(&rays[i], &hits[i], &surfaces[i], materials)
+            }
         }
     }
 }
@@ -72,7 +77,7 @@ impl<'a> Parents<'a> {
 /// `RenderError::OutOfMemory` instead of aborting).
 pub fn secondary_rays_into(
     parents: Parents,
-    objects: &[ObjectRecord],
+    materials: &Materials,
     triangles: &[TriangleRecord],
     depth: u32,
     scratch: &mut CompactionScratch,
@@ -84,12 +89,12 @@ pub fn secondary_rays_into(
     crate::memory::reserve(&mut scratch.flags, 2 * n)?;
     scratch.flags.resize(2 * n, 0);
     scratch.flags.par_chunks_mut(2).enumerate().with_min_len(1024).for_each(|(i, f)| {
-        if !parents.may_bounce(i, objects) {
+        if !parents.may_bounce(i, materials.objects) {
             f[0] = 0;
             f[1] = 0;
             return;
         }
-        let r = spawn(&parents.get(i), objects, triangles, depth);
+        let r = spawn(&parents.get(i, materials), triangles, depth);
         f[0] = r[0].is_some() as u32;
         f[1] = r[1].is_some() as u32;
     });
@@ -102,7 +107,7 @@ pub fn secondary_rays_into(
         .with_min_len(1024)
         .map(|&k| {
             let (i, lobe) = (k as usize / 2, k as usize % 2);
-            spawn(&parents.get(i), objects, triangles, depth)[lobe].expect("flagged in the first pass")
+            spawn(&parents.get(i, materials), triangles, depth)[lobe].expect("flagged in the first pass")
         })
         .collect_into_vec(rays);
     links.resize(n, [INVALID_ID; 2]);

@@ -50,7 +50,8 @@
 //! ```
 
 use hyrt_core::formats::{
-    CameraRecord, GBufferTexel, TriangleRecord, GBUF_BACK_FACE, GBUF_HIT, GBUF_RAY_TRACED, TRI_INWARD, TRI_RAY_TRACED,
+    CameraRecord, GBufferTexel, TriangleRecord, GBUF_BACK_FACE, GBUF_HIT, GBUF_RAY_TRACED, TRI_ALPHA_TEST, TRI_INWARD,
+    TRI_RAY_TRACED,
 };
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::raster::{
@@ -60,6 +61,7 @@ use hyrt_core::kernels::raster::{
     ClipVertex, CLIP_PLANES, DEPTH_INTERPOLATION_REL_ERROR, FIXED_ONE, INTERIOR_DEPTH_BIAS_ULPS, MAX_CLIP_VERTICES,
     MAX_FIXED_COORD, MAX_IMAGE_DIM,
 };
+use hyrt_core::kernels::texture::{alpha_accepts, SurfaceView};
 use rayon::prelude::*;
 
 use crate::traversal::SimdLevel;
@@ -137,6 +139,9 @@ struct RasterTriangle {
     /// The triangle shows its surface's interior side (`shows_interior`): its depth
     /// loses near-ties (`depth_test_value`).
     interior: bool,
+    /// Its material is alpha-tested (`TRI_ALPHA_TEST`): each fragment's texel alpha is
+    /// tested before the depth test ([`AlphaTested`]).
+    masked: bool,
 }
 
 impl RasterTriangle {
@@ -277,12 +282,18 @@ fn raster_frame(
     }
     let tris = setup_triangles(geometry, camera, &frame);
     let slices = tile_slices(gbuffer, w, &frame);
+    let alpha_tested = geometry.surface.alpha_tested();
     let covered: usize = slices
         .into_par_iter()
         .enumerate()
         .map_init(TileScratch::new, |scratch, (tile, rows)| {
             scratch.clear();
             let rect = frame.tile_rect(tile);
+            if alpha_tested {
+                let view = geometry.surface.view();
+                rasterize_tile(&tris, tile, rect, &mut AlphaTested { scratch, geometry, view });
+                return resolve_tile::<ScalarTexels>(&tris, scratch, rect, rows);
+            }
             match kernel {
                 TileKernel::Scalar => {
                     rasterize_tile(&tris, tile, rect, scratch);
@@ -549,6 +560,7 @@ fn emit_triangle(
         triangle: src.triangle,
         flags,
         interior: shows_interior(flags & GBUF_BACK_FACE != 0, src.flags & TRI_INWARD != 0),
+        masked: src.flags & TRI_ALPHA_TEST != 0,
     });
 }
 
@@ -807,6 +819,34 @@ impl FragmentSink for TileScratch {
     }
 }
 
+/// The depth test of a scene with alpha-tested materials: a fragment of a masked
+/// triangle enters it only where [`alpha_accepts`] passes at the fragment's G-buffer
+/// barycentrics (the ones its texel would get), so a hole shows what lies behind it.
+/// Run pixel by pixel (the AVX-512 kernel does not test alpha yet).
+struct AlphaTested<'a, 'g> {
+    scratch: &'a mut TileScratch,
+    geometry: &'g WorldGeometry,
+    view: SurfaceView<'g>,
+}
+
+impl FragmentSink for AlphaTested<'_, '_> {
+    #[inline]
+    fn early(&self, i: usize, approx_depth: f64) -> bool {
+        self.scratch.early(i, approx_depth)
+    }
+    #[inline]
+    fn fragment(&mut self, i: usize, t: &Fragment<'_>, e: [i64; 3]) {
+        if t.masked {
+            let [u, v] = t.barycentrics(e);
+            let global = self.geometry.global_triangle(t.object, t.triangle);
+            if !alpha_accepts(&self.view, &self.geometry.triangles[global], global, u, v) {
+                return;
+            }
+        }
+        self.scratch.fragment(i, t, e);
+    }
+}
+
 /// The depth test without the early rejection.
 #[cfg(test)]
 struct NoEarlyReject<'a>(&'a mut TileScratch);
@@ -972,11 +1012,7 @@ impl TexelRun for ScalarTexels {
     #[inline(always)]
     fn run(t: &RasterTriangle, mut e: [i64; 3], step: [i64; 3], depth: &[f32], out: &mut [GBufferTexel]) {
         for (texel, &stored) in out.iter_mut().zip(depth) {
-            let [u, v] = if t.corners == NOT_CORNERS {
-                barycentrics_in_original(perspective_barycentrics(e, t.w), t.bary)
-            } else {
-                perspective_barycentrics_of_corners(e, t.w, t.corners[0] as usize, t.corners[1] as usize)
-            };
+            let [u, v] = t.barycentrics(e);
             *texel = t.texel(u, v, stored);
             e[0] += step[0];
             e[1] += step[1];
@@ -986,6 +1022,17 @@ impl TexelRun for ScalarTexels {
 }
 
 impl RasterTriangle {
+    /// The G-buffer barycentrics `(u, v)` of the source triangle at a pixel centre with
+    /// exact (unbiased) edge values `e`.
+    #[inline(always)]
+    fn barycentrics(&self, e: [i64; 3]) -> [f32; 2] {
+        if self.corners == NOT_CORNERS {
+            barycentrics_in_original(perspective_barycentrics(e, self.w), self.bary)
+        } else {
+            perspective_barycentrics_of_corners(e, self.w, self.corners[0] as usize, self.corners[1] as usize)
+        }
+    }
+
     /// The G-buffer texel of a pixel this triangle won, from its barycentrics and the
     /// depth test's stored value.
     #[inline(always)]

@@ -71,7 +71,7 @@ fn shadow_ray(target: Vec3, normal: Vec3, light: Vec3, pixel: u32) -> RayRecord 
         depth: 0,
         light: 0,
         throughput: [1.0; 3],
-        pad: 0,
+        cone: 0.0,
     }
 }
 

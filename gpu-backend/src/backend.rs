@@ -394,7 +394,7 @@ impl GpuBackend {
         target: &wgpu::Texture,
     ) -> Result<FrameStats, RenderError> {
         let plan = FramePlan::new(scene, options)?;
-        self.check_supported(&plan)?;
+        self.check_supported(scene, &plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         crate::present::check_target(target, camera.width, camera.height).map_err(RenderError::InvalidOptions)?;
         let counts = self.run_frame(scene, &plan, camera, options, &mut Sink::Texture(target))?;
@@ -778,7 +778,12 @@ impl GpuBackend {
     /// Refuse a plan this device cannot run: bounces on a device with fewer storage
     /// buffers per shader stage than the bounce stages bind ([`BOUNCE_STORAGE_BUFFERS`]).
     /// An error, never a frame without them.
-    fn check_supported(&self, plan: &FramePlan) -> Result<(), GpuError> {
+    fn check_supported(&self, scene: &PreparedScene, plan: &FramePlan) -> Result<(), GpuError> {
+        // Textures, vertex colours and alpha tests are the CPU backend's alone until their
+        // stages are mirrored: refused, never rendered without them.
+        if !scene.geometry.surface.is_empty() {
+            return Err(GpuError::Unsupported("textures, vertex colours and alpha-tested materials".into()));
+        }
         match (plan.bounce_depth(), &self.bounces) {
             (d, None) if d > 0 => Err(GpuError::Limits(format!(
                 "reflection and refraction bind {BOUNCE_STORAGE_BUFFERS} storage buffers per shader stage; this device allows {} (request more, or render with max depth 0)",
@@ -802,7 +807,7 @@ impl Backend for GpuBackend {
         frame: &mut Frame,
     ) -> Result<(), RenderError> {
         let plan = FramePlan::new(scene, options)?;
-        self.check_supported(&plan)?;
+        self.check_supported(scene, &plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         frame.begin(&plan, options);
         band::check_host_memory(frame, camera, scene.geometry.lights.len() as u32)?;

@@ -64,7 +64,7 @@ fn cpu_case(name: &str, scene: &Scene, width: u32, height: u32, weight: f32) -> 
         // the final image the raster copy the plan made.
         let g = &prepared.geometry;
         let eye = Vec3::from(camera.eye);
-        hyrt_cpu::rt_shading::rt_shading_into(&cpu.surfaces, &cpu.shadow, &g.objects, &g.lights, eye, &mut cpu.rt);
+        cpu.rt = hyrt_cpu::rt_shading::rt_shading(&cpu.surfaces, &cpu.shadow, &g.objects, &g.lights, eye);
     }
     Case { name: format!("{name} {width}x{height} w={weight}"), scene: prepared, camera, weight, cpu }
 }

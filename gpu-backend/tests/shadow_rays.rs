@@ -53,7 +53,7 @@ fn shadow_ray(origin: Vec3, direction: Vec3, t_max: f32, pixel: u32) -> RayRecor
         depth: 0,
         light: 0,
         throughput: [1.0; 3],
-        pad: 0,
+        cone: 0.0,
     }
 }
 

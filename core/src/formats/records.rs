@@ -116,7 +116,7 @@ pub const RAY_KIND_COUNT: usize = 4;
 /// | 40 | `depth` | u32 | bounce depth of reflection and refraction rays: 1 for the rays from primary hits, `d + 1` for those from the hits of depth `d`; 0 for shadow rays |
 /// | 44 | `light` | u32 | light index for shadow rays, [`INVALID_ID`] otherwise |
 /// | 48 | `throughput` | [f32; 3] | path weight carried by reflection/refraction rays; 1 for shadow rays |
-/// | 60 | `pad` | u32 | zero |
+/// | 60 | `cone` | f32 | width of the pixel's footprint cone at the origin, for texture filtering ([`crate::kernels::texture`]): the cone spread times the path's length so far; 0 for shadow rays and in frames without textures |
 ///
 /// 64 bytes.
 #[repr(C)]
@@ -131,10 +131,10 @@ pub struct RayRecord {
     pub depth: u32,
     pub light: u32,
     pub throughput: [f32; 3],
-    pub pad: u32,
+    pub cone: f32,
 }
 const _: () = assert!(std::mem::size_of::<RayRecord>() == 64);
-wgsl_struct!(RayRecord { origin, t_min, direction, t_max, pixel, kind, depth, light, throughput, pad });
+wgsl_struct!(RayRecord { origin, t_min, direction, t_max, pixel, kind, depth, light, throughput, cone });
 
 impl RayRecord {
     /// Check: finite origin and direction, non-zero direction, `0 <= t_min < t_max`,
@@ -157,8 +157,8 @@ impl RayRecord {
         if (self.kind == RAY_KIND_SHADOW) != (self.light != INVALID_ID) {
             return Err(format!("light index must be set exactly on shadow rays: {self:?}"));
         }
-        if self.pad != 0 {
-            return Err(format!("ray padding not zero: {self:?}"));
+        if !(self.cone >= 0.0 && self.cone.is_finite()) {
+            return Err(format!("ray with a negative or non-finite cone: {self:?}"));
         }
         Ok(())
     }
@@ -557,7 +557,7 @@ mod tests {
             depth: 0,
             light: INVALID_ID,
             throughput: [1.0; 3],
-            pad: 0,
+            cone: 0.0,
         };
         assert!(r.validate().is_err());
         assert!(RayRecord { light: 0, ..r }.validate().is_ok());

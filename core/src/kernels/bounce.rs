@@ -51,6 +51,7 @@ use crate::kernels::ray::offset_ray_origin;
 use crate::kernels::shading::{
     shade_raster_pixel, shade_rt_pixel, shade_rt_surface, sum_visible_lights, AMBIENT, ENVIRONMENT_SPECULAR,
 };
+use crate::kernels::texture::Materials;
 use crate::scene::Environment;
 
 /// Bounces a frame traces unless told otherwise: enough for a ray to enter and leave a
@@ -220,7 +221,8 @@ pub fn sees_exterior(back_face: bool, inward: bool) -> bool {
 /// Origins are offset off the surface by the point's own error bound
 /// ([`offset_ray_origin`]): reflection rays to the seen side of the geometric normal,
 /// refraction rays to the other side. `pixel` is the pixel the path started at;
-/// `depth` the bounce the rays belong to (1 for rays from primary hits).
+/// `depth` the bounce the rays belong to (1 for rays from primary hits); `cone` the
+/// footprint's width at the surface, which the rays carry on ([`RayRecord::cone`]).
 #[inline]
 pub fn secondary_rays(
     s: &SurfaceRecord,
@@ -228,6 +230,7 @@ pub fn secondary_rays(
     throughput: Vec3,
     pixel: u32,
     depth: u32,
+    cone: f32,
 ) -> [Option<RayRecord>; 2] {
     let p = Vec3::from(s.position);
     let ng = Vec3::from(s.geometric_normal);
@@ -243,7 +246,7 @@ pub fn secondary_rays(
             depth,
             light: INVALID_ID,
             throughput: t.into(),
-            pad: 0,
+            cone,
         })
     };
     [
@@ -310,55 +313,88 @@ pub struct Parent<'a> {
     pub throughput: Vec3,
     /// The pixel the path started at.
     pub pixel: u32,
+    /// The width of the pixel's footprint cone at the surface (0 in frames without
+    /// textures: [`Materials::spread`]).
+    pub cone: f32,
+    /// The hit object's record as shading sees it at this point ([`Materials::at`]: its
+    /// base colour textured); zeros for a miss.
+    pub object: ObjectRecord,
 }
 
-/// The primary hit of pixel `pixel` as a parent: seen along `-(eye - p)` normalized
-/// (the negated view vector of [`crate::kernels::shading::shade_rt_pixel`]).
+/// The shaded record of the object at a parent's surface (zeros for a miss).
 #[inline]
-pub fn primary_parent<'a>(t: &GBufferTexel, s: &'a SurfaceRecord, eye: Vec3, pixel: u32) -> Parent<'a> {
-    let d = -(eye - Vec3::from(s.position)).normalize_or_zero();
-    Parent { surface: s, d, back_face: t.flags & GBUF_BACK_FACE != 0, throughput: Vec3::ONE, pixel }
-}
-
-/// The hit of a secondary ray as a parent (its direction is unit: [`Lobes`]).
-#[inline]
-pub fn secondary_parent<'a>(ray: &RayRecord, hit: &HitRecord, s: &'a SurfaceRecord) -> Parent<'a> {
-    Parent {
-        surface: s,
-        d: Vec3::from(ray.direction),
-        back_face: hit.is_back_face(),
-        throughput: Vec3::from(ray.throughput),
-        pixel: ray.pixel,
+fn parent_object(m: &Materials, s: &SurfaceRecord, u: f32, v: f32, cone: f32, d: Vec3) -> ObjectRecord {
+    if s.is_hit() {
+        m.at(s, u, v, cone, d)
+    } else {
+        bytemuck::Zeroable::zeroed()
     }
 }
 
-/// The lobes of a parent whose object bounces ([`bounces`]), with the object; `None`
-/// for a miss or a surface that does not bounce. `triangles` give the mesh's winding
-/// ([`TRI_INWARD`]), hence which side is the exterior.
+/// The primary hit of pixel `pixel` as a parent: seen along `-(eye - p)` normalized
+/// (the negated view vector of [`crate::kernels::shading::shade_rt_pixel`]), its footprint
+/// the spread times the eye's distance, its object shaded at the G-buffer's barycentrics.
 #[inline]
-pub fn parent_lobes<'o>(
-    p: &Parent,
-    objects: &'o [ObjectRecord],
-    triangles: &[TriangleRecord],
-) -> Option<(&'o ObjectRecord, Lobes)> {
+pub fn primary_parent<'a>(t: &GBufferTexel, s: &'a SurfaceRecord, eye: Vec3, pixel: u32, m: &Materials) -> Parent<'a> {
+    let to_eye = eye - Vec3::from(s.position);
+    let d = -to_eye.normalize_or_zero();
+    let cone = primary_cone(m, to_eye);
+    let object = parent_object(m, s, t.bary_u, t.bary_v, cone, d);
+    Parent { surface: s, d, back_face: t.flags & GBUF_BACK_FACE != 0, throughput: Vec3::ONE, pixel, cone, object }
+}
+
+/// The footprint's width at a primary hit `to_eye` away from the eye: the spread times
+/// the distance (0 without textures, without computing the distance). WGSL: `primary_cone`.
+#[inline]
+pub fn primary_cone(m: &Materials, to_eye: Vec3) -> f32 {
+    if m.spread == 0.0 {
+        0.0
+    } else {
+        m.spread * to_eye.length()
+    }
+}
+
+/// The hit of a secondary ray as a parent (its direction is unit: [`Lobes`]): its
+/// footprint the ray's at its origin widened by the spread over the distance travelled.
+#[inline]
+pub fn secondary_parent<'a>(ray: &RayRecord, hit: &HitRecord, s: &'a SurfaceRecord, m: &Materials) -> Parent<'a> {
+    let d = Vec3::from(ray.direction);
+    let cone = if m.spread == 0.0 { 0.0 } else { ray.cone + m.spread * hit.t };
+    let object = parent_object(m, s, hit.u, hit.v, cone, d);
+    Parent {
+        surface: s,
+        d,
+        back_face: hit.is_back_face(),
+        throughput: Vec3::from(ray.throughput),
+        pixel: ray.pixel,
+        cone,
+        object,
+    }
+}
+
+/// The lobes of a parent whose object bounces ([`bounces`]), with its shaded object
+/// ([`Parent::object`]); `None` for a miss or a surface that does not bounce. `triangles`
+/// give the mesh's winding ([`TRI_INWARD`]), hence which side is the exterior.
+#[inline]
+pub fn parent_lobes(p: &Parent, triangles: &[TriangleRecord]) -> Option<(ObjectRecord, Lobes)> {
     let s = p.surface;
     if !s.is_hit() {
         return None;
     }
-    let obj = &objects[s.object as usize];
-    if !bounces(obj) {
+    let obj = p.object;
+    if !bounces(&obj) {
         return None;
     }
     let inward = triangles[s.triangle as usize].flags & TRI_INWARD != 0;
-    Some((obj, lobes(obj, s, p.d, sees_exterior(p.back_face, inward))))
+    Some((obj, lobes(&obj, s, p.d, sees_exterior(p.back_face, inward))))
 }
 
 /// The rays of bounce `depth` a parent spawns: `[reflection, refraction]`, both `None`
 /// where it does not bounce ([`parent_lobes`], [`secondary_rays`]).
 #[inline]
-pub fn spawn(p: &Parent, objects: &[ObjectRecord], triangles: &[TriangleRecord], depth: u32) -> [Option<RayRecord>; 2] {
-    match parent_lobes(p, objects, triangles) {
-        Some((_, l)) => secondary_rays(p.surface, &l, p.throughput, p.pixel, depth),
+pub fn spawn(p: &Parent, triangles: &[TriangleRecord], depth: u32) -> [Option<RayRecord>; 2] {
+    match parent_lobes(p, triangles) {
+        Some((_, l)) => secondary_rays(p.surface, &l, p.throughput, p.pixel, depth, p.cone),
         None => [None, None],
     }
 }
@@ -377,7 +413,6 @@ pub fn spawn(p: &Parent, objects: &[ObjectRecord], triangles: &[TriangleRecord],
 pub fn shade_secondary_hit(
     p: &Parent,
     env: &Environment,
-    objects: &[ObjectRecord],
     triangles: &[TriangleRecord],
     shadow: &[u8],
     lights: &[LightRecord],
@@ -388,10 +423,10 @@ pub fn shade_secondary_hit(
     if !s.is_hit() {
         return environment_radiance(env, p.d);
     }
-    if let Some((obj, l)) = parent_lobes(p, objects, triangles) {
-        return shade_bouncing(s, obj, &l, p.d, shadow, lights, children, radiance);
+    if let Some((obj, l)) = parent_lobes(p, triangles) {
+        return shade_bouncing(s, &obj, &l, p.d, shadow, lights, children, radiance);
     }
-    let obj = &objects[s.object as usize];
+    let obj = &p.object;
     if obj.flags & OBJ_RAY_TRACED != 0 {
         shade_rt_surface(s, obj, shadow, lights, -p.d)
     } else {
@@ -406,7 +441,6 @@ pub fn shade_secondary_hit(
 #[allow(clippy::too_many_arguments)]
 pub fn shade_rt_pixel_bouncing(
     p: &Parent,
-    objects: &[ObjectRecord],
     triangles: &[TriangleRecord],
     shadow: &[u8],
     lights: &[LightRecord],
@@ -415,9 +449,9 @@ pub fn shade_rt_pixel_bouncing(
     radiance: &[[f32; 4]],
 ) -> Vec3 {
     let s = p.surface;
-    match parent_lobes(p, objects, triangles) {
-        Some((obj, l)) => shade_bouncing(s, obj, &l, p.d, shadow, lights, children, radiance),
-        None => shade_rt_pixel(s, &objects[s.object as usize], shadow, lights, eye),
+    match parent_lobes(p, triangles) {
+        Some((obj, l)) => shade_bouncing(s, &obj, &l, p.d, shadow, lights, children, radiance),
+        None => shade_rt_pixel(s, &p.object, shadow, lights, eye),
     }
 }
 

@@ -35,7 +35,7 @@ pub fn primary_ray(camera: &CameraRecord, x: u32, y: u32) -> RayRecord {
         depth: 0,
         light: INVALID_ID,
         throughput: [1.0; 3],
-        pad: 0,
+        cone: 0.0,
     }
 }
 

@@ -54,7 +54,7 @@ pub fn shadow_ray(s: &SurfaceRecord, light: &LightRecord, light_index: u32, pixe
         depth: 0,
         light: light_index,
         throughput: [1.0; 3],
-        pad: 0,
+        cone: 0.0,
     }
 }
 

@@ -23,7 +23,10 @@
 
 use glam::{Vec2, Vec3};
 
-use crate::formats::{TextureRecord, TriangleUvRecord, FILTER_NEAREST, FILTER_NO_MIP, WRAP_CLAMP, WRAP_MIRROR};
+use crate::formats::{
+    MaterialRecord, ObjectRecord, SurfaceRecord, TextureRecord, TriangleRecord, TriangleUvRecord, FILTER_NEAREST,
+    FILTER_NO_MIP, MAT_TEXTURED, MAT_VERTEX_COLORS, WRAP_CLAMP, WRAP_MIRROR,
+};
 use crate::kernels::shading::log2_portable;
 
 /// The sRGB decoding of each 8-bit code (IEC 61966-2-1: `c / 12.92` up to 0.04045, else
@@ -220,6 +223,16 @@ pub fn pixel_spread(fov_y_deg: f32, height: u32) -> f32 {
     2.0 * (fov_y_deg.to_radians() * 0.5).tan() / height as f32
 }
 
+/// [`pixel_spread`] of the camera a record was built from: its projection's y scale
+/// `1 / tan(fov_y / 2)` is the length of the eye-relative view-projection's second row
+/// (the projection times a rotation), so the spread is `2 / (height * that length)`.
+/// Computed once per frame on the CPU (the GPU is given it, `FrameParams::pixel_spread`).
+pub fn camera_pixel_spread(camera: &crate::formats::CameraRecord) -> f32 {
+    let m = glam::Mat4::from_cols_array(&camera.view_proj);
+    let y_scale = m.row(1).truncate().length();
+    2.0 / (camera.height as f32 * y_scale)
+}
+
 /// The smallest cosine [`hit_lod`] divides by: a ray grazing its triangle (cosine below
 /// this, or 0) is taken as seen at this cosine, about 0.0001 rad from the plane, so the
 /// footprint stays finite (level 13 more than head-on, past every chain of a 8192-texel
@@ -250,6 +263,98 @@ pub fn alpha_at(texels: &[u32], tex: &TextureRecord, uv: Vec2) -> f32 {
 #[inline]
 pub fn alpha_passes(alpha: f32, cutoff: f32) -> bool {
     alpha >= cutoff
+}
+
+/// The tables of [`crate::geometry::SurfaceTables`] as slices: what the texture kernels
+/// read (the GPU binds the same arrays). Empty slices for a scene without textures,
+/// vertex colours or alpha tests.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SurfaceView<'a> {
+    /// Per object ([`crate::formats::MaterialRecord`]); empty: no object needs one.
+    pub materials: &'a [MaterialRecord],
+    /// Per global triangle, when any object is textured.
+    pub uvs: &'a [TriangleUvRecord],
+    /// Per global triangle, when any object has vertex colours.
+    pub colors: &'a [[[f32; 4]; 3]],
+    pub textures: &'a [TextureRecord],
+    pub texels: &'a [u32],
+}
+
+/// Whether the alpha-tested triangle `tri` (global index `global`) is there at its
+/// barycentrics `(u, v)`: the material's alpha (base-colour factor alpha, times the
+/// texture's alpha at level 0 ([`alpha_at`]) when textured, times the interpolated vertex
+/// colour's alpha when it has vertex colours, in that order) passes its cutoff
+/// ([`alpha_passes`]). The visibility raster asks this of every fragment of such a
+/// triangle and the traversals of every hit on one. WGSL: `alpha_accepts`.
+#[inline]
+pub fn alpha_accepts(view: &SurfaceView, tri: &TriangleRecord, global: usize, u: f32, v: f32) -> bool {
+    let m = &view.materials[tri.object as usize];
+    let mut a = m.base_alpha;
+    if m.flags & MAT_TEXTURED != 0 {
+        a *= alpha_at(view.texels, &view.textures[m.texture as usize], interpolate_uv(&view.uvs[global], u, v));
+    }
+    if m.flags & MAT_VERTEX_COLORS != 0 {
+        a *= interpolate_color(&view.colors[global], u, v)[3];
+    }
+    alpha_passes(a, m.alpha_cutoff)
+}
+
+/// What shading knows of materials: the object records, the surface tables and the
+/// frame's cone spread ([`pixel_spread`]; 0 in a scene without textures, whose cones are
+/// then all 0 and never read).
+#[derive(Clone, Copy, Debug)]
+pub struct Materials<'a> {
+    pub objects: &'a [ObjectRecord],
+    pub surface: SurfaceView<'a>,
+    pub spread: f32,
+}
+
+impl<'a> Materials<'a> {
+    /// Materials without textures or vertex colours: every point is its object's record.
+    pub fn plain(objects: &'a [ObjectRecord]) -> Materials<'a> {
+        Materials { objects, surface: SurfaceView::default(), spread: 0.0 }
+    }
+
+    /// Whether any object's colour varies over its surface (textures, vertex colours):
+    /// only then do shading stages read barycentrics and footprints.
+    #[inline]
+    pub fn varying(&self) -> bool {
+        !self.surface.materials.is_empty()
+    }
+
+    /// The record of the object hit at surface `s` (a hit) as shading sees it there: its
+    /// base colour times the texture's colour at the hit (`u`, `v` its barycentrics;
+    /// [`sample_texture`] at [`hit_lod`] of the footprint `cone` and the cosine of the
+    /// unit direction `d` it was seen along with the geometric normal) when textured,
+    /// times the interpolated vertex colour when it has them, in that order; the object's
+    /// own record otherwise. WGSL: `shaded_object`.
+    #[inline]
+    pub fn at(&self, s: &SurfaceRecord, u: f32, v: f32, cone: f32, d: Vec3) -> ObjectRecord {
+        let obj = self.objects[s.object as usize];
+        if !self.varying() {
+            return obj;
+        }
+        let m = &self.surface.materials[s.object as usize];
+        let global = s.triangle as usize;
+        let mut c = obj.base_color;
+        if m.flags & MAT_TEXTURED != 0 {
+            let t = &self.surface.uvs[global];
+            let cos = d.dot(Vec3::from(s.geometric_normal));
+            let lod = hit_lod(t.lod_bias, cone, cos);
+            let texel = sample_texture(
+                self.surface.texels,
+                &self.surface.textures[m.texture as usize],
+                interpolate_uv(t, u, v),
+                lod,
+            );
+            c = [c[0] * texel[0], c[1] * texel[1], c[2] * texel[2]];
+        }
+        if m.flags & MAT_VERTEX_COLORS != 0 {
+            let k = interpolate_color(&self.surface.colors[global], u, v);
+            c = [c[0] * k[0], c[1] * k[1], c[2] * k[2]];
+        }
+        ObjectRecord { base_color: c, ..obj }
+    }
 }
 
 #[cfg(test)]
@@ -329,6 +434,15 @@ mod tests {
         let n = &nearest_mip.records[0];
         assert_eq!(sample_texture(&nearest_mip.texels, n, uv, 0.49)[0], 0.0);
         assert_eq!(sample_texture(&nearest_mip.texels, n, uv, 0.5)[0], level1);
+    }
+
+    #[test]
+    fn the_spread_of_a_camera_record_is_its_field_of_view_over_its_rows() {
+        let cam = crate::scene::Camera::look_at(Vec3::new(1.0, 2.0, 5.0), Vec3::new(-1.0, 0.0, 0.0), Vec3::Y);
+        let record = crate::formats::CameraRecord::new(&cam, 640, 360);
+        let (got, want) = (camera_pixel_spread(&record), pixel_spread(cam.fov_y_deg, 360));
+        // Float rounding of the matrix (a few ulps of each entry).
+        assert!((got - want).abs() <= 1e-6 * want, "{got} vs {want}");
     }
 
     #[test]

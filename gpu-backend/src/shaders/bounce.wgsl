@@ -149,7 +149,9 @@ fn lobe_ray(s: SurfaceRecord, dir: vec3<f32>, weight: vec3<f32>, throughput: vec
     }
     let origin = offset_ray_origin(s.position, s.position_error, side, params.zero);
     let inf = bitcast<f32>(F32_EXP_MASK | params.zero);
-    r = RayRecord(origin, 0.0, dir, inf, pixel, kind, depth, INVALID_ID, t, 0u);
+    // cone 0: the GPU backend renders scenes without textures only (the CPU's cones are
+    // 0 there too, `Materials::spread`).
+    r = RayRecord(origin, 0.0, dir, inf, pixel, kind, depth, INVALID_ID, t, 0.0);
     return SpawnedRay(true, r);
 }
 

@@ -42,7 +42,7 @@ fn shadow_ray(s: SurfaceRecord, light: LightRecord, light_index: u32, pixel: u32
         t_max = bitcast<f32>(SHADOW_T_MAX_POINT_BITS);
     }
     return RayRecord(origin, 0.0, direction, t_max, pixel, RAY_KIND_SHADOW, 0u, light_index,
-        vec3<f32>(1.0, 1.0, 1.0), 0u);
+        vec3<f32>(1.0, 1.0, 1.0), 0.0);
 }
 
 // The flag of pair k = light * slots + surface.
