@@ -80,8 +80,14 @@ pub fn raster_shading_into(
             if obj.flags & OBJ_RAY_TRACED != 0 && !shade_rt_objects {
                 return [0.0; 4];
             }
-            let obj = primary.object(i, s);
-            shade_raster_pixel(s, &obj, &shadow[i * nl..(i + 1) * nl], lights).extend(1.0).into()
+            let shaded;
+            let obj = if primary.materials.varying() {
+                shaded = primary.object(i, s);
+                &shaded
+            } else {
+                obj
+            };
+            shade_raster_pixel(s, obj, &shadow[i * nl..(i + 1) * nl], lights).extend(1.0).into()
         })
         .collect_into_vec(out);
 }

@@ -39,8 +39,12 @@ pub fn rt_shading_into(
     lights: &[LightRecord],
     out: &mut Vec<[f32; 4]>,
 ) {
-    shade_ray_traced_pixels(surfaces, shadow, primary.materials.objects, lights.len(), out, |i, s, _, shadow| {
-        shade_rt_pixel(s, &primary.object(i, s), shadow, lights, primary.eye)
+    shade_ray_traced_pixels(surfaces, shadow, primary.materials.objects, lights.len(), out, |i, s, obj, shadow| {
+        if primary.materials.varying() {
+            shade_rt_pixel(s, &primary.object(i, s), shadow, lights, primary.eye)
+        } else {
+            shade_rt_pixel(s, obj, shadow, lights, primary.eye)
+        }
     });
 }
 

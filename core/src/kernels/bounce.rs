@@ -376,17 +376,17 @@ pub fn secondary_parent<'a>(ray: &RayRecord, hit: &HitRecord, s: &'a SurfaceReco
 /// ([`Parent::object`]); `None` for a miss or a surface that does not bounce. `triangles`
 /// give the mesh's winding ([`TRI_INWARD`]), hence which side is the exterior.
 #[inline]
-pub fn parent_lobes(p: &Parent, triangles: &[TriangleRecord]) -> Option<(ObjectRecord, Lobes)> {
+pub fn parent_lobes<'p>(p: &'p Parent, triangles: &[TriangleRecord]) -> Option<(&'p ObjectRecord, Lobes)> {
     let s = p.surface;
     if !s.is_hit() {
         return None;
     }
-    let obj = p.object;
-    if !bounces(&obj) {
+    let obj = &p.object;
+    if !bounces(obj) {
         return None;
     }
     let inward = triangles[s.triangle as usize].flags & TRI_INWARD != 0;
-    Some((obj, lobes(&obj, s, p.d, sees_exterior(p.back_face, inward))))
+    Some((obj, lobes(obj, s, p.d, sees_exterior(p.back_face, inward))))
 }
 
 /// The rays of bounce `depth` a parent spawns: `[reflection, refraction]`, both `None`
@@ -424,7 +424,7 @@ pub fn shade_secondary_hit(
         return environment_radiance(env, p.d);
     }
     if let Some((obj, l)) = parent_lobes(p, triangles) {
-        return shade_bouncing(s, &obj, &l, p.d, shadow, lights, children, radiance);
+        return shade_bouncing(s, obj, &l, p.d, shadow, lights, children, radiance);
     }
     let obj = &p.object;
     if obj.flags & OBJ_RAY_TRACED != 0 {
@@ -450,7 +450,7 @@ pub fn shade_rt_pixel_bouncing(
 ) -> Vec3 {
     let s = p.surface;
     match parent_lobes(p, triangles) {
-        Some((obj, l)) => shade_bouncing(s, &obj, &l, p.d, shadow, lights, children, radiance),
+        Some((obj, l)) => shade_bouncing(s, obj, &l, p.d, shadow, lights, children, radiance),
         None => shade_rt_pixel(s, &p.object, shadow, lights, eye),
     }
 }
