@@ -28,6 +28,7 @@ pub mod scan;
 pub mod secondary_rays;
 pub mod shader;
 pub mod shadow_rays;
+pub mod texture;
 pub mod timing;
 pub mod visibility_raster;
 

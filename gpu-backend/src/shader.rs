@@ -176,7 +176,7 @@ pub(crate) fn surface_wgsl() -> String {
 // ---------------------------------------------------------------------------------------------
 
 /// A compute-visible storage buffer binding.
-pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+pub fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::COMPUTE,
@@ -190,7 +190,7 @@ pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLay
 }
 
 /// A compute-visible uniform buffer binding.
-pub(crate) fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+pub fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility: wgpu::ShaderStages::COMPUTE,
@@ -217,7 +217,7 @@ pub(crate) fn dynamic_uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry 
 }
 
 /// A bind group layout and the compute pipeline (`main`) of `source` over it.
-pub(crate) fn compute_pipeline(
+pub fn compute_pipeline(
     ctx: &GpuContext,
     label: &str,
     source: &str,
@@ -255,7 +255,7 @@ pub(crate) fn main_pipeline(
 }
 
 /// A bind group of whole buffers at bindings 0, 1, 2, ...
-pub(crate) fn bind_buffers(
+pub fn bind_buffers(
     ctx: &GpuContext,
     label: &str,
     layout: &wgpu::BindGroupLayout,
