@@ -301,6 +301,9 @@ mod tests {
         BvhNode::check_layout().unwrap();
         EnvironmentRecord::check_layout().unwrap();
         ListParams::check_layout().unwrap();
+        TextureRecord::check_layout().unwrap();
+        MaterialRecord::check_layout().unwrap();
+        TriangleUvRecord::check_layout().unwrap();
     }
 
     #[test]

@@ -373,7 +373,6 @@ mod tests {
     fn srgb_table_is_the_standard_curve_pinned() {
         let t = srgb8_table();
         assert_eq!((t[0], t[255]), (0.0, 1.0));
-        // Pinned bits: a change of the formula or of its rounding shows here.
         // Pinned bits (Python's f64 formula rounded to f32): a change of the formula or of
         // its rounding shows here, and the GPU receives this table.
         assert_eq!([t[10].to_bits(), t[128].to_bits(), t[200].to_bits()], [0x3b46eb61, 0x3e5d0a89, 0x3f13dc50]);
