@@ -27,7 +27,8 @@
 //!
 //! [`leaks`] compares the ray-origin offsets again on the leak corpus (closed shells far
 //! from the origin, lights sealed inside or outside), where they decide whether light
-//! escapes.
+//! escapes. [`textures`] compares texture filtering (level 0 against ray-cone mip maps)
+//! with a supersampled reference, and times the alpha test.
 //!
 //! Errors ([`metrics`]): shadow-mask mismatches against the reference (false shadows and
 //! light leaks, over the (pixel, light) pairs both traced), hit-point error relative to
@@ -51,6 +52,7 @@ pub mod metrics;
 pub mod plot;
 pub mod reference;
 pub mod shadow_map;
+pub mod textures;
 pub mod variants;
 
 use std::fmt::Write as _;

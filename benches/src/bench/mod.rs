@@ -326,6 +326,11 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Report, Ben
             .map_err(|e| hyrt_accuracy::AccuracyError::Threads { threads, message: e.to_string() })?;
         let rows = pool.install(|| hyrt_accuracy::leaks::leak_offsets(options.quick, &report));
         md += &hyrt_accuracy::leaks::leak_offsets_markdown(&rows);
+        progress.set_message("speed against error: texture filtering");
+        let runs = if options.quick { 3 } else { hyrt_accuracy::FULL_RUNS };
+        let (_, textures) = hyrt_accuracy::textures::texture_speed_vs_error(width, height, threads, runs);
+        md += "\n### Texture filtering and the alpha test\n\n";
+        md += &textures;
         sections.push(Section::new("Speed against error", md));
     }
     sections.push(goals(&table2, &peers));
