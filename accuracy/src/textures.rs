@@ -79,8 +79,9 @@ fn quad(name: &str, uv_scale: f32) -> Mesh {
 pub fn texture_scene(floor: Sampler, masked: bool) -> Scene {
     let mut scene = Scene::default();
     let n = FLOOR_TEXELS;
-    let checker: Vec<[u8; 4]> =
-        (0..n * n).map(|k| if (k % n + k / n) % 2 == 0 { [235, 225, 200, 255] } else { [40, 60, 90, 255] }).collect();
+    let checker: Vec<[u8; 4]> = (0..n * n)
+        .map(|k| if (k % n + k / n).is_multiple_of(2) { [235, 225, 200, 255] } else { [40, 60, 90, 255] })
+        .collect();
     scene.textures.push(Arc::new(TextureImage::new("floor checker".into(), n, n, checker).expect("sized")));
     let holes: Vec<[u8; 4]> =
         (0..64).map(|k| if (k % 8 + k / 8) % 2 == 0 { [200, 80, 40, 255] } else { [200, 80, 40, 0] }).collect();
