@@ -12,8 +12,8 @@ use hyrt_core::formats::GBufferTexel;
 use hyrt_core::kernels::raster::INTERIOR_DEPTH_BIAS_ULPS;
 
 use super::{
-    rasterize_tile, resolve_tile, Fragment, FragmentSink, RasterTriangle, SetupTriangles, Span, TexelRun, TileScratch,
-    NOT_CORNERS, TILE_PIXELS,
+    rasterize_tile_with, resolve_tile, AlphaTests, Fragment, FragmentSink, RasterTriangle, SetupTriangles, Span,
+    TexelRun, TileScratch, NOT_CORNERS, TILE_PIXELS,
 };
 
 /// Pixels per vector.
@@ -32,8 +32,10 @@ pub(super) unsafe fn tile(
     rect: [i32; 4],
     scratch: &mut TileScratch,
     rows: Vec<&mut [GBufferTexel]>,
+    alpha: Option<AlphaTests>,
 ) -> usize {
-    rasterize_tile(tris, tile, rect, &mut Avx512Sink(scratch));
+    // Masked triangles (a frame with alpha tests) go pixel by pixel, the others eight at a time.
+    rasterize_tile_with(tris, tile, rect, Avx512Sink(scratch), alpha);
     resolve_tile::<Avx512Texels>(tris, scratch, rect, rows)
 }
 
