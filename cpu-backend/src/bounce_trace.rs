@@ -9,18 +9,17 @@
 //! The rays are traced by [`crate::traversal`]: SIMD packets of consecutive rays by
 //! default (the rays of one parent's neighbours are neighbours in the list, so
 //! reflections off one mirror stay coherent), the scalar `Bvh::closest_hit` as the
-//! reference; both give the same hits. In a scene with alpha-tested materials, the scalar
-//! `Bvh::closest_hit_filtered` with the alpha test (as `shadow_rays` does).
+//! reference; both give the same hits, and both test alpha on alpha-tested triangles
+//! (packets where the single-ray path was asked for: it does not).
 
 use glam::Vec3;
 use hyrt_core::bvh::{Bvh, ClosestHit};
 use hyrt_core::formats::{HitRecord, RayRecord, SurfaceRecord};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::reconstruction::reconstruct_hit;
-use hyrt_core::kernels::texture::alpha_accepts;
 use rayon::prelude::*;
 
-use crate::traversal::{closest_hit_batch_into, Traversal};
+use crate::traversal::{closest_hit_alpha_batch_into, Traversal};
 
 /// The stage into caller-owned buffers; `closest` is scratch kept between frames.
 pub fn bounce_trace_into(
@@ -32,16 +31,7 @@ pub fn bounce_trace_into(
     hits: &mut Vec<HitRecord>,
     surfaces: &mut Vec<SurfaceRecord>,
 ) {
-    if geometry.surface.alpha_tested() {
-        let view = geometry.surface.view();
-        let accept = |t: &_, global: u32, u, v| alpha_accepts(&view, t, global as usize, u, v);
-        rays.par_iter()
-            .with_min_len(crate::traversal::TRAVERSAL_CHUNK)
-            .map(|r| bvh.closest_hit_filtered(&geometry.triangles, r, accept))
-            .collect_into_vec(closest);
-    } else {
-        closest_hit_batch_into(bvh, &geometry.triangles, rays, traversal, closest);
-    }
+    closest_hit_alpha_batch_into(bvh, &geometry.triangles, &geometry.surface.view(), rays, traversal, closest);
     closest.par_iter().with_min_len(4096).map(|&h| HitRecord::from_hit(h)).collect_into_vec(hits);
     rays.par_iter()
         .zip(hits.par_iter())

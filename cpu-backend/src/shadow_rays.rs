@@ -7,19 +7,16 @@
 //! fixed-size chunks traced in parallel with rayon; the output is the same whatever the
 //! thread count.
 //!
-//! In a scene with alpha-tested materials every ray is traced by the scalar
-//! `Bvh::occluded_filtered`, which tests the alpha of each hit on such a triangle
-//! ([`hyrt_core::kernels::texture::alpha_accepts`]) before taking it: the SIMD packets
-//! do not test alpha yet, and a scene without alpha tests never takes this path.
+//! In a scene with alpha-tested materials a hit on such a triangle counts only where its
+//! texel passes ([`hyrt_core::kernels::texture::alpha_accepts`]): the packets and the
+//! scalar reference both test it (`crate::traversal::occluded_alpha_batch_into`).
 
 use hyrt_core::bvh::Bvh;
 use hyrt_core::formats::{RayRecord, SurfaceRecord};
 use hyrt_core::geometry::WorldGeometry;
-use hyrt_core::kernels::texture::alpha_accepts;
-use rayon::prelude::*;
 
 use crate::compaction::pair_ray;
-use crate::traversal::{occluded_batch_into, occluded_generated_into, Traversal};
+use crate::traversal::{occluded_alpha_batch_into, occluded_generated_into, Traversal};
 
 /// [`shadow_rays`] output value: something lies between the ray origin and the light.
 pub const SHADOW_OCCLUDED: u32 = 1;
@@ -54,28 +51,7 @@ pub fn shadow_rays_with(
             panic!("shadow_rays: invalid ray: {e}");
         }
     }
-    if geometry.surface.alpha_tested() {
-        return occluded_alpha_tested_into(bvh, geometry, rays.len(), |i| rays[i], out);
-    }
-    occluded_batch_into(bvh, &geometry.triangles, rays, traversal, out);
-}
-
-/// Any hit of `count` rays (`ray(i)`) with the alpha test, by the scalar traversal
-/// (module docs), in chunks of `crate::traversal::TRAVERSAL_CHUNK` in parallel.
-fn occluded_alpha_tested_into(
-    bvh: &Bvh,
-    geometry: &WorldGeometry,
-    count: usize,
-    ray: impl Fn(usize) -> RayRecord + Sync,
-    out: &mut Vec<u32>,
-) {
-    let view = geometry.surface.view();
-    let accept = |t: &_, global: u32, u, v| alpha_accepts(&view, t, global as usize, u, v);
-    out.resize(count, SHADOW_VISIBLE);
-    out.par_iter_mut().enumerate().with_min_len(crate::traversal::TRAVERSAL_CHUNK).for_each(|(i, o)| {
-        let hit = bvh.occluded_filtered(&geometry.triangles, &ray(i), accept);
-        *o = if hit { SHADOW_OCCLUDED } else { SHADOW_VISIBLE };
-    });
+    occluded_alpha_batch_into(bvh, &geometry.triangles, &geometry.surface.view(), rays, traversal, out);
 }
 
 /// [`shadow_rays_with`] over the rays of active pairs (`compaction::active_pairs_into`:
@@ -96,8 +72,6 @@ pub fn shadow_rays_of_pairs_into(
         debug_assert_eq!(r.validate(), Ok(()), "shadow_rays: invalid ray");
         r
     };
-    if geometry.surface.alpha_tested() {
-        return occluded_alpha_tested_into(bvh, geometry, active.len(), ray, out);
-    }
-    occluded_generated_into(bvh, &geometry.triangles, active.len(), ray, traversal, out);
+    let view = geometry.surface.view();
+    occluded_generated_into(bvh, &geometry.triangles, &view, active.len(), ray, traversal, out);
 }

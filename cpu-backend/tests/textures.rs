@@ -265,3 +265,55 @@ fn vertex_colours_multiply_the_base_colour() {
     }
     assert!(left > 100 && right > 100, "{left} {right}");
 }
+
+#[test]
+fn packets_test_alpha_as_the_scalar_reference_does() {
+    use hyrt_cpu::traversal::{closest_hit_alpha_batch_into, occluded_alpha_batch_into};
+    let (_, prepared, _) = render(&fence_scene(RenderMode::Raster));
+    let (g, bvh) = (&prepared.geometry, &prepared.bvh);
+    let view = g.surface.view();
+    // Rays from above the fence to points of the wall, neighbours in the list close
+    // together (packets of coherent rays that straddle holes), from a fixed LCG.
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut next = || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((state >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+    };
+    let rays: Vec<RayRecord> = (0..4096)
+        .map(|k| {
+            let base = Vec3::new((k / 64) as f32 / 32.0 - 1.0, (k % 64) as f32 / 32.0 - 1.0, 0.0);
+            let origin = Vec3::new(next() * 0.2, next() * 0.2, 3.0) + base * 0.5;
+            let target = Vec3::new(base.x * 1.5 + next() * 0.05, base.y * 1.5 + next() * 0.05, -1.0);
+            RayRecord {
+                origin: origin.into(),
+                t_min: 0.0,
+                direction: (target - origin).into(),
+                t_max: if k % 2 == 0 { 1.0 } else { f32::INFINITY },
+                pixel: k,
+                kind: RAY_KIND_REFLECTION,
+                depth: 1,
+                light: INVALID_ID,
+                throughput: [1.0; 3],
+                cone: 0.0,
+            }
+        })
+        .collect();
+    let (mut reference_any, mut reference_closest) = (Vec::new(), Vec::new());
+    occluded_alpha_batch_into(bvh, &g.triangles, &view, &rays, Traversal::Scalar, &mut reference_any);
+    closest_hit_alpha_batch_into(bvh, &g.triangles, &view, &rays, Traversal::Scalar, &mut reference_closest);
+    let holes =
+        reference_closest.iter().filter(|h| h.is_some_and(|h| g.triangles[h.triangle as usize].object == 0)).count();
+    assert!(holes > 500 && holes < 3500, "{holes} rays reach the wall");
+    for traversal in Traversal::available_simd() {
+        let (mut any, mut closest) = (Vec::new(), Vec::new());
+        occluded_alpha_batch_into(bvh, &g.triangles, &view, &rays, traversal, &mut any);
+        closest_hit_alpha_batch_into(bvh, &g.triangles, &view, &rays, traversal, &mut closest);
+        assert_eq!(any, reference_any, "{traversal:?}: any hit");
+        for (k, (a, b)) in closest.iter().zip(&reference_closest).enumerate() {
+            let bits = |h: &Option<hyrt_core::bvh::ClosestHit>| {
+                h.map(|h| (h.triangle, h.t.to_bits(), h.u.to_bits(), h.v.to_bits(), h.back_face))
+            };
+            assert_eq!(bits(a), bits(b), "{traversal:?}: ray {k}");
+        }
+    }
+}

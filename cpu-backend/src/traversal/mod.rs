@@ -62,7 +62,8 @@ mod watertight;
 use rayon::prelude::*;
 
 use hyrt_core::bvh::{Bvh, ClosestHit};
-use hyrt_core::formats::{RayRecord, TriangleRecord};
+use hyrt_core::formats::{RayRecord, TriangleRecord, MAT_ALPHA_TEST};
+use hyrt_core::kernels::texture::{alpha_accepts, SurfaceView};
 
 pub use lanes::LANES;
 use lanes::{Lanes, Portable};
@@ -283,13 +284,36 @@ pub fn occluded_batch_into(
     traversal: Traversal,
     out: &mut Vec<u32>,
 ) {
+    occluded_alpha_batch_into(bvh, triangles, &SurfaceView::default(), rays, traversal, out)
+}
+
+/// [`occluded_batch_into`] in a scene whose surface tables are `view`: hits on
+/// alpha-tested triangles count only where their texel passes
+/// ([`hyrt_core::kernels::texture::alpha_accepts`], as `Bvh::occluded_filtered`). Packets and
+/// the scalar reference test alpha; the single-ray path does not, so a scene with
+/// alpha tests traces packets where `traversal` asks for single rays.
+pub fn occluded_alpha_batch_into(
+    bvh: &Bvh,
+    triangles: &[TriangleRecord],
+    view: &SurfaceView,
+    rays: &[RayRecord],
+    traversal: Traversal,
+    out: &mut Vec<u32>,
+) {
     // Every element is written below: resizing alone keeps a reused buffer's memory
     // untouched until the chunks write it (no serial clear of megabytes).
     out.resize(rays.len(), SHADOW_VISIBLE);
-    let (level, single) = (traversal.level(), traversal.single(bvh));
+    let mode = traversal_mode(bvh, view, traversal);
     out.par_chunks_mut(TRAVERSAL_CHUNK)
         .zip(rays.par_chunks(TRAVERSAL_CHUNK))
-        .for_each(|(out, rays)| occluded_any_chunk(bvh, triangles, rays, out, (level, single)));
+        .for_each(|(out, rays)| occluded_any_chunk(bvh, triangles, view, rays, out, mode));
+}
+
+/// `(level, single)` of `traversal` on `bvh` ([`Traversal::level`], [`Traversal::single`]),
+/// packets instead of single rays where `view` has alpha tests.
+fn traversal_mode(bvh: &Bvh, view: &SurfaceView, traversal: Traversal) -> (Option<SimdLevel>, bool) {
+    let alpha = view.materials.iter().any(|m| m.flags & MAT_ALPHA_TEST != 0);
+    (traversal.level(), traversal.single(bvh) && !alpha)
 }
 
 /// [`occluded_batch_into`] over `count` rays made as they are traced, `ray(i)` for ray
@@ -298,19 +322,20 @@ pub fn occluded_batch_into(
 pub fn occluded_generated_into(
     bvh: &Bvh,
     triangles: &[TriangleRecord],
+    view: &SurfaceView,
     count: usize,
     ray: impl Fn(usize) -> RayRecord + Sync,
     traversal: Traversal,
     out: &mut Vec<u32>,
 ) {
     out.resize(count, SHADOW_VISIBLE); // every element is written below, as above
-    let mode = (traversal.level(), traversal.single(bvh));
+    let mode = traversal_mode(bvh, view, traversal);
     out.par_chunks_mut(TRAVERSAL_CHUNK).enumerate().for_each_init(
         || Vec::with_capacity(TRAVERSAL_CHUNK),
         |rays, (c, out)| {
             rays.clear();
             rays.extend((c * TRAVERSAL_CHUNK..c * TRAVERSAL_CHUNK + out.len()).map(&ray));
-            occluded_any_chunk(bvh, triangles, rays, out, mode);
+            occluded_any_chunk(bvh, triangles, view, rays, out, mode);
         },
     );
 }
@@ -320,6 +345,7 @@ pub fn occluded_generated_into(
 fn occluded_any_chunk(
     bvh: &Bvh,
     triangles: &[TriangleRecord],
+    view: &SurfaceView,
     rays: &[RayRecord],
     out: &mut [u32],
     (level, single): (Option<SimdLevel>, bool),
@@ -327,12 +353,29 @@ fn occluded_any_chunk(
     match level {
         None => {
             for (o, r) in out.iter_mut().zip(rays) {
-                *o = occlusion(bvh.occluded(triangles, r));
+                *o = occlusion(scalar_occluded(bvh, triangles, view, r));
             }
         }
         Some(level) if single => occluded_single_chunk(bvh, rays, out, level),
-        Some(level) => occluded_chunk(bvh, triangles, rays, out, level),
+        Some(level) => occluded_chunk(bvh, triangles, view, rays, out, level),
     }
+}
+
+/// The scalar reference's any hit with the alpha test of `view`.
+#[inline(always)]
+fn scalar_occluded(bvh: &Bvh, triangles: &[TriangleRecord], view: &SurfaceView, r: &RayRecord) -> bool {
+    bvh.occluded_filtered(triangles, r, |t, global, u, v| alpha_accepts(view, t, global as usize, u, v))
+}
+
+/// The scalar reference's closest hit with the alpha test of `view`.
+#[inline(always)]
+fn scalar_closest_hit(
+    bvh: &Bvh,
+    triangles: &[TriangleRecord],
+    view: &SurfaceView,
+    r: &RayRecord,
+) -> Option<ClosestHit> {
+    bvh.closest_hit_filtered(triangles, r, |t, global, u, v| alpha_accepts(view, t, global as usize, u, v))
 }
 
 /// [`occluded_batch_into`] into a new vector.
@@ -352,16 +395,29 @@ pub fn closest_hit_batch_into(
     traversal: Traversal,
     out: &mut Vec<Option<ClosestHit>>,
 ) {
+    closest_hit_alpha_batch_into(bvh, triangles, &SurfaceView::default(), rays, traversal, out)
+}
+
+/// [`closest_hit_batch_into`] with the alpha tests of `view`, as
+/// [`occluded_alpha_batch_into`] (`Bvh::closest_hit_filtered`).
+pub fn closest_hit_alpha_batch_into(
+    bvh: &Bvh,
+    triangles: &[TriangleRecord],
+    view: &SurfaceView,
+    rays: &[RayRecord],
+    traversal: Traversal,
+    out: &mut Vec<Option<ClosestHit>>,
+) {
     out.resize(rays.len(), None); // every element is written below, as above
-    let (level, single) = (traversal.level(), traversal.single(bvh));
+    let (level, single) = traversal_mode(bvh, view, traversal);
     out.par_chunks_mut(TRAVERSAL_CHUNK).zip(rays.par_chunks(TRAVERSAL_CHUNK)).for_each(|(out, rays)| match level {
         None => {
             for (o, r) in out.iter_mut().zip(rays) {
-                *o = bvh.closest_hit(triangles, r);
+                *o = scalar_closest_hit(bvh, triangles, view, r);
             }
         }
         Some(level) if single => closest_hit_single_chunk(bvh, rays, out, level),
-        Some(level) => closest_hit_chunk(bvh, triangles, rays, out, level),
+        Some(level) => closest_hit_chunk(bvh, triangles, view, rays, out, level),
     });
 }
 
@@ -404,13 +460,27 @@ macro_rules! dispatch {
     };
 }
 
-fn occluded_chunk(bvh: &Bvh, triangles: &[TriangleRecord], rays: &[RayRecord], out: &mut [u32], level: SimdLevel) {
-    dispatch!(level, occluded_packets, occluded_packets_avx512, occluded_packets_avx2, (bvh, triangles, rays, out))
+fn occluded_chunk(
+    bvh: &Bvh,
+    triangles: &[TriangleRecord],
+    view: &SurfaceView,
+    rays: &[RayRecord],
+    out: &mut [u32],
+    level: SimdLevel,
+) {
+    dispatch!(
+        level,
+        occluded_packets,
+        occluded_packets_avx512,
+        occluded_packets_avx2,
+        (bvh, triangles, view, rays, out)
+    )
 }
 
 fn closest_hit_chunk(
     bvh: &Bvh,
     triangles: &[TriangleRecord],
+    view: &SurfaceView,
     rays: &[RayRecord],
     out: &mut [Option<ClosestHit>],
     level: SimdLevel,
@@ -420,7 +490,7 @@ fn closest_hit_chunk(
         closest_hit_packets,
         closest_hit_packets_avx512,
         closest_hit_packets_avx2,
-        (bvh, triangles, rays, out)
+        (bvh, triangles, view, rays, out)
     )
 }
 
@@ -455,13 +525,13 @@ avx2_entry_points!(
     occluded_packets,
     occluded_packets_avx2,
     occluded_packets_avx512,
-    (bvh: &Bvh, triangles: &[TriangleRecord], rays: &[RayRecord], out: &mut [u32])
+    (bvh: &Bvh, triangles: &[TriangleRecord], view: &SurfaceView, rays: &[RayRecord], out: &mut [u32])
 );
 avx2_entry_points!(
     closest_hit_packets,
     closest_hit_packets_avx2,
     closest_hit_packets_avx512,
-    (bvh: &Bvh, triangles: &[TriangleRecord], rays: &[RayRecord], out: &mut [Option<ClosestHit>])
+    (bvh: &Bvh, triangles: &[TriangleRecord], view: &SurfaceView, rays: &[RayRecord], out: &mut [Option<ClosestHit>])
 );
 avx2_entry_points!(occluded_single, occluded_single_avx2, occluded_single_avx512, (bvh: &Bvh, rays: &[RayRecord], out: &mut [u32]));
 avx2_entry_points!(
@@ -488,16 +558,22 @@ fn closest_hit_single<L: Lanes>(bvh: &Bvh, rays: &[RayRecord], out: &mut [Option
 }
 
 #[inline(always)]
-fn occluded_packets<L: Lanes>(bvh: &Bvh, triangles: &[TriangleRecord], rays: &[RayRecord], out: &mut [u32]) {
+fn occluded_packets<L: Lanes>(
+    bvh: &Bvh,
+    triangles: &[TriangleRecord],
+    view: &SurfaceView,
+    rays: &[RayRecord],
+    out: &mut [u32],
+) {
     let mut cache = None;
     for (out, rays) in out.chunks_mut(LANES).zip(rays.chunks(LANES)) {
         let Some(p) = Packet::<L>::new(rays) else {
             for (o, r) in out.iter_mut().zip(rays) {
-                *o = occlusion(bvh.occluded(triangles, r));
+                *o = occlusion(scalar_occluded(bvh, triangles, view, r));
             }
             continue;
         };
-        let hit = packet::occluded(bvh, &p, &mut cache);
+        let hit = packet::occluded(bvh, view, &p, &mut cache);
         for (i, o) in out.iter_mut().enumerate() {
             *o = occlusion(hit & (1 << i) != 0);
         }
@@ -508,17 +584,18 @@ fn occluded_packets<L: Lanes>(bvh: &Bvh, triangles: &[TriangleRecord], rays: &[R
 fn closest_hit_packets<L: Lanes>(
     bvh: &Bvh,
     triangles: &[TriangleRecord],
+    view: &SurfaceView,
     rays: &[RayRecord],
     out: &mut [Option<ClosestHit>],
 ) {
     for (out, rays) in out.chunks_mut(LANES).zip(rays.chunks(LANES)) {
         let Some(p) = Packet::<L>::new(rays) else {
             for (o, r) in out.iter_mut().zip(rays) {
-                *o = bvh.closest_hit(triangles, r);
+                *o = scalar_closest_hit(bvh, triangles, view, r);
             }
             continue;
         };
-        let hits = packet::closest_hit(bvh, &p);
+        let hits = packet::closest_hit(bvh, view, &p);
         out.copy_from_slice(&hits[..out.len()]);
     }
 }

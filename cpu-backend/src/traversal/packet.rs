@@ -43,8 +43,9 @@
 use glam::Vec3;
 use hyrt_core::bvh::traversal::{inline_leaf_test, traverse, Leaf, LeafFlow, NodeTest};
 use hyrt_core::bvh::{Bvh, BvhNode, ClosestHit, BVH_CULL_SLACK};
-use hyrt_core::formats::{RayRecord, TriangleRecord, INVALID_ID};
+use hyrt_core::formats::{RayRecord, TriangleRecord, INVALID_ID, TRI_ALPHA_TEST};
 use hyrt_core::kernels::ray::{permute_axes, WatertightRay, SLAB_FAR_SCALE};
+use hyrt_core::kernels::texture::{alpha_accepts, SurfaceView};
 
 use super::lanes::{slab_bounds, Lanes, ALL_LANES, LANES};
 use super::watertight;
@@ -285,6 +286,35 @@ impl<'a, L: Lanes> Packet<'a, L> {
     }
 }
 
+/// The lanes of `hit` (hits on the alpha-tested triangle `tri`, slot `slot`, at barycentrics
+/// `u`, `v`) whose texel passes the alpha test ([`alpha_accepts`]): a rejected hit is no
+/// hit, as in `Bvh::occluded_filtered`. Only called for triangles flagged
+/// [`TRI_ALPHA_TEST`], which exist only in scenes whose `view` holds their materials.
+#[inline(never)]
+#[cold]
+fn alpha_lanes<L: Lanes>(
+    view: &SurfaceView,
+    bvh: &Bvh,
+    tri: &TriangleRecord,
+    slot: u32,
+    hit: u32,
+    u: L::F,
+    v: L::F,
+) -> u32 {
+    let (us, vs) = (L::store(u), L::store(v));
+    let global = bvh.prim_indices[slot as usize] as usize;
+    let mut kept = hit;
+    let mut lanes = hit;
+    while lanes != 0 {
+        let i = lanes.trailing_zeros() as usize;
+        lanes &= lanes - 1;
+        if !alpha_accepts(view, tri, global, us[i], vs[i]) {
+            kept &= !(1 << i);
+        }
+    }
+    kept
+}
+
 /// Lane mask to the node test's answer: `None` when no lane is left.
 #[inline(always)]
 fn lanes(m: u32) -> Option<u32> {
@@ -382,7 +412,7 @@ pub(crate) struct Occluder {
 /// made the teaser's shadow rays 12% faster and Sponza's 18%; the rest of the leaf 3 to 6%
 /// more; no change on the bunny and the dragon.
 #[inline(always)]
-pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, p: &Packet<L>, cache: &mut Option<Occluder>) -> u32 {
+pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, view: &SurfaceView, p: &Packet<L>, cache: &mut Option<Occluder>) -> u32 {
     let nodes = &bvh.nodes;
     let cached = if p.finite_inv { *cache } else { None };
     // The lanes stopped so far (the traversal's bound).
@@ -395,7 +425,11 @@ pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, p: &Packet<L>, cache: &mut Option<Oc
         #[inline(always)]
         |leaf: Leaf, mut m: u32, done: &mut u32| {
             for slot in leaf.slots() {
-                let hit = p.intersect::<false>(m, &bvh.leaf_triangles[slot as usize]).0;
+                let tri = &bvh.leaf_triangles[slot as usize];
+                let (mut hit, _, u, v) = p.intersect::<false>(m, tri);
+                if hit != 0 && tri.flags & TRI_ALPHA_TEST != 0 {
+                    hit = alpha_lanes::<L>(view, bvh, tri, slot, hit, u, v);
+                }
                 if hit != 0 {
                     *done |= hit;
                     m &= !hit;
@@ -426,7 +460,7 @@ pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, p: &Packet<L>, cache: &mut Option<Oc
 /// Closest hit for every valid lane, lane `i` equal to `Bvh::closest_hit` for ray `i`
 /// (see the module docs for the one rounding corner case).
 #[inline(always)]
-pub(crate) fn closest_hit<L: Lanes>(bvh: &Bvh, p: &Packet<L>) -> [Option<ClosestHit>; LANES] {
+pub(crate) fn closest_hit<L: Lanes>(bvh: &Bvh, view: &SurfaceView, p: &Packet<L>) -> [Option<ClosestHit>; LANES] {
     let widen = L::splat(1.0 + BVH_CULL_SLACK);
     let mut best_t = p.t_max;
     let mut best_u = L::splat(0.0);
@@ -439,7 +473,11 @@ pub(crate) fn closest_hit<L: Lanes>(bvh: &Bvh, p: &Packet<L>) -> [Option<Closest
         |leaf: Leaf, m: u32, t_far: &mut L::F| {
             let mut improved = false;
             for slot in leaf.slots() {
-                let (hit, t, u, v) = p.intersect::<true>(m, &bvh.leaf_triangles[slot as usize]);
+                let tri = &bvh.leaf_triangles[slot as usize];
+                let (mut hit, t, u, v) = p.intersect::<true>(m, tri);
+                if hit != 0 && tri.flags & TRI_ALPHA_TEST != 0 {
+                    hit = alpha_lanes::<L>(view, bvh, tri, slot, hit, u, v);
+                }
                 if hit == 0 {
                     continue;
                 }
