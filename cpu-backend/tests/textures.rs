@@ -183,24 +183,29 @@ fn masked_texels_are_holes_for_the_raster_and_for_shadow_rays() {
     assert!(fence > 500 && holes > 500 && lit > 500 && shadowed > 100, "{fence} {holes} {lit} {shadowed}");
 }
 
+/// A reflection ray of depth 1 (a list's ray `k`).
+fn reflection_ray(origin: Vec3, direction: Vec3, t_max: f32, k: u32) -> RayRecord {
+    RayRecord {
+        origin: origin.into(),
+        t_min: 0.0,
+        direction: direction.into(),
+        t_max,
+        pixel: k,
+        kind: RAY_KIND_REFLECTION,
+        depth: 1,
+        light: INVALID_ID,
+        throughput: [1.0; 3],
+        cone: 0.0,
+    }
+}
+
 #[test]
 fn closest_hits_pass_through_holes() {
     let (_, prepared, _) = render(&fence_scene(RenderMode::RayTraced));
     let mut rays = Vec::new();
     for k in 0..400 {
         let (x, y) = (-1.2 + 2.4 * ((k % 20) as f32 + 0.37) / 20.0, -1.2 + 2.4 * ((k / 20) as f32 + 0.41) / 20.0);
-        rays.push(RayRecord {
-            origin: [x, y, 2.0],
-            t_min: 0.0,
-            direction: [0.0, 0.0, -1.0],
-            t_max: f32::INFINITY,
-            pixel: k,
-            kind: RAY_KIND_REFLECTION,
-            depth: 1,
-            light: INVALID_ID,
-            throughput: [1.0; 3],
-            cone: 0.0,
-        });
+        rays.push(reflection_ray(Vec3::new(x, y, 2.0), Vec3::NEG_Z, f32::INFINITY, k));
     }
     for traversal in [Traversal::Scalar, Traversal::simd(), Traversal::for_bounces()] {
         let (mut closest, mut hits, mut surfaces) = (Vec::new(), Vec::new(), Vec::new());
@@ -284,18 +289,7 @@ fn packets_test_alpha_as_the_scalar_reference_does() {
             let base = Vec3::new((k / 64) as f32 / 32.0 - 1.0, (k % 64) as f32 / 32.0 - 1.0, 0.0);
             let origin = Vec3::new(next() * 0.2, next() * 0.2, 3.0) + base * 0.5;
             let target = Vec3::new(base.x * 1.5 + next() * 0.05, base.y * 1.5 + next() * 0.05, -1.0);
-            RayRecord {
-                origin: origin.into(),
-                t_min: 0.0,
-                direction: (target - origin).into(),
-                t_max: if k % 2 == 0 { 1.0 } else { f32::INFINITY },
-                pixel: k,
-                kind: RAY_KIND_REFLECTION,
-                depth: 1,
-                light: INVALID_ID,
-                throughput: [1.0; 3],
-                cone: 0.0,
-            }
+            reflection_ray(origin, target - origin, if k % 2 == 0 { 1.0 } else { f32::INFINITY }, k)
         })
         .collect();
     let (mut reference_any, mut reference_closest) = (Vec::new(), Vec::new());
