@@ -66,7 +66,7 @@ pub const RAY_WORDS: [Word; 16] = [
     Word::Float("throughput.r"),
     Word::Float("throughput.g"),
     Word::Float("throughput.b"),
-    Word::Int("pad"),
+    Word::Float("cone"),
 ];
 /// The words of an RGBA image texel.
 pub const RGBA_WORDS: [Word; 4] = [Word::Float("r"), Word::Float("g"), Word::Float("b"), Word::Float("a")];

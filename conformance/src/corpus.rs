@@ -17,16 +17,27 @@
 //! - `bounce_*`: reflection and refraction: two parallel mirrors (the depth limit
 //!   reached), a glass sphere with total internal reflection, grazing refraction, glass
 //!   inside glass, refracted rays through the shared edges and vertices of low-poly
-//!   glass, a mirror 1e5 from the origin.
+//!   glass, a mirror 1e5 from the origin;
+//! - `texture_*`: textures (procedural images built here), vertex colours and alpha
+//!   tests: bilinear, trilinear and nearest sampling under a `KHR_texture_transform` on
+//!   rasterized and ray-traced objects, vertex colours alone and times a texture, a
+//!   checker fence whose holes let light through onto a wall, alpha-mask edges across
+//!   the edges two triangles share, mip selection on a floor seen nearly edge-on, masked
+//!   and textured geometry seen in a mirror, every wrap mode.
 //!
 //! Images are small (lavapipe runs the GPU side on the CI's two cores).
 
 use std::path::{Path, PathBuf};
 
-use glam::{DMat4, DVec4, Mat4, Quat, Vec3};
+use std::sync::Arc;
+
+use glam::{DMat4, DVec4, Mat4, Quat, Vec2, Vec3};
 use hyrt_core::formats::CameraRecord;
 use hyrt_core::kernels::bounce::DEFAULT_MAX_DEPTH;
-use hyrt_core::scene::{Camera, Light, Material, MaterialKind, Mesh, RenderMode, Scene};
+use hyrt_core::scene::{
+    AlphaMode, Camera, Filter, Light, Material, MaterialKind, Mesh, RenderMode, Sampler, Scene, TextureBinding,
+    TextureImage, UvTransform, Wrap,
+};
 
 /// One scene of the corpus with the image it is rendered at.
 #[derive(Clone, Debug)]
@@ -668,6 +679,7 @@ pub fn corpus() -> Vec<Case> {
     degenerate_cases(&mut b);
     size_cases(&mut b);
     bounce_cases(&mut b);
+    texture_cases(&mut b);
     b.cases
 }
 
@@ -796,6 +808,350 @@ fn bounce_cases(b: &mut Builder) {
     b.add("bounce_mirror_far_from_origin", "mirror and glass 1e5 from the origin", s, cam, w, h);
 }
 
+/// A `w` x `h` image whose texel `(x, y)` is `texel(x, y)`.
+fn image(name: &str, w: u32, h: u32, texel: impl Fn(u32, u32) -> [u8; 4]) -> TextureImage {
+    let texels = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).map(|(x, y)| texel(x, y)).collect();
+    TextureImage::new(name.into(), w, h, texels).expect("a valid image")
+}
+
+/// A colourful 32 x 32 image with detail at every scale: red along x, green along y, blue
+/// in 4-texel checks, and a one-texel grid every 8 texels (so every mip level differs).
+fn pattern_image() -> TextureImage {
+    image("pattern", 32, 32, |x, y| {
+        let check = if (x / 4 + y / 4) % 2 == 0 { 230 } else { 40 };
+        let line = x % 8 == 0 || y % 8 == 0;
+        if line {
+            [250, 250, 250, 255]
+        } else {
+            [(x * 255 / 31) as u8, (y * 255 / 31) as u8, check, 255]
+        }
+    })
+}
+
+/// Add `image` to the scene and bind it with `sampler` and `transform` (coordinate set 0).
+fn bind(scene: &mut Scene, image: TextureImage, sampler: Sampler, transform: UvTransform) -> TextureBinding {
+    scene.textures.push(Arc::new(image));
+    TextureBinding { image: scene.textures.len() - 1, sampler, tex_coord: 0, transform }
+}
+
+/// `mesh` with texture coordinates `uv(vertex index, position)`.
+fn with_uvs(mut mesh: Mesh, uv: impl Fn(usize, Vec3) -> Vec2) -> Mesh {
+    let coords = mesh.positions.iter().enumerate().map(|(i, &p)| uv(i, p)).collect();
+    mesh.attributes.tex_coords[0] = Some(coords);
+    mesh
+}
+
+/// A grid (`Mesh::grid`: the XZ square [-0.5, 0.5]^2, normal +Y) whose texture coordinates
+/// run over `[0, repeat]^2`, u along x and v along z.
+fn uv_grid(name: &str, n: u32, repeat: f32) -> Mesh {
+    with_uvs(Mesh::grid(name, n), |_, p| Vec2::new(p.x + 0.5, p.z + 0.5) * repeat)
+}
+
+/// A UV sphere (`Mesh::uv_sphere`) with its own coordinates: u around (seam vertices at
+/// 1), v from pole to pole.
+fn uv_sphere(name: &str, segments: u32, rings: u32) -> Mesh {
+    let row = segments as usize + 1;
+    with_uvs(Mesh::uv_sphere(name, segments, rings), |i, _| {
+        Vec2::new((i % row) as f32 / segments as f32, (i / row) as f32 / rings as f32)
+    })
+}
+
+/// A diffuse material of colour `rgb` whose base colour is multiplied by `texture`.
+fn textured(name: &str, rgb: Vec3, texture: TextureBinding) -> Material {
+    Material { base_color_texture: Some(texture), ..diffuse(name, rgb) }
+}
+
+/// The vertical square [-1, 1]^2 in the plane z = 0 facing +z, two triangles sharing the
+/// diagonal from (-1, -1) to (1, 1), with glTF texture coordinates (v down the image).
+fn uv_quad(name: &str) -> Mesh {
+    let positions = vec![
+        Vec3::new(-1.0, -1.0, 0.0),
+        Vec3::new(1.0, -1.0, 0.0),
+        Vec3::new(1.0, 1.0, 0.0),
+        Vec3::new(-1.0, 1.0, 0.0),
+    ];
+    let quad = Mesh { normals: Some(vec![Vec3::Z; 4]), ..mesh(name, positions, vec![[0, 1, 2], [0, 2, 3]]) };
+    with_uvs(quad, |_, p| Vec2::new((p.x + 1.0) * 0.5, (1.0 - p.y) * 0.5))
+}
+
+/// Nearest filtering everywhere, level 0 only, clamped: every texel a hard square.
+const NEAREST: Sampler = Sampler {
+    wrap_s: Wrap::ClampToEdge,
+    wrap_t: Wrap::ClampToEdge,
+    mag: Filter::Nearest,
+    min: Filter::Nearest,
+    mip: None,
+};
+
+/// A fence texture: `cells` x `cells` texels, opaque (alpha 255) where `x + y` is even and
+/// a hole (alpha 0) elsewhere; the opaque texels alternate two colours by column.
+fn fence_image(cells: u32) -> TextureImage {
+    image("fence", cells, cells, |x, y| {
+        let a = if (x + y) % 2 == 0 { 255 } else { 0 };
+        if x % 2 == 0 {
+            [220, 180, 60, a]
+        } else {
+            [60, 140, 220, a]
+        }
+    })
+}
+
+fn texture_cases(b: &mut Builder) {
+    let (w, h) = (64u32, 48u32);
+    let with_depth = |b: &mut Builder, depth: u32| b.cases.last_mut().expect("a case").max_depth = depth;
+
+    // A textured ray-traced floor (trilinear, repeat, under a rotating and scaling
+    // KHR_texture_transform), a rasterized sphere (bilinear, no mip maps) and a ray-traced
+    // one (nearest mip level, nearest within it), all with the one pattern image.
+    let mut s = Scene { lights: vec![point(Vec3::new(1.5, 4.0, 3.0), 40.0)], ..Scene::default() };
+    let transform = UvTransform { offset: Vec2::new(0.1, -0.3), rotation: 0.4, scale: Vec2::new(1.5, 0.75) };
+    let floor = bind(&mut s, pattern_image(), Sampler::default(), transform);
+    s.add_object(uv_grid("floor", 4, 3.0), textured("floor", Vec3::ONE, floor), Mat4::from_scale(Vec3::splat(8.0)), RT);
+    let bilinear = bind(&mut s, pattern_image(), Sampler { mip: None, ..Sampler::default() }, UvTransform::default());
+    s.add_object(
+        uv_sphere("raster_ball", 24, 12),
+        textured("raster_ball", Vec3::new(1.0, 0.9, 0.8), bilinear),
+        Mat4::from_translation(Vec3::new(-1.1, 0.8, 0.0)) * Mat4::from_scale(Vec3::splat(0.8)),
+        RASTER,
+    );
+    let nearest_mip = Sampler { min: Filter::Nearest, mip: Some(Filter::Nearest), ..Sampler::default() };
+    let scaled = UvTransform { scale: Vec2::new(4.0, 2.0), ..UvTransform::default() };
+    let nearest = bind(&mut s, pattern_image(), nearest_mip, scaled);
+    s.add_object(
+        uv_sphere("rt_ball", 24, 12),
+        textured("rt_ball", Vec3::ONE, nearest),
+        Mat4::from_translation(Vec3::new(1.1, 0.8, 0.0)) * Mat4::from_scale(Vec3::splat(0.8)),
+        RT,
+    );
+    let cam = camera(Vec3::new(0.0, 2.2, 4.5), Vec3::new(0.0, 0.5, 0.0), 0.1, 100.0);
+    b.add(
+        "texture_raster_and_ray_traced_filtering",
+        "bilinear, trilinear and nearest-mip textures under a KHR transform, rasterized and ray traced",
+        s,
+        cam,
+        w,
+        h,
+    );
+
+    // Vertex colours: a rasterized grid coloured per vertex, a ray-traced sphere whose
+    // vertex colours multiply a texture, and a plain object among them.
+    let mut s = Scene { lights: vec![point(Vec3::new(-1.0, 3.0, 3.0), 30.0)], ..Scene::default() };
+    let mut grid = Mesh::grid("coloured_grid", 6);
+    grid.attributes.colors =
+        Some(grid.positions.iter().map(|p| [p.x + 0.5, 1.0 - (p.z + 0.5), 0.5 + p.x * p.z, 1.0]).collect());
+    s.add_object(
+        grid,
+        diffuse("coloured_grid", Vec3::ONE),
+        Mat4::from_translation(Vec3::new(0.0, -0.5, 0.0)) * Mat4::from_scale(Vec3::splat(5.0)),
+        RASTER,
+    );
+    let mut ball = uv_sphere("coloured_ball", 16, 8);
+    ball.attributes.colors =
+        Some(ball.positions.iter().map(|p| [0.6 + 0.4 * p.y, 0.5 + 0.5 * p.x, 1.0, 1.0]).collect());
+    let texture = bind(&mut s, pattern_image(), Sampler::default(), UvTransform::default());
+    s.add_object(
+        ball,
+        textured("coloured_ball", Vec3::ONE, texture),
+        Mat4::from_translation(Vec3::new(0.6, 0.3, 0.0)) * Mat4::from_scale(Vec3::splat(0.7)),
+        RT,
+    );
+    s.add_object(
+        Mesh::cube("plain_box"),
+        diffuse("plain_box", Vec3::new(0.3, 0.7, 0.4)),
+        Mat4::from_translation(Vec3::new(-1.2, 0.0, 0.3)) * Mat4::from_scale(Vec3::splat(0.4)),
+        RT,
+    );
+    let cam = camera(Vec3::new(0.0, 1.5, 4.0), Vec3::new(0.0, 0.0, 0.0), 0.1, 100.0);
+    b.add("texture_vertex_colours", "vertex colours alone and times a texture, beside a plain object", s, cam, w, h);
+
+    // A fence of 8 x 8 checker texels, every other one a hole (nearest, alpha-tested), in
+    // front of a wall, lit through the holes: its shadow on the wall is a checker too. One
+    // fence rasterized, one ray traced.
+    let mut s = Scene { lights: vec![point(Vec3::new(0.5, 1.0, 4.0), 30.0)], ..Scene::default() };
+    s.add_object(
+        Mesh::grid("wall", 4),
+        diffuse("wall", Vec3::splat(0.8)),
+        Mat4::from_translation(Vec3::new(0.0, 0.0, -1.0))
+            * Mat4::from_quat(Quat::from_rotation_x(std::f32::consts::FRAC_PI_2))
+            * Mat4::from_scale(Vec3::splat(8.0)),
+        RT,
+    );
+    for (name, x, mode) in [("fence_raster", -1.05f32, RASTER), ("fence_rt", 1.05, RT)] {
+        let texture = bind(&mut s, fence_image(8), NEAREST, UvTransform::default());
+        let fence = Material { alpha_mode: AlphaMode::Mask { cutoff: 0.5 }, ..textured(name, Vec3::ONE, texture) };
+        s.add_object(
+            uv_quad(name),
+            fence,
+            Mat4::from_translation(Vec3::new(x, 0.0, 0.0)) * Mat4::from_scale(Vec3::splat(0.95)),
+            mode,
+        );
+    }
+    let cam = camera(Vec3::new(0.3, 0.4, 4.5), Vec3::new(0.0, 0.0, -0.5), 0.1, 100.0);
+    b.add(
+        "texture_alpha_fence_shadow",
+        "an alpha-tested checker fence: holes in the raster, the rays and its shadow on a wall",
+        s,
+        cam,
+        w,
+        h,
+    );
+
+    // Alpha-mask edges across the diagonal two triangles share: an alpha ramp along u
+    // (bilinear, clamped, cutoff 0.5) over a quad seen at an angle, and a grid whose
+    // vertex-colour alpha (BLEND: tested at 0.5) falls along a diagonal of its own, its
+    // contour crossing many shared edges; both cast shadows onto the floor.
+    let mut s = Scene { lights: vec![point(Vec3::new(-1.0, 3.0, 2.0), 30.0)], ..Scene::default() };
+    s.add_object(
+        Mesh::grid("floor", 4),
+        diffuse("floor", Vec3::splat(0.7)),
+        Mat4::from_translation(Vec3::new(0.0, -1.0, 0.0)) * Mat4::from_scale(Vec3::splat(8.0)),
+        RASTER,
+    );
+    let ramp = image("ramp", 4, 1, |x, _| [200, 80 + 40 * x as u8, 90, (x * 85) as u8]);
+    let clamped = Sampler { wrap_s: Wrap::ClampToEdge, wrap_t: Wrap::ClampToEdge, mip: None, ..Sampler::default() };
+    let texture = bind(&mut s, ramp, clamped, UvTransform::default());
+    let ramped = Material { alpha_mode: AlphaMode::Mask { cutoff: 0.5 }, ..textured("ramp", Vec3::ONE, texture) };
+    s.add_object(
+        uv_quad("ramp_quad"),
+        ramped,
+        Mat4::from_translation(Vec3::new(-0.9, 0.0, 0.0)) * Mat4::from_quat(Quat::from_rotation_y(0.5)),
+        RASTER,
+    );
+    let mut grid = Mesh::grid("faded_grid", 5);
+    grid.attributes.colors = Some(grid.positions.iter().map(|p| [0.9, 0.4, 0.7, 0.5 + (p.x - p.z) * 0.8]).collect());
+    s.add_object(
+        grid,
+        Material { alpha_mode: AlphaMode::Blend, ..diffuse("faded_grid", Vec3::ONE) },
+        Mat4::from_translation(Vec3::new(0.9, 0.0, 0.0))
+            * Mat4::from_quat(Quat::from_rotation_x(1.2))
+            * Mat4::from_scale(Vec3::splat(1.8)),
+        RT,
+    );
+    let cam = camera(Vec3::new(0.0, 0.5, 4.0), Vec3::new(0.0, -0.2, 0.0), 0.1, 100.0);
+    b.add(
+        "texture_mask_edge_across_shared_edges",
+        "alpha-mask contours (texture ramp, vertex-colour alpha) crossing triangles' shared edges",
+        s,
+        cam,
+        w,
+        h,
+    );
+
+    // A fine checker floor seen nearly edge-on: the footprint grows along the view, and
+    // the level of detail climbs through the whole chain (trilinear on the rasterized
+    // half, nearest level and nearest texel on the ray-traced half). The checker's hue
+    // changes across the image and its contrast vanishes level by level, so every level
+    // has colours of its own.
+    let mut s = Scene { lights: vec![point(Vec3::new(0.0, 2.0, -2.0), 30.0)], ..Scene::default() };
+    let checker = || {
+        image("fine_checker", 64, 64, |x, y| {
+            let (r, b) = ((x * 4) as u8, (y * 4) as u8);
+            if (x + y) % 2 == 0 {
+                [r, 240, b, 255]
+            } else {
+                [r / 2, 30, b / 2, 255]
+            }
+        })
+    };
+    for (name, x, sampler, mode) in [
+        ("floor_trilinear", -2.0f32, Sampler::default(), RASTER),
+        (
+            "floor_nearest_mip",
+            2.0,
+            Sampler { mag: Filter::Nearest, min: Filter::Nearest, mip: Some(Filter::Nearest), ..Sampler::default() },
+            RT,
+        ),
+    ] {
+        let texture = bind(&mut s, checker(), sampler, UvTransform::default());
+        s.add_object(
+            uv_grid(name, 8, 16.0),
+            textured(name, Vec3::ONE, texture),
+            Mat4::from_translation(Vec3::new(x, 0.0, -10.0)) * Mat4::from_scale(Vec3::new(4.0, 1.0, 24.0)),
+            mode,
+        );
+    }
+    let cam = camera(Vec3::new(0.0, 0.12, 2.0), Vec3::new(0.0, 0.05, -10.0), 0.05, 100.0);
+    b.add(
+        "texture_grazing_floor_mip_selection",
+        "a fine checker floor seen nearly edge-on: mip levels chosen by ray cones at grazing angles",
+        s,
+        cam,
+        w,
+        h,
+    );
+
+    // A mirror that shows a fence (alpha-tested, rasterized) and a textured wall behind
+    // it, lit from between the mirror and the fence: secondary rays pass the fence's holes
+    // (closest hit with the alpha test), so do the shadow rays of depth 1 from the wall
+    // (the fence's shadow on it is a checker), and the wall is sampled with the cone the
+    // reflection carries on.
+    let mut s = Scene { lights: vec![point(Vec3::new(0.3, 1.2, -0.6), 20.0)], ..Scene::default() };
+    s.add_object(
+        Mesh::grid("mirror", 2),
+        mirror(),
+        Mat4::from_translation(Vec3::new(0.0, 0.0, -1.5))
+            * Mat4::from_quat(Quat::from_rotation_x(std::f32::consts::FRAC_PI_2))
+            * Mat4::from_scale(Vec3::new(4.0, 1.0, 3.0)),
+        RT,
+    );
+    let texture = bind(&mut s, fence_image(6), NEAREST, UvTransform::default());
+    let fence = Material { alpha_mode: AlphaMode::Mask { cutoff: 0.5 }, ..textured("fence", Vec3::ONE, texture) };
+    s.add_object(
+        uv_quad("fence"),
+        fence,
+        Mat4::from_translation(Vec3::new(0.0, 0.2, 1.0)) * Mat4::from_quat(Quat::from_rotation_y(std::f32::consts::PI)),
+        RASTER,
+    );
+    let texture = bind(&mut s, pattern_image(), Sampler::default(), UvTransform::default());
+    s.add_object(
+        uv_quad("back_wall"),
+        textured("back_wall", Vec3::ONE, texture),
+        Mat4::from_translation(Vec3::new(0.0, 0.5, 3.0))
+            * Mat4::from_quat(Quat::from_rotation_y(std::f32::consts::PI))
+            * Mat4::from_scale(Vec3::splat(3.0)),
+        RT,
+    );
+    let cam = camera(Vec3::new(0.4, 0.3, 0.2), Vec3::new(0.0, 0.2, -1.5), 0.05, 100.0);
+    b.add(
+        "texture_masked_geometry_in_a_mirror",
+        "an alpha-tested fence and a textured wall seen in a mirror: alpha tests and cones of secondary rays",
+        s,
+        cam,
+        w,
+        h,
+    );
+    with_depth(b, 2);
+
+    // Every wrap mode (and pairs of them) on quads whose coordinates run over
+    // [-1.25, 2.25]: three periods, nearest and bilinear alternating.
+    let mut s = Scene { lights: vec![point(Vec3::new(0.0, 1.0, 4.0), 20.0)], ..Scene::default() };
+    let pairs = [
+        (Wrap::Repeat, Wrap::Repeat),
+        (Wrap::ClampToEdge, Wrap::ClampToEdge),
+        (Wrap::MirroredRepeat, Wrap::MirroredRepeat),
+        (Wrap::Repeat, Wrap::MirroredRepeat),
+        (Wrap::MirroredRepeat, Wrap::ClampToEdge),
+        (Wrap::ClampToEdge, Wrap::Repeat),
+    ];
+    let stretch = UvTransform { offset: Vec2::splat(-1.25), rotation: 0.0, scale: Vec2::splat(3.5) };
+    for (k, (wrap_s, wrap_t)) in pairs.into_iter().enumerate() {
+        let filter = if k % 2 == 0 { Filter::Nearest } else { Filter::Linear };
+        let sampler = Sampler { wrap_s, wrap_t, mag: filter, min: filter, mip: None };
+        let small =
+            image("wrap", 5, 3, |x, y| [(x * 60) as u8, (y * 120) as u8, if (x + y) % 2 == 0 { 255 } else { 30 }, 255]);
+        let texture = bind(&mut s, small, sampler, stretch);
+        let (col, row) = ((k % 3) as f32, (k / 3) as f32);
+        s.add_object(
+            uv_quad("wrapped"),
+            textured("wrapped", Vec3::ONE, texture),
+            Mat4::from_translation(Vec3::new(-2.2 + 2.2 * col, 1.1 - 2.2 * row, 0.0)),
+            if k % 2 == 0 { RT } else { RASTER },
+        );
+    }
+    let cam = camera(Vec3::new(0.0, 0.0, 6.5), Vec3::ZERO, 0.1, 100.0);
+    b.add("texture_wrap_modes", "repeat, clamp-to-edge and mirrored repeat on each axis, three periods", s, cam, w, h);
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -809,7 +1165,7 @@ mod tests {
         assert_eq!(names.len(), c.len());
         for case in &c {
             assert!(
-                ["paper_", "raster_", "ray_", "degenerate_", "size_", "bounce_"]
+                ["paper_", "raster_", "ray_", "degenerate_", "size_", "bounce_", "texture_"]
                     .iter()
                     .any(|p| case.name.starts_with(p)),
                 "{}",

@@ -83,7 +83,4 @@ pub enum GpuError {
     /// The frame does not fit the device's limits (buffer size, dispatch size).
     #[error("frame exceeds GPU limits: {0}")]
     Limits(String),
-    /// The scene uses something the GPU backend does not render yet.
-    #[error("not rendered by the GPU backend yet: {0} (render with --backend cpu)")]
-    Unsupported(String),
 }

@@ -11,8 +11,8 @@ use std::collections::HashMap;
 use glam::{DVec3, Mat3, Vec2, Vec3};
 
 use crate::formats::{
-    LightRecord, MaterialRecord, ObjectRecord, TextureSet, TriangleRecord, TriangleUvRecord, MAT_ALPHA_TEST,
-    MAT_TEXTURED, MAT_VERTEX_COLORS, OBJ_RAY_TRACED, TRI_ALPHA_TEST, TRI_INWARD, TRI_RAY_TRACED,
+    LightRecord, MaterialRecord, ObjectRecord, SurfaceLayout, TextureSet, TriangleRecord, TriangleUvRecord,
+    MAT_ALPHA_TEST, MAT_TEXTURED, MAT_VERTEX_COLORS, OBJ_RAY_TRACED, TRI_ALPHA_TEST, TRI_INWARD, TRI_RAY_TRACED,
 };
 use crate::kernels::texture::{triangle_lod_bias, SurfaceView};
 use crate::scene::{Environment, Material, MaterialKind, Mesh, RenderMode, Scene};
@@ -183,6 +183,41 @@ impl SurfaceTables {
     /// Whether some object is alpha-tested.
     pub fn alpha_tested(&self) -> bool {
         self.materials.iter().any(|m| m.flags & MAT_ALPHA_TEST != 0)
+    }
+
+    /// Where each table lies when packed into one buffer of words ([`SurfaceLayout`]);
+    /// `None` when they hold 2^32 words or more.
+    pub fn layout(&self) -> Option<SurfaceLayout> {
+        SurfaceLayout::new(
+            self.materials.len(),
+            self.uvs.len(),
+            self.colors.len(),
+            self.textures.records.len(),
+            self.textures.texels.len(),
+        )
+    }
+
+    /// The tables packed into one buffer of words as [`SurfaceLayout`] says (the GPU binds
+    /// them so), with their layout; `None` as [`SurfaceTables::layout`]. `objects` are the
+    /// scene's (their first triangles are packed beside the materials; ignored without
+    /// surface tables).
+    pub fn packed(&self, objects: &[ObjectRecord]) -> Option<(SurfaceLayout, Vec<u32>)> {
+        let layout = self.layout()?;
+        let mut words = Vec::with_capacity(layout.words as usize);
+        words.extend_from_slice(bytemuck::cast_slice(&self.materials));
+        if !self.materials.is_empty() {
+            assert_eq!(objects.len(), self.materials.len(), "one material record per object");
+            words.extend(objects.iter().map(|o| o.first_triangle));
+        }
+        words.extend_from_slice(bytemuck::cast_slice(&self.uvs));
+        words.extend_from_slice(bytemuck::cast_slice(&self.colors));
+        words.extend_from_slice(bytemuck::cast_slice(&self.textures.records));
+        if !self.textures.is_empty() {
+            words.extend_from_slice(bytemuck::cast_slice(crate::kernels::texture::srgb8_table()));
+        }
+        words.extend_from_slice(&self.textures.texels);
+        debug_assert_eq!(words.len(), layout.words as usize);
+        Some((layout, words))
     }
 
     /// Bytes held.

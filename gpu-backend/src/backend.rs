@@ -31,6 +31,7 @@ use crate::reconstruction::ReconstructionStage;
 use crate::rt_shading::{RtShadingBouncingStage, RtShadingStage};
 use crate::secondary_rays::SecondaryRaysStage;
 use crate::shadow_rays::ShadowRaysStage;
+use crate::texture::Specialization;
 use crate::timing::StageTimer;
 use crate::visibility_raster::{VisibilityMode, VisibilityRasterStage};
 use crate::{AdapterPolicy, GpuContext, GpuError};
@@ -42,12 +43,12 @@ use crate::{AdapterPolicy, GpuContext, GpuError};
 const MAX_STEPS: u32 = Stage::ALL.len() as u32 - 1 - 3 + 5 * MAX_DEPTH_LIMIT;
 
 /// Storage buffers the bounce stages bind in one shader stage, at most: `secondary_rays`
-/// binds the scan's three (flags, levels, the list's count) and ten of its own (objects,
+/// binds the scan's three (flags, levels, the list's count) and eleven of its own (objects,
 /// triangles, the G-buffer, the parents' surfaces, rays, hits and count, the rays, links
-/// and counters it writes). WebGPU's default limit is 8; `GpuContext::new` asks for up to
-/// 16. On a device with fewer, the backend renders frames without bounces and refuses
-/// the others with `GpuError::Limits`.
-pub const BOUNCE_STORAGE_BUFFERS: u32 = 13;
+/// and counters it writes, the surface tables). WebGPU's default limit is 8;
+/// `GpuContext::new` asks for up to 16. On a device with fewer, the backend renders frames
+/// without bounces and refuses the others with `GpuError::Limits`.
+pub const BOUNCE_STORAGE_BUFFERS: u32 = 14;
 
 /// The pipelines of the bounce stages (and of `rt_shading` gathering the first bounce).
 struct BounceStages {
@@ -55,6 +56,43 @@ struct BounceStages {
     bounce_trace: BounceTraceStage,
     bounce_shading: BounceShadingStage,
     rt_shading: RtShadingBouncingStage,
+}
+
+/// The stages that read the surface tables, compiled for one [`Specialization`] (the
+/// others, `reconstruction`, `compaction` and `composition`, read none).
+struct SurfaceStages {
+    visibility_raster: VisibilityRasterStage,
+    shadow_rays: ShadowRaysStage,
+    rt_shading: RtShadingStage,
+    raster_shading: RasterShadingStage,
+    /// `None` on a device with fewer than [`BOUNCE_STORAGE_BUFFERS`] storage buffers per
+    /// shader stage.
+    bounces: Option<BounceStages>,
+}
+
+impl SurfaceStages {
+    /// Build the pipelines for scenes that need `s`, `visibility_raster` in `mode`.
+    fn new(ctx: &GpuContext, mode: VisibilityMode, s: Specialization) -> Result<SurfaceStages, GpuError> {
+        let (visibility_raster, shadow_rays, rt_shading, raster_shading) = ctx.checked(|| {
+            (
+                VisibilityRasterStage::specialized(ctx, mode, s),
+                ShadowRaysStage::specialized(ctx, s),
+                RtShadingStage::specialized(ctx, s),
+                RasterShadingStage::specialized(ctx, s),
+            )
+        })?;
+        let bounces = if ctx.limits.max_storage_buffers_per_shader_stage >= BOUNCE_STORAGE_BUFFERS {
+            Some(ctx.checked(|| BounceStages {
+                secondary_rays: SecondaryRaysStage::specialized(ctx, s),
+                bounce_trace: BounceTraceStage::specialized(ctx, s),
+                bounce_shading: BounceShadingStage::specialized(ctx, s),
+                rt_shading: RtShadingBouncingStage::specialized(ctx, s),
+            })?)
+        } else {
+            None
+        };
+        Ok(SurfaceStages { visibility_raster, shadow_rays, rt_shading, raster_shading, bounces })
+    }
 }
 
 /// Room for the secondary rays of each bounce depth in a frame that has no earlier
@@ -113,20 +151,19 @@ impl Counts {
     }
 }
 
-/// The GPU backend. Pipelines are created once; scene buffers once per
+/// The GPU backend. Pipelines are created once (those of scenes with surface tables the
+/// first time such a scene is rendered: [`Specialization`]); scene buffers once per
 /// [`PreparedScene`]; frame buffers once per image size and light count.
 pub struct GpuBackend {
     ctx: GpuContext,
-    visibility_raster: VisibilityRasterStage,
     reconstruction: ReconstructionStage,
     compaction: CompactionStage,
-    shadow_rays: ShadowRaysStage,
-    rt_shading: RtShadingStage,
-    raster_shading: RasterShadingStage,
     composition: CompositionStage,
-    /// `None` on a device with fewer than [`BOUNCE_STORAGE_BUFFERS`] storage buffers per
-    /// shader stage.
-    bounces: Option<BounceStages>,
+    /// The stages that read the surface tables, per specialization built so far; the
+    /// first is [`Specialization::PLAIN`], built with the backend.
+    stages: Vec<(Specialization, SurfaceStages)>,
+    /// How `visibility_raster` computes the G-buffer, in every specialization.
+    visibility_mode: VisibilityMode,
     timer: StageTimer,
     scene: Option<(u64, SceneBuffers)>,
     frame: Option<FrameBuffers>,
@@ -146,41 +183,20 @@ impl GpuBackend {
         Self::with_context(ctx)
     }
 
-    /// Build every pipeline on an existing context.
+    /// Build every pipeline of scenes without surface tables on an existing context.
     pub fn with_context(ctx: GpuContext) -> Result<GpuBackend, GpuError> {
-        let (visibility_raster, reconstruction, compaction, shadow_rays, rt_shading, raster_shading, composition) = ctx
-            .checked(|| {
-                (
-                    VisibilityRasterStage::new(&ctx),
-                    ReconstructionStage::new(&ctx),
-                    CompactionStage::new(&ctx),
-                    ShadowRaysStage::new(&ctx),
-                    RtShadingStage::new(&ctx),
-                    RasterShadingStage::new(&ctx),
-                    CompositionStage::new(&ctx),
-                )
-            })?;
-        let bounces = if ctx.limits.max_storage_buffers_per_shader_stage >= BOUNCE_STORAGE_BUFFERS {
-            Some(ctx.checked(|| BounceStages {
-                secondary_rays: SecondaryRaysStage::new(&ctx),
-                bounce_trace: BounceTraceStage::new(&ctx),
-                bounce_shading: BounceShadingStage::new(&ctx),
-                rt_shading: RtShadingBouncingStage::new(&ctx),
-            })?)
-        } else {
-            None
-        };
+        let (reconstruction, compaction, composition) =
+            ctx.checked(|| (ReconstructionStage::new(&ctx), CompactionStage::new(&ctx), CompositionStage::new(&ctx)))?;
+        let visibility_mode = VisibilityMode::default();
+        let plain = SurfaceStages::new(&ctx, visibility_mode, Specialization::PLAIN)?;
         let timer = StageTimer::new(&ctx, MAX_STEPS)?;
         Ok(GpuBackend {
             ctx,
-            visibility_raster,
             reconstruction,
             compaction,
-            shadow_rays,
-            rt_shading,
-            raster_shading,
             composition,
-            bounces,
+            stages: vec![(Specialization::PLAIN, plain)],
+            visibility_mode,
             timer,
             scene: None,
             frame: None,
@@ -201,7 +217,7 @@ impl GpuBackend {
         format!(
             "{}; raster ids from {}; stage times from {timing}",
             self.ctx.describe(),
-            self.visibility_raster.triangle_id_source()
+            self.stages[0].1.visibility_raster.triangle_id_source()
         )
     }
 
@@ -210,11 +226,26 @@ impl GpuBackend {
     /// reference; [`VisibilityMode::HardwareInterpolated`] is not, and exists for
     /// benchmarks that measure the device as a plain rasterizer.
     pub fn set_visibility_mode(&mut self, mode: VisibilityMode) -> Result<(), GpuError> {
-        if self.visibility_raster.mode() != mode {
-            let stage = self.ctx.checked(|| VisibilityRasterStage::with_mode(&self.ctx, mode))?;
-            self.visibility_raster = stage;
+        if self.visibility_mode != mode {
+            for (s, stages) in &mut self.stages {
+                let ctx = &self.ctx;
+                stages.visibility_raster = ctx.checked(|| VisibilityRasterStage::specialized(ctx, mode, *s))?;
+            }
+            self.visibility_mode = mode;
         }
         Ok(())
+    }
+
+    /// The stages specialized as `s`, built now if no scene needed them before.
+    fn stages(&mut self, s: Specialization) -> Result<&SurfaceStages, GpuError> {
+        let at = match self.stages.iter().position(|(k, _)| *k == s) {
+            Some(at) => at,
+            None => {
+                self.stages.push((s, SurfaceStages::new(&self.ctx, self.visibility_mode, s)?));
+                self.stages.len() - 1
+            }
+        };
+        Ok(&self.stages[at].1)
     }
 
     /// The device context.
@@ -259,6 +290,8 @@ impl GpuBackend {
             let ctx = &self.ctx;
             self.scene = Some((scene.id(), ctx.checked(|| SceneBuffers::new(ctx, scene))?));
         }
+        // The pipelines this scene's surface tables need, built before its first frame.
+        self.stages(Specialization::of(&scene.geometry.surface))?;
         let lights = scene.geometry.lights.len() as u32;
         let limit = self.band_binding_limit();
         let max_side = self.ctx.limits.max_texture_dimension_2d;
@@ -339,7 +372,8 @@ impl GpuBackend {
                 self.frame = Some(ctx.checked(|| FrameBuffers::for_plan(ctx, w, rows, lights, plan, &room))??);
             }
             self.frame.as_mut().expect("frame buffers").set_band(&self.ctx, band, banded);
-            self.run_plan(plan, camera, options)?;
+            // The frame's cone spread, by the CPU's rule (0 unless colours vary over surfaces).
+            self.run_plan(plan, camera, options, scene.geometry.materials(camera).spread)?;
             let counts = match sink {
                 Sink::Frame(out) => self.read_back(plan, merge, out)?,
                 Sink::Texture(_) => self.read_counts(plan)?,
@@ -424,13 +458,27 @@ impl GpuBackend {
             .collect()
     }
 
-    /// Encode and submit the plan's steps over the current frame buffers. Stage times
-    /// are kept for the statistics.
-    fn run_plan(&mut self, plan: &FramePlan, camera: &CameraRecord, options: &FrameOptions) -> Result<(), GpuError> {
+    /// Encode and submit the plan's steps over the current frame buffers, with the
+    /// frame's cone `spread` ([`FrameParams::pixel_spread`]). Stage times are kept for the
+    /// statistics.
+    fn run_plan(
+        &mut self,
+        plan: &FramePlan,
+        camera: &CameraRecord,
+        options: &FrameOptions,
+        spread: f32,
+    ) -> Result<(), GpuError> {
         let ctx = &self.ctx;
         let (sb, fb) = (&self.scene.as_ref().expect("scene buffers").1, self.frame.as_ref().expect("frame buffers"));
+        let st = self
+            .stages
+            .iter()
+            .find(|(s, _)| *s == sb.surface.specialization)
+            .map(|(_, stages)| stages)
+            .expect("run_frame builds the scene's specialization");
         let params = FrameParams::new(camera.width, camera.height, fb.light_count, options.weight)
             .with_composition(plan.composition())
+            .with_pixel_spread(spread)
             .for_band(fb.band.first_row, fb.band.rows);
         debug_assert_eq!(params.validate(), Ok(()));
         fb.write_uniforms(ctx, camera, &params);
@@ -443,7 +491,7 @@ impl GpuBackend {
         // timed by the wall clock instead.
         let timed_by_gpu = self.timer.is_active() && !crate::context::is_software(&ctx.info);
         let mut wall_ms = Vec::with_capacity(plan.steps().len());
-        let bounce = || self.bounces.as_ref().expect("plans with bounces need the bounce stages (check_supported)");
+        let bounce = || st.bounces.as_ref().expect("plans with bounces need the bounce stages (check_supported)");
         ctx.checked(|| -> Result<(), GpuError> {
             let t = &self.timer;
             let mut enc =
@@ -453,12 +501,12 @@ impl GpuBackend {
                 let start = Instant::now();
                 let slot = t.stage(i as u32);
                 match step {
-                    Step::VisibilityRaster => self.visibility_raster.encode(ctx, &mut enc, sb, fb, slot),
+                    Step::VisibilityRaster => st.visibility_raster.encode(ctx, &mut enc, sb, fb, slot),
                     Step::Reconstruction => {
                         self.reconstruction.encode(ctx, &mut enc, sb, fb, options.barycentrics, slot)
                     }
                     Step::Compaction => self.compaction.encode(ctx, &mut enc, sb, fb, slot),
-                    Step::ShadowRays => self.shadow_rays.encode(ctx, &mut enc, sb, fb, slot),
+                    Step::ShadowRays => st.shadow_rays.encode(ctx, &mut enc, sb, fb, slot),
                     Step::SecondaryRays { depth } => bounce().secondary_rays.encode(ctx, &mut enc, sb, fb, depth, slot),
                     Step::BounceTrace { depth } => bounce().bounce_trace.encode(ctx, &mut enc, sb, fb, depth, slot),
                     Step::BounceCompaction { depth } => {
@@ -467,15 +515,15 @@ impl GpuBackend {
                     }
                     Step::BounceShadowRays { depth } => {
                         let list = fb.bounces[depth as usize - 1].list();
-                        self.shadow_rays.encode_list(ctx, &mut enc, sb, fb, &list, slot)
+                        st.shadow_rays.encode_list(ctx, &mut enc, sb, fb, &list, slot)
                     }
                     Step::BounceShading { depth, last } => {
                         bounce().bounce_shading.encode(ctx, &mut enc, sb, fb, depth, last, slot)
                     }
-                    Step::RtShading { bounces: false } => self.rt_shading.encode(ctx, &mut enc, sb, fb, slot),
+                    Step::RtShading { bounces: false } => st.rt_shading.encode(ctx, &mut enc, sb, fb, slot),
                     Step::RtShading { bounces: true } => bounce().rt_shading.encode(ctx, &mut enc, sb, fb, slot),
                     // `shade_ray_traced` is the shader's `weight < 1`.
-                    Step::RasterShading { .. } => self.raster_shading.encode(ctx, &mut enc, sb, fb, slot),
+                    Step::RasterShading { .. } => st.raster_shading.encode(ctx, &mut enc, sb, fb, slot),
                     // The mode is the `composition` code in the frame parameters.
                     Step::Composition(_) => self.composition.encode(ctx, &mut enc, sb, fb, slot),
                 }
@@ -775,17 +823,24 @@ impl Counts {
 }
 
 impl GpuBackend {
-    /// Refuse a plan this device cannot run: bounces on a device with fewer storage
-    /// buffers per shader stage than the bounce stages bind ([`BOUNCE_STORAGE_BUFFERS`]).
-    /// An error, never a frame without them.
+    /// Refuse a plan this device cannot run: surface tables (textures, texture
+    /// coordinates, vertex colours) larger than one storage binding, and bounces on a
+    /// device with fewer storage buffers per shader stage than the bounce stages bind
+    /// ([`BOUNCE_STORAGE_BUFFERS`]). An error, never a frame without them.
     fn check_supported(&self, scene: &PreparedScene, plan: &FramePlan) -> Result<(), GpuError> {
-        // Textures, vertex colours and alpha tests are the CPU backend's alone until their
-        // stages are mirrored: refused, never rendered without them.
-        if !scene.geometry.surface.is_empty() {
-            return Err(GpuError::Unsupported("textures, vertex colours and alpha-tested materials".into()));
+        let binding = self.ctx.limits.max_storage_buffer_binding_size.min(self.ctx.limits.max_buffer_size);
+        match scene.geometry.surface.layout().map(|l| l.bytes()) {
+            Some(bytes) if bytes <= binding => {}
+            need => {
+                return Err(GpuError::Limits(format!(
+                    "the scene's textures, texture coordinates and vertex colours need {} bytes in one storage binding; this device allows {binding}",
+                    need.map_or_else(|| "2^34 or more".to_string(), |b| b.to_string())
+                )))
+            }
         }
-        match (plan.bounce_depth(), &self.bounces) {
-            (d, None) if d > 0 => Err(GpuError::Limits(format!(
+        let bounces = self.ctx.limits.max_storage_buffers_per_shader_stage >= BOUNCE_STORAGE_BUFFERS;
+        match (plan.bounce_depth(), bounces) {
+            (d, false) if d > 0 => Err(GpuError::Limits(format!(
                 "reflection and refraction bind {BOUNCE_STORAGE_BUFFERS} storage buffers per shader stage; this device allows {} (request more, or render with max depth 0)",
                 self.ctx.limits.max_storage_buffers_per_shader_stage
             ))),

@@ -7,12 +7,17 @@
 //!
 //! Reads the depth's rays, count (indirect dispatch), hits, surfaces and shadow codes;
 //! unless it is the plan's deepest bounce, the next depth's links and radiance; objects,
-//! triangles, lights, the scene's environment. Writes one linear RGBA value per ray.
+//! triangles, lights, the scene's environment, and the surface tables (each hit's object
+//! shaded as [`hyrt_core::kernels::texture::Materials::at`] sees it, its footprint the
+//! ray's cone widened over the hit's distance). Writes one linear RGBA value per ray.
 //! Also home of the WGSL the radiance-gathering stages share (this one and `rt_shading`
 //! with bounces).
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
-use crate::shader::{bind_buffers, compute_pipeline, environment_wgsl, radiance_source, storage_entry, uniform_entry};
+use crate::shader::{
+    bind_buffers, environment_wgsl, radiance_source, specialized_pipeline, storage_entry, uniform_entry,
+};
+use crate::texture::Specialization;
 use crate::GpuContext;
 
 /// The `bounce_shading` stage: one pipeline.
@@ -22,7 +27,8 @@ pub struct BounceShadingStage {
 }
 
 impl BounceShadingStage {
-    pub fn new(ctx: &GpuContext) -> Self {
+    /// Compile the stage's pipeline for scenes whose surface tables need `s`.
+    pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
         let source =
             radiance_source(&format!("{}\n{}", environment_wgsl(), include_str!("shaders/bounce_shading.wgsl")));
         let mut entries = vec![uniform_entry(0), uniform_entry(1)];
@@ -30,7 +36,8 @@ impl BounceShadingStage {
         entries.push(uniform_entry(10));
         entries.extend((11..=13).map(|i| storage_entry(i, true)));
         entries.push(storage_entry(14, false));
-        let (pipeline, layout) = compute_pipeline(ctx, "bounce_shading", &source, &entries);
+        entries.extend([storage_entry(15, true), uniform_entry(16)]);
+        let (pipeline, layout) = specialized_pipeline(ctx, "bounce_shading", &source, &entries, &s.constants());
         BounceShadingStage { pipeline, layout }
     }
 
@@ -75,6 +82,8 @@ impl BounceShadingStage {
                 links,
                 child_radiance,
                 &b.radiance,
+                &scene.surface.words,
+                &scene.surface.layout,
             ],
         );
         crate::shader::encode_list_pass(encoder, "bounce_shading", &self.pipeline, &bind_group, &b.ray_count, timing);

@@ -2,24 +2,22 @@
 //! ray of one bounce through the BVH of the whole scene (ties to the lower triangle
 //! index) and the surface it hit, rebuilt from the hit's barycentrics (paper eq. 1
 //! again) on the side the ray saw: bit for bit `hyrt_cpu::bounce_trace`
-//! ([`hyrt_core::bvh::Bvh::closest_hit`] walked as `traverse` walks it, the exact
-//! watertight test of `shaders/ray.wgsl`,
+//! ([`hyrt_core::bvh::Bvh::closest_hit_filtered`] walked as `traverse` walks it, the exact
+//! watertight test of `shaders/ray.wgsl`, the alpha test of
+//! [`hyrt_core::kernels::texture::alpha_accepts`] on hits on alpha-tested triangles,
 //! [`hyrt_core::kernels::reconstruction::reconstruct_hit`] in `shaders/surface.wgsl`).
 //!
 //! Reads the depth's rays and count (indirect dispatch, one thread per ray), the BVH,
-//! triangles and normals. Writes one `HitRecord` and one `SurfaceRecord` per ray and
+//! triangles, normals and the surface tables (alpha tests). Writes one `HitRecord` and one `SurfaceRecord` per ray and
 //! counts the hits.
 
 use hyrt_core::formats::wgsl::declarations;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
-use crate::shader::surface_wgsl;
-use crate::shader::{bind_buffers, compute_pipeline};
+use crate::shader::{bind_buffers, specialized_pipeline, surface_wgsl, EXACT_PRODUCTS};
 use crate::shader::{ray_wgsl, storage_entry, uniform_entry};
+use crate::texture::{texture_wgsl, Specialization};
 use crate::GpuContext;
-
-/// `rounded` and `mul` of `surface.wgsl` over the frame's always-zero word.
-const EXACT_PRODUCTS: &str = "fn rounded(x: f32) -> f32 {\n    return opaque(x, params.zero);\n}\n\nfn mul(a: f32, b: f32) -> f32 {\n    return mul_exact(a, b, params.zero);\n}\n";
 
 /// The `bounce_trace` stage: one pipeline.
 pub struct BounceTraceStage {
@@ -28,13 +26,19 @@ pub struct BounceTraceStage {
 }
 
 impl BounceTraceStage {
-    pub fn new(ctx: &GpuContext) -> Self {
-        let source =
-            declarations() + &ray_wgsl() + EXACT_PRODUCTS + &surface_wgsl() + include_str!("shaders/bounce_trace.wgsl");
+    /// Compile the stage's pipeline for scenes whose surface tables need `s`.
+    pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
+        let source = declarations()
+            + &ray_wgsl()
+            + EXACT_PRODUCTS
+            + &surface_wgsl()
+            + &texture_wgsl()
+            + include_str!("shaders/bounce_trace.wgsl");
         let mut entries = vec![uniform_entry(0)];
         entries.extend((1..=7).map(|i| storage_entry(i, true)));
         entries.extend((8..=10).map(|i| storage_entry(i, false)));
-        let (pipeline, layout) = compute_pipeline(ctx, "bounce_trace", &source, &entries);
+        entries.extend([storage_entry(11, true), uniform_entry(12)]);
+        let (pipeline, layout) = specialized_pipeline(ctx, "bounce_trace", &source, &entries, &s.constants());
         BounceTraceStage { pipeline, layout }
     }
 
@@ -65,6 +69,8 @@ impl BounceTraceStage {
                 &b.hits,
                 &b.surfaces,
                 &b.counters,
+                &scene.surface.words,
+                &scene.surface.layout,
             ],
         );
         crate::shader::encode_list_pass(encoder, "bounce_trace", &self.pipeline, &bind_group, &b.ray_count, timing);

@@ -13,6 +13,7 @@ use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan};
 
 use crate::band::Band;
 use crate::gpu_buffer::{storage, upload};
+use crate::texture::SurfaceBuffers;
 use crate::{GpuContext, GpuError};
 
 /// The per-frame uniform parameters, defined in [`hyrt_core::formats`] (with the
@@ -39,6 +40,9 @@ pub struct SceneBuffers {
     pub environment: wgpu::Buffer,
     /// `array<vec4<f32>>`: the environment map's texels (one zero texel for the sky).
     pub environment_texels: wgpu::Buffer,
+    /// The surface tables (materials, texture coordinates, vertex colours, textures),
+    /// packed into one binding with their layout; one unread word without them.
+    pub surface: SurfaceBuffers,
     pub triangle_count: u32,
     pub object_count: u32,
     pub light_count: u32,
@@ -69,6 +73,7 @@ impl SceneBuffers {
             bvh_nodes: upload::<BvhNode>(ctx, "bvh nodes", &scene.bvh.nodes),
             bvh_leaf_triangles: upload::<TriangleRecord>(ctx, "bvh leaf triangles", &scene.bvh.leaf_triangles),
             bvh_prim_indices: upload::<u32>(ctx, "bvh prim indices", &scene.bvh.prim_indices),
+            surface: SurfaceBuffers::new(ctx, &g.surface, &g.objects),
             triangle_count: g.triangles.len() as u32,
             object_count: g.objects.len() as u32,
             light_count: g.lights.len() as u32,

@@ -83,6 +83,7 @@ impl CompactionStage {
                 uniform_entry(4),        // list
                 storage_entry(5, true),  // live
             ],
+            &[],
         );
         let test_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("compaction scan test"),
@@ -99,11 +100,11 @@ impl CompactionStage {
         });
         CompactionStage {
             light_starts: (
-                main_pipeline(ctx, "compaction light starts", &starts_module, &starts_layout),
+                main_pipeline(ctx, "compaction light starts", &starts_module, &starts_layout, &[]),
                 starts_layout,
             ),
-            scatter_indices: pipeline(device, &module, "scatter_indices", &with_test),
-            reduce_for_test: pipeline(device, &module, "reduce", &with_test),
+            scatter_indices: pipeline(device, &module, "scatter_indices", &with_test, &[]),
+            reduce_for_test: pipeline(device, &module, "reduce", &with_test, &[]),
             scan,
             test_layout,
         }

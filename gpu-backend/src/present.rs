@@ -92,7 +92,7 @@ impl Present {
                 label: Some("present"),
                 entries: &[storage_entry(0, true), uniform_entry(1), texture_entry],
             });
-            (main_pipeline(ctx, "present", &module, &layout), layout)
+            (main_pipeline(ctx, "present", &module, &layout, &[]), layout)
         });
         let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
         let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {

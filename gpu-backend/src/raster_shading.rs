@@ -4,15 +4,22 @@
 //! plus ambient, on the pixels of rasterized objects, and on those of ray-traced
 //! objects only when the composition weight is below 1; one compute invocation per pixel.
 //!
+//! Each pixel's object is shaded with its record as the pixel sees it
+//! (`shaders/primary_object.wgsl`, mirror of `hyrt_cpu::raster_shading::Primary::object`):
+//! where materials vary (textures, vertex colours), its base colour textured at the
+//! G-buffer's barycentrics and the eye's footprint.
+//!
 //! Reads `frame.surfaces`, `frame.shadow`, `scene.objects`, `scene.lights`,
-//! `frame.params` (width, height, light count, weight).
+//! `frame.params` (width, height, light count, weight, cone spread); where materials vary
+//! also `frame.gbuffer`, `frame.camera` (the eye) and `scene.surface`.
 //! Writes `frame.raster`: linear RGBA; `BACKGROUND` with alpha 1 on pixels without
 //! a hit, (0, 0, 0, 0) on ray-traced pixels when the weight is 1, alpha 1 where shaded.
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
 use crate::shader::{
-    bind_buffers, compute_pipeline, encode_pixel_pass, storage_entry, surface_shading_source, uniform_entry,
+    bind_buffers, encode_pixel_pass, specialized_pipeline, storage_entry, surface_shading_source, uniform_entry,
 };
+use crate::texture::Specialization;
 use crate::GpuContext;
 
 /// The `raster_shading` stage.
@@ -22,10 +29,19 @@ pub struct RasterShadingStage {
 }
 
 impl RasterShadingStage {
-    /// Compile the stage's pipeline.
+    /// Compile the stage's pipeline for scenes without surface tables.
     pub fn new(ctx: &GpuContext) -> Self {
-        let source = surface_shading_source(include_str!("shaders/raster_shading.wgsl"));
-        let (pipeline, layout) = compute_pipeline(
+        Self::specialized(ctx, Specialization::PLAIN)
+    }
+
+    /// Compile the stage's pipeline for scenes whose surface tables need `s`.
+    pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
+        let source = surface_shading_source(&format!(
+            "{}\n{}",
+            include_str!("shaders/primary_object.wgsl"),
+            include_str!("shaders/raster_shading.wgsl")
+        ));
+        let (pipeline, layout) = specialized_pipeline(
             ctx,
             "raster_shading",
             &source,
@@ -36,13 +52,19 @@ impl RasterShadingStage {
                 storage_entry(3, true),  // lights
                 uniform_entry(4),        // params
                 storage_entry(5, false), // raster
+                storage_entry(6, true),  // gbuffer
+                uniform_entry(7),        // camera
+                storage_entry(8, true),  // surface tables
+                uniform_entry(9),        // surface layout
             ],
+            &s.constants(),
         );
         RasterShadingStage { pipeline, layout }
     }
 
     /// Record the stage: `frame.raster` from `frame.surfaces`, `frame.shadow`,
-    /// `scene.objects`, `scene.lights` and `frame.params`.
+    /// `scene.objects`, `scene.lights` and `frame.params` (and, where materials vary,
+    /// `frame.gbuffer`, `frame.camera` and `scene.surface`).
     pub fn encode(
         &self,
         ctx: &GpuContext,
@@ -55,7 +77,18 @@ impl RasterShadingStage {
             ctx,
             "raster_shading",
             &self.layout,
-            &[&frame.surfaces, &frame.shadow, &scene.objects, &scene.lights, &frame.params, &frame.raster],
+            &[
+                &frame.surfaces,
+                &frame.shadow,
+                &scene.objects,
+                &scene.lights,
+                &frame.params,
+                &frame.raster,
+                &frame.gbuffer,
+                &frame.camera,
+                &scene.surface.words,
+                &scene.surface.layout,
+            ],
         );
         encode_pixel_pass(encoder, "raster_shading", &self.pipeline, &bind_group, frame.width, frame.band.rows, timing);
     }

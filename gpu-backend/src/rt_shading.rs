@@ -3,8 +3,15 @@
 //! ray-traced objects (paper 3.3) with Lambert + Blinn-Phong specular from every
 //! light whose shadow ray reached it, plus ambient; one compute invocation per pixel.
 //!
+//! Each pixel's object is shaded with its record as the pixel sees it
+//! (`shaders/primary_object.wgsl`; in frames with bounces the primary hit's parent,
+//! `hyrt_core::kernels::bounce::primary_parent`): where materials vary (textures, vertex
+//! colours), its base colour textured at the G-buffer's barycentrics and the eye's
+//! footprint.
+//!
 //! Reads `frame.surfaces`, `frame.shadow`, `scene.objects`, `scene.lights`,
-//! `frame.camera` (the eye), `frame.params` (width, height, light count).
+//! `frame.camera` (the eye), `frame.params` (width, height, light count, cone spread);
+//! where materials vary also `frame.gbuffer` and `scene.surface`.
 //! Writes `frame.rt`: linear RGBA, alpha 1 on ray-traced pixels, (0, 0, 0, 0) elsewhere.
 //!
 //! Also home of the helpers the three shading stages share (WGSL assembly,
@@ -12,12 +19,13 @@
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
 use crate::shader::{
-    bind_buffers, compute_pipeline, encode_pixel_pass, storage_entry, surface_shading_source, uniform_entry,
+    bind_buffers, encode_pixel_pass, specialized_pipeline, storage_entry, surface_shading_source, uniform_entry,
 };
+use crate::texture::Specialization;
 use crate::GpuContext;
 
 /// The bindings of `shaders/rt_shading.wgsl`.
-fn rt_entries() -> [wgpu::BindGroupLayoutEntry; 7] {
+fn rt_entries() -> [wgpu::BindGroupLayoutEntry; 10] {
     [
         storage_entry(0, true),  // surfaces
         storage_entry(1, true),  // shadow
@@ -26,11 +34,31 @@ fn rt_entries() -> [wgpu::BindGroupLayoutEntry; 7] {
         uniform_entry(4),        // camera
         uniform_entry(5),        // params
         storage_entry(6, false), // rt
+        storage_entry(7, true),  // gbuffer
+        storage_entry(8, true),  // surface tables
+        uniform_entry(9),        // surface layout
     ]
 }
 
-/// `rt_pixel` of `shaders/rt_shading.wgsl` in the paper's frame.
-const PAPER_RT_PIXEL: &str = "// mirrors hyrt_core::kernels::shading::shade_rt_pixel\nfn rt_pixel(pixel: u32, s: SurfaceRecord, obj: ObjectRecord) -> vec3<f32> {\n    return shade_rt_pixel(pixel, s, obj, camera.eye);\n}\n";
+/// The buffers of [`rt_entries`], in binding order.
+fn rt_buffers<'a>(scene: &'a SceneBuffers, frame: &'a FrameBuffers) -> [&'a wgpu::Buffer; 10] {
+    [
+        &frame.surfaces,
+        &frame.shadow,
+        &scene.objects,
+        &scene.lights,
+        &frame.camera,
+        &frame.params,
+        &frame.rt,
+        &frame.gbuffer,
+        &scene.surface.words,
+        &scene.surface.layout,
+    ]
+}
+
+/// `rt_pixel` of `shaders/rt_shading.wgsl` in the paper's frame (the closure of
+/// `hyrt_cpu::rt_shading::rt_shading_into`).
+const PAPER_RT_PIXEL: &str = "// mirrors hyrt_core::kernels::shading::shade_rt_pixel of the pixel's shaded object\nfn rt_pixel(pixel: u32, s: SurfaceRecord) -> vec3<f32> {\n    return shade_rt_pixel(pixel, s, primary_object(pixel, s), camera.eye);\n}\n";
 
 /// The `rt_shading` stage of the paper's frame.
 pub struct RtShadingStage {
@@ -46,15 +74,25 @@ pub struct RtShadingBouncingStage {
 }
 
 impl RtShadingStage {
-    /// Compile the stage's pipeline.
+    /// Compile the stage's pipeline for scenes without surface tables.
     pub fn new(ctx: &GpuContext) -> Self {
-        let source = surface_shading_source(&format!("{}\n{PAPER_RT_PIXEL}", include_str!("shaders/rt_shading.wgsl")));
-        let (pipeline, layout) = compute_pipeline(ctx, "rt_shading", &source, &rt_entries());
+        Self::specialized(ctx, Specialization::PLAIN)
+    }
+
+    /// Compile the stage's pipeline for scenes whose surface tables need `s`.
+    pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
+        let source = surface_shading_source(&format!(
+            "{}\n{}\n{PAPER_RT_PIXEL}",
+            include_str!("shaders/rt_shading.wgsl"),
+            include_str!("shaders/primary_object.wgsl")
+        ));
+        let (pipeline, layout) = specialized_pipeline(ctx, "rt_shading", &source, &rt_entries(), &s.constants());
         RtShadingStage { pipeline, layout }
     }
 
     /// Record the stage: `frame.rt` from `frame.surfaces`, `frame.shadow`,
-    /// `scene.objects`, `scene.lights`, `frame.camera` and `frame.params`.
+    /// `scene.objects`, `scene.lights`, `frame.camera` and `frame.params` (and, where
+    /// materials vary, `frame.gbuffer` and `scene.surface`).
     pub fn encode(
         &self,
         ctx: &GpuContext,
@@ -63,38 +101,33 @@ impl RtShadingStage {
         frame: &FrameBuffers,
         timing: Option<(&wgpu::QuerySet, u32)>,
     ) {
-        let bind_group = bind_buffers(
-            ctx,
-            "rt_shading",
-            &self.layout,
-            &[&frame.surfaces, &frame.shadow, &scene.objects, &scene.lights, &frame.camera, &frame.params, &frame.rt],
-        );
+        let bind_group = bind_buffers(ctx, "rt_shading", &self.layout, &rt_buffers(scene, frame));
         encode_pixel_pass(encoder, "rt_shading", &self.pipeline, &bind_group, frame.width, frame.band.rows, timing);
     }
 }
 
 impl RtShadingBouncingStage {
-    /// Compile the stage's pipeline.
-    pub fn new(ctx: &GpuContext) -> Self {
+    /// Compile the stage's pipeline for scenes whose surface tables need `s`.
+    pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
         let source = crate::shader::radiance_source(&format!(
             "{}\n{}",
             include_str!("shaders/rt_shading.wgsl"),
             include_str!("shaders/rt_shading_bouncing.wgsl")
         ));
-        let (pipeline, layout) = compute_pipeline(
+        let (pipeline, layout) = specialized_pipeline(
             ctx,
             "rt_shading (bounces)",
             &source,
             &[
                 rt_entries().as_slice(),
                 &[
-                    storage_entry(7, true),  // gbuffer
-                    storage_entry(8, true),  // triangles
-                    storage_entry(9, true),  // links of depth 1
-                    storage_entry(10, true), // radiance of depth 1
+                    storage_entry(10, true), // triangles
+                    storage_entry(11, true), // links of depth 1
+                    storage_entry(12, true), // radiance of depth 1
                 ],
             ]
             .concat(),
+            &s.constants(),
         );
         RtShadingBouncingStage { pipeline, layout }
     }
@@ -114,19 +147,7 @@ impl RtShadingBouncingStage {
             ctx,
             "rt_shading (bounces)",
             &self.layout,
-            &[
-                &frame.surfaces,
-                &frame.shadow,
-                &scene.objects,
-                &scene.lights,
-                &frame.camera,
-                &frame.params,
-                &frame.rt,
-                &frame.gbuffer,
-                &scene.triangles,
-                &first.links,
-                &first.radiance,
-            ],
+            &[rt_buffers(scene, frame).as_slice(), &[&scene.triangles, &first.links, &first.radiance]].concat(),
         );
         encode_pixel_pass(encoder, "rt_shading", &self.pipeline, &bind_group, frame.width, frame.band.rows, timing);
     }

@@ -165,12 +165,14 @@ pub(crate) fn scan_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
     })
 }
 
-/// A compute pipeline of `module`'s `entry` over `groups`.
+/// A compute pipeline of `module`'s `entry` over `groups`, with values for the module's
+/// pipeline-overridable `constants`.
 pub(crate) fn pipeline(
     device: &wgpu::Device,
     module: &wgpu::ShaderModule,
     entry: &str,
     groups: &[Option<&wgpu::BindGroupLayout>],
+    constants: &[(&str, f64)],
 ) -> wgpu::ComputePipeline {
     let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(entry),
@@ -182,18 +184,20 @@ pub(crate) fn pipeline(
         layout: Some(&layout),
         module,
         entry_point: Some(entry),
-        compilation_options: Default::default(),
+        compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
         cache: None,
     })
 }
 
 impl ListScan {
-    /// The scan of `module` (which ends with [`scan_wgsl`]), whose group 1 has `entries`.
+    /// The scan of `module` (which ends with [`scan_wgsl`]), whose group 1 has `entries`,
+    /// with values for the module's pipeline-overridable `constants`.
     pub fn new(
         ctx: &GpuContext,
         label: &str,
         module: &wgpu::ShaderModule,
         entries: &[wgpu::BindGroupLayoutEntry],
+        constants: &[(&str, f64)],
     ) -> Self {
         let device = &ctx.device;
         let scan_layout = scan_layout(device);
@@ -201,11 +205,11 @@ impl ListScan {
             device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries });
         let with_list = [Some(&scan_layout), Some(&list_layout)];
         ListScan {
-            flags_reduce: pipeline(device, module, "flags_reduce", &with_list),
-            reduce: pipeline(device, module, "reduce", &[Some(&scan_layout)]),
-            scan_top: pipeline(device, module, "scan_top", &[Some(&scan_layout)]),
-            downsweep: pipeline(device, module, "downsweep", &[Some(&scan_layout)]),
-            scatter: pipeline(device, module, "scatter", &with_list),
+            flags_reduce: pipeline(device, module, "flags_reduce", &with_list, constants),
+            reduce: pipeline(device, module, "reduce", &[Some(&scan_layout)], constants),
+            scan_top: pipeline(device, module, "scan_top", &[Some(&scan_layout)], constants),
+            downsweep: pipeline(device, module, "downsweep", &[Some(&scan_layout)], constants),
+            scatter: pipeline(device, module, "scatter", &with_list, constants),
             scan_layout,
             list_layout,
             scratch: Mutex::new(HashMap::new()),

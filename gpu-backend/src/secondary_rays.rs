@@ -6,19 +6,20 @@
 //!
 //! Reads for `d = 1` the G-buffer, the primary surfaces and the camera (one parent per
 //! pixel), else the rays, hits and surfaces of depth `d - 1` and their count (one parent
-//! per live ray); objects, triangles. Writes the rays of depth `d`, their count
-//! (`[count, dispatch_x, dispatch_y, 1]`, the indirect-dispatch arguments of the depth's
-//! other stages: no count comes back to the CPU mid-frame), each parent's
-//! `[reflection, refraction]` links (the child's index, or `INVALID_ID`), and the
-//! depth's reflection and refraction counters. The list is compacted by the shared scan
+//! per live ray); objects, triangles, and the surface tables (each parent's object
+//! shaded where it was hit, [`hyrt_core::kernels::texture::Materials::at`]: its base
+//! colour weighs the lobes; the rays carry their footprint cone on). Writes the rays of
+//! depth `d`, their count (`[count, dispatch_x, dispatch_y, 1]`, the indirect-dispatch
+//! arguments of the depth's other stages: no count comes back to the CPU mid-frame),
+//! each parent's `[reflection, refraction]` links (the child's index, or `INVALID_ID`),
+//! and the depth's reflection and refraction counters. The list is compacted by the shared scan
 //! ([`crate::scan`]) over two elements per parent slot.
-
-use hyrt_core::formats::wgsl::declarations;
 
 use crate::buffers::{BounceBuffers, FrameBuffers, SceneBuffers};
 use crate::scan::{scan_wgsl, ListScan};
-use crate::shader::{bounce_wgsl, shading_helpers};
+use crate::shader::{bounce_wgsl, shading_source};
 use crate::shader::{ray_wgsl, storage_entry, uniform_entry};
+use crate::texture::{materials_wgsl, texture_wgsl, Specialization};
 use crate::GpuContext;
 
 /// The `secondary_rays` stage: the shared scan over its module.
@@ -27,13 +28,16 @@ pub struct SecondaryRaysStage {
 }
 
 impl SecondaryRaysStage {
-    pub fn new(ctx: &GpuContext) -> Self {
-        let source = declarations()
-            + &ray_wgsl()
-            + &shading_helpers()
-            + &bounce_wgsl()
-            + include_str!("shaders/secondary_rays.wgsl")
-            + &scan_wgsl();
+    /// Compile the stage's pipelines for scenes whose surface tables need `s`.
+    pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
+        let source = shading_source(
+            &(ray_wgsl()
+                + &texture_wgsl()
+                + &materials_wgsl()
+                + &bounce_wgsl()
+                + include_str!("shaders/secondary_rays.wgsl")
+                + &scan_wgsl()),
+        );
         let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("secondary_rays"),
             source: wgpu::ShaderSource::Wgsl(source.into()),
@@ -41,7 +45,8 @@ impl SecondaryRaysStage {
         let mut entries = vec![uniform_entry(0), uniform_entry(1), uniform_entry(2)];
         entries.extend((3..=9).map(|i| storage_entry(i, true)));
         entries.extend((10..=12).map(|i| storage_entry(i, false)));
-        SecondaryRaysStage { scan: ListScan::new(ctx, "secondary_rays", &module, &entries) }
+        entries.extend([storage_entry(13, true), uniform_entry(14)]);
+        SecondaryRaysStage { scan: ListScan::new(ctx, "secondary_rays", &module, &entries, &s.constants()) }
     }
 
     /// Spawn the rays of `frame.bounces[depth - 1]` from the parents of depth
@@ -78,6 +83,8 @@ impl SecondaryRaysStage {
             &b.rays,
             &b.links,
             &b.counters,
+            &scene.surface.words,
+            &scene.surface.layout,
         ];
         self.scan.encode(ctx, encoder, "secondary_rays", 2 * b.parents, &buffers, &b.ray_count, timing);
     }

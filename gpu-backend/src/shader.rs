@@ -112,12 +112,25 @@ pub fn shading_source(stage: &str) -> String {
     format!("{}\n{}\n{}\n{}", declarations(), shading_helpers(), include_str!("shaders/shading.wgsl"), stage)
 }
 
-/// [`shading_source`] with the per-surface shaders over a `shadow` binding
-/// (`shaders/surface_shading.wgsl`) before the stage's source: for the stages that bind
-/// `shadow` and `lights` (`rt_shading`, `raster_shading`, the bounce stages).
+/// [`shading_source`] with the texture kernels and the shaded object records
+/// ([`crate::texture::texture_wgsl`], [`crate::texture::materials_wgsl`]) and the
+/// per-surface shaders over a `shadow` binding (`shaders/surface_shading.wgsl`) before the
+/// stage's source: for the stages that bind `shadow`, `lights`, `objects` and the surface
+/// tables (`rt_shading`, `raster_shading`, `bounce_shading`).
 pub fn surface_shading_source(stage: &str) -> String {
-    shading_source(&format!("{}\n{stage}", include_str!("shaders/surface_shading.wgsl")))
+    shading_source(&format!(
+        "{}\n{}\n{}\n{stage}",
+        crate::texture::texture_wgsl(),
+        crate::texture::materials_wgsl(),
+        include_str!("shaders/surface_shading.wgsl")
+    ))
 }
+
+/// `rounded` and `mul` (the shading helpers' names, for `surface.wgsl` and the texture
+/// kernels) over the ray kernels' `opaque` and `mul_exact` and the frame's always-zero
+/// word, for the ray stages that do not include the shading helpers (`shadow_rays`,
+/// `bounce_trace`); after [`ray_wgsl`], in a stage that binds `params: FrameParams`.
+pub(crate) const EXACT_PRODUCTS: &str = "fn rounded(x: f32) -> f32 {\n    return opaque(x, params.zero);\n}\n\nfn mul(a: f32, b: f32) -> f32 {\n    return mul_exact(a, b, params.zero);\n}\n";
 
 /// The constants of `shaders/bounce.wgsl` from their Rust values, then the file: after
 /// the generated records, `ray.wgsl` and the shading helpers.
@@ -223,21 +236,35 @@ pub fn compute_pipeline(
     source: &str,
     entries: &[wgpu::BindGroupLayoutEntry],
 ) -> (wgpu::ComputePipeline, wgpu::BindGroupLayout) {
+    specialized_pipeline(ctx, label, source, entries, &[])
+}
+
+/// [`compute_pipeline`] with values for pipeline-overridable `constants` of `source`
+/// (`crate::texture::Specialization::constants`).
+pub fn specialized_pipeline(
+    ctx: &GpuContext,
+    label: &str,
+    source: &str,
+    entries: &[wgpu::BindGroupLayoutEntry],
+    constants: &[(&str, f64)],
+) -> (wgpu::ComputePipeline, wgpu::BindGroupLayout) {
     let device = &ctx.device;
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(label),
         source: wgpu::ShaderSource::Wgsl(source.into()),
     });
     let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries });
-    (main_pipeline(ctx, label, &module, &layout), layout)
+    (main_pipeline(ctx, label, &module, &layout, constants), layout)
 }
 
-/// The compute pipeline of entry point `main` of `module` over one bind group layout.
+/// The compute pipeline of entry point `main` of `module` over one bind group layout, with
+/// values for its pipeline-overridable `constants`.
 pub(crate) fn main_pipeline(
     ctx: &GpuContext,
     label: &str,
     module: &wgpu::ShaderModule,
     layout: &wgpu::BindGroupLayout,
+    constants: &[(&str, f64)],
 ) -> wgpu::ComputePipeline {
     let pipeline_layout = ctx.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
         label: Some(label),
@@ -249,7 +276,7 @@ pub(crate) fn main_pipeline(
         layout: Some(&pipeline_layout),
         module,
         entry_point: Some("main"),
-        compilation_options: Default::default(),
+        compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
         cache: None,
     })
 }

@@ -1,10 +1,14 @@
 //! Stage `shadow_rays` on the GPU: trace the compacted shadow-ray list through the
-//! BVH, any hit with early exit (mirrors [`hyrt_core::bvh::Bvh::occluded`], the CPU's
-//! reference traversal, and [`hyrt_core::kernels::shadow::shadow_code`]).
+//! BVH, any hit with early exit (mirrors [`hyrt_core::bvh::Bvh::occluded_filtered`] with
+//! the alpha test of [`hyrt_core::kernels::texture::alpha_accepts`], the CPU's reference
+//! traversal, and [`hyrt_core::kernels::shadow::shadow_code`]): a hit on an alpha-tested
+//! triangle where its alpha fails the cutoff is no hit.
 //!
 //! Reads `frame.rays`, `frame.ray_count` (indirect dispatch: one thread per ray,
 //! [`SHADOW_RAYS_WORKGROUP_SIZE`] per workgroup, threads past the count exit),
-//! `frame.params` (light count), `scene.bvh_nodes`, `scene.bvh_leaf_triangles`.
+//! `frame.params` (light count), `scene.bvh_nodes`, `scene.bvh_leaf_triangles`,
+//! `scene.surface` (the alpha test's tables, and each object's first triangle: a leaf
+//! triangle's global index without a 9th storage buffer for the BVH's `prim_indices`).
 //! Writes `frame.occluded` (1 occluded, 0 reached the light, per ray) and
 //! `frame.shadow` (cleared to `SHADOW_NO_RAY`, then `SHADOW_LIT` or
 //! `SHADOW_OCCLUDED` at `pixel * light_count + light` for every ray).
@@ -19,8 +23,9 @@
 use hyrt_core::formats::wgsl::declarations;
 
 use crate::buffers::{FrameBuffers, ListBuffers, SceneBuffers};
-use crate::shader::{bind_buffers, ray_wgsl, storage_entry, uniform_entry};
+use crate::shader::{bind_buffers, ray_wgsl, storage_entry, uniform_entry, EXACT_PRODUCTS};
 pub use crate::shader::{MAX_WORKGROUPS_PER_DIMENSION, SHADOW_RAYS_WORKGROUP_SIZE};
+use crate::texture::{texture_wgsl, Specialization};
 use crate::GpuContext;
 
 /// The `shadow_rays` stage: one pipeline, one bind group layout.
@@ -30,8 +35,15 @@ pub struct ShadowRaysStage {
 }
 
 impl ShadowRaysStage {
+    /// Compile the stage's pipeline for scenes without surface tables.
     pub fn new(ctx: &GpuContext) -> Self {
-        let source = declarations() + &ray_wgsl() + include_str!("shaders/shadow_rays.wgsl");
+        Self::specialized(ctx, Specialization::PLAIN)
+    }
+
+    /// Compile the stage's pipeline for scenes whose surface tables need `s`.
+    pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
+        let source =
+            declarations() + &ray_wgsl() + EXACT_PRODUCTS + &texture_wgsl() + include_str!("shaders/shadow_rays.wgsl");
         let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("shadow_rays"),
             source: wgpu::ShaderSource::Wgsl(source.into()),
@@ -48,6 +60,8 @@ impl ShadowRaysStage {
                 storage_entry(6, false),
                 uniform_entry(7),
                 storage_entry(8, false),
+                storage_entry(9, true),
+                uniform_entry(10),
             ],
         });
         let pipeline_layout = ctx.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -60,7 +74,7 @@ impl ShadowRaysStage {
             layout: Some(&pipeline_layout),
             module: &module,
             entry_point: Some("shadow_rays"),
-            compilation_options: Default::default(),
+            compilation_options: wgpu::PipelineCompilationOptions { constants: &s.constants(), ..Default::default() },
             cache: None,
         });
         ShadowRaysStage { pipeline, layout }
@@ -99,6 +113,8 @@ impl ShadowRaysStage {
             list.shadow,
             list.params,
             list.counters,
+            &scene.surface.words,
+            &scene.surface.layout,
         ];
         let bind_group = bind_buffers(ctx, "shadow_rays", &self.layout, &buffers);
         // SHADOW_NO_RAY is 0.

@@ -1,78 +1,154 @@
 //! Textures on the GPU: the WGSL of the texture kernels ([`texture_wgsl`], mirrors of
-//! [`hyrt_core::kernels::texture`] in `shaders/texture.wgsl`) and the buffers of a
-//! scene's [`TextureSet`] ([`TextureBuffers`]).
+//! [`hyrt_core::kernels::texture`] in `shaders/texture.wgsl`, over the accessors of
+//! `shaders/surface_tables.wgsl`), of the shaded object records and parents
+//! ([`materials_wgsl`], `shaders/materials.wgsl`), and a scene's surface tables packed into
+//! one storage buffer ([`SurfaceBuffers`], laid out as [`SurfaceLayout`] says).
 //!
-//! # The sRGB table: generated `const`, read through a `var<private>`
-//! The 256 decoded sRGB codes ([`srgb8_table`]) are generated as `const SRGB8_TO_LINEAR =
-//! array<f32, 256>(...)` of exact literals (`shader::f32_literal`), and `srgb8_to_linear`
-//! indexes `var<private> srgb8_table: array<f32, 256>`, initialized from that constant, not
-//! the constant itself. Indexing the `const` array with a runtime code compiles and gives
-//! the right bits, but it is slow on naga/lavapipe: naga copies the whole array into a
-//! function variable at every indexing site (twelve per bilinear sample, more once
-//! inlined), and the texture kernel test's shader took 14-15 s to build and about 320 ms
-//! per dispatch of its 5,056 queries. Through the private variable (initialized once per
-//! invocation and never written: lavapipe evidently reads it as constant data) the same
-//! shader builds in about 0.15 s and runs in about 1.9 ms; a storage-buffer table ran in
-//! about 2.7 ms. The private variable was chosen over the storage buffer because it is as
-//! fast, cannot be bound wrong, and takes no binding: the bounce stages already bind 13 of
-//! the (at most) 16 storage buffers per stage that [`crate::GpuContext`] asks for, and
-//! textures will add theirs. Measured on lavapipe (Mesa's CPU Vulkan) on two shared cores;
-//! the test checks every code's bits.
+//! # One buffer for every surface table
+//! The material records (with each object's first triangle), texture coordinates, vertex
+//! colours, texture records, the sRGB decoding table and the texels are one
+//! `surface: array<u32>` binding, with a uniform [`SurfaceLayout`] that says where each
+//! table starts: the bounce stages bind 13 storage buffers without them, of the (at most)
+//! 16 per stage that [`crate::GpuContext`] asks for, and `shadow_rays` 7, of the 8 a
+//! WebGPU-default device allows, so each stage that reads the tables adds one storage
+//! buffer, not five (`shadow_rays` finds a leaf triangle's global index from the objects'
+//! first triangles packed with the tables, not from the BVH's leaf table). The accessors
+//! rebuild each record from its words (`bitcast` for the f32 fields).
+//!
+//! # Specialized pipelines
+//! The stages that read the tables are compiled per [`Specialization`]: the WGSL's
+//! pipeline-overridable constants `SURFACE_TABLES` (shading reads each point's shaded
+//! record) and `ALPHA_TESTED` (the raster, shadow rays and bounce rays alpha-test hits on
+//! [`hyrt_core::formats::TRI_ALPHA_TEST`] triangles) guard every read, so a scene without
+//! surface tables runs pipelines whose texture code the driver removes as dead: the frames
+//! of such scenes keep their speed (with the code merely skipped at run time, lavapipe,
+//! which runs both sides of a branch under a lane mask, made `secondary_rays` and
+//! `raster_shading` of the untextured default scene about 7 times slower and `shadow_rays`
+//! 2.5 times at 640 x 360),
+//! and the one word they bind is never read. `GpuBackend` builds the plain pipelines with
+//! the backend and the others the first time a scene needs them.
+//!
+//! # The sRGB table: read from the surface buffer
+//! The 256 decoded sRGB codes ([`hyrt_core::kernels::texture::srgb8_table`]) are packed
+//! with the tables (when there are textures) and `srgb8_to_linear` reads them there. A
+//! generated `const` array of exact literals indexed with a runtime code is slow on
+//! naga/lavapipe (naga copies the whole array into a function variable at every indexing
+//! site: the texture kernel test's shader took 14-15 s to build, about 320 ms per
+//! dispatch). A `var<private>` copy of it reads fast (about 1.9 ms for that test against
+//! 2.7 ms from a storage buffer), but every invocation of a stage that includes it
+//! initializes its 256 words, whether it samples or not (most invocations of a textured
+//! frame's stages do not: misses, untextured objects, opaque shadow-ray hits); from the
+//! buffer, a frame reads the table only where it samples. Measured on lavapipe (Mesa's CPU
+//! Vulkan) on two shared cores; the texture kernel test checks every code's bits.
 
-use hyrt_core::formats::{TextureRecord, TextureSet};
-use hyrt_core::kernels::texture::{srgb8_table, LOD_MIN_AREA, LOD_MIN_COSINE, UNORM8_SCALE};
+use hyrt_core::formats::{ObjectRecord, SurfaceLayout};
+use hyrt_core::geometry::SurfaceTables;
+use hyrt_core::kernels::texture::{LOD_MIN_AREA, LOD_MIN_COSINE, UNORM8_SCALE};
+use wgpu::util::DeviceExt;
 
 use crate::gpu_buffer::upload;
 use crate::shader::f32_literal;
 use crate::GpuContext;
 
-/// The constants of `shaders/texture.wgsl` from their Rust values (`UNORM8_SCALE`,
-/// `LOD_MIN_AREA`, `LOD_MIN_COSINE` and the sRGB table `SRGB8_TO_LINEAR`, every value
-/// an exact literal, with the private copy `srgb8_table` the kernels index: module
-/// docs), then the file: the texture kernels.
+/// The sizes in words of the packed records (from their Rust sizes) and the constant of
+/// `shaders/texture.wgsl` from its Rust value (`UNORM8_SCALE`, an exact literal), then
+/// `shaders/surface_tables.wgsl` (the accessors, the sRGB table's included: module docs)
+/// and `shaders/texture.wgsl` (the kernels, `alpha_accepts` included).
 ///
-/// Goes after the generated records ([`hyrt_core::formats::wgsl::declarations`]), the
-/// shading helpers and `shading.wgsl` (it uses `rounded`, `mul`, `F32_MAX` and
-/// `log2_portable`), as in [`crate::shader::shading_source`]; the including stage binds
-/// `texture_records: array<TextureRecord>` and `texels: array<u32>` ([`TextureBuffers`]).
+/// Goes after the generated records ([`hyrt_core::formats::wgsl::declarations`]) in a
+/// stage that defines `rounded(x: f32) -> f32` and `mul(a: f32, b: f32) -> f32` over an
+/// always-zero uniform word (the shading helpers do) and binds `surface: array<u32>` and
+/// `surface_layout: SurfaceLayout` ([`SurfaceBuffers`]).
 pub fn texture_wgsl() -> String {
-    let f = |name: &str, x: f32| format!("const {name}: f32 = {};\n", f32_literal(x));
+    let u = |name: &str, x: u32| format!("const {name}: u32 = {x}u;\n");
     let mut s =
         String::from("// Generated by hyrt_gpu::texture::texture_wgsl from the hyrt_core::kernels::texture values.\n");
-    s += &f("UNORM8_SCALE", UNORM8_SCALE);
+    s += &u("MATERIAL_WORDS", SurfaceLayout::MATERIAL_WORDS);
+    s += &u("TRIANGLE_UV_WORDS", SurfaceLayout::TRIANGLE_UV_WORDS);
+    s += &u("TRIANGLE_COLOR_WORDS", SurfaceLayout::TRIANGLE_COLOR_WORDS);
+    s += &u("TEXTURE_WORDS", SurfaceLayout::TEXTURE_WORDS);
+    s += &format!("const UNORM8_SCALE: f32 = {};\n", f32_literal(UNORM8_SCALE));
+    s + include_str!("shaders/surface_tables.wgsl") + include_str!("shaders/texture.wgsl")
+}
+
+/// The constants of `shaders/materials.wgsl` from their Rust values (`LOD_MIN_AREA`,
+/// `LOD_MIN_COSINE`), then the file: `hit_lod`, `shaded_object` (mirror of
+/// [`hyrt_core::kernels::texture::Materials::at`]) and the parents of
+/// [`hyrt_core::kernels::bounce`] with their cones and shaded records.
+///
+/// Goes after [`texture_wgsl`], the shading helpers and `shading.wgsl`
+/// ([`crate::shader::shading_source`]); the stage binds `objects`, `params` and the surface
+/// tables.
+pub fn materials_wgsl() -> String {
+    let f = |name: &str, x: f32| format!("const {name}: f32 = {};\n", f32_literal(x));
+    let mut s = String::from(
+        "// Generated by hyrt_gpu::texture::materials_wgsl from the hyrt_core::kernels::texture values.\n",
+    );
     s += &f("LOD_MIN_AREA", LOD_MIN_AREA);
     s += &f("LOD_MIN_COSINE", LOD_MIN_COSINE);
-    let table: Vec<String> = srgb8_table().iter().map(|&x| f32_literal(x)).collect();
-    s += &format!("const SRGB8_TO_LINEAR = array<f32, 256>({});\n", table.join(", "));
-    // Indexed through a private copy, not the `const` itself: module docs.
-    s += "var<private> srgb8_table: array<f32, 256> = SRGB8_TO_LINEAR;\n";
-    s + include_str!("shaders/texture.wgsl")
+    s + include_str!("shaders/materials.wgsl")
 }
 
-/// A scene's [`TextureSet`] on the GPU, built once per scene. An empty set (a scene
-/// without textures) gets one zeroed element in each buffer: WebGPU bindings cannot be
-/// empty, and no shader reads them then.
-pub struct TextureBuffers {
-    /// `array<TextureRecord>`: [`TextureSet::records`].
-    pub records: wgpu::Buffer,
-    /// `array<u32>`: [`TextureSet::texels`], every level of every texture, packed
-    /// ([`hyrt_core::formats::pack_texel`]).
-    pub texels: wgpu::Buffer,
-    /// Textures in `records` (0 for an empty set, whose buffer holds the dummy).
-    pub texture_count: u32,
-    /// Texels in `texels` (0 for an empty set).
-    pub texel_count: u32,
+/// What a scene's surface tables ask of the stages that read them: the values of the
+/// pipeline-overridable constants of `shaders/surface_tables.wgsl` (module docs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Specialization {
+    /// `SURFACE_TABLES`: the scene has surface tables, and shading reads each point's
+    /// object record as [`hyrt_core::kernels::texture::Materials::at`] sees it there
+    /// (`Materials::varying`).
+    pub surface_tables: bool,
+    /// `ALPHA_TESTED`: some material is alpha-tested, and the raster, shadow rays and
+    /// bounce rays test the alpha of every hit on a triangle flagged `TRI_ALPHA_TEST`.
+    pub alpha_tested: bool,
 }
 
-impl TextureBuffers {
-    /// Upload the records and texels of `set`.
-    pub fn new(ctx: &GpuContext, set: &TextureSet) -> TextureBuffers {
-        debug_assert_eq!(set.validate(), Ok(()));
-        TextureBuffers {
-            records: upload::<TextureRecord>(ctx, "texture records", &set.records),
-            texels: upload::<u32>(ctx, "texels", &set.texels),
-            texture_count: set.records.len() as u32,
-            texel_count: set.texels.len() as u32,
+impl Specialization {
+    /// Neither: a scene without surface tables (the pipelines the backend starts with).
+    pub const PLAIN: Specialization = Specialization { surface_tables: false, alpha_tested: false };
+
+    /// What `tables` need.
+    pub fn of(tables: &SurfaceTables) -> Specialization {
+        Specialization { surface_tables: !tables.is_empty(), alpha_tested: tables.alpha_tested() }
+    }
+
+    /// The constants' values, as pipelines take them.
+    pub fn constants(self) -> [(&'static str, f64); 2] {
+        [("SURFACE_TABLES", self.surface_tables as u32 as f64), ("ALPHA_TESTED", self.alpha_tested as u32 as f64)]
+    }
+}
+
+/// A scene's surface tables on the GPU ([`SurfaceTables::packed`]), built once per scene.
+/// A scene without them gets one zero word and the zero layout: WebGPU bindings cannot be
+/// empty, and no shader reads the word then (module docs).
+pub struct SurfaceBuffers {
+    /// `array<u32>`: every table, packed.
+    pub words: wgpu::Buffer,
+    /// Uniform [`SurfaceLayout`]: where each table starts in `words`.
+    pub layout: wgpu::Buffer,
+    /// The layout `layout` holds.
+    pub record: SurfaceLayout,
+    /// The pipelines the tables need.
+    pub specialization: Specialization,
+}
+
+impl SurfaceBuffers {
+    /// Pack and upload `tables` of a scene with `objects`. Panics if they hold 2^32 words
+    /// or more ([`SurfaceTables::layout`]; `GpuBackend` refuses such scenes first, as any
+    /// that exceed a storage binding).
+    pub fn new(ctx: &GpuContext, tables: &SurfaceTables, objects: &[ObjectRecord]) -> SurfaceBuffers {
+        let (record, words) = tables.packed(objects).expect("surface tables of fewer than 2^32 words");
+        debug_assert_eq!(record.validate(), Ok(()));
+        debug_assert_eq!(tables.textures.validate(), Ok(()));
+        let layout = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("surface layout"),
+            contents: bytemuck::bytes_of(&record),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        SurfaceBuffers {
+            words: upload::<u32>(ctx, "surface tables", &words),
+            layout,
+            record,
+            specialization: Specialization::of(tables),
         }
     }
 }

@@ -4,7 +4,8 @@
 //! compute pass resolves the targets into [`FrameBuffers::gbuffer`], texel for texel
 //! the format of `hyrt_cpu::visibility_raster`.
 //!
-//! Reads: `scene.triangles`, `frame.camera`. Writes: `frame.gbuffer` (every texel).
+//! Reads: `scene.triangles`, `frame.camera`, `scene.surface` (alpha tests). Writes:
+//! `frame.gbuffer` (every texel).
 //!
 //! Raster pass (`vs_main` / `fs_main` in `shaders/visibility_raster.wgsl`): the
 //! hardware only proposes fragments; the values are the CPU reference's, bit for bit.
@@ -22,7 +23,10 @@
 //! * the fragment shader re-runs the reference's setup for its triangle (clipping,
 //!   snapping, orientation) and its exact 64-bit edge functions at the pixel centre
 //!   (as pairs of u32), discards what the reference does not cover, and computes the
-//!   reference's barycentrics and depth in f32 (`hyrt_core::kernels::raster`); it writes
+//!   reference's barycentrics and depth in f32 (`hyrt_core::kernels::raster`); a fragment
+//!   of an alpha-tested triangle (`TRI_ALPHA_TEST`) whose alpha fails the cutoff at those
+//!   barycentrics ([`hyrt_core::kernels::texture::alpha_accepts`], the CPU's `AlphaTested`
+//!   sink) is discarded before the depth test, so a hole shows what lies behind; it writes
 //!   that depth as `frag_depth`, so the depth test (`Depth32Float`, `Less`, cleared to
 //!   1.0: the nearest wins, at equal depth the earlier triangle) compares the reference's
 //!   values in the reference's order;
@@ -58,6 +62,7 @@ use hyrt_core::formats::wgsl::declarations;
 use std::sync::Mutex;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
+use crate::texture::Specialization;
 use crate::GpuContext;
 
 /// Render target of the triangle ids: global triangle index + 1, 0 = miss.
@@ -84,8 +89,9 @@ pub enum VisibilityMode {
     Exact,
     /// The hardware's own attribute interpolation and depth: NOT conformant (ids can
     /// differ on rounding ties and depth near-ties, barycentrics by up to 1e-1 on
-    /// sub-pixel triangles). Only for benchmarks that measure the device as a plain
-    /// rasterizer of the same pass.
+    /// sub-pixel triangles; no alpha test: alpha-tested triangles are drawn without their
+    /// holes). Only for benchmarks that measure the device as a plain rasterizer of the
+    /// same pass.
     HardwareInterpolated,
 }
 
@@ -140,7 +146,7 @@ pub fn shader_source(primitive_index: bool, early_depth_test: bool) -> String {
     let body = body
         .replace("EARLY_DEPTH_TEST_ATTRIBUTE", if early_depth_test { "@early_depth_test(greater_equal)" } else { "" });
     let enable = if primitive_index { "enable primitive_index;\n" } else { "" };
-    format!("{enable}{}{}{COMMON}{body}", declarations(), raster_constants())
+    format!("{enable}{}{}{COMMON}{body}{}", declarations(), raster_constants(), crate::texture::texture_wgsl())
 }
 
 /// Render targets of one image size.
@@ -225,16 +231,26 @@ impl VisibilityRasterStage {
     /// (the device must have `PRIMITIVE_INDEX`, i.e. [`GpuContext::primitive_index`]),
     /// else with flat-interpolated vertex ids (any device). For tests of both variants.
     pub fn with_id_source(ctx: &GpuContext, primitive_index: bool) -> Self {
-        Self::build(ctx, primitive_index, VisibilityMode::Exact)
+        Self::build(ctx, primitive_index, VisibilityMode::Exact, Specialization::PLAIN)
     }
 
     /// Build the pipelines of `mode` with the device's triangle id source.
     pub fn with_mode(ctx: &GpuContext, mode: VisibilityMode) -> Self {
-        Self::build(ctx, ctx.primitive_index, mode)
+        Self::specialized(ctx, mode, Specialization::PLAIN)
     }
 
-    fn build(ctx: &GpuContext, primitive_index: bool, mode: VisibilityMode) -> Self {
+    /// Build the pipelines of `mode` with the device's triangle id source, for scenes whose
+    /// surface tables need `s` (in [`VisibilityMode::Exact`], the alpha test of
+    /// `s.alpha_tested`; [`VisibilityMode::HardwareInterpolated`] has none).
+    pub fn specialized(ctx: &GpuContext, mode: VisibilityMode, s: Specialization) -> Self {
+        Self::build(ctx, ctx.primitive_index, mode, s)
+    }
+
+    fn build(ctx: &GpuContext, primitive_index: bool, mode: VisibilityMode, s: Specialization) -> Self {
         let primitive_index = primitive_index && ctx.primitive_index;
+        // The exact shader's alpha test is a pipeline constant; the other has no constants.
+        let constants = s.constants();
+        let constants: &[(&str, f64)] = if mode == VisibilityMode::Exact { &constants } else { &[] };
         let source = match mode {
             VisibilityMode::Exact => shader_source(primitive_index, ctx.early_depth_test),
             VisibilityMode::HardwareInterpolated => interpolated_shader_source(primitive_index),
@@ -272,7 +288,7 @@ impl VisibilityRasterStage {
             fragment: Some(wgpu::FragmentState {
                 module: &module,
                 entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
+                compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
                 targets: &[
                     Some(wgpu::ColorTargetState { format: ID_FORMAT, blend: None, write_mask: wgpu::ColorWrites::ALL }),
                     Some(wgpu::ColorTargetState {
@@ -404,9 +420,12 @@ impl VisibilityRasterStage {
                         Some(count) => {
                             entries.push(wgpu::BindGroupEntry { binding: 9, resource: count.as_entire_binding() })
                         }
-                        // The raster pass reads the band.
-                        None => entries
-                            .push(wgpu::BindGroupEntry { binding: 10, resource: frame.params.as_entire_binding() }),
+                        // The raster pass reads the band and the surface tables (alpha tests).
+                        None => entries.extend([
+                            wgpu::BindGroupEntry { binding: 10, resource: frame.params.as_entire_binding() },
+                            wgpu::BindGroupEntry { binding: 11, resource: scene.surface.words.as_entire_binding() },
+                            wgpu::BindGroupEntry { binding: 12, resource: scene.surface.layout.as_entire_binding() },
+                        ]),
                     }
                     ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                         label: Some(label),
@@ -414,8 +433,8 @@ impl VisibilityRasterStage {
                         entries: &entries,
                     })
                 };
-                // Bindings: setup writes 6 (setups), 8 (clipped), 9 (count); the raster reads 5, 7
-                // and the band (10).
+                // Bindings: setup writes 6 (setups), 8 (clipped), 9 (count); the raster reads 5, 7,
+                // the band (10) and the surface tables (11, 12).
                 let raster_group = with_setups("visibility_raster", &self.raster_layout, 5, None);
                 // The setup records are the whole image's: the first band computes them.
                 if run_setup {

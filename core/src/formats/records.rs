@@ -659,9 +659,9 @@ impl SurfaceRecord {
 /// | 16 | `zero` | u32 | always 0: shaders OR it into the bits of products, which the compiler cannot see through, so it cannot fuse them into multiply-adds (the CPU kernels round every product) |
 /// | 20 | `composition` | u32 | how `composition` composes: [`Composition::code`] of the frame's plan |
 /// | 24 | `first_row` | u32 | image row of the band's first row (0 for a frame of one band) |
-/// | 28 | `pad` | u32 | zero (uniform structs are 16-byte multiples) |
+/// | 28 | `pixel_spread` | f32 | the angle one pixel subtends, the spread of the frame's ray cones ([`crate::kernels::texture::camera_pixel_spread`] of the camera) when some object's colour varies over its surface (textures, vertex colours: the rule of [`crate::geometry::WorldGeometry::materials`]), else 0, so an untextured frame's rays carry zero cones; finite, >= 0 |
 ///
-/// 32 bytes. Build with [`FrameParams::new`].
+/// 32 bytes. Build with [`FrameParams::new`] (spread 0) and [`FrameParams::with_pixel_spread`].
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct FrameParams {
@@ -672,17 +672,22 @@ pub struct FrameParams {
     pub zero: u32,
     pub composition: u32,
     pub first_row: u32,
-    pub pad: u32,
+    pub pixel_spread: f32,
 }
 const _: () = assert!(std::mem::size_of::<FrameParams>() == 32);
-wgsl_struct!(FrameParams { width, height, light_count, weight, zero, composition, first_row, pad });
+wgsl_struct!(FrameParams { width, height, light_count, weight, zero, composition, first_row, pixel_spread });
 
 impl FrameParams {
     /// The parameters of a `width` x `height` frame with `light_count` lights,
     /// composed by the weighted mean.
     pub fn new(width: u32, height: u32, light_count: u32, weight: f32) -> Self {
         let composition = Composition::WeightedMean.code();
-        FrameParams { width, height, light_count, weight, zero: 0, composition, first_row: 0, pad: 0 }
+        FrameParams { width, height, light_count, weight, zero: 0, composition, first_row: 0, pixel_spread: 0.0 }
+    }
+
+    /// The same parameters with the frame's cone spread (the [`FrameParams`] table).
+    pub fn with_pixel_spread(self, pixel_spread: f32) -> Self {
+        FrameParams { pixel_spread, ..self }
     }
 
     /// The same parameters for the band of `rows` rows from image row `first_row`.
@@ -696,13 +701,16 @@ impl FrameParams {
     }
 
     /// Check: a non-empty image, a weight in [0, 1], a known composition code, `zero`
-    /// and padding zero.
+    /// zero, a finite non-negative cone spread.
     pub fn validate(&self) -> Result<(), String> {
         if self.composition > Composition::RtOverBackground.code() {
             return Err(format!("unknown composition code {}", self.composition));
         }
-        if self.zero != 0 || self.pad != 0 {
-            return Err(format!("frame parameters with non-zero zero/padding: {self:?}"));
+        if self.zero != 0 {
+            return Err(format!("frame parameters with non-zero zero: {self:?}"));
+        }
+        if !(self.pixel_spread >= 0.0 && self.pixel_spread.is_finite()) {
+            return Err(format!("frame parameters with a negative or non-finite cone spread: {self:?}"));
         }
         if self.width == 0 || self.height == 0 {
             return Err(format!("empty image {}x{}", self.width, self.height));

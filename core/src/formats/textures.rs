@@ -178,6 +178,128 @@ pub struct TriangleUvRecord {
 const _: () = assert!(std::mem::size_of::<TriangleUvRecord>() == 32);
 wgsl_struct!(TriangleUvRecord { uv0, uv1, uv2, lod_bias, pad });
 
+/// Where each table of [`crate::geometry::SurfaceTables`] lies in the one storage buffer the
+/// GPU binds them all in (`surface: array<u32>`, one binding, so that stages near the
+/// per-stage limit of storage buffers add only one). The tables follow each other as
+/// consecutive u32 words, each record's fields in declaration order and f32 fields as
+/// their bits:
+///
+/// 1. the [`MaterialRecord`]s (4 words each, one per object);
+/// 2. each object's first global triangle (1 word each,
+///    [`super::ObjectRecord::first_triangle`]): with it the alpha test finds a triangle
+///    record's global index (`WorldGeometry::global_triangle`) in `shadow_rays`, whose 8
+///    storage buffers on a WebGPU-default device leave no room for the BVH's
+///    leaf-to-triangle table;
+/// 3. the [`TriangleUvRecord`]s (8 words, one per triangle);
+/// 4. the vertex colours (12 words per triangle: its three corners' linear RGBA);
+/// 5. the [`TextureRecord`]s (9 words each);
+/// 6. the sRGB decoding table, [`crate::kernels::texture::srgb8_table`] (256 f32), when
+///    there are textures: read from the buffer where a shader samples, not compiled into
+///    every stage that might (`hyrt_gpu::texture` says why);
+/// 7. the texels ([`TextureSet::texels`]: a record's `first_texel` counts from `texels`).
+///
+/// An absent table takes no word. The GPU reads this record as a uniform beside the
+/// buffer; a scene without surface tables has the zero record and binds a buffer of one
+/// word that no shader reads (its stages are compiled without the code that reads the
+/// tables: `hyrt_gpu::texture::Specialization`).
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `materials` | u32 | word index of the first [`MaterialRecord`] (object 0's) |
+/// | 4 | `first_triangles` | u32 | word index of object 0's first global triangle |
+/// | 8 | `uvs` | u32 | word index of the first [`TriangleUvRecord`] (global triangle 0's) |
+/// | 12 | `colors` | u32 | word index of global triangle 0's vertex colours |
+/// | 16 | `textures` | u32 | word index of the first [`TextureRecord`] |
+/// | 20 | `srgb` | u32 | word index of the sRGB decoding of code 0 |
+/// | 24 | `texels` | u32 | word index of texel 0 |
+/// | 28 | `words` | u32 | words of all the tables (0 without surface tables) |
+///
+/// 32 bytes. Build with [`crate::geometry::SurfaceTables::layout`].
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct SurfaceLayout {
+    pub materials: u32,
+    pub first_triangles: u32,
+    pub uvs: u32,
+    pub colors: u32,
+    pub textures: u32,
+    pub srgb: u32,
+    pub texels: u32,
+    pub words: u32,
+}
+const _: () = assert!(std::mem::size_of::<SurfaceLayout>() == 32);
+wgsl_struct!(SurfaceLayout { materials, first_triangles, uvs, colors, textures, srgb, texels, words });
+
+impl SurfaceLayout {
+    /// Words of one [`MaterialRecord`].
+    pub const MATERIAL_WORDS: u32 = (std::mem::size_of::<MaterialRecord>() / 4) as u32;
+    /// Words of one [`TriangleUvRecord`].
+    pub const TRIANGLE_UV_WORDS: u32 = (std::mem::size_of::<TriangleUvRecord>() / 4) as u32;
+    /// Words of one triangle's vertex colours (`[[f32; 4]; 3]`).
+    pub const TRIANGLE_COLOR_WORDS: u32 = (std::mem::size_of::<[[f32; 4]; 3]>() / 4) as u32;
+    /// Words of one [`TextureRecord`].
+    pub const TEXTURE_WORDS: u32 = (std::mem::size_of::<TextureRecord>() / 4) as u32;
+    /// Words of the sRGB decoding table: one per 8-bit code.
+    pub const SRGB_WORDS: u32 = 256;
+
+    /// The layout of tables of `materials` material records (and as many first
+    /// triangles), `uvs` uv records, `colors` triangles' vertex colours, `textures`
+    /// texture records (and the sRGB table when there are any) and `texels` texels, in
+    /// that order; `None` when they hold 2^32 words or more.
+    pub fn new(materials: usize, uvs: usize, colors: usize, textures: usize, texels: usize) -> Option<SurfaceLayout> {
+        let sizes = [
+            materials as u64 * Self::MATERIAL_WORDS as u64,
+            materials as u64,
+            uvs as u64 * Self::TRIANGLE_UV_WORDS as u64,
+            colors as u64 * Self::TRIANGLE_COLOR_WORDS as u64,
+            textures as u64 * Self::TEXTURE_WORDS as u64,
+            if textures > 0 { Self::SRGB_WORDS as u64 } else { 0 },
+            texels as u64,
+        ];
+        let mut starts = [0u32; 7];
+        let mut end = 0u64;
+        for (start, size) in starts.iter_mut().zip(sizes) {
+            *start = u32::try_from(end).ok()?;
+            end += size;
+        }
+        let [materials_at, first_triangles, uvs_at, colors_at, textures_at, srgb, texels_at] = starts;
+        Some(SurfaceLayout {
+            materials: materials_at,
+            first_triangles,
+            uvs: uvs_at,
+            colors: colors_at,
+            textures: textures_at,
+            srgb,
+            texels: texels_at,
+            words: u32::try_from(end).ok()?,
+        })
+    }
+
+    /// Bytes of the buffer the tables are packed into (the words; at least one word: a
+    /// binding cannot be empty).
+    pub fn bytes(&self) -> u64 {
+        4 * self.words.max(1) as u64
+    }
+
+    /// Check: the tables in order, within `words`.
+    pub fn validate(&self) -> Result<(), String> {
+        let starts = [
+            self.materials,
+            self.first_triangles,
+            self.uvs,
+            self.colors,
+            self.textures,
+            self.srgb,
+            self.texels,
+            self.words,
+        ];
+        if !starts.windows(2).all(|p| p[0] <= p[1]) {
+            return Err(format!("surface layout with tables out of order: {self:?}"));
+        }
+        Ok(())
+    }
+}
+
 /// Pack an RGBA8 texel as [`TextureSet::texels`] stores it.
 #[inline]
 pub fn pack_texel(t: [u8; 4]) -> u32 {
@@ -307,6 +429,35 @@ mod tests {
         let expected = crate::kernels::shading::linear_to_srgb8(4.0 / 6.0);
         assert_eq!(expected, 213);
         assert_eq!(chain[1], vec![[213, 213, 213, 170]]);
+    }
+
+    #[test]
+    fn surface_tables_pack_one_after_another_as_their_layout_says() {
+        let image = TextureImage::new("t".into(), 2, 1, vec![[1, 2, 3, 4], [5, 6, 7, 8]]).unwrap();
+        let mut tables = crate::geometry::SurfaceTables::default();
+        tables.textures.add(&image, &Sampler { mip: None, ..Sampler::default() });
+        tables.materials =
+            vec![MaterialRecord::PLAIN, MaterialRecord { texture: 0, flags: MAT_TEXTURED, ..MaterialRecord::PLAIN }];
+        tables.uvs = vec![TriangleUvRecord { uv1: [1.0, 0.0], lod_bias: -2.5, ..Default::default() }; 3];
+        let objects = [0, 1]
+            .map(|first_triangle| crate::formats::ObjectRecord { first_triangle, ..bytemuck::Zeroable::zeroed() });
+        let (layout, words) = tables.packed(&objects).unwrap();
+        layout.validate().unwrap();
+        let starts = [layout.materials, layout.first_triangles, layout.uvs, layout.colors, layout.textures];
+        assert_eq!(starts, [0, 8, 10, 34, 34], "no colours: that table takes no word");
+        assert_eq!((layout.srgb, layout.texels, layout.words), (43, 299, 301));
+        assert_eq!(words.len(), 301);
+        assert_eq!(words[4..8], [0, MAT_TEXTURED, 1f32.to_bits(), 0]);
+        assert_eq!(words[8..10], [0, 1], "each object's first triangle");
+        assert_eq!((f32::from_bits(words[10 + 2]), f32::from_bits(words[10 + 6])), (1.0, -2.5));
+        assert_eq!(words[34..43], *bytemuck::cast_slice::<_, u32>(&tables.textures.records));
+        assert_eq!(words[43..299], *bytemuck::cast_slice::<_, u32>(crate::kernels::texture::srgb8_table()));
+        assert_eq!(words[299..], [pack_texel([1, 2, 3, 4]), pack_texel([5, 6, 7, 8])]);
+        let none = crate::geometry::SurfaceTables::default().layout().unwrap();
+        assert_eq!((none, none.bytes()), (SurfaceLayout::default(), 4), "the zero layout, one dummy word");
+        none.validate().unwrap();
+        assert!(SurfaceLayout { uvs: 50, ..layout }.validate().is_err());
+        assert_eq!(SurfaceLayout::new(0, 0, 0, 0, 1 << 32), None, "2^32 words do not fit u32 indices");
     }
 
     #[test]

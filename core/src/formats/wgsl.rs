@@ -12,7 +12,7 @@
 use crate::bvh::BvhNode;
 use crate::formats::{
     CameraRecord, EnvironmentRecord, FrameParams, GBufferTexel, HitRecord, LightRecord, ListParams, MaterialRecord,
-    ObjectRecord, RayRecord, SurfaceRecord, TextureRecord, TriangleRecord, TriangleUvRecord,
+    ObjectRecord, RayRecord, SurfaceLayout, SurfaceRecord, TextureRecord, TriangleRecord, TriangleUvRecord,
 };
 use crate::plan::Composition;
 
@@ -268,6 +268,7 @@ pub fn struct_declarations() -> String {
         TextureRecord::declaration(),
         MaterialRecord::declaration(),
         TriangleUvRecord::declaration(),
+        SurfaceLayout::declaration(),
     ]
     .join("\n")
 }
@@ -304,6 +305,7 @@ mod tests {
         TextureRecord::check_layout().unwrap();
         MaterialRecord::check_layout().unwrap();
         TriangleUvRecord::check_layout().unwrap();
+        SurfaceLayout::check_layout().unwrap();
     }
 
     #[test]
@@ -312,7 +314,7 @@ mod tests {
         assert!(d.contains("struct CameraRecord {\n    view_proj: mat4x4<f32>,\n"));
         assert!(d.contains("    eye: vec3<f32>,\n    width: u32,\n"));
         assert!(d.contains("struct FrameParams {"));
-        assert!(d.contains("    first_row: u32,\n    pad: u32,\n}"));
+        assert!(d.contains("    first_row: u32,\n    pixel_spread: f32,\n}"));
         assert!(d.contains("const INVALID_ID: u32 = 4294967295u;\n"));
         assert!(d.contains("const SHADOW_OCCLUDED: u32 = 2u;\n"));
         assert!(d.contains("const COMPOSITION_RT_OVER_BACKGROUND: u32 = 2u;\n"));

@@ -5,9 +5,10 @@
 // refraction ray per bouncing surface, exact dielectric Fresnel, Schlick for metals).
 //
 // Prepended by `hyrt_gpu::secondary_rays::bounce_wgsl` after the generated records,
-// ray.wgsl and the shading helpers, with the generated constants IOR_OUTSIDE and
-// MIN_THROUGHPUT. The stage binds `objects`, `triangles` and `params`. The radiance
-// the lobes gather is in bounce_radiance.wgsl.
+// ray.wgsl, the shading helpers and materials.wgsl (`Parent`, whose shaded object the
+// lobes read), with the generated constants IOR_OUTSIDE and MIN_THROUGHPUT. The stage
+// binds `triangles` and `params`. The radiance the lobes gather is in
+// bounce_radiance.wgsl.
 
 // mirrors hyrt_core::kernels::bounce::bounces
 fn bounces(obj: ObjectRecord) -> bool {
@@ -141,7 +142,7 @@ struct SpawnedRay {
 
 // The `ray` closure of hyrt_core::kernels::bounce::secondary_rays.
 fn lobe_ray(s: SurfaceRecord, dir: vec3<f32>, weight: vec3<f32>, throughput: vec3<f32>, side: vec3<f32>,
-            kind: u32, pixel: u32, depth: u32) -> SpawnedRay {
+            kind: u32, pixel: u32, depth: u32, cone: f32) -> SpawnedRay {
     let t = mul3(throughput, weight);
     var r: RayRecord;
     if is_zero3(dir) || !(max_element3(t) >= MIN_THROUGHPUT) {
@@ -149,39 +150,18 @@ fn lobe_ray(s: SurfaceRecord, dir: vec3<f32>, weight: vec3<f32>, throughput: vec
     }
     let origin = offset_ray_origin(s.position, s.position_error, side, params.zero);
     let inf = bitcast<f32>(F32_EXP_MASK | params.zero);
-    // cone 0: the GPU backend renders scenes without textures only (the CPU's cones are
-    // 0 there too, `Materials::spread`).
-    r = RayRecord(origin, 0.0, dir, inf, pixel, kind, depth, INVALID_ID, t, 0.0);
+    r = RayRecord(origin, 0.0, dir, inf, pixel, kind, depth, INVALID_ID, t, cone);
     return SpawnedRay(true, r);
 }
 
 // mirrors hyrt_core::kernels::bounce::secondary_rays: lobe 0 reflection, 1 refraction.
-fn secondary_ray(s: SurfaceRecord, l: Lobes, throughput: vec3<f32>, pixel: u32, depth: u32, lobe: u32) -> SpawnedRay {
+fn secondary_ray(s: SurfaceRecord, l: Lobes, throughput: vec3<f32>, pixel: u32, depth: u32, cone: f32,
+                 lobe: u32) -> SpawnedRay {
     let ng = s.geometric_normal;
     if lobe == 0u {
-        return lobe_ray(s, l.reflect_dir, l.reflection, throughput, ng, RAY_KIND_REFLECTION, pixel, depth);
+        return lobe_ray(s, l.reflect_dir, l.reflection, throughput, ng, RAY_KIND_REFLECTION, pixel, depth, cone);
     }
-    return lobe_ray(s, l.refract_dir, l.refraction, throughput, -ng, RAY_KIND_REFRACTION, pixel, depth);
-}
-
-// mirrors hyrt_core::kernels::bounce::Parent
-struct Parent {
-    surface: SurfaceRecord,
-    d: vec3<f32>,
-    back_face: bool,
-    throughput: vec3<f32>,
-    pixel: u32,
-}
-
-// mirrors hyrt_core::kernels::bounce::primary_parent
-fn primary_parent(t: GBufferTexel, s: SurfaceRecord, eye: vec3<f32>, pixel: u32) -> Parent {
-    let d = -normalize_or_zero(eye - s.position);
-    return Parent(s, d, (t.flags & GBUF_BACK_FACE) != 0u, vec3<f32>(1.0), pixel);
-}
-
-// mirrors hyrt_core::kernels::bounce::secondary_parent
-fn secondary_parent(ray: RayRecord, hit: HitRecord, s: SurfaceRecord) -> Parent {
-    return Parent(s, ray.direction, (hit.flags & HIT_BACK_FACE) != 0u, ray.throughput, ray.pixel);
+    return lobe_ray(s, l.refract_dir, l.refraction, throughput, -ng, RAY_KIND_REFRACTION, pixel, depth, cone);
 }
 
 // The result of `parent_lobes`: `ok` false for a miss or a surface that does not bounce.
@@ -199,7 +179,7 @@ fn parent_lobes(p: Parent) -> ParentLobes {
     if s.object == INVALID_ID {
         return out;
     }
-    let obj = objects[s.object];
+    let obj = p.object;
     if !bounces(obj) {
         return out;
     }
@@ -215,6 +195,6 @@ fn spawn(p: Parent, depth: u32, lobe: u32) -> SpawnedRay {
         none.ok = false;
         return none;
     }
-    return secondary_ray(p.surface, pl.lobes, p.throughput, p.pixel, depth, lobe);
+    return secondary_ray(p.surface, pl.lobes, p.throughput, p.pixel, depth, p.cone, lobe);
 }
 

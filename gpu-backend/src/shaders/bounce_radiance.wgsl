@@ -34,5 +34,5 @@ fn shade_rt_pixel_bouncing(pixel: u32, p: Parent, eye: vec3<f32>, children: vec2
     if pl.ok {
         return shade_bouncing(pixel, s, pl.obj, pl.lobes, p.d, children);
     }
-    return shade_rt_pixel(pixel, s, objects[s.object], eye);
+    return shade_rt_pixel(pixel, s, p.object, eye);
 }

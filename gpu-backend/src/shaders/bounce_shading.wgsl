@@ -6,7 +6,8 @@
 // `ray_count`.
 //
 // Prepended: the generated records and constants, the shading helpers, shading.wgsl,
-// surface_shading.wgsl, ray.wgsl, bounce.wgsl, bounce_radiance.wgsl, environment.wgsl.
+// the texture kernels and materials.wgsl, surface_shading.wgsl, ray.wgsl, bounce.wgsl,
+// bounce_radiance.wgsl, environment.wgsl.
 
 @group(0) @binding(0) var<uniform> params: FrameParams;
 @group(0) @binding(1) var<uniform> list: ListParams;
@@ -23,6 +24,8 @@
 @group(0) @binding(12) var<storage, read> links: array<vec2<u32>>;
 @group(0) @binding(13) var<storage, read> child_radiance: array<vec4<f32>>;
 @group(0) @binding(14) var<storage, read_write> radiance: array<vec4<f32>>;
+@group(0) @binding(15) var<storage, read> surface: array<u32>;
+@group(0) @binding(16) var<uniform> surface_layout: SurfaceLayout;
 
 // mirrors hyrt_core::kernels::bounce::shade_secondary_hit; `index` is the ray's row of
 // `shadow`.
@@ -35,7 +38,7 @@ fn shade_secondary_hit(index: u32, p: Parent, children: vec2<u32>) -> vec3<f32> 
     if pl.ok {
         return shade_bouncing(index, s, pl.obj, pl.lobes, p.d, children);
     }
-    let obj = objects[s.object];
+    let obj = p.object;
     if (obj.flags & OBJ_RAY_TRACED) != 0u {
         return shade_rt_surface(index, s, obj, -p.d);
     }

@@ -1,12 +1,14 @@
-// Stage `bounce_trace` (hyrt_core::bvh::Bvh::closest_hit and
+// Stage `bounce_trace` (hyrt_core::bvh::Bvh::closest_hit_filtered with the alpha test of
+// hyrt_core::kernels::texture::alpha_accepts, and
 // hyrt_core::kernels::reconstruction::reconstruct_hit per ray, as hyrt_cpu::bounce_trace):
 // the closest hit of each ray of bounce `list.depth` through the BVH of the whole scene
-// (ties to the lower triangle index), and the surface it hit, rebuilt from the hit's
-// barycentrics on the side the ray saw. One thread per ray, indirect dispatch from
+// (ties to the lower triangle index; a hit on an alpha-tested triangle where its alpha
+// fails the cutoff neither counts nor narrows), and the surface it hit, rebuilt from the
+// hit's barycentrics on the side the ray saw. One thread per ray, indirect dispatch from
 // `ray_count`; threads past the count (or the room) exit.
 //
 // Prepended: the generated records and constants, ray.wgsl, `rounded` and `mul` over
-// `params.zero`, surface.wgsl.
+// `params.zero`, surface.wgsl, the texture kernels (`hyrt_gpu::texture::texture_wgsl`).
 
 @group(0) @binding(0) var<uniform> params: FrameParams;
 @group(0) @binding(1) var<storage, read> rays: array<RayRecord>;
@@ -19,6 +21,8 @@
 @group(0) @binding(8) var<storage, read_write> hits: array<HitRecord>;
 @group(0) @binding(9) var<storage, read_write> surfaces: array<SurfaceRecord>;
 @group(0) @binding(10) var<storage, read_write> counters: array<atomic<u32>, 4>;
+@group(0) @binding(11) var<storage, read> surface: array<u32>;
+@group(0) @binding(12) var<uniform> surface_layout: SurfaceLayout;
 
 // mirrors hyrt_core::bvh::ClosestHit (`triangle` INVALID_ID: no hit)
 struct ClosestHit {
@@ -29,11 +33,11 @@ struct ClosestHit {
     back_face: bool,
 }
 
-// mirrors hyrt_core::bvh::Bvh::closest_hit, walked as hyrt_core::bvh::traversal::traverse
-// walks it with the scalar ray's node test: nearer child first (ties left), the other
-// pushed with its entry distance; a node popped after the bound narrowed is visited only
-// if its entry lies within the widened bound. An empty BVH (one zero node) is recognized
-// as in shadow_rays.wgsl.
+// mirrors hyrt_core::bvh::Bvh::closest_hit_filtered with alpha_accepts, walked as
+// hyrt_core::bvh::traversal::traverse walks it with the scalar ray's node test: nearer
+// child first (ties left), the other pushed with its entry distance; a node popped after
+// the bound narrowed is visited only if its entry lies within the widened bound. An empty
+// BVH (one zero node) is recognized as in shadow_rays.wgsl.
 fn closest_hit(ray: RayRecord) -> ClosestHit {
     var best = ClosestHit(INVALID_ID, ray.t_max, 0.0, 0.0, false);
     let root = bvh_nodes[0];
@@ -62,7 +66,10 @@ fn closest_hit(ray: RayRecord) -> ClosestHit {
                 let h = watertight_intersect(r.wt, r.t_min, r.t_max, tri.v0, tri.v1, tri.v2, params.zero);
                 if h.hit {
                     let id = bvh_prim_indices[slot];
-                    if h.t < t_best || (h.t == t_best && id < best.triangle) {
+                    let closer = h.t < t_best || (h.t == t_best && id < best.triangle);
+                    // ALPHA_TESTED (a pipeline constant): no alpha test compiled in scenes without one.
+                    let opaque_hit = !ALPHA_TESTED || (tri.flags & TRI_ALPHA_TEST) == 0u;
+                    if closer && (opaque_hit || alpha_accepts(tri, id, h.u, h.v)) {
                         best = ClosestHit(id, h.t, h.u, h.v, h.back_face);
                         t_best = h.t;
                         narrowed = true;

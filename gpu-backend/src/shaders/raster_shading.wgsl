@@ -2,8 +2,10 @@
 // visible light plus ambient on the pixels of rasterized objects, and on those of
 // ray-traced objects only when the composition weight is below 1 (else
 // (0, 0, 0, 0) there); BACKGROUND with alpha 1 where nothing was hit. One
-// invocation per pixel. Appended to the generated records,
-// shading_helpers.wgsl, shading.wgsl and surface_shading.wgsl.
+// invocation per pixel, the object shaded as the pixel sees it (primary_object.wgsl:
+// textured and vertex-coloured at the G-buffer's barycentrics where materials vary).
+// Appended to the generated records, shading_helpers.wgsl, shading.wgsl, the texture
+// kernels, materials.wgsl, surface_shading.wgsl and primary_object.wgsl.
 
 @group(0) @binding(0) var<storage, read> surfaces: array<SurfaceRecord>;
 @group(0) @binding(1) var<storage, read> shadow: array<u32>;
@@ -11,6 +13,10 @@
 @group(0) @binding(3) var<storage, read> lights: array<LightRecord>;
 @group(0) @binding(4) var<uniform> params: FrameParams;
 @group(0) @binding(5) var<storage, read_write> raster: array<vec4<f32>>;
+@group(0) @binding(6) var<storage, read> gbuffer: array<GBufferTexel>;
+@group(0) @binding(7) var<uniform> camera: CameraRecord;
+@group(0) @binding(8) var<storage, read> surface: array<u32>;
+@group(0) @binding(9) var<uniform> surface_layout: SurfaceLayout;
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -29,5 +35,5 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         raster[pixel] = vec4<f32>(0.0);
         return;
     }
-    raster[pixel] = vec4<f32>(shade_raster_pixel(pixel, s, obj), 1.0);
+    raster[pixel] = vec4<f32>(shade_raster_pixel(pixel, s, primary_object(pixel, s)), 1.0);
 }

@@ -1,10 +1,12 @@
 // Stage `rt_shading` (hyrt_core::kernels::shading::shade_rt_pixel per pixel): the pixels of ray-traced
 // objects, Lambert + Blinn-Phong from every visible light plus ambient; alpha 1
 // there, (0, 0, 0, 0) on every other pixel. One invocation per pixel.
-// Appended to the generated records,
-// shading_helpers.wgsl, shading.wgsl and surface_shading.wgsl, and followed by the
-// frame's `rt_pixel(pixel, surface, object)`: `shade_rt_pixel` in the paper's frame,
-// `shade_rt_pixel_bouncing` in one that traces bounces (rt_shading_bouncing.wgsl).
+// Appended to the generated records, shading_helpers.wgsl, shading.wgsl, the texture
+// kernels, materials.wgsl and surface_shading.wgsl, and followed by the frame's
+// `rt_pixel(pixel, surface)`: `shade_rt_pixel` of the pixel's shaded object
+// (primary_object.wgsl) in the paper's frame, `shade_rt_pixel_bouncing` in one that
+// traces bounces (rt_shading_bouncing.wgsl). The G-buffer (barycentrics) and the surface
+// tables are read only where materials vary (textures, vertex colours).
 
 @group(0) @binding(0) var<storage, read> surfaces: array<SurfaceRecord>;
 @group(0) @binding(1) var<storage, read> shadow: array<u32>;
@@ -13,6 +15,9 @@
 @group(0) @binding(4) var<uniform> camera: CameraRecord;
 @group(0) @binding(5) var<uniform> params: FrameParams;
 @group(0) @binding(6) var<storage, read_write> rt: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read> gbuffer: array<GBufferTexel>;
+@group(0) @binding(8) var<storage, read> surface: array<u32>;
+@group(0) @binding(9) var<uniform> surface_layout: SurfaceLayout;
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -30,5 +35,5 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         rt[pixel] = vec4<f32>(0.0);
         return;
     }
-    rt[pixel] = vec4<f32>(rt_pixel(pixel, s, obj), 1.0);
+    rt[pixel] = vec4<f32>(rt_pixel(pixel, s), 1.0);
 }

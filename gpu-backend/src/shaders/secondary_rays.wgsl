@@ -7,7 +7,7 @@
 // Every element writes its parent's link: the child's index in the list, or INVALID_ID.
 //
 // Prepended: the generated records and constants, ray.wgsl, the shading helpers,
-// bounce.wgsl. Followed by scan.wgsl.
+// shading.wgsl, the texture kernels, materials.wgsl, bounce.wgsl. Followed by scan.wgsl.
 
 @group(1) @binding(0) var<uniform> params: FrameParams;
 @group(1) @binding(1) var<uniform> list: ListParams;
@@ -22,6 +22,8 @@
 @group(1) @binding(10) var<storage, read_write> rays: array<RayRecord>;
 @group(1) @binding(11) var<storage, read_write> links: array<u32>;
 @group(1) @binding(12) var<storage, read_write> counters: array<atomic<u32>, 4>;
+@group(1) @binding(13) var<storage, read> surface: array<u32>;
+@group(1) @binding(14) var<uniform> surface_layout: SurfaceLayout;
 
 // Parent `i` (mirrors hyrt_cpu::secondary_rays::Parents::get).
 fn parent(i: u32) -> Parent {

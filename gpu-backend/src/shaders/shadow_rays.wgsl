@@ -1,15 +1,17 @@
-// Stage `shadow_rays` (mirrors hyrt_core::bvh::Bvh::occluded, the CPU's reference
-// traversal): one thread per ray of the compacted list, any
-// hit with early exit. Indirect dispatch from `ray_count`; threads past the count
-// exit. Writes `occluded[ray]` (1/0) and `shadow[pixel * light_count + light]`
+// Stage `shadow_rays` (mirrors hyrt_core::bvh::Bvh::occluded_filtered with the alpha
+// test of hyrt_core::kernels::texture::alpha_accepts, the CPU's reference traversal):
+// one thread per ray of the compacted list, any hit with early exit; a hit on an
+// alpha-tested triangle (TRI_ALPHA_TEST) where its alpha fails the cutoff is no hit.
+// Indirect dispatch from `ray_count`; threads past the count exit. Writes `occluded[ray]` (1/0) and `shadow[pixel * light_count + light]`
 // (SHADOW_LIT or SHADOW_OCCLUDED; the caller cleared it to SHADOW_NO_RAY); at a bounce
 // depth `pixel` is the secondary ray the shadow ray leaves from, and occluded rays are
 // counted.
 //
 // Prepended at pipeline creation: the generated records and format constants
-// (hyrt_core::formats::wgsl), the ray constants and ray.wgsl.
+// (hyrt_core::formats::wgsl), the ray constants and ray.wgsl, `rounded` and `mul` over
+// `params.zero`, the texture kernels (`hyrt_gpu::texture::texture_wgsl`).
 
-@group(0) @binding(0) var<uniform> frame: FrameParams;
+@group(0) @binding(0) var<uniform> params: FrameParams;
 @group(0) @binding(1) var<storage, read> rays: array<RayRecord>;
 @group(0) @binding(2) var<storage, read> ray_count: array<u32, 4>;
 @group(0) @binding(3) var<storage, read> bvh_nodes: array<BvhNode>;
@@ -19,10 +21,15 @@
 @group(0) @binding(7) var<uniform> list: ListParams;
 // The list's statistics, [reflection, refraction, hits, occluded]; bounce depths only.
 @group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 4>;
+// The surface tables (alpha tests). The leaf triangle's global index comes from its
+// object's first triangle packed with them (`global_triangle`): a binding of the BVH's
+// `prim_indices` would be the 9th storage buffer, past WebGPU's default limit.
+@group(0) @binding(9) var<storage, read> surface: array<u32>;
+@group(0) @binding(10) var<uniform> surface_layout: SurfaceLayout;
 
-// mirrors hyrt_core::bvh::Bvh::occluded. An empty BVH is uploaded as one zero
-// node: an inner node whose left child would be itself, which no real tree has
-// (children always follow their parent), so it is recognized from the data.
+// mirrors hyrt_core::bvh::Bvh::occluded_filtered with alpha_accepts. An empty BVH is
+// uploaded as one zero node: an inner node whose left child would be itself, which no
+// real tree has (children always follow their parent), so it is recognized from the data.
 fn occluded_any(ray: RayRecord) -> bool {
     let root = bvh_nodes[0];
     if !traversal_ray_valid(ray) || (root.count == 0u && root.left_or_first == 0u) {
@@ -40,7 +47,10 @@ fn occluded_any(ray: RayRecord) -> bool {
         if node.count > 0u {
             for (var slot = node.left_or_first; slot < node.left_or_first + node.count; slot = slot + 1u) {
                 let t = bvh_leaf_triangles[slot];
-                if watertight_intersect(r.wt, r.t_min, r.t_max, t.v0, t.v1, t.v2, frame.zero).hit {
+                let h = watertight_intersect(r.wt, r.t_min, r.t_max, t.v0, t.v1, t.v2, params.zero);
+                // ALPHA_TESTED (a pipeline constant): no alpha test compiled in scenes without one.
+                let opaque_hit = !ALPHA_TESTED || (t.flags & TRI_ALPHA_TEST) == 0u;
+                if h.hit && (opaque_hit || alpha_accepts(t, global_triangle(t), h.u, h.v)) {
                     return true;
                 }
             }
@@ -97,5 +107,5 @@ fn shadow_rays(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id)
     if o && list.depth > 0u {
         atomicAdd(&counters[3], 1u);
     }
-    shadow[ray.pixel * frame.light_count + ray.light] = shadow_code(o);
+    shadow[ray.pixel * params.light_count + ray.light] = shadow_code(o);
 }

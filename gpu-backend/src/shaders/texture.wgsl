@@ -3,15 +3,16 @@
 // sampler, whose filtering weights are fixed-point and differ between GPUs), so the
 // results are the CPU's bits.
 //
-// Prepended at pipeline creation by `hyrt_gpu::texture::texture_wgsl`, after the
-// generated records and format constants (`hyrt_core::formats::wgsl::declarations`),
-// `shading_helpers.wgsl` (`rounded`, `mul`: every product that feeds a sum goes through
-// `mul`, so that it cannot be fused into a multiply-add; `F32_MAX`) and `shading.wgsl`
-// (`log2_portable`), and after a generated prelude that defines, from their Rust values,
-// UNORM8_SCALE, LOD_MIN_AREA, LOD_MIN_COSINE and the sRGB table SRGB8_TO_LINEAR (with
-// its private copy `srgb8_table`).
-// The including stage binds `texture_records: array<TextureRecord>` and
-// `texels: array<u32>`.
+// Prepended at pipeline creation by `hyrt_gpu::texture::texture_wgsl`, after a generated
+// prelude that defines UNORM8_SCALE from its Rust value, and after surface_tables.wgsl
+// (the accessors of the packed surface tables: `surface_texel`, `surface_texture`,
+// `surface_srgb8`, ...).
+// Needs the generated records and format constants
+// (`hyrt_core::formats::wgsl::declarations`) and `rounded` and `mul` over an always-zero
+// uniform word: every product that feeds a sum goes through `mul`, so that it cannot be
+// fused into a multiply-add. The including stage binds what surface_tables.wgsl reads.
+// The level of detail (`hit_lod`) and the shaded object record are in materials.wgsl,
+// for the shading stages.
 
 // The exponent bits of an f32: all set for infinities and NaNs.
 const TEXTURE_F32_EXPONENT: u32 = 0x7f800000u;
@@ -29,9 +30,8 @@ fn texture_is_nan(x: f32) -> bool {
 
 // mirrors hyrt_core::kernels::texture::srgb8_to_linear
 fn srgb8_to_linear(code: u32) -> f32 {
-    // The private copy of the generated `const SRGB8_TO_LINEAR`: indexing the `const`
-    // itself with a runtime index is slow on naga/lavapipe (`hyrt_gpu::texture` docs).
-    return srgb8_table[code];
+    // The table packed with the surface tables (`hyrt_gpu::texture` docs).
+    return surface_srgb8(code);
 }
 
 // mirrors hyrt_core::kernels::texture::unorm8_to_f32
@@ -107,7 +107,7 @@ fn texture_level_size(tex: TextureRecord, level: u32) -> vec2<u32> {
     return vec2<u32>(max(tex.width >> level, 1u), max(tex.height >> level, 1u));
 }
 
-// Index in `texels` of level `level`'s first texel (TextureRecord::level_offset).
+// Index in the texels of level `level`'s first texel (TextureRecord::level_offset).
 fn texture_level_offset(tex: TextureRecord, level: u32) -> u32 {
     var at = tex.first_texel;
     for (var k = 0u; k < level; k++) {
@@ -122,7 +122,7 @@ fn texture_level_offset(tex: TextureRecord, level: u32) -> u32 {
 fn fetch_texel(tex: TextureRecord, base: u32, w: u32, h: u32, x: i32, y: i32) -> vec4<f32> {
     let i = wrap_index(x, w, tex.wrap_s);
     let j = wrap_index(y, h, tex.wrap_t);
-    return decode_texel(texels[base + j * w + i]);
+    return decode_texel(surface_texel(base + j * w + i));
 }
 
 // mirrors hyrt_core::kernels::texture::lerp4
@@ -208,18 +208,6 @@ fn interpolate_color(c0: vec4<f32>, c1: vec4<f32>, c2: vec4<f32>, u: f32, v: f32
     );
 }
 
-// mirrors hyrt_core::kernels::texture::hit_lod
-fn hit_lod(bias: f32, cone_width: f32, cos: f32) -> f32 {
-    // Rust's `max` of a number and a possible NaN (NaN gives the other operand).
-    let a = abs(cos);
-    let c = select(LOD_MIN_COSINE, a, a > LOD_MIN_COSINE);
-    var w = F32_MAX;
-    if texture_is_finite(cone_width) {
-        w = select(LOD_MIN_AREA, cone_width, cone_width > LOD_MIN_AREA);
-    }
-    return bias + (log2_portable(w) - log2_portable(c));
-}
-
 // mirrors hyrt_core::kernels::texture::alpha_at
 fn alpha_at(tex: TextureRecord, uv: vec2<f32>) -> f32 {
     return sample_level(tex, 0u, uv, tex.mag_filter).w;
@@ -228,4 +216,19 @@ fn alpha_at(tex: TextureRecord, uv: vec2<f32>) -> f32 {
 // mirrors hyrt_core::kernels::texture::alpha_passes
 fn alpha_passes(alpha: f32, cutoff: f32) -> bool {
     return alpha >= cutoff;
+}
+
+// mirrors hyrt_core::kernels::texture::alpha_accepts: whether the alpha-tested triangle
+// `tri` (global index `global`) is there at its barycentrics (u, v).
+fn alpha_accepts(tri: TriangleRecord, global: u32, u: f32, v: f32) -> bool {
+    let m = surface_material(tri.object);
+    var a = m.base_alpha;
+    if (m.flags & MAT_TEXTURED) != 0u {
+        a = mul(a, alpha_at(surface_texture(m.texture), interpolate_uv(surface_uv(global), u, v)));
+    }
+    if (m.flags & MAT_VERTEX_COLORS) != 0u {
+        let c = interpolate_color(surface_color(global, 0u), surface_color(global, 1u), surface_color(global, 2u), u, v);
+        a = mul(a, c.w);
+    }
+    return alpha_passes(a, m.alpha_cutoff);
 }

@@ -3,7 +3,9 @@
 //
 // The constants of hyrt_core::kernels::raster (MAX_IMAGE_DIM, GUARD_BAND_PIXELS,
 // MAX_CLIP_VERTICES, PIXEL_CENTER_OFFSET, FIXED_ONE, FIXED_ONE_F32,
-// MAX_FIXED_COORD_F32) are prepended by `shader_source` from the Rust values.
+// MAX_FIXED_COORD_F32) are prepended by `shader_source` from the Rust values, and the
+// texture kernels (`hyrt_gpu::texture::texture_wgsl`, over this file's `rounded` and
+// `mul`) are appended, for the alpha test.
 //
 // `TRIANGLE_ID_SOURCE` is replaced at pipeline creation (see `shader_source`):
 // with `@builtin(primitive_index)` the file is prefixed with `enable primitive_index;`
@@ -79,6 +81,10 @@ struct ClippedSetup {
 @group(0) @binding(8) var<storage, read_write> clipped_out: array<ClippedSetup>;
 // Sub-triangle slots of `clipped_out` handed out so far this frame (cleared before the pass).
 @group(0) @binding(9) var<storage, read_write> clipped_count: atomic<u32>;
+// The surface tables (texture.wgsl's accessors): the fragment shader alpha-tests the
+// fragments of triangles flagged TRI_ALPHA_TEST.
+@group(0) @binding(11) var<storage, read> surface: array<u32>;
+@group(0) @binding(12) var<uniform> surface_layout: SurfaceLayout;
 
 // Largest window coordinate (pixels) for which a vertex is handed to the hardware
 // pre-snapped: its NDC position is rebuilt from the reference's fixed-point position,
@@ -823,13 +829,21 @@ fn fs_main(
             discard;
         }
     }
+    let t = triangles[id];
+    // A masked fragment (hyrt_cpu visibility_raster's `AlphaTested` sink): where the
+    // alpha test fails at the barycentrics this fragment's texel would get, there is no
+    // surface, and the fragment is dropped before the depth test. ALPHA_TESTED is a
+    // pipeline constant: no alpha test is compiled for scenes without one.
+    if ALPHA_TESTED && (t.flags & TRI_ALPHA_TEST) != 0u && !alpha_accepts(t, id, sample.bary.x, sample.bary.y) {
+        discard;
+    }
     var out: FragmentOut;
     out.id = id + 1u;
     out.surface = vec4<f32>(sample.bary, sample.depth, select(1.0, 0.0, sample.back_face));
     // The depth test compares depth_test_value: interior sides lose near-ties (the
     // G-buffer keeps the unbiased depth, from `surface`). Never below the reference's
     // depth, so the early depth test's promise (greater_equal) holds.
-    let inward = (triangles[id].flags & TRI_INWARD) != 0u;
+    let inward = (t.flags & TRI_INWARD) != 0u;
     out.depth = depth_test_value(sample.depth, shows_interior(sample.back_face, inward));
     return out;
 }

@@ -1,0 +1,107 @@
+// What shading knows of materials: WGSL mirrors of `hyrt_core::kernels::texture::hit_lod`
+// and `Materials::at` (`shaded_object`: an object's record as shading sees it at a point,
+// its base colour textured and vertex-coloured), and the parents of
+// `hyrt_core::kernels::bounce` (`Parent`, `primary_parent`, `secondary_parent`,
+// `primary_cone`), which carry their footprint cone and shaded record; same names, same
+// operation order.
+//
+// Prepended by `hyrt_gpu::texture::materials_wgsl` after a generated prelude with
+// LOD_MIN_AREA and LOD_MIN_COSINE from their Rust values; needs the shading helpers
+// (`mul`, `rounded`, `dot3`, `normalize_or_zero`, F32_MAX), shading.wgsl (`log2_portable`)
+// and the texture kernels (`hyrt_gpu::texture::texture_wgsl`). The including stage binds
+// `objects: array<ObjectRecord>`, `params: FrameParams` (`pixel_spread`, the frame's cone
+// spread, 0 without textures or vertex colours) and the surface tables.
+
+// mirrors hyrt_core::kernels::texture::hit_lod
+fn hit_lod(bias: f32, cone_width: f32, cos: f32) -> f32 {
+    // Rust's `max` of a number and a possible NaN (NaN gives the other operand).
+    let a = abs(cos);
+    let c = select(LOD_MIN_COSINE, a, a > LOD_MIN_COSINE);
+    var w = F32_MAX;
+    if texture_is_finite(cone_width) {
+        w = select(LOD_MIN_AREA, cone_width, cone_width > LOD_MIN_AREA);
+    }
+    return bias + (log2_portable(w) - log2_portable(c));
+}
+
+// mirrors hyrt_core::kernels::texture::Materials::varying (a pipeline constant:
+// surface_tables.wgsl)
+fn materials_vary() -> bool {
+    return SURFACE_TABLES;
+}
+
+// mirrors hyrt_core::kernels::texture::Materials::at: the record of the object hit at
+// surface `s` as shading sees it there (barycentrics `u`, `v`, footprint `cone`, seen
+// along the unit direction `d`).
+fn shaded_object(s: SurfaceRecord, u: f32, v: f32, cone: f32, d: vec3<f32>) -> ObjectRecord {
+    var obj = objects[s.object];
+    if !materials_vary() {
+        return obj;
+    }
+    let m = surface_material(s.object);
+    let global = s.triangle;
+    var c = obj.base_color;
+    if (m.flags & MAT_TEXTURED) != 0u {
+        let t = surface_uv(global);
+        let cos = dot3(d, s.geometric_normal);
+        let lod = hit_lod(t.lod_bias, cone, cos);
+        let texel = sample_texture(surface_texture(m.texture), interpolate_uv(t, u, v), lod);
+        c = vec3<f32>(mul(c.x, texel.x), mul(c.y, texel.y), mul(c.z, texel.z));
+    }
+    if (m.flags & MAT_VERTEX_COLORS) != 0u {
+        let k = interpolate_color(surface_color(global, 0u), surface_color(global, 1u), surface_color(global, 2u), u, v);
+        c = vec3<f32>(mul(c.x, k.x), mul(c.y, k.y), mul(c.z, k.z));
+    }
+    obj.base_color = c;
+    return obj;
+}
+
+// mirrors hyrt_core::kernels::bounce::Parent
+struct Parent {
+    surface: SurfaceRecord,
+    d: vec3<f32>,
+    back_face: bool,
+    throughput: vec3<f32>,
+    pixel: u32,
+    cone: f32,
+    object: ObjectRecord,
+}
+
+// mirrors hyrt_core::kernels::bounce::parent_object (private there): the shaded record
+// of the object at a parent's surface, zeros for a miss.
+fn parent_object(s: SurfaceRecord, u: f32, v: f32, cone: f32, d: vec3<f32>) -> ObjectRecord {
+    if s.object != INVALID_ID {
+        return shaded_object(s, u, v, cone, d);
+    }
+    var none: ObjectRecord;
+    return none;
+}
+
+// mirrors hyrt_core::kernels::bounce::primary_cone
+fn primary_cone(to_eye: vec3<f32>) -> f32 {
+    if params.pixel_spread == 0.0 {
+        return 0.0;
+    }
+    // glam's `length`: the square root of the dot product.
+    return mul(params.pixel_spread, sqrt(dot3(to_eye, to_eye)));
+}
+
+// mirrors hyrt_core::kernels::bounce::primary_parent
+fn primary_parent(t: GBufferTexel, s: SurfaceRecord, eye: vec3<f32>, pixel: u32) -> Parent {
+    let to_eye = eye - s.position;
+    let d = -normalize_or_zero(to_eye);
+    let cone = primary_cone(to_eye);
+    let object = parent_object(s, t.bary_u, t.bary_v, cone, d);
+    return Parent(s, d, (t.flags & GBUF_BACK_FACE) != 0u, vec3<f32>(1.0), pixel, cone, object);
+}
+
+// mirrors hyrt_core::kernels::bounce::secondary_parent
+fn secondary_parent(ray: RayRecord, hit: HitRecord, s: SurfaceRecord) -> Parent {
+    let d = ray.direction;
+    var cone = 0.0;
+    if params.pixel_spread != 0.0 {
+        cone = ray.cone + mul(params.pixel_spread, hit.t);
+    }
+    let object = parent_object(s, hit.u, hit.v, cone, d);
+    return Parent(s, d, (hit.flags & HIT_BACK_FACE) != 0u, ray.throughput, ray.pixel, cone, object);
+}
