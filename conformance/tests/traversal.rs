@@ -12,7 +12,7 @@ use hyrt_core::formats::CameraRecord;
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::camera::primary_rays;
 use hyrt_cpu::backend::CpuBackend;
-use hyrt_cpu::traversal::{closest_hit_batch, occluded_batch, Traversal};
+use hyrt_cpu::traversal::{closest_hit_alpha_batch_into, occluded_alpha_batch_into, Traversal};
 
 fn bits(h: &Option<ClosestHit>) -> Option<(u32, u32, u32, u32)> {
     h.map(|h| (h.triangle, h.t.to_bits(), h.u.to_bits(), h.v.to_bits()))
@@ -40,13 +40,24 @@ fn traversal_packets_match_scalar_over_the_corpus() {
         }
         let (g, bvh) = (&p.geometry, &p.bvh);
         let cam = primary_rays(&CameraRecord::new(&case.camera, case.width, case.height));
-        let want_any = occluded_batch(bvh, &g.triangles, &a.rays, Traversal::Scalar);
-        let want_closest = closest_hit_batch(bvh, &g.triangles, &cam, Traversal::Scalar);
+        // With the scene's alpha tests, as the frame traces (the texture cases have some).
+        let view = g.surface.view();
+        let any_hit = |kind| {
+            let mut out = Vec::new();
+            occluded_alpha_batch_into(bvh, &g.triangles, &view, &a.rays, kind, &mut out);
+            out
+        };
+        let closest_hit = |kind| {
+            let mut out = Vec::new();
+            closest_hit_alpha_batch_into(bvh, &g.triangles, &view, &cam, kind, &mut out);
+            out
+        };
+        let (want_any, want_closest) = (any_hit(Traversal::Scalar), closest_hit(Traversal::Scalar));
         for kind in Traversal::available_simd() {
             let level = kind.name();
-            let any = occluded_batch(bvh, &g.triangles, &a.rays, kind);
+            let any = any_hit(kind);
             assert_eq!(any, want_any, "{}: {level:?} any hit", case.name);
-            let closest = closest_hit_batch(bvh, &g.triangles, &cam, kind);
+            let closest = closest_hit(kind);
             for (i, (x, y)) in closest.iter().zip(&want_closest).enumerate() {
                 assert_eq!(bits(x), bits(y), "{}: {level:?} closest hit of pixel {i}", case.name);
             }
