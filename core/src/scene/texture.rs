@@ -65,7 +65,7 @@ pub enum Wrap {
 }
 
 impl Wrap {
-    /// The code shared with the GPU ([`crate::formats::TextureRecord::wrap`]).
+    /// The code shared with the GPU ([`crate::formats::TextureRecord::wrap_s`], `wrap_t`).
     pub const fn code(self) -> u32 {
         match self {
             Wrap::Repeat => crate::formats::WRAP_REPEAT,
