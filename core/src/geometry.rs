@@ -182,7 +182,7 @@ impl SurfaceTables {
 
     /// Whether some object is alpha-tested.
     pub fn alpha_tested(&self) -> bool {
-        self.materials.iter().any(|m| m.flags & MAT_ALPHA_TEST != 0)
+        self.view().alpha_tested()
     }
 
     /// Where each table lies when packed into one buffer of words ([`SurfaceLayout`]);
@@ -414,8 +414,7 @@ impl WorldGeometry {
     /// untextured frame's rays carry zero cones as they did before textures).
     pub fn materials(&self, camera: &crate::formats::CameraRecord) -> crate::kernels::texture::Materials<'_> {
         let surface = self.surface.view();
-        let varying = surface.materials.iter().any(|m| m.flags & (MAT_TEXTURED | MAT_VERTEX_COLORS) != 0);
-        let spread = if varying { crate::kernels::texture::camera_pixel_spread(camera) } else { 0.0 };
+        let spread = if surface.colour_varies() { crate::kernels::texture::camera_pixel_spread(camera) } else { 0.0 };
         crate::kernels::texture::Materials { objects: &self.objects, surface, spread }
     }
 

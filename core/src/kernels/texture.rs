@@ -25,7 +25,7 @@ use glam::{Vec2, Vec3};
 
 use crate::formats::{
     MaterialRecord, ObjectRecord, SurfaceRecord, TextureRecord, TriangleRecord, TriangleUvRecord, FILTER_NEAREST,
-    FILTER_NO_MIP, MAT_TEXTURED, MAT_VERTEX_COLORS, WRAP_CLAMP, WRAP_MIRROR,
+    FILTER_NO_MIP, MAT_ALPHA_TEST, MAT_TEXTURED, MAT_VERTEX_COLORS, WRAP_CLAMP, WRAP_MIRROR,
 };
 use crate::kernels::shading::log2_portable;
 
@@ -278,6 +278,18 @@ pub struct SurfaceView<'a> {
     pub colors: &'a [[[f32; 4]; 3]],
     pub textures: &'a [TextureRecord],
     pub texels: &'a [u32],
+}
+
+impl SurfaceView<'_> {
+    /// Whether some object is alpha-tested ([`MAT_ALPHA_TEST`]).
+    pub fn alpha_tested(&self) -> bool {
+        self.materials.iter().any(|m| m.flags & MAT_ALPHA_TEST != 0)
+    }
+
+    /// Whether some object's colour varies over its surface: textured or vertex-coloured.
+    pub fn colour_varies(&self) -> bool {
+        self.materials.iter().any(|m| m.flags & (MAT_TEXTURED | MAT_VERTEX_COLORS) != 0)
+    }
 }
 
 /// Whether the alpha-tested triangle `tri` (global index `global`) is there at its

@@ -62,7 +62,7 @@ mod watertight;
 use rayon::prelude::*;
 
 use hyrt_core::bvh::{Bvh, ClosestHit};
-use hyrt_core::formats::{RayRecord, TriangleRecord, MAT_ALPHA_TEST};
+use hyrt_core::formats::{RayRecord, TriangleRecord};
 use hyrt_core::kernels::texture::{alpha_accepts, SurfaceView};
 
 pub use lanes::LANES;
@@ -312,8 +312,7 @@ pub fn occluded_alpha_batch_into(
 /// `(level, single)` of `traversal` on `bvh` ([`Traversal::level`], [`Traversal::single`]),
 /// packets instead of single rays where `view` has alpha tests.
 fn traversal_mode(bvh: &Bvh, view: &SurfaceView, traversal: Traversal) -> (Option<SimdLevel>, bool) {
-    let alpha = view.materials.iter().any(|m| m.flags & MAT_ALPHA_TEST != 0);
-    (traversal.level(), traversal.single(bvh) && !alpha)
+    (traversal.level(), traversal.single(bvh) && !view.alpha_tested())
 }
 
 /// [`occluded_batch_into`] over `count` rays made as they are traced, `ray(i)` for ray
