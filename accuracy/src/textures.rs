@@ -19,14 +19,14 @@ use std::fmt::Write as _;
 use std::sync::Arc;
 use std::time::Instant;
 
-use glam::{Mat4, Vec2, Vec3};
+use glam::{Mat4, Vec3};
 use hyrt_core::bvh::BvhPreset;
 use hyrt_core::formats::CameraRecord;
 use hyrt_core::frame::{Backend, FrameOptions, PreparedScene};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::scene::{
     AlphaMode, Camera, Filter, Light, Material, Mesh, RenderMode, Sampler, Scene, TextureBinding, TextureImage,
-    UvTransform, VertexAttributes, Wrap,
+    UvTransform, Wrap,
 };
 use hyrt_cpu::backend::CpuBackend;
 
@@ -53,26 +53,13 @@ pub struct TextureRow {
     pub wrong_pixels: Option<u64>,
 }
 
-/// A quad `[-1, 1]^2` in the plane z = 0, facing +z, texture coordinates `(x + 1) / 2`,
-/// `(1 - y) / 2` scaled by `uv_scale`.
+/// [`Mesh::uv_quad`] with its texture coordinates scaled by `uv_scale`.
 fn quad(name: &str, uv_scale: f32) -> Mesh {
-    let positions = vec![
-        Vec3::new(-1.0, -1.0, 0.0),
-        Vec3::new(1.0, -1.0, 0.0),
-        Vec3::new(1.0, 1.0, 0.0),
-        Vec3::new(-1.0, 1.0, 0.0),
-    ];
-    let uv = [Vec2::new(0.0, 1.0), Vec2::new(1.0, 1.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 0.0)];
-    Mesh {
-        name: name.into(),
-        positions,
-        normals: Some(vec![Vec3::Z; 4]),
-        indices: vec![[0, 1, 2], [0, 2, 3]],
-        attributes: VertexAttributes {
-            tex_coords: [Some(uv.iter().map(|&t| t * uv_scale).collect()), None],
-            colors: None,
-        },
+    let mut mesh = Mesh::uv_quad(name);
+    for uv in mesh.attributes.tex_coords[0].iter_mut().flatten() {
+        *uv *= uv_scale;
     }
+    mesh
 }
 
 /// The scene with the floor's sampler `floor` and the fence masked or opaque.

@@ -861,19 +861,6 @@ fn textured(name: &str, rgb: Vec3, texture: TextureBinding) -> Material {
     Material { base_color_texture: Some(texture), ..diffuse(name, rgb) }
 }
 
-/// The vertical square [-1, 1]^2 in the plane z = 0 facing +z, two triangles sharing the
-/// diagonal from (-1, -1) to (1, 1), with glTF texture coordinates (v down the image).
-fn uv_quad(name: &str) -> Mesh {
-    let positions = vec![
-        Vec3::new(-1.0, -1.0, 0.0),
-        Vec3::new(1.0, -1.0, 0.0),
-        Vec3::new(1.0, 1.0, 0.0),
-        Vec3::new(-1.0, 1.0, 0.0),
-    ];
-    let quad = Mesh { normals: Some(vec![Vec3::Z; 4]), ..mesh(name, positions, vec![[0, 1, 2], [0, 2, 3]]) };
-    with_uvs(quad, |_, p| Vec2::new((p.x + 1.0) * 0.5, (1.0 - p.y) * 0.5))
-}
-
 /// Nearest filtering everywhere, level 0 only, clamped: every texel a hard square.
 const NEAREST: Sampler = Sampler {
     wrap_s: Wrap::ClampToEdge,
@@ -980,7 +967,7 @@ fn texture_cases(b: &mut Builder) {
         let texture = bind(&mut s, fence_image(8), NEAREST, UvTransform::default());
         let fence = Material { alpha_mode: AlphaMode::Mask { cutoff: 0.5 }, ..textured(name, Vec3::ONE, texture) };
         s.add_object(
-            uv_quad(name),
+            Mesh::uv_quad(name),
             fence,
             Mat4::from_translation(Vec3::new(x, 0.0, 0.0)) * Mat4::from_scale(Vec3::splat(0.95)),
             mode,
@@ -1012,7 +999,7 @@ fn texture_cases(b: &mut Builder) {
     let texture = bind(&mut s, ramp, clamped, UvTransform::default());
     let ramped = Material { alpha_mode: AlphaMode::Mask { cutoff: 0.5 }, ..textured("ramp", Vec3::ONE, texture) };
     s.add_object(
-        uv_quad("ramp_quad"),
+        Mesh::uv_quad("ramp_quad"),
         ramped,
         Mat4::from_translation(Vec3::new(-0.9, 0.0, 0.0)) * Mat4::from_quat(Quat::from_rotation_y(0.5)),
         RASTER,
@@ -1097,14 +1084,14 @@ fn texture_cases(b: &mut Builder) {
     let texture = bind(&mut s, fence_image(6), NEAREST, UvTransform::default());
     let fence = Material { alpha_mode: AlphaMode::Mask { cutoff: 0.5 }, ..textured("fence", Vec3::ONE, texture) };
     s.add_object(
-        uv_quad("fence"),
+        Mesh::uv_quad("fence"),
         fence,
         Mat4::from_translation(Vec3::new(0.0, 0.2, 1.0)) * Mat4::from_quat(Quat::from_rotation_y(std::f32::consts::PI)),
         RASTER,
     );
     let texture = bind(&mut s, pattern_image(), Sampler::default(), UvTransform::default());
     s.add_object(
-        uv_quad("back_wall"),
+        Mesh::uv_quad("back_wall"),
         textured("back_wall", Vec3::ONE, texture),
         Mat4::from_translation(Vec3::new(0.0, 0.5, 3.0))
             * Mat4::from_quat(Quat::from_rotation_y(std::f32::consts::PI))
@@ -1142,7 +1129,7 @@ fn texture_cases(b: &mut Builder) {
         let texture = bind(&mut s, small, sampler, stretch);
         let (col, row) = ((k % 3) as f32, (k / 3) as f32);
         s.add_object(
-            uv_quad("wrapped"),
+            Mesh::uv_quad("wrapped"),
             textured("wrapped", Vec3::ONE, texture),
             Mat4::from_translation(Vec3::new(-2.2 + 2.2 * col, 1.1 - 2.2 * row, 0.0)),
             if k % 2 == 0 { RT } else { RASTER },

@@ -32,7 +32,7 @@ use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::camera::primary_ray;
 use hyrt_core::scene::{
     AlphaMode, Camera, Filter, Light, Material, Mesh, RenderMode, Sampler, Scene, TextureBinding, TextureImage,
-    UvTransform, VertexAttributes, Wrap,
+    UvTransform, Wrap,
 };
 use hyrt_cpu::backend::CpuBackend;
 use hyrt_cpu::bounce_trace::bounce_trace_into;
@@ -43,25 +43,6 @@ use hyrt_cpu::traversal::Traversal;
 const BORDER: f32 = 1e-3;
 
 const SIZE: u32 = 96;
-
-/// A unit quad in the plane z = 0 (x, y in [-1, 1]) facing +z, with texture coordinates
-/// `u = (x + 1) / 2`, `v = (1 - y) / 2` (glTF's: v down the image).
-fn quad(name: &str) -> Mesh {
-    let positions = vec![
-        Vec3::new(-1.0, -1.0, 0.0),
-        Vec3::new(1.0, -1.0, 0.0),
-        Vec3::new(1.0, 1.0, 0.0),
-        Vec3::new(-1.0, 1.0, 0.0),
-    ];
-    let uv = vec![Vec2::new(0.0, 1.0), Vec2::new(1.0, 1.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 0.0)];
-    Mesh {
-        name: name.into(),
-        positions,
-        normals: Some(vec![Vec3::Z; 4]),
-        indices: vec![[0, 1, 2], [0, 2, 3]],
-        attributes: VertexAttributes { tex_coords: [Some(uv), None], colors: None },
-    }
-}
 
 /// The fence's texel at texture coordinates `uv`: `(opaque, red)`.
 fn fence_texel(uv: Vec2) -> (bool, bool) {
@@ -85,7 +66,7 @@ fn on_fence(x: f32, y: f32) -> Option<((bool, bool), bool)> {
 
 fn fence_scene(fence_mode: RenderMode) -> Scene {
     let mut scene = Scene::default();
-    let wall = Mesh { name: "wall".into(), ..quad("wall") };
+    let wall = Mesh { name: "wall".into(), ..Mesh::uv_quad("wall") };
     let grey = Material { base_color: Vec3::splat(0.5), ..Material::grey() };
     let wall_at = Mat4::from_translation(Vec3::new(0.0, 0.0, -1.0)) * Mat4::from_scale(Vec3::new(4.0, 4.0, 1.0));
     scene.add_object(wall, grey, wall_at, RenderMode::Raster);
@@ -121,7 +102,7 @@ fn fence_scene(fence_mode: RenderMode) -> Scene {
         alpha_mode: AlphaMode::Mask { cutoff: 0.5 },
         ..Material::grey()
     };
-    scene.add_object(quad("fence"), fence, Mat4::IDENTITY, fence_mode);
+    scene.add_object(Mesh::uv_quad("fence"), fence, Mat4::IDENTITY, fence_mode);
     scene.lights.push(Light::Directional { direction: Vec3::NEG_Z, color: Vec3::ONE, intensity: 1.0 });
     scene
 }
@@ -245,7 +226,7 @@ fn fence_pixels_take_their_texel_colour_rasterized_or_ray_traced() {
 #[test]
 fn vertex_colours_multiply_the_base_colour() {
     let mut scene = Scene::default();
-    let mut mesh = quad("coloured");
+    let mut mesh = Mesh::uv_quad("coloured");
     mesh.attributes.tex_coords = [None, None];
     // Red on the left edge, green on the right.
     mesh.attributes.colors =

@@ -8,9 +8,9 @@
 
 use std::f32::consts::{PI, TAU};
 
-use glam::{Mat4, Quat, Vec3};
+use glam::{Mat4, Quat, Vec2, Vec3};
 
-use super::{Camera, Light, Material, MaterialKind, Mesh, RenderMode, Scene};
+use super::{Camera, Light, Material, MaterialKind, Mesh, RenderMode, Scene, VertexAttributes};
 
 impl Mesh {
     /// A unit square in the XZ plane centred at the origin, facing +Y, split into
@@ -129,6 +129,26 @@ impl Mesh {
             }
         }
         Mesh { name: name.into(), positions, normals: Some(normals), indices, ..Default::default() }
+    }
+
+    /// The square [-1, 1]^2 in the plane z = 0 facing +z (two triangles sharing the diagonal
+    /// from (-1, -1) to (1, 1)), with glTF texture coordinates `TEXCOORD_0`:
+    /// `u = (x + 1) / 2`, `v = (1 - y) / 2` (v down the image, so the image stands upright).
+    pub fn uv_quad(name: &str) -> Mesh {
+        let positions = vec![
+            Vec3::new(-1.0, -1.0, 0.0),
+            Vec3::new(1.0, -1.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(-1.0, 1.0, 0.0),
+        ];
+        let uv = vec![Vec2::new(0.0, 1.0), Vec2::new(1.0, 1.0), Vec2::new(1.0, 0.0), Vec2::new(0.0, 0.0)];
+        Mesh {
+            name: name.into(),
+            positions,
+            normals: Some(vec![Vec3::Z; 4]),
+            indices: vec![[0, 1, 2], [0, 2, 3]],
+            attributes: VertexAttributes { tex_coords: [Some(uv), None], colors: None },
+        }
     }
 }
 
