@@ -3,6 +3,9 @@
 //! of [`LANES`] consecutive rays traced together with SIMD (module `packet`: primary and
 //! shadow rays), or one ray at a time through the 8-wide view of the same tree with SIMD
 //! box and leaf tests (module `single`: reflection and refraction rays, which spread out).
+//! Closest-hit packets whose rays travel together (primary rays from one eye) go through
+//! the 8-wide view instead, one frustum test per wide node for the whole packet (module
+//! `frustum`); the others, and every any-hit packet, walk the binary tree.
 //!
 //! All give the same answer for every ray: the SIMD code runs the scalar kernels'
 //! IEEE operations lane by lane (see `packet` for the argument and the one closest-hit
@@ -54,6 +57,7 @@
 //! rayon pool (use [`with_threads`] for a given thread count); results are in ray order
 //! and independent of the thread count.
 
+mod frustum;
 mod lanes;
 mod packet;
 mod single;
@@ -587,6 +591,9 @@ fn closest_hit_packets<L: Lanes>(
     rays: &[RayRecord],
     out: &mut [Option<ClosestHit>],
 ) {
+    // Coherent packets go through the wide view with one frustum test per node.
+    let extent = frustum::scene_extent(bvh);
+    let mut stack = if bvh.wide.is_empty() { Vec::new() } else { single::new_stack() };
     for (out, rays) in out.chunks_mut(LANES).zip(rays.chunks(LANES)) {
         let Some(p) = Packet::<L>::new(rays) else {
             for (o, r) in out.iter_mut().zip(rays) {
@@ -594,7 +601,11 @@ fn closest_hit_packets<L: Lanes>(
             }
             continue;
         };
-        let hits = packet::closest_hit(bvh, view, &p);
+        let coherent = if stack.is_empty() { None } else { frustum::Frustum::new(&p, extent) };
+        let hits = match coherent {
+            Some(f) => frustum::closest_hit(bvh, view, &p, &f, &mut stack),
+            None => packet::closest_hit(bvh, view, &p),
+        };
         out.copy_from_slice(&hits[..out.len()]);
     }
 }

@@ -53,23 +53,23 @@ use super::watertight;
 /// Up to [`LANES`] rays prepared for traversal, lane `i` from `rays[i]`.
 pub(crate) struct Packet<'a, L: Lanes> {
     /// The rays (lanes redone with the scalar kernel read them).
-    rays: &'a [RayRecord],
+    pub(super) rays: &'a [RayRecord],
     /// Lanes holding a ray that can hit something (see `Packet::new`).
     pub valid: u32,
-    origin: [L::F; 3],
-    inv_dir: [L::F; 3],
+    pub(super) origin: [L::F; 3],
+    pub(super) inv_dir: [L::F; 3],
     /// The direction of the first valid lane (orders children).
     dir0: [f32; 3],
     /// Per axis: index of the near plane in a node read as `[f32; 8]`: `4 + a` (the max)
     /// where the valid lanes' inverse directions are negative, else `a` (when they all
     /// agree, the usual case).
-    near: [usize; 3],
+    pub(super) near: [usize; 3],
     /// True if every valid lane's inverse direction is finite (no zero or subnormal
     /// direction component): slab distances are then never NaN.
-    finite_inv: bool,
+    pub(super) finite_inv: bool,
     /// True if the valid lanes' direction signs differ on some axis: the box test then
     /// picks the near plane per lane, from `neg_lanes`.
-    mixed: bool,
+    pub(super) mixed: bool,
     /// All ones where the lane's inverse direction is negative, per axis.
     neg_lanes: [L::F; 3],
     /// The origin with its axes permuted per lane (`permute_axes(origin, kz)`).
@@ -82,9 +82,9 @@ pub(crate) struct Packet<'a, L: Lanes> {
     shear: [L::F; 3],
     t_min: L::F,
     t_max: L::F,
-    box_t_min: L::F,
+    pub(super) box_t_min: L::F,
     /// `t_max * (1 + BVH_CULL_SLACK)`: the far bound of box tests for any hit.
-    box_t_max: L::F,
+    pub(super) box_t_max: L::F,
 }
 
 /// Lane mask from booleans.
@@ -202,7 +202,7 @@ impl<'a, L: Lanes> Packet<'a, L> {
     /// The conservative slab test of every lane against `node`'s box for the interval
     /// `[box_t_min, t_far]`: the mask of lanes that enter.
     #[inline(always)]
-    fn enter(&self, node: &BvhNode, t_far: L::F) -> u32 {
+    pub(super) fn enter(&self, node: &BvhNode, t_far: L::F) -> u32 {
         let t_enter = self.box_t_min;
         let t_exit = t_far;
         // The scalar order: x, y, z for both running bounds.
@@ -259,9 +259,16 @@ impl<'a, L: Lanes> Packet<'a, L> {
     }
 
     /// `WatertightRay::intersect` for the lanes in `active` against one triangle, with the
-    /// rays' own `(t_min, t_max)`: the mask of lanes hit and, in those lanes, `t, u, v`.
+    /// rays' own `(t_min, t_max)`: the mask of lanes hit and, in those lanes, `t, u, v`,
+    /// and the mask of lanes that see the triangle's back face
+    /// (`WatertightRay::back_face` of the determinant, the f32 sum of the edge functions
+    /// that the scalar kernel computes too, also where it redoes a lane).
     #[inline(always)]
-    fn intersect<const EARLY_OUT: bool>(&self, active: u32, tri: &TriangleRecord) -> (u32, L::F, L::F, L::F) {
+    pub(super) fn intersect<const EARLY_OUT: bool>(
+        &self,
+        active: u32,
+        tri: &TriangleRecord,
+    ) -> (u32, L::F, L::F, L::F, u32) {
         let p = [self.transform(tri.v0), self.transform(tri.v1), self.transform(tri.v2)];
         let h = watertight::intersect::<L, EARLY_OUT>(active, p, &self.shear, self.t_min, self.t_max);
         let (mut hit, exact) = (h.hit, h.exact);
@@ -282,7 +289,10 @@ impl<'a, L: Lanes> Packet<'a, L> {
             }
             (t_out, u_out, v_out) = (L::load(&ts), L::load(&us), L::load(&vs));
         }
-        (hit, t_out, u_out, v_out)
+        // back_face: (det > 0) == (shear.z > 0).
+        let zero = L::splat(0.0);
+        let back = !(L::bits(L::gt(h.det, zero)) ^ L::bits(L::gt(self.shear[2], zero)));
+        (hit, t_out, u_out, v_out, back)
     }
 }
 
@@ -426,7 +436,7 @@ pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, view: &SurfaceView, p: &Packet<L>, c
         |leaf: Leaf, mut m: u32, done: &mut u32| {
             for slot in leaf.slots() {
                 let tri = &bvh.leaf_triangles[slot as usize];
-                let (mut hit, _, u, v) = p.intersect::<false>(m, tri);
+                let (mut hit, _, u, v, _) = p.intersect::<false>(m, tri);
                 if hit != 0 && tri.flags & TRI_ALPHA_TEST != 0 {
                     hit = alpha_lanes::<L>(view, bvh, tri, slot, hit, u, v);
                 }
@@ -457,59 +467,110 @@ pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, view: &SurfaceView, p: &Packet<L>, c
     done
 }
 
+/// The closest hit so far of every lane of a packet: `t` (the rays' `t_max` where none
+/// yet), barycentrics, facing and triangle. Shared by the binary packets and the coherent
+/// ones (`frustum`).
+pub(super) struct ClosestLanes<L: Lanes> {
+    pub t: L::F,
+    u: L::F,
+    v: L::F,
+    /// Lanes whose closest hit is a back face.
+    back: u32,
+    id: [u32; LANES],
+}
+
+impl<L: Lanes> ClosestLanes<L> {
+    /// No hit yet.
+    #[inline(always)]
+    pub fn new(p: &Packet<'_, L>) -> Self {
+        ClosestLanes { t: p.t_max, u: L::splat(0.0), v: L::splat(0.0), back: 0, id: [INVALID_ID; LANES] }
+    }
+
+    /// Take the hits `hit` (at `t, u, v` per lane, back faces in `back`) on triangle `id`
+    /// where they are nearer than the lane's closest so far, or as near with a lower
+    /// triangle index (the scalar rule for ties). True if some lane improved.
+    #[inline(always)]
+    pub fn offer(&mut self, hit: u32, t: L::F, u: L::F, v: L::F, back: u32, id: u32) -> bool {
+        let mut take = hit & L::bits(L::lt(t, self.t));
+        let mut ties = hit & L::bits(L::eq(t, self.t));
+        while ties != 0 {
+            let i = ties.trailing_zeros() as usize;
+            ties &= ties - 1;
+            if id < self.id[i] {
+                take |= 1 << i;
+            }
+        }
+        if take == 0 {
+            return false;
+        }
+        let mut sel = [0.0; LANES];
+        for (i, s) in sel.iter_mut().enumerate() {
+            if take & (1 << i) != 0 {
+                *s = lane_mask(true);
+                self.id[i] = id;
+            }
+        }
+        self.back = (self.back & !take) | (back & take);
+        let sel = L::load(&sel);
+        self.t = L::select(sel, t, self.t);
+        self.u = L::select(sel, u, self.u);
+        self.v = L::select(sel, v, self.v);
+        true
+    }
+
+    /// Test the lanes `m` against the triangles of leaf slots `slots` (with the alpha
+    /// test of `view`) and take their hits ([`Self::offer`]). True if some lane improved.
+    #[inline(always)]
+    pub fn test_slots(
+        &mut self,
+        bvh: &Bvh,
+        view: &SurfaceView,
+        p: &Packet<'_, L>,
+        m: u32,
+        slots: impl Iterator<Item = u32>,
+    ) -> bool {
+        let mut improved = false;
+        for slot in slots {
+            let tri = &bvh.leaf_triangles[slot as usize];
+            let (mut hit, t, u, v, back) = p.intersect::<true>(m, tri);
+            if hit != 0 && tri.flags & TRI_ALPHA_TEST != 0 {
+                hit = alpha_lanes::<L>(view, bvh, tri, slot, hit, u, v);
+            }
+            if hit != 0 {
+                improved |= self.offer(hit, t, u, v, back, bvh.prim_indices[slot as usize]);
+            }
+        }
+        improved
+    }
+
+    /// The lanes' closest hits.
+    #[inline(always)]
+    pub fn hits(&self) -> [Option<ClosestHit>; LANES] {
+        let mut out = [None; LANES];
+        let (t, u, v) = (L::store(self.t), L::store(self.u), L::store(self.v));
+        for i in 0..LANES {
+            if self.id[i] != INVALID_ID {
+                let back_face = self.back >> i & 1 != 0;
+                out[i] = Some(ClosestHit { triangle: self.id[i], t: t[i], u: u[i], v: v[i], back_face });
+            }
+        }
+        out
+    }
+}
+
 /// Closest hit for every valid lane, lane `i` equal to `Bvh::closest_hit` for ray `i`
 /// (see the module docs for the one rounding corner case).
 #[inline(always)]
 pub(crate) fn closest_hit<L: Lanes>(bvh: &Bvh, view: &SurfaceView, p: &Packet<L>) -> [Option<ClosestHit>; LANES] {
     let widen = L::splat(1.0 + BVH_CULL_SLACK);
-    let mut best_t = p.t_max;
-    let mut best_u = L::splat(0.0);
-    let mut best_v = L::splat(0.0);
-    let mut best_id = [INVALID_ID; LANES];
-    let mut best_slot = [0u32; LANES];
-    let mut t_far = L::mul(best_t, widen);
+    let mut best = ClosestLanes::<L>::new(p);
+    let mut t_far = L::mul(best.t, widen);
     let leaf_test = inline_leaf_test(
         #[inline(always)]
         |leaf: Leaf, m: u32, t_far: &mut L::F| {
-            let mut improved = false;
-            for slot in leaf.slots() {
-                let tri = &bvh.leaf_triangles[slot as usize];
-                let (mut hit, t, u, v) = p.intersect::<true>(m, tri);
-                if hit != 0 && tri.flags & TRI_ALPHA_TEST != 0 {
-                    hit = alpha_lanes::<L>(view, bvh, tri, slot, hit, u, v);
-                }
-                if hit == 0 {
-                    continue;
-                }
-                let id = bvh.prim_indices[slot as usize];
-                let mut take = hit & L::bits(L::lt(t, best_t));
-                let mut ties = hit & L::bits(L::eq(t, best_t));
-                while ties != 0 {
-                    let i = ties.trailing_zeros() as usize;
-                    ties &= ties - 1;
-                    if id < best_id[i] {
-                        take |= 1 << i;
-                    }
-                }
-                if take == 0 {
-                    continue;
-                }
-                let mut sel = [0.0; LANES];
-                for (i, s) in sel.iter_mut().enumerate() {
-                    if take & (1 << i) != 0 {
-                        *s = lane_mask(true);
-                        best_id[i] = id;
-                        best_slot[i] = slot;
-                    }
-                }
-                let sel = L::load(&sel);
-                best_t = L::select(sel, t, best_t);
-                best_u = L::select(sel, u, best_u);
-                best_v = L::select(sel, v, best_v);
-                improved = true;
-            }
+            let improved = best.test_slots(bvh, view, p, m, leaf.slots());
             if improved {
-                *t_far = L::mul(best_t, widen);
+                *t_far = L::mul(best.t, widen);
                 LeafFlow::Narrowed
             } else {
                 LeafFlow::Continue
@@ -517,20 +578,7 @@ pub(crate) fn closest_hit<L: Lanes>(bvh: &Bvh, view: &SurfaceView, p: &Packet<L>
         },
     );
     traverse(&bvh.nodes, &ClosestHitLanes(p), &mut t_far, leaf_test);
-    let mut out = [None; LANES];
-    let (t, u, v) = (L::store(best_t), L::store(best_u), L::store(best_v));
-    for i in 0..LANES {
-        if best_id[i] != INVALID_ID {
-            // The packet keeps no determinant: the facing of the one winning triangle
-            // comes from the scalar kernel's determinant (the same edge functions).
-            let r = &p.rays[i];
-            let tri = &bvh.leaf_triangles[best_slot[i] as usize];
-            let back_face = WatertightRay::new(r.origin.into(), r.direction.into())
-                .is_some_and(|w| w.facing(tri.v0.into(), tri.v1.into(), tri.v2.into()));
-            out[i] = Some(ClosestHit { triangle: best_id[i], t: t[i], u: u[i], v: v[i], back_face });
-        }
-    }
-    out
+    best.hits()
 }
 
 const _: () = assert!(ALL_LANES.count_ones() as usize == LANES);

@@ -150,15 +150,21 @@ impl<L: Lanes> WideRay<L> {
     }
 }
 
-/// Push the children in `mask` with their entry distances, the nearest on top (ties in
-/// stored order; the order changes no result).
+/// Push the children in `mask` (entry `id(k)` for child `k`) with their entry distances,
+/// the nearest on top (ties in stored order; the order changes no result).
 #[inline(always)]
-fn push_nearest_last(node: &WideNode, mut mask: u32, t: &[f32; LANES], stack: &mut [(u32, f32)], sp: &mut usize) {
+pub(super) fn push_nearest_last(
+    mut mask: u32,
+    t: &[f32; LANES],
+    id: impl Fn(usize) -> u32,
+    stack: &mut [(u32, f32)],
+    sp: &mut usize,
+) {
     let base = *sp;
     while mask != 0 {
         let k = mask.trailing_zeros() as usize;
         mask &= mask - 1;
-        let e = (node.child[k], t[k]);
+        let e = (id(k), t[k]);
         // Insertion from the top: entries nearer than `e` move up.
         let mut j = *sp;
         while j > base && stack[j - 1].1 < e.1 {
@@ -194,7 +200,7 @@ pub(crate) fn closest_hit<L: Lanes>(wide: &WideBvh, ray: &RayRecord, stack: &mut
                 }
                 if mask != 0 {
                     // Several: the nearest next, the others on the stack.
-                    push_nearest_last(node, mask, &t, stack, &mut sp);
+                    push_nearest_last(mask, &t, |k| node.child[k], stack, &mut sp);
                     sp -= 1;
                     current = stack[sp].0;
                     continue 'walk;
