@@ -8,9 +8,11 @@
 //!
 //! ```text
 //! cargo run --release -p hyrt-benches --features embree --example ray_contest -- \
-//!     [--threads N] [--rounds N] [--simd avx2|avx512|sse2|portable] [--kind shadow|primary|both] SCENE...
+//!     [--threads N] [--rounds N] [--simd avx2|avx512|sse2|portable] [--kind shadow|primary|both]
+//!     [--packets-only] SCENE...
 //! ```
 //!
+//! `--packets-only` times hyrt's packets alone (no Embree, no single rays): for profiling.
 //! SCENE is a manifest name of `assets/scenes` (teaser, sponza, horse_near, horse_far,
 //! bunny_near, bunny_far, dragon); `all` is all of them.
 
@@ -35,10 +37,12 @@ struct Args {
     shadow: bool,
     primary: bool,
     scenes: Vec<String>,
+    /// Only hyrt's packets (for profiling them alone).
+    packets_only: bool,
 }
 
 fn parse() -> Result<Args, String> {
-    let mut a = Args { threads: 2, rounds: 5, shadow: true, primary: true, scenes: Vec::new() };
+    let mut a = Args { threads: 2, rounds: 5, shadow: true, primary: true, scenes: Vec::new(), packets_only: false };
     let mut it = std::env::args().skip(1);
     while let Some(arg) = it.next() {
         let mut value = |name: &str| it.next().ok_or(format!("{name} needs a value"));
@@ -56,6 +60,7 @@ fn parse() -> Result<Args, String> {
                 "both" => {}
                 k => return Err(format!("--kind: unknown kind {k}")),
             },
+            "--packets-only" => a.packets_only = true,
             "all" => a.scenes.extend(ALL.iter().map(|s| s.to_string())),
             s if s.starts_with("--") => return Err(format!("unknown option {s}")),
             s => a.scenes.push(s.to_string()),
@@ -80,6 +85,9 @@ fn print(kind: &str, scene: &str, rays: usize, names: &[String], ms: &[Vec<f64>]
         let med = median(m).unwrap_or(f64::NAN);
         println!("  {n:<44} {med:>8.2} ms {:>7.2} Mrays/s", rays as f64 / med / 1e3);
     }
+    if ms.len() == hyrt {
+        return;
+    }
     let rounds = ms[0].len();
     let best_peer: Vec<f64> =
         (0..rounds).map(|r| ms[hyrt..].iter().map(|m| m[r]).fold(f64::INFINITY, f64::min)).collect();
@@ -101,7 +109,11 @@ fn main() {
     let level = SimdLevel::detect();
     println!("SIMD level {}, {} threads, {} rounds", level.name(), args.threads, args.rounds);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(args.threads).build().expect("rayon pool");
-    let hyrt = [Traversal::Packet(level), Traversal::Single(level)];
+    let hyrt = if args.packets_only {
+        vec![Traversal::Packet(level)]
+    } else {
+        vec![Traversal::Packet(level), Traversal::Single(level)]
+    };
     for name in &args.scenes {
         let scene = match load_manifest(name) {
             Ok(s) => s.scene,
@@ -132,10 +144,12 @@ fn main() {
                     let (pool, rays) = (&pool, &rays);
                     runs.push(Box::new(move || pool.install(|| occluded_batch_into(bvh, &g.triangles, rays, t, o))));
                 }
-                let [o8, o8c] = &mut e_outs[..] else { unreachable!() };
-                let (p, r, e) = (&pool, &rays, &embree);
-                runs.push(Box::new(move || p.install(|| embree_chunks(r, o8, |r, o| e.occluded8(r, o)))));
-                runs.push(Box::new(move || p.install(|| embree_chunks(r, o8c, |r, o| e.occluded8_coherent(r, o)))));
+                if !args.packets_only {
+                    let [o8, o8c] = &mut e_outs[..] else { unreachable!() };
+                    let (p, r, e) = (&pool, &rays, &embree);
+                    runs.push(Box::new(move || p.install(|| embree_chunks(r, o8, |r, o| e.occluded8(r, o)))));
+                    runs.push(Box::new(move || p.install(|| embree_chunks(r, o8c, |r, o| e.occluded8_coherent(r, o)))));
+                }
                 let mut refs: Vec<&mut dyn FnMut()> = runs.iter_mut().map(|r| &mut **r as &mut dyn FnMut()).collect();
                 interleaved_ms(args.rounds, &mut refs)
             };
@@ -162,10 +176,14 @@ fn main() {
                     let (pool, rays) = (&pool, &rays);
                     runs.push(Box::new(move || pool.install(|| closest_hit_batch_into(bvh, &g.triangles, rays, t, o))));
                 }
-                let [o8, o8c] = &mut e_outs[..] else { unreachable!() };
-                let (p, r, e) = (&pool, &rays, &embree);
-                runs.push(Box::new(move || p.install(|| embree_chunks(r, o8, |r, o| e.intersect8(r, o)))));
-                runs.push(Box::new(move || p.install(|| embree_chunks(r, o8c, |r, o| e.intersect8_coherent(r, o)))));
+                if !args.packets_only {
+                    let [o8, o8c] = &mut e_outs[..] else { unreachable!() };
+                    let (p, r, e) = (&pool, &rays, &embree);
+                    runs.push(Box::new(move || p.install(|| embree_chunks(r, o8, |r, o| e.intersect8(r, o)))));
+                    runs.push(Box::new(move || {
+                        p.install(|| embree_chunks(r, o8c, |r, o| e.intersect8_coherent(r, o)))
+                    }));
+                }
                 let mut refs: Vec<&mut dyn FnMut()> = runs.iter_mut().map(|r| &mut **r as &mut dyn FnMut()).collect();
                 interleaved_ms(args.rounds, &mut refs)
             };

@@ -41,8 +41,16 @@
 //! The leaf's per-lane box test is the binary packets' (`Packet::enter` on the leaf's
 //! box, which is a binary node's box bit for bit), so the lanes testing a triangle are
 //! exactly those whose scalar traversal could reach its leaf under the current bound.
+//!
+//! Inside a leaf, the frustum is also tested against each triangle's own bounding box
+//! (the eight boxes at once, from the leaf's structure-of-arrays vertices), and the
+//! triangles no lane can reach are not tested. This is the culling the BVH does with its
+//! leaf boxes, applied to the smallest box around the triangle: a ray whose watertight
+//! test hits the triangle at `t` enters every box containing the triangle under a bound
+//! of at least `t` widened by `BVH_CULL_SLACK`, with the same heuristic margin (and the
+//! same documented corner case) as the leaf boxes themselves.
 
-use hyrt_core::bvh::wide::{WideChild, WideNode};
+use hyrt_core::bvh::wide::{WideChild, WideLeaf, WideNode};
 use hyrt_core::bvh::{Bvh, BvhNode, ClosestHit, BVH_CULL_SLACK};
 use hyrt_core::kernels::ray::SLAB_FAR_SCALE;
 use hyrt_core::kernels::texture::SurfaceView;
@@ -125,20 +133,49 @@ impl<L: Lanes> Frustum<L> {
     /// `t_far` (mask), and a lower bound of every lane's entry distance per child.
     #[inline(always)]
     fn enter(&self, node: &WideNode, t_far: f32) -> (u32, [f32; LANES]) {
+        let lo = [L::load(&node.lo[0]), L::load(&node.lo[1]), L::load(&node.lo[2])];
+        let hi = [L::load(&node.hi[0]), L::load(&node.hi[1]), L::load(&node.hi[2])];
+        let (t_enter, t_exit) = self.slabs(lo, hi, t_far);
+        let used = (1u32 << node.count) - 1;
+        (L::bits(L::le(t_enter, t_exit)) & used, L::store(t_enter))
+    }
+
+    /// The triangles of `leaf` (its first `count`) some valid lane may hit before `t_far`:
+    /// the frustum test of each triangle's bounding box (the exact minimum and maximum of
+    /// its vertices). A box containing a triangle is entered by a ray that hits the
+    /// triangle, as the leaf's own box is (the slack of `BVH_CULL_SLACK`); see the module
+    /// docs.
+    #[inline(always)]
+    fn triangles(&self, leaf: &WideLeaf, count: u32, t_far: f32) -> u32 {
+        let v = &leaf.v;
+        let mut lo = [L::splat(0.0); 3];
+        let mut hi = [L::splat(0.0); 3];
+        for a in 0..3 {
+            let (v0, v1, v2) = (L::load(&v[0][a]), L::load(&v[1][a]), L::load(&v[2][a]));
+            lo[a] = L::min(L::min(v0, v1), v2);
+            hi[a] = L::max(L::max(v0, v1), v2);
+        }
+        let (t_enter, t_exit) = self.slabs(lo, hi, t_far);
+        L::bits(L::le(t_enter, t_exit)) & ((1u32 << count) - 1)
+    }
+
+    /// The frustum's entry and exit bounds of eight boxes (`lo`, `hi` per axis, a box per
+    /// lane) for `[t_min, t_far]`.
+    #[inline(always)]
+    fn slabs(&self, lo: [L::F; 3], hi: [L::F; 3], t_far: f32) -> (L::F, L::F) {
         let mut tn = [self.t_min_lo; 3];
         let mut tf = [L::splat(t_far); 3];
         let scale = L::splat(SLAB_FAR_SCALE);
         for a in 0..3 {
-            let (near, far) = if self.near_is_max[a] { (&node.hi[a], &node.lo[a]) } else { (&node.lo[a], &node.hi[a]) };
-            let dn = L::sub(L::load(near), self.o_near[a]);
+            let (near, far) = if self.near_is_max[a] { (hi[a], lo[a]) } else { (lo[a], hi[a]) };
+            let dn = L::sub(near, self.o_near[a]);
             tn[a] = L::min(L::mul(dn, self.inv_lo[a]), L::mul(dn, self.inv_hi[a]));
-            let df = L::sub(L::load(far), self.o_far[a]);
+            let df = L::sub(far, self.o_far[a]);
             tf[a] = L::mul(L::max(L::mul(df, self.inv_lo[a]), L::mul(df, self.inv_hi[a])), scale);
         }
         let t_enter = L::max(L::max(tn[0], tn[1]), L::max(tn[2], self.t_min_lo));
         let t_exit = L::min(L::min(tf[0], tf[1]), L::min(tf[2], L::splat(t_far)));
-        let used = (1u32 << node.count) - 1;
-        (L::bits(L::le(t_enter, t_exit)) & used, L::store(t_enter))
+        (t_enter, t_exit)
     }
 }
 
@@ -212,6 +249,13 @@ pub(crate) fn closest_hit<L: Lanes>(
     'walk: loop {
         let n = &wide.nodes[node as usize];
         let (mask, t) = f.enter(n, t_far_hi);
+        if mask.is_power_of_two() {
+            // One child entered: an inner node is visited next without the stack.
+            if let WideChild::Node(c) = WideChild::decode(n.child[mask.trailing_zeros() as usize]) {
+                node = c;
+                continue 'walk;
+            }
+        }
         super::single::push_nearest_last(mask, &t, |k| entry(node, k), stack, &mut sp);
         loop {
             if sp == 0 {
@@ -235,7 +279,13 @@ pub(crate) fn closest_hit<L: Lanes>(
                         continue;
                     }
                     let first = wide.first_slots[leaf as usize];
-                    let improved = best.test_slots(bvh, view, p, m, first..first + count);
+                    let mut tris = f.triangles(&wide.leaves[leaf as usize], count, t_far_hi);
+                    let slots = std::iter::from_fn(|| {
+                        let k = (tris != 0).then(|| tris.trailing_zeros())?;
+                        tris &= tris - 1;
+                        Some(first + k)
+                    });
+                    let improved = best.test_slots(bvh, view, p, m, slots);
                     if improved {
                         t_far = L::mul(best.t, widen);
                         t_far_hi = max_lane::<L>(t_far, p.valid);
