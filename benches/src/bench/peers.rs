@@ -600,8 +600,11 @@ impl Peers {
              (or per packet of 8 consecutive rays) over chunks of {SHADOW_RAY_CHUNK} rays, each writing into an \
              output buffer reused across runs; times are medians of repeated runs. Embree's packets run with its \
              default (incoherent) intersect context and with the context flagged coherent, which lets Embree use \
-             its frustum-based coherent packet traversal (faster on these lists); the goals take the faster. Shadow rays are a real {w}x{h} frame's ray list (`Frame::rays`), primary rays one per \
-             pixel through its centre. Embree's triangle test is not watertight, hyrt's is: rays through shared \
+             its frustum-based coherent packet traversal (faster on these lists); the goals take the faster. \
+             hyrt's closest-hit packets do the same where their rays travel together (one frustum test per node \
+             of the 8-wide tree; primary rays) and walk the binary tree lane by lane otherwise; its any-hit \
+             packets always walk the binary tree. Shadow rays are a real {w}x{h} frame's ray list \
+             (`Frame::rays`), primary rays one per pixel through its centre. Embree's triangle test is not watertight, hyrt's is: rays through shared \
              edges or vertices may differ, and the count of such rays is reported as measured."
         );
         if let Some(m) = &self.embree_missing {
