@@ -2,7 +2,9 @@
 //!
 //! `hyrt render [SCENE] --out frame.png --size 1280x720 --backend cpu --weight W
 //! --eye X,Y,Z --target X,Y,Z --fov DEG --environment MAP.hdr --dump DIR`: with no SCENE
-//! it renders the built-in default scene; `--out frame.exr` writes linear OpenEXR.
+//! it renders the built-in default scene; `--out frame.exr` writes linear OpenEXR. An
+//! animated glTF scene renders at `--time T` seconds of its first animation (or
+//! `--animation NAME`), or `--frames N --fps F` renders N frames from there to numbered images.
 //!
 //! `hyrt bench [--quick] [--out DIR]`: the benchmark report (Table 2 reproduction, peers,
 //! scaling) as `DIR/report.md` plus PNG plots; see `hyrt_benches::bench`.
@@ -183,9 +185,24 @@ struct RenderArgs {
     #[arg(long)]
     threads: Option<usize>,
     /// Render this many frames (reusing every buffer) and report the median time of
-    /// each stage over them; the image is the last frame's.
+    /// each stage over them; the image is the last frame's. With --fps: that many frames of
+    /// the animation, each to its own numbered image.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
     frames: u32,
+    /// Pose an animated glTF scene at this time in seconds (of its first animation, or
+    /// --animation's). Times before the first key take the first pose and times past the
+    /// animation's end its last (glTF clamps; there is no looping). A scene without
+    /// animations is an error.
+    #[arg(long, value_parser = parse_time, allow_hyphen_values = true)]
+    time: Option<f32>,
+    /// The animation --time and --fps play, by name (default: the file's first).
+    #[arg(long)]
+    animation: Option<String>,
+    /// Render --frames N frames of the animation at --time (default 0) + i / FPS seconds, each
+    /// prepared from the scene posed at its time, to numbered images: --out frame.png writes
+    /// frame_0000.png, frame_0001.png, ...; --dump holds the last frame's stages.
+    #[arg(long, value_parser = parse_fps)]
+    fps: Option<f32>,
     /// BVH build preset (obvhs).
     #[arg(long, value_enum)]
     bvh_preset: Option<PresetArg>,
@@ -247,24 +264,46 @@ fn parse_fov(s: &str) -> Result<f32, String> {
     }
 }
 
-/// Milliseconds since `t`.
-fn ms_since(t: Instant) -> f64 {
-    t.elapsed().as_secs_f64() * 1e3
+fn parse_time(s: &str) -> Result<f32, String> {
+    let t: f32 = s.parse().map_err(|_| format!("bad number '{s}'"))?;
+    if t.is_finite() {
+        Ok(t)
+    } else {
+        Err(format!("time must be a finite number of seconds, got {s}"))
+    }
 }
 
-fn render(args: RenderArgs) -> Result<(), String> {
-    let started = Instant::now();
-    let mut scene = match &args.scene {
-        Some(path) => Scene::load(path).map_err(|e| e.to_string())?,
-        None => Scene::default_scene(),
+fn parse_fps(s: &str) -> Result<f32, String> {
+    let f: f32 = s.parse().map_err(|_| format!("bad number '{s}'"))?;
+    if f > 0.0 && f.is_finite() {
+        Ok(f)
+    } else {
+        Err(format!("frames per second must be a positive finite number, got {s}"))
+    }
+}
+
+/// The animation `--time`, `--animation` or `--fps` asks for (`None` when none of them is
+/// given): `--animation`'s, else the first. A scene without animations, or without one of
+/// that name, is an error.
+fn chosen_animation(scene: &Scene, args: &RenderArgs) -> Result<Option<usize>, String> {
+    if args.time.is_none() && args.animation.is_none() && args.fps.is_none() {
+        return Ok(None);
+    }
+    let name = args.scene.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| "the default scene".into());
+    let Some(animation) = &scene.animation else {
+        return Err(format!("{name} has no animations: --time, --animation and --fps pose an animated glTF scene"));
     };
-    scene.ensure_camera_and_lights();
-    if let Some(path) = &args.environment {
-        scene.environment = hyrt::Environment::load(path).map_err(|e| e.to_string())?;
+    match &args.animation {
+        None => Ok(Some(0)),
+        Some(wanted) => animation.find(wanted).map(Some).ok_or_else(|| {
+            let names: Vec<String> = animation.animations().iter().map(|a| format!("'{}'", a.name())).collect();
+            format!("{name} has no animation '{wanted}' (it has {})", names.join(", "))
+        }),
     }
-    for note in &scene.notes {
-        eprintln!("note: {note}");
-    }
+}
+
+/// The scene's camera with the command line's overrides.
+fn frame_camera(scene: &Scene, args: &RenderArgs) -> Result<hyrt::Camera, String> {
     let mut camera = scene.camera.expect("ensure_camera_and_lights sets a camera");
     if let Some(eye) = args.eye {
         camera.eye = eye;
@@ -281,6 +320,54 @@ fn render(args: RenderArgs) -> Result<(), String> {
     if (camera.target - camera.eye).cross(camera.up).length_squared() == 0.0 {
         camera.up = if camera.up.dot(Vec3::Z).abs() < 0.9 { Vec3::Z } else { Vec3::X };
     }
+    Ok(camera)
+}
+
+/// `frame.png` -> `frame_0007.png`: frame `i` of an animation rendered to `out`.
+fn numbered(out: &std::path::Path, i: u32) -> PathBuf {
+    let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = match out.extension() {
+        Some(ext) => format!("{stem}_{i:04}.{}", ext.to_string_lossy()),
+        None => format!("{stem}_{i:04}"),
+    };
+    out.with_file_name(name)
+}
+
+/// Write the final image as OpenEXR (a name ending in .exr) or PNG.
+fn write_image(path: &std::path::Path, w: u32, h: u32, frame: &hyrt::Frame) -> Result<(), String> {
+    let exr = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    if exr {
+        hyrt::image_io::write_exr(path, w, h, &frame.final_image)
+    } else {
+        hyrt::image_io::write_png(path, w, h, &frame.final_image)
+    }
+    .map_err(|e| e.to_string())
+}
+
+/// Milliseconds since `t`.
+fn ms_since(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+fn render(args: RenderArgs) -> Result<(), String> {
+    let started = Instant::now();
+    let mut scene = match &args.scene {
+        Some(path) => Scene::load(path).map_err(|e| e.to_string())?,
+        None => Scene::default_scene(),
+    };
+    let animation = chosen_animation(&scene, &args)?;
+    let start_time = args.time.unwrap_or(0.0);
+    if let Some(a) = animation {
+        scene.set_time(a, start_time).map_err(|e| e.to_string())?;
+    }
+    scene.ensure_camera_and_lights();
+    if let Some(path) = &args.environment {
+        scene.environment = hyrt::Environment::load(path).map_err(|e| e.to_string())?;
+    }
+    for note in &scene.notes {
+        eprintln!("note: {note}");
+    }
+    let mut camera = frame_camera(&scene, &args)?;
     let preset = match args.bvh_preset {
         None => BvhPreset::default(),
         Some(PresetArg::Fastest) => BvhPreset::Fastest,
@@ -303,7 +390,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
     eprintln!("backend: {}", renderer.choice_details());
     let (w, h) = args.size;
     let t = Instant::now();
-    let prepared = renderer.prepare(&scene);
+    let mut prepared = renderer.prepare(&scene);
     let prepare_ms = ms_since(t);
     // Every stage's output is kept only for --dump (the GPU then reads them back too).
     let max_depth = args.max_depth.unwrap_or(hyrt::DEFAULT_MAX_DEPTH);
@@ -316,11 +403,24 @@ fn render(args: RenderArgs) -> Result<(), String> {
     let mut per_frame = Vec::with_capacity(args.frames as usize);
     // Wall clock of each frame (the call, readback included) and the sum of its stages.
     let mut walls = Vec::with_capacity(args.frames as usize);
-    for _ in 0..args.frames {
+    // With --fps each frame poses the scene at its time and is prepared from it (frame 0 is
+    // the pose set above); without, the same prepared scene renders every frame.
+    let playing = animation.zip(args.fps);
+    for i in 0..args.frames {
+        if let (Some((a, fps)), true) = (playing, i > 0) {
+            scene.set_time(a, start_time + i as f32 / fps).map_err(|e| e.to_string())?;
+            camera = frame_camera(&scene, &args)?;
+            prepared = renderer.prepare(&scene);
+        }
         let t = Instant::now();
         renderer.render_into(&prepared, &camera, w, h, &options, &mut frame).map_err(|e| e.to_string())?;
         walls.push((ms_since(t), frame.stats.frame_ms()));
         per_frame.push(frame.stats.stage_ms.clone());
+        if let Some((_, fps)) = playing {
+            let out = numbered(&args.out, i);
+            write_image(&out, w, h, &frame)?;
+            println!("wrote {} (t = {:.4} s)", out.display(), start_time + i as f32 / fps);
+        }
     }
     // Median per step (stage and depth) over the frames (the lower middle for an even count).
     let median = |label: &str| -> f64 {
@@ -329,13 +429,9 @@ fn render(args: RenderArgs) -> Result<(), String> {
         v.sort_by(f64::total_cmp);
         v[(v.len() - 1) / 2]
     };
-    let exr = args.out.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
-    if exr {
-        hyrt::image_io::write_exr(&args.out, w, h, &frame.final_image)
-    } else {
-        hyrt::image_io::write_png(&args.out, w, h, &frame.final_image)
+    if playing.is_none() {
+        write_image(&args.out, w, h, &frame)?;
     }
-    .map_err(|e| e.to_string())?;
 
     let s = &frame.stats;
     let name = args.scene.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| "default scene".into());
@@ -401,7 +497,9 @@ fn render(args: RenderArgs) -> Result<(), String> {
     } else {
         println!("warm: not measured (one frame; --frames 3 measures the frames after the first)");
     }
-    println!("wrote {}", args.out.display());
+    if playing.is_none() {
+        println!("wrote {}", args.out.display());
+    }
     if let Some(dir) = &args.dump {
         let files = dump::write_dump(dir, &scene, &prepared, &camera, &frame, renderer.backend_name())
             .map_err(|e| e.to_string())?;

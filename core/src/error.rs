@@ -49,6 +49,28 @@ pub enum SceneError {
     },
 }
 
+/// Why a scene could not be posed at a time of one of its animations ([`crate::scene::Scene::set_time`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum AnimationError {
+    /// The scene has no animations (not a glTF file with `animations`).
+    #[error("the scene has no animations")]
+    NotAnimated,
+    /// The animation index is out of range.
+    #[error("animation {index} does not exist (the scene has {count})")]
+    NoSuchAnimation { index: usize, count: usize },
+    /// The pose leaves the camera or a directional light without a direction (a node scaled
+    /// to zero, say); the scene is left as it was.
+    #[error("animation '{animation}' at {time} s leaves the {what} of {node} degenerate (a zero scale?)")]
+    Degenerate {
+        animation: String,
+        time: f32,
+        /// The node, e.g. `node 3 'camera'`.
+        node: String,
+        /// `camera` or `directional light`.
+        what: &'static str,
+    },
+}
+
 /// A GPU backend failure: no adapter, a device that could not be created or was lost,
 /// out of memory, a failed readback. Defined here, beside [`crate::frame::RenderError`]
 /// which carries it typed ([`crate::frame::RenderError::Gpu`]), so a caller can match on

@@ -34,5 +34,5 @@ pub mod plan;
 pub mod scene;
 pub mod stage;
 
-pub use error::{GpuError, SceneError};
+pub use error::{AnimationError, GpuError, SceneError};
 pub use glam;

@@ -55,7 +55,7 @@ pub use hyrt_core::scene::{
     Scene,
 };
 pub use hyrt_core::stage::Stage;
-pub use hyrt_core::{glam, GpuError, SceneError};
+pub use hyrt_core::{glam, AnimationError, GpuError, SceneError};
 pub use hyrt_cpu::backend::CpuBackend;
 /// How the CPU backend traces rays (`CpuBackend::set_shadow_traversal`,
 /// `CpuBackend::set_bounce_traversal`) and which SIMD level it runs.

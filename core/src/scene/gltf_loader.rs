@@ -14,8 +14,7 @@
 //!   primitive without indices gets `0..n`. Sparse accessors and accessors without a buffer
 //!   view (all zeros) are supported. `TEXCOORD_0`, `TEXCOORD_1` (float32, or normalized
 //!   unsigned 8/16-bit `VEC2`) and `COLOR_0` (the same types, `VEC3` or `VEC4`, linear) are
-//!   kept with one value per position; another type or count is an error. Skins and morph
-//!   targets are ignored.
+//!   kept with one value per position; another type or count is an error.
 //! * **Textures.** A material's `baseColorTexture` is read with its sampler (wrap modes,
 //!   `magFilter`, `minFilter`; undefined filters are linear, mip-mapped), its `texCoord`
 //!   (0 or 1) and `KHR_texture_transform` (offset, rotation, scale, `texCoord` override).
@@ -49,6 +48,22 @@
 //!   1/d^2 falloff for point lights): the renderer is not photometric, so a point light of
 //!   intensity I lights a surface facing it at distance d like a directional light of
 //!   intensity I / d^2. `range` is ignored (no cutoff).
+//! * **Animations** (`animations`): each becomes an [`Animation`] of the scene's
+//!   [`SceneAnimation`] ([`Scene::animation`]), which also keeps the hierarchy walked (per
+//!   node: parent, TRS or matrix, the objects, camera and light it places), so that
+//!   [`Scene::set_time`] can pose the scene; the scene loads in its rest pose (the nodes' own
+//!   transforms). Channels drive `translation`, `rotation` or `scale` of a TRS node (an animated
+//!   node with a `matrix` is an error, as glTF forbids it) through samplers: input float32
+//!   `SCALAR` key times (finite, from 0, strictly increasing), output float32 `VEC3`
+//!   (translation, scale) or float32 / normalized 8- and 16-bit integer `VEC4` (rotation,
+//!   normalized to unit length when loaded), one value per key, three for `CUBICSPLINE` (which
+//!   needs two keys); `STEP`, `LINEAR`, `CUBICSPLINE`. Any other type or count, a non-finite
+//!   value, or two channels driving the same property of a node is a [`SceneError::Content`]
+//!   error. Channels of morph target `weights`, and channels driving nodes outside the scene
+//!   walked, are ignored with a note. A file without animations gets no hierarchy.
+//! * **Skins and morph targets** are not applied: a skinned mesh renders unskinned in its bind
+//!   pose (its vertices as stored) placed by its node, a mesh with morph targets renders its
+//!   base geometry whatever its weights; a note names them.
 //! * **Not added here:** a default camera or default lights; the caller decides
 //!   ([`Scene::ensure_camera_and_lights`]).
 //!
@@ -62,10 +77,14 @@
 use std::collections::{HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
-use glam::{Mat4, Vec2, Vec3};
+use glam::{Mat4, Quat, Vec2, Vec3};
 use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::{Mode, Semantic};
 
+use super::animation::{
+    camera_frame, light_direction, light_position, AnimatedProperty, Animation, AnimationChannel, AnimationSampler,
+    Interpolation, Keyframes, NodeTransform, SceneAnimation, SceneNode,
+};
 use super::files::{Budget, Disk, SceneFiles};
 use super::texture::{AlphaMode, Filter, Sampler, TextureBinding, TextureImage, UvTransform, VertexAttributes, Wrap};
 use super::{Camera, Light, Material, MaterialKind, Mesh, Object, ObjectSource, RenderMode, Scene};
@@ -112,6 +131,10 @@ pub(crate) struct LoadedGltf {
     pub mode_from_extras: Vec<bool>,
     /// The bytes of the file and of its buffers (what a manifest's budget grows by).
     pub input_bytes: usize,
+    /// The hierarchy walked when the file has no animations (with animations it is in
+    /// [`Scene::animation`] and this is empty).
+    #[cfg_attr(not(test), allow(dead_code))]
+    pub unanimated_nodes: Vec<SceneNode>,
 }
 
 /// [`load_gltf_slice`], also telling which render modes came from `extras`.
@@ -163,7 +186,12 @@ pub(crate) fn load_gltf_detailed(path: &Path, bytes: &[u8], files: &dyn SceneFil
     let input_bytes = buffers.iter().map(Vec::len).fold(bytes.len(), usize::saturating_add);
     let mut converter = Converter::new(path, &buffers, files, Budget::for_input(input_bytes));
     converter.scene.notes.extend(tolerated_note.map(|n| format!("{}: {n}", path.display())));
-    converter.run(&document).map(|(scene, mode_from_extras)| LoadedGltf { scene, mode_from_extras, input_bytes })
+    converter.run(&document).map(|(scene, mode_from_extras, unanimated_nodes)| LoadedGltf {
+        scene,
+        mode_from_extras,
+        input_bytes,
+        unanimated_nodes,
+    })
 }
 
 /// The JSON chunk and the binary chunk (if any) of a GLB file, every length checked
@@ -346,6 +374,14 @@ struct Converter<'a> {
     image_json: Vec<gltf::json::Image>,
     /// Per glTF buffer view: its bytes, or why they are out of range.
     views: Vec<Result<&'a [u8], String>>,
+    /// The nodes walked, in walk order (what [`SceneAnimation`] keeps when the file has
+    /// animations).
+    nodes: Vec<SceneNode>,
+    /// glTF node index -> index in `nodes` (`None`: not in the scene walked).
+    node_slot: Vec<Option<usize>>,
+    /// Labels of the nodes with a skin and of the meshes with morph targets met in the walk.
+    skinned: Vec<String>,
+    morphed: Vec<String>,
 }
 
 impl<'a> Converter<'a> {
@@ -364,6 +400,10 @@ impl<'a> Converter<'a> {
             images: HashMap::new(),
             image_json: Vec::new(),
             views: Vec::new(),
+            nodes: Vec::new(),
+            node_slot: Vec::new(),
+            skinned: Vec::new(),
+            morphed: Vec::new(),
         }
     }
 
@@ -378,7 +418,9 @@ impl<'a> Converter<'a> {
         SceneError::Content { path: self.path.to_path_buf(), message }
     }
 
-    fn run(mut self, document: &gltf::Document) -> Result<(Scene, Vec<bool>), SceneError> {
+    /// Convert the document: the scene, whether each object's render mode came from extras,
+    /// and the hierarchy walked unless the scene keeps it (when the file has animations).
+    fn run(mut self, document: &gltf::Document) -> Result<(Scene, Vec<bool>, Vec<SceneNode>), SceneError> {
         self.image_json = document.as_json().images.clone();
         let buffers = self.buffers;
         self.views = document.views().map(|view| view_bytes(&view, buffers)).collect();
@@ -399,45 +441,97 @@ impl<'a> Converter<'a> {
             }
         };
         // Depth-first, children in file order: a stack popped from the back, pushed reversed.
-        let mut visited = vec![false; document.nodes().len()];
-        let mut stack: Vec<(gltf::Node, Mat4)> = roots.into_iter().rev().map(|n| (n, Mat4::IDENTITY)).collect();
-        while let Some((node, parent)) = stack.pop() {
-            if std::mem::replace(&mut visited[node.index()], true) {
+        // Each entry carries its parent's world transform and index in `self.nodes`.
+        self.node_slot = vec![None; document.nodes().len()];
+        let mut stack: Vec<(gltf::Node, Mat4, Option<usize>)> =
+            roots.into_iter().rev().map(|n| (n, Mat4::IDENTITY, None)).collect();
+        while let Some((node, parent, parent_slot)) = stack.pop() {
+            if self.node_slot[node.index()].is_some() {
                 return Err(self.content(format!(
                     "node {} is reached twice in the node hierarchy (a cycle, or a node with two parents)",
                     node.index()
                 )));
             }
-            let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
-            self.visit(&node, world)?;
+            let rest = Mat4::from_cols_array_2d(&node.transform().matrix());
+            let world = parent * rest;
+            let slot = self.visit(&node, world, rest, parent_slot)?;
             let children: Vec<gltf::Node> = node.children().collect();
-            stack.extend(children.into_iter().rev().map(|c| (c, world)));
+            stack.extend(children.into_iter().rev().map(|c| (c, world, Some(slot))));
         }
         if self.camera_needs_far {
             self.derive_camera_far();
         }
-        Ok((self.scene, self.mode_from_extras))
+        self.note_skins_and_morph_targets();
+        if document.animations().len() > 0 {
+            let animations = self.animations(document)?;
+            let nodes = std::mem::take(&mut self.nodes);
+            self.scene.animation = Some(SceneAnimation::new(nodes, animations).map_err(|e| self.content(e))?);
+        }
+        Ok((self.scene, self.mode_from_extras, self.nodes))
     }
 
-    fn visit(&mut self, node: &gltf::Node, world: Mat4) -> Result<(), SceneError> {
+    /// Convert what `node` places at `world` (its local matrix `rest`), record it in the
+    /// hierarchy under `parent` and return its index there.
+    fn visit(
+        &mut self,
+        node: &gltf::Node,
+        world: Mat4,
+        rest: Mat4,
+        parent: Option<usize>,
+    ) -> Result<usize, SceneError> {
         let node_label = match node.name() {
             Some(name) => format!("node {} '{name}'", node.index()),
             None => format!("node {}", node.index()),
         };
+        let had_camera = self.scene.camera.is_some();
         if let Some(camera) = node.camera() {
             self.camera(&camera, &node_label, world);
         }
+        let lights = self.scene.lights.len();
         if let Some(light) = node.light() {
             self.light(&light, &node_label, world);
         }
+        let first_object = self.scene.objects.len() as u32;
+        if node.skin().is_some() {
+            self.skinned.push(node_label.clone());
+        }
+        self.place_mesh(node, world, &node_label)?;
+        let transform = match node.transform() {
+            gltf::scene::Transform::Matrix { matrix } => NodeTransform::Matrix(Mat4::from_cols_array_2d(&matrix)),
+            gltf::scene::Transform::Decomposed { translation, rotation, scale } => NodeTransform::Trs {
+                translation: Vec3::from(translation),
+                rotation: Quat::from_array(rotation),
+                scale: Vec3::from(scale),
+            },
+        };
+        self.nodes.push(SceneNode {
+            gltf_index: node.index(),
+            label: node_label,
+            parent,
+            transform,
+            rest,
+            objects: (first_object..self.scene.objects.len() as u32).collect(),
+            camera: !had_camera && self.scene.camera.is_some(),
+            light: (self.scene.lights.len() > lights).then_some(lights),
+        });
+        self.node_slot[node.index()] = Some(self.nodes.len() - 1);
+        Ok(self.nodes.len() - 1)
+    }
+
+    /// One object per triangle primitive of the node's mesh, at `world`.
+    fn place_mesh(&mut self, node: &gltf::Node, world: Mat4, node_label: &str) -> Result<(), SceneError> {
         let Some(mesh) = node.mesh() else {
             return Ok(());
         };
-        let node_mode = self.hyrt_ray_traced(node.extras(), &node_label)?;
+        let node_mode = self.hyrt_ray_traced(node.extras(), node_label)?;
         let mesh_label = match mesh.name() {
             Some(name) => format!("mesh {} '{name}'", mesh.index()),
             None => format!("mesh {}", mesh.index()),
         };
+        let morphed = mesh.weights().is_some() || mesh.primitives().any(|p| p.morph_targets().len() > 0);
+        if morphed && !self.morphed.contains(&mesh_label) {
+            self.morphed.push(mesh_label.clone());
+        }
         let mesh_mode = self.hyrt_ray_traced(mesh.extras(), &mesh_label)?;
         let base_name =
             node.name().or(mesh.name()).map(str::to_string).unwrap_or_else(|| format!("node{}", node.index()));
@@ -618,10 +712,10 @@ impl<'a> Converter<'a> {
             (Semantic::Colors(_), Dimensions::Vec4) => 4,
             (_, other) => return Err(self.content(format!("{label}: {what} cannot be {other:?}"))),
         };
-        let size = match acc.data_type() {
-            DataType::F32 => 4,
-            DataType::U8 if acc.normalized() => 1,
-            DataType::U16 if acc.normalized() => 2,
+        let data_type = acc.data_type();
+        match data_type {
+            DataType::F32 => {}
+            DataType::U8 | DataType::U16 if acc.normalized() => {}
             other => {
                 return Err(self.content(format!(
                     "{label}: {what} must be float32 or normalized unsigned 8/16-bit, found {other:?}{}",
@@ -632,17 +726,11 @@ impl<'a> Converter<'a> {
         if acc.count() != vertices {
             return Err(self.content(format!("{label}: {} {what} values for {vertices} positions", acc.count())));
         }
-        let component = move |b: &[u8]| -> f32 {
-            match size {
-                1 => b[0] as f32 / 255.0,
-                2 => u16::from_le_bytes([b[0], b[1]]) as f32 / 65535.0,
-                _ => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
-            }
-        };
+        let size = data_type.size();
         let values = read_accessor(&acc, self.buffers, &mut self.budget, dims * size, |b| {
             let mut v = [0.0, 0.0, 0.0, 1.0];
             for (k, c) in v.iter_mut().take(dims).enumerate() {
-                *c = component(&b[k * size..]);
+                *c = component_f32(data_type, &b[k * size..]);
             }
             v
         })
@@ -873,26 +961,18 @@ impl<'a> Converter<'a> {
             self.scene.notes.push(format!("{file}: {node_label}: orthographic camera ignored"));
             return;
         };
-        let eye = world.transform_point3(Vec3::ZERO);
-        let forward = world.transform_vector3(Vec3::NEG_Z).normalize_or_zero();
-        let up = world.transform_vector3(Vec3::Y).normalize_or_zero();
         let fov_y_deg = p.yfov().to_degrees();
         let near = p.znear();
-        let usable = eye.is_finite()
-            && forward != Vec3::ZERO
-            && up != Vec3::ZERO
-            && forward.cross(up).length_squared() > 0.0
-            && fov_y_deg > 0.0
-            && fov_y_deg < 180.0
-            && near > 0.0
-            && near.is_finite();
-        if !usable {
+        let frame = camera_frame(world);
+        let (Some((eye, forward, up)), true) =
+            (frame, fov_y_deg > 0.0 && fov_y_deg < 180.0 && near > 0.0 && near.is_finite())
+        else {
             self.scene.notes.push(format!(
                 "{file}: {node_label}: camera ignored (degenerate transform, yfov {} rad or znear {near})",
                 p.yfov()
             ));
             return;
-        }
+        };
         let far = match p.zfar() {
             Some(far) if far > near && far.is_finite() => far,
             _ => {
@@ -940,14 +1020,13 @@ impl<'a> Converter<'a> {
         if light.range().is_some() {
             self.scene.notes.push(format!("{file}: {node_label}: light range ignored (1/d^2 falloff, no cutoff)"));
         }
-        let position = world.transform_point3(Vec3::ZERO);
+        let position = light_position(world);
         match light.kind() {
             Kind::Directional => {
-                let direction = world.transform_vector3(Vec3::NEG_Z).normalize_or_zero();
-                if direction == Vec3::ZERO || !direction.is_finite() {
+                let Some(direction) = light_direction(world) else {
                     self.scene.notes.push(format!("{file}: {node_label}: directional light with no direction ignored"));
                     return;
-                }
+                };
                 self.scene.lights.push(Light::Directional { direction, color, intensity });
             }
             kind => {
@@ -959,6 +1038,218 @@ impl<'a> Converter<'a> {
                 self.scene.lights.push(Light::Point { position, color, intensity });
             }
         }
+    }
+
+    /// One note each for the skins and the morph targets met in the walk: neither is applied.
+    fn note_skins_and_morph_targets(&mut self) {
+        let file = self.path.display().to_string();
+        let some = first_and_count;
+        if !self.skinned.is_empty() {
+            self.scene.notes.push(format!(
+                "{file}: skins are not applied ({}): those meshes render unskinned, in their bind pose, placed by \
+                 their node",
+                some(&self.skinned)
+            ));
+        }
+        if !self.morphed.is_empty() {
+            self.scene.notes.push(format!(
+                "{file}: morph targets are not applied ({}): those meshes render their base geometry, whatever \
+                 their weights",
+                some(&self.morphed)
+            ));
+        }
+    }
+
+    /// The file's animations (see the module docs). Channels of morph target `weights`, and
+    /// channels driving nodes outside the scene walked, are left out with a note.
+    fn animations(&mut self, document: &gltf::Document) -> Result<Vec<Animation>, SceneError> {
+        use gltf::animation::Property;
+        use gltf::json::validation::Checked;
+        // gltf-json 1.4.1 validates an animation's samplers and channel sampler indices but
+        // not its channels' targets, which `gltf::animation::Target` unwraps: check them here.
+        for (a, animation) in document.as_json().animations.iter().enumerate() {
+            for (c, channel) in animation.channels.iter().enumerate() {
+                let at = format!("animations[{a}].channels[{c}].target");
+                let node = channel.target.node.value();
+                if node >= self.node_slot.len() {
+                    return Err(self.gltf_error(format!(
+                        "{at}.node: node {node} does not exist ({} nodes)",
+                        self.node_slot.len()
+                    )));
+                }
+                if let Checked::Invalid = channel.target.path {
+                    return Err(self.gltf_error(format!("{at}.path: not translation, rotation, scale or weights")));
+                }
+            }
+        }
+        let mut weights: Vec<String> = Vec::new();
+        let mut outside: Vec<String> = Vec::new();
+        let mut animations = Vec::new();
+        for animation in document.animations() {
+            let label = match animation.name() {
+                Some(name) => format!("animation {} '{name}'", animation.index()),
+                None => format!("animation {}", animation.index()),
+            };
+            let mut samplers = Vec::new();
+            // glTF sampler index -> (index in `samplers`, whether it holds rotations).
+            let mut sampler_slot: HashMap<usize, (usize, bool)> = HashMap::new();
+            // (node, property) -> the glTF channel driving it.
+            let mut driven: HashMap<(usize, AnimatedProperty), usize> = HashMap::new();
+            let mut channels = Vec::new();
+            for channel in animation.channels() {
+                let at = format!("{label} channel {}", channel.index());
+                let target = channel.target();
+                let property = match target.property() {
+                    Property::Translation => AnimatedProperty::Translation,
+                    Property::Rotation => AnimatedProperty::Rotation,
+                    Property::Scale => AnimatedProperty::Scale,
+                    Property::MorphTargetWeights => {
+                        weights.push(at);
+                        continue;
+                    }
+                };
+                let Some(node) = self.node_slot[target.node().index()] else {
+                    outside.push(format!("{at} (node {})", target.node().index()));
+                    continue;
+                };
+                if let Some(first) = driven.insert((node, property), channel.index()) {
+                    return Err(self.content(format!(
+                        "{at}: drives the {} of node {}, as channel {first} does",
+                        property.name(),
+                        target.node().index()
+                    )));
+                }
+                let sampler = channel.sampler();
+                let rotations = property == AnimatedProperty::Rotation;
+                let slot = match sampler_slot.get(&sampler.index()) {
+                    Some(&(slot, held)) if held == rotations => slot,
+                    Some(_) => {
+                        return Err(self.content(format!(
+                            "{at}: sampler {} drives both rotations and translations or scales",
+                            sampler.index()
+                        )))
+                    }
+                    None => {
+                        samplers.push(self.animation_sampler(&sampler, property, &label)?);
+                        sampler_slot.insert(sampler.index(), (samplers.len() - 1, rotations));
+                        samplers.len() - 1
+                    }
+                };
+                channels.push(AnimationChannel { node, property, sampler: slot });
+            }
+            let name =
+                animation.name().map(str::to_string).unwrap_or_else(|| format!("animation{}", animation.index()));
+            animations
+                .push(Animation::new(name, channels, samplers).map_err(|e| self.content(format!("{label}: {e}")))?);
+        }
+        let file = self.path.display().to_string();
+        let some = first_and_count;
+        if !weights.is_empty() {
+            self.scene.notes.push(format!(
+                "{file}: morph target weights are not animated ({}): those channels are ignored",
+                some(&weights)
+            ));
+        }
+        if !outside.is_empty() {
+            self.scene.notes.push(format!(
+                "{file}: animation channels driving nodes outside the scene rendered are ignored ({})",
+                some(&outside)
+            ));
+        }
+        let summary: Vec<String> =
+            animations.iter().map(|a| format!("'{}' ({:.3} s)", a.name(), a.duration())).collect();
+        self.scene.notes.push(format!(
+            "{file}: {} animation(s): {}; the scene is loaded in its rest pose (hyrt render --time T poses it)",
+            animations.len(),
+            summary.join(", ")
+        ));
+        Ok(animations)
+    }
+
+    /// A sampler's key times and values, checked (types here, counts and order in
+    /// [`AnimationSampler::new`]): the input is float32 `SCALAR`; translations and scales are
+    /// float32 `VEC3`, rotations float32 or normalized 8/16-bit integer `VEC4`.
+    fn animation_sampler(
+        &mut self,
+        sampler: &gltf::animation::Sampler,
+        property: AnimatedProperty,
+        label: &str,
+    ) -> Result<AnimationSampler, SceneError> {
+        let at = format!("{label} sampler {}", sampler.index());
+        let input = sampler.input();
+        if input.data_type() != DataType::F32 || input.dimensions() != Dimensions::Scalar || input.normalized() {
+            return Err(self.content(format!(
+                "{at}: input (key times) must be float32 SCALAR, found {:?} {:?}",
+                input.data_type(),
+                input.dimensions()
+            )));
+        }
+        let times = read_accessor(&input, self.buffers, &mut self.budget, 4, |b| component_f32(DataType::F32, b))
+            .map_err(|e| self.gltf_error(format!("{at}: input accessor {}: {e}", input.index())))?;
+        let output = sampler.output();
+        let (dimensions, rotation) = match property {
+            AnimatedProperty::Rotation => (Dimensions::Vec4, true),
+            AnimatedProperty::Translation | AnimatedProperty::Scale => (Dimensions::Vec3, false),
+        };
+        let data_type = output.data_type();
+        let type_ok = match data_type {
+            DataType::F32 => !output.normalized(),
+            DataType::I8 | DataType::U8 | DataType::I16 | DataType::U16 => rotation && output.normalized(),
+            DataType::U32 => false,
+        };
+        if output.dimensions() != dimensions || !type_ok {
+            let allowed = if rotation { "float32 or normalized 8/16-bit integer VEC4" } else { "float32 VEC3" };
+            return Err(self.content(format!(
+                "{at}: output of a {} channel must be {allowed}, found {:?} {:?}{}",
+                property.name(),
+                data_type,
+                output.dimensions(),
+                if output.normalized() { " (normalized)" } else { "" }
+            )));
+        }
+        let size = data_type.size();
+        let components = if rotation { 4 } else { 3 };
+        let values = read_accessor(&output, self.buffers, &mut self.budget, components * size, |b| {
+            let mut v = [0.0f32; 4];
+            for (k, c) in v.iter_mut().take(components).enumerate() {
+                *c = component_f32(data_type, &b[k * size..]);
+            }
+            v
+        })
+        .map_err(|e| self.gltf_error(format!("{at}: output accessor {}: {e}", output.index())))?;
+        let values = if rotation {
+            Keyframes::Rotations(values.into_iter().map(Quat::from_array).collect())
+        } else {
+            Keyframes::Vectors(values.into_iter().map(|v| Vec3::new(v[0], v[1], v[2])).collect())
+        };
+        let interpolation = match sampler.interpolation() {
+            gltf::animation::Interpolation::Step => Interpolation::Step,
+            gltf::animation::Interpolation::Linear => Interpolation::Linear,
+            gltf::animation::Interpolation::CubicSpline => Interpolation::CubicSpline,
+        };
+        AnimationSampler::new(times, values, interpolation)
+            .map_err(|e| self.content(format!("{at} ({} {}): {e}", interpolation.name(), property.name())))
+    }
+}
+
+/// `a`, or `a and 2 more`: what a note names of a list.
+fn first_and_count(labels: &[String]) -> String {
+    match labels {
+        [first, rest @ ..] if !rest.is_empty() => format!("{first} and {} more", rest.len()),
+        _ => labels.join(""),
+    }
+}
+
+/// One accessor component as a float: float32 as it is, normalized integers as glTF maps
+/// them (unsigned: `c / max`; signed: `max(c / max, -1)`). `b` starts at the component.
+fn component_f32(data_type: DataType, b: &[u8]) -> f32 {
+    match data_type {
+        DataType::U8 => b[0] as f32 / 255.0,
+        DataType::I8 => (b[0] as i8 as f32 / 127.0).max(-1.0),
+        DataType::U16 => u16::from_le_bytes([b[0], b[1]]) as f32 / 65535.0,
+        DataType::I16 => (i16::from_le_bytes([b[0], b[1]]) as f32 / 32767.0).max(-1.0),
+        DataType::U32 => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32,
+        DataType::F32 => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
     }
 }
 
@@ -1112,6 +1403,61 @@ mod tests {
         assert!(strided(&bytes, 13, 4, 1, 4, first).is_err(), "offset pushes it out");
         assert!(strided(&bytes, 0, usize::MAX / 2, 3, 4, first).is_err(), "count * stride overflows");
         assert!(strided(&bytes, usize::MAX, 4, 1, 4, first).is_err(), "offset + elem overflows");
+    }
+
+    /// Every world transform the old walk computes (`parent * node.matrix()`, roots under the
+    /// identity), by glTF node index, for the file's default scene (or first scene).
+    fn walked_transforms(document: &gltf::Document) -> HashMap<usize, Mat4> {
+        let mut out = HashMap::new();
+        let scene = document.default_scene().or_else(|| document.scenes().next()).expect("a scene");
+        let mut stack: Vec<(gltf::Node, Mat4)> = scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
+        while let Some((node, parent)) = stack.pop() {
+            let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+            out.insert(node.index(), world);
+            stack.extend(node.children().map(|c| (c, world)));
+        }
+        out
+    }
+
+    /// Every model of the shared assets, and the repository's sample scenes, loads to the
+    /// transforms the walk computes, and the hierarchy kept for animation poses them again
+    /// bit for bit.
+    #[test]
+    fn every_asset_loads_and_poses_the_walked_transforms_bit_for_bit() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let mut files = Vec::new();
+        for dir in [root.join("../../shared/assets"), root.join("../assets/scenes")] {
+            let Ok(entries) = std::fs::read_dir(&dir) else {
+                eprintln!("{} is absent: its files are skipped", dir.display());
+                continue;
+            };
+            files.extend(
+                entries.map(|e| e.unwrap().path()).filter(|p| p.extension().is_some_and(|e| e == "glb" || e == "gltf")),
+            );
+        }
+        let bits = |m: Mat4| m.to_cols_array().map(f32::to_bits);
+        for path in files {
+            let bytes = std::fs::read(&path).unwrap();
+            let loaded = load_gltf_detailed(&path, &bytes, &Disk).unwrap_or_else(|e| panic!("{e}"));
+            let json = if bytes.starts_with(GLB_MAGIC) { split_glb(&bytes).unwrap().0 } else { &bytes[..] };
+            let document = gltf::Document::from_json_without_validation(gltf::json::Root::from_slice(json).unwrap());
+            let walked = walked_transforms(&document);
+            let hierarchy = match loaded.scene.animation.clone() {
+                Some(animation) => animation,
+                None => SceneAnimation::new(loaded.unanimated_nodes, Vec::new()).unwrap(),
+            };
+            let posed = hierarchy.world_transforms(None);
+            let mut placed = 0;
+            for (node, world) in hierarchy.nodes().iter().zip(posed) {
+                assert_eq!(bits(world), bits(walked[&node.gltf_index]), "{}: {}", path.display(), node.label);
+                for &id in &node.objects {
+                    let object = &loaded.scene.objects[id as usize];
+                    assert_eq!(bits(object.transform), bits(world), "{}: {}", path.display(), object.name);
+                    placed += 1;
+                }
+            }
+            assert_eq!(placed, loaded.scene.objects.len(), "{}: every object is placed by a node", path.display());
+        }
     }
 
     #[test]

@@ -77,6 +77,8 @@
 //!   of the transform's volume scale). When it has no `[[light]]`, the model files' lights are
 //!   used, moved by their model transform; intensities are not changed. Notes record both.
 //!   No default camera or lights are added here ([`super::Scene::ensure_camera_and_lights`]).
+//! * **Animations** of model files are not played: each model is placed in its file's rest
+//!   pose, the manifest scene has no [`super::Scene::animation`], and a note says so.
 //! * **Environment.** An equirectangular (latitude-longitude) map in a Radiance HDR or OpenEXR
 //!   file, linear RGB, oriented as [`super::environment`] documents (row 0 straight up, the
 //!   image's centre towards +Z, its left and right edges meeting at -Z; Mitsuba 3's
@@ -546,6 +548,12 @@ fn build(manifest: &Manifest, path: &Path, files: &dyn SceneFiles, mut budget: B
                     let offset = scene.meshes.len();
                     scene.meshes.extend(loaded.scene.meshes.iter().cloned());
                     scene.notes.extend(loaded.scene.notes.iter().map(|n| format!("{label}: {n}")));
+                    if loaded.scene.animation.is_some() {
+                        scene.notes.push(format!(
+                            "{label}: {}: animations are not played in a manifest: the model is placed in its rest pose",
+                            resolved.display()
+                        ));
+                    }
                     loaded_files.insert(resolved.clone(), (offset, loaded));
                 }
                 let (offset, loaded) = &loaded_files[&resolved];

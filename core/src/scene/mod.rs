@@ -5,9 +5,11 @@
 //! * [`Scene::load`] picks the loader from the file extension: `.glb`/`.gltf`
 //!   ([`gltf_loader`]) or `.toml` ([`manifest`]).
 //! * [`Scene::default_scene`] is the built-in scene (paper Figure 8).
+//! * [`Scene::set_time`] poses a glTF scene with animations at a time ([`animation`]).
 //! * [`Scene::ensure_camera_and_lights`] frames a scene that has no camera and adds
 //!   default lights to one that has none, and records a note saying so.
 
+pub mod animation;
 pub mod default_scene;
 pub mod environment;
 pub mod files;
@@ -15,6 +17,7 @@ pub mod gltf_loader;
 pub mod manifest;
 pub mod texture;
 
+pub use animation::{Animation, AnimationSampler, Interpolation, SceneAnimation, SceneNode};
 pub use environment::{Environment, EnvironmentMap, EnvironmentMapError};
 pub use files::{Disk, SceneFiles};
 pub use texture::{AlphaMode, Filter, Sampler, TextureBinding, TextureImage, UvTransform, VertexAttributes, Wrap};
@@ -286,6 +289,9 @@ pub struct Scene {
     /// Human-readable notes about what the loader decided (default lights added,
     /// camera framed automatically, primitives skipped, ...). The CLI prints them.
     pub notes: Vec<String>,
+    /// The node hierarchy and animations of a glTF file that has some ([`Scene::set_time`]
+    /// poses the scene); `None` for every other scene.
+    pub animation: Option<SceneAnimation>,
 }
 
 impl Scene {
