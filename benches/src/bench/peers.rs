@@ -433,33 +433,27 @@ fn closest_hit_runs(
     (runs, hit_count)
 }
 
-/// Scenes beyond Table 2's that the peers trace: the first in quick runs too.
+/// Scenes beyond Table 2's that the peers trace.
 const PEER_EXTRA_MANIFESTS: [&str; 2] = ["sponza", "dragon"];
 
-/// Which Table 2 rows the ray peers run on: the teaser (Sponza + bunny) in quick runs, every
-/// scene but the default one otherwise; the default scene when nothing else is loaded.
-fn peer_rows<'a>(options: &BenchOptions, table2: &'a Table2) -> Vec<&'a Table2Row> {
+/// Which Table 2 rows the ray peers run on: every scene but the default one (quick runs
+/// too: the traversal issue's verdict is scene by scene); the default scene when nothing
+/// else is loaded.
+fn peer_rows(table2: &Table2) -> Vec<&Table2Row> {
     let named: Vec<&Table2Row> = table2.rows.iter().filter(|r| r.name != "default").collect();
     if named.is_empty() {
         return table2.rows.iter().take(1).collect();
-    }
-    if options.quick {
-        let teaser: Vec<&Table2Row> = named.iter().copied().filter(|r| r.name == "teaser").collect();
-        if !teaser.is_empty() {
-            return teaser;
-        }
-        return named.into_iter().take(1).collect();
     }
     named
 }
 
 /// Measure every peer.
 pub fn run(options: &BenchOptions, table2: &Table2, progress: &ProgressBar) -> Result<Peers, BenchError> {
-    let table_rows = peer_rows(options, table2);
-    // Sponza alone (quick and full runs) and the dragon (full runs) are traced too: the
-    // traversal issue's scenes, at the Table 2 image size.
+    let table_rows = peer_rows(table2);
+    // Sponza alone and the dragon are traced too: the traversal issue's scenes, at the
+    // Table 2 image size.
     let mut extra = Vec::new();
-    let extra_names = if options.quick { &PEER_EXTRA_MANIFESTS[..1] } else { &PEER_EXTRA_MANIFESTS[..] };
+    let extra_names = &PEER_EXTRA_MANIFESTS[..];
     if table_rows.iter().any(|r| r.name != "default") {
         for s in super::scenes::load_manifests(extra_names.iter().copied(), options.scenes, &mut Vec::new()) {
             let Some(camera) = s.scene.camera else { continue };
@@ -698,8 +692,9 @@ impl Peers {
     /// Embree's faster 8-wide packet run (default or coherent context) on every scene the
     /// peers traced; the hybrid frame (every per-frame stage) against Embree's fastest
     /// primary-ray plus fastest shadow-ray runs of the same frame, every scene and thread
-    /// count; on the teaser (or the first scene) also shadow rays against `rtcOccluded1`,
-    /// and primary rays against Embree's faster `rtcIntersect8` run; secondary rays (the
+    /// count; on the teaser (or the first scene) also shadow rays against `rtcOccluded1`;
+    /// primary rays against Embree's faster `rtcIntersect8` run on every scene (the teaser
+    /// first); secondary rays (the
     /// `bounce_trace` traversal) against Embree's faster run. At the most threads unless
     /// said.
     pub fn goals(&self) -> Vec<[String; 4]> {
@@ -779,6 +774,12 @@ impl Peers {
         }
         if let Some(peer) = best(&main.primary, "Embree `rtcIntersect8`") {
             out.push(row("primary", &main.scene, peer, hyrt_primary.as_ref()));
+        }
+        for s in self.scenes.iter().filter(|s| s.scene != main.scene) {
+            let hyrt_primary = fastest(&s.primary, threads, "hyrt packets");
+            if let Some(peer) = best(&s.primary, "Embree `rtcIntersect8`") {
+                out.push(row("primary", &s.scene, peer, hyrt_primary.as_ref()));
+            }
         }
         // Secondary rays on every scene that has them: the `bounce_trace` stage's traversal
         // against Embree's faster single-ray or packet run.
@@ -960,14 +961,18 @@ mod tests {
     }
 
     #[test]
-    fn every_traced_scene_gets_a_shadow_packet_goal() {
+    fn every_traced_scene_gets_a_shadow_and_a_primary_packet_goal() {
         let mut p = peers("teaser", true);
         let mut sponza = p.scenes[0].clone();
         sponza.scene = "sponza".into();
         sponza.shadow.retain(|r| !r.method.contains("coherent"));
         p.scenes.push(sponza);
         let g = p.goals();
-        assert_eq!(g.len(), 5, "{g:?}");
+        assert_eq!(g.len(), 6, "{g:?}");
+        // Primary rays: the teaser's, then Sponza's.
+        let primary: Vec<&str> = g.iter().filter(|r| r[0].starts_with("primary rays")).map(|r| r[0].as_str()).collect();
+        assert_eq!(primary.len(), 2, "{g:?}");
+        assert!(primary[0].starts_with("primary rays, teaser") && primary[1].starts_with("primary rays, sponza"));
         assert!(
             g[1][0].starts_with("shadow rays, sponza, 2 threads: Embree `rtcOccluded8` (packets of 8)"),
             "{:?}",
