@@ -22,7 +22,7 @@ use std::time::Instant;
 use glam::{Mat4, Vec3};
 use hyrt_core::bvh::BvhPreset;
 use hyrt_core::formats::CameraRecord;
-use hyrt_core::frame::{Backend, FrameOptions, PreparedScene};
+use hyrt_core::frame::{Backend, Frame, FrameOptions, PreparedScene};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::scene::{
     AlphaMode, Camera, Filter, Light, Material, Mesh, RenderMode, Sampler, Scene, TextureBinding, TextureImage,
@@ -115,21 +115,23 @@ fn prepare(cpu: &CpuBackend, scene: &Scene) -> PreparedScene {
     cpu.prepare(WorldGeometry::build(scene), BvhPreset::default())
 }
 
-/// The frame's final image and the median of `runs` frame times (ms).
+/// The frame's final image and the median of `runs` frame times (ms; NaN for none), after one untimed
+/// warm-up frame, every frame into the same reused [`Frame`] (as `hyrt bench` times frames:
+/// the first frame of a scene allocates its buffers and builds nothing else worth timing).
 fn frames(cpu: &mut CpuBackend, scene: &Scene, width: u32, height: u32, runs: usize) -> (Vec<[f32; 4]>, f64) {
     let prepared = prepare(cpu, scene);
     let camera = CameraRecord::new(&scene.camera.expect("the scene has a camera"), width, height);
     let options = FrameOptions::default();
+    let mut frame = Frame::default();
+    cpu.render_into(&prepared, &camera, &options, &mut frame).expect("a frame of the texture scene");
     let mut times = Vec::with_capacity(runs);
-    let mut image = Vec::new();
-    for _ in 0..runs.max(1) {
+    for _ in 0..runs {
         let t = Instant::now();
-        let frame = cpu.render(&prepared, &camera, &options).expect("a frame of the texture scene");
+        cpu.render_into(&prepared, &camera, &options, &mut frame).expect("a frame of the texture scene");
         times.push(t.elapsed().as_secs_f64() * 1e3);
-        image = frame.final_image;
     }
     times.sort_by(f64::total_cmp);
-    (image, times[times.len() / 2])
+    (frame.final_image, times.get(times.len() / 2).copied().unwrap_or(f64::NAN))
 }
 
 /// Box-filter a `width * s` x `height * s` image down by `s` per axis.
@@ -158,7 +160,8 @@ pub fn downsample(image: &[[f32; 4]], width: u32, height: u32, s: u32) -> Vec<[f
 pub fn texture_speed_vs_error(width: u32, height: u32, threads: usize, runs: usize) -> (Vec<TextureRow>, String) {
     let mut cpu = CpuBackend::new(Some(threads.max(1)));
     let level0 = Sampler { mip: None, ..Sampler::default() };
-    let (big, _) = frames(&mut cpu, &texture_scene(level0, true), width * SUPERSAMPLE, height * SUPERSAMPLE, 1);
+    // The reference is not timed: its warm-up frame alone.
+    let (big, _) = frames(&mut cpu, &texture_scene(level0, true), width * SUPERSAMPLE, height * SUPERSAMPLE, 0);
     let reference = downsample(&big, width, height, SUPERSAMPLE);
     let mut rows = Vec::new();
     for (name, sampler) in samplers() {
