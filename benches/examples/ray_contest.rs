@@ -20,7 +20,6 @@ use hyrt_benches::bench::embree::EmbreeScene;
 use hyrt_benches::bench::peers::{frame_shadow_rays, PeerScene};
 use hyrt_benches::bench::scenes::load_manifest;
 use hyrt_benches::bench::stats::{interleaved_ms, median, round_ratios};
-use hyrt_core::bvh::ClosestHit;
 use hyrt_core::formats::{CameraRecord, RayRecord};
 use hyrt_core::kernels::camera::primary_rays;
 use hyrt_cpu::traversal::{
@@ -98,6 +97,67 @@ fn print(kind: &str, scene: &str, rays: usize, names: &[String], ms: &[Vec<f64>]
     }
 }
 
+/// Embree's packet tracer of one ray kind, with its name in the table.
+type EmbreeRun<E> = (&'static str, fn(&EmbreeScene, &[RayRecord], &mut [E]));
+
+/// What every ray list of one scene is traced with.
+struct Contest<'a> {
+    args: &'a Args,
+    pool: &'a rayon::ThreadPool,
+    hyrt: &'a [Traversal],
+    embree: &'a EmbreeScene,
+    scene: &'a str,
+}
+
+impl Contest<'_> {
+    /// Trace `rays` with hyrt's traversals (`trace`, answers `H`) and, unless
+    /// `--packets-only`, Embree's two packet runs (answers `E`, buffers filled with
+    /// `e_blank`), interleaved; check every hyrt traversal against the scalar reference
+    /// ray by ray, and print the medians and ratios.
+    fn run<H, E>(
+        &self,
+        kind: &str,
+        rays: &[RayRecord],
+        trace: impl Fn(&[RayRecord], Traversal, &mut Vec<H>) + Sync,
+        peers: [EmbreeRun<E>; 2],
+        e_blank: E,
+    ) where
+        H: PartialEq + Send,
+        E: Clone + Send,
+    {
+        let pool = self.pool;
+        let reference = pool.install(|| {
+            let mut o = Vec::new();
+            trace(rays, Traversal::Scalar, &mut o);
+            o
+        });
+        let mut outs: Vec<Vec<H>> = self.hyrt.iter().map(|_| Vec::new()).collect();
+        let mut e_outs = vec![vec![e_blank; rays.len()]; peers.len()];
+        let ms = {
+            let trace = &trace;
+            let mut runs: Vec<Box<dyn FnMut() + '_>> = Vec::new();
+            for (&t, o) in self.hyrt.iter().zip(outs.iter_mut()) {
+                runs.push(Box::new(move || pool.install(|| trace(rays, t, o))));
+            }
+            if !self.args.packets_only {
+                for (&(_, f), o) in peers.iter().zip(e_outs.iter_mut()) {
+                    let e = self.embree;
+                    runs.push(Box::new(move || pool.install(|| embree_chunks(rays, o, |r, o| f(e, r, o)))));
+                }
+            }
+            let mut refs: Vec<&mut dyn FnMut()> = runs.iter_mut().map(|r| &mut **r as &mut dyn FnMut()).collect();
+            interleaved_ms(self.args.rounds, &mut refs)
+        };
+        for (t, o) in self.hyrt.iter().zip(&outs) {
+            let differ = o.iter().zip(&reference).filter(|(a, b)| a != b).count();
+            assert_eq!(differ, 0, "{}: {differ} {kind} differ from the scalar reference", t.name());
+        }
+        let names: Vec<String> =
+            self.hyrt.iter().map(|t| t.name()).chain(peers.iter().map(|(n, _)| n.to_string())).collect();
+        print(kind, self.scene, rays.len(), &names, &ms, self.hyrt.len());
+    }
+}
+
 fn main() {
     let args = match parse() {
         Ok(a) => a,
@@ -128,72 +188,32 @@ fn main() {
         let g = &prepared.geometry;
         let bvh = &prepared.bvh;
         let embree = EmbreeScene::new(g, &format!("threads={}", args.threads)).expect("Embree scene");
-        let mut names: Vec<String> = hyrt.iter().map(|t| t.name()).collect();
+        let contest = Contest { args: &args, pool: &pool, hyrt: &hyrt, embree: &embree, scene: name };
         if args.shadow {
             let rays = frame_shadow_rays(&row).expect("frame");
-            let reference = pool.install(|| {
-                let mut o = Vec::new();
-                occluded_batch_into(bvh, &g.triangles, &rays, Traversal::Scalar, &mut o);
-                o
-            });
-            let mut outs = vec![Vec::new(); hyrt.len()];
-            let mut e_outs = vec![vec![false; rays.len()]; 2];
-            let ms = {
-                let mut runs: Vec<Box<dyn FnMut() + '_>> = Vec::new();
-                for (&t, o) in hyrt.iter().zip(outs.iter_mut()) {
-                    let (pool, rays) = (&pool, &rays);
-                    runs.push(Box::new(move || pool.install(|| occluded_batch_into(bvh, &g.triangles, rays, t, o))));
-                }
-                if !args.packets_only {
-                    let [o8, o8c] = &mut e_outs[..] else { unreachable!() };
-                    let (p, r, e) = (&pool, &rays, &embree);
-                    runs.push(Box::new(move || p.install(|| embree_chunks(r, o8, |r, o| e.occluded8(r, o)))));
-                    runs.push(Box::new(move || p.install(|| embree_chunks(r, o8c, |r, o| e.occluded8_coherent(r, o)))));
-                }
-                let mut refs: Vec<&mut dyn FnMut()> = runs.iter_mut().map(|r| &mut **r as &mut dyn FnMut()).collect();
-                interleaved_ms(args.rounds, &mut refs)
-            };
-            for (t, o) in hyrt.iter().zip(&outs) {
-                let differ = o.iter().zip(&reference).filter(|(a, b)| a != b).count();
-                assert_eq!(differ, 0, "{}: {differ} shadow rays differ from the scalar reference", t.name());
-            }
-            names.truncate(hyrt.len());
-            names.extend(["Embree rtcOccluded8".to_string(), "Embree rtcOccluded8 coherent".to_string()]);
-            print("shadow rays", name, rays.len(), &names, &ms, hyrt.len());
+            contest.run(
+                "shadow rays",
+                &rays,
+                |rays, t, o| occluded_batch_into(bvh, &g.triangles, rays, t, o),
+                [
+                    ("Embree rtcOccluded8", EmbreeScene::occluded8),
+                    ("Embree rtcOccluded8 coherent", EmbreeScene::occluded8_coherent),
+                ],
+                false,
+            );
         }
         if args.primary {
             let rays = primary_rays(&camera);
-            let reference: Vec<Option<ClosestHit>> = pool.install(|| {
-                let mut o = Vec::new();
-                closest_hit_batch_into(bvh, &g.triangles, &rays, Traversal::Scalar, &mut o);
-                o
-            });
-            let mut outs = vec![Vec::new(); hyrt.len()];
-            let mut e_outs = vec![vec![None; rays.len()]; 2];
-            let ms = {
-                let mut runs: Vec<Box<dyn FnMut() + '_>> = Vec::new();
-                for (&t, o) in hyrt.iter().zip(outs.iter_mut()) {
-                    let (pool, rays) = (&pool, &rays);
-                    runs.push(Box::new(move || pool.install(|| closest_hit_batch_into(bvh, &g.triangles, rays, t, o))));
-                }
-                if !args.packets_only {
-                    let [o8, o8c] = &mut e_outs[..] else { unreachable!() };
-                    let (p, r, e) = (&pool, &rays, &embree);
-                    runs.push(Box::new(move || p.install(|| embree_chunks(r, o8, |r, o| e.intersect8(r, o)))));
-                    runs.push(Box::new(move || {
-                        p.install(|| embree_chunks(r, o8c, |r, o| e.intersect8_coherent(r, o)))
-                    }));
-                }
-                let mut refs: Vec<&mut dyn FnMut()> = runs.iter_mut().map(|r| &mut **r as &mut dyn FnMut()).collect();
-                interleaved_ms(args.rounds, &mut refs)
-            };
-            for (t, o) in hyrt.iter().zip(&outs) {
-                let differ = o.iter().zip(&reference).filter(|(a, b)| a != b).count();
-                assert_eq!(differ, 0, "{}: {differ} primary rays differ from the scalar reference", t.name());
-            }
-            names.truncate(hyrt.len());
-            names.extend(["Embree rtcIntersect8".to_string(), "Embree rtcIntersect8 coherent".to_string()]);
-            print("primary rays", name, rays.len(), &names, &ms, hyrt.len());
+            contest.run(
+                "primary rays",
+                &rays,
+                |rays, t, o| closest_hit_batch_into(bvh, &g.triangles, rays, t, o),
+                [
+                    ("Embree rtcIntersect8", EmbreeScene::intersect8),
+                    ("Embree rtcIntersect8 coherent", EmbreeScene::intersect8_coherent),
+                ],
+                None,
+            );
         }
     }
 }
