@@ -53,7 +53,7 @@
 //! of at least `t` widened by `BVH_CULL_SLACK`, with the same heuristic margin (and the
 //! same documented corner case) as the leaf boxes themselves.
 
-use hyrt_core::bvh::wide::{WideChild, WideLeaf, WideNode};
+use hyrt_core::bvh::wide::{WideChild, WideLeaf, WideNode, WIDE};
 use hyrt_core::bvh::{Bvh, BvhNode, ClosestHit, BVH_CULL_SLACK};
 use hyrt_core::kernels::ray::SLAB_FAR_SCALE;
 use hyrt_core::kernels::texture::SurfaceView;
@@ -97,24 +97,12 @@ impl<L: Lanes> Frustum<L> {
             }
             len * MAX_ORIGIN_SPREAD
         };
-        let lanes = |x: L::F| -> [f32; LANES] { L::store(x) };
-        let (mut o_lo, mut o_hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-        let (mut i_lo, mut i_hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-        let mut t_lo = f32::INFINITY;
-        let t_min = lanes(p.box_t_min);
+        let (mut o_lo, mut o_hi, mut i_lo, mut i_hi) = ([0.0; 3], [0.0; 3], [0.0; 3], [0.0; 3]);
         for a in 0..3 {
-            let (o, inv) = (lanes(p.origin[a]), lanes(p.inv_dir[a]));
-            let mut m = p.valid;
-            while m != 0 {
-                let i = m.trailing_zeros() as usize;
-                m &= m - 1;
-                (o_lo[a], o_hi[a]) = (o_lo[a].min(o[i]), o_hi[a].max(o[i]));
-                (i_lo[a], i_hi[a]) = (i_lo[a].min(inv[i]), i_hi[a].max(inv[i]));
-                if a == 0 {
-                    t_lo = t_lo.min(t_min[i]);
-                }
-            }
+            (o_lo[a], o_hi[a]) = lane_range::<L>(p.origin[a], p.valid);
+            (i_lo[a], i_hi[a]) = lane_range::<L>(p.inv_dir[a], p.valid);
         }
+        let t_lo = lane_range::<L>(p.box_t_min, p.valid).0;
         if (0..3).any(|a| o_hi[a] - o_lo[a] > spread_limit) {
             return None;
         }
@@ -210,24 +198,24 @@ fn child_box(node: &WideNode, k: usize) -> BvhNode {
     }
 }
 
-/// Stack entries name a child by its parent and slot: `parent * 8 + slot`.
+/// Stack entries name a child by its parent and slot: `parent * WIDE + slot`.
 #[inline(always)]
 fn entry(parent: u32, slot: usize) -> u32 {
-    parent * LANES as u32 + slot as u32
+    parent * WIDE as u32 + slot as u32
 }
 
-/// The largest lane of `x` among `valid`.
+/// The least and the greatest lane of `x` among `valid`.
 #[inline(always)]
-fn max_lane<L: Lanes>(x: L::F, valid: u32) -> f32 {
+fn lane_range<L: Lanes>(x: L::F, valid: u32) -> (f32, f32) {
     let v = L::store(x);
     let mut m = valid;
-    let mut out = f32::NEG_INFINITY;
+    let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
     while m != 0 {
         let i = m.trailing_zeros() as usize;
         m &= m - 1;
-        out = out.max(v[i]);
+        (lo, hi) = (lo.min(v[i]), hi.max(v[i]));
     }
-    out
+    (lo, hi)
 }
 
 /// Closest hit for every valid lane of `p` through the wide tree, lane `i` equal to
@@ -246,7 +234,7 @@ pub(crate) fn closest_hit<L: Lanes>(
     let widen = L::splat(1.0 + BVH_CULL_SLACK);
     let mut best = ClosestLanes::<L>::new(p);
     let mut t_far = L::mul(best.t, widen);
-    let mut t_far_hi = max_lane::<L>(t_far, p.valid);
+    let mut t_far_hi = lane_range::<L>(t_far, p.valid).1;
     let mut node = 0u32;
     let mut sp = 0usize;
     'walk: loop {
@@ -269,7 +257,7 @@ pub(crate) fn closest_hit<L: Lanes>(
             if t_enter > t_far_hi {
                 continue;
             }
-            let (parent, k) = ((e / LANES as u32) as usize, (e % LANES as u32) as usize);
+            let (parent, k) = ((e / WIDE as u32) as usize, (e % WIDE as u32) as usize);
             let parent = &wide.nodes[parent];
             match WideChild::decode(parent.child[k]) {
                 WideChild::Node(c) => {
@@ -291,7 +279,7 @@ pub(crate) fn closest_hit<L: Lanes>(
                     let improved = best.test_slots(bvh, view, p, m, slots);
                     if improved {
                         t_far = L::mul(best.t, widen);
-                        t_far_hi = max_lane::<L>(t_far, p.valid);
+                        t_far_hi = lane_range::<L>(t_far, p.valid).1;
                     }
                 }
             }
@@ -381,7 +369,7 @@ mod tests {
             // bounds come from the first test (pushed then), the pop test compares them
             // with the nearer bound later.
             let lanes_far = p.box_t_max;
-            let hi = max_lane::<Portable>(lanes_far, p.valid);
+            let hi = lane_range::<Portable>(lanes_far, p.valid).1;
             let (_, pushed_enter) = f.enter(&n, hi);
             let near = hi.min(far * 10.0);
             for (bound_hi, bound) in [(hi, lanes_far), (near, [near; LANES])] {
@@ -410,7 +398,7 @@ mod tests {
         let boxes: Vec<(Vec3, Vec3)> =
             (0..LANES).map(|k| (Vec3::new(k as f32 * 0.3 - 1.0, 0.0, k as f32), Vec3::splat(0.2))).collect();
         let n = node(&boxes, LANES);
-        let t_far = max_lane::<Portable>(p.box_t_max, p.valid);
+        let t_far = lane_range::<Portable>(p.box_t_max, p.valid).1;
         let (mask, _) = f.enter(&n, t_far);
         let want = (0..LANES).filter(|&k| p.enter(&child_box(&n, k), p.box_t_max) != 0).fold(0, |m, k| m | 1 << k);
         assert_eq!(mask, want);

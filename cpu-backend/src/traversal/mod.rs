@@ -601,7 +601,7 @@ fn closest_hit_packets<L: Lanes>(
             }
             continue;
         };
-        let coherent = if stack.is_empty() { None } else { frustum::Frustum::new(&p, extent) };
+        let coherent = if bvh.wide.is_empty() { None } else { frustum::Frustum::new(&p, extent) };
         let hits = match coherent {
             Some(f) => frustum::closest_hit(bvh, view, &p, &f, &mut stack),
             None => packet::closest_hit(bvh, view, &p),
