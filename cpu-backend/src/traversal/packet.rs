@@ -264,7 +264,7 @@ impl<'a, L: Lanes> Packet<'a, L> {
     /// (`WatertightRay::back_face` of the determinant, the f32 sum of the edge functions
     /// that the scalar kernel computes too, also where it redoes a lane).
     #[inline(always)]
-    pub(super) fn intersect<const EARLY_OUT: bool>(
+    fn intersect<const EARLY_OUT: bool>(
         &self,
         active: u32,
         tri: &TriangleRecord,
@@ -293,6 +293,24 @@ impl<'a, L: Lanes> Packet<'a, L> {
         let zero = L::splat(0.0);
         let back = !(L::bits(L::gt(h.det, zero)) ^ L::bits(L::gt(self.shear[2], zero)));
         (hit, t_out, u_out, v_out, back)
+    }
+
+    /// [`Self::intersect`] against the triangle in leaf slot `slot` of `bvh`, its hits kept
+    /// only where an alpha-tested triangle's texel passes ([`alpha_lanes`]).
+    #[inline(always)]
+    pub(super) fn intersect_slot<const EARLY_OUT: bool>(
+        &self,
+        bvh: &Bvh,
+        view: &SurfaceView,
+        active: u32,
+        slot: u32,
+    ) -> (u32, L::F, L::F, L::F, u32) {
+        let tri = &bvh.leaf_triangles[slot as usize];
+        let (mut hit, t, u, v, back) = self.intersect::<EARLY_OUT>(active, tri);
+        if hit != 0 && tri.flags & TRI_ALPHA_TEST != 0 {
+            hit = alpha_lanes::<L>(view, bvh, tri, slot, hit, u, v);
+        }
+        (hit, t, u, v, back)
     }
 }
 
@@ -435,11 +453,7 @@ pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, view: &SurfaceView, p: &Packet<L>, c
         #[inline(always)]
         |leaf: Leaf, mut m: u32, done: &mut u32| {
             for slot in leaf.slots() {
-                let tri = &bvh.leaf_triangles[slot as usize];
-                let (mut hit, _, u, v, _) = p.intersect::<false>(m, tri);
-                if hit != 0 && tri.flags & TRI_ALPHA_TEST != 0 {
-                    hit = alpha_lanes::<L>(view, bvh, tri, slot, hit, u, v);
-                }
+                let hit = p.intersect_slot::<false>(bvh, view, m, slot).0;
                 if hit != 0 {
                     *done |= hit;
                     m &= !hit;
@@ -531,11 +545,7 @@ impl<L: Lanes> ClosestLanes<L> {
     ) -> bool {
         let mut improved = false;
         for slot in slots {
-            let tri = &bvh.leaf_triangles[slot as usize];
-            let (mut hit, t, u, v, back) = p.intersect::<true>(m, tri);
-            if hit != 0 && tri.flags & TRI_ALPHA_TEST != 0 {
-                hit = alpha_lanes::<L>(view, bvh, tri, slot, hit, u, v);
-            }
+            let (hit, t, u, v, back) = p.intersect_slot::<true>(bvh, view, m, slot);
             if hit != 0 {
                 improved |= self.offer(hit, t, u, v, back, bvh.prim_indices[slot as usize]);
             }
