@@ -246,40 +246,30 @@ fn parse_vec3(s: &str) -> Result<Vec3, String> {
     }
 }
 
-fn parse_weight(s: &str) -> Result<f32, String> {
-    let w: f32 = s.parse().map_err(|_| format!("bad number '{s}'"))?;
-    if (0.0..=1.0).contains(&w) {
-        Ok(w)
+/// A number that `ok` accepts; otherwise `"{rule}, got {s}"`.
+fn parse_f32(s: &str, ok: impl Fn(f32) -> bool, rule: &str) -> Result<f32, String> {
+    let x: f32 = s.parse().map_err(|_| format!("bad number '{s}'"))?;
+    if ok(x) {
+        Ok(x)
     } else {
-        Err(format!("weight must be in [0, 1], got {s}"))
+        Err(format!("{rule}, got {s}"))
     }
+}
+
+fn parse_weight(s: &str) -> Result<f32, String> {
+    parse_f32(s, |w| (0.0..=1.0).contains(&w), "weight must be in [0, 1]")
 }
 
 fn parse_fov(s: &str) -> Result<f32, String> {
-    let f: f32 = s.parse().map_err(|_| format!("bad number '{s}'"))?;
-    if f > 0.0 && f < 180.0 {
-        Ok(f)
-    } else {
-        Err(format!("field of view must be in (0, 180) degrees, got {s}"))
-    }
+    parse_f32(s, |f| f > 0.0 && f < 180.0, "field of view must be in (0, 180) degrees")
 }
 
 fn parse_time(s: &str) -> Result<f32, String> {
-    let t: f32 = s.parse().map_err(|_| format!("bad number '{s}'"))?;
-    if t.is_finite() {
-        Ok(t)
-    } else {
-        Err(format!("time must be a finite number of seconds, got {s}"))
-    }
+    parse_f32(s, f32::is_finite, "time must be a finite number of seconds")
 }
 
 fn parse_fps(s: &str) -> Result<f32, String> {
-    let f: f32 = s.parse().map_err(|_| format!("bad number '{s}'"))?;
-    if f > 0.0 && f.is_finite() {
-        Ok(f)
-    } else {
-        Err(format!("frames per second must be a positive finite number, got {s}"))
-    }
+    parse_f32(s, |f| f > 0.0 && f.is_finite(), "frames per second must be a positive finite number")
 }
 
 /// The animation `--time`, `--animation` or `--fps` asks for (`None` when none of them is
