@@ -62,6 +62,7 @@ use crate::geometry::WorldGeometry;
 use crate::kernels::ray::{gamma, ray_aabb_conservative, safe_inverse_dir, WatertightRay};
 
 pub mod traversal;
+pub mod two_level;
 pub mod wide;
 
 use traversal::{inline_leaf_test, traverse, Leaf, LeafFlow, NodeTest};
@@ -286,6 +287,17 @@ pub fn triangle_is_traceable(t: &TriangleRecord) -> bool {
     a.is_finite() && b.is_finite() && c.is_finite() && a != b && b != c && c != a
 }
 
+/// obvhs' nodes as [`BvhNode`]s (same boxes, same indices; not yet flattened).
+fn obvhs_nodes(bvh2: &obvhs::bvh2::Bvh2) -> Vec<BvhNode> {
+    bvh2.nodes
+        .iter()
+        .map(|n| {
+            let b = n.aabb();
+            BvhNode::from_box(b.min.into(), b.max.into(), n.first_index, n.prim_count)
+        })
+        .collect()
+}
+
 /// Re-emit a tree in depth-first order (left child first): sibling pairs allocated as
 /// they are reached, leaf slots written out in the order the leaves are reached.
 ///
@@ -326,7 +338,7 @@ fn triangle_box(t: &TriangleRecord) -> (Vec3, Vec3) {
 
 /// A ray prepared for traversal (checked once, constants precomputed).
 #[derive(Clone, Copy, Debug)]
-struct TraversalRay {
+pub(crate) struct TraversalRay {
     wt: WatertightRay,
     inv_dir: Vec3,
     t_min: f32,
@@ -339,7 +351,7 @@ impl TraversalRay {
     /// `None` for a ray that can hit nothing: non-finite origin or direction, zero
     /// direction, or an empty / NaN `(t_min, t_max)` interval.
     #[inline]
-    fn new(ray: &RayRecord) -> Option<TraversalRay> {
+    pub(crate) fn new(ray: &RayRecord) -> Option<TraversalRay> {
         let dir = Vec3::from(ray.direction);
         let wt = WatertightRay::new(Vec3::from(ray.origin), dir)?;
         // Positive form, so that NaN bounds reject.
@@ -397,11 +409,24 @@ impl Bvh {
     /// Deterministic: the same geometry and preset give the same buffers. Validated in
     /// debug builds.
     pub fn build(geometry: &WorldGeometry, preset: BvhPreset) -> Bvh {
-        let triangles = &geometry.triangles;
+        Bvh::build_triangles(&geometry.triangles, preset)
+    }
+
+    /// [`Bvh::build`] over a triangle table of any space: the world table of a scene, or
+    /// one mesh's object-space triangles (a bottom level of [`two_level::TwoLevelBvh`]).
+    /// `prim_indices` are indices into `triangles`.
+    pub fn build_triangles(triangles: &[TriangleRecord], preset: BvhPreset) -> Bvh {
+        Bvh::build_filtered(triangles, preset, &|_| true)
+    }
+
+    /// [`Bvh::build_triangles`] over the triangles `keep` accepts (by index into
+    /// `triangles`): the world-space bottom level of [`two_level::TwoLevelBvh`] holds only
+    /// the objects baked into world space. Validate with [`Bvh::validate_filtered`].
+    pub fn build_filtered(triangles: &[TriangleRecord], preset: BvhPreset, keep: &dyn Fn(u32) -> bool) -> Bvh {
         let mut ids = Vec::new();
         let mut obvhs_tris = Vec::new();
         for (i, t) in triangles.iter().enumerate() {
-            if triangle_is_traceable(t) {
+            if triangle_is_traceable(t) && keep(i as u32) {
                 ids.push(i as u32);
                 let [a, b, c] = t.vertices();
                 obvhs_tris.push(Triangle { v0: Vec3A::from(a), v1: Vec3A::from(b), v2: Vec3A::from(c) });
@@ -410,14 +435,7 @@ impl Bvh {
         let mut bvh = Bvh { build_preset: preset, ..Bvh::default() };
         if !ids.is_empty() {
             let bvh2 = build_bvh2_from_tris(&obvhs_tris, preset.params(), &mut Duration::default());
-            let nodes: Vec<BvhNode> = bvh2
-                .nodes
-                .iter()
-                .map(|n| {
-                    let b = n.aabb();
-                    BvhNode::from_box(b.min.into(), b.max.into(), n.first_index, n.prim_count)
-                })
-                .collect();
+            let nodes = obvhs_nodes(&bvh2);
             let prims: Vec<u32> = bvh2.primitive_indices.iter().map(|&p| ids[p as usize]).collect();
             (bvh.nodes, bvh.prim_indices) = flatten(&nodes, &prims);
             if bvh2.uses_spatial_splits {
@@ -429,7 +447,7 @@ impl Bvh {
             }
         }
         if cfg!(debug_assertions) {
-            bvh.validate(geometry).expect("BVH invariants");
+            bvh.validate_filtered(triangles, keep).expect("BVH invariants");
         }
         bvh
     }
@@ -553,8 +571,20 @@ impl Bvh {
     /// traceable triangle is in some leaf; depth within [`BVH_STACK_SIZE`] and equal to
     /// `max_depth`.
     pub fn validate(&self, geometry: &WorldGeometry) -> Result<(), String> {
-        let triangles = &geometry.triangles;
-        let traceable = triangles.iter().filter(|t| triangle_is_traceable(t)).count();
+        self.validate_triangles(&geometry.triangles)
+    }
+
+    /// [`Bvh::validate`] against the triangle table it was built from
+    /// ([`Bvh::build_triangles`]).
+    pub fn validate_triangles(&self, triangles: &[TriangleRecord]) -> Result<(), String> {
+        self.validate_filtered(triangles, &|_| true)
+    }
+
+    /// [`Bvh::validate_triangles`] for a tree built by [`Bvh::build_filtered`] with `keep`:
+    /// exactly the kept traceable triangles are in its leaves.
+    pub fn validate_filtered(&self, triangles: &[TriangleRecord], keep: &dyn Fn(u32) -> bool) -> Result<(), String> {
+        let wanted = |i: usize| triangle_is_traceable(&triangles[i]) && keep(i as u32);
+        let traceable = (0..triangles.len()).filter(|&i| wanted(i)).count();
         if self.leaf_triangles.len() != self.prim_indices.len() {
             return Err("leaf_triangles and prim_indices differ in length".into());
         }
@@ -605,8 +635,8 @@ impl Bvh {
                 }
                 let ti = ti as usize;
                 let t = triangles.get(ti).ok_or_else(|| format!("slot {slot}: triangle {ti} out of range"))?;
-                if !triangle_is_traceable(t) {
-                    return Err(format!("slot {slot}: triangle {ti} is not traceable: {t:?}"));
+                if !wanted(ti) {
+                    return Err(format!("slot {slot}: triangle {ti} is not traceable or not kept: {t:?}"));
                 }
                 tri_seen[ti] = true;
                 if bytemuck::bytes_of(t) != bytemuck::bytes_of(&self.leaf_triangles[slot]) {
@@ -630,7 +660,7 @@ impl Bvh {
         if let Some(s) = slot_seen.iter().position(|s| !s) {
             return Err(format!("slot {s} in no leaf"));
         }
-        if let Some(t) = (0..triangles.len()).find(|&t| triangle_is_traceable(&triangles[t]) && !tri_seen[t]) {
+        if let Some(t) = (0..triangles.len()).find(|&t| wanted(t) && !tri_seen[t]) {
             return Err(format!("traceable triangle {t} in no leaf"));
         }
         if depth as usize > BVH_STACK_SIZE {
@@ -667,14 +697,31 @@ impl Bvh {
         let Some(r) = TraversalRay::new(ray) else {
             return false;
         };
+        self.occluded_ray(&r, 0, |slot, u, v| {
+            let id = self.prim_indices[slot as usize];
+            accept(self.leaf_triangle(triangles, slot), id, u, v)
+        })
+    }
+
+    /// The any-hit walk of a prepared ray: a hit on slot `s` counts unless the triangle's
+    /// flags or `alpha_flags` hold [`TRI_ALPHA_TEST`] and `accept(s, u, v)` refuses it.
+    /// Shared by [`Bvh::occluded_filtered`] and the bottom levels of
+    /// [`two_level::TwoLevelBvh`] (where the instance brings the alpha flag).
+    #[inline(always)]
+    pub(crate) fn occluded_ray(
+        &self,
+        r: &TraversalRay,
+        alpha_flags: u32,
+        accept: impl Fn(u32, f32, f32) -> bool,
+    ) -> bool {
         // `inline(always)` on the leaf tests: the loop and its tests stay one function.
         let leaf_test = inline_leaf_test(
             #[inline(always)]
             |leaf: Leaf, _: f32, _: &mut f32| {
                 for slot in leaf.slots() {
-                    let t = self.leaf_triangle(triangles, slot);
+                    let t = &self.leaf_triangles[slot as usize];
                     if let Some(h) = r.wt.intersect(r.t_min, r.t_max, t.v0.into(), t.v1.into(), t.v2.into()) {
-                        if t.flags & TRI_ALPHA_TEST == 0 || accept(t, self.prim_indices[slot as usize], h.u, h.v) {
+                        if (t.flags | alpha_flags) & TRI_ALPHA_TEST == 0 || accept(slot, h.u, h.v) {
                             return LeafFlow::Stop;
                         }
                     }
@@ -682,7 +729,7 @@ impl Bvh {
                 LeafFlow::Continue
             },
         );
-        traverse(&self.nodes, &r, &mut r.t_max.clone(), leaf_test)
+        traverse(&self.nodes, r, &mut r.t_max.clone(), leaf_test)
     }
 
     /// The closest hit with `t_min < t < t_max`. Hits at exactly equal `t` (a ray through a
@@ -707,18 +754,45 @@ impl Bvh {
     ) -> Option<ClosestHit> {
         let r = TraversalRay::new(ray)?;
         let mut best = ClosestHit { triangle: INVALID_ID, t: r.t_max, u: 0.0, v: 0.0, back_face: false };
+        self.closest_ray(
+            &r,
+            &mut best,
+            |slot| self.prim_indices[slot as usize],
+            0,
+            |slot, id, u, v| accept(self.leaf_triangle(triangles, slot), id, u, v),
+        );
+        (best.triangle != INVALID_ID).then_some(best)
+    }
+
+    /// The closest-hit walk of a prepared ray from the hit `best` found so far (`t_max`
+    /// and no triangle to start): a hit on slot `s` is reported as triangle `id_of(s)` and
+    /// replaces `best` when it is closer, or as close with a lower id, and passes the alpha
+    /// test as in [`Bvh::occluded_ray`] (`accept(s, id, u, v)`). `back_face` is the
+    /// determinant's facing in this tree's space. Returns true when `best` changed.
+    #[inline(always)]
+    pub(crate) fn closest_ray(
+        &self,
+        r: &TraversalRay,
+        best: &mut ClosestHit,
+        id_of: impl Fn(u32) -> u32,
+        alpha_flags: u32,
+        accept: impl Fn(u32, u32, f32, f32) -> bool,
+    ) -> bool {
+        let mut found = false;
+        let mut bound = best.t;
         let leaf_test = inline_leaf_test(
             #[inline(always)]
             |leaf: Leaf, _: f32, t_best: &mut f32| {
                 let mut flow = LeafFlow::Continue;
                 for slot in leaf.slots() {
-                    let t = self.leaf_triangle(triangles, slot);
+                    let t = &self.leaf_triangles[slot as usize];
                     if let Some(h) = r.wt.intersect(r.t_min, r.t_max, t.v0.into(), t.v1.into(), t.v2.into()) {
-                        let id = self.prim_indices[slot as usize];
+                        let id = id_of(slot);
                         let closer = h.t < *t_best || (h.t == *t_best && id < best.triangle);
-                        if closer && (t.flags & TRI_ALPHA_TEST == 0 || accept(t, id, h.u, h.v)) {
-                            best = ClosestHit { triangle: id, t: h.t, u: h.u, v: h.v, back_face: h.back_face };
+                        if closer && ((t.flags | alpha_flags) & TRI_ALPHA_TEST == 0 || accept(slot, id, h.u, h.v)) {
+                            *best = ClosestHit { triangle: id, t: h.t, u: h.u, v: h.v, back_face: h.back_face };
                             *t_best = h.t;
+                            found = true;
                             flow = LeafFlow::Narrowed;
                         }
                     }
@@ -726,8 +800,8 @@ impl Bvh {
                 flow
             },
         );
-        traverse(&self.nodes, &r, &mut r.t_max.clone(), leaf_test);
-        (best.triangle != INVALID_ID).then_some(best)
+        traverse(&self.nodes, r, &mut bound, leaf_test);
+        found
     }
 
     /// The triangle of leaf slot `slot` (debug builds check the copy against `triangles`).

@@ -1,0 +1,466 @@
+//! The two-level BVH: bottom levels of triangles, a top level of instances.
+//!
+//! * **Bottom levels** are ordinary [`Bvh`]s. Each mesh that some object instances gets one,
+//!   built once over the mesh's triangles in its own (object) space and shared by every
+//!   object drawing that mesh; the objects that neither move nor share their mesh are baked
+//!   into one more bottom level over their world-space triangles (today's single-level
+//!   tree, restricted to them), which needs no transform at trace time.
+//! * **Instances** ([`InstanceRecord`]): a bottom level, the world-to-object map of the
+//!   object drawing it ([`crate::kernels::instance::world_to_object`]), the global index of
+//!   the object's first triangle (a bottom level's slots hold mesh-local indices, so the
+//!   global triangle is `first_triangle + prim_indices[slot]`) and flags. The world-space
+//!   level is one instance flagged [`INSTANCE_IDENTITY`] (first triangle 0: its slots hold
+//!   global indices already).
+//! * **The top level** is a tree of [`BvhNode`]s over the instances' world boxes
+//!   ([`crate::kernels::instance::instance_world_box`]), one instance per leaf: a leaf's
+//!   `left_or_first` is the instance's index (the instances are stored in the order the
+//!   tree's leaves are reached).
+//!
+//! Rays move into object space ([`crate::kernels::instance::to_object_space`]) when they
+//! reach an instance leaf, unless the instance is the world-space level; the bottom level
+//! is then walked by the same loop ([`super::traversal::traverse`]) and the same leaf tests
+//! as a single-level tree, the far bound carried across levels (an affine map keeps the
+//! ray parameter). Closest hits compare `(t, global triangle)` across instances exactly as
+//! within one tree, so ties between instances go to the lower global index too. The
+//! facing of a hit in a mirrored instance (negative determinant) is flipped back to world
+//! space.
+//!
+//! Which objects become instances is the caller's choice (`moving`): an object that moves
+//! between frames must be one, so that a move rewrites one instance and the top level, not
+//! a bottom level. Objects sharing a mesh always are (the mesh is built once). A scene
+//! with neither has one instance, and its answers are those of the single-level [`Bvh`]
+//! bit for bit (the same tree, the same tests).
+
+use std::time::Duration;
+
+use bytemuck::{Pod, Zeroable};
+use glam::{Mat3, Vec3, Vec3A};
+use obvhs::{aabb::Aabb, bvh2::builder::build_bvh2};
+
+use super::traversal::{inline_leaf_test, traverse, Leaf, LeafFlow};
+use super::{flatten, obvhs_nodes, Bvh, BvhNode, BvhPreset, ClosestHit, TraversalRay, BVH_STACK_SIZE};
+use crate::formats::{RayRecord, TriangleRecord, INVALID_ID, TRI_ALPHA_TEST};
+use crate::geometry::WorldGeometry;
+use crate::kernels::instance::{
+    instance_box_margin, instance_world_box, to_object_space, world_to_object, ObjectMap, MAP_IDENTITY,
+};
+use crate::scene::Scene;
+
+/// [`InstanceRecord::flags`]: the bottom level is in world space; rays are not moved.
+pub const INSTANCE_IDENTITY: u32 = 1 << 8;
+/// [`InstanceRecord::flags`]: the object's transform mirrors (negative determinant): a
+/// back face in object space is a front face in the world.
+pub const INSTANCE_MIRRORED: u32 = 1 << 9;
+/// [`InstanceRecord::flags`]: the object is alpha-tested; its bottom level's own triangle
+/// records carry no flags (they are shared by every instance of the mesh), so the
+/// instance brings [`TRI_ALPHA_TEST`] (the same bit) to the leaf tests.
+pub const INSTANCE_ALPHA_TEST: u32 = TRI_ALPHA_TEST;
+
+/// One instance of a bottom level in the top level.
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `world_to_object` | [[f32; 4]; 3] | the world-to-object map ([`ObjectMap`]: `L (w - t)`; identity for the world-space level) |
+/// | 48 | `bottom` | u32 | index of its bottom level |
+/// | 52 | `object` | u32 | the object drawn; [`INVALID_ID`] for the world-space level, which holds many |
+/// | 56 | `first_triangle` | u32 | added to the bottom level's slot indices: the global triangle index |
+/// | 60 | `flags` | u32 | [`INSTANCE_IDENTITY`], [`INSTANCE_MIRRORED`], [`INSTANCE_ALPHA_TEST`] |
+///
+/// 64 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct InstanceRecord {
+    pub world_to_object: ObjectMap,
+    pub bottom: u32,
+    pub object: u32,
+    pub first_triangle: u32,
+    pub flags: u32,
+}
+const _: () = assert!(std::mem::size_of::<InstanceRecord>() == 64);
+
+impl InstanceRecord {
+    /// Check: finite map (the identity for [`INSTANCE_IDENTITY`]), known flags, an object
+    /// exactly when the level is in object space.
+    pub fn validate(&self) -> Result<(), String> {
+        let known = INSTANCE_IDENTITY | INSTANCE_MIRRORED | INSTANCE_ALPHA_TEST;
+        if self.flags & !known != 0 {
+            return Err(format!("instance with unknown flags: {self:?}"));
+        }
+        if !self.world_to_object.iter().flatten().all(|x| x.is_finite()) {
+            return Err(format!("instance with a non-finite map: {self:?}"));
+        }
+        let identity = self.flags & INSTANCE_IDENTITY != 0;
+        if identity
+            && (self.world_to_object != MAP_IDENTITY || self.object != INVALID_ID || self.flags != INSTANCE_IDENTITY)
+        {
+            return Err(format!("world-space instance with a map, an object or flags: {self:?}"));
+        }
+        if !identity && self.object == INVALID_ID {
+            return Err(format!("object-space instance without an object: {self:?}"));
+        }
+        Ok(())
+    }
+
+    fn identity(bottom: u32) -> InstanceRecord {
+        InstanceRecord {
+            world_to_object: MAP_IDENTITY,
+            bottom,
+            object: INVALID_ID,
+            first_triangle: 0,
+            flags: INSTANCE_IDENTITY,
+        }
+    }
+}
+
+/// A two-level BVH; see the module docs.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TwoLevelBvh {
+    /// The top level over the instances' world boxes, root first; leaves hold one
+    /// instance each (`left_or_first` is its index, `count` 1). Empty when no instance
+    /// has a traceable triangle.
+    pub top: Vec<BvhNode>,
+    /// The instances, in the order the top level's leaves are reached.
+    pub instances: Vec<InstanceRecord>,
+    /// The bottom levels.
+    pub bottoms: Vec<Bvh>,
+    /// Per object: the index of its instance, or [`INVALID_ID`] when it is baked into the
+    /// world-space level (or has no traceable triangle).
+    pub object_instance: Vec<u32>,
+    /// The preset every level was built with.
+    pub build_preset: BvhPreset,
+}
+
+impl TwoLevelBvh {
+    /// Build the levels of `scene` (whose world tables are `geometry`). Objects flagged in
+    /// `moving` (indexed by object id; shorter means false) and objects sharing a mesh
+    /// with another become instances of their mesh's bottom level; the others are baked
+    /// into the world-space level. An object whose transform has no well-conditioned
+    /// inverse ([`world_to_object`]) is baked whatever it is flagged. Validated in debug
+    /// builds.
+    pub fn build(scene: &Scene, geometry: &WorldGeometry, preset: BvhPreset, moving: &[bool]) -> TwoLevelBvh {
+        let mut users = vec![0u32; scene.meshes.len()];
+        for o in &scene.objects {
+            users[o.mesh] += 1;
+        }
+        // Per object: its world-to-object map when it is an instance.
+        let maps: Vec<Option<ObjectMap>> = scene
+            .objects
+            .iter()
+            .map(|o| {
+                let wanted = moving.get(o.id as usize).copied().unwrap_or(false) || users[o.mesh] > 1;
+                wanted.then(|| world_to_object(o.transform)).flatten()
+            })
+            .collect();
+        let mut levels = TwoLevelBvh { build_preset: preset, ..TwoLevelBvh::default() };
+        // (instance, its world box) in object order, the world-space level first.
+        let mut instances: Vec<(InstanceRecord, (Vec3, Vec3))> = Vec::new();
+        let baked = |i: u32| maps[geometry.triangles[i as usize].object as usize].is_none();
+        if maps.iter().any(Option::is_none) {
+            let world = Bvh::build_filtered(&geometry.triangles, preset, &baked);
+            if let Some(root) = world.nodes.first() {
+                instances.push((InstanceRecord::identity(0), (root.min(), root.max())));
+                levels.bottoms.push(world);
+            }
+        }
+        let (lo, hi) = geometry.bounds;
+        let scene_magnitude = lo.abs().max(hi.abs()).max_element();
+        let mut mesh_bottom = vec![INVALID_ID; scene.meshes.len()];
+        for (o, map) in scene.objects.iter().zip(&maps) {
+            let Some(map) = map else { continue };
+            if mesh_bottom[o.mesh] == INVALID_ID {
+                let mesh = &scene.meshes[o.mesh];
+                let triangles: Vec<TriangleRecord> = mesh
+                    .indices
+                    .iter()
+                    .enumerate()
+                    .map(|(ti, idx)| {
+                        let [a, b, c] = idx.map(|i| mesh.positions.get(i as usize).copied().unwrap_or(Vec3::NAN));
+                        TriangleRecord {
+                            v0: a.into(),
+                            object: o.id,
+                            v1: b.into(),
+                            triangle: ti as u32,
+                            v2: c.into(),
+                            flags: 0,
+                        }
+                    })
+                    .collect();
+                mesh_bottom[o.mesh] = levels.bottoms.len() as u32;
+                levels.bottoms.push(Bvh::build_triangles(&triangles, preset));
+            }
+            let bottom = mesh_bottom[o.mesh];
+            let Some(root) = levels.bottoms[bottom as usize].nodes.first() else { continue };
+            let record = &geometry.objects[o.id as usize];
+            let alpha = geometry.triangles[record.first_triangle as usize..][..record.triangle_count as usize]
+                .first()
+                .map_or(0, |t| t.flags & TRI_ALPHA_TEST);
+            let mirrored = Mat3::from_mat4(o.transform).determinant() < 0.0;
+            let margin = instance_box_margin(map, o.transform, scene_magnitude);
+            let world_box = instance_world_box(o.transform, root.min(), root.max(), margin);
+            let instance = InstanceRecord {
+                world_to_object: *map,
+                bottom,
+                object: o.id,
+                first_triangle: record.first_triangle,
+                flags: alpha | if mirrored { INSTANCE_MIRRORED } else { 0 },
+            };
+            instances.push((instance, world_box));
+        }
+        levels.build_top(scene.objects.len(), instances);
+        if cfg!(debug_assertions) {
+            levels.validate(geometry).expect("two-level BVH invariants");
+        }
+        levels
+    }
+
+    /// Build the top level over `instances` (with their world boxes) and store the
+    /// instances in the order its leaves are reached.
+    fn build_top(&mut self, objects: usize, instances: Vec<(InstanceRecord, (Vec3, Vec3))>) {
+        self.top.clear();
+        self.instances.clear();
+        self.object_instance = vec![INVALID_ID; objects];
+        if instances.is_empty() {
+            return;
+        }
+        let boxes: Vec<Aabb> =
+            instances.iter().map(|(_, (lo, hi))| Aabb::new(Vec3A::from(*lo), Vec3A::from(*hi))).collect();
+        let mut params = self.build_preset.params();
+        params.max_prims_per_leaf = 1;
+        params.pre_split = false;
+        let bvh2 = build_bvh2(&boxes, params, &mut Duration::default());
+        let (mut top, order) = flatten(&obvhs_nodes(&bvh2), &bvh2.primitive_indices);
+        let deep = depth_of(&top) > BVH_STACK_SIZE;
+        let order = if deep || top.iter().any(|n| n.count > 1) {
+            // Never seen from obvhs with one primitive per leaf; a balanced tree instead.
+            let (t, o) = median_top(&boxes);
+            top = t;
+            o
+        } else {
+            order
+        };
+        for (slot, &i) in order.iter().enumerate() {
+            let (instance, _) = instances[i as usize];
+            if instance.object != INVALID_ID {
+                self.object_instance[instance.object as usize] = slot as u32;
+            }
+            self.instances.push(instance);
+        }
+        self.top = top;
+    }
+
+    /// Check the invariants: every bottom level valid against its triangles (the world
+    /// table for the world-space level, the object-space copies it holds for the others:
+    /// their leaves are checked for containment); instances valid, naming existing bottom
+    /// levels and objects; the top level a valid tree whose leaves hold one instance each,
+    /// in order, with boxes containing their instance's mapped bottom-level box.
+    pub fn validate(&self, geometry: &WorldGeometry) -> Result<(), String> {
+        for (i, inst) in self.instances.iter().enumerate() {
+            inst.validate().map_err(|e| format!("instance {i}: {e}"))?;
+            let bottom =
+                self.bottoms.get(inst.bottom as usize).ok_or_else(|| format!("instance {i}: no bottom level"))?;
+            if inst.flags & INSTANCE_IDENTITY != 0 {
+                let object_of = |t: u32| geometry.triangles[t as usize].object;
+                let baked = |t: u32| self.object_instance.get(object_of(t) as usize) == Some(&INVALID_ID);
+                bottom.validate_filtered(&geometry.triangles, &baked).map_err(|e| format!("world-space level: {e}"))?;
+            } else {
+                let o = geometry.objects.get(inst.object as usize).ok_or_else(|| format!("instance {i}: no object"))?;
+                if inst.first_triangle != o.first_triangle || self.object_instance[inst.object as usize] != i as u32 {
+                    return Err(format!("instance {i} and object {} disagree", inst.object));
+                }
+                if let Some(&s) = bottom.prim_indices.iter().find(|&&s| s >= o.triangle_count) {
+                    return Err(format!("instance {i}: slot names triangle {s} of {}", o.triangle_count));
+                }
+            }
+        }
+        for (b, bottom) in self.bottoms.iter().enumerate() {
+            if bottom.max_depth as usize > BVH_STACK_SIZE || bottom.leaf_triangles.len() != bottom.prim_indices.len() {
+                return Err(format!("bottom level {b} malformed"));
+            }
+        }
+        if self.top.is_empty() {
+            return if self.instances.is_empty() { Ok(()) } else { Err("instances without a top level".into()) };
+        }
+        let mut seen = vec![false; self.instances.len()];
+        let mut todo = vec![(0usize, 0usize, 0usize)];
+        while let Some((n, depth, parent)) = todo.pop() {
+            let node = self.top.get(n).ok_or_else(|| format!("top node {n} out of range"))?;
+            node.validate().map_err(|e| format!("top node {n}: {e}"))?;
+            let p = &self.top[parent];
+            if !(node.min().cmpge(p.min()).all() && node.max().cmple(p.max()).all()) || depth > BVH_STACK_SIZE {
+                return Err(format!("top node {n} outside its parent or too deep"));
+            }
+            if node.is_leaf() {
+                let i = node.left_or_first as usize;
+                if node.count != 1 || i >= seen.len() || std::mem::replace(&mut seen[i], true) {
+                    return Err(format!("top leaf {n} does not hold one new instance"));
+                }
+                let bottom = &self.bottoms[self.instances[i].bottom as usize];
+                let root = &bottom.nodes[0];
+                if self.instances[i].flags & INSTANCE_IDENTITY != 0
+                    && (root.min() != node.min() || root.max() != node.max())
+                {
+                    return Err(format!("top leaf {n}: not the world-space level's box"));
+                }
+            } else {
+                let l = node.left_or_first as usize;
+                if l <= n || l + 1 >= self.top.len() {
+                    return Err(format!("top node {n}: children {l} out of order"));
+                }
+                todo.push((l, depth + 1, n));
+                todo.push((l + 1, depth + 1, n));
+            }
+        }
+        if seen.iter().any(|s| !s) {
+            return Err("an instance in no top leaf".into());
+        }
+        Ok(())
+    }
+
+    /// Any hit with `t_min < t < t_max` over every instance, as [`Bvh::occluded_filtered`]:
+    /// `triangles` is the world table (alpha tests read the world record of the hit
+    /// triangle, whose object is the instance's).
+    pub fn occluded_filtered(
+        &self,
+        triangles: &[TriangleRecord],
+        ray: &RayRecord,
+        accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool,
+    ) -> bool {
+        let Some(r) = TraversalRay::new(ray) else {
+            return false;
+        };
+        let leaf_test = inline_leaf_test(|leaf: Leaf, _: f32, _: &mut f32| {
+            let inst = &self.instances[leaf.first as usize];
+            let bottom = &self.bottoms[inst.bottom as usize];
+            let accept = |slot: u32, u: f32, v: f32| {
+                let id = inst.first_triangle + bottom.prim_indices[slot as usize];
+                accept(&triangles[id as usize], id, u, v)
+            };
+            let hit = if inst.flags & INSTANCE_IDENTITY != 0 {
+                bottom.occluded_ray(&r, 0, accept)
+            } else {
+                object_ray(inst, ray)
+                    .is_some_and(|ro| bottom.occluded_ray(&ro, inst.flags & INSTANCE_ALPHA_TEST, accept))
+            };
+            if hit {
+                LeafFlow::Stop
+            } else {
+                LeafFlow::Continue
+            }
+        });
+        traverse(&self.top, &r, &mut r.t_max.clone(), leaf_test)
+    }
+
+    /// Any hit, no alpha test ([`Bvh::occluded`]).
+    pub fn occluded(&self, triangles: &[TriangleRecord], ray: &RayRecord) -> bool {
+        self.occluded_filtered(triangles, ray, |_, _, _, _| true)
+    }
+
+    /// The closest hit with `t_min < t < t_max` over every instance, as
+    /// [`Bvh::closest_hit_filtered`]: ties at equal `t` go to the lower global triangle,
+    /// across instances too; `back_face` is the world facing.
+    pub fn closest_hit_filtered(
+        &self,
+        triangles: &[TriangleRecord],
+        ray: &RayRecord,
+        accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool,
+    ) -> Option<ClosestHit> {
+        let r = TraversalRay::new(ray)?;
+        let mut best = ClosestHit { triangle: INVALID_ID, t: r.t_max, u: 0.0, v: 0.0, back_face: false };
+        let leaf_test = inline_leaf_test(|leaf: Leaf, _: f32, t_best: &mut f32| {
+            let inst = &self.instances[leaf.first as usize];
+            let bottom = &self.bottoms[inst.bottom as usize];
+            let id_of = |slot: u32| inst.first_triangle + bottom.prim_indices[slot as usize];
+            let accept = |_: u32, id: u32, u: f32, v: f32| accept(&triangles[id as usize], id, u, v);
+            let found = if inst.flags & INSTANCE_IDENTITY != 0 {
+                bottom.closest_ray(&r, &mut best, id_of, 0, accept)
+            } else {
+                object_ray(inst, ray).is_some_and(|ro| {
+                    bottom.closest_ray(&ro, &mut best, id_of, inst.flags & INSTANCE_ALPHA_TEST, accept)
+                })
+            };
+            if !found {
+                return LeafFlow::Continue;
+            }
+            if inst.flags & INSTANCE_MIRRORED != 0 {
+                best.back_face = !best.back_face;
+            }
+            *t_best = best.t;
+            LeafFlow::Narrowed
+        });
+        traverse(&self.top, &r, &mut r.t_max.clone(), leaf_test);
+        (best.triangle != INVALID_ID).then_some(best)
+    }
+
+    /// The closest hit, no alpha test ([`Bvh::closest_hit`]).
+    pub fn closest_hit(&self, triangles: &[TriangleRecord], ray: &RayRecord) -> Option<ClosestHit> {
+        self.closest_hit_filtered(triangles, ray, |_, _, _, _| true)
+    }
+
+    /// Bytes held by the levels' nodes, slots and triangle copies, and the instances.
+    pub fn bytes(&self) -> usize {
+        let bottom = |b: &Bvh| {
+            std::mem::size_of_val(b.nodes.as_slice())
+                + std::mem::size_of_val(b.prim_indices.as_slice())
+                + std::mem::size_of_val(b.leaf_triangles.as_slice())
+        };
+        self.bottoms.iter().map(bottom).sum::<usize>()
+            + std::mem::size_of_val(self.top.as_slice())
+            + std::mem::size_of_val(self.instances.as_slice())
+    }
+}
+
+/// The ray moved into `inst`'s object space, prepared; `None` when it can hit nothing
+/// there (the map overflowed it, or its direction vanished).
+#[inline(always)]
+fn object_ray(inst: &InstanceRecord, ray: &RayRecord) -> Option<TraversalRay> {
+    let (origin, direction) = to_object_space(&inst.world_to_object, ray.origin.into(), ray.direction.into());
+    TraversalRay::new(&RayRecord { origin: origin.into(), direction: direction.into(), ..*ray })
+}
+
+/// Depth of the deepest node of a flattened tree (root 0).
+fn depth_of(nodes: &[BvhNode]) -> usize {
+    let mut deepest = 0;
+    let mut todo = if nodes.is_empty() { vec![] } else { vec![(0usize, 0usize)] };
+    while let Some((n, d)) = todo.pop() {
+        deepest = deepest.max(d);
+        if !nodes[n].is_leaf() {
+            let l = nodes[n].left_or_first as usize;
+            todo.push((l, d + 1));
+            todo.push((l + 1, d + 1));
+        }
+    }
+    deepest
+}
+
+/// A balanced top level (object-median splits of the box centres on the longest axis, one
+/// box per leaf): the fallback if obvhs ever returns a tree too deep for the stack. Returns
+/// the nodes (depth first) and the box index of each leaf slot.
+fn median_top(boxes: &[Aabb]) -> (Vec<BvhNode>, Vec<u32>) {
+    let mut items: Vec<u32> = (0..boxes.len() as u32).collect();
+    let centre = |i: u32| Vec3::from(boxes[i as usize].center());
+    let mut nodes = vec![BvhNode::zeroed()];
+    let mut todo = vec![(0usize, 0usize, items.len())];
+    while let Some((node, start, end)) = todo.pop() {
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        let (mut clo, mut chi) = (lo, hi);
+        for &i in &items[start..end] {
+            lo = lo.min(boxes[i as usize].min.into());
+            hi = hi.max(boxes[i as usize].max.into());
+            clo = clo.min(centre(i));
+            chi = chi.max(centre(i));
+        }
+        if end - start == 1 {
+            nodes[node] = BvhNode::from_box(lo, hi, start as u32, 1);
+            continue;
+        }
+        let axis = (chi - clo).max_position();
+        items[start..end].sort_unstable_by(|&a, &b| centre(a)[axis].total_cmp(&centre(b)[axis]).then(a.cmp(&b)));
+        let left = nodes.len();
+        nodes.extend([BvhNode::zeroed(); 2]);
+        nodes[node] = BvhNode::from_box(lo, hi, left as u32, 0);
+        let mid = start + (end - start) / 2;
+        todo.push((left + 1, mid, end));
+        todo.push((left, start, mid));
+    }
+    (nodes, items)
+}

@@ -1,0 +1,233 @@
+//! The two-level BVH (`hyrt_core::bvh::two_level`): a scene without instances answers as
+//! the single-level tree bit for bit; instanced meshes (scaled, rotated, mirrored, shared)
+//! stay watertight, rays leaving their surfaces with the instance's offset bound do not
+//! hit them again, and hits report the right object's triangles and world facing.
+
+use glam::{Mat4, Quat, Vec3};
+use hyrt_core::bvh::two_level::{TwoLevelBvh, INSTANCE_IDENTITY};
+use hyrt_core::bvh::{Bvh, BvhPreset};
+use hyrt_core::formats::{RayRecord, INVALID_ID, RAY_KIND_SHADOW};
+use hyrt_core::geometry::WorldGeometry;
+use hyrt_core::kernels::barycentric::{geometric_normal, position_error_bound, reconstruct_position};
+use hyrt_core::kernels::instance::{instance_position_error, world_to_object};
+use hyrt_core::kernels::ray::offset_ray_origin;
+use hyrt_core::scene::{Material, Mesh, Object, ObjectSource, RenderMode, Scene};
+use proptest::prelude::*;
+
+fn ray(origin: Vec3, direction: Vec3) -> RayRecord {
+    RayRecord {
+        origin: origin.into(),
+        t_min: 0.0,
+        direction: direction.into(),
+        t_max: f32::INFINITY,
+        pixel: 0,
+        kind: RAY_KIND_SHADOW,
+        depth: 0,
+        light: INVALID_ID,
+        throughput: [1.0; 3],
+        cone: 0.0,
+    }
+}
+
+/// Deterministic pseudo-random numbers in [0, 1) (xorshift), so the ray sets are fixed.
+struct Rng(u64);
+impl Rng {
+    fn next(&mut self) -> f32 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 40) as f32 / (1u64 << 24) as f32
+    }
+    fn unit(&mut self) -> Vec3 {
+        loop {
+            let v = Vec3::new(self.next(), self.next(), self.next()) * 2.0 - 1.0;
+            let l = v.length();
+            if l > 0.1 && l <= 1.0 {
+                return v / l;
+            }
+        }
+    }
+}
+
+/// Rays from points around and inside the scene's bounds toward random directions.
+fn random_rays(geometry: &WorldGeometry, n: usize, seed: u64) -> Vec<RayRecord> {
+    let (lo, hi) = geometry.bounds;
+    let mut rng = Rng(seed);
+    (0..n)
+        .map(|_| {
+            let o = lo + (hi - lo) * Vec3::new(rng.next(), rng.next(), rng.next()) * 1.4 - (hi - lo) * 0.2;
+            ray(o, rng.unit())
+        })
+        .collect()
+}
+
+/// One object of `mesh` with transform `m`.
+fn one_object(mesh: Mesh, m: Mat4) -> Scene {
+    let mut scene = Scene::default();
+    scene.add_object(mesh, Material::grey(), m, RenderMode::RayTraced);
+    scene
+}
+
+#[test]
+fn a_scene_without_instances_is_the_single_level_tree() {
+    let scene = Scene::default_scene();
+    let geometry = WorldGeometry::build(&scene);
+    let flat = Bvh::build(&geometry, BvhPreset::default());
+    let levels = TwoLevelBvh::build(&scene, &geometry, BvhPreset::default(), &[]);
+    levels.validate(&geometry).unwrap();
+    assert_eq!(levels.instances.len(), 1);
+    assert_eq!(levels.instances[0].flags, INSTANCE_IDENTITY);
+    assert_eq!(levels.bottoms.len(), 1);
+    let b = &levels.bottoms[0];
+    assert_eq!((&b.nodes, &b.prim_indices, &b.leaf_triangles), (&flat.nodes, &flat.prim_indices, &flat.leaf_triangles));
+    for r in random_rays(&geometry, 4000, 7) {
+        assert_eq!(levels.closest_hit(&geometry.triangles, &r), flat.closest_hit(&geometry.triangles, &r), "{r:?}");
+        assert_eq!(levels.occluded(&geometry.triangles, &r), flat.occluded(&geometry.triangles, &r), "{r:?}");
+    }
+}
+
+/// Every object of the default scene an instance in its own space: the hits are the
+/// single-level tree's up to the rounding of the maps. Where they differ, the two hits
+/// are within that rounding of each other in `t` (a ray through a shared edge, or two
+/// surfaces at nearly the same distance).
+#[test]
+fn every_object_an_instance_finds_the_same_hits_as_the_world_space_tree() {
+    let scene = Scene::default_scene();
+    let geometry = WorldGeometry::build(&scene);
+    let flat = Bvh::build(&geometry, BvhPreset::default());
+    let moving = vec![true; scene.objects.len()];
+    let levels = TwoLevelBvh::build(&scene, &geometry, BvhPreset::default(), &moving);
+    levels.validate(&geometry).unwrap();
+    assert!(levels.instances.iter().all(|i| i.flags & INSTANCE_IDENTITY == 0));
+    let (mut same, mut total) = (0, 0);
+    for r in random_rays(&geometry, 4000, 11) {
+        let (a, b) = (levels.closest_hit(&geometry.triangles, &r), flat.closest_hit(&geometry.triangles, &r));
+        assert_eq!(a.is_some(), b.is_some(), "{r:?}: {a:?} vs {b:?}");
+        assert_eq!(levels.occluded(&geometry.triangles, &r), b.is_some(), "{r:?}");
+        if let (Some(a), Some(b)) = (a, b) {
+            total += 1;
+            // The maps' rounding: a few ulps of the scene's coordinates (about 10), relative.
+            let tolerance = 1e-4 * b.t.max(1.0);
+            assert!((a.t - b.t).abs() <= tolerance, "{r:?}: {a:?} vs {b:?}");
+            if a.triangle == b.triangle {
+                same += 1;
+                assert_eq!(a.back_face, b.back_face, "{r:?}");
+            }
+        }
+    }
+    assert!(total > 1000 && same * 100 >= total * 99, "{same} of {total} hits on the same triangle");
+}
+
+#[test]
+fn objects_sharing_a_mesh_share_one_bottom_level() {
+    let mut scene = one_object(Mesh::cube("cube"), Mat4::from_translation(Vec3::new(-3.0, 0.0, 0.0)));
+    scene.objects.push(Object {
+        id: 1,
+        name: "cube 2".into(),
+        mesh: 0,
+        transform: Mat4::from_scale_rotation_translation(Vec3::splat(0.5), Quat::from_rotation_y(0.4), Vec3::X * 3.0),
+        material: 0,
+        render_mode: RenderMode::Raster,
+        source: ObjectSource::default(),
+    });
+    let geometry = WorldGeometry::build(&scene);
+    let levels = TwoLevelBvh::build(&scene, &geometry, BvhPreset::default(), &[]);
+    levels.validate(&geometry).unwrap();
+    assert_eq!(levels.bottoms.len(), 1, "one mesh, one bottom level, no world-space level");
+    assert_eq!(levels.instances.len(), 2);
+    for (x, object) in [(-3.0, 0), (3.0, 1)] {
+        let r = ray(Vec3::new(x, 0.1, 10.0), Vec3::NEG_Z);
+        let hit = levels.closest_hit(&geometry.triangles, &r).expect("hits the cube");
+        assert_eq!(geometry.triangles[hit.triangle as usize].object, object);
+        // The second cube, half size, is turned by 0.4 about y: its front face is
+        // 0.5 / cos(0.4) ahead of its centre along the ray.
+        let expected_t = if object == 0 { 9.0 } else { 10.0 - 0.5 / 0.4f32.cos() };
+        assert!((hit.t - expected_t).abs() < 1e-5, "{hit:?}");
+        assert!(!hit.back_face);
+    }
+    assert!(levels.closest_hit(&geometry.triangles, &ray(Vec3::new(0.0, 0.0, 10.0), Vec3::NEG_Z)).is_none());
+}
+
+/// A random object-to-world map: rotation, per-axis scale in [1/20, 20] (a mirror when
+/// `mirror`), translation within 100.
+fn transform(axis: [f32; 3], angle: f32, scale: [f32; 3], mirror: bool, t: [f32; 3]) -> Mat4 {
+    let axis = Vec3::from(axis).try_normalize().unwrap_or(Vec3::Y);
+    let scale = Vec3::from(scale).map(|s| 20f32.powf(s)) * if mirror { Vec3::new(-1.0, 1.0, 1.0) } else { Vec3::ONE };
+    Mat4::from_scale_rotation_translation(scale, Quat::from_axis_angle(axis, angle), Vec3::from(t))
+}
+
+fn transforms() -> impl Strategy<Value = Mat4> {
+    (
+        prop::array::uniform3(-1.0f32..1.0),
+        0.0f32..6.3,
+        prop::array::uniform3(-1.0f32..1.0),
+        any::<bool>(),
+        prop::array::uniform3(-100.0f32..100.0),
+    )
+        .prop_map(|(a, angle, s, mirror, t)| transform(a, angle, s, mirror, t))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// A closed sphere, scaled, rotated and mirrored as an instance: every ray from its
+    /// centre hits it (no crack between triangles in object space), with the world
+    /// facing of the inside: the back faces of its outward triangles, the front faces of
+    /// a mirror image (whose world triangles wind the other way).
+    #[test]
+    fn instanced_closed_meshes_stay_watertight(m in transforms(), seed in any::<u64>()) {
+        let scene = one_object(Mesh::uv_sphere("sphere", 24, 12), m);
+        let geometry = WorldGeometry::build(&scene);
+        let levels = TwoLevelBvh::build(&scene, &geometry, BvhPreset::default(), &[true]);
+        prop_assert!(levels.instances[0].flags & INSTANCE_IDENTITY == 0);
+        let centre = m.transform_point3(Vec3::ZERO);
+        let inside_is_back = m.determinant() > 0.0;
+        let mut rng = Rng(seed | 1);
+        for _ in 0..200 {
+            let r = ray(centre, rng.unit());
+            let hit = levels.closest_hit(&geometry.triangles, &r);
+            prop_assert!(hit.is_some_and(|h| h.back_face == inside_is_back), "{:?} escaped or saw the outside: {:?}", r, hit);
+            prop_assert!(levels.occluded(&geometry.triangles, &r));
+        }
+    }
+
+    /// Rays leaving a point rebuilt on a world triangle of an instanced sphere, offset by the
+    /// point's error bound plus `instance_position_error`: outward, they never hit the
+    /// (convex) sphere again; inward, they do not hit the triangle they
+    /// left.
+    #[test]
+    fn rays_leaving_an_instanced_surface_do_not_hit_it_again(m in transforms(), seed in any::<u64>()) {
+        let scene = one_object(Mesh::uv_sphere("sphere", 16, 8), m);
+        let geometry = WorldGeometry::build(&scene);
+        let levels = TwoLevelBvh::build(&scene, &geometry, BvhPreset::default(), &[true]);
+        let root = &levels.bottoms[0].nodes[0];
+        let extra = instance_position_error(m, &world_to_object(m).unwrap(), root.min(), root.max());
+        let mut rng = Rng(seed | 1);
+        let mirrored = m.determinant() < 0.0;
+        for _ in 0..100 {
+            let gi = (rng.next() * geometry.triangles.len() as f32) as usize % geometry.triangles.len();
+            let [v0, v1, v2] = geometry.triangles[gi].vertices();
+            let ng = geometric_normal(v0, v1, v2);
+            if ng == Vec3::ZERO {
+                continue;
+            }
+            // The sphere's triangles face out in object space; a mirror turns them in.
+            let outward = if mirrored { -ng } else { ng };
+            let (u, v) = (rng.next(), rng.next());
+            let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
+            let p = reconstruct_position(u, v, v0, v1, v2);
+            let err = position_error_bound(u, v, v0, v1, v2).max_element() + extra;
+            let d = rng.unit();
+            let out = if d.dot(outward) > 0.0 { d } else { -d };
+            let r = ray(offset_ray_origin(p, err, outward), out);
+            let hit = levels.closest_hit(&geometry.triangles, &r);
+            prop_assert!(hit.is_none(), "outward ray {:?} from triangle {} hit {:?}", r, gi, hit);
+            // Inward, the ray must not hit the triangle it left. (It may miss altogether: near
+            // a sharp convex edge the offset along one face's normal crosses the plane of the
+            // next face, in world space as in object space.)
+            let r = ray(offset_ray_origin(p, err, -outward), -out);
+            let hit = levels.closest_hit(&geometry.triangles, &r);
+            prop_assert!(hit.is_none_or(|h| h.triangle as usize != gi), "inward ray {:?} from {} hit {:?}", r, gi, hit);
+        }
+    }
+}
