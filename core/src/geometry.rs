@@ -8,6 +8,8 @@
 
 use std::collections::HashMap;
 
+use bytemuck::Zeroable;
+
 use glam::{DVec3, Mat3, Vec2, Vec3};
 
 use crate::formats::{
@@ -133,7 +135,7 @@ pub struct WorldGeometry {
     pub normals: Vec<[Vec3; 3]>,
     pub objects: Vec<ObjectRecord>,
     pub lights: Vec<LightRecord>,
-    /// World bounds of all finite vertices (min, max); a unit box around the
+    /// World bounds of the triangles' finite vertices (min, max); a unit box around the
     /// origin for a scene without finite vertices.
     pub bounds: (Vec3, Vec3),
     /// Triangles with a NaN or infinite vertex. They stay in the table (ids must
@@ -313,83 +315,132 @@ impl WorldGeometry {
     /// Transform every object of `scene` to world space.
     pub fn build(scene: &Scene) -> WorldGeometry {
         let mut g = WorldGeometry::default();
-        let mut lo = Vec3::splat(f32::INFINITY);
-        let mut hi = Vec3::splat(f32::NEG_INFINITY);
         // Each mesh classified once, however many objects share it.
         let mut windings: Vec<Option<MeshWinding>> = vec![None; scene.meshes.len()];
+        let total = scene.objects.iter().map(|o| scene.meshes[o.mesh].indices.len()).sum();
+        g.triangles = vec![TriangleRecord::zeroed(); total];
+        g.normals = vec![[Vec3::ZERO; 3]; total];
         for (oi, obj) in scene.objects.iter().enumerate() {
             debug_assert_eq!(obj.id as usize, oi, "object ids must equal their index");
-            let mesh = &scene.meshes[obj.mesh];
-            let mat = &scene.materials[obj.material];
-            let rt = obj.render_mode == RenderMode::RayTraced;
-            let winding = windings[obj.mesh]
-                .get_or_insert_with(|| MeshWinding::of_mesh(mesh))
-                .transformed(Mat3::from_mat4(obj.transform).determinant());
-            let masked = mat.alpha_mode.cutoff().is_some();
-            let tri_flags = if rt { TRI_RAY_TRACED } else { 0 }
-                | if winding == MeshWinding::Inward { TRI_INWARD } else { 0 }
-                | if masked { TRI_ALPHA_TEST } else { 0 };
-            let normal_matrix = Mat3::from_mat4(obj.transform).inverse().transpose();
-            let world: Vec<Vec3> = mesh.positions.iter().map(|p| obj.transform.transform_point3(*p)).collect();
-            for w in &world {
-                if w.is_finite() {
-                    lo = lo.min(*w);
-                    hi = hi.max(*w);
-                }
-            }
-            let first = g.triangles.len() as u32;
-            for (ti, idx) in mesh.indices.iter().enumerate() {
-                let [a, b, c] = idx.map(|i| world[i as usize]);
-                if !(a.is_finite() && b.is_finite() && c.is_finite()) {
-                    g.non_finite_triangles += 1;
-                }
-                g.triangles.push(TriangleRecord {
-                    v0: a.into(),
-                    object: obj.id,
-                    v1: b.into(),
-                    triangle: ti as u32,
-                    v2: c.into(),
-                    flags: tri_flags,
-                });
-                let face = (b - a).cross(c - a).normalize_or_zero();
-                let n = match &mesh.normals {
-                    Some(ns) => idx.map(|i| {
-                        let n = (normal_matrix * ns[i as usize]).normalize_or_zero();
-                        if n == Vec3::ZERO {
-                            face
-                        } else {
-                            n
-                        }
-                    }),
-                    None => [face; 3],
-                };
-                g.normals.push(n);
-            }
-            let ior = match mat.kind {
-                MaterialKind::Glass { ior } => ior,
-                _ => 1.5,
-            };
-            g.objects.push(ObjectRecord {
-                first_triangle: first,
-                triangle_count: mesh.indices.len() as u32,
-                flags: if rt { OBJ_RAY_TRACED } else { 0 },
-                material_kind: mat.kind.code(),
-                base_color: mat.base_color.into(),
-                metallic: mat.metallic,
-                roughness: mat.roughness,
-                transmission: mat.transmission,
-                ior,
-                pad: 0,
+            let first = g.objects.len().checked_sub(1).map_or(0, |last| {
+                let o: &ObjectRecord = &g.objects[last];
+                o.first_triangle + o.triangle_count
             });
+            let winding = *windings[obj.mesh].get_or_insert_with(|| MeshWinding::of_mesh(&scene.meshes[obj.mesh]));
+            g.objects.push(ObjectRecord { first_triangle: first, ..ObjectRecord::zeroed() });
+            g.write_object(scene, oi, winding);
         }
         g.lights = scene.lights.iter().map(LightRecord::from_light).collect();
         g.environment = scene.environment.clone();
         g.surface = surface_tables(scene, &g.triangles);
-        g.bounds = if lo.x <= hi.x { (lo, hi) } else { (Vec3::splat(-1.0), Vec3::splat(1.0)) };
+        g.non_finite_triangles = g.count_non_finite();
+        g.bounds = g.finite_bounds();
         if cfg!(debug_assertions) {
             g.validate().expect("world geometry invariants");
         }
         g
+    }
+
+    /// Write object `oi`'s triangles, normals and record (its `first_triangle` already set)
+    /// from the scene's current transform, material and render mode: the one writer of
+    /// [`WorldGeometry::build`] and [`WorldGeometry::update_object`]. `winding` is the
+    /// mesh's, in its own space.
+    fn write_object(&mut self, scene: &Scene, oi: usize, winding: MeshWinding) {
+        let obj = &scene.objects[oi];
+        let mesh = &scene.meshes[obj.mesh];
+        let mat = &scene.materials[obj.material];
+        let rt = obj.render_mode == RenderMode::RayTraced;
+        let winding = winding.transformed(Mat3::from_mat4(obj.transform).determinant());
+        let masked = mat.alpha_mode.cutoff().is_some();
+        let tri_flags = if rt { TRI_RAY_TRACED } else { 0 }
+            | if winding == MeshWinding::Inward { TRI_INWARD } else { 0 }
+            | if masked { TRI_ALPHA_TEST } else { 0 };
+        let normal_matrix = Mat3::from_mat4(obj.transform).inverse().transpose();
+        let world: Vec<Vec3> = mesh.positions.iter().map(|p| obj.transform.transform_point3(*p)).collect();
+        let first = self.objects[oi].first_triangle as usize;
+        let range = first..first + mesh.indices.len();
+        for ((ti, idx), (tri, normals)) in
+            mesh.indices.iter().enumerate().zip(self.triangles[range.clone()].iter_mut().zip(&mut self.normals[range]))
+        {
+            let [a, b, c] = idx.map(|i| world[i as usize]);
+            *tri = TriangleRecord {
+                v0: a.into(),
+                object: obj.id,
+                v1: b.into(),
+                triangle: ti as u32,
+                v2: c.into(),
+                flags: tri_flags,
+            };
+            let face = (b - a).cross(c - a).normalize_or_zero();
+            *normals = match &mesh.normals {
+                Some(ns) => idx.map(|i| {
+                    let n = (normal_matrix * ns[i as usize]).normalize_or_zero();
+                    if n == Vec3::ZERO {
+                        face
+                    } else {
+                        n
+                    }
+                }),
+                None => [face; 3],
+            };
+        }
+        let ior = match mat.kind {
+            MaterialKind::Glass { ior } => ior,
+            _ => 1.5,
+        };
+        self.objects[oi] = ObjectRecord {
+            first_triangle: first as u32,
+            triangle_count: mesh.indices.len() as u32,
+            flags: if rt { OBJ_RAY_TRACED } else { 0 },
+            material_kind: mat.kind.code(),
+            base_color: mat.base_color.into(),
+            metallic: mat.metallic,
+            roughness: mat.roughness,
+            transmission: mat.transmission,
+            ior,
+            pad: 0,
+        };
+    }
+
+    /// Rewrite object `object`'s tables after its transform or render mode changed in
+    /// `scene` (the scene these tables were built from: same meshes and materials): its
+    /// triangles and normals in place, its record, its texture level-of-detail constants
+    /// and the scene bounds. Nothing else is touched; the result equals
+    /// [`WorldGeometry::build`] of the changed scene. Costs one pass over the object's
+    /// triangles plus one over the table for the bounds.
+    pub fn update_object(&mut self, scene: &Scene, object: u32) {
+        let oi = object as usize;
+        let winding = MeshWinding::of_mesh(&scene.meshes[scene.objects[oi].mesh]);
+        self.write_object(scene, oi, winding);
+        self.non_finite_triangles = self.count_non_finite();
+        self.bounds = self.finite_bounds();
+        if !self.surface.uvs.is_empty() {
+            self.surface = surface_tables(scene, &self.triangles);
+        }
+        if cfg!(debug_assertions) {
+            self.validate().expect("world geometry invariants");
+        }
+    }
+
+    /// Triangles with a NaN or infinite vertex.
+    fn count_non_finite(&self) -> usize {
+        self.triangles.iter().filter(|t| !t.vertices().iter().all(|v| v.is_finite())).count()
+    }
+
+    /// Bounds of all finite vertices; a unit box around the origin when there is none.
+    fn finite_bounds(&self) -> (Vec3, Vec3) {
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for v in self.triangles.iter().flat_map(|t| t.vertices()) {
+            if v.is_finite() {
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+        }
+        if lo.x <= hi.x {
+            (lo, hi)
+        } else {
+            (Vec3::splat(-1.0), Vec3::splat(1.0))
+        }
     }
 
     /// Number of triangles.

@@ -231,3 +231,81 @@ proptest! {
         }
     }
 }
+
+/// Two sets of levels are the same, bit for bit. (Not `==`: the bottom levels' wide views
+/// pad their leaves with NaN.)
+fn assert_same_levels(a: &TwoLevelBvh, b: &TwoLevelBvh) {
+    assert_eq!(
+        (&a.top, &a.instances, &a.object_instance, &a.in_object_space),
+        (&b.top, &b.instances, &b.object_instance, &b.in_object_space)
+    );
+    assert_eq!(a.bottoms.len(), b.bottoms.len());
+    for (x, y) in a.bottoms.iter().zip(&b.bottoms) {
+        assert_eq!((&x.nodes, &x.prim_indices, &x.leaf_triangles), (&y.nodes, &y.prim_indices, &y.leaf_triangles));
+    }
+}
+
+/// The world tables of two builds are the same, field by field.
+fn assert_same_tables(a: &WorldGeometry, b: &WorldGeometry) {
+    assert_eq!(a.triangles, b.triangles);
+    assert_eq!(a.normals, b.normals);
+    assert_eq!(a.objects, b.objects);
+    assert_eq!(a.bounds, b.bounds);
+    assert_eq!(a.non_finite_triangles, b.non_finite_triangles);
+    assert_eq!(a.surface, b.surface);
+}
+
+/// Moving objects between frames: the world tables and the levels updated in place equal
+/// a fresh build of the moved scene, the bottom levels are not rebuilt, and rays find the
+/// objects where they now are.
+#[test]
+fn moved_objects_update_to_what_a_fresh_build_gives() {
+    let mut scene = Scene::default_scene();
+    let moving: Vec<bool> = (0..scene.objects.len()).map(|o| o == 1 || o == 3).collect();
+    let mut geometry = WorldGeometry::build(&scene);
+    let mut levels = TwoLevelBvh::build(&scene, &geometry, BvhPreset::default(), &moving);
+    let bottoms_before = levels.bottoms.clone();
+    for (frame, t) in [0.5f32, 1.25, -2.0].into_iter().enumerate() {
+        scene.objects[1].transform = Mat4::from_scale_rotation_translation(
+            Vec3::new(1.0, 1.5, 0.75),
+            Quat::from_rotation_y(t),
+            Vec3::new(t, 0.25 * t, -t),
+        ) * Scene::default_scene().objects[1].transform;
+        // The other moving object changes only how it is shaded.
+        scene.objects[3].render_mode = if frame % 2 == 0 { RenderMode::Raster } else { RenderMode::RayTraced };
+        for o in [1, 3] {
+            geometry.update_object(&scene, o);
+        }
+        levels.update_objects(&scene, &geometry, &[1, 3]).unwrap();
+        let fresh = WorldGeometry::build(&scene);
+        assert_same_tables(&geometry, &fresh);
+        assert_same_levels(&levels, &TwoLevelBvh::build(&scene, &fresh, BvhPreset::default(), &moving));
+        assert_same_levels(&TwoLevelBvh { bottoms: bottoms_before.clone(), ..levels.clone() }, &levels);
+        // A ray at the moved object's centre from outside its box finds it.
+        let centre = scene.objects[1].transform.transform_point3(Vec3::ZERO);
+        let r = ray(centre + Vec3::new(0.0, 0.0, 50.0), Vec3::NEG_Z);
+        let hit = levels.closest_hit(&geometry.triangles, &r).expect("the moved object is hit");
+        let flat = Bvh::build(&geometry, BvhPreset::default()).closest_hit(&geometry.triangles, &r).unwrap();
+        assert_eq!(geometry.triangles[hit.triangle as usize].object, geometry.triangles[flat.triangle as usize].object);
+        assert!((hit.t - flat.t).abs() <= 1e-4 * flat.t, "{hit:?} vs {flat:?}");
+    }
+}
+
+#[test]
+fn objects_that_cannot_move_are_refused_and_nothing_changes() {
+    use hyrt_core::bvh::two_level::MoveError;
+    let mut scene = Scene::default_scene();
+    let geometry = WorldGeometry::build(&scene);
+    let mut levels = TwoLevelBvh::build(&scene, &geometry, BvhPreset::default(), &[false, true]);
+    let before = levels.clone();
+    assert_eq!(levels.update_objects(&scene, &geometry, &[0]), Err(MoveError::Baked { object: 0 }));
+    let n = scene.objects.len() as u32;
+    assert_eq!(
+        levels.update_objects(&scene, &geometry, &[n]),
+        Err(MoveError::NoObject { object: n, objects: n as usize })
+    );
+    scene.objects[1].transform = Mat4::from_scale(Vec3::new(1.0, 0.0, 1.0));
+    assert_eq!(levels.update_objects(&scene, &geometry, &[1]), Err(MoveError::BadTransform { object: 1 }));
+    assert_same_levels(&levels, &before);
+    assert!(MoveError::Baked { object: 0 }.to_string().contains("prepare the scene with it moving"));
+}

@@ -35,6 +35,7 @@ use std::time::Duration;
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat3, Vec3, Vec3A};
+
 use obvhs::{aabb::Aabb, bvh2::builder::build_bvh2};
 
 use super::traversal::{inline_leaf_test, traverse, Leaf, LeafFlow};
@@ -112,6 +113,23 @@ impl InstanceRecord {
     }
 }
 
+/// Why objects could not move ([`TwoLevelBvh::update_objects`]).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum MoveError {
+    /// The object is baked into the world-space level with the static geometry.
+    #[error(
+        "object {object} was prepared as static (baked into world space): prepare the scene with it moving to move it"
+    )]
+    Baked { object: u32 },
+    /// The object's new transform is not finite, not affine, singular or too badly
+    /// conditioned to trace in object space.
+    #[error("object {object}'s transform cannot be traced in object space (not finite, not affine, singular or too badly conditioned)")]
+    BadTransform { object: u32 },
+    /// No such object.
+    #[error("object {object} does not exist (the scene has {objects})")]
+    NoObject { object: u32, objects: usize },
+}
+
 /// A two-level BVH; see the module docs.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TwoLevelBvh {
@@ -126,6 +144,8 @@ pub struct TwoLevelBvh {
     /// Per object: the index of its instance, or [`INVALID_ID`] when it is baked into the
     /// world-space level (or has no traceable triangle).
     pub object_instance: Vec<u32>,
+    /// Per object: traced in its own space (it moves or shares its mesh), not baked.
+    pub in_object_space: Vec<bool>,
     /// The preset every level was built with.
     pub build_preset: BvhPreset,
 }
@@ -162,8 +182,6 @@ impl TwoLevelBvh {
                 levels.bottoms.push(world);
             }
         }
-        let (lo, hi) = geometry.bounds;
-        let scene_magnitude = lo.abs().max(hi.abs()).max_element();
         let mut mesh_bottom = vec![INVALID_ID; scene.meshes.len()];
         for (o, map) in scene.objects.iter().zip(&maps) {
             let Some(map) = map else { continue };
@@ -189,28 +207,94 @@ impl TwoLevelBvh {
                 levels.bottoms.push(Bvh::build_triangles(&triangles, preset));
             }
             let bottom = mesh_bottom[o.mesh];
-            let Some(root) = levels.bottoms[bottom as usize].nodes.first() else { continue };
-            let record = &geometry.objects[o.id as usize];
-            let alpha = geometry.triangles[record.first_triangle as usize..][..record.triangle_count as usize]
-                .first()
-                .map_or(0, |t| t.flags & TRI_ALPHA_TEST);
-            let mirrored = Mat3::from_mat4(o.transform).determinant() < 0.0;
-            let margin = instance_box_margin(map, o.transform, scene_magnitude);
-            let world_box = instance_world_box(o.transform, root.min(), root.max(), margin);
+            if levels.bottoms[bottom as usize].nodes.is_empty() {
+                continue;
+            }
             let instance = InstanceRecord {
                 world_to_object: *map,
                 bottom,
                 object: o.id,
-                first_triangle: record.first_triangle,
-                flags: alpha | if mirrored { INSTANCE_MIRRORED } else { 0 },
+                first_triangle: geometry.objects[o.id as usize].first_triangle,
+                flags: 0,
             };
-            instances.push((instance, world_box));
+            instances.push((instance, (Vec3::ZERO, Vec3::ZERO)));
         }
+        levels.in_object_space = maps.iter().map(Option::is_some).collect();
+        levels.place(scene, geometry, &mut instances);
         levels.build_top(scene.objects.len(), instances);
         if cfg!(debug_assertions) {
             levels.validate(geometry).expect("two-level BVH invariants");
         }
         levels
+    }
+
+    /// Fill in the flags and world boxes of object-space instances from their objects'
+    /// current transforms (`world_to_object` already set): the mirror flag, the alpha
+    /// flag, and the mapped bottom-level box widened by the margin for the scene's
+    /// current bounds ([`instance_box_margin`]). The world-space level keeps its box.
+    fn place(&self, scene: &Scene, geometry: &WorldGeometry, instances: &mut [(InstanceRecord, (Vec3, Vec3))]) {
+        let (lo, hi) = geometry.bounds;
+        let scene_magnitude = lo.abs().max(hi.abs()).max_element();
+        for (instance, world_box) in instances.iter_mut() {
+            let root = &self.bottoms[instance.bottom as usize].nodes[0];
+            if instance.flags & INSTANCE_IDENTITY != 0 {
+                *world_box = (root.min(), root.max());
+                continue;
+            }
+            let o = &scene.objects[instance.object as usize];
+            let record = &geometry.objects[instance.object as usize];
+            let alpha = geometry.triangles[record.first_triangle as usize..][..record.triangle_count as usize]
+                .first()
+                .map_or(0, |t| t.flags & TRI_ALPHA_TEST);
+            let mirrored = Mat3::from_mat4(o.transform).determinant() < 0.0;
+            instance.flags = alpha | if mirrored { INSTANCE_MIRRORED } else { 0 };
+            let margin = instance_box_margin(&instance.world_to_object, o.transform, scene_magnitude);
+            *world_box = instance_world_box(o.transform, root.min(), root.max(), margin);
+        }
+    }
+
+    /// Move objects: after the transforms of `objects` changed in `scene` (and `geometry`
+    /// was updated to match, [`WorldGeometry::update_object`]), give their instances the
+    /// new maps and rebuild the top level. Bottom levels are untouched; the result equals
+    /// [`TwoLevelBvh::build`] of the changed scene with the same `moving` flags. Every
+    /// instance's box is recomputed (the margins follow the scene's bounds), which costs
+    /// a few hundred operations per instance, and the top level is rebuilt over them.
+    ///
+    /// Fails, changing nothing, when an object is baked into the world-space level (build
+    /// it as moving to move it) or its new transform cannot be inverted well
+    /// ([`world_to_object`]).
+    pub fn update_objects(
+        &mut self,
+        scene: &Scene,
+        geometry: &WorldGeometry,
+        objects: &[u32],
+    ) -> Result<(), MoveError> {
+        let mut maps = Vec::with_capacity(objects.len());
+        for &object in objects {
+            let objects = self.in_object_space.len();
+            if !*self.in_object_space.get(object as usize).ok_or(MoveError::NoObject { object, objects })? {
+                return Err(MoveError::Baked { object });
+            }
+            let map =
+                world_to_object(scene.objects[object as usize].transform).ok_or(MoveError::BadTransform { object })?;
+            maps.push((self.object_instance[object as usize], map));
+        }
+        for (slot, map) in maps {
+            // An object without a traceable triangle has no instance.
+            if let Some(instance) = self.instances.get_mut(slot as usize) {
+                instance.world_to_object = map;
+            }
+        }
+        // The order a fresh build hands the top level: the world-space level, then objects.
+        let mut instances: Vec<(InstanceRecord, (Vec3, Vec3))> =
+            self.instances.iter().map(|&i| (i, (Vec3::ZERO, Vec3::ZERO))).collect();
+        instances.sort_by_key(|(i, _)| if i.flags & INSTANCE_IDENTITY != 0 { 0 } else { i.object as u64 + 1 });
+        self.place(scene, geometry, &mut instances);
+        self.build_top(scene.objects.len(), instances);
+        if cfg!(debug_assertions) {
+            self.validate(geometry).expect("two-level BVH invariants");
+        }
+        Ok(())
     }
 
     /// Build the top level over `instances` (with their world boxes) and store the
@@ -260,11 +344,13 @@ impl TwoLevelBvh {
                 self.bottoms.get(inst.bottom as usize).ok_or_else(|| format!("instance {i}: no bottom level"))?;
             if inst.flags & INSTANCE_IDENTITY != 0 {
                 let object_of = |t: u32| geometry.triangles[t as usize].object;
-                let baked = |t: u32| self.object_instance.get(object_of(t) as usize) == Some(&INVALID_ID);
+                let baked = |t: u32| self.in_object_space.get(object_of(t) as usize) == Some(&false);
                 bottom.validate_filtered(&geometry.triangles, &baked).map_err(|e| format!("world-space level: {e}"))?;
             } else {
                 let o = geometry.objects.get(inst.object as usize).ok_or_else(|| format!("instance {i}: no object"))?;
-                if inst.first_triangle != o.first_triangle || self.object_instance[inst.object as usize] != i as u32 {
+                let own = self.object_instance[inst.object as usize] == i as u32
+                    && self.in_object_space[inst.object as usize];
+                if inst.first_triangle != o.first_triangle || !own {
                     return Err(format!("instance {i} and object {} disagree", inst.object));
                 }
                 if let Some(&s) = bottom.prim_indices.iter().find(|&&s| s >= o.triangle_count) {
