@@ -2,12 +2,14 @@
 //! stage's output, for `--dump` and conformance), with [`FrameStats`]; and the
 //! [`Backend`] trait both backends implement.
 
+use crate::bvh::two_level::{MoveError, TwoLevelBvh};
 use crate::bvh::Bvh;
 use crate::error::GpuError;
 use crate::formats::{CameraRecord, GBufferTexel, HitRecord, RayRecord, SurfaceRecord, RAY_KIND_COUNT};
 use crate::geometry::WorldGeometry;
 use crate::kernels::bounce::MAX_DEPTH_LIMIT;
 use crate::plan::{BounceBuffer, FrameBuffer, FramePlan, Skipped, Step};
+use crate::scene::Scene;
 use crate::stage::Stage;
 
 /// The `SHADOW_*` codes of [`Frame::shadow`], defined in [`crate::formats`]; re-exported
@@ -16,10 +18,21 @@ pub use crate::formats::{SHADOW_LIT, SHADOW_NO_RAY, SHADOW_OCCLUDED};
 
 /// A scene ready to render: world-space tables and the BVH over all of them,
 /// built once and shared by every frame and by both backends.
+///
+/// A scene prepared with moving objects ([`PreparedScene::with_levels`]) also holds a
+/// two-level BVH ([`TwoLevelBvh`]): its objects in object space move between frames
+/// ([`PreparedScene::move_objects`]) without preparing the scene again. Then `bvh` is the
+/// world-space level alone (the objects baked into world space), which a backend may
+/// trace with its fastest traversal before the object-space instances.
 #[derive(Clone, Debug)]
 pub struct PreparedScene {
     pub geometry: WorldGeometry,
+    /// The BVH over every traceable triangle, or over those baked into world space when
+    /// `levels` is set.
     pub bvh: Bvh,
+    /// The two levels when some object is traced in its own space (moving objects, meshes
+    /// shared by several objects); `None` when `bvh` is the whole scene.
+    pub levels: Option<TwoLevelBvh>,
     /// Time the `bvh_build` stage took, in milliseconds.
     pub bvh_build_ms: f64,
     /// Unique per prepared scene (clones share it: same content): backends that keep the scene's
@@ -28,18 +41,57 @@ pub struct PreparedScene {
     id: u64,
 }
 
+/// A fresh [`PreparedScene`] id.
+fn next_id() -> u64 {
+    static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+    NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+}
+
 impl PreparedScene {
     /// A prepared scene with a fresh id.
     pub fn new(geometry: WorldGeometry, bvh: Bvh, bvh_build_ms: f64) -> Self {
-        static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
-        let id = NEXT_ID.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        PreparedScene { geometry, bvh, bvh_build_ms, id }
+        PreparedScene { geometry, bvh, levels: None, bvh_build_ms, id: next_id() }
+    }
+
+    /// A prepared scene traced through two levels: `bvh` becomes a copy of the
+    /// world-space level (empty when every object is an instance); without object-space
+    /// instances it is [`PreparedScene::new`] with that level.
+    pub fn with_levels(geometry: WorldGeometry, levels: TwoLevelBvh, bvh_build_ms: f64) -> Self {
+        let bvh = levels.world_level().cloned().unwrap_or_default();
+        let levels = levels.has_object_space_instances().then_some(levels);
+        PreparedScene { geometry, bvh, levels, bvh_build_ms, id: next_id() }
     }
 
     /// The id device caches are keyed by. Mutating the public fields after a
-    /// backend has seen the scene is not supported: prepare a new scene instead.
+    /// backend has seen the scene is not supported: prepare a new scene instead, or move
+    /// objects with [`PreparedScene::move_objects`], which gives the scene a new id.
     pub fn id(&self) -> u64 {
         self.id
+    }
+
+    /// Move objects between frames: after the transforms (or render modes) of `objects`
+    /// changed in `scene` (the scene this was prepared from), rewrite their world tables
+    /// and their instances and rebuild the top level; bottom levels are untouched. The
+    /// result equals preparing the changed scene again with the same moving objects.
+    ///
+    /// Fails, changing nothing, when an object was not prepared as moving (it is baked
+    /// into world space; a scene prepared without levels has every object baked), does not
+    /// exist, or its transform cannot be traced in object space ([`MoveError`]).
+    pub fn move_objects(&mut self, scene: &Scene, objects: &[u32]) -> Result<(), MoveError> {
+        let Some(levels) = &mut self.levels else {
+            return Err(match objects.first() {
+                Some(&object) if (object as usize) < scene.objects.len() => MoveError::Baked { object },
+                Some(&object) => MoveError::NoObject { object, objects: scene.objects.len() },
+                None => return Ok(()),
+            });
+        };
+        let moves = levels.moves(scene, objects)?;
+        for &object in objects {
+            self.geometry.update_object(scene, object);
+        }
+        levels.apply_moves(scene, &self.geometry, moves);
+        self.id = next_id();
+        Ok(())
     }
 }
 

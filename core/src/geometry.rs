@@ -147,6 +147,10 @@ pub struct WorldGeometry {
     /// Textures, vertex colours and alpha tests: empty tables for a scene that has none
     /// ([`SurfaceTables::is_empty`]).
     pub surface: SurfaceTables,
+    /// Per object: its mesh's winding in the mesh's own space ([`MeshWinding::of_mesh`],
+    /// two sorts of its vertices), kept so that moving an object
+    /// ([`WorldGeometry::update_object`]) does not classify its mesh again.
+    pub windings: Vec<MeshWinding>,
 }
 
 /// What materials add to the plain colour of [`ObjectRecord`]: built only for a scene
@@ -328,6 +332,7 @@ impl WorldGeometry {
             });
             let winding = *windings[obj.mesh].get_or_insert_with(|| MeshWinding::of_mesh(&scene.meshes[obj.mesh]));
             g.objects.push(ObjectRecord { first_triangle: first, ..ObjectRecord::zeroed() });
+            g.windings.push(winding);
             g.write_object(scene, oi, winding);
         }
         g.lights = scene.lights.iter().map(LightRecord::from_light).collect();
@@ -410,8 +415,7 @@ impl WorldGeometry {
     /// triangles plus one over the table for the bounds.
     pub fn update_object(&mut self, scene: &Scene, object: u32) {
         let oi = object as usize;
-        let winding = MeshWinding::of_mesh(&scene.meshes[scene.objects[oi].mesh]);
-        self.write_object(scene, oi, winding);
+        self.write_object(scene, oi, self.windings[oi]);
         self.non_finite_triangles = self.count_non_finite();
         self.bounds = self.finite_bounds();
         if !self.surface.uvs.is_empty() {

@@ -269,6 +269,14 @@ impl TwoLevelBvh {
         geometry: &WorldGeometry,
         objects: &[u32],
     ) -> Result<(), MoveError> {
+        let moves = self.moves(scene, objects)?;
+        self.apply_moves(scene, geometry, moves);
+        Ok(())
+    }
+
+    /// The checks of [`TwoLevelBvh::update_objects`], changing nothing: each object's
+    /// instance slot and new map, for [`TwoLevelBvh::apply_moves`].
+    pub fn moves(&self, scene: &Scene, objects: &[u32]) -> Result<Vec<(u32, ObjectMap)>, MoveError> {
         let mut maps = Vec::with_capacity(objects.len());
         for &object in objects {
             let objects = self.in_object_space.len();
@@ -279,7 +287,13 @@ impl TwoLevelBvh {
                 world_to_object(scene.objects[object as usize].transform).ok_or(MoveError::BadTransform { object })?;
             maps.push((self.object_instance[object as usize], map));
         }
-        for (slot, map) in maps {
+        Ok(maps)
+    }
+
+    /// The changes of [`TwoLevelBvh::update_objects`] once [`TwoLevelBvh::moves`] has
+    /// checked them (and `geometry` is updated).
+    pub fn apply_moves(&mut self, scene: &Scene, geometry: &WorldGeometry, moves: Vec<(u32, ObjectMap)>) {
+        for (slot, map) in moves {
             // An object without a traceable triangle has no instance.
             if let Some(instance) = self.instances.get_mut(slot as usize) {
                 instance.world_to_object = map;
@@ -294,7 +308,6 @@ impl TwoLevelBvh {
         if cfg!(debug_assertions) {
             self.validate(geometry).expect("two-level BVH invariants");
         }
-        Ok(())
     }
 
     /// Build the top level over `instances` (with their world boxes) and store the
@@ -411,6 +424,41 @@ impl TwoLevelBvh {
         ray: &RayRecord,
         accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool,
     ) -> bool {
+        self.occluded_walk(triangles, ray, false, accept)
+    }
+
+    /// [`TwoLevelBvh::occluded_filtered`] over the object-space instances only: for a
+    /// caller that traced the world-space level already, with its own traversal of that
+    /// [`Bvh`] (the CPU backend's packets), and traces only the rays it found unoccluded.
+    pub fn occluded_in_object_space(
+        &self,
+        triangles: &[TriangleRecord],
+        ray: &RayRecord,
+        accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool,
+    ) -> bool {
+        self.occluded_walk(triangles, ray, true, accept)
+    }
+
+    /// Whether some instance is traced in object space (else the world-space level is the
+    /// whole scene).
+    pub fn has_object_space_instances(&self) -> bool {
+        self.instances.iter().any(|i| i.flags & INSTANCE_IDENTITY == 0)
+    }
+
+    /// The world-space level, when some object is baked into it.
+    pub fn world_level(&self) -> Option<&Bvh> {
+        let i = self.instances.iter().find(|i| i.flags & INSTANCE_IDENTITY != 0)?;
+        Some(&self.bottoms[i.bottom as usize])
+    }
+
+    #[inline(always)]
+    fn occluded_walk(
+        &self,
+        triangles: &[TriangleRecord],
+        ray: &RayRecord,
+        skip_world: bool,
+        accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool,
+    ) -> bool {
         let Some(r) = TraversalRay::new(ray) else {
             return false;
         };
@@ -422,7 +470,7 @@ impl TwoLevelBvh {
                 accept(&triangles[id as usize], id, u, v)
             };
             let hit = if inst.flags & INSTANCE_IDENTITY != 0 {
-                bottom.occluded_ray(&r, 0, accept)
+                !skip_world && bottom.occluded_ray(&r, 0, accept)
             } else {
                 object_ray(inst, ray)
                     .is_some_and(|ro| bottom.occluded_ray(&ro, inst.flags & INSTANCE_ALPHA_TEST, accept))
@@ -450,15 +498,44 @@ impl TwoLevelBvh {
         ray: &RayRecord,
         accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool,
     ) -> Option<ClosestHit> {
-        let r = TraversalRay::new(ray)?;
-        let mut best = ClosestHit { triangle: INVALID_ID, t: r.t_max, u: 0.0, v: 0.0, back_face: false };
+        self.closest_walk(triangles, ray, None, false, accept)
+    }
+
+    /// [`TwoLevelBvh::closest_hit_filtered`] over the object-space instances only, from
+    /// `best`, the closest hit the caller found in the world-space level (with its own
+    /// traversal): the closer of the two under the same `(t, triangle)` order.
+    pub fn closest_hit_in_object_space(
+        &self,
+        triangles: &[TriangleRecord],
+        ray: &RayRecord,
+        best: Option<ClosestHit>,
+        accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool,
+    ) -> Option<ClosestHit> {
+        self.closest_walk(triangles, ray, best, true, accept)
+    }
+
+    #[inline(always)]
+    fn closest_walk(
+        &self,
+        triangles: &[TriangleRecord],
+        ray: &RayRecord,
+        start: Option<ClosestHit>,
+        skip_world: bool,
+        accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool,
+    ) -> Option<ClosestHit> {
+        let Some(r) = TraversalRay::new(ray) else {
+            return start;
+        };
+        let mut best =
+            start.unwrap_or(ClosestHit { triangle: INVALID_ID, t: r.t_max, u: 0.0, v: 0.0, back_face: false });
+        let mut bound = best.t;
         let leaf_test = inline_leaf_test(|leaf: Leaf, _: f32, t_best: &mut f32| {
             let inst = &self.instances[leaf.first as usize];
             let bottom = &self.bottoms[inst.bottom as usize];
             let id_of = |slot: u32| inst.first_triangle + bottom.prim_indices[slot as usize];
             let accept = |_: u32, id: u32, u: f32, v: f32| accept(&triangles[id as usize], id, u, v);
             let found = if inst.flags & INSTANCE_IDENTITY != 0 {
-                bottom.closest_ray(&r, &mut best, id_of, 0, accept)
+                !skip_world && bottom.closest_ray(&r, &mut best, id_of, 0, accept)
             } else {
                 object_ray(inst, ray).is_some_and(|ro| {
                     bottom.closest_ray(&ro, &mut best, id_of, inst.flags & INSTANCE_ALPHA_TEST, accept)
@@ -473,7 +550,7 @@ impl TwoLevelBvh {
             *t_best = best.t;
             LeafFlow::Narrowed
         });
-        traverse(&self.top, &r, &mut r.t_max.clone(), leaf_test);
+        traverse(&self.top, &r, &mut bound, leaf_test);
         (best.triangle != INVALID_ID).then_some(best)
     }
 
