@@ -17,14 +17,16 @@ use rayon::prelude::*;
 use crate::{
     bounce_shading::{bounce_shading_into, Children},
     bounce_trace::bounce_trace_into,
-    compaction::{active_pairs_into, compaction_into, shadow_mask_into, shadow_mask_of_pairs_into, CompactionScratch},
+    compaction::{
+        active_pairs_into, compaction_into, pair_ray, shadow_mask_into, shadow_mask_of_pairs_into, CompactionScratch,
+    },
     composition::composition_into,
     memory,
     raster_shading::{raster_shading_into, Primary},
     reconstruction::{reconstruction_into, reconstruction_reintersected_into},
     rt_shading::{rt_shading_bouncing_into, rt_shading_into, FirstBounce},
     secondary_rays::{secondary_rays_into, Parents},
-    shadow_rays::{shadow_rays_of_pairs_into, shadow_rays_with},
+    shadow_rays::{shadow_rays_in_object_space, shadow_rays_of_pairs_into, shadow_rays_with},
     traversal::Traversal,
     visibility_raster::visibility_raster_into,
 };
@@ -113,22 +115,29 @@ fn compact_list(
 /// pairs made as they are traced; the occlusion results and the shadow mask into `out`.
 /// The number of rays.
 fn trace_list(
-    bvh: &hyrt_core::bvh::Bvh,
-    g: &WorldGeometry,
+    scene: &PreparedScene,
     surfaces: &[SurfaceRecord],
     scratch: &CompactionScratch,
     list: Option<&[RayRecord]>,
     traversal: Traversal,
     (occluded, shadow): (&mut Vec<u32>, &mut Vec<u8>),
 ) -> usize {
+    let (bvh, g) = (&scene.bvh, &scene.geometry);
     let lights = g.lights.len();
     match list {
         Some(rays) => {
             shadow_rays_with(bvh, g, rays, traversal, occluded);
+            if let Some(levels) = &scene.levels {
+                shadow_rays_in_object_space(levels, g, |i| rays[i], occluded);
+            }
             shadow_mask_into(rays, occluded, surfaces.len(), lights, shadow);
         }
         None => {
             shadow_rays_of_pairs_into(bvh, g, surfaces, &scratch.active, traversal, occluded);
+            if let Some(levels) = &scene.levels {
+                let ray = |i: usize| pair_ray(surfaces, &g.lights, scratch.active[i]);
+                shadow_rays_in_object_space(levels, g, ray, occluded);
+            }
             shadow_mask_of_pairs_into(&scratch.active, occluded, surfaces.len(), lights, shadow);
         }
     }
@@ -221,7 +230,7 @@ impl Backend for CpuBackend {
                     Step::ShadowRays => {
                         let list = lists[0].then_some(&f.rays[..]);
                         let out = (&mut f.occluded, &mut f.shadow);
-                        shadow_rays[0] = trace_list(&scene.bvh, g, &f.surfaces, scratch, list, traversal, out);
+                        shadow_rays[0] = trace_list(scene, &f.surfaces, scratch, list, traversal, out);
                     }
                     Step::SecondaryRays { depth } => {
                         let (done, rest) = f.bounces.split_at_mut(depth as usize - 1);
@@ -247,6 +256,7 @@ impl Backend for CpuBackend {
                         let b = &mut f.bounces[depth as usize - 1];
                         bounce_trace_into(
                             &scene.bvh,
+                            scene.levels.as_ref(),
                             g,
                             &b.rays,
                             bounce_traversal,
@@ -264,8 +274,7 @@ impl Backend for CpuBackend {
                         let b = &mut f.bounces[depth as usize - 1];
                         let list = lists[depth as usize].then_some(&b.shadow_rays[..]);
                         let out = (&mut b.occluded, &mut b.shadow);
-                        shadow_rays[depth as usize] =
-                            trace_list(&scene.bvh, g, &b.surfaces, scratch, list, traversal, out);
+                        shadow_rays[depth as usize] = trace_list(scene, &b.surfaces, scratch, list, traversal, out);
                     }
                     Step::BounceShading { depth, last } => {
                         let (this, deeper) = f.bounces.split_at_mut(depth as usize);

@@ -13,17 +13,23 @@
 //! (packets where the single-ray path was asked for: it does not).
 
 use glam::Vec3;
+use hyrt_core::bvh::two_level::TwoLevelBvh;
 use hyrt_core::bvh::{Bvh, ClosestHit};
-use hyrt_core::formats::{HitRecord, RayRecord, SurfaceRecord};
+use hyrt_core::formats::{HitRecord, RayRecord, SurfaceRecord, TriangleRecord};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::reconstruction::reconstruct_hit;
+use hyrt_core::kernels::texture::alpha_accepts;
 use rayon::prelude::*;
 
 use crate::traversal::{closest_hit_alpha_batch_into, Traversal};
 
-/// The stage into caller-owned buffers; `closest` is scratch kept between frames.
+/// The stage into caller-owned buffers; `closest` is scratch kept between frames. With
+/// `levels` (a scene with object-space instances) `bvh` is its world-space level, traced
+/// first with `traversal`, then every ray goes through the object-space instances.
+#[allow(clippy::too_many_arguments)]
 pub fn bounce_trace_into(
     bvh: &Bvh,
+    levels: Option<&TwoLevelBvh>,
     geometry: &WorldGeometry,
     rays: &[RayRecord],
     traversal: Traversal,
@@ -32,6 +38,15 @@ pub fn bounce_trace_into(
     surfaces: &mut Vec<SurfaceRecord>,
 ) {
     closest_hit_alpha_batch_into(bvh, &geometry.triangles, &geometry.surface.view(), rays, traversal, closest);
+    if let Some(levels) = levels {
+        // The object-space pass: from each ray's hit in the world-space level, the closer
+        // hit over the object-space instances (`TwoLevelBvh::closest_hit_in_object_space`).
+        let view = geometry.surface.view();
+        let accept = |t: &TriangleRecord, id: u32, u: f32, v: f32| alpha_accepts(&view, t, id as usize, u, v);
+        closest.par_iter_mut().zip(rays).with_min_len(256).for_each(|(c, r)| {
+            *c = levels.closest_hit_in_object_space(&geometry.triangles, r, *c, accept);
+        });
+    }
     closest.par_iter().with_min_len(4096).map(|&h| HitRecord::from_hit(h)).collect_into_vec(hits);
     rays.par_iter()
         .zip(hits.par_iter())

@@ -11,9 +11,12 @@
 //! texel passes ([`hyrt_core::kernels::texture::alpha_accepts`]): the packets and the
 //! scalar reference both test it (`crate::traversal::occluded_alpha_batch_into`).
 
+use hyrt_core::bvh::two_level::TwoLevelBvh;
 use hyrt_core::bvh::Bvh;
-use hyrt_core::formats::{RayRecord, SurfaceRecord};
+use hyrt_core::formats::{RayRecord, SurfaceRecord, TriangleRecord};
 use hyrt_core::geometry::WorldGeometry;
+use hyrt_core::kernels::texture::alpha_accepts;
+use rayon::prelude::*;
 
 use crate::compaction::pair_ray;
 use crate::traversal::{occluded_alpha_batch_into, occluded_generated_into, Traversal};
@@ -74,4 +77,25 @@ pub fn shadow_rays_of_pairs_into(
     };
     let view = geometry.surface.view();
     occluded_generated_into(bvh, &geometry.triangles, &view, active.len(), ray, traversal, out);
+}
+
+/// The object-space pass of a scene with moving objects (or shared meshes): after
+/// [`shadow_rays_with`] or [`shadow_rays_of_pairs_into`] traced the world-space level
+/// (`PreparedScene::bvh`) with the fast traversal, trace the rays it found visible
+/// through the object-space instances of `levels`, one ray at a time
+/// ([`TwoLevelBvh::occluded_in_object_space`]). `ray(i)` makes ray `i` as the first pass
+/// did. Together: any hit over the whole scene.
+pub fn shadow_rays_in_object_space(
+    levels: &TwoLevelBvh,
+    geometry: &WorldGeometry,
+    ray: impl Fn(usize) -> RayRecord + Sync,
+    out: &mut [u32],
+) {
+    let view = geometry.surface.view();
+    let accept = |t: &TriangleRecord, id: u32, u: f32, v: f32| alpha_accepts(&view, t, id as usize, u, v);
+    out.par_iter_mut().enumerate().with_min_len(256).filter(|(_, o)| **o == SHADOW_VISIBLE).for_each(|(i, o)| {
+        if levels.occluded_in_object_space(&geometry.triangles, &ray(i), accept) {
+            *o = SHADOW_OCCLUDED;
+        }
+    });
 }

@@ -190,7 +190,16 @@ fn closest_hits_pass_through_holes() {
     }
     for traversal in [Traversal::Scalar, Traversal::simd(), Traversal::for_bounces()] {
         let (mut closest, mut hits, mut surfaces) = (Vec::new(), Vec::new(), Vec::new());
-        bounce_trace_into(&prepared.bvh, &prepared.geometry, &rays, traversal, &mut closest, &mut hits, &mut surfaces);
+        bounce_trace_into(
+            &prepared.bvh,
+            prepared.levels.as_ref(),
+            &prepared.geometry,
+            &rays,
+            traversal,
+            &mut closest,
+            &mut hits,
+            &mut surfaces,
+        );
         for (r, s) in rays.iter().zip(&surfaces) {
             let expected = match on_fence(r.origin[0], r.origin[1]) {
                 Some(((true, _), false)) => 1,

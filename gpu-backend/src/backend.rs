@@ -428,6 +428,7 @@ impl GpuBackend {
         target: &wgpu::Texture,
     ) -> Result<FrameStats, RenderError> {
         let plan = FramePlan::new(scene, options)?;
+        check_single_level(scene)?;
         self.check_supported(scene, &plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         crate::present::check_target(target, camera.width, camera.height).map_err(RenderError::InvalidOptions)?;
@@ -849,6 +850,20 @@ impl GpuBackend {
     }
 }
 
+/// The two-level walk ([`hyrt_core::bvh::two_level`]) has no WGSL mirror yet: a scene
+/// prepared with objects in object space (moving objects, shared meshes) is refused, with
+/// the reason, rather than traced through its world-space level alone.
+fn check_single_level(scene: &PreparedScene) -> Result<(), RenderError> {
+    match scene.levels {
+        None => Ok(()),
+        Some(_) => Err(RenderError::Unsupported {
+            backend: "gpu",
+            stage: "shadow_rays".into(),
+            why: "scenes prepared with moving objects (a two-level BVH) trace on the CPU backend only so far",
+        }),
+    }
+}
+
 impl Backend for GpuBackend {
     fn name(&self) -> &str {
         "gpu"
@@ -862,6 +877,7 @@ impl Backend for GpuBackend {
         frame: &mut Frame,
     ) -> Result<(), RenderError> {
         let plan = FramePlan::new(scene, options)?;
+        check_single_level(scene)?;
         self.check_supported(scene, &plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         frame.begin(&plan, options);

@@ -41,6 +41,7 @@
 
 pub mod image_io;
 
+pub use hyrt_core::bvh::two_level::{MoveError, TwoLevelBvh};
 pub use hyrt_core::bvh::{Bvh, BvhPreset};
 pub use hyrt_core::formats;
 pub use hyrt_core::frame::{
@@ -264,6 +265,15 @@ impl Renderer {
     /// global pool), built once per scene and usable by any renderer.
     pub fn prepare(&self, scene: &Scene) -> PreparedScene {
         hyrt_cpu::bvh_build::prepare(WorldGeometry::build(scene), self.preset)
+    }
+
+    /// [`Renderer::prepare`] for a scene whose objects `moving` (by id) move between
+    /// frames: they are traced in their own space through a two-level BVH, so that
+    /// [`PreparedScene::move_objects`] moves them (after their transforms change in the
+    /// scene) without preparing the scene again. Renders on the CPU backend; the GPU
+    /// backend refuses such a scene (its WGSL walk of two levels is not written yet).
+    pub fn prepare_moving(&self, scene: &Scene, moving: &[u32]) -> PreparedScene {
+        hyrt_cpu::bvh_build::prepare_moving(scene, WorldGeometry::build(scene), self.preset, moving)
     }
 
     /// Render one frame of `width` x `height` pixels.
