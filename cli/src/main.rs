@@ -6,10 +6,14 @@
 //! animated glTF scene renders at `--time T` seconds of its first animation (or
 //! `--animation NAME`), or `--frames N --fps F` renders N frames from there to numbered images.
 //!
+//! `hyrt view [SCENE]`: the same scene, backend, size and camera options in a window,
+//! every stage's buffer on screen (see `view`).
+//!
 //! `hyrt bench [--quick] [--out DIR]`: the benchmark report (Table 2 reproduction, peers,
 //! scaling) as `DIR/report.md` plus PNG plots; see `hyrt_benches::bench`.
 
 mod dump;
+mod view;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -30,6 +34,10 @@ enum Command {
     /// Render a scene (.glb, .gltf or .toml manifest; the built-in default scene if none) to a
     /// PNG or an OpenEXR file.
     Render(RenderArgs),
+    /// Open a window on the scene (the built-in default scene if none): fly through it,
+    /// show any stage's buffer, the stage times and counts live, toggle objects between
+    /// ray traced and rasterized by clicking them. Keys: see the overlay, or the README.
+    View(view::ViewArgs),
     /// Run the conformance corpus: every stage of a candidate backend against the CPU
     /// reference, with a report (report.md, difference images).
     Conformance(ConformanceArgs),
@@ -663,6 +671,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render(args),
+        Command::View(args) => view::view(args),
         Command::Conformance(args) => conformance(args),
         Command::Bench(args) => bench(args),
     };

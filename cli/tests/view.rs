@@ -1,0 +1,138 @@
+//! `hyrt view` under X11: on the display of the session, or on an Xvfb this test starts
+//! (on a free display number, killed at the end). In CI a missing Xvfb fails the test;
+//! elsewhere it skips with the reason.
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+mod common;
+
+use common::gpu_adapter;
+
+/// An X display for the viewer: the session's, or an Xvfb this test owns.
+struct Display {
+    name: String,
+    xvfb: Option<Child>,
+}
+
+impl Drop for Display {
+    fn drop(&mut self) {
+        if let Some(child) = &mut self.xvfb {
+            let _ = child.kill();
+            let _ = child.wait();
+        }
+    }
+}
+
+fn display() -> Option<Display> {
+    if let Some(d) = std::env::var_os("DISPLAY").filter(|d| !d.is_empty()) {
+        return Some(Display { name: d.to_string_lossy().into_owned(), xvfb: None });
+    }
+    // A display number nobody uses (no socket, no lock file).
+    let free = (90..400).find(|n| {
+        !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
+    })?;
+    let name = format!(":{free}");
+    let child = Command::new("Xvfb")
+        .args([name.as_str(), "-screen", "0", "1280x1024x24", "-nolisten", "tcp"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn();
+    let child = match child {
+        Ok(c) => c,
+        Err(e) => {
+            assert!(std::env::var_os("CI").is_none(), "CI needs Xvfb for the viewer's test (Debian: xvfb): {e}");
+            eprintln!("SKIPPED: no DISPLAY and no Xvfb ({e})");
+            return None;
+        }
+    };
+    let display = Display { name, xvfb: Some(child) };
+    let socket = PathBuf::from(format!("/tmp/.X11-unix/X{free}"));
+    let start = Instant::now();
+    while !socket.exists() {
+        assert!(start.elapsed() < Duration::from_secs(20), "Xvfb {} did not start", display.name);
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    Some(display)
+}
+
+fn hyrt(display: Option<&Display>, args: &[&str]) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_hyrt"));
+    cmd.args(args).env("HYRT_GPU_ALLOW_SOFTWARE", "1");
+    match display {
+        Some(d) => cmd.env("DISPLAY", &d.name),
+        None => cmd.env_remove("DISPLAY"),
+    };
+    let o = cmd.output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!err.contains("panicked"), "hyrt {args:?} panicked: {err}");
+    o
+}
+
+fn ok(o: Output, what: &str) -> String {
+    assert!(o.status.success(), "{what}: {}", String::from_utf8_lossy(&o.stderr));
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn pixels(path: &Path) -> image::RgbaImage {
+    image::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())).to_rgba8()
+}
+
+#[test]
+fn viewer_screenshots_equal_render_and_clicks_pick_objects() {
+    let Some(display) = display() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let camera = ["--size", "96x54", "--eye", "3.5,2.5,6", "--target", "0,0.5,0", "--fov", "50"];
+    let mut backends = vec!["cpu"];
+    if gpu_adapter() {
+        backends.push("gpu");
+    }
+    for backend in backends {
+        let shot = dir.path().join(format!("view-{backend}.png"));
+        let rendered = dir.path().join(format!("render-{backend}.png"));
+        let mut args = vec!["view", "--backend", backend, "--frames", "3", "--screenshot", shot.to_str().unwrap()];
+        args.extend(camera);
+        let out = ok(hyrt(Some(&display), &args), "hyrt view");
+        assert!(out.contains("wrote"), "{out}");
+        let mut args = vec!["render", "--backend", backend, "--out", rendered.to_str().unwrap()];
+        args.extend(camera);
+        ok(hyrt(None, &args), "hyrt render");
+        let (a, b) = (pixels(&shot), pixels(&rendered));
+        assert_eq!(a.dimensions(), (96, 54), "{backend}");
+        assert!(a == b, "{backend}: the viewer's screenshot differs from hyrt render of the same camera");
+
+        // A script clicks the middle pixel (an object of the default scene), flips through
+        // every view and writes one of them.
+        let script = dir.path().join("script.txt");
+        let views: String = ["2", "3", "4", "5", "6", "7", "8", "9", "0", "-", "="]
+            .iter()
+            .enumerate()
+            .map(|(i, k)| format!("{} view {k}\n", i + 1))
+            .collect();
+        std::fs::write(&script, format!("0 click 48 30\n{views}12 screenshot\n13 view 1\n")).unwrap();
+        let shot = dir.path().join(format!("script-{backend}.png"));
+        let mut args = vec!["view", "--backend", backend, "--frames", "14", "--screenshot", shot.to_str().unwrap()];
+        args.extend(["--script", script.to_str().unwrap()]);
+        args.extend(camera);
+        let o = {
+            let mut cmd = Command::new(env!("CARGO_BIN_EXE_hyrt"));
+            cmd.args(&args).current_dir(dir.path()).env("DISPLAY", &display.name).env("HYRT_GPU_ALLOW_SOFTWARE", "1");
+            cmd.output().unwrap()
+        };
+        let out = ok(o, "hyrt view --script");
+        assert!(out.contains("pick (48, 30): object") && out.contains("is now"), "{out}");
+        assert!(dir.path().join("hyrt-view-0000.png").exists(), "{out}");
+        std::fs::remove_file(dir.path().join("hyrt-view-0000.png")).unwrap();
+        // The picked object changed mode: the final image differs from the unpicked one.
+        assert!(pixels(&shot) != b, "{backend}: picking changed nothing");
+    }
+}
+
+#[test]
+fn viewer_without_a_display_says_so() {
+    let o = hyrt(None, &["view", "--frames", "1"]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("no window system") && err.contains("DISPLAY"), "{err}");
+}
