@@ -1,10 +1,10 @@
-//! `hyrt view` under X11: on the display of the session, or on an Xvfb this test starts
-//! (on a free display number, killed at the end). In CI a missing Xvfb fails the test;
+//! `hyrt view` under X11: on the display of the session, or on an Xvfb each test starts
+//! (on a display number Xvfb picks, killed at the end). In CI a missing Xvfb fails the test;
 //! elsewhere it skips with the reason.
 
-use std::path::{Path, PathBuf};
+use std::io::{BufRead, BufReader};
+use std::path::Path;
 use std::process::{Child, Command, Output, Stdio};
-use std::time::{Duration, Instant};
 
 mod common;
 
@@ -29,17 +29,14 @@ fn display() -> Option<Display> {
     if let Some(d) = std::env::var_os("DISPLAY").filter(|d| !d.is_empty()) {
         return Some(Display { name: d.to_string_lossy().into_owned(), xvfb: None });
     }
-    // A display number nobody uses (no socket, no lock file).
-    let free = (90..400).find(|n| {
-        !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
-    })?;
-    let name = format!(":{free}");
+    // Xvfb picks a free display number itself and writes it to `-displayfd` once it
+    // accepts connections: no race with other tests or other Xvfbs on the machine.
     let child = Command::new("Xvfb")
-        .args([name.as_str(), "-screen", "0", "1280x1024x24", "-nolisten", "tcp"])
-        .stdout(Stdio::null())
+        .args(["-displayfd", "1", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"])
+        .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn();
-    let child = match child {
+    let mut child = match child {
         Ok(c) => c,
         Err(e) => {
             assert!(std::env::var_os("CI").is_none(), "CI needs Xvfb for the viewer's test (Debian: xvfb): {e}");
@@ -47,13 +44,10 @@ fn display() -> Option<Display> {
             return None;
         }
     };
-    let display = Display { name, xvfb: Some(child) };
-    let socket = PathBuf::from(format!("/tmp/.X11-unix/X{free}"));
-    let start = Instant::now();
-    while !socket.exists() {
-        assert!(start.elapsed() < Duration::from_secs(20), "Xvfb {} did not start", display.name);
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    let mut line = String::new();
+    let read = BufReader::new(child.stdout.take().expect("piped")).read_line(&mut line);
+    let display = Display { name: format!(":{}", line.trim()), xvfb: Some(child) };
+    assert!(read.is_ok() && line.trim().parse::<u32>().is_ok(), "Xvfb did not start: {read:?} '{line}'");
     Some(display)
 }
 
@@ -127,6 +121,28 @@ fn viewer_screenshots_equal_render_and_clicks_pick_objects() {
         // The picked object changed mode: the final image differs from the unpicked one.
         assert!(pixels(&shot) != b, "{backend}: picking changed nothing");
     }
+}
+
+#[test]
+fn viewer_plays_animations_the_same_way_each_unattended_run() {
+    let Some(display) = display() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes/animated_box.gltf");
+    let script = dir.path().join("play.txt");
+    std::fs::write(&script, "0 play\n").unwrap();
+    let run = |name: &str, script: Option<&Path>| {
+        let shot = dir.path().join(name);
+        let mut args = vec!["view", scene.to_str().unwrap(), "--size", "64x36", "--frames", "6"];
+        args.extend(["--screenshot", shot.to_str().unwrap()]);
+        if let Some(s) = script {
+            args.extend(["--script", s.to_str().unwrap()]);
+        }
+        ok(hyrt(Some(&display), &args), "hyrt view animated");
+        pixels(&shot)
+    };
+    let (a, b, still) = (run("a.png", Some(&script)), run("b.png", Some(&script)), run("still.png", None));
+    assert!(a == b, "two runs of the same script differ");
+    assert!(a != still, "playing the animation moved nothing");
 }
 
 #[test]

@@ -58,7 +58,7 @@ const MAX_PITCH: f32 = 1.55;
 
 impl Controller {
     pub fn new(camera: Camera, scene_size: f32) -> Controller {
-        Controller { camera, mode: Mode::Orbit, speed: (scene_size * 0.5).max(0.1) }
+        Controller { camera, mode: Mode::Orbit, speed: (scene_size * 0.2).max(0.1) }
     }
 
     /// Turn by a mouse drag of (dx, dy) radians.

@@ -12,7 +12,8 @@
 //! Unattended: `--frames N --screenshot FILE` renders N frames at `--size` (whatever
 //! the window's size), writes the last one's final image (no overlay: the same PNG as
 //! `hyrt render` of the scene, camera and size) and exits; `--script FILE` applies
-//! actions at given frames ([`script`]).
+//! actions at given frames ([`script`]); a playing animation then advances 1/30 s a
+//! frame, so runs repeat.
 
 mod camera;
 mod overlay;
@@ -160,6 +161,8 @@ struct Running {
     pending_pick: Option<(u32, u32)>,
     pending_screenshot: Option<bool>,
     last: Instant,
+    /// Since when, and how many frames began since: the frame rate's window.
+    fps_window: (Instant, u32),
     fps: f64,
     frames_done: u32,
     screenshots: u32,
@@ -232,6 +235,7 @@ impl App {
             pending_pick: None,
             pending_screenshot: None,
             last: Instant::now(),
+            fps_window: (Instant::now(), 0),
             fps: 0.0,
             frames_done: 0,
             screenshots: 0,
@@ -249,11 +253,17 @@ impl App {
         let now = Instant::now();
         let dt = now.duration_since(r.last).as_secs_f64();
         r.last = now;
-        if r.frames_done > 0 && dt > 0.0 {
-            r.fps = if r.fps == 0.0 { 1.0 / dt } else { r.fps * 0.9 + 0.1 / dt };
+        // Frames per second over the last half second or more (one slow frame is its own window).
+        let (since, frames) = &mut r.fps_window;
+        *frames += 1;
+        let window = now.duration_since(*since).as_secs_f64();
+        if window >= 0.5 {
+            r.fps = (*frames - 1) as f64 / window;
+            (*since, *frames) = (now, 1);
         }
-        r.update(dt as f32)?;
         let unattended = args.frames.is_some();
+        // Unattended runs step the animation by a fixed 1/30 s a frame, so they repeat.
+        r.update(if unattended { 1.0 / 30.0 } else { dt as f32 })?;
         let (width, height) = if unattended {
             args.common.size
         } else {
@@ -385,8 +395,14 @@ impl Running {
         if let (true, Some(o)) = (with_overlay, &self.overlay_image) {
             overlay::compose(&mut pixels, width, o);
         }
-        let path = PathBuf::from(format!("hyrt-view-{:04}.png", self.screenshots));
-        self.screenshots += 1;
+        // The next number no file has yet.
+        let path = loop {
+            let path = PathBuf::from(format!("hyrt-view-{:04}.png", self.screenshots));
+            self.screenshots += 1;
+            if !path.exists() {
+                break path;
+            }
+        };
         image::save_buffer(&path, pixels.as_flattened(), width, height, image::ColorType::Rgba8)
             .map_err(|e| ViewError::Write { path: path.clone(), message: e.to_string() })?;
         self.message = format!("wrote {}", path.display());
@@ -400,7 +416,11 @@ impl Running {
         let gpu = matches!(self.presenter, Presenter::Gpu(_));
         let mut lines = vec![
             format!("hyrt view: {}", self.renderer.choice()),
-            format!("{width}x{height}   {:.1} FPS   stages {:.2} ms", self.fps, s.frame_ms()),
+            format!(
+                "{width}x{height}   {} FPS   stages {:.2} ms",
+                if self.fps > 0.0 { format!("{:.1}", self.fps) } else { "-".into() },
+                s.frame_ms()
+            ),
         ];
         let key = View::KEYS[View::ALL.iter().position(|v| *v == self.view).unwrap_or(0)];
         let mut view = format!("view {key}: {}", self.view.name());
