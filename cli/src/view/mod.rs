@@ -100,7 +100,10 @@ pub fn view(args: ViewArgs) -> Result<(), String> {
         )
         .to_string());
     }
-    let event_loop = EventLoop::new().map_err(|e| ViewError::NoDisplay(e.to_string()).to_string())?;
+    let event_loop = EventLoop::new().map_err(|e| {
+        let display = std::env::var("DISPLAY").unwrap_or_default();
+        ViewError::NoDisplay(format!("cannot connect to the X server of DISPLAY={display} ({e})")).to_string()
+    })?;
     let mut app = App { args, script, loaded: Some(loaded), running: None, error: None };
     event_loop.run_app(&mut app).map_err(|e| ViewError::Window(e.to_string()).to_string())?;
     match app.error {
