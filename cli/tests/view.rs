@@ -146,6 +146,20 @@ fn viewer_plays_animations_the_same_way_each_unattended_run() {
 }
 
 #[test]
+fn viewer_closed_before_its_last_frame_says_the_screenshot_is_missing() {
+    let Some(display) = display() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let script = dir.path().join("quit.txt");
+    std::fs::write(&script, "1 quit\n").unwrap();
+    let shot = dir.path().join("never.png");
+    let args = ["view", "--size", "32x18", "--frames", "5", "--script", script.to_str().unwrap()];
+    let o = hyrt(Some(&display), &[&args[..], &["--screenshot", shot.to_str().unwrap()]].concat());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("closed after 1 of 5 frames"), "{err}");
+    assert!(!shot.exists());
+}
+
+#[test]
 fn viewer_without_a_display_says_so() {
     let o = hyrt(None, &["view", "--frames", "1"]);
     assert!(!o.status.success());

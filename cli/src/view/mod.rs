@@ -106,9 +106,15 @@ pub fn view(args: ViewArgs) -> Result<(), String> {
     })?;
     let mut app = App { args, script, loaded: Some(loaded), running: None, error: None };
     event_loop.run_app(&mut app).map_err(|e| ViewError::Window(e.to_string()).to_string())?;
-    match app.error {
-        Some(e) => Err(e.to_string()),
-        None => Ok(()),
+    if let Some(e) = app.error {
+        return Err(e.to_string());
+    }
+    let done = app.running.as_ref().map_or(0, |r| r.frames_done);
+    match (&app.args.screenshot, app.args.frames) {
+        (Some(path), Some(n)) if done < n => {
+            Err(format!("the viewer closed after {done} of {n} frames: {} not written", path.display()))
+        }
+        _ => Ok(()),
     }
 }
 
@@ -250,8 +256,12 @@ impl App {
     fn redraw(&mut self) -> Result<bool, ViewError> {
         let args = &self.args;
         let r = self.running.as_mut().expect("open");
+        let mut quit = false;
         for action in self.script.at(r.frames_done) {
-            r.apply(action)?;
+            quit |= r.apply(action)?;
+        }
+        if quit {
+            return Ok(true);
         }
         let now = Instant::now();
         let dt = now.duration_since(r.last).as_secs_f64();
