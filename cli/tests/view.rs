@@ -51,9 +51,10 @@ fn display() -> Option<Display> {
     Some(display)
 }
 
-fn hyrt(display: Option<&Display>, args: &[&str]) -> Output {
+/// Run `hyrt` in `cwd` (where the viewer's P and O keys write) on `display`.
+fn hyrt(display: Option<&Display>, cwd: &Path, args: &[&str]) -> Output {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_hyrt"));
-    cmd.args(args).env("HYRT_GPU_ALLOW_SOFTWARE", "1");
+    cmd.args(args).current_dir(cwd).env("HYRT_GPU_ALLOW_SOFTWARE", "1");
     match display {
         Some(d) => cmd.env("DISPLAY", &d.name),
         None => cmd.env_remove("DISPLAY"),
@@ -87,11 +88,11 @@ fn viewer_screenshots_equal_render_and_clicks_pick_objects() {
         let rendered = dir.path().join(format!("render-{backend}.png"));
         let mut args = vec!["view", "--backend", backend, "--frames", "3", "--screenshot", shot.to_str().unwrap()];
         args.extend(camera);
-        let out = ok(hyrt(Some(&display), &args), "hyrt view");
+        let out = ok(hyrt(Some(&display), dir.path(), &args), "hyrt view");
         assert!(out.contains("wrote"), "{out}");
         let mut args = vec!["render", "--backend", backend, "--out", rendered.to_str().unwrap()];
         args.extend(camera);
-        ok(hyrt(None, &args), "hyrt render");
+        ok(hyrt(None, dir.path(), &args), "hyrt render");
         let (a, b) = (pixels(&shot), pixels(&rendered));
         assert_eq!(a.dimensions(), (96, 54), "{backend}");
         assert!(a == b, "{backend}: the viewer's screenshot differs from hyrt render of the same camera");
@@ -109,12 +110,7 @@ fn viewer_screenshots_equal_render_and_clicks_pick_objects() {
         let mut args = vec!["view", "--backend", backend, "--frames", "14", "--screenshot", shot.to_str().unwrap()];
         args.extend(["--script", script.to_str().unwrap()]);
         args.extend(camera);
-        let o = {
-            let mut cmd = Command::new(env!("CARGO_BIN_EXE_hyrt"));
-            cmd.args(&args).current_dir(dir.path()).env("DISPLAY", &display.name).env("HYRT_GPU_ALLOW_SOFTWARE", "1");
-            cmd.output().unwrap()
-        };
-        let out = ok(o, "hyrt view --script");
+        let out = ok(hyrt(Some(&display), dir.path(), &args), "hyrt view --script");
         assert!(out.contains("pick (48, 30): object") && out.contains("is now"), "{out}");
         assert!(dir.path().join("hyrt-view-0000.png").exists(), "{out}");
         std::fs::remove_file(dir.path().join("hyrt-view-0000.png")).unwrap();
@@ -137,7 +133,7 @@ fn viewer_plays_animations_the_same_way_each_unattended_run() {
         if let Some(s) = script {
             args.extend(["--script", s.to_str().unwrap()]);
         }
-        ok(hyrt(Some(&display), &args), "hyrt view animated");
+        ok(hyrt(Some(&display), dir.path(), &args), "hyrt view animated");
         pixels(&shot)
     };
     let (a, b, still) = (run("a.png", Some(&script)), run("b.png", Some(&script)), run("still.png", None));
@@ -153,7 +149,7 @@ fn viewer_closed_before_its_last_frame_says_the_screenshot_is_missing() {
     std::fs::write(&script, "1 quit\n").unwrap();
     let shot = dir.path().join("never.png");
     let args = ["view", "--size", "32x18", "--frames", "5", "--script", script.to_str().unwrap()];
-    let o = hyrt(Some(&display), &[&args[..], &["--screenshot", shot.to_str().unwrap()]].concat());
+    let o = hyrt(Some(&display), dir.path(), &[&args[..], &["--screenshot", shot.to_str().unwrap()]].concat());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success() && err.contains("closed after 1 of 5 frames"), "{err}");
     assert!(!shot.exists());
@@ -161,7 +157,7 @@ fn viewer_closed_before_its_last_frame_says_the_screenshot_is_missing() {
 
 #[test]
 fn viewer_without_a_display_says_so() {
-    let o = hyrt(None, &["view", "--frames", "1"]);
+    let o = hyrt(None, &std::env::temp_dir(), &["view", "--frames", "1"]);
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("no window system") && err.contains("DISPLAY"), "{err}");
