@@ -40,11 +40,11 @@ enum Command {
     ///
     /// Keys: 1 final, 2 raster, 3 ray-traced image, 4 barycentrics, 5 depth, 6 normals,
     /// 7 triangle ids, 8 object ids, 9 ray traced/rasterized, 0 shadow mask (L: next
-    /// light), minus rays per pixel, = bounce depth; drag turns, the wheel zooms, Tab orbit/fly, WASD
-    /// (Q/E down/up, Shift faster) moves, R resets the camera, C the scene's camera; click
-    /// toggles the object under the cursor; [ and ] (or a drag on the bar) the weight; Space
-    /// plays the animation; H hides the overlay; P writes the view to a PNG, O with the
-    /// overlay; Esc quits.
+    /// light), minus rays per pixel, = bounce depth; drag turns, the wheel zooms, Tab
+    /// orbit/fly, WASD (Q/E down/up, Shift faster) moves, R resets the camera, C the
+    /// scene's camera; click toggles the object under the cursor; [ and ] (or a drag on
+    /// the bar) the weight; Space plays the animation (comma and period step it); H hides
+    /// the overlay; P writes the view to a PNG, O with the overlay; Esc quits.
     View(view::ViewArgs),
     /// Run the conformance corpus: every stage of a candidate backend against the CPU
     /// reference, with a report (report.md, difference images).

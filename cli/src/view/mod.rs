@@ -5,7 +5,7 @@
 //! wheel zooms, WASD (Q/E down/up, Shift faster) moves; R resets the camera, C takes the
 //! scene's camera; a click toggles the object under the cursor between ray traced and
 //! rasterized; [ and ] (or a drag on the overlay's slider) set the composition weight;
-//! Space plays and pauses the animation; L picks the shadow mask's light; H hides the
+//! Space plays and pauses the animation (looping), comma and period step it by 1/30 s; L picks the shadow mask's light; H hides the
 //! overlay; P writes the current view as PNG, O the window as shown (with the overlay);
 //! Esc quits.
 //!
@@ -324,12 +324,19 @@ impl Running {
         let up = k(KeyCode::KeyE) - k(KeyCode::KeyQ);
         self.controller.travel(forward, right, up, dt.min(0.25) * fast);
         if self.playing {
-            if let Some(a) = self.animation {
-                self.time += dt;
-                self.scene.set_time(a, self.time).map_err(err)?;
-                self.prepared = self.renderer.prepare(&self.scene);
-            }
+            self.pose(self.time + dt)?;
         }
+        Ok(())
+    }
+
+    /// Pose the scene at `t` seconds of its animation (looping over its duration) and
+    /// prepare it again.
+    fn pose(&mut self, t: f32) -> Result<(), ViewError> {
+        let (Some(a), Some(anim)) = (self.animation, &self.scene.animation) else { return Ok(()) };
+        let duration = anim.animations()[a].duration();
+        self.time = if duration > 0.0 && t > duration { t.rem_euclid(duration) } else { t.max(0.0) };
+        self.scene.set_time(a, self.time).map_err(err)?;
+        self.prepared = self.renderer.prepare(&self.scene);
         Ok(())
     }
 
@@ -484,7 +491,12 @@ impl Running {
         if let (Some(a), Some(anim)) = (self.animation, &self.scene.animation) {
             let a = &anim.animations()[a];
             let state = if self.playing { "playing" } else { "paused" };
-            lines.push(format!("animation '{}' {:.2} / {:.2} s, {state} (Space)", a.name(), self.time, a.duration()));
+            lines.push(format!(
+                "animation '{}' {:.2} / {:.2} s, {state} (Space; , . step)",
+                a.name(),
+                self.time,
+                a.duration()
+            ));
         }
         lines.push(format!("weight {:.2} ([ ] or drag the bar)", self.options.weight));
         lines.push("1 final 2 raster 3 rt 4 bary 5 depth 6 normal 7 tri 8 obj 9 rt/raster".into());
@@ -522,6 +534,11 @@ impl Running {
                     self.message = "the scene has no animation".into();
                 }
             }
+            Action::StepTime(dt) => {
+                self.playing = false;
+                self.pose(self.time + dt)?;
+            }
+            Action::SetTime(t) => self.pose(t)?,
             Action::AddWeight(d) => self.options.weight = (self.options.weight + d).clamp(0.0, 1.0),
             Action::SetWeight(w) => self.options.weight = w.clamp(0.0, 1.0),
             Action::NextLight => self.light = (self.light + 1) % self.prepared.geometry.lights.len().max(1),
@@ -565,6 +582,8 @@ impl Running {
                 KeyCode::KeyR => Action::Reset,
                 KeyCode::KeyC => Action::SceneCamera,
                 KeyCode::Space => Action::PlayPause,
+                KeyCode::Comma => Action::StepTime(-1.0 / 30.0),
+                KeyCode::Period => Action::StepTime(1.0 / 30.0),
                 KeyCode::BracketLeft => Action::AddWeight(-0.05),
                 KeyCode::BracketRight => Action::AddWeight(0.05),
                 KeyCode::KeyL => Action::NextLight,

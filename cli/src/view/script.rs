@@ -17,7 +17,8 @@ FRAME (0 is the first) renders; `#` starts a comment. Actions:
   scene-camera      the scene's own camera
   click X Y         toggle the object at pixel (X, Y) between ray traced and rasterized
   weight W          set the composition weight (0..1)
-  play              play or pause the animation
+  play              play or pause the animation (it loops)
+  time T            pose the animation at T seconds
   light             the next light's shadow mask
   overlay           show or hide the overlay
   screenshot        write the current view to hyrt-view-NNNN.png (no overlay)
@@ -33,11 +34,17 @@ pub enum Action {
     Reset,
     SceneCamera,
     PlayPause,
+    /// Pause and move the animation by this many seconds.
+    StepTime(f32),
+    /// Pose the animation at this time in seconds.
+    SetTime(f32),
     AddWeight(f32),
     SetWeight(f32),
     NextLight,
     ToggleOverlay,
-    Screenshot { overlay: bool },
+    Screenshot {
+        overlay: bool,
+    },
     Orbit(f32, f32),
     Zoom(f32),
     Move(f32, f32, f32),
@@ -89,6 +96,7 @@ impl Script {
                 "click" => Action::Click(u(2)?, u(3)?),
                 "weight" => Action::SetWeight(f(2)?.clamp(0.0, 1.0)),
                 "play" => Action::PlayPause,
+                "time" => Action::SetTime(f(2)?),
                 "light" => Action::NextLight,
                 "overlay" => Action::ToggleOverlay,
                 "screenshot" => Action::Screenshot { overlay: false },
@@ -113,7 +121,9 @@ mod tests {
 
     #[test]
     fn parses_actions_and_refuses_nonsense() {
-        let s = Script::parse("# a comment\n0 click 3 4\n2 view 9 # flag\n2 orbit 0.1 -0.2\n5 quit\n").unwrap();
+        let s =
+            Script::parse("# a comment\n0 click 3 4\n2 view 9 # flag\n2 orbit 0.1 -0.2\n4 time 1.5\n5 quit\n").unwrap();
+        assert_eq!(s.at(4), vec![Action::SetTime(1.5)]);
         assert_eq!(s.at(0), vec![Action::Click(3, 4)]);
         assert_eq!(s.at(2), vec![Action::View(View::RayTracedFlag), Action::Orbit(0.1, -0.2)]);
         assert!(s.at(1).is_empty());
