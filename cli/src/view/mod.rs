@@ -464,10 +464,17 @@ impl Running {
         }
         let kind =
             |k: u32| s.rays_per_kind[k as usize] + s.bounces.iter().map(|b| b.rays_per_kind[k as usize]).sum::<u64>();
+        // The primary shadow rays' occlusion is counted from the read-back results.
+        let occluded = match self.read_back {
+            true => format!(
+                " ({} occluded)",
+                s.occluded_shadow_rays + s.bounces.iter().map(|b| b.occluded_shadow_rays).sum::<u64>()
+            ),
+            false => String::new(),
+        };
         lines.push(format!(
-            "rays: shadow {} ({} occluded), reflection {}, refraction {}, bounces {}",
+            "rays: shadow {}{occluded}, reflection {}, refraction {}, bounces {}",
             kind(RAY_KIND_SHADOW),
-            s.occluded_shadow_rays + s.bounces.iter().map(|b| b.occluded_shadow_rays).sum::<u64>(),
             kind(RAY_KIND_REFLECTION),
             kind(RAY_KIND_REFRACTION),
             s.bounces.len()
