@@ -610,6 +610,11 @@ impl Running {
         Some(((x - s.x as f64) / s.w.max(1) as f64).clamp(0.0, 1.0) as f32)
     }
 
+    /// True over the overlay's panel: a click there picks nothing.
+    fn on_overlay(&self, (x, y): (f64, f64)) -> bool {
+        self.overlay_image.as_ref().is_some_and(|o| x < o.width as f64 && y < o.height as f64)
+    }
+
     fn on_slider(&self, (x, y): (f64, f64)) -> bool {
         self.overlay_image.as_ref().is_some_and(|o| o.slider.contains(x, y))
     }
@@ -645,7 +650,7 @@ impl Running {
                             if let Some(w) = self.slider_weight(x) {
                                 self.options.weight = w;
                             }
-                        } else if !dragged && x >= 0.0 && y >= 0.0 {
+                        } else if !dragged && x >= 0.0 && y >= 0.0 && !self.on_overlay((x, y)) {
                             self.pending_pick = Some((x as u32, y as u32));
                         }
                     }

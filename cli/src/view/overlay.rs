@@ -16,7 +16,7 @@ pub const FONT_PATHS: [&str; 3] = [
 /// Pixels between the overlay's edge and its text.
 const MARGIN: u32 = 8;
 /// Height of the weight slider's track.
-const SLIDER_HEIGHT: u32 = 12;
+const SLIDER_HEIGHT: u32 = 16;
 
 /// A rectangle in overlay pixels.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
