@@ -218,7 +218,7 @@ impl App {
             }
         };
         // Space plays the animation --time or --animation chose, else the scene's first.
-        let animation = animation.or(scene.animation.as_ref().map(|_| 0));
+        let animation = animation.or(scene.animation.as_ref().filter(|a| !a.animations().is_empty()).map(|_| 0));
         Ok(Running {
             window,
             presenter,
