@@ -708,6 +708,12 @@ impl ApplicationHandler for App {
                     }
                 }
             }
+            // Keys released while another window had the focus never arrive: stop moving.
+            WindowEvent::Focused(false) => {
+                r.keys.clear();
+                r.mouse.pressed = None;
+                Ok(false)
+            }
             WindowEvent::Resized(_) => {
                 r.window.request_redraw();
                 Ok(false)
