@@ -6,10 +6,14 @@
 //! animated glTF scene renders at `--time T` seconds of its first animation (or
 //! `--animation NAME`), or `--frames N --fps F` renders N frames from there to numbered images.
 //!
+//! `hyrt view [SCENE]`: the same scene, backend, size and camera options in a window,
+//! every stage's buffer on screen (see `view`).
+//!
 //! `hyrt bench [--quick] [--out DIR]`: the benchmark report (Table 2 reproduction, peers,
 //! scaling) as `DIR/report.md` plus PNG plots; see `hyrt_benches::bench`.
 
 mod dump;
+mod view;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -30,6 +34,18 @@ enum Command {
     /// Render a scene (.glb, .gltf or .toml manifest; the built-in default scene if none) to a
     /// PNG or an OpenEXR file.
     Render(RenderArgs),
+    /// Open a window on the scene (the built-in default scene if none): fly through it,
+    /// show any stage's buffer, the stage times and counts live, toggle objects between
+    /// ray traced and rasterized by clicking them.
+    ///
+    /// Keys: 1 final, 2 raster, 3 ray-traced image, 4 barycentrics, 5 depth, 6 normals,
+    /// 7 triangle ids, 8 object ids, 9 ray traced/rasterized, 0 shadow mask (L: next
+    /// light), minus rays per pixel, = bounce depth; drag turns, the wheel zooms, Tab
+    /// orbit/fly, WASD (Q/E down/up, Shift faster) moves, R resets the camera, C the
+    /// scene's camera; click toggles the object under the cursor; [ and ] (or a drag on
+    /// the bar) the weight; Space plays the animation (comma and period step it); H hides
+    /// the overlay; P writes the view to a PNG, O with the overlay; Esc quits.
+    View(view::ViewArgs),
     /// Run the conformance corpus: every stage of a candidate backend against the CPU
     /// reference, with a report (report.md, difference images).
     Conformance(ConformanceArgs),
@@ -143,14 +159,12 @@ enum PresetArg {
     VerySlow,
 }
 
+/// What `render` and `view` share: the scene, the backend, the image size, the camera and
+/// the frame's options.
 #[derive(clap::Args)]
-struct RenderArgs {
+struct SceneArgs {
     /// Scene file: .glb, .gltf or .toml manifest. Omit for the built-in default scene.
     scene: Option<PathBuf>,
-    /// Output image: a name ending in .exr writes the linear image as 32-bit float OpenEXR
-    /// (unclamped), anything else an 8-bit sRGB PNG.
-    #[arg(long, default_value = "frame.png")]
-    out: PathBuf,
     /// Environment map that reflection and refraction rays leaving the scene see: an
     /// equirectangular Radiance .hdr or OpenEXR .exr file (overrides the manifest's
     /// `environment`; without either, the default sky).
@@ -178,17 +192,9 @@ struct RenderArgs {
     /// Vertical field of view in degrees (overrides the scene's camera).
     #[arg(long, value_parser = parse_fov)]
     fov: Option<f32>,
-    /// Write every stage's output (npy, png, frame.json) into this directory.
-    #[arg(long)]
-    dump: Option<PathBuf>,
     /// Worker threads (default: one per core).
     #[arg(long)]
     threads: Option<usize>,
-    /// Render this many frames (reusing every buffer) and report the median time of
-    /// each stage over them; the image is the last frame's. With --fps: that many frames of
-    /// the animation, each to its own numbered image.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
-    frames: u32,
     /// Pose an animated glTF scene at this time in seconds (of its first animation, or
     /// --animation's). Times before the first key take the first pose and times past the
     /// animation's end its last (glTF clamps; there is no looping). A scene without
@@ -198,11 +204,6 @@ struct RenderArgs {
     /// The animation --time and --fps play, by name (default: the file's first).
     #[arg(long)]
     animation: Option<String>,
-    /// Render --frames N frames of the animation at --time (default 0) + i / FPS seconds, each
-    /// prepared from the scene posed at its time, to numbered images: --out frame.png writes
-    /// frame_0000.png, frame_0001.png, ...; --dump holds the last frame's stages.
-    #[arg(long, value_parser = parse_fps)]
-    fps: Option<f32>,
     /// BVH build preset (obvhs).
     #[arg(long, value_enum)]
     bvh_preset: Option<PresetArg>,
@@ -215,6 +216,29 @@ struct RenderArgs {
     /// tracer's hit points; visibility stays the raster's).
     #[arg(long, value_enum, default_value = "raster")]
     barycentrics: BarycentricsArg,
+}
+
+#[derive(clap::Args)]
+struct RenderArgs {
+    #[command(flatten)]
+    common: SceneArgs,
+    /// Output image: a name ending in .exr writes the linear image as 32-bit float OpenEXR
+    /// (unclamped), anything else an 8-bit sRGB PNG.
+    #[arg(long, default_value = "frame.png")]
+    out: PathBuf,
+    /// Write every stage's output (npy, png, frame.json) into this directory.
+    #[arg(long)]
+    dump: Option<PathBuf>,
+    /// Render this many frames (reusing every buffer) and report the median time of
+    /// each stage over them; the image is the last frame's. With --fps: that many frames of
+    /// the animation, each to its own numbered image.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    frames: u32,
+    /// Render --frames N frames of the animation at --time (default 0) + i / FPS seconds, each
+    /// prepared from the scene posed at its time, to numbered images: --out frame.png writes
+    /// frame_0000.png, frame_0001.png, ...; --dump holds the last frame's stages.
+    #[arg(long, value_parser = parse_fps)]
+    fps: Option<f32>,
 }
 
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
@@ -272,45 +296,135 @@ fn parse_fps(s: &str) -> Result<f32, String> {
     parse_f32(s, |f| f > 0.0 && f.is_finite(), "frames per second must be a positive finite number")
 }
 
-/// The animation `--time`, `--animation` or `--fps` asks for (`None` when none of them is
-/// given): `--animation`'s, else the first. A scene without animations, or without one of
-/// that name, is an error.
-fn chosen_animation(scene: &Scene, args: &RenderArgs) -> Result<Option<usize>, String> {
-    if args.time.is_none() && args.animation.is_none() && args.fps.is_none() {
-        return Ok(None);
-    }
-    let name = args.scene.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| "the default scene".into());
-    let Some(animation) = &scene.animation else {
-        return Err(format!("{name} has no animations: --time, --animation and --fps pose an animated glTF scene"));
-    };
-    match &args.animation {
-        None => Ok(Some(0)),
-        Some(wanted) => animation.find(wanted).map(Some).ok_or_else(|| {
-            let names: Vec<String> = animation.animations().iter().map(|a| format!("'{}'", a.name())).collect();
-            format!("{name} has no animation '{wanted}' (it has {})", names.join(", "))
-        }),
-    }
+/// A scene loaded, posed and lit as [`SceneArgs`] say.
+struct Loaded {
+    scene: Scene,
+    /// The animation `--time`, `--animation` (or `--fps`) chose.
+    animation: Option<usize>,
+    /// `--time`, or 0.
+    start_time: f32,
+    /// The scene's camera with the command line's overrides.
+    camera: hyrt::Camera,
+    /// Milliseconds the loading took.
+    load_ms: f64,
 }
 
-/// The scene's camera with the command line's overrides.
-fn frame_camera(scene: &Scene, args: &RenderArgs) -> Result<hyrt::Camera, String> {
-    let mut camera = scene.camera.expect("ensure_camera_and_lights sets a camera");
-    if let Some(eye) = args.eye {
-        camera.eye = eye;
+impl SceneArgs {
+    /// The scene's file name, or "the default scene".
+    fn name(&self) -> String {
+        self.scene.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| "the default scene".into())
     }
-    if let Some(target) = args.target {
-        camera.target = target;
+
+    /// The animation `--time` or `--animation` asks for, or the first when `play` (`None`
+    /// when none of them is given): `--animation`'s, else the first. A scene without
+    /// animations, or without one of that name, is an error.
+    fn chosen_animation(&self, scene: &Scene, play: bool) -> Result<Option<usize>, String> {
+        if self.time.is_none() && self.animation.is_none() && !play {
+            return Ok(None);
+        }
+        let name = self.name();
+        let Some(animation) = &scene.animation else {
+            return Err(format!("{name} has no animations: --time, --animation and --fps pose an animated glTF scene"));
+        };
+        match &self.animation {
+            None => Ok(Some(0)),
+            Some(wanted) => animation.find(wanted).map(Some).ok_or_else(|| {
+                let names: Vec<String> = animation.animations().iter().map(|a| format!("'{}'", a.name())).collect();
+                format!("{name} has no animation '{wanted}' (it has {})", names.join(", "))
+            }),
+        }
     }
-    if let Some(fov) = args.fov {
-        camera.fov_y_deg = fov;
+
+    /// Load the scene (the default scene without a file), pose it at `--time` of the
+    /// chosen animation (`play`: an animation is wanted even without `--time`), add the
+    /// default camera and lights where it has none, and take `--environment`.
+    fn load(&self, play: bool) -> Result<Loaded, String> {
+        let started = Instant::now();
+        let mut scene = match &self.scene {
+            Some(path) => Scene::load(path).map_err(|e| e.to_string())?,
+            None => Scene::default_scene(),
+        };
+        let animation = self.chosen_animation(&scene, play)?;
+        let start_time = self.time.unwrap_or(0.0);
+        if let Some(a) = animation {
+            scene.set_time(a, start_time).map_err(|e| e.to_string())?;
+        }
+        scene.ensure_camera_and_lights();
+        if let Some(path) = &self.environment {
+            scene.environment = hyrt::Environment::load(path).map_err(|e| e.to_string())?;
+        }
+        for note in &scene.notes {
+            eprintln!("note: {note}");
+        }
+        let camera = self.camera(&scene)?;
+        Ok(Loaded { scene, animation, start_time, camera, load_ms: ms_since(started) })
     }
-    if (camera.target - camera.eye).length_squared() == 0.0 {
-        return Err("camera eye and target are the same point".into());
+
+    /// The scene's camera with the command line's overrides.
+    fn camera(&self, scene: &Scene) -> Result<hyrt::Camera, String> {
+        let mut camera = scene.camera.expect("ensure_camera_and_lights sets a camera");
+        if let Some(eye) = self.eye {
+            camera.eye = eye;
+        }
+        if let Some(target) = self.target {
+            camera.target = target;
+        }
+        if let Some(fov) = self.fov {
+            camera.fov_y_deg = fov;
+        }
+        if (camera.target - camera.eye).length_squared() == 0.0 {
+            return Err("camera eye and target are the same point".into());
+        }
+        if (camera.target - camera.eye).cross(camera.up).length_squared() == 0.0 {
+            camera.up = if camera.up.dot(Vec3::Z).abs() < 0.9 { Vec3::Z } else { Vec3::X };
+        }
+        Ok(camera)
     }
-    if (camera.target - camera.eye).cross(camera.up).length_squared() == 0.0 {
-        camera.up = if camera.up.dot(Vec3::Z).abs() < 0.9 { Vec3::Z } else { Vec3::X };
+
+    /// The BVH preset `--bvh-preset` names.
+    fn bvh_preset(&self) -> BvhPreset {
+        match self.bvh_preset {
+            None => BvhPreset::default(),
+            Some(PresetArg::Fastest) => BvhPreset::Fastest,
+            Some(PresetArg::VeryFast) => BvhPreset::VeryFast,
+            Some(PresetArg::Fast) => BvhPreset::Fast,
+            Some(PresetArg::Medium) => BvhPreset::Medium,
+            Some(PresetArg::Slow) => BvhPreset::Slow,
+            Some(PresetArg::VerySlow) => BvhPreset::VerySlow,
+        }
     }
-    Ok(camera)
+
+    /// The backend `--backend` names.
+    fn backend_kind(&self) -> BackendKind {
+        match self.backend {
+            BackendArg::Cpu => BackendKind::Cpu,
+            BackendArg::Gpu => BackendKind::Gpu,
+            BackendArg::Auto => BackendKind::Auto,
+        }
+    }
+
+    /// Whether a software GPU adapter is accepted (`--allow-software-gpu` or the environment).
+    fn adapter_policy(&self) -> AdapterPolicy {
+        if self.allow_software_gpu {
+            AdapterPolicy::AllowSoftware
+        } else {
+            AdapterPolicy::from_env()
+        }
+    }
+
+    /// The frame options `--weight`, `--max-depth` and `--barycentrics` say.
+    fn frame_options(&self, stage_outputs: bool) -> FrameOptions {
+        let barycentrics = match self.barycentrics {
+            BarycentricsArg::Raster => hyrt::PrimaryBarycentrics::Raster,
+            BarycentricsArg::Reintersected => hyrt::PrimaryBarycentrics::Reintersected,
+        };
+        FrameOptions {
+            weight: self.weight,
+            stage_outputs,
+            max_depth: self.max_depth.unwrap_or(hyrt::DEFAULT_MAX_DEPTH),
+            barycentrics,
+        }
+    }
 }
 
 /// `frame.png` -> `frame_0007.png`: frame `i` of an animation rendered to `out`.
@@ -340,55 +454,20 @@ fn ms_since(t: Instant) -> f64 {
 }
 
 fn render(args: RenderArgs) -> Result<(), String> {
-    let started = Instant::now();
-    let mut scene = match &args.scene {
-        Some(path) => Scene::load(path).map_err(|e| e.to_string())?,
-        None => Scene::default_scene(),
-    };
-    let animation = chosen_animation(&scene, &args)?;
-    let start_time = args.time.unwrap_or(0.0);
-    if let Some(a) = animation {
-        scene.set_time(a, start_time).map_err(|e| e.to_string())?;
-    }
-    scene.ensure_camera_and_lights();
-    if let Some(path) = &args.environment {
-        scene.environment = hyrt::Environment::load(path).map_err(|e| e.to_string())?;
-    }
-    for note in &scene.notes {
-        eprintln!("note: {note}");
-    }
-    let mut camera = frame_camera(&scene, &args)?;
-    let preset = match args.bvh_preset {
-        None => BvhPreset::default(),
-        Some(PresetArg::Fastest) => BvhPreset::Fastest,
-        Some(PresetArg::VeryFast) => BvhPreset::VeryFast,
-        Some(PresetArg::Fast) => BvhPreset::Fast,
-        Some(PresetArg::Medium) => BvhPreset::Medium,
-        Some(PresetArg::Slow) => BvhPreset::Slow,
-        Some(PresetArg::VerySlow) => BvhPreset::VerySlow,
-    };
-    let kind = match args.backend {
-        BackendArg::Cpu => BackendKind::Cpu,
-        BackendArg::Gpu => BackendKind::Gpu,
-        BackendArg::Auto => BackendKind::Auto,
-    };
-    let policy = if args.allow_software_gpu { AdapterPolicy::AllowSoftware } else { AdapterPolicy::from_env() };
-    let load_ms = ms_since(started);
+    let common = &args.common;
+    let Loaded { mut scene, animation, start_time, mut camera, load_ms } = common.load(args.fps.is_some())?;
     let t = Instant::now();
-    let mut renderer = Renderer::new(kind, args.threads, policy).map_err(|e| e.to_string())?.with_bvh_preset(preset);
+    let mut renderer = Renderer::new(common.backend_kind(), common.threads, common.adapter_policy())
+        .map_err(|e| e.to_string())?
+        .with_bvh_preset(common.bvh_preset());
     let start_ms = ms_since(t);
     eprintln!("backend: {}", renderer.choice_details());
-    let (w, h) = args.size;
+    let (w, h) = common.size;
     let t = Instant::now();
     let mut prepared = renderer.prepare(&scene);
     let prepare_ms = ms_since(t);
     // Every stage's output is kept only for --dump (the GPU then reads them back too).
-    let max_depth = args.max_depth.unwrap_or(hyrt::DEFAULT_MAX_DEPTH);
-    let barycentrics = match args.barycentrics {
-        BarycentricsArg::Raster => hyrt::PrimaryBarycentrics::Raster,
-        BarycentricsArg::Reintersected => hyrt::PrimaryBarycentrics::Reintersected,
-    };
-    let options = FrameOptions { weight: args.weight, stage_outputs: args.dump.is_some(), max_depth, barycentrics };
+    let options = common.frame_options(args.dump.is_some());
     let mut frame = hyrt::Frame::default();
     let mut per_frame = Vec::with_capacity(args.frames as usize);
     // Wall clock of each frame (the call, readback included) and the sum of its stages.
@@ -399,7 +478,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
     for i in 0..args.frames {
         if let (Some((a, fps)), true) = (playing, i > 0) {
             scene.set_time(a, start_time + i as f32 / fps).map_err(|e| e.to_string())?;
-            camera = frame_camera(&scene, &args)?;
+            camera = common.camera(&scene)?;
             prepared = renderer.prepare(&scene);
         }
         let t = Instant::now();
@@ -424,7 +503,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
     }
 
     let s = &frame.stats;
-    let name = args.scene.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| "default scene".into());
+    let name = common.scene.as_ref().map(|p| p.display().to_string()).unwrap_or_else(|| "default scene".into());
     println!(
         "{name}: {} objects, {} triangles, {} lights, environment: {}; {}x{} on {}",
         scene.objects.len(),
@@ -600,6 +679,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render(args),
+        Command::View(args) => view::view(args),
         Command::Conformance(args) => conformance(args),
         Command::Bench(args) => bench(args),
     };

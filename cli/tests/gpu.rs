@@ -3,16 +3,9 @@
 
 use std::process::Command;
 
-use hyrt::{AdapterPolicy, GpuBackend};
+mod common;
 
-/// Whether a GPU adapter (software allowed) is present: fails in CI without one, skips
-/// visibly elsewhere.
-fn gpu_adapter() -> bool {
-    let Err(e) = GpuBackend::new(AdapterPolicy::AllowSoftware) else { return true };
-    assert!(std::env::var_os("CI").is_none(), "CI needs a GPU adapter (lavapipe): {e}");
-    eprintln!("SKIPPED: no GPU adapter: {e}");
-    false
-}
+use common::gpu_adapter;
 
 #[test]
 fn cli_backend_auto_says_what_it_took_and_gpu_fails_clearly() {

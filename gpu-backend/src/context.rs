@@ -26,6 +26,8 @@ impl AdapterPolicy {
 
 /// A device and queue plus what the adapter offers.
 pub struct GpuContext {
+    /// The adapter the device was created on (for a window surface's capabilities).
+    pub adapter: wgpu::Adapter,
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
@@ -62,12 +64,32 @@ impl GpuContext {
     /// Pick a Vulkan adapter under `policy` and create a device with the features
     /// hyrt uses where the adapter has them (primitive index, timestamp queries).
     pub fn new(policy: AdapterPolicy) -> Result<GpuContext, GpuError> {
-        // Vulkan only, asked for explicitly: with default backends a missing Vulkan
-        // driver silently falls back to GL.
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+        Self::with_instance(&Self::vulkan_instance(None), None, policy)
+    }
+
+    /// The wgpu instance [`GpuContext::new`] picks its adapter from: Vulkan only, asked
+    /// for explicitly (with default backends a missing Vulkan driver silently falls back
+    /// to GL). An application that presents hyrt's frames to a window passes the
+    /// window system's display, creates its surface on this instance and calls
+    /// [`GpuContext::with_instance`] with it.
+    pub fn vulkan_instance(display: Option<Box<dyn wgpu::wgt::WgpuHasDisplayHandle>>) -> wgpu::Instance {
+        let mut descriptor = wgpu::InstanceDescriptor {
             backends: wgpu::Backends::VULKAN,
             ..wgpu::InstanceDescriptor::new_without_display_handle()
-        });
+        };
+        descriptor.display = display;
+        wgpu::Instance::new(descriptor)
+    }
+
+    /// As [`GpuContext::new`], on the Vulkan adapters of `instance`
+    /// ([`GpuContext::vulkan_instance`]); with `compatible_surface`, only adapters that
+    /// can present to it (a window's surface: hyrt's frames then reach the screen
+    /// without leaving the device, through [`crate::backend::GpuBackend::render_to_texture`]).
+    pub fn with_instance(
+        instance: &wgpu::Instance,
+        compatible_surface: Option<&wgpu::Surface<'_>>,
+        policy: AdapterPolicy,
+    ) -> Result<GpuContext, GpuError> {
         let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN));
         // Hardware first (discrete, integrated, virtual), software last.
         let rank = |a: &wgpu::Adapter| match a.get_info().device_type {
@@ -77,7 +99,11 @@ impl GpuContext {
             wgpu::DeviceType::Other => 3,
             wgpu::DeviceType::Cpu => 4,
         };
-        let adapter = adapters.into_iter().min_by_key(rank).ok_or(GpuError::NoAdapter)?;
+        let adapter = adapters
+            .into_iter()
+            .filter(|a| compatible_surface.is_none_or(|s| a.is_surface_supported(s)))
+            .min_by_key(rank)
+            .ok_or(GpuError::NoAdapter)?;
         let info = adapter.get_info();
         if is_software(&info) && policy == AdapterPolicy::HardwareOnly {
             return Err(GpuError::SoftwareOnly { name: format!("{} ({})", info.name, info.driver) });
@@ -105,6 +131,7 @@ impl GpuContext {
         }))
         .map_err(|e| GpuError::RequestDevice { adapter: info.name.clone(), message: e.to_string() })?;
         Ok(GpuContext {
+            adapter,
             device,
             queue,
             info,
@@ -125,6 +152,7 @@ impl GpuContext {
     pub fn from_device(adapter: &wgpu::Adapter, device: wgpu::Device, queue: wgpu::Queue) -> GpuContext {
         let features = device.features();
         GpuContext {
+            adapter: adapter.clone(),
             info: adapter.get_info(),
             limits: device.limits(),
             primitive_index: features.contains(wgpu::Features::PRIMITIVE_INDEX),

@@ -34,3 +34,5 @@ pub mod visibility_raster;
 
 pub use context::{AdapterPolicy, GpuContext};
 pub use error::GpuError;
+/// The wgpu hyrt is built on, for applications that share its device and textures.
+pub use wgpu;

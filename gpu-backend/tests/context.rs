@@ -29,3 +29,13 @@ fn context_hardware_only_policy_rejects_software_adapters() {
         }
     }
 }
+
+#[test]
+fn context_on_a_callers_instance_takes_the_adapter_new_takes() {
+    let Some(ctx) = test_context() else { return };
+    let instance = GpuContext::vulkan_instance(None);
+    let mine = GpuContext::with_instance(&instance, None, AdapterPolicy::AllowSoftware).unwrap();
+    assert_eq!(mine.info.name, ctx.info.name);
+    assert_eq!(mine.adapter.get_info().name, ctx.adapter.get_info().name);
+    assert_eq!((mine.primitive_index, mine.timestamps), (ctx.primitive_index, ctx.timestamps));
+}
