@@ -56,8 +56,11 @@ impl PreparedScene {
     /// A prepared scene traced through two levels: `bvh` becomes a copy of the
     /// world-space level (empty when every object is an instance); without object-space
     /// instances it is [`PreparedScene::new`] with that level.
-    pub fn with_levels(geometry: WorldGeometry, levels: TwoLevelBvh, bvh_build_ms: f64) -> Self {
+    pub fn with_levels(mut geometry: WorldGeometry, levels: TwoLevelBvh, bvh_build_ms: f64) -> Self {
         let bvh = levels.world_level().cloned().unwrap_or_default();
+        for (o, e) in geometry.objects.iter_mut().zip(&levels.offset_errors) {
+            o.offset_error = *e;
+        }
         let levels = levels.has_object_space_instances().then_some(levels);
         PreparedScene { geometry, bvh, levels, bvh_build_ms, id: next_id() }
     }
@@ -90,6 +93,9 @@ impl PreparedScene {
             self.geometry.update_object(scene, object);
         }
         levels.apply_moves(scene, &self.geometry, moves);
+        for &object in objects {
+            self.geometry.objects[object as usize].offset_error = levels.offset_errors[object as usize];
+        }
         self.id = next_id();
         Ok(())
     }

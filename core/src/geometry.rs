@@ -403,7 +403,7 @@ impl WorldGeometry {
             roughness: mat.roughness,
             transmission: mat.transmission,
             ior,
-            pad: 0,
+            offset_error: 0.0,
         };
     }
 

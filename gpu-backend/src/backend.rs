@@ -291,7 +291,7 @@ impl GpuBackend {
             self.scene = Some((scene.id(), ctx.checked(|| SceneBuffers::new(ctx, scene))?));
         }
         // The pipelines this scene's surface tables need, built before its first frame.
-        self.stages(Specialization::of(&scene.geometry.surface))?;
+        self.stages(Specialization::of_scene(scene))?;
         let lights = scene.geometry.lights.len() as u32;
         let limit = self.band_binding_limit();
         let max_side = self.ctx.limits.max_texture_dimension_2d;
@@ -428,7 +428,6 @@ impl GpuBackend {
         target: &wgpu::Texture,
     ) -> Result<FrameStats, RenderError> {
         let plan = FramePlan::new(scene, options)?;
-        check_single_level(scene)?;
         self.check_supported(scene, &plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         crate::present::check_target(target, camera.width, camera.height).map_err(RenderError::InvalidOptions)?;
@@ -474,7 +473,7 @@ impl GpuBackend {
         let st = self
             .stages
             .iter()
-            .find(|(s, _)| *s == sb.surface.specialization)
+            .find(|(s, _)| *s == sb.specialization)
             .map(|(_, stages)| stages)
             .expect("run_frame builds the scene's specialization");
         let params = FrameParams::new(camera.width, camera.height, fb.light_count, options.weight)
@@ -829,6 +828,12 @@ impl GpuBackend {
     /// device with fewer storage buffers per shader stage than the bounce stages bind
     /// ([`BOUNCE_STORAGE_BUFFERS`]). An error, never a frame without them.
     fn check_supported(&self, scene: &PreparedScene, plan: &FramePlan) -> Result<(), GpuError> {
+        let storage = self.ctx.limits.max_storage_buffers_per_shader_stage;
+        if scene.levels.is_some() && storage < TWO_LEVEL_STORAGE_BUFFERS {
+            return Err(GpuError::Limits(format!(
+                "a scene with moving objects (a two-level BVH) binds {TWO_LEVEL_STORAGE_BUFFERS} storage buffers per shader stage to trace shadow rays; this device allows {storage}"
+            )));
+        }
         let binding = self.ctx.limits.max_storage_buffer_binding_size.min(self.ctx.limits.max_buffer_size);
         match scene.geometry.surface.layout().map(|l| l.bytes()) {
             Some(bytes) if bytes <= binding => {}
@@ -850,19 +855,9 @@ impl GpuBackend {
     }
 }
 
-/// The two-level walk ([`hyrt_core::bvh::two_level`]) has no WGSL mirror yet: a scene
-/// prepared with objects in object space (moving objects, shared meshes) is refused, with
-/// the reason, rather than traced through its world-space level alone.
-fn check_single_level(scene: &PreparedScene) -> Result<(), RenderError> {
-    match scene.levels {
-        None => Ok(()),
-        Some(_) => Err(RenderError::Unsupported {
-            backend: "gpu",
-            stage: "shadow_rays".into(),
-            why: "scenes prepared with moving objects (a two-level BVH) trace on the CPU backend only so far",
-        }),
-    }
-}
+/// Storage buffers `shadow_rays` binds in a two-level scene: its eight and the instance
+/// table. WebGPU's default limit is 8; `GpuContext::new` asks for up to 16.
+pub const TWO_LEVEL_STORAGE_BUFFERS: u32 = 9;
 
 impl Backend for GpuBackend {
     fn name(&self) -> &str {
@@ -877,7 +872,6 @@ impl Backend for GpuBackend {
         frame: &mut Frame,
     ) -> Result<(), RenderError> {
         let plan = FramePlan::new(scene, options)?;
-        check_single_level(scene)?;
         self.check_supported(scene, &plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         frame.begin(&plan, options);

@@ -8,7 +8,8 @@
 //! [`hyrt_core::kernels::reconstruction::reconstruct_hit`] in `shaders/surface.wgsl`).
 //!
 //! Reads the depth's rays and count (indirect dispatch, one thread per ray), the BVH,
-//! triangles, normals and the surface tables (alpha tests). Writes one `HitRecord` and one `SurfaceRecord` per ray and
+//! triangles, normals, the object records (offset errors) and the surface tables (alpha tests); with two levels
+//! the instances too. Writes one `HitRecord` and one `SurfaceRecord` per ray and
 //! counts the hits.
 
 use hyrt_core::formats::wgsl::declarations;
@@ -23,23 +24,35 @@ use crate::GpuContext;
 pub struct BounceTraceStage {
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
+    /// Compiled for a two-level scene: binds `SceneBuffers::instances` too.
+    two_level: bool,
 }
 
 impl BounceTraceStage {
     /// Compile the stage's pipeline for scenes whose surface tables need `s`.
     pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
+        // The walk of the scene's BVH: one tree, or two levels with the instances' binding.
+        let walk = if s.two_level {
+            concat!(include_str!("shaders/instance.wgsl"), include_str!("shaders/bounce_two_level.wgsl"))
+        } else {
+            "fn trace_closest(ray: RayRecord) -> ClosestHit {\n    return closest_hit(ray);\n}\n"
+        };
         let source = declarations()
             + &ray_wgsl()
             + EXACT_PRODUCTS
             + &surface_wgsl()
             + &texture_wgsl()
-            + include_str!("shaders/bounce_trace.wgsl");
+            + include_str!("shaders/bounce_trace.wgsl")
+            + walk;
         let mut entries = vec![uniform_entry(0)];
         entries.extend((1..=7).map(|i| storage_entry(i, true)));
         entries.extend((8..=10).map(|i| storage_entry(i, false)));
-        entries.extend([storage_entry(11, true), uniform_entry(12)]);
+        entries.extend([storage_entry(11, true), uniform_entry(12), storage_entry(13, true)]);
+        if s.two_level {
+            entries.push(storage_entry(14, true));
+        }
         let (pipeline, layout) = specialized_pipeline(ctx, "bounce_trace", &source, &entries, &s.constants());
-        BounceTraceStage { pipeline, layout }
+        BounceTraceStage { pipeline, layout, two_level: s.two_level }
     }
 
     /// Trace the rays of `frame.bounces[depth - 1]`.
@@ -53,26 +66,25 @@ impl BounceTraceStage {
         timing: Option<(&wgpu::QuerySet, u32)>,
     ) {
         let b = &frame.bounces[depth as usize - 1];
-        let bind_group = bind_buffers(
-            ctx,
-            "bounce_trace",
-            &self.layout,
-            &[
-                &frame.params,
-                &b.rays,
-                &b.ray_count,
-                &scene.bvh_nodes,
-                &scene.bvh_leaf_triangles,
-                &scene.bvh_prim_indices,
-                &scene.triangles,
-                &scene.normals,
-                &b.hits,
-                &b.surfaces,
-                &b.counters,
-                &scene.surface.words,
-                &scene.surface.layout,
-            ],
-        );
+        let buffers = [
+            &frame.params,
+            &b.rays,
+            &b.ray_count,
+            &scene.bvh_nodes,
+            &scene.bvh_leaf_triangles,
+            &scene.bvh_prim_indices,
+            &scene.triangles,
+            &scene.normals,
+            &b.hits,
+            &b.surfaces,
+            &b.counters,
+            &scene.surface.words,
+            &scene.surface.layout,
+            &scene.objects,
+            &scene.instances,
+        ];
+        let bound = if self.two_level { &buffers[..] } else { &buffers[..14] };
+        let bind_group = bind_buffers(ctx, "bounce_trace", &self.layout, bound);
         crate::shader::encode_list_pass(encoder, "bounce_trace", &self.pipeline, &bind_group, &b.ray_count, timing);
     }
 }

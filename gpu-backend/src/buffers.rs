@@ -3,6 +3,7 @@
 //! these by name. Element layouts are the core formats (documented to the byte
 //! in [`hyrt_core::formats`]) unless said otherwise here.
 
+use hyrt_core::bvh::two_level::InstanceRecord;
 use hyrt_core::bvh::BvhNode;
 use hyrt_core::formats::{
     CameraRecord, EnvironmentRecord, GBufferTexel, HitRecord, LightRecord, ListParams, ObjectRecord, RayRecord,
@@ -13,7 +14,7 @@ use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan};
 
 use crate::band::Band;
 use crate::gpu_buffer::{storage, upload};
-use crate::texture::SurfaceBuffers;
+use crate::texture::{Specialization, SurfaceBuffers};
 use crate::{GpuContext, GpuError};
 
 /// The per-frame uniform parameters, defined in [`hyrt_core::formats`] (with the
@@ -31,11 +32,20 @@ pub struct SceneBuffers {
     /// `array<LightRecord>`.
     pub lights: wgpu::Buffer,
     /// `array<BvhNode>`: the flattened BVH ([`hyrt_core::bvh`]); empty BVH: one zero node and `bvh_node_count == 0`.
+    /// A scene with two levels: every level's nodes, the top level's first
+    /// ([`hyrt_core::bvh::two_level::PackedLevels`]).
     pub bvh_nodes: wgpu::Buffer,
-    /// `array<TriangleRecord>`: triangles in BVH leaf order (`Bvh::leaf_triangles`).
+    /// `array<TriangleRecord>`: triangles in BVH leaf order (`Bvh::leaf_triangles`; every
+    /// bottom level's in turn with two levels).
     pub bvh_leaf_triangles: wgpu::Buffer,
-    /// `array<u32>`: global triangle index of each leaf slot (`Bvh::prim_indices`).
+    /// `array<u32>`: global triangle index of each leaf slot (`Bvh::prim_indices`); with
+    /// two levels, each bottom level's, to which an instance adds its first triangle.
     pub bvh_prim_indices: wgpu::Buffer,
+    /// `array<InstanceRecord>`: a two-level scene's instances, each naming its level's
+    /// root in `bvh_nodes`; one zero record (bound by no stage) for a single-level scene.
+    pub instances: wgpu::Buffer,
+    /// The pipelines the scene needs ([`Specialization::of_scene`]).
+    pub specialization: Specialization,
     /// Uniform [`EnvironmentRecord`]: what secondary rays that leave the scene see.
     pub environment: wgpu::Buffer,
     /// `array<vec4<f32>>`: the environment map's texels (one zero texel for the sky).
@@ -63,6 +73,11 @@ impl SceneBuffers {
             mapped_at_creation: false,
         });
         ctx.queue.write_buffer(&environment_header, 0, bytemuck::bytes_of(&environment));
+        let packed = scene.levels.as_ref().map(|l| l.packed());
+        let (nodes, leaf_triangles, prim_indices, instances) = match &packed {
+            Some(p) => (&p.nodes, &p.leaf_triangles, &p.prim_indices, &p.instances[..]),
+            None => (&scene.bvh.nodes, &scene.bvh.leaf_triangles, &scene.bvh.prim_indices, &[][..]),
+        };
         SceneBuffers {
             environment: environment_header,
             environment_texels: upload::<[f32; 4]>(ctx, "environment texels", texels),
@@ -70,14 +85,16 @@ impl SceneBuffers {
             normals: upload(ctx, "normals", &normals),
             objects: upload::<ObjectRecord>(ctx, "objects", &g.objects),
             lights: upload::<LightRecord>(ctx, "lights", &g.lights),
-            bvh_nodes: upload::<BvhNode>(ctx, "bvh nodes", &scene.bvh.nodes),
-            bvh_leaf_triangles: upload::<TriangleRecord>(ctx, "bvh leaf triangles", &scene.bvh.leaf_triangles),
-            bvh_prim_indices: upload::<u32>(ctx, "bvh prim indices", &scene.bvh.prim_indices),
+            bvh_nodes: upload::<BvhNode>(ctx, "bvh nodes", nodes),
+            bvh_leaf_triangles: upload::<TriangleRecord>(ctx, "bvh leaf triangles", leaf_triangles),
+            bvh_prim_indices: upload::<u32>(ctx, "bvh prim indices", prim_indices),
+            instances: upload::<InstanceRecord>(ctx, "instances", instances),
+            specialization: Specialization::of_scene(scene),
             surface: SurfaceBuffers::new(ctx, &g.surface, &g.objects),
             triangle_count: g.triangles.len() as u32,
             object_count: g.objects.len() as u32,
             light_count: g.lights.len() as u32,
-            bvh_node_count: scene.bvh.nodes.len() as u32,
+            bvh_node_count: nodes.len() as u32,
         }
     }
 }

@@ -32,6 +32,8 @@ use crate::GpuContext;
 pub struct ShadowRaysStage {
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
+    /// Compiled for a two-level scene: binds `SceneBuffers::instances` too.
+    two_level: bool,
 }
 
 impl ShadowRaysStage {
@@ -42,27 +44,41 @@ impl ShadowRaysStage {
 
     /// Compile the stage's pipeline for scenes whose surface tables need `s`.
     pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
-        let source =
-            declarations() + &ray_wgsl() + EXACT_PRODUCTS + &texture_wgsl() + include_str!("shaders/shadow_rays.wgsl");
+        // The walk of the scene's BVH: one tree, or two levels with the instances' binding.
+        let walk = if s.two_level {
+            concat!(include_str!("shaders/instance.wgsl"), include_str!("shaders/shadow_two_level.wgsl"))
+        } else {
+            "fn trace_occluded(ray: RayRecord) -> bool {\n    return occluded_any(ray);\n}\n"
+        };
+        let source = declarations()
+            + &ray_wgsl()
+            + EXACT_PRODUCTS
+            + &texture_wgsl()
+            + include_str!("shaders/shadow_rays.wgsl")
+            + walk;
         let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("shadow_rays"),
             source: wgpu::ShaderSource::Wgsl(source.into()),
         });
+        let mut entries = vec![
+            uniform_entry(0),
+            storage_entry(1, true),
+            storage_entry(2, true),
+            storage_entry(3, true),
+            storage_entry(4, true),
+            storage_entry(5, false),
+            storage_entry(6, false),
+            uniform_entry(7),
+            storage_entry(8, false),
+            storage_entry(9, true),
+            uniform_entry(10),
+        ];
+        if s.two_level {
+            entries.push(storage_entry(11, true));
+        }
         let layout = ctx.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("shadow_rays"),
-            entries: &[
-                uniform_entry(0),
-                storage_entry(1, true),
-                storage_entry(2, true),
-                storage_entry(3, true),
-                storage_entry(4, true),
-                storage_entry(5, false),
-                storage_entry(6, false),
-                uniform_entry(7),
-                storage_entry(8, false),
-                storage_entry(9, true),
-                uniform_entry(10),
-            ],
+            entries: &entries,
         });
         let pipeline_layout = ctx.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("shadow_rays"),
@@ -77,7 +93,7 @@ impl ShadowRaysStage {
             compilation_options: wgpu::PipelineCompilationOptions { constants: &s.constants(), ..Default::default() },
             cache: None,
         });
-        ShadowRaysStage { pipeline, layout }
+        ShadowRaysStage { pipeline, layout, two_level: s.two_level }
     }
 
     /// Clear `frame.shadow`, then trace every ray of `frame.rays` (count and
@@ -115,8 +131,10 @@ impl ShadowRaysStage {
             list.counters,
             &scene.surface.words,
             &scene.surface.layout,
+            &scene.instances,
         ];
-        let bind_group = bind_buffers(ctx, "shadow_rays", &self.layout, &buffers);
+        let bound = if self.two_level { &buffers[..] } else { &buffers[..11] };
+        let bind_group = bind_buffers(ctx, "shadow_rays", &self.layout, bound);
         // SHADOW_NO_RAY is 0.
         encoder.clear_buffer(list.shadow, 0, None);
         let mut pass = crate::timing::begin_timed_pass(encoder, "shadow_rays", timing);

@@ -100,15 +100,26 @@ pub struct Specialization {
     /// `ALPHA_TESTED`: some material is alpha-tested, and the raster, shadow rays and
     /// bounce rays test the alpha of every hit on a triangle flagged `TRI_ALPHA_TEST`.
     pub alpha_tested: bool,
+    /// The scene is traced through a two-level BVH (`PreparedScene::levels`): the ray
+    /// stages (`shadow_rays`, `bounce_trace`) walk the top level to instances and bind the
+    /// instance table. Not a pipeline constant: the walk and its binding are in the
+    /// source only when it is set (`shaders/*_two_level.wgsl`), so single-level scenes
+    /// bind what they always bound.
+    pub two_level: bool,
 }
 
 impl Specialization {
     /// Neither: a scene without surface tables (the pipelines the backend starts with).
-    pub const PLAIN: Specialization = Specialization { surface_tables: false, alpha_tested: false };
+    pub const PLAIN: Specialization = Specialization { surface_tables: false, alpha_tested: false, two_level: false };
 
-    /// What `tables` need.
+    /// What `tables` need (a single-level scene).
     pub fn of(tables: &SurfaceTables) -> Specialization {
-        Specialization { surface_tables: !tables.is_empty(), alpha_tested: tables.alpha_tested() }
+        Specialization { surface_tables: !tables.is_empty(), alpha_tested: tables.alpha_tested(), two_level: false }
+    }
+
+    /// What a prepared scene needs: its surface tables' and whether it has two levels.
+    pub fn of_scene(scene: &hyrt_core::frame::PreparedScene) -> Specialization {
+        Specialization { two_level: scene.levels.is_some(), ..Specialization::of(&scene.geometry.surface) }
     }
 
     /// The constants' values, as pipelines take them.

@@ -251,7 +251,7 @@ fn gpu_results(ctx: &GpuContext, tables: &SurfaceTables, objects: &[ObjectRecord
         storage_entry(5, false),
     ];
     // Compiled as the stages of a scene with surface tables and alpha tests are.
-    let tables_and_alpha = Specialization { surface_tables: true, alpha_tested: true };
+    let tables_and_alpha = Specialization { surface_tables: true, alpha_tested: true, two_level: false };
     let (pipeline, layout) =
         specialized_pipeline(ctx, "texture kernels test", &source, &entries, &tables_and_alpha.constants());
     let params = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {

@@ -9,7 +9,8 @@
 //! cargo run --release -p hyrt --example moving -- assets/scenes/teaser.toml bunny
 //! ```
 //!
-//! Renders on the CPU backend (the GPU backend does not trace two levels yet). Frames go to
+//! Renders on the CPU backend (`BackendKind::Cpu`; the GPU backend renders the same frames).
+//! Frames go to
 //! `hyrt-moving/` in the system's temporary folder; each line says what the move cost
 //! against preparing the whole scene again.
 

@@ -270,8 +270,8 @@ impl Renderer {
     /// [`Renderer::prepare`] for a scene whose objects `moving` (by id) move between
     /// frames: they are traced in their own space through a two-level BVH, so that
     /// [`PreparedScene::move_objects`] moves them (after their transforms change in the
-    /// scene) without preparing the scene again. Renders on the CPU backend; the GPU
-    /// backend refuses such a scene (its WGSL walk of two levels is not written yet).
+    /// scene) without preparing the scene again. Both backends render it, bit for bit
+    /// alike (the GPU needs 9 storage buffers per shader stage for it).
     pub fn prepare_moving(&self, scene: &Scene, moving: &[u32]) -> PreparedScene {
         hyrt_cpu::bvh_build::prepare_moving(scene, WorldGeometry::build(scene), self.preset, moving)
     }

@@ -43,7 +43,8 @@ use super::{flatten, obvhs_nodes, Bvh, BvhNode, BvhPreset, ClosestHit, Traversal
 use crate::formats::{RayRecord, TriangleRecord, INVALID_ID, TRI_ALPHA_TEST};
 use crate::geometry::WorldGeometry;
 use crate::kernels::instance::{
-    instance_box_margin, instance_world_box, to_object_space, world_to_object, ObjectMap, MAP_IDENTITY,
+    instance_box_margin, instance_position_error, instance_world_box, to_object_space, world_to_object, ObjectMap,
+    MAP_IDENTITY,
 };
 use crate::scene::Scene;
 
@@ -61,8 +62,8 @@ pub const INSTANCE_ALPHA_TEST: u32 = TRI_ALPHA_TEST;
 ///
 /// | offset | field | type | meaning |
 /// |---:|---|---|---|
-/// | 0 | `world_to_object` | [[f32; 4]; 3] | the world-to-object map ([`ObjectMap`]: `L (w - t)`; identity for the world-space level) |
-/// | 48 | `bottom` | u32 | index of its bottom level |
+/// | 0 | `map_x`, `map_y`, `map_z` | 3 x [f32; 4] | the rows of the world-to-object map ([`ObjectMap`]: `L (w - t)`; identity for the world-space level) |
+/// | 48 | `bottom` | u32 | index of its bottom level (on the GPU: the index of that level's root in the one node buffer all levels share) |
 /// | 52 | `object` | u32 | the object drawn; [`INVALID_ID`] for the world-space level, which holds many |
 /// | 56 | `first_triangle` | u32 | added to the bottom level's slot indices: the global triangle index |
 /// | 60 | `flags` | u32 | [`INSTANCE_IDENTITY`], [`INSTANCE_MIRRORED`], [`INSTANCE_ALPHA_TEST`] |
@@ -71,15 +72,29 @@ pub const INSTANCE_ALPHA_TEST: u32 = TRI_ALPHA_TEST;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct InstanceRecord {
-    pub world_to_object: ObjectMap,
+    pub map_x: [f32; 4],
+    pub map_y: [f32; 4],
+    pub map_z: [f32; 4],
     pub bottom: u32,
     pub object: u32,
     pub first_triangle: u32,
     pub flags: u32,
 }
 const _: () = assert!(std::mem::size_of::<InstanceRecord>() == 64);
+crate::formats::wgsl::wgsl_struct!(InstanceRecord { map_x, map_y, map_z, bottom, object, first_triangle, flags });
 
 impl InstanceRecord {
+    /// The world-to-object map ([`ObjectMap`], its rows).
+    #[inline]
+    pub fn world_to_object(&self) -> ObjectMap {
+        [self.map_x, self.map_y, self.map_z]
+    }
+
+    /// Set the world-to-object map.
+    pub fn set_world_to_object(&mut self, map: ObjectMap) {
+        [self.map_x, self.map_y, self.map_z] = map;
+    }
+
     /// Check: finite map (the identity for [`INSTANCE_IDENTITY`]), known flags, an object
     /// exactly when the level is in object space.
     pub fn validate(&self) -> Result<(), String> {
@@ -87,12 +102,12 @@ impl InstanceRecord {
         if self.flags & !known != 0 {
             return Err(format!("instance with unknown flags: {self:?}"));
         }
-        if !self.world_to_object.iter().flatten().all(|x| x.is_finite()) {
+        if !self.world_to_object().iter().flatten().all(|x| x.is_finite()) {
             return Err(format!("instance with a non-finite map: {self:?}"));
         }
         let identity = self.flags & INSTANCE_IDENTITY != 0;
         if identity
-            && (self.world_to_object != MAP_IDENTITY || self.object != INVALID_ID || self.flags != INSTANCE_IDENTITY)
+            && (self.world_to_object() != MAP_IDENTITY || self.object != INVALID_ID || self.flags != INSTANCE_IDENTITY)
         {
             return Err(format!("world-space instance with a map, an object or flags: {self:?}"));
         }
@@ -103,13 +118,8 @@ impl InstanceRecord {
     }
 
     fn identity(bottom: u32) -> InstanceRecord {
-        InstanceRecord {
-            world_to_object: MAP_IDENTITY,
-            bottom,
-            object: INVALID_ID,
-            first_triangle: 0,
-            flags: INSTANCE_IDENTITY,
-        }
+        let [map_x, map_y, map_z] = MAP_IDENTITY;
+        InstanceRecord { map_x, map_y, map_z, bottom, object: INVALID_ID, first_triangle: 0, flags: INSTANCE_IDENTITY }
     }
 }
 
@@ -146,6 +156,10 @@ pub struct TwoLevelBvh {
     pub object_instance: Vec<u32>,
     /// Per object: traced in its own space (it moves or shares its mesh), not baked.
     pub in_object_space: Vec<bool>,
+    /// Per object: the extra error bound of points on it whose rays are traced in its
+    /// space ([`instance_position_error`]); 0 for objects baked into world space. Goes to
+    /// [`crate::formats::ObjectRecord::offset_error`] (`PreparedScene` copies it there).
+    pub offset_errors: Vec<f32>,
     /// The preset every level was built with.
     pub build_preset: BvhPreset,
 }
@@ -210,8 +224,11 @@ impl TwoLevelBvh {
             if levels.bottoms[bottom as usize].nodes.is_empty() {
                 continue;
             }
+            let [map_x, map_y, map_z] = *map;
             let instance = InstanceRecord {
-                world_to_object: *map,
+                map_x,
+                map_y,
+                map_z,
                 bottom,
                 object: o.id,
                 first_triangle: geometry.objects[o.id as usize].first_triangle,
@@ -232,7 +249,8 @@ impl TwoLevelBvh {
     /// current transforms (`world_to_object` already set): the mirror flag, the alpha
     /// flag, and the mapped bottom-level box widened by the margin for the scene's
     /// current bounds ([`instance_box_margin`]). The world-space level keeps its box.
-    fn place(&self, scene: &Scene, geometry: &WorldGeometry, instances: &mut [(InstanceRecord, (Vec3, Vec3))]) {
+    fn place(&mut self, scene: &Scene, geometry: &WorldGeometry, instances: &mut [(InstanceRecord, (Vec3, Vec3))]) {
+        self.offset_errors.resize(scene.objects.len(), 0.0);
         let (lo, hi) = geometry.bounds;
         let scene_magnitude = lo.abs().max(hi.abs()).max_element();
         for (instance, world_box) in instances.iter_mut() {
@@ -248,7 +266,10 @@ impl TwoLevelBvh {
                 .map_or(0, |t| t.flags & TRI_ALPHA_TEST);
             let mirrored = Mat3::from_mat4(o.transform).determinant() < 0.0;
             instance.flags = alpha | if mirrored { INSTANCE_MIRRORED } else { 0 };
-            let margin = instance_box_margin(&instance.world_to_object, o.transform, scene_magnitude);
+            let map = instance.world_to_object();
+            self.offset_errors[instance.object as usize] =
+                instance_position_error(o.transform, &map, root.min(), root.max());
+            let margin = instance_box_margin(&map, o.transform, scene_magnitude);
             *world_box = instance_world_box(o.transform, root.min(), root.max(), margin);
         }
     }
@@ -296,7 +317,7 @@ impl TwoLevelBvh {
         for (slot, map) in moves {
             // An object without a traceable triangle has no instance.
             if let Some(instance) = self.instances.get_mut(slot as usize) {
-                instance.world_to_object = map;
+                instance.set_world_to_object(map);
             }
         }
         // The order a fresh build hands the top level: the world-space level, then objects.
@@ -572,11 +593,49 @@ impl TwoLevelBvh {
     }
 }
 
+/// Every level in one node buffer, one slot table and one instance table: what the GPU
+/// binds ([`TwoLevelBvh::packed`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PackedLevels {
+    /// The top level's nodes first (its root is node 0, its leaves name instances), then
+    /// each bottom level's nodes in turn, their child and slot indices shifted to this
+    /// buffer and to `leaf_triangles`.
+    pub nodes: Vec<BvhNode>,
+    /// Every bottom level's `leaf_triangles`, in turn.
+    pub leaf_triangles: Vec<TriangleRecord>,
+    /// Every bottom level's `prim_indices`, in turn (mesh-local indices for object-space
+    /// levels, global ones for the world-space level: add the instance's `first_triangle`).
+    pub prim_indices: Vec<u32>,
+    /// The instances, each `bottom` replaced by the index of its level's root in `nodes`.
+    pub instances: Vec<InstanceRecord>,
+}
+
+impl TwoLevelBvh {
+    /// The levels packed for one set of bindings ([`PackedLevels`]).
+    pub fn packed(&self) -> PackedLevels {
+        let mut p = PackedLevels { nodes: self.top.clone(), ..PackedLevels::default() };
+        let mut roots = Vec::with_capacity(self.bottoms.len());
+        for b in &self.bottoms {
+            let (node_base, slot_base) = (p.nodes.len() as u32, p.leaf_triangles.len() as u32);
+            roots.push(node_base);
+            p.nodes.extend(b.nodes.iter().map(|n| {
+                let shift = if n.is_leaf() { slot_base } else { node_base };
+                BvhNode { left_or_first: n.left_or_first + shift, ..*n }
+            }));
+            p.leaf_triangles.extend_from_slice(&b.leaf_triangles);
+            p.prim_indices.extend_from_slice(&b.prim_indices);
+        }
+        p.instances =
+            self.instances.iter().map(|i| InstanceRecord { bottom: roots[i.bottom as usize], ..*i }).collect();
+        p
+    }
+}
+
 /// The ray moved into `inst`'s object space, prepared; `None` when it can hit nothing
 /// there (the map overflowed it, or its direction vanished).
 #[inline(always)]
 fn object_ray(inst: &InstanceRecord, ray: &RayRecord) -> Option<TraversalRay> {
-    let (origin, direction) = to_object_space(&inst.world_to_object, ray.origin.into(), ray.direction.into());
+    let (origin, direction) = to_object_space(&inst.world_to_object(), ray.origin.into(), ray.direction.into());
     TraversalRay::new(&RayRecord { origin: origin.into(), direction: direction.into(), ..*ray })
 }
 

@@ -352,7 +352,7 @@ pub const MATERIAL_GLASS: u32 = 2;
 /// | 32 | `roughness` | f32 | [0, 1] |
 /// | 36 | `transmission` | f32 | [0, 1] |
 /// | 40 | `ior` | f32 | index of refraction (1.5 unless glass says otherwise) |
-/// | 44 | `pad` | u32 | zero |
+/// | 44 | `offset_error` | f32 | extra error bound of points on it whose rays are traced in its own space ([`crate::kernels::instance::instance_position_error`]); 0 when baked into world space |
 ///
 /// 48 bytes.
 #[repr(C)]
@@ -367,7 +367,7 @@ pub struct ObjectRecord {
     pub roughness: f32,
     pub transmission: f32,
     pub ior: f32,
-    pub pad: u32,
+    pub offset_error: f32,
 }
 const _: () = assert!(std::mem::size_of::<ObjectRecord>() == 48);
 wgsl_struct!(ObjectRecord {
@@ -380,13 +380,15 @@ wgsl_struct!(ObjectRecord {
     roughness,
     transmission,
     ior,
-    pad
+    offset_error
 });
 
 impl ObjectRecord {
-    /// Check: known flags and kind, finite non-negative colour, factors in [0, 1], ior >= 1.
+    /// Check: known flags and kind, finite non-negative colour, factors in [0, 1], ior >= 1,
+    /// a finite non-negative offset error.
     pub fn validate(&self) -> Result<(), String> {
-        if self.flags & !OBJ_RAY_TRACED != 0 || self.material_kind > MATERIAL_GLASS || self.pad != 0 {
+        let offset_ok = self.offset_error.is_finite() && self.offset_error >= 0.0;
+        if self.flags & !OBJ_RAY_TRACED != 0 || self.material_kind > MATERIAL_GLASS || !offset_ok {
             return Err(format!("object record with unknown flags or kind: {self:?}"));
         }
         if !self.base_color.iter().all(|c| c.is_finite() && *c >= 0.0) {

@@ -30,6 +30,7 @@ pub enum WgslType {
     /// `vec3<f32>`.
     Vec3F32,
     /// `mat4x4<f32>` (column-major).
+    Vec4F32,
     Mat4x4F32,
 }
 
@@ -42,6 +43,7 @@ impl WgslType {
             WgslType::Vec2U32 => "vec2<u32>",
             WgslType::Vec2F32 => "vec2<f32>",
             WgslType::Vec3F32 => "vec3<f32>",
+            WgslType::Vec4F32 => "vec4<f32>",
             WgslType::Mat4x4F32 => "mat4x4<f32>",
         }
     }
@@ -51,7 +53,7 @@ impl WgslType {
         match self {
             WgslType::F32 | WgslType::U32 => 4,
             WgslType::Vec2U32 | WgslType::Vec2F32 => 8,
-            WgslType::Vec3F32 | WgslType::Mat4x4F32 => 16,
+            WgslType::Vec3F32 | WgslType::Vec4F32 | WgslType::Mat4x4F32 => 16,
         }
     }
 
@@ -61,6 +63,7 @@ impl WgslType {
             WgslType::F32 | WgslType::U32 => 4,
             WgslType::Vec2U32 | WgslType::Vec2F32 => 8,
             WgslType::Vec3F32 => 12,
+            WgslType::Vec4F32 => 16,
             WgslType::Mat4x4F32 => 64,
         }
     }
@@ -86,6 +89,9 @@ impl WgslField for [f32; 2] {
 }
 impl WgslField for [f32; 3] {
     const WGSL: WgslType = WgslType::Vec3F32;
+}
+impl WgslField for [f32; 4] {
+    const WGSL: WgslType = WgslType::Vec4F32;
 }
 impl WgslField for [f32; 16] {
     const WGSL: WgslType = WgslType::Mat4x4F32;
@@ -237,6 +243,10 @@ pub fn constant_values() -> Vec<(&'static str, u32)> {
         MAT_ALPHA_TEST,
     )
     .to_vec();
+    {
+        use crate::bvh::two_level::{INSTANCE_ALPHA_TEST, INSTANCE_IDENTITY, INSTANCE_MIRRORED};
+        c.extend(u32_constants!(INSTANCE_IDENTITY, INSTANCE_MIRRORED, INSTANCE_ALPHA_TEST));
+    }
     c.extend([
         ("COMPOSITION_WEIGHTED_MEAN", Composition::WeightedMean.code()),
         ("COMPOSITION_COPY_RASTER", Composition::CopyRaster.code()),
@@ -269,6 +279,7 @@ pub fn struct_declarations() -> String {
         MaterialRecord::declaration(),
         TriangleUvRecord::declaration(),
         SurfaceLayout::declaration(),
+        crate::bvh::two_level::InstanceRecord::declaration(),
     ]
     .join("\n")
 }
@@ -306,6 +317,7 @@ mod tests {
         MaterialRecord::check_layout().unwrap();
         TriangleUvRecord::check_layout().unwrap();
         SurfaceLayout::check_layout().unwrap();
+        crate::bvh::two_level::InstanceRecord::check_layout().unwrap();
     }
 
     #[test]

@@ -89,7 +89,9 @@ fn surface_at(
 ) -> SurfaceRecord {
     let tri = &geometry.triangles[gi];
     let [v0, v1, v2] = tri.vertices();
-    let err = position_error_bound(u, v, v0, v1, v2).max_element();
+    // Its object's offset error: what tracing its rays in the object's own space adds
+    // (0 for an object baked into world space; `kernels::instance`).
+    let err = position_error_bound(u, v, v0, v1, v2).max_element() + geometry.objects[tri.object as usize].offset_error;
     let ng = geometric_normal(v0, v1, v2);
     let ns = interpolate_normal(u, v, geometry.normals[gi], ng);
     // The side the ray saw, exactly (for primary hits the sign of the snapped triangle's

@@ -334,7 +334,7 @@ mod tests {
             roughness: 1.0,
             transmission: 0.0,
             ior: 1.5,
-            pad: 0,
+            offset_error: 0.0,
         }
     }
 

@@ -9,6 +9,8 @@
 //
 // Prepended: the generated records and constants, ray.wgsl, `rounded` and `mul` over
 // `params.zero`, surface.wgsl, the texture kernels (`hyrt_gpu::texture::texture_wgsl`).
+// Appended: `trace_closest`, the walk of the scene's BVH: `closest_hit` for a single-level
+// tree, or for a two-level one `bounce_two_level.wgsl` (with the instances' binding).
 
 @group(0) @binding(0) var<uniform> params: FrameParams;
 @group(0) @binding(1) var<storage, read> rays: array<RayRecord>;
@@ -23,6 +25,8 @@
 @group(0) @binding(10) var<storage, read_write> counters: array<atomic<u32>, 4>;
 @group(0) @binding(11) var<storage, read> surface: array<u32>;
 @group(0) @binding(12) var<uniform> surface_layout: SurfaceLayout;
+// The object records: `surface_at` adds the hit object's offset error to the point's bound.
+@group(0) @binding(13) var<storage, read> objects: array<ObjectRecord>;
 
 // mirrors hyrt_core::bvh::ClosestHit (`triangle` INVALID_ID: no hit)
 struct ClosestHit {
@@ -39,14 +43,24 @@ struct ClosestHit {
 // the bound narrowed is visited only if its entry lies within the widened bound. An empty
 // BVH (one zero node) is recognized as in shadow_rays.wgsl.
 fn closest_hit(ray: RayRecord) -> ClosestHit {
-    var best = ClosestHit(INVALID_ID, ray.t_max, 0.0, 0.0, false);
+    let best = ClosestHit(INVALID_ID, ray.t_max, 0.0, 0.0, false);
     let root = bvh_nodes[0];
     if !traversal_ray_valid(ray) || (root.count == 0u && root.left_or_first == 0u) {
         return best;
     }
-    let r = traversal_ray_new(ray);
-    var t_best = r.t_max;
-    let root_entry = enter(r, root, t_best);
+    return closest_from(traversal_ray_new(ray), 0u, best, 0u, INVALID_ID, 0u);
+}
+
+// mirrors hyrt_core::bvh::Bvh::closest_ray: the closest-hit walk of the tree whose root
+// is node `root` from the hit `start` found so far (its `t` the bound), slot `s` reported
+// as triangle `first_triangle + bvh_prim_indices[s]`; alpha-tested triangles (their flags
+// or `alpha_flags`) tested on their own object, or on `object` when it is not INVALID_ID
+// (an instance of a shared bottom level). `back_face` is the facing in this tree's space.
+fn closest_from(r: TraversalRay, root: u32, start: ClosestHit, alpha_flags: u32, object: u32,
+                first_triangle: u32) -> ClosestHit {
+    var best = start;
+    var t_best = best.t;
+    let root_entry = enter(r, bvh_nodes[root], t_best);
     if root_entry.x == 0.0 {
         return best;
     }
@@ -55,7 +69,7 @@ fn closest_hit(ray: RayRecord) -> ClosestHit {
     var sp = 0u;
     // Entries below this stack index were pushed before the last narrowing of the bound.
     var stale = 0u;
-    var n = 0u;
+    var n = root;
     loop {
         let node = bvh_nodes[n];
         var descend = false;
@@ -65,11 +79,11 @@ fn closest_hit(ray: RayRecord) -> ClosestHit {
                 let tri = bvh_leaf_triangles[slot];
                 let h = watertight_intersect(r.wt, r.t_min, r.t_max, tri.v0, tri.v1, tri.v2, params.zero);
                 if h.hit {
-                    let id = bvh_prim_indices[slot];
+                    let id = first_triangle + bvh_prim_indices[slot];
                     let closer = h.t < t_best || (h.t == t_best && id < best.triangle);
                     // ALPHA_TESTED (a pipeline constant): no alpha test compiled in scenes without one.
-                    let opaque_hit = !ALPHA_TESTED || (tri.flags & TRI_ALPHA_TEST) == 0u;
-                    if closer && (opaque_hit || alpha_accepts(tri, id, h.u, h.v)) {
+                    let opaque_hit = !ALPHA_TESTED || ((tri.flags | alpha_flags) & TRI_ALPHA_TEST) == 0u;
+                    if closer && (opaque_hit || alpha_accepts_at(tri, object, id, h.u, h.v)) {
                         best = ClosestHit(id, h.t, h.u, h.v, h.back_face);
                         t_best = h.t;
                         narrowed = true;
@@ -130,6 +144,18 @@ fn closest_hit(ray: RayRecord) -> ClosestHit {
     return best;
 }
 
+
+// The alpha test of a hit on leaf triangle `t`, global triangle `id`: on its own object,
+// or on `object` (an instance's) when that is not INVALID_ID.
+fn alpha_accepts_at(t: TriangleRecord, object: u32, id: u32, u: f32, v: f32) -> bool {
+    if object == INVALID_ID {
+        return alpha_accepts(t, id, u, v);
+    }
+    var w = t;
+    w.object = object;
+    return alpha_accepts(w, id, u, v);
+}
+
 // mirrors hyrt_core::formats::HitRecord::from_hit
 fn hit_record(h: ClosestHit) -> HitRecord {
     if h.triangle == INVALID_ID {
@@ -157,7 +183,7 @@ fn main(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wid: v
         return;
     }
     let ray = rays[i];
-    let hit = hit_record(closest_hit(ray));
+    let hit = hit_record(trace_closest(ray));
     hits[i] = hit;
     surfaces[i] = reconstruct_hit(hit, ray.direction);
     if (hit.flags & HIT_FOUND) != 0u {

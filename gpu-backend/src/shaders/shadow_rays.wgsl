@@ -9,7 +9,9 @@
 //
 // Prepended at pipeline creation: the generated records and format constants
 // (hyrt_core::formats::wgsl), the ray constants and ray.wgsl, `rounded` and `mul` over
-// `params.zero`, the texture kernels (`hyrt_gpu::texture::texture_wgsl`).
+// `params.zero`, the texture kernels (`hyrt_gpu::texture::texture_wgsl`). Appended:
+// `trace_occluded`, the walk of the scene's BVH: `occluded_any` for a single-level tree,
+// or for a two-level one `shadow_two_level.wgsl` (with the instances' binding).
 
 @group(0) @binding(0) var<uniform> params: FrameParams;
 @group(0) @binding(1) var<storage, read> rays: array<RayRecord>;
@@ -35,13 +37,21 @@ fn occluded_any(ray: RayRecord) -> bool {
     if !traversal_ray_valid(ray) || (root.count == 0u && root.left_or_first == 0u) {
         return false;
     }
-    let r = traversal_ray_new(ray);
-    if enter(r, root, r.t_max).x == 0.0 {
+    return occluded_from(traversal_ray_new(ray), 0u, 0u, INVALID_ID, 0u);
+}
+
+// mirrors hyrt_core::bvh::Bvh::occluded_ray: the any-hit walk of the tree whose root is
+// node `root`, a hit on an alpha-tested triangle (its flags or `alpha_flags`) counting
+// where its alpha passes. `object` INVALID_ID: the triangles' records name their object
+// (a single-level tree, the world-space level); else the hit is on that object, whose
+// first triangle is `first_triangle` (an instance of a shared bottom level).
+fn occluded_from(r: TraversalRay, root: u32, alpha_flags: u32, object: u32, first_triangle: u32) -> bool {
+    if enter(r, bvh_nodes[root], r.t_max).x == 0.0 {
         return false;
     }
     var stack: array<u32, BVH_STACK_SIZE>;
     var sp = 0u;
-    var n = 0u;
+    var n = root;
     loop {
         let node = bvh_nodes[n];
         if node.count > 0u {
@@ -49,8 +59,8 @@ fn occluded_any(ray: RayRecord) -> bool {
                 let t = bvh_leaf_triangles[slot];
                 let h = watertight_intersect(r.wt, r.t_min, r.t_max, t.v0, t.v1, t.v2, params.zero);
                 // ALPHA_TESTED (a pipeline constant): no alpha test compiled in scenes without one.
-                let opaque_hit = !ALPHA_TESTED || (t.flags & TRI_ALPHA_TEST) == 0u;
-                if h.hit && (opaque_hit || alpha_accepts(t, global_triangle(t), h.u, h.v)) {
+                let opaque_hit = !ALPHA_TESTED || ((t.flags | alpha_flags) & TRI_ALPHA_TEST) == 0u;
+                if h.hit && (opaque_hit || alpha_accepts_on(t, object, first_triangle, h.u, h.v)) {
                     return true;
                 }
             }
@@ -87,6 +97,17 @@ fn occluded_any(ray: RayRecord) -> bool {
     return false;
 }
 
+// The alpha test of a hit on leaf triangle `t` (hyrt_core::kernels::texture::alpha_accepts
+// as the CPU's leaf tests call it): on its own object, or on the instance's `object`.
+fn alpha_accepts_on(t: TriangleRecord, object: u32, first_triangle: u32, u: f32, v: f32) -> bool {
+    if object == INVALID_ID {
+        return alpha_accepts(t, global_triangle(t), u, v);
+    }
+    var w = t;
+    w.object = object;
+    return alpha_accepts(w, first_triangle + t.triangle, u, v);
+}
+
 // mirrors hyrt_core::kernels::shadow::shadow_code
 fn shadow_code(occluded: bool) -> u32 {
     return select(SHADOW_LIT, SHADOW_OCCLUDED, occluded);
@@ -102,7 +123,7 @@ fn shadow_rays(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id)
         return;
     }
     let ray = rays[i];
-    let o = occluded_any(ray);
+    let o = trace_occluded(ray);
     occluded[i] = select(0u, 1u, o);
     if o && list.depth > 0u {
         atomicAdd(&counters[3], 1u);

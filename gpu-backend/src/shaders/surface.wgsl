@@ -121,7 +121,8 @@ fn surface_at(gi: u32, u: f32, v: f32, back_face: bool, p: vec3<f32>, toward: ve
     let v0 = tri.v0;
     let v1 = tri.v1;
     let v2 = tri.v2;
-    let err = max_element(position_error_bound(u, v, v0, v1, v2));
+    // Its object's offset error (0 unless its rays are traced in its own space).
+    let err = max_element(position_error_bound(u, v, v0, v1, v2)) + objects[tri.object].offset_error;
     var ng = geometric_normal(v0, v1, v2);
     var ns = interpolate_normal(u, v, corner_normal(gi, 0u), corner_normal(gi, 1u), corner_normal(gi, 2u), ng);
     // The side the ray saw, exactly.
