@@ -297,6 +297,41 @@ fn parse_fps(s: &str) -> Result<f32, String> {
 }
 
 /// A scene loaded, posed and lit as [`SceneArgs`] say.
+/// What the chosen animation moves: its objects are prepared as moving, and posing the
+/// scene at another time moves them (and retakes the lights when it moves one) rather than
+/// preparing the whole scene again. Nothing for a scene without an animation.
+pub(crate) struct Motion {
+    objects: Vec<u32>,
+    lights: bool,
+}
+
+impl Motion {
+    pub(crate) fn of(scene: &Scene, animation: Option<usize>) -> Motion {
+        match (animation, &scene.animation) {
+            (Some(a), Some(nodes)) => Motion { objects: nodes.moved_objects(a), lights: nodes.moves_lights(a) },
+            _ => Motion { objects: Vec::new(), lights: false },
+        }
+    }
+
+    /// The scene prepared with the animation's objects moving.
+    pub(crate) fn prepare(&self, renderer: &Renderer, scene: &Scene) -> hyrt::PreparedScene {
+        if self.objects.is_empty() {
+            renderer.prepare(scene)
+        } else {
+            renderer.prepare_moving(scene, &self.objects)
+        }
+    }
+
+    /// After the scene was posed at another time: move what the animation moves.
+    pub(crate) fn apply(&self, prepared: &mut hyrt::PreparedScene, scene: &Scene) -> Result<(), String> {
+        prepared.move_objects(scene, &self.objects).map_err(|e| e.to_string())?;
+        if self.lights {
+            prepared.update_lights(scene);
+        }
+        Ok(())
+    }
+}
+
 struct Loaded {
     scene: Scene,
     /// The animation `--time`, `--animation` (or `--fps`) chose.
@@ -464,7 +499,8 @@ fn render(args: RenderArgs) -> Result<(), String> {
     eprintln!("backend: {}", renderer.choice_details());
     let (w, h) = common.size;
     let t = Instant::now();
-    let mut prepared = renderer.prepare(&scene);
+    let motion = Motion::of(&scene, animation);
+    let mut prepared = motion.prepare(&renderer, &scene);
     let prepare_ms = ms_since(t);
     // Every stage's output is kept only for --dump (the GPU then reads them back too).
     let options = common.frame_options(args.dump.is_some());
@@ -472,14 +508,14 @@ fn render(args: RenderArgs) -> Result<(), String> {
     let mut per_frame = Vec::with_capacity(args.frames as usize);
     // Wall clock of each frame (the call, readback included) and the sum of its stages.
     let mut walls = Vec::with_capacity(args.frames as usize);
-    // With --fps each frame poses the scene at its time and is prepared from it (frame 0 is
-    // the pose set above); without, the same prepared scene renders every frame.
+    // With --fps each frame poses the scene at its time and moves what the animation moves
+    // (frame 0 is the pose set above); without, the same prepared scene renders every frame.
     let playing = animation.zip(args.fps);
     for i in 0..args.frames {
         if let (Some((a, fps)), true) = (playing, i > 0) {
             scene.set_time(a, start_time + i as f32 / fps).map_err(|e| e.to_string())?;
             camera = common.camera(&scene)?;
-            prepared = renderer.prepare(&scene);
+            motion.apply(&mut prepared, &scene)?;
         }
         let t = Instant::now();
         renderer.render_into(&prepared, &camera, w, h, &options, &mut frame).map_err(|e| e.to_string())?;

@@ -58,3 +58,30 @@ fn cli_backend_gpu_renders_default_scene_and_sponza_with_software_allowed() {
         assert_eq!(image::open(&out).unwrap().width(), 64);
     }
 }
+
+/// An animation rendered frame by frame (`--frames --fps`): its moving objects traced
+/// through two levels and moved between frames; the GPU's images are the CPU's, byte for
+/// byte.
+#[test]
+fn cli_animation_frames_are_the_same_on_both_backends() {
+    if !gpu_adapter() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let scene = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes/animated_box.gltf");
+    for backend in ["cpu", "gpu"] {
+        let o = Command::new(env!("CARGO_BIN_EXE_hyrt"))
+            .env("HYRT_GPU_ALLOW_SOFTWARE", "1")
+            .arg("render")
+            .arg(&scene)
+            .args(["--backend", backend, "--frames", "3", "--fps", "2", "--size", "64x48", "--out"])
+            .arg(dir.path().join(format!("{backend}.png")))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{backend}: {}", String::from_utf8_lossy(&o.stderr));
+    }
+    for i in 0..3 {
+        let read = |b: &str| image::open(dir.path().join(format!("{b}_{i:04}.png"))).unwrap().to_rgba8().into_raw();
+        assert_eq!(read("cpu"), read("gpu"), "frame {i} differs");
+    }
+}

@@ -72,6 +72,13 @@ impl PreparedScene {
         self.id
     }
 
+    /// Take the scene's lights again after they changed (an animation moved one): the
+    /// light table is rewritten and the scene gets a new id.
+    pub fn update_lights(&mut self, scene: &Scene) {
+        self.geometry.lights = scene.lights.iter().map(crate::formats::LightRecord::from_light).collect();
+        self.id = next_id();
+    }
+
     /// Move objects between frames: after the transforms (or render modes) of `objects`
     /// changed in `scene` (the scene this was prepared from), rewrite their world tables
     /// and their instances and rebuild the top level; bottom levels are untouched. The

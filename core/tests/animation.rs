@@ -287,6 +287,27 @@ fn the_animated_file_loads_with_its_hierarchy_and_animations() {
     );
 }
 
+/// What each animation moves: `move` drives the box (whose child is the satellite) and
+/// the lamp; `dolly` only the camera. The objects it names are exactly those whose
+/// transforms change as it plays.
+#[test]
+fn moved_objects_are_the_ones_an_animation_moves() {
+    let mut scene = load("moved", &animated_box());
+    let id = |name: &str| object(&scene, name).id;
+    let (box_id, satellite) = (id("box"), id("satellite"));
+    let animation = scene.animation.clone().unwrap();
+    assert_eq!(animation.moved_objects(0), [box_id.min(satellite), box_id.max(satellite)]);
+    assert!(animation.moves_lights(0));
+    assert_eq!(animation.moved_objects(1), Vec::<u32>::new());
+    assert!(!animation.moves_lights(1));
+    assert!(animation.moved_objects(7).is_empty() && !animation.moves_lights(7));
+    let rest: Vec<Mat4> = scene.objects.iter().map(|o| o.transform).collect();
+    scene.set_time(0, 0.75).unwrap();
+    let changed: Vec<u32> =
+        scene.objects.iter().zip(&rest).filter(|(o, r)| bits(o.transform) != bits(**r)).map(|(o, _)| o.id).collect();
+    assert_eq!(changed, animation.moved_objects(0));
+}
+
 #[test]
 fn posing_matches_the_transforms_written_by_hand() {
     let mut scene = load("pose", &animated_box());

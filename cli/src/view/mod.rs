@@ -149,6 +149,8 @@ struct Running {
     renderer: Renderer,
     scene: Scene,
     prepared: PreparedScene,
+    /// What the animation moves: posing it moves those objects, not the whole scene.
+    motion: crate::Motion,
     animation: Option<usize>,
     time: f32,
     playing: bool,
@@ -208,7 +210,10 @@ impl App {
         };
         let crate::Loaded { scene, animation, start_time, camera, .. } =
             self.loaded.take().expect("the scene is loaded once");
-        let prepared = renderer.prepare(&scene);
+        // Space plays the animation --time or --animation chose, else the scene's first.
+        let animation = animation.or(scene.animation.as_ref().filter(|a| !a.animations().is_empty()).map(|_| 0));
+        let motion = crate::Motion::of(&scene, animation);
+        let prepared = motion.prepare(&renderer, &scene);
         let size = scene.world_bounds().map_or(10.0, |(lo, hi)| (hi - lo).length());
         let overlay = match Overlay::load() {
             Ok(o) => Some(o),
@@ -217,14 +222,13 @@ impl App {
                 None
             }
         };
-        // Space plays the animation --time or --animation chose, else the scene's first.
-        let animation = animation.or(scene.animation.as_ref().filter(|a| !a.animations().is_empty()).map(|_| 0));
         Ok(Running {
             window,
             presenter,
             renderer,
             scene,
             prepared,
+            motion,
             animation,
             time: start_time,
             playing: false,
@@ -329,14 +333,14 @@ impl Running {
         Ok(())
     }
 
-    /// Pose the scene at `t` seconds of its animation (looping over its duration) and
-    /// prepare it again.
+    /// Pose the scene at `t` seconds of its animation (looping over its duration) and move
+    /// what it moves.
     fn pose(&mut self, t: f32) -> Result<(), ViewError> {
         let (Some(a), Some(anim)) = (self.animation, &self.scene.animation) else { return Ok(()) };
         let duration = anim.animations()[a].duration();
         self.time = if duration > 0.0 && t > duration { t.rem_euclid(duration) } else { t.max(0.0) };
         self.scene.set_time(a, self.time).map_err(err)?;
-        self.prepared = self.renderer.prepare(&self.scene);
+        self.motion.apply(&mut self.prepared, &self.scene).map_err(err)?;
         Ok(())
     }
 
@@ -406,7 +410,7 @@ impl Running {
             format!("pick ({x}, {y}): object {} '{}' is now {}", object.id, object.name, object.render_mode.name());
         println!("{}", self.message);
         // The render mode is part of the prepared world tables: prepare again.
-        self.prepared = self.renderer.prepare(&self.scene);
+        self.prepared = self.motion.prepare(&self.renderer, &self.scene);
     }
 
     /// Write the current view (`with_overlay`: as the window shows it) to a numbered PNG.

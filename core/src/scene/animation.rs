@@ -294,9 +294,46 @@ impl SceneAnimation {
     pub fn nodes(&self) -> &[SceneNode] {
         &self.nodes
     }
+
     pub fn animations(&self) -> &[Animation] {
         &self.animations
     }
+
+    /// The objects animation `animation` moves (sorted ids): those placed by a node one of
+    /// its channels drives or by a descendant of one. Empty for an unknown animation. A
+    /// renderer prepares them as moving (`Renderer::prepare_moving`) and moves them after
+    /// each [`Scene::set_time`] instead of preparing the scene again.
+    pub fn moved_objects(&self, animation: usize) -> Vec<u32> {
+        let moved = self.moved_nodes(animation);
+        let mut objects: Vec<u32> =
+            self.nodes.iter().zip(&moved).filter(|(_, m)| **m).flat_map(|(n, _)| n.objects.iter().copied()).collect();
+        objects.sort_unstable();
+        objects.dedup();
+        objects
+    }
+
+    /// Whether animation `animation` moves a light (a node it drives, or a descendant of
+    /// one, places a light).
+    pub fn moves_lights(&self, animation: usize) -> bool {
+        self.nodes.iter().zip(self.moved_nodes(animation)).any(|(n, m)| m && n.light.is_some())
+    }
+
+    /// Per node: whether animation `animation` drives it or one of its ancestors (none for
+    /// an unknown animation).
+    fn moved_nodes(&self, animation: usize) -> Vec<bool> {
+        let mut moved = vec![false; self.nodes.len()];
+        for c in self.animations.get(animation).map_or(&[][..], |a| &a.channels[..]) {
+            moved[c.node] = true;
+        }
+        // Parents come before their children: one pass carries a move down the hierarchy.
+        for i in 0..self.nodes.len() {
+            if let Some(p) = self.nodes[i].parent {
+                moved[i] |= moved[p];
+            }
+        }
+        moved
+    }
+
     /// The index of the first animation named `name`.
     pub fn find(&self, name: &str) -> Option<usize> {
         self.animations.iter().position(|a| a.name == name)
