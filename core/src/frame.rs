@@ -39,6 +39,34 @@ pub struct PreparedScene {
     /// tables on a device key their caches by it. Fields are public for reading;
     /// build with [`PreparedScene::new`] so the id stays unique.
     id: u64,
+    /// Bumped by every change made in place ([`PreparedScene::move_objects`],
+    /// [`PreparedScene::update_lights`]); 0 as prepared.
+    revision: u64,
+    /// What each of the last [`CHANGE_LOG_LENGTH`] revisions changed, oldest first.
+    changes: std::collections::VecDeque<(u64, SceneChanges)>,
+}
+
+/// Revisions whose changes a [`PreparedScene`] remembers: a device cache further behind
+/// takes the whole scene again.
+pub const CHANGE_LOG_LENGTH: usize = 64;
+
+/// What changed in a prepared scene between two revisions ([`PreparedScene::changes_since`]):
+/// what a backend holding the older revision on a device must write again.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct SceneChanges {
+    /// Objects whose triangles, normals, record (and instance) were rewritten, sorted.
+    pub objects: Vec<u32>,
+    /// The light table.
+    pub lights: bool,
+}
+
+impl SceneChanges {
+    fn merge(&mut self, other: &SceneChanges) {
+        self.objects.extend_from_slice(&other.objects);
+        self.objects.sort_unstable();
+        self.objects.dedup();
+        self.lights |= other.lights;
+    }
 }
 
 /// A fresh [`PreparedScene`] id.
@@ -50,7 +78,15 @@ fn next_id() -> u64 {
 impl PreparedScene {
     /// A prepared scene with a fresh id.
     pub fn new(geometry: WorldGeometry, bvh: Bvh, bvh_build_ms: f64) -> Self {
-        PreparedScene { geometry, bvh, levels: None, bvh_build_ms, id: next_id() }
+        PreparedScene {
+            geometry,
+            bvh,
+            levels: None,
+            bvh_build_ms,
+            id: next_id(),
+            revision: 0,
+            changes: Default::default(),
+        }
     }
 
     /// A prepared scene traced through two levels: `bvh` becomes a copy of the
@@ -62,21 +98,62 @@ impl PreparedScene {
             o.offset_error = *e;
         }
         let levels = levels.has_object_space_instances().then_some(levels);
-        PreparedScene { geometry, bvh, levels, bvh_build_ms, id: next_id() }
+        PreparedScene { geometry, bvh, levels, bvh_build_ms, id: next_id(), revision: 0, changes: Default::default() }
     }
 
     /// The id device caches are keyed by. Mutating the public fields after a
-    /// backend has seen the scene is not supported: prepare a new scene instead, or move
-    /// objects with [`PreparedScene::move_objects`], which gives the scene a new id.
+    /// backend has seen the scene is not supported: prepare a new scene instead, or change
+    /// it with [`PreparedScene::move_objects`] and [`PreparedScene::update_lights`], which
+    /// keep the id and bump the [`PreparedScene::revision`].
     pub fn id(&self) -> u64 {
         self.id
     }
 
-    /// Take the scene's lights again after they changed (an animation moved one): the
-    /// light table is rewritten and the scene gets a new id.
+    /// How many in-place changes the scene has had (0 as prepared).
+    pub fn revision(&self) -> u64 {
+        self.revision
+    }
+
+    /// What changed after revision `since` (everything up to the current revision, merged),
+    /// for a backend that holds revision `since` on a device and writes only that again;
+    /// `None` when the log no longer reaches back that far (take the whole scene).
+    pub fn changes_since(&self, since: u64) -> Option<SceneChanges> {
+        if since > self.revision {
+            return None;
+        }
+        let mut all = SceneChanges::default();
+        let mut next = since + 1;
+        for (revision, c) in self.changes.iter().filter(|(r, _)| *r > since) {
+            if *revision != next {
+                return None;
+            }
+            all.merge(c);
+            next += 1;
+        }
+        (next == self.revision + 1).then_some(all)
+    }
+
+    /// Record one in-place change as a new revision.
+    fn record(&mut self, change: SceneChanges) {
+        self.revision += 1;
+        self.changes.push_back((self.revision, change));
+        if self.changes.len() > CHANGE_LOG_LENGTH {
+            self.changes.pop_front();
+        }
+    }
+
+    /// Take the scene's lights again after they changed (an animation moved one, or
+    /// changed its colour): the light table is rewritten, a new revision (a new id when
+    /// the number of lights changed).
     pub fn update_lights(&mut self, scene: &Scene) {
+        let count = self.geometry.lights.len();
         self.geometry.lights = scene.lights.iter().map(crate::formats::LightRecord::from_light).collect();
-        self.id = next_id();
+        if self.geometry.lights.len() == count {
+            self.record(SceneChanges { objects: Vec::new(), lights: true });
+        } else {
+            // Another number of lights: a new scene for every device cache.
+            self.id = next_id();
+        }
     }
 
     /// Move objects between frames: after the transforms (or render modes) of `objects`
@@ -86,7 +163,9 @@ impl PreparedScene {
     ///
     /// Fails, changing nothing, when an object was not prepared as moving (it is baked
     /// into world space; a scene prepared without levels has every object baked), does not
-    /// exist, or its transform cannot be traced in object space ([`MoveError`]).
+    /// exist, or its transform cannot be traced in object space ([`MoveError`]). A move is
+    /// a new [`PreparedScene::revision`]; the id stays, so a device holding the scene
+    /// writes only what moved ([`PreparedScene::changes_since`]).
     pub fn move_objects(&mut self, scene: &Scene, objects: &[u32]) -> Result<(), MoveError> {
         let Some(levels) = &mut self.levels else {
             return Err(match objects.first() {
@@ -103,7 +182,10 @@ impl PreparedScene {
         for &object in objects {
             self.geometry.objects[object as usize].offset_error = levels.offset_errors[object as usize];
         }
-        self.id = next_id();
+        let mut moved = objects.to_vec();
+        moved.sort_unstable();
+        moved.dedup();
+        self.record(SceneChanges { objects: moved, lights: false });
         Ok(())
     }
 }

@@ -165,7 +165,9 @@ pub struct GpuBackend {
     /// How `visibility_raster` computes the G-buffer, in every specialization.
     visibility_mode: VisibilityMode,
     timer: StageTimer,
-    scene: Option<(u64, SceneBuffers)>,
+    scene: Option<(u64, u64, SceneBuffers)>,
+    /// Scenes uploaded whole, and changes written in place ([`GpuBackend::scene_writes`]).
+    scene_writes: (u64, u64),
     frame: Option<FrameBuffers>,
     /// Milliseconds per step of the last run plan (of the last frame, summed over its bands).
     stage_ms: Vec<f64>,
@@ -199,6 +201,7 @@ impl GpuBackend {
             visibility_mode,
             timer,
             scene: None,
+            scene_writes: (0, 0),
             frame: None,
             stage_ms: Vec::new(),
             present: Present::default(),
@@ -248,6 +251,13 @@ impl GpuBackend {
         Ok(&self.stages[at].1)
     }
 
+    /// How scenes reached the device so far: `(whole uploads, in-place updates)`. A
+    /// prepared scene is uploaded once; each change made to it in place
+    /// ([`PreparedScene::move_objects`]) is written at the next frame, no more.
+    pub fn scene_writes(&self) -> (u64, u64) {
+        self.scene_writes
+    }
+
     /// The device context.
     pub fn context(&self) -> &GpuContext {
         &self.ctx
@@ -286,9 +296,22 @@ impl GpuBackend {
         options: &FrameOptions,
         sink: &mut Sink<'_>,
     ) -> Result<Counts, GpuError> {
-        if self.scene.as_ref().map(|(id, _)| *id) != Some(scene.id()) {
-            let ctx = &self.ctx;
-            self.scene = Some((scene.id(), ctx.checked(|| SceneBuffers::new(ctx, scene))?));
+        // The scene on the device: kept, brought up to the scene's revision by writing what
+        // changed (objects moved in place), or uploaded whole.
+        let ctx = &self.ctx;
+        let held = self.scene.as_mut().filter(|(id, _, _)| *id == scene.id());
+        match held.and_then(|(_, revision, buffers)| Some((scene.changes_since(*revision)?, revision, buffers))) {
+            Some((changes, revision, buffers)) => {
+                if *revision != scene.revision() {
+                    ctx.checked(|| buffers.apply(ctx, scene, &changes))?;
+                    *revision = scene.revision();
+                    self.scene_writes.1 += 1;
+                }
+            }
+            None => {
+                self.scene = Some((scene.id(), scene.revision(), ctx.checked(|| SceneBuffers::new(ctx, scene))?));
+                self.scene_writes.0 += 1;
+            }
         }
         // The pipelines this scene's surface tables need, built before its first frame.
         self.stages(Specialization::of_scene(scene))?;
@@ -469,7 +492,7 @@ impl GpuBackend {
         spread: f32,
     ) -> Result<(), GpuError> {
         let ctx = &self.ctx;
-        let (sb, fb) = (&self.scene.as_ref().expect("scene buffers").1, self.frame.as_ref().expect("frame buffers"));
+        let (sb, fb) = (&self.scene.as_ref().expect("scene buffers").2, self.frame.as_ref().expect("frame buffers"));
         let st = self
             .stages
             .iter()

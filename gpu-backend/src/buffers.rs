@@ -9,7 +9,7 @@ use hyrt_core::formats::{
     CameraRecord, EnvironmentRecord, GBufferTexel, HitRecord, LightRecord, ListParams, ObjectRecord, RayRecord,
     SurfaceRecord, TriangleRecord,
 };
-use hyrt_core::frame::PreparedScene;
+use hyrt_core::frame::{PreparedScene, SceneChanges};
 use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan};
 
 use crate::band::Band;
@@ -95,6 +95,42 @@ impl SceneBuffers {
             object_count: g.objects.len() as u32,
             light_count: g.lights.len() as u32,
             bvh_node_count: nodes.len() as u32,
+        }
+    }
+}
+
+impl SceneBuffers {
+    /// Write what changed in `scene` since the revision these buffers hold
+    /// ([`PreparedScene::changes_since`]): each moved object's triangles, normals and
+    /// record, the top level's nodes and the instances, the lights; the surface tables
+    /// again when the scene has them (a move changes its texture level-of-detail
+    /// constants). Everything else (the bottom levels, the other objects) stays as uploaded.
+    pub fn apply(&mut self, ctx: &GpuContext, scene: &PreparedScene, changes: &SceneChanges) {
+        let g = &scene.geometry;
+        let write = |buffer: &wgpu::Buffer, offset: usize, bytes: &[u8]| {
+            if !bytes.is_empty() {
+                ctx.queue.write_buffer(buffer, offset as u64, bytes);
+            }
+        };
+        for &o in &changes.objects {
+            let record = &g.objects[o as usize];
+            let range = record.first_triangle as usize..(record.first_triangle + record.triangle_count) as usize;
+            let tri = std::mem::size_of::<TriangleRecord>();
+            write(&self.triangles, range.start * tri, bytemuck::cast_slice(&g.triangles[range.clone()]));
+            let normals: Vec<f32> =
+                g.normals[range.clone()].iter().flat_map(|n| n.iter().flat_map(|v| v.to_array())).collect();
+            write(&self.normals, range.start * 9 * 4, bytemuck::cast_slice(&normals));
+            write(&self.objects, o as usize * std::mem::size_of::<ObjectRecord>(), bytemuck::bytes_of(record));
+        }
+        if let (false, Some(levels)) = (changes.objects.is_empty(), &scene.levels) {
+            write(&self.bvh_nodes, 0, bytemuck::cast_slice(&levels.top));
+            write(&self.instances, 0, bytemuck::cast_slice(&levels.packed_instances()));
+        }
+        if changes.lights {
+            write(&self.lights, 0, bytemuck::cast_slice(&g.lights));
+        }
+        if !changes.objects.is_empty() && !g.surface.is_empty() {
+            self.surface = SurfaceBuffers::new(ctx, &g.surface, &g.objects);
         }
     }
 }

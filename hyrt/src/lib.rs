@@ -46,7 +46,7 @@ pub use hyrt_core::bvh::{Bvh, BvhPreset};
 pub use hyrt_core::formats;
 pub use hyrt_core::frame::{
     Backend, BounceBuffers, BounceStats, BufferView, Frame, FrameOptions, FrameStats, PreparedScene,
-    PrimaryBarycentrics, RenderError, StageTime, StageWork,
+    PrimaryBarycentrics, RenderError, SceneChanges, StageTime, StageWork, CHANGE_LOG_LENGTH,
 };
 pub use hyrt_core::geometry::WorldGeometry;
 pub use hyrt_core::kernels::bounce::{DEFAULT_MAX_DEPTH, MAX_DEPTH_LIMIT, MIN_THROUGHPUT};

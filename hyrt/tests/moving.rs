@@ -72,3 +72,30 @@ fn objects_not_prepared_as_moving_are_refused() {
     let mut flat = renderer.prepare(&scene);
     assert_eq!(flat.move_objects(&scene, &[moving]), Err(MoveError::Baked { object: moving }));
 }
+
+/// Each move is a revision with what it changed; a device cache asks what changed since
+/// the revision it holds, merged, until the log no longer reaches back that far.
+#[test]
+fn moves_are_revisions_a_device_can_catch_up_with() {
+    let mut scene = Scene::default_scene();
+    let (a, b) = (sphere(&scene), 0);
+    let renderer = cpu();
+    let mut prepared = renderer.prepare_moving(&scene, &[a, b]);
+    let id = prepared.id();
+    assert_eq!((prepared.revision(), prepared.changes_since(0)), (0, Some(hyrt::SceneChanges::default())));
+    prepared.move_objects(&scene, &[a]).unwrap();
+    prepared.move_objects(&scene, &[b, a]).unwrap();
+    prepared.update_lights(&scene);
+    assert_eq!((prepared.id(), prepared.revision()), (id, 3));
+    assert_eq!(prepared.changes_since(1), Some(hyrt::SceneChanges { objects: vec![a.min(b), a.max(b)], lights: true }));
+    assert_eq!(prepared.changes_since(3), Some(hyrt::SceneChanges::default()));
+    assert_eq!(prepared.changes_since(4), None, "a revision the scene never had");
+    for _ in 0..hyrt::CHANGE_LOG_LENGTH {
+        prepared.move_objects(&scene, &[a]).unwrap();
+    }
+    assert_eq!(prepared.changes_since(0), None, "the log no longer reaches revision 0");
+    assert!(prepared.changes_since(prepared.revision() - 2).is_some());
+    scene.lights.pop();
+    prepared.update_lights(&scene);
+    assert_ne!(prepared.id(), id, "another number of lights is another scene for a device");
+}

@@ -614,10 +614,8 @@ impl TwoLevelBvh {
     /// The levels packed for one set of bindings ([`PackedLevels`]).
     pub fn packed(&self) -> PackedLevels {
         let mut p = PackedLevels { nodes: self.top.clone(), ..PackedLevels::default() };
-        let mut roots = Vec::with_capacity(self.bottoms.len());
         for b in &self.bottoms {
             let (node_base, slot_base) = (p.nodes.len() as u32, p.leaf_triangles.len() as u32);
-            roots.push(node_base);
             p.nodes.extend(b.nodes.iter().map(|n| {
                 let shift = if n.is_leaf() { slot_base } else { node_base };
                 BvhNode { left_or_first: n.left_or_first + shift, ..*n }
@@ -625,9 +623,21 @@ impl TwoLevelBvh {
             p.leaf_triangles.extend_from_slice(&b.leaf_triangles);
             p.prim_indices.extend_from_slice(&b.prim_indices);
         }
-        p.instances =
-            self.instances.iter().map(|i| InstanceRecord { bottom: roots[i.bottom as usize], ..*i }).collect();
+        p.instances = self.packed_instances();
         p
+    }
+
+    /// [`PackedLevels::instances`] alone: what a move changes in the packed levels, with
+    /// the top level's nodes (the first `top.len()` of [`PackedLevels::nodes`], whose
+    /// count a move keeps: one leaf per instance).
+    pub fn packed_instances(&self) -> Vec<InstanceRecord> {
+        let mut roots = Vec::with_capacity(self.bottoms.len());
+        let mut base = self.top.len() as u32;
+        for b in &self.bottoms {
+            roots.push(base);
+            base += b.nodes.len() as u32;
+        }
+        self.instances.iter().map(|i| InstanceRecord { bottom: roots[i.bottom as usize], ..*i }).collect()
     }
 }
 
