@@ -509,6 +509,49 @@ impl Bvh {
         bvh
     }
 
+    /// Refit the tree to new vertex positions of the same triangles (a deforming mesh):
+    /// the leaf copies taken again, each leaf box the union of its triangles' boxes, each
+    /// inner box the union of its children's, the wide view collapsed again; the topology
+    /// stays. Returns false, changing nothing, when the set of traceable triangles is not
+    /// the one the tree was built over (a triangle became degenerate, or a degenerate one
+    /// became traceable): rebuild then. Leaves of a pre-split tree get their triangles'
+    /// whole boxes (looser than their pieces', still conservative).
+    pub fn refit(&mut self, triangles: &[TriangleRecord]) -> bool {
+        let mut in_tree = vec![false; triangles.len()];
+        for &p in &self.prim_indices {
+            match in_tree.get_mut(p as usize) {
+                Some(seen) => *seen = true,
+                None => return false,
+            }
+        }
+        if triangles.iter().zip(&in_tree).any(|(t, &seen)| triangle_is_traceable(t) != seen) {
+            return false;
+        }
+        let order = self.preorder();
+        for &(n, _) in order.iter().rev() {
+            let node = self.nodes[n as usize];
+            let (lo, hi) = if node.is_leaf() {
+                let slots = node.left_or_first as usize..(node.left_or_first + node.count) as usize;
+                self.prim_indices[slots]
+                    .iter()
+                    .map(|&p| triangle_box(&triangles[p as usize]))
+                    .fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), (a, b)| {
+                        (lo.min(a), hi.max(b))
+                    })
+            } else {
+                let (l, r) = (&self.nodes[node.left_or_first as usize], &self.nodes[node.left_or_first as usize + 1]);
+                (l.min().min(r.min()), l.max().max(r.max()))
+            };
+            self.nodes[n as usize].aabb_min = lo.into();
+            self.nodes[n as usize].aabb_max = hi.into();
+        }
+        self.finish(triangles);
+        if cfg!(debug_assertions) {
+            self.validate_triangles(triangles).expect("refitted BVH invariants");
+        }
+        true
+    }
+
     /// Fill the derived fields: `max_depth`, `leaf_triangles` and `wide`.
     fn finish(&mut self, triangles: &[TriangleRecord]) {
         self.max_depth = self.compute_max_depth();

@@ -5,6 +5,7 @@
 use crate::bvh::two_level::{MoveError, TwoLevelBvh};
 use crate::bvh::Bvh;
 use crate::error::GpuError;
+use crate::formats::INVALID_ID;
 use crate::formats::{CameraRecord, GBufferTexel, HitRecord, RayRecord, SurfaceRecord, RAY_KIND_COUNT};
 use crate::geometry::WorldGeometry;
 use crate::kernels::bounce::MAX_DEPTH_LIMIT;
@@ -58,6 +59,9 @@ pub struct SceneChanges {
     pub objects: Vec<u32>,
     /// The light table.
     pub lights: bool,
+    /// Bottom levels refitted to a deformed mesh ([`PreparedScene::deform_mesh`]): their
+    /// nodes and leaf triangles, at the same places, sorted.
+    pub bottoms: Vec<u32>,
 }
 
 impl SceneChanges {
@@ -66,6 +70,9 @@ impl SceneChanges {
         self.objects.sort_unstable();
         self.objects.dedup();
         self.lights |= other.lights;
+        self.bottoms.extend_from_slice(&other.bottoms);
+        self.bottoms.sort_unstable();
+        self.bottoms.dedup();
     }
 }
 
@@ -149,7 +156,7 @@ impl PreparedScene {
         let count = self.geometry.lights.len();
         self.geometry.lights = scene.lights.iter().map(crate::formats::LightRecord::from_light).collect();
         if self.geometry.lights.len() == count {
-            self.record(SceneChanges { objects: Vec::new(), lights: true });
+            self.record(SceneChanges { lights: true, ..SceneChanges::default() });
         } else {
             // Another number of lights: a new scene for every device cache.
             self.id = next_id();
@@ -185,7 +192,40 @@ impl PreparedScene {
         let mut moved = objects.to_vec();
         moved.sort_unstable();
         moved.dedup();
-        self.record(SceneChanges { objects: moved, lights: false });
+        self.record(SceneChanges { objects: moved, ..SceneChanges::default() });
+        Ok(())
+    }
+
+    /// A deforming mesh: after `scene.meshes[mesh]` got new vertex positions (or normals;
+    /// the same triangles), rewrite the world tables of every object drawing it and refit
+    /// its bottom level ([`TwoLevelBvh::deform_mesh`]); a new revision. Every object drawing
+    /// the mesh must have been prepared as moving (else [`MoveError::Baked`], changing
+    /// nothing). When triangles became degenerate or stopped being so, the levels are built
+    /// again and the scene gets a new id.
+    pub fn deform_mesh(&mut self, scene: &Scene, mesh: usize) -> Result<(), MoveError> {
+        let users: Vec<u32> = scene.objects.iter().filter(|o| o.mesh == mesh).map(|o| o.id).collect();
+        let moving = |o: u32| self.levels.as_ref().is_some_and(|l| l.in_object_space[o as usize]);
+        if let Some(&object) = users.iter().find(|&&o| !moving(o)) {
+            return Err(MoveError::Baked { object });
+        }
+        let Some(levels) = &mut self.levels else {
+            return Ok(());
+        };
+        for &object in &users {
+            self.geometry.update_object(scene, object);
+        }
+        let rebuilt = levels.deform_mesh(scene, &self.geometry, mesh)?;
+        for (o, e) in self.geometry.objects.iter_mut().zip(&levels.offset_errors) {
+            o.offset_error = *e;
+        }
+        if rebuilt {
+            self.bvh = levels.world_level().cloned().unwrap_or_default();
+            self.id = next_id();
+        } else {
+            let bottoms =
+                levels.mesh_bottom.get(mesh).filter(|&&b| b != INVALID_ID).map(|&b| vec![b]).unwrap_or_default();
+            self.record(SceneChanges { objects: users, bottoms, ..SceneChanges::default() });
+        }
         Ok(())
     }
 }

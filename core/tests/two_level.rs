@@ -309,3 +309,36 @@ fn objects_that_cannot_move_are_refused_and_nothing_changes() {
     assert_same_levels(&levels, &before);
     assert!(MoveError::Baked { object: 0 }.to_string().contains("prepare the scene with it moving"));
 }
+
+/// A deforming mesh: a refitted bottom level answers as one built over the new positions
+/// (the same closest hit for every ray), keeps its topology, and declines (returns false)
+/// when a triangle stops being traceable.
+#[test]
+fn a_refitted_tree_answers_as_a_rebuilt_one() {
+    let mut scene = one_object(Mesh::uv_sphere("sphere", 32, 16), Mat4::IDENTITY);
+    let geometry = WorldGeometry::build(&scene);
+    let mut bvh = Bvh::build(&geometry, BvhPreset::default());
+    let topology: Vec<(u32, u32)> = bvh.nodes.iter().map(|n| (n.left_or_first, n.count)).collect();
+    // A wobble: every vertex pushed out or in along its direction.
+    for p in &mut scene.meshes[0].positions {
+        *p *= 1.0 + 0.3 * (5.0 * p.x).sin() * (3.0 * p.y).cos();
+    }
+    let deformed = WorldGeometry::build(&scene);
+    assert!(bvh.refit(&deformed.triangles));
+    bvh.validate(&deformed).unwrap();
+    assert_eq!(topology, bvh.nodes.iter().map(|n| (n.left_or_first, n.count)).collect::<Vec<_>>());
+    let rebuilt = Bvh::build(&deformed, BvhPreset::default());
+    let mut rng = Rng(5);
+    for _ in 0..3000 {
+        let r = ray(rng.unit() * 3.0, rng.unit());
+        assert_eq!(bvh.closest_hit(&deformed.triangles, &r), rebuilt.closest_hit(&deformed.triangles, &r), "{r:?}");
+        assert_eq!(bvh.occluded(&deformed.triangles, &r), rebuilt.occluded(&deformed.triangles, &r));
+    }
+    // A triangle collapsed to a sliver of two equal vertices: not traceable any more.
+    let idx = scene.meshes[0].indices[40];
+    scene.meshes[0].positions[idx[1] as usize] = scene.meshes[0].positions[idx[0] as usize];
+    let collapsed = WorldGeometry::build(&scene);
+    let before = bvh.clone();
+    assert!(!bvh.refit(&collapsed.triangles));
+    assert_eq!(bvh.nodes, before.nodes, "a declined refit changes nothing");
+}

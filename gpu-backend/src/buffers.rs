@@ -102,7 +102,8 @@ impl SceneBuffers {
 impl SceneBuffers {
     /// Write what changed in `scene` since the revision these buffers hold
     /// ([`PreparedScene::changes_since`]): each moved object's triangles, normals and
-    /// record, the top level's nodes and the instances, the lights; the surface tables
+    /// record, the top level's nodes and the instances, the nodes and leaf triangles of
+    /// refitted bottom levels, the lights; the surface tables
     /// again when the scene has them (a move changes its texture level-of-detail
     /// constants). Everything else (the bottom levels, the other objects) stays as uploaded.
     pub fn apply(&mut self, ctx: &GpuContext, scene: &PreparedScene, changes: &SceneChanges) {
@@ -125,6 +126,21 @@ impl SceneBuffers {
         if let (false, Some(levels)) = (changes.objects.is_empty(), &scene.levels) {
             write(&self.bvh_nodes, 0, bytemuck::cast_slice(&levels.top));
             write(&self.instances, 0, bytemuck::cast_slice(&levels.packed_instances()));
+            // Refitted bottom levels (deformed meshes): same places, new boxes and vertices.
+            for &b in &changes.bottoms {
+                let (node_base, nodes, slot_base) = levels.packed_bottom(b as usize);
+                write(
+                    &self.bvh_nodes,
+                    node_base as usize * std::mem::size_of::<BvhNode>(),
+                    bytemuck::cast_slice(&nodes),
+                );
+                let leaf = &levels.bottoms[b as usize].leaf_triangles;
+                write(
+                    &self.bvh_leaf_triangles,
+                    slot_base as usize * std::mem::size_of::<TriangleRecord>(),
+                    bytemuck::cast_slice(leaf),
+                );
+            }
         }
         if changes.lights {
             write(&self.lights, 0, bytemuck::cast_slice(&g.lights));

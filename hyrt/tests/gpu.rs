@@ -155,7 +155,8 @@ fn gpu_reintersected_barycentrics_match_the_cpu() {
 /// A scene prepared with moving objects (two levels: the moved objects in their own space,
 /// one of them mirrored and scaled, the rest baked into world space), moved between
 /// frames: the GPU frame is the CPU's bit for bit, shadow rays, bounce hits and images,
-/// before and after the move; the device takes the scene once, then only what moved.
+/// before and after the moves and a deformation; the device takes the scene once, then
+/// only what changed.
 #[test]
 fn gpu_two_level_frames_match_the_cpu_as_objects_move() {
     use hyrt::glam::{Mat4, Quat};
@@ -170,8 +171,19 @@ fn gpu_two_level_frames_match_the_cpu_as_objects_move() {
     let cam = scene.camera.unwrap();
     let opts = FrameOptions::with_stage_outputs();
     let (w, h) = (64, 40);
-    for step in 0..3 {
-        if step > 0 {
+    let mut previous = None;
+    for step in 0..4 {
+        if step == 3 {
+            // The last step deforms the golden sphere's mesh (a moving object): its level is
+            // refitted.
+            let sphere = scene.objects.iter().position(|o| o.name.contains("sphere")).unwrap();
+            assert!(moving.contains(&(sphere as u32)));
+            let mesh = scene.objects[sphere].mesh;
+            for p in &mut scene.meshes[mesh].positions {
+                *p *= 1.0 + 0.25 * (3.0 * p.y).sin();
+            }
+            prepared.deform_mesh(&scene, mesh).unwrap();
+        } else if step > 0 {
             for &o in &moving {
                 let turn = Mat4::from_rotation_translation(Quat::from_rotation_y(0.4), Vec3::new(0.2, 0.0, -0.1));
                 scene.objects[o as usize].transform = turn * scene.objects[o as usize].transform;
@@ -190,6 +202,8 @@ fn gpu_two_level_frames_match_the_cpu_as_objects_move() {
             assert_eq!(a.occluded, b.occluded, "step {step}: bounce depth {} shadow rays differ", d + 1);
         }
         assert_eq!(bytemuck_bits(&c.final_image), bytemuck_bits(&g.final_image), "step {step}: final image differs");
+        assert_ne!(Some(bytemuck_bits(&c.final_image)), previous, "step {step} changed nothing on screen");
+        previous = Some(bytemuck_bits(&c.final_image));
         eprintln!("step {step}: {} shadow rays, {} bounce depths identical", c.occluded.len(), c.bounces.len());
         // The scene went to the device once; each move wrote only what changed.
         assert_eq!(gpu.gpu_backend().unwrap().scene_writes(), (1, step), "step {step}");

@@ -87,7 +87,10 @@ fn moves_are_revisions_a_device_can_catch_up_with() {
     prepared.move_objects(&scene, &[b, a]).unwrap();
     prepared.update_lights(&scene);
     assert_eq!((prepared.id(), prepared.revision()), (id, 3));
-    assert_eq!(prepared.changes_since(1), Some(hyrt::SceneChanges { objects: vec![a.min(b), a.max(b)], lights: true }));
+    assert_eq!(
+        prepared.changes_since(1),
+        Some(hyrt::SceneChanges { objects: vec![a.min(b), a.max(b)], lights: true, bottoms: vec![] })
+    );
     assert_eq!(prepared.changes_since(3), Some(hyrt::SceneChanges::default()));
     assert_eq!(prepared.changes_since(4), None, "a revision the scene never had");
     for _ in 0..hyrt::CHANGE_LOG_LENGTH {
@@ -98,4 +101,32 @@ fn moves_are_revisions_a_device_can_catch_up_with() {
     scene.lights.pop();
     prepared.update_lights(&scene);
     assert_ne!(prepared.id(), id, "another number of lights is another scene for a device");
+}
+
+/// A deforming mesh (new vertex positions each frame): its bottom level is refitted, and
+/// the frame is the one of the deformed scene prepared again; an object not prepared as
+/// moving cannot deform.
+#[test]
+fn a_deformed_mesh_renders_as_the_scene_prepared_again() {
+    let mut scene = Scene::default_scene();
+    let moving = sphere(&scene);
+    let mesh = scene.objects[moving as usize].mesh;
+    let mut renderer = cpu();
+    let mut prepared = renderer.prepare_moving(&scene, &[moving]);
+    let id = prepared.id();
+    let rest = scene.meshes[mesh].positions.clone();
+    for step in 1..3 {
+        for (p, r) in scene.meshes[mesh].positions.iter_mut().zip(&rest) {
+            *p = *r * (1.0 + 0.2 * step as f32 * (4.0 * r.y).sin());
+        }
+        prepared.deform_mesh(&scene, mesh).unwrap();
+        assert_eq!((prepared.id(), prepared.revision()), (id, step), "a refit is a revision of the same scene");
+        let opts = FrameOptions::default();
+        let a = renderer.render(&prepared, &camera(&scene), W, H, &opts).unwrap();
+        let b = renderer.render(&renderer.prepare_moving(&scene, &[moving]), &camera(&scene), W, H, &opts).unwrap();
+        assert_eq!(a.final_srgb8(), b.final_srgb8(), "step {step}");
+    }
+    let other = scene.objects.iter().position(|o| o.id != moving).unwrap();
+    let other_mesh = scene.objects[other].mesh;
+    assert_eq!(prepared.deform_mesh(&scene, other_mesh), Err(MoveError::Baked { object: other as u32 }));
 }

@@ -156,6 +156,9 @@ pub struct TwoLevelBvh {
     pub object_instance: Vec<u32>,
     /// Per object: traced in its own space (it moves or shares its mesh), not baked.
     pub in_object_space: Vec<bool>,
+    /// Per mesh: the index of its object-space bottom level, or [`INVALID_ID`] when no
+    /// object traced in its own space draws it.
+    pub mesh_bottom: Vec<u32>,
     /// Per object: the extra error bound of points on it whose rays are traced in its
     /// space ([`instance_position_error`]); 0 for objects baked into world space. Goes to
     /// [`crate::formats::ObjectRecord::offset_error`] (`PreparedScene` copies it there).
@@ -200,25 +203,8 @@ impl TwoLevelBvh {
         for (o, map) in scene.objects.iter().zip(&maps) {
             let Some(map) = map else { continue };
             if mesh_bottom[o.mesh] == INVALID_ID {
-                let mesh = &scene.meshes[o.mesh];
-                let triangles: Vec<TriangleRecord> = mesh
-                    .indices
-                    .iter()
-                    .enumerate()
-                    .map(|(ti, idx)| {
-                        let [a, b, c] = idx.map(|i| mesh.positions.get(i as usize).copied().unwrap_or(Vec3::NAN));
-                        TriangleRecord {
-                            v0: a.into(),
-                            object: o.id,
-                            v1: b.into(),
-                            triangle: ti as u32,
-                            v2: c.into(),
-                            flags: 0,
-                        }
-                    })
-                    .collect();
                 mesh_bottom[o.mesh] = levels.bottoms.len() as u32;
-                levels.bottoms.push(Bvh::build_triangles(&triangles, preset));
+                levels.bottoms.push(Bvh::build_triangles(&object_triangles(scene, o.mesh, o.id), preset));
             }
             let bottom = mesh_bottom[o.mesh];
             if levels.bottoms[bottom as usize].nodes.is_empty() {
@@ -237,6 +223,7 @@ impl TwoLevelBvh {
             instances.push((instance, (Vec3::ZERO, Vec3::ZERO)));
         }
         levels.in_object_space = maps.iter().map(Option::is_some).collect();
+        levels.mesh_bottom = mesh_bottom;
         levels.place(scene, geometry, &mut instances);
         levels.build_top(scene.objects.len(), instances);
         if cfg!(debug_assertions) {
@@ -320,7 +307,45 @@ impl TwoLevelBvh {
                 instance.set_world_to_object(map);
             }
         }
-        // The order a fresh build hands the top level: the world-space level, then objects.
+        self.place_all(scene, geometry);
+    }
+
+    /// A deforming mesh: after `scene.meshes[mesh]` got new vertex positions (same
+    /// triangles; its objects' world tables updated, [`WorldGeometry::update_object`]),
+    /// refit its bottom level ([`Bvh::refit`]; rebuilt instead when a triangle became
+    /// degenerate or stopped being one), then place every instance again and rebuild the
+    /// top level. Returns true when the levels were built again instead (triangles came or
+    /// went; every packed offset may have changed: a device must take them whole).
+    ///
+    /// Fails, changing nothing, when some object drawing the mesh is baked into the
+    /// world-space level ([`MoveError::Baked`]; prepare them as moving to deform the mesh).
+    pub fn deform_mesh(&mut self, scene: &Scene, geometry: &WorldGeometry, mesh: usize) -> Result<bool, MoveError> {
+        let users: Vec<u32> = scene.objects.iter().filter(|o| o.mesh == mesh).map(|o| o.id).collect();
+        if let Some(&object) = users.iter().find(|&&o| !self.in_object_space.get(o as usize).copied().unwrap_or(false))
+        {
+            return Err(MoveError::Baked { object });
+        }
+        if users.is_empty() {
+            return Ok(false);
+        }
+        let refitted = match self.mesh_bottom.get(mesh).filter(|&&b| b != INVALID_ID) {
+            Some(&bottom) => self.bottoms[bottom as usize].refit(&object_triangles(scene, mesh, users[0])),
+            // No traceable triangle at build: none has an instance yet.
+            None => false,
+        };
+        if !refitted {
+            // Triangles came or went: the levels again, with the same objects in their space.
+            let moving = self.in_object_space.clone();
+            *self = TwoLevelBvh::build(scene, geometry, self.build_preset, &moving);
+            return Ok(true);
+        }
+        self.place_all(scene, geometry);
+        Ok(false)
+    }
+
+    /// Place every instance again and rebuild the top level over them, in the order a
+    /// fresh build hands them over (the world-space level, then objects).
+    fn place_all(&mut self, scene: &Scene, geometry: &WorldGeometry) {
         let mut instances: Vec<(InstanceRecord, (Vec3, Vec3))> =
             self.instances.iter().map(|&i| (i, (Vec3::ZERO, Vec3::ZERO))).collect();
         instances.sort_by_key(|(i, _)| if i.flags & INSTANCE_IDENTITY != 0 { 0 } else { i.object as u64 + 1 });
@@ -614,17 +639,31 @@ impl TwoLevelBvh {
     /// The levels packed for one set of bindings ([`PackedLevels`]).
     pub fn packed(&self) -> PackedLevels {
         let mut p = PackedLevels { nodes: self.top.clone(), ..PackedLevels::default() };
-        for b in &self.bottoms {
-            let (node_base, slot_base) = (p.nodes.len() as u32, p.leaf_triangles.len() as u32);
-            p.nodes.extend(b.nodes.iter().map(|n| {
-                let shift = if n.is_leaf() { slot_base } else { node_base };
-                BvhNode { left_or_first: n.left_or_first + shift, ..*n }
-            }));
-            p.leaf_triangles.extend_from_slice(&b.leaf_triangles);
-            p.prim_indices.extend_from_slice(&b.prim_indices);
+        for b in 0..self.bottoms.len() {
+            let (_, nodes, _) = self.packed_bottom(b);
+            p.nodes.extend(nodes);
+            p.leaf_triangles.extend_from_slice(&self.bottoms[b].leaf_triangles);
+            p.prim_indices.extend_from_slice(&self.bottoms[b].prim_indices);
         }
         p.instances = self.packed_instances();
         p
+    }
+
+    /// Bottom level `b` as [`TwoLevelBvh::packed`] places it: the index of its root in
+    /// [`PackedLevels::nodes`], its nodes there (indices shifted), and the index of its
+    /// first slot in [`PackedLevels::leaf_triangles`]. What a refit changes on a device.
+    pub fn packed_bottom(&self, b: usize) -> (u32, Vec<BvhNode>, u32) {
+        let node_base = self.top.len() as u32 + self.bottoms[..b].iter().map(|x| x.nodes.len() as u32).sum::<u32>();
+        let slot_base = self.bottoms[..b].iter().map(|x| x.leaf_triangles.len() as u32).sum::<u32>();
+        let nodes = self.bottoms[b]
+            .nodes
+            .iter()
+            .map(|n| {
+                let shift = if n.is_leaf() { slot_base } else { node_base };
+                BvhNode { left_or_first: n.left_or_first + shift, ..*n }
+            })
+            .collect();
+        (node_base, nodes, slot_base)
     }
 
     /// [`PackedLevels::instances`] alone: what a move changes in the packed levels, with
@@ -647,6 +686,21 @@ impl TwoLevelBvh {
 fn object_ray(inst: &InstanceRecord, ray: &RayRecord) -> Option<TraversalRay> {
     let (origin, direction) = to_object_space(&inst.world_to_object(), ray.origin.into(), ray.direction.into());
     TraversalRay::new(&RayRecord { origin: origin.into(), direction: direction.into(), ..*ray })
+}
+
+/// A mesh's triangles in its own space, as its bottom level holds them: the mesh-local
+/// index in `triangle`, `object` the first object drawing it, no flags (an instance
+/// brings its object's). A vertex index out of range makes a NaN vertex (never traced).
+fn object_triangles(scene: &Scene, mesh: usize, object: u32) -> Vec<TriangleRecord> {
+    let mesh = &scene.meshes[mesh];
+    mesh.indices
+        .iter()
+        .enumerate()
+        .map(|(ti, idx)| {
+            let [a, b, c] = idx.map(|i| mesh.positions.get(i as usize).copied().unwrap_or(Vec3::NAN));
+            TriangleRecord { v0: a.into(), object, v1: b.into(), triangle: ti as u32, v2: c.into(), flags: 0 }
+        })
+        .collect()
 }
 
 /// Depth of the deepest node of a flattened tree (root 0).
