@@ -18,6 +18,9 @@
 //!   reached), a glass sphere with total internal reflection, grazing refraction, glass
 //!   inside glass, refracted rays through the shared edges and vertices of low-poly
 //!   glass, a mirror 1e5 from the origin;
+//! - `instance_*`: two-level scenes (objects prepared as moving, traced in their own
+//!   space): one mesh shared by instances scaled unevenly, rotated and mirrored, glass
+//!   and mirrors among them; every object an instance far from the origin;
 //! - `texture_*`: textures (procedural images built here), vertex colours and alpha
 //!   tests: bilinear, trilinear and nearest sampling under a `KHR_texture_transform` on
 //!   rasterized and ray-traced objects, vertex colours alone and times a texture, a
@@ -55,6 +58,22 @@ pub struct Case {
     /// Deepest reflection and refraction bounce (`FrameOptions::max_depth`): the
     /// library's default ([`DEFAULT_MAX_DEPTH`]) unless the case says otherwise.
     pub max_depth: u32,
+    /// Objects prepared as moving (a two-level BVH, `instance_*` cases); empty: the scene
+    /// is prepared as one world-space tree.
+    pub moving: Vec<u32>,
+}
+
+impl Case {
+    /// The case's scene prepared on `cpu` (`bvh_build` on its pool): with its moving
+    /// objects in a two-level BVH when it has some, else as one world-space tree.
+    pub fn prepare(&self, cpu: &hyrt_cpu::backend::CpuBackend) -> hyrt_core::frame::PreparedScene {
+        let geometry = hyrt_core::geometry::WorldGeometry::build(&self.scene);
+        let preset = hyrt_core::bvh::BvhPreset::default();
+        match self.moving.is_empty() {
+            true => cpu.prepare(geometry, preset),
+            false => hyrt_cpu::bvh_build::prepare_moving(&self.scene, geometry, preset, &self.moving),
+        }
+    }
 }
 
 /// The shared models folder (`<repo>/../shared/assets`), if present.
@@ -138,6 +157,7 @@ impl Builder {
             height: h,
             weight: 1.0,
             max_depth: DEFAULT_MAX_DEPTH,
+            moving: Vec::new(),
         });
     }
 }
@@ -199,6 +219,7 @@ fn default_case(b: &mut Builder) {
         height: 41,
         weight: 0.5,
         max_depth: DEFAULT_MAX_DEPTH,
+        moving: Vec::new(),
     });
 }
 
@@ -680,7 +701,101 @@ pub fn corpus() -> Vec<Case> {
     size_cases(&mut b);
     bounce_cases(&mut b);
     texture_cases(&mut b);
+    instance_cases(&mut b);
     b.cases
+}
+
+/// Scenes traced through two levels: objects prepared as moving, in their own space,
+/// scaled, rotated, mirrored, sharing a mesh, far from the origin.
+fn instance_cases(b: &mut Builder) {
+    let (w, h) = (64u32, 48u32);
+    let moving_all = |b: &mut Builder| {
+        let case = b.cases.last_mut().expect("a case");
+        case.moving = (0..case.scene.objects.len() as u32).collect();
+    };
+    // One closed ball mesh drawn five times: scaled unevenly, rotated, mirrored, glass and
+    // mirror and diffuse, rasterized and ray traced, on a floor and a wall baked in world
+    // space. Rays leave and enter instances; shadows fall across them.
+    let mut s = Scene { lights: vec![point(Vec3::new(1.0, 4.0, 3.0), 40.0)], ..Scene::default() };
+    stage_set(&mut s, 8.0);
+    let ball = Mesh::uv_sphere("ball", 24, 12);
+    s.add_object(
+        ball,
+        glass(1.5),
+        Mat4::from_translation(Vec3::new(-1.6, 0.6, 0.0)) * Mat4::from_scale(Vec3::splat(0.6)),
+        RT,
+    );
+    let shared = s.objects.last().expect("the ball").mesh;
+    let placements = [
+        (Vec3::new(-0.3, 0.5, -0.4), Vec3::new(0.8, 0.5, 0.6), 0.7, mirror(), RT),
+        (Vec3::new(0.9, 0.7, 0.2), Vec3::new(-0.5, 0.7, 0.5), -1.1, diffuse("orange", Vec3::new(0.9, 0.5, 0.1)), RT),
+        (Vec3::new(1.9, 0.4, -0.6), Vec3::new(0.4, 0.4, -0.9), 2.0, glass(1.33), RT),
+        (Vec3::new(0.3, 1.6, -1.2), Vec3::new(0.6, 0.3, 0.6), 0.3, diffuse("green", Vec3::new(0.2, 0.8, 0.3)), RASTER),
+    ];
+    for (i, (at, scale, angle, material, mode)) in placements.into_iter().enumerate() {
+        s.materials.push(material);
+        let id = s.objects.len() as u32;
+        s.objects.push(hyrt_core::scene::Object {
+            id,
+            name: format!("ball {i}"),
+            mesh: shared,
+            transform: Mat4::from_scale_rotation_translation(scale, Quat::from_rotation_y(angle), at),
+            material: s.materials.len() - 1,
+            render_mode: mode,
+            source: Default::default(),
+        });
+    }
+    let cam = camera(Vec3::new(0.2, 1.6, 4.2), Vec3::new(0.2, 0.7, 0.0), 0.05, 50.0);
+    b.add(
+        "instance_shared_mirrored_scaled",
+        "one ball mesh in five instances (uneven scales, rotations, mirrors; glass, mirror, diffuse) over baked geometry",
+        s,
+        cam,
+        w,
+        h,
+    );
+    b.cases.last_mut().expect("a case").moving = vec![2];
+
+    // Every object an instance, the whole group 1e4 from the origin: the maps subtract the
+    // translation before they rotate, so rays stay as precise as at the origin.
+    let mut s = Scene { lights: vec![point(Vec3::new(1e4 + 1.0, 4.0, 3.0), 40.0)], ..Scene::default() };
+    let far = Mat4::from_translation(Vec3::new(1e4, 0.0, 0.0));
+    s.add_object(
+        Mesh::grid("floor", 4),
+        diffuse("floor", Vec3::splat(0.7)),
+        far * Mat4::from_scale(Vec3::splat(6.0)),
+        RT,
+    );
+    s.add_object(
+        Mesh::uv_sphere("far_ball", 24, 12),
+        glass(1.5),
+        far * Mat4::from_scale_rotation_translation(
+            Vec3::new(0.7, 0.5, 0.9),
+            Quat::from_rotation_z(0.5),
+            Vec3::Y * 0.6,
+        ),
+        RT,
+    );
+    s.add_object(
+        Mesh::cube("far_box"),
+        mirror(),
+        far * Mat4::from_scale_rotation_translation(
+            Vec3::new(-0.4, 0.6, 0.3),
+            Quat::from_rotation_y(0.8),
+            Vec3::new(1.2, 0.6, -0.5),
+        ),
+        RT,
+    );
+    let cam = camera(Vec3::new(1e4 + 0.3, 1.5, 3.5), Vec3::new(1e4 + 0.3, 0.5, 0.0), 0.05, 50.0);
+    b.add(
+        "instance_far_from_origin",
+        "every object an instance, 1e4 from the origin, mirrored and rotated",
+        s,
+        cam,
+        w,
+        h,
+    );
+    moving_all(b);
 }
 
 /// A perfect mirror: metallic, roughness 0, a faint tint.

@@ -445,6 +445,7 @@ pub fn leak_case(
         weight: 1.0,
         // Shadow rays are what leaks; the shells are diffuse.
         max_depth: 0,
+        moving: Vec::new(),
     };
     let far = placement.centre.abs().max_element() + 2.0 * s;
     let feature_ulps = GAP_FRACTION * s / ulp(far);

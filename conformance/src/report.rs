@@ -10,10 +10,8 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use hyrt_core::bvh::BvhPreset;
 use hyrt_core::formats::CameraRecord;
 use hyrt_core::frame::{Backend, Frame, FrameOptions, PreparedScene};
-use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::stage::Stage;
 use hyrt_cpu::backend::CpuBackend;
 
@@ -181,9 +179,10 @@ pub fn check(r: &CaseResult, known: &KnownDeviations) -> (Vec<String>, Vec<Strin
 }
 
 /// Render `case` on both backends (same prepared scene, camera and options) and compare.
-/// The reference also prepares the scene (`bvh_build` runs once, on the CPU).
+/// The reference also prepares the scene (`bvh_build` runs once, on the CPU), with the
+/// case's moving objects in a two-level BVH when it has some.
 pub fn run_case(reference: &mut CpuBackend, candidate: &mut dyn Backend, case: &Case) -> CaseResult {
-    let prepared = reference.prepare(WorldGeometry::build(&case.scene), BvhPreset::default());
+    let prepared = case.prepare(reference);
     let (a, b) = render_pair(reference, candidate, &prepared, case);
     let outcome = match (a, b) {
         (Ok(a), Ok(b)) => Ok((compare_stages(&a, &b), a.rays.len())),

@@ -9,10 +9,8 @@ use hyrt_conformance::corpus::corpus;
 use hyrt_conformance::report::{
     gpu_for_tests, known_deviations_path, render_case, render_pair, run_case, KnownDeviations, Report,
 };
-use hyrt_core::bvh::BvhPreset;
 use hyrt_core::formats::CameraRecord;
 use hyrt_core::frame::{Backend, FrameOptions, PrimaryBarycentrics};
-use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::plan::FramePlan;
 use hyrt_cpu::backend::CpuBackend;
 use hyrt_gpu::band::band_binding_bytes;
@@ -45,8 +43,8 @@ fn determinism_cpu_same_bits_twice_and_on_1_or_2_threads_over_the_corpus() {
     let mut one = CpuBackend::new(Some(1));
     let mut two = CpuBackend::new(Some(2));
     for case in corpus() {
-        let p1 = one.prepare(WorldGeometry::build(&case.scene), BvhPreset::default());
-        let p2 = two.prepare(WorldGeometry::build(&case.scene), BvhPreset::default());
+        let p1 = case.prepare(&one);
+        let p2 = case.prepare(&two);
         assert_eq!(
             bytemuck::cast_slice::<_, u8>(&p1.bvh.nodes),
             bytemuck::cast_slice::<_, u8>(&p2.bvh.nodes),
@@ -69,7 +67,7 @@ fn determinism_gpu_same_bits_twice_over_the_corpus() {
     let Some(mut gpu) = gpu_for_tests() else { return };
     let cpu = CpuBackend::new(Some(2));
     for case in corpus() {
-        let p = cpu.prepare(WorldGeometry::build(&case.scene), BvhPreset::default());
+        let p = case.prepare(&cpu);
         let a = render_case(&mut gpu, &p, &case).unwrap();
         let b = render_case(&mut gpu, &p, &case).unwrap();
         for cmp in compare_stages(&a, &b) {
@@ -87,7 +85,7 @@ fn conformance_gpu_matches_cpu_with_reintersected_barycentrics_over_the_corpus()
     let mut cpu = CpuBackend::new(Some(2));
     let mut moved = 0usize;
     for case in corpus() {
-        let p = cpu.prepare(WorldGeometry::build(&case.scene), BvhPreset::default());
+        let p = case.prepare(&cpu);
         let camera = CameraRecord::new(&case.camera, case.width, case.height);
         let opts = |barycentrics| FrameOptions {
             weight: case.weight,
@@ -117,7 +115,7 @@ fn conformance_gpu_in_bands_is_the_whole_frame_over_the_corpus() {
     let cpu = CpuBackend::new(Some(2));
     let (mut banded, mut split) = (0, 0);
     for case in corpus() {
-        let p = cpu.prepare(WorldGeometry::build(&case.scene), BvhPreset::default());
+        let p = case.prepare(&cpu);
         gpu.set_max_band_bytes(None);
         let whole = render_case(&mut gpu, &p, &case).unwrap();
         assert_eq!(gpu.last_frame_bands(), 1, "{}: a corpus frame fits whole", case.name);
@@ -158,7 +156,7 @@ fn conformance_gpu_in_bands_is_the_whole_frame_over_the_corpus() {
 fn cpu_frames_without_the_ray_list_are_the_frames_with_it_over_the_corpus() {
     let mut cpu = CpuBackend::new(Some(2));
     for case in corpus() {
-        let p = cpu.prepare(WorldGeometry::build(&case.scene), BvhPreset::default());
+        let p = case.prepare(&cpu);
         let camera = CameraRecord::new(&case.camera, case.width, case.height);
         let opts = |stage_outputs| FrameOptions {
             weight: case.weight,
