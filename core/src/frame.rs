@@ -182,9 +182,7 @@ impl PreparedScene {
             });
         };
         let moves = levels.moves(scene, objects)?;
-        for &object in objects {
-            self.geometry.update_object(scene, object);
-        }
+        self.geometry.update_objects(scene, objects);
         levels.apply_moves(scene, &self.geometry, moves);
         for &object in objects {
             self.geometry.objects[object as usize].offset_error = levels.offset_errors[object as usize];
@@ -211,9 +209,7 @@ impl PreparedScene {
         let Some(levels) = &mut self.levels else {
             return Ok(());
         };
-        for &object in &users {
-            self.geometry.update_object(scene, object);
-        }
+        self.geometry.update_objects(scene, &users);
         let rebuilt = levels.deform_mesh(scene, &self.geometry, mesh)?;
         for (o, e) in self.geometry.objects.iter_mut().zip(&levels.offset_errors) {
             o.offset_error = *e;

@@ -412,10 +412,19 @@ impl WorldGeometry {
     /// triangles and normals in place, its record, its texture level-of-detail constants
     /// and the scene bounds. Nothing else is touched; the result equals
     /// [`WorldGeometry::build`] of the changed scene. Costs one pass over the object's
-    /// triangles plus one over the table for the bounds.
+    /// triangles plus one over the table for the bounds: several objects are
+    /// [`WorldGeometry::update_objects`], one pass over the table for all.
     pub fn update_object(&mut self, scene: &Scene, object: u32) {
-        let oi = object as usize;
-        self.write_object(scene, oi, self.windings[oi]);
+        self.update_objects(scene, &[object]);
+    }
+
+    /// [`WorldGeometry::update_object`] for several objects: each object's tables
+    /// rewritten, then the bounds (and the texture tables) once.
+    pub fn update_objects(&mut self, scene: &Scene, objects: &[u32]) {
+        for &object in objects {
+            let oi = object as usize;
+            self.write_object(scene, oi, self.windings[oi]);
+        }
         self.non_finite_triangles = self.count_non_finite();
         self.bounds = self.finite_bounds();
         if !self.surface.uvs.is_empty() {
