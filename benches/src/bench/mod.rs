@@ -1,6 +1,7 @@
 //! `hyrt bench`: the paper's Table 2 reproduced on both backends, peers (Intel Embree,
-//! Mesa lavapipe) tracing and rasterizing the same rays with the same threads, and scaling
-//! with pixel and triangle counts, written as a Markdown report with PNG plots.
+//! Mesa lavapipe) tracing and rasterizing the same rays with the same threads, scaling
+//! with pixel and triangle counts, and moving objects (two levels against a rebuild, and
+//! Embree's instances), written as a Markdown report with PNG plots.
 //!
 //! [`run`] measures and returns a [`Report`] (header plus ordered [`Section`]s, plots
 //! already written into the output folder); more sections can be pushed before
@@ -9,6 +10,7 @@
 
 pub mod bounces;
 pub mod machine;
+pub mod moving;
 pub mod peers;
 pub mod plots;
 pub mod report;
@@ -297,13 +299,19 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Report, Ben
         .filter(|s| options.accuracy && ACCURACY_SCENES.contains(&s.name.as_str()))
         .map(|s| (s.name.clone(), s.scene.clone()))
         .collect();
+    let moving = moving::run(options, &t2_scenes, &mut cpu, gpu.as_mut(), progress)?;
     drop(t2_scenes);
     let peers = peers::run(options, &table2, progress)?;
     let scaling = scaling::run(options, &table2, &mut cpu, gpu.as_mut(), &mut notes, progress)?;
     let bounces = bounces::run(options, &table2, &mut cpu, gpu.as_mut(), progress)?;
 
-    let mut sections =
-        vec![table2.section(), bounces.section(&table2), peers.section(&table2), scaling.section.clone()];
+    let mut sections = vec![
+        table2.section(),
+        bounces.section(&table2),
+        peers.section(&table2),
+        scaling.section.clone(),
+        moving.section(),
+    ];
     let mut files = scaling.files.clone();
     if !accuracy_scenes.is_empty() {
         let (width, height) = options.table_size;
