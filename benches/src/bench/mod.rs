@@ -201,6 +201,12 @@ pub fn prepare(scene: &hyrt_core::scene::Scene, threads: Option<usize>) -> Prepa
     CpuBackend::new(threads).prepare(WorldGeometry::build(scene), BvhPreset::default())
 }
 
+/// The options of the paper's frame, as Table 2 measures it: shadow rays only (the bounces
+/// have their own section), no stage outputs kept.
+pub fn paper_frame() -> FrameOptions {
+    FrameOptions { weight: 1.0, stage_outputs: false, max_depth: 0, ..FrameOptions::default() }
+}
+
 /// One warm-up frame, then `frames` frames into the same reused [`Frame`]; returns the
 /// summary and the last frame's statistics.
 pub fn measure_frames(
@@ -209,9 +215,7 @@ pub fn measure_frames(
     camera: &CameraRecord,
     frames: usize,
 ) -> Result<(FrameSummary, FrameStats), RenderError> {
-    // The paper's frame: shadow rays only (the bounces have their own section).
-    let options = FrameOptions { weight: 1.0, stage_outputs: false, max_depth: 0, ..FrameOptions::default() };
-    let (summary, mut stats) = measure_frames_with(backend, prepared, camera, frames, &options)?;
+    let (summary, mut stats) = measure_frames_with(backend, prepared, camera, frames, &paper_frame())?;
     Ok((summary, stats.pop().expect("at least one frame")))
 }
 
