@@ -403,7 +403,11 @@ fn measure(
     for (b, n) in [(cpu, options.frames)].into_iter().chain(gpu.map(|g| (g, options.frames.min(GPU_FRAMES)))) {
         match interleaved_frames(b.backend.as_mut(), [&rebuilt, &prepared], &record, n) {
             Ok([flat, two_level]) => frames.push(FrameCost { backend: b.short.clone(), flat, two_level }),
-            Err(e) => frame_errors.push(format!("{name}: {} frame failed: {e}", b.short)),
+            Err(e) => {
+                // One list item: the error's lines joined.
+                let e = e.to_string().split_whitespace().collect::<Vec<_>>().join(" ");
+                frame_errors.push(format!("{name}: {} frame failed: {e}", b.short))
+            }
         }
     }
     let moving_triangles = moving.iter().map(|&o| scene.meshes[scene.objects[o as usize].mesh].indices.len()).sum();
