@@ -435,8 +435,9 @@ impl Moving {
              moves every moving object a little along x and turns it 3 degrees about its own y axis; the move is \
              set untimed, then the contenders take it in turn, interleaved, the order rotated each frame. Medians \
              over the frames with the least and greatest in brackets; ratios hyrt / Embree are taken frame by frame \
-             (above 1: Embree is faster). hyrt's update runs on one thread (the calling one); hyrt's rebuild and \
-             Embree run on {} threads.\n",
+             (above 1: Embree is faster). Embree's rebuild is given the moved world triangles (made untimed) and copies \
+             them into a new scene; hyrt's rebuild makes them too. hyrt's update runs on one thread (the calling \
+             one); hyrt's rebuild and Embree run on {} threads.\n",
             self.threads
         );
         if let Some(why) = &self.embree_missing {
