@@ -65,6 +65,8 @@ fn bench_cli_writes_the_report_and_plots() {
         "## Reflection and refraction: the frame at the default max depth",
         "## Peers in the same run",
         "## Scaling",
+        "## Moving scenes",
+        "### default: the sphere",
         "## Speed against error",
         "### Speed against error: default",
         "## Goals",

@@ -1,6 +1,7 @@
 //! `hyrt bench`: the paper's Table 2 reproduced on both backends, peers (Intel Embree,
-//! Mesa lavapipe) tracing and rasterizing the same rays with the same threads, and scaling
-//! with pixel and triangle counts, written as a Markdown report with PNG plots.
+//! Mesa lavapipe) tracing and rasterizing the same rays with the same threads, scaling
+//! with pixel and triangle counts, and moving objects (two levels against a rebuild, and
+//! Embree's instances), written as a Markdown report with PNG plots.
 //!
 //! [`run`] measures and returns a [`Report`] (header plus ordered [`Section`]s, plots
 //! already written into the output folder); more sections can be pushed before
@@ -9,6 +10,7 @@
 
 pub mod bounces;
 pub mod machine;
+pub mod moving;
 pub mod peers;
 pub mod plots;
 pub mod report;
@@ -199,6 +201,12 @@ pub fn prepare(scene: &hyrt_core::scene::Scene, threads: Option<usize>) -> Prepa
     CpuBackend::new(threads).prepare(WorldGeometry::build(scene), BvhPreset::default())
 }
 
+/// The options of the paper's frame, as Table 2 measures it: shadow rays only (the bounces
+/// have their own section), no stage outputs kept.
+pub fn paper_frame() -> FrameOptions {
+    FrameOptions { weight: 1.0, stage_outputs: false, max_depth: 0, ..FrameOptions::default() }
+}
+
 /// One warm-up frame, then `frames` frames into the same reused [`Frame`]; returns the
 /// summary and the last frame's statistics.
 pub fn measure_frames(
@@ -207,9 +215,7 @@ pub fn measure_frames(
     camera: &CameraRecord,
     frames: usize,
 ) -> Result<(FrameSummary, FrameStats), RenderError> {
-    // The paper's frame: shadow rays only (the bounces have their own section).
-    let options = FrameOptions { weight: 1.0, stage_outputs: false, max_depth: 0, ..FrameOptions::default() };
-    let (summary, mut stats) = measure_frames_with(backend, prepared, camera, frames, &options)?;
+    let (summary, mut stats) = measure_frames_with(backend, prepared, camera, frames, &paper_frame())?;
     Ok((summary, stats.pop().expect("at least one frame")))
 }
 
@@ -297,13 +303,19 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Report, Ben
         .filter(|s| options.accuracy && ACCURACY_SCENES.contains(&s.name.as_str()))
         .map(|s| (s.name.clone(), s.scene.clone()))
         .collect();
+    let moving = moving::run(options, &t2_scenes, &mut cpu, gpu.as_mut(), progress)?;
     drop(t2_scenes);
     let peers = peers::run(options, &table2, progress)?;
     let scaling = scaling::run(options, &table2, &mut cpu, gpu.as_mut(), &mut notes, progress)?;
     let bounces = bounces::run(options, &table2, &mut cpu, gpu.as_mut(), progress)?;
 
-    let mut sections =
-        vec![table2.section(), bounces.section(&table2), peers.section(&table2), scaling.section.clone()];
+    let mut sections = vec![
+        table2.section(),
+        bounces.section(&table2),
+        peers.section(&table2),
+        scaling.section.clone(),
+        moving.section(),
+    ];
     let mut files = scaling.files.clone();
     if !accuracy_scenes.is_empty() {
         let (width, height) = options.table_size;

@@ -121,10 +121,23 @@ mod tests {
 /// rotated by one each round (no contender always runs first). Milliseconds per
 /// contender, per round (`[contender][round]`).
 pub fn interleaved_ms(rounds: usize, contenders: &mut [&mut dyn FnMut()]) -> Vec<Vec<f64>> {
+    interleaved_rounds_ms(rounds, &mut |_| {}, contenders)
+}
+
+/// [`interleaved_ms`] with an untimed `setup` before every round: `setup(0)` before the
+/// warm-up, `setup(r)` before round `r` (1-based), e.g. moving an object to frame `r`'s
+/// place before every contender updates its scene for it.
+pub fn interleaved_rounds_ms(
+    rounds: usize,
+    setup: &mut dyn FnMut(usize),
+    contenders: &mut [&mut dyn FnMut()],
+) -> Vec<Vec<f64>> {
+    setup(0);
     contenders.iter_mut().for_each(|c| c());
     let n = contenders.len();
     let mut ms = vec![Vec::with_capacity(rounds); n];
     for r in 0..rounds.max(1) {
+        setup(r + 1);
         for j in 0..n {
             let i = (j + r) % n;
             let t = std::time::Instant::now();
@@ -135,12 +148,18 @@ pub fn interleaved_ms(rounds: usize, contenders: &mut [&mut dyn FnMut()]) -> Vec
     ms
 }
 
+/// The least and greatest of `values` (`None` when empty).
+pub fn range(values: &[f64]) -> Option<(f64, f64)> {
+    let lo = values.iter().copied().min_by(f64::total_cmp)?;
+    let hi = values.iter().copied().max_by(f64::total_cmp)?;
+    Some((lo, hi))
+}
+
 /// The ratio `peer / hyrt` of two contenders' times round by round (`peer[r]` the
 /// peer's time in round `r`): its median, least and greatest. `None` without rounds.
 pub fn round_ratios(peer: &[f64], hyrt: &[f64]) -> Option<(f64, f64, f64)> {
     let ratios: Vec<f64> = peer.iter().zip(hyrt).map(|(p, h)| p / h).collect();
-    let lo = ratios.iter().copied().min_by(f64::total_cmp)?;
-    let hi = ratios.iter().copied().max_by(f64::total_cmp)?;
+    let (lo, hi) = range(&ratios)?;
     Some((median(&ratios)?, lo, hi))
 }
 
@@ -157,6 +176,18 @@ mod interleaving_tests {
         assert!(ms.iter().all(|m| m.len() == 3));
         // Warm-up, then rounds starting at a, b, c.
         assert_eq!(order.into_inner().iter().collect::<String>(), "abc".to_string() + "abc" + "bca" + "cab");
+    }
+
+    #[test]
+    fn interleaved_rounds_set_up_each_round_untimed_before_its_contenders() {
+        let order = std::cell::RefCell::new(String::new());
+        let mut setup = |r: usize| order.borrow_mut().push_str(&r.to_string());
+        let (mut a, mut b) = (|| order.borrow_mut().push('a'), || order.borrow_mut().push('b'));
+        let ms = interleaved_rounds_ms(2, &mut setup, &mut [&mut a, &mut b]);
+        assert!(ms.iter().all(|m| m.len() == 2));
+        assert_eq!(order.into_inner(), "0ab1ab2ba");
+        assert_eq!(range(&[3.0, 1.0, 2.0]), Some((1.0, 3.0)));
+        assert_eq!(range(&[]), None);
     }
 
     #[test]
