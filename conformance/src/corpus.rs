@@ -1267,7 +1267,7 @@ mod tests {
         assert_eq!(names.len(), c.len());
         for case in &c {
             assert!(
-                ["paper_", "raster_", "ray_", "degenerate_", "size_", "bounce_", "texture_"]
+                ["paper_", "raster_", "ray_", "degenerate_", "size_", "bounce_", "texture_", "instance_"]
                     .iter()
                     .any(|p| case.name.starts_with(p)),
                 "{}",
