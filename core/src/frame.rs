@@ -76,6 +76,14 @@ impl SceneChanges {
     }
 }
 
+/// Copy the levels' offset errors (one per object, [`TwoLevelBvh::offset_errors`]) into the
+/// object records the stages read; objects that did not move keep the values they had.
+fn take_offset_errors(geometry: &mut WorldGeometry, levels: &TwoLevelBvh) {
+    for (o, e) in geometry.objects.iter_mut().zip(&levels.offset_errors) {
+        o.offset_error = *e;
+    }
+}
+
 /// A fresh [`PreparedScene`] id.
 fn next_id() -> u64 {
     static NEXT_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
@@ -101,9 +109,7 @@ impl PreparedScene {
     /// instances it is [`PreparedScene::new`] with that level.
     pub fn with_levels(mut geometry: WorldGeometry, levels: TwoLevelBvh, bvh_build_ms: f64) -> Self {
         let bvh = levels.world_level().cloned().unwrap_or_default();
-        for (o, e) in geometry.objects.iter_mut().zip(&levels.offset_errors) {
-            o.offset_error = *e;
-        }
+        take_offset_errors(&mut geometry, &levels);
         let levels = levels.has_object_space_instances().then_some(levels);
         PreparedScene { geometry, bvh, levels, bvh_build_ms, id: next_id(), revision: 0, changes: Default::default() }
     }
@@ -184,9 +190,7 @@ impl PreparedScene {
         let moves = levels.moves(scene, objects)?;
         self.geometry.update_objects(scene, objects);
         levels.apply_moves(scene, &self.geometry, moves);
-        for &object in objects {
-            self.geometry.objects[object as usize].offset_error = levels.offset_errors[object as usize];
-        }
+        take_offset_errors(&mut self.geometry, levels);
         let mut moved = objects.to_vec();
         moved.sort_unstable();
         moved.dedup();
@@ -211,9 +215,7 @@ impl PreparedScene {
         };
         self.geometry.update_objects(scene, &users);
         let rebuilt = levels.deform_mesh(scene, &self.geometry, mesh)?;
-        for (o, e) in self.geometry.objects.iter_mut().zip(&levels.offset_errors) {
-            o.offset_error = *e;
-        }
+        take_offset_errors(&mut self.geometry, levels);
         if rebuilt {
             self.bvh = levels.world_level().cloned().unwrap_or_default();
             self.id = next_id();

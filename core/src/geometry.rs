@@ -338,8 +338,7 @@ impl WorldGeometry {
         g.lights = scene.lights.iter().map(LightRecord::from_light).collect();
         g.environment = scene.environment.clone();
         g.surface = surface_tables(scene, &g.triangles);
-        g.non_finite_triangles = g.count_non_finite();
-        g.bounds = g.finite_bounds();
+        g.scan_table();
         if cfg!(debug_assertions) {
             g.validate().expect("world geometry invariants");
         }
@@ -425,8 +424,7 @@ impl WorldGeometry {
             let oi = object as usize;
             self.write_object(scene, oi, self.windings[oi]);
         }
-        self.non_finite_triangles = self.count_non_finite();
-        self.bounds = self.finite_bounds();
+        self.scan_table();
         if !self.surface.uvs.is_empty() {
             self.surface = surface_tables(scene, &self.triangles);
         }
@@ -435,25 +433,26 @@ impl WorldGeometry {
         }
     }
 
-    /// Triangles with a NaN or infinite vertex.
-    fn count_non_finite(&self) -> usize {
-        self.triangles.iter().filter(|t| !t.vertices().iter().all(|v| v.is_finite())).count()
-    }
-
-    /// Bounds of all finite vertices; a unit box around the origin when there is none.
-    fn finite_bounds(&self) -> (Vec3, Vec3) {
+    /// Set what depends on the whole triangle table, in one pass over it: the triangles
+    /// with a NaN or infinite vertex (`non_finite_triangles`) and the bounds of the finite
+    /// vertices (`bounds`; a unit box around the origin when there is none).
+    fn scan_table(&mut self) {
         let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-        for v in self.triangles.iter().flat_map(|t| t.vertices()) {
-            if v.is_finite() {
-                lo = lo.min(v);
-                hi = hi.max(v);
+        let mut non_finite = 0;
+        for t in &self.triangles {
+            let mut finite = true;
+            for v in t.vertices() {
+                if v.is_finite() {
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                } else {
+                    finite = false;
+                }
             }
+            non_finite += !finite as usize;
         }
-        if lo.x <= hi.x {
-            (lo, hi)
-        } else {
-            (Vec3::splat(-1.0), Vec3::splat(1.0))
-        }
+        self.non_finite_triangles = non_finite;
+        self.bounds = if lo.x <= hi.x { (lo, hi) } else { (Vec3::splat(-1.0), Vec3::splat(1.0)) };
     }
 
     /// Number of triangles.
