@@ -220,7 +220,7 @@ impl Paths<'_> {
     /// The f64 shadow codes of a surface, one per light.
     fn shadow(&self, hit: &ReferenceHit, s: &Surface64) -> Vec<u8> {
         let g = self.geometry;
-        g.lights.iter().map(|l| reference_shadow(self.bvh, &g.triangles, hit, s.ng, s.ns, l)).collect()
+        g.lights.iter().map(|l| reference_shadow(self.bvh, g.stored_table(), hit, s.ng, s.ns, l)).collect()
     }
 
     /// The radiance a bouncing surface (its object bounces, seen along the unit `d` by a ray
@@ -238,7 +238,7 @@ impl Paths<'_> {
     ) -> DVec3 {
         let g = self.geometry;
         let obj = &g.objects[hit.object as usize];
-        let inward = g.triangles[hit.triangle as usize].flags & TRI_INWARD != 0;
+        let inward = g.triangle(hit.triangle as usize).flags & TRI_INWARD != 0;
         let l = lobes_f64(obj, s.ns, s.ng, d, sees_exterior(s.back_face, inward));
         let transmission = if obj.material_kind == MATERIAL_GLASS { obj.transmission } else { 0.0 };
         let local_lobes = Lobes {
@@ -277,11 +277,11 @@ impl Paths<'_> {
         let g = self.geometry;
         let t_min = REFERENCE_BOUNCE_T_MIN_REL * origin.abs().max_element().max(self.extent);
         let hit = Ray64::new(origin, d)
-            .and_then(|ray| closest_hit_f64_excluding(self.bvh, &g.triangles, &ray, t_min, f64::INFINITY, exclude));
+            .and_then(|ray| closest_hit_f64_excluding(self.bvh, g.stored_table(), &ray, t_min, f64::INFINITY, exclude));
         let Some((id, h)) = hit else {
             return environment_radiance(&g.environment, d.as_vec3()).as_dvec3();
         };
-        let rh = ReferenceHit::new(&g.triangles, id, h);
+        let rh = ReferenceHit::new(g.stored_table(), id, h);
         let s = surface_of(&rh, g, -d);
         let shadow = self.shadow(&rh, &s);
         let obj = &g.objects[rh.object as usize];

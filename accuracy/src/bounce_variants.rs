@@ -8,9 +8,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 use hyrt_core::bvh::Bvh;
-use hyrt_core::formats::{
-    GBufferTexel, HitRecord, RayRecord, SurfaceRecord, TriangleRecord, INVALID_ID, RAY_KIND_REFRACTION,
-};
+use hyrt_core::formats::{GBufferTexel, HitRecord, RayRecord, SurfaceRecord, INVALID_ID, RAY_KIND_REFRACTION};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::bounce::{bounces, spawn, Parent};
 use hyrt_core::kernels::texture::Materials;
@@ -99,7 +97,7 @@ fn parent_surface<'a>(parents: &Parents<'a>, i: usize) -> &'a SurfaceRecord {
 pub fn spawn_with_cutoff(
     parents: Parents,
     materials: &Materials,
-    triangles: &[TriangleRecord],
+    triangles: &hyrt_core::geometry::WorldTriangles,
     depth: u32,
     cutoff_log2: i32,
     rays: &mut Vec<RayRecord>,

@@ -390,11 +390,11 @@ pub(crate) struct Surface64 {
 /// product is not exact; the shading normal kept in the geometric normal's hemisphere), in
 /// f64, rounded at the end.
 pub(crate) fn surface_of(hit: &ReferenceHit, geometry: &WorldGeometry, to_viewer: DVec3) -> Surface64 {
-    let tri = &geometry.triangles[hit.triangle as usize];
+    let tri = geometry.triangle(hit.triangle as usize);
     let [v0, v1, v2] = tri.vertices().map(|v| v.as_dvec3());
     let ng = (v1 - v0).cross(v2 - v0).normalize_or_zero();
     let w = 1.0 - hit.u - hit.v;
-    let [n0, n1, n2] = geometry.normals[hit.triangle as usize].map(|n| n.as_dvec3());
+    let [n0, n1, n2] = geometry.triangles.normals(hit.triangle as usize).map(|n| n.as_dvec3());
     let ns = (n0 * w + n1 * hit.u + n2 * hit.v).normalize_or_zero();
     let ns = if ns == DVec3::ZERO {
         if ng == DVec3::ZERO {
@@ -486,7 +486,7 @@ pub fn render_reference(
     height: u32,
 ) -> ReferenceFrame {
     let cam = Camera64::new(camera, width, height);
-    let tris = &geometry.triangles;
+    let tris = geometry.stored_table();
     let nl = geometry.lights.len();
     let per_pixel: Vec<(Option<ReferenceHit>, SurfaceRecord, Vec<u8>)> = (0..width as usize * height as usize)
         .into_par_iter()

@@ -136,7 +136,7 @@ fn lookup(face: &Face, gbuffer: &[GBufferTexel], geometry: &WorldGeometry, p: Ve
     if !t.is_hit() {
         return SHADOW_LIT;
     }
-    let [v0, v1, v2] = geometry.triangles[geometry.global_triangle(t.object, t.triangle)].vertices();
+    let [v0, v1, v2] = geometry.triangle(geometry.global_triangle(t.object, t.triangle)).vertices();
     let depth = |q: Vec3| match face.axis {
         None => (q - face.origin).length(),
         Some(d) => (q - face.origin).dot(d),

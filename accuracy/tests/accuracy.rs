@@ -152,7 +152,7 @@ fn sphere_scene(center: Vec3, radius: f32) -> Scene {
 /// a face plane) and of the smallest ball containing it, in f64.
 fn sphere_radii(g: &WorldGeometry, c: DVec3) -> (f64, f64) {
     let (mut r_in, mut r_out) = (f64::INFINITY, 0f64);
-    for t in g.triangles.iter().filter(|t| t.object == 1) {
+    for t in g.stored_table().iter().filter(|t| t.object == 1) {
         let [a, b, d] = t.vertices().map(|v| v.as_dvec3() - c);
         let n = (b - a).cross(d - a);
         if n.length() > 0.0 {
@@ -227,12 +227,12 @@ fn closed_sphere(center: Vec3, radius: f32) -> (WorldGeometry, Bvh) {
 /// Rays from `origin` (inside the closed mesh) through each vertex and each edge
 /// midpoint: exactly on shared vertices and edges, the hard cases of watertightness.
 fn assert_no_holes(g: &WorldGeometry, bvh: &Bvh, origin: DVec3) {
-    for t in &g.triangles {
+    for t in g.stored_table() {
         let [a, b, c] = t.vertices().map(|v| v.as_dvec3());
         for target in [a, b, c, (a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5] {
             let ray = Ray64::new(origin, target - origin).unwrap();
             assert!(
-                closest_hit_f64(bvh, &g.triangles, &ray, 0.0, f64::INFINITY).is_some(),
+                closest_hit_f64(bvh, g.stored_table(), &ray, 0.0, f64::INFINITY).is_some(),
                 "ray from {origin} through {target} escapes the closed mesh"
             );
         }
@@ -259,7 +259,7 @@ proptest! {
         let center = if far { Vec3::new(148376.0, 1234.0, -223423.0) } else { Vec3::ZERO };
         let (g, bvh) = closed_sphere(center, 10.0);
         let ray = Ray64::new(center.as_dvec3(), DVec3::new(x, y, z)).unwrap();
-        prop_assert!(closest_hit_f64(&bvh, &g.triangles, &ray, 0.0, f64::INFINITY).is_some());
+        prop_assert!(closest_hit_f64(&bvh, g.stored_table(), &ray, 0.0, f64::INFINITY).is_some());
     }
 
     #[test]
@@ -271,9 +271,9 @@ proptest! {
         let g = WorldGeometry::build(&Scene::default_scene());
         let bvh = Bvh::build(&g, BvhPreset::Medium);
         let ray = Ray64::new(DVec3::new(ox, oy, oz), DVec3::new(dx, dy, dz)).unwrap();
-        let got = closest_hit_f64(&bvh, &g.triangles, &ray, 0.0, f64::INFINITY);
+        let got = closest_hit_f64(&bvh, g.stored_table(), &ray, 0.0, f64::INFINITY);
         let mut best: Option<(u32, f64)> = None;
-        for (i, t) in g.triangles.iter().enumerate() {
+        for (i, t) in g.stored_table().iter().enumerate() {
             if let Some(h) = ray.intersect(0.0, f64::INFINITY, t.v0.into(), t.v1.into(), t.v2.into()) {
                 if best.is_none_or(|(_, bt)| h.t < bt) {
                     best = Some((i as u32, h.t));

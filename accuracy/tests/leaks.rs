@@ -45,7 +45,7 @@ fn origin_tolerance(p_error: f32, p: DVec3) -> f64 {
 fn exact_occluded(prepared: &PreparedScene, p: DVec3, light: DVec3, triangle: u32) -> bool {
     let ray = Ray64::new(p, light - p).expect("finite segment");
     let t_max = 1.0 - REFERENCE_SHADOW_T_MIN;
-    occluded_f64(&prepared.bvh, &prepared.geometry.triangles, &ray, REFERENCE_SHADOW_T_MIN, t_max, triangle)
+    occluded_f64(&prepared.bvh, prepared.geometry.stored_table(), &ray, REFERENCE_SHADOW_T_MIN, t_max, triangle)
 }
 
 #[derive(Debug, Default)]
@@ -83,7 +83,7 @@ fn leak_corpus_lights_outside_light_and_shadow_what_they_should() {
                 continue;
             }
             let texel = frame.gbuffer[pixel];
-            let [v0, v1, v2] = prepared.geometry.triangles[s.triangle as usize].vertices().map(|v| v.as_dvec3());
+            let [v0, v1, v2] = prepared.geometry.triangle(s.triangle as usize).vertices().map(|v| v.as_dvec3());
             let (u, v) = (texel.bary_u as f64, texel.bary_v as f64);
             let p = v0 * (1.0 - u - v) + v1 * u + v2 * v;
             for (l, light) in lights.iter().enumerate() {

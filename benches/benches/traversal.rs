@@ -75,7 +75,9 @@ fn traversal(c: &mut Criterion) {
             for kind in kinds {
                 let mut out = Vec::new();
                 group.bench_function(format!("{}/{threads}t", kind.name()), |b| {
-                    with_threads(threads, || b.iter(|| occluded_batch_into(bvh, &g.triangles, &shadow, kind, &mut out)))
+                    with_threads(threads, || {
+                        b.iter(|| occluded_batch_into(bvh, g.traversal_table(), &shadow, kind, &mut out))
+                    })
                 });
             }
         }
@@ -92,7 +94,7 @@ fn traversal(c: &mut Criterion) {
                     let mut out = Vec::new();
                     group.bench_function(format!("{}/{threads}t", kind.name()), |b| {
                         with_threads(threads, || {
-                            b.iter(|| closest_hit_batch_into(bvh, &g.triangles, rays, kind, &mut out))
+                            b.iter(|| closest_hit_batch_into(bvh, g.traversal_table(), rays, kind, &mut out))
                         })
                     });
                 }

@@ -194,7 +194,7 @@ fn main() {
             contest.run(
                 "shadow rays",
                 &rays,
-                |rays, t, o| occluded_batch_into(bvh, &g.triangles, rays, t, o),
+                |rays, t, o| occluded_batch_into(bvh, g.traversal_table(), rays, t, o),
                 [
                     ("Embree rtcOccluded8", EmbreeScene::occluded8),
                     ("Embree rtcOccluded8 coherent", EmbreeScene::occluded8_coherent),
@@ -207,7 +207,7 @@ fn main() {
             contest.run(
                 "primary rays",
                 &rays,
-                |rays, t, o| closest_hit_batch_into(bvh, &g.triangles, rays, t, o),
+                |rays, t, o| closest_hit_batch_into(bvh, g.traversal_table(), rays, t, o),
                 [
                     ("Embree rtcIntersect8", EmbreeScene::intersect8),
                     ("Embree rtcIntersect8 coherent", EmbreeScene::intersect8_coherent),

@@ -67,11 +67,10 @@ impl Case {
     /// The case's scene prepared on `cpu` (`bvh_build` on its pool): with its moving
     /// objects in a two-level BVH when it has some, else as one world-space tree.
     pub fn prepare(&self, cpu: &hyrt_cpu::backend::CpuBackend) -> hyrt_core::frame::PreparedScene {
-        let geometry = hyrt_core::geometry::WorldGeometry::build(&self.scene);
         let preset = hyrt_core::bvh::BvhPreset::default();
         match self.moving.is_empty() {
-            true => cpu.prepare(geometry, preset),
-            false => hyrt_cpu::bvh_build::prepare_moving(&self.scene, geometry, preset, &self.moving),
+            true => cpu.prepare(hyrt_core::geometry::WorldGeometry::build(&self.scene), preset),
+            false => hyrt_cpu::bvh_build::prepare_moving(&self.scene, preset, &self.moving),
         }
     }
 }

@@ -119,7 +119,7 @@ fn bounce_corpus_offsets_leave_every_surface_on_the_right_side() {
             for (i, r) in b.rays.iter().enumerate() {
                 rays += 1;
                 let s = parent_surface(&frame, d, parents[i]);
-                let t = &g.triangles[s.triangle as usize];
+                let t = &g.triangle(s.triangle as usize);
                 let hit = &b.hits[i];
                 assert!(
                     !hit.is_hit() || hit.triangle != s.triangle,
@@ -152,7 +152,7 @@ fn bounce_corpus_offsets_leave_every_surface_on_the_right_side() {
                             s.object
                         );
                         let (o, dir) = (Vec3::from(r.origin), Vec3::from(r.direction));
-                        ties += g.triangles.iter().any(|t| {
+                        ties += g.stored_table().iter().any(|t| {
                             let [v0, v1, v2] = t.vertices();
                             t.object == s.object && meets_zero_edge_tie(o, dir, v0, v1, v2)
                         }) as usize;

@@ -44,12 +44,12 @@ fn traversal_packets_match_scalar_over_the_corpus() {
         let view = g.surface.view();
         let any_hit = |kind| {
             let mut out = Vec::new();
-            occluded_alpha_batch_into(bvh, &g.triangles, &view, &a.rays, kind, &mut out);
+            occluded_alpha_batch_into(bvh, g.stored_table(), &view, &a.rays, kind, &mut out);
             out
         };
         let closest_hit = |kind| {
             let mut out = Vec::new();
-            closest_hit_alpha_batch_into(bvh, &g.triangles, &view, &cam, kind, &mut out);
+            closest_hit_alpha_batch_into(bvh, g.stored_table(), &view, &cam, kind, &mut out);
             out
         };
         let (want_any, want_closest) = (any_hit(Traversal::Scalar), closest_hit(Traversal::Scalar));

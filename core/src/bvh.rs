@@ -47,8 +47,8 @@
 //!     origin: eye.into(), t_min: 0.0, direction: (-eye).into(), t_max: f32::INFINITY,
 //!     pixel: 0, kind: RAY_KIND_PRIMARY, depth: 0, light: INVALID_ID, throughput: [1.0; 3], cone: 0.0,
 //! };
-//! let hit = bvh.closest_hit(&geometry.triangles, &ray);
-//! assert_eq!(hit.is_some(), bvh.occluded(&geometry.triangles, &ray));
+//! let hit = bvh.closest_hit(geometry.traversal_table(), &ray);
+//! assert_eq!(hit.is_some(), bvh.occluded(geometry.traversal_table(), &ray));
 //! ```
 
 use std::time::Duration;
@@ -408,8 +408,35 @@ impl Bvh {
     /// Build the BVH over the traceable triangles of `geometry` (see the module docs).
     /// Deterministic: the same geometry and preset give the same buffers. Validated in
     /// debug builds.
+    /// A table with objects by reference is made whole first (its records made on read).
     pub fn build(geometry: &WorldGeometry, preset: BvhPreset) -> Bvh {
-        Bvh::build_triangles(&geometry.triangles, preset)
+        match geometry.triangles.as_slice() {
+            Some(triangles) => Bvh::build_triangles(triangles, preset),
+            None => Bvh::build_triangles(&geometry.triangles.iter().collect::<Vec<_>>(), preset),
+        }
+    }
+
+    /// [`Bvh::build_filtered`] over the stored objects of a world table that `keep_object`
+    /// accepts (objects by reference are never in it): the same tree as over the whole
+    /// table by global id (the stored records are in global order), with `prim_indices`
+    /// global ids. The world-space level of [`two_level::TwoLevelBvh`].
+    pub fn build_stored(
+        triangles: &crate::geometry::WorldTriangles,
+        objects: &[crate::formats::ObjectRecord],
+        preset: BvhPreset,
+        keep_object: &dyn Fn(u32) -> bool,
+    ) -> Bvh {
+        let records = triangles.stored_records();
+        let mut bvh = Bvh::build_filtered(records, preset, &|i| keep_object(records[i as usize].object));
+        if triangles.has_references() {
+            for p in &mut bvh.prim_indices {
+                let t = &records[*p as usize];
+                *p = objects[t.object as usize].first_triangle + t.triangle;
+            }
+            // The wide view copies the ids into its leaves: collapse it again.
+            bvh.wide = wide::WideBvh::collapse(&bvh);
+        }
+        bvh
     }
 
     /// [`Bvh::build`] over a triangle table of any space: the world table of a scene, or
@@ -614,7 +641,10 @@ impl Bvh {
     /// traceable triangle is in some leaf; depth within [`BVH_STACK_SIZE`] and equal to
     /// `max_depth`.
     pub fn validate(&self, geometry: &WorldGeometry) -> Result<(), String> {
-        self.validate_triangles(&geometry.triangles)
+        match geometry.triangles.as_slice() {
+            Some(triangles) => self.validate_triangles(triangles),
+            None => self.validate_triangles(&geometry.triangles.iter().collect::<Vec<_>>()),
+        }
     }
 
     /// [`Bvh::validate`] against the triangle table it was built from
@@ -847,11 +877,12 @@ impl Bvh {
         found
     }
 
-    /// The triangle of leaf slot `slot` (debug builds check the copy against `triangles`).
+    /// The triangle of leaf slot `slot` (debug builds check the copy against `triangles`
+    /// unless it is empty: [`crate::geometry::WorldGeometry::traversal_table`]).
     #[inline(always)]
     fn leaf_triangle(&self, triangles: &[TriangleRecord], slot: u32) -> &TriangleRecord {
         let t = &self.leaf_triangles[slot as usize];
-        debug_assert_eq!(*t, triangles[self.prim_indices[slot as usize] as usize]);
+        debug_assert!(triangles.is_empty() || *t == triangles[self.prim_indices[slot as usize] as usize]);
         t
     }
 
@@ -872,9 +903,9 @@ mod tests {
     use crate::formats::{RAY_KIND_PRIMARY, TRI_RAY_TRACED};
 
     fn geometry(tris: &[[Vec3; 3]]) -> WorldGeometry {
-        let mut g = WorldGeometry::default();
+        let (mut records, mut normals) = (Vec::new(), Vec::new());
         for (i, t) in tris.iter().enumerate() {
-            g.triangles.push(TriangleRecord {
+            records.push(TriangleRecord {
                 v0: t[0].into(),
                 object: 0,
                 v1: t[1].into(),
@@ -882,9 +913,9 @@ mod tests {
                 v2: t[2].into(),
                 flags: TRI_RAY_TRACED,
             });
-            g.normals.push([Vec3::Y; 3]);
+            normals.push([Vec3::Y; 3]);
         }
-        g
+        WorldGeometry { triangles: crate::geometry::WorldTriangles::stored(records, normals), ..Default::default() }
     }
 
     fn ray(o: Vec3, d: Vec3) -> RayRecord {
@@ -917,7 +948,7 @@ mod tests {
         let obvhs_tris: Vec<Triangle> =
             tris.iter().map(|t| Triangle { v0: t[0].into(), v1: t[1].into(), v2: t[2].into() }).collect();
         let ids: Vec<u32> = (0..tris.len() as u32).collect();
-        let median = Bvh::build_median(&g.triangles, &ids, BvhPreset::Medium);
+        let median = Bvh::build_median(g.stored_table(), &ids, BvhPreset::Medium);
         median.validate(&g).unwrap();
         // 600 / 8 = 75 leaves: depth ceil(log2(75)) = 7.
         assert_eq!(median.max_depth, 7);
@@ -934,7 +965,7 @@ mod tests {
         // (products of two coordinates) overflow f32: unhittable by design.
         for (i, t) in tris.iter().enumerate().take(350) {
             let c = (t[0] + t[1] + t[2]) / 3.0;
-            let hit = median.closest_hit(&g.triangles, &ray(c + Vec3::Z, Vec3::NEG_Z)).unwrap();
+            let hit = median.closest_hit(g.stored_table(), &ray(c + Vec3::Z, Vec3::NEG_Z)).unwrap();
             assert_eq!(hit.triangle, i as u32);
         }
     }
@@ -972,7 +1003,7 @@ mod tests {
             for (u, v) in [(0.1, 0.1), (0.8, 0.1), (0.1, 0.8), (0.4, 0.4), (0.0, 0.5)] {
                 let p = t[0] * (1.0 - u - v) + t[1] * u + t[2] * v;
                 let o = p + Vec3::new(0.3, 20.0, 0.1);
-                let hit = bvh.closest_hit(&g.triangles, &ray(o, p - o)).unwrap();
+                let hit = bvh.closest_hit(g.stored_table(), &ray(o, p - o)).unwrap();
                 assert_eq!(hit.triangle, 0, "{preset:?} ({u}, {v})");
             }
         }
@@ -987,8 +1018,8 @@ mod tests {
             assert!(bvh.is_empty());
             bvh.validate(&g).unwrap();
             let r = ray(Vec3::new(0.1, 0.1, 1.0), Vec3::NEG_Z);
-            assert!(!bvh.occluded(&g.triangles, &r));
-            assert_eq!(bvh.closest_hit(&g.triangles, &r), None);
+            assert!(!bvh.occluded(g.stored_table(), &r));
+            assert_eq!(bvh.closest_hit(g.stored_table(), &r), None);
         }
         let empty = WorldGeometry::default();
         assert!(Bvh::build(&empty, BvhPreset::default()).is_empty());

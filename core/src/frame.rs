@@ -213,7 +213,7 @@ impl PreparedScene {
         let Some(levels) = &mut self.levels else {
             return Ok(());
         };
-        self.geometry.update_objects(scene, &users);
+        self.geometry.deform_mesh(scene, mesh);
         let rebuilt = levels.deform_mesh(scene, &self.geometry, mesh)?;
         take_offset_errors(&mut self.geometry, levels);
         if rebuilt {

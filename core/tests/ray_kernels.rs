@@ -39,9 +39,9 @@ fn ray(origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> RayRecord {
 /// Geometry from raw triangles (one object), without `WorldGeometry::build`, so that
 /// NaN vertices and soups can be fed directly.
 fn soup(tris: &[[Vec3; 3]]) -> WorldGeometry {
-    let mut g = WorldGeometry::default();
+    let (mut records, mut normals) = (Vec::new(), Vec::new());
     for (i, t) in tris.iter().enumerate() {
-        g.triangles.push(TriangleRecord {
+        records.push(TriangleRecord {
             v0: t[0].into(),
             object: 0,
             v1: t[1].into(),
@@ -49,9 +49,9 @@ fn soup(tris: &[[Vec3; 3]]) -> WorldGeometry {
             v2: t[2].into(),
             flags: TRI_RAY_TRACED,
         });
-        g.normals.push([Vec3::Y; 3]);
+        normals.push([Vec3::Y; 3]);
     }
-    g
+    WorldGeometry { triangles: hyrt_core::geometry::WorldTriangles::stored(records, normals), ..Default::default() }
 }
 
 /// World geometry of one mesh placed with `transform`, through the real scene path.
@@ -89,7 +89,7 @@ fn hit_on(tri: &TriangleRecord, r: &RayRecord) -> Option<TriangleHit> {
 /// (t, triangle index).
 fn brute_closest(g: &WorldGeometry, r: &RayRecord) -> Option<ClosestHit> {
     let mut best: Option<ClosestHit> = None;
-    for (i, tri) in g.triangles.iter().enumerate() {
+    for (i, tri) in g.stored_table().iter().enumerate() {
         if let Some(h) = hit_on(tri, r) {
             if best.is_none_or(|b| h.t < b.t) {
                 best = Some(ClosestHit { triangle: i as u32, t: h.t, u: h.u, v: h.v, back_face: h.back_face });
@@ -100,7 +100,7 @@ fn brute_closest(g: &WorldGeometry, r: &RayRecord) -> Option<ClosestHit> {
 }
 
 fn brute_any(g: &WorldGeometry, r: &RayRecord) -> bool {
-    g.triangles.iter().any(|t| hit_on(t, r).is_some())
+    g.stored_table().iter().any(|t| hit_on(t, r).is_some())
 }
 
 fn hit_bits(h: Option<ClosestHit>) -> Option<(u32, u32, u32, u32)> {
@@ -122,7 +122,7 @@ fn key(p: Vec3) -> [u32; 3] {
 fn aim_points(g: &WorldGeometry) -> Vec<Vec3> {
     type EdgeKey = ([u32; 3], [u32; 3]);
     let mut edges: HashMap<EdgeKey, (u32, Vec3, Vec3)> = HashMap::new();
-    for t in &g.triangles {
+    for t in g.stored_table() {
         let v = t.vertices();
         for i in 0..3 {
             let (a, b) = (v[i], v[(i + 1) % 3]);
@@ -165,12 +165,12 @@ fn assert_no_leaks(g: &WorldGeometry, outward: impl Fn(Vec3) -> Vec3, label: &st
                 let dist = g.scene_extent();
                 let origin = p + dir_out * dist;
                 let r = ray(origin, p - origin, 0.0, f32::INFINITY);
-                let hit = bvh.closest_hit(&g.triangles, &r);
+                let hit = bvh.closest_hit(g.stored_table(), &r);
                 let Some(h) = hit else {
                     panic!("{label} {preset:?}: leak: ray {r:?} aimed at {p:?} hits nothing");
                 };
                 assert!(h.t < 1.01, "{label} {preset:?}: ray aimed at {p:?} first hits at t = {}", h.t);
-                assert!(bvh.occluded(&g.triangles, &r), "{label}: occluded disagrees with closest_hit");
+                assert!(bvh.occluded(g.stored_table(), &r), "{label}: occluded disagrees with closest_hit");
                 assert!(brute_any(g, &r), "{label}: brute force leaks at {p:?}");
                 rays += 1;
             }
@@ -221,13 +221,13 @@ fn shared_diagonal_tie_goes_to_lower_index() {
     for order in [[[b, c, d], [a, b, d]], [[a, b, d], [b, c, d]]] {
         let g = soup(&order);
         let r = ray(Vec3::new(0.25, 3.0, -0.25), Vec3::new(0.0, -1.0, 0.0), 0.0, f32::INFINITY);
-        let h0 = hit_on(&g.triangles[0], &r).unwrap();
-        let h1 = hit_on(&g.triangles[1], &r).unwrap();
+        let h0 = hit_on(&g.triangle(0), &r).unwrap();
+        let h1 = hit_on(&g.triangle(1), &r).unwrap();
         assert_eq!(h0.t.to_bits(), h1.t.to_bits());
         assert!((h0.t - 3.0).abs() <= 4.0 * f32::EPSILON);
         for preset in BvhPreset::ALL {
             let bvh = Bvh::build(&g, preset);
-            assert_eq!(bvh.closest_hit(&g.triangles, &r).unwrap().triangle, 0);
+            assert_eq!(bvh.closest_hit(g.stored_table(), &r).unwrap().triangle, 0);
         }
     }
 }
@@ -248,7 +248,7 @@ fn ties_at_shared_vertices_match_brute_force() {
         for preset in BvhPreset::ALL {
             let bvh = Bvh::build(&g, preset);
             for (r, w) in rays.iter().zip(&want) {
-                assert_eq!(hit_bits(bvh.closest_hit(&g.triangles, r)), *w, "{preset:?} {r:?}");
+                assert_eq!(hit_bits(bvh.closest_hit(g.stored_table(), r)), *w, "{preset:?} {r:?}");
             }
         }
     }
@@ -447,7 +447,7 @@ fn non_finite_inputs_never_hit_and_never_panic() {
         bvh.validate(&g).unwrap();
         assert_eq!(bvh.prim_indices.iter().filter(|&&i| i != 0).count(), 0);
         let good = ray(o + Vec3::Z, d, 0.0, f32::INFINITY);
-        assert_eq!(bvh.closest_hit(&g.triangles, &good).unwrap().triangle, 0);
+        assert_eq!(bvh.closest_hit(g.stored_table(), &good).unwrap().triangle, 0);
         for bad in BAD {
             for r in [
                 ray(Vec3::new(bad, 0.0, 1.0), d, 0.0, f32::INFINITY),
@@ -457,14 +457,14 @@ fn non_finite_inputs_never_hit_and_never_panic() {
                 ray(o, d, 0.0, if bad.is_nan() { bad } else { -1.0 }),
                 ray(o, Vec3::ZERO, 0.0, f32::INFINITY),
             ] {
-                assert_eq!(bvh.closest_hit(&g.triangles, &r), None, "{r:?}");
-                assert!(!bvh.occluded(&g.triangles, &r), "{r:?}");
+                assert_eq!(bvh.closest_hit(g.stored_table(), &r), None, "{r:?}");
+                assert!(!bvh.occluded(g.stored_table(), &r), "{r:?}");
             }
         }
         // t_min = -inf is a legal (if odd) interval: same as 0, hits are still
         // conservatively in front of the origin.
         let wide = ray(o + Vec3::Z, d, f32::NEG_INFINITY, f32::INFINITY);
-        assert_eq!(bvh.closest_hit(&g.triangles, &wide), bvh.closest_hit(&g.triangles, &good));
+        assert_eq!(bvh.closest_hit(g.stored_table(), &wide), bvh.closest_hit(g.stored_table(), &good));
     }
 }
 
@@ -565,9 +565,9 @@ proptest! {
                 for dir in [aim - o, d] {
                     let r = ray(o, dir, t_min, t_max);
                     let want = brute_closest(&g, &r);
-                    let got = bvh.closest_hit(&g.triangles, &r);
+                    let got = bvh.closest_hit(g.stored_table(), &r);
                     prop_assert_eq!(hit_bits(got), hit_bits(want), "{:?} closest_hit {:?}", preset, r);
-                    prop_assert_eq!(bvh.occluded(&g.triangles, &r), brute_any(&g, &r), "{:?} occluded {:?}", preset, r);
+                    prop_assert_eq!(bvh.occluded(g.stored_table(), &r), brute_any(&g, &r), "{:?} occluded {:?}", preset, r);
                 }
             }
         }
@@ -716,7 +716,7 @@ proptest! {
             r.kind = RAY_KIND_SHADOW;
             r.light = 0;
             prop_assert!(r.validate().is_ok());
-            prop_assert!(!bvh.occluded(&g.triangles, &r), "false occlusion: p {p:?} o {o:?} light {light:?} quad {quad:?}");
+            prop_assert!(!bvh.occluded(g.stored_table(), &r), "false occlusion: p {p:?} o {o:?} light {light:?} quad {quad:?}");
         }
     }
 }

@@ -81,8 +81,8 @@ fn a_scene_without_instances_is_the_single_level_tree() {
     let b = &levels.bottoms[0];
     assert_eq!((&b.nodes, &b.prim_indices, &b.leaf_triangles), (&flat.nodes, &flat.prim_indices, &flat.leaf_triangles));
     for r in random_rays(&geometry, 4000, 7) {
-        assert_eq!(levels.closest_hit(&geometry.triangles, &r), flat.closest_hit(&geometry.triangles, &r), "{r:?}");
-        assert_eq!(levels.occluded(&geometry.triangles, &r), flat.occluded(&geometry.triangles, &r), "{r:?}");
+        assert_eq!(levels.closest_hit(&r), flat.closest_hit(geometry.stored_table(), &r), "{r:?}");
+        assert_eq!(levels.occluded(&r), flat.occluded(geometry.stored_table(), &r), "{r:?}");
     }
 }
 
@@ -101,9 +101,9 @@ fn every_object_an_instance_finds_the_same_hits_as_the_world_space_tree() {
     assert!(levels.instances.iter().all(|i| i.flags & INSTANCE_IDENTITY == 0));
     let (mut same, mut total) = (0, 0);
     for r in random_rays(&geometry, 4000, 11) {
-        let (a, b) = (levels.closest_hit(&geometry.triangles, &r), flat.closest_hit(&geometry.triangles, &r));
+        let (a, b) = (levels.closest_hit(&r), flat.closest_hit(geometry.stored_table(), &r));
         assert_eq!(a.is_some(), b.is_some(), "{r:?}: {a:?} vs {b:?}");
-        assert_eq!(levels.occluded(&geometry.triangles, &r), b.is_some(), "{r:?}");
+        assert_eq!(levels.occluded(&r), b.is_some(), "{r:?}");
         if let (Some(a), Some(b)) = (a, b) {
             total += 1;
             // The maps' rounding: a few ulps of the scene's coordinates (about 10), relative.
@@ -137,15 +137,15 @@ fn objects_sharing_a_mesh_share_one_bottom_level() {
     assert_eq!(levels.instances.len(), 2);
     for (x, object) in [(-3.0, 0), (3.0, 1)] {
         let r = ray(Vec3::new(x, 0.1, 10.0), Vec3::NEG_Z);
-        let hit = levels.closest_hit(&geometry.triangles, &r).expect("hits the cube");
-        assert_eq!(geometry.triangles[hit.triangle as usize].object, object);
+        let hit = levels.closest_hit(&r).expect("hits the cube");
+        assert_eq!(geometry.triangle(hit.triangle as usize).object, object);
         // The second cube, half size, is turned by 0.4 about y: its front face is
         // 0.5 / cos(0.4) ahead of its centre along the ray.
         let expected_t = if object == 0 { 9.0 } else { 10.0 - 0.5 / 0.4f32.cos() };
         assert!((hit.t - expected_t).abs() < 1e-5, "{hit:?}");
         assert!(!hit.back_face);
     }
-    assert!(levels.closest_hit(&geometry.triangles, &ray(Vec3::new(0.0, 0.0, 10.0), Vec3::NEG_Z)).is_none());
+    assert!(levels.closest_hit(&ray(Vec3::new(0.0, 0.0, 10.0), Vec3::NEG_Z)).is_none());
 }
 
 /// A random object-to-world map: rotation, per-axis scale in [1/20, 20] (a mirror when
@@ -185,9 +185,9 @@ proptest! {
         let mut rng = Rng(seed | 1);
         for _ in 0..200 {
             let r = ray(centre, rng.unit());
-            let hit = levels.closest_hit(&geometry.triangles, &r);
+            let hit = levels.closest_hit(&r);
             prop_assert!(hit.is_some_and(|h| h.back_face == inside_is_back), "{:?} escaped or saw the outside: {:?}", r, hit);
-            prop_assert!(levels.occluded(&geometry.triangles, &r));
+            prop_assert!(levels.occluded(&r));
         }
     }
 
@@ -206,7 +206,7 @@ proptest! {
         let mirrored = m.determinant() < 0.0;
         for _ in 0..100 {
             let gi = (rng.next() * geometry.triangles.len() as f32) as usize % geometry.triangles.len();
-            let [v0, v1, v2] = geometry.triangles[gi].vertices();
+            let [v0, v1, v2] = geometry.triangle(gi).vertices();
             let ng = geometric_normal(v0, v1, v2);
             if ng == Vec3::ZERO {
                 continue;
@@ -220,13 +220,13 @@ proptest! {
             let d = rng.unit();
             let out = if d.dot(outward) > 0.0 { d } else { -d };
             let r = ray(offset_ray_origin(p, err, outward), out);
-            let hit = levels.closest_hit(&geometry.triangles, &r);
+            let hit = levels.closest_hit(&r);
             prop_assert!(hit.is_none(), "outward ray {:?} from triangle {} hit {:?}", r, gi, hit);
             // Inward, the ray must not hit the triangle it left. (It may miss altogether: near
             // a sharp convex edge the offset along one face's normal crosses the plane of the
             // next face, in world space as in object space.)
             let r = ray(offset_ray_origin(p, err, -outward), -out);
-            let hit = levels.closest_hit(&geometry.triangles, &r);
+            let hit = levels.closest_hit(&r);
             prop_assert!(hit.is_none_or(|h| h.triangle as usize != gi), "inward ray {:?} from {} hit {:?}", r, gi, hit);
         }
     }
@@ -248,7 +248,6 @@ fn assert_same_levels(a: &TwoLevelBvh, b: &TwoLevelBvh) {
 /// The world tables of two builds are the same, field by field.
 fn assert_same_tables(a: &WorldGeometry, b: &WorldGeometry) {
     assert_eq!(a.triangles, b.triangles);
-    assert_eq!(a.normals, b.normals);
     assert_eq!(a.objects, b.objects);
     assert_eq!(a.bounds, b.bounds);
     assert_eq!(a.non_finite_triangles, b.non_finite_triangles);
@@ -284,9 +283,9 @@ fn moved_objects_update_to_what_a_fresh_build_gives() {
         // A ray at the moved object's centre from outside its box finds it.
         let centre = scene.objects[1].transform.transform_point3(Vec3::ZERO);
         let r = ray(centre + Vec3::new(0.0, 0.0, 50.0), Vec3::NEG_Z);
-        let hit = levels.closest_hit(&geometry.triangles, &r).expect("the moved object is hit");
-        let flat = Bvh::build(&geometry, BvhPreset::default()).closest_hit(&geometry.triangles, &r).unwrap();
-        assert_eq!(geometry.triangles[hit.triangle as usize].object, geometry.triangles[flat.triangle as usize].object);
+        let hit = levels.closest_hit(&r).expect("the moved object is hit");
+        let flat = Bvh::build(&geometry, BvhPreset::default()).closest_hit(geometry.stored_table(), &r).unwrap();
+        assert_eq!(geometry.triangle(hit.triangle as usize).object, geometry.triangle(flat.triangle as usize).object);
         assert!((hit.t - flat.t).abs() <= 1e-4 * flat.t, "{hit:?} vs {flat:?}");
     }
 }
@@ -324,21 +323,25 @@ fn a_refitted_tree_answers_as_a_rebuilt_one() {
         *p *= 1.0 + 0.3 * (5.0 * p.x).sin() * (3.0 * p.y).cos();
     }
     let deformed = WorldGeometry::build(&scene);
-    assert!(bvh.refit(&deformed.triangles));
+    assert!(bvh.refit(deformed.stored_table()));
     bvh.validate(&deformed).unwrap();
     assert_eq!(topology, bvh.nodes.iter().map(|n| (n.left_or_first, n.count)).collect::<Vec<_>>());
     let rebuilt = Bvh::build(&deformed, BvhPreset::default());
     let mut rng = Rng(5);
     for _ in 0..3000 {
         let r = ray(rng.unit() * 3.0, rng.unit());
-        assert_eq!(bvh.closest_hit(&deformed.triangles, &r), rebuilt.closest_hit(&deformed.triangles, &r), "{r:?}");
-        assert_eq!(bvh.occluded(&deformed.triangles, &r), rebuilt.occluded(&deformed.triangles, &r));
+        assert_eq!(
+            bvh.closest_hit(deformed.stored_table(), &r),
+            rebuilt.closest_hit(deformed.stored_table(), &r),
+            "{r:?}"
+        );
+        assert_eq!(bvh.occluded(deformed.stored_table(), &r), rebuilt.occluded(deformed.stored_table(), &r));
     }
     // A triangle collapsed to a sliver of two equal vertices: not traceable any more.
     let idx = scene.meshes[0].indices[40];
     scene.meshes[0].positions[idx[1] as usize] = scene.meshes[0].positions[idx[0] as usize];
     let collapsed = WorldGeometry::build(&scene);
     let before = bvh.clone();
-    assert!(!bvh.refit(&collapsed.triangles));
+    assert!(!bvh.refit(collapsed.stored_table()));
     assert_eq!(bvh.nodes, before.nodes, "a declined refit changes nothing");
 }

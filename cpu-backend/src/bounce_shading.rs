@@ -11,7 +11,8 @@
 //! bouncing shader on mirrors and glass, the ray-traced shader on other ray-traced
 //! objects and the raster shader on rasterized ones.
 
-use hyrt_core::formats::{HitRecord, LightRecord, RayRecord, SurfaceRecord, TriangleRecord, INVALID_ID};
+use hyrt_core::formats::{HitRecord, LightRecord, RayRecord, SurfaceRecord, INVALID_ID};
+use hyrt_core::geometry::WorldTriangles;
 use hyrt_core::kernels::bounce::{secondary_parent, shade_secondary_hit};
 use hyrt_core::kernels::texture::Materials;
 use hyrt_core::scene::Environment;
@@ -36,7 +37,7 @@ pub fn bounce_shading_into(
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
     materials: &Materials,
-    triangles: &[TriangleRecord],
+    triangles: &WorldTriangles,
     lights: &[LightRecord],
     env: &Environment,
     children: Option<Children>,

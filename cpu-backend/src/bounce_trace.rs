@@ -37,14 +37,14 @@ pub fn bounce_trace_into(
     hits: &mut Vec<HitRecord>,
     surfaces: &mut Vec<SurfaceRecord>,
 ) {
-    closest_hit_alpha_batch_into(bvh, &geometry.triangles, &geometry.surface.view(), rays, traversal, closest);
+    closest_hit_alpha_batch_into(bvh, geometry.traversal_table(), &geometry.surface.view(), rays, traversal, closest);
     if let Some(levels) = levels {
         // The object-space pass: from each ray's hit in the world-space level, the closer
         // hit over the object-space instances (`TwoLevelBvh::closest_hit_in_object_space`).
         let view = geometry.surface.view();
         let accept = |t: &TriangleRecord, id: u32, u: f32, v: f32| alpha_accepts(&view, t, id as usize, u, v);
         closest.par_iter_mut().zip(rays).with_min_len(256).for_each(|(c, r)| {
-            *c = levels.closest_hit_in_object_space(&geometry.triangles, r, *c, accept);
+            *c = levels.closest_hit_in_object_space(r, *c, accept);
         });
     }
     closest.par_iter().with_min_len(4096).map(|&h| HitRecord::from_hit(h)).collect_into_vec(hits);

@@ -27,17 +27,48 @@ pub fn prepare(geometry: WorldGeometry, preset: BvhPreset) -> PreparedScene {
 
 /// [`prepare`] for a scene whose objects `moving` (by id) move between frames: a
 /// two-level BVH ([`TwoLevelBvh`]) with those objects, and every object sharing its mesh
-/// with another, in object space, the rest baked into the world-space level; the
+/// with another, in object space, the rest baked into the world-space level. The objects
+/// in object space are kept by reference in the world tables
+/// ([`WorldGeometry::build_placed`]: their mesh once, however many objects draw it). The
 /// `bvh_build` stage times both levels. Move them with
 /// [`PreparedScene::move_objects`](hyrt_core::frame::PreparedScene::move_objects).
-pub fn prepare_moving(scene: &Scene, geometry: WorldGeometry, preset: BvhPreset, moving: &[u32]) -> PreparedScene {
-    let t = std::time::Instant::now();
+pub fn prepare_moving(scene: &Scene, preset: BvhPreset, moving: &[u32]) -> PreparedScene {
     let mut flags = vec![false; scene.objects.len()];
     for &o in moving {
         if let Some(f) = flags.get_mut(o as usize) {
             *f = true;
         }
     }
+    let geometry = WorldGeometry::build_placed(scene, &TwoLevelBvh::object_space_objects(scene, &flags));
+    let t = std::time::Instant::now();
     let levels = TwoLevelBvh::build(scene, &geometry, preset, &flags);
     PreparedScene::with_levels(geometry, levels, t.elapsed().as_secs_f64() * 1e3)
+}
+
+/// Bytes of world records and normals (84 per triangle) above which [`prepare_scene`]
+/// traces meshes shared by several objects as instances instead of storing every copy:
+/// 1 GiB, about 12.8 million stored triangles.
+pub const AUTO_INSTANCING_BYTES: usize = 1 << 30;
+
+/// What the facade's `Renderer::prepare` does: [`prepare`], unless the scene's copies of
+/// shared meshes would take more than [`AUTO_INSTANCING_BYTES`] stored; then
+/// [`prepare_moving`] with no moving object, so that every shared mesh is held once and
+/// traced as instances (a scene of 1,000 dragons fits in memory). Scenes under the
+/// threshold are prepared as they always were (the same frames, bit for bit).
+pub fn prepare_scene(scene: &Scene, preset: BvhPreset) -> PreparedScene {
+    if shared_mesh_bytes(scene) > AUTO_INSTANCING_BYTES {
+        prepare_moving(scene, preset, &[])
+    } else {
+        prepare(WorldGeometry::build(scene), preset)
+    }
+}
+
+/// Bytes the stored world records and normals of objects sharing their mesh would take.
+pub fn shared_mesh_bytes(scene: &Scene) -> usize {
+    let mut users = vec![0usize; scene.meshes.len()];
+    for o in &scene.objects {
+        users[o.mesh] += 1;
+    }
+    let per_triangle = std::mem::size_of::<hyrt_core::formats::TriangleRecord>() + 36;
+    scene.objects.iter().filter(|o| users[o.mesh] > 1).map(|o| scene.meshes[o.mesh].indices.len() * per_triangle).sum()
 }

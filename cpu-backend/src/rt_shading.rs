@@ -7,7 +7,8 @@
 //! Output: the ray-traced image (linear RGBA; alpha 1 on ray-traced pixels, 0 elsewhere).
 
 use glam::Vec3;
-use hyrt_core::formats::{GBufferTexel, LightRecord, ObjectRecord, SurfaceRecord, TriangleRecord, OBJ_RAY_TRACED};
+use hyrt_core::formats::{GBufferTexel, LightRecord, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
+use hyrt_core::geometry::WorldTriangles;
 use hyrt_core::kernels::bounce::{primary_parent, shade_rt_pixel_bouncing};
 use hyrt_core::kernels::shading::shade_rt_pixel;
 use hyrt_core::kernels::texture::Materials;
@@ -68,7 +69,7 @@ pub fn rt_shading_bouncing_into(
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
     materials: &Materials,
-    triangles: &[TriangleRecord],
+    triangles: &WorldTriangles,
     lights: &[LightRecord],
     eye: Vec3,
     bounce: FirstBounce,

@@ -17,7 +17,8 @@
 use std::collections::TryReserveError;
 
 use glam::Vec3;
-use hyrt_core::formats::{GBufferTexel, HitRecord, ObjectRecord, RayRecord, SurfaceRecord, TriangleRecord, INVALID_ID};
+use hyrt_core::formats::{GBufferTexel, HitRecord, ObjectRecord, RayRecord, SurfaceRecord, INVALID_ID};
+use hyrt_core::geometry::WorldTriangles;
 use hyrt_core::kernels::bounce::{bounces, primary_parent, secondary_parent, spawn, Parent};
 use hyrt_core::kernels::texture::Materials;
 use rayon::prelude::*;
@@ -78,7 +79,7 @@ impl<'a> Parents<'a> {
 pub fn secondary_rays_into(
     parents: Parents,
     materials: &Materials,
-    triangles: &[TriangleRecord],
+    triangles: &WorldTriangles,
     depth: u32,
     scratch: &mut CompactionScratch,
     rays: &mut Vec<RayRecord>,

@@ -54,7 +54,7 @@ pub fn shadow_rays_with(
             panic!("shadow_rays: invalid ray: {e}");
         }
     }
-    occluded_alpha_batch_into(bvh, &geometry.triangles, &geometry.surface.view(), rays, traversal, out);
+    occluded_alpha_batch_into(bvh, geometry.traversal_table(), &geometry.surface.view(), rays, traversal, out);
 }
 
 /// [`shadow_rays_with`] over the rays of active pairs (`compaction::active_pairs_into`:
@@ -76,7 +76,7 @@ pub fn shadow_rays_of_pairs_into(
         r
     };
     let view = geometry.surface.view();
-    occluded_generated_into(bvh, &geometry.triangles, &view, active.len(), ray, traversal, out);
+    occluded_generated_into(bvh, geometry.traversal_table(), &view, active.len(), ray, traversal, out);
 }
 
 /// The object-space pass of a scene with moving objects (or shared meshes): after
@@ -94,7 +94,7 @@ pub fn shadow_rays_in_object_space(
     let view = geometry.surface.view();
     let accept = |t: &TriangleRecord, id: u32, u: f32, v: f32| alpha_accepts(&view, t, id as usize, u, v);
     out.par_iter_mut().enumerate().with_min_len(256).filter(|(_, o)| **o == SHADOW_VISIBLE).for_each(|(i, o)| {
-        if levels.occluded_in_object_space(&geometry.triangles, &ray(i), accept) {
+        if levels.occluded_in_object_space(&ray(i), accept) {
             *o = SHADOW_OCCLUDED;
         }
     });

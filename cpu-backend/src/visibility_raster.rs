@@ -77,6 +77,12 @@ const _: () = assert!(TILE_PIXELS.is_power_of_two());
 /// Triangles per parallel setup task: large enough to amortize the task and its
 /// bins, small enough to balance two to sixteen threads on 10^4 to 10^6 triangles.
 const SETUP_CHUNK: usize = 2048;
+/// Setup chunks rasterized per batch (about 10^6 triangles): a frame's set-up triangles
+/// and bins are held one batch at a time, so memory does not grow with the scene (the
+/// 871 million triangles of 1,000 instanced dragons), and packed references
+/// (`CHUNK_INDEX_BITS`) never overflow. Scenes of one batch are rasterized in one pass.
+const BATCH_CHUNKS: usize = 512;
+const _: () = assert!(BATCH_CHUNKS <= 1 << (32 - CHUNK_INDEX_BITS));
 /// Depth buffer clear value: the far plane, like a GPU depth buffer cleared to 1.0.
 /// With the LESS test a fragment at depth exactly 1.0 is therefore never visible.
 const DEPTH_CLEAR: f32 = 1.0;
@@ -266,6 +272,17 @@ fn raster_frame(
     kernel: TileKernel,
     gbuffer: &mut Vec<GBufferTexel>,
 ) -> usize {
+    raster_frame_in_batches(geometry, camera, kernel, gbuffer, BATCH_CHUNKS)
+}
+
+/// [`raster_frame`] in batches of `batch_chunks` setup chunks (tests take small ones).
+fn raster_frame_in_batches(
+    geometry: &WorldGeometry,
+    camera: &CameraRecord,
+    kernel: TileKernel,
+    gbuffer: &mut Vec<GBufferTexel>,
+    batch_chunks: usize,
+) -> usize {
     let (w, h) = (camera.width as usize, camera.height as usize);
     // Sized, not filled: every texel of the rasterized area is written by its tile,
     // in parallel. A fresh buffer is zeroed (calloc); a reused one keeps its pages.
@@ -280,32 +297,79 @@ fn raster_frame(
         // Beyond MAX_IMAGE_DIM: those pixels belong to no tile and stay misses.
         gbuffer.fill(GBufferTexel::MISS);
     }
-    let tris = setup_triangles(geometry, camera, &frame);
-    let slices = tile_slices(gbuffer, w, &frame);
+    let chunks = geometry.triangles.len().div_ceil(SETUP_CHUNK);
     let alpha = AlphaTests::of(geometry);
-    let covered: usize = slices
-        .into_par_iter()
-        .enumerate()
-        .map_init(TileScratch::new, |scratch, (tile, rows)| {
-            scratch.clear();
-            let rect = frame.tile_rect(tile);
-            match kernel {
-                TileKernel::Scalar => {
-                    rasterize_tile_with(&tris, tile, rect, &mut *scratch, alpha);
-                    resolve_tile::<ScalarTexels>(&tris, scratch, rect, rows)
-                }
-                #[cfg(test)]
-                TileKernel::ScalarNoEarlyReject => {
-                    rasterize_tile_with(&tris, tile, rect, NoEarlyReject(scratch), alpha);
-                    resolve_tile::<ScalarTexels>(&tris, scratch, rect, rows)
-                }
-                #[cfg(target_arch = "x86_64")]
-                // SAFETY: only detected or tested where the CPU has AVX-512.
-                TileKernel::Avx512 => unsafe { avx512::tile(&tris, tile, rect, scratch, rows, alpha) },
-            }
-        })
-        .sum();
-    covered
+    if chunks <= batch_chunks {
+        // One batch: each tile's scratch lives for its task only.
+        let tris = setup_triangles(geometry, camera, &frame, 0..chunks);
+        let slices = tile_slices(gbuffer, w, &frame);
+        return slices
+            .into_par_iter()
+            .enumerate()
+            .map_init(TileScratch::new, |scratch, (tile, rows)| {
+                scratch.clear();
+                raster_tile(kernel, &tris, tile, frame.tile_rect(tile), scratch, rows, alpha, Resolve::Every)
+            })
+            .sum();
+    }
+    // Batches of `batch_chunks` chunks, in global order, each tile keeping its depth
+    // buffer from batch to batch: a triangle of a later batch wins a pixel exactly when
+    // it would in one pass (strictly nearer than every earlier one). After each batch a
+    // tile writes the texels of the pixels that batch won (their final texels when no
+    // later batch wins them); the first batch writes every texel.
+    let mut scratches: Vec<TileScratch> = (0..frame.tile_count()).map(|_| TileScratch::new()).collect();
+    for (b, first) in (0..chunks).step_by(batch_chunks).enumerate() {
+        let tris = setup_triangles(geometry, camera, &frame, first..(first + batch_chunks).min(chunks));
+        let slices = tile_slices(gbuffer, w, &frame);
+        let resolve = if b == 0 { Resolve::Every } else { Resolve::Won };
+        slices.into_par_iter().zip(scratches.par_iter_mut()).enumerate().for_each(|(tile, (rows, scratch))| {
+            scratch.winner.fill(NO_WINNER);
+            raster_tile(kernel, &tris, tile, frame.tile_rect(tile), scratch, rows, alpha, resolve);
+        });
+    }
+    // A pixel was won (in some batch) exactly when its stored depth fell below the clear
+    // value: the depth test is LESS against DEPTH_CLEAR.
+    scratches.par_iter().map(|s| s.depth.iter().filter(|&&d| d < DEPTH_CLEAR).count()).sum()
+}
+
+/// Which texels of a tile [`resolve_tile`] writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Resolve {
+    /// Every texel (misses where no triangle won); returns the hit count.
+    Every,
+    /// Only those of pixels a triangle of this batch won (the others keep what an
+    /// earlier batch wrote); returns 0.
+    Won,
+}
+
+/// Rasterize one tile's bins into `scratch` and resolve its texels into `rows` with
+/// `kernel`; returns what [`resolve_tile`] counts.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn raster_tile(
+    kernel: TileKernel,
+    tris: &SetupTriangles,
+    tile: usize,
+    rect: [i32; 4],
+    scratch: &mut TileScratch,
+    rows: Vec<&mut [GBufferTexel]>,
+    alpha: Option<AlphaTests>,
+    resolve: Resolve,
+) -> usize {
+    match kernel {
+        TileKernel::Scalar => {
+            rasterize_tile_with(tris, tile, rect, &mut *scratch, alpha);
+            resolve_tile::<ScalarTexels>(tris, scratch, rect, rows, resolve)
+        }
+        #[cfg(test)]
+        TileKernel::ScalarNoEarlyReject => {
+            rasterize_tile_with(tris, tile, rect, NoEarlyReject(scratch), alpha);
+            resolve_tile::<ScalarTexels>(tris, scratch, rect, rows, resolve)
+        }
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: only detected or tested where the CPU has AVX-512.
+        TileKernel::Avx512 => unsafe { avx512::tile(tris, tile, rect, scratch, rows, alpha, resolve) },
+    }
 }
 
 /// Count, per pixel, the front- and back-facing rasterized triangles covering its
@@ -318,12 +382,16 @@ pub fn coverage_counts(geometry: &WorldGeometry, camera: &CameraRecord) -> Cover
     let mut counts = vec![[0u32; 2]; w * h];
     if w > 0 && h > 0 {
         let frame = Frame::new(camera);
-        let tris = setup_triangles(geometry, camera, &frame);
-        let slices = tile_slices(&mut counts, w, &frame);
-        slices.into_par_iter().enumerate().for_each(|(tile, mut rows)| {
-            let rect = frame.tile_rect(tile);
-            rasterize_tile(&tris, tile, rect, &mut CountSink { rows: &mut rows });
-        });
+        let chunks = geometry.triangles.len().div_ceil(SETUP_CHUNK);
+        // Batches as the raster's: bounded memory, references in range.
+        for first in (0..chunks).step_by(BATCH_CHUNKS) {
+            let tris = setup_triangles(geometry, camera, &frame, first..(first + BATCH_CHUNKS).min(chunks));
+            let slices = tile_slices(&mut counts, w, &frame);
+            slices.into_par_iter().enumerate().for_each(|(tile, mut rows)| {
+                let rect = frame.tile_rect(tile);
+                rasterize_tile(&tris, tile, rect, &mut CountSink { rows: &mut rows });
+            });
+        }
     }
     CoverageCounts {
         front: counts.iter().map(|c| c[0]).collect(),
@@ -374,21 +442,34 @@ impl SetupTriangles {
     }
 }
 
-/// Set up and bin every triangle, in parallel over chunks of source triangles.
-fn setup_triangles(geometry: &WorldGeometry, camera: &CameraRecord, frame: &Frame) -> SetupTriangles {
-    // Triangle counts beyond the packed reference range (2^32 / 2^14 chunks of
-    // SETUP_CHUNK, about 5e8 triangles) are not rasterized.
-    let max_chunks = 1usize << (32 - CHUNK_INDEX_BITS);
-    let chunks = geometry
-        .triangles
-        .par_chunks(SETUP_CHUNK)
-        .take(max_chunks)
-        .map(|tris| {
-            let mut out = Vec::with_capacity(tris.len() + tris.len() / 8);
-            for t in tris {
-                setup_triangle(t, camera, frame, &mut out);
+/// Set up and bin the source triangles of setup chunks `chunks` (chunk `c` holds global
+/// triangles `c * SETUP_CHUNK ..`), in parallel over chunks; objects by reference have
+/// their records made here ([`hyrt_core::geometry::WorldTriangles::fill`]).
+fn setup_triangles(
+    geometry: &WorldGeometry,
+    camera: &CameraRecord,
+    frame: &Frame,
+    chunks: std::ops::Range<usize>,
+) -> SetupTriangles {
+    let n = geometry.triangles.len();
+    let setup = |tris: &[TriangleRecord]| {
+        let mut out = Vec::with_capacity(tris.len() + tris.len() / 8);
+        for t in tris {
+            setup_triangle(t, camera, frame, &mut out);
+        }
+        bin_chunk(out, frame)
+    };
+    let chunks = chunks
+        .into_par_iter()
+        .map_init(Vec::new, |buf, c| {
+            let range = c * SETUP_CHUNK..((c + 1) * SETUP_CHUNK).min(n);
+            match geometry.triangles.as_slice() {
+                Some(all) => setup(&all[range]),
+                None => {
+                    geometry.triangles.fill(range, buf);
+                    setup(buf)
+                }
             }
-            bin_chunk(out, frame)
         })
         .collect();
     SetupTriangles { chunks }
@@ -833,7 +914,7 @@ impl<'g> AlphaTests<'g> {
     fn accepts(&self, t: &RasterTriangle, e: [i64; 3]) -> bool {
         let [u, v] = t.barycentrics(e);
         let global = self.geometry.global_triangle(t.object, t.triangle);
-        alpha_accepts(&self.view, &self.geometry.triangles[global], global, u, v)
+        alpha_accepts(&self.view, &self.geometry.triangle(global), global, u, v)
     }
 }
 
@@ -1113,6 +1194,7 @@ fn resolve_tile<R: TexelRun>(
     scratch: &TileScratch,
     rect: [i32; 4],
     mut rows: Vec<&mut [GBufferTexel]>,
+    resolve: Resolve,
 ) -> usize {
     let mut covered = 0;
     for (ly, row) in rows.iter_mut().enumerate() {
@@ -1123,7 +1205,9 @@ fn resolve_tile<R: TexelRun>(
             let winner = winners[lx];
             let end = lx + winners[lx..].iter().position(|&w| w != winner).unwrap_or(row.len() - lx);
             if winner == NO_WINNER {
-                row[lx..end].fill(GBufferTexel::MISS);
+                if resolve == Resolve::Every {
+                    row[lx..end].fill(GBufferTexel::MISS);
+                }
             } else {
                 let t = tris.get(winner);
                 let (e, step) = t.edge_values(rect[0] as i64 + lx as i64, rect[1] as i64 + ly as i64);
@@ -1134,7 +1218,11 @@ fn resolve_tile<R: TexelRun>(
         }
     }
     debug_assert_eq!(rows.len() as i32, rect[3] - rect[1] + 1);
-    covered
+    if resolve == Resolve::Every {
+        covered
+    } else {
+        0
+    }
 }
 
 /// Split a row-major image into per-tile lists of row slices (tile-major order), so
@@ -1221,6 +1309,52 @@ mod tests {
             assert!(bits(&first) == bits(&other), "{k:?} differs from {:?}", kernels[0]);
         }
         first.covered_pixels
+    }
+
+    /// Rasterizing in batches (here one setup chunk each) and reading objects by reference
+    /// change no bit, with every kernel: the cluttered scene plus fine spheres, some
+    /// sharing a mesh, several chunks in all, alpha tests included.
+    #[test]
+    fn batches_and_objects_by_reference_give_the_same_bits() {
+        let mut scene = cluttered_scene();
+        let sphere = Mesh::uv_sphere("fine", 48, 24);
+        for k in 0..4 {
+            let f = k as f32;
+            let mut material = Material::grey();
+            if k == 1 {
+                material.alpha_mode = AlphaMode::Mask { cutoff: 0.5 };
+                material.base_alpha = 0.7;
+            }
+            scene.add_object(
+                sphere.clone(),
+                material,
+                Mat4::from_translation(Vec3::new(f - 1.5, 0.2 * f, -1.0 - f)) * Mat4::from_scale(Vec3::splat(0.6)),
+                RenderMode::Raster,
+            );
+        }
+        let stored = WorldGeometry::build(&scene);
+        assert!(stored.triangles.len() > 3 * SETUP_CHUNK, "several chunks");
+        let by_reference: Vec<bool> = (0..scene.objects.len()).map(|o| o % 3 != 1).collect();
+        let referenced = WorldGeometry::build_placed(&scene, &by_reference);
+        assert!(referenced.triangles.has_references());
+        for (w, h) in [(160, 90), (67, 131)] {
+            let cam = CameraRecord::new(&scene.camera.unwrap(), w, h);
+            for kernel in kernels() {
+                let mut one = Vec::new();
+                let covered = raster_frame(&stored, &cam, kernel, &mut one);
+                assert!(covered > 0);
+                for (g, batch) in [(&stored, 1), (&referenced, 1), (&referenced, BATCH_CHUNKS), (&stored, 2)] {
+                    let mut out = Vec::new();
+                    let c = raster_frame_in_batches(g, &cam, kernel, &mut out, batch);
+                    assert_eq!(c, covered, "{kernel:?}, batches of {batch}");
+                    assert!(
+                        out.iter().map(|t| t.to_bits()).eq(one.iter().map(|t| t.to_bits())),
+                        "{kernel:?}, batches of {batch}, by reference: {}",
+                        g.triangles.has_references()
+                    );
+                }
+            }
+        }
     }
 
     /// The early depth rejection and the SIMD kernels change no bit.

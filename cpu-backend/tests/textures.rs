@@ -283,15 +283,15 @@ fn packets_test_alpha_as_the_scalar_reference_does() {
         })
         .collect();
     let (mut reference_any, mut reference_closest) = (Vec::new(), Vec::new());
-    occluded_alpha_batch_into(bvh, &g.triangles, &view, &rays, Traversal::Scalar, &mut reference_any);
-    closest_hit_alpha_batch_into(bvh, &g.triangles, &view, &rays, Traversal::Scalar, &mut reference_closest);
+    occluded_alpha_batch_into(bvh, g.stored_table(), &view, &rays, Traversal::Scalar, &mut reference_any);
+    closest_hit_alpha_batch_into(bvh, g.stored_table(), &view, &rays, Traversal::Scalar, &mut reference_closest);
     let holes =
-        reference_closest.iter().filter(|h| h.is_some_and(|h| g.triangles[h.triangle as usize].object == 0)).count();
+        reference_closest.iter().filter(|h| h.is_some_and(|h| g.triangle(h.triangle as usize).object == 0)).count();
     assert!(holes > 500 && holes < 3500, "{holes} rays reach the wall");
     for traversal in Traversal::available_simd() {
         let (mut any, mut closest) = (Vec::new(), Vec::new());
-        occluded_alpha_batch_into(bvh, &g.triangles, &view, &rays, traversal, &mut any);
-        closest_hit_alpha_batch_into(bvh, &g.triangles, &view, &rays, traversal, &mut closest);
+        occluded_alpha_batch_into(bvh, g.stored_table(), &view, &rays, traversal, &mut any);
+        closest_hit_alpha_batch_into(bvh, g.stored_table(), &view, &rays, traversal, &mut closest);
         assert_eq!(any, reference_any, "{traversal:?}: any hit");
         for (k, (a, b)) in closest.iter().zip(&reference_closest).enumerate() {
             let bits = |h: &Option<hyrt_core::bvh::ClosestHit>| {

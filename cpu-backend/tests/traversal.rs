@@ -20,7 +20,7 @@ use proptest::prelude::*;
 /// Compare every available packet level with the scalar reference on `rays`; returns the
 /// number of occluded rays (so callers can check the case is not trivial).
 fn check(g: &WorldGeometry, bvh: &Bvh, rays: &[RayRecord]) -> usize {
-    let t = &g.triangles;
+    let t = g.stored_table();
     let want_any = occluded_batch(bvh, t, rays, Traversal::Scalar);
     let want_closest = closest_hit_batch(bvh, t, rays, Traversal::Scalar);
     for kind in Traversal::available_simd() {
@@ -55,9 +55,9 @@ fn ray(o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> RayRecord {
 }
 
 fn soup(tris: &[[Vec3; 3]]) -> WorldGeometry {
-    let mut g = WorldGeometry::default();
+    let (mut records, mut normals) = (Vec::new(), Vec::new());
     for (i, t) in tris.iter().enumerate() {
-        g.triangles.push(TriangleRecord {
+        records.push(TriangleRecord {
             v0: t[0].into(),
             object: 0,
             v1: t[1].into(),
@@ -65,9 +65,9 @@ fn soup(tris: &[[Vec3; 3]]) -> WorldGeometry {
             v2: t[2].into(),
             flags: TRI_RAY_TRACED,
         });
-        g.normals.push([Vec3::Y; 3]);
+        normals.push([Vec3::Y; 3]);
     }
-    g
+    WorldGeometry { triangles: hyrt_core::geometry::WorldTriangles::stored(records, normals), ..Default::default() }
 }
 
 /// A scene of the given meshes, each with its transform.
@@ -110,7 +110,7 @@ fn default_scene_frame_and_primary_rays_match_scalar() {
     let occluded = check(g, bvh, &frame.rays);
     assert!(occluded > 0 && occluded < frame.rays.len(), "{occluded} of {}", frame.rays.len());
     // The stage's output is the packet traversal's.
-    assert_eq!(frame.occluded, occluded_batch(bvh, &g.triangles, &frame.rays, Traversal::Scalar));
+    assert_eq!(frame.occluded, occluded_batch(bvh, g.stored_table(), &frame.rays, Traversal::Scalar));
     let primary = primary_rays(&cam);
     let hits = check(g, bvh, &primary);
     assert!(hits > primary.len() / 2, "{hits} of {}", primary.len());
@@ -274,8 +274,8 @@ fn results_do_not_depend_on_thread_count() {
     let run = |threads| {
         with_threads(threads, || {
             (
-                occluded_batch(&bvh, &g.triangles, &primary, Traversal::simd()),
-                closest_hit_batch(&bvh, &g.triangles, &primary, Traversal::simd()),
+                occluded_batch(&bvh, g.stored_table(), &primary, Traversal::simd()),
+                closest_hit_batch(&bvh, g.stored_table(), &primary, Traversal::simd()),
             )
         })
     };

@@ -245,7 +245,7 @@ fn ray_cast(g: &WorldGeometry, near: DVec3, far: DVec3) -> Option<(RayHit, f64)>
     let d = far - near;
     let mut best: Option<RayHit> = None;
     let mut second = f64::INFINITY;
-    for (i, tri) in g.triangles.iter().enumerate() {
+    for (i, tri) in g.stored_table().iter().enumerate() {
         let (p0, p1, p2) = (dvec(tri.v0), dvec(tri.v1), dvec(tri.v2));
         let e1 = p1 - p0;
         let e2 = p2 - p0;
@@ -323,7 +323,7 @@ fn edge_mask_and_tolerances(g: &WorldGeometry, cam: &CameraRecord) -> (Vec<bool>
     let vp = view_proj_f64(cam);
     let mut near_edge = vec![false; (w * h) as usize];
     let mut tol = vec![f64::INFINITY; g.triangles.len()];
-    for (ti, t) in g.triangles.iter().enumerate() {
+    for (ti, t) in g.stored_table().iter().enumerate() {
         let poly = clipped_window_polygon(cam, &vp, [t.v0, t.v1, t.v2]);
         if poly.is_empty() {
             continue;
@@ -392,7 +392,7 @@ fn assert_matches_ray_cast(g: &WorldGeometry, cam: &CameraRecord, out: &Visibili
                     if (second - hit.t) * len <= DEPTH_TIE_RELATIVE * (hit.t * len + cam.near as f64) {
                         continue;
                     }
-                    let rec = &g.triangles[hit.global];
+                    let rec = &g.triangle(hit.global);
                     assert!(texel.is_hit(), "pixel ({x}, {y}): raster missed, ray cast hit {rec:?}");
                     assert_eq!(
                         (texel.object, texel.triangle),

@@ -858,6 +858,15 @@ impl GpuBackend {
             )));
         }
         let binding = self.ctx.limits.max_storage_buffer_binding_size.min(self.ctx.limits.max_buffer_size);
+        // The GPU reads one world table: objects the CPU keeps by reference are stored
+        // whole there (the normals take 36 of every 48 + 36 bytes; the records, 48).
+        let triangles = scene.geometry.triangles.len() as u64;
+        if triangles * std::mem::size_of::<hyrt_core::formats::TriangleRecord>() as u64 > binding {
+            return Err(GpuError::Limits(format!(
+                "the scene's {triangles} world triangles need {} bytes in one storage binding; this device allows {binding} (instanced objects are read by reference on the CPU backend only)",
+                triangles * std::mem::size_of::<hyrt_core::formats::TriangleRecord>() as u64
+            )));
+        }
         match scene.geometry.surface.layout().map(|l| l.bytes()) {
             Some(bytes) if bytes <= binding => {}
             need => {

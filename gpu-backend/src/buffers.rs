@@ -63,7 +63,17 @@ impl SceneBuffers {
     /// Upload the tables of `scene`.
     pub fn new(ctx: &GpuContext, scene: &PreparedScene) -> SceneBuffers {
         let g = &scene.geometry;
-        let normals: Vec<f32> = g.normals.iter().flat_map(|n| n.iter().flat_map(|v| v.to_array())).collect();
+        // Objects by reference are made whole here: the GPU reads one world table.
+        let all = 0..g.triangles.len();
+        let mut made = Vec::new();
+        let triangles = match g.triangles.as_slice() {
+            Some(t) => t,
+            None => {
+                g.triangles.fill(all.clone(), &mut made);
+                &made[..]
+            }
+        };
+        let normals = corner_normals(g, all);
         let (environment, texels) = EnvironmentRecord::of(&g.environment);
         debug_assert_eq!(environment.validate(texels.len()), Ok(()));
         let environment_header = ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -81,7 +91,7 @@ impl SceneBuffers {
         SceneBuffers {
             environment: environment_header,
             environment_texels: upload::<[f32; 4]>(ctx, "environment texels", texels),
-            triangles: upload::<TriangleRecord>(ctx, "triangles", &g.triangles),
+            triangles: upload::<TriangleRecord>(ctx, "triangles", triangles),
             normals: upload(ctx, "normals", &normals),
             objects: upload::<ObjectRecord>(ctx, "objects", &g.objects),
             lights: upload::<LightRecord>(ctx, "lights", &g.lights),
@@ -97,6 +107,13 @@ impl SceneBuffers {
             bvh_node_count: nodes.len() as u32,
         }
     }
+}
+
+/// The corner normals of global triangles `range` as the GPU reads them: nine floats each.
+fn corner_normals(g: &hyrt_core::geometry::WorldGeometry, range: std::ops::Range<usize>) -> Vec<f32> {
+    let mut normals = Vec::new();
+    g.triangles.fill_normals(range, &mut normals);
+    normals.iter().flat_map(|n| n.iter().flat_map(|v| v.to_array())).collect()
 }
 
 impl SceneBuffers {
@@ -117,10 +134,10 @@ impl SceneBuffers {
             let record = &g.objects[o as usize];
             let range = record.first_triangle as usize..(record.first_triangle + record.triangle_count) as usize;
             let tri = std::mem::size_of::<TriangleRecord>();
-            write(&self.triangles, range.start * tri, bytemuck::cast_slice(&g.triangles[range.clone()]));
-            let normals: Vec<f32> =
-                g.normals[range.clone()].iter().flat_map(|n| n.iter().flat_map(|v| v.to_array())).collect();
-            write(&self.normals, range.start * 9 * 4, bytemuck::cast_slice(&normals));
+            let mut triangles = Vec::new();
+            g.triangles.fill(range.clone(), &mut triangles);
+            write(&self.triangles, range.start * tri, bytemuck::cast_slice(&triangles));
+            write(&self.normals, range.start * 9 * 4, bytemuck::cast_slice(&corner_normals(g, range)));
             write(&self.objects, o as usize * std::mem::size_of::<ObjectRecord>(), bytemuck::bytes_of(record));
         }
         if let (false, Some(levels)) = (changes.objects.is_empty(), &scene.levels) {

@@ -209,7 +209,7 @@ fn shadow_rays_through_shared_edges_and_vertices() {
     let mut must_hit = Vec::new();
     // Targets: every vertex and every edge midpoint of every triangle.
     let mut targets = Vec::new();
-    for t in &g.triangles {
+    for t in g.stored_table() {
         let [a, b, c] = t.vertices();
         targets.extend([a, b, c, (a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5].map(|p| (p, t.object)));
     }
@@ -245,7 +245,7 @@ fn shadow_rays_through_shared_edges_and_vertices() {
     }
     let count = rays.len() as u32;
     let (mismatches, cpu) = compare(&ctx, "closed meshes", &prepared, &rays, (count, 1), 1);
-    let ties = rays.iter().filter(|r| meets_zero_edge(&g.triangles, r)).count();
+    let ties = rays.iter().filter(|r| meets_zero_edge(g.stored_table(), r)).count();
     eprintln!("closed meshes: {ties} rays meet an exactly-zero f32 edge function (decided by the exact sign)");
     assert!(ties > 100, "the test must exercise the exact-sign tie rule");
     let leaks: Vec<usize> = (0..rays.len()).filter(|&i| must_hit[i] && cpu[i] == 0).collect();
@@ -363,7 +363,7 @@ fn shadow_rays_pinned_zero_edge_exact_sign() {
         ..Default::default()
     };
     let prepared = prepare(&scene_of(vec![(tri, Mat4::IDENTITY)]));
-    assert_eq!(prepared.geometry.triangles[0].vertices(), [p0, p1, p2], "identity transform keeps the bits");
+    assert_eq!(prepared.geometry.triangle(0).vertices(), [p0, p1, p2], "identity transform keeps the bits");
     // The f32 edge function p2 -> p0 is exactly zero.
     assert_eq!(p2.x * p0.y - p2.y * p0.x, 0.0);
     assert!((p2.x as f64) * (p0.y as f64) - (p2.y as f64) * (p0.x as f64) < 0.0);

@@ -56,7 +56,7 @@ pub use hyrt_core::scene::{
     Scene,
 };
 pub use hyrt_core::stage::Stage;
-pub use hyrt_core::{glam, AnimationError, GpuError, SceneError};
+pub use hyrt_core::{glam, memory, AnimationError, GpuError, SceneError};
 pub use hyrt_cpu::backend::CpuBackend;
 /// How the CPU backend traces rays (`CpuBackend::set_shadow_traversal`,
 /// `CpuBackend::set_bounce_traversal`) and which SIMD level it runs.
@@ -262,9 +262,12 @@ impl Renderer {
     }
 
     /// World tables + BVH of a scene (the `bvh_build` stage, on the CPU: rayon's
-    /// global pool), built once per scene and usable by any renderer.
+    /// global pool), built once per scene and usable by any renderer. A scene whose copies
+    /// of shared meshes would take more than 1 GiB stored
+    /// ([`hyrt_cpu::bvh_build::AUTO_INSTANCING_BYTES`]) traces them as instances of one
+    /// mesh instead, as [`Renderer::prepare_moving`] with no moving object does.
     pub fn prepare(&self, scene: &Scene) -> PreparedScene {
-        hyrt_cpu::bvh_build::prepare(WorldGeometry::build(scene), self.preset)
+        hyrt_cpu::bvh_build::prepare_scene(scene, self.preset)
     }
 
     /// [`Renderer::prepare`] for a scene whose objects `moving` (by id) move between
@@ -273,7 +276,7 @@ impl Renderer {
     /// scene) without preparing the scene again. Both backends render it, bit for bit
     /// alike (the GPU needs 9 storage buffers per shader stage for it).
     pub fn prepare_moving(&self, scene: &Scene, moving: &[u32]) -> PreparedScene {
-        hyrt_cpu::bvh_build::prepare_moving(scene, WorldGeometry::build(scene), self.preset, moving)
+        hyrt_cpu::bvh_build::prepare_moving(scene, self.preset, moving)
     }
 
     /// Render one frame of `width` x `height` pixels.

@@ -296,9 +296,11 @@ impl EmbreeScene {
     /// device (a full rebuild, as after objects moved): `rtcNewScene`, one triangle
     /// geometry filled and committed, `rtcCommitScene`; `build_ms` times all of it.
     pub fn rebuild(&mut self, geometry: &WorldGeometry) -> Result<(), EmbreeError> {
-        self.prim_to_triangle = (0..geometry.triangles.len() as u32)
-            .filter(|&i| triangle_is_traceable(&geometry.triangles[i as usize]))
-            .collect();
+        // The world records made whole before the clock starts (objects hyrt keeps by
+        // reference are made here, not in Embree's time).
+        let triangles: Vec<_> = geometry.triangles.iter().collect();
+        self.prim_to_triangle =
+            (0..triangles.len() as u32).filter(|&i| triangle_is_traceable(&triangles[i as usize])).collect();
         let t0 = std::time::Instant::now();
         // SAFETY: plain FFI calls on the device and the handles just created; the old
         // scene is released once, after the new one replaced it.
@@ -309,7 +311,7 @@ impl EmbreeScene {
             if !self.prim_to_triangle.is_empty() {
                 let prims = &self.prim_to_triangle;
                 let geom = triangle_geometry(self.device, prims.len(), |p| {
-                    let t = &geometry.triangles[prims[p] as usize];
+                    let t = &triangles[prims[p] as usize];
                     [t.v0, t.v1, t.v2]
                 })?;
                 rtcAttachGeometry(scene, geom);
@@ -509,16 +511,17 @@ impl EmbreeInstances {
             rtcSetSceneFlags(top, RTC_SCENE_FLAG_DYNAMIC);
             rtcSetSceneBuildQuality(top, RTC_BUILD_QUALITY_LOW);
             let is_moving = |o: u32| moving.contains(&o);
-            out.static_prims = (0..geometry.triangles.len() as u32)
+            let triangles: Vec<_> = geometry.triangles.iter().collect();
+            out.static_prims = (0..triangles.len() as u32)
                 .filter(|&i| {
-                    let t = &geometry.triangles[i as usize];
+                    let t = &triangles[i as usize];
                     !is_moving(t.object) && triangle_is_traceable(t)
                 })
                 .collect();
             if !out.static_prims.is_empty() {
                 let prims = &out.static_prims;
                 let geom = triangle_geometry(device, prims.len(), |p| {
-                    let t = &geometry.triangles[prims[p] as usize];
+                    let t = &triangles[prims[p] as usize];
                     [t.v0, t.v1, t.v2]
                 })?;
                 let id = rtcAttachGeometry(top, geom);
@@ -651,7 +654,7 @@ mod tests {
         let mut h8c = vec![None; rays.len()];
         e.intersect8_coherent(&rays, &mut h8c);
         let hyrt: Vec<Option<u32>> =
-            rays.iter().map(|r| bvh.closest_hit(&g.triangles, r).map(|h| h.triangle)).collect();
+            rays.iter().map(|r| bvh.closest_hit(g.traversal_table(), r).map(|h| h.triangle)).collect();
         let mut o1 = vec![false; rays.len()];
         let mut o8 = vec![false; rays.len()];
         e.occluded1(&rays, &mut o1);
@@ -697,7 +700,7 @@ mod tests {
         for copies in [0, 3] {
             let (mut scene, moving) = moving_scene(copies);
             let g = WorldGeometry::build(&scene);
-            let mut prepared = hyrt_cpu::bvh_build::prepare_moving(&scene, g.clone(), BvhPreset::default(), &moving);
+            let mut prepared = hyrt_cpu::bvh_build::prepare_moving(&scene, BvhPreset::default(), &moving);
             assert!(prepared.levels.is_some());
             let mut e = EmbreeInstances::new(&scene, &g, &moving, "threads=1").unwrap();
             let mut flat = EmbreeScene::new(&g, "threads=1").unwrap();
@@ -714,12 +717,12 @@ mod tests {
                 prepared.move_objects(&scene, &moving).unwrap();
                 flat.rebuild(&prepared.geometry).unwrap();
                 let levels = prepared.levels.as_ref().unwrap();
-                let t = &prepared.geometry.triangles;
-                let hyrt: Vec<Option<u32>> =
-                    rays.iter().map(|r| levels.closest_hit(t, r).map(|h| h.triangle)).collect();
+                let g = &prepared.geometry;
+                let hyrt: Vec<Option<u32>> = rays.iter().map(|r| levels.closest_hit(r).map(|h| h.triangle)).collect();
                 let mut embree = vec![None; rays.len()];
                 e.intersect1(&rays, &mut embree);
-                let moving_hits = hyrt.iter().flatten().filter(|&&h| moving.contains(&t[h as usize].object)).count();
+                let moving_hits =
+                    hyrt.iter().flatten().filter(|&&h| moving.contains(&g.triangle(h as usize).object)).count();
                 assert!(moving_hits > 20, "frame {frame}, {copies} copies: {moving_hits} rays on the moving objects");
                 assert_eq!(hyrt, embree, "frame {frame}, {copies} copies");
                 // The flat rebuild in world space: a ray on a shared edge or on two touching

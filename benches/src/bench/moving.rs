@@ -251,10 +251,10 @@ fn interleaved_frames(
 
 /// Where hyrt's closest hit lands for each ray (global triangle index).
 fn hyrt_hits(prepared: &PreparedScene, rays: &[RayRecord]) -> Vec<Option<u32>> {
-    let t = &prepared.geometry.triangles;
+    let t = prepared.geometry.traversal_table();
     rays.iter()
         .map(|r| match &prepared.levels {
-            Some(l) => l.closest_hit(t, r),
+            Some(l) => l.closest_hit(r),
             None => prepared.bvh.closest_hit(t, r),
         })
         .map(|h| h.map(|h| h.triangle))
@@ -264,7 +264,7 @@ fn hyrt_hits(prepared: &PreparedScene, rays: &[RayRecord]) -> Vec<Option<u32>> {
 /// Rays whose hit or miss differs, and rays both hit on different objects.
 #[cfg_attr(not(feature = "embree"), allow(dead_code))]
 fn compare(g: &WorldGeometry, a: &[Option<u32>], b: &[Option<u32>]) -> (usize, usize) {
-    let object = |t: u32| g.triangles[t as usize].object;
+    let object = |t: u32| g.triangle(t as usize).object;
     let miss = a.iter().zip(b).filter(|(a, b)| a.is_some() != b.is_some()).count();
     let other =
         a.iter().zip(b).filter(|(a, b)| matches!((a, b), (Some(x), Some(y)) if object(*x) != object(*y))).count();
@@ -287,7 +287,7 @@ fn measure(
     let rests: Vec<Mat4> = moving.iter().map(|&o| scene.objects[o as usize].transform).collect();
     let step = scene.world_bounds().map_or(0.01, |(lo, hi)| (hi - lo).length() * 1e-3);
     let world = WorldGeometry::build(&scene);
-    let prepared = hyrt_cpu::bvh_build::prepare_moving(&scene, world.clone(), preset, moving);
+    let prepared = hyrt_cpu::bvh_build::prepare_moving(&scene, preset, moving);
     #[cfg(feature = "embree")]
     let embree = {
         use super::embree::{EmbreeInstances, EmbreeScene};
@@ -382,7 +382,7 @@ fn measure(
     let mut check = Check {
         size: check_size,
         rays: rays.len(),
-        moving_hits: hyrt.iter().flatten().filter(|&&t| moving.contains(&g.triangles[t as usize].object)).count(),
+        moving_hits: hyrt.iter().flatten().filter(|&&t| moving.contains(&g.triangle(t as usize).object)).count(),
         hits: hyrt.iter().flatten().count(),
         hyrt_rebuilt_differ: hyrt.iter().zip(hyrt_hits(&rebuilt, &rays)).filter(|(a, b)| **a != *b).count(),
         ..Check::default()
@@ -589,8 +589,7 @@ mod tests {
         assert!(many.objects.iter().enumerate().all(|(i, o)| o.id == i as u32));
         let mesh = scene.objects[0].mesh;
         assert!(moving.iter().all(|&o| many.objects[o as usize].mesh == mesh));
-        let g = WorldGeometry::build(&many);
-        let prepared = hyrt_cpu::bvh_build::prepare_moving(&many, g, BvhPreset::default(), &moving);
+        let prepared = hyrt_cpu::bvh_build::prepare_moving(&many, BvhPreset::default(), &moving);
         let levels = prepared.levels.as_ref().unwrap();
         // The world-space level and one bottom level for the five.
         assert_eq!(levels.bottoms.len(), 2);

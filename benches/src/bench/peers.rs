@@ -306,7 +306,7 @@ fn measure_scene(
             let mut contenders: Vec<Contender<'_>> = Vec::new();
             for (&traversal, o) in traversals.iter().zip(outs.iter_mut()) {
                 let (pool, shadow) = (&pool, &shadow);
-                let run = move || pool.install(|| occluded_batch_into(bvh, &g.triangles, shadow, traversal, o));
+                let run = move || pool.install(|| occluded_batch_into(bvh, g.traversal_table(), shadow, traversal, o));
                 contenders.push((hyrt_method("Bvh::occluded", traversal), Box::new(run)));
             }
             #[cfg(feature = "embree")]
@@ -397,7 +397,7 @@ fn closest_hit_runs(
     let runs = {
         let mut contenders: Vec<Contender<'_>> = Vec::new();
         for (&traversal, o) in traversals.iter().zip(outs.iter_mut()) {
-            let run = move || pool.install(|| closest_hit_batch_into(bvh, &g.triangles, rays, traversal, o));
+            let run = move || pool.install(|| closest_hit_batch_into(bvh, g.traversal_table(), rays, traversal, o));
             contenders.push((hyrt_method("Bvh::closest_hit", traversal), Box::new(run)));
         }
         #[cfg(feature = "embree")]

@@ -167,7 +167,31 @@ pub struct TwoLevelBvh {
     pub build_preset: BvhPreset,
 }
 
+/// Per object: its world-to-object map when [`TwoLevelBvh::build`] makes it an instance
+/// (flagged in `moving`, or sharing its mesh, and well conditioned).
+fn instance_maps(scene: &Scene, moving: &[bool]) -> Vec<Option<ObjectMap>> {
+    let mut users = vec![0u32; scene.meshes.len()];
+    for o in &scene.objects {
+        users[o.mesh] += 1;
+    }
+    scene
+        .objects
+        .iter()
+        .map(|o| {
+            let wanted = moving.get(o.id as usize).copied().unwrap_or(false) || users[o.mesh] > 1;
+            wanted.then(|| world_to_object(o.transform)).flatten()
+        })
+        .collect()
+}
+
 impl TwoLevelBvh {
+    /// Per object (by id): whether [`TwoLevelBvh::build`] with these `moving` flags traces
+    /// it in its own space. Exactly these objects may be kept by reference in the world
+    /// tables ([`WorldGeometry::build_placed`]): the world-space level holds the others.
+    pub fn object_space_objects(scene: &Scene, moving: &[bool]) -> Vec<bool> {
+        instance_maps(scene, moving).iter().map(Option::is_some).collect()
+    }
+
     /// Build the levels of `scene` (whose world tables are `geometry`). Objects flagged in
     /// `moving` (indexed by object id; shorter means false) and objects sharing a mesh
     /// with another become instances of their mesh's bottom level; the others are baked
@@ -175,25 +199,14 @@ impl TwoLevelBvh {
     /// inverse ([`world_to_object`]) is baked whatever it is flagged. Validated in debug
     /// builds.
     pub fn build(scene: &Scene, geometry: &WorldGeometry, preset: BvhPreset, moving: &[bool]) -> TwoLevelBvh {
-        let mut users = vec![0u32; scene.meshes.len()];
-        for o in &scene.objects {
-            users[o.mesh] += 1;
-        }
         // Per object: its world-to-object map when it is an instance.
-        let maps: Vec<Option<ObjectMap>> = scene
-            .objects
-            .iter()
-            .map(|o| {
-                let wanted = moving.get(o.id as usize).copied().unwrap_or(false) || users[o.mesh] > 1;
-                wanted.then(|| world_to_object(o.transform)).flatten()
-            })
-            .collect();
+        let maps = instance_maps(scene, moving);
         let mut levels = TwoLevelBvh { build_preset: preset, ..TwoLevelBvh::default() };
         // (instance, its world box) in object order, the world-space level first.
         let mut instances: Vec<(InstanceRecord, (Vec3, Vec3))> = Vec::new();
-        let baked = |i: u32| maps[geometry.triangles[i as usize].object as usize].is_none();
         if maps.iter().any(Option::is_none) {
-            let world = Bvh::build_filtered(&geometry.triangles, preset, &baked);
+            let baked = |o: u32| maps[o as usize].is_none();
+            let world = Bvh::build_stored(&geometry.triangles, &geometry.objects, preset, &baked);
             if let Some(root) = world.nodes.first() {
                 instances.push((InstanceRecord::identity(0), (root.min(), root.max())));
                 levels.bottoms.push(world);
@@ -248,9 +261,11 @@ impl TwoLevelBvh {
             }
             let o = &scene.objects[instance.object as usize];
             let record = &geometry.objects[instance.object as usize];
-            let alpha = geometry.triangles[record.first_triangle as usize..][..record.triangle_count as usize]
-                .first()
-                .map_or(0, |t| t.flags & TRI_ALPHA_TEST);
+            let alpha = if record.triangle_count > 0 {
+                geometry.triangle(record.first_triangle as usize).flags & TRI_ALPHA_TEST
+            } else {
+                0
+            };
             let mirrored = Mat3::from_mat4(o.transform).determinant() < 0.0;
             instance.flags = alpha | if mirrored { INSTANCE_MIRRORED } else { 0 };
             let map = instance.world_to_object();
@@ -402,9 +417,19 @@ impl TwoLevelBvh {
             let bottom =
                 self.bottoms.get(inst.bottom as usize).ok_or_else(|| format!("instance {i}: no bottom level"))?;
             if inst.flags & INSTANCE_IDENTITY != 0 {
-                let object_of = |t: u32| geometry.triangles[t as usize].object;
-                let baked = |t: u32| self.in_object_space.get(object_of(t) as usize) == Some(&false);
-                bottom.validate_filtered(&geometry.triangles, &baked).map_err(|e| format!("world-space level: {e}"))?;
+                // Against the stored records, by record index (the world level holds only
+                // stored objects, whatever the table's other objects are).
+                let records = geometry.triangles.stored_records();
+                // Its wide view names global ids, as its slots do.
+                bottom.wide.validate(bottom).map_err(|e| format!("world-space level's wide view: {e}"))?;
+                let mut by_record = bottom.clone();
+                for p in &mut by_record.prim_indices {
+                    *p = geometry.triangles.record_of(*p as usize).ok_or("world-space level: object by reference")?
+                        as u32;
+                }
+                by_record.wide = super::wide::WideBvh::collapse(&by_record);
+                let baked = |r: u32| self.in_object_space.get(records[r as usize].object as usize) == Some(&false);
+                by_record.validate_filtered(records, &baked).map_err(|e| format!("world-space level: {e}"))?;
             } else {
                 let o = geometry.objects.get(inst.object as usize).ok_or_else(|| format!("instance {i}: no object"))?;
                 let own = self.object_instance[inst.object as usize] == i as u32
@@ -462,15 +487,10 @@ impl TwoLevelBvh {
     }
 
     /// Any hit with `t_min < t < t_max` over every instance, as [`Bvh::occluded_filtered`]:
-    /// `triangles` is the world table (alpha tests read the world record of the hit
-    /// triangle, whose object is the instance's).
-    pub fn occluded_filtered(
-        &self,
-        triangles: &[TriangleRecord],
-        ray: &RayRecord,
-        accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool,
-    ) -> bool {
-        self.occluded_walk(triangles, ray, false, accept)
+    /// `accept` gets the hit triangle's record as its level holds it (object-space
+    /// vertices in an instance) with its object set to the instance's, and its global id.
+    pub fn occluded_filtered(&self, ray: &RayRecord, accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool) -> bool {
+        self.occluded_walk(ray, false, accept)
     }
 
     /// [`TwoLevelBvh::occluded_filtered`] over the object-space instances only: for a
@@ -478,11 +498,10 @@ impl TwoLevelBvh {
     /// [`Bvh`] (the CPU backend's packets), and traces only the rays it found unoccluded.
     pub fn occluded_in_object_space(
         &self,
-        triangles: &[TriangleRecord],
         ray: &RayRecord,
         accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool,
     ) -> bool {
-        self.occluded_walk(triangles, ray, true, accept)
+        self.occluded_walk(ray, true, accept)
     }
 
     /// Whether some instance is traced in object space (else the world-space level is the
@@ -500,7 +519,6 @@ impl TwoLevelBvh {
     #[inline(always)]
     fn occluded_walk(
         &self,
-        triangles: &[TriangleRecord],
         ray: &RayRecord,
         skip_world: bool,
         accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool,
@@ -513,7 +531,7 @@ impl TwoLevelBvh {
             let bottom = &self.bottoms[inst.bottom as usize];
             let accept = |slot: u32, u: f32, v: f32| {
                 let id = inst.first_triangle + bottom.prim_indices[slot as usize];
-                accept(&triangles[id as usize], id, u, v)
+                accept(&hit_record(inst, bottom, slot), id, u, v)
             };
             let hit = if inst.flags & INSTANCE_IDENTITY != 0 {
                 !skip_world && bottom.occluded_ray(&r, 0, accept)
@@ -531,8 +549,8 @@ impl TwoLevelBvh {
     }
 
     /// Any hit, no alpha test ([`Bvh::occluded`]).
-    pub fn occluded(&self, triangles: &[TriangleRecord], ray: &RayRecord) -> bool {
-        self.occluded_filtered(triangles, ray, |_, _, _, _| true)
+    pub fn occluded(&self, ray: &RayRecord) -> bool {
+        self.occluded_filtered(ray, |_, _, _, _| true)
     }
 
     /// The closest hit with `t_min < t < t_max` over every instance, as
@@ -540,11 +558,10 @@ impl TwoLevelBvh {
     /// across instances too; `back_face` is the world facing.
     pub fn closest_hit_filtered(
         &self,
-        triangles: &[TriangleRecord],
         ray: &RayRecord,
         accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool,
     ) -> Option<ClosestHit> {
-        self.closest_walk(triangles, ray, None, false, accept)
+        self.closest_walk(ray, None, false, accept)
     }
 
     /// [`TwoLevelBvh::closest_hit_filtered`] over the object-space instances only, from
@@ -552,18 +569,16 @@ impl TwoLevelBvh {
     /// traversal): the closer of the two under the same `(t, triangle)` order.
     pub fn closest_hit_in_object_space(
         &self,
-        triangles: &[TriangleRecord],
         ray: &RayRecord,
         best: Option<ClosestHit>,
         accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool,
     ) -> Option<ClosestHit> {
-        self.closest_walk(triangles, ray, best, true, accept)
+        self.closest_walk(ray, best, true, accept)
     }
 
     #[inline(always)]
     fn closest_walk(
         &self,
-        triangles: &[TriangleRecord],
         ray: &RayRecord,
         start: Option<ClosestHit>,
         skip_world: bool,
@@ -579,7 +594,7 @@ impl TwoLevelBvh {
             let inst = &self.instances[leaf.first as usize];
             let bottom = &self.bottoms[inst.bottom as usize];
             let id_of = |slot: u32| inst.first_triangle + bottom.prim_indices[slot as usize];
-            let accept = |_: u32, id: u32, u: f32, v: f32| accept(&triangles[id as usize], id, u, v);
+            let accept = |slot: u32, id: u32, u: f32, v: f32| accept(&hit_record(inst, bottom, slot), id, u, v);
             let found = if inst.flags & INSTANCE_IDENTITY != 0 {
                 !skip_world && bottom.closest_ray(&r, &mut best, id_of, 0, accept)
             } else {
@@ -601,8 +616,8 @@ impl TwoLevelBvh {
     }
 
     /// The closest hit, no alpha test ([`Bvh::closest_hit`]).
-    pub fn closest_hit(&self, triangles: &[TriangleRecord], ray: &RayRecord) -> Option<ClosestHit> {
-        self.closest_hit_filtered(triangles, ray, |_, _, _, _| true)
+    pub fn closest_hit(&self, ray: &RayRecord) -> Option<ClosestHit> {
+        self.closest_hit_filtered(ray, |_, _, _, _| true)
     }
 
     /// Bytes held by the levels' nodes, slots and triangle copies, and the instances.
@@ -686,6 +701,14 @@ impl TwoLevelBvh {
 fn object_ray(inst: &InstanceRecord, ray: &RayRecord) -> Option<TraversalRay> {
     let (origin, direction) = to_object_space(&inst.world_to_object(), ray.origin.into(), ray.direction.into());
     TraversalRay::new(&RayRecord { origin: origin.into(), direction: direction.into(), ..*ray })
+}
+
+/// The record an alpha test reads for a hit on leaf slot `slot` of `bottom` through
+/// `inst`: the leaf's copy, its object the instance's (a bottom level shared by several
+/// objects names the first).
+#[inline(always)]
+fn hit_record(inst: &InstanceRecord, bottom: &Bvh, slot: u32) -> TriangleRecord {
+    TriangleRecord { object: inst.object, ..bottom.leaf_triangles[slot as usize] }
 }
 
 /// A mesh's triangles in its own space, as its bottom level holds them: the mesh-local

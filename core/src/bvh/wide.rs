@@ -367,11 +367,11 @@ mod tests {
 
     /// `n` small triangles on a jittered grid of the plane z = 0 (and a few stacked in z).
     fn grid(n: usize) -> WorldGeometry {
-        let mut g = WorldGeometry::default();
+        let (mut records, mut normals) = (Vec::new(), Vec::new());
         for i in 0..n {
             let (x, y, z) = ((i % 37) as f32, ((i / 37) % 23) as f32, (i / (37 * 23)) as f32);
             let o = Vec3::new(x * 1.1, y * 0.9 + 0.01 * x, z * 2.0);
-            g.triangles.push(TriangleRecord {
+            records.push(TriangleRecord {
                 v0: o.into(),
                 object: 0,
                 v1: (o + Vec3::new(0.5, 0.0, 0.1)).into(),
@@ -379,9 +379,9 @@ mod tests {
                 v2: (o + Vec3::new(0.0, 0.5, 0.2)).into(),
                 flags: TRI_RAY_TRACED,
             });
-            g.normals.push([Vec3::Z; 3]);
+            normals.push([Vec3::Z; 3]);
         }
-        g
+        WorldGeometry { triangles: crate::geometry::WorldTriangles::stored(records, normals), ..Default::default() }
     }
 
     #[test]

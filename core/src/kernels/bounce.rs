@@ -41,10 +41,10 @@
 use glam::Vec3;
 
 use crate::formats::{
-    GBufferTexel, HitRecord, LightRecord, ObjectRecord, RayRecord, SurfaceRecord, TriangleRecord, GBUF_BACK_FACE,
-    INVALID_ID, MATERIAL_GLASS, MATERIAL_SPECULAR, OBJ_RAY_TRACED, RAY_KIND_REFLECTION, RAY_KIND_REFRACTION,
-    TRI_INWARD,
+    GBufferTexel, HitRecord, LightRecord, ObjectRecord, RayRecord, SurfaceRecord, GBUF_BACK_FACE, INVALID_ID,
+    MATERIAL_GLASS, MATERIAL_SPECULAR, OBJ_RAY_TRACED, RAY_KIND_REFLECTION, RAY_KIND_REFRACTION, TRI_INWARD,
 };
+use crate::geometry::WorldTriangles;
 use crate::kernels::environment::environment_radiance;
 pub use crate::kernels::environment::{sky, SKY_GROUND, SKY_HORIZON, SKY_ZENITH};
 use crate::kernels::ray::offset_ray_origin;
@@ -376,7 +376,7 @@ pub fn secondary_parent<'a>(ray: &RayRecord, hit: &HitRecord, s: &'a SurfaceReco
 /// ([`Parent::object`]); `None` for a miss or a surface that does not bounce. `triangles`
 /// give the mesh's winding ([`TRI_INWARD`]), hence which side is the exterior.
 #[inline]
-pub fn parent_lobes<'p>(p: &'p Parent, triangles: &[TriangleRecord]) -> Option<(&'p ObjectRecord, Lobes)> {
+pub fn parent_lobes<'p>(p: &'p Parent, triangles: &WorldTriangles) -> Option<(&'p ObjectRecord, Lobes)> {
     let s = p.surface;
     if !s.is_hit() {
         return None;
@@ -385,14 +385,14 @@ pub fn parent_lobes<'p>(p: &'p Parent, triangles: &[TriangleRecord]) -> Option<(
     if !bounces(obj) {
         return None;
     }
-    let inward = triangles[s.triangle as usize].flags & TRI_INWARD != 0;
+    let inward = triangles.flags(s.triangle as usize) & TRI_INWARD != 0;
     Some((obj, lobes(obj, s, p.d, sees_exterior(p.back_face, inward))))
 }
 
 /// The rays of bounce `depth` a parent spawns: `[reflection, refraction]`, both `None`
 /// where it does not bounce ([`parent_lobes`], [`secondary_rays`]).
 #[inline]
-pub fn spawn(p: &Parent, triangles: &[TriangleRecord], depth: u32) -> [Option<RayRecord>; 2] {
+pub fn spawn(p: &Parent, triangles: &WorldTriangles, depth: u32) -> [Option<RayRecord>; 2] {
     match parent_lobes(p, triangles) {
         Some((_, l)) => secondary_rays(p.surface, &l, p.throughput, p.pixel, depth, p.cone),
         None => [None, None],
@@ -413,7 +413,7 @@ pub fn spawn(p: &Parent, triangles: &[TriangleRecord], depth: u32) -> [Option<Ra
 pub fn shade_secondary_hit(
     p: &Parent,
     env: &Environment,
-    triangles: &[TriangleRecord],
+    triangles: &WorldTriangles,
     shadow: &[u8],
     lights: &[LightRecord],
     children: [u32; 2],
@@ -441,7 +441,7 @@ pub fn shade_secondary_hit(
 #[allow(clippy::too_many_arguments)]
 pub fn shade_rt_pixel_bouncing(
     p: &Parent,
-    triangles: &[TriangleRecord],
+    triangles: &WorldTriangles,
     shadow: &[u8],
     lights: &[LightRecord],
     eye: Vec3,

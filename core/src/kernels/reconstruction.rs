@@ -31,7 +31,7 @@ pub fn reconstruct_texel(t: &GBufferTexel, geometry: &WorldGeometry, eye: Vec3) 
 #[inline]
 pub fn reintersected_barycentrics(t: &GBufferTexel, geometry: &WorldGeometry, ray: &RayRecord) -> (f32, f32) {
     let gi = geometry.global_triangle(t.object, t.triangle);
-    let [v0, v1, v2] = geometry.triangles[gi].vertices();
+    let [v0, v1, v2] = geometry.triangle(gi).vertices();
     WatertightRay::new(Vec3::from(ray.origin), Vec3::from(ray.direction))
         .and_then(|w| w.intersect(0.0, f32::INFINITY, v0, v1, v2))
         .map_or((t.bary_u, t.bary_v), |h| (h.u, h.v))
@@ -52,11 +52,12 @@ pub fn reconstruct_texel_reintersected(t: &GBufferTexel, geometry: &WorldGeometr
 #[inline]
 fn texel_surface(t: &GBufferTexel, geometry: &WorldGeometry, eye: Vec3, (u, v): (f32, f32)) -> SurfaceRecord {
     let gi = geometry.global_triangle(t.object, t.triangle);
-    let [v0, v1, v2] = geometry.triangles[gi].vertices();
+    let tri = geometry.triangle(gi);
+    let [v0, v1, v2] = tri.vertices();
     let p = reconstruct_position(u, v, v0, v1, v2);
     // A degenerate triangle without vertex normals is shaded as facing the viewer.
     let toward_viewer = || (eye - p).normalize_or(Vec3::Y);
-    surface_at(geometry, gi, u, v, t.flags & GBUF_BACK_FACE != 0, p, toward_viewer)
+    surface_at(geometry, gi, &tri, u, v, t.flags & GBUF_BACK_FACE != 0, p, toward_viewer)
 }
 
 /// Rebuild the surface a secondary ray hit (`bounce_trace`): the paper's eq. 1 again,
@@ -68,32 +69,34 @@ pub fn reconstruct_hit(hit: &HitRecord, geometry: &WorldGeometry, direction: Vec
         return SurfaceRecord::MISS;
     }
     let gi = hit.triangle as usize;
-    let [v0, v1, v2] = geometry.triangles[gi].vertices();
+    let tri = geometry.triangle(gi);
+    let [v0, v1, v2] = tri.vertices();
     let p = reconstruct_position(hit.u, hit.v, v0, v1, v2);
     let toward_viewer = || (-direction).normalize_or(Vec3::Y);
-    surface_at(geometry, gi, hit.u, hit.v, hit.is_back_face(), p, toward_viewer)
+    surface_at(geometry, gi, &tri, hit.u, hit.v, hit.is_back_face(), p, toward_viewer)
 }
 
-/// The surface record at barycentrics `(u, v)` of global triangle `gi`, whose point
+/// The surface record at barycentrics `(u, v)` of global triangle `gi` (record `tri`), whose point
 /// `p` the caller reconstructed, seen from its back when `back_face`; a degenerate
 /// triangle without vertex normals gets the normal `toward_viewer()`.
 #[inline]
+#[allow(clippy::too_many_arguments)]
 fn surface_at(
     geometry: &WorldGeometry,
     gi: usize,
+    tri: &crate::formats::TriangleRecord,
     u: f32,
     v: f32,
     back_face: bool,
     p: Vec3,
     toward_viewer: impl FnOnce() -> Vec3,
 ) -> SurfaceRecord {
-    let tri = &geometry.triangles[gi];
     let [v0, v1, v2] = tri.vertices();
     // Its object's offset error: what tracing its rays in the object's own space adds
     // (0 for an object baked into world space; `kernels::instance`).
     let err = position_error_bound(u, v, v0, v1, v2).max_element() + geometry.objects[tri.object as usize].offset_error;
     let ng = geometric_normal(v0, v1, v2);
-    let ns = interpolate_normal(u, v, geometry.normals[gi], ng);
+    let ns = interpolate_normal(u, v, geometry.triangles.normals(gi), ng);
     // The side the ray saw, exactly (for primary hits the sign of the snapped triangle's
     // area, for secondary hits the sign of the watertight determinant).
     let (ng, ns) = orient_to_seen_side(ng, ns, back_face);

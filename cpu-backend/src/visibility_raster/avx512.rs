@@ -12,8 +12,8 @@ use hyrt_core::formats::GBufferTexel;
 use hyrt_core::kernels::raster::INTERIOR_DEPTH_BIAS_ULPS;
 
 use super::{
-    rasterize_tile_with, resolve_tile, AlphaTests, Fragment, FragmentSink, RasterTriangle, SetupTriangles, Span,
-    TexelRun, TileScratch, NOT_CORNERS, TILE_PIXELS,
+    rasterize_tile_with, resolve_tile, AlphaTests, Fragment, FragmentSink, RasterTriangle, Resolve, SetupTriangles,
+    Span, TexelRun, TileScratch, NOT_CORNERS, TILE_PIXELS,
 };
 
 /// Pixels per vector.
@@ -26,6 +26,7 @@ const LANE_OFFSETS: [i64; LANES] = [0, 1, 2, 3, 4, 5, 6, 7];
 /// # Safety
 /// The CPU must have AVX-512 F, VL, DQ and BW.
 #[target_feature(enable = "avx2,avx512f,avx512vl,avx512dq,avx512bw")]
+#[allow(clippy::too_many_arguments)]
 pub(super) unsafe fn tile(
     tris: &SetupTriangles,
     tile: usize,
@@ -33,10 +34,11 @@ pub(super) unsafe fn tile(
     scratch: &mut TileScratch,
     rows: Vec<&mut [GBufferTexel]>,
     alpha: Option<AlphaTests>,
+    resolve: Resolve,
 ) -> usize {
     // Masked triangles (a frame with alpha tests) go pixel by pixel, the others eight at a time.
     rasterize_tile_with(tris, tile, rect, Avx512Sink(scratch), alpha);
-    resolve_tile::<Avx512Texels>(tris, scratch, rect, rows)
+    resolve_tile::<Avx512Texels>(tris, scratch, rect, rows, resolve)
 }
 
 /// `base + k * step` for the eight lanes `k` (`base` and `step` broadcast).

@@ -6,7 +6,10 @@
 //! Vertices are transformed to world space once, here, in f32, so the raster,
 //! the BVH and reconstruction (on either backend) see the very same bits.
 
+mod triangles;
+
 use std::collections::HashMap;
+use std::sync::Arc;
 
 use bytemuck::Zeroable;
 
@@ -18,6 +21,8 @@ use crate::formats::{
 };
 use crate::kernels::texture::{triangle_lod_bias, SurfaceView};
 use crate::scene::{Environment, Material, MaterialKind, Mesh, RenderMode, Scene};
+
+pub use triangles::{world_normals, world_record, ByReference, MeshSource, ObjectTransform, Placement, WorldTriangles};
 
 /// How a mesh's triangles are wound, as far as the renderer needs to know: which side of a
 /// closed mesh is its exterior.
@@ -127,12 +132,11 @@ impl MeshWinding {
 /// World-space tables of a scene.
 #[derive(Clone, Debug, Default)]
 pub struct WorldGeometry {
-    /// All triangles; object `o` owns `objects[o].first_triangle ..+ triangle_count`.
-    pub triangles: Vec<TriangleRecord>,
-    /// World-space unit normals at the three corners of each triangle: the mesh's
-    /// vertex normals when it has them, else the geometric normal (zero for a
-    /// degenerate triangle).
-    pub normals: Vec<[Vec3; 3]>,
+    /// All triangles and their world-space unit normals at the three corners (the mesh's
+    /// vertex normals when it has them, else the geometric normal, zero for a degenerate
+    /// triangle); object `o` owns `objects[o].first_triangle ..+ triangle_count`, stored
+    /// or by reference ([`WorldTriangles`]).
+    pub triangles: WorldTriangles,
     pub objects: Vec<ObjectRecord>,
     pub lights: Vec<LightRecord>,
     /// World bounds of the triangles' finite vertices (min, max); a unit box around the
@@ -151,6 +155,60 @@ pub struct WorldGeometry {
     /// two sorts of its vertices), kept so that moving an object
     /// ([`WorldGeometry::update_object`]) does not classify its mesh again.
     pub windings: Vec<MeshWinding>,
+    /// Per object: the bounds of its finite world vertices and its triangles with a
+    /// non-finite one, so that moving an object rescans only it.
+    pub extents: Vec<ObjectExtent>,
+}
+
+/// The world-space extent of one object.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ObjectExtent {
+    /// Bounds of the finite vertices of its triangles (`lo > hi` when there is none).
+    pub lo: Vec3,
+    pub hi: Vec3,
+    /// Triangles with a NaN or infinite vertex.
+    pub non_finite_triangles: usize,
+}
+
+impl Default for ObjectExtent {
+    fn default() -> Self {
+        ObjectExtent { lo: Vec3::splat(f32::INFINITY), hi: Vec3::splat(f32::NEG_INFINITY), non_finite_triangles: 0 }
+    }
+}
+
+impl ObjectExtent {
+    /// The extent of triangles `indices` over world vertices `world`.
+    pub fn of(world: &[Vec3], indices: &[[u32; 3]]) -> ObjectExtent {
+        let mut e = ObjectExtent::default();
+        if world.iter().all(|v| v.is_finite()) {
+            // Every vertex finite (the common case): the bounds of those the triangles use.
+            let mut used = vec![false; world.len()];
+            for idx in indices {
+                for &i in idx {
+                    used[i as usize] = true;
+                }
+            }
+            for (v, _) in world.iter().zip(&used).filter(|(_, &u)| u) {
+                e.lo = e.lo.min(*v);
+                e.hi = e.hi.max(*v);
+            }
+            return e;
+        }
+        for idx in indices {
+            let mut finite = true;
+            for &i in idx {
+                let v = world[i as usize];
+                if v.is_finite() {
+                    e.lo = e.lo.min(v);
+                    e.hi = e.hi.max(v);
+                } else {
+                    finite = false;
+                }
+            }
+            e.non_finite_triangles += !finite as usize;
+        }
+        e
+    }
 }
 
 /// What materials add to the plain colour of [`ObjectRecord`]: built only for a scene
@@ -246,7 +304,7 @@ fn material_flags(material: &Material, mesh: &Mesh) -> u32 {
 }
 
 /// Build the [`SurfaceTables`] of `scene`, given the triangles already in world space.
-fn surface_tables(scene: &Scene, triangles: &[TriangleRecord]) -> SurfaceTables {
+fn surface_tables(scene: &Scene, triangles: &WorldTriangles) -> SurfaceTables {
     let flags: Vec<u32> =
         scene.objects.iter().map(|o| material_flags(&scene.materials[o.material], &scene.meshes[o.mesh])).collect();
     let mut t = SurfaceTables::default();
@@ -281,7 +339,9 @@ fn surface_tables(scene: &Scene, triangles: &[TriangleRecord]) -> SurfaceTables 
                 .or_insert_with(|| t.textures.add(image, &binding.sampler));
             record.texture = texture;
             let coords = mesh.attributes.tex_coords[binding.tex_coord as usize].as_ref().expect("flag says so");
-            fill_uvs(&mut t.uvs[range.clone()], mesh, &triangles[range.clone()], coords, &binding.transform, image);
+            let mut world = Vec::new();
+            triangles.fill(range.clone(), &mut world);
+            fill_uvs(&mut t.uvs[range.clone()], mesh, &world, coords, &binding.transform, image);
         }
         if let Some(colors) = &mesh.attributes.colors {
             for (out, idx) in t.colors[range.clone()].iter_mut().zip(&mesh.indices) {
@@ -316,39 +376,59 @@ fn fill_uvs(
 }
 
 impl WorldGeometry {
-    /// Transform every object of `scene` to world space.
+    /// Transform every object of `scene` to world space, every object stored.
     pub fn build(scene: &Scene) -> WorldGeometry {
+        WorldGeometry::build_placed(scene, &[])
+    }
+
+    /// [`WorldGeometry::build`] with the objects flagged in `by_reference` (indexed by
+    /// object id; shorter means false) kept by reference ([`triangles`](self::triangles)):
+    /// their mesh once, however many objects draw it, and their transform; their records
+    /// are made on read, the same bits as stored ones.
+    pub fn build_placed(scene: &Scene, by_reference: &[bool]) -> WorldGeometry {
         let mut g = WorldGeometry::default();
         // Each mesh classified once, however many objects share it.
         let mut windings: Vec<Option<MeshWinding>> = vec![None; scene.meshes.len()];
-        let total = scene.objects.iter().map(|o| scene.meshes[o.mesh].indices.len()).sum();
-        g.triangles = vec![TriangleRecord::zeroed(); total];
-        g.normals = vec![[Vec3::ZERO; 3]; total];
+        let mut mesh_slot: Vec<Option<u32>> = vec![None; scene.meshes.len()];
+        let mut meshes = Vec::new();
+        let mut placements = Vec::with_capacity(scene.objects.len());
+        let mut counts = Vec::with_capacity(scene.objects.len());
+        let mut first = 0u32;
         for (oi, obj) in scene.objects.iter().enumerate() {
             debug_assert_eq!(obj.id as usize, oi, "object ids must equal their index");
-            let first = g.objects.len().checked_sub(1).map_or(0, |last| {
-                let o: &ObjectRecord = &g.objects[last];
-                o.first_triangle + o.triangle_count
-            });
+            let count = scene.meshes[obj.mesh].indices.len() as u32;
             let winding = *windings[obj.mesh].get_or_insert_with(|| MeshWinding::of_mesh(&scene.meshes[obj.mesh]));
-            g.objects.push(ObjectRecord { first_triangle: first, ..ObjectRecord::zeroed() });
+            g.objects.push(ObjectRecord { first_triangle: first, triangle_count: count, ..ObjectRecord::zeroed() });
             g.windings.push(winding);
-            g.write_object(scene, oi, winding);
+            first += count;
+            counts.push(count);
+            placements.push(by_reference.get(oi).copied().unwrap_or(false).then(|| {
+                let mesh = *mesh_slot[obj.mesh].get_or_insert_with(|| {
+                    meshes.push(Arc::new(MeshSource::of_mesh(&scene.meshes[obj.mesh])));
+                    meshes.len() as u32 - 1
+                });
+                ByReference { mesh, transform: ObjectTransform::new(obj.transform), flags: 0 }
+            }));
+        }
+        g.triangles = WorldTriangles::with_placements(&counts, placements, meshes);
+        g.extents = vec![ObjectExtent::default(); scene.objects.len()];
+        for oi in 0..scene.objects.len() {
+            g.write_object(scene, oi, g.windings[oi]);
         }
         g.lights = scene.lights.iter().map(LightRecord::from_light).collect();
         g.environment = scene.environment.clone();
         g.surface = surface_tables(scene, &g.triangles);
-        g.scan_table();
+        g.union_extents();
         if cfg!(debug_assertions) {
             g.validate().expect("world geometry invariants");
         }
         g
     }
 
-    /// Write object `oi`'s triangles, normals and record (its `first_triangle` already set)
-    /// from the scene's current transform, material and render mode: the one writer of
-    /// [`WorldGeometry::build`] and [`WorldGeometry::update_object`]. `winding` is the
-    /// mesh's, in its own space.
+    /// Write object `oi`'s triangles, normals (or its reference), record and extent (its
+    /// `first_triangle` already set) from the scene's current transform, material and
+    /// render mode: the one writer of [`WorldGeometry::build`] and
+    /// [`WorldGeometry::update_object`]. `winding` is the mesh's, in its own space.
     fn write_object(&mut self, scene: &Scene, oi: usize, winding: MeshWinding) {
         let obj = &scene.objects[oi];
         let mesh = &scene.meshes[obj.mesh];
@@ -359,42 +439,29 @@ impl WorldGeometry {
         let tri_flags = if rt { TRI_RAY_TRACED } else { 0 }
             | if winding == MeshWinding::Inward { TRI_INWARD } else { 0 }
             | if masked { TRI_ALPHA_TEST } else { 0 };
-        let normal_matrix = Mat3::from_mat4(obj.transform).inverse().transpose();
+        let transform = ObjectTransform::new(obj.transform);
         let world: Vec<Vec3> = mesh.positions.iter().map(|p| obj.transform.transform_point3(*p)).collect();
-        let first = self.objects[oi].first_triangle as usize;
-        let range = first..first + mesh.indices.len();
-        for ((ti, idx), (tri, normals)) in
-            mesh.indices.iter().enumerate().zip(self.triangles[range.clone()].iter_mut().zip(&mut self.normals[range]))
-        {
-            let [a, b, c] = idx.map(|i| world[i as usize]);
-            *tri = TriangleRecord {
-                v0: a.into(),
-                object: obj.id,
-                v1: b.into(),
-                triangle: ti as u32,
-                v2: c.into(),
-                flags: tri_flags,
-            };
-            let face = (b - a).cross(c - a).normalize_or_zero();
-            *normals = match &mesh.normals {
-                Some(ns) => idx.map(|i| {
-                    let n = (normal_matrix * ns[i as usize]).normalize_or_zero();
-                    if n == Vec3::ZERO {
-                        face
-                    } else {
-                        n
-                    }
-                }),
-                None => [face; 3],
-            };
+        let first = self.objects[oi].first_triangle;
+        let count = mesh.indices.len() as u32;
+        match self.triangles.placement(oi as u32, first) {
+            Placement::Stored { first_record } => {
+                let (tris, normals) = self.triangles.object_mut(first_record, count);
+                for ((ti, idx), (tri, normals)) in mesh.indices.iter().enumerate().zip(tris.iter_mut().zip(normals)) {
+                    let corners = idx.map(|i| world[i as usize]);
+                    *tri = world_record(corners, obj.id, ti as u32, tri_flags);
+                    *normals = world_normals(corners, *idx, mesh.normals.as_deref(), &transform.normal_matrix);
+                }
+            }
+            Placement::ByReference(_) => self.triangles.set_reference(oi as u32, transform, tri_flags),
         }
+        self.extents[oi] = ObjectExtent::of(&world, &mesh.indices);
         let ior = match mat.kind {
             MaterialKind::Glass { ior } => ior,
             _ => 1.5,
         };
         self.objects[oi] = ObjectRecord {
-            first_triangle: first as u32,
-            triangle_count: mesh.indices.len() as u32,
+            first_triangle: first,
+            triangle_count: count,
             flags: if rt { OBJ_RAY_TRACED } else { 0 },
             material_kind: mat.kind.code(),
             base_color: mat.base_color.into(),
@@ -408,13 +475,29 @@ impl WorldGeometry {
 
     /// Rewrite object `object`'s tables after its transform or render mode changed in
     /// `scene` (the scene these tables were built from: same meshes and materials): its
-    /// triangles and normals in place, its record, its texture level-of-detail constants
-    /// and the scene bounds. Nothing else is touched; the result equals
-    /// [`WorldGeometry::build`] of the changed scene. Costs one pass over the object's
-    /// triangles plus one over the table for the bounds: several objects are
-    /// [`WorldGeometry::update_objects`], one pass over the table for all.
+    /// triangles and normals in place (or its reference), its record, its texture
+    /// level-of-detail constants and the scene bounds. Nothing else is touched; the result
+    /// equals [`WorldGeometry::build_placed`] of the changed scene. Costs one pass over the
+    /// object's vertices and triangles plus one over the objects for the bounds.
     pub fn update_object(&mut self, scene: &Scene, object: u32) {
         self.update_objects(scene, &[object]);
+    }
+
+    /// After `scene.meshes[mesh]` got new vertex positions or normals (the same triangles):
+    /// take the new mesh for the objects that draw it by reference and rewrite the tables
+    /// of every object drawing it ([`WorldGeometry::update_objects`]).
+    pub fn deform_mesh(&mut self, scene: &Scene, mesh: usize) {
+        let users: Vec<u32> = scene.objects.iter().filter(|o| o.mesh == mesh).map(|o| o.id).collect();
+        let mut refreshed = Vec::new();
+        for &o in &users {
+            if let Placement::ByReference(r) = self.triangles.placement(o, self.objects[o as usize].first_triangle) {
+                if !refreshed.contains(&r.mesh) {
+                    self.triangles.set_mesh(r.mesh, MeshSource::of_mesh(&scene.meshes[mesh]));
+                    refreshed.push(r.mesh);
+                }
+            }
+        }
+        self.update_objects(scene, &users);
     }
 
     /// [`WorldGeometry::update_object`] for several objects: each object's tables
@@ -424,7 +507,7 @@ impl WorldGeometry {
             let oi = object as usize;
             self.write_object(scene, oi, self.windings[oi]);
         }
-        self.scan_table();
+        self.union_extents();
         if !self.surface.uvs.is_empty() {
             self.surface = surface_tables(scene, &self.triangles);
         }
@@ -433,23 +516,16 @@ impl WorldGeometry {
         }
     }
 
-    /// Set what depends on the whole triangle table, in one pass over it: the triangles
-    /// with a NaN or infinite vertex (`non_finite_triangles`) and the bounds of the finite
-    /// vertices (`bounds`; a unit box around the origin when there is none).
-    fn scan_table(&mut self) {
+    /// Set what depends on every object's extent: the triangles with a NaN or infinite
+    /// vertex (`non_finite_triangles`) and the bounds of the finite vertices (`bounds`; a
+    /// unit box around the origin when there is none).
+    fn union_extents(&mut self) {
         let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
         let mut non_finite = 0;
-        for t in &self.triangles {
-            let mut finite = true;
-            for v in t.vertices() {
-                if v.is_finite() {
-                    lo = lo.min(v);
-                    hi = hi.max(v);
-                } else {
-                    finite = false;
-                }
-            }
-            non_finite += !finite as usize;
+        for e in &self.extents {
+            lo = lo.min(e.lo);
+            hi = hi.max(e.hi);
+            non_finite += e.non_finite_triangles;
         }
         self.non_finite_triangles = non_finite;
         self.bounds = if lo.x <= hi.x { (lo, hi) } else { (Vec3::splat(-1.0), Vec3::splat(1.0)) };
@@ -458,6 +534,25 @@ impl WorldGeometry {
     /// Number of triangles.
     pub fn triangle_count(&self) -> usize {
         self.triangles.len()
+    }
+
+    /// The table as the traversals take it for their debug checks of leaf copies: the
+    /// whole table when every object is stored, else empty (no check).
+    pub fn traversal_table(&self) -> &[TriangleRecord] {
+        self.triangles.as_slice().unwrap_or(&[])
+    }
+
+    /// The whole table as a slice by global id, for code that needs one (the accuracy
+    /// lab's f64 references). Panics when some object is by reference: such a table is
+    /// never whole in memory (build it with [`WorldGeometry::build`]).
+    pub fn stored_table(&self) -> &[TriangleRecord] {
+        self.triangles.as_slice().expect("a world table with every object stored (WorldGeometry::build)")
+    }
+
+    /// The world record of global triangle `id` ([`WorldTriangles::get`]).
+    #[inline]
+    pub fn triangle(&self, id: usize) -> TriangleRecord {
+        self.triangles.get(id)
     }
 
     /// Number of objects whose render mode is ray traced.
@@ -488,8 +583,8 @@ impl WorldGeometry {
 
     /// Check every record and the object/triangle cross references.
     pub fn validate(&self) -> Result<(), String> {
-        if self.normals.len() != self.triangles.len() {
-            return Err("normals and triangles differ in length".into());
+        if self.extents.len() != self.objects.len() {
+            return Err("extents and objects differ in length".into());
         }
         let mut next = 0u32;
         for (oi, o) in self.objects.iter().enumerate() {
@@ -502,7 +597,7 @@ impl WorldGeometry {
         if next as usize != self.triangles.len() {
             return Err("object triangle counts do not add up".into());
         }
-        for t in &self.triangles {
+        for t in self.triangles.iter() {
             t.validate()?;
             let o = self.objects.get(t.object as usize).ok_or("triangle with unknown object")?;
             if t.triangle >= o.triangle_count {
@@ -522,7 +617,9 @@ impl WorldGeometry {
                 m.validate(s.textures.records.len()).map_err(|e| format!("object {k}: {e}"))?;
                 let masked = m.flags & MAT_ALPHA_TEST != 0;
                 let o = &self.objects[k];
-                let tris = &self.triangles[o.first_triangle as usize..(o.first_triangle + o.triangle_count) as usize];
+                let mut tris = Vec::new();
+                self.triangles
+                    .fill(o.first_triangle as usize..(o.first_triangle + o.triangle_count) as usize, &mut tris);
                 if tris.iter().any(|t| (t.flags & TRI_ALPHA_TEST != 0) != masked) {
                     return Err(format!("object {k}: triangle alpha-test flags disagree with its material"));
                 }
@@ -604,7 +701,8 @@ mod tests {
             .objects
             .iter()
             .map(|o| {
-                let tris = &g.triangles[o.first_triangle as usize..(o.first_triangle + o.triangle_count) as usize];
+                let mut tris = Vec::new();
+                g.triangles.fill(o.first_triangle as usize..(o.first_triangle + o.triangle_count) as usize, &mut tris);
                 assert!(tris.iter().all(|t| t.flags & TRI_INWARD == tris[0].flags & TRI_INWARD));
                 tris[0].flags & TRI_INWARD != 0
             })
