@@ -602,6 +602,9 @@ fn render(args: RenderArgs) -> Result<(), String> {
     } else {
         println!("warm: not measured (one frame; --frames 3 measures the frames after the first)");
     }
+    if let Some(peak) = hyrt::memory::peak_resident_bytes() {
+        println!("peak resident memory: {:.0} MiB (the whole process)", peak as f64 / (1u64 << 20) as f64);
+    }
     if playing.is_none() {
         println!("wrote {}", args.out.display());
     }

@@ -23,3 +23,27 @@ pub fn available_bytes() -> Option<u64> {
         (s, c) => s.or(c),
     }
 }
+
+/// The process's peak resident memory since it started or since the last
+/// [`reset_peak_resident_bytes`], in bytes: `VmHWM` of `/proc/self/status` on Linux;
+/// `None` elsewhere.
+pub fn peak_resident_bytes() -> Option<u64> {
+    status_kib("VmHWM:").map(|k| k.saturating_mul(1024))
+}
+
+/// The process's resident memory now, in bytes (`VmRSS`); `None` where unknown.
+pub fn resident_bytes() -> Option<u64> {
+    status_kib("VmRSS:").map(|k| k.saturating_mul(1024))
+}
+
+/// Reset the peak [`peak_resident_bytes`] reports to the resident memory now (Linux 4.0+:
+/// `5` into `/proc/self/clear_refs`); false where that is not possible.
+pub fn reset_peak_resident_bytes() -> bool {
+    std::fs::write("/proc/self/clear_refs", "5").is_ok()
+}
+
+fn status_kib(key: &str) -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with(key))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}

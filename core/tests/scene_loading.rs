@@ -950,3 +950,37 @@ fn near_and_far_manifests_frame_their_model_large_and_small() {
     assert!(lo.y.abs() < 1e-3 && hi.y - lo.y > hi.x - lo.x, "{lo} {hi}");
     assert!(hi.z - lo.z > hi.y - lo.y, "head to tail along Z: {lo} {hi}");
 }
+
+/// `repeat` places a grid of copies sharing the model's mesh, x fastest, each moved by its
+/// step after the model's own transform; bad counts and steps are errors naming the model.
+#[test]
+fn manifest_repeat_places_copies_sharing_one_mesh() {
+    let dir = temp_dir("manifest_repeat_places_copies_sharing_one_mesh");
+    let path = dir.join("grid.toml");
+    std::fs::write(
+        &path,
+        "[[model]]\nbuiltin = \"cube\"\nname = \"box\"\ntranslate = [1.0, 0.0, 0.0]\nscale = 0.5\n\
+         repeat = { count = [3, 1, 2], step = [2.0, 0.0, -1.0] }\n\
+         [[model]]\nbuiltin = \"grid\"\n",
+    )
+    .unwrap();
+    let s = Scene::load(&path).unwrap();
+    assert_eq!(s.objects.len(), 7);
+    let boxes: Vec<_> = s.objects.iter().filter(|o| o.name.starts_with("box#")).collect();
+    assert_eq!(boxes.len(), 6);
+    assert!(boxes.iter().all(|o| o.mesh == boxes[0].mesh), "one mesh for every copy");
+    assert_eq!(boxes[4].name, "box#4");
+    // Copy 4 is (i, j, k) = (1, 0, 1): the model's origin (1, 0, 0) moved by (2, 0, -1).
+    let origin = boxes[4].transform.transform_point3(Vec3::ZERO);
+    assert_eq!(origin, Vec3::new(3.0, 0.0, -1.0));
+    assert_eq!(boxes[4].transform.transform_vector3(Vec3::X), Vec3::new(0.5, 0.0, 0.0));
+    for (bad, says) in [
+        ("count = [0, 1, 1], step = [1.0, 0.0, 0.0]", "repeat.count"),
+        ("count = [2048, 1024, 1], step = [1.0, 0.0, 0.0]", "repeat.count"),
+        ("count = [2, 1, 1], step = [1.0, nan, 0.0]", "repeat.step"),
+    ] {
+        std::fs::write(&path, format!("[[model]]\nbuiltin = \"cube\"\nrepeat = {{ {bad} }}\n")).unwrap();
+        let e = Scene::load(&path).unwrap_err().to_string();
+        assert!(e.contains(says) && e.contains("model[0]"), "{bad}: {e}");
+    }
+}

@@ -9,6 +9,7 @@
 //! repetitions within this one run; nothing here asserts a speed.
 
 pub mod bounces;
+pub mod instancing;
 pub mod machine;
 pub mod moving;
 pub mod peers;
@@ -291,6 +292,8 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Report, Ben
     options.check()?;
     std::fs::create_dir_all(&options.out_dir)
         .map_err(|source| BenchError::CreateDir { path: options.out_dir.clone(), source })?;
+    // First, while the process holds little: its peak resident memory is this scene's.
+    let instancing = instancing::run(options, progress)?;
     let mut notes = Vec::new();
     progress.set_message("opening backends");
     let (mut cpu, mut gpu) = frame_backends(options, &mut notes);
@@ -315,6 +318,7 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Report, Ben
         peers.section(&table2),
         scaling.section.clone(),
         moving.section(),
+        instancing.section(),
     ];
     let mut files = scaling.files.clone();
     if !accuracy_scenes.is_empty() {

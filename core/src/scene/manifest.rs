@@ -48,6 +48,10 @@
 //! [[model]]
 //! builtin = "grid"              # instead of file: "grid" | "sphere" | "cube" | "torus"
 //! scale = [20.0, 1.0, 20.0]
+//!
+//! [[model]]
+//! file = "../../../shared/assets/dragon.glb"
+//! repeat = { count = [40, 1, 25], step = [0.25, 0.0, 0.2] }   # 1,000 copies on a grid
 //! ```
 //!
 //! Unknown keys are errors everywhere (`deny_unknown_fields`), so typos do not pass silently.
@@ -60,6 +64,10 @@
 //!   `R = Rz(rz) * Ry(ry) * Rx(rx)`. `rotate_axis_angle` rotates right-handedly about `axis`
 //!   (normalised). Scales must be non-zero (negative mirrors). Each object of the file is placed
 //!   at `model * object_transform`.
+//! * **Repeat.** `repeat = { count = [nx, ny, nz], step = [dx, dy, dz] }` places `nx * ny * nz`
+//!   copies (at most 2^20), copy `(i, j, k)` at `translate(i dx, j dy, k dz) * model`, x
+//!   fastest; objects are named `<model name>#<copy>/<object name>`. Copies share the
+//!   model's meshes, so a renderer can trace them as instances of one mesh.
 //! * **Built-ins** (the procedural meshes of the default scene, grey diffuse material):
 //!   `grid` is a unit square in the XZ plane centred at the origin facing +Y (16 x 16 quads),
 //!   `sphere` a UV sphere of radius 1 (48 x 24), `cube` spans -1..1 on each axis, `torus`
@@ -283,6 +291,43 @@ pub struct ModelEntry {
     pub render_mode: Option<RenderMode>,
     #[serde(default)]
     pub material: Option<MaterialOverride>,
+    /// Place the model on a grid of copies: every copy shares the model's meshes (one
+    /// mesh in memory however many copies; a renderer may trace them as instances).
+    #[serde(default)]
+    pub repeat: Option<Repeat>,
+}
+
+/// `repeat = { count = [nx, ny, nz], step = [dx, dy, dz] }`: `nx * ny * nz` copies of a
+/// model, copy `(i, j, k)` moved by `(i dx, j dy, k dz)` in world space after the model's
+/// own transform. At most [`MAX_REPEAT_COPIES`] copies.
+#[derive(Clone, Copy, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Repeat {
+    pub count: [u32; 3],
+    pub step: [f32; 3],
+}
+
+/// Most copies one `repeat` makes (a typo of an extra digit is an error, not an
+/// allocation of billions of objects).
+pub const MAX_REPEAT_COPIES: u64 = 1 << 20;
+
+impl Repeat {
+    /// The world offsets of the copies, x fastest, or an error message.
+    fn offsets(&self) -> Result<Vec<Vec3>, String> {
+        let step = finite(self.step, "repeat.step")?;
+        let total = self.count.iter().map(|&c| c as u64).product::<u64>();
+        if self.count.contains(&0) || total > MAX_REPEAT_COPIES {
+            return Err(format!(
+                "repeat.count {:?} must have every count at least 1 and at most {MAX_REPEAT_COPIES} copies in all",
+                self.count
+            ));
+        }
+        let [nx, ny, nz] = self.count;
+        Ok((0..nz)
+            .flat_map(|k| (0..ny).flat_map(move |j| (0..nx).map(move |i| Vec3::new(i as f32, j as f32, k as f32))))
+            .map(|c| c * step)
+            .collect())
+    }
 }
 
 fn default_up() -> [f32; 3] {
@@ -502,6 +547,10 @@ fn build(manifest: &Manifest, path: &Path, files: &dyn SceneFiles, mut budget: B
         let label = format!("model[{i}] '{name}'");
         let at = |message: String| invalid(format!("{label}: {message}"));
         let model = entry.matrix().map_err(at)?;
+        let copies = match &entry.repeat {
+            Some(r) => r.offsets().map_err(at)?,
+            None => vec![Vec3::ZERO],
+        };
         if let Some(o) = &entry.material {
             o.validate().map_err(at)?;
         }
@@ -567,28 +616,36 @@ fn build(manifest: &Manifest, path: &Path, files: &dyn SceneFiles, mut budget: B
                 .iter()
                 .map(|o| std::mem::size_of::<Object>() + name.len() + 1 + o.name.len())
                 .sum::<usize>();
-        budget.take(1, placed_bytes, "objects and materials placed").map_err(at)?;
+        budget.take(copies.len(), placed_bytes, "objects and materials placed").map_err(at)?;
         let material_offset = scene.materials.len();
         scene.materials.extend(source.materials.iter().map(|m| match &entry.material {
             Some(o) => o.apply(m),
             None => m.clone(),
         }));
-        for (object, &decided_by_extras) in source.objects.iter().zip(from_extras) {
-            let material = material_offset + object.material;
-            let render_mode = match entry.render_mode {
-                Some(mode) => mode,
-                None if decided_by_extras => object.render_mode,
-                None => scene.materials[material].default_render_mode(),
-            };
-            scene.objects.push(Object {
-                id: scene.objects.len() as u32,
-                name: if entry.builtin.is_some() { name.clone() } else { format!("{name}/{}", object.name) },
-                mesh: mesh_offset + object.mesh,
-                transform: model * object.transform,
-                material,
-                render_mode,
-                source: object.source.clone(),
-            });
+        for (c, offset) in copies.iter().enumerate() {
+            let placed = Mat4::from_translation(*offset) * model;
+            let copy = if copies.len() > 1 { format!("#{c}") } else { String::new() };
+            for (object, &decided_by_extras) in source.objects.iter().zip(from_extras) {
+                let material = material_offset + object.material;
+                let render_mode = match entry.render_mode {
+                    Some(mode) => mode,
+                    None if decided_by_extras => object.render_mode,
+                    None => scene.materials[material].default_render_mode(),
+                };
+                scene.objects.push(Object {
+                    id: scene.objects.len() as u32,
+                    name: if entry.builtin.is_some() {
+                        format!("{name}{copy}")
+                    } else {
+                        format!("{name}{copy}/{}", object.name)
+                    },
+                    mesh: mesh_offset + object.mesh,
+                    transform: placed * object.transform,
+                    material,
+                    render_mode,
+                    source: object.source.clone(),
+                });
+            }
         }
         model_lights.extend(source.lights.iter().map(|l| match *l {
             Light::Point { position, color, intensity } => {
@@ -677,7 +734,8 @@ mod tests {
             .map(|l| format!("{}\n", l.trim_start_matches("//!").strip_prefix(' ').unwrap_or("")))
             .collect();
         let m: Manifest = toml::from_str(&example).unwrap_or_else(|e| panic!("{e}\n{example}"));
-        assert_eq!((m.models.len(), m.lights.len()), (3, 2));
+        assert_eq!((m.models.len(), m.lights.len()), (4, 2));
+        assert_eq!(m.models[3].repeat.map(|r| r.offsets().unwrap().len()), Some(1000));
         assert_eq!(m.environment.as_deref(), Some(Path::new("maps/courtyard.hdr")));
         assert_eq!(m.models[1].render_mode, Some(RenderMode::RayTraced));
         assert_eq!(m.models[2].builtin, Some(Builtin::Grid));
