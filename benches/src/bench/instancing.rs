@@ -50,6 +50,10 @@ pub struct Instancing {
 pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Instancing, BenchError> {
     let threads = options.frame_threads.unwrap_or_else(rayon::current_num_threads);
     let mut out = Instancing { size: options.table_size, threads, ..Instancing::default() };
+    if options.scenes == super::scenes::SceneSet::DefaultOnly {
+        out.skipped = Some("only the default scene was asked for (`--scenes default`)".into());
+        return Ok(out);
+    }
     if super::scenes::shared_assets().is_none() {
         out.skipped = Some("the shared assets (the dragon) are not there".into());
         return Ok(out);

@@ -6,7 +6,7 @@
 //! frame moves and turns the moving objects a little, then, interleaved round by round
 //! ([`interleaved_rounds_ms`]; the move itself is set up untimed before each round):
 //!
-//! * **hyrt update**: [`PreparedScene::move_objects`] (the objects' world triangles and
+//! * **hyrt update**: [`PreparedScene::move_objects`] (the objects' references, records and
 //!   instances rewritten, the top level rebuilt, no bottom level touched);
 //! * **hyrt rebuild**: the moved scene prepared again flat ([`WorldGeometry::build`] and
 //!   the single-level BVH, `Renderer::prepare`: what a move cost before the two levels);
@@ -498,9 +498,11 @@ impl MovingScene {
             }
             md += ".";
         }
-        md += " hyrt's update also rewrites the moving objects' world-space triangles, which its raster and \
-               shading stages read (WorldGeometry::update_object); Embree's update only sets the instance \
-               transforms, Embree's scene having no other use for them.\n\n";
+        md += " hyrt's moving objects are kept by reference in its world tables (their mesh and transform; \
+               the raster and shading stages make their world records when they read them), so its update \
+               sets their transforms and records, recomputes their bounds (one pass over their vertices) and \
+               every instance box, and rebuilds the top level; Embree's update sets the instance transforms \
+               and commits its top scene.\n\n";
         let c = &self.check;
         let _ = write!(
             md,
