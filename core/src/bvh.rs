@@ -410,10 +410,7 @@ impl Bvh {
     /// debug builds.
     /// A table with objects by reference is made whole first (its records made on read).
     pub fn build(geometry: &WorldGeometry, preset: BvhPreset) -> Bvh {
-        match geometry.triangles.as_slice() {
-            Some(triangles) => Bvh::build_triangles(triangles, preset),
-            None => Bvh::build_triangles(&geometry.triangles.iter().collect::<Vec<_>>(), preset),
-        }
+        Bvh::build_triangles(&geometry.triangles.whole(), preset)
     }
 
     /// [`Bvh::build_filtered`] over the stored objects of a world table that `keep_object`
@@ -641,10 +638,7 @@ impl Bvh {
     /// traceable triangle is in some leaf; depth within [`BVH_STACK_SIZE`] and equal to
     /// `max_depth`.
     pub fn validate(&self, geometry: &WorldGeometry) -> Result<(), String> {
-        match geometry.triangles.as_slice() {
-            Some(triangles) => self.validate_triangles(triangles),
-            None => self.validate_triangles(&geometry.triangles.iter().collect::<Vec<_>>()),
-        }
+        self.validate_triangles(&geometry.triangles.whole())
     }
 
     /// [`Bvh::validate`] against the triangle table it was built from

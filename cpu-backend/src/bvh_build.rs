@@ -69,6 +69,6 @@ pub fn shared_mesh_bytes(scene: &Scene) -> usize {
     for o in &scene.objects {
         users[o.mesh] += 1;
     }
-    let per_triangle = std::mem::size_of::<hyrt_core::formats::TriangleRecord>() + 36;
+    let per_triangle = hyrt_core::geometry::WorldTriangles::STORED_BYTES_PER_TRIANGLE;
     scene.objects.iter().filter(|o| users[o.mesh] > 1).map(|o| scene.meshes[o.mesh].indices.len() * per_triangle).sum()
 }

@@ -64,16 +64,8 @@ impl SceneBuffers {
     pub fn new(ctx: &GpuContext, scene: &PreparedScene) -> SceneBuffers {
         let g = &scene.geometry;
         // Objects by reference are made whole here: the GPU reads one world table.
-        let all = 0..g.triangles.len();
-        let mut made = Vec::new();
-        let triangles = match g.triangles.as_slice() {
-            Some(t) => t,
-            None => {
-                g.triangles.fill(all.clone(), &mut made);
-                &made[..]
-            }
-        };
-        let normals = corner_normals(g, all);
+        let triangles = g.triangles.whole();
+        let normals = corner_normals(g, 0..g.triangles.len());
         let (environment, texels) = EnvironmentRecord::of(&g.environment);
         debug_assert_eq!(environment.validate(texels.len()), Ok(()));
         let environment_header = ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -91,7 +83,7 @@ impl SceneBuffers {
         SceneBuffers {
             environment: environment_header,
             environment_texels: upload::<[f32; 4]>(ctx, "environment texels", texels),
-            triangles: upload::<TriangleRecord>(ctx, "triangles", triangles),
+            triangles: upload::<TriangleRecord>(ctx, "triangles", &triangles),
             normals: upload(ctx, "normals", &normals),
             objects: upload::<ObjectRecord>(ctx, "objects", &g.objects),
             lights: upload::<LightRecord>(ctx, "lights", &g.lights),

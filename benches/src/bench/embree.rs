@@ -298,7 +298,7 @@ impl EmbreeScene {
     pub fn rebuild(&mut self, geometry: &WorldGeometry) -> Result<(), EmbreeError> {
         // The world records made whole before the clock starts (objects hyrt keeps by
         // reference are made here, not in Embree's time).
-        let triangles: Vec<_> = geometry.triangles.iter().collect();
+        let triangles = geometry.triangles.whole();
         self.prim_to_triangle =
             (0..triangles.len() as u32).filter(|&i| triangle_is_traceable(&triangles[i as usize])).collect();
         let t0 = std::time::Instant::now();
@@ -511,7 +511,7 @@ impl EmbreeInstances {
             rtcSetSceneFlags(top, RTC_SCENE_FLAG_DYNAMIC);
             rtcSetSceneBuildQuality(top, RTC_BUILD_QUALITY_LOW);
             let is_moving = |o: u32| moving.contains(&o);
-            let triangles: Vec<_> = geometry.triangles.iter().collect();
+            let triangles = geometry.triangles.whole();
             out.static_prims = (0..triangles.len() as u32)
                 .filter(|&i| {
                     let t = &triangles[i as usize];

@@ -109,12 +109,9 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Instancing,
     out.peak_resident = if resets { peak_resident_bytes() } else { None };
     out.covered_pixels = frame.stats.covered_pixels;
     let path = options.out_dir.join(format!("{SCENE}.png"));
-    let (w, h) = out.size;
-    match image::RgbaImage::from_raw(w, h, frame.final_srgb8()).map(|img| img.save(&path)) {
-        Some(Ok(())) => out.image = Some(format!("{SCENE}.png")),
-        Some(Err(e)) => return Err(BenchError::Write { path, source: std::io::Error::other(e.to_string()) }),
-        None => {}
-    }
+    hyrt::save_png(&frame, &path)
+        .map_err(|e| BenchError::Write { path, source: std::io::Error::other(e.to_string()) })?;
+    out.image = Some(format!("{SCENE}.png"));
     Ok(out)
 }
 

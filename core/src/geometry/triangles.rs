@@ -15,7 +15,10 @@
 //! only tables with objects by reference look an id's object up (a binary search over the
 //! objects' first ids).
 
+use std::borrow::Cow;
 use std::sync::Arc;
+
+use bytemuck::Zeroable;
 
 use glam::{Mat3, Mat4, Vec3};
 
@@ -161,9 +164,8 @@ impl WorldTriangles {
         }
         starts.push(next);
         let any_reference = placements.iter().any(|p| matches!(p, Placement::ByReference(_)));
-        let zero = TriangleRecord { v0: [0.0; 3], object: 0, v1: [0.0; 3], triangle: 0, v2: [0.0; 3], flags: 0 };
         WorldTriangles {
-            records: vec![zero; stored as usize],
+            records: vec![TriangleRecord::zeroed(); stored as usize],
             normals: vec![[Vec3::ZERO; 3]; stored as usize],
             placements: if any_reference { placements } else { Vec::new() },
             starts: if any_reference { starts } else { Vec::new() },
@@ -204,10 +206,19 @@ impl WorldTriangles {
         if id >= self.len {
             return None;
         }
-        let o = self.object_of(id);
+        let (o, local) = self.locate(id);
         match &self.placements[o] {
-            Placement::Stored { first_record } => Some(*first_record as usize + id - self.starts[o] as usize),
+            Placement::Stored { first_record } => Some(*first_record as usize + local),
             Placement::ByReference(_) => None,
+        }
+    }
+
+    /// The whole table by global id: borrowed when every object is stored, else made (every
+    /// record of the objects by reference, so as large as the stored table would be).
+    pub fn whole(&self) -> Cow<'_, [TriangleRecord]> {
+        match self.as_slice() {
+            Some(all) => Cow::Borrowed(all),
+            None => Cow::Owned(self.iter().collect()),
         }
     }
 
@@ -233,14 +244,21 @@ impl WorldTriangles {
         self.starts.partition_point(|&s| s as usize <= id) - 1
     }
 
+    /// The object owning global id `id`, and `id`'s index within it (a table with objects
+    /// by reference only).
+    #[inline]
+    fn locate(&self, id: usize) -> (usize, usize) {
+        let o = self.object_of(id);
+        (o, id - self.starts[o] as usize)
+    }
+
     /// Triangle `id`'s world record.
     #[inline]
     pub fn get(&self, id: usize) -> TriangleRecord {
         if self.placements.is_empty() {
             return self.records[id];
         }
-        let o = self.object_of(id);
-        let local = id - self.starts[o] as usize;
+        let (o, local) = self.locate(id);
         match &self.placements[o] {
             Placement::Stored { first_record } => self.records[*first_record as usize + local],
             Placement::ByReference(r) => {
@@ -256,11 +274,9 @@ impl WorldTriangles {
         if self.placements.is_empty() {
             return self.records[id].flags;
         }
-        let o = self.object_of(id);
+        let (o, local) = self.locate(id);
         match &self.placements[o] {
-            Placement::Stored { first_record } => {
-                self.records[*first_record as usize + id - self.starts[o] as usize].flags
-            }
+            Placement::Stored { first_record } => self.records[*first_record as usize + local].flags,
             Placement::ByReference(r) => r.flags,
         }
     }
@@ -271,8 +287,7 @@ impl WorldTriangles {
         if self.placements.is_empty() {
             return self.normals[id];
         }
-        let o = self.object_of(id);
-        let local = id - self.starts[o] as usize;
+        let (o, local) = self.locate(id);
         match &self.placements[o] {
             Placement::Stored { first_record } => self.normals[*first_record as usize + local],
             Placement::ByReference(r) => {
@@ -400,8 +415,12 @@ impl WorldTriangles {
             + self.meshes.iter().map(|m| m.bytes()).sum::<usize>()
     }
 
+    /// Bytes one stored triangle takes: its record and its corner normals.
+    pub const STORED_BYTES_PER_TRIANGLE: usize =
+        std::mem::size_of::<TriangleRecord>() + std::mem::size_of::<[Vec3; 3]>();
+
     /// Bytes every object's records and normals would take stored.
     pub fn stored_bytes(&self) -> usize {
-        self.len * (std::mem::size_of::<TriangleRecord>() + std::mem::size_of::<[Vec3; 3]>())
+        self.len * Self::STORED_BYTES_PER_TRIANGLE
     }
 }
