@@ -128,7 +128,7 @@ fn trace_list(
         Some(rays) => {
             shadow_rays_with(bvh, g, rays, traversal, occluded);
             if let Some(levels) = &scene.levels {
-                shadow_rays_in_object_space(levels, g, |i| rays[i], occluded);
+                shadow_rays_in_object_space(levels, g, |i| rays[i], traversal, occluded);
             }
             shadow_mask_into(rays, occluded, surfaces.len(), lights, shadow);
         }
@@ -136,7 +136,7 @@ fn trace_list(
             shadow_rays_of_pairs_into(bvh, g, surfaces, &scratch.active, traversal, occluded);
             if let Some(levels) = &scene.levels {
                 let ray = |i: usize| pair_ray(surfaces, &g.lights, scratch.active[i]);
-                shadow_rays_in_object_space(levels, g, ray, occluded);
+                shadow_rays_in_object_space(levels, g, ray, traversal, occluded);
             }
             shadow_mask_of_pairs_into(&scratch.active, occluded, surfaces.len(), lights, shadow);
         }

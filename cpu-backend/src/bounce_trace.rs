@@ -15,13 +15,12 @@
 use glam::Vec3;
 use hyrt_core::bvh::two_level::TwoLevelBvh;
 use hyrt_core::bvh::{Bvh, ClosestHit};
-use hyrt_core::formats::{HitRecord, RayRecord, SurfaceRecord, TriangleRecord};
+use hyrt_core::formats::{HitRecord, RayRecord, SurfaceRecord};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::reconstruction::reconstruct_hit;
-use hyrt_core::kernels::texture::alpha_accepts;
 use rayon::prelude::*;
 
-use crate::traversal::{closest_hit_alpha_batch_into, Traversal};
+use crate::traversal::{closest_hit_alpha_batch_into, closest_hit_in_object_space_into, Traversal};
 
 /// The stage into caller-owned buffers; `closest` is scratch kept between frames. With
 /// `levels` (a scene with object-space instances) `bvh` is its world-space level, traced
@@ -40,12 +39,9 @@ pub fn bounce_trace_into(
     closest_hit_alpha_batch_into(bvh, geometry.traversal_table(), &geometry.surface.view(), rays, traversal, closest);
     if let Some(levels) = levels {
         // The object-space pass: from each ray's hit in the world-space level, the closer
-        // hit over the object-space instances (`TwoLevelBvh::closest_hit_in_object_space`).
-        let view = geometry.surface.view();
-        let accept = |t: &TriangleRecord, id: u32, u: f32, v: f32| alpha_accepts(&view, t, id as usize, u, v);
-        closest.par_iter_mut().zip(rays).with_min_len(256).for_each(|(c, r)| {
-            *c = levels.closest_hit_in_object_space(r, *c, accept);
-        });
+        // hit over the object-space instances (in packets; the scalar
+        // `TwoLevelBvh::closest_hit_in_object_space` for the scalar reference).
+        closest_hit_in_object_space_into(levels, &geometry.surface.view(), rays, traversal, closest);
     }
     closest.par_iter().with_min_len(4096).map(|&h| HitRecord::from_hit(h)).collect_into_vec(hits);
     rays.par_iter()

@@ -13,13 +13,11 @@
 
 use hyrt_core::bvh::two_level::TwoLevelBvh;
 use hyrt_core::bvh::Bvh;
-use hyrt_core::formats::{RayRecord, SurfaceRecord, TriangleRecord};
+use hyrt_core::formats::{RayRecord, SurfaceRecord};
 use hyrt_core::geometry::WorldGeometry;
-use hyrt_core::kernels::texture::alpha_accepts;
-use rayon::prelude::*;
 
 use crate::compaction::pair_ray;
-use crate::traversal::{occluded_alpha_batch_into, occluded_generated_into, Traversal};
+use crate::traversal::{occluded_alpha_batch_into, occluded_generated_into, occluded_in_object_space_into, Traversal};
 
 /// [`shadow_rays`] output value: something lies between the ray origin and the light.
 pub const SHADOW_OCCLUDED: u32 = 1;
@@ -81,21 +79,17 @@ pub fn shadow_rays_of_pairs_into(
 
 /// The object-space pass of a scene with moving objects (or shared meshes): after
 /// [`shadow_rays_with`] or [`shadow_rays_of_pairs_into`] traced the world-space level
-/// (`PreparedScene::bvh`) with the fast traversal, trace the rays it found visible
-/// through the object-space instances of `levels`, one ray at a time
-/// ([`TwoLevelBvh::occluded_in_object_space`]). `ray(i)` makes ray `i` as the first pass
-/// did. Together: any hit over the whole scene.
+/// (`PreparedScene::bvh`), trace the rays it found visible through the object-space
+/// instances of `levels` (`crate::traversal::occluded_in_object_space_into`: packets at
+/// the SIMD level of `traversal`, or one ray at a time with
+/// [`TwoLevelBvh::occluded_in_object_space`] for the scalar reference). `ray(i)` makes ray
+/// `i` as the first pass did. Together: any hit over the whole scene.
 pub fn shadow_rays_in_object_space(
     levels: &TwoLevelBvh,
     geometry: &WorldGeometry,
     ray: impl Fn(usize) -> RayRecord + Sync,
+    traversal: Traversal,
     out: &mut [u32],
 ) {
-    let view = geometry.surface.view();
-    let accept = |t: &TriangleRecord, id: u32, u: f32, v: f32| alpha_accepts(&view, t, id as usize, u, v);
-    out.par_iter_mut().enumerate().with_min_len(256).filter(|(_, o)| **o == SHADOW_VISIBLE).for_each(|(i, o)| {
-        if levels.occluded_in_object_space(&ray(i), accept) {
-            *o = SHADOW_OCCLUDED;
-        }
-    });
+    occluded_in_object_space_into(levels, &geometry.surface.view(), ray, traversal, out);
 }

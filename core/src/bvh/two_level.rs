@@ -528,16 +528,14 @@ impl TwoLevelBvh {
         };
         let leaf_test = inline_leaf_test(|leaf: Leaf, _: f32, _: &mut f32| {
             let inst = &self.instances[leaf.first as usize];
-            let bottom = &self.bottoms[inst.bottom as usize];
-            let accept = |slot: u32, u: f32, v: f32| {
-                let id = inst.first_triangle + bottom.prim_indices[slot as usize];
-                accept(&hit_record(inst, bottom, slot), id, u, v)
-            };
             let hit = if inst.flags & INSTANCE_IDENTITY != 0 {
-                !skip_world && bottom.occluded_ray(&r, 0, accept)
+                let bottom = &self.bottoms[inst.bottom as usize];
+                !skip_world
+                    && bottom.occluded_ray(&r, 0, |slot, u, v| {
+                        accept(&hit_record(inst, bottom, slot), bottom.prim_indices[slot as usize], u, v)
+                    })
             } else {
-                object_ray(inst, ray)
-                    .is_some_and(|ro| bottom.occluded_ray(&ro, inst.flags & INSTANCE_ALPHA_TEST, accept))
+                self.occluded_in_instance(leaf.first as usize, ray, &accept)
             };
             if hit {
                 LeafFlow::Stop
@@ -546,6 +544,60 @@ impl TwoLevelBvh {
             }
         });
         traverse(&self.top, &r, &mut r.t_max.clone(), leaf_test)
+    }
+
+    /// The any-hit test of `ray` (in world space) against object-space instance `i` alone:
+    /// the ray moved into the instance's space ([`object_space_ray`]), then its bottom
+    /// level walked with the instance's alpha flag, `accept` as in
+    /// [`TwoLevelBvh::occluded_filtered`]. What the two-level walk does at the instance's
+    /// top-level leaf; for a caller that walks the top level itself (the CPU backend's
+    /// packets, for their lanes traced one at a time). False for the world-space level.
+    #[inline(always)]
+    pub fn occluded_in_instance(
+        &self,
+        i: usize,
+        ray: &RayRecord,
+        accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool,
+    ) -> bool {
+        let inst = &self.instances[i];
+        if inst.flags & INSTANCE_IDENTITY != 0 {
+            return false;
+        }
+        let bottom = &self.bottoms[inst.bottom as usize];
+        let accept = |slot: u32, u: f32, v: f32| {
+            let id = inst.first_triangle + bottom.prim_indices[slot as usize];
+            accept(&hit_record(inst, bottom, slot), id, u, v)
+        };
+        TraversalRay::new(&object_space_ray(inst, ray))
+            .is_some_and(|ro| bottom.occluded_ray(&ro, inst.flags & INSTANCE_ALPHA_TEST, accept))
+    }
+
+    /// The closest-hit test of `ray` (in world space) against object-space instance `i`
+    /// alone, from `best` (the closest hit so far, or the ray's `t_max` and no triangle):
+    /// as [`TwoLevelBvh::occluded_in_instance`], a hit replacing `best` when closer, or as
+    /// close with a lower global triangle, its facing flipped back to world space in a
+    /// mirrored instance. True when `best` changed. False for the world-space level.
+    #[inline(always)]
+    pub fn closest_in_instance(
+        &self,
+        i: usize,
+        ray: &RayRecord,
+        best: &mut ClosestHit,
+        accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool,
+    ) -> bool {
+        let inst = &self.instances[i];
+        if inst.flags & INSTANCE_IDENTITY != 0 {
+            return false;
+        }
+        let bottom = &self.bottoms[inst.bottom as usize];
+        let id_of = |slot: u32| inst.first_triangle + bottom.prim_indices[slot as usize];
+        let accept = |slot: u32, id: u32, u: f32, v: f32| accept(&hit_record(inst, bottom, slot), id, u, v);
+        let found = TraversalRay::new(&object_space_ray(inst, ray))
+            .is_some_and(|ro| bottom.closest_ray(&ro, best, id_of, inst.flags & INSTANCE_ALPHA_TEST, accept));
+        if found && inst.flags & INSTANCE_MIRRORED != 0 {
+            best.back_face = !best.back_face;
+        }
+        found
     }
 
     /// Any hit, no alpha test ([`Bvh::occluded`]).
@@ -592,21 +644,16 @@ impl TwoLevelBvh {
         let mut bound = best.t;
         let leaf_test = inline_leaf_test(|leaf: Leaf, _: f32, t_best: &mut f32| {
             let inst = &self.instances[leaf.first as usize];
-            let bottom = &self.bottoms[inst.bottom as usize];
-            let id_of = |slot: u32| inst.first_triangle + bottom.prim_indices[slot as usize];
-            let accept = |slot: u32, id: u32, u: f32, v: f32| accept(&hit_record(inst, bottom, slot), id, u, v);
             let found = if inst.flags & INSTANCE_IDENTITY != 0 {
+                let bottom = &self.bottoms[inst.bottom as usize];
+                let id_of = |slot: u32| bottom.prim_indices[slot as usize];
+                let accept = |slot: u32, id: u32, u: f32, v: f32| accept(&hit_record(inst, bottom, slot), id, u, v);
                 !skip_world && bottom.closest_ray(&r, &mut best, id_of, 0, accept)
             } else {
-                object_ray(inst, ray).is_some_and(|ro| {
-                    bottom.closest_ray(&ro, &mut best, id_of, inst.flags & INSTANCE_ALPHA_TEST, accept)
-                })
+                self.closest_in_instance(leaf.first as usize, ray, &mut best, &accept)
             };
             if !found {
                 return LeafFlow::Continue;
-            }
-            if inst.flags & INSTANCE_MIRRORED != 0 {
-                best.back_face = !best.back_face;
             }
             *t_best = best.t;
             LeafFlow::Narrowed
@@ -695,12 +742,14 @@ impl TwoLevelBvh {
     }
 }
 
-/// The ray moved into `inst`'s object space, prepared; `None` when it can hit nothing
-/// there (the map overflowed it, or its direction vanished).
+/// The ray moved into `inst`'s object space ([`to_object_space`]; the same `t` interval:
+/// an affine map keeps the ray parameter). It can hit nothing there when the map
+/// overflowed it or its direction vanished: the traversals reject such a ray as they
+/// reject any invalid one. Not for the world-space level (its rays are not moved).
 #[inline(always)]
-fn object_ray(inst: &InstanceRecord, ray: &RayRecord) -> Option<TraversalRay> {
+pub fn object_space_ray(inst: &InstanceRecord, ray: &RayRecord) -> RayRecord {
     let (origin, direction) = to_object_space(&inst.world_to_object(), ray.origin.into(), ray.direction.into());
-    TraversalRay::new(&RayRecord { origin: origin.into(), direction: direction.into(), ..*ray })
+    RayRecord { origin: origin.into(), direction: direction.into(), ..*ray }
 }
 
 /// The record an alpha test reads for a hit on leaf slot `slot` of `bottom` through

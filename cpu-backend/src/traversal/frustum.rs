@@ -59,7 +59,7 @@ use hyrt_core::kernels::ray::SLAB_FAR_SCALE;
 use hyrt_core::kernels::texture::SurfaceView;
 
 use super::lanes::{Lanes, LANES};
-use super::packet::{ClosestLanes, Packet};
+use super::packet::{ClosestLanes, Level, Packet};
 use super::single::Stack;
 
 /// The bounds of a packet's rays for the wide node test, per axis: the origin and
@@ -276,7 +276,7 @@ pub(crate) fn closest_hit<L: Lanes>(
                         tris &= tris - 1;
                         Some(first + k)
                     });
-                    let improved = best.test_slots(bvh, view, p, m, slots);
+                    let improved = best.test_slots(&Level::world(bvh), view, p, m, slots) != 0;
                     if improved {
                         t_far = L::mul(best.t, widen);
                         t_far_hi = lane_range::<L>(t_far, p.valid).1;

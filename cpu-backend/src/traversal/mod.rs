@@ -53,11 +53,16 @@
 //! closest hit, not here (see `Packet::intersect`). The node-to-node dependency chain (box
 //! loads from L3: the teaser's nodes are 2 MB) is the rest.
 //!
+//! Two-level scenes (moving objects, shared meshes): the world-space level is traced as
+//! above, then the object-space instances in packets (module `instances`,
+//! [`occluded_in_object_space_into`], [`closest_hit_in_object_space_into`]).
+//!
 //! Work is split into chunks of [`TRAVERSAL_CHUNK`] rays run in parallel on the current
 //! rayon pool (use [`with_threads`] for a given thread count); results are in ray order
 //! and independent of the thread count.
 
 mod frustum;
+mod instances;
 mod lanes;
 mod packet;
 mod single;
@@ -65,6 +70,7 @@ mod watertight;
 
 use rayon::prelude::*;
 
+use hyrt_core::bvh::two_level::TwoLevelBvh;
 use hyrt_core::bvh::{Bvh, ClosestHit};
 use hyrt_core::formats::{RayRecord, TriangleRecord};
 use hyrt_core::kernels::texture::{alpha_accepts, SurfaceView};
@@ -505,6 +511,88 @@ fn closest_hit_single_chunk(bvh: &Bvh, rays: &[RayRecord], out: &mut [Option<Clo
     dispatch!(level, closest_hit_single, closest_hit_single_avx512, closest_hit_single_avx2, (bvh, rays, out))
 }
 
+/// The object-space pass of any hit in a two-level scene ([`TwoLevelBvh`]): `out[i]`
+/// holds the answer of the world-space level (`levels.world_level()`, traced already by
+/// [`occluded_alpha_batch_into`] or [`occluded_generated_into`]) for ray `ray(i)`; each
+/// ray found visible there is traced through the object-space instances and marked
+/// [`SHADOW_OCCLUDED`] when it hits one. Together: any hit over the whole scene, ray by ray
+/// [`TwoLevelBvh::occluded_filtered`] with the alpha test of `view`.
+///
+/// In packets (module `instances`) at the SIMD level of `traversal` (also for
+/// [`Traversal::Single`]), the visible rays of each chunk gathered into full packets; one
+/// ray at a time with `TwoLevelBvh::occluded_in_object_space` for [`Traversal::Scalar`].
+pub fn occluded_in_object_space_into(
+    levels: &TwoLevelBvh,
+    view: &SurfaceView,
+    ray: impl Fn(usize) -> RayRecord + Sync,
+    traversal: Traversal,
+    out: &mut [u32],
+) {
+    let level = traversal.level();
+    out.par_chunks_mut(TRAVERSAL_CHUNK).enumerate().for_each_init(
+        || (Vec::with_capacity(TRAVERSAL_CHUNK), Vec::with_capacity(TRAVERSAL_CHUNK)),
+        |(rays, index), (c, out)| {
+            rays.clear();
+            index.clear();
+            for (k, o) in out.iter().enumerate() {
+                if *o == SHADOW_VISIBLE {
+                    index.push(k as u32);
+                    rays.push(ray(c * TRAVERSAL_CHUNK + k));
+                }
+            }
+            match level {
+                None => {
+                    let accept =
+                        |t: &TriangleRecord, id: u32, u: f32, v: f32| alpha_accepts(view, t, id as usize, u, v);
+                    for (&k, r) in index.iter().zip(rays.iter()) {
+                        out[k as usize] = occlusion(levels.occluded_in_object_space(r, accept));
+                    }
+                }
+                Some(level) => dispatch!(
+                    level,
+                    occluded_instance_packets,
+                    occluded_instance_packets_avx512,
+                    occluded_instance_packets_avx2,
+                    (levels, view, rays, index, out)
+                ),
+            }
+        },
+    );
+}
+
+/// The object-space pass of closest hit in a two-level scene: `closest[i]` holds ray
+/// `rays[i]`'s closest hit in the world-space level (traced already by
+/// [`closest_hit_alpha_batch_into`]); each ray is traced through the object-space
+/// instances and `closest[i]` becomes the closer of the two (`(t, triangle)` order).
+/// Together: ray by ray [`TwoLevelBvh::closest_hit_filtered`] with the alpha test of
+/// `view`. Packets at the SIMD level of `traversal` (also for [`Traversal::Single`]: the
+/// single-ray path has no instance form yet), the scalar walk for [`Traversal::Scalar`].
+pub fn closest_hit_in_object_space_into(
+    levels: &TwoLevelBvh,
+    view: &SurfaceView,
+    rays: &[RayRecord],
+    traversal: Traversal,
+    closest: &mut [Option<ClosestHit>],
+) {
+    assert_eq!(rays.len(), closest.len(), "one world-space hit per ray");
+    let level = traversal.level();
+    closest.par_chunks_mut(TRAVERSAL_CHUNK).zip(rays.par_chunks(TRAVERSAL_CHUNK)).for_each(|(out, rays)| match level {
+        None => {
+            let accept = |t: &TriangleRecord, id: u32, u: f32, v: f32| alpha_accepts(view, t, id as usize, u, v);
+            for (c, r) in out.iter_mut().zip(rays) {
+                *c = levels.closest_hit_in_object_space(r, *c, accept);
+            }
+        }
+        Some(level) => dispatch!(
+            level,
+            closest_instance_packets,
+            closest_instance_packets_avx512,
+            closest_instance_packets_avx2,
+            (levels, view, rays, out)
+        ),
+    });
+}
+
 /// `$generic` on the AVX2 lanes, compiled once with AVX2 (`$avx2`) and once with the
 /// AVX-512 features of [`SimdLevel::Avx512`] (`$avx512`: the same lanes; `Avx2`'s contract
 /// holds, AVX-512F implies AVX2). Callers must have detected the features.
@@ -544,6 +632,67 @@ avx2_entry_points!(
     (bvh: &Bvh, rays: &[RayRecord], out: &mut [Option<ClosestHit>])
 );
 
+avx2_entry_points!(
+    occluded_instance_packets,
+    occluded_instance_packets_avx2,
+    occluded_instance_packets_avx512,
+    (levels: &TwoLevelBvh, view: &SurfaceView, rays: &[RayRecord], index: &[u32], out: &mut [u32])
+);
+avx2_entry_points!(
+    closest_instance_packets,
+    closest_instance_packets_avx2,
+    closest_instance_packets_avx512,
+    (levels: &TwoLevelBvh, view: &SurfaceView, rays: &[RayRecord], out: &mut [Option<ClosestHit>])
+);
+
+/// The object-space pass of any hit over `rays` (packets of consecutive entries), ray `j`
+/// answering for `out[index[j]]`.
+#[inline(always)]
+fn occluded_instance_packets<L: Lanes>(
+    levels: &TwoLevelBvh,
+    view: &SurfaceView,
+    rays: &[RayRecord],
+    index: &[u32],
+    out: &mut [u32],
+) {
+    let accept = |t: &TriangleRecord, id: u32, u: f32, v: f32| alpha_accepts(view, t, id as usize, u, v);
+    let mut cache = instances::InstanceCache::default();
+    for (rays, index) in rays.chunks(LANES).zip(index.chunks(LANES)) {
+        let hit = match Packet::<L>::new(rays) {
+            Some(p) => instances::occluded(levels, view, &p, &mut cache),
+            None => rays
+                .iter()
+                .enumerate()
+                .filter(|(_, r)| levels.occluded_in_object_space(r, accept))
+                .fold(0, |m, (k, _)| m | 1 << k),
+        };
+        for (k, &i) in index.iter().enumerate() {
+            out[i as usize] = occlusion(hit >> k & 1 != 0);
+        }
+    }
+}
+
+/// The object-space pass of closest hit over `rays` in packets of consecutive rays.
+#[inline(always)]
+fn closest_instance_packets<L: Lanes>(
+    levels: &TwoLevelBvh,
+    view: &SurfaceView,
+    rays: &[RayRecord],
+    out: &mut [Option<ClosestHit>],
+) {
+    let accept = |t: &TriangleRecord, id: u32, u: f32, v: f32| alpha_accepts(view, t, id as usize, u, v);
+    for (out, rays) in out.chunks_mut(LANES).zip(rays.chunks(LANES)) {
+        match Packet::<L>::new(rays) {
+            Some(p) => instances::closest_hit(levels, view, &p, out),
+            None => {
+                for (c, r) in out.iter_mut().zip(rays) {
+                    *c = levels.closest_hit_in_object_space(r, *c, accept);
+                }
+            }
+        }
+    }
+}
+
 #[inline(always)]
 fn occluded_single<L: Lanes>(bvh: &Bvh, rays: &[RayRecord], out: &mut [u32]) {
     let mut stack = single::new_stack();
@@ -576,7 +725,7 @@ fn occluded_packets<L: Lanes>(
             }
             continue;
         };
-        let hit = packet::occluded(bvh, view, &p, &mut cache);
+        let hit = packet::occluded(&packet::Level::world(bvh), view, &p, &mut cache);
         for (i, o) in out.iter_mut().enumerate() {
             *o = occlusion(hit & (1 << i) != 0);
         }
@@ -604,7 +753,7 @@ fn closest_hit_packets<L: Lanes>(
         let coherent = if bvh.wide.is_empty() { None } else { frustum::Frustum::new(&p, extent) };
         let hits = match coherent {
             Some(f) => frustum::closest_hit(bvh, view, &p, &f, &mut stack),
-            None => packet::closest_hit(bvh, view, &p),
+            None => packet::closest_hit(&packet::Level::world(bvh), view, &p),
         };
         out.copy_from_slice(&hits[..out.len()]);
     }

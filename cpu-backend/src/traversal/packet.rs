@@ -42,6 +42,7 @@
 
 use glam::Vec3;
 use hyrt_core::bvh::traversal::{inline_leaf_test, traverse, Leaf, LeafFlow, NodeTest};
+use hyrt_core::bvh::two_level::{TwoLevelBvh, INSTANCE_ALPHA_TEST, INSTANCE_IDENTITY};
 use hyrt_core::bvh::{Bvh, BvhNode, ClosestHit, BVH_CULL_SLACK};
 use hyrt_core::formats::{RayRecord, TriangleRecord, INVALID_ID, TRI_ALPHA_TEST};
 use hyrt_core::kernels::ray::{permute_axes, WatertightRay, SLAB_FAR_SCALE};
@@ -49,6 +50,51 @@ use hyrt_core::kernels::texture::{alpha_accepts, SurfaceView};
 
 use super::lanes::{slab_bounds, Lanes, ALL_LANES, LANES};
 use super::watertight;
+
+/// A tree as the packets' leaf tests see it: a single-level [`Bvh`] (its slots hold global
+/// triangle indices, its triangles their own flags), or the bottom level of an
+/// object-space instance of a [`TwoLevelBvh`] (slots hold mesh-local indices; the
+/// instance brings the first global index, its object and its alpha flag: the scalar
+/// `TwoLevelBvh::occluded_in_instance` and `closest_in_instance`).
+#[derive(Clone, Copy)]
+pub(crate) struct Level<'a> {
+    pub bvh: &'a Bvh,
+    /// Added to a slot's index: the global triangle index.
+    first_triangle: u32,
+    /// Or-ed into every triangle's flags (the instance's [`INSTANCE_ALPHA_TEST`]).
+    alpha_flags: u32,
+    /// The object an alpha test reads in the hit record, [`INVALID_ID`] for the record's
+    /// own (see `two_level::hit_record`).
+    object: u32,
+}
+
+impl<'a> Level<'a> {
+    /// A single-level tree, or the world-space level of a two-level one.
+    #[inline(always)]
+    pub fn world(bvh: &'a Bvh) -> Self {
+        Level { bvh, first_triangle: 0, alpha_flags: 0, object: INVALID_ID }
+    }
+
+    /// The bottom level of object-space instance `i` of `levels` (not the world-space
+    /// level, whose rays are not moved).
+    #[inline(always)]
+    pub fn instance(levels: &'a TwoLevelBvh, i: usize) -> Self {
+        let inst = &levels.instances[i];
+        debug_assert_eq!(inst.flags & INSTANCE_IDENTITY, 0);
+        Level {
+            bvh: &levels.bottoms[inst.bottom as usize],
+            first_triangle: inst.first_triangle,
+            alpha_flags: inst.flags & INSTANCE_ALPHA_TEST,
+            object: inst.object,
+        }
+    }
+
+    /// The global triangle index of slot `slot`.
+    #[inline(always)]
+    pub fn global(&self, slot: u32) -> u32 {
+        self.first_triangle + self.bvh.prim_indices[slot as usize]
+    }
+}
 
 /// Up to [`LANES`] rays prepared for traversal, lane `i` from `rays[i]`.
 pub(crate) struct Packet<'a, L: Lanes> {
@@ -291,34 +337,35 @@ impl<'a, L: Lanes> Packet<'a, L> {
         (hit, t_out, u_out, v_out, back)
     }
 
-    /// [`Self::intersect`] against the triangle in leaf slot `slot` of `bvh`, its hits kept
-    /// only where an alpha-tested triangle's texel passes ([`alpha_lanes`]).
+    /// [`Self::intersect`] against the triangle in leaf slot `slot` of `level`, its hits
+    /// kept only where an alpha-tested triangle's texel passes ([`alpha_lanes`]).
     #[inline(always)]
     pub(super) fn intersect_slot<const EARLY_OUT: bool>(
         &self,
-        bvh: &Bvh,
+        level: &Level,
         view: &SurfaceView,
         active: u32,
         slot: u32,
     ) -> (u32, L::F, L::F, L::F, u32) {
-        let tri = &bvh.leaf_triangles[slot as usize];
+        let tri = &level.bvh.leaf_triangles[slot as usize];
         let (mut hit, t, u, v, back) = self.intersect::<EARLY_OUT>(active, tri);
-        if hit != 0 && tri.flags & TRI_ALPHA_TEST != 0 {
-            hit = alpha_lanes::<L>(view, bvh, tri, slot, hit, u, v);
+        if hit != 0 && (tri.flags | level.alpha_flags) & TRI_ALPHA_TEST != 0 {
+            hit = alpha_lanes::<L>(view, level, tri, slot, hit, u, v);
         }
         (hit, t, u, v, back)
     }
 }
 
-/// The lanes of `hit` (hits on the alpha-tested triangle `tri`, slot `slot`, at barycentrics
-/// `u`, `v`) whose texel passes the alpha test ([`alpha_accepts`]): a rejected hit is no
-/// hit, as in `Bvh::occluded_filtered`. Only called for triangles flagged
-/// [`TRI_ALPHA_TEST`], which exist only in scenes whose `view` holds their materials.
+/// The lanes of `hit` (hits on the alpha-tested triangle `tri`, slot `slot` of `level`, at
+/// barycentrics `u`, `v`) whose texel passes the alpha test ([`alpha_accepts`]): a rejected
+/// hit is no hit, as in `Bvh::occluded_filtered`. Only called for triangles flagged
+/// [`TRI_ALPHA_TEST`] (by themselves or by their instance), which exist only in scenes
+/// whose `view` holds their materials.
 #[inline(never)]
 #[cold]
 fn alpha_lanes<L: Lanes>(
     view: &SurfaceView,
-    bvh: &Bvh,
+    level: &Level,
     tri: &TriangleRecord,
     slot: u32,
     hit: u32,
@@ -326,7 +373,10 @@ fn alpha_lanes<L: Lanes>(
     v: L::F,
 ) -> u32 {
     let (us, vs) = (L::store(u), L::store(v));
-    let global = bvh.prim_indices[slot as usize] as usize;
+    let global = level.global(slot) as usize;
+    // The record the scalar walks give `accept` (an instance's object in it).
+    let record = if level.object == INVALID_ID { *tri } else { TriangleRecord { object: level.object, ..*tri } };
+    let tri = &record;
     let mut kept = hit;
     let mut lanes = hit;
     while lanes != 0 {
@@ -348,7 +398,7 @@ fn lanes(m: u32) -> Option<u32> {
 /// The any-hit node test of a packet: the entry is the mask of lanes that entered the
 /// node, the bound the mask of lanes already stopped (they drop out of popped nodes), the
 /// far end of every box test the rays' `t_max` widened; children left first, as stored.
-struct AnyHitLanes<'p, 'a, L: Lanes>(&'p Packet<'a, L>);
+pub(super) struct AnyHitLanes<'p, 'a, L: Lanes>(pub &'p Packet<'a, L>);
 
 impl<L: Lanes> NodeTest for AnyHitLanes<'_, '_, L> {
     type Entry = u32;
@@ -381,7 +431,7 @@ impl<L: Lanes> NodeTest for AnyHitLanes<'_, '_, L> {
 /// direction; a stale node is re-tested against the current bound, which is exactly the
 /// scalar pop test `t_enter <= best * (1 + slack)` (the entry distance does not depend on
 /// the far bound).
-struct ClosestHitLanes<'p, 'a, L: Lanes>(&'p Packet<'a, L>);
+pub(super) struct ClosestHitLanes<'p, 'a, L: Lanes>(pub &'p Packet<'a, L>);
 
 impl<L: Lanes> NodeTest for ClosestHitLanes<'_, '_, L> {
     type Entry = u32;
@@ -436,8 +486,13 @@ pub(crate) struct Occluder {
 /// made the teaser's shadow rays 12% faster and Sponza's 18%; the rest of the leaf 3 to 6%
 /// more; no change on the bunny and the dragon.
 #[inline(always)]
-pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, view: &SurfaceView, p: &Packet<L>, cache: &mut Option<Occluder>) -> u32 {
-    let nodes = &bvh.nodes;
+pub(crate) fn occluded<L: Lanes>(
+    level: &Level,
+    view: &SurfaceView,
+    p: &Packet<L>,
+    cache: &mut Option<Occluder>,
+) -> u32 {
+    let nodes = &level.bvh.nodes;
     let cached = if p.finite_inv { *cache } else { None };
     // The lanes stopped so far (the traversal's bound).
     let mut done = 0u32;
@@ -449,7 +504,7 @@ pub(crate) fn occluded<L: Lanes>(bvh: &Bvh, view: &SurfaceView, p: &Packet<L>, c
         #[inline(always)]
         |leaf: Leaf, mut m: u32, done: &mut u32| {
             for slot in leaf.slots() {
-                let hit = p.intersect_slot::<false>(bvh, view, m, slot).0;
+                let hit = p.intersect_slot::<false>(level, view, m, slot).0;
                 if hit != 0 {
                     *done |= hit;
                     m &= !hit;
@@ -496,11 +551,53 @@ impl<L: Lanes> ClosestLanes<L> {
         ClosestLanes { t: p.t_max, u: L::splat(0.0), v: L::splat(0.0), back: 0, id: [INVALID_ID; LANES] }
     }
 
+    /// The hits `hits` found so far (lane `i` from `hits[i]`; the ray's `t_max` and no
+    /// triangle where `None`).
+    #[inline(always)]
+    pub fn from_hits(p: &Packet<'_, L>, hits: &[Option<ClosestHit>]) -> Self {
+        let mut best = ClosestLanes::new(p);
+        let (mut t, mut u, mut v) = (L::store(best.t), [0.0; LANES], [0.0; LANES]);
+        for (i, h) in hits.iter().enumerate().take(LANES) {
+            if let Some(h) = h {
+                (t[i], u[i], v[i]) = (h.t, h.u, h.v);
+                best.id[i] = h.triangle;
+                best.back |= u32::from(h.back_face) << i;
+            }
+        }
+        (best.t, best.u, best.v) = (L::load(&t), L::load(&u), L::load(&v));
+        best
+    }
+
+    /// Lane `k`'s closest hit so far (triangle [`INVALID_ID`] at the ray's `t_max` where
+    /// none yet), for the scalar code.
+    #[inline(always)]
+    pub fn lane(&self, k: usize) -> ClosestHit {
+        let (t, u, v) = (L::store(self.t)[k], L::store(self.u)[k], L::store(self.v)[k]);
+        ClosestHit { triangle: self.id[k], t, u, v, back_face: self.back >> k & 1 != 0 }
+    }
+
+    /// Set lane `k`'s closest hit (found by the scalar code).
+    #[inline(always)]
+    pub fn set_lane(&mut self, k: usize, h: ClosestHit) {
+        let (mut t, mut u, mut v) = (L::store(self.t), L::store(self.u), L::store(self.v));
+        (t[k], u[k], v[k]) = (h.t, h.u, h.v);
+        (self.t, self.u, self.v) = (L::load(&t), L::load(&u), L::load(&v));
+        self.id[k] = h.triangle;
+        self.back = (self.back & !(1 << k)) | u32::from(h.back_face) << k;
+    }
+
+    /// Flip the facing of the lanes `m` (hits found in a mirrored instance, whose object
+    /// space faces the other way).
+    #[inline(always)]
+    pub fn flip_facing(&mut self, m: u32) {
+        self.back ^= m;
+    }
+
     /// Take the hits `hit` (at `t, u, v` per lane, back faces in `back`) on triangle `id`
     /// where they are nearer than the lane's closest so far, or as near with a lower
-    /// triangle index (the scalar rule for ties). True if some lane improved.
+    /// triangle index (the scalar rule for ties). The mask of lanes that improved.
     #[inline(always)]
-    pub fn offer(&mut self, hit: u32, t: L::F, u: L::F, v: L::F, back: u32, id: u32) -> bool {
+    pub fn offer(&mut self, hit: u32, t: L::F, u: L::F, v: L::F, back: u32, id: u32) -> u32 {
         let mut take = hit & L::bits(L::lt(t, self.t));
         let mut ties = hit & L::bits(L::eq(t, self.t));
         while ties != 0 {
@@ -511,7 +608,7 @@ impl<L: Lanes> ClosestLanes<L> {
             }
         }
         if take == 0 {
-            return false;
+            return 0;
         }
         let mut sel = [0.0; LANES];
         for (i, s) in sel.iter_mut().enumerate() {
@@ -525,25 +622,26 @@ impl<L: Lanes> ClosestLanes<L> {
         self.t = L::select(sel, t, self.t);
         self.u = L::select(sel, u, self.u);
         self.v = L::select(sel, v, self.v);
-        true
+        take
     }
 
-    /// Test the lanes `m` against the triangles of leaf slots `slots` (with the alpha
-    /// test of `view`) and take their hits ([`Self::offer`]). True if some lane improved.
+    /// Test the lanes `m` against the triangles of leaf slots `slots` of `level` (with
+    /// the alpha test of `view`) and take their hits ([`Self::offer`]). The mask of lanes
+    /// that improved.
     #[inline(always)]
     pub fn test_slots(
         &mut self,
-        bvh: &Bvh,
+        level: &Level,
         view: &SurfaceView,
         p: &Packet<'_, L>,
         m: u32,
         slots: impl Iterator<Item = u32>,
-    ) -> bool {
-        let mut improved = false;
+    ) -> u32 {
+        let mut improved = 0;
         for slot in slots {
-            let (hit, t, u, v, back) = p.intersect_slot::<true>(bvh, view, m, slot);
+            let (hit, t, u, v, back) = p.intersect_slot::<true>(level, view, m, slot);
             if hit != 0 {
-                improved |= self.offer(hit, t, u, v, back, bvh.prim_indices[slot as usize]);
+                improved |= self.offer(hit, t, u, v, back, level.global(slot));
             }
         }
         improved
@@ -567,15 +665,32 @@ impl<L: Lanes> ClosestLanes<L> {
 /// Closest hit for every valid lane, lane `i` equal to `Bvh::closest_hit` for ray `i`
 /// (see the module docs for the one rounding corner case).
 #[inline(always)]
-pub(crate) fn closest_hit<L: Lanes>(bvh: &Bvh, view: &SurfaceView, p: &Packet<L>) -> [Option<ClosestHit>; LANES] {
-    let widen = L::splat(1.0 + BVH_CULL_SLACK);
+pub(crate) fn closest_hit<L: Lanes>(level: &Level, view: &SurfaceView, p: &Packet<L>) -> [Option<ClosestHit>; LANES] {
     let mut best = ClosestLanes::<L>::new(p);
+    closest_hit_from(level, view, p, &mut best);
+    best.hits()
+}
+
+/// [`closest_hit`] from the closest hits `best` found so far (in other trees: the
+/// world-space level, other instances): a lane's hit in `level` replaces its best under
+/// the same `(t, triangle)` order, the boxes culled against the best so far, as the scalar
+/// walk carries its bound across the levels. The mask of lanes whose best changed.
+#[inline(always)]
+pub(crate) fn closest_hit_from<L: Lanes>(
+    level: &Level,
+    view: &SurfaceView,
+    p: &Packet<L>,
+    best: &mut ClosestLanes<L>,
+) -> u32 {
+    let widen = L::splat(1.0 + BVH_CULL_SLACK);
     let mut t_far = L::mul(best.t, widen);
+    let mut changed = 0;
     let leaf_test = inline_leaf_test(
         #[inline(always)]
         |leaf: Leaf, m: u32, t_far: &mut L::F| {
-            let improved = best.test_slots(bvh, view, p, m, leaf.slots());
-            if improved {
+            let improved = best.test_slots(level, view, p, m, leaf.slots());
+            if improved != 0 {
+                changed |= improved;
                 *t_far = L::mul(best.t, widen);
                 LeafFlow::Narrowed
             } else {
@@ -583,8 +698,8 @@ pub(crate) fn closest_hit<L: Lanes>(bvh: &Bvh, view: &SurfaceView, p: &Packet<L>
             }
         },
     );
-    traverse(&bvh.nodes, &ClosestHitLanes(p), &mut t_far, leaf_test);
-    best.hits()
+    traverse(&level.bvh.nodes, &ClosestHitLanes(p), &mut t_far, leaf_test);
+    changed
 }
 
 const _: () = assert!(ALL_LANES.count_ones() as usize == LANES);
