@@ -13,7 +13,7 @@ use std::sync::Arc;
 
 use bytemuck::Zeroable;
 
-use glam::{DVec3, Mat3, Vec2, Vec3};
+use glam::{DVec3, Mat3, Mat4, Vec2, Vec3};
 
 use crate::formats::{
     LightRecord, MaterialRecord, ObjectRecord, SurfaceLayout, TextureSet, TriangleRecord, TriangleUvRecord,
@@ -177,6 +177,30 @@ impl Default for ObjectExtent {
 }
 
 impl ObjectExtent {
+    /// The extent of `mesh` placed by `to_world`: [`ObjectExtent::of`] the placed
+    /// positions, bit for bit (the same `transform_point3`, and min and max are exact and
+    /// do not depend on order). When every position is used and lands finite, one pass
+    /// over the positions that keeps none of them (a moved object by reference costs no
+    /// allocation and no pass over its triangles); otherwise the placed positions are made
+    /// and [`ObjectExtent::of`] decides.
+    pub fn of_placed(mesh: &MeshSource, to_world: &Mat4) -> ObjectExtent {
+        if mesh.every_vertex_used {
+            let mut e = ObjectExtent::default();
+            let mut finite = true;
+            for p in &mesh.positions {
+                let v = to_world.transform_point3(*p);
+                finite &= v.is_finite();
+                e.lo = e.lo.min(v);
+                e.hi = e.hi.max(v);
+            }
+            if finite {
+                return e;
+            }
+        }
+        let world: Vec<Vec3> = mesh.positions.iter().map(|p| to_world.transform_point3(*p)).collect();
+        ObjectExtent::of(&world, &mesh.indices)
+    }
+
     /// The extent of triangles `indices` over world vertices `world`.
     pub fn of(world: &[Vec3], indices: &[[u32; 3]]) -> ObjectExtent {
         let mut e = ObjectExtent::default();
@@ -440,21 +464,24 @@ impl WorldGeometry {
             | if winding == MeshWinding::Inward { TRI_INWARD } else { 0 }
             | if masked { TRI_ALPHA_TEST } else { 0 };
         let transform = ObjectTransform::new(obj.transform);
-        let world: Vec<Vec3> = mesh.positions.iter().map(|p| obj.transform.transform_point3(*p)).collect();
         let first = self.objects[oi].first_triangle;
         let count = mesh.indices.len() as u32;
-        match self.triangles.placement(oi as u32, first) {
+        self.extents[oi] = match self.triangles.placement(oi as u32, first) {
             Placement::Stored { first_record } => {
+                let world: Vec<Vec3> = mesh.positions.iter().map(|p| obj.transform.transform_point3(*p)).collect();
                 let (tris, normals) = self.triangles.object_mut(first_record, count);
                 for ((ti, idx), (tri, normals)) in mesh.indices.iter().enumerate().zip(tris.iter_mut().zip(normals)) {
                     let corners = idx.map(|i| world[i as usize]);
                     *tri = world_record(corners, obj.id, ti as u32, tri_flags);
                     *normals = world_normals(corners, *idx, mesh.normals.as_deref(), &transform.normal_matrix);
                 }
+                ObjectExtent::of(&world, &mesh.indices)
             }
-            Placement::ByReference(_) => self.triangles.set_reference(oi as u32, transform, tri_flags),
-        }
-        self.extents[oi] = ObjectExtent::of(&world, &mesh.indices);
+            Placement::ByReference(r) => {
+                self.triangles.set_reference(oi as u32, transform, tri_flags);
+                ObjectExtent::of_placed(self.triangles.mesh(r.mesh), &obj.transform)
+            }
+        };
         let ior = match mat.kind {
             MaterialKind::Glass { ior } => ior,
             _ => 1.5,
@@ -478,7 +505,9 @@ impl WorldGeometry {
     /// triangles and normals in place (or its reference), its record, its texture
     /// level-of-detail constants and the scene bounds. Nothing else is touched; the result
     /// equals [`WorldGeometry::build_placed`] of the changed scene. Costs one pass over the
-    /// object's vertices and triangles plus one over the objects for the bounds.
+    /// object's vertices and triangles (an object by reference whose mesh uses every
+    /// vertex: one pass over its positions, kept nowhere, [`ObjectExtent::of_placed`]) plus
+    /// one over the objects for the bounds.
     pub fn update_object(&mut self, scene: &Scene, object: u32) {
         self.update_objects(scene, &[object]);
     }
@@ -680,6 +709,52 @@ mod tests {
         assert_eq!(MeshWinding::Outward.transformed(-1.0), MeshWinding::Inward);
         assert_eq!(MeshWinding::Inward.transformed(-2.0), MeshWinding::Outward);
         assert_eq!(MeshWinding::Open.transformed(-1.0), MeshWinding::Open);
+    }
+
+    /// An object by reference gets the extent its stored copy gets, bit for bit, also on
+    /// the paths that cannot take the one pass over the placed positions: a mesh with a
+    /// vertex no triangle uses (far away: it must not count), one with a vertex that lands
+    /// non-finite; and a move keeps them equal. (Indices out of range never get here: the
+    /// scene's meshes are checked when loaded.)
+    #[test]
+    fn objects_by_reference_have_the_extents_of_stored_ones() {
+        let sphere = Mesh::uv_sphere("sphere", 12, 6);
+        let mut unused = sphere.clone();
+        unused.positions.push(Vec3::splat(1e6));
+        let mut non_finite = Mesh::cube("cube");
+        non_finite.positions[3] = Vec3::new(f32::NAN, 0.0, 0.0);
+        let mut scene = Scene::default();
+        let place = |k: f32| {
+            Mat4::from_scale_rotation_translation(
+                Vec3::new(-0.5, 2.0, 0.25 * k),
+                glam::Quat::from_rotation_y(0.3 * k),
+                Vec3::new(3.0 * k, -1.0, 1e4),
+            )
+        };
+        for (k, mesh) in [sphere, unused, non_finite].into_iter().enumerate() {
+            scene.add_object(mesh, Material::grey(), place(k as f32 + 1.0), RenderMode::RayTraced);
+        }
+        let stored = WorldGeometry::build(&scene);
+        let mut by_reference = WorldGeometry::build_placed(&scene, &[true; 3]);
+        assert!(by_reference.triangles.has_references());
+        let same = |a: &WorldGeometry, b: &WorldGeometry| {
+            for (x, y) in a.extents.iter().zip(&b.extents) {
+                assert_eq!(
+                    (x.lo.to_array().map(f32::to_bits), x.hi.to_array().map(f32::to_bits)),
+                    (y.lo.to_array().map(f32::to_bits), y.hi.to_array().map(f32::to_bits))
+                );
+                assert_eq!(x.non_finite_triangles, y.non_finite_triangles);
+            }
+            assert_eq!(a.bounds, b.bounds);
+        };
+        same(&stored, &by_reference);
+        assert!(stored.extents[1].hi.x < 1e5, "the unused far vertex does not count");
+        assert!(stored.extents[2].non_finite_triangles > 0);
+        for o in &mut scene.objects {
+            o.transform = Mat4::from_rotation_x(0.4) * o.transform;
+        }
+        by_reference.update_objects(&scene, &[0, 1, 2]);
+        same(&WorldGeometry::build(&scene), &by_reference);
     }
 
     #[test]

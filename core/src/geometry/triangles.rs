@@ -32,12 +32,29 @@ pub struct MeshSource {
     pub positions: Vec<Vec3>,
     pub normals: Option<Vec<Vec3>>,
     pub indices: Vec<[u32; 3]>,
+    /// Every position is a corner of some triangle (and every index in range): an
+    /// object's extent is then the bounds of all its placed positions
+    /// ([`crate::geometry::ObjectExtent::of_placed`]), with no pass over the triangles.
+    pub every_vertex_used: bool,
 }
 
 impl MeshSource {
     /// The positions, normals and triangles of `mesh`.
     pub fn of_mesh(mesh: &Mesh) -> MeshSource {
-        MeshSource { positions: mesh.positions.clone(), normals: mesh.normals.clone(), indices: mesh.indices.clone() }
+        let mut used = vec![false; mesh.positions.len()];
+        let mut in_range = true;
+        for &i in mesh.indices.iter().flatten() {
+            match used.get_mut(i as usize) {
+                Some(u) => *u = true,
+                None => in_range = false,
+            }
+        }
+        MeshSource {
+            positions: mesh.positions.clone(),
+            normals: mesh.normals.clone(),
+            indices: mesh.indices.clone(),
+            every_vertex_used: in_range && used.iter().all(|&u| u),
+        }
     }
 
     /// Bytes held.
