@@ -337,49 +337,49 @@ impl WorldTriangles {
     /// The records of global ids `range`, in order, into `out` (cleared first): one pass
     /// per object, whatever the storage.
     pub fn fill(&self, range: std::ops::Range<usize>, out: &mut Vec<TriangleRecord>) {
-        out.clear();
-        if self.placements.is_empty() {
-            out.extend_from_slice(&self.records[range]);
-            return;
-        }
-        for (o, local) in self.object_runs(range) {
-            match &self.placements[o] {
-                Placement::Stored { first_record } => {
-                    let first = *first_record as usize;
-                    out.extend_from_slice(&self.records[first + local.start..first + local.end]);
-                }
-                Placement::ByReference(r) => {
-                    let mesh = &self.meshes[r.mesh as usize];
-                    let m = &r.transform.to_world;
-                    out.extend(mesh.indices[local.clone()].iter().zip(local.start..).map(|(idx, t)| {
-                        let world = idx.map(|i| m.transform_point3(mesh.positions[i as usize]));
-                        world_record(world, o as u32, t as u32, r.flags)
-                    }));
-                }
-            }
-        }
+        self.fill_with(range, out, &self.records, |o, r, local, out| {
+            let (mesh, m) = (&self.meshes[r.mesh as usize], &r.transform.to_world);
+            out.extend(mesh.indices[local.clone()].iter().zip(local).map(|(idx, t)| {
+                let world = idx.map(|i| m.transform_point3(mesh.positions[i as usize]));
+                world_record(world, o as u32, t as u32, r.flags)
+            }));
+        });
     }
 
     /// The corner normals of global ids `range`, in order, into `out` (cleared first).
     pub fn fill_normals(&self, range: std::ops::Range<usize>, out: &mut Vec<[Vec3; 3]>) {
+        self.fill_with(range, out, &self.normals, |_, r, local, out| {
+            let mesh = &self.meshes[r.mesh as usize];
+            out.extend(local.map(|t| {
+                let (world, idx) = self.reference_vertices(r, t);
+                world_normals(world, idx, mesh.normals.as_deref(), &r.transform.normal_matrix)
+            }));
+        });
+    }
+
+    /// [`WorldTriangles::fill`] and [`WorldTriangles::fill_normals`]: the entries of global
+    /// ids `range` into `out` (cleared first), copied from `stored` (records or normals, by
+    /// record index) for stored objects, and for each run of an object by reference appended
+    /// by `made(object, reference, local ids, out)` (which can look its mesh up once a run).
+    fn fill_with<T: Copy>(
+        &self,
+        range: std::ops::Range<usize>,
+        out: &mut Vec<T>,
+        stored: &[T],
+        made: impl Fn(usize, &ByReference, std::ops::Range<usize>, &mut Vec<T>),
+    ) {
         out.clear();
         if self.placements.is_empty() {
-            out.extend_from_slice(&self.normals[range]);
+            out.extend_from_slice(&stored[range]);
             return;
         }
         for (o, local) in self.object_runs(range) {
             match &self.placements[o] {
                 Placement::Stored { first_record } => {
                     let first = *first_record as usize;
-                    out.extend_from_slice(&self.normals[first + local.start..first + local.end]);
+                    out.extend_from_slice(&stored[first + local.start..first + local.end]);
                 }
-                Placement::ByReference(r) => {
-                    let mesh = &self.meshes[r.mesh as usize];
-                    out.extend(local.map(|t| {
-                        let (world, idx) = self.reference_vertices(r, t);
-                        world_normals(world, idx, mesh.normals.as_deref(), &r.transform.normal_matrix)
-                    }));
-                }
+                Placement::ByReference(r) => made(o, r, local, out),
             }
         }
     }
