@@ -559,17 +559,13 @@ impl TwoLevelBvh {
         ray: &RayRecord,
         accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool,
     ) -> bool {
-        let inst = &self.instances[i];
-        if inst.flags & INSTANCE_IDENTITY != 0 {
+        let Some((inst, bottom, ro)) = self.object_space(i, ray) else {
             return false;
-        }
-        let bottom = &self.bottoms[inst.bottom as usize];
-        let accept = |slot: u32, u: f32, v: f32| {
+        };
+        bottom.occluded_ray(&ro, inst.flags & INSTANCE_ALPHA_TEST, |slot, u, v| {
             let id = inst.first_triangle + bottom.prim_indices[slot as usize];
             accept(&hit_record(inst, bottom, slot), id, u, v)
-        };
-        TraversalRay::new(&object_space_ray(inst, ray))
-            .is_some_and(|ro| bottom.occluded_ray(&ro, inst.flags & INSTANCE_ALPHA_TEST, accept))
+        })
     }
 
     /// The closest-hit test of `ray` (in world space) against object-space instance `i`
@@ -585,19 +581,27 @@ impl TwoLevelBvh {
         best: &mut ClosestHit,
         accept: impl Fn(&TriangleRecord, u32, f32, f32) -> bool,
     ) -> bool {
-        let inst = &self.instances[i];
-        if inst.flags & INSTANCE_IDENTITY != 0 {
+        let Some((inst, bottom, ro)) = self.object_space(i, ray) else {
             return false;
-        }
-        let bottom = &self.bottoms[inst.bottom as usize];
+        };
         let id_of = |slot: u32| inst.first_triangle + bottom.prim_indices[slot as usize];
         let accept = |slot: u32, id: u32, u: f32, v: f32| accept(&hit_record(inst, bottom, slot), id, u, v);
-        let found = TraversalRay::new(&object_space_ray(inst, ray))
-            .is_some_and(|ro| bottom.closest_ray(&ro, best, id_of, inst.flags & INSTANCE_ALPHA_TEST, accept));
+        let found = bottom.closest_ray(&ro, best, id_of, inst.flags & INSTANCE_ALPHA_TEST, accept);
         if found && inst.flags & INSTANCE_MIRRORED != 0 {
             best.back_face = !best.back_face;
         }
         found
+    }
+
+    /// Object-space instance `i`, its bottom level and `ray` moved into its space, prepared;
+    /// `None` for the world-space level or a moved ray that can hit nothing.
+    #[inline(always)]
+    fn object_space(&self, i: usize, ray: &RayRecord) -> Option<(&InstanceRecord, &Bvh, TraversalRay)> {
+        let inst = &self.instances[i];
+        if inst.flags & INSTANCE_IDENTITY != 0 {
+            return None;
+        }
+        Some((inst, &self.bottoms[inst.bottom as usize], TraversalRay::new(&object_space_ray(inst, ray))?))
     }
 
     /// Any hit, no alpha test ([`Bvh::occluded`]).
