@@ -32,8 +32,8 @@
 use hyrt_core::bvh::traversal::{inline_leaf_test, traverse, Leaf, LeafFlow};
 use hyrt_core::bvh::two_level::{object_space_ray, TwoLevelBvh, INSTANCE_IDENTITY, INSTANCE_MIRRORED};
 use hyrt_core::bvh::{ClosestHit, BVH_CULL_SLACK};
-use hyrt_core::formats::{RayRecord, TriangleRecord};
-use hyrt_core::kernels::texture::{alpha_accepts, SurfaceView};
+use hyrt_core::formats::RayRecord;
+use hyrt_core::kernels::texture::SurfaceView;
 
 use super::lanes::{Lanes, LANES};
 use super::packet::{self, AnyHitLanes, ClosestHitLanes, ClosestLanes, Level, Occluder, Packet};
@@ -82,7 +82,7 @@ pub(crate) fn occluded<L: Lanes>(
     p: &Packet<L>,
     cache: &mut InstanceCache,
 ) -> u32 {
-    let accept = |t: &TriangleRecord, id: u32, u: f32, v: f32| alpha_accepts(view, t, id as usize, u, v);
+    let accept = super::alpha_test(view);
     let mut done = 0u32;
     let leaf_test = inline_leaf_test(
         #[inline(always)]
@@ -136,7 +136,7 @@ pub(crate) fn closest_hit<L: Lanes>(
     p: &Packet<L>,
     hits: &mut [Option<ClosestHit>],
 ) {
-    let accept = |t: &TriangleRecord, id: u32, u: f32, v: f32| alpha_accepts(view, t, id as usize, u, v);
+    let accept = super::alpha_test(view);
     let widen = L::splat(1.0 + BVH_CULL_SLACK);
     let mut best = ClosestLanes::<L>::from_hits(p, hits);
     let mut t_far = L::mul(best.t, widen);

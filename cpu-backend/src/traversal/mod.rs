@@ -370,10 +370,18 @@ fn occluded_any_chunk(
     }
 }
 
+/// The alpha test the scalar walks take as `accept` (`Bvh::occluded_filtered` and kin,
+/// `TwoLevelBvh`'s) in a scene whose surface tables are `view`: [`alpha_accepts`] of the
+/// hit record and its global triangle.
+#[inline(always)]
+pub(crate) fn alpha_test<'v>(view: &'v SurfaceView) -> impl Fn(&TriangleRecord, u32, f32, f32) -> bool + Copy + 'v {
+    move |t, id, u, v| alpha_accepts(view, t, id as usize, u, v)
+}
+
 /// The scalar reference's any hit with the alpha test of `view`.
 #[inline(always)]
 fn scalar_occluded(bvh: &Bvh, triangles: &[TriangleRecord], view: &SurfaceView, r: &RayRecord) -> bool {
-    bvh.occluded_filtered(triangles, r, |t, global, u, v| alpha_accepts(view, t, global as usize, u, v))
+    bvh.occluded_filtered(triangles, r, alpha_test(view))
 }
 
 /// The scalar reference's closest hit with the alpha test of `view`.
@@ -384,7 +392,7 @@ fn scalar_closest_hit(
     view: &SurfaceView,
     r: &RayRecord,
 ) -> Option<ClosestHit> {
-    bvh.closest_hit_filtered(triangles, r, |t, global, u, v| alpha_accepts(view, t, global as usize, u, v))
+    bvh.closest_hit_filtered(triangles, r, alpha_test(view))
 }
 
 /// [`occluded_batch_into`] into a new vector.
@@ -542,8 +550,7 @@ pub fn occluded_in_object_space_into(
             }
             match level {
                 None => {
-                    let accept =
-                        |t: &TriangleRecord, id: u32, u: f32, v: f32| alpha_accepts(view, t, id as usize, u, v);
+                    let accept = alpha_test(view);
                     for (&k, r) in index.iter().zip(rays.iter()) {
                         out[k as usize] = occlusion(levels.occluded_in_object_space(r, accept));
                     }
@@ -578,7 +585,7 @@ pub fn closest_hit_in_object_space_into(
     let level = traversal.level();
     closest.par_chunks_mut(TRAVERSAL_CHUNK).zip(rays.par_chunks(TRAVERSAL_CHUNK)).for_each(|(out, rays)| match level {
         None => {
-            let accept = |t: &TriangleRecord, id: u32, u: f32, v: f32| alpha_accepts(view, t, id as usize, u, v);
+            let accept = alpha_test(view);
             for (c, r) in out.iter_mut().zip(rays) {
                 *c = levels.closest_hit_in_object_space(r, *c, accept);
             }
@@ -655,7 +662,7 @@ fn occluded_instance_packets<L: Lanes>(
     index: &[u32],
     out: &mut [u32],
 ) {
-    let accept = |t: &TriangleRecord, id: u32, u: f32, v: f32| alpha_accepts(view, t, id as usize, u, v);
+    let accept = alpha_test(view);
     let mut cache = instances::InstanceCache::default();
     for (rays, index) in rays.chunks(LANES).zip(index.chunks(LANES)) {
         let hit = match Packet::<L>::new(rays) {
@@ -680,7 +687,7 @@ fn closest_instance_packets<L: Lanes>(
     rays: &[RayRecord],
     out: &mut [Option<ClosestHit>],
 ) {
-    let accept = |t: &TriangleRecord, id: u32, u: f32, v: f32| alpha_accepts(view, t, id as usize, u, v);
+    let accept = alpha_test(view);
     for (out, rays) in out.chunks_mut(LANES).zip(rays.chunks(LANES)) {
         match Packet::<L>::new(rays) {
             Some(p) => instances::closest_hit(levels, view, &p, out),
