@@ -25,6 +25,8 @@ pub(crate) trait Lanes: Copy {
     fn sub(a: Self::F, b: Self::F) -> Self::F;
     fn mul(a: Self::F, b: Self::F) -> Self::F;
     fn div(a: Self::F, b: Self::F) -> Self::F;
+    /// The correctly rounded square root per lane (IEEE 754, as `f32::sqrt`).
+    fn sqrt(a: Self::F) -> Self::F;
     /// `a > b ? a : b` per lane.
     fn max(a: Self::F, b: Self::F) -> Self::F;
     /// `a < b ? a : b` per lane.
@@ -44,6 +46,18 @@ pub(crate) trait Lanes: Copy {
     fn bits(mask: Self::F) -> u32;
     /// All ones where the lane's sign bit is set (`-0` and NaNs with the bit included).
     fn sign_mask(a: Self::F) -> Self::F;
+
+    /// The least lane, for lanes holding no NaN (which of two equal zeros is unspecified;
+    /// the value compares equal either way).
+    #[inline(always)]
+    fn min_lane(a: Self::F) -> f32 {
+        Self::store(a).into_iter().fold(f32::INFINITY, f32::min)
+    }
+    /// The greatest lane, as [`Lanes::min_lane`].
+    #[inline(always)]
+    fn max_lane(a: Self::F) -> f32 {
+        Self::store(a).into_iter().fold(f32::NEG_INFINITY, f32::max)
+    }
 
     #[inline(always)]
     fn gt(a: Self::F, b: Self::F) -> Self::F {
@@ -127,6 +141,10 @@ impl Lanes for Portable {
     #[inline(always)]
     fn div(a: Self::F, b: Self::F) -> Self::F {
         map2(a, b, |a, b| a / b)
+    }
+    #[inline(always)]
+    fn sqrt(a: Self::F) -> Self::F {
+        a.map(f32::sqrt)
     }
     #[inline(always)]
     fn max(a: Self::F, b: Self::F) -> Self::F {
@@ -236,6 +254,11 @@ mod x86 {
             sse2!(_mm_div_ps, a, b)
         }
         #[inline(always)]
+        fn sqrt(a: Self::F) -> Self::F {
+            // SAFETY: SSE2 is baseline.
+            unsafe { a.map(|a| _mm_sqrt_ps(a)) }
+        }
+        #[inline(always)]
         fn max(a: Self::F, b: Self::F) -> Self::F {
             sse2!(_mm_max_ps, a, b)
         }
@@ -285,6 +308,23 @@ mod x86 {
             // SAFETY: SSE2 is baseline. Arithmetic shift right by 31 spreads the sign bit.
             unsafe { a.map(|a| _mm_castsi128_ps(_mm_srai_epi32::<31>(_mm_castps_si128(a)))) }
         }
+        #[inline(always)]
+        fn min_lane(a: Self::F) -> f32 {
+            // SAFETY: SSE2 is baseline.
+            unsafe { reduce4(_mm_min_ps(a[0], a[1]), |x, y| _mm_min_ps(x, y)) }
+        }
+        #[inline(always)]
+        fn max_lane(a: Self::F) -> f32 {
+            // SAFETY: SSE2 is baseline.
+            unsafe { reduce4(_mm_max_ps(a[0], a[1]), |x, y| _mm_max_ps(x, y)) }
+        }
+    }
+
+    /// `op` over the four lanes of `v` (halves, then pairs), lane 0 of the result.
+    #[inline(always)]
+    unsafe fn reduce4(v: __m128, op: impl Fn(__m128, __m128) -> __m128) -> f32 {
+        let v = op(v, _mm_movehl_ps(v, v));
+        _mm_cvtss_f32(op(v, _mm_shuffle_ps::<0b01>(v, v)))
     }
 
     /// One AVX2 register. Only constructed behind `is_x86_feature_detected!("avx2")`, and
@@ -333,6 +373,11 @@ mod x86 {
         #[inline(always)]
         fn div(a: Self::F, b: Self::F) -> Self::F {
             avx!(_mm256_div_ps, a, b)
+        }
+        #[inline(always)]
+        fn sqrt(a: Self::F) -> Self::F {
+            // SAFETY: see the type's docs.
+            unsafe { _mm256_sqrt_ps(a) }
         }
         #[inline(always)]
         fn max(a: Self::F, b: Self::F) -> Self::F {
@@ -388,6 +433,22 @@ mod x86 {
             // SAFETY: see the type's docs. Arithmetic shift right by 31 spreads the sign bit.
             unsafe { _mm256_castsi256_ps(_mm256_srai_epi32::<31>(_mm256_castps_si256(a))) }
         }
+        #[inline(always)]
+        fn min_lane(a: Self::F) -> f32 {
+            // SAFETY: see the type's docs.
+            unsafe {
+                let half = _mm_min_ps(_mm256_castps256_ps128(a), _mm256_extractf128_ps::<1>(a));
+                reduce4(half, |x, y| _mm_min_ps(x, y))
+            }
+        }
+        #[inline(always)]
+        fn max_lane(a: Self::F) -> f32 {
+            // SAFETY: see the type's docs.
+            unsafe {
+                let half = _mm_max_ps(_mm256_castps256_ps128(a), _mm256_extractf128_ps::<1>(a));
+                reduce4(half, |x, y| _mm_max_ps(x, y))
+            }
+        }
     }
 }
 
@@ -418,6 +479,8 @@ mod tests {
         same(L::max(a, b), Portable::max(p, q));
         same(L::min(a, b), Portable::min(p, q));
         same(L::abs(a), Portable::abs(p));
+        same(L::sqrt(a), Portable::sqrt(p));
+        same(L::sqrt(L::abs(b)), Portable::sqrt(Portable::abs(q)));
         for (x, y) in
             [(L::lt(a, b), Portable::lt(p, q)), (L::le(a, b), Portable::le(p, q)), (L::eq(a, b), Portable::eq(p, q))]
         {
@@ -426,6 +489,15 @@ mod tests {
             same(L::select(x, a, b), Portable::select(y, p, q));
         }
         same(L::splat(-0.0), Portable::splat(-0.0));
+        // Horizontal extremes of NaN-free lanes, the extreme in every position.
+        for k in 0..LANES {
+            let mut v: [f32; LANES] = std::array::from_fn(|i| (i as f32 - 3.5) * 0.7);
+            v[k] = -1e30;
+            assert_eq!(L::min_lane(L::load(&v)), -1e30, "least in lane {k}");
+            v[k] = f32::INFINITY;
+            assert_eq!(L::max_lane(L::load(&v)), f32::INFINITY, "greatest in lane {k}");
+            assert_eq!(L::min_lane(L::load(&v)), Portable::min_lane(Portable::load(&v)));
+        }
     }
 
     #[test]

@@ -758,10 +758,9 @@ fn closest_hit_packets<L: Lanes>(
             continue;
         };
         let coherent = if bvh.wide.is_empty() { None } else { frustum::Frustum::new(&p, extent) };
-        let hits = match coherent {
-            Some(f) => frustum::closest_hit(bvh, view, &p, &f, &mut stack),
-            None => packet::closest_hit(&packet::Level::world(bvh), view, &p),
-        };
-        out.copy_from_slice(&hits[..out.len()]);
+        match coherent {
+            Some(f) => frustum::closest_hit(bvh, view, &p, &f, &mut stack, out),
+            None => packet::closest_hit(&packet::Level::world(bvh), view, &p, out),
+        }
     }
 }

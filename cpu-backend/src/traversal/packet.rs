@@ -102,7 +102,11 @@ pub(crate) struct Packet<'a, L: Lanes> {
     pub(super) rays: &'a [RayRecord],
     /// Lanes holding a ray that can hit something (see `Packet::new`).
     pub valid: u32,
+    /// `valid` as a lane mask (all ones in the valid lanes).
+    pub(super) valid_lanes: L::F,
     pub(super) origin: [L::F; 3],
+    /// The directions (the frustum's origin-spread limit reads their lengths).
+    pub(super) dir: [L::F; 3],
     pub(super) inv_dir: [L::F; 3],
     /// The direction of the first valid lane (orders children).
     dir0: [f32; 3],
@@ -127,7 +131,7 @@ pub(crate) struct Packet<'a, L: Lanes> {
     kz1: L::F,
     shear: [L::F; 3],
     t_min: L::F,
-    t_max: L::F,
+    pub(super) t_max: L::F,
     pub(super) box_t_min: L::F,
     /// `t_max * (1 + BVH_CULL_SLACK)`: the far bound of box tests for any hit.
     pub(super) box_t_max: L::F,
@@ -180,8 +184,12 @@ impl<'a, L: Lanes> Packet<'a, L> {
             L::and(finite(d[1]), finite(d[2])),
         );
         let zero_dir = L::and(L::and(L::eq(d[0], zero), L::eq(d[1], zero)), L::eq(d[2], zero));
+        // Lanes past the end have an empty interval: `present` changes nothing, kept as a
+        // guard.
         let present = (1u32 << rays.len()) - 1;
-        let valid = L::bits(L::and(all_finite, L::lt(t_min, t_max))) & !L::bits(zero_dir) & present;
+        let valid_lanes = L::andnot(zero_dir, L::and(all_finite, L::lt(t_min, t_max)));
+        let valid = L::bits(valid_lanes) & present;
+        debug_assert_eq!(valid, L::bits(valid_lanes));
         if valid.count_ones() < 2 {
             return None;
         }
@@ -227,7 +235,9 @@ impl<'a, L: Lanes> Packet<'a, L> {
             finite_inv: L::bits(infinite) & valid == 0,
             rays,
             valid,
+            valid_lanes,
             origin: o,
+            dir: d,
             inv_dir,
             near: [near(0), near(1), near(2)],
             mixed,
@@ -651,24 +661,30 @@ impl<L: Lanes> ClosestLanes<L> {
     #[inline(always)]
     pub fn hits(&self) -> [Option<ClosestHit>; LANES] {
         let mut out = [None; LANES];
-        let (t, u, v) = (L::store(self.t), L::store(self.u), L::store(self.v));
-        for i in 0..LANES {
-            if self.id[i] != INVALID_ID {
-                let back_face = self.back >> i & 1 != 0;
-                out[i] = Some(ClosestHit { triangle: self.id[i], t: t[i], u: u[i], v: v[i], back_face });
-            }
-        }
+        self.write_hits(&mut out);
         out
+    }
+
+    /// The closest hits of the first `out.len()` lanes into `out`.
+    #[inline(always)]
+    pub fn write_hits(&self, out: &mut [Option<ClosestHit>]) {
+        let (t, u, v) = (L::store(self.t), L::store(self.u), L::store(self.v));
+        for (i, o) in out.iter_mut().enumerate().take(LANES) {
+            *o = (self.id[i] != INVALID_ID).then(|| {
+                let back_face = self.back >> i & 1 != 0;
+                ClosestHit { triangle: self.id[i], t: t[i], u: u[i], v: v[i], back_face }
+            });
+        }
     }
 }
 
 /// Closest hit for every valid lane, lane `i` equal to `Bvh::closest_hit` for ray `i`
 /// (see the module docs for the one rounding corner case).
 #[inline(always)]
-pub(crate) fn closest_hit<L: Lanes>(level: &Level, view: &SurfaceView, p: &Packet<L>) -> [Option<ClosestHit>; LANES] {
+pub(crate) fn closest_hit<L: Lanes>(level: &Level, view: &SurfaceView, p: &Packet<L>, out: &mut [Option<ClosestHit>]) {
     let mut best = ClosestLanes::<L>::new(p);
     closest_hit_from(level, view, p, &mut best);
-    best.hits()
+    best.write_hits(out);
 }
 
 /// [`closest_hit`] from the closest hits `best` found so far (in other trees: the
