@@ -53,6 +53,23 @@
 //! closest hit, not here (see `Packet::intersect`). The node-to-node dependency chain (box
 //! loads from L3: the teaser's nodes are 2 MB) is the rest.
 //!
+//! Tried for those scenes and not kept (any hit, `ray_contest --kind shadow
+//! --packets-only`, one thread, AVX-512 lanes, the variants interleaved in one process):
+//!
+//! * Handing a packet's last lanes to single rays, as Embree's hybrid traversal does: at a
+//!   binary node entered by at most `k` lanes, each goes on alone through the wide view
+//!   from the wide node or leaf made of that subtree. Slower on six of the seven scenes
+//!   for every `k` from 1 to 5 (teaser 56 ms against 59 to 66, the dragon 76 against 79
+//!   to 92, the near bunny 12.5 against 13.4 to 14.9), faster only on the far horse (its
+//!   6,084 rays: 1.25 against 1.01 ms at `k = 5`). The lanes a packet loses are mostly
+//!   near their leaves, where little of the binary walk is left, and a wide walk costs
+//!   more to start than that; preparing each lane's ray once per packet, or leaving out
+//!   the occluder cache on both sides, did not change the verdict.
+//! * A walk without the child-order branch (both children pushed with their lane masks,
+//!   empty masks not pushed, every node popped). That branch causes 61% of the
+//!   mispredicted branches on the far bunny (callgrind `--branch-sim`), but passing every
+//!   step through the stack was 12 to 54% slower (the teaser 53 against 82 ms).
+//!
 //! Two-level scenes (moving objects, shared meshes): the world-space level is traced as
 //! above, then the object-space instances in packets (module `instances`,
 //! [`occluded_in_object_space_into`], [`closest_hit_in_object_space_into`]).
