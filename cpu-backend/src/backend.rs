@@ -113,12 +113,14 @@ fn compact_list(
 
 /// `shadow_rays` of one list: the list `compact_list` wrote, or the rays of its active
 /// pairs made as they are traced; the occlusion results and the shadow mask into `out`.
-/// The number of rays.
+/// `image_width` where the surfaces are an image's pixels (depth 0: the generated rays
+/// are traced in pixel tiles). The number of rays.
 fn trace_list(
     scene: &PreparedScene,
     surfaces: &[SurfaceRecord],
     scratch: &CompactionScratch,
     list: Option<&[RayRecord]>,
+    image_width: Option<u32>,
     traversal: Traversal,
     (occluded, shadow): (&mut Vec<u32>, &mut Vec<u8>),
 ) -> usize {
@@ -133,7 +135,7 @@ fn trace_list(
             shadow_mask_into(rays, occluded, surfaces.len(), lights, shadow);
         }
         None => {
-            shadow_rays_of_pairs_into(bvh, g, surfaces, &scratch.active, traversal, occluded);
+            shadow_rays_of_pairs_into(bvh, g, surfaces, &scratch.active, image_width, traversal, occluded);
             if let Some(levels) = &scene.levels {
                 let ray = |i: usize| pair_ray(surfaces, &g.lights, scratch.active[i]);
                 shadow_rays_in_object_space(levels, g, ray, traversal, occluded);
@@ -230,7 +232,8 @@ impl Backend for CpuBackend {
                     Step::ShadowRays => {
                         let list = lists[0].then_some(&f.rays[..]);
                         let out = (&mut f.occluded, &mut f.shadow);
-                        shadow_rays[0] = trace_list(scene, &f.surfaces, scratch, list, traversal, out);
+                        let width = Some(camera.width);
+                        shadow_rays[0] = trace_list(scene, &f.surfaces, scratch, list, width, traversal, out);
                     }
                     Step::SecondaryRays { depth } => {
                         let (done, rest) = f.bounces.split_at_mut(depth as usize - 1);
@@ -274,7 +277,8 @@ impl Backend for CpuBackend {
                         let b = &mut f.bounces[depth as usize - 1];
                         let list = lists[depth as usize].then_some(&b.shadow_rays[..]);
                         let out = (&mut b.occluded, &mut b.shadow);
-                        shadow_rays[depth as usize] = trace_list(scene, &b.surfaces, scratch, list, traversal, out);
+                        shadow_rays[depth as usize] =
+                            trace_list(scene, &b.surfaces, scratch, list, None, traversal, out);
                     }
                     Step::BounceShading { depth, last } => {
                         let (this, deeper) = f.bounces.split_at_mut(depth as usize);

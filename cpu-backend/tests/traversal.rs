@@ -14,7 +14,9 @@ use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::camera::primary_rays;
 use hyrt_core::scene::{Material, Mesh, RenderMode, Scene};
 use hyrt_cpu::backend::CpuBackend;
-use hyrt_cpu::traversal::{closest_hit_batch, occluded_batch, with_threads, Traversal, LANES};
+use hyrt_cpu::traversal::{
+    closest_hit_batch, occluded_batch, occluded_pairs_tiled_into, with_threads, Traversal, LANES,
+};
 use proptest::prelude::*;
 
 /// Compare every available packet level with the scalar reference on `rays`; returns the
@@ -357,6 +359,49 @@ fn shared_asset_frames_match_scalar() {
         assert!(occluded > 0, "{}: no occluded shadow ray", path.display());
         let hits = check(g, bvh, &primary_rays(&cam));
         assert!(hits > 0, "{}: no primary hit", path.display());
+    }
+}
+
+/// Shadow rays traced in pixel tiles (`occluded_pairs_tiled_into`) answer as the list
+/// order does, ray by ray, at every traversal: frames whose sizes leave partial tiles at the
+/// right and bottom edges, of the default scene (several lights) and, where present, the
+/// teaser, on 1 and 2 threads.
+#[test]
+fn tiled_shadow_rays_answer_as_the_list_order() {
+    let teaser = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes/teaser.toml");
+    let mut scenes = vec![(Scene::default_scene(), 157, 91)];
+    if PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets").is_dir() {
+        let mut s = Scene::load(&teaser).unwrap();
+        s.ensure_camera_and_lights();
+        scenes.push((s, 203, 117));
+    }
+    for (scene, w, h) in scenes {
+        let g = WorldGeometry::build(&scene);
+        let bvh = Bvh::build(&g, BvhPreset::default());
+        let cam = CameraRecord::new(&scene.camera.unwrap(), w, h);
+        let prepared = PreparedScene::new(g, bvh, 0.0);
+        let frame = CpuBackend::new(Some(2)).render(&prepared, &cam, &FrameOptions::with_stage_outputs()).unwrap();
+        let (g, bvh) = (&prepared.geometry, &prepared.bvh);
+        let lights = frame.rays.iter().map(|r| r.light).max().unwrap_or(0) + 1;
+        assert!(lights > 1 || w == 203, "the default scene has several lights");
+        let want = occluded_batch(bvh, g.stored_table(), &frame.rays, Traversal::Scalar);
+        assert!(want.contains(&0) && want.contains(&1));
+        let view = g.surface.view();
+        for kind in std::iter::once(Traversal::Scalar).chain(Traversal::available_simd()) {
+            for threads in [1, 2] {
+                let mut got = Vec::new();
+                let rays = &frame.rays;
+                let pixels = w * h;
+                let pairs: Vec<u32> = rays.iter().map(|r| r.light * pixels + r.pixel).collect();
+                with_threads(threads, || {
+                    let table = g.stored_table();
+                    occluded_pairs_tiled_into(bvh, table, &view, &pairs, pixels, w, |i| rays[i], kind, &mut got)
+                });
+                let differ = got.iter().zip(&want).filter(|(a, b)| a != b).count();
+                assert_eq!(differ, 0, "{}, {w}x{h}, {threads} threads: {differ} rays differ", kind.name());
+                assert_eq!(got.len(), want.len());
+            }
+        }
     }
 }
 

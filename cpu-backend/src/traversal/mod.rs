@@ -23,11 +23,17 @@
 //! instruction count.)
 //!
 //! Consecutive rays make a packet; the stage's lists are light-major then pixel-major, so
-//! a packet is a short run of neighbouring pixels and their rays are coherent. (Packets of
-//! 4x2 pixel tiles were measured: the teaser's shadow rays, reordered into tiles
-//! beforehand, trace about 8% faster, but reordering inside the batch, a second pass over
-//! 64-byte records, cost more than it saved: 28.6 against 30.4 Mrays/s, one thread. The
-//! way to that 8% is a compaction that writes its list in tile order, in both backends.)
+//! a packet is a short run of neighbouring pixels and their rays are coherent. A frame's
+//! shadow rays made from compaction's (light, pixel) pairs as they are traced
+//! ([`occluded_pairs_tiled_into`], the frame without stage outputs) are made and traced in
+//! 2x4 pixel tiles instead (module `tiles`): measured on the frame's `shadow_rays` stage
+//! (`hyrt render assets/scenes/<scene>.toml --frames 9 --threads 1 --max-depth 0`, the
+//! previous and the new binary alternated five or six times, median of the pair ratios):
+//! teaser and Sponza 0.91, the near and far bunnies and the near horse 0.88, the far horse
+//! 0.82, the dragon 1.00; images identical. A list given as records is traced in its own
+//! order: copying its 64-byte records into tile order cost more than it saved on the
+//! teaser and Sponza (per window and per packet both tried; also earlier: 28.6 against
+//! 30.4 Mrays/s, one thread).
 //!
 //! Any hit: each packet first tries the triangle that stopped a lane of the previous
 //! packet of its chunk (neighbouring pixels, same light: often the same occluder), then the
@@ -83,6 +89,7 @@ mod instances;
 mod lanes;
 mod packet;
 mod single;
+mod tiles;
 mod watertight;
 
 use rayon::prelude::*;
@@ -334,6 +341,68 @@ pub fn occluded_alpha_batch_into(
     out.par_chunks_mut(TRAVERSAL_CHUNK)
         .zip(rays.par_chunks(TRAVERSAL_CHUNK))
         .for_each(|(out, rays)| occluded_any_chunk(bvh, triangles, view, rays, out, mode));
+}
+
+/// [`occluded_generated_into`] for a frame's shadow rays made from their (light, pixel)
+/// pairs: `active` holds the pairs `k = light * pixels + pixel`, increasing (as
+/// `compaction` writes them; pixels of an image `width` pixels wide), `ray(i)` makes the
+/// ray of pair `active[i]`. Traced in packets of pixel tiles (module `tiles`): the same
+/// answers, in the pairs' order. Windows of whole tile rows run in parallel; each
+/// window's rays are made in tile order, traced as one chunk, and their answers written
+/// back to the pairs' order.
+#[allow(clippy::too_many_arguments)]
+pub fn occluded_pairs_tiled_into(
+    bvh: &Bvh,
+    triangles: &[TriangleRecord],
+    view: &SurfaceView,
+    active: &[u32],
+    pixels: u32,
+    width: u32,
+    ray: impl Fn(usize) -> RayRecord + Sync,
+    traversal: Traversal,
+    out: &mut Vec<u32>,
+) {
+    out.resize(active.len(), SHADOW_VISIBLE); // every element is written below
+    let mode = traversal_mode(bvh, view, traversal);
+    let (pixels, width) = (pixels.max(1), width.max(1));
+    let key = |i: usize| (active[i] / pixels, active[i] % pixels);
+    tile_windows(active.len(), key, width, out).into_par_iter().for_each_init(
+        || (Vec::new(), Vec::new(), Vec::new(), Vec::new()),
+        |(coords, order, rays, answers), (start, out)| {
+            tiles::coords(&active[start..start + out.len()], pixels, width, coords);
+            tiles::tile_order(coords, order);
+            rays.clear();
+            rays.extend(order.iter().map(|&o| ray(start + o as usize)));
+            answers.resize(out.len(), SHADOW_VISIBLE);
+            occluded_any_chunk(bvh, triangles, view, rays, answers, mode);
+            for (&o, &a) in order.iter().zip(answers.iter()) {
+                out[o as usize] = a;
+            }
+        },
+    );
+}
+
+/// Rays per window of the tiled traversal at least (windows hold whole tile rows: with
+/// every pixel active, 4 rows of the image).
+const TILE_WINDOW: usize = TRAVERSAL_CHUNK;
+
+/// The output split into windows of whole tile rows (`tiles::windows`): `(first ray,
+/// its answers)` per window.
+fn tile_windows(
+    count: usize,
+    key: impl Fn(usize) -> (u32, u32),
+    width: u32,
+    out: &mut [u32],
+) -> Vec<(usize, &mut [u32])> {
+    let ends = tiles::windows(count, key, width, TILE_WINDOW);
+    let mut windows = Vec::with_capacity(ends.len());
+    let (mut rest, mut start) = (out, 0);
+    for &end in &ends {
+        let (head, tail) = rest.split_at_mut(end - start);
+        windows.push((start, head));
+        (rest, start) = (tail, end);
+    }
+    windows
 }
 
 /// `(level, single)` of `traversal` on `bvh` ([`Traversal::level`], [`Traversal::single`]),
