@@ -365,8 +365,7 @@ pub fn occluded_pairs_tiled_into(
     out.resize(active.len(), SHADOW_VISIBLE); // every element is written below
     let mode = traversal_mode(bvh, view, traversal);
     let (pixels, width) = (pixels.max(1), width.max(1));
-    let key = |i: usize| (active[i] / pixels, active[i] % pixels);
-    tile_windows(active.len(), key, width, out).into_par_iter().for_each_init(
+    tile_windows(active, pixels, width, out).into_par_iter().for_each_init(
         || (Vec::new(), Vec::new(), Vec::new(), Vec::new()),
         |(coords, order, rays, answers), (start, out)| {
             tiles::coords(&active[start..start + out.len()], pixels, width, coords);
@@ -388,13 +387,8 @@ const TILE_WINDOW: usize = TRAVERSAL_CHUNK;
 
 /// The output split into windows of whole tile rows (`tiles::windows`): `(first ray,
 /// its answers)` per window.
-fn tile_windows(
-    count: usize,
-    key: impl Fn(usize) -> (u32, u32),
-    width: u32,
-    out: &mut [u32],
-) -> Vec<(usize, &mut [u32])> {
-    let ends = tiles::windows(count, key, width, TILE_WINDOW);
+fn tile_windows<'o>(active: &[u32], pixels: u32, width: u32, out: &'o mut [u32]) -> Vec<(usize, &'o mut [u32])> {
+    let ends = tiles::windows(active, pixels, width, TILE_WINDOW);
     let mut windows = Vec::with_capacity(ends.len());
     let (mut rest, mut start) = (out, 0);
     for &end in &ends {

@@ -29,37 +29,26 @@ pub const TILE_WIDTH: u32 = 2;
 pub const TILE_HEIGHT: u32 = 4;
 const _: () = assert!((TILE_WIDTH * TILE_HEIGHT) as usize == LANES);
 
-/// The tile row (light, band of [`TILE_HEIGHT`] image rows) of the ray of `light` at
-/// `pixel` in an image `width` pixels wide.
+/// The tile row (light, band of [`TILE_HEIGHT`] image rows) of pair `k = light * pixels +
+/// pixel` in an image `width` pixels wide.
 #[inline(always)]
-fn band(light: u32, pixel: u32, width: u32) -> (u32, u32) {
-    (light, pixel / width / TILE_HEIGHT)
+fn band(k: u32, pixels: u32, width: u32) -> (u32, u32) {
+    (k / pixels, k % pixels / width / TILE_HEIGHT)
 }
 
-/// The ends of windows of whole tile rows over `count` rays sorted by `(light, pixel)`
-/// (`key(i)` for ray `i`), each at least `min_len` rays long where the list allows (the
-/// last may be shorter): every window starts where a tile row starts.
-pub(crate) fn windows(count: usize, key: impl Fn(usize) -> (u32, u32), width: u32, min_len: usize) -> Vec<usize> {
+/// The ends of windows of whole tile rows over `pairs` (`k = light * pixels + pixel`,
+/// increasing), each at least `min_len` pairs long where the list allows (the last may be
+/// shorter): every window starts where a tile row starts.
+pub(crate) fn windows(pairs: &[u32], pixels: u32, width: u32, min_len: usize) -> Vec<usize> {
     let mut ends = Vec::new();
     let mut start = 0;
-    while start < count {
-        let mut end = (start + min_len.max(1)).min(count);
-        if end < count {
-            // Extend to the end of the tile row of ray `end - 1`: the first ray of a later
-            // tile row, by binary search (rays are sorted, so tile rows are contiguous).
-            let (l, p) = key(end - 1);
-            let row = band(l, p, width);
-            let (mut lo, mut hi) = (end, count);
-            while lo < hi {
-                let mid = lo + (hi - lo) / 2;
-                let (l, p) = key(mid);
-                if band(l, p, width) == row {
-                    lo = mid + 1;
-                } else {
-                    hi = mid;
-                }
-            }
-            end = lo;
+    while start < pairs.len() {
+        let mut end = (start + min_len.max(1)).min(pairs.len());
+        if end < pairs.len() {
+            // Extend to the end of the tile row of pair `end - 1` (pairs are sorted, so
+            // tile rows are contiguous).
+            let row = band(pairs[end - 1], pixels, width);
+            end += pairs[end..].partition_point(|&k| band(k, pixels, width) == row);
         }
         ends.push(end);
         start = end;
@@ -172,21 +161,21 @@ mod tests {
         for (width, height) in [(16, 8), (37, 19), (1, 9), (40, 1), (1280, 9)] {
             for (m, keep) in masks.iter().enumerate() {
                 let list = pairs(width, height, 3, keep);
-                let key = |i: usize| list[i];
+                let ks: Vec<u32> = list.iter().map(|&(l, p)| l * width * height + p).collect();
                 for min_len in [1, 8, 50, 10_000] {
-                    let ends = windows(list.len(), key, width, min_len);
+                    let ends = windows(&ks, width * height, width, min_len);
                     let mut start = 0;
                     let mut order = Vec::new();
                     for &end in &ends {
                         assert!(end > start && end <= list.len());
                         if end < list.len() {
                             assert!(end - start >= min_len, "{width}x{height} mask {m}: short window");
-                            let (a, b) = (list[end - 1], list[end]);
-                            assert_ne!(band(a.0, a.1, width), band(b.0, b.1, width), "window splits a tile row");
+                            let (a, b) = (ks[end - 1], ks[end]);
+                            let band = |k| band(k, width * height, width);
+                            assert_ne!(band(a), band(b), "window splits a tile row");
                         }
                         let mut c = Vec::new();
-                        let ks: Vec<u32> = list[start..end].iter().map(|&(l, p)| l * width * height + p).collect();
-                        coords(&ks, width * height, width, &mut c);
+                        coords(&ks[start..end], width * height, width, &mut c);
                         let want: Vec<[u32; 3]> =
                             list[start..end].iter().map(|&(l, p)| [l, p % width, p / width]).collect();
                         assert_eq!(c, want);
