@@ -427,6 +427,43 @@ fn divergent_packets_match_scalar() {
     assert!(occluded > rays.len() / 2, "{occluded} of {}", rays.len());
 }
 
+/// Packets whose lanes part near their origins, so most leaves are entered by fewer lanes
+/// than they hold triangles and each lane is tested alone against the whole leaf (the
+/// any-hit packets' `occluded_lanes_alone`): shadow rays from scattered points just off a
+/// dense sphere to a light, some blocked by a second sphere, and rays straight down onto
+/// the vertices and edge midpoints of a fine grid in scattered order (exactly-zero edge
+/// functions, left to the scalar kernel's tie rule).
+#[test]
+fn lanes_alone_in_dense_leaves_match_scalar() {
+    let grid = Mat4::from_translation(Vec3::new(0.0, -2.5, 0.0)) * Mat4::from_scale(Vec3::splat(8.0));
+    let g = mesh_scene(vec![
+        (Mesh::uv_sphere("dense", 96, 48), Mat4::from_scale(Vec3::splat(2.0))),
+        (
+            Mesh::uv_sphere("occluder", 24, 12),
+            Mat4::from_translation(Vec3::new(0.4, 3.2, 0.2)) * Mat4::from_scale(Vec3::splat(0.7)),
+        ),
+        (Mesh::grid("grid", 64), grid),
+    ]);
+    let bvh = Bvh::build(&g, BvhPreset::Medium);
+    let light = Vec3::new(0.5, 6.0, 0.3);
+    // Neighbouring rays far apart: index k takes point (k * 7919) mod n.
+    let scatter = |n: usize| (0..n).map(move |k| k * 7919 % n);
+    let n = 4096;
+    let mut rays: Vec<RayRecord> = scatter(n)
+        .map(|i| {
+            let (theta, phi) = ((i as f32 + 0.5) / n as f32 * std::f32::consts::PI, i as f32 * 2.399_963);
+            let normal = Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin());
+            let p = normal * 2.0 * (1.0 + 1e-3);
+            ray(p, light - p, 1e-4, 1.0)
+        })
+        .collect();
+    let targets = grid_targets(64, grid);
+    let m = targets.len();
+    rays.extend(scatter(m).map(|i| ray(targets[i] + Vec3::Y * 9.0, Vec3::new(0.0, -1.0, 0.0), 0.0, f32::INFINITY)));
+    let occluded = check(&g, &bvh, &rays);
+    assert!(occluded > n / 8 && occluded < rays.len() - n / 8, "{occluded} of {} occluded", rays.len());
+}
+
 /// The backend's shadow traversal setting changes nothing in the frame.
 #[test]
 fn backend_frames_are_identical_with_scalar_and_simd_shadow_rays() {

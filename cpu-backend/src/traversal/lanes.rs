@@ -10,6 +10,8 @@
 //! [`ray_aabb_conservative`](hyrt_core::kernels::ray::ray_aabb_conservative) with
 //! `a = candidate, b = acc`.
 
+use hyrt_core::formats::TriangleRecord;
+
 /// Lanes per packet.
 pub const LANES: usize = 8;
 /// Bit mask of all lanes.
@@ -57,6 +59,21 @@ pub(crate) trait Lanes: Copy {
     #[inline(always)]
     fn max_lane(a: Self::F) -> f32 {
         Self::store(a).into_iter().fold(f32::NEG_INFINITY, f32::max)
+    }
+
+    /// The vertices of eight triangles as lanes, `[vertex][axis]` with lane `k` from
+    /// `tris[k]`: a transpose of the records' vertex words, no arithmetic.
+    #[inline(always)]
+    fn triangle_lanes(tris: [&TriangleRecord; LANES]) -> [[Self::F; 3]; 3] {
+        let mut v = [[[0.0f32; LANES]; 3]; 3];
+        for (k, t) in tris.iter().enumerate() {
+            for (i, p) in [t.v0, t.v1, t.v2].into_iter().enumerate() {
+                for a in 0..3 {
+                    v[i][a][k] = p[a];
+                }
+            }
+        }
+        v.map(|v| v.map(|a| Self::load(&a)))
     }
 
     #[inline(always)]
@@ -201,7 +218,7 @@ pub(crate) use x86::{Avx2, Sse2};
 
 #[cfg(target_arch = "x86_64")]
 mod x86 {
-    use super::{Lanes, LANES};
+    use super::{Lanes, TriangleRecord, LANES};
     use std::arch::x86_64::*;
 
     /// Two SSE2 registers (x86-64 baseline: always available).
@@ -217,6 +234,28 @@ mod x86 {
 
     impl Lanes for Sse2 {
         type F = [__m128; 2];
+        #[inline(always)]
+        fn triangle_lanes(tris: [&TriangleRecord; LANES]) -> [[Self::F; 3]; 3] {
+            // SAFETY: SSE2 is baseline; unaligned loads of four in-bounds words of a
+            // record (`[f32; 12]`: each vertex and the word after it).
+            unsafe {
+                let w: [&[f32; 12]; LANES] = tris.map(bytemuck::cast_ref);
+                let mut out = [[[_mm_setzero_ps(); 2]; 3]; 3];
+                for (i, vertex) in out.iter_mut().enumerate() {
+                    for (h, half) in [0, 4].into_iter().enumerate() {
+                        let r = |k: usize| _mm_loadu_ps(w[half + k].as_ptr().add(4 * i));
+                        let (r0, r1, r2, r3) = (r(0), r(1), r(2), r(3));
+                        // [x0 x1 y0 y1], [z0 z1 . .], [x2 x3 y2 y3], [z2 z3 . .].
+                        let (u0, u1) = (_mm_unpacklo_ps(r0, r1), _mm_unpackhi_ps(r0, r1));
+                        let (u2, u3) = (_mm_unpacklo_ps(r2, r3), _mm_unpackhi_ps(r2, r3));
+                        vertex[0][h] = _mm_shuffle_ps::<0x44>(u0, u2);
+                        vertex[1][h] = _mm_shuffle_ps::<0xEE>(u0, u2);
+                        vertex[2][h] = _mm_shuffle_ps::<0x44>(u1, u3);
+                    }
+                }
+                out
+            }
+        }
         #[inline(always)]
         fn splat(x: f32) -> Self::F {
             // SAFETY: SSE2 is baseline.
@@ -341,6 +380,35 @@ mod x86 {
 
     impl Lanes for Avx2 {
         type F = __m256;
+        #[inline(always)]
+        fn triangle_lanes(tris: [&TriangleRecord; LANES]) -> [[Self::F; 3]; 3] {
+            // SAFETY: see the type's docs; unaligned loads of four in-bounds words of a
+            // record (`[f32; 12]`: each vertex and the word after it).
+            unsafe {
+                let w: [&[f32; 12]; LANES] = tris.map(bytemuck::cast_ref);
+                let mut out = [[_mm256_setzero_ps(); 3]; 3];
+                for (i, vertex) in out.iter_mut().enumerate() {
+                    // Row k: triangle k's vertex in the low half, triangle k + 4's in the high.
+                    let r = |k: usize| {
+                        let lo = _mm_loadu_ps(w[k].as_ptr().add(4 * i));
+                        _mm256_insertf128_ps::<1>(
+                            _mm256_castps128_ps256(lo),
+                            _mm_loadu_ps(w[k + 4].as_ptr().add(4 * i)),
+                        )
+                    };
+                    let (r0, r1, r2, r3) = (r(0), r(1), r(2), r(3));
+                    // Per half: [x0 x1 y0 y1], [z0 z1 . .], [x2 x3 y2 y3], [z2 z3 . .].
+                    let (u0, u1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpackhi_ps(r0, r1));
+                    let (u2, u3) = (_mm256_unpacklo_ps(r2, r3), _mm256_unpackhi_ps(r2, r3));
+                    *vertex = [
+                        _mm256_shuffle_ps::<0x44>(u0, u2),
+                        _mm256_shuffle_ps::<0xEE>(u0, u2),
+                        _mm256_shuffle_ps::<0x44>(u1, u3),
+                    ];
+                }
+                out
+            }
+        }
         #[inline(always)]
         fn splat(x: f32) -> Self::F {
             // SAFETY: see the type's docs.
@@ -489,6 +557,24 @@ mod tests {
             same(L::select(x, a, b), Portable::select(y, p, q));
         }
         same(L::splat(-0.0), Portable::splat(-0.0));
+        // The transpose of eight triangle records: every word to its lane.
+        let records: Vec<TriangleRecord> = (0..LANES)
+            .map(|k| {
+                let w = |i: usize| {
+                    std::array::from_fn(|a| SAMPLES[(k + 3 * i + a) % LANES] + (100 * k + 10 * i + a) as f32)
+                };
+                TriangleRecord { v0: w(0), object: 7, v1: w(1), triangle: 8, v2: w(2), flags: 9 }
+            })
+            .collect();
+        let tris: [&TriangleRecord; LANES] = std::array::from_fn(|k| &records[k]);
+        let (lanes, portable) = (L::triangle_lanes(tris), Portable::triangle_lanes(tris));
+        for i in 0..3 {
+            for a in 0..3 {
+                same(lanes[i][a], portable[i][a]);
+                let want: [f32; LANES] = std::array::from_fn(|k| [records[k].v0, records[k].v1, records[k].v2][i][a]);
+                assert_eq!(portable[i][a].map(f32::to_bits), want.map(f32::to_bits));
+            }
+        }
         // Horizontal extremes of NaN-free lanes, the extreme in every position.
         for k in 0..LANES {
             let mut v: [f32; LANES] = std::array::from_fn(|i| (i as f32 - 3.5) * 0.7);

@@ -41,23 +41,43 @@
 //! `packet::occluded`); 15 to 25% faster on the teaser's and Sponza's shadow rays. Lanes
 //! diverge gracefully: each stack entry carries the mask of lanes that entered the node,
 //! so a lane drops out of subtrees it misses, and rays with different direction signs
-//! take per-lane near planes. A packet with fewer than two valid rays is traced one ray at
-//! a time with the scalar code (the per-packet fallback).
+//! take per-lane near planes. A leaf entered by fewer lanes than it holds triangles is
+//! tested one lane at a time, each lane's ray against all its triangles at once (the
+//! records transposed into lanes, `Lanes::triangle_lanes`), its candidates confirmed by the
+//! packet test (`packet::occluded_lanes_alone`): where lanes part, at the leaves around
+//! their own origins, that replaces one mostly idle packet test per triangle. A packet with
+//! fewer than two valid rays is traced one ray at a time with the scalar code (the
+//! per-packet fallback).
 //!
 //! SIMD level: AVX2 (8 lanes in one register) when the CPU has it, compiled for AVX-512
 //! too where the CPU has that (same operations, more registers and mask registers), else
 //! SSE2 (two 4-lane registers, the x86-64 baseline), else plain arrays; chosen at run
 //! time, stable Rust only. All give the same bits.
 //!
-//! Where the time goes (counted per packet of the shadow rays, one thread): the teaser
-//! visits 18 inner nodes and tests 5 triangles, Sponza 16 and 3, and hyrt's packets beat
-//! Embree's there; the bunny (close up) visits 35 and tests 29, the dragon 16 and 12, and
-//! there hyrt is at 0.9 to 1.0 times Embree. Those rays leave dense scanned meshes: the
-//! leaves around each origin are entered and their triangles tested, all rejected (the
-//! hit would be at `t` near 0, under `t_min`), and a triangle test costs about as much as
-//! two box tests. Skipping tests early when no lane passes the edge tests pays off for
-//! closest hit, not here (see `Packet::intersect`). The node-to-node dependency chain (box
-//! loads from L3: the teaser's nodes are 2 MB) is the rest.
+//! Where the time goes on the scenes where Embree's packets were faster (shadow rays
+//! leaving dense scanned meshes, the list order of the frame, one thread). Leaf visits and
+//! the lanes that entered them, counted over the contest's rays before the lone-lane leaf
+//! test:
+//!
+//! | scene | leaf visits per packet | by 1 lane | by 2 | by 8 | triangles per leaf |
+//! |---|---:|---:|---:|---:|---:|
+//! | teaser | 3.2 | 19% | 15% | 29% | 4.2 |
+//! | dragon | 5.6 | 51% | 28% | 0.1% | 4.1 |
+//! | bunny far | 17 | 42% | 29% | 0.3% | 4.4 |
+//! | horse far | 23 | 50% | 30% | 0% | 4.4 |
+//!
+//! Those leaves surround each ray's own origin: entered and tested, their triangles all
+//! rejected (the hit would be at `t` near 0, under `t_min`); a lane reaches them alone,
+//! which is what the lone-lane leaf test serves. Callgrind (AVX2, `--cache-sim=yes
+//! --branch-sim=yes`, the dragon's and the near bunny's shadow rays, before that test):
+//! instructions per ray, hyrt's packets 1,026, hyrt's single rays 668, Embree's
+//! `rtcOccluded8` 380; L1 data misses 4.6, 3.6 and 3.2; mispredicted branches 4.2, 3.2 and
+//! 3.3. Embree's BVH8 packets switch to single rays as soon as a lane drops out (its
+//! hybrid traversal) and do about a third of the instructions; hyrt's eight-lane tests keep
+//! more of the machine busy per instruction, which is why the time was only 1.2 times
+//! Embree's. Skipping tests early when no lane passes the edge tests pays off for closest
+//! hit, not here (see `Packet::intersect`). The node-to-node dependency chain (box loads
+//! from L3: the teaser's nodes are 2 MB) is the rest.
 //!
 //! Tried for those scenes and not kept (any hit, `ray_contest --kind shadow
 //! --packets-only`, one thread, AVX-512 lanes, the variants interleaved in one process):
@@ -75,6 +95,13 @@
 //!   empty masks not pushed, every node popped). That branch causes 61% of the
 //!   mispredicted branches on the far bunny (callgrind `--branch-sim`), but passing every
 //!   step through the stack was 12 to 54% slower (the teaser 53 against 82 ms).
+//! * Choosing single rays for a whole packet whose origins spread over more than `k`
+//!   times the mean leaf box (the far horse's packets span dozens of leaves): the far
+//!   horse went from 0.73 to 0.90 times Embree at `k = 1`, but the dragon fell from 0.82
+//!   to 0.65 and the near bunny from 0.96 to 0.80, and no `k` helped one without hurting
+//!   the others: the spread does not tell where the lanes part.
+//! * Other leaf sizes (obvhs' `collapse_traversal_cost` 1, 1.5 and 5 instead of 3; at most
+//!   4 triangles per leaf instead of 8): within the noise on every scene.
 //!
 //! Two-level scenes (moving objects, shared meshes): the world-space level is traced as
 //! above, then the object-space instances in packets (module `instances`,
