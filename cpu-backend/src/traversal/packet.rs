@@ -601,13 +601,17 @@ pub(crate) fn occluded<L: Lanes>(
 /// triangle that stops the lane is a candidate). The confirming triangle becomes the
 /// occluder cache, as in the slot loop.
 ///
-/// Measured (`ray_contest --kind shadow`, one thread, AVX-512 lanes, three interleaved
-/// runs against the slot loop alone): Embree's best / hyrt on the dragon 0.81 to 0.93,
-/// the far bunny 0.76 to 0.94, the far horse 0.66 to 0.87, the near bunny 0.88 to 0.98;
-/// the teaser, Sponza and the near horse unchanged. Taking the triangles from the wide
-/// view's leaves (already in lanes, [`WideLeaf`](hyrt_core::bvh::wide::WideLeaf)) instead
-/// of transposing the records was as fast on the small scans and slower on the dragon
-/// (0.79): a second copy of the triangles to keep in cache.
+/// Measured against the previous binary (`ray_contest --threads 1 --rounds 5 --kind shadow
+/// all`, the two alternated three times; Embree's best / hyrt, the three runs' medians):
+/// the dragon from 0.78-0.85 to 0.94-0.98, the far bunny from 0.77-0.85 to 0.95-0.99, the
+/// far horse from 0.68-0.76 to 0.82-0.96, the near bunny from 0.83-0.95 to 1.00-1.03, the
+/// near horse from 0.94-1.08 to 1.11-1.12; the teaser and Sponza unchanged with AVX-512
+/// lanes, Sponza 2 to 4% slower with AVX2. Other rules for taking a leaf alone measured no
+/// better: `lanes + 1 < triangles`, `2 * lanes <= triangles`, at least 3 triangles, at most
+/// 3 lanes. Taking the triangles from the wide view's leaves (already in lanes,
+/// [`WideLeaf`](hyrt_core::bvh::wide::WideLeaf)) instead of transposing the records was as
+/// fast on the small scans and slower on the dragon (0.79): a second copy of the triangles
+/// to keep in cache.
 #[inline(always)]
 fn occluded_lanes_alone<L: Lanes>(
     level: &Level,
