@@ -287,31 +287,27 @@ impl<'a, L: Lanes> Packet<'a, L> {
         L::bits(L::le(t_enter, t_exit))
     }
 
-    /// A vertex in every lane's ray space: `WatertightRay::transform`.
+    /// A vertex in every lane's ray space (`WatertightRay::transform`): permuted by each
+    /// lane's `kz` (once when the lanes share it, blended otherwise), then
+    /// [`watertight::ray_space`].
     #[inline(always)]
     fn transform(&self, v: [f32; 3]) -> [L::F; 3] {
-        // `permute_axes(v - origin, kz)`, computed as `permute_axes(v, kz) -
-        // permute_axes(origin, kz)`: the same three subtractions, reordered.
-        let q = match self.kz {
+        let v = match self.kz {
             Some(kz) => {
                 let v = permute_axes(Vec3::from(v), kz);
-                [
-                    L::sub(L::splat(v.x), self.origin_perm[0]),
-                    L::sub(L::splat(v.y), self.origin_perm[1]),
-                    L::sub(L::splat(v.z), self.origin_perm[2]),
-                ]
+                [L::splat(v.x), L::splat(v.y), L::splat(v.z)]
             }
             None => {
                 // kz = 0: (y, z, x); kz = 1: (z, x, y); kz = 2: (x, y, z).
                 let (x, y, z) = (L::splat(v[0]), L::splat(v[1]), L::splat(v[2]));
-                let vx = L::select(self.kz0, y, L::select(self.kz1, z, x));
-                let vy = L::select(self.kz0, z, L::select(self.kz1, x, y));
-                let vz = L::select(self.kz0, x, L::select(self.kz1, y, z));
-                [L::sub(vx, self.origin_perm[0]), L::sub(vy, self.origin_perm[1]), L::sub(vz, self.origin_perm[2])]
+                [
+                    L::select(self.kz0, y, L::select(self.kz1, z, x)),
+                    L::select(self.kz0, z, L::select(self.kz1, x, y)),
+                    L::select(self.kz0, x, L::select(self.kz1, y, z)),
+                ]
             }
         };
-        let (qx, qy, qz) = (q[0], q[1], q[2]);
-        [L::sub(qx, L::mul(self.shear[0], qz)), L::sub(qy, L::mul(self.shear[1], qz)), qz]
+        watertight::ray_space::<L>(v, &self.origin_perm, &self.shear)
     }
 
     /// `WatertightRay::intersect` for the lanes in `active` against one triangle, with the
@@ -391,9 +387,8 @@ impl<'a, L: Lanes> Packet<'a, L> {
     }
 }
 
-/// One vertex of eight triangles in one ray's space (`WatertightRay::transform`,
-/// `Packet::transform`'s operations): the vertex permuted by `kz` minus the permuted
-/// origin `o`, then the shear.
+/// One vertex of eight triangles in one ray's space: permuted by `kz` (in registers),
+/// then [`watertight::ray_space`].
 #[inline(always)]
 fn leaf_ray_space<L: Lanes>(p: &[L::F; 3], kz: u32, o: &[L::F; 3], shear: &[L::F; 3]) -> [L::F; 3] {
     // permute_axes: kz = 0: (y, z, x); kz = 1: (z, x, y); kz = 2: (x, y, z).
@@ -402,8 +397,7 @@ fn leaf_ray_space<L: Lanes>(p: &[L::F; 3], kz: u32, o: &[L::F; 3], shear: &[L::F
         1 => [p[2], p[0], p[1]],
         _ => *p,
     };
-    let (qx, qy, qz) = (L::sub(q[0], o[0]), L::sub(q[1], o[1]), L::sub(q[2], o[2]));
-    [L::sub(qx, L::mul(shear[0], qz)), L::sub(qy, L::mul(shear[1], qz)), qz]
+    watertight::ray_space::<L>(q, o, shear)
 }
 
 /// The lanes of `hit` (hits on the alpha-tested triangle `tri`, slot `slot` of `level`, at

@@ -126,9 +126,8 @@ impl<L: Lanes> WideRay<L> {
         watertight::intersect::<L, EARLY_OUT>(active, p, &self.shear, self.t_min_lanes, self.t_max_lanes)
     }
 
-    /// One vertex of every lane in ray space (`WatertightRay::transform`):
-    /// `permute_axes(v - origin, kz)` is the permuted coordinates minus the permuted
-    /// origin (the same subtractions), then the shear.
+    /// One vertex of every lane in ray space (`WatertightRay::transform`): the rows in the
+    /// ray's axis order, then [`watertight::ray_space`].
     #[inline(always)]
     fn transform(&self, v: &[[f32; LANES]; 3]) -> RaySpace<L> {
         let (kx, ky, kz) = match self.wt.kz {
@@ -136,10 +135,8 @@ impl<L: Lanes> WideRay<L> {
             1 => (2, 0, 1),
             _ => (0, 1, 2),
         };
-        let qx = L::sub(L::load(&v[kx]), self.origin_perm[0]);
-        let qy = L::sub(L::load(&v[ky]), self.origin_perm[1]);
-        let qz = L::sub(L::load(&v[kz]), self.origin_perm[2]);
-        [L::sub(qx, L::mul(self.shear[0], qz)), L::sub(qy, L::mul(self.shear[1], qz)), qz]
+        let v = [L::load(&v[kx]), L::load(&v[ky]), L::load(&v[kz])];
+        watertight::ray_space::<L>(v, &self.origin_perm, &self.shear)
     }
 
     /// The scalar kernel on lane `k` of a leaf.

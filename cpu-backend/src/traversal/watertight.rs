@@ -35,6 +35,17 @@ pub(crate) struct LaneHits<L: Lanes> {
 /// sheared, z translated but not scaled.
 pub(crate) type RaySpace<L> = [<L as Lanes>::F; 3];
 
+/// `WatertightRay::transform` per lane from a vertex already in the ray's axis order
+/// (`permute_axes(v, kz)`): minus the permuted origin (`permute_axes(v - origin, kz)` as
+/// the same three subtractions, reordered), then x and y sheared by z. The one copy of
+/// this arithmetic for the packets (one triangle, eight rays) and the one-ray leaf tests
+/// (one ray, eight triangles): each caller permutes its own way.
+#[inline(always)]
+pub(crate) fn ray_space<L: Lanes>(v: [L::F; 3], origin_perm: &[L::F; 3], shear: &[L::F; 3]) -> RaySpace<L> {
+    let (qx, qy, qz) = (L::sub(v[0], origin_perm[0]), L::sub(v[1], origin_perm[1]), L::sub(v[2], origin_perm[2]));
+    [L::sub(qx, L::mul(shear[0], qz)), L::sub(qy, L::mul(shear[1], qz)), qz]
+}
+
 /// `WatertightRay::intersect` per lane: `p` are the three vertices in ray space, `shear`
 /// the rays' shear constants, `(t_min, t_max)` their intervals. Lanes outside `active` are
 /// not hit.
