@@ -520,14 +520,134 @@ fn the_committed_sample_scene_is_the_procedural_file() {
     assert!(built.len() < 20_000, "the sample stays small: {} bytes", built.len());
 }
 
-/// A manifest placing an animated file plays nothing, and says so.
+/// Write the animated file and `manifest` beside it in a fresh folder; load both.
+fn alone_and_manifest(test: &str, manifest: &str) -> (Scene, Scene) {
+    let alone = write(test, "animated.gltf", &animated_box());
+    let path = alone.with_file_name("scene.toml");
+    std::fs::write(&path, manifest).unwrap();
+    let load = |p: &Path| Scene::load(p).unwrap_or_else(|e| panic!("{e}"));
+    (load(&alone), load(&path))
+}
+
+/// A one-model manifest plays the file's animations as the file alone does: the same names,
+/// and at every time the same transforms, camera and lights, bit for bit.
 #[test]
-fn a_manifest_places_an_animated_file_in_its_rest_pose() {
-    let dir = temp_dir("manifest");
+fn a_one_model_manifest_plays_the_files_animations_bit_for_bit() {
+    let (mut alone, mut manifest) = alone_and_manifest("one_model", "[[model]]\nfile = \"animated.gltf\"\n");
+    let names =
+        |s: &Scene| s.animation.as_ref().unwrap().animations().iter().map(|a| a.name().to_string()).collect::<Vec<_>>();
+    assert_eq!(names(&manifest), names(&alone));
+    let same = |a: &Scene, m: &Scene, what: &str| {
+        for (x, y) in a.objects.iter().zip(&m.objects) {
+            assert_eq!(format!("animated/{}", x.name), y.name);
+            assert_eq!(bits(x.transform), bits(y.transform), "{what}: {}", x.name);
+        }
+        assert_eq!((a.camera, &a.lights), (m.camera, &m.lights), "{what}");
+    };
+    same(&alone, &manifest, "rest pose");
+    for (animation, t) in [(0, 0.25), (0, 1.3), (1, 0.5), (0, 2.5)] {
+        alone.set_time(animation, t).unwrap();
+        manifest.set_time(animation, t).unwrap();
+        same(&alone, &manifest, &format!("animation {animation} at {t} s"));
+    }
+    assert_eq!(
+        manifest.animation.as_ref().unwrap().moved_objects(0),
+        alone.animation.as_ref().unwrap().moved_objects(0)
+    );
+}
+
+/// A model placed by a transform and repeated plays its animation under its placement: every
+/// copy moves as the file alone does, then goes where the copy is placed; the file's lamp and
+/// camera move with the model, and `reset_pose` gives the loaded scene back bit for bit.
+#[test]
+fn a_placed_repeated_model_plays_its_animation_under_its_placement() {
+    let (mut alone, mut manifest) = alone_and_manifest(
+        "placed",
+        "[[model]]\nfile = \"animated.gltf\"\nname = \"m\"\ntranslate = [3.0, 0.0, -1.0]\n\
+         rotate_deg = [0.0, 30.0, 0.0]\nscale = 2.0\nrepeat = { count = [2, 1, 1], step = [10.0, 0.0, 0.0] }\n",
+    );
+    let model = Mat4::from_scale_rotation_translation(
+        Vec3::splat(2.0),
+        Quat::from_rotation_y(30f32.to_radians()),
+        Vec3::new(3.0, 0.0, -1.0),
+    );
+    let loaded = manifest.clone();
+    let moved = manifest.animation.as_ref().unwrap().moved_objects(0);
+    assert_eq!(moved.len(), 4, "box and satellite of both copies: {moved:?}");
+    for t in [0.0f32, 0.6, 1.5] {
+        alone.set_time(0, t).unwrap();
+        manifest.set_time(0, t).unwrap();
+        for (c, offset) in [(0, 0.0f32), (1, 10.0)] {
+            let placed = Mat4::from_translation(Vec3::new(offset, 0.0, 0.0)) * model;
+            for name in ["box", "satellite", "ground"] {
+                let expected = placed * object(&alone, name).transform;
+                let actual = object(&manifest, &format!("m#{c}/{name}")).transform;
+                // The placement multiplies entries of up to 2 by up to 13 (a few ulp of 26).
+                let diff = (actual - expected).to_cols_array().iter().fold(0.0f32, |m, d| m.max(d.abs()));
+                assert!(diff < 1e-4, "copy {c} {name} at {t} s: {diff}\n{actual}\n{expected}");
+            }
+        }
+        let (Light::Point { position: p, .. }, Light::Point { position: q, .. }) =
+            (alone.lights[0], manifest.lights[0])
+        else {
+            panic!("point lights")
+        };
+        assert!(q.abs_diff_eq(model.transform_point3(p), 1e-4), "the lamp follows copy 0 at {t} s: {q}");
+        assert_eq!(manifest.lights.len(), 1, "lights are the model's, not one per copy");
+        let eye = manifest.camera.unwrap().eye;
+        assert!(eye.abs_diff_eq(model.transform_point3(alone.camera.unwrap().eye), 1e-4), "camera at {t} s: {eye}");
+    }
+    manifest.reset_pose();
+    for (a, b) in manifest.objects.iter().zip(&loaded.objects) {
+        assert_eq!(bits(a.transform), bits(b.transform), "{}", a.name);
+    }
+    assert_eq!((manifest.camera, &manifest.lights), (loaded.camera, &loaded.lights));
+}
+
+/// Several animated models: `all` plays each model's chosen animation together, and each
+/// model's own animations follow under `<model>/<animation>`.
+#[test]
+fn several_animated_models_play_together_in_all() {
+    let (alone, manifest) = alone_and_manifest(
+        "several",
+        "[[model]]\nfile = \"animated.gltf\"\nname = \"a\"\nanimation = \"dolly\"\n\
+         [[model]]\nfile = \"animated.gltf\"\nname = \"b\"\ntranslate = [0.0, 0.0, -20.0]\n",
+    );
+    let animation = manifest.animation.as_ref().unwrap();
+    let names: Vec<&str> = animation.animations().iter().map(|a| a.name()).collect();
+    assert_eq!(names, ["all", "a/move", "a/dolly", "b/move", "b/dolly"]);
+    let at = |scene: &Scene, animation: usize, t: f32| {
+        let mut scene = scene.clone();
+        scene.set_time(animation, t).unwrap();
+        scene
+    };
+    let t = 0.8;
+    let (both, dolly, moved) = (at(&manifest, 0, t), at(&alone, 1, t), at(&alone, 0, t));
+    // `a` plays `dolly`: its camera (the scene's) moves, its box stays.
+    assert_eq!(both.camera, dolly.camera);
+    assert_eq!(bits(object(&both, "a/box").transform), bits(object(&alone, "box").transform));
+    // `b` plays `move` 20 m behind.
+    let b_box = Mat4::from_translation(Vec3::new(0.0, 0.0, -20.0)) * object(&moved, "box").transform;
+    assert_mat_near(object(&both, "b/box").transform, b_box, "b's box");
+    // `b/move` moves only b.
+    let only_b = at(&manifest, 3, t);
+    assert_eq!(bits(object(&only_b, "a/box").transform), bits(object(&alone, "box").transform));
+    assert_mat_near(object(&only_b, "b/box").transform, b_box, "b's box alone");
+}
+
+#[test]
+fn a_model_animation_that_does_not_exist_is_an_error_naming_the_model() {
+    let dir = temp_dir("unknown_animation");
     std::fs::write(dir.join("animated.gltf"), serde_json::to_string(&animated_box()).unwrap()).unwrap();
-    std::fs::write(dir.join("scene.toml"), "[[model]]\nfile = \"animated.gltf\"\n").unwrap();
-    let scene = Scene::load(&dir.join("scene.toml")).unwrap_or_else(|e| panic!("{e}"));
-    assert!(scene.animation.is_none());
-    assert!(scene.notes.iter().any(|n| n.contains("animations are not played in a manifest")), "{:?}", scene.notes);
-    assert_eq!(object(&scene, "animated/box").transform, Mat4::IDENTITY, "the rest pose");
+    for (manifest, expected) in [
+        ("file = \"animated.gltf\"\nanimation = \"walk\"", "no animation of that name (it has 'move', 'dolly')"),
+        ("builtin = \"cube\"\nanimation = \"walk\"", "a built-in shape has none"),
+    ] {
+        std::fs::write(dir.join("scene.toml"), format!("[[model]]\n{manifest}\n")).unwrap();
+        let message = Scene::load(&dir.join("scene.toml")).expect_err(manifest).to_string();
+        assert!(
+            message.contains("scene.toml") && message.contains("model[0]") && message.contains(expected),
+            "{message}"
+        );
+    }
 }

@@ -684,8 +684,38 @@ builtin = "cube"
     assert!((cam.far - far).abs() < 1e-4, "far {}", cam.far);
     assert!((cam.near - far / 1000.0).abs() < 1e-7, "near {}", cam.near);
     assert_eq!((cam.up, cam.fov_y_deg), (Vec3::Y, 45.0));
-    assert_eq!(s.notes.len(), 2, "{:?}", s.notes);
+    // One note says which camera, with each value and where it came from.
+    assert_eq!(s.notes.len(), 1, "{:?}", s.notes);
+    for part in ["the manifest's [camera]", "fov 45 deg", "(not given: far / 1000)", "far 22.1811 (not given: twice"] {
+        assert!(s.notes[0].contains(part), "{part}: {:?}", s.notes);
+    }
     assert!(s.lights.is_empty());
+}
+
+/// A manifest's own `[camera]` over a model file with a camera: the notes say plainly that
+/// the manifest's is used (with its values) and the file's is not.
+#[test]
+fn manifest_camera_over_a_file_camera_says_which_is_used() {
+    let path = manifest_with_tiny(
+        "manifest_camera_over_a_file_camera_says_which_is_used",
+        r#"
+[camera]
+eye = [0.0, 1.0, 9.0]
+target = [0.0, 0.0, 0.0]
+fov_deg = 50.0
+near = 0.5
+
+[[model]]
+file = "../models/tiny.gltf"
+"#,
+    );
+    let s = Scene::load(&path).unwrap();
+    let cam = s.camera.unwrap();
+    assert_eq!((cam.eye, cam.fov_y_deg, cam.near), (Vec3::new(0.0, 1.0, 9.0), 50.0, 0.5));
+    let notes = s.notes.join("\n");
+    assert!(!notes.contains("camera taken from"), "{notes}");
+    assert!(notes.contains("camera: model[0] 'tiny''s file camera is not used: the manifest's [camera] is"), "{notes}");
+    assert!(notes.contains("fov 50 deg, near 0.50000 (given), far"), "{notes}");
 }
 
 /// The error for `text` as a manifest next to the tiny model.

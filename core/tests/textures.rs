@@ -187,3 +187,46 @@ fn the_damaged_helmet_loads_its_base_colour_texture() {
     assert!(distinct.len() > 100, "{} distinct texels", distinct.len());
     assert!(scene.notes.iter().any(|n| n.contains("metallicRoughnessTexture")), "{:?}", scene.notes);
 }
+
+/// A manifest carries its models' textures: each model's materials sample its own file's
+/// images (indices moved past the files before it), a file placed by two models is decoded
+/// once, and a material override keeps the texture (its factor multiplies it).
+#[test]
+fn a_manifest_carries_every_models_textures() {
+    let textured = |texel: [u8; 4]| {
+        let uri = format!("data:image/png;base64,{}", base64(&png(1, 1, &[texel])));
+        let material = r#"{"pbrMetallicRoughness":{"baseColorTexture":{"index":0},"metallicFactor":0}}"#;
+        quad_gltf(material, &format!(r#"{{"uri":"{uri}"}}"#), r#"{"source":0,"sampler":0}"#, r#"{"magFilter":9728}"#)
+    };
+    let (red, blue) = ([255, 0, 0, 255], [0, 0, 255, 255]);
+    let manifest = "[[model]]\nfile = \"red.gltf\"\n[[model]]\nfile = \"blue.gltf\"\ntranslate = [2.0, 0.0, 0.0]\n\
+                    [[model]]\nfile = \"red.gltf\"\nname = \"gold\"\nmaterial = { base_color = [1.0, 0.8, 0.2] }\n";
+    let files: HashMap<PathBuf, Vec<u8>> = [
+        ("red.gltf", textured(red).into_bytes()),
+        ("blue.gltf", textured(blue).into_bytes()),
+        ("scene.toml", manifest.as_bytes().to_vec()),
+    ]
+    .into_iter()
+    .map(|(n, b)| (Path::new("/mem").join(n), b))
+    .collect();
+    let scene = Scene::load_from(Path::new("/mem/scene.toml"), &files).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.textures.len(), 2, "red.gltf's image once, blue.gltf's once");
+    let texel_of = |object: &str| {
+        let o = scene.objects.iter().find(|o| o.name.starts_with(object)).unwrap();
+        let m = &scene.materials[o.material];
+        (scene.textures[m.base_color_texture.unwrap().image].texels[0], m.base_color)
+    };
+    assert_eq!(texel_of("red/"), (red, Vec3::ONE));
+    assert_eq!(texel_of("blue/"), (blue, Vec3::ONE));
+    assert_eq!(texel_of("gold/"), (red, Vec3::new(1.0, 0.8, 0.2)), "the override's factor, the file's texture");
+    // The one-model manifest and the file alone: the same textures and materials.
+    let alone = Scene::load_from(Path::new("/mem/red.gltf"), &files).unwrap();
+    let one: HashMap<PathBuf, Vec<u8>> =
+        [(PathBuf::from("/mem/one.toml"), b"[[model]]\nfile = \"red.gltf\"\n".to_vec())]
+            .into_iter()
+            .chain(files)
+            .collect();
+    let manifest = Scene::load_from(Path::new("/mem/one.toml"), &one).unwrap();
+    assert_eq!(manifest.materials, alone.materials);
+    assert_eq!(manifest.textures, alone.textures);
+}

@@ -240,8 +240,9 @@ pub enum NodeTransform {
 /// A node of the hierarchy, as loaded.
 #[derive(Clone, Debug, PartialEq)]
 pub struct SceneNode {
-    /// Its index in the glTF file.
-    pub gltf_index: usize,
+    /// Its index in its glTF file; `None` for a manifest model's placement (a `matrix` node
+    /// above the file's roots, [`super::merge`]).
+    pub gltf_index: Option<usize>,
     /// `node <i> '<name>'`, for messages.
     pub label: String,
     /// Index of its parent in [`SceneAnimation::nodes`] (always before it); `None` for a root.
@@ -438,7 +439,7 @@ impl Scene {
 
     /// Apply [`SceneAnimation::world_transforms`] to what the nodes place; on a degenerate
     /// camera or light, change nothing and say which node and what.
-    fn pose(&mut self, pose: Option<(usize, f32)>) -> Result<(), (String, &'static str)> {
+    pub(crate) fn pose(&mut self, pose: Option<(usize, f32)>) -> Result<(), (String, &'static str)> {
         let Some(animation) = self.animation.as_ref() else {
             return Ok(());
         };

@@ -66,6 +66,9 @@
 //!   base geometry whatever its weights; a note names them.
 //! * **Not added here:** a default camera or default lights; the caller decides
 //!   ([`Scene::ensure_camera_and_lights`]).
+//! * **One path.** The converted file reaches the [`Scene`] through the merge a manifest's
+//!   models go through ([`super::merge`]), as a model with the identity placement and no
+//!   overrides: whatever is read here reaches a manifest's scene the same way.
 //!
 //! Errors name the file: it cannot be read ([`SceneError::Io`]); it does not parse or
 //! validate as glTF 2.0, or a buffer cannot be loaded or an accessor lies outside its buffer
@@ -86,6 +89,7 @@ use super::animation::{
     Interpolation, Keyframes, NodeTransform, SceneAnimation, SceneNode,
 };
 use super::files::{Budget, Disk, SceneFiles};
+use super::merge::{Merge, Model};
 use super::texture::{AlphaMode, Filter, Sampler, TextureBinding, TextureImage, UvTransform, VertexAttributes, Wrap};
 use super::{Camera, Light, Material, MaterialKind, Mesh, Object, ObjectSource, RenderMode, Scene};
 use crate::SceneError;
@@ -114,13 +118,24 @@ pub fn load_gltf(path: &Path) -> Result<Scene, SceneError> {
 /// [`load_gltf`] reading the file, and a `.gltf` file's external buffers, from `files`.
 pub fn load_gltf_from(path: &Path, files: &dyn SceneFiles) -> Result<Scene, SceneError> {
     let bytes = files.read(path).map_err(|source| SceneError::Io { path: path.to_path_buf(), source })?;
-    load_gltf_detailed(path, &bytes, files).map(|loaded| loaded.scene)
+    load_alone(path, &bytes, files)
 }
 
 /// [`load_gltf`] of a file's content already in memory. `path` names the file in errors and
 /// notes, and external buffers of a `.gltf` file are read from the disk relative to it.
 pub fn load_gltf_slice(bytes: &[u8], path: &Path) -> Result<Scene, SceneError> {
-    load_gltf_detailed(path, bytes, &Disk).map(|loaded| loaded.scene)
+    load_alone(path, bytes, &Disk)
+}
+
+/// A file loaded alone: converted, then placed as a manifest places a model ([`super::merge`]),
+/// with the identity placement and no overrides.
+fn load_alone(path: &Path, bytes: &[u8], files: &dyn SceneFiles) -> Result<Scene, SceneError> {
+    let loaded = load_gltf_detailed(path, bytes, files)?;
+    let mut merged = Merge::new(Budget::for_input(0));
+    let slot = merged.add_file(&loaded.scene, loaded.input_bytes, None);
+    let content = |message: String| SceneError::Content { path: path.to_path_buf(), message };
+    merged.place(&loaded.scene, slot, &loaded.mode_from_extras, &Model::file_alone()).map_err(content)?;
+    merged.finish(None, false).map_err(content)
 }
 
 /// A loaded glTF file plus what the manifest loader needs to apply its overrides.
@@ -505,7 +520,7 @@ impl<'a> Converter<'a> {
             },
         };
         self.nodes.push(SceneNode {
-            gltf_index: node.index(),
+            gltf_index: Some(node.index()),
             label: node_label,
             parent,
             transform,
@@ -1449,7 +1464,7 @@ mod tests {
             let posed = hierarchy.world_transforms(None);
             let mut placed = 0;
             for (node, world) in hierarchy.nodes().iter().zip(posed) {
-                assert_eq!(bits(world), bits(walked[&node.gltf_index]), "{}: {}", path.display(), node.label);
+                assert_eq!(bits(world), bits(walked[&node.gltf_index.unwrap()]), "{}: {}", path.display(), node.label);
                 for &id in &node.objects {
                     let object = &loaded.scene.objects[id as usize];
                     assert_eq!(bits(object.transform), bits(world), "{}: {}", path.display(), object.name);

@@ -52,6 +52,10 @@
 //! [[model]]
 //! file = "../../../shared/assets/dragon.glb"
 //! repeat = { count = [40, 1, 25], step = [0.25, 0.0, 0.2] }   # 1,000 copies on a grid
+//!
+//! [[model]]
+//! file = "walker.glb"
+//! animation = "walk"            # which of the file's animations plays (default: its first)
 //! ```
 //!
 //! Unknown keys are errors everywhere (`deny_unknown_fields`), so typos do not pass silently.
@@ -72,10 +76,21 @@
 //!   `grid` is a unit square in the XZ plane centred at the origin facing +Y (16 x 16 quads),
 //!   `sphere` a UV sphere of radius 1 (48 x 24), `cube` spans -1..1 on each axis, `torus`
 //!   lies in the XZ plane with ring radius 1 and tube radius 0.35 (48 x 24).
+//! * **What a model carries.** Everything its file holds, as the file loaded alone has it:
+//!   meshes with their texture coordinates and vertex colours, materials with their
+//!   base-colour textures (images, samplers, `KHR_texture_transform`), alpha modes and
+//!   render-mode extras, cameras, lights, the node hierarchy and animations. A file loaded
+//!   alone and a file placed by a manifest go through one merge ([`super::merge`]): a
+//!   one-model manifest without a transform or overrides gives the same scene, and the same
+//!   image, as the file alone (object names aside: `<model name>/<object name>`).
 //! * **Material override.** Applies to every material of the model; keys left out keep the
-//!   file's values. `kind` left out is derived from the resulting factors with the glTF
-//!   loader's rule (transmission > 0: glass; metallic >= 0.5: specular; else diffuse). `ior`
-//!   (>= 1) is used by glass; left out, it keeps the file's glass ior, else 1.5.
+//!   file's values. It changes factors, not textures: a textured material keeps its
+//!   base-colour texture, alpha mode and cutoff, and an overridden `base_color` multiplies
+//!   the texture as glTF's `baseColorFactor` does (so `base_color = [1, 1, 1]` shows the
+//!   texture as it is, and a gold `base_color` tints it). `kind` left out is derived from the
+//!   resulting factors with the glTF loader's rule (transmission > 0: glass; metallic >= 0.5:
+//!   specular; else diffuse). `ior` (>= 1) is used by glass; left out, it keeps the file's
+//!   glass ior, else 1.5.
 //! * **Render mode** of each object: the model's `render_mode`, else the glTF `hyrt` extra,
 //!   else [`Material::default_render_mode`] of the (overridden) material.
 //! * **Names and ids.** Objects are named `<model name>/<object name>` (a built-in: the model
@@ -83,10 +98,16 @@
 //! * **Cameras and lights in model files.** When the manifest has no `[camera]`, the first
 //!   model file camera is used, moved by its model transform (near/far scaled by the cube root
 //!   of the transform's volume scale). When it has no `[[light]]`, the model files' lights are
-//!   used, moved by their model transform; intensities are not changed. Notes record both.
-//!   No default camera or lights are added here ([`super::Scene::ensure_camera_and_lights`]).
-//! * **Animations** of model files are not played: each model is placed in its file's rest
-//!   pose, the manifest scene has no [`super::Scene::animation`], and a note says so.
+//!   used, moved by their model transform; intensities are not changed. A note says which
+//!   camera was used, with every value it has and where each came from (the manifest's, a
+//!   model's, or derived), and which lights. No default camera or lights are added here
+//!   ([`super::Scene::ensure_camera_and_lights`]).
+//! * **Animations** of model files play as they do in the file alone: a model's placement
+//!   sits above its file's root nodes, and copies made by `repeat` all follow the same
+//!   animation. With one animated model the scene has its file's animations (same names);
+//!   with several, the scene's first animation, `all`, plays every animated model's
+//!   `animation` (a name; default its file's first) together, followed by each model's
+//!   animations named `<model name>/<animation name>` ([`super::merge`]).
 //! * **Environment.** An equirectangular (latitude-longitude) map in a Radiance HDR or OpenEXR
 //!   file, linear RGB, oriented as [`super::environment`] documents (row 0 straight up, the
 //!   image's centre towards +Z, its left and right edges meeting at -Z; Mitsuba 3's
@@ -104,7 +125,8 @@ use serde::Deserialize;
 
 use super::files::{Budget, Disk, SceneFiles};
 use super::gltf_loader::{load_gltf_detailed, material_kind, LoadedGltf};
-use super::{Camera, Environment, Light, Material, MaterialKind, Mesh, Object, ObjectSource, RenderMode, Scene};
+use super::merge::{FileSlot, Merge, Model, Naming};
+use super::{Camera, Environment, Light, Material, MaterialKind, Mesh, RenderMode, Scene};
 use crate::SceneError;
 
 /// `KHR_materials_ior` default, used when a manifest makes a material glass without an ior.
@@ -213,6 +235,14 @@ impl Builtin {
         }
     }
 
+    /// The shape as a file of one mesh and one object of [`Material::grey`], placed by a model
+    /// as a file's objects are.
+    fn as_file(self) -> Scene {
+        let mut shape = Scene::default();
+        shape.add_object(self.mesh(), Material::grey(), Mat4::IDENTITY, RenderMode::Raster);
+        shape
+    }
+
     fn mesh(self) -> Mesh {
         match self {
             Builtin::Grid => Mesh::grid("grid", 16),
@@ -295,6 +325,10 @@ pub struct ModelEntry {
     /// mesh in memory however many copies; a renderer may trace them as instances).
     #[serde(default)]
     pub repeat: Option<Repeat>,
+    /// The animation of the file this model plays in the scene's first animation, by name
+    /// (default: the file's first); see the module docs.
+    #[serde(default)]
+    pub animation: Option<String>,
 }
 
 /// `repeat = { count = [nx, ny, nz], step = [dx, dy, dz] }`: `nx * ny * nz` copies of a
@@ -473,6 +507,40 @@ impl CameraEntry {
         }
         Ok((eye, target, up))
     }
+
+    /// The camera, its near and far planes derived where not given (from the scene's
+    /// `bounds`), and a note saying which values it has and where each came from.
+    fn camera(&self, bounds: Option<(Vec3, Vec3)>) -> Result<(Camera, String), String> {
+        let (eye, target, up) = self.validate()?;
+        let (far, far_from) = match (self.far, self.near) {
+            (Some(far), _) => (far, "given"),
+            (None, near) => {
+                let bounds_far =
+                    bounds.map(|(lo, hi)| DERIVED_FAR_FACTOR * farthest_corner(eye, lo, hi)).filter(|&f| f > 0.0);
+                let far = bounds_far.unwrap_or(DERIVED_FAR_FACTOR * (target - eye).length());
+                let far = far.max(2.0 * near.unwrap_or(0.0));
+                let from = match bounds_far {
+                    Some(_) => "not given: twice the distance to the farthest corner of the scene bounds",
+                    None => "not given: twice the distance to the target (the scene has no finite vertex)",
+                };
+                (far, from)
+            }
+        };
+        let (near, near_from) = match self.near {
+            Some(near) => (near, "given".to_string()),
+            None => (far / DERIVED_NEAR_DIVISOR, format!("not given: far / {DERIVED_NEAR_DIVISOR}")),
+        };
+        let camera = Camera { eye, target, up: up.normalize(), fov_y_deg: self.fov_deg, near, far };
+        let note = format!(
+            "camera: the manifest's [camera]: eye {:.4?}, target {:.4?}, up {:.3?}, fov {} deg, near {near:.5} ({near_from}), \
+             far {far:.4} ({far_from})",
+            camera.eye.to_array(),
+            camera.target.to_array(),
+            camera.up.to_array(),
+            camera.fov_y_deg,
+        );
+        Ok((camera, note))
+    }
 }
 
 impl LightEntry {
@@ -514,26 +582,21 @@ fn farthest_corner(eye: Vec3, lo: Vec3, hi: Vec3) -> f32 {
 }
 
 /// Build the scene a parsed manifest describes; `path` is the manifest (for relative paths
-/// and error messages).
-fn build(manifest: &Manifest, path: &Path, files: &dyn SceneFiles, mut budget: Budget) -> Result<Scene, SceneError> {
+/// and error messages). Every model goes through the same [`Merge`] as a file loaded alone.
+fn build(manifest: &Manifest, path: &Path, files: &dyn SceneFiles, budget: Budget) -> Result<Scene, SceneError> {
     let invalid = |message: String| SceneError::Manifest { path: path.to_path_buf(), message };
     if manifest.models.is_empty() {
         return Err(invalid("no [[model]] entries: a scene needs at least one".into()));
     }
     let dir = path.parent().unwrap_or(Path::new(""));
-    let mut scene = Scene::default();
-    // Resolved file -> (index of its first mesh in `scene.meshes`, the loaded file).
-    let mut loaded_files: HashMap<PathBuf, (usize, LoadedGltf)> = HashMap::new();
-    // Built-in shape -> the index of its mesh in `scene.meshes` (one mesh per shape, shared
-    // by every model that uses it, as a file's meshes are).
-    let mut builtin_meshes: HashMap<Builtin, usize> = HashMap::new();
-    let mut model_lights: Vec<Light> = Vec::new();
-    let mut model_camera: Option<Camera> = None;
+    // Each file is read and converted once, whatever the number of models placing it; the
+    // merged scene's budget grows by every file's input bytes, as the file's own did.
+    let mut loaded_files: HashMap<PathBuf, (FileSlot, LoadedGltf)> = HashMap::new();
+    let mut builtins: HashMap<Builtin, (FileSlot, Scene)> = HashMap::new();
+    let mut merged = Merge::new(budget);
     if let Some(file) = &manifest.environment {
-        scene.environment = Environment::load_from(&dir.join(file), files).map_err(|e| SceneError::ManifestEntry {
-            path: path.to_path_buf(),
-            entry: "environment".into(),
-            error: Box::new(e),
+        merged.scene_mut().environment = Environment::load_from(&dir.join(file), files).map_err(|e| {
+            SceneError::ManifestEntry { path: path.to_path_buf(), entry: "environment".into(), error: Box::new(e) }
         })?;
     }
 
@@ -546,7 +609,7 @@ fn build(manifest: &Manifest, path: &Path, files: &dyn SceneFiles, mut budget: B
         };
         let label = format!("model[{i}] '{name}'");
         let at = |message: String| invalid(format!("{label}: {message}"));
-        let model = entry.matrix().map_err(at)?;
+        let matrix = entry.matrix().map_err(at)?;
         let copies = match &entry.repeat {
             Some(r) => r.offsets().map_err(at)?,
             None => vec![Vec3::ZERO],
@@ -554,32 +617,18 @@ fn build(manifest: &Manifest, path: &Path, files: &dyn SceneFiles, mut budget: B
         if let Some(o) = &entry.material {
             o.validate().map_err(at)?;
         }
-        let builtin_scene;
-        let (mesh_offset, source, from_extras): (usize, &Scene, &[bool]) = match (&entry.file, entry.builtin) {
+        let (source, slot, from_extras): (&Scene, FileSlot, &[bool]) = match (&entry.file, entry.builtin) {
             (Some(_), Some(_)) => return Err(at("give `file` or `builtin`, not both".into())),
             (None, None) => return Err(at("needs `file` or `builtin`".into())),
             (None, Some(b)) => {
-                let mesh_index = match builtin_meshes.get(&b) {
-                    Some(&m) => m,
-                    None => {
-                        scene.meshes.push(b.mesh());
-                        builtin_meshes.insert(b, scene.meshes.len() - 1);
-                        scene.meshes.len() - 1
-                    }
-                };
-                let mut s = Scene::default();
-                s.materials.push(Material::grey());
-                s.objects.push(Object {
-                    id: 0,
-                    name: String::new(),
-                    mesh: 0,
-                    transform: Mat4::IDENTITY,
-                    material: 0,
-                    render_mode: RenderMode::Raster,
-                    source: ObjectSource::default(),
+                if entry.animation.is_some() {
+                    return Err(at("`animation` names an animation of a model file; a built-in shape has none".into()));
+                }
+                let (slot, shape) = builtins.entry(b).or_insert_with(|| {
+                    let shape = b.as_file();
+                    (merged.add_file(&shape, 0, None), shape)
                 });
-                builtin_scene = s;
-                (mesh_index, &builtin_scene, &[false][..])
+                (&*shape, *slot, &[false][..])
             }
             (Some(file), None) => {
                 let resolved = dir.join(file);
@@ -593,122 +642,43 @@ fn build(manifest: &Manifest, path: &Path, files: &dyn SceneFiles, mut budget: B
                         .read(&resolved)
                         .map_err(|source| entry_error(SceneError::Io { path: resolved.clone(), source }))?;
                     let loaded = load_gltf_detailed(&resolved, &bytes, files).map_err(entry_error)?;
-                    budget.add_input(loaded.input_bytes);
-                    let offset = scene.meshes.len();
-                    scene.meshes.extend(loaded.scene.meshes.iter().cloned());
-                    scene.notes.extend(loaded.scene.notes.iter().map(|n| format!("{label}: {n}")));
-                    if loaded.scene.animation.is_some() {
-                        scene.notes.push(format!(
-                            "{label}: {}: animations are not played in a manifest: the model is placed in its rest pose",
-                            resolved.display()
-                        ));
-                    }
-                    loaded_files.insert(resolved.clone(), (offset, loaded));
+                    let slot = merged.add_file(&loaded.scene, loaded.input_bytes, Some(&label));
+                    loaded_files.insert(resolved.clone(), (slot, loaded));
                 }
-                let (offset, loaded) = &loaded_files[&resolved];
-                (*offset, &loaded.scene, &loaded.mode_from_extras[..])
+                let (slot, loaded) = &loaded_files[&resolved];
+                (&loaded.scene, *slot, &loaded.mode_from_extras[..])
             }
         };
-        // A file's objects are placed again by every model naming it: charged before they are.
-        let placed_bytes = source.materials.len() * std::mem::size_of::<Material>()
-            + source
-                .objects
+        let override_material = entry.material.as_ref().map(|o| move |m: &Material| o.apply(m));
+        let model = Model {
+            label: Some(&label),
+            naming: if entry.builtin.is_some() { Naming::Whole(&name) } else { Naming::Prefixed(&name) },
+            matrix,
+            copies: &copies,
+            material: override_material.as_ref().map(|f| f as &dyn Fn(&Material) -> Material),
+            render_mode: entry.render_mode,
+            animation: entry.animation.as_deref(),
+        };
+        merged.place(source, slot, from_extras, &model).map_err(at)?;
+    }
+
+    let lights = match manifest.lights.is_empty() {
+        true => None,
+        false => Some(
+            manifest
+                .lights
                 .iter()
-                .map(|o| std::mem::size_of::<Object>() + name.len() + 1 + o.name.len())
-                .sum::<usize>();
-        budget.take(copies.len(), placed_bytes, "objects and materials placed").map_err(at)?;
-        let material_offset = scene.materials.len();
-        scene.materials.extend(source.materials.iter().map(|m| match &entry.material {
-            Some(o) => o.apply(m),
-            None => m.clone(),
-        }));
-        for (c, offset) in copies.iter().enumerate() {
-            let placed = Mat4::from_translation(*offset) * model;
-            let copy = if copies.len() > 1 { format!("#{c}") } else { String::new() };
-            for (object, &decided_by_extras) in source.objects.iter().zip(from_extras) {
-                let material = material_offset + object.material;
-                let render_mode = match entry.render_mode {
-                    Some(mode) => mode,
-                    None if decided_by_extras => object.render_mode,
-                    None => scene.materials[material].default_render_mode(),
-                };
-                scene.objects.push(Object {
-                    id: scene.objects.len() as u32,
-                    name: if entry.builtin.is_some() {
-                        format!("{name}{copy}")
-                    } else {
-                        format!("{name}{copy}/{}", object.name)
-                    },
-                    mesh: mesh_offset + object.mesh,
-                    transform: placed * object.transform,
-                    material,
-                    render_mode,
-                    source: object.source.clone(),
-                });
-            }
-        }
-        model_lights.extend(source.lights.iter().map(|l| match *l {
-            Light::Point { position, color, intensity } => {
-                Light::Point { position: model.transform_point3(position), color, intensity }
-            }
-            Light::Directional { direction, color, intensity } => Light::Directional {
-                direction: model.transform_vector3(direction).normalize_or(direction),
-                color,
-                intensity,
-            },
-        }));
-        if model_camera.is_none() {
-            if let Some(c) = source.camera {
-                let volume_scale = model.determinant().abs().cbrt();
-                model_camera = Some(Camera {
-                    eye: model.transform_point3(c.eye),
-                    target: model.transform_point3(c.target),
-                    up: model.transform_vector3(c.up).normalize_or(c.up),
-                    fov_y_deg: c.fov_y_deg,
-                    near: c.near * volume_scale,
-                    far: c.far * volume_scale,
-                });
-                scene.notes.push(format!("camera taken from {label}"));
-            }
-        }
-    }
-
-    if manifest.lights.is_empty() {
-        if !model_lights.is_empty() {
-            scene.notes.push(format!("{} lights taken from the model files", model_lights.len()));
-        }
-        scene.lights = model_lights;
-    } else {
-        for (i, l) in manifest.lights.iter().enumerate() {
-            scene.lights.push(l.to_light().map_err(|m| invalid(format!("light[{i}]: {m}")))?);
-        }
-    }
-
-    scene.camera = match &manifest.camera {
-        None => model_camera,
-        Some(c) => {
-            let (eye, target, up) = c.validate().map_err(invalid)?;
-            let bounds_far = scene
-                .world_bounds()
-                .map(|(lo, hi)| DERIVED_FAR_FACTOR * farthest_corner(eye, lo, hi))
-                .filter(|&f| f > 0.0);
-            let far = match (c.far, c.near) {
-                (Some(far), _) => far,
-                (None, near) => {
-                    let near = near.unwrap_or(0.0);
-                    let far = bounds_far.unwrap_or(DERIVED_FAR_FACTOR * (target - eye).length()).max(2.0 * near);
-                    scene.notes.push(format!("camera.far not given: {far:.4} from the scene bounds"));
-                    far
-                }
-            };
-            let near = c.near.unwrap_or_else(|| {
-                let near = far / DERIVED_NEAR_DIVISOR;
-                scene.notes.push(format!("camera.near not given: far / {DERIVED_NEAR_DIVISOR} = {near:.5}"));
-                near
-            });
-            Some(Camera { eye, target, up: up.normalize(), fov_y_deg: c.fov_deg, near, far })
-        }
+                .enumerate()
+                .map(|(i, l)| l.to_light().map_err(|m| invalid(format!("light[{i}]: {m}"))))
+                .collect::<Result<Vec<Light>, SceneError>>()?,
+        ),
     };
+    let mut scene = merged.finish(lights, manifest.camera.is_some()).map_err(invalid)?;
+    if let Some(c) = &manifest.camera {
+        let (camera, note) = c.camera(scene.world_bounds()).map_err(invalid)?;
+        scene.camera = Some(camera);
+        scene.notes.push(note);
+    }
     Ok(scene)
 }
 
@@ -734,11 +704,12 @@ mod tests {
             .map(|l| format!("{}\n", l.trim_start_matches("//!").strip_prefix(' ').unwrap_or("")))
             .collect();
         let m: Manifest = toml::from_str(&example).unwrap_or_else(|e| panic!("{e}\n{example}"));
-        assert_eq!((m.models.len(), m.lights.len()), (4, 2));
+        assert_eq!((m.models.len(), m.lights.len()), (5, 2));
         assert_eq!(m.models[3].repeat.map(|r| r.offsets().unwrap().len()), Some(1000));
         assert_eq!(m.environment.as_deref(), Some(Path::new("maps/courtyard.hdr")));
         assert_eq!(m.models[1].render_mode, Some(RenderMode::RayTraced));
         assert_eq!(m.models[2].builtin, Some(Builtin::Grid));
+        assert_eq!(m.models[4].animation.as_deref(), Some("walk"));
         for (i, model) in m.models.iter().enumerate() {
             model.matrix().unwrap_or_else(|e| panic!("model[{i}]: {e}"));
         }

@@ -15,6 +15,7 @@ pub mod environment;
 pub mod files;
 pub mod gltf_loader;
 pub mod manifest;
+pub mod merge;
 pub mod texture;
 
 pub use animation::{Animation, AnimationSampler, Interpolation, SceneAnimation, SceneNode};
