@@ -5,7 +5,8 @@
 //! cargo run --release -p hyrt-core --example fuzz_loaders -- --seed S --only N [--write DIR]
 //! ```
 //!
-//! `--only N` runs execution N alone and, with `--write`, writes its files under DIR.
+//! `--only N` runs execution N alone and, with `--write`, writes its files under DIR (its
+//! input's, and those of the manifests a glTF or GLB input is loaded through).
 //! Exits non-zero when an execution fails (a panic, an error not naming its file); a hang
 //! or an allocation past the limit aborts, naming the execution.
 
@@ -24,13 +25,18 @@ fn main() {
     let mut seeds = harness::built_seeds();
     seeds.extend(harness::real_seeds(&root));
     if let Some(n) = value("--only").map(|v| v.parse::<u64>().expect("a number")) {
-        let input = harness::input(&seeds, seed, n);
+        // The input, then the manifests built around it (they share its files).
+        let loads = harness::loads(&seeds, seed, n);
         if let Some(dir) = value("--write") {
-            harness::write_input(&input, dir.as_ref()).expect("writing the input");
-            println!("execution {n}: main file {} written under {dir}", input.main.display());
+            for load in &loads {
+                harness::write_input(load, dir.as_ref()).expect("writing the input");
+                println!("execution {n}: main file {} written under {dir}", load.main.display());
+            }
         }
         let report = harness::run(&seeds, seed, n..n + 1, |_| {});
-        println!("{:?}", harness::load(&input));
+        for load in &loads {
+            println!("{}: {:?}", load.main.display(), harness::load(load));
+        }
         println!("{report:?}");
         std::process::exit(if report.failures.is_empty() { 0 } else { 1 });
     }
@@ -50,11 +56,13 @@ fn main() {
 fn summary(r: &harness::Report, began: std::time::Instant) -> String {
     let s = began.elapsed().as_secs_f64();
     format!(
-        "{} executions in {s:.1} s ({:.0}/s): {} loaded, {} refused, {} failures",
+        "{} executions in {s:.1} s ({:.0}/s): {} loaded, {} refused; through manifests {} loaded, {} refused; {} failures",
         r.executions,
         r.executions as f64 / s,
         r.loaded,
         r.refused,
+        r.manifest_loaded,
+        r.manifest_refused,
         r.failures.len()
     )
 }

@@ -2,13 +2,17 @@
 //! and environment maps (`Environment::load_from`), all from files held in memory.
 //!
 //! Each execution `n` of a run with seed `s` is a pure function of `(s, n)`: it picks a seed
-//! input (real files from `shared/assets`, the repository's manifests, and small files built
-//! here), applies one to four mutations (byte-level, or structure-aware: the GLB container,
-//! its JSON as JSON, the manifest as TOML, the image headers) and loads the result. An
-//! execution fails when the loader panics, runs past [`EXEC_TIME_LIMIT`], allocates past
-//! [`ALLOC_LIMIT_BYTES`] live bytes, or returns an error whose message does not name the
-//! file. Shared by `tests/fuzz_loaders.rs` (a short run in `cargo test`) and
-//! `examples/fuzz_loaders.rs` (long runs; `--only N` writes execution N's files to disk).
+//! input (real files from `shared/assets`, the repository's manifests and sample glTF files,
+//! and small files built here), applies one to four mutations (byte-level, or
+//! structure-aware: the GLB container, its JSON as JSON, the manifest as TOML, the image
+//! headers) and loads the result; a glTF or GLB input is loaded through two manifests as
+//! well ([`through_manifests`]): one naming it alone, one merging it with a textured model.
+//! An execution fails when a load panics, runs past [`EXEC_TIME_LIMIT`], allocates past
+//! [`ALLOC_LIMIT_BYTES`] live bytes, gives a scene that refers past its own tables
+//! ([`inconsistency`]), or returns an error whose message does not name the file (through a
+//! manifest: the manifest, and the model file an entry fails on). Shared by
+//! `tests/fuzz_loaders.rs` (a short run in `cargo test`) and `examples/fuzz_loaders.rs`
+//! (long runs; `--only N` writes execution N's files to disk).
 //!
 //! The including crate root must declare `#[global_allocator] static A: harness::Counting`.
 
@@ -23,10 +27,11 @@ use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use hyrt_core::scene::{Environment, Scene};
+use hyrt_core::SceneError;
 use serde_json::{json, Value};
 
-/// The longest one execution may take. The largest seed (a 1.7 MB GLB) loads in well under
-/// a second in a debug-assertions build; 20 s leaves room for a loaded machine.
+/// The longest one load of an execution may take. The largest seed (a 1.7 MB GLB) loads in
+/// well under a second in a debug-assertions build; 20 s leaves room for a loaded machine.
 pub const EXEC_TIME_LIMIT: Duration = Duration::from_secs(20);
 
 /// The most live heap one execution may add. Loaders budget decoded data at 64 MiB plus
@@ -353,7 +358,42 @@ pub fn built_seeds() -> Vec<Seed> {
         .expect("JSON"),
     );
     textured.files.insert(Path::new(ROOT).join("wall a.png"), png.clone());
-    // A GLB whose first image is a buffer view after the geometry.
+    let textured_glb = textured_glb();
+    // Textured models merged: two files with two images each, one of them repeated.
+    let textured_manifest_text = "[[model]]\nfile = \"textured.glb\"\ntranslate = [1.0, 0.0, 0.0]\n\n\
+         [[model]]\nfile = \"textured.gltf\"\nscale = 0.5\nrepeat = { count = [2, 1, 1], step = [2.0, 0.0, 0.0] }\n\
+         material = { roughness = 0.5 }\n\n[[model]]\nbuiltin = \"cube\"\n";
+    let mut textured_manifest = textured.clone();
+    textured_manifest.kind = Kind::Manifest;
+    textured_manifest.main = Path::new(ROOT).join("textured_scene.toml");
+    textured_manifest.files.insert(textured_manifest.main.clone(), textured_manifest_text.as_bytes().to_vec());
+    textured_manifest.files.insert(Path::new(ROOT).join("textured.glb"), textured_glb.clone());
+    // One animated file placed twice.
+    let animated = one(Kind::Gltf, "animated.gltf", animated_gltf());
+    let animated_manifest_text = "[[model]]\nfile = \"animated.gltf\"\n\n[[model]]\nfile = \"animated.gltf\"\n\
+         name = \"second\"\ntranslate = [3.0, 0.0, 0.0]\nrotate_deg = [0.0, 90.0, 0.0]\n";
+    let mut animated_manifest = one(Kind::Manifest, "animated_scene.toml", animated_manifest_text.as_bytes().to_vec());
+    animated_manifest.files.extend(animated.files.clone());
+    vec![
+        one(Kind::Glb, "small.glb", small_glb.clone()),
+        one(Kind::Gltf, "embedded.gltf", embedded),
+        external,
+        manifest,
+        one(Kind::Image, "sky.hdr", small_hdr(8, 4)),
+        one(Kind::Image, "sky.exr", small_exr()),
+        textured,
+        one(Kind::Glb, "textured.glb", textured_glb),
+        textured_manifest,
+        animated,
+        animated_manifest,
+    ]
+}
+
+/// The textured scene ([`textured_json`]) as a GLB whose first image, a PNG, is a buffer
+/// view after the geometry (its second is the JPEG data URI).
+pub fn textured_glb() -> Vec<u8> {
+    let bin = small_bin();
+    let png = small_image(4, 4, image::ImageFormat::Png);
     let mut textured_bin = bin.clone();
     textured_bin.extend(&png);
     while !textured_bin.len().is_multiple_of(4) {
@@ -365,22 +405,38 @@ pub fn built_seeds() -> Vec<Seed> {
         .as_array_mut()
         .expect("views")
         .push(json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": png.len()}));
-    let textured_glb = glb(&serde_json::to_vec(&glb_json).expect("JSON"), Some(&textured_bin));
-    vec![
-        one(Kind::Glb, "small.glb", small_glb.clone()),
-        one(Kind::Gltf, "embedded.gltf", embedded),
-        external,
-        manifest,
-        one(Kind::Image, "sky.hdr", small_hdr(8, 4)),
-        one(Kind::Image, "sky.exr", small_exr()),
-        textured,
-        one(Kind::Glb, "textured.glb", textured_glb),
-    ]
+    glb(&serde_json::to_vec(&glb_json).expect("JSON"), Some(&textured_bin))
 }
 
-/// Seeds from real files: the GLBs of `shared/assets` up to [`MAX_REAL_SEED_BYTES`], and the
+/// The small scene ([`small_json`]) animated, as a `.gltf` with its buffer in a data URI:
+/// animation `rise` (1 s) moves node 0 (`root`, the quads' parent) up one unit (`LINEAR`)
+/// and turns node 5 (the directional light) from its rest rotation to none (`STEP`). Its
+/// keys follow [`small_bin`]'s data in the buffer: 2 times, 2 translations, 2 rotations.
+pub fn animated_gltf() -> Vec<u8> {
+    let mut bin = small_bin();
+    let keys_at = bin.len();
+    let keys: [f32; 16] = [0.0, 1.0, 0.0, 1.0, 0.0, 0.0, 2.0, 0.0, 0.6, 0.0, 0.0, 0.8, 0.0, 0.0, 0.0, 1.0];
+    bin.extend(keys.iter().flat_map(|k| k.to_le_bytes()));
+    let uri = format!("data:application/octet-stream;base64,{}", base64(&bin));
+    let mut v = small_json(json!({"byteLength": bin.len(), "uri": uri}));
+    v["bufferViews"].as_array_mut().expect("views").push(json!({"buffer": 0, "byteOffset": keys_at, "byteLength": 64}));
+    v["accessors"].as_array_mut().expect("accessors").extend([
+        json!({"bufferView": 3, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [0.0], "max": [1.0]}),
+        json!({"bufferView": 3, "byteOffset": 8, "componentType": 5126, "count": 2, "type": "VEC3"}),
+        json!({"bufferView": 3, "byteOffset": 32, "componentType": 5126, "count": 2, "type": "VEC4"}),
+    ]);
+    v["animations"] = json!([{"name": "rise",
+        "channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}},
+                     {"sampler": 1, "target": {"node": 5, "path": "rotation"}}],
+        "samplers": [{"input": 4, "output": 5, "interpolation": "LINEAR"},
+                     {"input": 4, "output": 6, "interpolation": "STEP"}]}]);
+    serde_json::to_vec_pretty(&v).expect("JSON")
+}
+
+/// Seeds from real files: the GLBs of `shared/assets` up to [`MAX_REAL_SEED_BYTES`], the
 /// repository's manifests with every model file replaced by the small GLB (so a manifest
-/// execution does not parse a large model). Missing files are skipped.
+/// execution does not parse a large model), and its sample glTF files (`assets/scenes`).
+/// Missing files are skipped.
 pub fn real_seeds(repo_root: &Path) -> Vec<Seed> {
     let mut seeds = Vec::new();
     let assets = repo_root.join("../shared/assets");
@@ -404,7 +460,13 @@ pub fn real_seeds(repo_root: &Path) -> Vec<Seed> {
     for path in manifests {
         let Ok(text) = std::fs::read_to_string(&path) else { continue };
         let name = format!("scenes/{}", path.file_name().map(|n| n.to_string_lossy()).unwrap_or_default());
-        let mut seed = one(Kind::Manifest, &name, text.clone().into_bytes());
+        // The folder holds sample glTF files too (`animated_box.gltf`).
+        let kind = match path.extension().and_then(|e| e.to_str()) {
+            Some("gltf") => Kind::Gltf,
+            Some("glb") => Kind::Glb,
+            _ => Kind::Manifest,
+        };
+        let mut seed = one(kind, &name, text.clone().into_bytes());
         let dir = Path::new(ROOT).join("scenes");
         if let Ok(toml::Value::Table(t)) = text.parse::<toml::Value>() {
             for model in t.get("model").and_then(|m| m.as_array()).into_iter().flatten() {
@@ -906,35 +968,177 @@ pub fn mutate(seed: &Seed, rng: &mut Rng) -> Seed {
     out
 }
 
-/// Load what a seed says, as the library's users do.
+/// Load what a seed says, as the library's users do: `Ok` when it loads and the scene is
+/// consistent ([`inconsistency`]), else the error's message or the inconsistency.
 pub fn load(seed: &Seed) -> Result<(), String> {
-    let result = match seed.kind {
-        Kind::Image => Environment::load_from(&seed.main, &seed.files).map(|_| ()),
-        _ => Scene::load_from(&seed.main, &seed.files).map(|_| ()),
-    };
-    match result {
-        Ok(()) => Ok(()),
+    match attempt(seed) {
+        Ok(None) => Ok(()),
+        Ok(Some(problem)) => Err(format!("{}: loaded, but the scene is inconsistent: {problem}", seed.main.display())),
         Err(e) => Err(e.to_string()),
     }
 }
 
+/// Load what a seed says: the loaded scene's [`inconsistency`], if any, or the error.
+fn attempt(seed: &Seed) -> Result<Option<String>, SceneError> {
+    match seed.kind {
+        Kind::Image => Environment::load_from(&seed.main, &seed.files).map(|_| None),
+        _ => Scene::load_from(&seed.main, &seed.files).map(|scene| inconsistency(&scene)),
+    }
+}
+
+/// What in a loaded scene refers past its own tables, which the renderer indexes without
+/// checks (`geometry::surface_tables` indexes `textures` by a material's image): an object's
+/// id other than its index, its mesh or material, a material's base-colour image.
+pub fn inconsistency(scene: &Scene) -> Option<String> {
+    for (k, o) in scene.objects.iter().enumerate() {
+        if o.id as usize != k || o.mesh >= scene.meshes.len() || o.material >= scene.materials.len() {
+            return Some(format!(
+                "object {k} '{}' has id {}, mesh {} of {}, material {} of {}",
+                o.name,
+                o.id,
+                o.mesh,
+                scene.meshes.len(),
+                o.material,
+                scene.materials.len()
+            ));
+        }
+    }
+    scene.materials.iter().enumerate().find_map(|(k, m)| {
+        let image = m.base_color_texture?.image;
+        (image >= scene.textures.len())
+            .then(|| format!("material {k} '{}' samples image {image} of {}", m.name, scene.textures.len()))
+    })
+}
+
+/// What is wrong with `error`, from loading `seed`, if anything: it must name the file
+/// loaded and, when a manifest entry failed, the entry's model file: one of `model_files`
+/// (the model files of a manifest built around an input; not checked when empty).
+fn unnamed(seed: &Seed, error: &SceneError, model_files: &[PathBuf]) -> Option<String> {
+    let message = error.to_string();
+    let name = seed.main.display().to_string();
+    if !message.contains(&name) {
+        return Some(format!("the error does not name {name}: {message}"));
+    }
+    if let SceneError::ManifestEntry { error: inner, .. } = error {
+        let inner = inner.to_string();
+        if !model_files.is_empty() && !model_files.iter().any(|f| inner.contains(&f.display().to_string())) {
+            return Some(format!("the error does not name the model file: {message}"));
+        }
+    }
+    None
+}
+
 /// The input of execution `n` of a run with `seed`.
 pub fn input(seeds: &[Seed], run_seed: u64, n: u64) -> Seed {
+    input_and_rng(seeds, run_seed, n).0
+}
+
+/// [`input`], and the execution's generator after it (what it draws next does not change
+/// the input).
+fn input_and_rng(seeds: &[Seed], run_seed: u64, n: u64) -> (Seed, Rng) {
     let mut rng = Rng::new(run_seed ^ n.wrapping_mul(0xD6E8_FEB8_6659_FD93));
     let base = rng.pick(seeds);
     // One execution in 32 loads a seed unmutated (they must load, or fail as they are).
     if rng.below(32) == 0 {
-        return base.clone();
+        return (base.clone(), rng);
     }
-    mutate(base, &mut rng)
+    let input = mutate(base, &mut rng);
+    (input, rng)
+}
+
+/// The loads of execution `n` of a run with `seed`: its [`input`], then the input through
+/// manifests ([`through_manifests`]).
+pub fn loads(seeds: &[Seed], run_seed: u64, n: u64) -> Vec<Seed> {
+    let (input, mut rng) = input_and_rng(seeds, run_seed, n);
+    let mut loads = through_manifests(&input, &mut rng);
+    loads.insert(0, input);
+    loads
+}
+
+/// The manifest [`through_manifests`] writes beside a glTF/GLB input, naming it alone.
+pub const ONE_MODEL_MANIFEST: &str = "fuzz_one_model.toml";
+
+/// The manifest [`through_manifests`] writes beside a glTF/GLB input, merging it with
+/// [`MERGE_PARTNER`].
+pub const MERGED_MANIFEST: &str = "fuzz_merged.toml";
+
+/// The textured model ([`textured_glb`]) merged with an input, beside it.
+pub const MERGE_PARTNER: &str = "fuzz_partner.glb";
+
+/// [`textured_glb`], built once.
+fn merge_partner() -> &'static [u8] {
+    static PARTNER: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    PARTNER.get_or_init(textured_glb)
+}
+
+/// A glTF or GLB input loaded as scenes composed from files load it: through a manifest
+/// beside it naming it alone ([`ONE_MODEL_MANIFEST`]), and through one merging it with a
+/// textured model ([`MERGED_MANIFEST`], [`MERGE_PARTNER`]), the partner first or last and
+/// each entry sometimes moved, scaled, repeated or given a material override, as `rng`
+/// draws. Empty for other inputs.
+pub fn through_manifests(input: &Seed, rng: &mut Rng) -> Vec<Seed> {
+    if !matches!(input.kind, Kind::Glb | Kind::Gltf) {
+        return Vec::new();
+    }
+    let dir = input.main.parent().unwrap_or(Path::new(ROOT));
+    let file = input.main.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let entry = |file: &str| toml::Table::from_iter([("file".to_string(), toml::Value::String(file.to_string()))]);
+    let manifest = |name: &str, entries: Vec<toml::Table>| {
+        let mut seed = input.clone();
+        seed.kind = Kind::Manifest;
+        seed.main = dir.join(name);
+        let models = toml::Value::Array(entries.into_iter().map(toml::Value::Table).collect());
+        let text = toml::to_string(&toml::Table::from_iter([("model".to_string(), models)]));
+        seed.files.insert(seed.main.clone(), text.expect("a manifest of strings and numbers").into_bytes());
+        seed
+    };
+    let alone = manifest(ONE_MODEL_MANIFEST, vec![entry(&file)]);
+    let mut entries = vec![entry(MERGE_PARTNER), entry(&file)];
+    for e in &mut entries {
+        place(e, rng);
+    }
+    if rng.chance(50) {
+        entries.reverse();
+    }
+    let mut merged = manifest(MERGED_MANIFEST, entries);
+    merged.files.insert(dir.join(MERGE_PARTNER), merge_partner().to_vec());
+    vec![alone, merged]
+}
+
+/// Sometimes move, scale or repeat a manifest's model entry, or override its materials'
+/// factors: what a manifest does to a file's objects and materials.
+fn place(entry: &mut toml::Table, rng: &mut Rng) {
+    use toml::Value as T;
+    let vector = |rng: &mut Rng| T::Array((0..3).map(|_| T::Float(rng.below(9) as f64 - 4.0)).collect());
+    if rng.chance(50) {
+        entry.insert("translate".into(), vector(rng));
+    }
+    if rng.chance(30) {
+        entry.insert("scale".into(), T::Float(*rng.pick(&[0.5, 2.0, -1.0])));
+    }
+    if rng.chance(25) {
+        let count = T::Array((0..3).map(|_| T::Integer(1 + rng.below(3) as i64)).collect());
+        let repeat = toml::Table::from_iter([("count".to_string(), count), ("step".to_string(), vector(rng))]);
+        entry.insert("repeat".into(), T::Table(repeat));
+    }
+    if rng.chance(20) {
+        entry.insert("material".into(), T::Table(toml::Table::from_iter([("roughness".to_string(), T::Float(0.5))])));
+    }
 }
 
 /// What a run found.
 #[derive(Debug, Default)]
 pub struct Report {
     pub executions: u64,
+    /// Executions whose input loaded.
     pub loaded: u64,
+    /// Executions whose input was refused (with an error naming the file).
     pub refused: u64,
+    /// Loads of inputs through the manifests built around them ([`through_manifests`])
+    /// that loaded.
+    pub manifest_loaded: u64,
+    /// Loads of inputs through manifests that were refused.
+    pub manifest_refused: u64,
     /// Failures: execution number and what went wrong.
     pub failures: Vec<(u64, String)>,
 }
@@ -968,33 +1172,47 @@ pub fn run(seeds: &[Seed], run_seed: u64, range: std::ops::Range<u64>, mut progr
     let previous_hook = std::panic::take_hook();
     std::panic::set_hook(Box::new(|_| {}));
     for n in range {
-        let Ok(seed) = catch_unwind(|| input(seeds, run_seed, n)) else {
+        let Ok(loads) = catch_unwind(|| loads(seeds, run_seed, n)) else {
             report.failures.push((n, "the harness's mutator panicked".into()));
             continue;
         };
         CURRENT_EXEC.store(n, Ordering::Relaxed);
-        BASELINE.store(LIVE.load(Ordering::Relaxed), Ordering::Relaxed);
-        EXEC_STARTED_MS.store(epoch.elapsed().as_millis() as u64, Ordering::Relaxed);
-        let outcome = catch_unwind(AssertUnwindSafe(|| load(&seed)));
-        EXEC_STARTED_MS.store(0, Ordering::Relaxed);
-        BASELINE.store(usize::MAX, Ordering::Relaxed);
         report.executions += 1;
-        match outcome {
-            Ok(Ok(())) => report.loaded += 1,
-            Ok(Err(message)) => {
-                report.refused += 1;
-                let name = seed.main.display().to_string();
-                if !message.contains(&name) {
-                    report.failures.push((n, format!("the error does not name {name}: {message}")));
+        for (k, seed) in loads.iter().enumerate() {
+            BASELINE.store(LIVE.load(Ordering::Relaxed), Ordering::Relaxed);
+            EXEC_STARTED_MS.store(epoch.elapsed().as_millis() as u64, Ordering::Relaxed);
+            let outcome = catch_unwind(AssertUnwindSafe(|| attempt(seed)));
+            EXEC_STARTED_MS.store(0, Ordering::Relaxed);
+            BASELINE.store(usize::MAX, Ordering::Relaxed);
+            // Loads after the first are the input through manifests beside it.
+            let (via, model_files, loaded, refused) = if k == 0 {
+                (String::new(), Vec::new(), &mut report.loaded, &mut report.refused)
+            } else {
+                let files = vec![loads[0].main.clone(), seed.main.with_file_name(MERGE_PARTNER)];
+                let via = format!("through {}: ", seed.main.display());
+                (via, files, &mut report.manifest_loaded, &mut report.manifest_refused)
+            };
+            let problem = match outcome {
+                Ok(Ok(None)) => {
+                    *loaded += 1;
+                    None
                 }
-            }
-            Err(panic) => {
-                let what = panic
-                    .downcast_ref::<String>()
-                    .cloned()
-                    .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
-                    .unwrap_or_default();
-                report.failures.push((n, format!("panic: {what}")));
+                Ok(Ok(Some(inconsistency))) => Some(format!("the loaded scene is inconsistent: {inconsistency}")),
+                Ok(Err(error)) => {
+                    *refused += 1;
+                    unnamed(seed, &error, &model_files)
+                }
+                Err(panic) => {
+                    let what = panic
+                        .downcast_ref::<String>()
+                        .cloned()
+                        .or_else(|| panic.downcast_ref::<&str>().map(|s| s.to_string()))
+                        .unwrap_or_default();
+                    Some(format!("panic: {what}"))
+                }
+            };
+            if let Some(problem) = problem {
+                report.failures.push((n, format!("{via}{problem}")));
             }
         }
         if report.executions % 10_000 == 0 {
