@@ -3,6 +3,8 @@
 use std::path::Path;
 use std::process::Command;
 
+mod common;
+
 fn hyrt() -> Command {
     Command::new(env!("CARGO_BIN_EXE_hyrt"))
 }
@@ -285,4 +287,11 @@ fn cli_renders_with_reintersected_barycentrics() {
     assert_eq!(images[0].dimensions(), images[1].dimensions());
     let o = hyrt().args(["render", "--barycentrics", "guessed"]).output().unwrap();
     assert!(!o.status.success());
+}
+
+/// Issue 34 on the CPU backend: a one-model manifest renders its file's PNG (the GPU's in
+/// `cli/tests/gpu.rs`, the features one by one in `hyrt/tests/manifest_paths.rs`).
+#[test]
+fn cli_one_model_manifest_writes_the_files_png() {
+    common::assert_one_model_manifests_render_their_files(&["--backend", "cpu"]);
 }

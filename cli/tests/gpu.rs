@@ -85,3 +85,12 @@ fn cli_animation_frames_are_the_same_on_both_backends() {
         assert_eq!(read("cpu"), read("gpu"), "frame {i} differs");
     }
 }
+
+/// Issue 34 on the GPU backend: a one-model manifest renders its file's PNG.
+#[test]
+fn cli_one_model_manifest_writes_the_files_png_on_the_gpu() {
+    if !gpu_adapter() {
+        return;
+    }
+    common::assert_one_model_manifests_render_their_files(&["--backend", "gpu", "--allow-software-gpu"]);
+}

@@ -6,17 +6,9 @@
 use hyrt::glam::Vec3;
 use hyrt::{AdapterPolicy, BackendKind, FrameOptions, Renderer, Scene};
 
-/// The GPU renderer for tests: fails in CI without an adapter, skips visibly elsewhere.
-fn gpu_renderer() -> Option<Renderer> {
-    match Renderer::new(BackendKind::Gpu, Some(2), AdapterPolicy::AllowSoftware) {
-        Ok(r) => Some(r),
-        Err(e) if std::env::var_os("CI").is_some() => panic!("CI needs a GPU adapter (lavapipe): {e}"),
-        Err(e) => {
-            eprintln!("SKIPPED: no GPU adapter: {e}");
-            None
-        }
-    }
-}
+mod common;
+
+use common::gpu_renderer;
 
 #[test]
 fn gpu_frame_matches_cpu_frame_on_the_default_scene_and_sponza() {

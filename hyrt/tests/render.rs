@@ -1,20 +1,12 @@
 //! End to end: scenes in, hybrid frames out, through the public API.
 
-use std::path::PathBuf;
-
 use hyrt::formats::{GBUF_RAY_TRACED, RAY_KIND_SHADOW};
 use hyrt::glam::{Mat4, Vec3};
 use hyrt::{Camera, FrameOptions, Light, Material, Mesh, RenderMode, Renderer, Scene, Stage};
 
-fn shared_assets() -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets");
-    if p.is_dir() {
-        Some(p)
-    } else {
-        eprintln!("skipping: {} not found", p.display());
-        None
-    }
-}
+mod common;
+
+use common::{shared_assets, temp_dir};
 
 fn add(scene: &mut Scene, mesh: Mesh, transform: Mat4, mode: RenderMode) {
     scene.add_object(mesh, Material::grey(), transform, mode);
@@ -211,14 +203,6 @@ fn paper_manifests_reproduce_table2_valid_rays() {
     }
 }
 
-/// A fresh, empty folder for one test under Cargo's per-target temporary folder.
-fn temp_dir(test: &str) -> PathBuf {
-    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("render").join(test);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
-
 /// The RGBA f32 pixels of an OpenEXR file, read with the `image` crate.
 fn read_exr(path: &std::path::Path) -> (u32, u32, Vec<[f32; 4]>) {
     let img = image::open(path).unwrap().into_rgba32f();
@@ -228,7 +212,7 @@ fn read_exr(path: &std::path::Path) -> (u32, u32, Vec<[f32; 4]>) {
 
 #[test]
 fn save_exr_writes_the_final_image_bit_for_bit() {
-    let dir = temp_dir("save_exr");
+    let dir = temp_dir("render", "save_exr");
     let scene = Scene::default_scene();
     let mut r = Renderer::cpu(Some(2));
     let prepared = r.prepare(&scene);
