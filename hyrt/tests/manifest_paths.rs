@@ -515,8 +515,7 @@ fn one_animated_model_keeps_its_animations_and_the_animation_key_picks_what_all_
     // A name the file does not have is an error naming it.
     models[0].extra = "animation = \"jump\"";
     let e = Scene::load(&write_manifest(&dir, "missing", &models))
-        .err()
-        .expect("an animation the file lacks is an error")
+        .expect_err("an animation the file lacks is an error")
         .to_string();
     assert!(e.contains("jump"), "{e}");
 }

@@ -2,19 +2,19 @@
 //! `.glb`/`.gltf`) and each `[[model]]` of a TOML manifest are placed into the scene by the
 //! same three steps, so that whatever a loaded file holds reaches a manifest's scene too:
 //!
-//! 1. [`Merge::add_file`], once per file however many models use it: its meshes and decoded
+//! 1. `Merge::add_file`, once per file however many models use it: its meshes and decoded
 //!    images join the scene (shared by every model placing the file), its loader notes too.
-//! 2. [`Merge::place`], once per model: the file's materials (a manifest's override applied,
+//! 2. `Merge::place`, once per model: the file's materials (a manifest's override applied,
 //!    their texture indices moved past the textures of the files before), its objects at the
 //!    model's placement (once per `repeat` copy), its lights and its camera (moved by the
 //!    model's matrix), its node hierarchy and animations (their nodes, objects, camera and
 //!    lights renumbered into the scene's, one copy of the hierarchy per `repeat` copy, all
 //!    driven by the same animation).
-//! 3. [`Merge::finish`]: the lights and camera (the files' unless the manifest gives its
+//! 3. `Merge::finish`: the lights and camera (the files' unless the manifest gives its
 //!    own), the scene's animations, the rest pose.
 //!
 //! A file loaded alone is a model with the identity placement, its own object names and no
-//! overrides ([`Model::file_alone`]); such a placement copies the file's transforms, lights
+//! overrides (`Model::file_alone`); such a placement copies the file's transforms, lights
 //! and camera as they are (no multiplication by the identity, which could turn a `-0.0`
 //! into `0.0`), so a one-model manifest without a transform gives the same scene, and the
 //! same image, as the file alone.
