@@ -53,7 +53,7 @@
 
 use std::time::Duration;
 
-use bytemuck::{Pod, Zeroable};
+use bytemuck::Zeroable;
 use glam::{Vec3, Vec3A};
 use obvhs::{bvh2::builder::build_bvh2_from_tris, triangle::Triangle, BvhBuildParams};
 
@@ -67,6 +67,10 @@ pub mod wide;
 
 use traversal::{inline_leaf_test, traverse, Leaf, LeafFlow, NodeTest};
 
+/// The node record and its leaf size bound, defined with the other GPU records in
+/// [`crate::formats`]; re-exported here, where the tree is built.
+pub use crate::formats::{BvhNode, BVH_MAX_LEAF_SIZE};
+
 /// Entries of the fixed traversal stack, and therefore the largest allowed tree depth
 /// (root at depth 0): descending pushes at most one sibling per level, so a leaf at depth
 /// `d` is reached with at most `d` entries on the stack. 64 covers any balanced tree of
@@ -74,11 +78,6 @@ use traversal::{inline_leaf_test, traverse, Leaf, LeafFlow, NodeTest};
 /// traversal stack is 96). A GPU mirror can use the same bound (64 x 8 bytes of private
 /// memory for closest hit, 64 x 4 for any hit).
 pub const BVH_STACK_SIZE: usize = 64;
-
-/// Largest number of triangle slots in one leaf: the `max_prims_per_leaf` of every obvhs
-/// preset (`fastest_build` uses 1, the others 8), and the leaf size of the median
-/// fallback.
-pub const BVH_MAX_LEAF_SIZE: u32 = 8;
 
 /// Relative margin added around the leaf boxes of a pre-split BVH. obvhs computes the
 /// boxes of triangle pieces from clipped vertices (`splits.rs`: `v0 + s * (v1 - v0)`, a
@@ -104,70 +103,6 @@ pub const SPLIT_LEAF_MARGIN: f32 = gamma(16);
 /// origin two hits within its rounding error in different leaves can still resolve
 /// differently than a brute-force search would (deterministically either way).
 pub const BVH_CULL_SLACK: f32 = 1.0 / 4096.0;
-
-/// One BVH node, inner or leaf.
-///
-/// | offset | field | type | meaning |
-/// |---:|---|---|---|
-/// | 0 | `aabb_min` | [f32; 3] | box minimum (world space, finite) |
-/// | 12 | `left_or_first` | u32 | inner: index of the left child, the right child is `left_or_first + 1`; leaf: first slot in `prim_indices` |
-/// | 16 | `aabb_max` | [f32; 3] | box maximum |
-/// | 28 | `count` | u32 | 0: inner node; > 0: leaf with `count` slots `prim_indices[left_or_first ..][.. count]` |
-///
-/// 32 bytes; two siblings fill one 64-byte cache line when the array is 64-byte aligned.
-/// Boxes are closed and conservative: a child's box lies inside its parent's, a leaf's
-/// box contains its triangles (or, with spatial splits, the parts of them the leaf is
-/// responsible for).
-#[repr(C, align(32))]
-#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
-pub struct BvhNode {
-    pub aabb_min: [f32; 3],
-    pub left_or_first: u32,
-    pub aabb_max: [f32; 3],
-    pub count: u32,
-}
-const _: () = assert!(std::mem::size_of::<BvhNode>() == 32);
-crate::formats::wgsl::wgsl_struct!(BvhNode { aabb_min, left_or_first, aabb_max, count });
-
-impl BvhNode {
-    /// True for a leaf (`count > 0`).
-    #[inline]
-    pub fn is_leaf(&self) -> bool {
-        self.count > 0
-    }
-
-    /// Box minimum as a vector.
-    #[inline]
-    pub fn min(&self) -> Vec3 {
-        Vec3::from(self.aabb_min)
-    }
-
-    /// Box maximum as a vector.
-    #[inline]
-    pub fn max(&self) -> Vec3 {
-        Vec3::from(self.aabb_max)
-    }
-
-    /// Check: finite box with `min <= max`, leaf size at most [`BVH_MAX_LEAF_SIZE`].
-    /// (Links are checked by [`Bvh::validate`].)
-    pub fn validate(&self) -> Result<(), String> {
-        if !(self.min().is_finite() && self.max().is_finite()) {
-            return Err(format!("node with a non-finite box: {self:?}"));
-        }
-        if !self.min().cmple(self.max()).all() {
-            return Err(format!("node with min > max: {self:?}"));
-        }
-        if self.count > BVH_MAX_LEAF_SIZE {
-            return Err(format!("leaf with more than {BVH_MAX_LEAF_SIZE} slots: {self:?}"));
-        }
-        Ok(())
-    }
-
-    #[inline]
-    fn from_box(min: Vec3, max: Vec3, left_or_first: u32, count: u32) -> BvhNode {
-        BvhNode { aabb_min: min.into(), left_or_first, aabb_max: max.into(), count }
-    }
-}
 
 /// obvhs build presets, fastest build to best tree.
 ///

@@ -1,5 +1,6 @@
 //! Errors a caller cannot foresee: a file that does not exist, cannot be parsed,
-//! or holds something hyrt cannot render. Each names the file and the problem.
+//! or holds something hyrt cannot render (each names the file and the problem); and a
+//! frame that cannot be rendered ([`RenderError`], [`GpuError`]).
 
 use std::path::PathBuf;
 
@@ -45,7 +46,41 @@ pub enum SceneError {
     Environment {
         path: PathBuf,
         #[source]
-        problem: crate::scene::EnvironmentMapError,
+        problem: EnvironmentMapError,
+    },
+}
+
+/// Why texels cannot make an environment map.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum EnvironmentMapError {
+    /// The file extension is neither `.hdr` nor `.exr`.
+    #[error("unknown environment map format (expected a Radiance .hdr or an OpenEXR .exr file)")]
+    UnknownFormat,
+    /// The file is not a readable image of its format.
+    #[error("not a readable {format} image: {message}")]
+    Decode {
+        /// `Radiance HDR` or `OpenEXR`.
+        format: &'static str,
+        message: String,
+    },
+    /// The image has no texel.
+    #[error("the image is empty ({width}x{height})")]
+    ZeroSize { width: u32, height: u32 },
+    /// The texel count is not `width * height`.
+    #[error("{texels} texels for a {width}x{height} map")]
+    SizeMismatch { width: u32, height: u32, texels: usize },
+    /// A texel has a channel that is not finite, or is negative: radiance is neither.
+    #[error("texel ({x}, {y}) is {rgb:?}: every channel must be finite and >= 0")]
+    BadTexel { x: u32, y: u32, rgb: [f32; 3] },
+    /// The file's header asks the decoder for more memory than an environment map may use.
+    #[error("{what} would take {bytes} bytes, more than the {limit} bytes a decoded environment map may use")]
+    TooLarge {
+        /// What the header sizes (a layer's pixels, the output image, a block).
+        what: String,
+        /// The bytes it asks for (`usize::MAX` when the product overflows).
+        bytes: usize,
+        /// [`MAX_DECODED_MAP_BYTES`](crate::scene::environment::MAX_DECODED_MAP_BYTES).
+        limit: usize,
     },
 }
 
@@ -72,8 +107,8 @@ pub enum AnimationError {
 }
 
 /// A GPU backend failure: no adapter, a device that could not be created or was lost,
-/// out of memory, a failed readback. Defined here, beside [`crate::frame::RenderError`]
-/// which carries it typed ([`crate::frame::RenderError::Gpu`]), so a caller can match on
+/// out of memory, a failed readback. Defined here, beside [`RenderError`]
+/// which carries it typed ([`RenderError::Gpu`]), so a caller can match on
 /// the kind of failure (fall back to the CPU on [`GpuError::DeviceLost`], say) without
 /// downcasting; the GPU backend (`hyrt_gpu::GpuError`) re-exports it. Its messages are
 /// strings because core does not depend on wgpu.
@@ -105,4 +140,39 @@ pub enum GpuError {
     /// The frame does not fit the device's limits (buffer size, dispatch size).
     #[error("frame exceeds GPU limits: {0}")]
     Limits(String),
+}
+
+/// Why a frame could not be rendered.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error("invalid frame options: {0}")]
+    InvalidOptions(String),
+    #[error("invalid camera: {0}")]
+    InvalidCamera(String),
+    /// The backend cannot run a stage the frame's plan needs.
+    #[error("the {backend} backend cannot run {stage} yet: {why}")]
+    Unsupported { backend: &'static str, stage: String, why: &'static str },
+    /// A frame that does not fit in memory: refused before its buffers are allocated
+    /// (its least need exceeds what the system has available), or an allocation of one of
+    /// its buffers failed. `needed` is in bytes (`None` where an allocation failed whose
+    /// size the error does not carry); `available` is what the system reported (`None`:
+    /// unknown).
+    #[error(
+        "a {width}x{height} frame does not fit in memory on the {backend} backend: {what}{}{}",
+        match needed { Some(n) => format!(": {n} bytes needed"), None => String::new() },
+        match available { Some(a) => format!(", {a} bytes available"), None => String::new() }
+    )]
+    OutOfMemory {
+        backend: &'static str,
+        width: u32,
+        height: u32,
+        needed: Option<u64>,
+        available: Option<u64>,
+        what: String,
+    },
+    /// The GPU backend's device failed: no adapter, device lost, out of memory, a
+    /// readback that failed, a frame past the device's limits. Typed, so a caller can
+    /// react to the kind (fall back to the CPU backend on a lost device, say).
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
 }

@@ -30,7 +30,9 @@ pub mod frame;
 pub mod geometry;
 pub mod kernels;
 pub mod memory;
+mod options;
 pub mod plan;
+mod prepared;
 pub mod scene;
 pub mod stage;
 

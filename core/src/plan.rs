@@ -54,10 +54,16 @@
 //! through the same loop; a scene without a mirror or glass object plans no bounce and
 //! allocates nothing for one.
 
+use crate::error::RenderError;
 use crate::formats::OBJ_RAY_TRACED;
-use crate::frame::{FrameOptions, PreparedScene, RenderError};
 use crate::kernels::bounce::bounces;
+use crate::options::FrameOptions;
+use crate::prepared::PreparedScene;
 use crate::stage::Stage;
+
+/// The composition codes, defined with [`crate::formats::FrameParams`] that carries them
+/// to the GPU; re-exported here, where a plan chooses one.
+pub use crate::formats::Composition;
 
 /// A frame buffer: one stage output, kept in [`Frame`](crate::frame::Frame).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -246,30 +252,6 @@ pub enum Input {
     /// What secondary rays that leave the scene see: the default sky or the scene's
     /// environment map ([`crate::geometry::WorldGeometry::environment`]).
     Environment,
-}
-
-/// How `composition` makes the final image.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Composition {
-    /// Both images exist: the weighted mean where the ray-traced image has coverage,
-    /// the raster texel elsewhere (paper 3.5).
-    WeightedMean,
-    /// Only the raster image exists (no ray-traced object, or weight 0): a copy of it.
-    CopyRaster,
-    /// Only the ray-traced image exists (every object ray traced, weight 1): it where
-    /// it has coverage, the background elsewhere.
-    RtOverBackground,
-}
-
-impl Composition {
-    /// The code the GPU's `composition` reads (`FrameParams::composition`).
-    pub const fn code(self) -> u32 {
-        match self {
-            Composition::WeightedMean => 0,
-            Composition::CopyRaster => 1,
-            Composition::RtOverBackground => 2,
-        }
-    }
 }
 
 /// One stage of a plan, with what it needs to know of the plan.

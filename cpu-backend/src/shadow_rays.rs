@@ -22,10 +22,9 @@ use crate::traversal::{
     Traversal,
 };
 
-/// [`shadow_rays`] output value: something lies between the ray origin and the light.
-pub const SHADOW_OCCLUDED: u32 = 1;
-/// [`shadow_rays`] output value: the light is visible.
-pub const SHADOW_VISIBLE: u32 = 0;
+/// [`shadow_rays`] output values, the traversal's any-hit answers: re-exported from
+/// [`crate::traversal`], which makes them.
+pub use crate::traversal::{SHADOW_OCCLUDED, SHADOW_VISIBLE};
 
 /// Trace every ray (any hit with `t_min < t < t_max`). Returns one u32 per ray, in ray
 /// order: [`SHADOW_OCCLUDED`] or [`SHADOW_VISIBLE`]. Rays are checked with

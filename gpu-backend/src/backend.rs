@@ -15,12 +15,11 @@ use hyrt_core::kernels::bounce::MAX_DEPTH_LIMIT;
 use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan, Step};
 use hyrt_core::stage::Stage;
 
-use crate::band::{self, Band, BandMerge};
+use crate::band::{self, Band, BandMerge, BounceRoom, Room};
 use crate::bounce_shading::BounceShadingStage;
 use crate::bounce_trace::BounceTraceStage;
 use crate::buffers::{
-    BounceRoom, FrameBuffers, FrameParams, Room, SceneBuffers, COUNTER_HITS, COUNTER_OCCLUDED, COUNTER_REFLECTION,
-    COUNTER_REFRACTION,
+    FrameBuffers, FrameParams, SceneBuffers, COUNTER_HITS, COUNTER_OCCLUDED, COUNTER_REFLECTION, COUNTER_REFRACTION,
 };
 use crate::compaction::CompactionStage;
 use crate::composition::CompositionStage;

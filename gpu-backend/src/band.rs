@@ -33,7 +33,6 @@ use hyrt_core::formats::{CameraRecord, GBufferTexel, HitRecord, RayRecord, Surfa
 use hyrt_core::frame::{Frame, RenderError};
 use hyrt_core::plan::{FrameBuffer, FramePlan};
 
-use crate::buffers::{BounceRoom, Room};
 use crate::GpuError;
 
 /// Rows `[first_row, first_row + rows)` of the image, rendered as one frame.
@@ -41,6 +40,26 @@ use crate::GpuError;
 pub struct Band {
     pub first_row: u32,
     pub rows: u32,
+}
+
+/// The room of a frame's ray lists: what its buffers are allocated for. The counts are
+/// known only on the GPU; a frame whose lists outgrow their room runs again with more
+/// (see `GpuBackend`).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Room {
+    /// Shadow rays of the primary hits.
+    pub shadow_rays: u32,
+    /// Per bounce depth (depth `i + 1` at `i`): its secondary rays and their shadow rays.
+    pub bounces: Vec<BounceRoom>,
+}
+
+/// The room of one bounce depth's lists.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BounceRoom {
+    /// Reflection and refraction rays (and their hits, surfaces, radiance).
+    pub rays: u32,
+    /// Shadow rays from the surfaces they hit.
+    pub shadow_rays: u32,
 }
 
 /// Bytes of a pixel in the largest per-pixel buffer: the surfaces (48), the G-buffer

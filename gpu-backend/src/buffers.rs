@@ -3,11 +3,9 @@
 //! these by name. Element layouts are the core formats (documented to the byte
 //! in [`hyrt_core::formats`]) unless said otherwise here.
 
-use hyrt_core::bvh::two_level::InstanceRecord;
-use hyrt_core::bvh::BvhNode;
 use hyrt_core::formats::{
-    CameraRecord, EnvironmentRecord, GBufferTexel, HitRecord, LightRecord, ListParams, ObjectRecord, RayRecord,
-    SurfaceRecord, TriangleRecord,
+    BvhNode, CameraRecord, EnvironmentRecord, GBufferTexel, HitRecord, InstanceRecord, LightRecord, ListParams,
+    ObjectRecord, RayRecord, SurfaceRecord, TriangleRecord,
 };
 use hyrt_core::frame::{PreparedScene, SceneChanges};
 use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan};
@@ -20,6 +18,10 @@ use crate::{GpuContext, GpuError};
 /// The per-frame uniform parameters, defined in [`hyrt_core::formats`] (with the
 /// other records the shaders declare); re-exported at their old path.
 pub use hyrt_core::formats::FrameParams;
+
+/// The room of the ray lists, defined in [`crate::band`] (which sizes bands by it);
+/// re-exported at their old path.
+pub use crate::band::{BounceRoom, Room};
 
 /// Scene tables on the GPU (from a [`PreparedScene`]; built once per scene).
 pub struct SceneBuffers {
@@ -222,26 +224,6 @@ pub struct FrameBuffers {
     /// stage does not read in a given call (the parents' rays at depth 1, the children
     /// of the deepest bounce): 64 bytes, never written.
     pub empty: wgpu::Buffer,
-}
-
-/// The room of a frame's ray lists: what its buffers are allocated for. The counts are
-/// known only on the GPU; a frame whose lists outgrow their room runs again with more
-/// (see `GpuBackend`).
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct Room {
-    /// Shadow rays of the primary hits.
-    pub shadow_rays: u32,
-    /// Per bounce depth (depth `i + 1` at `i`): its secondary rays and their shadow rays.
-    pub bounces: Vec<BounceRoom>,
-}
-
-/// The room of one bounce depth's lists.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct BounceRoom {
-    /// Reflection and refraction rays (and their hits, surfaces, radiance).
-    pub rays: u32,
-    /// Shadow rays from the surfaces they hit.
-    pub shadow_rays: u32,
 }
 
 /// The GPU buffers of one bounce depth `d`: the [`BounceBuffer`]s of the plan, each

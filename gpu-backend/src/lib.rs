@@ -31,6 +31,7 @@ pub mod shadow_rays;
 pub mod texture;
 pub mod timing;
 pub mod visibility_raster;
+mod wgsl;
 
 pub use context::{AdapterPolicy, GpuContext};
 pub use error::GpuError;

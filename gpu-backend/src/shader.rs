@@ -14,6 +14,7 @@ use hyrt_core::kernels::shading::{
 };
 use hyrt_core::kernels::shadow::SHADOW_T_MAX_POINT;
 
+use crate::wgsl::f32_literal;
 use crate::GpuContext;
 
 // ---------------------------------------------------------------------------------------------
@@ -33,12 +34,6 @@ pub(crate) const TILE: u32 = 8;
 // ---------------------------------------------------------------------------------------------
 // WGSL sources
 // ---------------------------------------------------------------------------------------------
-
-/// An f32 as a WGSL literal with exactly its value: the f32 widened to f64 and
-/// printed shortest-round-trip, so naga's f64 parse and f32 conversion are exact.
-pub(crate) fn f32_literal(x: f32) -> String {
-    format!("{:?}", x as f64)
-}
 
 /// The WGSL both ray stages share after the generated records ([`declarations`]): the
 /// ray constants, generated from their Rust values so they cannot drift, followed by

@@ -47,7 +47,7 @@ use hyrt_core::kernels::texture::{LOD_MIN_AREA, LOD_MIN_COSINE, UNORM8_SCALE};
 use wgpu::util::DeviceExt;
 
 use crate::gpu_buffer::upload;
-use crate::shader::f32_literal;
+use crate::wgsl::f32_literal;
 use crate::GpuContext;
 
 /// The sizes in words of the packed records (from their Rust sizes) and the constant of

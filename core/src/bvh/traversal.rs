@@ -42,7 +42,8 @@
 use std::iter::Chain;
 use std::ops::Range;
 
-use super::{BvhNode, BVH_STACK_SIZE};
+use super::BVH_STACK_SIZE;
+use crate::formats::BvhNode;
 
 /// How a ray representation tests nodes during [`traverse`].
 ///

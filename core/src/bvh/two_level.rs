@@ -33,95 +33,23 @@
 
 use std::time::Duration;
 
-use bytemuck::{Pod, Zeroable};
+use bytemuck::Zeroable;
 use glam::{Mat3, Vec3, Vec3A};
 
 use obvhs::{aabb::Aabb, bvh2::builder::build_bvh2};
 
 use super::traversal::{inline_leaf_test, traverse, Leaf, LeafFlow};
-use super::{flatten, obvhs_nodes, Bvh, BvhNode, BvhPreset, ClosestHit, TraversalRay, BVH_STACK_SIZE};
-use crate::formats::{RayRecord, TriangleRecord, INVALID_ID, TRI_ALPHA_TEST};
+use super::{flatten, obvhs_nodes, Bvh, BvhPreset, ClosestHit, TraversalRay, BVH_STACK_SIZE};
+use crate::formats::{BvhNode, ObjectMap, RayRecord, TriangleRecord, INVALID_ID, TRI_ALPHA_TEST};
 use crate::geometry::WorldGeometry;
 use crate::kernels::instance::{
-    instance_box_margin, instance_position_error, instance_world_box, to_object_space, world_to_object, ObjectMap,
-    MAP_IDENTITY,
+    instance_box_margin, instance_position_error, instance_world_box, to_object_space, world_to_object,
 };
 use crate::scene::Scene;
 
-/// [`InstanceRecord::flags`]: the bottom level is in world space; rays are not moved.
-pub const INSTANCE_IDENTITY: u32 = 1 << 8;
-/// [`InstanceRecord::flags`]: the object's transform mirrors (negative determinant): a
-/// back face in object space is a front face in the world.
-pub const INSTANCE_MIRRORED: u32 = 1 << 9;
-/// [`InstanceRecord::flags`]: the object is alpha-tested; its bottom level's own triangle
-/// records carry no flags (they are shared by every instance of the mesh), so the
-/// instance brings [`TRI_ALPHA_TEST`] (the same bit) to the leaf tests.
-pub const INSTANCE_ALPHA_TEST: u32 = TRI_ALPHA_TEST;
-
-/// One instance of a bottom level in the top level.
-///
-/// | offset | field | type | meaning |
-/// |---:|---|---|---|
-/// | 0 | `map_x`, `map_y`, `map_z` | 3 x [f32; 4] | the rows of the world-to-object map ([`ObjectMap`]: `L (w - t)`; identity for the world-space level) |
-/// | 48 | `bottom` | u32 | index of its bottom level (on the GPU: the index of that level's root in the one node buffer all levels share) |
-/// | 52 | `object` | u32 | the object drawn; [`INVALID_ID`] for the world-space level, which holds many |
-/// | 56 | `first_triangle` | u32 | added to the bottom level's slot indices: the global triangle index |
-/// | 60 | `flags` | u32 | [`INSTANCE_IDENTITY`], [`INSTANCE_MIRRORED`], [`INSTANCE_ALPHA_TEST`] |
-///
-/// 64 bytes.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
-pub struct InstanceRecord {
-    pub map_x: [f32; 4],
-    pub map_y: [f32; 4],
-    pub map_z: [f32; 4],
-    pub bottom: u32,
-    pub object: u32,
-    pub first_triangle: u32,
-    pub flags: u32,
-}
-const _: () = assert!(std::mem::size_of::<InstanceRecord>() == 64);
-crate::formats::wgsl::wgsl_struct!(InstanceRecord { map_x, map_y, map_z, bottom, object, first_triangle, flags });
-
-impl InstanceRecord {
-    /// The world-to-object map ([`ObjectMap`], its rows).
-    #[inline]
-    pub fn world_to_object(&self) -> ObjectMap {
-        [self.map_x, self.map_y, self.map_z]
-    }
-
-    /// Set the world-to-object map.
-    pub fn set_world_to_object(&mut self, map: ObjectMap) {
-        [self.map_x, self.map_y, self.map_z] = map;
-    }
-
-    /// Check: finite map (the identity for [`INSTANCE_IDENTITY`]), known flags, an object
-    /// exactly when the level is in object space.
-    pub fn validate(&self) -> Result<(), String> {
-        let known = INSTANCE_IDENTITY | INSTANCE_MIRRORED | INSTANCE_ALPHA_TEST;
-        if self.flags & !known != 0 {
-            return Err(format!("instance with unknown flags: {self:?}"));
-        }
-        if !self.world_to_object().iter().flatten().all(|x| x.is_finite()) {
-            return Err(format!("instance with a non-finite map: {self:?}"));
-        }
-        let identity = self.flags & INSTANCE_IDENTITY != 0;
-        if identity
-            && (self.world_to_object() != MAP_IDENTITY || self.object != INVALID_ID || self.flags != INSTANCE_IDENTITY)
-        {
-            return Err(format!("world-space instance with a map, an object or flags: {self:?}"));
-        }
-        if !identity && self.object == INVALID_ID {
-            return Err(format!("object-space instance without an object: {self:?}"));
-        }
-        Ok(())
-    }
-
-    fn identity(bottom: u32) -> InstanceRecord {
-        let [map_x, map_y, map_z] = MAP_IDENTITY;
-        InstanceRecord { map_x, map_y, map_z, bottom, object: INVALID_ID, first_triangle: 0, flags: INSTANCE_IDENTITY }
-    }
-}
+/// The instance record and its flags, defined with the other GPU records in
+/// [`crate::formats`]; re-exported here, where the levels are built.
+pub use crate::formats::{InstanceRecord, INSTANCE_ALPHA_TEST, INSTANCE_IDENTITY, INSTANCE_MIRRORED};
 
 /// Why objects could not move ([`TwoLevelBvh::update_objects`]).
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]

@@ -28,7 +28,8 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{Bvh, BvhNode, BVH_MAX_LEAF_SIZE};
+use super::Bvh;
+use crate::formats::{BvhNode, BVH_MAX_LEAF_SIZE};
 
 /// Children per wide node: one AVX2 register of box distances.
 pub const WIDE: usize = 8;

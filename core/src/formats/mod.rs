@@ -9,10 +9,12 @@
 //! * fields listed once more for WGSL (`wgsl_struct!`, checked against the Rust layout):
 //!   the shaders' structs are generated from them ([`wgsl::declarations`]).
 
+mod bvh;
 mod records;
 mod textures;
 pub mod wgsl;
 
+pub use bvh::*;
 pub use records::*;
 pub use textures::*;
 

@@ -2,7 +2,6 @@ use bytemuck::{Pod, Zeroable};
 
 use super::wgsl::wgsl_struct;
 use super::INVALID_ID;
-use crate::plan::Composition;
 
 // ---------------------------------------------------------------------------------------------
 // G-buffer
@@ -644,6 +643,31 @@ impl SurfaceRecord {
 // ---------------------------------------------------------------------------------------------
 // Frame parameters
 // ---------------------------------------------------------------------------------------------
+
+/// How `composition` makes the final image: what a frame's plan decides
+/// ([`crate::plan::FramePlan::composition`]) and the GPU reads as its [`Composition::code`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Composition {
+    /// Both images exist: the weighted mean where the ray-traced image has coverage,
+    /// the raster texel elsewhere (paper 3.5).
+    WeightedMean,
+    /// Only the raster image exists (no ray-traced object, or weight 0): a copy of it.
+    CopyRaster,
+    /// Only the ray-traced image exists (every object ray traced, weight 1): it where
+    /// it has coverage, the background elsewhere.
+    RtOverBackground,
+}
+
+impl Composition {
+    /// The code the GPU's `composition` reads (`FrameParams::composition`).
+    pub const fn code(self) -> u32 {
+        match self {
+            Composition::WeightedMean => 0,
+            Composition::CopyRaster => 1,
+            Composition::RtOverBackground => 2,
+        }
+    }
+}
 
 /// Per-frame parameters of the GPU stages, one uniform buffer.
 ///

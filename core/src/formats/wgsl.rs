@@ -9,12 +9,11 @@
 //! (a record whose layouts differ cannot be declared). The format constants are generated
 //! the same way, by name, from their Rust values ([`constants`]).
 
-use crate::bvh::BvhNode;
 use crate::formats::{
-    CameraRecord, EnvironmentRecord, FrameParams, GBufferTexel, HitRecord, LightRecord, ListParams, MaterialRecord,
-    ObjectRecord, RayRecord, SurfaceLayout, SurfaceRecord, TextureRecord, TriangleRecord, TriangleUvRecord,
+    BvhNode, CameraRecord, EnvironmentRecord, FrameParams, GBufferTexel, HitRecord, InstanceRecord, LightRecord,
+    ListParams, MaterialRecord, ObjectRecord, RayRecord, SurfaceLayout, SurfaceRecord, TextureRecord, TriangleRecord,
+    TriangleUvRecord,
 };
-use crate::plan::Composition;
 
 /// The WGSL type of a record field.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -204,7 +203,7 @@ macro_rules! u32_constants {
 
 /// The format constants as `(name, value)`, the WGSL names equal to the Rust ones:
 /// ids, flags, kinds and codes of [`crate::formats`], and the
-/// [`Composition::code`]s as `COMPOSITION_*`.
+/// [`Composition::code`](super::Composition::code)s as `COMPOSITION_*`.
 pub fn constant_values() -> Vec<(&'static str, u32)> {
     use crate::formats::*;
     let mut c = u32_constants!(
@@ -243,10 +242,7 @@ pub fn constant_values() -> Vec<(&'static str, u32)> {
         MAT_ALPHA_TEST,
     )
     .to_vec();
-    {
-        use crate::bvh::two_level::{INSTANCE_ALPHA_TEST, INSTANCE_IDENTITY, INSTANCE_MIRRORED};
-        c.extend(u32_constants!(INSTANCE_IDENTITY, INSTANCE_MIRRORED, INSTANCE_ALPHA_TEST));
-    }
+    c.extend(u32_constants!(INSTANCE_IDENTITY, INSTANCE_MIRRORED, INSTANCE_ALPHA_TEST));
     c.extend([
         ("COMPOSITION_WEIGHTED_MEAN", Composition::WeightedMean.code()),
         ("COMPOSITION_COPY_RASTER", Composition::CopyRaster.code()),
@@ -279,7 +275,7 @@ pub fn struct_declarations() -> String {
         MaterialRecord::declaration(),
         TriangleUvRecord::declaration(),
         SurfaceLayout::declaration(),
-        crate::bvh::two_level::InstanceRecord::declaration(),
+        InstanceRecord::declaration(),
     ]
     .join("\n")
 }
@@ -317,7 +313,7 @@ mod tests {
         MaterialRecord::check_layout().unwrap();
         TriangleUvRecord::check_layout().unwrap();
         SurfaceLayout::check_layout().unwrap();
-        crate::bvh::two_level::InstanceRecord::check_layout().unwrap();
+        InstanceRecord::check_layout().unwrap();
     }
 
     #[test]

@@ -26,17 +26,9 @@ use glam::{DVec3, Mat4, Vec3};
 
 use crate::kernels::ray::gamma;
 
-/// An instance's world-to-object map, as rows `[l_i0, l_i1, l_i2, t_i]`: the object point
-/// of the world point `w` is `L (w - t)`, where `L` is the inverse of the object-to-world
-/// linear part (rounded to f32 once) and `t` the object-to-world translation (exact).
-/// Subtracting `t` first keeps the rounding of the map relative to the object's own size
-/// rather than to its distance from the world origin: an object far out in the world is
-/// mapped as precisely as one at the origin (the form Embree and OptiX instance
-/// transforms round the same way).
-pub type ObjectMap = [[f32; 4]; 3];
-
-/// The identity map.
-pub const MAP_IDENTITY: ObjectMap = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]];
+/// The map type and the identity, defined with [`crate::formats::InstanceRecord`], whose
+/// rows they are; re-exported here beside the kernels that make and apply maps.
+pub use crate::formats::{ObjectMap, MAP_IDENTITY};
 
 /// The largest condition number `||A||_inf * ||A^-1||_inf` of an object's linear part `A`
 /// the two-level BVH maps: 2^16. The inverse is computed in f64 and rounded to f32, so its

@@ -34,6 +34,9 @@ use std::sync::Arc;
 use super::files::{Disk, SceneFiles};
 use crate::SceneError;
 
+/// Defined with the other errors in [`crate::error`]; re-exported here, where maps are made.
+pub use crate::error::EnvironmentMapError;
+
 /// What rays that leave the scene see. The default is [`Environment::Sky`].
 #[derive(Clone, Debug, Default, PartialEq)]
 pub enum Environment {
@@ -77,40 +80,6 @@ impl Environment {
             },
         }
     }
-}
-
-/// Why texels cannot make an environment map.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub enum EnvironmentMapError {
-    /// The file extension is neither `.hdr` nor `.exr`.
-    #[error("unknown environment map format (expected a Radiance .hdr or an OpenEXR .exr file)")]
-    UnknownFormat,
-    /// The file is not a readable image of its format.
-    #[error("not a readable {format} image: {message}")]
-    Decode {
-        /// `Radiance HDR` or `OpenEXR`.
-        format: &'static str,
-        message: String,
-    },
-    /// The image has no texel.
-    #[error("the image is empty ({width}x{height})")]
-    ZeroSize { width: u32, height: u32 },
-    /// The texel count is not `width * height`.
-    #[error("{texels} texels for a {width}x{height} map")]
-    SizeMismatch { width: u32, height: u32, texels: usize },
-    /// A texel has a channel that is not finite, or is negative: radiance is neither.
-    #[error("texel ({x}, {y}) is {rgb:?}: every channel must be finite and >= 0")]
-    BadTexel { x: u32, y: u32, rgb: [f32; 3] },
-    /// The file's header asks the decoder for more memory than an environment map may use.
-    #[error("{what} would take {bytes} bytes, more than the {limit} bytes a decoded environment map may use")]
-    TooLarge {
-        /// What the header sizes (a layer's pixels, the output image, a block).
-        what: String,
-        /// The bytes it asks for (`usize::MAX` when the product overflows).
-        bytes: usize,
-        /// [`MAX_DECODED_MAP_BYTES`].
-        limit: usize,
-    },
 }
 
 /// The most bytes one decoded buffer of an environment map may take: the `image` crate's

@@ -130,7 +130,11 @@ pub use lanes::LANES;
 use lanes::{Lanes, Portable};
 use packet::Packet;
 
-use crate::shadow_rays::{SHADOW_OCCLUDED, SHADOW_VISIBLE};
+/// Any-hit answer of [`occluded_batch_into`] and its siblings (the output values of
+/// `shadow_rays`): something lies between the ray origin and the light.
+pub const SHADOW_OCCLUDED: u32 = 1;
+/// Any-hit answer: the light is visible.
+pub const SHADOW_VISIBLE: u32 = 0;
 
 /// Rays per rayon task: a multiple of [`LANES`], large enough to amortize scheduling (tens
 /// of microseconds of work), small enough to balance uneven rays across threads.

@@ -1,0 +1,93 @@
+//! What a frame is asked for: the per-frame options ([`FrameOptions`]), which the plan
+//! reads ([`crate::plan::FramePlan::new`]) and every backend takes with the prepared scene.
+//! Re-exported by [`crate::frame`].
+
+use crate::error::RenderError;
+use crate::kernels::bounce::MAX_DEPTH_LIMIT;
+
+/// Per-frame settings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameOptions {
+    /// Composition weight of the ray-traced image in [0, 1] (paper 3.5):
+    /// final = (1 - weight) * raster + weight * rt on ray-traced pixels.
+    pub weight: f32,
+    /// Return every stage's output in the [`Frame`](crate::frame::Frame) (for `--dump`, conformance).
+    /// When false (the default: what a display loop needs), the frame holds only the
+    /// final image, the G-buffer and the occlusion results
+    /// ([`FrameBuffer::always_returned`](crate::plan::FrameBuffer::always_returned)): the GPU backend then reads back one combined
+    /// buffer per frame.
+    pub stage_outputs: bool,
+    /// The deepest bounce of reflection and refraction rays traced from ray-traced
+    /// mirrors and glass ([`crate::kernels::bounce`]), at most [`MAX_DEPTH_LIMIT`];
+    /// 0 traces none (the paper's frame: shadow rays only).
+    pub max_depth: u32,
+    /// Where `reconstruction` takes the primary hits' barycentrics from.
+    pub barycentrics: PrimaryBarycentrics,
+}
+
+/// The barycentrics `reconstruction` rebuilds primary hit points from (paper eq. 1).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum PrimaryBarycentrics {
+    /// The raster's: interpolated at the pixel centre in the snapped triangle (vertices on
+    /// a 1/256-pixel grid), so hit points carry the snapping error (about 7e-6 of the
+    /// scene's diagonal on the teaser).
+    #[default]
+    Raster,
+    /// The pixel's camera ray intersected with the triangle the raster found, by the
+    /// watertight kernel ([`crate::kernels::reconstruction::reintersected_barycentrics`]):
+    /// hit points as exact as a ray tracer's, visibility still the raster's. Where the ray
+    /// misses that triangle (a pixel centre the snapped triangle covers and the exact one
+    /// does not, at its edges) the raster's barycentrics are kept. Both backends,
+    /// bit-identical (the GPU's `reconstruction` mirrors the camera ray and the test).
+    Reintersected,
+}
+
+impl PrimaryBarycentrics {
+    /// Lower-case name (CLI, reports).
+    pub fn name(self) -> &'static str {
+        match self {
+            PrimaryBarycentrics::Raster => "raster",
+            PrimaryBarycentrics::Reintersected => "reintersected",
+        }
+    }
+}
+
+impl Default for FrameOptions {
+    /// Weight 1 (ray-traced objects shaded by the tracer alone), no stage outputs,
+    /// reflection and refraction to [`crate::kernels::bounce::DEFAULT_MAX_DEPTH`]
+    /// bounces (a scene without ray-traced mirrors or glass plans none; `max_depth: 0`
+    /// gives the paper's frame, shadow rays only).
+    fn default() -> Self {
+        FrameOptions {
+            weight: 1.0,
+            stage_outputs: false,
+            max_depth: crate::kernels::bounce::DEFAULT_MAX_DEPTH,
+            barycentrics: PrimaryBarycentrics::Raster,
+        }
+    }
+}
+
+impl FrameOptions {
+    /// The default options with every stage's output returned (`--dump`, tests).
+    pub fn with_stage_outputs() -> Self {
+        FrameOptions { stage_outputs: true, ..FrameOptions::default() }
+    }
+
+    /// Check the options: the weight is a number in [0, 1]. [`FramePlan::new`](crate::plan::FramePlan::new) calls
+    /// this, so every backend validates options in one place.
+    pub fn validate(&self) -> Result<(), RenderError> {
+        if !(0.0..=1.0).contains(&self.weight) {
+            return Err(RenderError::InvalidOptions(format!(
+                "composition weight must be in [0, 1], got {}",
+                self.weight
+            )));
+        }
+        if self.max_depth > MAX_DEPTH_LIMIT {
+            return Err(RenderError::InvalidOptions(format!(
+                "max depth must be at most {MAX_DEPTH_LIMIT}, got {}",
+                self.max_depth
+            )));
+        }
+        Ok(())
+    }
+}
