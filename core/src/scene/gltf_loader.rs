@@ -91,7 +91,7 @@ use super::animation::{
 use super::files::{Budget, Disk, SceneFiles};
 use super::merge::{Merge, Model};
 use super::texture::{AlphaMode, Filter, Sampler, TextureBinding, TextureImage, UvTransform, VertexAttributes, Wrap};
-use super::{Camera, Light, Material, MaterialKind, Mesh, Object, ObjectSource, RenderMode, Scene};
+use super::{farthest_corner, Camera, Light, Material, MaterialKind, Mesh, Object, ObjectSource, RenderMode, Scene};
 use crate::SceneError;
 
 /// `KHR_materials_ior` default (the extension's specification: 1.5).
@@ -1004,20 +1004,7 @@ impl<'a> Converter<'a> {
         let Some(cam) = self.scene.camera.as_mut() else {
             return;
         };
-        let reach = bounds
-            .map(|(lo, hi)| {
-                let mut d: f32 = 0.0;
-                for k in 0..8 {
-                    let corner = Vec3::new(
-                        if k & 1 == 0 { lo.x } else { hi.x },
-                        if k & 2 == 0 { lo.y } else { hi.y },
-                        if k & 4 == 0 { lo.z } else { hi.z },
-                    );
-                    d = d.max((corner - cam.eye).length());
-                }
-                d
-            })
-            .unwrap_or(0.0);
+        let reach = bounds.map_or(0.0, |(lo, hi)| farthest_corner(cam.eye, lo, hi));
         // Twice the farthest corner (beyond twice near); 1000 near distances without geometry.
         cam.far = if reach > 0.0 { (2.0 * reach).max(2.0 * cam.near) } else { 1000.0 * cam.near };
         self.scene.notes.push(format!(

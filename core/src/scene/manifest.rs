@@ -126,7 +126,7 @@ use serde::Deserialize;
 use super::files::{Budget, Disk, SceneFiles};
 use super::gltf_loader::{load_gltf_detailed, material_kind, LoadedGltf};
 use super::merge::{FileSlot, Merge, Model, Naming};
-use super::{Camera, Environment, Light, Material, MaterialKind, Mesh, RenderMode, Scene};
+use super::{farthest_corner, Camera, Environment, Light, Material, MaterialKind, Mesh, RenderMode, Scene};
 use crate::SceneError;
 
 /// `KHR_materials_ior` default, used when a manifest makes a material glass without an ior.
@@ -565,20 +565,6 @@ impl LightEntry {
             (LightType::Directional, _, _) => Err("a directional light needs `direction` and no `position`".into()),
         }
     }
-}
-
-/// The largest distance from `eye` to a corner of the box `lo..hi`.
-fn farthest_corner(eye: Vec3, lo: Vec3, hi: Vec3) -> f32 {
-    (0..8)
-        .map(|k| {
-            let c = Vec3::new(
-                if k & 1 == 0 { lo.x } else { hi.x },
-                if k & 2 == 0 { lo.y } else { hi.y },
-                if k & 4 == 0 { lo.z } else { hi.z },
-            );
-            (c - eye).length()
-        })
-        .fold(0.0, f32::max)
 }
 
 /// Build the scene a parsed manifest describes; `path` is the manifest (for relative paths

@@ -53,6 +53,16 @@ pub(crate) enum Naming<'a> {
     Whole(&'a str),
 }
 
+impl<'a> Naming<'a> {
+    /// The model's name; `None` for a file loaded alone.
+    fn model_name(self) -> Option<&'a str> {
+        match self {
+            Naming::AsFile => None,
+            Naming::Prefixed(name) | Naming::Whole(name) => Some(name),
+        }
+    }
+}
+
 /// Where and how a model places a file.
 pub(crate) struct Model<'a> {
     /// The manifest's name for it (`model[1] 'bunny'`), prefixed to the file's notes and
@@ -172,10 +182,7 @@ impl Merge {
         model: &Model,
     ) -> Result<(), String> {
         let copies = model.copies.len();
-        let name_bytes = match model.naming {
-            Naming::AsFile => 0,
-            Naming::Prefixed(name) | Naming::Whole(name) => name.len() + 1,
-        };
+        let name_bytes = model.naming.model_name().map_or(0, |name| name.len() + 1);
         // A file's objects (and hierarchy) are placed again by every model naming it: charged
         // before they are.
         let placed_bytes = file.materials.len() * std::mem::size_of::<Material>()
@@ -240,7 +247,8 @@ impl Merge {
             if let Some(animation) = &file.animation {
                 // Copy 0 places the file's camera (when it is the scene's) and its lights.
                 let first = c == 0;
-                let base = self.hierarchy_copy(animation, placed, identity, model.label, first_object, |node| {
+                let placement = (!identity).then_some(placed);
+                let base = self.hierarchy_copy(animation, placement, model.label, first_object, |node| {
                     (first && gives_camera && node.camera, node.light.filter(|_| first).map(|l| light_offset + l))
                 });
                 hierarchy_copies.push(base);
@@ -295,29 +303,25 @@ impl Merge {
                     Animation::new(a.name().to_string(), channels, a.samplers().to_vec())
                 })
                 .collect::<Result<Vec<_>, String>>()?;
-            let name = match model.naming {
-                Naming::AsFile => String::new(),
-                Naming::Prefixed(name) | Naming::Whole(name) => name.to_string(),
-            };
+            let name = model.naming.model_name().unwrap_or_default().to_string();
             self.animated.push(AnimatedModel { name, chosen, animations });
         }
         Ok(())
     }
 
-    /// Append one copy of `animation`'s hierarchy, placed at `placed` (under a placement node
-    /// unless `identity`), its objects renumbered from `first_object`, and `camera_and_light`
+    /// Append one copy of `animation`'s hierarchy, under a node placing it at `placement`
+    /// (`None`: the identity, no node), its objects renumbered from `first_object`, and `camera_and_light`
     /// deciding per node whether it keeps placing the scene's camera and which scene light it
     /// places. Returns the index in the merged hierarchy of the copy's first file node.
     fn hierarchy_copy(
         &mut self,
         animation: &SceneAnimation,
-        placed: Mat4,
-        identity: bool,
+        placement: Option<Mat4>,
         label: Option<&str>,
         first_object: u32,
         camera_and_light: impl Fn(&SceneNode) -> (bool, Option<usize>),
     ) -> usize {
-        let placement = (!identity).then(|| {
+        let placement = placement.map(|placed| {
             self.nodes.push(SceneNode {
                 gltf_index: None,
                 label: format!("{} placement", label.unwrap_or("the model's")),
@@ -416,15 +420,16 @@ pub(crate) fn describe_camera(c: &Camera) -> String {
 
 /// The scene's animations from its animated models (see the module docs).
 fn scene_animations(mut animated: Vec<AnimatedModel>) -> Result<Vec<Animation>, String> {
-    if animated.len() == 1 {
-        let model = animated.pop().unwrap_or_else(|| unreachable!());
-        let mut animations = model.animations;
-        let chosen = animations.remove(model.chosen);
-        animations.insert(0, chosen);
-        return Ok(animations);
-    }
-    if animated.is_empty() {
-        return Ok(Vec::new());
+    match animated.len() {
+        0 => return Ok(Vec::new()),
+        1 => {
+            let model = animated.remove(0);
+            let mut animations = model.animations;
+            let chosen = animations.remove(model.chosen);
+            animations.insert(0, chosen);
+            return Ok(animations);
+        }
+        _ => {}
     }
     let (mut channels, mut samplers) = (Vec::new(), Vec::new());
     for model in &animated {

@@ -273,6 +273,21 @@ impl Camera {
     }
 }
 
+/// The largest distance from `eye` to a corner of the box `lo..hi` (what a far plane
+/// derived from the scene bounds must reach: the glTF loader's and the manifest's).
+pub(crate) fn farthest_corner(eye: Vec3, lo: Vec3, hi: Vec3) -> f32 {
+    (0..8)
+        .map(|k| {
+            let c = Vec3::new(
+                if k & 1 == 0 { lo.x } else { hi.x },
+                if k & 2 == 0 { lo.y } else { hi.y },
+                if k & 4 == 0 { lo.z } else { hi.z },
+            );
+            (c - eye).length()
+        })
+        .fold(0.0, f32::max)
+}
+
 /// A loaded scene.
 #[derive(Clone, Debug, Default)]
 pub struct Scene {
