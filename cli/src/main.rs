@@ -216,6 +216,17 @@ struct SceneArgs {
     /// tracer's hit points; visibility stays the raster's).
     #[arg(long, value_enum, default_value = "raster")]
     barycentrics: BarycentricsArg,
+    /// How the CPU backend runs a frame: fused (default: tile by tile in cache, where the
+    /// frame returns only its image, as without --dump, and has no bounces) or staged (stage
+    /// after stage over whole-image buffers, each stage timed). The same image.
+    #[arg(long, value_enum, default_value = "fused")]
+    executor: ExecutorArg,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum ExecutorArg {
+    Fused,
+    Staged,
 }
 
 #[derive(clap::Args)]
@@ -447,6 +458,16 @@ impl SceneArgs {
         }
     }
 
+    /// Give the CPU backend `--executor`'s executor (the GPU has one).
+    fn set_executor(&self, renderer: &mut Renderer) {
+        if let Some(cpu) = renderer.cpu_backend() {
+            cpu.set_executor(match self.executor {
+                ExecutorArg::Fused => hyrt::Executor::Fused,
+                ExecutorArg::Staged => hyrt::Executor::Staged,
+            });
+        }
+    }
+
     /// The frame options `--weight`, `--max-depth` and `--barycentrics` say.
     fn frame_options(&self, stage_outputs: bool) -> FrameOptions {
         let barycentrics = match self.barycentrics {
@@ -461,6 +482,20 @@ impl SceneArgs {
         }
     }
 }
+
+/// The timed lines of a frame, `(label, ms)` in the order they ran: each step's (a bounce
+/// step carries its depth: `compaction{2}`), and for a fused frame its tiles' line, which
+/// holds every step after `visibility_raster`.
+fn timed_lines(s: &hyrt::FrameStats) -> Vec<(String, f64)> {
+    let mut lines: Vec<(String, f64)> = s.stage_ms.iter().map(|t| (t.label(), t.ms)).collect();
+    if s.executor == hyrt::Executor::Fused {
+        lines.push((FUSED_TILES_LABEL.to_string(), s.fused_ms));
+    }
+    lines
+}
+
+/// The fused frame's line in `hyrt render`'s times: every step after `visibility_raster`.
+const FUSED_TILES_LABEL: &str = "fused tiles";
 
 /// `frame.png` -> `frame_0007.png`: frame `i` of an animation rendered to `out`.
 fn numbered(out: &std::path::Path, i: u32) -> PathBuf {
@@ -495,6 +530,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
     let mut renderer = Renderer::new(common.backend_kind(), common.threads, common.adapter_policy())
         .map_err(|e| e.to_string())?
         .with_bvh_preset(common.bvh_preset());
+    common.set_executor(&mut renderer);
     let start_ms = ms_since(t);
     eprintln!("backend: {}", renderer.choice_details());
     let (w, h) = common.size;
@@ -504,8 +540,12 @@ fn render(args: RenderArgs) -> Result<(), String> {
     let prepare_ms = ms_since(t);
     // Every stage's output is kept only for --dump (the GPU then reads them back too).
     let options = common.frame_options(args.dump.is_some());
-    let mut frame = hyrt::Frame::default();
     let mut per_frame = Vec::with_capacity(args.frames as usize);
+    // What the frames add to the prepared scene: the resident memory now, and the peak from
+    // now on (Linux; the scene's load and preparation do not count).
+    let load_peak = hyrt::memory::peak_resident_bytes();
+    let before_frames = hyrt::memory::reset_peak_resident_bytes().then(hyrt::memory::resident_bytes).flatten();
+    let mut frame = hyrt::Frame::default();
     // Wall clock of each frame (the call, readback included) and the sum of its stages.
     let mut walls = Vec::with_capacity(args.frames as usize);
     // With --fps each frame poses the scene at its time and moves what the animation moves
@@ -520,7 +560,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
         let t = Instant::now();
         renderer.render_into(&prepared, &camera, w, h, &options, &mut frame).map_err(|e| e.to_string())?;
         walls.push((ms_since(t), frame.stats.frame_ms()));
-        per_frame.push(frame.stats.stage_ms.clone());
+        per_frame.push(timed_lines(&frame.stats));
         if let Some((_, fps)) = playing {
             let out = numbered(&args.out, i);
             write_image(&out, w, h, &frame)?;
@@ -529,11 +569,11 @@ fn render(args: RenderArgs) -> Result<(), String> {
     }
     // Median per step (stage and depth) over the frames (the lower middle for an even count).
     let median = |label: &str| -> f64 {
-        let mut v: Vec<f64> =
-            per_frame.iter().filter_map(|f| f.iter().find(|t| t.label() == label).map(|t| t.ms)).collect();
+        let mut v: Vec<f64> = per_frame.iter().filter_map(|f| f.iter().find(|t| t.0 == label).map(|t| t.1)).collect();
         v.sort_by(f64::total_cmp);
         v[(v.len() - 1) / 2]
     };
+    let frame_bytes = before_frames.zip(hyrt::memory::peak_resident_bytes()).map(|(b, p)| p.saturating_sub(b));
     if playing.is_none() {
         write_image(&args.out, w, h, &frame)?;
     }
@@ -573,8 +613,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
     println!("  {:<18} {:>9.2} ms (once per scene)", Stage::BvhBuild.name(), prepared.bvh_build_ms);
     // The steps in the order they ran (a bounce step carries its depth: `compaction{2}`),
     // then the stages the plan skipped.
-    for t in &s.stage_ms {
-        let label = t.label();
+    for (label, _) in timed_lines(s) {
         let ms = median(&label);
         println!("  {label:<18} {ms:>9.2} ms");
         frame_ms += ms;
@@ -602,7 +641,17 @@ fn render(args: RenderArgs) -> Result<(), String> {
     } else {
         println!("warm: not measured (one frame; --frames 3 measures the frames after the first)");
     }
-    if let Some(peak) = hyrt::memory::peak_resident_bytes() {
+    if let Some(bytes) = frame_bytes {
+        let pixels = (w as u64 * h as u64).max(1);
+        println!(
+            "frame memory: {:.1} bytes per pixel beyond the scene ({:.1} MiB: peak resident memory while rendering \
+             minus resident memory before; {} executor)",
+            bytes as f64 / pixels as f64,
+            bytes as f64 / (1u64 << 20) as f64,
+            frame.stats.executor.name()
+        );
+    }
+    if let Some(peak) = hyrt::memory::peak_resident_bytes().map(|p| p.max(load_peak.unwrap_or(0))) {
         println!("peak resident memory: {:.0} MiB (the whole process)", peak as f64 / (1u64 << 20) as f64);
     }
     if playing.is_none() {

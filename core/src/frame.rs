@@ -114,6 +114,41 @@ pub struct FrameStats {
     pub stage_ms: Vec<StageTime>,
     /// The stages the frame's plan left out, and why.
     pub skipped: Vec<Skipped>,
+    /// How the backend ran the plan. With [`Executor::Fused`], `stage_ms` holds
+    /// `visibility_raster` alone and every later step ran in the tiles, timed together in
+    /// `fused_ms`.
+    pub executor: Executor,
+    /// Milliseconds of the fused executor's tile pass ([`Executor::Fused`]): every step of
+    /// the plan after `visibility_raster`, tile by tile. Zero for a staged frame.
+    pub fused_ms: f64,
+}
+
+/// How a backend runs a frame's plan ([`crate::plan::FramePlan`]): both run the same
+/// stages' kernels and give the same bits.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Executor {
+    /// Stage after stage over whole-image buffers, each stage timed: the reference, and the
+    /// only executor that can return every stage's output ([`FrameOptions::stage_outputs`],
+    /// `--dump`, conformance, the viewer's stage views) or trace bounces. The GPU backend's
+    /// executor.
+    #[default]
+    Staged,
+    /// The CPU backend's fused, tiled frame: after `visibility_raster`, each screen tile runs
+    /// reconstruction, shadow-ray generation and tracing, shading and composition while its
+    /// data is in cache, with tile-local scratch instead of whole-image buffers. It returns
+    /// the final image and the G-buffer; it runs frames without stage outputs and without
+    /// bounces.
+    Fused,
+}
+
+impl Executor {
+    /// Lower-case name (CLI, reports).
+    pub fn name(self) -> &'static str {
+        match self {
+            Executor::Staged => "staged",
+            Executor::Fused => "fused",
+        }
+    }
 }
 
 impl FrameStats {
@@ -122,9 +157,9 @@ impl FrameStats {
         let mut times = self.stage_ms.iter().filter(|s| s.stage == stage).map(|s| s.ms).peekable();
         times.peek().is_some().then(|| times.sum())
     }
-    /// Sum of the frame's stages.
+    /// Sum of the frame's stages (and of the fused executor's tiles).
     pub fn frame_ms(&self) -> f64 {
-        self.stage_ms.iter().map(|s| s.ms).sum()
+        self.stage_ms.iter().map(|s| s.ms).sum::<f64>() + self.fused_ms
     }
 }
 

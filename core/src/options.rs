@@ -13,7 +13,7 @@ pub struct FrameOptions {
     pub weight: f32,
     /// Return every stage's output in the [`Frame`](crate::frame::Frame) (for `--dump`, conformance).
     /// When false (the default: what a display loop needs), the frame holds only the
-    /// final image, the G-buffer and the occlusion results
+    /// final image and the G-buffer
     /// ([`FrameBuffer::always_returned`](crate::plan::FrameBuffer::always_returned)): the GPU backend then reads back one combined
     /// buffer per frame.
     pub stage_outputs: bool,

@@ -219,10 +219,11 @@ impl FrameBuffer {
     }
 
     /// True for the buffers a display loop needs and every backend returns even
-    /// without [`FrameOptions::stage_outputs`]: the final image, the G-buffer (pixel
-    /// counts, picking) and the occlusion results (the frame's statistics).
+    /// without [`FrameOptions::stage_outputs`]: the final image and the G-buffer (pixel
+    /// counts, picking). The frame's statistics count the rest (occluded shadow rays
+    /// among them); the fused CPU frame writes nothing else whole-image.
     pub const fn always_returned(self) -> bool {
-        matches!(self, FrameBuffer::GBuffer | FrameBuffer::Occluded | FrameBuffer::Final)
+        matches!(self, FrameBuffer::GBuffer | FrameBuffer::Final)
     }
 }
 

@@ -6,8 +6,8 @@ use glam::Vec3;
 use hyrt_core::bvh::{BvhPreset, ClosestHit};
 use hyrt_core::formats::{CameraRecord, RayRecord, SurfaceRecord, RAY_KIND_COUNT, RAY_KIND_SHADOW};
 use hyrt_core::frame::{
-    Backend, BounceStats, Frame, FrameOptions, FrameStats, PreparedScene, PrimaryBarycentrics, RenderError, StageTime,
-    StageWork,
+    Backend, BounceStats, Executor, Frame, FrameOptions, FrameStats, PreparedScene, PrimaryBarycentrics, RenderError,
+    StageTime, StageWork,
 };
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan, Step};
@@ -21,6 +21,7 @@ use crate::{
         active_pairs_into, compaction_into, pair_ray, shadow_mask_into, shadow_mask_of_pairs_into, CompactionScratch,
     },
     composition::composition_into,
+    fused::{fused_tiles, FusedSteps},
     memory,
     raster_shading::{raster_shading_into, Primary},
     reconstruction::{reconstruction_into, reconstruction_reintersected_into},
@@ -44,6 +45,8 @@ pub struct CpuBackend {
     shadow_traversal: Traversal,
     /// How `bounce_trace` traces (closest hit; single rays through the wide tree by default).
     bounce_traversal: Traversal,
+    /// The executor of frames it can run ([`Executor::Fused`] by default).
+    executor: Executor,
 }
 
 impl CpuBackend {
@@ -59,6 +62,29 @@ impl CpuBackend {
             closest: Vec::new(),
             shadow_traversal: Traversal::simd(),
             bounce_traversal: Traversal::for_bounces(),
+            executor: Executor::Fused,
+        }
+    }
+
+    /// Run frames with `executor` from now on. [`Executor::Fused`] (the default) runs the
+    /// fused tiles ([`crate::fused`]) wherever a frame allows it (no stage outputs, no
+    /// bounces) and the staged loop elsewhere; [`Executor::Staged`] runs every frame
+    /// stage by stage (per-stage times, for Table 2 and before/after comparisons). Both
+    /// give the same frame; [`FrameStats::executor`] says which ran.
+    pub fn set_executor(&mut self, executor: Executor) {
+        self.executor = executor;
+    }
+
+    /// The executor set by [`CpuBackend::set_executor`].
+    pub fn executor(&self) -> Executor {
+        self.executor
+    }
+
+    /// The executor a frame of `plan` with `options` runs on.
+    pub fn executor_for(&self, plan: &FramePlan, options: &FrameOptions) -> Executor {
+        match self.executor {
+            Executor::Fused if !options.stage_outputs && FusedSteps::of(plan).is_some() => Executor::Fused,
+            _ => Executor::Staged,
         }
     }
 
@@ -183,7 +209,8 @@ impl Backend for CpuBackend {
         // A frame that cannot fit is refused before anything is allocated, and the
         // buffers are reserved fallibly: an error, never an abort.
         let (width, height) = (camera.width, camera.height);
-        memory::check(&plan, width, height)?;
+        let executor = self.executor_for(&plan, options);
+        memory::check(&plan, executor, width, height)?;
         let g = &scene.geometry;
         let eye = Vec3::from(camera.eye);
         let threads = self.threads();
@@ -195,7 +222,40 @@ impl Backend for CpuBackend {
         if plan.bounce_depth() > 0 {
             f.bounce_mut(plan.bounce_depth());
         }
-        memory::reserve_frame(f, &plan, width, height)?;
+        memory::reserve_frame(f, &plan, executor, width, height)?;
+        if executor == Executor::Fused {
+            let steps = FusedSteps::of(&plan).expect("executor_for checked the plan");
+            self.pool.install(|| {
+                let t = Instant::now();
+                let covered = visibility_raster_into(g, camera, &mut f.gbuffer) as u64;
+                let raster_ms = t.elapsed().as_secs_f64() * 1e3;
+                let t = Instant::now();
+                let counts = fused_tiles(scene, camera, options, steps, traversal, &f.gbuffer, &mut f.final_image);
+                let fused_ms = t.elapsed().as_secs_f64() * 1e3;
+                let mut stats = FrameStats {
+                    width,
+                    height,
+                    threads,
+                    skipped: plan.skipped().to_vec(),
+                    covered_pixels: covered,
+                    ray_traced_pixels: counts.ray_traced_pixels,
+                    raster_pixels: covered - counts.ray_traced_pixels,
+                    occluded_shadow_rays: counts.occluded,
+                    executor,
+                    fused_ms,
+                    ..FrameStats::default()
+                };
+                stats.rays_per_kind[RAY_KIND_SHADOW as usize] = counts.shadow_rays;
+                let step = Step::VisibilityRaster;
+                let work = StageWork::of(step, &stats);
+                stats.stage_ms = vec![StageTime { stage: step.stage(), depth: 0, ms: raster_ms, work }];
+                f.stats = stats;
+            });
+            f.width = width;
+            f.height = height;
+            f.end();
+            return Ok(());
+        }
         let oom = |what: &'static str| {
             move |e: std::collections::TryReserveError| {
                 memory::out_of_memory(width, height, None, memory::available_bytes(), &format!("{what} ({e})"))

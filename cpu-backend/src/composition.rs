@@ -24,30 +24,39 @@ pub fn composition(raster: &[[f32; 4]], rt: &[[f32; 4]], weight: f32) -> Vec<[f3
 /// plan made (the other is not read and may be empty).
 pub fn composition_into(mode: Composition, raster: &[[f32; 4]], rt: &[[f32; 4]], weight: f32, out: &mut Vec<[f32; 4]>) {
     match mode {
-        Composition::WeightedMean => {}
+        Composition::WeightedMean => assert_eq!(raster.len(), rt.len(), "images of different sizes"),
         Composition::CopyRaster => {
             out.clear();
             out.extend_from_slice(raster);
             return;
         }
         Composition::RtOverBackground => {
-            let background: [f32; 4] = Vec3::from(BACKGROUND).extend(1.0).into();
-            rt.par_iter().with_min_len(1024).map(|t| if t[3] > 0.0 { *t } else { background }).collect_into_vec(out);
+            let none = [0.0; 4];
+            rt.par_iter().with_min_len(1024).map(|t| composition_pixel(mode, &none, t, weight)).collect_into_vec(out);
             return;
         }
     }
-    assert_eq!(raster.len(), rt.len(), "images of different sizes");
     raster
         .par_iter()
         .zip(rt.par_iter())
         .with_min_len(1024)
-        .map(|(r, t)| {
-            if t[3] > 0.0 {
-                let (r, t) = (Vec4::from(*r), Vec4::from(*t));
-                compose(r.truncate(), t.truncate(), weight).extend(1.0).into()
-            } else {
-                *r
-            }
-        })
+        .map(|(r, t)| composition_pixel(mode, r, t, weight))
         .collect_into_vec(out);
+}
+
+/// The stage's kernel for one pixel with raster colour `r` and ray-traced colour `t` (the
+/// image `mode` does not read may be anything): what [`composition_into`] writes there;
+/// the fused frame (`crate::fused`) calls it tile by tile.
+#[inline]
+pub fn composition_pixel(mode: Composition, r: &[f32; 4], t: &[f32; 4], weight: f32) -> [f32; 4] {
+    match mode {
+        Composition::CopyRaster => *r,
+        Composition::RtOverBackground if t[3] > 0.0 => *t,
+        Composition::RtOverBackground => Vec3::from(BACKGROUND).extend(1.0).into(),
+        Composition::WeightedMean if t[3] > 0.0 => {
+            let (r, t) = (Vec4::from(*r), Vec4::from(*t));
+            compose(r.truncate(), t.truncate(), weight).extend(1.0).into()
+        }
+        Composition::WeightedMean => *r,
+    }
 }

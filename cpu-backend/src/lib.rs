@@ -4,6 +4,11 @@
 //! reference the GPU backend is tested against and the renderer users fall back
 //! on without a GPU. One module per stage, named as in [`hyrt_core::stage::Stage`];
 //! each stage is a function from its declared inputs to its declared outputs.
+//!
+//! Two executors run a frame's plan over those stages ([`hyrt_core::frame::Executor`]):
+//! [`backend`]'s staged loop (stage after stage over whole-image buffers, the reference)
+//! and [`fused`]'s tiles (every step after `visibility_raster` per screen tile, in cache).
+//! Both call each stage's per-pixel kernels; neither has a stage's logic of its own.
 
 pub mod backend;
 pub mod bounce_shading;
@@ -11,6 +16,7 @@ pub mod bounce_trace;
 pub mod bvh_build;
 pub mod compaction;
 pub mod composition;
+pub mod fused;
 pub mod memory;
 pub mod raster_shading;
 pub mod reconstruction;

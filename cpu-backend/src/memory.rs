@@ -17,8 +17,13 @@
 //! | raster, ray-traced and final images (`[f32; 4]`) | 16 each | as planned |
 //! | ray list ([`RayRecord`]), its indices and occlusion results | at most 72 L (8 L without stage outputs: no list is written) | with lights |
 //!
-//! so the default scene's frame (two lights, no bounce) needs at least 138 bytes per
-//! pixel and at most 282. A bounce depth adds, per ray of that depth, 64 (the ray) + 24
+//! so the default scene's staged frame (two lights, no bounce) needs at least 138 bytes per
+//! pixel and at most 282.
+//!
+//! The fused executor ([`crate::fused`]) keeps only the G-buffer, the raster's counts and
+//! the final image whole-image: 48 bytes per pixel whatever the lights, plus each worker's
+//! tile scratch (a fixed size per thread, independent of the image: see
+//! [`crate::fused::FUSED_TILE`]). A bounce depth adds, per ray of that depth, 64 (the ray) + 24
 //! (its hit) + 48 (its surface) + 16 (its radiance) + 8 (its link from the parent) + the
 //! flags of its parents' lobes, and its own shadow rays: how many rays a depth has is
 //! known only when it runs (at most two per parent), so bounce buffers are reserved
@@ -32,7 +37,7 @@ use std::collections::TryReserveError;
 use std::mem::size_of;
 
 use hyrt_core::formats::{GBufferTexel, RayRecord, SurfaceRecord};
-use hyrt_core::frame::{Frame, RenderError};
+use hyrt_core::frame::{Executor, Frame, RenderError};
 use hyrt_core::plan::{FrameBuffer, FramePlan};
 
 /// The bytes a frame needs: `at_least` whatever the scene shows (the per-pixel buffers),
@@ -47,10 +52,14 @@ pub struct FrameBytes {
 /// Bytes per pixel of [`visibility_raster`](crate::visibility_raster)'s scratch counts.
 const RASTER_COUNTS_BYTES: u64 = 8;
 
-/// What a frame of `plan` at `width` x `height` needs on this backend (the module docs'
-/// table). Saturates instead of overflowing.
-pub fn frame_bytes(plan: &FramePlan, width: u32, height: u32) -> FrameBytes {
+/// What a frame of `plan` at `width` x `height` run by `executor` needs on this backend (the
+/// module docs' table). Saturates instead of overflowing.
+pub fn frame_bytes(plan: &FramePlan, executor: Executor, width: u32, height: u32) -> FrameBytes {
     let pixels = width as u64 * height as u64;
+    if executor == Executor::Fused {
+        let b = pixels.saturating_mul(RASTER_COUNTS_BYTES + size_of::<GBufferTexel>() as u64 + 16);
+        return FrameBytes { at_least: b, at_most: b };
+    }
     let lights = plan.lights() as u64;
     let pairs = pixels.saturating_mul(lights);
     let mut at_least = pixels.saturating_mul(RASTER_COUNTS_BYTES);
@@ -81,18 +90,19 @@ pub fn out_of_memory(width: u32, height: u32, needed: Option<u64>, available: Op
 
 /// Refuse a frame whose least need exceeds the available memory ([`available_bytes`]),
 /// before allocating.
-pub fn check(plan: &FramePlan, width: u32, height: u32) -> Result<FrameBytes, RenderError> {
-    check_against(plan, width, height, available_bytes())
+pub fn check(plan: &FramePlan, executor: Executor, width: u32, height: u32) -> Result<FrameBytes, RenderError> {
+    check_against(plan, executor, width, height, available_bytes())
 }
 
 /// [`check`] against a given availability (`None`: unknown, nothing is refused).
 pub fn check_against(
     plan: &FramePlan,
+    executor: Executor,
     width: u32,
     height: u32,
     available: Option<u64>,
 ) -> Result<FrameBytes, RenderError> {
-    let need = frame_bytes(plan, width, height);
+    let need = frame_bytes(plan, executor, width, height);
     match available {
         Some(avail) if need.at_least > avail => {
             Err(out_of_memory(width, height, Some(need.at_least), Some(avail), "the frame's per-pixel buffers"))
@@ -110,7 +120,13 @@ pub fn reserve<T>(v: &mut Vec<T>, n: usize) -> Result<(), TryReserveError> {
 /// Reserve the per-pixel buffers of the frame fallibly, so that the stages that fill them
 /// (`collect_into_vec`, `resize`) never allocate: a frame too large for the allocator
 /// becomes [`RenderError::OutOfMemory`] instead of an abort.
-pub fn reserve_frame(frame: &mut Frame, plan: &FramePlan, width: u32, height: u32) -> Result<(), RenderError> {
+pub fn reserve_frame(
+    frame: &mut Frame,
+    plan: &FramePlan,
+    executor: Executor,
+    width: u32,
+    height: u32,
+) -> Result<(), RenderError> {
     let pixels = width as usize * height as usize;
     let pairs = pixels.saturating_mul(plan.lights() as usize);
     // `n` elements of `v` for the buffer `what`; the error names its bytes.
@@ -121,7 +137,10 @@ pub fn reserve_frame(frame: &mut Frame, plan: &FramePlan, width: u32, height: u3
         })
     }
     let size = (width, height);
-    for b in plan.buffers() {
+    // The fused executor writes the G-buffer and the final image alone.
+    let written =
+        |b: &FrameBuffer| executor == Executor::Staged || matches!(b, FrameBuffer::GBuffer | FrameBuffer::Final);
+    for b in plan.buffers().filter(written) {
         match b {
             FrameBuffer::GBuffer => fit(&mut frame.gbuffer, pixels, "the G-buffer", size)?,
             FrameBuffer::Surfaces => fit(&mut frame.surfaces, pixels, "the surfaces", size)?,

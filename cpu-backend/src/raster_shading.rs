@@ -64,30 +64,52 @@ pub fn raster_shading_into(
     shade_ray_traced: bool,
     out: &mut Vec<[f32; 4]>,
 ) {
-    let objects = primary.materials.objects;
     let nl = lights.len();
-    let shade_rt_objects = shade_ray_traced;
-    let background = Vec3::from(BACKGROUND).extend(1.0).into();
     surfaces
         .par_iter()
         .enumerate()
         .with_min_len(1024)
-        .map(|(i, s)| {
-            if !s.is_hit() {
-                return background;
-            }
-            let obj = &objects[s.object as usize];
-            if obj.flags & OBJ_RAY_TRACED != 0 && !shade_rt_objects {
-                return [0.0; 4];
-            }
-            let shaded;
-            let obj = if primary.materials.varying() {
-                shaded = primary.object(i, s);
-                &shaded
-            } else {
-                obj
-            };
-            shade_raster_pixel(s, obj, &shadow[i * nl..(i + 1) * nl], lights).extend(1.0).into()
-        })
+        .map(|(i, s)| raster_shading_pixel(primary, lights, shade_ray_traced, i, s, pixel_codes(shadow, nl, i, s)))
         .collect_into_vec(out);
+}
+
+/// The stage's kernel for one pixel `i` with surface `s` and its shadow codes (one per
+/// light): the background on a miss, transparent black on a ray-traced object unless
+/// `shade_ray_traced`, else the raster shader. What [`raster_shading_into`] writes at `i`;
+/// the fused frame (`crate::fused`) calls it tile by tile.
+#[inline]
+pub fn raster_shading_pixel(
+    primary: &Primary,
+    lights: &[LightRecord],
+    shade_ray_traced: bool,
+    i: usize,
+    s: &SurfaceRecord,
+    shadow: &[u8],
+) -> [f32; 4] {
+    if !s.is_hit() {
+        return Vec3::from(BACKGROUND).extend(1.0).into();
+    }
+    let obj = &primary.materials.objects[s.object as usize];
+    if obj.flags & OBJ_RAY_TRACED != 0 && !shade_ray_traced {
+        return [0.0; 4];
+    }
+    let shaded;
+    let obj = if primary.materials.varying() {
+        shaded = primary.object(i, s);
+        &shaded
+    } else {
+        obj
+    };
+    shade_raster_pixel(s, obj, shadow, lights).extend(1.0).into()
+}
+
+/// Pixel `i`'s shadow codes in the frame's mask (`nl` per pixel): a miss has none (a plan
+/// without shadow rays writes no mask, and no hit reads one then).
+#[inline]
+pub(crate) fn pixel_codes<'m>(shadow: &'m [u8], nl: usize, i: usize, s: &SurfaceRecord) -> &'m [u8] {
+    if s.is_hit() {
+        &shadow[i * nl..(i + 1) * nl]
+    } else {
+        &[]
+    }
 }

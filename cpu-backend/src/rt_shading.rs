@@ -13,7 +13,7 @@ use hyrt_core::kernels::bounce::{primary_parent, shade_rt_pixel_bouncing};
 use hyrt_core::kernels::shading::shade_rt_pixel;
 use hyrt_core::kernels::texture::Materials;
 
-use crate::raster_shading::Primary;
+use crate::raster_shading::{pixel_codes, Primary};
 use rayon::prelude::*;
 
 /// The stage on a scene without textures or vertex colours. `shadow` is indexed
@@ -40,13 +40,36 @@ pub fn rt_shading_into(
     lights: &[LightRecord],
     out: &mut Vec<[f32; 4]>,
 ) {
-    shade_ray_traced_pixels(surfaces, shadow, primary.materials.objects, lights.len(), out, |i, s, obj, shadow| {
-        if primary.materials.varying() {
-            shade_rt_pixel(s, &primary.object(i, s), shadow, lights, primary.eye)
-        } else {
-            shade_rt_pixel(s, obj, shadow, lights, primary.eye)
-        }
-    });
+    let nl = lights.len();
+    surfaces
+        .par_iter()
+        .enumerate()
+        .with_min_len(1024)
+        .map(|(i, s)| rt_shading_pixel(primary, lights, i, s, pixel_codes(shadow, nl, i, s)))
+        .collect_into_vec(out);
+}
+
+/// The stage's kernel for one pixel `i` with surface `s` and its shadow codes (one per
+/// light), in a frame without bounces: shaded with alpha 1 on ray-traced objects,
+/// transparent black elsewhere. What [`rt_shading_into`] writes at `i`; the fused frame
+/// (`crate::fused`) calls it tile by tile.
+#[inline]
+pub fn rt_shading_pixel(
+    primary: &Primary,
+    lights: &[LightRecord],
+    i: usize,
+    s: &SurfaceRecord,
+    shadow: &[u8],
+) -> [f32; 4] {
+    let Some(obj) = ray_traced(primary.materials.objects, s) else {
+        return [0.0; 4];
+    };
+    let c = if primary.materials.varying() {
+        shade_rt_pixel(s, &primary.object(i, s), shadow, lights, primary.eye)
+    } else {
+        shade_rt_pixel(s, obj, shadow, lights, primary.eye)
+    };
+    c.extend(1.0).into()
 }
 
 /// The first bounce's results `rt_shading` gathers on the pixels of mirrors and glass.
@@ -75,35 +98,31 @@ pub fn rt_shading_bouncing_into(
     bounce: FirstBounce,
     out: &mut Vec<[f32; 4]>,
 ) {
-    shade_ray_traced_pixels(surfaces, shadow, materials.objects, lights.len(), out, |i, s, _, shadow| {
-        let p = primary_parent(&bounce.gbuffer[i], s, eye, i as u32, materials);
-        shade_rt_pixel_bouncing(&p, triangles, shadow, lights, eye, bounce.links[i], bounce.radiance)
-    });
-}
-
-/// The pixel loop of the stage: `shade(pixel, surface, object, its shadow codes)` on the
-/// pixels of ray-traced objects (alpha 1), transparent black elsewhere.
-fn shade_ray_traced_pixels(
-    surfaces: &[SurfaceRecord],
-    shadow: &[u8],
-    objects: &[ObjectRecord],
-    nl: usize,
-    out: &mut Vec<[f32; 4]>,
-    shade: impl Fn(usize, &SurfaceRecord, &ObjectRecord, &[u8]) -> Vec3 + Sync,
-) {
+    let nl = lights.len();
     surfaces
         .par_iter()
         .enumerate()
         .with_min_len(1024)
         .map(|(i, s)| {
-            if !s.is_hit() {
+            if ray_traced(materials.objects, s).is_none() {
                 return [0.0; 4];
             }
-            let obj = &objects[s.object as usize];
-            if obj.flags & OBJ_RAY_TRACED == 0 {
-                return [0.0; 4];
-            }
-            shade(i, s, obj, &shadow[i * nl..(i + 1) * nl]).extend(1.0).into()
+            let p = primary_parent(&bounce.gbuffer[i], s, eye, i as u32, materials);
+            let shadow = &shadow[i * nl..(i + 1) * nl];
+            shade_rt_pixel_bouncing(&p, triangles, shadow, lights, eye, bounce.links[i], bounce.radiance)
+                .extend(1.0)
+                .into()
         })
         .collect_into_vec(out);
+}
+
+/// The object of surface `s` where it is a hit on a ray-traced object: the pixels the
+/// stage shades.
+#[inline]
+fn ray_traced<'o>(objects: &'o [ObjectRecord], s: &SurfaceRecord) -> Option<&'o ObjectRecord> {
+    if !s.is_hit() {
+        return None;
+    }
+    let obj = &objects[s.object as usize];
+    (obj.flags & OBJ_RAY_TRACED != 0).then_some(obj)
 }

@@ -1228,13 +1228,22 @@ fn resolve_tile<R: TexelRun>(
 /// Split a row-major image into per-tile lists of row slices (tile-major order), so
 /// tiles can be written in parallel without copying.
 fn tile_slices<'a, T>(buf: &'a mut [T], width: usize, frame: &Frame) -> Vec<Vec<&'a mut [T]>> {
+    tile_rows(buf, width, (frame.width as usize, frame.height as usize), TILE_SIZE as usize)
+}
+
+/// The `tile`-square tiles of the top-left `area` (width, height) of a row-major image
+/// `width` pixels wide, as lists of row slices, row-major over the tiles (partial tiles at
+/// the right and bottom edges): tile `(tx, ty)` is entry `ty * area.0.div_ceil(tile) + tx`.
+pub(crate) fn tile_rows<T>(buf: &mut [T], width: usize, area: (usize, usize), tile: usize) -> Vec<Vec<&mut [T]>> {
+    let tiles_x = area.0.div_ceil(tile);
     let mut tiles: Vec<Vec<&mut [T]>> =
-        (0..frame.tile_count()).map(|_| Vec::with_capacity(TILE_SIZE as usize)).collect();
-    let raster_w = frame.width as usize;
-    for (y, row) in buf.chunks_mut(width).enumerate().take(frame.height as usize) {
-        let ty = y / TILE_SIZE as usize;
-        for (tx, seg) in row[..raster_w].chunks_mut(TILE_SIZE as usize).enumerate() {
-            tiles[ty * frame.tiles_x as usize + tx].push(seg);
+        (0..tiles_x * area.1.div_ceil(tile)).map(|_| Vec::with_capacity(tile)).collect();
+    if width == 0 {
+        return tiles;
+    }
+    for (y, row) in buf.chunks_mut(width).enumerate().take(area.1) {
+        for (tx, seg) in row[..area.0].chunks_mut(tile).enumerate() {
+            tiles[y / tile * tiles_x + tx].push(seg);
         }
     }
     tiles

@@ -5,7 +5,7 @@
 use glam::Vec3;
 use hyrt_core::bvh::BvhPreset;
 use hyrt_core::formats::CameraRecord;
-use hyrt_core::frame::{Backend, FrameOptions, RenderError};
+use hyrt_core::frame::{Backend, Executor, FrameOptions, RenderError};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::plan::FramePlan;
 use hyrt_core::scene::{Camera, Scene};
@@ -20,17 +20,21 @@ fn default_scene_frame_bytes_per_pixel_match_the_table() {
     assert_eq!(prepared.geometry.lights.len(), 2);
     for max_depth in [0, 4] {
         let plan = FramePlan::new(&prepared, &FrameOptions { max_depth, ..FrameOptions::default() }).unwrap();
-        let b = frame_bytes(&plan, 100, 50);
+        let b = frame_bytes(&plan, Executor::Staged, 100, 50);
         // 8 (raster counts) + 24 (G-buffer) + 48 (surfaces) + 2 x 4 (flags) + 2 (shadow
         // mask) + 3 x 16 (images) = 138; plus 2 x 72 (rays, indices, occlusion) = 282.
         assert_eq!((b.at_least, b.at_most), (138 * 5000, 282 * 5000), "max depth {max_depth}");
     }
+    // Fused: 8 (raster counts) + 24 (G-buffer) + 16 (final image), whatever the lights.
+    let plan = FramePlan::new(&prepared, &FrameOptions::default()).unwrap();
+    let b = frame_bytes(&plan, Executor::Fused, 100, 50);
+    assert_eq!((b.at_least, b.at_most), (48 * 5000, 48 * 5000));
     // No lights: no ray list, flags or mask.
     let mut dark = scene.clone();
     dark.lights.clear();
     let prepared = cpu.prepare(WorldGeometry::build(&dark), BvhPreset::default());
     let plan = FramePlan::new(&prepared, &FrameOptions::default()).unwrap();
-    let b = frame_bytes(&plan, 10, 10);
+    let b = frame_bytes(&plan, Executor::Staged, 10, 10);
     assert_eq!(b.at_least, b.at_most);
     assert!(b.at_least <= 128 * 100, "{b:?}");
 }
@@ -41,11 +45,11 @@ fn a_frame_larger_than_the_available_memory_is_refused_with_its_figures() {
     let cpu = CpuBackend::new(Some(1));
     let prepared = cpu.prepare(WorldGeometry::build(&scene), BvhPreset::default());
     let plan = FramePlan::new(&prepared, &FrameOptions::default()).unwrap();
-    let need = frame_bytes(&plan, 16384, 16384).at_least;
+    let need = frame_bytes(&plan, Executor::Staged, 16384, 16384).at_least;
     assert_eq!(need, 138 * 16384 * 16384);
-    assert!(check_against(&plan, 16384, 16384, None).is_ok());
-    assert!(check_against(&plan, 16384, 16384, Some(need)).is_ok());
-    let e = check_against(&plan, 16384, 16384, Some(need - 1)).unwrap_err();
+    assert!(check_against(&plan, Executor::Staged, 16384, 16384, None).is_ok());
+    assert!(check_against(&plan, Executor::Staged, 16384, 16384, Some(need)).is_ok());
+    let e = check_against(&plan, Executor::Staged, 16384, 16384, Some(need - 1)).unwrap_err();
     assert!(
         matches!(e, RenderError::OutOfMemory { backend: "cpu", width: 16384, height: 16384, needed: Some(n), available: Some(a), .. } if n == need && a == need - 1),
         "{e:?}"

@@ -652,7 +652,7 @@ impl GpuBackend {
         let pixel_offset = merge.pixels;
         let rays_before = |depth: u32| merge.rays.get(depth as usize - 1).copied().unwrap_or(0);
         for always in [true, false] {
-            let wanted: Vec<FrameBuffer> = out.buffers().filter(|b| b.always_returned() == always).collect();
+            let wanted = read_in(out, always);
             let mut parts: Vec<(&wgpu::Buffer, u64)> =
                 wanted.iter().map(|&b| (fb.get(b), bytes(b, &counts) as u64)).collect();
             // The counts first, with the buffers every frame returns.
@@ -884,6 +884,16 @@ impl GpuBackend {
             _ => Ok(()),
         }
     }
+}
+
+/// The buffers of the frame's first readback (`first`: the counts come with them) or of its
+/// second (the other stage outputs it holds). The first brings what every frame returns
+/// ([`FrameBuffer::always_returned`]) and the primary occlusion results, which the frame's
+/// statistics count (`occluded_shadow_rays`) even where the frame does not hold them
+/// (`Frame::end` empties them then).
+fn read_in(out: &Frame, first: bool) -> Vec<FrameBuffer> {
+    let in_first = |b: FrameBuffer| b.always_returned() || b == FrameBuffer::Occluded;
+    out.plan.buffers().filter(|&b| in_first(b) == first && (out.holds(b) || b == FrameBuffer::Occluded)).collect()
 }
 
 /// Storage buffers `shadow_rays` binds in a two-level scene: its eight and the instance

@@ -45,7 +45,7 @@ pub use hyrt_core::bvh::two_level::{MoveError, TwoLevelBvh};
 pub use hyrt_core::bvh::{Bvh, BvhPreset};
 pub use hyrt_core::formats;
 pub use hyrt_core::frame::{
-    Backend, BounceBuffers, BounceStats, BufferView, Frame, FrameOptions, FrameStats, PreparedScene,
+    Backend, BounceBuffers, BounceStats, BufferView, Executor, Frame, FrameOptions, FrameStats, PreparedScene,
     PrimaryBarycentrics, RenderError, SceneChanges, StageTime, StageWork, CHANGE_LOG_LENGTH,
 };
 pub use hyrt_core::geometry::WorldGeometry;
@@ -248,6 +248,16 @@ impl Renderer {
             Active::Cpu(c) => c,
             #[cfg(feature = "gpu")]
             Active::Gpu(g) => g.as_mut(),
+        }
+    }
+
+    /// The CPU backend when it renders (for its settings: [`CpuBackend::set_executor`],
+    /// [`CpuBackend::set_shadow_traversal`], ...).
+    pub fn cpu_backend(&mut self) -> Option<&mut CpuBackend> {
+        match &mut self.active {
+            Active::Cpu(c) => Some(c),
+            #[cfg(feature = "gpu")]
+            Active::Gpu(_) => None,
         }
     }
 

@@ -202,7 +202,8 @@ impl App {
                 Err(e) => return Err(e),
             },
         };
-        let renderer = renderer.with_bvh_preset(common.bvh_preset());
+        let mut renderer = renderer.with_bvh_preset(common.bvh_preset());
+        common.set_executor(&mut renderer);
         eprintln!("backend: {}", renderer.choice_details());
         let presenter = match presenter {
             Some(p) => Presenter::Gpu(Box::new(p)),

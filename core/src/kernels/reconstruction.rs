@@ -6,7 +6,7 @@
 
 use glam::Vec3;
 
-use crate::formats::{GBufferTexel, HitRecord, RayRecord, SurfaceRecord, GBUF_BACK_FACE};
+use crate::formats::{GBufferTexel, HitRecord, RayRecord, SurfaceRecord, TriangleRecord, GBUF_BACK_FACE};
 use crate::geometry::WorldGeometry;
 use crate::kernels::barycentric::{geometric_normal, interpolate_normal, position_error_bound, reconstruct_position};
 use crate::kernels::ray::WatertightRay;
@@ -16,10 +16,64 @@ use crate::kernels::shading::orient_to_seen_side;
 /// barycentrics.
 #[inline]
 pub fn reconstruct_texel(t: &GBufferTexel, geometry: &WorldGeometry, eye: Vec3) -> SurfaceRecord {
+    reconstruct_texel_cached(t, geometry, eye, &mut None)
+}
+
+/// [`reconstruct_texel`] keeping its triangle's setup in `cache` for the next texel: a
+/// run of texels on one triangle (neighbouring pixels) fetches its record and normals and
+/// normalizes its geometric normal once. The same bits as [`reconstruct_texel`].
+#[inline]
+pub fn reconstruct_texel_cached(
+    t: &GBufferTexel,
+    geometry: &WorldGeometry,
+    eye: Vec3,
+    cache: &mut Option<TriangleSetup>,
+) -> SurfaceRecord {
     if !t.is_hit() {
         return SurfaceRecord::MISS;
     }
-    texel_surface(t, geometry, eye, (t.bary_u, t.bary_v))
+    let setup = TriangleSetup::cached(cache, geometry, geometry.global_triangle(t.object, t.triangle));
+    texel_surface(t, setup, eye, (t.bary_u, t.bary_v))
+}
+
+/// What reconstruction computes of a triangle before it looks at a texel's barycentrics:
+/// its record, corner normals, unit geometric normal and its object's offset error.
+#[derive(Clone, Copy, Debug)]
+pub struct TriangleSetup {
+    /// The global triangle index.
+    gi: usize,
+    tri: TriangleRecord,
+    normals: [Vec3; 3],
+    /// [`geometric_normal`] of its vertices (not yet oriented to the seen side).
+    geometric: Vec3,
+    /// `ObjectRecord::offset_error` of its object.
+    offset_error: f32,
+}
+
+impl TriangleSetup {
+    /// The setup of global triangle `gi`.
+    #[inline]
+    pub fn new(geometry: &WorldGeometry, gi: usize) -> TriangleSetup {
+        let tri = geometry.triangle(gi);
+        let [v0, v1, v2] = tri.vertices();
+        TriangleSetup {
+            gi,
+            tri,
+            normals: geometry.triangles.normals(gi),
+            geometric: geometric_normal(v0, v1, v2),
+            offset_error: geometry.objects[tri.object as usize].offset_error,
+        }
+    }
+
+    /// The setup of `gi` from `cache` when it holds that triangle's, else made and kept there.
+    #[inline]
+    pub fn cached<'c>(cache: &'c mut Option<TriangleSetup>, geometry: &WorldGeometry, gi: usize) -> &'c TriangleSetup {
+        match cache {
+            Some(s) if s.gi == gi => {}
+            _ => *cache = Some(TriangleSetup::new(geometry, gi)),
+        }
+        cache.as_ref().expect("set above")
+    }
 }
 
 /// The barycentrics `(u, v)` of the point where `ray` (the pixel's camera ray,
@@ -31,7 +85,13 @@ pub fn reconstruct_texel(t: &GBufferTexel, geometry: &WorldGeometry, eye: Vec3) 
 #[inline]
 pub fn reintersected_barycentrics(t: &GBufferTexel, geometry: &WorldGeometry, ray: &RayRecord) -> (f32, f32) {
     let gi = geometry.global_triangle(t.object, t.triangle);
-    let [v0, v1, v2] = geometry.triangle(gi).vertices();
+    intersect_texel_triangle(t, &geometry.triangle(gi), ray)
+}
+
+/// [`reintersected_barycentrics`] with the texel's triangle record `tri` given.
+#[inline]
+fn intersect_texel_triangle(t: &GBufferTexel, tri: &TriangleRecord, ray: &RayRecord) -> (f32, f32) {
+    let [v0, v1, v2] = tri.vertices();
     WatertightRay::new(Vec3::from(ray.origin), Vec3::from(ray.direction))
         .and_then(|w| w.intersect(0.0, f32::INFINITY, v0, v1, v2))
         .map_or((t.bary_u, t.bary_v), |h| (h.u, h.v))
@@ -42,22 +102,33 @@ pub fn reintersected_barycentrics(t: &GBufferTexel, geometry: &WorldGeometry, ra
 /// visibility chose).
 #[inline]
 pub fn reconstruct_texel_reintersected(t: &GBufferTexel, geometry: &WorldGeometry, ray: &RayRecord) -> SurfaceRecord {
+    reconstruct_texel_reintersected_cached(t, geometry, ray, &mut None)
+}
+
+/// [`reconstruct_texel_reintersected`] keeping its triangle's setup in `cache`
+/// ([`reconstruct_texel_cached`]). The same bits.
+#[inline]
+pub fn reconstruct_texel_reintersected_cached(
+    t: &GBufferTexel,
+    geometry: &WorldGeometry,
+    ray: &RayRecord,
+    cache: &mut Option<TriangleSetup>,
+) -> SurfaceRecord {
     if !t.is_hit() {
         return SurfaceRecord::MISS;
     }
-    texel_surface(t, geometry, Vec3::from(ray.origin), reintersected_barycentrics(t, geometry, ray))
+    let setup = TriangleSetup::cached(cache, geometry, geometry.global_triangle(t.object, t.triangle));
+    texel_surface(t, setup, Vec3::from(ray.origin), intersect_texel_triangle(t, &setup.tri, ray))
 }
 
 /// The surface of a hit texel at barycentrics `(u, v)` of its triangle, seen from `eye`.
 #[inline]
-fn texel_surface(t: &GBufferTexel, geometry: &WorldGeometry, eye: Vec3, (u, v): (f32, f32)) -> SurfaceRecord {
-    let gi = geometry.global_triangle(t.object, t.triangle);
-    let tri = geometry.triangle(gi);
-    let [v0, v1, v2] = tri.vertices();
+fn texel_surface(t: &GBufferTexel, setup: &TriangleSetup, eye: Vec3, (u, v): (f32, f32)) -> SurfaceRecord {
+    let [v0, v1, v2] = setup.tri.vertices();
     let p = reconstruct_position(u, v, v0, v1, v2);
     // A degenerate triangle without vertex normals is shaded as facing the viewer.
     let toward_viewer = || (eye - p).normalize_or(Vec3::Y);
-    surface_at(geometry, gi, &tri, u, v, t.flags & GBUF_BACK_FACE != 0, p, toward_viewer)
+    surface_at(setup, u, v, t.flags & GBUF_BACK_FACE != 0, p, toward_viewer)
 }
 
 /// Rebuild the surface a secondary ray hit (`bounce_trace`): the paper's eq. 1 again,
@@ -68,35 +139,31 @@ pub fn reconstruct_hit(hit: &HitRecord, geometry: &WorldGeometry, direction: Vec
     if !hit.is_hit() {
         return SurfaceRecord::MISS;
     }
-    let gi = hit.triangle as usize;
-    let tri = geometry.triangle(gi);
-    let [v0, v1, v2] = tri.vertices();
+    let setup = TriangleSetup::new(geometry, hit.triangle as usize);
+    let [v0, v1, v2] = setup.tri.vertices();
     let p = reconstruct_position(hit.u, hit.v, v0, v1, v2);
     let toward_viewer = || (-direction).normalize_or(Vec3::Y);
-    surface_at(geometry, gi, &tri, hit.u, hit.v, hit.is_back_face(), p, toward_viewer)
+    surface_at(&setup, hit.u, hit.v, hit.is_back_face(), p, toward_viewer)
 }
 
-/// The surface record at barycentrics `(u, v)` of global triangle `gi` (record `tri`), whose point
-/// `p` the caller reconstructed, seen from its back when `back_face`; a degenerate
-/// triangle without vertex normals gets the normal `toward_viewer()`.
+/// The surface record at barycentrics `(u, v)` of the triangle of `setup`, whose point `p`
+/// the caller reconstructed, seen from its back when `back_face`; a degenerate triangle
+/// without vertex normals gets the normal `toward_viewer()`.
 #[inline]
-#[allow(clippy::too_many_arguments)]
 fn surface_at(
-    geometry: &WorldGeometry,
-    gi: usize,
-    tri: &crate::formats::TriangleRecord,
+    setup: &TriangleSetup,
     u: f32,
     v: f32,
     back_face: bool,
     p: Vec3,
     toward_viewer: impl FnOnce() -> Vec3,
 ) -> SurfaceRecord {
-    let [v0, v1, v2] = tri.vertices();
+    let [v0, v1, v2] = setup.tri.vertices();
     // Its object's offset error: what tracing its rays in the object's own space adds
     // (0 for an object baked into world space; `kernels::instance`).
-    let err = position_error_bound(u, v, v0, v1, v2).max_element() + geometry.objects[tri.object as usize].offset_error;
-    let ng = geometric_normal(v0, v1, v2);
-    let ns = interpolate_normal(u, v, geometry.triangles.normals(gi), ng);
+    let err = position_error_bound(u, v, v0, v1, v2).max_element() + setup.offset_error;
+    let ng = setup.geometric;
+    let ns = interpolate_normal(u, v, setup.normals, ng);
     // The side the ray saw, exactly (for primary hits the sign of the snapped triangle's
     // area, for secondary hits the sign of the watertight determinant).
     let (ng, ns) = orient_to_seen_side(ng, ns, back_face);
@@ -108,8 +175,8 @@ fn surface_at(
         position: p.into(),
         position_error: err,
         normal: ns.into(),
-        object: tri.object,
+        object: setup.tri.object,
         geometric_normal: ng.into(),
-        triangle: gi as u32,
+        triangle: setup.gi as u32,
     }
 }

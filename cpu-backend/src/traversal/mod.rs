@@ -116,7 +116,7 @@ mod instances;
 mod lanes;
 mod packet;
 mod single;
-mod tiles;
+pub(crate) mod tiles;
 mod watertight;
 
 use rayon::prelude::*;
@@ -460,6 +460,20 @@ pub fn occluded_generated_into(
     );
 }
 
+/// [`occluded_alpha_batch_into`] on the calling thread, into `out` (one answer per ray):
+/// for rays made by their executor where it traces them (the fused frame's tiles).
+pub(crate) fn occluded_serial(
+    bvh: &Bvh,
+    triangles: &[TriangleRecord],
+    view: &SurfaceView,
+    rays: &[RayRecord],
+    traversal: Traversal,
+    out: &mut [u32],
+) {
+    debug_assert_eq!(rays.len(), out.len());
+    occluded_any_chunk(bvh, triangles, view, rays, out, traversal_mode(bvh, view, traversal))
+}
+
 /// Any hit for one chunk of rays with the traversal `(level, single)` of
 /// [`Traversal::level`] and [`Traversal::single`] (no level: the scalar reference).
 fn occluded_any_chunk(
@@ -650,32 +664,58 @@ pub fn occluded_in_object_space_into(
     let level = traversal.level();
     out.par_chunks_mut(TRAVERSAL_CHUNK).enumerate().for_each_init(
         || (Vec::with_capacity(TRAVERSAL_CHUNK), Vec::with_capacity(TRAVERSAL_CHUNK)),
-        |(rays, index), (c, out)| {
-            rays.clear();
-            index.clear();
-            for (k, o) in out.iter().enumerate() {
-                if *o == SHADOW_VISIBLE {
-                    index.push(k as u32);
-                    rays.push(ray(c * TRAVERSAL_CHUNK + k));
-                }
-            }
-            match level {
-                None => {
-                    let accept = alpha_test(view);
-                    for (&k, r) in index.iter().zip(rays.iter()) {
-                        out[k as usize] = occlusion(levels.occluded_in_object_space(r, accept));
-                    }
-                }
-                Some(level) => dispatch!(
-                    level,
-                    occluded_instance_packets,
-                    occluded_instance_packets_avx512,
-                    occluded_instance_packets_avx2,
-                    (levels, view, rays, index, out)
-                ),
-            }
-        },
+        |scratch, (c, out)| object_space_chunk(levels, view, |k| ray(c * TRAVERSAL_CHUNK + k), level, scratch, out),
     );
+}
+
+/// [`occluded_in_object_space_into`] on the calling thread, for rays made by their
+/// executor where it traces them (the fused frame's tiles): `out[k]` is ray `ray(k)`'s
+/// world-space answer, and becomes the whole scene's.
+pub(crate) fn occluded_in_object_space_serial(
+    levels: &TwoLevelBvh,
+    view: &SurfaceView,
+    ray: impl Fn(usize) -> RayRecord,
+    traversal: Traversal,
+    scratch: &mut (Vec<RayRecord>, Vec<u32>),
+    out: &mut [u32],
+) {
+    object_space_chunk(levels, view, ray, traversal.level(), scratch, out)
+}
+
+/// The object-space pass over one chunk: the rays `out` says are visible (`ray(k)` for
+/// `out[k]`) gathered into `scratch` (rays, their positions) and traced at `level` (none:
+/// the scalar walk).
+fn object_space_chunk(
+    levels: &TwoLevelBvh,
+    view: &SurfaceView,
+    ray: impl Fn(usize) -> RayRecord,
+    level: Option<SimdLevel>,
+    (rays, index): &mut (Vec<RayRecord>, Vec<u32>),
+    out: &mut [u32],
+) {
+    rays.clear();
+    index.clear();
+    for (k, o) in out.iter().enumerate() {
+        if *o == SHADOW_VISIBLE {
+            index.push(k as u32);
+            rays.push(ray(k));
+        }
+    }
+    match level {
+        None => {
+            let accept = alpha_test(view);
+            for (&k, r) in index.iter().zip(rays.iter()) {
+                out[k as usize] = occlusion(levels.occluded_in_object_space(r, accept));
+            }
+        }
+        Some(level) => dispatch!(
+            level,
+            occluded_instance_packets,
+            occluded_instance_packets_avx512,
+            occluded_instance_packets_avx2,
+            (levels, view, rays, index, out)
+        ),
+    }
 }
 
 /// The object-space pass of closest hit in a two-level scene: `closest[i]` holds ray
