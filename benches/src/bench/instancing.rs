@@ -43,6 +43,8 @@ pub struct Instancing {
     pub resident_before: Option<u64>,
     pub peak_resident: Option<u64>,
     pub covered_pixels: u64,
+    /// The executor that ran the frames (the CPU backend's default: fused where it can).
+    pub executor: &'static str,
     pub image: Option<String>,
 }
 
@@ -108,6 +110,7 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Instancing,
     }
     out.peak_resident = if resets { peak_resident_bytes() } else { None };
     out.covered_pixels = frame.stats.covered_pixels;
+    out.executor = frame.stats.executor.name();
     let path = options.out_dir.join(format!("{SCENE}.png"));
     hyrt::save_png(&frame, &path)
         .map_err(|e| BenchError::Write { path, source: std::io::Error::other(e.to_string()) })?;
@@ -130,10 +133,16 @@ impl Instancing {
              whose stored world tables would pass 1 GiB and traces them as instances of one object-space bottom \
              level; the world tables hold the mesh once and make each copy's records when read (the raster does so \
              a batch of about a million triangles at a time). CPU backend, {} threads, {}x{}, the frame's default \
-             options; the frame times are the median of {} frames after a warm-up frame, with the least and greatest.\n",
+             options{}; the frame times are the median of {} frames after a warm-up frame, with the least and \
+             greatest.\n",
             self.threads,
             self.size.0,
             self.size.1,
+            if self.executor.is_empty() {
+                String::new()
+            } else {
+                format!(", the backend's default executor (this frame: {})", self.executor)
+            },
             self.frame_ms.len()
         );
         if let Some(why) = &self.skipped {

@@ -533,7 +533,8 @@ impl MovingScene {
         if !self.frames.is_empty() {
             let _ = writeln!(
                 md,
-                "The frame at {w}x{h} (the paper's frame, shadow rays only; medians over the frames, the two interleaved) of the \
+                "The frame at {w}x{h} (the paper's frame, shadow rays only; on the CPU backend with the staged executor, as \
+                 Table 2's per-stage table; medians over the frames, the two interleaved) of the \
                  scene after the last move, prepared with two levels and prepared flat:\n"
             );
             let mut t = Table::new(["backend", "frames", "flat (ms)", "two levels (ms)", "two levels / flat"]);

@@ -20,7 +20,7 @@ use std::fmt::Write as _;
 
 use hyrt_core::bvh::{Bvh, ClosestHit};
 use hyrt_core::formats::{CameraRecord, RayRecord};
-use hyrt_core::frame::{Frame, FrameOptions, PreparedScene};
+use hyrt_core::frame::{Executor, Frame, FrameOptions, PreparedScene};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::bounce::DEFAULT_MAX_DEPTH;
 use hyrt_core::kernels::camera::primary_rays;
@@ -109,8 +109,14 @@ pub struct ScenePeers {
     pub secondary_hits: usize,
     /// hyrt's whole CPU frame (the paper's frame, max depth 0: every per-frame stage,
     /// shading and composition included) per peer thread count: (threads, median ms).
-    /// The frame whose primary and shadow rays the peers trace.
+    /// The frame whose primary and shadow rays the peers trace, as a default `CpuBackend`
+    /// runs it: fused ([`ScenePeers::frame_executor`] says which ran).
     pub frames: Vec<(usize, f64)>,
+    /// The executor that ran [`ScenePeers::frames`].
+    pub frame_executor: Executor,
+    /// The same frame with the staged executor at the most threads (its per-stage
+    /// medians: `visibility_raster` and `reconstruction` against the primary rays).
+    pub staged_frame: Option<(usize, FrameSummary)>,
 }
 
 /// Visibility raster of the CPU backend against the GPU backend on one scene.
@@ -233,6 +239,8 @@ pub fn frame_shadow_rays(row: &PeerScene<'_>) -> Result<Vec<RayRecord>, BenchErr
 /// the CPU backend, every stage's output kept).
 pub fn frame_rays(row: &PeerScene<'_>) -> Result<(Vec<RayRecord>, Vec<RayRecord>), BenchError> {
     let mut backend = hyrt_cpu::backend::CpuBackend::new(None);
+    // Stage outputs (the ray lists) need the staged executor; say so rather than rely on it.
+    backend.set_executor(Executor::Staged);
     let mut frame = Frame::default();
     hyrt_core::frame::Backend::render_into(
         &mut backend,
@@ -277,14 +285,13 @@ fn measure_scene(
         Err(e) => (None, Some(e.to_string())),
     };
     #[cfg(not(feature = "embree"))]
-    let embree_missing = {
-        let _ = max_threads;
-        Some(embree_version())
-    };
+    let embree_missing = Some(embree_version());
     let mut out = ScenePeers {
         scene: row.name.to_string(),
         shadow: Vec::new(),
         frames: Vec::new(),
+        frame_executor: Executor::Fused,
+        staged_frame: None,
         primary: Vec::new(),
         hyrt_build_ms: row.prepared.bvh_build_ms,
         embree_build_ms: None,
@@ -304,11 +311,22 @@ fn measure_scene(
     for &threads in &options.peer_threads {
         progress.set_message(format!("peers: {} shadow and primary rays, {threads} threads", row.name));
         let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("rayon pool");
-        // hyrt's whole frame with the same threads, right before the rays are traced.
+        // hyrt's whole frame with the same threads, right before the rays are traced: the
+        // CPU backend's default executor, fused for the paper's frame.
+        let render = |source| BenchError::Render { scene: row.name.to_string(), source };
         let mut cpu = hyrt_cpu::backend::CpuBackend::new(Some(threads));
-        let (frame, _) = super::measure_frames(&mut cpu, row.prepared, &row.camera, options.frames)
-            .map_err(|source| BenchError::Render { scene: row.name.to_string(), source })?;
+        let (frame, last) =
+            super::measure_frames(&mut cpu, row.prepared, &row.camera, options.frames).map_err(render)?;
         out.frames.push((threads, frame.frame_ms));
+        out.frame_executor = last.executor;
+        // At the most threads, the staged frame too: its `visibility_raster` and
+        // `reconstruction` against the primary rays traced below.
+        if threads == max_threads {
+            cpu.set_executor(Executor::Staged);
+            let (staged, _) =
+                super::measure_frames(&mut cpu, row.prepared, &row.camera, options.frames).map_err(render)?;
+            out.staged_frame = Some((threads, staged));
+        }
         // hyrt: the scalar reference traversal (one ray at a time), the packets of 8 the
         // `shadow_rays` stage uses and single rays, then Embree's, each in a pool of
         // `threads`, interleaved round by round. Outputs go to a buffer reused across
@@ -498,6 +516,8 @@ pub fn run(options: &BenchOptions, table2: &Table2, progress: &ProgressBar) -> R
         let mut runs = Vec::new();
         for traversal in [Traversal::Scalar, Traversal::simd()] {
             let mut cpu = hyrt_cpu::backend::CpuBackend::new(options.frame_threads);
+            // Per stage: the staged executor (the fused one times only its tiles).
+            cpu.set_executor(Executor::Staged);
             cpu.set_shadow_traversal(traversal);
             let (m, _) = super::measure_frames(&mut cpu, r.prepared, &r.camera, options.frames)
                 .map_err(|source| BenchError::Render { scene: r.name.to_string(), source })?;
@@ -567,8 +587,8 @@ fn frame_traversal_table(f: &FrameTraversals, threads: usize, (w, h): (u32, u32)
     }
     format!(
         "### {}: the CPU frame per stage, shadow rays scalar (before) and in packets (after)\n\n\
-         {w}x{h}, {threads} threads, medians of frames; only `shadow_rays` changes between the rows (both \
-         give the same bits).\n\n{}",
+         {w}x{h}, {threads} threads, the staged executor (each stage timed), medians of frames; only \
+         `shadow_rays` changes between the rows (both give the same bits).\n\n{}",
         f.scene,
         t.to_markdown()
     )
@@ -707,13 +727,14 @@ impl Peers {
 
     /// Goal rows: (goal, target, hyrt, hyrt / target). Shadow rays: hyrt's packets against
     /// Embree's faster 8-wide packet run (default or coherent context) on every scene the
-    /// peers traced; the hybrid frame (every per-frame stage) against Embree's fastest
-    /// primary-ray plus fastest shadow-ray runs of the same frame, every scene and thread
-    /// count; on the teaser (or the first scene) also shadow rays against `rtcOccluded1`;
-    /// primary rays against Embree's faster `rtcIntersect8` run on every scene (the teaser
-    /// first); secondary rays (the
-    /// `bounce_trace` traversal) against Embree's faster run. At the most threads unless
-    /// said.
+    /// peers traced; the hybrid frame (every per-frame stage, the fused executor's frame)
+    /// against Embree's fastest primary-ray plus fastest shadow-ray runs of the same frame,
+    /// every scene and thread count; the staged frame's `visibility_raster` +
+    /// `reconstruction` against hyrt's packets tracing its primary rays, every scene at the
+    /// most threads (goal: a ratio of 2); on the teaser (or the first scene) also shadow
+    /// rays against `rtcOccluded1`; primary rays against Embree's faster `rtcIntersect8` run
+    /// on every scene (the teaser first); secondary rays (the `bounce_trace` traversal)
+    /// against Embree's faster run. At the most threads unless said.
     pub fn goals(&self) -> Vec<[String; 4]> {
         let mut out = Vec::new();
         // The scene of the single-figure goals: the teaser if measured.
@@ -772,8 +793,9 @@ impl Peers {
                 let e = p.ms + sh.ms;
                 out.push([
                     format!(
-                        "hybrid frame vs Embree tracing the same frame, {}, {t} threads: {} + {} (this run; 1.5 would be a {} ms frame)",
+                        "hybrid frame vs Embree tracing the same frame, {}, {t} threads: hyrt's {} frame against {} + {} (this run; 1.5 would be a {} ms frame)",
                         s.scene,
+                        s.frame_executor.name(),
                         p.method,
                         sh.method,
                         num(e / 1.5, 1)
@@ -783,6 +805,32 @@ impl Peers {
                     num(e / frame_ms, 2),
                 ]);
             }
+        }
+        // The paper's premise: rasterizing the primary visibility and reconstructing the
+        // surfaces costs at most half of tracing the primary rays (hyrt's own packets).
+        for s in self.scenes.iter() {
+            let Some((t, staged)) = &s.staged_frame else { continue };
+            let Some(p) = fastest(&s.primary, *t, "hyrt packets") else { continue };
+            let (Some(raster), Some(rec)) = (staged.ms(Stage::VisibilityRaster), staged.ms(Stage::Reconstruction))
+            else {
+                continue;
+            };
+            let rr = raster + rec;
+            out.push([
+                format!(
+                    "raster + reconstruction vs hyrt's own primary rays, {}, {t} threads: the staged frame's \
+                     `visibility_raster` + `reconstruction` ({} + {} ms) against {} tracing its primary rays \
+                     (this run; 2.0 would be a {} ms raster + reconstruction)",
+                    s.scene,
+                    num(raster, 2),
+                    num(rec, 2),
+                    p.method,
+                    num(p.ms / 2.0, 2)
+                ),
+                format!("{} ms", num(p.ms, 2)),
+                format!("{} ms", num(rr, 2)),
+                num(p.ms / rr, 2),
+            ]);
         }
         let hyrt_shadow = fastest(&main.shadow, threads, "hyrt packets");
         let hyrt_primary = fastest(&main.primary, threads, "hyrt packets");
@@ -885,6 +933,8 @@ mod tests {
                 secondary: Vec::new(),
                 secondary_hits: 0,
                 frames: Vec::new(),
+                frame_executor: Executor::Fused,
+                staged_frame: None,
             }],
             frames: None,
             raster: vec![RasterRow {
@@ -943,8 +993,38 @@ mod tests {
         // 1M rays: rtcIntersect8 250 ms + rtcOccluded8 (coherent) 40 ms = 290 ms.
         assert_eq!(rows[0][1..], ["290.0 ms".to_string(), "145.0 ms".into(), "2.00".into()]);
         assert!(rows[0][0].contains("teaser, 2 threads") && rows[0][0].contains("coherent context"), "{:?}", rows[0]);
+        assert!(rows[0][0].contains("hyrt's fused frame against Embree `rtcIntersect8`"), "{:?}", rows[0]);
         assert!(rows[0][0].contains("1.5 would be a 193.3 ms frame"), "{:?}", rows[0]);
         assert!(peers("teaser", false).goals().iter().all(|r| !r[0].starts_with("hybrid frame")));
+    }
+
+    /// The paper's premise: the staged frame's raster + reconstruction against hyrt's own
+    /// packets tracing the primary rays, with or without Embree.
+    #[test]
+    fn raster_and_reconstruction_are_set_against_hyrts_own_primary_rays() {
+        for embree in [true, false] {
+            let mut p = peers("teaser", embree);
+            let staged = FrameSummary {
+                frames: 3,
+                stage_ms: vec![
+                    (Stage::VisibilityRaster, 150.0),
+                    (Stage::Reconstruction, 50.0),
+                    (Stage::ShadowRays, 9.0),
+                ],
+                frame_ms: 300.0,
+            };
+            p.scenes[0].staged_frame = Some((2, staged));
+            let g = p.goals();
+            let rows: Vec<_> = g.iter().filter(|r| r[0].starts_with("raster + reconstruction vs hyrt's own")).collect();
+            assert_eq!(rows.len(), 1, "{g:?}");
+            // hyrt's packets: 500 ms for the primary rays; raster 150 + reconstruction 50 = 200 ms.
+            assert_eq!(rows[0][1..], ["500.00 ms".to_string(), "200.00 ms".into(), "2.50".into()]);
+            assert!(rows[0][0].contains("teaser, 2 threads"), "{:?}", rows[0]);
+            assert!(rows[0][0].contains("(150.00 + 50.00 ms) against hyrt packets of 8"), "{:?}", rows[0]);
+            assert!(rows[0][0].contains("2.0 would be a 250.00 ms raster + reconstruction"), "{:?}", rows[0]);
+        }
+        // Without the staged frame, no row.
+        assert!(peers("teaser", true).goals().iter().all(|r| !r[0].starts_with("raster + reconstruction")));
     }
 
     #[test]
@@ -966,7 +1046,15 @@ mod tests {
         let row = g.iter().find(|r| r[0].starts_with("reflection and refraction rays, teaser")).expect("a goal row");
         assert!(row[0].contains("rtcIntersect1"), "{row:?}");
         assert_eq!(row[1..], ["8.0 Mrays/s".to_string(), "4.0 Mrays/s".into(), "0.50".into()]);
-        let table2 = Table2 { rows: vec![], size: (64, 32), cpu_label: String::new(), gpu: None, gpu_errors: vec![] };
+        let table2 = Table2 {
+            rows: vec![],
+            size: (64, 32),
+            cpu_label: String::new(),
+            gpu: None,
+            gpu_errors: vec![],
+            frames: 3,
+            copy_gb_s: 10.0,
+        };
         let md = p.section(&table2).markdown;
         assert!(md.contains("### teaser: reflection and refraction rays"), "{md}");
         assert!(md.contains("1,000,000 rays, 7 of them hit (hyrt)"), "{md}");
