@@ -82,9 +82,14 @@ impl CpuBackend {
 
     /// The executor a frame of `plan` with `options` runs on.
     pub fn executor_for(&self, plan: &FramePlan, options: &FrameOptions) -> Executor {
+        self.fused_steps(plan, options).map_or(Executor::Staged, |_| Executor::Fused)
+    }
+
+    /// What the fused tiles run of `plan` where the frame runs fused ([`Self::executor_for`]).
+    fn fused_steps(&self, plan: &FramePlan, options: &FrameOptions) -> Option<FusedSteps> {
         match self.executor {
-            Executor::Fused if !options.stage_outputs && FusedSteps::of(plan).is_some() => Executor::Fused,
-            _ => Executor::Staged,
+            Executor::Fused if !options.stage_outputs => FusedSteps::of(plan),
+            _ => None,
         }
     }
 
@@ -209,7 +214,8 @@ impl Backend for CpuBackend {
         // A frame that cannot fit is refused before anything is allocated, and the
         // buffers are reserved fallibly: an error, never an abort.
         let (width, height) = (camera.width, camera.height);
-        let executor = self.executor_for(&plan, options);
+        let fused = self.fused_steps(&plan, options);
+        let executor = fused.map_or(Executor::Staged, |_| Executor::Fused);
         memory::check(&plan, executor, width, height)?;
         let g = &scene.geometry;
         let eye = Vec3::from(camera.eye);
@@ -223,8 +229,7 @@ impl Backend for CpuBackend {
             f.bounce_mut(plan.bounce_depth());
         }
         memory::reserve_frame(f, &plan, executor, width, height)?;
-        if executor == Executor::Fused {
-            let steps = FusedSteps::of(&plan).expect("executor_for checked the plan");
+        if let Some(steps) = fused {
             self.pool.install(|| {
                 let t = Instant::now();
                 let covered = visibility_raster_into(g, camera, &mut f.gbuffer) as u64;

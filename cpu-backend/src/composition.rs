@@ -7,8 +7,8 @@
 //! ([`Composition::CopyRaster`], [`Composition::RtOverBackground`]): the same bits
 //! the weighted mean gives there (see [`hyrt_core::plan`]).
 
-use glam::{Vec3, Vec4};
-use hyrt_core::kernels::shading::{compose, BACKGROUND};
+use glam::Vec4;
+use hyrt_core::kernels::shading::{compose, BACKGROUND_RGBA};
 use hyrt_core::plan::Composition;
 use rayon::prelude::*;
 
@@ -52,7 +52,7 @@ pub fn composition_pixel(mode: Composition, r: &[f32; 4], t: &[f32; 4], weight: 
     match mode {
         Composition::CopyRaster => *r,
         Composition::RtOverBackground if t[3] > 0.0 => *t,
-        Composition::RtOverBackground => Vec3::from(BACKGROUND).extend(1.0).into(),
+        Composition::RtOverBackground => BACKGROUND_RGBA,
         Composition::WeightedMean if t[3] > 0.0 => {
             let (r, t) = (Vec4::from(*r), Vec4::from(*t));
             compose(r.truncate(), t.truncate(), weight).extend(1.0).into()

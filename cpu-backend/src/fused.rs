@@ -39,7 +39,7 @@
 
 use hyrt_core::formats::{CameraRecord, GBufferTexel, RayRecord, SurfaceRecord, SHADOW_NO_RAY};
 use hyrt_core::frame::{FrameOptions, PreparedScene};
-use hyrt_core::kernels::shading::BACKGROUND;
+use hyrt_core::kernels::shading::BACKGROUND_RGBA;
 use hyrt_core::kernels::shadow::{needs_shadow_ray, shadow_code, shadow_ray};
 use hyrt_core::kernels::texture::Materials;
 use hyrt_core::plan::{Composition, FramePlan, Step};
@@ -223,6 +223,7 @@ fn tile(
     s.shadow.clear();
     s.shadow.resize(tw * th * nl, SHADOW_NO_RAY);
     if steps.shadow_rays {
+        let (table, view) = (g.traversal_table(), &g.surface.view());
         for (l, light) in lights.iter().enumerate() {
             s.rays.clear();
             s.at.clear();
@@ -245,7 +246,6 @@ fn tile(
             }
             s.occluded.clear();
             s.occluded.resize(s.rays.len(), SHADOW_VISIBLE);
-            let (table, view) = (g.traversal_table(), &g.surface.view());
             occluded_serial(&scene.bvh, table, view, &s.rays, inputs.traversal, &mut s.occluded);
             if let Some(levels) = &scene.levels {
                 let rays = &s.rays;
@@ -285,6 +285,3 @@ fn tile(
     }
     counts
 }
-
-/// The background as the raster image holds it (alpha 1).
-const BACKGROUND_RGBA: [f32; 4] = [BACKGROUND[0], BACKGROUND[1], BACKGROUND[2], 1.0];

@@ -12,7 +12,7 @@
 use glam::Vec3;
 use hyrt_core::formats::{GBufferTexel, LightRecord, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
 use hyrt_core::kernels::bounce::primary_parent;
-use hyrt_core::kernels::shading::{shade_raster_pixel, BACKGROUND};
+use hyrt_core::kernels::shading::{shade_raster_pixel, BACKGROUND_RGBA};
 use hyrt_core::kernels::texture::Materials;
 use rayon::prelude::*;
 
@@ -87,7 +87,7 @@ pub fn raster_shading_pixel(
     shadow: &[u8],
 ) -> [f32; 4] {
     if !s.is_hit() {
-        return Vec3::from(BACKGROUND).extend(1.0).into();
+        return BACKGROUND_RGBA;
     }
     let obj = &primary.materials.objects[s.object as usize];
     if obj.flags & OBJ_RAY_TRACED != 0 && !shade_ray_traced {

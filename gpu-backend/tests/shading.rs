@@ -14,7 +14,7 @@ use hyrt_core::bvh::{Bvh, BvhPreset};
 use hyrt_core::formats::{CameraRecord, ObjectRecord, OBJ_RAY_TRACED};
 use hyrt_core::frame::{Backend, Frame, FrameOptions, PreparedScene};
 use hyrt_core::geometry::WorldGeometry;
-use hyrt_core::kernels::shading::BACKGROUND;
+use hyrt_core::kernels::shading::BACKGROUND_RGBA;
 use hyrt_core::plan::FrameBuffer;
 use hyrt_core::scene::{Light, Scene};
 use hyrt_cpu::backend::CpuBackend;
@@ -233,7 +233,7 @@ fn raster_shading_matches_cpu() {
         ctx.queue.write_buffer(&gpu.frame.raster, 0, bytemuck::cast_slice(&vec![[f32::NAN; 4]; pixels]));
         run(&ctx, |e| stage.encode(&ctx, e, &gpu.scene, &gpu.frame, None));
         let out = image(&ctx, &gpu.frame.raster, pixels);
-        let background = [BACKGROUND[0], BACKGROUND[1], BACKGROUND[2], 1.0];
+        let background = BACKGROUND_RGBA;
         let (mut misses, mut skipped) = (0, 0);
         for (i, g) in out.iter().enumerate() {
             match object_of(&c, i) {

@@ -23,6 +23,8 @@ pub const ENVIRONMENT_SPECULAR: f32 = 0.35;
 
 /// Background colour (linear RGB) of pixels no primary ray hits.
 pub const BACKGROUND: [f32; 3] = [0.02, 0.025, 0.035];
+/// [`BACKGROUND`] as the raster and final images hold it where nothing is shaded (alpha 1).
+pub const BACKGROUND_RGBA: [f32; 4] = [BACKGROUND[0], BACKGROUND[1], BACKGROUND[2], 1.0];
 
 /// Fresnel reflectance at normal incidence of dielectrics (4%, the usual
 /// glTF metallic-roughness convention).
