@@ -15,6 +15,9 @@
 //! active pairs ([`active_pairs_into`], 4 bytes a ray instead of 64), and `shadow_rays`
 //! makes each pair's ray as it traces it ([`pair_ray`], the same record bit for bit), a
 //! chunk at a time in cache (`shadow_rays::shadow_rays_of_pairs_into`).
+//!
+//! [`lanes`] has the same per-pair kernels over eight surfaces at once, for the fused
+//! tiles (`crate::fused`): the same bits, lane by lane.
 
 use std::collections::TryReserveError;
 use std::sync::atomic::{AtomicU8, Ordering};
@@ -22,6 +25,8 @@ use std::sync::atomic::{AtomicU8, Ordering};
 use hyrt_core::formats::{LightRecord, RayRecord, SurfaceRecord, INVALID_ID, SHADOW_NO_RAY};
 use hyrt_core::kernels::shadow::{shadow_code, shadow_ray};
 use rayon::prelude::*;
+
+pub(crate) mod lanes;
 
 /// Kernels of [`hyrt_core::kernels::shadow`], re-exported at their old path for the
 /// `hyrt` crate's accuracy tools.

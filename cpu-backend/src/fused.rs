@@ -5,13 +5,14 @@
 //! tiles and writes the G-buffer, which the frame returns). Then every [`FUSED_TILE`]-square
 //! screen tile, in parallel, runs the rest of the plan while its data is in cache:
 //!
-//! 1. `reconstruction` of the tile's pixels into tile-local surfaces
-//!    ([`Reconstruct::pixel`]);
+//! 1. `reconstruction` of the tile's pixels into tile-local surfaces, a
+//!    [`TILE_WIDTH`] x [`TILE_HEIGHT`] block of eight pixels at a time
+//!    ([`Reconstruct::block`]: core's kernel in eight SIMD lanes);
 //! 2. `compaction` and `shadow_rays`, light by light: the tile's active (pixel, light)
 //!    pairs ([`needs_shadow_ray`]) become rays ([`shadow_ray`], the pixel numbered in the
-//!    whole image as the staged list numbers it) in blocks of
-//!    [`TILE_WIDTH`] x [`TILE_HEIGHT`] pixels (one packet each where every pixel is
-//!    active, as the staged traversal orders them), traced at once on this thread
+//!    whole image as the staged list numbers it), both kernels over a block's eight
+//!    surfaces at once ([`crate::compaction::lanes`]), in the staged traversal's order (one
+//!    packet per block whose every pixel is active), traced at once on this thread
 //!    (`occluded_serial`, then the object-space pass of a two-level scene), and their
 //!    answers written to a tile-local shadow mask ([`shadow_code`]);
 //! 3. `rt_shading`, `raster_shading` and `composition` per pixel
@@ -22,11 +23,14 @@
 //! whole-image is written but the G-buffer and the final image: no surface records, no
 //! ray list or active pairs, no shadow mask, no raster or ray-traced image.
 //!
-//! Every step calls the very kernel the staged stage calls for that pixel or ray, and a
-//! shadow ray's answer does not depend on the packet it is traced in (the traversals are
-//! exact), so the final image, the G-buffer and the frame's counts are the staged frame's
-//! bit for bit, whatever the thread count or SIMD level (`hyrt-conformance`'s
-//! `fused_frames_are_the_staged_frames_over_the_corpus` checks it on every case).
+//! Every step calls the very kernel the staged stage calls for that pixel or ray, or its
+//! eight-lane form, which does the scalar kernel's operations in its order (each lane's
+//! bits are the scalar kernel's: the lane modules' proptests), at the SIMD level of
+//! [`SimdLevel::detect`] (as the raster's). A shadow ray's answer does not depend on the
+//! packet it is traced in (the traversals are exact). So the final image, the G-buffer and
+//! the frame's counts are the staged frame's bit for bit, whatever the thread count or
+//! SIMD level (`hyrt-conformance`'s `fused_frames_are_the_staged_frames_over_the_corpus`
+//! checks it on every case).
 //!
 //! Frames that return stage outputs or trace bounces run staged ([`Executor::Fused`]).
 //!
@@ -37,20 +41,23 @@
 //! [`TILE_WIDTH`]: crate::traversal::tiles::TILE_WIDTH
 //! [`TILE_HEIGHT`]: crate::traversal::tiles::TILE_HEIGHT
 
-use hyrt_core::formats::{CameraRecord, GBufferTexel, RayRecord, SurfaceRecord, SHADOW_NO_RAY};
+use hyrt_core::formats::{CameraRecord, GBufferTexel, LightRecord, RayRecord, SurfaceRecord, SHADOW_NO_RAY};
 use hyrt_core::frame::{FrameOptions, PreparedScene};
+use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::shading::BACKGROUND_RGBA;
-use hyrt_core::kernels::shadow::{needs_shadow_ray, shadow_code, shadow_ray};
+use hyrt_core::kernels::shadow::shadow_code;
 use hyrt_core::kernels::texture::Materials;
 use hyrt_core::plan::{Composition, FramePlan, Step};
 use rayon::prelude::*;
 
+use crate::compaction::lanes::{shadow_ray_of_lane, shadow_rays_lanes, store3, SurfaceLanes};
 use crate::composition::composition_pixel;
+use crate::lanes::{avx2_entry_points, dispatch, Lanes};
 use crate::raster_shading::{raster_shading_pixel, Primary};
-use crate::reconstruction::Reconstruct;
+use crate::reconstruction::{BlockSetups, Reconstruct};
 use crate::rt_shading::rt_shading_pixel;
 use crate::traversal::tiles::{TILE_HEIGHT, TILE_WIDTH};
-use crate::traversal::{occluded_in_object_space_serial, occluded_serial, Traversal, SHADOW_VISIBLE};
+use crate::traversal::{occluded_in_object_space_serial, occluded_serial, SimdLevel, Traversal, SHADOW_VISIBLE};
 use crate::visibility_raster::tile_rows;
 
 /// Side of a fused tile in pixels. A tile's scratch is its surfaces (48 bytes a pixel), its
@@ -126,11 +133,13 @@ impl std::ops::Add for TileCounts {
 #[derive(Default)]
 struct TileScratch {
     surfaces: Vec<SurfaceRecord>,
+    /// Reconstruction's triangle setups.
+    setups: BlockSetups,
     /// `SHADOW_*` per (tile pixel, light), `pixel * lights + light`.
     shadow: Vec<u8>,
-    /// One light's rays, and the tile pixel each leaves.
-    rays: Vec<RayRecord>,
-    at: Vec<u32>,
+    /// Each light's rays, and the tile pixel each leaves.
+    rays: Vec<Vec<RayRecord>>,
+    at: Vec<Vec<u32>>,
     occluded: Vec<u32>,
     /// The object-space pass's gathered rays.
     object_space: (Vec<RayRecord>, Vec<u32>),
@@ -146,6 +155,8 @@ struct TileInputs<'a> {
     primary: Primary<'a>,
     weight: f32,
     traversal: Traversal,
+    /// The SIMD level of the per-pixel kernels ([`SimdLevel::detect`], as the raster's).
+    level: SimdLevel,
 }
 
 /// Run the fused tiles of a frame whose G-buffer `visibility_raster` wrote: the final
@@ -174,6 +185,7 @@ pub fn fused_tiles(
         primary: Primary { gbuffer, materials: &materials, eye: camera.eye.into() },
         weight: options.weight,
         traversal,
+        level: SimdLevel::detect(),
     };
     let tiles_x = w.div_ceil(FUSED_TILE);
     tile_rows(final_image, w, (w, h), FUSED_TILE)
@@ -206,15 +218,20 @@ fn tile(
     }
 
     // reconstruction
-    s.surfaces.clear();
-    let mut cache = None;
     for ly in 0..th {
         for lx in 0..tw {
             let t = texel(lx, ly);
             counts.ray_traced_pixels += (t.is_hit() && t.is_ray_traced()) as u64;
-            s.surfaces.push(inputs.reconstruct.pixel(t, g, (x0 + lx) as u32, (y0 + ly) as u32, &mut cache));
         }
     }
+    let first = y0 * width + x0;
+    dispatch!(
+        inputs.level,
+        tile_reconstruction,
+        tile_reconstruction_avx512,
+        tile_reconstruction_avx2,
+        (&inputs.reconstruct, g, &gbuffer[first..], (x0, y0), (tw, th), width, &mut s.setups, &mut s.surfaces)
+    );
     crate::reconstruction::validate(&s.surfaces);
 
     // compaction and shadow_rays, light by light
@@ -224,31 +241,22 @@ fn tile(
     s.shadow.resize(tw * th * nl, SHADOW_NO_RAY);
     if steps.shadow_rays {
         let (table, view) = (g.traversal_table(), &g.surface.view());
-        for (l, light) in lights.iter().enumerate() {
-            s.rays.clear();
-            s.at.clear();
-            for by in (0..th).step_by(TILE_HEIGHT as usize) {
-                for bx in (0..tw).step_by(TILE_WIDTH as usize) {
-                    for ly in by..(by + TILE_HEIGHT as usize).min(th) {
-                        for lx in bx..(bx + TILE_WIDTH as usize).min(tw) {
-                            let k = ly * tw + lx;
-                            let surface = &s.surfaces[k];
-                            if needs_shadow_ray(surface, light) {
-                                let pixel = ((y0 + ly) * width + x0 + lx) as u32;
-                                let ray = shadow_ray(surface, light, l as u32, pixel);
-                                debug_assert_eq!(ray.validate(), Ok(()), "fused shadow ray");
-                                s.rays.push(ray);
-                                s.at.push(k as u32);
-                            }
-                        }
-                    }
-                }
-            }
+        let (rays, at) = (&mut s.rays, &mut s.at);
+        rays.resize_with(nl, Vec::new);
+        at.resize_with(nl, Vec::new);
+        let first_pixel = (y0 * width + x0) as u32;
+        dispatch!(
+            inputs.level,
+            tile_shadow_rays,
+            tile_shadow_rays_avx512,
+            tile_shadow_rays_avx2,
+            (lights, &s.surfaces, (tw, th), width as u32, first_pixel, rays, at)
+        );
+        for (l, (rays, at)) in s.rays.iter().zip(&s.at).enumerate() {
             s.occluded.clear();
-            s.occluded.resize(s.rays.len(), SHADOW_VISIBLE);
-            occluded_serial(&scene.bvh, table, view, &s.rays, inputs.traversal, &mut s.occluded);
+            s.occluded.resize(rays.len(), SHADOW_VISIBLE);
+            occluded_serial(&scene.bvh, table, view, rays, inputs.traversal, &mut s.occluded);
             if let Some(levels) = &scene.levels {
-                let rays = &s.rays;
                 occluded_in_object_space_serial(
                     levels,
                     view,
@@ -258,11 +266,11 @@ fn tile(
                     &mut s.occluded,
                 );
             }
-            for (&k, &o) in s.at.iter().zip(&s.occluded) {
+            for (&k, &o) in at.iter().zip(&s.occluded) {
                 s.shadow[k as usize * nl + l] = shadow_code(o != 0);
                 counts.occluded += (o != 0) as u64;
             }
-            counts.shadow_rays += s.rays.len() as u64;
+            counts.shadow_rays += rays.len() as u64;
         }
     }
 
@@ -285,3 +293,132 @@ fn tile(
     }
     counts
 }
+
+/// The surfaces of a tile of `tw` x `th` pixels whose top-left pixel is `(x0, y0)` into
+/// `surfaces` (row-major), from the G-buffer `gbuffer` of rows `width` texels long that
+/// starts at that pixel: `reconstruction` a [`TILE_WIDTH`] x [`TILE_HEIGHT`] block at a
+/// time ([`Reconstruct::block`]).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn tile_reconstruction<L: Lanes>(
+    reconstruct: &Reconstruct,
+    geometry: &WorldGeometry,
+    gbuffer: &[GBufferTexel],
+    (x0, y0): (usize, usize),
+    (tw, th): (usize, usize),
+    width: usize,
+    setups: &mut BlockSetups,
+    surfaces: &mut Vec<SurfaceRecord>,
+) {
+    const BW: usize = TILE_WIDTH as usize;
+    const BH: usize = TILE_HEIGHT as usize;
+    surfaces.clear();
+    surfaces.resize(tw * th, SurfaceRecord::MISS);
+    for by in (0..th).step_by(BH) {
+        for bx in (0..tw).step_by(BW) {
+            // Lane `j` is the block's pixel `(bx + j % BW, by + j / BW)`; one outside the
+            // tile is a miss.
+            let at_lane = |j: usize| (bx + j % BW, by + j / BW);
+            let inside = |(lx, ly): (usize, usize)| lx < tw && ly < th;
+            let texels = std::array::from_fn(|j| match at_lane(j) {
+                (lx, ly) if inside((lx, ly)) => &gbuffer[ly * width + lx],
+                _ => &GBufferTexel::MISS,
+            });
+            let xy = std::array::from_fn(|j| {
+                let (lx, ly) = at_lane(j);
+                ((x0 + lx) as u32, (y0 + ly) as u32)
+            });
+            let block = reconstruct.block::<L>(texels, xy, geometry, setups);
+            for (j, surface) in block.into_iter().enumerate() {
+                let (lx, ly) = at_lane(j);
+                if inside((lx, ly)) {
+                    surfaces[ly * tw + lx] = surface;
+                }
+            }
+        }
+    }
+}
+
+avx2_entry_points!(
+    tile_reconstruction,
+    tile_reconstruction_avx2,
+    tile_reconstruction_avx512,
+    (
+        reconstruct: &Reconstruct,
+        geometry: &WorldGeometry,
+        gbuffer: &[GBufferTexel],
+        origin: (usize, usize),
+        size: (usize, usize),
+        width: usize,
+        setups: &mut BlockSetups,
+        surfaces: &mut Vec<SurfaceRecord>
+    )
+);
+
+/// The shadow rays of a tile's `surfaces` (`tw` x `th`, row-major), light by light into
+/// `rays[l]`, each with its tile pixel in `at[l]`: `compaction`'s kernels over the eight
+/// surfaces of each [`TILE_WIDTH`] x [`TILE_HEIGHT`] block at once
+/// ([`crate::compaction::lanes`]), the block's origins offset once for every light. The
+/// rays come in the staged traversal's order (block by block, then row by row), so a
+/// block whose every pixel is active is one packet. `first_pixel` is the tile's top-left
+/// pixel in the whole image, `width` the image's width.
+#[inline(always)]
+fn tile_shadow_rays<L: Lanes>(
+    lights: &[LightRecord],
+    surfaces: &[SurfaceRecord],
+    (tw, th): (usize, usize),
+    width: u32,
+    first_pixel: u32,
+    rays: &mut [Vec<RayRecord>],
+    at: &mut [Vec<u32>],
+) {
+    const BW: usize = TILE_WIDTH as usize;
+    const BH: usize = TILE_HEIGHT as usize;
+    rays.iter_mut().for_each(Vec::clear);
+    at.iter_mut().for_each(Vec::clear);
+    for by in (0..th).step_by(BH) {
+        for bx in (0..tw).step_by(BW) {
+            // Lane `j` is the block's pixel `(bx + j % BW, by + j / BW)`; one outside the
+            // tile is a miss.
+            let at_lane = |j: usize| (bx + j % BW, by + j / BW);
+            let block = SurfaceLanes::<L>::load(std::array::from_fn(|j| match at_lane(j) {
+                (lx, ly) if lx < tw && ly < th => &surfaces[ly * tw + lx],
+                _ => &SurfaceRecord::MISS,
+            }));
+            let origin = store3::<L>(block.origin);
+            for (l, light) in lights.iter().enumerate() {
+                let (mut active, direction, t_max) = shadow_rays_lanes::<L>(&block, light);
+                if active == 0 {
+                    continue;
+                }
+                let direction = store3::<L>(direction);
+                while active != 0 {
+                    // An active lane is a hit, so a pixel of the tile.
+                    let j = active.trailing_zeros() as usize;
+                    active &= active - 1;
+                    let (lx, ly) = at_lane(j);
+                    let pixel = first_pixel + ly as u32 * width + lx as u32;
+                    let ray = shadow_ray_of_lane(&origin, &direction, t_max, j, l as u32, pixel);
+                    debug_assert_eq!(ray.validate(), Ok(()), "fused shadow ray");
+                    rays[l].push(ray);
+                    at[l].push((ly * tw + lx) as u32);
+                }
+            }
+        }
+    }
+}
+
+avx2_entry_points!(
+    tile_shadow_rays,
+    tile_shadow_rays_avx2,
+    tile_shadow_rays_avx512,
+    (
+        lights: &[LightRecord],
+        surfaces: &[SurfaceRecord],
+        size: (usize, usize),
+        width: u32,
+        first_pixel: u32,
+        rays: &mut [Vec<RayRecord>],
+        at: &mut [Vec<u32>]
+    )
+);

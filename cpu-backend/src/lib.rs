@@ -17,6 +17,7 @@ pub mod bvh_build;
 pub mod compaction;
 pub mod composition;
 pub mod fused;
+pub(crate) mod lanes;
 pub mod memory;
 pub mod raster_shading;
 pub mod reconstruction;

@@ -6,7 +6,7 @@
 //! (its cached form: a run of pixels on one triangle sets the triangle up once).
 
 use glam::Vec3;
-use hyrt_core::formats::{CameraRecord, GBufferTexel, SurfaceRecord};
+use hyrt_core::formats::{CameraRecord, GBufferTexel, RayRecord, SurfaceRecord, GBUF_BACK_FACE};
 use hyrt_core::frame::PrimaryBarycentrics;
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::camera::primary_ray;
@@ -14,6 +14,11 @@ use hyrt_core::kernels::reconstruction::{
     reconstruct_texel_cached, reconstruct_texel_reintersected_cached, TriangleSetup,
 };
 use rayon::prelude::*;
+
+use crate::lanes::LANES;
+use crate::traversal::intersect_each;
+
+pub(crate) mod lanes;
 
 /// The stage: reconstruct every pixel in parallel.
 pub fn reconstruction(gbuffer: &[GBufferTexel], geometry: &WorldGeometry, eye: Vec3) -> Vec<SurfaceRecord> {
@@ -93,6 +98,114 @@ impl<'a> Reconstruct<'a> {
             Reconstruct::Reintersected(_) if !t.is_hit() => SurfaceRecord::MISS,
             Reconstruct::Reintersected(camera) => {
                 reconstruct_texel_reintersected_cached(t, geometry, &primary_ray(camera, x, y), cache)
+            }
+        }
+    }
+}
+
+/// The triangle setups of a block of [`LANES`] pixels ([`Reconstruct::block`]), kept from
+/// block to block: neighbouring blocks usually share triangles.
+#[derive(Default)]
+pub struct BlockSetups {
+    /// The distinct setups of the current block.
+    setups: Vec<TriangleSetup>,
+    /// The last block's last setup.
+    last: Option<TriangleSetup>,
+    /// For the scalar kernel's lanes.
+    scalar: Option<TriangleSetup>,
+}
+
+impl BlockSetups {
+    /// The index in `self.setups` of global triangle `gi`'s setup, made or reused.
+    #[inline]
+    fn of(&mut self, geometry: &WorldGeometry, gi: usize) -> usize {
+        if let Some(i) = self.setups.iter().rposition(|s| s.index() == gi) {
+            return i;
+        }
+        let setup = match self.last {
+            Some(s) if s.index() == gi => s,
+            _ => TriangleSetup::new(geometry, gi),
+        };
+        self.setups.push(setup);
+        self.setups.len() - 1
+    }
+}
+
+impl Reconstruct<'_> {
+    /// [`Reconstruct::pixel`] of [`LANES`] pixels at once, `texels[k]` at pixel `xy[k]`:
+    /// the lanes kernel ([`lanes::surfaces_lanes`]) for what it covers, the scalar kernel
+    /// for lanes facing the viewer. The same records, bit for bit.
+    #[inline(always)]
+    pub(crate) fn block<L: crate::lanes::Lanes>(
+        &self,
+        texels: [&GBufferTexel; LANES],
+        xy: [(u32, u32); LANES],
+        geometry: &WorldGeometry,
+        cache: &mut BlockSetups,
+    ) -> [SurfaceRecord; LANES] {
+        cache.setups.clear();
+        let (mut hit, mut back) = (0u32, 0u32);
+        let (mut u, mut v, mut at) = ([0.0f32; LANES], [0.0f32; LANES], [0usize; LANES]);
+        for (k, t) in texels.iter().enumerate() {
+            if !t.is_hit() {
+                continue;
+            }
+            at[k] = cache.of(geometry, geometry.global_triangle(t.object, t.triangle));
+            (u[k], v[k]) = (t.bary_u, t.bary_v);
+            hit |= 1 << k;
+            back |= ((t.flags & GBUF_BACK_FACE != 0) as u32) << k;
+        }
+        let Some(&last) = cache.setups.last() else {
+            return [SurfaceRecord::MISS; LANES];
+        };
+        cache.last = Some(last);
+        let setups: [&TriangleSetup; LANES] = std::array::from_fn(|k| &cache.setups[at[k]]);
+        if let Reconstruct::Reintersected(camera) = *self {
+            reintersected_lanes::<L>(camera, hit, xy, setups, &mut u, &mut v);
+        }
+        let lanes = lanes::surfaces_lanes::<L>(setups, hit, back, &u, &v);
+        let mut out = lanes.records(setups);
+        let mut facing = lanes.viewer_facing;
+        while facing != 0 {
+            let k = facing.trailing_zeros() as usize;
+            facing &= facing - 1;
+            out[k] = self.pixel(texels[k], geometry, xy[k].0, xy[k].1, &mut cache.scalar);
+        }
+        out
+    }
+}
+
+/// The re-intersected barycentrics (core's `reintersected_barycentrics`) of the hit lanes `hit`
+/// of a block, pixel `xy[k]` on the triangle of `setups[k]`, into `(u, v)` (which hold the
+/// raster's, kept where the camera ray misses the triangle): the camera rays against their
+/// triangles in lanes ([`intersect_each`]), the scalar kernel where fewer than two can hit.
+#[inline(always)]
+fn reintersected_lanes<L: crate::lanes::Lanes>(
+    camera: &CameraRecord,
+    hit: u32,
+    xy: [(u32, u32); LANES],
+    setups: [&TriangleSetup; LANES],
+    u: &mut [f32; LANES],
+    v: &mut [f32; LANES],
+) {
+    // `reintersected_barycentrics`: the camera ray over `0 < t < inf`. A miss lane's zero
+    // direction makes it a lane that hits nothing.
+    let mut rays = [RayRecord { direction: [0.0; 3], ..primary_ray(camera, xy[0].0, xy[0].1) }; LANES];
+    for (k, ray) in rays.iter_mut().enumerate().filter(|(k, _)| hit >> k & 1 == 1) {
+        *ray = RayRecord { t_min: 0.0, t_max: f32::INFINITY, ..primary_ray(camera, xy[k].0, xy[k].1) };
+    }
+    match intersect_each::<L>(&rays, std::array::from_fn(|k| setups[k].record())) {
+        Some((met, us, vs)) => {
+            for k in 0..LANES {
+                if met >> k & 1 == 1 {
+                    (u[k], v[k]) = (us[k], vs[k]);
+                }
+            }
+        }
+        None => {
+            for k in (0..LANES).filter(|k| hit >> k & 1 == 1) {
+                let t = GBufferTexel { bary_u: u[k], bary_v: v[k], ..GBufferTexel::MISS };
+                (u[k], v[k]) = setups[k].reintersected_barycentrics(&t, &rays[k]);
             }
         }
     }

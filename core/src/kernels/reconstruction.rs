@@ -65,6 +65,44 @@ impl TriangleSetup {
         }
     }
 
+    /// The global triangle index.
+    #[inline]
+    pub fn index(&self) -> usize {
+        self.gi
+    }
+
+    /// The triangle's record.
+    #[inline]
+    pub fn record(&self) -> &TriangleRecord {
+        &self.tri
+    }
+
+    /// The triangle's corner normals (zero where it has none).
+    #[inline]
+    pub fn normals(&self) -> &[Vec3; 3] {
+        &self.normals
+    }
+
+    /// Its unit geometric normal, not yet oriented to the seen side (zero when degenerate).
+    #[inline]
+    pub fn geometric(&self) -> Vec3 {
+        self.geometric
+    }
+
+    /// `ObjectRecord::offset_error` of its object.
+    #[inline]
+    pub fn offset_error(&self) -> f32 {
+        self.offset_error
+    }
+
+    /// The barycentrics of texel `t` (a hit on this triangle) that reconstruction uses
+    /// with re-intersection: where the pixel's camera ray `ray` meets the triangle
+    /// ([`reintersected_barycentrics`]).
+    #[inline]
+    pub fn reintersected_barycentrics(&self, t: &GBufferTexel, ray: &RayRecord) -> (f32, f32) {
+        intersect_texel_triangle(t, &self.tri, ray)
+    }
+
     /// The setup of `gi` from `cache` when it holds that triangle's, else made and kept there.
     #[inline]
     pub fn cached<'c>(cache: &'c mut Option<TriangleSetup>, geometry: &WorldGeometry, gi: usize) -> &'c TriangleSetup {

@@ -44,10 +44,17 @@ pub fn shadow_ray(s: &SurfaceRecord, light: &LightRecord, light_index: u32, pixe
     } else {
         (Vec3::from(light.position_or_direction) - origin, SHADOW_T_MAX_POINT)
     };
+    shadow_ray_record(origin.into(), direction.into(), t_max, light_index, pixel)
+}
+
+/// The record of a shadow ray from `origin` along `direction` up to `t_max` (from
+/// [`shadow_ray`]'s origin offset and direction).
+#[inline]
+pub fn shadow_ray_record(origin: [f32; 3], direction: [f32; 3], t_max: f32, light_index: u32, pixel: u32) -> RayRecord {
     RayRecord {
-        origin: origin.into(),
+        origin,
         t_min: 0.0,
-        direction: direction.into(),
+        direction,
         t_max,
         pixel,
         kind: RAY_KIND_SHADOW,

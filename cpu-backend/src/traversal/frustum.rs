@@ -69,9 +69,9 @@ use hyrt_core::bvh::{Bvh, BvhNode, ClosestHit, BVH_CULL_SLACK};
 use hyrt_core::kernels::ray::SLAB_FAR_SCALE;
 use hyrt_core::kernels::texture::SurfaceView;
 
-use super::lanes::{Lanes, LANES};
 use super::packet::{ClosestLanes, Level, Packet};
 use super::single::Stack;
+use crate::lanes::{Lanes, LANES};
 
 /// The bounds of a packet's rays for the wide node test, per axis: the origin and
 /// inverse-direction extremes that bound every valid lane's slab distances.
@@ -297,7 +297,7 @@ pub(crate) fn closest_hit<L: Lanes>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::traversal::lanes::Portable;
+    use crate::lanes::Portable;
     use glam::Vec3;
     use hyrt_core::formats::RayRecord;
     use proptest::prelude::*;

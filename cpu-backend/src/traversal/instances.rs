@@ -35,8 +35,8 @@ use hyrt_core::bvh::{ClosestHit, BVH_CULL_SLACK};
 use hyrt_core::formats::RayRecord;
 use hyrt_core::kernels::texture::SurfaceView;
 
-use super::lanes::{Lanes, LANES};
 use super::packet::{self, AnyHitLanes, ClosestHitLanes, ClosestLanes, Level, Occluder, Packet};
+use crate::lanes::{Lanes, LANES};
 
 /// A lane with no ray: an empty interval, which `Packet::new` rejects.
 const NO_RAY: RayRecord = RayRecord {

@@ -113,7 +113,6 @@
 
 mod frustum;
 mod instances;
-mod lanes;
 mod packet;
 mod single;
 pub(crate) mod tiles;
@@ -126,8 +125,8 @@ use hyrt_core::bvh::{Bvh, ClosestHit};
 use hyrt_core::formats::{RayRecord, TriangleRecord};
 use hyrt_core::kernels::texture::{alpha_accepts, SurfaceView};
 
-pub use lanes::LANES;
-use lanes::{Lanes, Portable};
+pub use crate::lanes::LANES;
+use crate::lanes::{avx2_entry_points, dispatch, Lanes};
 use packet::Packet;
 
 /// Any-hit answer of [`occluded_batch_into`] and its siblings (the output values of
@@ -585,23 +584,23 @@ fn occlusion(hit: bool) -> u32 {
     }
 }
 
-/// Dispatch one chunk to the code compiled for `level` (available on this CPU).
-macro_rules! dispatch {
-    ($level:expr, $generic:ident, $avx512:ident, $avx2:ident, ($($arg:expr),*)) => {
-        match $level {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `Traversal::level` only returns available levels.
-            SimdLevel::Avx512 => unsafe { $avx512($($arg),*) },
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: as above.
-            SimdLevel::Avx2 => unsafe { $avx2($($arg),*) },
-            #[cfg(target_arch = "x86_64")]
-            SimdLevel::Sse2 => $generic::<lanes::Sse2>($($arg),*),
-            _ => $generic::<Portable>($($arg),*),
-        }
-    };
+/// Where each of [`LANES`] rays meets its own triangle, `rays[i]` against `tris[i]`, by
+/// the watertight kernel over each ray's `(t_min, t_max)` (reconstruction's
+/// re-intersection of a block of pixels): the lanes hit and their `(u, v)`, each lane's
+/// answer that of `WatertightRay::new(origin, direction)` and `intersect` on its triangle.
+/// `None` where fewer than two rays can hit anything (the packet's rule): trace those
+/// alone.
+#[inline(always)]
+pub(crate) fn intersect_each<L: Lanes>(
+    rays: &[RayRecord; LANES],
+    tris: [&TriangleRecord; LANES],
+) -> Option<(u32, [f32; LANES], [f32; LANES])> {
+    let packet = Packet::<L>::new(rays)?;
+    let (hit, _, u, v, _) = packet.intersect_each(packet.valid, tris);
+    Some((hit, L::store(u), L::store(v)))
 }
 
+/// Dispatch one chunk to the code compiled for `level` (available on this CPU).
 fn occluded_chunk(
     bvh: &Bvh,
     triangles: &[TriangleRecord],
@@ -749,25 +748,6 @@ pub fn closest_hit_in_object_space_into(
             (levels, view, rays, out)
         ),
     });
-}
-
-/// `$generic` on the AVX2 lanes, compiled once with AVX2 (`$avx2`) and once with the
-/// AVX-512 features of [`SimdLevel::Avx512`] (`$avx512`: the same lanes; `Avx2`'s contract
-/// holds, AVX-512F implies AVX2). Callers must have detected the features.
-macro_rules! avx2_entry_points {
-    ($generic:ident, $avx2:ident, $avx512:ident, ($($arg:ident: $ty:ty),*)) => {
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = "avx2")]
-        unsafe fn $avx2($($arg: $ty),*) {
-            $generic::<lanes::Avx2>($($arg),*)
-        }
-
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = "avx2,avx512f,avx512vl,avx512dq,avx512bw")]
-        unsafe fn $avx512($($arg: $ty),*) {
-            $generic::<lanes::Avx2>($($arg),*)
-        }
-    };
 }
 
 avx2_entry_points!(

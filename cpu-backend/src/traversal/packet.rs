@@ -48,8 +48,8 @@ use hyrt_core::formats::{RayRecord, TriangleRecord, INVALID_ID, TRI_ALPHA_TEST};
 use hyrt_core::kernels::ray::{permute_axes, WatertightRay, SLAB_FAR_SCALE};
 use hyrt_core::kernels::texture::{alpha_accepts, SurfaceView};
 
-use super::lanes::{slab_bounds, Lanes, ALL_LANES, LANES};
 use super::watertight;
+use crate::lanes::{slab_bounds, Lanes, ALL_LANES, LANES};
 
 /// A tree as the packets' leaf tests see it: a single-level [`Bvh`] (its slots hold global
 /// triangle indices, its triangles their own flags), or the bottom level of an
@@ -292,20 +292,35 @@ impl<'a, L: Lanes> Packet<'a, L> {
     /// [`watertight::ray_space`].
     #[inline(always)]
     fn transform(&self, v: [f32; 3]) -> [L::F; 3] {
-        let v = match self.kz {
+        match self.kz {
             Some(kz) => {
                 let v = permute_axes(Vec3::from(v), kz);
-                [L::splat(v.x), L::splat(v.y), L::splat(v.z)]
+                watertight::ray_space::<L>(
+                    [L::splat(v.x), L::splat(v.y), L::splat(v.z)],
+                    &self.origin_perm,
+                    &self.shear,
+                )
             }
-            None => {
-                // kz = 0: (y, z, x); kz = 1: (z, x, y); kz = 2: (x, y, z).
-                let (x, y, z) = (L::splat(v[0]), L::splat(v[1]), L::splat(v[2]));
-                [
-                    L::select(self.kz0, y, L::select(self.kz1, z, x)),
-                    L::select(self.kz0, z, L::select(self.kz1, x, y)),
-                    L::select(self.kz0, x, L::select(self.kz1, y, z)),
-                ]
-            }
+            None => self.transform_lanes([L::splat(v[0]), L::splat(v[1]), L::splat(v[2])]),
+        }
+    }
+
+    /// [`Self::transform`] of a vertex that differs per lane (lane `i` a vertex of the
+    /// triangle lane `i` meets).
+    #[inline(always)]
+    fn transform_lanes(&self, v: [L::F; 3]) -> [L::F; 3] {
+        let v = match self.kz {
+            Some(kz) => match kz {
+                0 => [v[1], v[2], v[0]],
+                1 => [v[2], v[0], v[1]],
+                _ => v,
+            },
+            // kz = 0: (y, z, x); kz = 1: (z, x, y); kz = 2: (x, y, z).
+            None => [
+                L::select(self.kz0, v[1], L::select(self.kz1, v[2], v[0])),
+                L::select(self.kz0, v[2], L::select(self.kz1, v[0], v[1])),
+                L::select(self.kz0, v[0], L::select(self.kz1, v[1], v[2])),
+            ],
         };
         watertight::ray_space::<L>(v, &self.origin_perm, &self.shear)
     }
@@ -318,6 +333,29 @@ impl<'a, L: Lanes> Packet<'a, L> {
     #[inline(always)]
     fn intersect<const EARLY_OUT: bool>(&self, active: u32, tri: &TriangleRecord) -> (u32, L::F, L::F, L::F, u32) {
         let p = [self.transform(tri.v0), self.transform(tri.v1), self.transform(tri.v2)];
+        self.intersect_in_ray_space::<EARLY_OUT>(active, p, |_| tri)
+    }
+
+    /// [`Self::intersect`] with lane `i` against its own triangle `tris[i]`: the vertices
+    /// of the eight triangles as lanes ([`Lanes::triangle_lanes`]), each in its lane's ray
+    /// space ([`Self::transform_lanes`]), so lane `i` gets the values [`Self::intersect`]
+    /// computes for it against `tris[i]`.
+    #[inline(always)]
+    pub(crate) fn intersect_each(&self, active: u32, tris: [&TriangleRecord; LANES]) -> (u32, L::F, L::F, L::F, u32) {
+        let v = L::triangle_lanes(tris);
+        let p = [self.transform_lanes(v[0]), self.transform_lanes(v[1]), self.transform_lanes(v[2])];
+        self.intersect_in_ray_space::<false>(active, p, |i| tris[i])
+    }
+
+    /// The rest of [`Self::intersect`] from the vertices in ray space `p`, lane `i`'s
+    /// triangle `tri(i)` (for the lanes the scalar kernel redoes).
+    #[inline(always)]
+    fn intersect_in_ray_space<'t, const EARLY_OUT: bool>(
+        &self,
+        active: u32,
+        p: [[L::F; 3]; 3],
+        tri: impl Fn(usize) -> &'t TriangleRecord,
+    ) -> (u32, L::F, L::F, L::F, u32) {
         let h = watertight::intersect::<L, EARLY_OUT>(active, p, &self.shear, self.t_min, self.t_max);
         let (mut hit, exact) = (h.hit, h.exact);
         let (mut t_out, mut u_out, mut v_out) = (h.t, h.u, h.v);
@@ -327,7 +365,7 @@ impl<'a, L: Lanes> Packet<'a, L> {
             while lanes != 0 {
                 let i = lanes.trailing_zeros() as usize;
                 lanes &= lanes - 1;
-                let r = &self.rays[i];
+                let (r, tri) = (&self.rays[i], tri(i));
                 let h = WatertightRay::new(r.origin.into(), r.direction.into())
                     .and_then(|w| w.intersect(r.t_min, r.t_max, tri.v0.into(), tri.v1.into(), tri.v2.into()));
                 if let Some(h) = h {

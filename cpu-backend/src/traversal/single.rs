@@ -33,8 +33,8 @@ use hyrt_core::bvh::{ClosestHit, BVH_CULL_SLACK};
 use hyrt_core::formats::{RayRecord, INVALID_ID};
 use hyrt_core::kernels::ray::{permute_axes, safe_inverse_dir, TriangleHit, WatertightRay, SLAB_FAR_SCALE};
 
-use super::lanes::{slab_bounds, Lanes, LANES};
 use super::watertight::{self, LaneHits, RaySpace};
+use crate::lanes::{slab_bounds, Lanes, LANES};
 
 const _: () = assert!(hyrt_core::bvh::wide::WIDE == LANES);
 

@@ -10,7 +10,7 @@
 
 use hyrt_core::kernels::ray::gamma;
 
-use super::lanes::Lanes;
+use crate::lanes::Lanes;
 
 /// `gamma(n)` of the watertight test's `t` error bound, as constants (const evaluation of
 /// f32 arithmetic is IEEE 754, so the bits equal the scalar kernel's).

@@ -1,8 +1,9 @@
 //! Eight f32 lanes, three ways: AVX2 (`__m256`, chosen at run time), SSE2 (two `__m128`,
-//! the x86-64 baseline) and plain arrays (any target). The traversal is written once,
-//! generic over [`Lanes`], and every operation here is one IEEE 754 f32 operation per lane
-//! (no fused multiply-add, no approximate reciprocal), so all three give the bits of the
-//! scalar kernels lane by lane.
+//! the x86-64 baseline) and plain arrays (any target). The traversal and the fused frame's
+//! per-pixel kernels (`reconstruction`, `compaction`) are written once, generic over
+//! [`Lanes`], and every operation here is one IEEE 754 f32 operation per lane (no fused
+//! multiply-add, no approximate reciprocal) or a bit operation, so all three give the bits
+//! of the scalar kernels lane by lane.
 //!
 //! `max`/`min` have the x86 `MAXPS`/`MINPS` semantics `a > b ? a : b` / `a < b ? a : b`:
 //! a NaN in `a` (or equal values, `+0` vs `-0` included) gives `b`. That is exactly the
@@ -40,6 +41,11 @@ pub(crate) trait Lanes: Copy {
     fn or(a: Self::F, b: Self::F) -> Self::F;
     /// `!a & b`.
     fn andnot(a: Self::F, b: Self::F) -> Self::F;
+    /// `a ^ b` (bitwise; with `-0.0`, a sign flip: the exact `-a`).
+    fn xor(a: Self::F, b: Self::F) -> Self::F;
+    /// The lanes' bit patterns added as wrapping 32-bit integers (`next_float_up` and
+    /// `next_float_down` step a float's bits by one).
+    fn bits_add(a: Self::F, b: Self::F) -> Self::F;
     /// `mask ? a : b` per lane (`mask` all ones or all zeros per lane).
     fn select(mask: Self::F, a: Self::F, b: Self::F) -> Self::F;
     /// Clear the sign bit.
@@ -196,6 +202,14 @@ impl Lanes for Portable {
         map2(a, b, |a, b| f32::from_bits(!a.to_bits() & b.to_bits()))
     }
     #[inline(always)]
+    fn xor(a: Self::F, b: Self::F) -> Self::F {
+        map2(a, b, |a, b| f32::from_bits(a.to_bits() ^ b.to_bits()))
+    }
+    #[inline(always)]
+    fn bits_add(a: Self::F, b: Self::F) -> Self::F {
+        map2(a, b, |a, b| f32::from_bits(a.to_bits().wrapping_add(b.to_bits())))
+    }
+    #[inline(always)]
     fn select(m: Self::F, a: Self::F, b: Self::F) -> Self::F {
         std::array::from_fn(|i| if m[i].to_bits() != 0 { a[i] } else { b[i] })
     }
@@ -328,6 +342,18 @@ mod x86 {
         #[inline(always)]
         fn andnot(a: Self::F, b: Self::F) -> Self::F {
             sse2!(_mm_andnot_ps, a, b)
+        }
+        #[inline(always)]
+        fn xor(a: Self::F, b: Self::F) -> Self::F {
+            sse2!(_mm_xor_ps, a, b)
+        }
+        #[inline(always)]
+        fn bits_add(a: Self::F, b: Self::F) -> Self::F {
+            let add = |a: __m128, b: __m128| {
+                // SAFETY: SSE2 is baseline.
+                unsafe { _mm_castsi128_ps(_mm_add_epi32(_mm_castps_si128(a), _mm_castps_si128(b))) }
+            };
+            [add(a[0], b[0]), add(a[1], b[1])]
         }
         #[inline(always)]
         fn select(m: Self::F, a: Self::F, b: Self::F) -> Self::F {
@@ -483,6 +509,15 @@ mod x86 {
             avx!(_mm256_andnot_ps, a, b)
         }
         #[inline(always)]
+        fn xor(a: Self::F, b: Self::F) -> Self::F {
+            avx!(_mm256_xor_ps, a, b)
+        }
+        #[inline(always)]
+        fn bits_add(a: Self::F, b: Self::F) -> Self::F {
+            // SAFETY: see the type's docs.
+            unsafe { _mm256_castsi256_ps(_mm256_add_epi32(_mm256_castps_si256(a), _mm256_castps_si256(b))) }
+        }
+        #[inline(always)]
         fn select(m: Self::F, a: Self::F, b: Self::F) -> Self::F {
             // SAFETY: see the type's docs. blendv takes `a` where the mask's sign bit is set.
             unsafe { _mm256_blendv_ps(b, a, m) }
@@ -520,6 +555,51 @@ mod x86 {
     }
 }
 
+/// Run `$generic` at SIMD level `$level` (a [`SimdLevel`](crate::traversal::SimdLevel)
+/// this CPU has): the entry points of [`avx2_entry_points`] at the AVX-512 and AVX2
+/// levels, the SSE2 lanes at SSE2, the portable lanes elsewhere.
+macro_rules! dispatch {
+    ($level:expr, $generic:ident, $avx512:ident, $avx2:ident, ($($arg:expr),*)) => {
+        match $level {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: callers pass only levels this CPU has (`SimdLevel::detect`,
+            // `Traversal::level`).
+            $crate::traversal::SimdLevel::Avx512 => unsafe { $avx512($($arg),*) },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: as above.
+            $crate::traversal::SimdLevel::Avx2 => unsafe { $avx2($($arg),*) },
+            #[cfg(target_arch = "x86_64")]
+            $crate::traversal::SimdLevel::Sse2 => $generic::<$crate::lanes::Sse2>($($arg),*),
+            _ => $generic::<$crate::lanes::Portable>($($arg),*),
+        }
+    };
+}
+pub(crate) use dispatch;
+
+/// `$generic` on the AVX2 lanes, compiled once with AVX2 (`$avx2`) and once with the
+/// AVX-512 features of [`SimdLevel::Avx512`](crate::traversal::SimdLevel) (`$avx512`: the
+/// same lanes; `Avx2`'s contract holds, AVX-512F implies AVX2). `$generic` must be
+/// `#[inline(always)]` down to its lanes' operations, so that they compile with the
+/// features. Callers must have detected the features.
+macro_rules! avx2_entry_points {
+    ($generic:ident, $avx2:ident, $avx512:ident, ($($arg:ident: $ty:ty),*) $(-> $ret:ty)?) => {
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2")]
+        #[allow(clippy::too_many_arguments)]
+        unsafe fn $avx2($($arg: $ty),*) $(-> $ret)? {
+            $generic::<$crate::lanes::Avx2>($($arg),*)
+        }
+
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2,avx512f,avx512vl,avx512dq,avx512bw")]
+        #[allow(clippy::too_many_arguments)]
+        unsafe fn $avx512($($arg: $ty),*) $(-> $ret)? {
+            $generic::<$crate::lanes::Avx2>($($arg),*)
+        }
+    };
+}
+pub(crate) use avx2_entry_points;
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -547,6 +627,11 @@ mod tests {
         same(L::max(a, b), Portable::max(p, q));
         same(L::min(a, b), Portable::min(p, q));
         same(L::abs(a), Portable::abs(p));
+        same(L::xor(a, b), Portable::xor(p, q));
+        same(L::xor(a, L::splat(-0.0)), SAMPLES.map(|x| -x));
+        same(L::bits_add(a, b), Portable::bits_add(p, q));
+        let one = f32::from_bits(1);
+        same(L::bits_add(a, L::splat(one)), SAMPLES.map(|x| f32::from_bits(x.to_bits().wrapping_add(1))));
         same(L::sqrt(a), Portable::sqrt(p));
         same(L::sqrt(L::abs(b)), Portable::sqrt(Portable::abs(q)));
         for (x, y) in

@@ -1,0 +1,319 @@
+//! The shadow-ray kernels of `compaction` over eight surfaces at once: core's
+//! [`needs_shadow_ray`] (with [`light_incidence`] and [`light_can_contribute`]) and
+//! [`shadow_ray`] (with [`offset_ray_origin`], [`next_float_up`] and [`next_float_down`]),
+//! each lane doing the scalar kernel's operations in its order, every one a correctly
+//! rounded IEEE 754 f32 operation or a bit operation ([`Lanes`]), so that every lane's
+//! answer and ray are the scalar kernel's bits. `tests` pins them to the scalar kernels.
+//!
+//! The origin of a surface's shadow rays does not depend on the light, so
+//! [`SurfaceLanes::load`] offsets it once and [`shadow_rays_lanes`] gives each light the
+//! directions alone.
+//!
+//! [`needs_shadow_ray`]: hyrt_core::kernels::shadow::needs_shadow_ray
+//! [`shadow_ray`]: hyrt_core::kernels::shadow::shadow_ray
+//! [`light_incidence`]: hyrt_core::kernels::shading::light_incidence
+//! [`light_can_contribute`]: hyrt_core::kernels::shading::light_can_contribute
+//! [`offset_ray_origin`]: hyrt_core::kernels::ray::offset_ray_origin
+//! [`next_float_up`]: hyrt_core::kernels::ray::next_float_up
+//! [`next_float_down`]: hyrt_core::kernels::ray::next_float_down
+
+use hyrt_core::formats::{LightRecord, RayRecord, SurfaceRecord, LIGHT_DIRECTIONAL};
+use hyrt_core::kernels::ray::OFFSET_ERROR_SCALE;
+use hyrt_core::kernels::shading::MIN_LIGHT_DISTANCE_SQ;
+use hyrt_core::kernels::shadow::{shadow_ray_record, SHADOW_T_MAX_POINT};
+
+use crate::lanes::{Lanes, LANES};
+
+// No closures below (`map`, `from_fn`): a closure does not inherit its caller's target
+// features, so lane operations inside one would not inline into the AVX2 entry points.
+
+/// Eight surfaces as lanes: what the shadow-ray kernels read of a [`SurfaceRecord`], and
+/// the origin of its shadow rays.
+#[derive(Clone, Copy)]
+pub(crate) struct SurfaceLanes<L: Lanes> {
+    /// All ones where the surface is a hit ([`SurfaceRecord::is_hit`]).
+    pub hit: L::F,
+    pub position: [L::F; 3],
+    pub normal: [L::F; 3],
+    pub geometric_normal: [L::F; 3],
+    /// `offset_ray_origin(position, position_error, geometric_normal)`.
+    pub origin: [L::F; 3],
+}
+
+impl<L: Lanes> SurfaceLanes<L> {
+    /// The lanes of eight surfaces (a transpose) and their shadow rays' origins.
+    #[inline(always)]
+    pub fn load(s: [&SurfaceRecord; LANES]) -> SurfaceLanes<L> {
+        let mut w = [[0.0f32; LANES]; 11];
+        for (k, r) in s.iter().enumerate() {
+            w[0][k] = f32::from_bits(if r.is_hit() { u32::MAX } else { 0 });
+            for a in 0..3 {
+                w[1 + a][k] = r.position[a];
+                w[4 + a][k] = r.normal[a];
+                w[7 + a][k] = r.geometric_normal[a];
+            }
+            w[10][k] = r.position_error;
+        }
+        let position = [L::load(&w[1]), L::load(&w[2]), L::load(&w[3])];
+        let geometric_normal = [L::load(&w[7]), L::load(&w[8]), L::load(&w[9])];
+        SurfaceLanes {
+            hit: L::load(&w[0]),
+            position,
+            normal: [L::load(&w[4]), L::load(&w[5]), L::load(&w[6])],
+            geometric_normal,
+            origin: offset_ray_origin_lanes::<L>(position, L::load(&w[10]), geometric_normal),
+        }
+    }
+}
+
+/// A 3-vector in every lane.
+#[inline(always)]
+fn splat3<L: Lanes>(v: [f32; 3]) -> [L::F; 3] {
+    [L::splat(v[0]), L::splat(v[1]), L::splat(v[2])]
+}
+
+/// `a - b` per component and lane.
+#[inline(always)]
+fn sub3<L: Lanes>(a: [L::F; 3], b: [L::F; 3]) -> [L::F; 3] {
+    [L::sub(a[0], b[0]), L::sub(a[1], b[1]), L::sub(a[2], b[2])]
+}
+
+/// The lanes of a 3-vector as arrays.
+#[inline(always)]
+pub(crate) fn store3<L: Lanes>(v: [L::F; 3]) -> [[f32; LANES]; 3] {
+    [L::store(v[0]), L::store(v[1]), L::store(v[2])]
+}
+
+/// `(a.x * b.x) + (a.y * b.y) + (a.z * b.z)`, glam's `Vec3::dot`, per lane.
+#[inline(always)]
+fn dot<L: Lanes>(a: [L::F; 3], b: [L::F; 3]) -> L::F {
+    L::add(L::add(L::mul(a[0], b[0]), L::mul(a[1], b[1])), L::mul(a[2], b[2]))
+}
+
+/// Core's `next_float_up` per lane: NaN and `+inf` stay, zeros become the least positive
+/// float, others step one ulp up through their bits.
+#[inline(always)]
+fn next_float_up_lanes<L: Lanes>(x: L::F) -> L::F {
+    let zero = L::splat(0.0);
+    let x0 = L::select(L::eq(x, zero), zero, x);
+    let step = L::select(L::le(zero, x0), L::splat(f32::from_bits(1)), L::splat(f32::from_bits(u32::MAX)));
+    let stepped = L::bits_add(x0, step);
+    // Not NaN (`x == x`) and not +inf.
+    L::select(L::andnot(L::eq(x, L::splat(f32::INFINITY)), L::eq(x, x)), stepped, x)
+}
+
+/// Core's `next_float_down` per lane, the mirror of [`next_float_up_lanes`].
+#[inline(always)]
+fn next_float_down_lanes<L: Lanes>(x: L::F) -> L::F {
+    let zero = L::splat(0.0);
+    let x0 = L::select(L::eq(x, zero), L::splat(-0.0), x);
+    let step = L::select(L::le(x0, zero), L::splat(f32::from_bits(1)), L::splat(f32::from_bits(u32::MAX)));
+    let stepped = L::bits_add(x0, step);
+    L::select(L::andnot(L::eq(x, L::splat(f32::NEG_INFINITY)), L::eq(x, x)), stepped, x)
+}
+
+/// Core's `offset_ray_origin(p, p_error, n)` per lane.
+#[inline(always)]
+fn offset_ray_origin_lanes<L: Lanes>(p: [L::F; 3], p_error: L::F, n: [L::F; 3]) -> [L::F; 3] {
+    let d =
+        L::mul(L::add(L::add(L::abs(n[0]), L::abs(n[1])), L::abs(n[2])), L::mul(p_error, L::splat(OFFSET_ERROR_SCALE)));
+    [
+        offset_coordinate_lanes::<L>(p[0], n[0], d),
+        offset_coordinate_lanes::<L>(p[1], n[1], d),
+        offset_coordinate_lanes::<L>(p[2], n[2], d),
+    ]
+}
+
+/// One coordinate of [`offset_ray_origin_lanes`], moved by `n * d`.
+#[inline(always)]
+fn offset_coordinate_lanes<L: Lanes>(p: L::F, n: L::F, d: L::F) -> L::F {
+    let zero = L::splat(0.0);
+    let offset = L::mul(n, d);
+    let o = L::add(p, offset);
+    let down = L::select(L::lt(offset, zero), next_float_down_lanes::<L>(o), o);
+    L::select(L::lt(zero, offset), next_float_up_lanes::<L>(o), down)
+}
+
+/// Eight surfaces' shadow rays towards one light: which lanes need one (core's
+/// `needs_shadow_ray`, bit `k` for lane `k`) and the rays' directions and `t_max` (core's
+/// `shadow_ray`, whose origin is [`SurfaceLanes::origin`]).
+#[inline(always)]
+pub(crate) fn shadow_rays_lanes<L: Lanes>(s: &SurfaceLanes<L>, light: &LightRecord) -> (u32, [L::F; 3], f32) {
+    let pd = splat3::<L>(light.position_or_direction);
+    let (zero, radiance) = (L::splat(0.0), splat3::<L>(light.radiance));
+    // light_incidence
+    let (l, e, direction, t_max) = if light.kind == LIGHT_DIRECTIONAL {
+        // `-pd` is a sign flip (`0 - x` would give `+0` for `+0`).
+        let minus = L::splat(-0.0);
+        let l = [L::xor(pd[0], minus), L::xor(pd[1], minus), L::xor(pd[2], minus)];
+        (l, radiance, l, f32::INFINITY)
+    } else {
+        let d = sub3::<L>(pd, s.position);
+        let d2 = L::max(dot::<L>(d, d), L::splat(MIN_LIGHT_DISTANCE_SQ));
+        let len = L::sqrt(d2);
+        let l = [L::div(d[0], len), L::div(d[1], len), L::div(d[2], len)];
+        let e = [L::div(radiance[0], d2), L::div(radiance[1], d2), L::div(radiance[2], d2)];
+        (l, e, sub3::<L>(pd, s.origin), SHADOW_T_MAX_POINT)
+    };
+    // light_can_contribute: glam's max_element is `max(x, max(y, z))` with `a > b ? a : b`.
+    let energy = L::lt(zero, L::max(e[0], L::max(e[1], e[2])));
+    let facing = L::and(L::lt(zero, dot::<L>(s.geometric_normal, l)), L::lt(zero, dot::<L>(s.normal, l)));
+    (L::bits(L::and(s.hit, L::and(facing, energy))), direction, t_max)
+}
+
+/// The shadow ray of lane `k`: core's `shadow_ray` record from the lanes' origin and
+/// direction.
+#[inline(always)]
+pub(crate) fn shadow_ray_of_lane(
+    origin: &[[f32; LANES]; 3],
+    direction: &[[f32; LANES]; 3],
+    t_max: f32,
+    k: usize,
+    light_index: u32,
+    pixel: u32,
+) -> RayRecord {
+    let lane = |v: &[[f32; LANES]; 3]| [v[0][k], v[1][k], v[2][k]];
+    shadow_ray_record(lane(origin), lane(direction), t_max, light_index, pixel)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lanes::Portable;
+    use hyrt_core::formats::LIGHT_POINT;
+    use hyrt_core::kernels::shadow::{needs_shadow_ray, shadow_ray};
+    use proptest::prelude::*;
+
+    /// The lanes' answers and rays against the scalar kernels, bit for bit.
+    fn check<L: Lanes>(surfaces: &[SurfaceRecord; LANES], light: &LightRecord) -> Result<(), TestCaseError> {
+        let s = SurfaceLanes::<L>::load(std::array::from_fn(|k| &surfaces[k]));
+        let (active, direction, t_max) = shadow_rays_lanes::<L>(&s, light);
+        let (origin, direction) = (store3::<L>(s.origin), store3::<L>(direction));
+        for (k, surface) in surfaces.iter().enumerate() {
+            let want = needs_shadow_ray(surface, light);
+            prop_assert_eq!(active >> k & 1 == 1, want, "lane {}: needs_shadow_ray of {:?}", k, surface);
+            if surface.is_hit() {
+                let want = shadow_ray(surface, light, 3, 77);
+                let got = shadow_ray_of_lane(&origin, &direction, t_max, k, 3, 77);
+                prop_assert_eq!(
+                    bytemuck::bytes_of(&got),
+                    bytemuck::bytes_of(&want),
+                    "lane {}: {:?} vs {:?}",
+                    k,
+                    got,
+                    want
+                );
+            }
+        }
+        Ok(())
+    }
+
+    fn check_levels(surfaces: &[SurfaceRecord; LANES], light: &LightRecord) -> Result<(), TestCaseError> {
+        check::<Portable>(surfaces, light)?;
+        #[cfg(target_arch = "x86_64")]
+        {
+            check::<crate::lanes::Sse2>(surfaces, light)?;
+            if is_x86_feature_detected!("avx2") {
+                // SAFETY: AVX2 detected just above.
+                unsafe { check_avx2(surfaces, light)? };
+            }
+        }
+        Ok(())
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn check_avx2(surfaces: &[SurfaceRecord; LANES], light: &LightRecord) -> Result<(), TestCaseError> {
+        check::<crate::lanes::Avx2>(surfaces, light)
+    }
+
+    /// Floats of every kind the kernels meet: signed zeros, tiny and huge magnitudes,
+    /// values near the light, and ordinary ones.
+    fn coord() -> impl Strategy<Value = f32> {
+        prop_oneof![
+            4 => -20.0f32..20.0,
+            1 => Just(0.0f32),
+            1 => Just(-0.0f32),
+            1 => -1e-6f32..1e-6,
+            1 => -1e30f32..1e30,
+            1 => any::<f32>().prop_filter("finite", |x| x.is_finite()),
+        ]
+    }
+
+    fn vec3() -> impl Strategy<Value = [f32; 3]> {
+        [coord(), coord(), coord()]
+    }
+
+    /// A unit-ish normal, a zero one (a degenerate triangle), or any vector.
+    fn normal() -> impl Strategy<Value = [f32; 3]> {
+        prop_oneof![
+            4 => vec3().prop_map(|v| {
+                let n = glam::Vec3::from(v).normalize_or_zero();
+                n.into()
+            }),
+            1 => Just([0.0f32; 3]),
+            1 => vec3(),
+        ]
+    }
+
+    fn surface() -> impl Strategy<Value = SurfaceRecord> {
+        (any::<bool>(), vec3(), 0.0f32..1e-2, normal(), normal()).prop_map(|(hit, position, err, normal, geometric)| {
+            if !hit {
+                return SurfaceRecord::MISS;
+            }
+            SurfaceRecord { position, position_error: err, normal, object: 1, geometric_normal: geometric, triangle: 2 }
+        })
+    }
+
+    fn light() -> impl Strategy<Value = LightRecord> {
+        (any::<bool>(), vec3(), [0.0f32..100.0, 0.0f32..100.0, 0.0f32..100.0]).prop_map(|(directional, p, radiance)| {
+            let p = if directional { glam::Vec3::from(p).normalize_or(glam::Vec3::Y).into() } else { p };
+            let kind = if directional { LIGHT_DIRECTIONAL } else { LIGHT_POINT };
+            LightRecord { position_or_direction: p, kind, radiance, pad: 0 }
+        })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2048))]
+
+        #[test]
+        fn shadow_ray_lanes_are_the_scalar_kernels(surfaces in prop::collection::vec(surface(), LANES), light in light()) {
+            // (A vector, not `uniform8`: eight nested value trees overflow a test thread's stack.)
+            let surfaces: [SurfaceRecord; LANES] = surfaces.try_into().expect("LANES surfaces");
+            check_levels(&surfaces, &light)?;
+        }
+    }
+
+    /// Surfaces on and around the light, with the offsets' edge cases: a zero error, a
+    /// zero normal, coordinates at zero and at the largest floats.
+    #[test]
+    fn shadow_ray_lanes_on_hard_cases() {
+        let light = LightRecord {
+            position_or_direction: [1.0, 2.0, 3.0],
+            kind: LIGHT_POINT,
+            radiance: [1.0, 0.0, 0.0],
+            pad: 0,
+        };
+        let s = |position: [f32; 3], err: f32, n: [f32; 3]| SurfaceRecord {
+            position,
+            position_error: err,
+            normal: n,
+            object: 0,
+            geometric_normal: n,
+            triangle: 0,
+        };
+        let surfaces = [
+            s([1.0, 2.0, 3.0], 0.0, [0.0, 1.0, 0.0]),
+            s([1.0, 1.0, 3.0], 1e-3, [0.0, 1.0, 0.0]),
+            s([0.0, -0.0, 0.0], 1e-7, [0.6, 0.8, 0.0]),
+            s([-0.0, 0.0, 3.0], 0.0, [0.0, 0.0, 0.0]),
+            s([f32::MAX, -f32::MAX, 1.0], 1e-3, [-1.0, 0.0, 0.0]),
+            s([1.0, 2.0 - f32::EPSILON, 3.0], 1e-9, [0.0, 1.0, 0.0]),
+            SurfaceRecord::MISS,
+            s([1e-40, -1e-40, 2.0], 1e-38, [0.0, 0.0, 1.0]),
+        ];
+        check_levels(&surfaces, &light).unwrap();
+        let directional = LightRecord { position_or_direction: [0.0, -1.0, 0.0], kind: LIGHT_DIRECTIONAL, ..light };
+        check_levels(&surfaces, &directional).unwrap();
+    }
+}
