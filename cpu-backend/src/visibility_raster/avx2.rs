@@ -14,7 +14,7 @@ use std::arch::x86_64::*;
 
 use hyrt_core::formats::GBufferTexel;
 
-use super::lanes::{first_lanes, texels, DepthLanes, LaneSink, SpanLanes, LANES};
+use super::lanes::{edges, first_lanes, texels, DepthLanes, LaneSink, SpanLanes, LANES};
 use super::{
     rasterize_tile_with, resolve_tile, span_scalar, AlphaTests, Fragment, RasterTriangle, Resolve, ScalarTexels,
     SetupTriangles, Span, TexelRun, TileScratch, TILE_PIXELS,
@@ -181,12 +181,12 @@ impl EdgeLanes for F64Lanes {
     #[inline(always)]
     fn add(self, other: Self) -> Self {
         // SAFETY: as in `new`.
-        unsafe { F64Lanes([0, 1].map(|h| _mm256_add_epi64(self.0[h], other.0[h]))) }
+        unsafe { F64Lanes([_mm256_add_epi64(self.0[0], other.0[0]), _mm256_add_epi64(self.0[1], other.0[1])]) }
     }
     #[inline(always)]
     fn or(self, other: Self) -> Self {
         // SAFETY: as in `new`.
-        unsafe { F64Lanes([0, 1].map(|h| _mm256_or_si256(self.0[h], other.0[h]))) }
+        unsafe { F64Lanes([_mm256_or_si256(self.0[0], other.0[0]), _mm256_or_si256(self.0[1], other.0[1])]) }
     }
     #[inline(always)]
     fn negative(self) -> u8 {
@@ -227,7 +227,7 @@ impl SpanLanes for Avx2Spans {
     #[inline(always)]
     fn span(scratch: &mut TileScratch, span: &Span, t: &Fragment<'_>) {
         let s = &t.stepper;
-        let raw = std::array::from_fn(|i| span.e[i] - s.bias[i]);
+        let raw = edges(|i| span.e[i] - s.bias[i]);
         match Conversion::of(raw, s.step_x, span.len) {
             Conversion::I32 => span_lanes::<I32Lanes>(scratch, span, t),
             Conversion::F64 => span_lanes::<F64Lanes>(scratch, span, t),
@@ -243,9 +243,9 @@ impl SpanLanes for Avx2Spans {
 fn span_lanes<L: EdgeLanes>(scratch: &mut TileScratch, span: &Span, t: &Fragment<'_>) {
     let s = &t.stepper;
     debug_assert!(span.base + span.len <= TILE_PIXELS);
-    let mut e: [L; 3] = std::array::from_fn(|i| L::new(span.e[i], s.step_x[i]));
-    let jump = s.step_x.map(|d| L::splat(d * LANES as i64));
-    let unbias = s.bias.map(|b| L::splat(-b));
+    let mut e = edges(|i| L::new(span.e[i], s.step_x[i]));
+    let jump = edges(|i| L::splat(s.step_x[i] * LANES as i64));
+    let unbias = edges(|i| L::splat(-s.bias[i]));
     let lanes = DepthLanes::new(t);
     let depth = scratch.depth.as_mut_ptr();
     let winner = scratch.winner.as_mut_ptr().cast::<f32>();
@@ -263,7 +263,7 @@ fn span_lanes<L: EdgeLanes>(scratch: &mut TileScratch, span: &Span, t: &Fragment
                 live &= !e[0].or(e[1]).or(e[2]).negative();
             }
             if live != 0 {
-                let (d, key) = lanes.depth([0, 1, 2].map(|i| e[i].add(unbias[i]).to_f32()));
+                let (d, key) = lanes.depth(edges(|i| e[i].add(unbias[i]).to_f32()));
                 let live = lane_mask(live);
                 let at = span.base + j;
                 let wins = |stored| {
@@ -285,7 +285,7 @@ fn span_lanes<L: EdgeLanes>(scratch: &mut TileScratch, span: &Span, t: &Fragment
                     _mm256_maskstore_ps(winner.add(at), wins, reference);
                 }
             }
-            e = [0, 1, 2].map(|i| e[i].add(jump[i]));
+            e = edges(|i| e[i].add(jump[i]));
             j += LANES;
         }
     }
@@ -308,11 +308,11 @@ impl TexelRun for Avx2Texels {
 /// [`texels`] from lanes `L`.
 #[inline(always)]
 fn texel_lanes<L: EdgeLanes>(t: &RasterTriangle, e: [i64; 3], step: [i64; 3], depth: &[f32], out: &mut [GBufferTexel]) {
-    let mut e: [L; 3] = std::array::from_fn(|i| L::new(e[i], step[i]));
-    let jump = step.map(|d| L::splat(d * LANES as i64));
+    let mut e = edges(|i| L::new(e[i], step[i]));
+    let jump = edges(|i| L::splat(step[i] * LANES as i64));
     texels(t, depth, out, || {
-        let f = e.map(L::to_f32);
-        e = [0, 1, 2].map(|i| e[i].add(jump[i]));
+        let f = edges(|i| e[i].to_f32());
+        e = edges(|i| e[i].add(jump[i]));
         f
     });
 }

@@ -10,7 +10,7 @@ use std::arch::x86_64::*;
 
 use hyrt_core::formats::GBufferTexel;
 
-use super::lanes::{first_lanes, texels, DepthLanes, LaneSink, SpanLanes, LANES};
+use super::lanes::{edges, first_lanes, texels, DepthLanes, LaneSink, SpanLanes, LANES};
 use super::{
     rasterize_tile_with, resolve_tile, AlphaTests, Fragment, RasterTriangle, Resolve, SetupTriangles, Span, TexelRun,
     TileScratch, TILE_PIXELS,
@@ -68,8 +68,8 @@ impl SpanLanes for Avx512Spans {
             let e1 = lanes_from(span.e[1], s.step_x[1]);
             let e2 = lanes_from(span.e[2], s.step_x[2]);
             let mut e = [e0, e1, e2];
-            let jump = s.step_x.map(|d| _mm512_set1_epi64(d * LANES as i64));
-            let bias = s.bias.map(|b| _mm512_set1_epi64(b));
+            let jump = edges(|k| _mm512_set1_epi64(s.step_x[k] * LANES as i64));
+            let bias = edges(|k| _mm512_set1_epi64(s.bias[k]));
             let lanes = DepthLanes::new(t);
             let zero = _mm256_setzero_ps();
             let reference = _mm256_set1_epi32(t.reference as i32);
@@ -84,7 +84,7 @@ impl SpanLanes for Avx512Spans {
                 }
                 if live != 0 {
                     // From the exact (unbiased) values.
-                    let (d, key) = lanes.depth([0, 1, 2].map(|k| _mm512_cvtepi64_ps(_mm512_sub_epi64(e[k], bias[k]))));
+                    let (d, key) = lanes.depth(edges(|k| _mm512_cvtepi64_ps(_mm512_sub_epi64(e[k], bias[k]))));
                     let at = span.base + j;
                     let stored = _mm256_maskz_loadu_ps(live, depth.add(at));
                     let wins = live
@@ -112,9 +112,9 @@ impl TexelRun for Avx512Texels {
         // SAFETY: only compiled into `tile` (AVX-512 F, VL, DQ, BW); no memory access.
         unsafe {
             let mut e = [lanes_from(e[0], step[0]), lanes_from(e[1], step[1]), lanes_from(e[2], step[2])];
-            let jump = step.map(|d| _mm512_set1_epi64(d * LANES as i64));
+            let jump = edges(|k| _mm512_set1_epi64(step[k] * LANES as i64));
             texels(t, depth, out, || {
-                let f = e.map(|e| _mm512_cvtepi64_ps(e));
+                let f = edges(|k| _mm512_cvtepi64_ps(e[k]));
                 for k in 0..3 {
                     e[k] = _mm512_add_epi64(e[k], jump[k]);
                 }

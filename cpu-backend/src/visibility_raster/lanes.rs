@@ -15,6 +15,13 @@ use super::{Fragment, FragmentSink, RasterTriangle, Span, TileScratch, NOT_CORNE
 /// Pixels per vector.
 pub(super) const LANES: usize = 8;
 
+/// `[f(0), f(1), f(2)]`, one per edge or vertex, spelt out: `array::map` and `from_fn` over
+/// vectors can stay calls, compiled without the kernel's target features (one per intrinsic).
+#[inline(always)]
+pub(super) fn edges<T>(mut f: impl FnMut(usize) -> T) -> [T; 3] {
+    [f(0), f(1), f(2)]
+}
+
 /// The bits of the first `n` lanes (`n` at least 1).
 #[inline(always)]
 pub(super) fn first_lanes(n: usize) -> u8 {
@@ -74,7 +81,7 @@ impl DepthLanes {
         // SAFETY: only compiled into the SIMD kernels' `tile` (AVX2 at least); no memory access.
         unsafe {
             DepthLanes {
-                z: t.z.map(|z| _mm256_set1_ps(z)),
+                z: edges(|k| _mm256_set1_ps(t.z[k])),
                 area: _mm256_set1_ps(t.area2 as f32),
                 interior: t.interior,
                 one: _mm256_set1_ps(1.0),
@@ -126,16 +133,16 @@ pub(super) fn texels(
     // SAFETY: only compiled into the SIMD kernels' `tile` (AVX2 at least); the stores write
     // the local arrays.
     unsafe {
-        let w = t.w.map(|w| _mm256_set1_ps(w));
-        let attr = |k: usize| t.bary.map(|a| _mm256_set1_ps(a[k]));
+        let w = edges(|k| _mm256_set1_ps(t.w[k]));
+        let attr = |k: usize| edges(|i| _mm256_set1_ps(t.bary[i][k]));
         let (au, av) = (attr(0), attr(1));
         let mut u = [0.0f32; LANES];
         let mut v = [0.0f32; LANES];
         for (out, depth) in out.chunks_mut(LANES).zip(depth.chunks(LANES)) {
             let f = next();
-            let q = [0, 1, 2].map(|k| _mm256_div_ps(f[k], w[k]));
+            let q = edges(|k| _mm256_div_ps(f[k], w[k]));
             let sum = _mm256_add_ps(_mm256_add_ps(q[0], q[1]), q[2]);
-            let b = q.map(|q| _mm256_div_ps(q, sum));
+            let b = edges(|k| _mm256_div_ps(q[k], sum));
             let (bu, bv) = if t.corners == NOT_CORNERS {
                 let mix = |a: [__m256; 3]| {
                     _mm256_add_ps(
