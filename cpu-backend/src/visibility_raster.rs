@@ -30,10 +30,13 @@
 //!    keep the earlier triangle). Then, per row, each run of pixels one triangle won
 //!    gets its edge values stepped again and its barycentrics, once per pixel.
 //!
-//! With AVX-512 (run-time detection, [`SimdLevel::Avx512`]) both steps of a tile take
-//! eight pixels at a time (`avx512`: every exact depth, no early rejection; rows up to
-//! eight pixels wide without walks), lane by lane the same IEEE operations as the
-//! scalar kernels, so the same bits; elsewhere they run pixel by pixel.
+//! With AVX-512 or AVX2 (run-time detection, [`SimdLevel::Avx512`], [`SimdLevel::Avx2`])
+//! both steps of a tile take eight pixels at a time (`avx512`, `avx2`, sharing `lanes`:
+//! every exact depth, no early rejection; rows up to eight pixels wide without walks),
+//! lane by lane the same IEEE operations as the scalar kernels, so the same bits; elsewhere
+//! they run pixel by pixel. AVX2 lacks AVX-512's conversion of i64 to f32: each span and run
+//! takes exact i32 lanes, or i64 lanes through f64, by its edge values' magnitude, and the
+//! scalar kernel beyond 2^51 (triangles far into the guard band).
 //!
 //! Every pixel is decided by one tile and every tile processes triangles in global
 //! order, so the output does not depend on the number of threads.
@@ -67,7 +70,11 @@ use rayon::prelude::*;
 use crate::traversal::SimdLevel;
 
 #[cfg(target_arch = "x86_64")]
+mod avx2;
+#[cfg(target_arch = "x86_64")]
 mod avx512;
+#[cfg(target_arch = "x86_64")]
+mod lanes;
 
 /// Side of a square screen tile in pixels (llvmpipe's `TILE_SIZE` is 64 too): a
 /// tile's scratch buffers (depth and winner: 8 bytes per pixel, 32 KiB) stay in L1/L2.
@@ -248,18 +255,23 @@ enum TileKernel {
     /// rejection).
     #[cfg(test)]
     ScalarNoEarlyReject,
+    /// Eight pixels at a time with AVX2 (`avx2`), detected at run time.
+    #[cfg(target_arch = "x86_64")]
+    Avx2,
     /// Eight pixels at a time with AVX-512 (`avx512`), detected at run time.
     #[cfg(target_arch = "x86_64")]
     Avx512,
 }
 
 impl TileKernel {
-    /// The kernel of [`SimdLevel::detect`]: AVX-512 at that level, else the scalar one
-    /// (the AVX2 and SSE2 levels lack AVX-512's conversion of i64 to f32).
+    /// The kernel of [`SimdLevel::detect`]: AVX-512 or AVX2 at those levels, else the
+    /// scalar one.
     fn detect() -> TileKernel {
         match SimdLevel::detect() {
             #[cfg(target_arch = "x86_64")]
             SimdLevel::Avx512 => TileKernel::Avx512,
+            #[cfg(target_arch = "x86_64")]
+            SimdLevel::Avx2 => TileKernel::Avx2,
             _ => TileKernel::Scalar,
         }
     }
@@ -366,6 +378,9 @@ fn raster_tile(
             rasterize_tile_with(tris, tile, rect, NoEarlyReject(scratch), alpha);
             resolve_tile::<ScalarTexels>(tris, scratch, rect, rows, resolve)
         }
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: only detected or tested where the CPU has AVX2.
+        TileKernel::Avx2 => unsafe { avx2::tile(tris, tile, rect, scratch, rows, alpha, resolve) },
         #[cfg(target_arch = "x86_64")]
         // SAFETY: only detected or tested where the CPU has AVX-512.
         TileKernel::Avx512 => unsafe { avx512::tile(tris, tile, rect, scratch, rows, alpha, resolve) },
@@ -921,7 +936,7 @@ impl<'g> AlphaTests<'g> {
 /// A depth-test sink in a scene with alpha-tested materials: a fragment of a masked
 /// triangle enters `inner`'s depth test only where its texel passes ([`AlphaTests::accepts`]),
 /// so a hole shows what lies behind it. Masked triangles' spans are walked pixel by pixel;
-/// every other triangle's span goes to `inner` as it is (the AVX-512 kernel's eight pixels
+/// every other triangle's span goes to `inner` as it is (a SIMD kernel's eight pixels
 /// at a time, say), so the result is `inner`'s bits with the holes cut.
 struct AlphaTested<'g, S> {
     inner: S,
@@ -1297,6 +1312,10 @@ mod tests {
     fn kernels() -> Vec<TileKernel> {
         let mut k = vec![TileKernel::Scalar, TileKernel::ScalarNoEarlyReject];
         #[cfg(target_arch = "x86_64")]
+        if SimdLevel::Avx2.is_available() {
+            k.push(TileKernel::Avx2);
+        }
+        #[cfg(target_arch = "x86_64")]
         if SimdLevel::Avx512.is_available() {
             k.push(TileKernel::Avx512);
         }
@@ -1375,6 +1394,39 @@ mod tests {
                 let cam = CameraRecord::new(&scene.camera.unwrap(), w, h);
                 assert!(assert_kernels_agree(&g, &cam) > 0);
             }
+        }
+    }
+
+    /// Triangles from a few pixels to far into the guard band (a ground plane to the horizon
+    /// under an eye near it, near plane 1 mm: clipped, its vertices up to 2^20 pixels out,
+    /// edge values beyond 2^51) amid the cluttered scene: every kernel gives the same bits,
+    /// and the AVX2 kernel's spans and runs take each of its conversions (i32 lanes, i64
+    /// lanes through f64, the scalar code).
+    #[test]
+    fn tile_kernels_agree_on_huge_triangles() {
+        let mut scene = cluttered_scene();
+        let ground = Mat4::from_translation(Vec3::new(0.0, -0.6, 0.0)) * Mat4::from_scale(Vec3::splat(2.0e4));
+        scene.add_object(Mesh::grid("ground", 2), Material::grey(), ground, RenderMode::Raster);
+        let wall = Mat4::from_translation(Vec3::new(0.0, 0.0, -6.0)) * Mat4::from_scale(Vec3::new(8.0, 3.0, 1.0));
+        scene.add_object(Mesh::uv_quad("wall"), Material::grey(), wall, RenderMode::Raster);
+        scene.camera = Some(camera_towards_z(Vec3::new(0.3, 0.5, 5.0), 70.0, 0.001, 1.0e5));
+        let g = WorldGeometry::build(&scene);
+        for (w, h) in [(160, 90), (67, 131), (640, 360)] {
+            let cam = CameraRecord::new(&scene.camera.unwrap(), w, h);
+            assert!(assert_kernels_agree(&g, &cam) > 0);
+        }
+        #[cfg(target_arch = "x86_64")]
+        if SimdLevel::Avx2.is_available() {
+            // One thread, so that this thread's counts are this frame's.
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+            let taken = pool.install(|| {
+                let before = avx2::tests::conversions_taken();
+                let cam = CameraRecord::new(&scene.camera.unwrap(), 160, 90);
+                raster_frame(&g, &cam, TileKernel::Avx2, &mut Vec::new());
+                let after = avx2::tests::conversions_taken();
+                [0, 1, 2].map(|c| after[c] - before[c])
+            });
+            assert!(taken.iter().all(|&n| n > 0), "spans and runs by conversion: {taken:?}");
         }
     }
 
