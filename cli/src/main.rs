@@ -468,8 +468,9 @@ impl SceneArgs {
         }
     }
 
-    /// The frame options `--weight`, `--max-depth` and `--barycentrics` say.
-    fn frame_options(&self, stage_outputs: bool) -> FrameOptions {
+    /// The frame options `--weight`, `--max-depth` and `--barycentrics` say, returning every
+    /// stage's output with `stage_outputs` and the G-buffer with `keep_gbuffer`.
+    fn frame_options(&self, stage_outputs: bool, keep_gbuffer: bool) -> FrameOptions {
         let barycentrics = match self.barycentrics {
             BarycentricsArg::Raster => hyrt::PrimaryBarycentrics::Raster,
             BarycentricsArg::Reintersected => hyrt::PrimaryBarycentrics::Reintersected,
@@ -477,6 +478,7 @@ impl SceneArgs {
         FrameOptions {
             weight: self.weight,
             stage_outputs,
+            keep_gbuffer,
             max_depth: self.max_depth.unwrap_or(hyrt::DEFAULT_MAX_DEPTH),
             barycentrics,
         }
@@ -485,7 +487,8 @@ impl SceneArgs {
 
 /// The timed lines of a frame, `(label, ms)` in the order they ran: each step's (a bounce
 /// step carries its depth: `compaction{2}`), and for a fused frame its tiles' line, which
-/// holds every step after `visibility_raster`.
+/// holds the raster tiles' depth tests and resolves and every later step
+/// (`visibility_raster`'s line is its setup and binning then).
 fn timed_lines(s: &hyrt::FrameStats) -> Vec<(String, f64)> {
     let mut lines: Vec<(String, f64)> = s.stage_ms.iter().map(|t| (t.label(), t.ms)).collect();
     if s.executor == hyrt::Executor::Fused {
@@ -494,7 +497,8 @@ fn timed_lines(s: &hyrt::FrameStats) -> Vec<(String, f64)> {
     lines
 }
 
-/// The fused frame's line in `hyrt render`'s times: every step after `visibility_raster`.
+/// The fused frame's line in `hyrt render`'s times: the raster's tiles and every step after
+/// `visibility_raster` ([`hyrt::FrameStats::fused_ms`]).
 const FUSED_TILES_LABEL: &str = "fused tiles";
 
 /// `frame.png` -> `frame_0007.png`: frame `i` of an animation rendered to `out`.
@@ -539,7 +543,8 @@ fn render(args: RenderArgs) -> Result<(), String> {
     let mut prepared = motion.prepare(&renderer, &scene);
     let prepare_ms = ms_since(t);
     // Every stage's output is kept only for --dump (the GPU then reads them back too).
-    let options = common.frame_options(args.dump.is_some());
+    // An image to write needs no G-buffer (`--dump` returns every stage's output).
+    let options = common.frame_options(args.dump.is_some(), false);
     let mut per_frame = Vec::with_capacity(args.frames as usize);
     // What the frames add to the prepared scene: the resident memory now, and the peak from
     // now on (Linux; the scene's load and preparation do not count).

@@ -92,6 +92,7 @@ fn conformance_gpu_matches_cpu_with_reintersected_barycentrics_over_the_corpus()
             stage_outputs: true,
             max_depth: case.max_depth,
             barycentrics,
+            ..FrameOptions::default()
         };
         let a = cpu.render(&p, &camera, &opts(PrimaryBarycentrics::Reintersected)).unwrap();
         let b = gpu.render(&p, &camera, &opts(PrimaryBarycentrics::Reintersected)).unwrap();
@@ -167,8 +168,9 @@ fn cpu_frames_without_the_ray_list_are_the_frames_with_it_over_the_corpus() {
         };
         let (with, without) =
             (cpu.render(&p, &camera, &opts(true)).unwrap(), cpu.render(&p, &camera, &opts(false)).unwrap());
-        // A display frame holds the G-buffer and the final image alone.
+        // A display frame holds the final image alone.
         assert!(without.rays.is_empty() && without.occluded.is_empty() && without.shadow.is_empty(), "{}", case.name);
+        assert!(without.gbuffer.is_empty(), "{}: no G-buffer unless asked", case.name);
         let bits = |v: &[[f32; 4]]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&with.final_image), bits(&without.final_image), "{}: final image", case.name);
         assert_eq!(with.stats.rays_per_kind, without.stats.rays_per_kind, "{}", case.name);

@@ -1,7 +1,9 @@
 //! The CPU backend's two executors over the corpus: the fused, tiled frame
 //! (`hyrt_cpu::fused`) gives the staged frame's G-buffer, final image and statistics bit
 //! for bit, on every case, at every SIMD level this CPU has, on 1, 2 and 3 threads, with
-//! the raster's and with re-intersected barycentrics.
+//! the raster's and with re-intersected barycentrics; and a frame that does not ask for its
+//! G-buffer (`FrameOptions::keep_gbuffer`, which the fused frame then keeps in its raster
+//! tiles' scratch alone) has none and the same final image and statistics.
 //!
 //! One test in its own binary: forcing the SIMD level is process-wide.
 
@@ -42,7 +44,13 @@ fn fused_frames_are_the_staged_frames_over_the_corpus() {
             // The case's own depth and none: a bounce case runs staged with its bounces,
             // fused without them.
             for max_depth in [case.max_depth, 0] {
-                let opts = FrameOptions { weight: case.weight, max_depth, barycentrics, ..FrameOptions::default() };
+                let opts = FrameOptions {
+                    weight: case.weight,
+                    max_depth,
+                    barycentrics,
+                    keep_gbuffer: true,
+                    ..FrameOptions::default()
+                };
                 force_simd_level(None).unwrap();
                 let want = render(&mut staged, &p, &case, &opts);
                 assert_eq!(want.stats.executor, Executor::Staged);
@@ -53,23 +61,34 @@ fn fused_frames_are_the_staged_frames_over_the_corpus() {
                         // The traversal's level is the backend's setting; the raster's is
                         // detected per frame.
                         cpu.set_shadow_traversal(Traversal::simd());
-                        let f = render(cpu, &p, &case, &opts);
-                        let runs_fused = cpu.executor_for(&f.plan, &opts) == Executor::Fused;
-                        assert_eq!(f.stats.executor, if runs_fused { Executor::Fused } else { Executor::Staged });
-                        assert_eq!(runs_fused, f.plan.bounce_depth() == 0, "{}: only bounces run staged", case.name);
-                        let got = returned(&f);
-                        let what = format!(
-                            "{}: {} barycentrics, max depth {max_depth}, {level:?}, {} threads, {}",
-                            case.name,
-                            barycentrics.name(),
-                            cpu.threads(),
-                            f.stats.executor.name()
-                        );
-                        assert!(got.0 == want.0, "{what}: G-buffer differs");
-                        assert!(got.1 == want.1, "{what}: final image differs");
-                        assert_eq!(got.2, want.2, "{what}: covered, ray-traced, raster pixels, occluded rays");
-                        assert_eq!(got.3, want.3, "{what}: rays per kind");
-                        compared += runs_fused as usize;
+                        for keep_gbuffer in [true, false] {
+                            let opts = FrameOptions { keep_gbuffer, ..opts };
+                            let f = render(cpu, &p, &case, &opts);
+                            let runs_fused = cpu.executor_for(&f.plan, &opts) == Executor::Fused;
+                            assert_eq!(f.stats.executor, if runs_fused { Executor::Fused } else { Executor::Staged });
+                            assert_eq!(
+                                runs_fused,
+                                f.plan.bounce_depth() == 0,
+                                "{}: only bounces run staged",
+                                case.name
+                            );
+                            let got = returned(&f);
+                            let what = format!(
+                                "{}: {} barycentrics, max depth {max_depth}, {level:?}, {} threads, {}, G-buffer kept: {keep_gbuffer}",
+                                case.name,
+                                barycentrics.name(),
+                                cpu.threads(),
+                                f.stats.executor.name()
+                            );
+                            match keep_gbuffer {
+                                true => assert!(got.0 == want.0, "{what}: G-buffer differs"),
+                                false => assert!(got.0.is_empty(), "{what}: a G-buffer not asked for"),
+                            }
+                            assert!(got.1 == want.1, "{what}: final image differs");
+                            assert_eq!(got.2, want.2, "{what}: covered, ray-traced, raster pixels, occluded rays");
+                            assert_eq!(got.3, want.3, "{what}: rays per kind");
+                            compared += runs_fused as usize;
+                        }
                     }
                 }
             }

@@ -210,7 +210,9 @@ fn check_plan(case: &Case, backend: &str, f: &Frame) {
     assert_eq!(f.plan.composition(), case.composition, "{backend} / {}", case.name);
     for b in FrameBuffer::ALL {
         let ran = case.ran.contains(&b.writer());
-        let held = ran && (f.stage_outputs || b.always_returned());
+        let asked =
+            FrameOptions { stage_outputs: f.stage_outputs, keep_gbuffer: f.keep_gbuffer, ..FrameOptions::default() };
+        let held = ran && asked.returns(b);
         assert_eq!(f.buffer(b).is_some(), held, "{backend} / {}: buffer {b}", case.name);
         if !held {
             let len = match b {

@@ -115,11 +115,12 @@ pub struct FrameStats {
     /// The stages the frame's plan left out, and why.
     pub skipped: Vec<Skipped>,
     /// How the backend ran the plan. With [`Executor::Fused`], `stage_ms` holds
-    /// `visibility_raster` alone and every later step ran in the tiles, timed together in
-    /// `fused_ms`.
+    /// `visibility_raster`'s setup and binning alone, and its tiles (depth test and
+    /// resolve) and every later step ran in the tiles, timed together in `fused_ms`.
     pub executor: Executor,
-    /// Milliseconds of the fused executor's tile pass ([`Executor::Fused`]): every step of
-    /// the plan after `visibility_raster`, tile by tile. Zero for a staged frame.
+    /// Milliseconds of the fused executor's tile pass ([`Executor::Fused`]): each
+    /// raster tile's depth test and resolve, and every step of the plan after
+    /// `visibility_raster` on its pixels, tile by tile. Zero for a staged frame.
     pub fused_ms: f64,
 }
 
@@ -136,8 +137,9 @@ pub enum Executor {
     /// The CPU backend's fused, tiled frame: after `visibility_raster`, each screen tile runs
     /// reconstruction, shadow-ray generation and tracing, shading and composition while its
     /// data is in cache, with tile-local scratch instead of whole-image buffers. It returns
-    /// the final image and the G-buffer; it runs frames without stage outputs and without
-    /// bounces.
+    /// the final image, and the G-buffer where the frame asks for it
+    /// ([`FrameOptions::keep_gbuffer`]: otherwise the G-buffer lives in each raster tile's
+    /// scratch only); it runs frames without stage outputs and without bounces.
     Fused,
 }
 
@@ -168,7 +170,8 @@ impl FrameStats {
 pub struct Frame {
     pub width: u32,
     pub height: u32,
-    /// `visibility_raster`: one texel per pixel.
+    /// `visibility_raster`: one texel per pixel; empty unless the frame was asked for it
+    /// ([`FrameOptions::keep_gbuffer`] or [`FrameOptions::stage_outputs`]).
     pub gbuffer: Vec<GBufferTexel>,
     /// `reconstruction`: one record per pixel.
     pub surfaces: Vec<SurfaceRecord>,
@@ -193,6 +196,10 @@ pub struct Frame {
     /// The frame holds every buffer its plan produced ([`FrameOptions::stage_outputs`]),
     /// not only those a display loop needs.
     pub stage_outputs: bool,
+    /// The frame holds the G-buffer ([`FrameOptions::keep_gbuffer`]) even without stage
+    /// outputs. Without either, `gbuffer` is empty (the CPU's fused executor never writes
+    /// it whole-image then).
+    pub keep_gbuffer: bool,
 }
 
 /// The buffers of one bounce depth `d` ([`BounceBuffer`] says what each holds).
@@ -267,7 +274,8 @@ pub enum BufferView<'a> {
 impl Frame {
     /// The contents of `buffer`, or `None` when the frame does not hold it: its stage
     /// did not run, or the backend returned only what a display loop needs
-    /// ([`FrameOptions::stage_outputs`] false and not [`FrameBuffer::always_returned`]).
+    /// ([`FrameOptions::returns`] false: no stage outputs, and not the final image or a
+    /// G-buffer [`FrameOptions::keep_gbuffer`] asked for).
     pub fn buffer(&self, buffer: FrameBuffer) -> Option<BufferView<'_>> {
         if !self.holds(buffer) {
             return None;
@@ -293,7 +301,9 @@ impl Frame {
 
     /// True if the frame holds `buffer` (see [`Frame::buffer`]).
     pub fn holds(&self, buffer: FrameBuffer) -> bool {
-        self.plan.produces(buffer) && (self.stage_outputs || buffer.always_returned())
+        let options =
+            FrameOptions { stage_outputs: self.stage_outputs, keep_gbuffer: self.keep_gbuffer, ..Default::default() };
+        self.plan.produces(buffer) && options.returns(buffer)
     }
 
     /// The buffers the frame holds, in stage order ([`FramePlan::buffers`]).
@@ -314,6 +324,7 @@ impl Frame {
     pub fn begin(&mut self, plan: &FramePlan, options: &FrameOptions) {
         self.plan.clone_from(plan);
         self.stage_outputs = options.stage_outputs;
+        self.keep_gbuffer = options.keep_gbuffer;
     }
 
     /// Empty every buffer the frame does not hold (keeping its allocation for a later

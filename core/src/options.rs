@@ -13,10 +13,18 @@ pub struct FrameOptions {
     pub weight: f32,
     /// Return every stage's output in the [`Frame`](crate::frame::Frame) (for `--dump`, conformance).
     /// When false (the default: what a display loop needs), the frame holds only the
-    /// final image and the G-buffer
-    /// ([`FrameBuffer::always_returned`](crate::plan::FrameBuffer::always_returned)): the GPU backend then reads back one combined
-    /// buffer per frame.
+    /// final image ([`FrameBuffer::always_returned`](crate::plan::FrameBuffer::always_returned)),
+    /// and the G-buffer if [`FrameOptions::keep_gbuffer`] asks for it: the GPU backend then
+    /// reads back one combined buffer per frame.
     pub stage_outputs: bool,
+    /// Return the G-buffer in a frame without [`FrameOptions::stage_outputs`] (which
+    /// returns it anyway): for picking (`hyrt view`) and the G-buffer's views. False by
+    /// default: a frame for display (`hyrt render`) needs the final image alone, and the
+    /// CPU backend's fused executor then writes the G-buffer only into each raster tile's
+    /// scratch, never whole-image (`hyrt_cpu::memory`). The frame's counts do not depend
+    /// on it. The GPU backend reads the G-buffer back either way (its statistics count it)
+    /// and empties it at the end of a frame that did not ask for it.
+    pub keep_gbuffer: bool,
     /// The deepest bounce of reflection and refraction rays traced from ray-traced
     /// mirrors and glass ([`crate::kernels::bounce`]), at most [`MAX_DEPTH_LIMIT`];
     /// 0 traces none (the paper's frame: shadow rays only).
@@ -53,7 +61,8 @@ impl PrimaryBarycentrics {
 }
 
 impl Default for FrameOptions {
-    /// Weight 1 (ray-traced objects shaded by the tracer alone), no stage outputs,
+    /// Weight 1 (ray-traced objects shaded by the tracer alone), no stage outputs (the
+    /// final image alone),
     /// reflection and refraction to [`crate::kernels::bounce::DEFAULT_MAX_DEPTH`]
     /// bounces (a scene without ray-traced mirrors or glass plans none; `max_depth: 0`
     /// gives the paper's frame, shadow rays only).
@@ -61,6 +70,7 @@ impl Default for FrameOptions {
         FrameOptions {
             weight: 1.0,
             stage_outputs: false,
+            keep_gbuffer: false,
             max_depth: crate::kernels::bounce::DEFAULT_MAX_DEPTH,
             barycentrics: PrimaryBarycentrics::Raster,
         }
@@ -71,6 +81,15 @@ impl FrameOptions {
     /// The default options with every stage's output returned (`--dump`, tests).
     pub fn with_stage_outputs() -> Self {
         FrameOptions { stage_outputs: true, ..FrameOptions::default() }
+    }
+
+    /// True if a frame under these options returns `buffer` where its plan writes it:
+    /// every buffer with [`FrameOptions::stage_outputs`], else the final image and, with
+    /// [`FrameOptions::keep_gbuffer`], the G-buffer.
+    pub fn returns(&self, buffer: crate::plan::FrameBuffer) -> bool {
+        self.stage_outputs
+            || buffer.always_returned()
+            || (self.keep_gbuffer && buffer == crate::plan::FrameBuffer::GBuffer)
     }
 
     /// Check the options: the weight is a number in [0, 1]. [`FramePlan::new`](crate::plan::FramePlan::new) calls

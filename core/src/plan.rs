@@ -218,12 +218,13 @@ impl FrameBuffer {
         }
     }
 
-    /// True for the buffers a display loop needs and every backend returns even
-    /// without [`FrameOptions::stage_outputs`]: the final image and the G-buffer (pixel
-    /// counts, picking). The frame's statistics count the rest (occluded shadow rays
-    /// among them); the fused CPU frame writes nothing else whole-image.
+    /// True for the buffer a display loop needs and every backend returns even without
+    /// [`FrameOptions::stage_outputs`]: the final image. The G-buffer comes with it when
+    /// [`FrameOptions::keep_gbuffer`] asks (picking; [`FrameOptions::returns`]). The
+    /// frame's statistics count the rest (covered pixels and occluded shadow rays among
+    /// them); the fused CPU frame writes nothing else whole-image.
     pub const fn always_returned(self) -> bool {
-        matches!(self, FrameBuffer::GBuffer | FrameBuffer::Final)
+        matches!(self, FrameBuffer::Final)
     }
 }
 

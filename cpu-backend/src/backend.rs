@@ -21,7 +21,7 @@ use crate::{
         active_pairs_into, compaction_into, pair_ray, shadow_mask_into, shadow_mask_of_pairs_into, CompactionScratch,
     },
     composition::composition_into,
-    fused::{fused_tiles, FusedSteps},
+    fused::{fused_frame, FusedSteps},
     memory,
     raster_shading::{raster_shading_into, Primary},
     reconstruction::{reconstruction_into, reconstruction_reintersected_into},
@@ -216,7 +216,8 @@ impl Backend for CpuBackend {
         let (width, height) = (camera.width, camera.height);
         let fused = self.fused_steps(&plan, options);
         let executor = fused.map_or(Executor::Staged, |_| Executor::Fused);
-        memory::check(&plan, executor, width, height)?;
+        let run = memory::FrameRun::new(executor, options, &scene.geometry);
+        memory::check(&plan, run, width, height)?;
         let g = &scene.geometry;
         let eye = Vec3::from(camera.eye);
         let threads = self.threads();
@@ -228,15 +229,17 @@ impl Backend for CpuBackend {
         if plan.bounce_depth() > 0 {
             f.bounce_mut(plan.bounce_depth());
         }
-        memory::reserve_frame(f, &plan, executor, width, height)?;
+        memory::reserve_frame(f, &plan, run, width, height)?;
         if let Some(steps) = fused {
             self.pool.install(|| {
+                // The G-buffer whole-image only where the frame returns it.
+                let gbuffer = run.keep_gbuffer.then_some(&mut f.gbuffer);
                 let t = Instant::now();
-                let covered = visibility_raster_into(g, camera, &mut f.gbuffer) as u64;
-                let raster_ms = t.elapsed().as_secs_f64() * 1e3;
-                let t = Instant::now();
-                let counts = fused_tiles(scene, camera, options, steps, traversal, &f.gbuffer, &mut f.final_image);
-                let fused_ms = t.elapsed().as_secs_f64() * 1e3;
+                let run = fused_frame(scene, camera, options, steps, traversal, gbuffer, &mut f.final_image);
+                // The raster's setup and binning alone; its tiles run with the fused steps.
+                let raster_ms = run.raster_setup.as_secs_f64() * 1e3;
+                let fused_ms = t.elapsed().as_secs_f64() * 1e3 - raster_ms;
+                let (covered, counts) = (run.covered_pixels, run.counts);
                 let mut stats = FrameStats {
                     width,
                     height,

@@ -1,9 +1,12 @@
 //! The fused, tiled executor ([`Executor::Fused`]): the frame's plan run tile by tile
 //! instead of stage by stage.
 //!
-//! `visibility_raster` runs as in the staged frame (it bins triangles to its own 64-pixel
-//! tiles and writes the G-buffer, which the frame returns). Then every [`FUSED_TILE`]-square
-//! screen tile, in parallel, runs the rest of the plan while its data is in cache:
+//! `visibility_raster` sets up and bins triangles to its 64-pixel tiles as in the staged
+//! frame; then each raster tile, in parallel, is depth-tested and resolved into a
+//! tile-local G-buffer, and right after (in a scene the raster takes in batches, after the
+//! last batch) each of its [`FUSED_TILE`]-square tiles runs the rest of the plan from
+//! those texels while they are in cache (the raster's per-tile hook,
+//! [`TileHook`](crate::visibility_raster::TileHook)):
 //!
 //! 1. `reconstruction` of the tile's pixels into tile-local surfaces, a
 //!    [`TILE_WIDTH`] x [`TILE_HEIGHT`] block of eight pixels at a time
@@ -20,8 +23,15 @@
 //!    final image.
 //!
 //! A tile no triangle covers writes the background and does nothing else. Nothing
-//! whole-image is written but the G-buffer and the final image: no surface records, no
-//! ray list or active pairs, no shadow mask, no raster or ray-traced image.
+//! whole-image is written but the final image, and the G-buffer where the frame asks for it
+//! ([`FrameOptions::keep_gbuffer`]: each raster tile's texels are copied out to it): no
+//! surface records, no ray list or active pairs, no shadow mask, no raster or ray-traced
+//! image. A scene the raster takes in batches keeps its texels whole-image between
+//! batches ([`crate::memory`]).
+//!
+//! A raster tile is four fused tiles: fused tiles of 16, 32 and 64 pixels measured within
+//! noise of each other on the teaser (when they read a whole-image G-buffer), and 32 keeps
+//! a tile's scratch, beside the raster tile's 128 KiB, within L2.
 //!
 //! Every step calls the very kernel the staged stage calls for that pixel or ray, or its
 //! eight-lane form, which does the scalar kernel's operations in its order (each lane's
@@ -30,11 +40,12 @@
 //! packet it is traced in (the traversals are exact). So the final image, the G-buffer and
 //! the frame's counts are the staged frame's bit for bit, whatever the thread count or
 //! SIMD level (`hyrt-conformance`'s `fused_frames_are_the_staged_frames_over_the_corpus`
-//! checks it on every case).
+//! checks it on every case, with and without the G-buffer kept).
 //!
 //! Frames that return stage outputs or trace bounces run staged ([`Executor::Fused`]).
 //!
 //! [`Executor::Fused`]: hyrt_core::frame::Executor::Fused
+//! [`FrameOptions::keep_gbuffer`]: hyrt_core::frame::FrameOptions::keep_gbuffer
 //! [`needs_shadow_ray`]: hyrt_core::kernels::shadow::needs_shadow_ray
 //! [`shadow_ray`]: hyrt_core::kernels::shadow::shadow_ray
 //! [`shadow_code`]: hyrt_core::kernels::shadow::shadow_code
@@ -48,7 +59,6 @@ use hyrt_core::kernels::shading::BACKGROUND_RGBA;
 use hyrt_core::kernels::shadow::shadow_code;
 use hyrt_core::kernels::texture::Materials;
 use hyrt_core::plan::{Composition, FramePlan, Step};
-use rayon::prelude::*;
 
 use crate::compaction::lanes::{shadow_ray_of_lane, shadow_rays_lanes, store3, SurfaceLanes};
 use crate::composition::composition_pixel;
@@ -58,7 +68,7 @@ use crate::reconstruction::{BlockSetups, Reconstruct};
 use crate::rt_shading::rt_shading_pixel;
 use crate::traversal::tiles::{TILE_HEIGHT, TILE_WIDTH};
 use crate::traversal::{occluded_in_object_space_serial, occluded_serial, SimdLevel, Traversal, SHADOW_VISIBLE};
-use crate::visibility_raster::tile_rows;
+use crate::visibility_raster::{raster_area, tile_rows, visibility_raster_with, TileHook, TileTexels, TILE_SIZE};
 
 /// Side of a fused tile in pixels. A tile's scratch is its surfaces (48 bytes a pixel), its
 /// shadow mask (a byte per pixel and light) and one light's rays (64 bytes a pixel): at 32,
@@ -149,9 +159,9 @@ struct TileScratch {
 struct TileInputs<'a> {
     scene: &'a PreparedScene,
     camera: &'a CameraRecord,
-    gbuffer: &'a [GBufferTexel],
     steps: FusedSteps,
     reconstruct: Reconstruct<'a>,
+    /// The materials and the eye; each tile reads its own texels (`gbuffer` empty here).
     primary: Primary<'a>,
     weight: f32,
     traversal: Traversal,
@@ -159,56 +169,110 @@ struct TileInputs<'a> {
     level: SimdLevel,
 }
 
-/// Run the fused tiles of a frame whose G-buffer `visibility_raster` wrote: the final
-/// image into `final_image` (sized to the frame; its capacity reserved by the caller), on
-/// the current rayon pool. Returns the counts the frame's statistics need.
-pub fn fused_tiles(
+/// What [`fused_frame`] counts and times.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FusedFrame {
+    /// `visibility_raster`'s hit texels.
+    pub covered_pixels: u64,
+    /// The tiles' counts.
+    pub counts: TileCounts,
+    /// Time `visibility_raster` spent setting up and binning triangles, before the tiles
+    /// (whose depth tests and resolves run with the fused steps).
+    pub raster_setup: std::time::Duration,
+}
+
+/// Run a fused frame on the current rayon pool: `visibility_raster`, and in each of its
+/// [`TILE_SIZE`](crate::visibility_raster::TILE_SIZE)-square tiles, right after the tile's
+/// texels are final, the fused steps over its [`FUSED_TILE`]-square tiles, from the
+/// tile-local texels (see the module docs). The G-buffer goes into `gbuffer` when given
+/// (the caller keeps it), else nowhere whole-image; the final image into `final_image`
+/// (sized to the frame; its capacity reserved by the caller).
+#[allow(clippy::too_many_arguments)]
+pub fn fused_frame(
     scene: &PreparedScene,
     camera: &CameraRecord,
     options: &FrameOptions,
     steps: FusedSteps,
     traversal: Traversal,
-    gbuffer: &[GBufferTexel],
+    gbuffer: Option<&mut Vec<GBufferTexel>>,
     final_image: &mut Vec<[f32; 4]>,
-) -> TileCounts {
+) -> FusedFrame {
     let (w, h) = (camera.width as usize, camera.height as usize);
-    assert_eq!(gbuffer.len(), w * h, "fused_tiles: a G-buffer of the frame's size");
     // Every pixel is written by its tile: resizing only grows a new buffer.
     final_image.resize(w * h, [0.0; 4]);
     let materials: Materials = scene.geometry.materials(camera);
     let inputs = TileInputs {
         scene,
         camera,
-        gbuffer,
         steps,
         reconstruct: Reconstruct::new(options.barycentrics, camera),
-        primary: Primary { gbuffer, materials: &materials, eye: camera.eye.into() },
+        primary: Primary { gbuffer: &[], materials: &materials, eye: camera.eye.into() },
         weight: options.weight,
         traversal,
         level: SimdLevel::detect(),
     };
-    let tiles_x = w.div_ceil(FUSED_TILE);
-    tile_rows(final_image, w, (w, h), FUSED_TILE)
-        .into_par_iter()
-        .enumerate()
-        .map_init(TileScratch::default, |scratch, (t, rows)| {
-            let origin = ((t % tiles_x) * FUSED_TILE, (t / tiles_x) * FUSED_TILE);
-            tile(&inputs, origin, rows, scratch)
-        })
-        .reduce(TileCounts::default, |a, b| a + b)
+    let area = raster_area(camera);
+    if area != (w, h) {
+        // Pixels beyond the raster's reach (`MAX_IMAGE_DIM`) are misses: the background.
+        let background = composition_pixel(steps.composition, &BACKGROUND_RGBA, &[0.0; 4], inputs.weight);
+        for (y, row) in final_image.chunks_mut(w.max(1)).enumerate() {
+            row[if y < area.1 { area.0 } else { 0 }..].fill(background);
+        }
+    }
+    let outs = tile_rows(final_image, w, area, TILE_SIZE as usize);
+    let raster = visibility_raster_with(&scene.geometry, camera, gbuffer, &inputs, outs);
+    FusedFrame { covered_pixels: raster.covered as u64, counts: raster.counts, raster_setup: raster.setup }
 }
 
-/// One tile with top-left pixel `(x0, y0)` and final-image rows `rows`.
+/// The fused steps as the raster's per-tile hook: a raster tile's texels are split into
+/// [`FUSED_TILE`]-square tiles.
+impl<'a> TileHook for TileInputs<'a> {
+    /// The raster tile's rows of the final image.
+    type Out = Vec<&'a mut [[f32; 4]]>;
+    type Scratch = TileScratch;
+    type Counts = TileCounts;
+
+    fn scratch(&self) -> TileScratch {
+        TileScratch::default()
+    }
+
+    fn tile(&self, scratch: &mut TileScratch, texels: TileTexels<'_>, mut rows: Self::Out) -> TileCounts {
+        let ((x0, y0), (tw, th), stride) = (texels.origin, texels.size, TILE_SIZE as usize);
+        let mut counts = TileCounts::default();
+        for sy in (0..th).step_by(FUSED_TILE) {
+            for sx in (0..tw).step_by(FUSED_TILE) {
+                let sub = rows[sy..(sy + FUSED_TILE).min(th)].iter_mut().map(|r| &mut r[sx..(sx + FUSED_TILE).min(tw)]);
+                let local = TexelTile { texels: &texels.texels[sy * stride + sx..], stride };
+                counts = counts + tile(self, (x0 + sx, y0 + sy), local, sub.collect(), scratch);
+            }
+        }
+        counts
+    }
+
+    fn add(a: TileCounts, b: TileCounts) -> TileCounts {
+        a + b
+    }
+}
+
+/// A fused tile's texels: texel `(lx, ly)` of the tile is `texels[ly * stride + lx]`.
+#[derive(Clone, Copy)]
+struct TexelTile<'a> {
+    texels: &'a [GBufferTexel],
+    stride: usize,
+}
+
+/// One tile with top-left pixel `(x0, y0)`, texels `texels` and final-image rows `rows`.
 fn tile(
     inputs: &TileInputs,
     (x0, y0): (usize, usize),
+    TexelTile { texels, stride }: TexelTile,
     mut rows: Vec<&mut [[f32; 4]]>,
     s: &mut TileScratch,
 ) -> TileCounts {
-    let TileInputs { scene, camera, gbuffer, steps, .. } = *inputs;
+    let TileInputs { scene, camera, steps, .. } = *inputs;
     let g = &scene.geometry;
     let (width, tw, th) = (camera.width as usize, rows.first().map_or(0, |r| r.len()), rows.len());
-    let texel = |lx: usize, ly: usize| &gbuffer[(y0 + ly) * width + x0 + lx];
+    let texel = |lx: usize, ly: usize| &texels[ly * stride + lx];
     let mut counts = TileCounts::default();
     // A tile no triangle covers: the background, which every plan composes there.
     if (0..th).all(|ly| (0..tw).all(|lx| !texel(lx, ly).is_hit())) {
@@ -224,13 +288,12 @@ fn tile(
             counts.ray_traced_pixels += (t.is_hit() && t.is_ray_traced()) as u64;
         }
     }
-    let first = y0 * width + x0;
     dispatch!(
         inputs.level,
         tile_reconstruction,
         tile_reconstruction_avx512,
         tile_reconstruction_avx2,
-        (&inputs.reconstruct, g, &gbuffer[first..], (x0, y0), (tw, th), width, &mut s.setups, &mut s.surfaces)
+        (&inputs.reconstruct, g, texels, (x0, y0), (tw, th), stride, &mut s.setups, &mut s.surfaces)
     );
     crate::reconstruction::validate(&s.surfaces);
 
@@ -274,12 +337,12 @@ fn tile(
         }
     }
 
-    // rt_shading, raster_shading, composition
-    let primary = &inputs.primary;
+    // rt_shading, raster_shading, composition (a pixel's texel `i` in the tile's texels)
+    let primary = &Primary { gbuffer: texels, ..inputs.primary };
     for (ly, row) in rows.iter_mut().enumerate() {
         for (lx, out) in row.iter_mut().enumerate() {
             let k = ly * tw + lx;
-            let (i, surface, shadow) = ((y0 + ly) * width + x0 + lx, &s.surfaces[k], &s.shadow[k * nl..(k + 1) * nl]);
+            let (i, surface, shadow) = (ly * stride + lx, &s.surfaces[k], &s.shadow[k * nl..(k + 1) * nl]);
             let rt = match steps.rt_shading {
                 true => rt_shading_pixel(primary, lights, i, surface, shadow),
                 false => [0.0; 4],
@@ -295,8 +358,8 @@ fn tile(
 }
 
 /// The surfaces of a tile of `tw` x `th` pixels whose top-left pixel is `(x0, y0)` into
-/// `surfaces` (row-major), from the G-buffer `gbuffer` of rows `width` texels long that
-/// starts at that pixel: `reconstruction` a [`TILE_WIDTH`] x [`TILE_HEIGHT`] block at a
+/// `surfaces` (row-major), from its texels `gbuffer` (texel `(lx, ly)` at
+/// `ly * width + lx`): `reconstruction` a [`TILE_WIDTH`] x [`TILE_HEIGHT`] block at a
 /// time ([`Reconstruct::block`]).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]

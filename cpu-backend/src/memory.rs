@@ -10,7 +10,7 @@
 //! | buffer | bytes | when |
 //! |---|---:|---|
 //! | G-buffer ([`GBufferTexel`]) | 24 | always |
-//! | `visibility_raster`'s per-pixel counts (scratch) | 8 | always |
+//! | `visibility_raster`'s per-pixel depth and winner (scratch) | 8 | always |
 //! | surfaces ([`SurfaceRecord`]) | 48 | always |
 //! | compaction flags (scratch, `u32` per pixel and light) | 4 L | with lights |
 //! | shadow mask (`u8` per pixel and light) | L | with lights |
@@ -20,16 +20,21 @@
 //! so the default scene's staged frame (two lights, no bounce) needs at least 138 bytes per
 //! pixel and at most 282.
 //!
-//! The fused executor ([`crate::fused`]) keeps only the G-buffer, the raster's counts and
-//! the final image whole-image: 48 bytes per pixel whatever the lights, plus each worker's
-//! tile scratch (a fixed size per thread, independent of the image: see
-//! [`crate::fused::FUSED_TILE`]). A bounce depth adds, per ray of that depth, 64 (the ray) + 24
+//! The fused executor ([`crate::fused`]) keeps only the final image whole-image: 16 bytes
+//! per pixel whatever the lights, plus each worker's tile scratch (a fixed size per thread,
+//! independent of the image: the raster tile's depth, winner and texels, 128 KiB, and the
+//! fused tile's, see [`crate::fused::FUSED_TILE`]). A frame that asks for its G-buffer
+//! ([`FrameOptions::keep_gbuffer`]) adds it (24: 40 in all); a scene the raster takes in
+//! batches ([`crate::visibility_raster::batched`], over a million triangles) keeps its
+//! texels and each tile's depth and winner whole-image from batch to batch (24 + 8: 48 in
+//! all). A bounce depth adds, per ray of that depth, 64 (the ray) + 24
 //! (its hit) + 48 (its surface) + 16 (its radiance) + 8 (its link from the parent) + the
 //! flags of its parents' lobes, and its own shadow rays: how many rays a depth has is
 //! known only when it runs (at most two per parent), so bounce buffers are reserved
 //! fallibly then, and the estimate counts their least (none).
 //!
 //! [`GBufferTexel`]: hyrt_core::formats::GBufferTexel
+//! [`FrameOptions::keep_gbuffer`]: hyrt_core::frame::FrameOptions::keep_gbuffer
 //! [`SurfaceRecord`]: hyrt_core::formats::SurfaceRecord
 //! [`RayRecord`]: hyrt_core::formats::RayRecord
 
@@ -37,7 +42,8 @@ use std::collections::TryReserveError;
 use std::mem::size_of;
 
 use hyrt_core::formats::{GBufferTexel, RayRecord, SurfaceRecord};
-use hyrt_core::frame::{Executor, Frame, RenderError};
+use hyrt_core::frame::{Executor, Frame, FrameOptions, RenderError};
+use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::plan::{FrameBuffer, FramePlan};
 
 /// The bytes a frame needs: `at_least` whatever the scene shows (the per-pixel buffers),
@@ -49,15 +55,46 @@ pub struct FrameBytes {
     pub at_most: u64,
 }
 
-/// Bytes per pixel of [`visibility_raster`](crate::visibility_raster)'s scratch counts.
+/// Bytes per pixel of [`visibility_raster`](crate::visibility_raster)'s depth and winner
+/// scratch.
 const RASTER_COUNTS_BYTES: u64 = 8;
 
-/// What a frame of `plan` at `width` x `height` run by `executor` needs on this backend (the
+/// How a frame runs, as far as its memory goes besides its plan and size.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameRun {
+    pub executor: Executor,
+    /// The frame returns its G-buffer ([`FrameOptions::returns`]).
+    pub keep_gbuffer: bool,
+    /// The raster takes the scene in batches ([`crate::visibility_raster::batched`]).
+    pub batched: bool,
+}
+
+impl FrameRun {
+    /// The run of a frame of `geometry` under `options` by `executor`.
+    pub fn new(executor: Executor, options: &FrameOptions, geometry: &WorldGeometry) -> FrameRun {
+        let keep_gbuffer = options.returns(FrameBuffer::GBuffer);
+        FrameRun { executor, keep_gbuffer, batched: crate::visibility_raster::batched(geometry) }
+    }
+}
+
+impl From<Executor> for FrameRun {
+    /// A frame that asks for no G-buffer, of a scene the raster takes in one batch.
+    fn from(executor: Executor) -> FrameRun {
+        FrameRun { executor, keep_gbuffer: false, batched: false }
+    }
+}
+
+/// What a frame of `plan` at `width` x `height` run as `run` says needs on this backend (the
 /// module docs' table). Saturates instead of overflowing.
-pub fn frame_bytes(plan: &FramePlan, executor: Executor, width: u32, height: u32) -> FrameBytes {
+pub fn frame_bytes(plan: &FramePlan, run: impl Into<FrameRun>, width: u32, height: u32) -> FrameBytes {
+    let run = run.into();
     let pixels = width as u64 * height as u64;
-    if executor == Executor::Fused {
-        let b = pixels.saturating_mul(RASTER_COUNTS_BYTES + size_of::<GBufferTexel>() as u64 + 16);
+    if run.executor == Executor::Fused {
+        let texels = size_of::<GBufferTexel>() as u64;
+        let per_pixel = 16
+            + if run.keep_gbuffer || run.batched { texels } else { 0 }
+            + if run.batched { RASTER_COUNTS_BYTES } else { 0 };
+        let b = pixels.saturating_mul(per_pixel);
         return FrameBytes { at_least: b, at_most: b };
     }
     let lights = plan.lights() as u64;
@@ -90,19 +127,19 @@ pub fn out_of_memory(width: u32, height: u32, needed: Option<u64>, available: Op
 
 /// Refuse a frame whose least need exceeds the available memory ([`available_bytes`]),
 /// before allocating.
-pub fn check(plan: &FramePlan, executor: Executor, width: u32, height: u32) -> Result<FrameBytes, RenderError> {
-    check_against(plan, executor, width, height, available_bytes())
+pub fn check(plan: &FramePlan, run: impl Into<FrameRun>, width: u32, height: u32) -> Result<FrameBytes, RenderError> {
+    check_against(plan, run, width, height, available_bytes())
 }
 
 /// [`check`] against a given availability (`None`: unknown, nothing is refused).
 pub fn check_against(
     plan: &FramePlan,
-    executor: Executor,
+    run: impl Into<FrameRun>,
     width: u32,
     height: u32,
     available: Option<u64>,
 ) -> Result<FrameBytes, RenderError> {
-    let need = frame_bytes(plan, executor, width, height);
+    let need = frame_bytes(plan, run, width, height);
     match available {
         Some(avail) if need.at_least > avail => {
             Err(out_of_memory(width, height, Some(need.at_least), Some(avail), "the frame's per-pixel buffers"))
@@ -123,7 +160,7 @@ pub fn reserve<T>(v: &mut Vec<T>, n: usize) -> Result<(), TryReserveError> {
 pub fn reserve_frame(
     frame: &mut Frame,
     plan: &FramePlan,
-    executor: Executor,
+    run: FrameRun,
     width: u32,
     height: u32,
 ) -> Result<(), RenderError> {
@@ -137,9 +174,13 @@ pub fn reserve_frame(
         })
     }
     let size = (width, height);
-    // The fused executor writes the G-buffer and the final image alone.
-    let written =
-        |b: &FrameBuffer| executor == Executor::Staged || matches!(b, FrameBuffer::GBuffer | FrameBuffer::Final);
+    // The fused executor writes the final image alone, and the G-buffer where the frame
+    // returns it (a batched scene's is the raster's: it sizes it).
+    let written = |b: &FrameBuffer| match b {
+        FrameBuffer::Final => true,
+        FrameBuffer::GBuffer => run.executor == Executor::Staged || run.keep_gbuffer,
+        _ => run.executor == Executor::Staged,
+    };
     for b in plan.buffers().filter(written) {
         match b {
             FrameBuffer::GBuffer => fit(&mut frame.gbuffer, pixels, "the G-buffer", size)?,

@@ -245,6 +245,13 @@ pub fn visibility_raster_into(
     raster_frame(geometry, camera, TileKernel::detect(), gbuffer)
 }
 
+/// True if the raster takes `geometry`'s triangles in batches (over `BATCH_CHUNKS` setup
+/// chunks, about a million triangles): a fused frame then keeps the texels whole-image
+/// between batches ([`crate::memory`]).
+pub fn batched(geometry: &WorldGeometry) -> bool {
+    geometry.triangles.len().div_ceil(SETUP_CHUNK) > BATCH_CHUNKS
+}
+
 /// How the tiles are rasterized and resolved. Every kernel gives the same bits (the unit
 /// tests compare them).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -287,6 +294,19 @@ fn raster_frame(
     raster_frame_in_batches(geometry, camera, kernel, gbuffer, BATCH_CHUNKS)
 }
 
+/// Rasterize the frame with the kernel of this CPU and run `hook` on each tile right after
+/// its texels are final (see [`raster_tiles`]): the G-buffer into `gbuffer` if given, else
+/// only into tile-local scratch (scenes of one batch).
+pub(crate) fn visibility_raster_with<H: TileHook>(
+    geometry: &WorldGeometry,
+    camera: &CameraRecord,
+    gbuffer: Option<&mut Vec<GBufferTexel>>,
+    hook: &H,
+    outs: Vec<H::Out>,
+) -> RasterTiles<H::Counts> {
+    raster_tiles(geometry, camera, TileKernel::detect(), gbuffer, Some((hook, outs)), BATCH_CHUNKS)
+}
+
 /// [`raster_frame`] in batches of `batch_chunks` setup chunks (tests take small ones).
 fn raster_frame_in_batches(
     geometry: &WorldGeometry,
@@ -295,53 +315,235 @@ fn raster_frame_in_batches(
     gbuffer: &mut Vec<GBufferTexel>,
     batch_chunks: usize,
 ) -> usize {
+    raster_tiles::<NoHook>(geometry, camera, kernel, Some(gbuffer), None, batch_chunks).covered
+}
+
+/// The texels of one raster tile once they are final (after its last resolve), as a
+/// [`TileHook`] reads them.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct TileTexels<'a> {
+    /// The tile's top-left pixel.
+    pub origin: (usize, usize),
+    /// Its width and height in pixels: [`TILE_SIZE`], less at the image's right and
+    /// bottom edges.
+    pub size: (usize, usize),
+    /// Row-major, [`TILE_SIZE`] texels a row: texel `(lx, ly)` of the tile is
+    /// `texels[ly * TILE_SIZE + lx]` (for `lx < size.0`).
+    pub texels: &'a [GBufferTexel],
+}
+
+/// What runs on each raster tile right after its texels are final, while they are in
+/// cache ([`raster_tiles`]): the fused executor's steps (`crate::fused`).
+pub(crate) trait TileHook: Sync {
+    /// What it writes for one tile (the tile's rows of the final image), one per raster
+    /// tile in the order of [`tile_rows`] over [`raster_area`] with [`TILE_SIZE`].
+    type Out: Send;
+    /// Each worker's scratch, kept from tile to tile.
+    type Scratch: Send;
+    /// What it counts, summed over tiles.
+    type Counts: Send + Default;
+    fn scratch(&self) -> Self::Scratch;
+    fn tile(&self, scratch: &mut Self::Scratch, texels: TileTexels<'_>, out: Self::Out) -> Self::Counts;
+    fn add(a: Self::Counts, b: Self::Counts) -> Self::Counts;
+}
+
+/// The raster alone: no hook.
+struct NoHook;
+
+impl TileHook for NoHook {
+    type Out = ();
+    type Scratch = ();
+    type Counts = ();
+    fn scratch(&self) {}
+    fn tile(&self, _: &mut (), _: TileTexels<'_>, _: ()) {}
+    fn add(_: (), _: ()) {}
+}
+
+/// What [`raster_tiles`] gives.
+pub(crate) struct RasterTiles<C> {
+    /// Number of hit texels.
+    pub covered: usize,
+    /// The hook's counts, summed over tiles.
+    pub counts: C,
+    /// Time spent setting up and binning triangles (every batch's), before the tiles
+    /// that read them.
+    pub setup: std::time::Duration,
+}
+
+/// The top-left area of the image the raster's tiles cover (the image, at most
+/// `MAX_IMAGE_DIM` a side): what [`TileHook::Out`] tiles.
+pub(crate) fn raster_area(camera: &CameraRecord) -> (usize, usize) {
+    (camera.width.min(MAX_IMAGE_DIM) as usize, camera.height.min(MAX_IMAGE_DIM) as usize)
+}
+
+/// Rasterize the frame in batches of `batch_chunks` setup chunks, the G-buffer into
+/// `gbuffer` when given (every texel written, the buffer sized to the frame), and run
+/// `hook` on each tile right after its last resolve, with one of `outs` (see
+/// [`TileHook::Out`]).
+///
+/// Without a hook the tiles resolve straight into `gbuffer` (the staged frame). With one,
+/// each worker resolves a tile into a tile-local G-buffer ([`TILE_PIXELS`] texels, 96 KiB),
+/// copies it into `gbuffer` if given and hands it to the hook: a frame that wants no
+/// whole-image G-buffer has none. Scenes of more than one batch keep their texels from
+/// batch to batch in a whole-image G-buffer (`gbuffer`, or one of this call's), whose
+/// tiles are copied into the tile-local one after the last batch.
+fn raster_tiles<H: TileHook>(
+    geometry: &WorldGeometry,
+    camera: &CameraRecord,
+    kernel: TileKernel,
+    mut gbuffer: Option<&mut Vec<GBufferTexel>>,
+    mut hook: Option<(&H, Vec<H::Out>)>,
+    batch_chunks: usize,
+) -> RasterTiles<H::Counts> {
     let (w, h) = (camera.width as usize, camera.height as usize);
-    // Sized, not filled: every texel of the rasterized area is written by its tile,
-    // in parallel. A fresh buffer is zeroed (calloc); a reused one keeps its pages.
-    if gbuffer.len() != w * h {
-        *gbuffer = bytemuck::zeroed_vec(w * h);
+    let mut setup = std::time::Duration::ZERO;
+    let none = |setup| RasterTiles { covered: 0, counts: H::Counts::default(), setup };
+    if let Some(gbuffer) = gbuffer.as_deref_mut() {
+        // Sized, not filled: every texel of the rasterized area is written by its tile,
+        // in parallel. A fresh buffer is zeroed (calloc); a reused one keeps its pages.
+        if gbuffer.len() != w * h {
+            *gbuffer = bytemuck::zeroed_vec(w * h);
+        }
     }
     if w == 0 || h == 0 {
-        return 0;
+        return none(setup);
     }
     let frame = Frame::new(camera);
     if frame.width as usize != w || frame.height as usize != h {
         // Beyond MAX_IMAGE_DIM: those pixels belong to no tile and stay misses.
-        gbuffer.fill(GBufferTexel::MISS);
+        if let Some(gbuffer) = gbuffer.as_deref_mut() {
+            gbuffer.fill(GBufferTexel::MISS);
+        }
+    }
+    if let Some((_, outs)) = &hook {
+        assert_eq!(outs.len(), frame.tile_count(), "raster_tiles: one output per raster tile");
     }
     let chunks = geometry.triangles.len().div_ceil(SETUP_CHUNK);
     let alpha = AlphaTests::of(geometry);
+    let timed = |setup: &mut std::time::Duration, range| {
+        let t = std::time::Instant::now();
+        let tris = setup_triangles(geometry, camera, &frame, range);
+        *setup += t.elapsed();
+        tris
+    };
     if chunks <= batch_chunks {
         // One batch: each tile's scratch lives for its task only.
-        let tris = setup_triangles(geometry, camera, &frame, 0..chunks);
-        let slices = tile_slices(gbuffer, w, &frame);
-        return slices
+        let tris = timed(&mut setup, 0..chunks);
+        let slices = match gbuffer {
+            Some(gbuffer) => tile_slices(gbuffer, w, &frame).into_iter().map(Some).collect(),
+            None => (0..frame.tile_count()).map(|_| None).collect::<Vec<_>>(),
+        };
+        let Some((hook, outs)) = hook else {
+            let covered = slices
+                .into_par_iter()
+                .enumerate()
+                .map_init(TileScratch::new, |scratch, (tile, rows)| {
+                    scratch.clear();
+                    let rows = rows.expect("a G-buffer where no hook reads the tiles");
+                    raster_tile(kernel, &tris, tile, frame.tile_rect(tile), scratch, rows, alpha, Resolve::Every)
+                })
+                .sum();
+            return RasterTiles { covered, counts: H::Counts::default(), setup };
+        };
+        let (covered, counts) = slices
             .into_par_iter()
+            .zip(outs)
             .enumerate()
-            .map_init(TileScratch::new, |scratch, (tile, rows)| {
-                scratch.clear();
-                raster_tile(kernel, &tris, tile, frame.tile_rect(tile), scratch, rows, alpha, Resolve::Every)
-            })
-            .sum();
+            .map_init(
+                || (TileScratch::new(), LocalTexels::new(), hook.scratch()),
+                |(scratch, local, hs), (tile, (rows, out))| {
+                    scratch.clear();
+                    let rect = frame.tile_rect(tile);
+                    let covered =
+                        raster_tile(kernel, &tris, tile, rect, scratch, local.rows(rect), alpha, Resolve::Every);
+                    if let Some(rows) = rows {
+                        local.copy_to(rows);
+                    }
+                    (covered, hook.tile(hs, local.texels(rect), out))
+                },
+            )
+            .reduce(|| (0, H::Counts::default()), |a, b| (a.0 + b.0, H::add(a.1, b.1)));
+        return RasterTiles { covered, counts, setup };
     }
     // Batches of `batch_chunks` chunks, in global order, each tile keeping its depth
     // buffer from batch to batch: a triangle of a later batch wins a pixel exactly when
     // it would in one pass (strictly nearer than every earlier one). After each batch a
     // tile writes the texels of the pixels that batch won (their final texels when no
     // later batch wins them); the first batch writes every texel.
+    let mut own;
+    let store = match gbuffer {
+        Some(gbuffer) => gbuffer,
+        None => {
+            own = bytemuck::zeroed_vec(w * h);
+            &mut own
+        }
+    };
+    let mut counts = H::Counts::default();
     let mut scratches: Vec<TileScratch> = (0..frame.tile_count()).map(|_| TileScratch::new()).collect();
-    for (b, first) in (0..chunks).step_by(batch_chunks).enumerate() {
-        let tris = setup_triangles(geometry, camera, &frame, first..(first + batch_chunks).min(chunks));
-        let slices = tile_slices(gbuffer, w, &frame);
+    let batches: Vec<usize> = (0..chunks).step_by(batch_chunks).collect();
+    for (b, &first) in batches.iter().enumerate() {
+        let tris = timed(&mut setup, first..(first + batch_chunks).min(chunks));
+        let slices = tile_slices(store, w, &frame);
         let resolve = if b == 0 { Resolve::Every } else { Resolve::Won };
-        slices.into_par_iter().zip(scratches.par_iter_mut()).enumerate().for_each(|(tile, (rows, scratch))| {
-            scratch.winner.fill(NO_WINNER);
-            raster_tile(kernel, &tris, tile, frame.tile_rect(tile), scratch, rows, alpha, resolve);
-        });
+        let tiles = slices.into_par_iter().zip(scratches.par_iter_mut()).enumerate();
+        match hook.take_if(|_| b + 1 == batches.len()) {
+            None => tiles.for_each(|(tile, (rows, scratch))| {
+                scratch.winner.fill(NO_WINNER);
+                raster_tile(kernel, &tris, tile, frame.tile_rect(tile), scratch, rows, alpha, resolve);
+            }),
+            // The last batch: each tile's texels are final after its resolve.
+            Some((hook, outs)) => {
+                counts = tiles
+                    .zip(outs)
+                    .map_init(
+                        || (LocalTexels::new(), hook.scratch()),
+                        |(local, hs), ((tile, (mut rows, scratch)), out)| {
+                            scratch.winner.fill(NO_WINNER);
+                            let rect = frame.tile_rect(tile);
+                            let reborrowed = rows.iter_mut().map(|r| &mut **r).collect();
+                            raster_tile(kernel, &tris, tile, rect, scratch, reborrowed, alpha, resolve);
+                            local.copy_from(&rows);
+                            hook.tile(hs, local.texels(rect), out)
+                        },
+                    )
+                    .reduce(H::Counts::default, H::add);
+            }
+        }
     }
     // A pixel was won (in some batch) exactly when its stored depth fell below the clear
     // value: the depth test is LESS against DEPTH_CLEAR.
-    scratches.par_iter().map(|s| s.depth.iter().filter(|&&d| d < DEPTH_CLEAR).count()).sum()
+    let covered = scratches.par_iter().map(|s| s.depth.iter().filter(|&&d| d < DEPTH_CLEAR).count()).sum();
+    RasterTiles { covered, counts, setup }
+}
+
+/// A tile-local G-buffer: one tile's texels, [`TILE_SIZE`] a row.
+struct LocalTexels(Box<[GBufferTexel]>);
+
+impl LocalTexels {
+    fn new() -> LocalTexels {
+        LocalTexels(vec![GBufferTexel::MISS; TILE_PIXELS].into_boxed_slice())
+    }
+    /// The rows of the tile with inclusive pixel rectangle `rect`, for [`resolve_tile`].
+    fn rows(&mut self, rect: [i32; 4]) -> Vec<&mut [GBufferTexel]> {
+        let (tw, th) = ((rect[2] - rect[0] + 1) as usize, (rect[3] - rect[1] + 1) as usize);
+        self.0.chunks_mut(TILE_SIZE as usize).take(th).map(|r| &mut r[..tw]).collect()
+    }
+    fn texels(&self, rect: [i32; 4]) -> TileTexels<'_> {
+        let size = ((rect[2] - rect[0] + 1) as usize, (rect[3] - rect[1] + 1) as usize);
+        TileTexels { origin: (rect[0] as usize, rect[1] as usize), size, texels: &self.0 }
+    }
+    /// Copy the tile's rows out to a whole-image G-buffer's.
+    fn copy_to(&self, rows: Vec<&mut [GBufferTexel]>) {
+        for (row, local) in rows.into_iter().zip(self.0.chunks(TILE_SIZE as usize)) {
+            row.copy_from_slice(&local[..row.len()]);
+        }
+    }
+    /// Copy the tile's rows in from a whole-image G-buffer's.
+    fn copy_from(&mut self, rows: &[&mut [GBufferTexel]]) {
+        for (row, local) in rows.iter().zip(self.0.chunks_mut(TILE_SIZE as usize)) {
+            local[..row.len()].copy_from_slice(row);
+        }
+    }
 }
 
 /// Which texels of a tile [`resolve_tile`] writes.
@@ -1380,6 +1582,64 @@ mod tests {
                         "{kernel:?}, batches of {batch}, by reference: {}",
                         g.triangles.has_references()
                     );
+                }
+            }
+        }
+    }
+
+    /// A hook that copies each tile's texels into its rows of an image and counts its hits.
+    struct CopyTexels<'a>(std::marker::PhantomData<&'a ()>);
+
+    impl<'a> TileHook for CopyTexels<'a> {
+        type Out = Vec<&'a mut [GBufferTexel]>;
+        type Scratch = ();
+        type Counts = usize;
+        fn scratch(&self) {}
+        fn tile(&self, _: &mut (), t: TileTexels<'_>, rows: Self::Out) -> usize {
+            assert_eq!((rows.len(), rows[0].len()), (t.size.1, t.size.0));
+            for (ly, row) in rows.into_iter().enumerate() {
+                row.copy_from_slice(&t.texels[ly * TILE_SIZE as usize..][..t.size.0]);
+            }
+            (0..t.size.1)
+                .map(|ly| (0..t.size.0).filter(|&lx| t.texels[ly * TILE_SIZE as usize + lx].is_hit()).count())
+                .sum()
+        }
+        fn add(a: usize, b: usize) -> usize {
+            a + b
+        }
+    }
+
+    /// The per-tile hook sees every tile's final texels, once, with and without a
+    /// whole-image G-buffer, in one batch and in several, with every kernel; the G-buffer
+    /// it keeps is the plain raster's.
+    #[test]
+    fn the_tile_hook_sees_the_final_texels_of_every_tile() {
+        let mut scene = cluttered_scene();
+        let sphere = Mesh::uv_sphere("fine", 48, 24);
+        scene.add_object(sphere, Material::grey(), Mat4::from_scale(Vec3::splat(0.8)), RenderMode::Raster);
+        let g = WorldGeometry::build(&scene);
+        assert!(g.triangles.len() > 2 * SETUP_CHUNK, "several chunks");
+        for (w, h) in [(160, 90), (67, 131)] {
+            let cam = CameraRecord::new(&scene.camera.unwrap(), w, h);
+            for kernel in kernels() {
+                let mut want = Vec::new();
+                let covered = raster_frame(&g, &cam, kernel, &mut want);
+                for batch in [1, 2, BATCH_CHUNKS] {
+                    for keep in [true, false] {
+                        let mut seen = vec![GBufferTexel { triangle: 7, ..GBufferTexel::MISS }; want.len()];
+                        let outs = tile_rows(&mut seen, w as usize, raster_area(&cam), TILE_SIZE as usize);
+                        let mut kept = Vec::new();
+                        let gbuffer = keep.then_some(&mut kept);
+                        let hook = CopyTexels(std::marker::PhantomData);
+                        let r = raster_tiles(&g, &cam, kernel, gbuffer, Some((&hook, outs)), batch);
+                        let what = format!("{w}x{h}, {kernel:?}, batches of {batch}, G-buffer kept: {keep}");
+                        assert_eq!((r.covered, r.counts), (covered, covered), "{what}");
+                        assert!(seen.iter().map(|t| t.to_bits()).eq(want.iter().map(|t| t.to_bits())), "{what}");
+                        match keep {
+                            true => assert!(kept.iter().map(|t| t.to_bits()).eq(want.iter().map(|t| t.to_bits()))),
+                            false => assert!(kept.is_empty(), "{what}"),
+                        }
+                    }
                 }
             }
         }

@@ -10,7 +10,7 @@ use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::plan::FramePlan;
 use hyrt_core::scene::{Camera, Scene};
 use hyrt_cpu::backend::CpuBackend;
-use hyrt_cpu::memory::{check_against, frame_bytes};
+use hyrt_cpu::memory::{check_against, frame_bytes, FrameRun};
 
 #[test]
 fn default_scene_frame_bytes_per_pixel_match_the_table() {
@@ -25,10 +25,16 @@ fn default_scene_frame_bytes_per_pixel_match_the_table() {
         // mask) + 3 x 16 (images) = 138; plus 2 x 72 (rays, indices, occlusion) = 282.
         assert_eq!((b.at_least, b.at_most), (138 * 5000, 282 * 5000), "max depth {max_depth}");
     }
-    // Fused: 8 (raster counts) + 24 (G-buffer) + 16 (final image), whatever the lights.
+    // Fused: 16 (final image), whatever the lights; + 24 (G-buffer) where the frame asks for
+    // it; + 24 + 8 (texels, depth and winner between batches) for a batched scene.
     let plan = FramePlan::new(&prepared, &FrameOptions::default()).unwrap();
     let b = frame_bytes(&plan, Executor::Fused, 100, 50);
-    assert_eq!((b.at_least, b.at_most), (48 * 5000, 48 * 5000));
+    assert_eq!((b.at_least, b.at_most), (16 * 5000, 16 * 5000));
+    let kept = FrameOptions { keep_gbuffer: true, ..FrameOptions::default() };
+    let b = frame_bytes(&plan, FrameRun::new(Executor::Fused, &kept, &prepared.geometry), 100, 50);
+    assert_eq!((b.at_least, b.at_most), (40 * 5000, 40 * 5000));
+    let batched = FrameRun { executor: Executor::Fused, keep_gbuffer: false, batched: true };
+    assert_eq!(frame_bytes(&plan, batched, 100, 50).at_least, 48 * 5000);
     // No lights: no ray list, flags or mask.
     let mut dark = scene.clone();
     dark.lights.clear();

@@ -888,12 +888,14 @@ impl GpuBackend {
 
 /// The buffers of the frame's first readback (`first`: the counts come with them) or of its
 /// second (the other stage outputs it holds). The first brings what every frame returns
-/// ([`FrameBuffer::always_returned`]) and the primary occlusion results, which the frame's
-/// statistics count (`occluded_shadow_rays`) even where the frame does not hold them
-/// (`Frame::end` empties them then).
+/// ([`FrameBuffer::always_returned`]), the G-buffer and the primary occlusion results,
+/// which the frame's statistics count (`covered_pixels`, `occluded_shadow_rays`) even where
+/// the frame does not hold them ([`FrameOptions::keep_gbuffer`]; `Frame::end` empties
+/// them then).
 fn read_in(out: &Frame, first: bool) -> Vec<FrameBuffer> {
-    let in_first = |b: FrameBuffer| b.always_returned() || b == FrameBuffer::Occluded;
-    out.plan.buffers().filter(|&b| in_first(b) == first && (out.holds(b) || b == FrameBuffer::Occluded)).collect()
+    let counted = |b: FrameBuffer| matches!(b, FrameBuffer::GBuffer | FrameBuffer::Occluded);
+    let in_first = |b: FrameBuffer| b.always_returned() || counted(b);
+    out.plan.buffers().filter(|&b| in_first(b) == first && (out.holds(b) || counted(b))).collect()
 }
 
 /// Storage buffers `shadow_rays` binds in a two-level scene: its eight and the instance

@@ -151,7 +151,7 @@ fn objects_by_reference_render_the_stored_tables_frame() {
     }
     let moving = [s, 0];
     let mut renderer = cpu();
-    let options = FrameOptions { max_depth: 2, ..FrameOptions::default() };
+    let options = FrameOptions { max_depth: 2, keep_gbuffer: true, ..FrameOptions::default() };
     let stored_of = |scene: &Scene| {
         let mut flags = vec![false; scene.objects.len()];
         for &o in &moving {

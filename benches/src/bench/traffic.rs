@@ -18,11 +18,12 @@
 //! | raster and ray-traced images (16 B each, as planned) | 16 P each | 16 P each (`composition`) |
 //! | final image | 16 P | - |
 //!
-//! The fused executor ([`Executor::Fused`]) writes the G-buffer, reads it once (its tiles'
-//! reconstruction) and writes the final image: 64 bytes a pixel whatever the lights; its
-//! tiles' surfaces, rays and masks are tile-local scratch that stays in cache. Neither
-//! counts `visibility_raster`'s own scratch (8 bytes a pixel, the same in both), the
-//! scene's tables, the BVH, or the cache lines a write first reads.
+//! The fused executor ([`Executor::Fused`]) writes the final image alone: 16 bytes a pixel
+//! whatever the lights. Its raster tiles' texels and its tiles' surfaces, rays and masks are
+//! tile-local scratch that stays in cache (a frame that asks for its G-buffer,
+//! `FrameOptions::keep_gbuffer`, would write 24 more; the paper's frame does not). Neither
+//! counts `visibility_raster`'s own scratch (per tile), the scene's tables, the BVH, or the
+//! cache lines a write first reads.
 
 use std::time::Instant;
 
@@ -96,7 +97,7 @@ impl Traffic {
 pub fn frame_traffic(shape: &FrameShape, executor: Executor) -> Traffic {
     let FrameShape { pixels: p, lights: l, shadow_rays: r, .. } = *shape;
     if executor == Executor::Fused {
-        return Traffic { written: (GBUFFER + IMAGE) * p, read: GBUFFER * p };
+        return Traffic { written: IMAGE * p, read: 0 };
     }
     let shading = shape.rt_shading as u64 + shape.raster_shading as u64;
     let images = shading * IMAGE * p;
@@ -158,11 +159,11 @@ mod tests {
     }
 
     #[test]
-    fn the_fused_frame_moves_the_gbuffer_and_the_final_image_whatever_the_lights() {
+    fn the_fused_frame_moves_the_final_image_alone_whatever_the_lights() {
         for s in [shape(0, 0, false, true), shape(4, 300, true, true)] {
             let t = frame_traffic(&s, Executor::Fused);
-            assert_eq!(t, Traffic { written: 100 * 40, read: 100 * 24 });
-            assert_eq!(t.per_pixel(s.pixels), 64.0);
+            assert_eq!(t, Traffic { written: 100 * 16, read: 0 });
+            assert_eq!(t.per_pixel(s.pixels), 16.0);
         }
         // 1 GB in 1 s.
         assert_eq!(Traffic { written: 5e8 as u64, read: 5e8 as u64 }.gb_per_s(1e3), 1.0);

@@ -235,7 +235,8 @@ impl App {
             playing: false,
             initial_camera: camera,
             controller: Controller::new(camera, size),
-            options: common.frame_options(false),
+            // The G-buffer for picking (and its views), whatever the view.
+            options: common.frame_options(false, true),
             view: View::Final,
             light: 0,
             frame: Frame::default(),

@@ -83,9 +83,10 @@ impl View {
     }
 
     /// True if the frame must hold every stage's output for this view
-    /// ([`hyrt::FrameOptions::stage_outputs`]).
+    /// ([`hyrt::FrameOptions::stage_outputs`]): the viewer's frames keep the G-buffer
+    /// ([`hyrt::FrameOptions::keep_gbuffer`], for picking), so its views need no more.
     pub fn needs_stage_outputs(self) -> bool {
-        !self.buffer().always_returned()
+        !hyrt::FrameOptions { keep_gbuffer: true, ..Default::default() }.returns(self.buffer())
     }
 }
 
