@@ -257,8 +257,10 @@ impl Table2 {
             "\n### The CPU frame, staged and fused\n\n\
              The per-stage table above runs the CPU backend's staged executor (`Executor::Staged`: stage after stage \
              over whole-image buffers, each stage timed). The CPU backend's default is the fused executor \
-             (`Executor::Fused`): `visibility_raster` as staged, then in every {tile}x{tile} tile reconstruction, \
-             shadow rays, shading and composition while the tile's data is in cache, timed as a whole (\"tiles\"). \
+             (`Executor::Fused`): `visibility_raster` sets up and bins the triangles (\"visibility_raster\"), then \
+             each raster tile is depth-tested and resolved into tile-local texels and, while they are in cache, its \
+             {tile}x{tile} tiles run reconstruction, shadow rays, shading and composition, timed as a whole \
+             (\"tiles\"). \
              The fused frame is measured with a default `CpuBackend` of the same thread count in the same run, \
              right after each scene's staged frames (medians of {} frames after a warm-up frame); both executors \
              give the same bits. \"staged / fused\" above 1: the fused frame is faster.\n\n",
