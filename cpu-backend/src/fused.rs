@@ -60,9 +60,9 @@ use hyrt_core::kernels::shadow::shadow_code;
 use hyrt_core::kernels::texture::Materials;
 use hyrt_core::plan::{Composition, FramePlan, Step};
 
-use crate::compaction::lanes::{shadow_ray_of_lane, shadow_rays_lanes, store3, SurfaceLanes};
+use crate::compaction::lanes::{shadow_ray_of_lane, shadow_rays_lanes, SurfaceLanes};
 use crate::composition::composition_pixel;
-use crate::lanes::{avx2_entry_points, dispatch, Lanes};
+use crate::lanes::{avx2_entry_points, dispatch, store3, Lanes};
 use crate::raster_shading::{raster_shading_pixel, Primary};
 use crate::reconstruction::{BlockSetups, Reconstruct};
 use crate::rt_shading::rt_shading_pixel;
@@ -274,20 +274,23 @@ fn tile(
     let (width, tw, th) = (camera.width as usize, rows.first().map_or(0, |r| r.len()), rows.len());
     let texel = |lx: usize, ly: usize| &texels[ly * stride + lx];
     let mut counts = TileCounts::default();
+    // One pass over the texels: whether any is a hit, and how many are ray traced.
+    let mut any_hit = false;
+    for ly in 0..th {
+        for lx in 0..tw {
+            let t = texel(lx, ly);
+            any_hit |= t.is_hit();
+            counts.ray_traced_pixels += (t.is_hit() && t.is_ray_traced()) as u64;
+        }
+    }
     // A tile no triangle covers: the background, which every plan composes there.
-    if (0..th).all(|ly| (0..tw).all(|lx| !texel(lx, ly).is_hit())) {
+    if !any_hit {
         let background = composition_pixel(steps.composition, &BACKGROUND_RGBA, &[0.0; 4], inputs.weight);
         rows.iter_mut().for_each(|r| r.fill(background));
         return counts;
     }
 
     // reconstruction
-    for ly in 0..th {
-        for lx in 0..tw {
-            let t = texel(lx, ly);
-            counts.ray_traced_pixels += (t.is_hit() && t.is_ray_traced()) as u64;
-        }
-    }
     dispatch!(
         inputs.level,
         tile_reconstruction,

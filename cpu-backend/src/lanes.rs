@@ -555,6 +555,33 @@ mod x86 {
     }
 }
 
+// Three-vectors of lanes, with the scalar kernels' operation order. No closures: a closure
+// does not inherit its caller's target features (see `avx2_entry_points`).
+
+/// A 3-vector in every lane.
+#[inline(always)]
+pub(crate) fn splat3<L: Lanes>(v: [f32; 3]) -> [L::F; 3] {
+    [L::splat(v[0]), L::splat(v[1]), L::splat(v[2])]
+}
+
+/// `a - b` per component and lane.
+#[inline(always)]
+pub(crate) fn sub3<L: Lanes>(a: [L::F; 3], b: [L::F; 3]) -> [L::F; 3] {
+    [L::sub(a[0], b[0]), L::sub(a[1], b[1]), L::sub(a[2], b[2])]
+}
+
+/// The lanes of a 3-vector as arrays.
+#[inline(always)]
+pub(crate) fn store3<L: Lanes>(v: [L::F; 3]) -> [[f32; LANES]; 3] {
+    [L::store(v[0]), L::store(v[1]), L::store(v[2])]
+}
+
+/// `(a.x * b.x) + (a.y * b.y) + (a.z * b.z)`, glam's `Vec3::dot`, per lane.
+#[inline(always)]
+pub(crate) fn dot3<L: Lanes>(a: [L::F; 3], b: [L::F; 3]) -> L::F {
+    L::add(L::add(L::mul(a[0], b[0]), L::mul(a[1], b[1])), L::mul(a[2], b[2]))
+}
+
 /// Run `$generic` at SIMD level `$level` (a [`SimdLevel`](crate::traversal::SimdLevel)
 /// this CPU has): the entry points of [`avx2_entry_points`] at the AVX-512 and AVX2
 /// levels, the SSE2 lanes at SSE2, the portable lanes elsewhere.

@@ -161,7 +161,7 @@ impl Reconstruct<'_> {
         cache.last = Some(last);
         let setups: [&TriangleSetup; LANES] = std::array::from_fn(|k| &cache.setups[at[k]]);
         if let Reconstruct::Reintersected(camera) = *self {
-            reintersected_lanes::<L>(camera, hit, xy, setups, &mut u, &mut v);
+            reintersected_lanes::<L>(camera, texels, hit, xy, setups, &mut u, &mut v);
         }
         let lanes = lanes::surfaces_lanes::<L>(setups, hit, back, &u, &v);
         let mut out = lanes.records(setups);
@@ -176,12 +176,13 @@ impl Reconstruct<'_> {
 }
 
 /// The re-intersected barycentrics (core's `reintersected_barycentrics`) of the hit lanes `hit`
-/// of a block, pixel `xy[k]` on the triangle of `setups[k]`, into `(u, v)` (which hold the
+/// of a block, pixel `xy[k]` (texel `texels[k]`) on the triangle of `setups[k]`, into `(u, v)` (which hold the
 /// raster's, kept where the camera ray misses the triangle): the camera rays against their
 /// triangles in lanes ([`intersect_each`]), the scalar kernel where fewer than two can hit.
 #[inline(always)]
 fn reintersected_lanes<L: crate::lanes::Lanes>(
     camera: &CameraRecord,
+    texels: [&GBufferTexel; LANES],
     hit: u32,
     xy: [(u32, u32); LANES],
     setups: [&TriangleSetup; LANES],
@@ -189,8 +190,8 @@ fn reintersected_lanes<L: crate::lanes::Lanes>(
     v: &mut [f32; LANES],
 ) {
     // `reintersected_barycentrics`: the camera ray over `0 < t < inf`. A miss lane's zero
-    // direction makes it a lane that hits nothing.
-    let mut rays = [RayRecord { direction: [0.0; 3], ..primary_ray(camera, xy[0].0, xy[0].1) }; LANES];
+    // direction (and empty interval) makes it a lane that hits nothing.
+    let mut rays = [<RayRecord as bytemuck::Zeroable>::zeroed(); LANES];
     for (k, ray) in rays.iter_mut().enumerate().filter(|(k, _)| hit >> k & 1 == 1) {
         *ray = RayRecord { t_min: 0.0, t_max: f32::INFINITY, ..primary_ray(camera, xy[k].0, xy[k].1) };
     }
@@ -204,8 +205,7 @@ fn reintersected_lanes<L: crate::lanes::Lanes>(
         }
         None => {
             for k in (0..LANES).filter(|k| hit >> k & 1 == 1) {
-                let t = GBufferTexel { bary_u: u[k], bary_v: v[k], ..GBufferTexel::MISS };
-                (u[k], v[k]) = setups[k].reintersected_barycentrics(&t, &rays[k]);
+                (u[k], v[k]) = setups[k].reintersected_barycentrics(texels[k], &rays[k]);
             }
         }
     }

@@ -22,7 +22,7 @@ use hyrt_core::kernels::ray::OFFSET_ERROR_SCALE;
 use hyrt_core::kernels::shading::MIN_LIGHT_DISTANCE_SQ;
 use hyrt_core::kernels::shadow::{shadow_ray_record, SHADOW_T_MAX_POINT};
 
-use crate::lanes::{Lanes, LANES};
+use crate::lanes::{dot3, splat3, sub3, Lanes, LANES};
 
 // No closures below (`map`, `from_fn`): a closure does not inherit its caller's target
 // features, so lane operations inside one would not inline into the AVX2 entry points.
@@ -64,30 +64,6 @@ impl<L: Lanes> SurfaceLanes<L> {
             origin: offset_ray_origin_lanes::<L>(position, L::load(&w[10]), geometric_normal),
         }
     }
-}
-
-/// A 3-vector in every lane.
-#[inline(always)]
-fn splat3<L: Lanes>(v: [f32; 3]) -> [L::F; 3] {
-    [L::splat(v[0]), L::splat(v[1]), L::splat(v[2])]
-}
-
-/// `a - b` per component and lane.
-#[inline(always)]
-fn sub3<L: Lanes>(a: [L::F; 3], b: [L::F; 3]) -> [L::F; 3] {
-    [L::sub(a[0], b[0]), L::sub(a[1], b[1]), L::sub(a[2], b[2])]
-}
-
-/// The lanes of a 3-vector as arrays.
-#[inline(always)]
-pub(crate) fn store3<L: Lanes>(v: [L::F; 3]) -> [[f32; LANES]; 3] {
-    [L::store(v[0]), L::store(v[1]), L::store(v[2])]
-}
-
-/// `(a.x * b.x) + (a.y * b.y) + (a.z * b.z)`, glam's `Vec3::dot`, per lane.
-#[inline(always)]
-fn dot<L: Lanes>(a: [L::F; 3], b: [L::F; 3]) -> L::F {
-    L::add(L::add(L::mul(a[0], b[0]), L::mul(a[1], b[1])), L::mul(a[2], b[2]))
 }
 
 /// Core's `next_float_up` per lane: NaN and `+inf` stay, zeros become the least positive
@@ -149,7 +125,7 @@ pub(crate) fn shadow_rays_lanes<L: Lanes>(s: &SurfaceLanes<L>, light: &LightReco
         (l, radiance, l, f32::INFINITY)
     } else {
         let d = sub3::<L>(pd, s.position);
-        let d2 = L::max(dot::<L>(d, d), L::splat(MIN_LIGHT_DISTANCE_SQ));
+        let d2 = L::max(dot3::<L>(d, d), L::splat(MIN_LIGHT_DISTANCE_SQ));
         let len = L::sqrt(d2);
         let l = [L::div(d[0], len), L::div(d[1], len), L::div(d[2], len)];
         let e = [L::div(radiance[0], d2), L::div(radiance[1], d2), L::div(radiance[2], d2)];
@@ -157,7 +133,7 @@ pub(crate) fn shadow_rays_lanes<L: Lanes>(s: &SurfaceLanes<L>, light: &LightReco
     };
     // light_can_contribute: glam's max_element is `max(x, max(y, z))` with `a > b ? a : b`.
     let energy = L::lt(zero, L::max(e[0], L::max(e[1], e[2])));
-    let facing = L::and(L::lt(zero, dot::<L>(s.geometric_normal, l)), L::lt(zero, dot::<L>(s.normal, l)));
+    let facing = L::and(L::lt(zero, dot3::<L>(s.geometric_normal, l)), L::lt(zero, dot3::<L>(s.normal, l)));
     (L::bits(L::and(s.hit, L::and(facing, energy))), direction, t_max)
 }
 
@@ -179,7 +155,7 @@ pub(crate) fn shadow_ray_of_lane(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::lanes::Portable;
+    use crate::lanes::{store3, Portable};
     use hyrt_core::formats::LIGHT_POINT;
     use hyrt_core::kernels::shadow::{needs_shadow_ray, shadow_ray};
     use proptest::prelude::*;

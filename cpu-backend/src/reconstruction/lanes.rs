@@ -19,8 +19,7 @@ use hyrt_core::formats::SurfaceRecord;
 use hyrt_core::kernels::barycentric::gamma;
 use hyrt_core::kernels::reconstruction::TriangleSetup;
 
-use crate::compaction::lanes::store3;
-use crate::lanes::{Lanes, LANES};
+use crate::lanes::{dot3, store3, Lanes, LANES};
 
 // No closures around lane operations (`map`, `from_fn`): a closure does not inherit its
 // caller's target features, so its lane operations would not inline into the AVX2 entry
@@ -130,12 +129,6 @@ fn error_bound<L: Lanes>(w: L::F, u: L::F, v: L::F, c: [L::F; 3], g3: L::F, v0_f
     L::mul(L::add(L::mul(sum, g3), L::mul(L::abs(c[0]), v0_factor)), one_g3)
 }
 
-/// `(a.x * b.x) + (a.y * b.y) + (a.z * b.z)`, glam's `Vec3::dot`, per lane.
-#[inline(always)]
-fn dot<L: Lanes>(a: [L::F; 3], b: [L::F; 3]) -> L::F {
-    L::add(L::add(L::mul(a[0], b[0]), L::mul(a[1], b[1])), L::mul(a[2], b[2]))
-}
-
 /// Eight texels' surfaces: lane `k` is a hit where bit `k` of `hit` is set, on the
 /// triangle of `setups[k]` (any setup for a miss) at barycentrics `(u[k], v[k])`, seen
 /// from its back where bit `k` of `back` is set (the G-buffer's `GBUF_BACK_FACE`).
@@ -173,7 +166,7 @@ pub(crate) fn surfaces_lanes<L: Lanes>(
         weighted::<L>(w, u, v, t.n[0][1], t.n[1][1], t.n[2][1]),
         weighted::<L>(w, u, v, t.n[0][2], t.n[1][2], t.n[2][2]),
     ];
-    let len = L::sqrt(dot::<L>(s, s));
+    let len = L::sqrt(dot3::<L>(s, s));
     let unit = L::and(L::lt(zero, len), L::lt(len, L::splat(f32::INFINITY)));
     let ns = [
         L::select(unit, L::div(s[0], len), t.geometric[0]),
@@ -190,7 +183,7 @@ pub(crate) fn surfaces_lanes<L: Lanes>(
     let viewer_facing = L::bits(L::and(hit_mask, ns_zero));
     // Keep the shading normal in the geometric normal's hemisphere.
     let ng_zero = L::and(L::and(L::eq(ng[0], zero), L::eq(ng[1], zero)), L::eq(ng[2], zero));
-    let use_ng = L::andnot(ng_zero, L::lt(dot::<L>(ns, ng), zero));
+    let use_ng = L::andnot(ng_zero, L::lt(dot3::<L>(ns, ng), zero));
     let ns = [L::select(use_ng, ng[0], ns[0]), L::select(use_ng, ng[1], ns[1]), L::select(use_ng, ng[2], ns[2])];
     SurfaceLanes8 { hit: hit_mask, position: p, position_error: err, normal: ns, geometric_normal: ng, viewer_facing }
 }
