@@ -1,6 +1,7 @@
 //! What a frame is asked for: the per-frame options ([`FrameOptions`]), which the plan
 //! reads ([`crate::plan::FramePlan::new`]) and every backend takes with the prepared scene.
-//! Re-exported by [`crate::frame`].
+//! Re-exported by [`crate::frame`]. What a frame under them returns is the plan's to say
+//! (`FrameOptions::returns`, in [`crate::plan`], which stands above these options).
 
 use crate::error::RenderError;
 use crate::kernels::bounce::MAX_DEPTH_LIMIT;
@@ -13,7 +14,7 @@ pub struct FrameOptions {
     pub weight: f32,
     /// Return every stage's output in the [`Frame`](crate::frame::Frame) (for `--dump`, conformance).
     /// When false (the default: what a display loop needs), the frame holds only the
-    /// final image ([`FrameBuffer::always_returned`](crate::plan::FrameBuffer::always_returned)),
+    /// final image (what the plan's `FrameBuffer::always_returned` names),
     /// and the G-buffer if [`FrameOptions::keep_gbuffer`] asks for it: the GPU backend then
     /// reads back one combined buffer per frame.
     pub stage_outputs: bool,
@@ -81,15 +82,6 @@ impl FrameOptions {
     /// The default options with every stage's output returned (`--dump`, tests).
     pub fn with_stage_outputs() -> Self {
         FrameOptions { stage_outputs: true, ..FrameOptions::default() }
-    }
-
-    /// True if a frame under these options returns `buffer` where its plan writes it:
-    /// every buffer with [`FrameOptions::stage_outputs`], else the final image and, with
-    /// [`FrameOptions::keep_gbuffer`], the G-buffer.
-    pub fn returns(&self, buffer: crate::plan::FrameBuffer) -> bool {
-        self.stage_outputs
-            || buffer.always_returned()
-            || (self.keep_gbuffer && buffer == crate::plan::FrameBuffer::GBuffer)
     }
 
     /// Check the options: the weight is a number in [0, 1]. [`FramePlan::new`](crate::plan::FramePlan::new) calls

@@ -158,6 +158,15 @@ impl BounceBuffer {
     }
 }
 
+impl FrameOptions {
+    /// True if a frame under these options returns `buffer` where its plan writes it:
+    /// every buffer with [`FrameOptions::stage_outputs`], else the final image and, with
+    /// [`FrameOptions::keep_gbuffer`], the G-buffer.
+    pub fn returns(&self, buffer: FrameBuffer) -> bool {
+        self.stage_outputs || buffer.always_returned() || (self.keep_gbuffer && buffer == FrameBuffer::GBuffer)
+    }
+}
+
 impl FrameBuffer {
     /// The buffers of the primary hits (no bounce), in the order the stages write them.
     pub const ALL: [FrameBuffer; 8] = [
