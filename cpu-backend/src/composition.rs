@@ -12,6 +12,8 @@ use hyrt_core::kernels::shading::{compose, BACKGROUND_RGBA};
 use hyrt_core::plan::Composition;
 use rayon::prelude::*;
 
+pub(crate) mod lanes;
+
 /// The stage.
 pub fn composition(raster: &[[f32; 4]], rt: &[[f32; 4]], weight: f32) -> Vec<[f32; 4]> {
     let mut out = Vec::new();

@@ -18,9 +18,12 @@
 //!    packet per block whose every pixel is active), traced at once on this thread
 //!    (`occluded_serial`, then the object-space pass of a two-level scene), and their
 //!    answers written to a tile-local shadow mask ([`shadow_code`]);
-//! 3. `rt_shading`, `raster_shading` and `composition` per pixel
-//!    ([`rt_shading_pixel`], [`raster_shading_pixel`], [`composition_pixel`]) into the
-//!    final image.
+//! 3. `rt_shading`, `raster_shading` and `composition` into the final image, a block of
+//!    eight pixels at a time ([`crate::rt_shading::lanes`], [`crate::raster_shading::lanes`],
+//!    [`crate::composition::lanes`]: the stages' kernels in eight SIMD lanes, each lane on
+//!    its own object's record); where materials vary over surfaces (textures, vertex
+//!    colours) per pixel ([`rt_shading_pixel`], [`raster_shading_pixel`],
+//!    [`composition_pixel`]).
 //!
 //! A tile no triangle covers writes the background and does nothing else. Nothing
 //! whole-image is written but the final image, and the G-buffer where the frame asks for it
@@ -52,7 +55,9 @@
 //! [`TILE_WIDTH`]: crate::traversal::tiles::TILE_WIDTH
 //! [`TILE_HEIGHT`]: crate::traversal::tiles::TILE_HEIGHT
 
-use hyrt_core::formats::{CameraRecord, GBufferTexel, LightRecord, RayRecord, SurfaceRecord, SHADOW_NO_RAY};
+use hyrt_core::formats::{
+    CameraRecord, GBufferTexel, LightRecord, RayRecord, SurfaceRecord, SHADOW_LIT, SHADOW_NO_RAY,
+};
 use hyrt_core::frame::{FrameOptions, PreparedScene};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::shading::BACKGROUND_RGBA;
@@ -62,9 +67,12 @@ use hyrt_core::plan::{Composition, FramePlan, Step};
 
 use crate::compaction::lanes::{shadow_ray_of_lane, shadow_rays_lanes, SurfaceLanes};
 use crate::composition::composition_pixel;
-use crate::lanes::{avx2_entry_points, dispatch, store3, Lanes};
+use crate::composition::lanes::composition_lanes;
+use crate::lanes::{avx2_entry_points, dispatch, store3, Lanes, LANES};
+use crate::raster_shading::lanes::{raster_shading_lanes, PrimaryLanes};
 use crate::raster_shading::{raster_shading_pixel, Primary};
 use crate::reconstruction::{BlockSetups, Reconstruct};
+use crate::rt_shading::lanes::rt_shading_lanes;
 use crate::rt_shading::rt_shading_pixel;
 use crate::traversal::tiles::{TILE_HEIGHT, TILE_WIDTH};
 use crate::traversal::{occluded_in_object_space_serial, occluded_serial, SimdLevel, Traversal, SHADOW_VISIBLE};
@@ -153,6 +161,8 @@ struct TileScratch {
     occluded: Vec<u32>,
     /// The object-space pass's gathered rays.
     object_space: (Vec<RayRecord>, Vec<u32>),
+    /// Shading's lit lanes, per light.
+    lit: Vec<u32>,
 }
 
 /// Everything a tile reads, shared by all tiles.
@@ -340,12 +350,40 @@ fn tile(
         }
     }
 
-    // rt_shading, raster_shading, composition (a pixel's texel `i` in the tile's texels)
+    // rt_shading, raster_shading, composition
+    if inputs.primary.materials.varying() {
+        tile_shading_per_pixel(inputs, TexelTile { texels, stride }, &s.surfaces, &s.shadow, &mut rows);
+    } else {
+        dispatch!(
+            inputs.level,
+            tile_shading,
+            tile_shading_avx512,
+            tile_shading_avx2,
+            (inputs, &s.surfaces, &s.shadow, (tw, th), &mut s.lit, &mut rows)
+        );
+    }
+    counts
+}
+
+/// `rt_shading`, `raster_shading` and `composition` of a tile's `surfaces` (row-major, as
+/// wide as `rows`) with their shadow codes `shadow` (`pixel * lights + light`) into its
+/// final-image `rows`, pixel by pixel ([`rt_shading_pixel`], [`raster_shading_pixel`],
+/// [`composition_pixel`]): where materials vary over surfaces (a pixel's texel, `i` in
+/// the kernels, is in `texels`).
+fn tile_shading_per_pixel(
+    inputs: &TileInputs,
+    TexelTile { texels, stride }: TexelTile,
+    surfaces: &[SurfaceRecord],
+    shadow: &[u8],
+    rows: &mut [&mut [[f32; 4]]],
+) {
+    let (steps, lights) = (inputs.steps, &inputs.scene.geometry.lights);
+    let (nl, tw) = (lights.len(), rows.first().map_or(0, |r| r.len()));
     let primary = &Primary { gbuffer: texels, ..inputs.primary };
     for (ly, row) in rows.iter_mut().enumerate() {
         for (lx, out) in row.iter_mut().enumerate() {
             let k = ly * tw + lx;
-            let (i, surface, shadow) = (ly * stride + lx, &s.surfaces[k], &s.shadow[k * nl..(k + 1) * nl]);
+            let (i, surface, shadow) = (ly * stride + lx, &surfaces[k], &shadow[k * nl..(k + 1) * nl]);
             let rt = match steps.rt_shading {
                 true => rt_shading_pixel(primary, lights, i, surface, shadow),
                 false => [0.0; 4],
@@ -357,8 +395,83 @@ fn tile(
             *out = composition_pixel(steps.composition, &raster, &rt, inputs.weight);
         }
     }
-    counts
 }
+
+/// `rt_shading`, `raster_shading` and `composition` of a tile's `surfaces` (`tw` x `th`,
+/// row-major) with their shadow codes `shadow` (`pixel * lights + light`) into its
+/// final-image `rows`, a [`TILE_WIDTH`] x [`TILE_HEIGHT`] block at a time: the stages'
+/// kernels over the block's eight pixels at once ([`rt_shading_lanes`],
+/// [`raster_shading_lanes`], [`composition_lanes`]), for objects' own records (materials
+/// that do not vary). `lit` is scratch: per light, the block's lanes whose shadow ray
+/// reached it.
+#[inline(always)]
+fn tile_shading<L: Lanes>(
+    inputs: &TileInputs,
+    surfaces: &[SurfaceRecord],
+    shadow: &[u8],
+    (tw, th): (usize, usize),
+    lit: &mut Vec<u32>,
+    rows: &mut [&mut [[f32; 4]]],
+) {
+    const BW: usize = TILE_WIDTH as usize;
+    const BH: usize = TILE_HEIGHT as usize;
+    let (steps, lights) = (inputs.steps, &inputs.scene.geometry.lights);
+    let (objects, eye, nl) = (inputs.primary.materials.objects, inputs.primary.eye.into(), lights.len());
+    lit.resize(nl, 0);
+    let none = [L::splat(0.0); 4];
+    for by in (0..th).step_by(BH) {
+        for bx in (0..tw).step_by(BW) {
+            // Lane `j` is the block's pixel `(bx + j % BW, by + j / BW)`; one outside the
+            // tile is a miss, and not written.
+            let at_lane = |j: usize| (bx + j % BW, by + j / BW);
+            let inside = |(lx, ly): (usize, usize)| lx < tw && ly < th;
+            let block = PrimaryLanes::<L>::load(
+                std::array::from_fn(|j| match at_lane(j) {
+                    (lx, ly) if inside((lx, ly)) => &surfaces[ly * tw + lx],
+                    _ => &SurfaceRecord::MISS,
+                }),
+                objects,
+            );
+            lit.fill(0);
+            for j in 0..LANES {
+                let (lx, ly) = at_lane(j);
+                if inside((lx, ly)) {
+                    let codes = &shadow[(ly * tw + lx) * nl..][..nl];
+                    for (lit, &code) in lit.iter_mut().zip(codes) {
+                        *lit |= ((code == SHADOW_LIT) as u32) << j;
+                    }
+                }
+            }
+            let rt = if steps.rt_shading { rt_shading_lanes::<L>(&block, lit, lights, eye) } else { none };
+            let raster = match steps.raster_shading {
+                Some(shade_ray_traced) => raster_shading_lanes::<L>(&block, lit, lights, shade_ray_traced),
+                None => none,
+            };
+            let out = composition_lanes::<L>(steps.composition, raster, rt, inputs.weight);
+            let out = [L::store(out[0]), L::store(out[1]), L::store(out[2]), L::store(out[3])];
+            for j in 0..LANES {
+                let (lx, ly) = at_lane(j);
+                if inside((lx, ly)) {
+                    rows[ly][lx] = [out[0][j], out[1][j], out[2][j], out[3][j]];
+                }
+            }
+        }
+    }
+}
+
+avx2_entry_points!(
+    tile_shading,
+    tile_shading_avx2,
+    tile_shading_avx512,
+    (
+        inputs: &TileInputs,
+        surfaces: &[SurfaceRecord],
+        shadow: &[u8],
+        size: (usize, usize),
+        lit: &mut Vec<u32>,
+        rows: &mut [&mut [[f32; 4]]]
+    )
+);
 
 /// The surfaces of a tile of `tw` x `th` pixels whose top-left pixel is `(x0, y0)` into
 /// `surfaces` (row-major), from its texels `gbuffer` (texel `(lx, ly)` at

@@ -1,9 +1,10 @@
 //! Eight f32 lanes, three ways: AVX2 (`__m256`, chosen at run time), SSE2 (two `__m128`,
 //! the x86-64 baseline) and plain arrays (any target). The traversal and the fused frame's
-//! per-pixel kernels (`reconstruction`, `compaction`) are written once, generic over
-//! [`Lanes`], and every operation here is one IEEE 754 f32 operation per lane (no fused
-//! multiply-add, no approximate reciprocal) or a bit operation, so all three give the bits
-//! of the scalar kernels lane by lane.
+//! per-pixel kernels (`reconstruction`, `compaction`, `rt_shading`, `raster_shading`,
+//! `composition`) are written once, generic over [`Lanes`], and every operation here is one
+//! IEEE 754 f32 operation per lane (no fused multiply-add, no approximate reciprocal), an
+//! exact conversion between f32 and i32, or a bit operation, so all three give the bits of
+//! the scalar kernels lane by lane.
 //!
 //! `max`/`min` have the x86 `MAXPS`/`MINPS` semantics `a > b ? a : b` / `a < b ? a : b`:
 //! a NaN in `a` (or equal values, `+0` vs `-0` included) gives `b`. That is exactly the
@@ -54,6 +55,15 @@ pub(crate) trait Lanes: Copy {
     fn bits(mask: Self::F) -> u32;
     /// All ones where the lane's sign bit is set (`-0` and NaNs with the bit included).
     fn sign_mask(a: Self::F) -> Self::F;
+    /// The lanes' bit patterns shifted right by `N`, zeros shifted in (`u32 >> N`).
+    fn shr_bits<const N: i32>(a: Self::F) -> Self::F;
+    /// The lanes' bit patterns shifted left by `N` (`u32 << N`).
+    fn shl_bits<const N: i32>(a: Self::F) -> Self::F;
+    /// The lanes' bit patterns as `i32` converted to f32 (`i as f32`; exact below 2^24).
+    fn int_to_float(a: Self::F) -> Self::F;
+    /// The lanes truncated to `i32`, as bit patterns (`x as i32` for `x` within the `i32`
+    /// range; outside it `i32::MIN`, where `as` saturates: callers keep such lanes out).
+    fn float_to_int(a: Self::F) -> Self::F;
 
     /// The least lane, for lanes holding no NaN (which of two equal zeros is unspecified;
     /// the value compares equal either way).
@@ -225,6 +235,23 @@ impl Lanes for Portable {
     fn sign_mask(a: Self::F) -> Self::F {
         std::array::from_fn(|i| mask(a[i].is_sign_negative()))
     }
+    #[inline(always)]
+    fn shr_bits<const N: i32>(a: Self::F) -> Self::F {
+        a.map(|a| f32::from_bits(a.to_bits() >> N))
+    }
+    #[inline(always)]
+    fn shl_bits<const N: i32>(a: Self::F) -> Self::F {
+        a.map(|a| f32::from_bits(a.to_bits() << N))
+    }
+    #[inline(always)]
+    fn int_to_float(a: Self::F) -> Self::F {
+        a.map(|a| a.to_bits() as i32 as f32)
+    }
+    #[inline(always)]
+    fn float_to_int(a: Self::F) -> Self::F {
+        // CVTTPS2DQ: `i32::MIN` for NaN and out-of-range lanes.
+        a.map(|a| f32::from_bits(if a > -2147483904.0 && a < 2147483648.0 { a as i32 } else { i32::MIN } as u32))
+    }
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -372,6 +399,36 @@ mod x86 {
         fn sign_mask(a: Self::F) -> Self::F {
             // SAFETY: SSE2 is baseline. Arithmetic shift right by 31 spreads the sign bit.
             unsafe { a.map(|a| _mm_castsi128_ps(_mm_srai_epi32::<31>(_mm_castps_si128(a)))) }
+        }
+        #[inline(always)]
+        fn shr_bits<const N: i32>(a: Self::F) -> Self::F {
+            // SAFETY: SSE2 is baseline.
+            unsafe {
+                [
+                    _mm_castsi128_ps(_mm_srli_epi32::<N>(_mm_castps_si128(a[0]))),
+                    _mm_castsi128_ps(_mm_srli_epi32::<N>(_mm_castps_si128(a[1]))),
+                ]
+            }
+        }
+        #[inline(always)]
+        fn shl_bits<const N: i32>(a: Self::F) -> Self::F {
+            // SAFETY: SSE2 is baseline.
+            unsafe {
+                [
+                    _mm_castsi128_ps(_mm_slli_epi32::<N>(_mm_castps_si128(a[0]))),
+                    _mm_castsi128_ps(_mm_slli_epi32::<N>(_mm_castps_si128(a[1]))),
+                ]
+            }
+        }
+        #[inline(always)]
+        fn int_to_float(a: Self::F) -> Self::F {
+            // SAFETY: SSE2 is baseline.
+            unsafe { [_mm_cvtepi32_ps(_mm_castps_si128(a[0])), _mm_cvtepi32_ps(_mm_castps_si128(a[1]))] }
+        }
+        #[inline(always)]
+        fn float_to_int(a: Self::F) -> Self::F {
+            // SAFETY: SSE2 is baseline.
+            unsafe { [_mm_castsi128_ps(_mm_cvttps_epi32(a[0])), _mm_castsi128_ps(_mm_cvttps_epi32(a[1]))] }
         }
         #[inline(always)]
         fn min_lane(a: Self::F) -> f32 {
@@ -537,6 +594,26 @@ mod x86 {
             unsafe { _mm256_castsi256_ps(_mm256_srai_epi32::<31>(_mm256_castps_si256(a))) }
         }
         #[inline(always)]
+        fn shr_bits<const N: i32>(a: Self::F) -> Self::F {
+            // SAFETY: see the type's docs.
+            unsafe { _mm256_castsi256_ps(_mm256_srli_epi32::<N>(_mm256_castps_si256(a))) }
+        }
+        #[inline(always)]
+        fn shl_bits<const N: i32>(a: Self::F) -> Self::F {
+            // SAFETY: see the type's docs.
+            unsafe { _mm256_castsi256_ps(_mm256_slli_epi32::<N>(_mm256_castps_si256(a))) }
+        }
+        #[inline(always)]
+        fn int_to_float(a: Self::F) -> Self::F {
+            // SAFETY: see the type's docs.
+            unsafe { _mm256_cvtepi32_ps(_mm256_castps_si256(a)) }
+        }
+        #[inline(always)]
+        fn float_to_int(a: Self::F) -> Self::F {
+            // SAFETY: see the type's docs.
+            unsafe { _mm256_castsi256_ps(_mm256_cvttps_epi32(a)) }
+        }
+        #[inline(always)]
         fn min_lane(a: Self::F) -> f32 {
             // SAFETY: see the type's docs.
             unsafe {
@@ -580,6 +657,28 @@ pub(crate) fn store3<L: Lanes>(v: [L::F; 3]) -> [[f32; LANES]; 3] {
 #[inline(always)]
 pub(crate) fn dot3<L: Lanes>(a: [L::F; 3], b: [L::F; 3]) -> L::F {
     L::add(L::add(L::mul(a[0], b[0]), L::mul(a[1], b[1])), L::mul(a[2], b[2]))
+}
+
+/// Zero in every component and lane.
+#[inline(always)]
+pub(crate) fn zero3<L: Lanes>() -> [L::F; 3] {
+    [L::splat(0.0); 3]
+}
+
+/// `mask ? a : b` per component and lane.
+#[inline(always)]
+pub(crate) fn select3<L: Lanes>(mask: L::F, a: [L::F; 3], b: [L::F; 3]) -> [L::F; 3] {
+    [L::select(mask, a[0], b[0]), L::select(mask, a[1], b[1]), L::select(mask, a[2], b[2])]
+}
+
+/// All ones in lane `k` where bit `k` of `bits` is set.
+#[inline(always)]
+pub(crate) fn mask_lanes<L: Lanes>(bits: u32) -> L::F {
+    let mut m = [0.0f32; LANES];
+    for (k, m) in m.iter_mut().enumerate() {
+        *m = f32::from_bits(if bits >> k & 1 == 1 { u32::MAX } else { 0 });
+    }
+    L::load(&m)
 }
 
 /// Run `$generic` at SIMD level `$level` (a [`SimdLevel`](crate::traversal::SimdLevel)
@@ -628,7 +727,7 @@ macro_rules! avx2_entry_points {
 pub(crate) use avx2_entry_points;
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// Values that exercise NaN, signed zeros, infinities and rounding.
@@ -661,6 +760,21 @@ mod tests {
         same(L::bits_add(a, L::splat(one)), SAMPLES.map(|x| f32::from_bits(x.to_bits().wrapping_add(1))));
         same(L::sqrt(a), Portable::sqrt(p));
         same(L::sqrt(L::abs(b)), Portable::sqrt(Portable::abs(q)));
+        same(L::shr_bits::<23>(a), SAMPLES.map(|x| f32::from_bits(x.to_bits() >> 23)));
+        same(L::shl_bits::<23>(a), SAMPLES.map(|x| f32::from_bits(x.to_bits() << 23)));
+        same(L::int_to_float(a), SAMPLES.map(|x| x.to_bits() as i32 as f32));
+        same(L::float_to_int(a), Portable::float_to_int(p));
+        let ints = [-2147483904.0, -2147483648.0, -100.4, -0.5, 99.9, 2147483520.0, 2147483648.0, f32::NEG_INFINITY];
+        same(
+            L::float_to_int(L::load(&ints)),
+            ints.map(
+                |x| f32::from_bits(if x > -2147483904.0 && x < 2147483648.0 { x as i32 } else { i32::MIN } as u32),
+            ),
+        );
+        assert_eq!(
+            Portable::float_to_int(Portable::load(&ints)).map(f32::to_bits)[..6],
+            [i32::MIN as u32, i32::MIN as u32, -100i32 as u32, 0, 99, 2147483520]
+        );
         for (x, y) in
             [(L::lt(a, b), Portable::lt(p, q)), (L::le(a, b), Portable::le(p, q)), (L::eq(a, b), Portable::eq(p, q))]
         {
@@ -696,6 +810,38 @@ mod tests {
             assert_eq!(L::max_lane(L::load(&v)), f32::INFINITY, "greatest in lane {k}");
             assert_eq!(L::min_lane(L::load(&v)), Portable::min_lane(Portable::load(&v)));
         }
+    }
+
+    /// A check over lanes, run at every SIMD level this machine has by [`at_every_level`].
+    pub(crate) trait LevelCheck {
+        fn check<L: Lanes>(&self) -> Result<(), proptest::test_runner::TestCaseError>;
+    }
+
+    /// `c` on the portable lanes, SSE2 and, where detected, AVX2.
+    pub(crate) fn at_every_level<C: LevelCheck>(c: &C) -> Result<(), proptest::test_runner::TestCaseError> {
+        c.check::<Portable>()?;
+        #[cfg(target_arch = "x86_64")]
+        {
+            c.check::<Sse2>()?;
+            if is_x86_feature_detected!("avx2") {
+                // SAFETY: AVX2 detected just above.
+                unsafe { check_with_avx2(c)? };
+            }
+        }
+        Ok(())
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn check_with_avx2<C: LevelCheck>(c: &C) -> Result<(), proptest::test_runner::TestCaseError> {
+        c.check::<Avx2>()
+    }
+
+    /// `got` is `want` bit for bit, NaNs aside: any NaN stands for any other (Rust does not
+    /// promise which NaN an operation on NaNs gives, and LLVM may swap the operands of `+`
+    /// and `*`).
+    pub(crate) fn same_bits(got: f32, want: f32) -> bool {
+        got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan())
     }
 
     #[test]

@@ -16,6 +16,8 @@ use hyrt_core::kernels::shading::{shade_raster_pixel, BACKGROUND_RGBA};
 use hyrt_core::kernels::texture::Materials;
 use rayon::prelude::*;
 
+pub(crate) mod lanes;
+
 /// The stage on a scene without textures or vertex colours. `shadow` is indexed
 /// `pixel * lights.len() + light`.
 pub fn raster_shading(

@@ -16,6 +16,8 @@ use hyrt_core::kernels::texture::Materials;
 use crate::raster_shading::{pixel_codes, Primary};
 use rayon::prelude::*;
 
+pub(crate) mod lanes;
+
 /// The stage on a scene without textures or vertex colours. `shadow` is indexed
 /// `pixel * lights.len() + light`.
 pub fn rt_shading(

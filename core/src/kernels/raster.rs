@@ -290,7 +290,7 @@ pub fn snap_to_fixed(v: f32) -> i64 {
 }
 
 /// 2^23: from here on every f32 is an integer.
-const F32_INTEGER_THRESHOLD: f32 = 8_388_608.0;
+pub const F32_INTEGER_THRESHOLD: f32 = 8_388_608.0;
 
 /// Round to the nearest integer, ties to even: `f32::round_ties_even`, written as
 /// `(|x| + 2^23) - 2^23` with the sign restored, which lets the addition's own

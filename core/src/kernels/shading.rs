@@ -77,12 +77,19 @@ pub fn light_can_contribute(n_geo: Vec3, n_shade: Vec3, l: Vec3, e: Vec3) -> boo
     n_geo.dot(l) > 0.0 && n_shade.dot(l) > 0.0 && e.max_element() > 0.0
 }
 
+/// Least alpha (roughness²) of [`blinn_phong_exponent`]: a mirror-smooth surface keeps a
+/// finite lobe.
+pub const BLINN_PHONG_MIN_ALPHA: f32 = 1e-3;
+/// The range [`blinn_phong_exponent`] clamps its exponent to.
+pub const BLINN_PHONG_EXPONENT_RANGE: [f32; 2] = [1.0, 1e4];
+
 /// Blinn-Phong exponent from a glTF roughness (the common 2/alpha^2 - 2 mapping
 /// with alpha = roughness^2), clamped to a finite range.
 #[inline]
 pub fn blinn_phong_exponent(roughness: f32) -> f32 {
-    let a = (roughness * roughness).max(1e-3);
-    (2.0 / (a * a) - 2.0).clamp(1.0, 1e4)
+    let a = (roughness * roughness).max(BLINN_PHONG_MIN_ALPHA);
+    let [least, most] = BLINN_PHONG_EXPONENT_RANGE;
+    (2.0 / (a * a) - 2.0).clamp(least, most)
 }
 
 /// `2 / ln 2`, the factor of the log2 series in [`log2_portable`].

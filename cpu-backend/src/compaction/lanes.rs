@@ -110,26 +110,36 @@ fn offset_coordinate_lanes<L: Lanes>(p: L::F, n: L::F, d: L::F) -> L::F {
     L::select(L::lt(zero, offset), next_float_up_lanes::<L>(o), down)
 }
 
+/// Core's `light_incidence(light, p)` per lane: the unit direction towards the light and
+/// its irradiance scale.
+#[inline(always)]
+pub(crate) fn light_incidence_lanes<L: Lanes>(light: &LightRecord, p: [L::F; 3]) -> ([L::F; 3], [L::F; 3]) {
+    let pd = splat3::<L>(light.position_or_direction);
+    let radiance = splat3::<L>(light.radiance);
+    if light.kind == LIGHT_DIRECTIONAL {
+        // `-pd` is a sign flip (`0 - x` would give `+0` for `+0`).
+        let minus = L::splat(-0.0);
+        ([L::xor(pd[0], minus), L::xor(pd[1], minus), L::xor(pd[2], minus)], radiance)
+    } else {
+        let d = sub3::<L>(pd, p);
+        let d2 = L::max(dot3::<L>(d, d), L::splat(MIN_LIGHT_DISTANCE_SQ));
+        let len = L::sqrt(d2);
+        let l = [L::div(d[0], len), L::div(d[1], len), L::div(d[2], len)];
+        (l, [L::div(radiance[0], d2), L::div(radiance[1], d2), L::div(radiance[2], d2)])
+    }
+}
+
 /// Eight surfaces' shadow rays towards one light: which lanes need one (core's
 /// `needs_shadow_ray`, bit `k` for lane `k`) and the rays' directions and `t_max` (core's
 /// `shadow_ray`, whose origin is [`SurfaceLanes::origin`]).
 #[inline(always)]
 pub(crate) fn shadow_rays_lanes<L: Lanes>(s: &SurfaceLanes<L>, light: &LightRecord) -> (u32, [L::F; 3], f32) {
-    let pd = splat3::<L>(light.position_or_direction);
-    let (zero, radiance) = (L::splat(0.0), splat3::<L>(light.radiance));
-    // light_incidence
-    let (l, e, direction, t_max) = if light.kind == LIGHT_DIRECTIONAL {
-        // `-pd` is a sign flip (`0 - x` would give `+0` for `+0`).
-        let minus = L::splat(-0.0);
-        let l = [L::xor(pd[0], minus), L::xor(pd[1], minus), L::xor(pd[2], minus)];
-        (l, radiance, l, f32::INFINITY)
+    let zero = L::splat(0.0);
+    let (l, e) = light_incidence_lanes::<L>(light, s.position);
+    let (direction, t_max) = if light.kind == LIGHT_DIRECTIONAL {
+        (l, f32::INFINITY)
     } else {
-        let d = sub3::<L>(pd, s.position);
-        let d2 = L::max(dot3::<L>(d, d), L::splat(MIN_LIGHT_DISTANCE_SQ));
-        let len = L::sqrt(d2);
-        let l = [L::div(d[0], len), L::div(d[1], len), L::div(d[2], len)];
-        let e = [L::div(radiance[0], d2), L::div(radiance[1], d2), L::div(radiance[2], d2)];
-        (l, e, sub3::<L>(pd, s.origin), SHADOW_T_MAX_POINT)
+        (sub3::<L>(splat3::<L>(light.position_or_direction), s.origin), SHADOW_T_MAX_POINT)
     };
     // light_can_contribute: glam's max_element is `max(x, max(y, z))` with `a > b ? a : b`.
     let energy = L::lt(zero, L::max(e[0], L::max(e[1], e[2])));
@@ -153,7 +163,7 @@ pub(crate) fn shadow_ray_of_lane(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::lanes::{store3, Portable};
     use hyrt_core::formats::LIGHT_POINT;
@@ -205,7 +215,7 @@ mod tests {
 
     /// Floats of every kind the kernels meet: signed zeros, tiny and huge magnitudes,
     /// values near the light, and ordinary ones.
-    fn coord() -> impl Strategy<Value = f32> {
+    pub(crate) fn coord() -> impl Strategy<Value = f32> {
         prop_oneof![
             4 => -20.0f32..20.0,
             1 => Just(0.0f32),
@@ -216,7 +226,7 @@ mod tests {
         ]
     }
 
-    fn vec3() -> impl Strategy<Value = [f32; 3]> {
+    pub(crate) fn vec3() -> impl Strategy<Value = [f32; 3]> {
         [coord(), coord(), coord()]
     }
 

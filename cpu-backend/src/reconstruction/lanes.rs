@@ -19,7 +19,7 @@ use hyrt_core::formats::SurfaceRecord;
 use hyrt_core::kernels::barycentric::gamma;
 use hyrt_core::kernels::reconstruction::TriangleSetup;
 
-use crate::lanes::{dot3, store3, Lanes, LANES};
+use crate::lanes::{dot3, mask_lanes, store3, Lanes, LANES};
 
 // No closures around lane operations (`map`, `from_fn`): a closure does not inherit its
 // caller's target features, so its lane operations would not inline into the AVX2 entry
@@ -186,16 +186,6 @@ pub(crate) fn surfaces_lanes<L: Lanes>(
     let use_ng = L::andnot(ng_zero, L::lt(dot3::<L>(ns, ng), zero));
     let ns = [L::select(use_ng, ng[0], ns[0]), L::select(use_ng, ng[1], ns[1]), L::select(use_ng, ng[2], ns[2])];
     SurfaceLanes8 { hit: hit_mask, position: p, position_error: err, normal: ns, geometric_normal: ng, viewer_facing }
-}
-
-/// All ones in lane `k` where bit `k` of `bits` is set.
-#[inline(always)]
-fn mask_lanes<L: Lanes>(bits: u32) -> L::F {
-    let mut m = [0.0f32; LANES];
-    for (k, m) in m.iter_mut().enumerate() {
-        *m = f32::from_bits(if bits >> k & 1 == 1 { u32::MAX } else { 0 });
-    }
-    L::load(&m)
 }
 
 impl<L: Lanes> SurfaceLanes8<L> {

@@ -1,0 +1,423 @@
+//! The raster shader of `raster_shading` over eight pixels at once: core's
+//! [`shade_raster_pixel`] (with [`ambient`], [`sum_visible_lights`], [`light_incidence`]
+//! and [`shade_raster`]) and the stage's [`raster_shading_pixel`] around it, each lane
+//! doing the scalar kernels' operations in their order, every one a correctly rounded IEEE
+//! 754 f32 operation or a bit operation ([`Lanes`]), so that every lane's texel is the
+//! scalar kernel's bits (`tests` pins them).
+//!
+//! The lanes read their objects' records as they are ([`Materials::plain`]): a frame whose
+//! materials vary over surfaces ([`Materials::varying`]) shades with the scalar kernels.
+//! The eight pixels may lie on different objects: [`PrimaryLanes::load`] gathers each
+//! lane's record.
+//!
+//! Light-independent parts of a kernel (the base colour over pi, the ambient term) are
+//! computed once for all lights: the same operations on the same operands, so the same bits.
+//!
+//! [`shade_raster_pixel`]: hyrt_core::kernels::shading::shade_raster_pixel
+//! [`ambient`]: hyrt_core::kernels::shading::ambient
+//! [`sum_visible_lights`]: hyrt_core::kernels::shading::sum_visible_lights
+//! [`light_incidence`]: hyrt_core::kernels::shading::light_incidence
+//! [`shade_raster`]: hyrt_core::kernels::shading::shade_raster
+//! [`raster_shading_pixel`]: crate::raster_shading::raster_shading_pixel
+//! [`Materials::plain`]: hyrt_core::kernels::texture::Materials::plain
+//! [`Materials::varying`]: hyrt_core::kernels::texture::Materials::varying
+
+use hyrt_core::formats::{LightRecord, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
+use hyrt_core::kernels::shading::{AMBIENT, BACKGROUND_RGBA, DIELECTRIC_F0, ENVIRONMENT_SPECULAR};
+
+use crate::compaction::lanes::light_incidence_lanes;
+use crate::lanes::{dot3, mask_lanes, select3, splat3, zero3, Lanes, LANES};
+
+// No closures around lane operations (`map`, `from_fn`): a closure does not inherit its
+// caller's target features, so its lane operations would not inline into the AVX2 entry
+// points.
+
+/// Eight primary hits as lanes: what the shaders read of their surfaces and their objects'
+/// records (zeros in a miss's lanes).
+#[derive(Clone, Copy)]
+pub(crate) struct PrimaryLanes<L: Lanes> {
+    /// All ones where the surface is a hit ([`SurfaceRecord::is_hit`]).
+    pub hit: L::F,
+    /// All ones where it is a hit on a ray-traced object ([`OBJ_RAY_TRACED`]).
+    pub ray_traced: L::F,
+    pub position: [L::F; 3],
+    pub normal: [L::F; 3],
+    pub base_color: [L::F; 3],
+    pub metallic: L::F,
+    pub roughness: L::F,
+}
+
+impl<L: Lanes> PrimaryLanes<L> {
+    /// The lanes of eight surfaces and of their objects' records (a transpose).
+    #[inline(always)]
+    pub fn load(s: [&SurfaceRecord; LANES], objects: &[ObjectRecord]) -> PrimaryLanes<L> {
+        let mut w = [[0.0f32; LANES]; 13];
+        for (k, r) in s.iter().enumerate() {
+            if !r.is_hit() {
+                continue;
+            }
+            let obj = &objects[r.object as usize];
+            w[0][k] = f32::from_bits(u32::MAX);
+            w[1][k] = f32::from_bits(if obj.flags & OBJ_RAY_TRACED != 0 { u32::MAX } else { 0 });
+            for a in 0..3 {
+                w[2 + a][k] = r.position[a];
+                w[5 + a][k] = r.normal[a];
+                w[8 + a][k] = obj.base_color[a];
+            }
+            w[11][k] = obj.metallic;
+            w[12][k] = obj.roughness;
+        }
+        PrimaryLanes {
+            hit: L::load(&w[0]),
+            ray_traced: L::load(&w[1]),
+            position: [L::load(&w[2]), L::load(&w[3]), L::load(&w[4])],
+            normal: [L::load(&w[5]), L::load(&w[6]), L::load(&w[7])],
+            base_color: [L::load(&w[8]), L::load(&w[9]), L::load(&w[10])],
+            metallic: L::load(&w[11]),
+            roughness: L::load(&w[12]),
+        }
+    }
+}
+
+/// Per light, the lanes whose shadow ray reached it (`SHADOW_LIT`), bit `k` for lane `k`:
+/// what [`sum_visible_lights_lanes`] reads of the shadow mask.
+pub(crate) type LitLanes = [u32];
+
+/// A one-light shader over lanes: the closure core's kernels pass to
+/// [`sum_visible_lights`](hyrt_core::kernels::shading::sum_visible_lights).
+pub(crate) trait LightShader<L: Lanes> {
+    /// The shader's colour from a light in direction `l` with irradiance scale `e`.
+    fn shade(&self, l: [L::F; 3], e: [L::F; 3]) -> [L::F; 3];
+}
+
+/// Core's `sum_visible_lights` per lane: `shade` summed, in light order from zero, over the
+/// lights whose bit is set in the lane's `lit` word; a light no lane sees is skipped (it
+/// would add nothing anywhere).
+#[inline(always)]
+pub(crate) fn sum_visible_lights_lanes<L: Lanes, S: LightShader<L>>(
+    lit: &LitLanes,
+    lights: &[LightRecord],
+    p: [L::F; 3],
+    shade: &S,
+) -> [L::F; 3] {
+    let mut c = zero3::<L>();
+    for (light, &lit) in lights.iter().zip(lit) {
+        if lit == 0 {
+            continue;
+        }
+        let (l, e) = light_incidence_lanes::<L>(light, p);
+        let s = shade.shade(l, e);
+        let lit = mask_lanes::<L>(lit);
+        c = select3::<L>(lit, [L::add(c[0], s[0]), L::add(c[1], s[1]), L::add(c[2], s[2])], c);
+    }
+    c
+}
+
+/// `Vec3::splat(DIELECTRIC_F0).lerp(base, metallic)` per lane (glam's `lerp`:
+/// `self * (1 - s) + rhs * s`): the specular reflectance at normal incidence.
+#[inline(always)]
+pub(crate) fn f0_lanes<L: Lanes>(base: [L::F; 3], metallic: L::F) -> [L::F; 3] {
+    let dielectric = L::mul(L::splat(DIELECTRIC_F0), L::sub(L::splat(1.0), metallic));
+    [
+        L::add(dielectric, L::mul(base[0], metallic)),
+        L::add(dielectric, L::mul(base[1], metallic)),
+        L::add(dielectric, L::mul(base[2], metallic)),
+    ]
+}
+
+/// Core's `ambient(obj)` per lane: `base * ((1 - metallic) * AMBIENT) + f0 *
+/// ENVIRONMENT_SPECULAR`.
+#[inline(always)]
+pub(crate) fn ambient_lanes<L: Lanes>(base: [L::F; 3], metallic: L::F) -> [L::F; 3] {
+    let f0 = f0_lanes::<L>(base, metallic);
+    let k = L::mul(L::sub(L::splat(1.0), metallic), L::splat(AMBIENT));
+    let env = L::splat(ENVIRONMENT_SPECULAR);
+    [
+        L::add(L::mul(base[0], k), L::mul(f0[0], env)),
+        L::add(L::mul(base[1], k), L::mul(f0[1], env)),
+        L::add(L::mul(base[2], k), L::mul(f0[2], env)),
+    ]
+}
+
+/// Core's `shade_raster(obj, n, l, e)` per lane: `((base * FRAC_1_PI) * e) * n.l`, zero
+/// where `n.l <= 0`; `base * FRAC_1_PI` ([`RasterShader::base_over_pi`]) once for all
+/// lights.
+struct RasterShader<L: Lanes> {
+    n: [L::F; 3],
+    base_over_pi: [L::F; 3],
+}
+
+impl<L: Lanes> LightShader<L> for RasterShader<L> {
+    #[inline(always)]
+    fn shade(&self, l: [L::F; 3], e: [L::F; 3]) -> [L::F; 3] {
+        let ndl = dot3::<L>(self.n, l);
+        let b = self.base_over_pi;
+        // `ndl <= 0` returns zero; a NaN `ndl` goes on, as in the scalar kernel.
+        let back = L::le(ndl, L::splat(0.0));
+        let c = [L::mul(L::mul(b[0], e[0]), ndl), L::mul(L::mul(b[1], e[1]), ndl), L::mul(L::mul(b[2], e[2]), ndl)];
+        select3::<L>(back, zero3::<L>(), c)
+    }
+}
+
+/// Core's `shade_raster_pixel` per lane: `ambient + sum_visible_lights(shade_raster)`.
+#[inline(always)]
+fn shade_raster_pixel_lanes<L: Lanes>(p: &PrimaryLanes<L>, lit: &LitLanes, lights: &[LightRecord]) -> [L::F; 3] {
+    let pi = L::splat(std::f32::consts::FRAC_1_PI);
+    let b = p.base_color;
+    let shader =
+        RasterShader::<L> { n: p.normal, base_over_pi: [L::mul(b[0], pi), L::mul(b[1], pi), L::mul(b[2], pi)] };
+    let a = ambient_lanes::<L>(p.base_color, p.metallic);
+    let c = sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &shader);
+    [L::add(a[0], c[0]), L::add(a[1], c[1]), L::add(a[2], c[2])]
+}
+
+/// The stage's kernel ([`raster_shading_pixel`](crate::raster_shading::raster_shading_pixel))
+/// per lane, as RGBA lanes: the background on a miss, transparent black on a ray-traced
+/// object unless `shade_ray_traced`, else the raster shader with alpha 1. The shader runs
+/// only where some lane needs it.
+#[inline(always)]
+pub(crate) fn raster_shading_lanes<L: Lanes>(
+    p: &PrimaryLanes<L>,
+    lit: &LitLanes,
+    lights: &[LightRecord],
+    shade_ray_traced: bool,
+) -> [L::F; 4] {
+    let shaded = if shade_ray_traced { p.hit } else { L::andnot(p.ray_traced, p.hit) };
+    let c = if L::bits(shaded) != 0 { shade_raster_pixel_lanes::<L>(p, lit, lights) } else { zero3::<L>() };
+    let [r, g, b, a] = BACKGROUND_RGBA;
+    let none = select3::<L>(p.hit, zero3::<L>(), splat3::<L>([r, g, b]));
+    let c = select3::<L>(shaded, c, none);
+    let alpha = L::select(shaded, L::splat(1.0), L::select(p.hit, L::splat(0.0), L::splat(a)));
+    [c[0], c[1], c[2], alpha]
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+    use crate::compaction::lanes::tests::vec3;
+    use crate::lanes::tests::{at_every_level, same_bits, LevelCheck};
+    use crate::raster_shading::{raster_shading_pixel, Primary};
+    use glam::Vec3;
+    use hyrt_core::formats::{LIGHT_DIRECTIONAL, LIGHT_POINT, SHADOW_LIT, SHADOW_NO_RAY, SHADOW_OCCLUDED};
+    use hyrt_core::kernels::texture::Materials;
+    use proptest::prelude::*;
+
+    /// A block of eight pixels to shade: surfaces, the objects they name, lights, each
+    /// pixel's shadow codes (`pixel * lights + light`) and the eye.
+    #[derive(Clone, Debug)]
+    pub(crate) struct Block {
+        pub surfaces: [SurfaceRecord; LANES],
+        pub objects: Vec<ObjectRecord>,
+        pub lights: Vec<LightRecord>,
+        pub shadow: Vec<u8>,
+        pub eye: [f32; 3],
+    }
+
+    impl Block {
+        /// Pixel `k`'s shadow codes.
+        pub fn codes(&self, k: usize) -> &[u8] {
+            let nl = self.lights.len();
+            &self.shadow[k * nl..(k + 1) * nl]
+        }
+
+        /// Per light, the lanes whose code is `SHADOW_LIT` (as the fused tile gathers them).
+        pub fn lit(&self) -> Vec<u32> {
+            let nl = self.lights.len();
+            let mut lit = vec![0u32; nl];
+            for k in 0..LANES {
+                for (l, lit) in lit.iter_mut().enumerate() {
+                    *lit |= ((self.shadow[k * nl + l] == SHADOW_LIT) as u32) << k;
+                }
+            }
+            lit
+        }
+
+        pub fn primary<L: Lanes>(&self) -> PrimaryLanes<L> {
+            PrimaryLanes::load(std::array::from_fn(|k| &self.surfaces[k]), &self.objects)
+        }
+    }
+
+    /// Lane `k` of RGBA lanes.
+    pub(crate) fn lane<L: Lanes>(c: [L::F; 4], k: usize) -> [f32; 4] {
+        [L::store(c[0])[k], L::store(c[1])[k], L::store(c[2])[k], L::store(c[3])[k]]
+    }
+
+    /// Lane `k`'s texel is `want`, bit for bit.
+    pub(crate) fn same_texel(k: usize, got: [f32; 4], want: [f32; 4]) -> Result<(), TestCaseError> {
+        let same = got.iter().zip(&want).all(|(&g, &w)| same_bits(g, w));
+        prop_assert!(same, "lane {}: {:?} vs {:?}", k, got, want);
+        Ok(())
+    }
+
+    /// A unit normal (the usual), a zero one, or any vector.
+    fn normal() -> impl Strategy<Value = [f32; 3]> {
+        prop_oneof![
+            6 => vec3().prop_map(|v| Vec3::from(v).normalize_or(Vec3::Y).into()),
+            1 => Just([0.0f32; 3]),
+            1 => vec3(),
+        ]
+    }
+
+    /// A factor in [0, 1] with its ends and the smallest values.
+    fn unit() -> impl Strategy<Value = f32> {
+        prop_oneof![3 => 0.0f32..=1.0, 1 => Just(0.0f32), 1 => Just(1.0f32), 1 => 0.0f32..1e-3, 1 => Just(1e-30f32)]
+    }
+
+    fn colour() -> impl Strategy<Value = f32> {
+        prop_oneof![4 => 0.0f32..=1.0, 1 => Just(0.0f32), 1 => 0.0f32..1e6, 1 => Just(f32::MAX)]
+    }
+
+    fn object() -> impl Strategy<Value = ObjectRecord> {
+        (any::<bool>(), [colour(), colour(), colour()], unit(), unit()).prop_map(
+            |(ray_traced, base_color, metallic, roughness)| ObjectRecord {
+                first_triangle: 0,
+                triangle_count: 1,
+                flags: if ray_traced { OBJ_RAY_TRACED } else { 0 },
+                material_kind: 0,
+                base_color,
+                metallic,
+                roughness,
+                transmission: 0.0,
+                ior: 1.5,
+                offset_error: 0.0,
+            },
+        )
+    }
+
+    fn light() -> impl Strategy<Value = LightRecord> {
+        let radiance = prop_oneof![4 => 0.0f32..100.0, 1 => Just(0.0f32), 1 => 0.0f32..1e30];
+        (any::<bool>(), vec3(), [radiance.clone(), radiance.clone(), radiance]).prop_map(
+            |(directional, p, radiance)| {
+                let p = if directional { Vec3::from(p).normalize_or(Vec3::Y).into() } else { p };
+                let kind = if directional { LIGHT_DIRECTIONAL } else { LIGHT_POINT };
+                LightRecord { position_or_direction: p, kind, radiance, pad: 0 }
+            },
+        )
+    }
+
+    /// A block: up to three objects, one to three lights, hits and misses (the usual:
+    /// every lane on one object), each (pixel, light) with any shadow code; half the time
+    /// the lights are placed on the surfaces' sides the scalar kernel shades (`n.l > 0`).
+    pub(crate) fn block() -> impl Strategy<Value = Block> {
+        let code = prop_oneof![Just(SHADOW_NO_RAY), Just(SHADOW_LIT), Just(SHADOW_LIT), Just(SHADOW_OCCLUDED)];
+        let surface = (prop_oneof![1 => Just(false), 6 => Just(true)], vec3(), normal(), 0u32..3);
+        (
+            prop::collection::vec(object(), 3),
+            prop::collection::vec(light(), 1..4),
+            prop::collection::vec(surface, LANES),
+            prop::collection::vec(code, 3 * LANES),
+            (any::<bool>(), any::<bool>(), vec3()),
+        )
+            .prop_map(|(objects, mut lights, surfaces, codes, (one_object, above, eye))| {
+                let surfaces: [SurfaceRecord; LANES] = std::array::from_fn(|k| {
+                    let (hit, position, normal, object) = surfaces[k];
+                    if !hit {
+                        return SurfaceRecord::MISS;
+                    }
+                    let object = if one_object { surfaces[0].3 } else { object };
+                    let geometric_normal = normal;
+                    SurfaceRecord { position, position_error: 1e-5, normal, object, geometric_normal, triangle: 0 }
+                });
+                if above {
+                    // Lights over the first hit, along its normal: most lanes lit from the front.
+                    if let Some(s) = surfaces.iter().find(|s| s.is_hit()) {
+                        let (p, n) = (Vec3::from(s.position), Vec3::from(s.normal));
+                        for (i, light) in lights.iter_mut().enumerate() {
+                            light.position_or_direction = match light.kind {
+                                LIGHT_DIRECTIONAL => (-n).normalize_or(Vec3::Y).into(),
+                                _ => (p + n * (1.0 + i as f32)).into(),
+                            };
+                        }
+                    }
+                }
+                let shadow = codes[..LANES * lights.len()].to_vec();
+                Block { surfaces, objects, lights, shadow, eye }
+            })
+    }
+
+    struct RasterCheck<'a>(&'a Block, bool);
+
+    impl LevelCheck for RasterCheck<'_> {
+        fn check<L: Lanes>(&self) -> Result<(), TestCaseError> {
+            let RasterCheck(b, shade_ray_traced) = *self;
+            let got = raster_shading_lanes::<L>(&b.primary::<L>(), &b.lit(), &b.lights, shade_ray_traced);
+            let primary = Primary { gbuffer: &[], materials: &Materials::plain(&b.objects), eye: b.eye.into() };
+            for (k, s) in b.surfaces.iter().enumerate() {
+                let want = raster_shading_pixel(&primary, &b.lights, shade_ray_traced, k, s, b.codes(k));
+                same_texel(k, lane::<L>(got, k), want)?;
+            }
+            Ok(())
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2048))]
+
+        #[test]
+        fn raster_shading_lanes_are_the_scalar_kernel(b in block(), shade_ray_traced in any::<bool>()) {
+            at_every_level(&RasterCheck(&b, shade_ray_traced))?;
+        }
+    }
+
+    /// A light exactly behind, one at grazing incidence and one on the surface, with every
+    /// shadow code, over a block of hits and misses.
+    #[test]
+    fn raster_shading_lanes_on_hard_cases() {
+        let b = hard_block();
+        for shade_ray_traced in [false, true] {
+            at_every_level(&RasterCheck(&b, shade_ray_traced)).unwrap();
+        }
+    }
+
+    /// Lights behind, grazing and on the surface; metallic and roughness 0 and 1; a miss;
+    /// every shadow code.
+    pub(crate) fn hard_block() -> Block {
+        let object = |flags: u32, metallic: f32, roughness: f32| ObjectRecord {
+            first_triangle: 0,
+            triangle_count: 1,
+            flags,
+            material_kind: 0,
+            base_color: [1.0, 0.766, 0.336],
+            metallic,
+            roughness,
+            transmission: 0.0,
+            ior: 1.5,
+            offset_error: 0.0,
+        };
+        let objects = vec![object(0, 0.0, 1.0), object(OBJ_RAY_TRACED, 1.0, 0.0), object(OBJ_RAY_TRACED, 0.0, 1.0)];
+        let s = |position: [f32; 3], normal: [f32; 3], object: u32| SurfaceRecord {
+            position,
+            position_error: 0.0,
+            normal,
+            object,
+            geometric_normal: normal,
+            triangle: 0,
+        };
+        let surfaces = [
+            s([0.0, 0.0, 0.0], [0.0, 1.0, 0.0], 0),
+            s([0.0, 0.0, 0.0], [0.0, 1.0, 0.0], 1),
+            s([1.0, 2.0, 3.0], [0.0, 1.0, 0.0], 2),
+            SurfaceRecord::MISS,
+            s([0.0, -0.0, 1.0], [1.0, 0.0, 0.0], 1),
+            s([-1.0, 0.0, 0.0], [0.0, 0.0, 0.0], 1),
+            s([1e30, -1e30, 0.0], [0.0, -1.0, 0.0], 0),
+            s([0.0, 5.0, 0.0], [0.6, 0.8, 0.0], 1),
+        ];
+        let point =
+            |p: [f32; 3]| LightRecord { position_or_direction: p, kind: LIGHT_POINT, radiance: [8.0; 3], pad: 0 };
+        let lights = vec![
+            point([0.0, -1.0, 0.0]),
+            point([5.0, 0.0, 0.0]),
+            point([1.0, 2.0, 3.0]),
+            LightRecord {
+                position_or_direction: [0.0, -1.0, 0.0],
+                kind: LIGHT_DIRECTIONAL,
+                radiance: [1.0; 3],
+                pad: 0,
+            },
+        ];
+        let codes = [SHADOW_LIT, SHADOW_LIT, SHADOW_OCCLUDED, SHADOW_NO_RAY];
+        let shadow = (0..LANES * lights.len()).map(|i| codes[(i + i / 4) % 4]).collect();
+        Block { surfaces, objects, lights, shadow, eye: [0.0, 1.0, 2.0] }
+    }
+}
