@@ -448,11 +448,17 @@ fn tile_shading<L: Lanes>(
                 None => none,
             };
             let out = composition_lanes::<L>(steps.composition, raster, rt, inputs.weight);
-            let out = [L::store(out[0]), L::store(out[1]), L::store(out[2]), L::store(out[3])];
-            for j in 0..LANES {
+            // Lane `j`'s texel (a transpose).
+            let mut texels = [[0.0f32; 4]; LANES];
+            for (c, channel) in out.into_iter().enumerate() {
+                for (texel, x) in texels.iter_mut().zip(L::store(channel)) {
+                    texel[c] = x;
+                }
+            }
+            for (j, texel) in texels.into_iter().enumerate() {
                 let (lx, ly) = at_lane(j);
                 if inside((lx, ly)) {
-                    rows[ly][lx] = [out[0][j], out[1][j], out[2][j], out[3][j]];
+                    rows[ly][lx] = texel;
                 }
             }
         }
