@@ -8,7 +8,6 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use glam::Vec3;
 use hyrt_conformance::leak::{
     leak_case, placements, shell, LightSide, ShellKind, View, LEAK_HEIGHT, LEAK_WIDTH, LIGHTS_PER_CASE, SHELL_OBJECT,
 };
@@ -17,7 +16,7 @@ use hyrt_core::formats::CameraRecord;
 use hyrt_core::frame::{SHADOW_LIT, SHADOW_OCCLUDED};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_cpu::compaction::{compaction, shadow_mask};
-use hyrt_cpu::reconstruction::reconstruction;
+use hyrt_cpu::reconstruction::reconstruction_reintersected_into;
 use hyrt_cpu::shadow_rays::shadow_rays;
 use hyrt_cpu::visibility_raster::visibility_raster;
 
@@ -63,7 +62,10 @@ pub fn leak_offsets(quick: bool, progress: &dyn Fn(&str)) -> Vec<LeakOffsetRow> 
                 let g = WorldGeometry::build(&lc.case.scene);
                 let bvh = Bvh::build(&g, BvhPreset::default());
                 let cam = CameraRecord::new(&lc.case.camera, lc.case.width, lc.case.height);
-                let surfaces = reconstruction(&visibility_raster(&g, &cam).gbuffer, &g, Vec3::from(cam.eye));
+                let gbuffer = visibility_raster(&g, &cam).gbuffer;
+                // The pipeline's surfaces: re-intersected barycentrics (`FrameOptions::default()`).
+                let mut surfaces = Vec::new();
+                reconstruction_reintersected_into(&gbuffer, &g, &cam, &mut surfaces);
                 let pipeline_rays = compaction(&surfaces, &g.lights);
                 for method in OffsetMethod::ALL {
                     let mut rays = pipeline_rays.clone();

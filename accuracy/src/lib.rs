@@ -8,7 +8,8 @@
 //! * `barycentrics`: the G-buffer's f32 barycentrics against the same quantized to
 //!   16-bit unorm ([`variants::quantize_unorm16`]) before reconstruction, and against
 //!   each pixel's camera ray re-intersected with the rasterized triangle
-//!   (`PrimaryBarycentrics::Reintersected`: hit points as exact as a ray tracer's).
+//!   (`PrimaryBarycentrics::Reintersected`: hit points as exact as a ray tracer's; the
+//!   pipeline's default, so every other group's frame takes them).
 //! * `ray origin`: shadow-ray origins with no offset, a constant epsilon along the
 //!   normal, Wächter and Binder's 256 ulps, and the error-bound offset the pipeline uses
 //!   ([`variants::OffsetMethod`]).
@@ -191,12 +192,13 @@ enum Config {
 /// The barycentrics of the `barycentrics` group.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum BarySource {
-    /// The raster's f32 barycentrics (the pipeline's default).
+    /// The raster's f32 barycentrics.
     Raster,
     /// The raster's, quantized to 16-bit unorm first.
     Unorm16,
     /// Each pixel's camera ray re-intersected with the rasterized triangle
-    /// (`PrimaryBarycentrics::Reintersected`).
+    /// (`PrimaryBarycentrics::Reintersected`, the pipeline's default: every other group's
+    /// frame takes it).
     Reintersected,
 }
 
@@ -227,12 +229,13 @@ fn run_frame(g: &WorldGeometry, bvh: &Bvh, camera: &CameraRecord, config: Config
     let t_rec = Instant::now();
     let surfaces = match config {
         Config::Barycentrics(BarySource::Unorm16) => reconstruction(&variants::quantize_gbuffer(&gbuffer), g, eye),
-        Config::Barycentrics(BarySource::Reintersected) => {
+        Config::Barycentrics(BarySource::Raster) => reconstruction(&gbuffer, g, eye),
+        // The pipeline's default (`FrameOptions::default().barycentrics`).
+        _ => {
             let mut s = Vec::new();
             reconstruction_reintersected_into(&gbuffer, g, camera, &mut s);
             s
         }
-        _ => reconstruction(&gbuffer, g, eye),
     };
     let rec_ms = ms_since(t_rec);
     let t_shadow = Instant::now();

@@ -17,8 +17,11 @@ use hyrt_accuracy::reference::{occluded_f64, Ray64, REFERENCE_SHADOW_T_MIN};
 use hyrt_conformance::leak::{leak_corpus, LightSide, FLOOR_OBJECT, MIN_FEATURE_ULPS, MIN_SHADOW_RAYS, SHELL_OBJECT};
 use hyrt_conformance::report::render_case;
 use hyrt_core::bvh::BvhPreset;
-use hyrt_core::frame::{PreparedScene, SHADOW_LIT, SHADOW_NO_RAY, SHADOW_OCCLUDED};
+use hyrt_core::formats::CameraRecord;
+use hyrt_core::frame::{FrameOptions, PreparedScene, PrimaryBarycentrics, SHADOW_LIT, SHADOW_NO_RAY, SHADOW_OCCLUDED};
 use hyrt_core::geometry::WorldGeometry;
+use hyrt_core::kernels::camera::primary_ray;
+use hyrt_core::kernels::reconstruction::reintersected_barycentrics;
 use hyrt_cpu::backend::CpuBackend;
 
 /// How far the light may move before a decision counts as stable: the pipeline's shadow ray
@@ -76,6 +79,7 @@ fn leak_corpus_lights_outside_light_and_shadow_what_they_should() {
         }
         let prepared = cpu.prepare(WorldGeometry::build(&lc.case.scene), BvhPreset::default());
         let frame = render_case(&mut cpu, &prepared, &lc.case).unwrap();
+        let camera = CameraRecord::new(&lc.case.camera, lc.case.width, lc.case.height);
         let lights = &prepared.geometry.lights;
         let mut t = Tally::default();
         for (pixel, s) in frame.surfaces.iter().enumerate() {
@@ -84,7 +88,12 @@ fn leak_corpus_lights_outside_light_and_shadow_what_they_should() {
             }
             let texel = frame.gbuffer[pixel];
             let [v0, v1, v2] = prepared.geometry.triangle(s.triangle as usize).vertices().map(|v| v.as_dvec3());
-            let (u, v) = (texel.bary_u as f64, texel.bary_v as f64);
+            // The exact point at the barycentrics the frame used: the default's, the
+            // pixel's camera ray re-intersected with the raster's triangle.
+            assert_eq!(FrameOptions::default().barycentrics, PrimaryBarycentrics::Reintersected);
+            let ray = primary_ray(&camera, pixel as u32 % camera.width, pixel as u32 / camera.width);
+            let (u, v) = reintersected_barycentrics(&texel, &prepared.geometry, &ray);
+            let (u, v) = (u as f64, v as f64);
             let p = v0 * (1.0 - u - v) + v1 * u + v2 * v;
             for (l, light) in lights.iter().enumerate() {
                 let got = frame.shadow[pixel * lights.len() + l];

@@ -161,7 +161,8 @@ fn full_pipeline(p: &PreparedScene, cam: &CameraRecord, weight: f32) -> Frame {
     let eye = glam::Vec3::from(cam.eye);
     let vis = visibility_raster::visibility_raster(g, cam);
     let mut surfaces = Vec::new();
-    reconstruction::reconstruction_into(&vis.gbuffer, g, eye, &mut surfaces);
+    // The default barycentrics (`FrameOptions::default().barycentrics`): re-intersected.
+    reconstruction::reconstruction_reintersected_into(&vis.gbuffer, g, cam, &mut surfaces);
     let rays = compaction::compaction(&surfaces, &g.lights);
     let mut occluded = Vec::new();
     shadow_rays::shadow_rays_with(&p.bvh, g, &rays, Traversal::Scalar, &mut occluded);

@@ -39,8 +39,7 @@ pub struct FrameOptions {
 pub enum PrimaryBarycentrics {
     /// The raster's: interpolated at the pixel centre in the snapped triangle (vertices on
     /// a 1/256-pixel grid), so hit points carry the snapping error (about 7e-6 of the
-    /// scene's diagonal on the teaser).
-    #[default]
+    /// scene's diagonal on the teaser). Cheaper by a few percent of the frame.
     Raster,
     /// The pixel's camera ray intersected with the triangle the raster found, by the
     /// watertight kernel ([`crate::kernels::reconstruction::reintersected_barycentrics`]):
@@ -48,6 +47,8 @@ pub enum PrimaryBarycentrics {
     /// misses that triangle (a pixel centre the snapped triangle covers and the exact one
     /// does not, at its edges) the raster's barycentrics are kept. Both backends,
     /// bit-identical (the GPU's `reconstruction` mirrors the camera ray and the test).
+    /// The default: exact primary hits cost under a tenth of the CPU's fused frame.
+    #[default]
     Reintersected,
 }
 
@@ -63,7 +64,7 @@ impl PrimaryBarycentrics {
 
 impl Default for FrameOptions {
     /// Weight 1 (ray-traced objects shaded by the tracer alone), no stage outputs (the
-    /// final image alone),
+    /// final image alone), exact primary hits ([`PrimaryBarycentrics::Reintersected`]),
     /// reflection and refraction to [`crate::kernels::bounce::DEFAULT_MAX_DEPTH`]
     /// bounces (a scene without ray-traced mirrors or glass plans none; `max_depth: 0`
     /// gives the paper's frame, shadow rays only).
@@ -73,7 +74,7 @@ impl Default for FrameOptions {
             stage_outputs: false,
             keep_gbuffer: false,
             max_depth: crate::kernels::bounce::DEFAULT_MAX_DEPTH,
-            barycentrics: PrimaryBarycentrics::Raster,
+            barycentrics: PrimaryBarycentrics::Reintersected,
         }
     }
 }

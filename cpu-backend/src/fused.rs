@@ -59,7 +59,6 @@ use hyrt_core::formats::{
     CameraRecord, GBufferTexel, LightRecord, RayRecord, SurfaceRecord, SHADOW_LIT, SHADOW_NO_RAY,
 };
 use hyrt_core::frame::{FrameOptions, PreparedScene};
-use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::shading::BACKGROUND_RGBA;
 use hyrt_core::kernels::shadow::shadow_code;
 use hyrt_core::kernels::texture::Materials;
@@ -71,7 +70,7 @@ use crate::composition::lanes::composition_lanes;
 use crate::lanes::{avx2_entry_points, dispatch, store3, Lanes, LANES};
 use crate::raster_shading::lanes::{raster_shading_lanes, PrimaryLanes};
 use crate::raster_shading::{raster_shading_pixel, Primary};
-use crate::reconstruction::{BlockSetups, Reconstruct};
+use crate::reconstruction::{self, BlockSetups, Reconstruct};
 use crate::rt_shading::lanes::rt_shading_lanes;
 use crate::rt_shading::rt_shading_pixel;
 use crate::traversal::tiles::{TILE_HEIGHT, TILE_WIDTH};
@@ -301,14 +300,11 @@ fn tile(
     }
 
     // reconstruction
-    dispatch!(
-        inputs.level,
-        tile_reconstruction,
-        tile_reconstruction_avx512,
-        tile_reconstruction_avx2,
-        (&inputs.reconstruct, g, texels, (x0, y0), (tw, th), stride, &mut s.setups, &mut s.surfaces)
-    );
-    crate::reconstruction::validate(&s.surfaces);
+    s.surfaces.clear();
+    s.surfaces.resize(tw * th, SurfaceRecord::MISS);
+    let at = ((x0, y0), (tw, th), stride);
+    reconstruction::blocks(inputs.level, &inputs.reconstruct, g, texels, at, &mut s.setups, &mut s.surfaces);
+    reconstruction::validate(&s.surfaces);
 
     // compaction and shadow_rays, light by light
     let lights = &g.lights;
@@ -476,67 +472,6 @@ avx2_entry_points!(
         size: (usize, usize),
         lit: &mut Vec<u32>,
         rows: &mut [&mut [[f32; 4]]]
-    )
-);
-
-/// The surfaces of a tile of `tw` x `th` pixels whose top-left pixel is `(x0, y0)` into
-/// `surfaces` (row-major), from its texels `gbuffer` (texel `(lx, ly)` at
-/// `ly * width + lx`): `reconstruction` a [`TILE_WIDTH`] x [`TILE_HEIGHT`] block at a
-/// time ([`Reconstruct::block`]).
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn tile_reconstruction<L: Lanes>(
-    reconstruct: &Reconstruct,
-    geometry: &WorldGeometry,
-    gbuffer: &[GBufferTexel],
-    (x0, y0): (usize, usize),
-    (tw, th): (usize, usize),
-    width: usize,
-    setups: &mut BlockSetups,
-    surfaces: &mut Vec<SurfaceRecord>,
-) {
-    const BW: usize = TILE_WIDTH as usize;
-    const BH: usize = TILE_HEIGHT as usize;
-    surfaces.clear();
-    surfaces.resize(tw * th, SurfaceRecord::MISS);
-    for by in (0..th).step_by(BH) {
-        for bx in (0..tw).step_by(BW) {
-            // Lane `j` is the block's pixel `(bx + j % BW, by + j / BW)`; one outside the
-            // tile is a miss.
-            let at_lane = |j: usize| (bx + j % BW, by + j / BW);
-            let inside = |(lx, ly): (usize, usize)| lx < tw && ly < th;
-            let texels = std::array::from_fn(|j| match at_lane(j) {
-                (lx, ly) if inside((lx, ly)) => &gbuffer[ly * width + lx],
-                _ => &GBufferTexel::MISS,
-            });
-            let xy = std::array::from_fn(|j| {
-                let (lx, ly) = at_lane(j);
-                ((x0 + lx) as u32, (y0 + ly) as u32)
-            });
-            let block = reconstruct.block::<L>(texels, xy, geometry, setups);
-            for (j, surface) in block.into_iter().enumerate() {
-                let (lx, ly) = at_lane(j);
-                if inside((lx, ly)) {
-                    surfaces[ly * tw + lx] = surface;
-                }
-            }
-        }
-    }
-}
-
-avx2_entry_points!(
-    tile_reconstruction,
-    tile_reconstruction_avx2,
-    tile_reconstruction_avx512,
-    (
-        reconstruct: &Reconstruct,
-        geometry: &WorldGeometry,
-        gbuffer: &[GBufferTexel],
-        origin: (usize, usize),
-        size: (usize, usize),
-        width: usize,
-        setups: &mut BlockSetups,
-        surfaces: &mut Vec<SurfaceRecord>
     )
 );
 

@@ -1,9 +1,13 @@
 //! Stage `reconstruction`: G-buffer + triangle table -> world-space hit points
 //! and normals (paper eq. 1), one [`SurfaceRecord`] per pixel.
 //!
-//! Inputs: the G-buffer, the world geometry, the camera eye. Output: the surface
-//! buffer. Pure per-pixel map of [`hyrt_core::kernels::reconstruction::reconstruct_texel`]
-//! (its cached form: a run of pixels on one triangle sets the triangle up once).
+//! Inputs: the G-buffer, the world geometry, the camera eye (and, for re-intersected
+//! barycentrics, the camera). Output: the surface buffer. A per-pixel map of
+//! [`hyrt_core::kernels::reconstruction::reconstruct_texel`] (or its re-intersected form),
+//! which both executors run a [`TILE_WIDTH`] x [`TILE_HEIGHT`] block of eight pixels at a
+//! time ([`blocks`]: [`Reconstruct::block`], the kernel in eight SIMD lanes, bit for bit
+//! the scalar kernel [`Reconstruct::pixel`]): the staged frame over bands of whole rows,
+//! the fused frame (`crate::fused`) over each tile.
 
 use glam::Vec3;
 use hyrt_core::formats::{CameraRecord, GBufferTexel, RayRecord, SurfaceRecord, GBUF_BACK_FACE};
@@ -15,10 +19,17 @@ use hyrt_core::kernels::reconstruction::{
 };
 use rayon::prelude::*;
 
-use crate::lanes::LANES;
+use crate::lanes::{avx2_entry_points, dispatch, Lanes, LANES};
 use crate::traversal::intersect_each;
+use crate::traversal::tiles::{TILE_HEIGHT, TILE_WIDTH};
+use crate::traversal::SimdLevel;
 
 pub(crate) mod lanes;
+
+/// Pixels of the staged stage's parallel tasks (rounded to whole bands of
+/// [`TILE_HEIGHT`] rows): enough to amortise a task, small enough to balance two to a few
+/// dozen threads on a 1280x720 frame.
+const BAND_PIXELS: usize = 8192;
 
 /// The stage: reconstruct every pixel in parallel.
 pub fn reconstruction(gbuffer: &[GBufferTexel], geometry: &WorldGeometry, eye: Vec3) -> Vec<SurfaceRecord> {
@@ -27,19 +38,16 @@ pub fn reconstruction(gbuffer: &[GBufferTexel], geometry: &WorldGeometry, eye: V
     out
 }
 
-/// [`reconstruction`] into a caller-owned buffer, reusing its allocation.
+/// [`reconstruction`] into a caller-owned buffer, reusing its allocation. The raster's
+/// barycentrics do not depend on where a pixel lies, so the texels are taken as an image
+/// [`TILE_WIDTH`] pixels wide: a block is eight consecutive texels.
 pub fn reconstruction_into(
     gbuffer: &[GBufferTexel],
     geometry: &WorldGeometry,
     eye: Vec3,
     out: &mut Vec<SurfaceRecord>,
 ) {
-    gbuffer
-        .par_iter()
-        .with_min_len(1024)
-        .map_init(|| None, |cache, t| reconstruct_texel_cached(t, geometry, eye, cache))
-        .collect_into_vec(out);
-    validate(out);
+    image_into(&Reconstruct::Raster(eye), gbuffer, geometry, TILE_WIDTH as usize, out);
 }
 
 /// [`reconstruction_into`] with re-intersected barycentrics
@@ -51,14 +59,38 @@ pub fn reconstruction_reintersected_into(
     camera: &CameraRecord,
     out: &mut Vec<SurfaceRecord>,
 ) {
-    let w = camera.width as usize;
-    let pixel = Reconstruct::Reintersected(camera);
-    gbuffer
-        .par_iter()
-        .enumerate()
-        .with_min_len(1024)
-        .map_init(|| None, |cache, (i, t)| pixel.pixel(t, geometry, (i % w) as u32, (i / w) as u32, cache))
-        .collect_into_vec(out);
+    image_into(&Reconstruct::Reintersected(camera), gbuffer, geometry, camera.width as usize, out);
+}
+
+/// `reconstruct` over the texels of an image `width` pixels wide, bands of rows in
+/// parallel, each [`blocks`] at this CPU's SIMD level; a last, partial row (only where the
+/// texels are not a whole image: [`reconstruction_into`]'s form) pixel by pixel.
+fn image_into(
+    reconstruct: &Reconstruct,
+    gbuffer: &[GBufferTexel],
+    geometry: &WorldGeometry,
+    width: usize,
+    out: &mut Vec<SurfaceRecord>,
+) {
+    // Every record is written below: resizing alone leaves a reused buffer untouched.
+    out.resize(gbuffer.len(), SurfaceRecord::MISS);
+    let level = SimdLevel::detect();
+    let width = width.max(1);
+    let band_rows = (BAND_PIXELS / width).max(1).next_multiple_of(TILE_HEIGHT as usize);
+    let band = band_rows * width;
+    out.par_chunks_mut(band).zip(gbuffer.par_chunks(band)).enumerate().for_each_init(
+        BlockSetups::default,
+        |setups, (b, (out, texels))| {
+            let rows = texels.len() / width;
+            let whole = rows * width;
+            let at = ((0, b * band_rows), (width, rows), width);
+            blocks(level, reconstruct, geometry, &texels[..whole], at, setups, &mut out[..whole]);
+            for (k, (s, t)) in out.iter_mut().zip(texels).enumerate().skip(whole) {
+                let (x, y) = ((k % width) as u32, (b * band_rows + k / width) as u32);
+                *s = reconstruct.pixel(t, geometry, x, y, &mut setups.scalar);
+            }
+        },
+    );
     validate(out);
 }
 
@@ -210,6 +242,88 @@ fn reintersected_lanes<L: crate::lanes::Lanes>(
         }
     }
 }
+
+/// The surfaces of a tile of `tw` x `th` pixels whose top-left pixel is `(x0, y0)` into
+/// `surfaces` (`tw * th`, row-major), from its texels `gbuffer` (texel `(lx, ly)` at
+/// `ly * width + lx`): `reconstruction` a [`TILE_WIDTH`] x [`TILE_HEIGHT`] block at a
+/// time ([`Reconstruct::block`]), at SIMD level `level` (one this CPU has). What both
+/// executors run: the staged stage over bands of rows, the fused frame over its tiles.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn blocks(
+    level: SimdLevel,
+    reconstruct: &Reconstruct,
+    geometry: &WorldGeometry,
+    gbuffer: &[GBufferTexel],
+    at: ((usize, usize), (usize, usize), usize),
+    setups: &mut BlockSetups,
+    surfaces: &mut [SurfaceRecord],
+) {
+    let (origin, size, width) = at;
+    dispatch!(
+        level,
+        tile_reconstruction,
+        tile_reconstruction_avx512,
+        tile_reconstruction_avx2,
+        (reconstruct, geometry, gbuffer, origin, size, width, setups, surfaces)
+    );
+}
+
+/// [`blocks`] at lanes `L`.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn tile_reconstruction<L: Lanes>(
+    reconstruct: &Reconstruct,
+    geometry: &WorldGeometry,
+    gbuffer: &[GBufferTexel],
+    (x0, y0): (usize, usize),
+    (tw, th): (usize, usize),
+    width: usize,
+    setups: &mut BlockSetups,
+    surfaces: &mut [SurfaceRecord],
+) {
+    const BW: usize = TILE_WIDTH as usize;
+    const BH: usize = TILE_HEIGHT as usize;
+    debug_assert_eq!(surfaces.len(), tw * th);
+    for by in (0..th).step_by(BH) {
+        for bx in (0..tw).step_by(BW) {
+            // Lane `j` is the block's pixel `(bx + j % BW, by + j / BW)`; one outside the
+            // tile is a miss.
+            let at_lane = |j: usize| (bx + j % BW, by + j / BW);
+            let inside = |(lx, ly): (usize, usize)| lx < tw && ly < th;
+            let texels = std::array::from_fn(|j| match at_lane(j) {
+                (lx, ly) if inside((lx, ly)) => &gbuffer[ly * width + lx],
+                _ => &GBufferTexel::MISS,
+            });
+            let xy = std::array::from_fn(|j| {
+                let (lx, ly) = at_lane(j);
+                ((x0 + lx) as u32, (y0 + ly) as u32)
+            });
+            let block = reconstruct.block::<L>(texels, xy, geometry, setups);
+            for (j, surface) in block.into_iter().enumerate() {
+                let (lx, ly) = at_lane(j);
+                if inside((lx, ly)) {
+                    surfaces[ly * tw + lx] = surface;
+                }
+            }
+        }
+    }
+}
+
+avx2_entry_points!(
+    tile_reconstruction,
+    tile_reconstruction_avx2,
+    tile_reconstruction_avx512,
+    (
+        reconstruct: &Reconstruct,
+        geometry: &WorldGeometry,
+        gbuffer: &[GBufferTexel],
+        origin: (usize, usize),
+        size: (usize, usize),
+        width: usize,
+        setups: &mut BlockSetups,
+        surfaces: &mut [SurfaceRecord]
+    )
+);
 
 /// Debug builds: every record valid.
 pub(crate) fn validate(out: &[SurfaceRecord]) {

@@ -269,6 +269,17 @@ unsafe fn triangle_geometry(
 /// Closest hit for each ray with `rtcIntersect1` on a committed `scene`; `map` turns a
 /// hit into hyrt's global triangle index.
 fn intersect1_in(scene: RTCScene, rays: &[RayRecord], out: &mut [Option<u32>], map: impl Fn(&RTCHit) -> Option<u32>) {
+    intersect1_with(scene, rays, out, |rh| map(&rh.hit));
+}
+
+/// [`intersect1_in`] with `map` given the whole ray and hit (the hit's distance in
+/// `ray.tfar`), for the hits only.
+fn intersect1_with<T>(
+    scene: RTCScene,
+    rays: &[RayRecord],
+    out: &mut [Option<T>],
+    map: impl Fn(&RTCRayHit) -> Option<T>,
+) {
     let mut ctx = init_context();
     for (o, r) in out.iter_mut().zip(rays) {
         let mut rh = RTCRayHit { ray: EmbreeScene::ray(r), hit: RTCHit::default() };
@@ -276,7 +287,7 @@ fn intersect1_in(scene: RTCScene, rays: &[RayRecord], out: &mut [Option<u32>], m
         rh.hit.inst_id = [RTC_INVALID_GEOMETRY_ID];
         // SAFETY: a committed scene, a valid context and ray/hit.
         unsafe { rtcIntersect1(scene, &mut ctx, &mut rh) };
-        *o = if rh.hit.geom_id == RTC_INVALID_GEOMETRY_ID { None } else { map(&rh.hit) };
+        *o = if rh.hit.geom_id == RTC_INVALID_GEOMETRY_ID { None } else { map(&rh) };
     }
 }
 
@@ -412,6 +423,14 @@ impl EmbreeScene {
     /// or `None`.
     pub fn intersect1(&self, rays: &[RayRecord], out: &mut [Option<u32>]) {
         intersect1_in(self.scene, rays, out, |h| Some(self.prim_to_triangle[h.prim_id as usize]));
+    }
+
+    /// Closest hit for each ray with `rtcIntersect1`: the hyrt global triangle index hit and
+    /// the hit's ray parameter `t` (the point is `origin + t * direction`), or `None`.
+    pub fn intersect1_t(&self, rays: &[RayRecord], out: &mut [Option<(u32, f32)>]) {
+        intersect1_with(self.scene, rays, out, |rh| {
+            Some((self.prim_to_triangle[rh.hit.prim_id as usize], rh.ray.tfar))
+        });
     }
 
     /// Closest hit with 8-wide packets of consecutive rays (`rtcIntersect8`, the default

@@ -9,6 +9,7 @@
 //! repetitions within this one run; nothing here asserts a speed.
 
 pub mod bounces;
+pub mod hit_points;
 pub mod instancing;
 pub mod machine;
 pub mod moving;

@@ -32,6 +32,7 @@ use hyrt_cpu::traversal::{
 use indicatif::ProgressBar;
 use rayon::prelude::*;
 
+use super::hit_points::{self, HitPoints};
 use super::report::{count, num, Section, Table};
 use super::stats::{interleaved_ms, median, round_ratios};
 use super::stats::{mrays_per_s, FrameSummary};
@@ -117,6 +118,9 @@ pub struct ScenePeers {
     /// The same frame with the staged executor at the most threads (its per-stage
     /// medians: `visibility_raster` and `reconstruction` against the primary rays).
     pub staged_frame: Option<(usize, FrameSummary)>,
+    /// The frame's primary hit points against Embree's, per barycentrics mode (empty
+    /// without Embree).
+    pub hit_points: Vec<HitPoints>,
 }
 
 /// Visibility raster of the CPU backend against the GPU backend on one scene.
@@ -299,10 +303,16 @@ fn measure_scene(
         primary_hits: 0,
         secondary: Vec::new(),
         secondary_hits: 0,
+        hit_points: Vec::new(),
     };
     #[cfg(feature = "embree")]
     {
         out.embree_build_ms = embree.as_ref().map(|e| e.build_ms);
+        if let Some(e) = &embree {
+            progress.set_message(format!("peers: {} primary hit points against Embree's", row.name));
+            let render = |source| BenchError::Render { scene: row.name.to_string(), source };
+            out.hit_points = super::hit_points::measure(row.prepared, &row.camera, e).map_err(render)?;
+        }
     }
     #[cfg(feature = "embree")]
     let embree_ref = embree.as_ref();
@@ -832,6 +842,8 @@ impl Peers {
                 num(p.ms / rr, 2),
             ]);
         }
+        // Primary hit points against Embree's hits of the same camera rays.
+        out.extend(self.scenes.iter().filter_map(|s| hit_points::goal_row(&s.scene, &s.hit_points)));
         let hyrt_shadow = fastest(&main.shadow, threads, "hyrt packets");
         let hyrt_primary = fastest(&main.primary, threads, "hyrt packets");
         if let Some(peer) = best(&main.shadow, "Embree `rtcOccluded1`") {
@@ -935,6 +947,7 @@ mod tests {
                 frames: Vec::new(),
                 frame_executor: Executor::Fused,
                 staged_frame: None,
+                hit_points: Vec::new(),
             }],
             frames: None,
             raster: vec![RasterRow {
@@ -947,6 +960,29 @@ mod tests {
             cpu_threads: 2,
             embree_missing: (!embree).then(|| "not built".into()),
         }
+    }
+
+    #[test]
+    fn primary_hit_points_against_embrees_get_a_goal_row_per_scene_that_has_them() {
+        let mut p = peers("teaser", true);
+        let has_row =
+            |p: &Peers| p.goals().iter().any(|g| g[0].starts_with("primary hit points vs Embree's hits, teaser"));
+        assert!(!has_row(&p), "no measurement, no row");
+        let h = |barycentrics, median_rel| HitPoints {
+            barycentrics,
+            pixels: 10_000,
+            hit_or_miss_differs: 1,
+            within: 9_999,
+            median_rel,
+        };
+        p.scenes[0].hit_points = vec![
+            h(hyrt_core::frame::PrimaryBarycentrics::Reintersected, 2e-8),
+            h(hyrt_core::frame::PrimaryBarycentrics::Raster, 3e-6),
+        ];
+        let goals = p.goals();
+        let row = goals.iter().find(|g| g[0].starts_with("primary hit points vs Embree's hits, teaser")).unwrap();
+        assert_eq!(row[3], "1.00", "{row:?}");
+        assert!(row[0].contains("raster barycentrics: median 3.0e-6"), "{row:?}");
     }
 
     #[test]
