@@ -76,13 +76,6 @@ impl BounceVariant {
     pub const PIPELINE: BounceVariant = BounceVariant { offset: OffsetMethod::PIPELINE, cutoff_log2: None };
 }
 
-/// The surface of parent `i`.
-fn parent_surface<'a>(parents: &Parents<'a>, i: usize) -> &'a SurfaceRecord {
-    match *parents {
-        Parents::Primary { surfaces, .. } | Parents::Secondary { surfaces, .. } => &surfaces[i],
-    }
-}
-
 /// The `secondary_rays` stage with the throughput cut-off `2^cutoff_log2` instead of
 /// `MIN_THROUGHPUT`: the rays of bounce `depth` into `rays` (parents' order, reflection
 /// before refraction), each parent's `[reflection, refraction]` child indices into `links`.
@@ -152,7 +145,7 @@ pub fn reoffset_secondary_rays(
         }
     }
     rays.par_iter_mut().zip(parent_of.par_iter()).with_min_len(1024).for_each(|(r, &i)| {
-        let s = parent_surface(parents, i as usize);
+        let s = parents.surface(i as usize);
         let ng = Vec3::from(s.geometric_normal);
         let side = if r.kind == RAY_KIND_REFRACTION { -ng } else { ng };
         r.origin = method.origin(Vec3::from(s.position), s.position_error, side, scene_extent).into();

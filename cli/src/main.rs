@@ -218,8 +218,9 @@ struct SceneArgs {
     #[arg(long, value_enum, default_value = "reintersected")]
     barycentrics: BarycentricsArg,
     /// How the CPU backend runs a frame: fused (default: tile by tile in cache, where the
-    /// frame returns only its image, as without --dump, and has no bounces) or staged (stage
-    /// after stage over whole-image buffers, each stage timed). The same image.
+    /// frame returns only its image, as without --dump; mirrors' and glass's bounces run over
+    /// the pixels that bounce, after the tiles) or staged (stage after stage over
+    /// whole-image buffers, each stage timed). The same image.
     #[arg(long, value_enum, default_value = "fused")]
     executor: ExecutorArg,
 }
@@ -488,8 +489,8 @@ impl SceneArgs {
 
 /// The timed lines of a frame, `(label, ms)` in the order they ran: each step's (a bounce
 /// step carries its depth: `compaction{2}`), and for a fused frame its tiles' line, which
-/// holds the raster tiles' depth tests and resolves and every later step
-/// (`visibility_raster`'s line is its setup and binning then).
+/// holds the raster tiles' depth tests and resolves and every later step but the bounce
+/// steps, which have their lines (`visibility_raster`'s line is its setup and binning then).
 fn timed_lines(s: &hyrt::FrameStats) -> Vec<(String, f64)> {
     let mut lines: Vec<(String, f64)> = s.stage_ms.iter().map(|t| (t.label(), t.ms)).collect();
     if s.executor == hyrt::Executor::Fused {
@@ -499,7 +500,7 @@ fn timed_lines(s: &hyrt::FrameStats) -> Vec<(String, f64)> {
 }
 
 /// The fused frame's line in `hyrt render`'s times: the raster's tiles and every step after
-/// `visibility_raster` ([`hyrt::FrameStats::fused_ms`]).
+/// `visibility_raster` but the bounce steps ([`hyrt::FrameStats::fused_ms`]).
 const FUSED_TILES_LABEL: &str = "fused tiles";
 
 /// `frame.png` -> `frame_0007.png`: frame `i` of an animation rendered to `out`.

@@ -115,12 +115,15 @@ pub struct FrameStats {
     /// The stages the frame's plan left out, and why.
     pub skipped: Vec<Skipped>,
     /// How the backend ran the plan. With [`Executor::Fused`], `stage_ms` holds
-    /// `visibility_raster`'s setup and binning alone, and its tiles (depth test and
-    /// resolve) and every later step ran in the tiles, timed together in `fused_ms`.
+    /// `visibility_raster`'s setup and binning alone, then each bounce step (depth above
+    /// 0) where the plan traces bounces, and its tiles (depth test and resolve) and every
+    /// other step ran in the tiles, timed together in `fused_ms`.
     pub executor: Executor,
     /// Milliseconds of the fused executor's tile pass ([`Executor::Fused`]): each
     /// raster tile's depth test and resolve, and every step of the plan after
-    /// `visibility_raster` on its pixels, tile by tile. Zero for a staged frame.
+    /// `visibility_raster` on its pixels, tile by tile; with bounces also the gathering of
+    /// the bouncing pixels the tiles deferred and their `rt_shading` and `composition`
+    /// after the bounce steps. Zero for a staged frame.
     pub fused_ms: f64,
 }
 
@@ -130,8 +133,7 @@ pub struct FrameStats {
 pub enum Executor {
     /// Stage after stage over whole-image buffers, each stage timed: the reference, and the
     /// only executor that can return every stage's output ([`FrameOptions::stage_outputs`],
-    /// `--dump`, conformance, the viewer's stage views) or trace bounces. The GPU backend's
-    /// executor.
+    /// `--dump`, conformance, the viewer's stage views). The GPU backend's executor.
     #[default]
     Staged,
     /// The CPU backend's fused, tiled frame: after `visibility_raster`, each screen tile runs
@@ -139,7 +141,9 @@ pub enum Executor {
     /// data is in cache, with tile-local scratch instead of whole-image buffers. It returns
     /// the final image, and the G-buffer where the frame asks for it
     /// ([`FrameOptions::keep_gbuffer`]: otherwise the G-buffer lives in each raster tile's
-    /// scratch only); it runs frames without stage outputs and without bounces.
+    /// scratch only); it runs frames without stage outputs. Where the frame traces bounces,
+    /// the tiles defer the pixels that bounce, whose rays are traced over all tiles at
+    /// once after the raster, and finish them then.
     Fused,
 }
 

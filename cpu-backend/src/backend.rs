@@ -1,15 +1,17 @@
 //! [`CpuBackend`]: runs the stages in order on a rayon pool and times each.
 
+use std::collections::TryReserveError;
 use std::time::Instant;
 
 use glam::Vec3;
 use hyrt_core::bvh::{BvhPreset, ClosestHit};
 use hyrt_core::formats::{CameraRecord, RayRecord, SurfaceRecord, RAY_KIND_COUNT, RAY_KIND_SHADOW};
 use hyrt_core::frame::{
-    Backend, BounceStats, Executor, Frame, FrameOptions, FrameStats, PreparedScene, PrimaryBarycentrics, RenderError,
-    StageTime, StageWork,
+    Backend, BounceBuffers, BounceStats, Executor, Frame, FrameOptions, FrameStats, PreparedScene, PrimaryBarycentrics,
+    RenderError, StageTime, StageWork,
 };
 use hyrt_core::geometry::WorldGeometry;
+use hyrt_core::kernels::texture::Materials;
 use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan, Step};
 
 use rayon::prelude::*;
@@ -21,11 +23,11 @@ use crate::{
         active_pairs_into, compaction_into, pair_ray, shadow_mask_into, shadow_mask_of_pairs_into, CompactionScratch,
     },
     composition::composition_into,
-    fused::{fused_frame, FusedSteps},
+    fused::{fused_frame, shade_deferred, Deferred, FusedSteps},
     memory,
     raster_shading::{raster_shading_into, Primary},
     reconstruction::{reconstruction_into, reconstruction_reintersected_into},
-    rt_shading::{rt_shading_bouncing_into, rt_shading_into, FirstBounce},
+    rt_shading::{rt_shading_bouncing_into, rt_shading_into, BouncingShading, FirstBounce},
     secondary_rays::{secondary_rays_into, Parents},
     shadow_rays::{shadow_rays_in_object_space, shadow_rays_of_pairs_into, shadow_rays_with},
     traversal::Traversal,
@@ -40,6 +42,8 @@ pub struct CpuBackend {
     scratch: CompactionScratch,
     /// `bounce_trace`'s closest hits before they become records, kept between frames.
     closest: Vec<Option<ClosestHit>>,
+    /// The fused frame's bouncing pixels, kept between frames.
+    deferred: Deferred,
     /// How `shadow_rays` and `bounce_compaction`'s shadow rays trace (any hit; SIMD packets
     /// by default, scalar for comparisons).
     shadow_traversal: Traversal,
@@ -60,6 +64,7 @@ impl CpuBackend {
             pool: b.build().expect("rayon thread pool"),
             scratch: CompactionScratch::default(),
             closest: Vec::new(),
+            deferred: Deferred::default(),
             shadow_traversal: Traversal::simd(),
             bounce_traversal: Traversal::for_bounces(),
             executor: Executor::Fused,
@@ -67,8 +72,9 @@ impl CpuBackend {
     }
 
     /// Run frames with `executor` from now on. [`Executor::Fused`] (the default) runs the
-    /// fused tiles ([`crate::fused`]) wherever a frame allows it (no stage outputs, no
-    /// bounces) and the staged loop elsewhere; [`Executor::Staged`] runs every frame
+    /// fused tiles ([`crate::fused`]) wherever a frame allows it (no stage outputs: every
+    /// frame that returns only its image, and its G-buffer if asked) and the staged loop
+    /// elsewhere; [`Executor::Staged`] runs every frame
     /// stage by stage (per-stage times, for Table 2 and before/after comparisons). Both
     /// give the same frame; [`FrameStats::executor`] says which ran.
     pub fn set_executor(&mut self, executor: Executor) {
@@ -88,7 +94,7 @@ impl CpuBackend {
     /// What the fused tiles run of `plan` where the frame runs fused ([`Self::executor_for`]).
     fn fused_steps(&self, plan: &FramePlan, options: &FrameOptions) -> Option<FusedSteps> {
         match self.executor {
-            Executor::Fused if !options.stage_outputs => FusedSteps::of(plan),
+            Executor::Fused if !options.stage_outputs => Some(FusedSteps::of(plan)),
             _ => None,
         }
     }
@@ -191,6 +197,117 @@ fn rays_per_kind(a: &[RayRecord]) -> [u64; RAY_KIND_COUNT] {
         .reduce(|| [0u64; RAY_KIND_COUNT], |a, b| std::array::from_fn(|i| a[i] + b[i]))
 }
 
+/// Per bounce depth of `bounces`, what it traced: its rays per kind with `shadow_rays[d - 1]`
+/// shadow rays, its hits and its occluded shadow rays.
+fn bounce_stats(bounces: &[BounceBuffers], shadow_rays: &[usize]) -> Vec<BounceStats> {
+    bounces
+        .iter()
+        .zip(shadow_rays)
+        .map(|(b, &shadow)| BounceStats {
+            rays_per_kind: {
+                let mut k = rays_per_kind(&b.rays);
+                k[RAY_KIND_SHADOW as usize] = shadow as u64;
+                k
+            },
+            hits: b.hits.par_iter().filter(|h| h.is_hit()).count() as u64,
+            occluded_shadow_rays: b.occluded.par_iter().filter(|&&o| o != 0).count() as u64,
+        })
+        .collect()
+}
+
+/// The error of a frame of `width` x `height` whose buffer `what` the allocator refused.
+fn oom(width: u32, height: u32, what: &'static str) -> impl Fn(TryReserveError) -> RenderError {
+    move |e| memory::out_of_memory(width, height, None, memory::available_bytes(), &format!("{what} ({e})"))
+}
+
+/// What the bounce steps read besides their buffers, the same for both executors.
+struct BounceContext<'a> {
+    scene: &'a PreparedScene,
+    materials: &'a Materials<'a>,
+    /// How shadow rays trace (any hit).
+    traversal: Traversal,
+    /// How `bounce_trace` traces (closest hit).
+    bounce_traversal: Traversal,
+    /// Per depth (0: the primary hits'), whether the frame writes its shadow-ray list.
+    lists: &'a [bool],
+    /// The frame's width and height (its out-of-memory errors).
+    size: (u32, u32),
+}
+
+/// One bounce step of a plan (`secondary_rays` to `bounce_shading`, at a depth above 0)
+/// over the frame's bounce buffers `bounces`, from the first bounce's parents `first`: the
+/// staged frame's (every pixel) or the fused frame's (the pixels its tiles deferred, in
+/// pixel order, which spawn the same rays). The shadow rays of depth `d` are counted into
+/// `shadow_rays[d]`.
+fn bounce_step(
+    cx: &BounceContext,
+    step: Step,
+    first: Parents,
+    bounces: &mut [BounceBuffers],
+    scratch: &mut CompactionScratch,
+    closest: &mut Vec<Option<ClosestHit>>,
+    shadow_rays: &mut [usize],
+) -> Result<(), RenderError> {
+    let (scene, g, materials) = (cx.scene, &cx.scene.geometry, cx.materials);
+    let oom = |what| oom(cx.size.0, cx.size.1, what);
+    match step {
+        Step::SecondaryRays { depth } => {
+            let (done, rest) = bounces.split_at_mut(depth as usize - 1);
+            let parents = match done.last() {
+                None => first,
+                Some(prev) => Parents::Secondary { rays: &prev.rays, hits: &prev.hits, surfaces: &prev.surfaces },
+            };
+            let b = &mut rest[0];
+            secondary_rays_into(parents, materials, &g.triangles, depth, scratch, &mut b.rays, &mut b.links)
+                .map_err(oom("a bounce's ray list"))?
+        }
+        Step::BounceTrace { depth } => {
+            let b = &mut bounces[depth as usize - 1];
+            let levels = scene.levels.as_ref();
+            bounce_trace_into(
+                &scene.bvh,
+                levels,
+                g,
+                &b.rays,
+                cx.bounce_traversal,
+                closest,
+                &mut b.hits,
+                &mut b.surfaces,
+            )
+        }
+        Step::BounceCompaction { depth } => {
+            let b = &mut bounces[depth as usize - 1];
+            compact_list(&b.surfaces, g, scratch, cx.lists[depth as usize].then_some(&mut b.shadow_rays))
+                .map_err(oom("a bounce's shadow rays"))?
+        }
+        Step::BounceShadowRays { depth } => {
+            let b = &mut bounces[depth as usize - 1];
+            let list = cx.lists[depth as usize].then_some(&b.shadow_rays[..]);
+            let out = (&mut b.occluded, &mut b.shadow);
+            shadow_rays[depth as usize] = trace_list(scene, &b.surfaces, scratch, list, None, cx.traversal, out);
+        }
+        Step::BounceShading { depth, last } => {
+            let (this, deeper) = bounces.split_at_mut(depth as usize);
+            let b = &mut this[depth as usize - 1];
+            let children = (!last).then(|| Children { links: &deeper[0].links, radiance: &deeper[0].radiance });
+            bounce_shading_into(
+                &b.rays,
+                &b.hits,
+                &b.surfaces,
+                &b.shadow,
+                materials,
+                &g.triangles,
+                &g.lights,
+                &g.environment,
+                children,
+                &mut b.radiance,
+            )
+        }
+        _ => unreachable!("{} is no bounce step", step.label()),
+    }
+    Ok(())
+}
+
 impl Default for CpuBackend {
     fn default() -> Self {
         CpuBackend::new(None)
@@ -230,15 +347,35 @@ impl Backend for CpuBackend {
             f.bounce_mut(plan.bounce_depth());
         }
         memory::reserve_frame(f, &plan, run, width, height)?;
+        let oom = |what: &'static str| oom(width, height, what);
+        // A frame that does not return a shadow-ray list does not write it: `compaction`
+        // keeps the active pairs and `shadow_rays` makes their rays as it traces them.
+        let list = |depth: u32| match depth {
+            0 => f.holds(FrameBuffer::Rays),
+            d => f.holds(BounceBuffer::ShadowRays.at(d)),
+        };
+        let lists: Vec<bool> = (0..=plan.bounce_depth()).map(list).collect();
+        // What shading knows of materials (textures, vertex colours; the plain object
+        // records in a scene without them).
+        let materials = g.materials(camera);
+        let cx = BounceContext {
+            scene,
+            materials: &materials,
+            traversal,
+            bounce_traversal,
+            lists: &lists,
+            size: (width, height),
+        };
         if let Some(steps) = fused {
-            self.pool.install(|| {
+            let deferred = &mut self.deferred;
+            self.pool.install(|| -> Result<(), RenderError> {
                 // The G-buffer whole-image only where the frame returns it.
                 let gbuffer = run.keep_gbuffer.then_some(&mut f.gbuffer);
                 let t = Instant::now();
                 let run = fused_frame(scene, camera, options, steps, traversal, gbuffer, &mut f.final_image);
                 // The raster's setup and binning alone; its tiles run with the fused steps.
                 let raster_ms = run.raster_setup.as_secs_f64() * 1e3;
-                let fused_ms = t.elapsed().as_secs_f64() * 1e3 - raster_ms;
+                let mut fused_ms = t.elapsed().as_secs_f64() * 1e3 - raster_ms;
                 let (covered, counts) = (run.covered_pixels, run.counts);
                 let mut stats = FrameStats {
                     width,
@@ -250,40 +387,72 @@ impl Backend for CpuBackend {
                     raster_pixels: covered - counts.ray_traced_pixels,
                     occluded_shadow_rays: counts.occluded,
                     executor,
-                    fused_ms,
                     ..FrameStats::default()
                 };
                 stats.rays_per_kind[RAY_KIND_SHADOW as usize] = counts.shadow_rays;
-                let step = Step::VisibilityRaster;
-                let work = StageWork::of(step, &stats);
-                stats.stage_ms = vec![StageTime { stage: step.stage(), depth: 0, ms: raster_ms, work }];
+                let raster = Step::VisibilityRaster;
+                let mut times =
+                    vec![StageTime { stage: raster.stage(), depth: 0, ms: raster_ms, work: StageWork::default() }];
+                if steps.bounces {
+                    // The pixels the tiles deferred, gathered in pixel order; the bounce
+                    // steps over their rays (every tile's at once), timed step by step; then
+                    // their shading and composition.
+                    let t = Instant::now();
+                    deferred.gather(run.deferred, g.lights.len()).map_err(oom("the bouncing pixels"))?;
+                    fused_ms += t.elapsed().as_secs_f64() * 1e3;
+                    let mut shadow_rays = vec![0; lists.len()];
+                    for &step in plan.steps().iter().filter(|s| s.depth() > 0) {
+                        let t = Instant::now();
+                        let first = deferred.parents(eye);
+                        bounce_step(&cx, step, first, &mut f.bounces, scratch, closest, &mut shadow_rays)?;
+                        let ms = t.elapsed().as_secs_f64() * 1e3;
+                        times.push(StageTime {
+                            stage: step.stage(),
+                            depth: step.depth(),
+                            ms,
+                            work: StageWork::default(),
+                        });
+                    }
+                    let t = Instant::now();
+                    let first = &f.bounces[0];
+                    let shading = BouncingShading {
+                        materials: &materials,
+                        triangles: &g.triangles,
+                        lights: &g.lights,
+                        eye,
+                        radiance: &first.radiance,
+                    };
+                    shade_deferred(
+                        deferred,
+                        steps,
+                        &shading,
+                        &first.links,
+                        options.weight,
+                        width as usize,
+                        &mut f.final_image,
+                    );
+                    fused_ms += t.elapsed().as_secs_f64() * 1e3;
+                    stats.bounces = bounce_stats(&f.bounces[..plan.bounce_depth() as usize], &shadow_rays[1..]);
+                }
+                stats.fused_ms = fused_ms;
+                let ran = [raster].into_iter().chain(plan.steps().iter().copied().filter(|s| s.depth() > 0));
+                for (time, step) in times.iter_mut().zip(ran) {
+                    time.work = StageWork::of(step, &stats);
+                }
+                stats.stage_ms = times;
                 f.stats = stats;
-            });
+                Ok(())
+            })?;
             f.width = width;
             f.height = height;
             f.end();
             return Ok(());
         }
-        let oom = |what: &'static str| {
-            move |e: std::collections::TryReserveError| {
-                memory::out_of_memory(width, height, None, memory::available_bytes(), &format!("{what} ({e})"))
-            }
-        };
-        // A frame that does not return a shadow-ray list does not write it: `compaction`
-        // keeps the active pairs and `shadow_rays` makes their rays as it traces them.
-        let list = |depth: u32| match depth {
-            0 => f.holds(FrameBuffer::Rays),
-            d => f.holds(BounceBuffer::ShadowRays.at(d)),
-        };
-        let lists: Vec<bool> = (0..=plan.bounce_depth()).map(list).collect();
         self.pool.install(|| -> Result<(), RenderError> {
             let mut times = Vec::with_capacity(plan.steps().len());
             let mut covered = 0;
             // Shadow rays per list: the primary hits', then each bounce depth's.
             let mut shadow_rays = vec![0; lists.len()];
-            // What shading knows of materials (textures, vertex colours; the plain
-            // object records in a scene without them).
-            let materials = g.materials(camera);
             // The plan's one loop: each step runs its stage module and is timed.
             for &step in plan.steps() {
                 let t = Instant::now();
@@ -303,68 +472,13 @@ impl Backend for CpuBackend {
                         let width = Some(camera.width);
                         shadow_rays[0] = trace_list(scene, &f.surfaces, scratch, list, width, traversal, out);
                     }
-                    Step::SecondaryRays { depth } => {
-                        let (done, rest) = f.bounces.split_at_mut(depth as usize - 1);
-                        let parents = match done.last() {
-                            None => Parents::Primary { gbuffer: &f.gbuffer, surfaces: &f.surfaces, eye },
-                            Some(prev) => {
-                                Parents::Secondary { rays: &prev.rays, hits: &prev.hits, surfaces: &prev.surfaces }
-                            }
-                        };
-                        let b = &mut rest[0];
-                        secondary_rays_into(
-                            parents,
-                            &materials,
-                            &g.triangles,
-                            depth,
-                            scratch,
-                            &mut b.rays,
-                            &mut b.links,
-                        )
-                        .map_err(oom("a bounce's ray list"))?
-                    }
-                    Step::BounceTrace { depth } => {
-                        let b = &mut f.bounces[depth as usize - 1];
-                        bounce_trace_into(
-                            &scene.bvh,
-                            scene.levels.as_ref(),
-                            g,
-                            &b.rays,
-                            bounce_traversal,
-                            closest,
-                            &mut b.hits,
-                            &mut b.surfaces,
-                        )
-                    }
-                    Step::BounceCompaction { depth } => {
-                        let b = &mut f.bounces[depth as usize - 1];
-                        compact_list(&b.surfaces, g, scratch, lists[depth as usize].then_some(&mut b.shadow_rays))
-                            .map_err(oom("a bounce's shadow rays"))?
-                    }
-                    Step::BounceShadowRays { depth } => {
-                        let b = &mut f.bounces[depth as usize - 1];
-                        let list = lists[depth as usize].then_some(&b.shadow_rays[..]);
-                        let out = (&mut b.occluded, &mut b.shadow);
-                        shadow_rays[depth as usize] =
-                            trace_list(scene, &b.surfaces, scratch, list, None, traversal, out);
-                    }
-                    Step::BounceShading { depth, last } => {
-                        let (this, deeper) = f.bounces.split_at_mut(depth as usize);
-                        let b = &mut this[depth as usize - 1];
-                        let children =
-                            (!last).then(|| Children { links: &deeper[0].links, radiance: &deeper[0].radiance });
-                        bounce_shading_into(
-                            &b.rays,
-                            &b.hits,
-                            &b.surfaces,
-                            &b.shadow,
-                            &materials,
-                            &g.triangles,
-                            &g.lights,
-                            &g.environment,
-                            children,
-                            &mut b.radiance,
-                        )
+                    Step::SecondaryRays { .. }
+                    | Step::BounceTrace { .. }
+                    | Step::BounceCompaction { .. }
+                    | Step::BounceShadowRays { .. }
+                    | Step::BounceShading { .. } => {
+                        let first = Parents::Primary { gbuffer: &f.gbuffer, surfaces: &f.surfaces, eye };
+                        bounce_step(&cx, step, first, &mut f.bounces, scratch, closest, &mut shadow_rays)?
                     }
                     Step::RtShading { bounces: false } => {
                         let primary = Primary { gbuffer: &f.gbuffer, materials: &materials, eye };
@@ -413,19 +527,7 @@ impl Backend for CpuBackend {
             stats.raster_pixels = stats.covered_pixels - stats.ray_traced_pixels;
             stats.rays_per_kind[RAY_KIND_SHADOW as usize] = shadow_rays[0] as u64;
             stats.occluded_shadow_rays = f.occluded.par_iter().filter(|&&o| o != 0).count() as u64;
-            stats.bounces = f.bounces[..plan.bounce_depth() as usize]
-                .iter()
-                .zip(&shadow_rays[1..])
-                .map(|(b, &shadow)| BounceStats {
-                    rays_per_kind: {
-                        let mut k = rays_per_kind(&b.rays);
-                        k[RAY_KIND_SHADOW as usize] = shadow as u64;
-                        k
-                    },
-                    hits: b.hits.par_iter().filter(|h| h.is_hit()).count() as u64,
-                    occluded_shadow_rays: b.occluded.par_iter().filter(|&&o| o != 0).count() as u64,
-                })
-                .collect();
+            stats.bounces = bounce_stats(&f.bounces[..plan.bounce_depth() as usize], &shadow_rays[1..]);
             for (time, &step) in times.iter_mut().zip(plan.steps()) {
                 time.work = StageWork::of(step, &stats);
             }

@@ -23,7 +23,8 @@
 //!    [`crate::composition::lanes`]: the stages' kernels in eight SIMD lanes, each lane on
 //!    its own object's record); where materials vary over surfaces (textures, vertex
 //!    colours) per pixel ([`rt_shading_pixel`], [`raster_shading_pixel`],
-//!    [`composition_pixel`]).
+//!    [`composition_pixel`]). The pixels that bounce are finished later (see Bounces
+//!    below).
 //!
 //! A tile no triangle covers writes the background and does nothing else. Nothing
 //! whole-image is written but the final image, and the G-buffer where the frame asks for it
@@ -31,6 +32,25 @@
 //! surface records, no ray list or active pairs, no shadow mask, no raster or ray-traced
 //! image. A scene the raster takes in batches keeps its texels whole-image between
 //! batches ([`crate::memory`]).
+//!
+//! # Bounces
+//!
+//! In a frame that traces reflections and refractions ([`FusedSteps::bounces`]) step 3
+//! skips the pixels whose primary hit bounces ([`may_bounce`]: mirrors and glass): the tile
+//! defers them, keeping what the later steps read of each (its pixel index, texel,
+//! surface, shadow codes and `raster_shading` colour) in a list per raster tile. Their
+//! rays are incoherent and trace faster in large batches, so they are not traced in the
+//! tiles: after the raster the backend gathers the lists in pixel order
+//! ([`Deferred::gather`]), runs the plan's bounce steps over them with the very functions
+//! of the staged frame (`backend::bounce_step`: `secondary_rays` from
+//! [`Parents::Pixels`], which spawns the staged frame's rays of depth 1 in its order, then
+//! `bounce_trace`, the bounces' `compaction` and `shadow_rays`, deeper `secondary_rays`,
+//! and `bounce_shading` from the deepest bounce up), and [`shade_deferred`] shades and
+//! composes the deferred pixels into the final image ([`rt_shading_bouncing_pixel`],
+//! [`composition_pixel`]). Every other pixel of a bouncing plan is finished in its tile by
+//! [`rt_shading_pixel`], which is what `rt_shading` with bounces gives there bit for bit.
+//! The deferred pixels and the bounce buffers are sized by the pixels that bounce and
+//! their rays, not by the image.
 //!
 //! A raster tile is four fused tiles: fused tiles of 16, 32 and 64 pixels measured within
 //! noise of each other on the teaser (when they read a whole-image G-buffer), and 32 keeps
@@ -45,7 +65,7 @@
 //! SIMD level (`hyrt-conformance`'s `fused_frames_are_the_staged_frames_over_the_corpus`
 //! checks it on every case, with and without the G-buffer kept).
 //!
-//! Frames that return stage outputs or trace bounces run staged ([`Executor::Fused`]).
+//! Frames that return stage outputs run staged ([`Executor::Fused`]).
 //!
 //! [`Executor::Fused`]: hyrt_core::frame::Executor::Fused
 //! [`FrameOptions::keep_gbuffer`]: hyrt_core::frame::FrameOptions::keep_gbuffer
@@ -55,6 +75,9 @@
 //! [`TILE_WIDTH`]: crate::traversal::tiles::TILE_WIDTH
 //! [`TILE_HEIGHT`]: crate::traversal::tiles::TILE_HEIGHT
 
+use std::collections::TryReserveError;
+
+use glam::Vec3;
 use hyrt_core::formats::{
     CameraRecord, GBufferTexel, LightRecord, RayRecord, SurfaceRecord, SHADOW_LIT, SHADOW_NO_RAY,
 };
@@ -72,10 +95,12 @@ use crate::raster_shading::lanes::{raster_shading_lanes, PrimaryLanes};
 use crate::raster_shading::{raster_shading_pixel, Primary};
 use crate::reconstruction::{self, BlockSetups, Reconstruct};
 use crate::rt_shading::lanes::rt_shading_lanes;
-use crate::rt_shading::rt_shading_pixel;
+use crate::rt_shading::{rt_shading_bouncing_pixel, rt_shading_pixel, BouncingShading};
+use crate::secondary_rays::{may_bounce, Parents};
 use crate::traversal::tiles::{TILE_HEIGHT, TILE_WIDTH};
 use crate::traversal::{occluded_in_object_space_serial, occluded_serial, SimdLevel, Traversal, SHADOW_VISIBLE};
 use crate::visibility_raster::{raster_area, tile_rows, visibility_raster_with, TileHook, TileTexels, TILE_SIZE};
+use rayon::prelude::*;
 
 /// Side of a fused tile in pixels. A tile's scratch is its surfaces (48 bytes a pixel), its
 /// shadow mask (a byte per pixel and light) and one light's rays (64 bytes a pixel): at 32,
@@ -89,6 +114,9 @@ pub struct FusedSteps {
     pub shadow_rays: bool,
     /// `rt_shading` runs.
     pub rt_shading: bool,
+    /// The plan traces bounces: the tiles defer the pixels whose primary hit bounces
+    /// ([`may_bounce`]) to [`shade_deferred`], after the bounce steps.
+    pub bounces: bool,
     /// `raster_shading` runs, and whether it shades ray-traced objects too.
     pub raster_shading: Option<bool>,
     /// How `composition` composes.
@@ -96,11 +124,13 @@ pub struct FusedSteps {
 }
 
 impl FusedSteps {
-    /// The steps of `plan`, or `None` where the fused tiles cannot run it (bounces).
-    pub fn of(plan: &FramePlan) -> Option<FusedSteps> {
+    /// The steps of `plan` the tiles run. Its bounce steps (`secondary_rays` to
+    /// `bounce_shading`) run after the tiles, over the pixels they defer (the module docs).
+    pub fn of(plan: &FramePlan) -> FusedSteps {
         let mut steps = FusedSteps {
             shadow_rays: false,
             rt_shading: false,
+            bounces: false,
             raster_shading: None,
             composition: Composition::CopyRaster,
         };
@@ -108,18 +138,17 @@ impl FusedSteps {
             match step {
                 Step::VisibilityRaster | Step::Reconstruction | Step::Compaction => {}
                 Step::ShadowRays => steps.shadow_rays = true,
-                Step::RtShading { bounces: false } => steps.rt_shading = true,
+                Step::RtShading { bounces } => (steps.rt_shading, steps.bounces) = (true, bounces),
                 Step::RasterShading { shade_ray_traced } => steps.raster_shading = Some(shade_ray_traced),
                 Step::Composition(mode) => steps.composition = mode,
-                Step::RtShading { bounces: true }
-                | Step::SecondaryRays { .. }
+                Step::SecondaryRays { .. }
                 | Step::BounceTrace { .. }
                 | Step::BounceCompaction { .. }
                 | Step::BounceShadowRays { .. }
-                | Step::BounceShading { .. } => return None,
+                | Step::BounceShading { .. } => {}
             }
         }
-        Some(steps)
+        steps
     }
 }
 
@@ -144,6 +173,129 @@ impl std::ops::Add for TileCounts {
             occluded: self.occluded + o.occluded,
         }
     }
+}
+
+/// What the raster's tiles give: their counts and the pixels they deferred, one list per
+/// raster tile that has any, in the raster's tile order.
+#[derive(Default)]
+pub struct TileResults {
+    pub counts: TileCounts,
+    pub deferred: Vec<DeferredTile>,
+}
+
+/// A pixel whose primary hit bounces, as its tile leaves it: what the bounce steps and its
+/// shading read of it (its shadow codes are in its [`DeferredTile`]).
+#[derive(Clone, Copy)]
+struct DeferredPixel {
+    /// Its index in the image, `y * width + x`.
+    pixel: u32,
+    texel: GBufferTexel,
+    surface: SurfaceRecord,
+    /// Its `raster_shading` colour (zero where the plan has none).
+    raster: [f32; 4],
+}
+
+/// One raster tile's deferred pixels, and their shadow codes (`lights` a pixel, in order).
+#[derive(Default)]
+pub struct DeferredTile {
+    pixels: Vec<DeferredPixel>,
+    shadow: Vec<u8>,
+}
+
+/// The frame's deferred pixels in pixel order ([`Deferred::gather`]), one array per field:
+/// the parents of the first bounce ([`Deferred::parents`]) and the pixels
+/// [`shade_deferred`] finishes. The backend keeps it between frames.
+#[derive(Default)]
+pub struct Deferred {
+    pub pixels: Vec<u32>,
+    pub texels: Vec<GBufferTexel>,
+    pub surfaces: Vec<SurfaceRecord>,
+    /// `SHADOW_*` per (deferred pixel, light), `k * lights + light`.
+    pub shadow: Vec<u8>,
+    pub raster: Vec<[f32; 4]>,
+    /// Sort keys: `pixel << 32 | tile << DEFERRED_TILE_BITS | index in the tile`.
+    order: Vec<u64>,
+}
+
+/// Bits of a deferred pixel's index in its raster tile in [`Deferred`]'s sort keys.
+const DEFERRED_TILE_BITS: u32 = (TILE_SIZE * TILE_SIZE).trailing_zeros();
+
+impl Deferred {
+    /// The deferred pixels of `tiles` (`lights` shadow codes a pixel), sorted by pixel: the
+    /// order in which the staged `secondary_rays` meets them, so the first bounce's rays are
+    /// the staged frame's list. An error where the allocator cannot hold them.
+    pub fn gather(&mut self, tiles: Vec<DeferredTile>, lights: usize) -> Result<(), TryReserveError> {
+        let n = tiles.iter().map(|t| t.pixels.len()).sum::<usize>();
+        assert!(tiles.len() < 1 << (32 - DEFERRED_TILE_BITS), "deferred pixels: too many raster tiles");
+        self.order.clear();
+        crate::memory::reserve(&mut self.order, n)?;
+        for (t, tile) in tiles.iter().enumerate() {
+            let key = |(j, p): (usize, &DeferredPixel)| {
+                (p.pixel as u64) << 32 | ((t as u64) << DEFERRED_TILE_BITS) | j as u64
+            };
+            self.order.extend(tile.pixels.iter().enumerate().map(key));
+        }
+        self.order.par_sort_unstable();
+        let at = |k: u64| {
+            let low = k as u32;
+            (&tiles[(low >> DEFERRED_TILE_BITS) as usize], (low & ((1 << DEFERRED_TILE_BITS) - 1)) as usize)
+        };
+        let pixel = |k: &u64| {
+            let (tile, j) = at(*k);
+            &tile.pixels[j]
+        };
+        crate::memory::reserve(&mut self.pixels, n)?;
+        crate::memory::reserve(&mut self.texels, n)?;
+        crate::memory::reserve(&mut self.surfaces, n)?;
+        crate::memory::reserve(&mut self.raster, n)?;
+        crate::memory::reserve(&mut self.shadow, n * lights)?;
+        let order = self.order.par_iter().with_min_len(1024);
+        order.clone().map(|k| pixel(k).pixel).collect_into_vec(&mut self.pixels);
+        order.clone().map(|k| pixel(k).texel).collect_into_vec(&mut self.texels);
+        order.clone().map(|k| pixel(k).surface).collect_into_vec(&mut self.surfaces);
+        order.map(|k| pixel(k).raster).collect_into_vec(&mut self.raster);
+        self.shadow.clear();
+        self.shadow.resize(n * lights, SHADOW_NO_RAY);
+        if lights > 0 {
+            self.shadow.par_chunks_mut(lights).zip(&self.order).with_min_len(1024).for_each(|(codes, &k)| {
+                let (tile, j) = at(k);
+                codes.copy_from_slice(&tile.shadow[j * lights..(j + 1) * lights]);
+            });
+        }
+        Ok(())
+    }
+
+    /// The deferred pixels as the first bounce's parents, seen from `eye`.
+    pub fn parents(&self, eye: Vec3) -> Parents<'_> {
+        Parents::Pixels { pixels: &self.pixels, texels: &self.texels, surfaces: &self.surfaces, eye }
+    }
+}
+
+/// Finish the deferred pixels `d` into `final_image` (`width` pixels a row) once the bounce
+/// steps ran: `rt_shading` with bounces ([`rt_shading_bouncing_pixel`], each pixel's rays
+/// of depth 1 at `links[k]`) and `composition` with its raster colour.
+pub fn shade_deferred(
+    d: &Deferred,
+    steps: FusedSteps,
+    shading: &BouncingShading,
+    links: &[[u32; 2]],
+    weight: f32,
+    width: usize,
+    final_image: &mut [[f32; 4]],
+) {
+    assert_eq!(links.len(), d.pixels.len(), "one [reflection, refraction] link per deferred pixel");
+    let nl = shading.lights.len();
+    // Row by row: a row's deferred pixels are a run of the sorted list.
+    final_image.par_chunks_mut(width.max(1)).enumerate().with_min_len(16).for_each(|(y, row)| {
+        let first = (y * width) as u32;
+        let lo = d.pixels.partition_point(|&p| p < first);
+        let hi = lo + d.pixels[lo..].partition_point(|&p| p < first + width as u32);
+        for k in lo..hi {
+            let shadow = &d.shadow[k * nl..(k + 1) * nl];
+            let rt = rt_shading_bouncing_pixel(shading, &d.texels[k], &d.surfaces[k], d.pixels[k], shadow, links[k]);
+            row[(d.pixels[k] - first) as usize] = composition_pixel(steps.composition, &d.raster[k], &rt, weight);
+        }
+    });
 }
 
 /// One worker's tile-local buffers, kept from tile to tile.
@@ -178,8 +330,8 @@ struct TileInputs<'a> {
     level: SimdLevel,
 }
 
-/// What [`fused_frame`] counts and times.
-#[derive(Clone, Copy, Debug, Default)]
+/// What [`fused_frame`] counts and times, and the pixels its tiles deferred.
+#[derive(Default)]
 pub struct FusedFrame {
     /// `visibility_raster`'s hit texels.
     pub covered_pixels: u64,
@@ -188,6 +340,8 @@ pub struct FusedFrame {
     /// Time `visibility_raster` spent setting up and binning triangles, before the tiles
     /// (whose depth tests and resolves run with the fused steps).
     pub raster_setup: std::time::Duration,
+    /// Each raster tile's deferred pixels ([`FusedSteps::bounces`]), for [`Deferred::gather`].
+    pub deferred: Vec<DeferredTile>,
 }
 
 /// Run a fused frame on the current rayon pool: `visibility_raster`, and in each of its
@@ -230,7 +384,8 @@ pub fn fused_frame(
     }
     let outs = tile_rows(final_image, w, area, TILE_SIZE as usize);
     let raster = visibility_raster_with(&scene.geometry, camera, gbuffer, &inputs, outs);
-    FusedFrame { covered_pixels: raster.covered as u64, counts: raster.counts, raster_setup: raster.setup }
+    let TileResults { counts, deferred } = raster.counts;
+    FusedFrame { covered_pixels: raster.covered as u64, counts, raster_setup: raster.setup, deferred }
 }
 
 /// The fused steps as the raster's per-tile hook: a raster tile's texels are split into
@@ -239,27 +394,30 @@ impl<'a> TileHook for TileInputs<'a> {
     /// The raster tile's rows of the final image.
     type Out = Vec<&'a mut [[f32; 4]]>;
     type Scratch = TileScratch;
-    type Counts = TileCounts;
+    type Counts = TileResults;
 
     fn scratch(&self) -> TileScratch {
         TileScratch::default()
     }
 
-    fn tile(&self, scratch: &mut TileScratch, texels: TileTexels<'_>, mut rows: Self::Out) -> TileCounts {
+    fn tile(&self, scratch: &mut TileScratch, texels: TileTexels<'_>, mut rows: Self::Out) -> TileResults {
         let ((x0, y0), (tw, th), stride) = (texels.origin, texels.size, TILE_SIZE as usize);
         let mut counts = TileCounts::default();
+        let mut deferred = DeferredTile::default();
         for sy in (0..th).step_by(FUSED_TILE) {
             for sx in (0..tw).step_by(FUSED_TILE) {
                 let sub = rows[sy..(sy + FUSED_TILE).min(th)].iter_mut().map(|r| &mut r[sx..(sx + FUSED_TILE).min(tw)]);
                 let local = TexelTile { texels: &texels.texels[sy * stride + sx..], stride };
-                counts = counts + tile(self, (x0 + sx, y0 + sy), local, sub.collect(), scratch);
+                counts = counts + tile(self, (x0 + sx, y0 + sy), local, sub.collect(), scratch, &mut deferred);
             }
         }
-        counts
+        let deferred = if deferred.pixels.is_empty() { Vec::new() } else { vec![deferred] };
+        TileResults { counts, deferred }
     }
 
-    fn add(a: TileCounts, b: TileCounts) -> TileCounts {
-        a + b
+    fn add(mut a: TileResults, mut b: TileResults) -> TileResults {
+        a.deferred.append(&mut b.deferred);
+        TileResults { counts: a.counts + b.counts, deferred: a.deferred }
     }
 }
 
@@ -270,13 +428,15 @@ struct TexelTile<'a> {
     stride: usize,
 }
 
-/// One tile with top-left pixel `(x0, y0)`, texels `texels` and final-image rows `rows`.
+/// One tile with top-left pixel `(x0, y0)`, texels `texels` and final-image rows `rows`;
+/// the pixels it defers into `deferred`.
 fn tile(
     inputs: &TileInputs,
     (x0, y0): (usize, usize),
     TexelTile { texels, stride }: TexelTile,
     mut rows: Vec<&mut [[f32; 4]]>,
     s: &mut TileScratch,
+    deferred: &mut DeferredTile,
 ) -> TileCounts {
     let TileInputs { scene, camera, steps, .. } = *inputs;
     let g = &scene.geometry;
@@ -346,6 +506,29 @@ fn tile(
         }
     }
 
+    // A pixel whose primary hit bounces waits for its rays: its texel, surface, shadow codes
+    // and raster colour are kept for `shade_deferred`, after the bounce steps. (The shading
+    // below may write it too; `shade_deferred` writes it last.)
+    if steps.bounces {
+        let primary = &Primary { gbuffer: texels, ..inputs.primary };
+        let objects = primary.materials.objects;
+        for ly in 0..th {
+            for lx in (0..tw).filter(|&lx| may_bounce(&s.surfaces[ly * tw + lx], objects)) {
+                let (k, i) = (ly * tw + lx, ly * stride + lx);
+                let (surface, shadow) = (&s.surfaces[k], &s.shadow[k * nl..(k + 1) * nl]);
+                let raster = match steps.raster_shading {
+                    Some(shade_ray_traced) => {
+                        raster_shading_pixel(primary, lights, shade_ray_traced, i, surface, shadow)
+                    }
+                    None => [0.0; 4],
+                };
+                let pixel = ((y0 + ly) * width + x0 + lx) as u32;
+                deferred.pixels.push(DeferredPixel { pixel, texel: texels[i], surface: *surface, raster });
+                deferred.shadow.extend_from_slice(shadow);
+            }
+        }
+    }
+
     // rt_shading, raster_shading, composition
     if inputs.primary.materials.varying() {
         tile_shading_per_pixel(inputs, TexelTile { texels, stride }, &s.surfaces, &s.shadow, &mut rows);
@@ -376,9 +559,13 @@ fn tile_shading_per_pixel(
     let (steps, lights) = (inputs.steps, &inputs.scene.geometry.lights);
     let (nl, tw) = (lights.len(), rows.first().map_or(0, |r| r.len()));
     let primary = &Primary { gbuffer: texels, ..inputs.primary };
+    let objects = primary.materials.objects;
     for (ly, row) in rows.iter_mut().enumerate() {
         for (lx, out) in row.iter_mut().enumerate() {
             let k = ly * tw + lx;
+            if steps.bounces && may_bounce(&surfaces[k], objects) {
+                continue; // deferred
+            }
             let (i, surface, shadow) = (ly * stride + lx, &surfaces[k], &shadow[k * nl..(k + 1) * nl]);
             let rt = match steps.rt_shading {
                 true => rt_shading_pixel(primary, lights, i, surface, shadow),

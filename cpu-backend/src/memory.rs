@@ -27,11 +27,19 @@
 //! ([`FrameOptions::keep_gbuffer`]) adds it (24: 40 in all); a scene the raster takes in
 //! batches ([`crate::visibility_raster::batched`], over a million triangles) keeps its
 //! texels and each tile's depth and winner whole-image from batch to batch (24 + 8: 48 in
-//! all). A bounce depth adds, per ray of that depth, 64 (the ray) + 24
+//! all). A frame that traces bounces also keeps, per pixel whose primary hit bounces (the
+//! pixels the fused tiles defer), its index, texel, surface, raster colour and shadow
+//! codes, 92 + L bytes, twice while they are gathered into pixel order, with an 8-byte
+//! sort key, and the first bounce's link (8): at most 200 + 2 L bytes per pixel, at least
+//! none (no pixel bounces), so the estimate counts them in its most only
+//! ([`DEFERRED_PIXEL_BYTES`]).
+//!
+//! In both executors a bounce depth adds, per ray of that depth, 64 (the ray) + 24
 //! (its hit) + 48 (its surface) + 16 (its radiance) + 8 (its link from the parent) + the
 //! flags of its parents' lobes, and its own shadow rays: how many rays a depth has is
 //! known only when it runs (at most two per parent), so bounce buffers are reserved
-//! fallibly then, and the estimate counts their least (none).
+//! fallibly then, and the estimate counts their least (none). The staged frame's first
+//! bounce has a link per pixel, the fused frame's one per bouncing pixel.
 //!
 //! [`GBufferTexel`]: hyrt_core::formats::GBufferTexel
 //! [`FrameOptions::keep_gbuffer`]: hyrt_core::frame::FrameOptions::keep_gbuffer
@@ -58,6 +66,12 @@ pub struct FrameBytes {
 /// Bytes per pixel of [`visibility_raster`](crate::visibility_raster)'s depth and winner
 /// scratch.
 const RASTER_COUNTS_BYTES: u64 = 8;
+
+/// Bytes of one pixel the fused tiles defer, without its shadow codes (one byte per light,
+/// twice): its index, texel, surface and raster colour twice (the tiles' lists and the
+/// gathered arrays), its sort key and its first-bounce link (the module docs).
+pub const DEFERRED_PIXEL_BYTES: u64 =
+    2 * (4 + size_of::<GBufferTexel>() as u64 + size_of::<SurfaceRecord>() as u64 + 16) + 8 + 8;
 
 /// How a frame runs, as far as its memory goes besides its plan and size.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -95,7 +109,11 @@ pub fn frame_bytes(plan: &FramePlan, run: impl Into<FrameRun>, width: u32, heigh
             + if run.keep_gbuffer || run.batched { texels } else { 0 }
             + if run.batched { RASTER_COUNTS_BYTES } else { 0 };
         let b = pixels.saturating_mul(per_pixel);
-        return FrameBytes { at_least: b, at_most: b };
+        let deferred = match plan.bounce_depth() {
+            0 => 0,
+            _ => pixels.saturating_mul(DEFERRED_PIXEL_BYTES + 2 * plan.lights() as u64),
+        };
+        return FrameBytes { at_least: b, at_most: b.saturating_add(deferred) };
     }
     let lights = plan.lights() as u64;
     let pairs = pixels.saturating_mul(lights);

@@ -101,21 +101,48 @@ pub fn rt_shading_bouncing_into(
     out: &mut Vec<[f32; 4]>,
 ) {
     let nl = lights.len();
+    let shading = BouncingShading { materials, triangles, lights, eye, radiance: bounce.radiance };
     surfaces
         .par_iter()
         .enumerate()
         .with_min_len(1024)
         .map(|(i, s)| {
-            if ray_traced(materials.objects, s).is_none() {
-                return [0.0; 4];
-            }
-            let p = primary_parent(&bounce.gbuffer[i], s, eye, i as u32, materials);
             let shadow = &shadow[i * nl..(i + 1) * nl];
-            shade_rt_pixel_bouncing(&p, triangles, shadow, lights, eye, bounce.links[i], bounce.radiance)
-                .extend(1.0)
-                .into()
+            rt_shading_bouncing_pixel(&shading, &bounce.gbuffer[i], s, i as u32, shadow, bounce.links[i])
         })
         .collect_into_vec(out);
+}
+
+/// What [`rt_shading_bouncing_pixel`] reads besides the pixel's own data.
+#[derive(Clone, Copy)]
+pub struct BouncingShading<'a> {
+    pub materials: &'a Materials<'a>,
+    pub triangles: &'a WorldTriangles,
+    pub lights: &'a [LightRecord],
+    pub eye: Vec3,
+    /// The radiance the first bounce's rays bring back.
+    pub radiance: &'a [[f32; 4]],
+}
+
+/// The stage's kernel in a frame that traces bounces, for pixel `pixel` with texel `t`,
+/// surface `s`, its shadow codes (one per light) and its `[reflection, refraction]` rays
+/// of depth 1 (`children`, into `shading.radiance`): what [`rt_shading_bouncing_into`]
+/// writes there; the fused frame (`crate::fused`) calls it on the pixels it deferred.
+#[inline]
+pub fn rt_shading_bouncing_pixel(
+    shading: &BouncingShading,
+    t: &GBufferTexel,
+    s: &SurfaceRecord,
+    pixel: u32,
+    shadow: &[u8],
+    children: [u32; 2],
+) -> [f32; 4] {
+    let BouncingShading { materials, triangles, lights, eye, radiance } = *shading;
+    if ray_traced(materials.objects, s).is_none() {
+        return [0.0; 4];
+    }
+    let p = primary_parent(t, s, eye, pixel, materials);
+    shade_rt_pixel_bouncing(&p, triangles, shadow, lights, eye, children, radiance).extend(1.0).into()
 }
 
 /// The object of surface `s` where it is a hit on a ray-traced object: the pixels the

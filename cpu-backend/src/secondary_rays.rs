@@ -32,13 +32,19 @@ pub enum Parents<'a> {
     Primary { gbuffer: &'a [GBufferTexel], surfaces: &'a [SurfaceRecord], eye: Vec3 },
     /// The hits of the previous bounce: one parent per ray.
     Secondary { rays: &'a [RayRecord], hits: &'a [HitRecord], surfaces: &'a [SurfaceRecord] },
+    /// Some pixels' primary hits, seen from `eye`: parent `i` is pixel `pixels[i]`, with
+    /// texel `texels[i]` and surface `surfaces[i]` (the fused frame's bouncing pixels,
+    /// `crate::fused`: in pixel order, they spawn the rays [`Parents::Primary`] spawns).
+    Pixels { pixels: &'a [u32], texels: &'a [GBufferTexel], surfaces: &'a [SurfaceRecord], eye: Vec3 },
 }
 
 impl<'a> Parents<'a> {
     /// How many parents there are.
     pub fn len(&self) -> usize {
         match self {
-            Parents::Primary { surfaces, .. } | Parents::Secondary { surfaces, .. } => surfaces.len(),
+            Parents::Primary { surfaces, .. }
+            | Parents::Secondary { surfaces, .. }
+            | Parents::Pixels { surfaces, .. } => surfaces.len(),
         }
     }
 
@@ -52,10 +58,17 @@ impl<'a> Parents<'a> {
     /// a frame do not bounce.
     #[inline]
     pub fn may_bounce(&self, i: usize, objects: &[ObjectRecord]) -> bool {
-        let s = match self {
-            Parents::Primary { surfaces, .. } | Parents::Secondary { surfaces, .. } => &surfaces[i],
-        };
-        s.is_hit() && bounces(&objects[s.object as usize])
+        may_bounce(self.surface(i), objects)
+    }
+
+    /// The surface of parent `i`.
+    #[inline]
+    pub fn surface(&self, i: usize) -> &'a SurfaceRecord {
+        match *self {
+            Parents::Primary { surfaces, .. }
+            | Parents::Secondary { surfaces, .. }
+            | Parents::Pixels { surfaces, .. } => &surfaces[i],
+        }
     }
 
     /// Parent `i`, its object shaded as `materials` see it there.
@@ -68,8 +81,19 @@ impl<'a> Parents<'a> {
             Parents::Secondary { rays, hits, surfaces } => {
                 secondary_parent(&rays[i], &hits[i], &surfaces[i], materials)
             }
+            Parents::Pixels { pixels, texels, surfaces, eye } => {
+                primary_parent(&texels[i], &surfaces[i], eye, pixels[i], materials)
+            }
         }
     }
+}
+
+/// Whether surface `s` can spawn secondary rays: it hit an object that bounces
+/// ([`bounces`]). [`Parents::may_bounce`]'s test; the fused frame defers the pixels it
+/// holds for (`crate::fused`).
+#[inline]
+pub fn may_bounce(s: &SurfaceRecord, objects: &[ObjectRecord]) -> bool {
+    s.is_hit() && bounces(&objects[s.object as usize])
 }
 
 /// The stage into caller-owned buffers (allocations reused): the rays of bounce `depth`

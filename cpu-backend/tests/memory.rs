@@ -26,12 +26,18 @@ fn default_scene_frame_bytes_per_pixel_match_the_table() {
         assert_eq!((b.at_least, b.at_most), (138 * 5000, 282 * 5000), "max depth {max_depth}");
     }
     // Fused: 16 (final image), whatever the lights; + 24 (G-buffer) where the frame asks for
-    // it; + 24 + 8 (texels, depth and winner between batches) for a batched scene.
+    // it; + 24 + 8 (texels, depth and winner between batches) for a batched scene. With
+    // bounces (the scene's mirror and glass), at most every pixel bounces: its deferred
+    // record twice, 2 x (4 + 24 + 48 + 16) + 8 (sort key) + 8 (link) + 2 x 2 (shadow codes).
     let plan = FramePlan::new(&prepared, &FrameOptions::default()).unwrap();
+    assert!(plan.bounce_depth() > 0);
     let b = frame_bytes(&plan, Executor::Fused, 100, 50);
+    assert_eq!((b.at_least, b.at_most), (16 * 5000, (16 + 204) * 5000));
+    let flat = FramePlan::new(&prepared, &FrameOptions { max_depth: 0, ..FrameOptions::default() }).unwrap();
+    let b = frame_bytes(&flat, Executor::Fused, 100, 50);
     assert_eq!((b.at_least, b.at_most), (16 * 5000, 16 * 5000));
     let kept = FrameOptions { keep_gbuffer: true, ..FrameOptions::default() };
-    let b = frame_bytes(&plan, FrameRun::new(Executor::Fused, &kept, &prepared.geometry), 100, 50);
+    let b = frame_bytes(&flat, FrameRun::new(Executor::Fused, &kept, &prepared.geometry), 100, 50);
     assert_eq!((b.at_least, b.at_most), (40 * 5000, 40 * 5000));
     let batched = FrameRun { executor: Executor::Fused, keep_gbuffer: false, batched: true };
     assert_eq!(frame_bytes(&plan, batched, 100, 50).at_least, 48 * 5000);
