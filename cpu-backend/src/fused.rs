@@ -21,10 +21,10 @@
 //! 3. `rt_shading`, `raster_shading` and `composition` into the final image, a block of
 //!    eight pixels at a time ([`crate::rt_shading::lanes`], [`crate::raster_shading::lanes`],
 //!    [`crate::composition::lanes`]: the stages' kernels in eight SIMD lanes, each lane on
-//!    its own object's record); where materials vary over surfaces (textures, vertex
-//!    colours) per pixel ([`rt_shading_pixel`], [`raster_shading_pixel`],
-//!    [`composition_pixel`]). The pixels that bounce are finished later (see Bounces
-//!    below).
+//!    its own object's record, or where materials vary over surfaces (textures, vertex
+//!    colours) on the record the scalar stages shade its pixel with, its texture lookups
+//!    made pixel by pixel: `Primary::object`). The pixels that bounce are finished later
+//!    (see Bounces below).
 //!
 //! A tile no triangle covers writes the background and does nothing else. Nothing
 //! whole-image is written but the final image, and the G-buffer where the frame asks for it
@@ -48,7 +48,8 @@
 //! and `bounce_shading` from the deepest bounce up), and [`shade_deferred`] shades and
 //! composes the deferred pixels into the final image ([`rt_shading_bouncing_pixel`],
 //! [`composition_pixel`]). Every other pixel of a bouncing plan is finished in its tile by
-//! [`rt_shading_pixel`], which is what `rt_shading` with bounces gives there bit for bit.
+//! `rt_shading`'s kernel ([`rt_shading_pixel`], in lanes), which is what `rt_shading` with
+//! bounces gives there bit for bit.
 //! The deferred pixels and the bounce buffers are sized by the pixels that bounce and
 //! their rays, not by the image.
 //!
@@ -79,7 +80,7 @@ use std::collections::TryReserveError;
 
 use glam::Vec3;
 use hyrt_core::formats::{
-    CameraRecord, GBufferTexel, LightRecord, RayRecord, SurfaceRecord, SHADOW_LIT, SHADOW_NO_RAY,
+    CameraRecord, GBufferTexel, LightRecord, ObjectRecord, RayRecord, SurfaceRecord, SHADOW_LIT, SHADOW_NO_RAY,
 };
 use hyrt_core::frame::{FrameOptions, PreparedScene};
 use hyrt_core::kernels::shading::BACKGROUND_RGBA;
@@ -530,54 +531,14 @@ fn tile(
     }
 
     // rt_shading, raster_shading, composition
-    if inputs.primary.materials.varying() {
-        tile_shading_per_pixel(inputs, TexelTile { texels, stride }, &s.surfaces, &s.shadow, &mut rows);
-    } else {
-        dispatch!(
-            inputs.level,
-            tile_shading,
-            tile_shading_avx512,
-            tile_shading_avx2,
-            (inputs, &s.surfaces, &s.shadow, (tw, th), &mut s.lit, &mut rows)
-        );
-    }
+    dispatch!(
+        inputs.level,
+        tile_shading,
+        tile_shading_avx512,
+        tile_shading_avx2,
+        (inputs, TexelTile { texels, stride }, &s.surfaces, &s.shadow, (tw, th), &mut s.lit, &mut rows)
+    );
     counts
-}
-
-/// `rt_shading`, `raster_shading` and `composition` of a tile's `surfaces` (row-major, as
-/// wide as `rows`) with their shadow codes `shadow` (`pixel * lights + light`) into its
-/// final-image `rows`, pixel by pixel ([`rt_shading_pixel`], [`raster_shading_pixel`],
-/// [`composition_pixel`]): where materials vary over surfaces (a pixel's texel, `i` in
-/// the kernels, is in `texels`).
-fn tile_shading_per_pixel(
-    inputs: &TileInputs,
-    TexelTile { texels, stride }: TexelTile,
-    surfaces: &[SurfaceRecord],
-    shadow: &[u8],
-    rows: &mut [&mut [[f32; 4]]],
-) {
-    let (steps, lights) = (inputs.steps, &inputs.scene.geometry.lights);
-    let (nl, tw) = (lights.len(), rows.first().map_or(0, |r| r.len()));
-    let primary = &Primary { gbuffer: texels, ..inputs.primary };
-    let objects = primary.materials.objects;
-    for (ly, row) in rows.iter_mut().enumerate() {
-        for (lx, out) in row.iter_mut().enumerate() {
-            let k = ly * tw + lx;
-            if steps.bounces && may_bounce(&surfaces[k], objects) {
-                continue; // deferred
-            }
-            let (i, surface, shadow) = (ly * stride + lx, &surfaces[k], &shadow[k * nl..(k + 1) * nl]);
-            let rt = match steps.rt_shading {
-                true => rt_shading_pixel(primary, lights, i, surface, shadow),
-                false => [0.0; 4],
-            };
-            let raster = match steps.raster_shading {
-                Some(shade_ray_traced) => raster_shading_pixel(primary, lights, shade_ray_traced, i, surface, shadow),
-                None => [0.0; 4],
-            };
-            *out = composition_pixel(steps.composition, &raster, &rt, inputs.weight);
-        }
-    }
 }
 
 /// `rt_shading`, `raster_shading` and `composition` of a tile's `surfaces` (`tw` x `th`,
@@ -590,6 +551,7 @@ fn tile_shading_per_pixel(
 #[inline(always)]
 fn tile_shading<L: Lanes>(
     inputs: &TileInputs,
+    TexelTile { texels, stride }: TexelTile,
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
     (tw, th): (usize, usize),
@@ -600,6 +562,11 @@ fn tile_shading<L: Lanes>(
     const BH: usize = TILE_HEIGHT as usize;
     let (steps, lights) = (inputs.steps, &inputs.scene.geometry.lights);
     let (objects, eye, nl) = (inputs.primary.materials.objects, inputs.primary.eye.into(), lights.len());
+    // Where materials vary, each hit's record at its pixel (`Primary::object`: its texel's
+    // texture lookups), as the scalar stages shade it.
+    let primary = &Primary { gbuffer: texels, ..inputs.primary };
+    let varying = primary.materials.varying();
+    let mut at_pixel = [<ObjectRecord as bytemuck::Zeroable>::zeroed(); LANES];
     lit.resize(nl, 0);
     let none = [L::splat(0.0); 4];
     for by in (0..th).step_by(BH) {
@@ -608,13 +575,21 @@ fn tile_shading<L: Lanes>(
             // tile is a miss, and not written.
             let at_lane = |j: usize| (bx + j % BW, by + j / BW);
             let inside = |(lx, ly): (usize, usize)| lx < tw && ly < th;
-            let block = PrimaryLanes::<L>::load(
-                std::array::from_fn(|j| match at_lane(j) {
-                    (lx, ly) if inside((lx, ly)) => &surfaces[ly * tw + lx],
-                    _ => &SurfaceRecord::MISS,
-                }),
-                objects,
-            );
+            let block_surfaces = std::array::from_fn(|j| match at_lane(j) {
+                (lx, ly) if inside((lx, ly)) => &surfaces[ly * tw + lx],
+                _ => &SurfaceRecord::MISS,
+            });
+            let block = if varying {
+                for (j, (record, s)) in at_pixel.iter_mut().zip(block_surfaces).enumerate() {
+                    if s.is_hit() {
+                        let (lx, ly) = at_lane(j);
+                        *record = primary.object(ly * stride + lx, s);
+                    }
+                }
+                PrimaryLanes::<L>::load_shaded(block_surfaces, objects, std::array::from_fn(|j| &at_pixel[j]))
+            } else {
+                PrimaryLanes::<L>::load(block_surfaces, objects)
+            };
             lit.fill(0);
             for j in 0..LANES {
                 let (lx, ly) = at_lane(j);
@@ -654,6 +629,7 @@ avx2_entry_points!(
     tile_shading_avx512,
     (
         inputs: &TileInputs,
+        texels: TexelTile,
         surfaces: &[SurfaceRecord],
         shadow: &[u8],
         size: (usize, usize),

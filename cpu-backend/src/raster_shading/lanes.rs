@@ -5,10 +5,11 @@
 //! 754 f32 operation or a bit operation ([`Lanes`]), so that every lane's texel is the
 //! scalar kernel's bits (`tests` pins them).
 //!
-//! The lanes read their objects' records as they are ([`Materials::plain`]): a frame whose
-//! materials vary over surfaces ([`Materials::varying`]) shades with the scalar kernels.
 //! The eight pixels may lie on different objects: [`PrimaryLanes::load`] gathers each
-//! lane's record.
+//! lane's record. Where materials vary over surfaces ([`Materials::varying`]: textures,
+//! vertex colours) the caller gives each lane the record it is shaded with, as the scalar
+//! stage makes it per pixel (`Primary::object`: the texture lookups stay scalar, the
+//! shading is in lanes; [`PrimaryLanes::load_shaded`]).
 //!
 //! Light-independent parts of a kernel (the base colour over pi, the ambient term) are
 //! computed once for all lights: the same operations on the same operands, so the same bits.
@@ -19,7 +20,6 @@
 //! [`light_incidence`]: hyrt_core::kernels::shading::light_incidence
 //! [`shade_raster`]: hyrt_core::kernels::shading::shade_raster
 //! [`raster_shading_pixel`]: crate::raster_shading::raster_shading_pixel
-//! [`Materials::plain`]: hyrt_core::kernels::texture::Materials::plain
 //! [`Materials::varying`]: hyrt_core::kernels::texture::Materials::varying
 
 use hyrt_core::formats::{LightRecord, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
@@ -51,14 +51,32 @@ impl<L: Lanes> PrimaryLanes<L> {
     /// The lanes of eight surfaces and of their objects' records (a transpose).
     #[inline(always)]
     pub fn load(s: [&SurfaceRecord; LANES], objects: &[ObjectRecord]) -> PrimaryLanes<L> {
+        let mut shaded = [&objects[0]; LANES];
+        for (shaded, r) in shaded.iter_mut().zip(s) {
+            if r.is_hit() {
+                *shaded = &objects[r.object as usize];
+            }
+        }
+        Self::load_shaded(s, objects, shaded)
+    }
+
+    /// [`Self::load`] with lane `k` shaded with the record `shaded[k]` (read where it is a
+    /// hit): the material at its pixel where materials vary. Whether it is ray traced is its
+    /// object's (`objects`), as in the scalar stages.
+    #[inline(always)]
+    pub fn load_shaded(
+        s: [&SurfaceRecord; LANES],
+        objects: &[ObjectRecord],
+        shaded: [&ObjectRecord; LANES],
+    ) -> PrimaryLanes<L> {
         let mut w = [[0.0f32; LANES]; 13];
-        for (k, r) in s.iter().enumerate() {
+        for (k, (r, obj)) in s.iter().zip(shaded).enumerate() {
             if !r.is_hit() {
                 continue;
             }
-            let obj = &objects[r.object as usize];
+            let flags = objects[r.object as usize].flags;
             w[0][k] = f32::from_bits(u32::MAX);
-            w[1][k] = f32::from_bits(if obj.flags & OBJ_RAY_TRACED != 0 { u32::MAX } else { 0 });
+            w[1][k] = f32::from_bits(if flags & OBJ_RAY_TRACED != 0 { u32::MAX } else { 0 });
             for a in 0..3 {
                 w[2 + a][k] = r.position[a];
                 w[5 + a][k] = r.normal[a];
