@@ -22,10 +22,14 @@ fn render(cpu: &mut CpuBackend, p: &PreparedScene, case: &Case, opts: &FrameOpti
     cpu.render(p, &camera, opts).unwrap_or_else(|e| panic!("{}: {e}", case.name))
 }
 
+/// The G-buffer's bytes, the final image's bits, the primary counts, the rays per kind and
+/// the bounce statistics.
+type Returned = (Vec<u8>, Vec<u32>, [u64; 4], Vec<u64>, Vec<BounceStats>);
+
 /// Everything a display frame returns, as bits: the G-buffer, the final image, and the
 /// statistics both executors count (not the times, not the executor): the primary hits'
 /// and every bounce depth's.
-fn returned(f: &Frame) -> (Vec<u8>, Vec<u32>, [u64; 4], Vec<u64>, Vec<BounceStats>) {
+fn returned(f: &Frame) -> Returned {
     let s = &f.stats;
     let counts = [s.covered_pixels, s.ray_traced_pixels, s.raster_pixels, s.occluded_shadow_rays];
     (

@@ -48,7 +48,7 @@
 //! and `bounce_shading` from the deepest bounce up), and [`shade_deferred`] shades and
 //! composes the deferred pixels into the final image ([`rt_shading_bouncing_pixel`],
 //! [`composition_pixel`]). Every other pixel of a bouncing plan is finished in its tile by
-//! `rt_shading`'s kernel ([`rt_shading_pixel`], in lanes), which is what `rt_shading` with
+//! `rt_shading`'s kernel ([`rt_shading_pixel`](crate::rt_shading::rt_shading_pixel), in lanes), which is what `rt_shading` with
 //! bounces gives there bit for bit.
 //! The deferred pixels and the bounce buffers are sized by the pixels that bounce and
 //! their rays, not by the image.
@@ -96,7 +96,7 @@ use crate::raster_shading::lanes::{raster_shading_lanes, PrimaryLanes};
 use crate::raster_shading::{raster_shading_pixel, Primary};
 use crate::reconstruction::{self, BlockSetups, Reconstruct};
 use crate::rt_shading::lanes::rt_shading_lanes;
-use crate::rt_shading::{rt_shading_bouncing_pixel, rt_shading_pixel, BouncingShading};
+use crate::rt_shading::{rt_shading_bouncing_pixel, BouncingShading};
 use crate::secondary_rays::{may_bounce, Parents};
 use crate::traversal::tiles::{TILE_HEIGHT, TILE_WIDTH};
 use crate::traversal::{occluded_in_object_space_serial, occluded_serial, SimdLevel, Traversal, SHADOW_VISIBLE};

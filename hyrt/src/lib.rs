@@ -120,7 +120,7 @@ pub enum Error {
 
 /// The backend a [`Renderer`] drives.
 enum Active {
-    Cpu(CpuBackend),
+    Cpu(Box<CpuBackend>),
     #[cfg(feature = "gpu")]
     Gpu(Box<GpuBackend>),
 }
@@ -155,7 +155,7 @@ impl Renderer {
     pub fn with_cpu_backend(cpu: CpuBackend) -> Self {
         let choice = format!("cpu ({} threads)", cpu.threads());
         let details = format!("{choice}: the CPU reference backend");
-        Renderer { active: Active::Cpu(cpu), preset: BvhPreset::default(), choice, details }
+        Renderer { active: Active::Cpu(Box::new(cpu)), preset: BvhPreset::default(), choice, details }
     }
 
     /// Render with a GPU backend the caller built, e.g. on its own device
@@ -237,7 +237,7 @@ impl Renderer {
     /// The backend, as the trait both implement.
     pub fn backend(&self) -> &dyn Backend {
         match &self.active {
-            Active::Cpu(c) => c,
+            Active::Cpu(c) => c.as_ref(),
             #[cfg(feature = "gpu")]
             Active::Gpu(g) => g.as_ref(),
         }
@@ -245,7 +245,7 @@ impl Renderer {
 
     fn backend_mut(&mut self) -> &mut dyn Backend {
         match &mut self.active {
-            Active::Cpu(c) => c,
+            Active::Cpu(c) => c.as_mut(),
             #[cfg(feature = "gpu")]
             Active::Gpu(g) => g.as_mut(),
         }
