@@ -223,9 +223,12 @@ fn reintersected_lanes<L: crate::lanes::Lanes>(
 ) {
     // `reintersected_barycentrics`: the camera ray over `0 < t < inf`. A miss lane's zero
     // direction (and empty interval) makes it a lane that hits nothing.
+    let direction = primary_directions::<L>(camera, xy);
     let mut rays = [<RayRecord as bytemuck::Zeroable>::zeroed(); LANES];
     for (k, ray) in rays.iter_mut().enumerate().filter(|(k, _)| hit >> k & 1 == 1) {
-        *ray = RayRecord { t_min: 0.0, t_max: f32::INFINITY, ..primary_ray(camera, xy[k].0, xy[k].1) };
+        let d = [direction[0][k], direction[1][k], direction[2][k]];
+        *ray = RayRecord { origin: camera.eye, t_min: 0.0, direction: d, t_max: f32::INFINITY, ..ray.to_owned() };
+        debug_assert_eq!(d, primary_ray(camera, xy[k].0, xy[k].1).direction, "lane {k}");
     }
     match intersect_each::<L>(&rays, std::array::from_fn(|k| setups[k].record())) {
         Some((met, us, vs)) => {
@@ -324,6 +327,35 @@ avx2_entry_points!(
         surfaces: &mut [SurfaceRecord]
     )
 );
+
+/// The directions of the camera rays of pixels `xy` (core's [`primary_ray`], in lanes):
+/// `pixel_centre_ndc`'s operations, then glam's `Mat4 * Vec4` (SSE2's order:
+/// `((c0 * x + c1 * y) + c2 * z) + c3 * w`, here `z = w = 1`) and the division by `w`, each
+/// an IEEE f32 operation, so each lane's direction is the scalar kernel's bit for bit
+/// (`tests`' re-intersection proptest, and a debug assertion per lane).
+#[inline(always)]
+fn primary_directions<L: Lanes>(camera: &CameraRecord, xy: [(u32, u32); LANES]) -> [[f32; LANES]; 3] {
+    let (mut x, mut y) = ([0.0f32; LANES], [0.0f32; LANES]);
+    for k in 0..LANES {
+        // Exact: pixel coordinates are below 2^24.
+        (x[k], y[k]) = (xy[k].0 as f32, xy[k].1 as f32);
+    }
+    let (half, two, one) = (L::splat(0.5), L::splat(2.0), L::splat(1.0));
+    // pixel_centre_ndc: (x + 0.5) / width * 2 - 1 and 1 - (y + 0.5) / height * 2.
+    let w = L::splat(camera.width as f32);
+    let h = L::splat(camera.height as f32);
+    let nx = L::sub(L::mul(L::div(L::add(L::load(&x), half), w), two), one);
+    let ny = L::sub(one, L::mul(L::div(L::add(L::load(&y), half), h), two));
+    let m = &camera.inv_view_proj;
+    let mut far = [L::splat(0.0); 4];
+    for (r, far) in far.iter_mut().enumerate() {
+        // Column c, row r is m[c * 4 + r] (`Mat4::from_cols_array`).
+        let xy = L::add(L::mul(L::splat(m[r]), nx), L::mul(L::splat(m[4 + r]), ny));
+        let xyz = L::add(xy, L::mul(L::splat(m[8 + r]), one));
+        *far = L::add(xyz, L::mul(L::splat(m[12 + r]), one));
+    }
+    [L::store(L::div(far[0], far[3])), L::store(L::div(far[1], far[3])), L::store(L::div(far[2], far[3]))]
+}
 
 /// Debug builds: every record valid.
 pub(crate) fn validate(out: &[SurfaceRecord]) {
