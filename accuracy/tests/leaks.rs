@@ -69,6 +69,9 @@ fn leak_corpus_lights_outside_light_and_shadow_what_they_should() {
     let mut cpu = CpuBackend::new(Some(2));
     let mut failures = Vec::new();
     let mut total = Tally::default();
+    // `render_case` renders with the default options: re-intersected barycentrics, which the
+    // exact points below rebuild.
+    assert_eq!(FrameOptions::default().barycentrics, PrimaryBarycentrics::Reintersected);
     for lc in leak_corpus(LightSide::Outside) {
         // The issue's own placement has a 13-ulp gap under the shell, below the corpus's
         // 100-ulp features: no light escapes there (`conformance/tests/leaks.rs`), but the
@@ -90,7 +93,6 @@ fn leak_corpus_lights_outside_light_and_shadow_what_they_should() {
             let [v0, v1, v2] = prepared.geometry.triangle(s.triangle as usize).vertices().map(|v| v.as_dvec3());
             // The exact point at the barycentrics the frame used: the default's, the
             // pixel's camera ray re-intersected with the raster's triangle.
-            assert_eq!(FrameOptions::default().barycentrics, PrimaryBarycentrics::Reintersected);
             let ray = primary_ray(&camera, pixel as u32 % camera.width, pixel as u32 / camera.width);
             let (u, v) = reintersected_barycentrics(&texel, &prepared.geometry, &ray);
             let (u, v) = (u as f64, v as f64);

@@ -226,9 +226,10 @@ fn reintersected_lanes<L: crate::lanes::Lanes>(
     let direction = primary_directions::<L>(camera, xy);
     let mut rays = [<RayRecord as bytemuck::Zeroable>::zeroed(); LANES];
     for (k, ray) in rays.iter_mut().enumerate().filter(|(k, _)| hit >> k & 1 == 1) {
-        let d = [direction[0][k], direction[1][k], direction[2][k]];
-        *ray = RayRecord { origin: camera.eye, t_min: 0.0, direction: d, t_max: f32::INFINITY, ..ray.to_owned() };
-        debug_assert_eq!(d, primary_ray(camera, xy[k].0, xy[k].1).direction, "lane {k}");
+        // The rest of the record (t_min 0 included) stays zero: the test reads no more.
+        (ray.origin, ray.t_max) = (camera.eye, f32::INFINITY);
+        ray.direction = [direction[0][k], direction[1][k], direction[2][k]];
+        debug_assert_eq!(ray.direction, primary_ray(camera, xy[k].0, xy[k].1).direction, "lane {k}");
     }
     match intersect_each::<L>(&rays, std::array::from_fn(|k| setups[k].record())) {
         Some((met, us, vs)) => {
