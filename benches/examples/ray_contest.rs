@@ -9,10 +9,11 @@
 //! ```text
 //! cargo run --release -p hyrt-benches --features embree --example ray_contest -- \
 //!     [--threads N] [--rounds N] [--simd avx2|avx512|sse2|portable] [--kind shadow|primary|both]
-//!     [--packets-only] SCENE...
+//!     [--packets-only | --singles-only] SCENE...
 //! ```
 //!
-//! `--packets-only` times hyrt's packets alone (no Embree, no single rays): for profiling.
+//! `--packets-only` times hyrt's packets alone (no Embree, no single rays), `--singles-only`
+//! its single rays alone: for profiling.
 //! SCENE is a manifest name of `assets/scenes` (teaser, sponza, horse_near, horse_far,
 //! bunny_near, bunny_far, dragon); `all` is all of them.
 
@@ -38,10 +39,12 @@ struct Args {
     scenes: Vec<String>,
     /// Only hyrt's packets (for profiling them alone).
     packets_only: bool,
+    /// Only hyrt's single rays (for profiling them alone).
+    singles_only: bool,
 }
 
 fn parse() -> Result<Args, String> {
-    let mut a = Args { threads: 2, rounds: 5, shadow: true, primary: true, scenes: Vec::new(), packets_only: false };
+    let mut a = Args { threads: 2, rounds: 5, shadow: true, primary: true, scenes: Vec::new(), packets_only: false, singles_only: false };
     let mut it = std::env::args().skip(1);
     while let Some(arg) = it.next() {
         let mut value = |name: &str| it.next().ok_or(format!("{name} needs a value"));
@@ -60,6 +63,7 @@ fn parse() -> Result<Args, String> {
                 k => return Err(format!("--kind: unknown kind {k}")),
             },
             "--packets-only" => a.packets_only = true,
+            "--singles-only" => a.singles_only = true,
             "all" => a.scenes.extend(ALL.iter().map(|s| s.to_string())),
             s if s.starts_with("--") => return Err(format!("unknown option {s}")),
             s => a.scenes.push(s.to_string()),
@@ -139,7 +143,7 @@ impl Contest<'_> {
             for (&t, o) in self.hyrt.iter().zip(outs.iter_mut()) {
                 runs.push(Box::new(move || pool.install(|| trace(rays, t, o))));
             }
-            if !self.args.packets_only {
+            if !self.args.packets_only && !self.args.singles_only {
                 for (&(_, f), o) in peers.iter().zip(e_outs.iter_mut()) {
                     let e = self.embree;
                     runs.push(Box::new(move || pool.install(|| embree_chunks(rays, o, |r, o| f(e, r, o)))));
@@ -171,6 +175,8 @@ fn main() {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(args.threads).build().expect("rayon pool");
     let hyrt = if args.packets_only {
         vec![Traversal::Packet(level)]
+    } else if args.singles_only {
+        vec![Traversal::Single(level)]
     } else {
         vec![Traversal::Packet(level), Traversal::Single(level)]
     };
