@@ -266,6 +266,28 @@ unsafe fn triangle_geometry(
     Ok(geom)
 }
 
+/// Fill the new `scene` with one triangle geometry of `n` triangles (none when `n` is 0;
+/// see [`triangle_geometry`]) and commit it with the scene's defaults (no scene flags,
+/// medium build quality): [`EmbreeScene`]'s scenes.
+///
+/// # Safety
+/// `device` is a live device and `scene` a live scene of it.
+unsafe fn commit_triangles(
+    device: RTCDevice,
+    scene: RTCScene,
+    n: usize,
+    corners: impl Fn(usize) -> [[f32; 3]; 3],
+) -> Result<(), EmbreeError> {
+    if n > 0 {
+        let geom = triangle_geometry(device, n, corners)?;
+        rtcAttachGeometry(scene, geom);
+        rtcReleaseGeometry(geom);
+        device_error(device, "attaching the triangle geometry")?;
+    }
+    rtcCommitScene(scene);
+    device_error(device, "rtcCommitScene")
+}
+
 /// Closest hit for each ray with `rtcIntersect1` on a committed `scene`; `map` turns a
 /// hit into hyrt's global triangle index.
 fn intersect1_in(scene: RTCScene, rays: &[RayRecord], out: &mut [Option<u32>], map: impl Fn(&RTCHit) -> Option<u32>) {
@@ -319,18 +341,11 @@ impl EmbreeScene {
             let scene = rtcNewScene(self.device);
             device_error(self.device, "rtcNewScene")?;
             rtcReleaseScene(std::mem::replace(&mut self.scene, scene));
-            if !self.prim_to_triangle.is_empty() {
-                let prims = &self.prim_to_triangle;
-                let geom = triangle_geometry(self.device, prims.len(), |p| {
-                    let t = &triangles[prims[p] as usize];
-                    [t.v0, t.v1, t.v2]
-                })?;
-                rtcAttachGeometry(scene, geom);
-                rtcReleaseGeometry(geom);
-                device_error(self.device, "attaching the triangle geometry")?;
-            }
-            rtcCommitScene(scene);
-            device_error(self.device, "rtcCommitScene")?;
+            let prims = &self.prim_to_triangle;
+            commit_triangles(self.device, scene, prims.len(), |p| {
+                let t = &triangles[prims[p] as usize];
+                [t.v0, t.v1, t.v2]
+            })?;
         }
         self.build_ms = t0.elapsed().as_secs_f64() * 1e3;
         Ok(())
