@@ -268,7 +268,7 @@ unsafe fn triangle_geometry(
 
 /// Fill the new `scene` with one triangle geometry of `n` triangles (none when `n` is 0;
 /// see [`triangle_geometry`]) and commit it with the scene's defaults (no scene flags,
-/// medium build quality): [`EmbreeScene`]'s scenes.
+/// medium build quality): [`EmbreeScene`]'s scenes, and [`EmbreeBuild::detect`]'s probe.
 ///
 /// # Safety
 /// `device` is a live device and `scene` a live scene of it.
@@ -484,6 +484,167 @@ impl Drop for EmbreeScene {
             rtcReleaseDevice(self.device);
         }
     }
+}
+
+/// Embree 3's ISA namespaces, lowest first (`avx512` is 3.13's name for AVX-512 on Skylake
+/// and later; earlier releases named it `avx512skx`, and `avx512knl` for Knights Landing).
+pub const EMBREE_ISAS: [&str; 7] = ["sse2", "sse42", "avx", "avx2", "avx512knl", "avx512skx", "avx512"];
+
+/// What Embree runs on this machine, as its verbose output says: the ISA its run-time
+/// dispatch selected and the acceleration structure it builds for a triangle scene of
+/// [`EmbreeScene`]'s kind (default scene flags and build quality).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct EmbreeBuild {
+    /// The ISA of the traversal kernels selected for the scene: the highest namespace of
+    /// the selected intersectors (`avx2` in `intersector1  = avx2::BVH8Triangle4Intersector1Moeller`;
+    /// an SSE4.2 dispatch keeps SSE2's single-ray kernel, `sse2::`, beside `sse42::` packets).
+    pub isa: String,
+    /// The acceleration structure built (`BVH8<triangle4>` in `building BVH8<triangle4> using
+    /// avx::BVH8BuilderSAH ...`).
+    pub bvh: String,
+    /// Its branching factor (8 for `BVH8<...>`).
+    pub width: u32,
+}
+
+impl std::fmt::Display for EmbreeBuild {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "ISA {} selected at run time, {} ({}-wide) for triangle scenes", self.isa, self.bvh, self.width)
+    }
+}
+
+impl EmbreeBuild {
+    /// Ask Embree on this machine: a device created with `verbose=2` commits a scene of a
+    /// few triangles as [`EmbreeScene`] commits its scenes, and what Embree prints while
+    /// doing so (to file descriptor 1, captured by [`capture_stdout`]) is [`EmbreeBuild::parse`]d.
+    pub fn detect() -> Result<EmbreeBuild, EmbreeError> {
+        /// A row of small triangles, so that the builder has more than one primitive.
+        const TRIANGLES: usize = 8;
+        let (built, text) = capture_stdout(|| {
+            let device = new_device("verbose=2")?;
+            // SAFETY: a fresh device and scene, released before returning.
+            unsafe {
+                let scene = rtcNewScene(device);
+                let built = device_error(device, "rtcNewScene").and_then(|()| {
+                    commit_triangles(device, scene, TRIANGLES, |p| {
+                        let x = p as f32;
+                        [[x, 0.0, 0.0], [x + 1.0, 0.0, 0.0], [x, 1.0, 0.0]]
+                    })
+                });
+                rtcReleaseScene(scene);
+                rtcReleaseDevice(device);
+                built
+            }
+        })?;
+        built?;
+        EmbreeBuild::parse(&text)
+    }
+
+    /// The selected ISA and the BVH built, from Embree 3's verbose output (`verbose=2`):
+    /// the `selected scene intersector` block and the `building ... using ...` line.
+    /// Errors when either is missing, when the selected intersectors' ISAs cannot be ranked
+    /// ([`EMBREE_ISAS`]), or when more than one BVH was built.
+    pub fn parse(text: &str) -> Result<EmbreeBuild, EmbreeError> {
+        let not_found = |what: &str| EmbreeError(format!("{what} not found in Embree's verbose output"));
+        let mut lines = text.lines().map(str::trim);
+        lines
+            .by_ref()
+            .find(|l| *l == "selected scene intersector")
+            .ok_or_else(|| not_found("the \"selected scene intersector\" block"))?;
+        // `intersector1  = avx2::BVH8Triangle4Intersector1Moeller`, one line per width.
+        let mut isas: Vec<&str> = Vec::new();
+        for l in lines.map_while(|l| l.strip_prefix("intersector")) {
+            let isa = l.split_once('=').and_then(|(_, k)| k.trim().split_once("::")).map(|(isa, _)| isa);
+            match isa {
+                Some(isa) if !isa.is_empty() && isa.bytes().all(|b| b.is_ascii_alphanumeric()) => isas.push(isa),
+                _ => return Err(EmbreeError(format!("unexpected intersector line \"intersector{l}\""))),
+            }
+        }
+        isas.sort_unstable();
+        isas.dedup();
+        if isas.is_empty() {
+            return Err(not_found("a selected intersector"));
+        }
+        let rank = |isa: &str| EMBREE_ISAS.iter().position(|&k| k == isa);
+        let highest = match isas[..] {
+            [isa] => Some(isa),
+            _ => isas
+                .iter()
+                .map(|&i| rank(i))
+                .collect::<Option<Vec<_>>>()
+                .and_then(|r| r.into_iter().max())
+                .map(|r| EMBREE_ISAS[r]),
+        };
+        let isa = highest
+            .ok_or_else(|| EmbreeError(format!("cannot rank the selected intersectors' ISAs {isas:?}")))?
+            .to_string();
+        // `building BVH8<triangle4> using avx::BVH8BuilderSAH ...`
+        let mut bvhs: Vec<&str> = text
+            .lines()
+            .filter_map(|l| l.trim().strip_prefix("building ")?.split_once(" using ").map(|(bvh, _)| bvh))
+            .collect();
+        bvhs.dedup();
+        let bvh = match bvhs[..] {
+            [bvh] => bvh.to_string(),
+            [] => return Err(not_found("a \"building BVH... using ...\" line")),
+            _ => return Err(EmbreeError(format!("more than one BVH built: {bvhs:?}"))),
+        };
+        let width = bvh
+            .strip_prefix("BVH")
+            .and_then(|r| r.split_once('<'))
+            .filter(|(_, leaf)| leaf.len() > 1 && leaf.ends_with('>'))
+            .and_then(|(w, _)| w.parse().ok())
+            .ok_or_else(|| EmbreeError(format!("unexpected BVH name {bvh:?} (not BVH<width><<leaf>>)")))?;
+        Ok(EmbreeBuild { isa, bvh, width })
+    }
+}
+
+extern "C" {
+    fn dup2(old: c_int, new: c_int) -> c_int;
+    /// `fflush(NULL)` flushes every C output stream (C++'s `std::cout` writes through C's
+    /// `stdout` while synchronised with stdio, the default).
+    fn fflush(stream: *mut c_void) -> c_int;
+}
+
+/// Run `f` with file descriptor 1 redirected into a pipe, and return its result and what
+/// was written to the descriptor meanwhile (Embree prints its verbose output to C++'s
+/// `std::cout`). Rust's stdout stays locked throughout, so this process's own `print!`s
+/// wait rather than end up in the capture; writes to the descriptor by other means (C
+/// code on other threads) would.
+fn capture_stdout<T>(f: impl FnOnce() -> T) -> Result<(T, String), EmbreeError> {
+    use std::io::{Read, Write};
+    use std::os::fd::{AsFd, AsRawFd};
+    let failed = |what: &str, e: std::io::Error| EmbreeError(format!("capturing Embree's output: {what}: {e}"));
+    let mut stdout = std::io::stdout().lock();
+    stdout.flush().map_err(|e| failed("flushing stdout", e))?;
+    let saved = stdout.as_fd().try_clone_to_owned().map_err(|e| failed("duplicating stdout", e))?;
+    let (mut reader, writer) = std::io::pipe().map_err(|e| failed("creating a pipe", e))?;
+    // The pipe is drained while `f` writes, so that a long output cannot block it.
+    let drain = std::thread::Builder::new()
+        .name("embree-stdout".into())
+        .spawn(move || {
+            let mut text = Vec::new();
+            reader.read_to_end(&mut text).map(|_| text)
+        })
+        .map_err(|e| failed("starting the reader thread", e))?;
+    let redirect = |from: c_int, what: &str| {
+        // SAFETY: flushing C's streams, then replacing descriptor 1 by a descriptor open here.
+        unsafe {
+            fflush(std::ptr::null_mut());
+            if dup2(from, stdout.as_fd().as_raw_fd()) < 0 {
+                return Err(failed(what, std::io::Error::last_os_error()));
+            }
+        }
+        Ok(())
+    };
+    redirect(writer.as_raw_fd(), "redirecting stdout into the pipe")?;
+    // Descriptor 1 now holds the pipe's only write end: the reader sees the end of the
+    // output when it is restored.
+    drop(writer);
+    let out = f();
+    redirect(saved.as_raw_fd(), "restoring stdout")?;
+    let text = drain.join().map_err(|_| EmbreeError("the reader thread panicked".into()))?;
+    let text = text.map_err(|e| failed("reading the pipe", e))?;
+    Ok((out, String::from_utf8_lossy(&text).into_owned()))
 }
 
 /// A two-level Embree scene: each mesh of the moving objects committed once as its own
@@ -766,6 +927,134 @@ mod tests {
                 assert!(differ.len() <= 2, "frame {frame}, {copies} copies, flat: rays {differ:?} differ");
             }
         }
+    }
+
+    /// Lines Embree 3.13.5 printed with `verbose=2` on an AVX2 machine (Debian's build) for
+    /// a device, then a committed scene of one triangle (`rtcCommitScene`), the rest elided
+    /// (and trailing spaces).
+    const VERBOSE_3_13_5: &str = "
+Embree Ray Tracing Kernels 3.13.5 ()
+   Targets  : SSE SSE2 SSE3 SSSE3 SSE4.1 SSE4.2 AVX AVXI AVX2
+    Targets : SSE SSE2 SSE3 SSSE3 SSE4.1 SSE4.2 AVX AVXI AVX2  (supported)
+              SSE2 SSE4.2 AVX AVX2 AVX512  (compile time enabled)
+              triangles:          1
+building BVH8<triangle4> using avx::BVH8BuilderSAH ...
+finished BVH8<triangle4> : 0.115156ms, 0.00868386 Mprim/s, 0.00152836 GB/s
+  primitives = 1, vertices = 0, depth = 0
+created scene intersector
+  accels[0]
+    intersector1  = avx2::BVH8Triangle4Intersector1Moeller
+    intersector4  = avx2::BVH8Triangle4Intersector4HybridMoellerNoFilter
+    intersector8  = avx2::BVH8Triangle4Intersector8HybridMoellerNoFilter
+    intersectorN = avx2::BVH8Triangle4IntersectorStreamMoellerNoFilter
+selected scene intersector
+  intersector1  = avx2::BVH8Triangle4Intersector1Moeller
+  intersector4  = avx2::BVH8Triangle4Intersector4HybridMoellerNoFilter
+  intersector8  = avx2::BVH8Triangle4Intersector8HybridMoellerNoFilter
+  intersectorN = avx2::BVH8Triangle4IntersectorStreamMoellerNoFilter
+";
+
+    /// The same with `verbose=2,isa=sse4.2` (the created-intersector block elided too, as
+    /// it repeats the selected one): SSE4.2's dispatch keeps SSE2's single-ray kernel.
+    const VERBOSE_3_13_5_SSE42: &str = "
+Embree Ray Tracing Kernels 3.13.5 ()
+    Targets : SSE SSE2 SSE3 SSSE3 SSE4.1 SSE4.2  (supported)
+              SSE2 SSE4.2 AVX AVX2 AVX512  (compile time enabled)
+building BVH4<triangle4> using sse2::BVH4BuilderSAH ...
+finished BVH4<triangle4> : 0.0469685ms, 0.0212909 Mprim/s, 0.0037472 GB/s
+selected scene intersector
+  intersector1  = sse2::BVH4Triangle4Intersector1Moeller
+  intersector4  = sse42::BVH4Triangle4Intersector4HybridMoellerNoFilter
+  intersectorN = sse42::BVH4Triangle4IntersectorStreamMoellerNoFilter
+";
+
+    #[test]
+    fn the_isa_and_the_bvh_come_from_embrees_verbose_output() {
+        let b = EmbreeBuild::parse(VERBOSE_3_13_5).unwrap();
+        assert_eq!(b, EmbreeBuild { isa: "avx2".into(), bvh: "BVH8<triangle4>".into(), width: 8 });
+        assert_eq!(b.to_string(), "ISA avx2 selected at run time, BVH8<triangle4> (8-wide) for triangle scenes");
+        // The highest of the selected intersectors' ISAs, not the builder's nor the first.
+        let b = EmbreeBuild::parse(VERBOSE_3_13_5_SSE42).unwrap();
+        assert_eq!((b.isa.as_str(), b.bvh.as_str(), b.width), ("sse42", "BVH4<triangle4>", 4));
+        let b = EmbreeBuild::parse(&VERBOSE_3_13_5.replace("  intersector4  = avx2", "  intersector4  = sse42"));
+        assert_eq!(b.unwrap().isa, "avx2");
+    }
+
+    #[test]
+    fn verbose_output_without_the_isa_or_the_bvh_is_an_error() {
+        let without = |drop: &dyn Fn(&str) -> bool| {
+            let text: Vec<&str> = VERBOSE_3_13_5.lines().filter(|l| !drop(l)).collect();
+            EmbreeBuild::parse(&text.join("\n")).unwrap_err().to_string()
+        };
+        // `verbose=1` prints the device's header only.
+        let e = EmbreeBuild::parse(&VERBOSE_3_13_5[..VERBOSE_3_13_5.find("building").unwrap()]).unwrap_err();
+        assert!(e.to_string().contains("selected scene intersector"), "{e}");
+        assert!(without(&|l| l.starts_with("selected")).contains("\"selected scene intersector\" block not found"));
+        // The block without its lines: the ISA of the created (not selected) ones is not taken.
+        let e = without(&|l| l.starts_with("  intersector"));
+        assert!(e.contains("a selected intersector not found"), "{e}");
+        assert!(without(&|l| l.starts_with("building")).contains("\"building BVH... using ...\" line not found"));
+        let e = EmbreeBuild::parse(&VERBOSE_3_13_5.replace("  intersector8  = avx2", "  intersector8  = avx10"));
+        assert!(e
+            .unwrap_err()
+            .to_string()
+            .contains("cannot rank the selected intersectors' ISAs [\"avx10\", \"avx2\"]"));
+        let e = EmbreeBuild::parse(&VERBOSE_3_13_5.replace("  intersector4  = avx2::", "  intersector4  = "));
+        assert!(e.unwrap_err().to_string().contains("unexpected intersector line"));
+        for bvh in ["BVH<triangle4>", "BVH8<>", "BVHx<triangle4>", "BVH8 triangle4"] {
+            let e = EmbreeBuild::parse(&VERBOSE_3_13_5.replace("building BVH8<triangle4>", &format!("building {bvh}")));
+            assert!(e.unwrap_err().to_string().contains("unexpected BVH name"), "{bvh}");
+        }
+        let two =
+            VERBOSE_3_13_5.replace("finished", "building BVH4<triangle4v> using sse2::BVH4BuilderSAH ...\nfinished");
+        assert!(EmbreeBuild::parse(&two).unwrap_err().to_string().contains("more than one BVH"));
+    }
+
+    /// Embree on this machine: a known ISA, at least AVX2 where the CPU has what Embree's
+    /// AVX2 kernels need (its `AVX2` target: AVX, F16C, RDRAND, AVX2, FMA3, BMI1, BMI2,
+    /// LZCNT), so that the peer does not run its SSE path, and a 4- or 8-wide BVH.
+    #[test]
+    fn embree_on_this_machine_selects_a_known_isa_and_builds_a_4_or_8_wide_bvh() {
+        let b = EmbreeBuild::detect().unwrap();
+        assert!(EMBREE_ISAS.contains(&b.isa.as_str()), "{b:?}");
+        assert!(b.width == 4 || b.width == 8, "{b:?}");
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::is_x86_feature_detected as has;
+            if has!("avx")
+                && has!("f16c")
+                && has!("rdrand")
+                && has!("avx2")
+                && has!("fma")
+                && has!("bmi1")
+                && has!("bmi2")
+                && has!("lzcnt")
+            {
+                assert!(b.isa == "avx2" || b.isa.starts_with("avx512"), "{b:?}");
+            }
+        }
+        println!("Embree here: {b}");
+        assert_eq!(EmbreeBuild::detect().unwrap(), b, "a second probe");
+    }
+
+    #[test]
+    fn capture_stdout_takes_what_c_prints_and_restores_the_descriptor() {
+        use std::os::fd::AsFd;
+        use std::os::unix::fs::MetadataExt;
+        extern "C" {
+            fn puts(s: *const c_char) -> c_int;
+        }
+        let stdout_file = || {
+            let f = std::fs::File::from(std::io::stdout().as_fd().try_clone_to_owned().unwrap());
+            let m = f.metadata().unwrap();
+            (m.dev(), m.ino())
+        };
+        let before = stdout_file();
+        // SAFETY: a NUL-terminated string; `puts` buffers it in C's `stdout`.
+        let (written, text) = capture_stdout(|| unsafe { puts(c"printed by C".as_ptr()) }).unwrap();
+        assert!(written >= 0);
+        assert_eq!(text, "printed by C\n");
+        assert_eq!(stdout_file(), before, "descriptor 1 is the same file again");
     }
 
     #[test]
