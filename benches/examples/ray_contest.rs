@@ -44,7 +44,15 @@ struct Args {
 }
 
 fn parse() -> Result<Args, String> {
-    let mut a = Args { threads: 2, rounds: 5, shadow: true, primary: true, scenes: Vec::new(), packets_only: false, singles_only: false };
+    let mut a = Args {
+        threads: 2,
+        rounds: 5,
+        shadow: true,
+        primary: true,
+        scenes: Vec::new(),
+        packets_only: false,
+        singles_only: false,
+    };
     let mut it = std::env::args().skip(1);
     while let Some(arg) = it.next() {
         let mut value = |name: &str| it.next().ok_or(format!("{name} needs a value"));
