@@ -180,6 +180,7 @@ fn main() {
     };
     let level = SimdLevel::detect();
     println!("SIMD level {}, {} threads, {} rounds", level.name(), args.threads, args.rounds);
+    println!("Embree: {}", hyrt_benches::bench::peers::embree_peer());
     let pool = rayon::ThreadPoolBuilder::new().num_threads(args.threads).build().expect("rayon pool");
     let hyrt = if args.packets_only {
         vec![Traversal::Packet(level)]

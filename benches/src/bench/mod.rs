@@ -260,7 +260,7 @@ fn header(options: &BenchOptions, cpu: &FrameBackend, gpu: Option<&FrameBackend>
     t.row(["rustc".to_string(), m.rustc]);
     t.row(["CPU backend".to_string(), cpu.label.clone()]);
     t.row(["GPU backend".to_string(), gpu.map_or("not measured (see notes)".to_string(), |g| g.label.clone())]);
-    t.row(["Embree".to_string(), peers::embree_version()]);
+    t.row(["Embree".to_string(), peers::embree_peer()]);
     let simd = hyrt_cpu::traversal::SimdLevel::detect();
     t.row([
         "SIMD level of hyrt's traversals".to_string(),

@@ -195,7 +195,7 @@ pub fn run(
         scenes: Vec::new(),
         size: options.table_size,
         threads,
-        embree_missing: (!cfg!(feature = "embree")).then(super::peers::embree_version),
+        embree_missing: (!cfg!(feature = "embree")).then(super::peers::embree_peer),
         gpu_skipped: None,
     };
     if options.quick && gpu.is_some() {

@@ -154,15 +154,23 @@ pub struct Peers {
     pub cpu_threads: usize,
     /// Why Embree is missing, when it is.
     pub embree_missing: Option<String>,
+    /// The Embree peer as the header names it ([`embree_peer`]: version, ISA, BVH), when it ran.
+    pub embree: Option<String>,
 }
 
-/// The Embree version the peer uses, or why there is none.
-pub fn embree_version() -> String {
+/// The Embree the peer is: its version, the ISA its run-time dispatch selected on this
+/// machine and the BVH it builds for triangle scenes ([`super::embree::EmbreeBuild`];
+/// "not found" and why, when Embree's output did not say), or why there is none.
+pub fn embree_peer() -> String {
     #[cfg(feature = "embree")]
     {
         match super::embree::EmbreeScene::version() {
             Ok(v) => format!(
-                "Embree {v} (hand-written FFI to the system's libembree3; default build quality and scene flags)"
+                "Embree {v} (hand-written FFI to the system's libembree3; default build quality and scene flags): {}",
+                match super::embree::EmbreeBuild::detect() {
+                    Ok(b) => b.to_string(),
+                    Err(e) => format!("ISA and BVH not found ({e})"),
+                }
             ),
             Err(e) => e.to_string(),
         }
@@ -289,7 +297,7 @@ fn measure_scene(
         Err(e) => (None, Some(e.to_string())),
     };
     #[cfg(not(feature = "embree"))]
-    let embree_missing = Some(embree_version());
+    let embree_missing = Some(embree_peer());
     let mut out = ScenePeers {
         scene: row.name.to_string(),
         shadow: Vec::new(),
@@ -563,6 +571,7 @@ pub fn run(options: &BenchOptions, table2: &Table2, progress: &ProgressBar) -> R
         raster,
         gpu_short: table2.gpu.as_ref().map(|g| g.1.clone()),
         cpu_threads,
+        embree: embree_missing.is_none().then(embree_peer),
         embree_missing,
     })
 }
@@ -648,8 +657,14 @@ impl Peers {
              (`Frame::rays`), primary rays one per pixel through its centre. Embree's triangle test is not watertight, hyrt's is: rays through shared \
              edges or vertices may differ, and the count of such rays is reported as measured."
         );
-        if let Some(m) = &self.embree_missing {
-            let _ = writeln!(md, "\nEmbree: {m}.");
+        match (&self.embree_missing, &self.embree) {
+            (Some(m), _) => {
+                let _ = writeln!(md, "\nEmbree: {m}.");
+            }
+            (None, Some(e)) => {
+                let _ = writeln!(md, "\nThe peer: {e}.");
+            }
+            (None, None) => {}
         }
         for s in &self.scenes {
             let _ = writeln!(
@@ -959,7 +974,29 @@ mod tests {
             gpu_short: Some("lavapipe".into()),
             cpu_threads: 2,
             embree_missing: (!embree).then(|| "not built".into()),
+            embree: embree
+                .then(|| "Embree 3.13.5 (...): ISA avx2 selected at run time, BVH8<triangle4> (8-wide)".into()),
         }
+    }
+
+    fn table2_without_rows() -> Table2 {
+        Table2 {
+            rows: vec![],
+            size: (64, 32),
+            cpu_label: String::new(),
+            gpu: None,
+            gpu_errors: vec![],
+            frames: 3,
+            copy_gb_s: 10.0,
+        }
+    }
+
+    #[test]
+    fn the_section_names_the_embree_peer_or_why_it_is_missing() {
+        let md = peers("teaser", true).section(&table2_without_rows()).markdown;
+        assert!(md.contains("\nThe peer: Embree 3.13.5 (...): ISA avx2 selected at run time, BVH8<triangle4>"), "{md}");
+        let md = peers("teaser", false).section(&table2_without_rows()).markdown;
+        assert!(md.contains("\nEmbree: not built.") && !md.contains("The peer:"), "{md}");
     }
 
     #[test]
@@ -1082,15 +1119,7 @@ mod tests {
         let row = g.iter().find(|r| r[0].starts_with("reflection and refraction rays, teaser")).expect("a goal row");
         assert!(row[0].contains("rtcIntersect1"), "{row:?}");
         assert_eq!(row[1..], ["8.0 Mrays/s".to_string(), "4.0 Mrays/s".into(), "0.50".into()]);
-        let table2 = Table2 {
-            rows: vec![],
-            size: (64, 32),
-            cpu_label: String::new(),
-            gpu: None,
-            gpu_errors: vec![],
-            frames: 3,
-            copy_gb_s: 10.0,
-        };
+        let table2 = table2_without_rows();
         let md = p.section(&table2).markdown;
         assert!(md.contains("### teaser: reflection and refraction rays"), "{md}");
         assert!(md.contains("1,000,000 rays, 7 of them hit (hyrt)"), "{md}");
