@@ -831,6 +831,7 @@ mod tests {
     use hyrt_core::bvh::{Bvh, BvhPreset};
     use hyrt_core::formats::CameraRecord;
     use hyrt_core::kernels::camera::primary_rays;
+    use hyrt_core::kernels::ray::intersect_triangle_watertight;
     use hyrt_core::scene::Scene;
 
     #[test]
@@ -886,9 +887,14 @@ mod tests {
         (scene, moving)
     }
 
+    /// Relative depth difference of two faces that coincide in exact arithmetic (touching
+    /// copies of one cube), their vertices placed by different transforms: a few f32 ulps.
+    const COINCIDENT_FACES: f32 = 4.0 * f32::EPSILON;
+
     /// Embree's two-level scene answers primary rays as hyrt's two-level scene, before and
     /// after the objects move (the same triangle, in hyrt's global numbering, on every ray
-    /// at this size), and its full rebuild agrees but for a ray or two.
+    /// at this size but where two copies touch and the ray meets two coincident faces), and
+    /// its full rebuild agrees but for a ray or two.
     #[test]
     fn embree_instances_agree_with_hyrts_two_levels_as_objects_move() {
         use crate::bench::moving::frame_transform;
@@ -919,7 +925,26 @@ mod tests {
                 let moving_hits =
                     hyrt.iter().flatten().filter(|&&h| moving.contains(&g.triangle(h as usize).object)).count();
                 assert!(moving_hits > 20, "frame {frame}, {copies} copies: {moving_hits} rays on the moving objects");
-                assert_eq!(hyrt, embree, "frame {frame}, {copies} copies");
+                // Where the answers differ, the copies touch (from frame 20 with 3 copies):
+                // the ray meets two coincident faces, hyrt's and Embree's triangles at the
+                // same depth but for rounding (their world positions round differently), and
+                // either tracer may take either one.
+                for i in (0..rays.len()).filter(|&i| hyrt[i] != embree[i]) {
+                    let r = &rays[i];
+                    let depth = |h: Option<u32>| {
+                        let t = g.triangle(h? as usize);
+                        let (o, d) = (r.origin.into(), r.direction.into());
+                        intersect_triangle_watertight(o, d, 0.0, f32::INFINITY, t.v0.into(), t.v1.into(), t.v2.into())
+                            .map(|h| h.t)
+                    };
+                    let (a, b) = (depth(hyrt[i]), depth(embree[i]));
+                    let coincident = a.zip(b).is_some_and(|(a, b)| (a - b).abs() <= COINCIDENT_FACES * a);
+                    assert!(
+                        coincident,
+                        "frame {frame}, {copies} copies: ray {i} hits {:?} at {a:?} (hyrt), {:?} at {b:?} (Embree)",
+                        hyrt[i], embree[i]
+                    );
+                }
                 // The flat rebuild in world space: a ray on a shared edge or on two touching
                 // objects may land on another triangle (Embree's test is not watertight).
                 flat.intersect1(&rays, &mut embree);
