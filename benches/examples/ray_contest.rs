@@ -8,9 +8,12 @@
 //!
 //! ```text
 //! cargo run --release -p hyrt-benches --features embree --example ray_contest -- \
-//!     [--threads N] [--rounds N] [--simd avx2|avx512|sse2|portable] [--kind shadow|primary|both]
+//!     [--threads N] [--rounds N] [--simd avx2|avx512|sse2|portable] [--kind shadow|primary|both|bounce]
 //!     [--packets-only | --singles-only] SCENE...
 //! ```
+//!
+//! `--kind bounce` traces the frame's reflection and refraction rays (closest hit; scenes
+//! with mirrors or glass only) instead.
 //!
 //! `--packets-only` times hyrt's packets alone (no Embree, no single rays), `--singles-only`
 //! its single rays alone: for profiling.
@@ -18,7 +21,7 @@
 //! bunny_near, bunny_far, dragon); `all` is all of them.
 
 use hyrt_benches::bench::embree::EmbreeScene;
-use hyrt_benches::bench::peers::{frame_shadow_rays, PeerScene};
+use hyrt_benches::bench::peers::{frame_rays, frame_shadow_rays, PeerScene};
 use hyrt_benches::bench::scenes::load_manifest;
 use hyrt_benches::bench::stats::{interleaved_ms, median, round_ratios};
 use hyrt_core::formats::{CameraRecord, RayRecord};
@@ -36,6 +39,8 @@ struct Args {
     rounds: usize,
     shadow: bool,
     primary: bool,
+    /// The frame's reflection and refraction rays (closest hit), with `--kind bounce`.
+    bounce: bool,
     scenes: Vec<String>,
     /// Only hyrt's packets (for profiling them alone).
     packets_only: bool,
@@ -49,6 +54,7 @@ fn parse() -> Result<Args, String> {
         rounds: 5,
         shadow: true,
         primary: true,
+        bounce: false,
         scenes: Vec::new(),
         packets_only: false,
         singles_only: false,
@@ -68,6 +74,7 @@ fn parse() -> Result<Args, String> {
                 "shadow" => a.primary = false,
                 "primary" => a.shadow = false,
                 "both" => {}
+                "bounce" => (a.shadow, a.primary, a.bounce) = (false, false, true),
                 k => return Err(format!("--kind: unknown kind {k}")),
             },
             "--packets-only" => a.packets_only = true,
@@ -217,18 +224,29 @@ fn main() {
                 false,
             );
         }
-        if args.primary {
-            let rays = primary_rays(&camera);
+        // Closest hits against Embree's two packet runs.
+        let closest = |kind: &str, rays: &[RayRecord]| {
             contest.run(
-                "primary rays",
-                &rays,
+                kind,
+                rays,
                 |rays, t, o| closest_hit_batch_into(bvh, g.traversal_table(), rays, t, o),
                 [
                     ("Embree rtcIntersect8", EmbreeScene::intersect8),
                     ("Embree rtcIntersect8 coherent", EmbreeScene::intersect8_coherent),
                 ],
                 None,
-            );
+            )
+        };
+        if args.bounce {
+            let rays = frame_rays(&row).expect("frame").1;
+            if rays.is_empty() {
+                println!("{name}: no reflection or refraction rays");
+            } else {
+                closest("reflection and refraction rays", &rays);
+            }
+        }
+        if args.primary {
+            closest("primary rays", &primary_rays(&camera));
         }
     }
 }

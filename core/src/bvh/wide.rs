@@ -71,6 +71,21 @@ pub struct WideNode {
 }
 const _: () = assert!(std::mem::size_of::<WideNode>() == 256);
 
+impl WideNode {
+    /// The six plane rows of the children's boxes, `lo` then `hi`: row `a` holds every
+    /// child's minimum on axis `a`, row `3 + a` its maximum ([`Self::plane_row`]).
+    #[inline(always)]
+    pub fn planes(&self) -> &[[f32; WIDE]; 6] {
+        bytemuck::from_bytes(&bytemuck::bytes_of(self)[..std::mem::size_of::<[[f32; WIDE]; 6]>()])
+    }
+
+    /// The row of [`Self::planes`] holding axis `a`'s maxima (`max`) or minima.
+    #[inline(always)]
+    pub const fn plane_row(a: usize, max: bool) -> usize {
+        a + 3 * max as usize
+    }
+}
+
 /// The triangles of one binary leaf, lane `k` holding its `k`-th slot (`first + k`), as
 /// structure of arrays for a one-ray, eight-triangle test.
 ///
@@ -383,6 +398,21 @@ mod tests {
             normals.push([Vec3::Z; 3]);
         }
         WorldGeometry { triangles: crate::geometry::WorldTriangles::stored(records, normals), ..Default::default() }
+    }
+
+    #[test]
+    fn plane_rows_are_the_minima_then_the_maxima_by_axis() {
+        let mut node = WideNode::zeroed();
+        for a in 0..3 {
+            for k in 0..WIDE {
+                node.lo[a][k] = (10 * a + k) as f32;
+                node.hi[a][k] = -((10 * a + k) as f32) - 1.0;
+            }
+        }
+        for a in 0..3 {
+            assert_eq!(node.planes()[WideNode::plane_row(a, false)], node.lo[a]);
+            assert_eq!(node.planes()[WideNode::plane_row(a, true)], node.hi[a]);
+        }
     }
 
     #[test]

@@ -102,6 +102,23 @@
 //!   the others: the spread does not tell where the lanes part.
 //! * Other leaf sizes (obvhs' `collapse_traversal_cost` 1, 1.5 and 5 instead of 3; at most
 //!   4 triangles per leaf instead of 8): within the noise on every scene.
+//! * Embree's hybrid on the 8-wide tree (issue 36): packets walking the wide nodes (each
+//!   child's box tested for all lanes, the entering lanes' mask on the stack with the
+//!   child), a node entered by at most `T` lanes finished by each of them alone through the
+//!   same tree from that node (the branchy single-ray any-hit walk of module `single`, so
+//!   switching costs one ray set-up per lane and nothing else), leaves lane by lane or, with
+//!   more than `P` lanes, triangle by triangle for the packet. Bit for bit the scalar
+//!   answers, and slower on every scene measured (AMD EPYC, AVX2, one thread, `ray_contest
+//!   --packets-only --kind shadow`, interleaved with the binary packets in one process,
+//!   binary packets first): the dragon 89 ms against 105 (`T` = 1, leaves lane by lane), 112
+//!   (`P` = 2), 108 to 113 (`T` = 3); the far bunny 7.3 against 8.6 to 9.3; the near horse
+//!   8.1 against 9.8 to 11.7; the teaser 116 against 157 to 239; Embree's own threshold
+//!   (`T` = 7: single rays as soon as a lane drops out) 120 against 100 on the dragon and 165
+//!   against 91 on the teaser. The binary walk culls lanes at every level where the wide
+//!   node tests eight grandchildren, and its occluder cache and lone-lane leaf tests have
+//!   no counterpart there yet; and the single-ray walk it hands lanes to runs at about 0.7
+//!   of Embree's single rays (the dragon's shadow rays: 6.9 against 9.4 Mrays/s), so that
+//!   walk comes first.
 //!
 //! Two-level scenes (moving objects, shared meshes): the world-space level is traced as
 //! above, then the object-space instances in packets (module `instances`,

@@ -55,8 +55,11 @@ struct WideRay<L: Lanes> {
     t_max: f32,
     origin: [L::F; 3],
     inv_dir: [L::F; 3],
-    /// Per axis: the near plane is the box maximum (the inverse direction is negative).
-    near_is_max: [bool; 3],
+    /// Per axis, the rows of [`WideNode::planes`] holding the near and the far plane
+    /// (the box maximum is the near plane where the inverse direction is negative): picked
+    /// once per ray, so a node test loads its planes with no selection of its own.
+    near_row: [usize; 3],
+    far_row: [usize; 3],
     /// No inverse direction is infinite: no slab distance is NaN.
     finite_inv: bool,
     box_t_min: L::F,
@@ -92,7 +95,8 @@ impl<L: Lanes> WideRay<L> {
             t_max: ray.t_max,
             origin: [L::splat(o.x), L::splat(o.y), L::splat(o.z)],
             inv_dir: [L::splat(inv.x), L::splat(inv.y), L::splat(inv.z)],
-            near_is_max: [inv.x.is_sign_negative(), inv.y.is_sign_negative(), inv.z.is_sign_negative()],
+            near_row: [0, 1, 2].map(|a| WideNode::plane_row(a, inv[a].is_sign_negative())),
+            far_row: [0, 1, 2].map(|a| WideNode::plane_row(a, !inv[a].is_sign_negative())),
             finite_inv: inv.is_finite(),
             box_t_min: L::splat(ray.t_min * (1.0 - BVH_CULL_SLACK)),
         })
@@ -104,8 +108,9 @@ impl<L: Lanes> WideRay<L> {
     fn enter(&self, node: &WideNode, t_far: L::F) -> (u32, [f32; LANES]) {
         let mut tn = [self.box_t_min; 3];
         let mut tf = [t_far; 3];
+        let planes = node.planes();
         for a in 0..3 {
-            let (near, far) = if self.near_is_max[a] { (&node.hi[a], &node.lo[a]) } else { (&node.lo[a], &node.hi[a]) };
+            let (near, far) = (&planes[self.near_row[a]], &planes[self.far_row[a]]);
             tn[a] = L::mul(L::sub(L::load(near), self.origin[a]), self.inv_dir[a]);
             tf[a] = L::mul(L::mul(L::sub(L::load(far), self.origin[a]), self.inv_dir[a]), L::splat(SLAB_FAR_SCALE));
         }
@@ -253,27 +258,36 @@ pub(crate) fn closest_hit<L: Lanes>(wide: &WideBvh, ray: &RayRecord, stack: &mut
 
 /// Any hit of one ray through `wide`, equal to `Bvh::occluded`. Children are visited in
 /// stored order (the first hit ends the walk; ordering them would cost more than it
-/// saves on shadow rays).
+/// saves on shadow rays), branchy as tinybvh's and Embree's any-hit walks: the first
+/// child entered is visited next without going through the stack, the others are pushed
+/// (the last first), so a node entered on one child only, the common case, costs no
+/// stack traffic. (Measured against pushing every child and popping the first, the same
+/// binary, interleaved rounds, one thread, `ray_contest --singles-only --kind shadow`: 2
+/// to 7% faster on the dragon, the far bunny, the near horse and the teaser.)
 #[inline(always)]
 pub(crate) fn occluded<L: Lanes>(wide: &WideBvh, ray: &RayRecord, stack: &mut [(u32, f32)]) -> bool {
     let Some(r) = WideRay::<L>::new(ray) else {
         return false;
     };
     let t_far = L::splat(r.t_max * (1.0 + BVH_CULL_SLACK));
-    stack[0] = (0, 0.0);
-    let mut sp = 1usize;
-    while sp > 0 {
-        sp -= 1;
-        match WideChild::decode(stack[sp].0) {
+    let mut current = 0u32;
+    let mut sp = 0usize;
+    loop {
+        match WideChild::decode(current) {
             WideChild::Node(n) => {
                 let node = &wide.nodes[n as usize];
                 let mut mask = r.enter(node, t_far).0;
-                // Stored order on top: push the last child first.
-                while mask != 0 {
-                    let k = 31 - mask.leading_zeros() as usize;
-                    mask &= !(1 << k);
-                    stack[sp] = (node.child[k], 0.0);
-                    sp += 1;
+                if mask != 0 {
+                    let first = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    while mask != 0 {
+                        let k = 31 - mask.leading_zeros() as usize;
+                        mask &= !(1 << k);
+                        stack[sp].0 = node.child[k];
+                        sp += 1;
+                    }
+                    current = node.child[first];
+                    continue;
                 }
             }
             WideChild::Leaf { leaf, count } => {
@@ -292,6 +306,10 @@ pub(crate) fn occluded<L: Lanes>(wide: &WideBvh, ray: &RayRecord, stack: &mut [(
                 }
             }
         }
+        if sp == 0 {
+            return false;
+        }
+        sp -= 1;
+        current = stack[sp].0;
     }
-    false
 }
