@@ -13,6 +13,13 @@
 //! fills the lanes of the leaf test (the teaser's binary leaves hold 4 triangles on
 //! average) and removes the narrow wide nodes that held only two small leaves.
 //!
+//! Smaller wide leaves (subtrees of at most 4 triangles merged instead of 8, issue 36's
+//! "small leaves") measured slower for the single rays on this 8-lane leaf test (AMD EPYC,
+//! AVX2, one thread, `ray_contest --singles-only`, the two alternated three times on a
+//! noisy host): the dragon's shadow rays 197 to 212 ms against 170 to 212, the far
+//! bunny's 12.3 to 14.6 against 10.9 to 12.1; the teaser's reflection rays within the
+//! noise. A 4-triangle leaf fills half the lanes of the test it costs.
+//!
 //! Children keep the binary tree's depth-first order, and wide nodes are numbered depth
 //! first, so the layout keeps the binary tree's locality. No box is recomputed: every
 //! child box is a binary node's box, bit for bit, and every leaf slot is in exactly one
