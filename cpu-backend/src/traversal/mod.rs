@@ -102,6 +102,13 @@
 //!   the others: the spread does not tell where the lanes part.
 //! * Other leaf sizes (obvhs' `collapse_traversal_cost` 1, 1.5 and 5 instead of 3; at most
 //!   4 triangles per leaf instead of 8): within the noise on every scene.
+//! * Prefetching for the binary walk (a hook in `hyrt_core`'s walk, tried twice, one
+//!   thread, interleaved in one process): a pushed node's pair of children (within the
+//!   noise on the dragon, the far bunny, the near horse, the teaser and Sponza), and a
+//!   leaf child's triangle records as soon as its parent's pair is read (the dragon 3%
+//!   faster, the horses and bunnies 1 to 6% slower). The leaf records' loads are 16% of the
+//!   dragon's packet time and the node loads about 11%, but they sit on the walk's
+//!   dependency chain, which a prefetch one step ahead hardly shortens.
 //! * Embree's hybrid on the 8-wide tree (issue 36): packets walking the wide nodes (each
 //!   child's box tested for all lanes, the entering lanes' mask on the stack with the
 //!   child), a node entered by at most `T` lanes finished by each of them alone through the
