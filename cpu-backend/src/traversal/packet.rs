@@ -331,7 +331,11 @@ impl<'a, L: Lanes> Packet<'a, L> {
     /// (`WatertightRay::back_face` of the determinant, the f32 sum of the edge functions
     /// that the scalar kernel computes too, also where it redoes a lane).
     #[inline(always)]
-    fn intersect<const EARLY_OUT: bool>(&self, active: u32, tri: &TriangleRecord) -> (u32, L::F, L::F, L::F, u32) {
+    pub(super) fn intersect<const EARLY_OUT: bool>(
+        &self,
+        active: u32,
+        tri: &TriangleRecord,
+    ) -> (u32, L::F, L::F, L::F, u32) {
         let p = [self.transform(tri.v0), self.transform(tri.v1), self.transform(tri.v2)];
         self.intersect_in_ray_space::<EARLY_OUT>(active, p, |_| tri)
     }
