@@ -164,7 +164,11 @@ pub struct Peers {
 pub fn embree_peer() -> String {
     #[cfg(feature = "embree")]
     {
-        match super::embree::EmbreeScene::version() {
+        // Asked once a process (the header and the Peers section both name the peer): the
+        // probe creates a device, commits a scene and captures Embree's standard output,
+        // and its answer does not change within a run.
+        static PEER: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+        PEER.get_or_init(|| match super::embree::EmbreeScene::version() {
             Ok(v) => format!(
                 "Embree {v} (hand-written FFI to the system's libembree3; default build quality and scene flags): {}",
                 match super::embree::EmbreeBuild::detect() {
@@ -173,7 +177,8 @@ pub fn embree_peer() -> String {
                 }
             ),
             Err(e) => e.to_string(),
-        }
+        })
+        .clone()
     }
     #[cfg(not(feature = "embree"))]
     {
