@@ -4,7 +4,8 @@
 //! test decides for all eight children of a wide node at once whether any lane can enter
 //! them; only at a leaf are the lanes tested one by one (the packets' own box test of the
 //! leaf's box, then the packets' triangle test of its triangles for the lanes that
-//! entered, the vertices read from the wide leaf's structure of arrays: `test_leaf_lanes`). Children are visited nearest first by the frustum's entry bound.
+//! entered, the vertices read from the wide leaf's structure of arrays: `test_leaf_lanes`).
+//! Children are visited nearest first by the frustum's entry bound.
 //!
 //! A node test costs about one single-ray test of the wide node for the whole packet,
 //! where the binary packets (module `packet`) test each lane against two children, and
