@@ -65,6 +65,12 @@ pub(crate) trait Lanes: Copy {
     /// range; outside it `i32::MIN`, where `as` saturates: callers keep such lanes out).
     fn float_to_int(a: Self::F) -> Self::F;
 
+    /// Lane `lane` of `a` in every lane.
+    #[inline(always)]
+    fn broadcast_lane(a: Self::F, lane: usize) -> Self::F {
+        Self::splat(Self::store(a)[lane])
+    }
+
     /// The least lane, for lanes holding no NaN (which of two equal zeros is unspecified;
     /// the value compares equal either way).
     #[inline(always)]
@@ -522,6 +528,11 @@ mod x86 {
             avx!(_mm256_mul_ps, a, b)
         }
         #[inline(always)]
+        fn broadcast_lane(a: Self::F, lane: usize) -> Self::F {
+            // SAFETY: see the type's docs.
+            unsafe { _mm256_permutevar8x32_ps(a, _mm256_set1_epi32(lane as i32)) }
+        }
+        #[inline(always)]
         fn div(a: Self::F, b: Self::F) -> Self::F {
             avx!(_mm256_div_ps, a, b)
         }
@@ -753,6 +764,9 @@ pub(crate) mod tests {
         same(L::max(a, b), Portable::max(p, q));
         same(L::min(a, b), Portable::min(p, q));
         same(L::abs(a), Portable::abs(p));
+        for (lane, &x) in SAMPLES.iter().enumerate() {
+            same(L::broadcast_lane(a, lane), [x; LANES]);
+        }
         same(L::xor(a, b), Portable::xor(p, q));
         same(L::xor(a, L::splat(-0.0)), SAMPLES.map(|x| -x));
         same(L::bits_add(a, b), Portable::bits_add(p, q));

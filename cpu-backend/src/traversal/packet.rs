@@ -395,18 +395,22 @@ impl<'a, L: Lanes> Packet<'a, L> {
     /// lane ([`occluded_lanes_alone`] confirms them; the alpha test is not applied here).
     #[inline(always)]
     pub(super) fn lane_candidates(&self, lane: usize, v: &[[L::F; 3]; 3], active: u32) -> u32 {
-        // The lane's own constants: `WatertightRay::new` of its ray is what `Packet::new`
-        // computes lane-wise, bit for bit.
-        let r = &self.rays[lane];
-        // A valid lane's ray always has them (`Packet::new` checks what `new` checks).
-        let Some(wt) = WatertightRay::new(r.origin.into(), r.direction.into()) else { return 0 };
-        let op = permute_axes(Vec3::from(r.origin), wt.kz);
-        let o = [L::splat(op.x), L::splat(op.y), L::splat(op.z)];
-        let shear = [L::splat(wt.shear.x), L::splat(wt.shear.y), L::splat(wt.shear.z)];
+        // The lane's own constants, `WatertightRay::new` of its ray, taken from the lanes
+        // where `Packet::new` computed them (the same operations, bit for bit).
+        let own = |x: L::F| L::broadcast_lane(x, lane);
+        let kz = if L::bits(self.kz0) >> lane & 1 != 0 {
+            0
+        } else if L::bits(self.kz1) >> lane & 1 != 0 {
+            1
+        } else {
+            2
+        };
+        let o = self.origin_perm.map(own);
+        let shear = self.shear.map(own);
         // `Self::transform`'s operations: permuted vertex minus permuted origin, then shear.
-        let ray_space = |p: &[L::F; 3]| leaf_ray_space::<L>(p, wt.kz, &o, &shear);
+        let ray_space = |p: &[L::F; 3]| leaf_ray_space::<L>(p, kz, &o, &shear);
         let p = [ray_space(&v[0]), ray_space(&v[1]), ray_space(&v[2])];
-        let h = watertight::intersect::<L, false>(active, p, &shear, L::splat(r.t_min), L::splat(r.t_max));
+        let h = watertight::intersect::<L, false>(active, p, &shear, own(self.t_min), own(self.t_max));
         h.hit | h.exact
     }
 
