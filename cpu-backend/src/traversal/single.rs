@@ -35,7 +35,14 @@
 //! 256 bytes, four), then reloads of the ray's constants that AVX2's sixteen registers
 //! cannot hold (AVX-512's thirty-two can). Embree's single rays ran at 1.36 times these on
 //! the dragon's shadow rays (9.4 against 6.9 Mrays/s) and 1.1 to 1.2 times on the
-//! teaser's reflections. Tried and not kept, each measured against the walk above in one
+//! teaser's reflections, before the walks were compiled once per ray octant
+//! ([`octant_walk!`]: about a fifth fewer instructions per ray, 12 to 20% less time). After
+//! it, where the time goes is the same loads of node and leaf lines, spread over the eight
+//! copies; a node test's arithmetic is not the bound: computing the slab distances as one
+//! fused multiply-subtract per plane (`lo * inv - origin * inv`, Embree's form, which
+//! needs an error analysis of its own to stay conservative) measured, before the octant
+//! walks, 3 to 4% faster on the dragon's and the far horse's shadow rays and the teaser's
+//! reflections, 4% slower on the teaser's shadow rays. Tried and not kept, each measured against the walk above in one
 //! process, interleaved rounds: prefetching every pushed child's node or leaf (all its
 //! lines; within the noise, the teaser slower), the leaf test's early exit for any hit
 //! (about 2% slower), leaves of at most 4 triangles (see `hyrt_core::bvh::wide`), a
