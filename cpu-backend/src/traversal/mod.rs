@@ -127,8 +127,23 @@
 //!   of Embree's single rays (the dragon's shadow rays: 6.9 against 9.4 Mrays/s), so that
 //!   walk comes first. (It has since been compiled once per ray octant, `single`'s
 //!   `octant_walk!`: 12 to 20% less time, and one thread now traces the far horse's and
-//!   the far bunny's shadow rays as fast one at a time as in packets. The hybrid has not
-//!   been measured again since.)
+//!   the far bunny's shadow rays as fast one at a time as in packets.)
+//! * The binary packets handing lanes to that faster single-ray walk, measured again after
+//!   it: at a binary node entered by at most `k` lanes that is the root of a wide node or
+//!   wide leaf (a map from binary node to wide reference made by the collapse), each lane
+//!   not yet stopped walks that wide subtree alone, the packet skips it for them. Slower
+//!   for every `k` (AMD EPYC, AVX2, one thread, `ray_contest --packets-only --kind shadow`,
+//!   interleaved in one process): the dragon 131 to 146 ms against 181 to 231 for `k` = 1
+//!   to 5, the near bunny 22.4 against 30.5 to 32.5, the far bunny 11.6 against 15.9 to
+//!   18.0, the far horse 1.86 to 2.15 against 2.64 to 3.47; handing every lane off at once
+//!   (`k` = 8, single rays from the root's wide node) measured as the single rays do. Part
+//!   of the loss is the packet walk's own code: the same node test with the hand-off
+//!   compiled in but never taken was 13 to 16% slower than the plain walk (the far horse
+//!   2.10 against 1.86 ms, the dragon 169 against 146); against that, lone lanes handed
+//!   off (`k` = 1) cost the dragon 37% more and the far horse 38%. A lone lane's subtree
+//!   is mostly one wide leaf near its origin (0.65 hand-offs per ray on the far horse,
+//!   0.63 wide nodes each), which the lone-lane leaf test already serves, and a stop found
+//!   alone does not refresh the packet's occluder cache.
 //!
 //! Two-level scenes (moving objects, shared meshes): the world-space level is traced as
 //! above, then the object-space instances in packets (module `instances`,
