@@ -144,6 +144,12 @@
 //!   is mostly one wide leaf near its origin (0.65 hand-offs per ray on the far horse,
 //!   0.63 wide nodes each), which the lone-lane leaf test already serves, and a stop found
 //!   alone does not refresh the packet's occluder cache.
+//! * The packets' node test compiled per octant as the single rays' (`Packet::enter` with
+//!   the near plane's index a constant, nine copies of the any-hit walk with the mixed
+//!   case): not measured, because `hyrt-cpu`'s release build ran past 15 minutes (1m47
+//!   without it). The any-hit walk is inlined with its leaf tests into every chunk
+//!   function at every SIMD level; a per-octant packet walk needs those entry points
+//!   narrowed first.
 //!
 //! Two-level scenes (moving objects, shared meshes): the world-space level is traced as
 //! above, then the object-space instances in packets (module `instances`,
