@@ -105,6 +105,18 @@ pub fn max_component_index(v: Vec3) -> u32 {
     }
 }
 
+/// The axes in [`permute_axes`]'s order, as indices: `permute_axes(v, kz)[i]` is
+/// `v[permuted_axis_order(kz)[i]]` (for code that reads the axes from memory, such as the
+/// CPU's single-ray leaf test, which picks its vertex rows once per ray).
+#[inline]
+pub const fn permuted_axis_order(kz: u32) -> [usize; 3] {
+    match kz {
+        0 => [1, 2, 0],
+        1 => [2, 0, 1],
+        _ => [0, 1, 2],
+    }
+}
+
 /// Permute the axes of `v` so that axis `kz` comes last:
 /// `kz = 0: (y, z, x)`, `kz = 1: (z, x, y)`, `kz = 2: (x, y, z)`.
 #[inline]
@@ -566,6 +578,9 @@ mod tests {
         assert_eq!(permute_axes(v, 0), Vec3::new(2.0, 3.0, 1.0));
         assert_eq!(permute_axes(v, 1), Vec3::new(3.0, 1.0, 2.0));
         assert_eq!(permute_axes(v, 2), v);
+        for kz in 0..3 {
+            assert_eq!(permute_axes(v, kz).to_array(), permuted_axis_order(kz).map(|a| v[a]));
+        }
         assert_eq!(max_component_index(Vec3::new(1.0, 1.0, 1.0)), 2);
         assert_eq!(max_component_index(Vec3::new(2.0, 2.0, 1.0)), 1);
         assert_eq!(max_component_index(Vec3::new(3.0, 2.0, 1.0)), 0);

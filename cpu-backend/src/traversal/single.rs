@@ -42,13 +42,14 @@
 //! fused multiply-subtract per plane (`lo * inv - origin * inv`, Embree's form, which
 //! needs an error analysis of its own to stay conservative) measured, before the octant
 //! walks, 3 to 4% faster on the dragon's and the far horse's shadow rays and the teaser's
-//! reflections, 4% slower on the teaser's shadow rays. Tried and not kept, each measured against the walk above in one
-//! process, interleaved rounds: prefetching every pushed child's node or leaf (all its
-//! lines; within the noise, the teaser slower), the leaf test's early exit for any hit
-//! (about 2% slower), leaves of at most 4 triangles (see `hyrt_core::bvh::wide`), a
-//! higher-quality binary tree (obvhs' slow and very slow presets: the same speed on the
-//! teaser's reflections), and packets through the frustum test with single rays where it
-//! declines them, for the reflections (64 ms against 48 for single rays alone).
+//! reflections, 4% slower on the teaser's shadow rays. Tried and not kept, each measured
+//! against the walk above in one process, interleaved rounds: prefetching every pushed
+//! child's node or leaf (all its lines; within the noise, the teaser slower), the leaf
+//! test's early exit for any hit (about 2% slower), leaves of at most 4 triangles (see
+//! `hyrt_core::bvh::wide`), a higher-quality binary tree (obvhs' slow and very slow
+//! presets: the same speed on the teaser's reflections), and packets through the frustum
+//! test with single rays where it declines them, for the reflections (64 ms against 48 for
+//! single rays alone).
 //!
 //! [`ray_aabb_conservative`]: hyrt_core::kernels::ray::ray_aabb_conservative
 
@@ -56,7 +57,9 @@ use glam::Vec3;
 use hyrt_core::bvh::wide::{WideBvh, WideChild, WideLeaf, WideNode, WIDE_STACK_SIZE};
 use hyrt_core::bvh::{ClosestHit, BVH_CULL_SLACK};
 use hyrt_core::formats::{RayRecord, INVALID_ID};
-use hyrt_core::kernels::ray::{permute_axes, safe_inverse_dir, TriangleHit, WatertightRay, SLAB_FAR_SCALE};
+use hyrt_core::kernels::ray::{
+    permute_axes, permuted_axis_order, safe_inverse_dir, TriangleHit, WatertightRay, SLAB_FAR_SCALE,
+};
 
 use super::watertight::{self, LaneHits, RaySpace};
 use crate::lanes::{slab_bounds, Lanes, LANES};
@@ -160,11 +163,7 @@ impl<L: Lanes> WideRay<L> {
             origin: [L::splat(o.x), L::splat(o.y), L::splat(o.z)],
             inv_dir: [L::splat(inv.x), L::splat(inv.y), L::splat(inv.z)],
             octant: (0..3).map(|a| (inv[a].is_sign_negative() as u8) << a).sum(),
-            vertex_rows: match wt.kz {
-                0 => [1, 2, 0],
-                1 => [2, 0, 1],
-                _ => [0, 1, 2],
-            },
+            vertex_rows: permuted_axis_order(wt.kz),
             finite_inv: inv.is_finite(),
             box_t_min: L::splat(ray.t_min * (1.0 - BVH_CULL_SLACK)),
         })
