@@ -190,6 +190,95 @@ pub fn shade_ray_traced_with(obj: &ObjectRecord, n: Vec3, v: Vec3, l: Vec3, e: V
     (diffuse + spec) * e * ndl
 }
 
+/// Least GGX alpha (roughness², glTF's "alphaRoughness") of [`gltf_brdf`]: a
+/// mirror-smooth surface (roughness 0) keeps a finite highlight under a point light, whose
+/// peak `D = 1 / (pi alpha^2)` is then about 3e5 (alpha 0 gives `0 / 0` there). The value
+/// of [`BLINN_PHONG_MIN_ALPHA`], the paper model's floor, so both models sharpen alike.
+pub const GGX_MIN_ALPHA: f32 = 1e-3;
+
+/// Schlick's Fresnel weight `(1 - |v.h|)^5` (glTF 2.0, Appendix B: `fresnel_mix` and
+/// `conductor_fresnel`), as two squarings and a product: exact operations in a stated
+/// order, the same bits in WGSL (`schlick_weight`), unlike `powf`.
+#[inline]
+pub fn schlick_weight(v_dot_h: f32) -> f32 {
+    let x = 1.0 - v_dot_h.abs();
+    let x2 = x * x;
+    x2 * x2 * x
+}
+
+/// The Trowbridge-Reitz (GGX) distribution `D = alpha^2 chi+(n.h) / (pi ((n.h)^2 (alpha^2 -
+/// 1) + 1)^2)` of glTF 2.0 Appendix B, with the bracket written as `sin^2 + cos^2 alpha^2`
+/// (`sin_sq = |n x h|^2`, `n_dot_h = cos`): equal for unit `n` and `h`, and free of the
+/// cancellation of `1 - (n.h)^2` where the highlight peaks (`n.h` near 1, where `1 - (n.h)^2`
+/// in f32 keeps no correct digit once it falls below the dot product's rounding, while the
+/// cross product's length keeps its relative accuracy). WGSL: `ggx_distribution`.
+#[inline]
+pub fn ggx_distribution(alpha: f32, n_dot_h: f32, sin_sq: f32) -> f32 {
+    if n_dot_h <= 0.0 {
+        return 0.0;
+    }
+    let a2 = alpha * alpha;
+    let k = sin_sq + (n_dot_h * n_dot_h) * a2;
+    a2 / (std::f32::consts::PI * (k * k))
+}
+
+/// The visibility term `V = G / (4 |n.l| |n.v|)` of glTF 2.0 Appendix B with its separable
+/// Smith masking-shadowing `G`: `chi+(h.l) / (|n.l| + sqrt(alpha^2 + (1 - alpha^2) (n.l)^2))`
+/// times the same in `v`. Each denominator is at least `alpha` (at least
+/// [`GGX_MIN_ALPHA`]), so `V` is finite at grazing angles. WGSL: `smith_visibility`.
+#[inline]
+pub fn smith_visibility(alpha: f32, n_dot_l: f32, n_dot_v: f32, h_dot_l: f32, h_dot_v: f32) -> f32 {
+    if h_dot_l <= 0.0 || h_dot_v <= 0.0 {
+        return 0.0;
+    }
+    let a2 = alpha * alpha;
+    let one_minus_a2 = 1.0 - a2;
+    let gl = n_dot_l.abs() + (a2 + one_minus_a2 * (n_dot_l * n_dot_l)).sqrt();
+    let gv = n_dot_v.abs() + (a2 + one_minus_a2 * (n_dot_v * n_dot_v)).sqrt();
+    1.0 / (gl * gv)
+}
+
+/// The glTF 2.0 metallic-roughness BRDF (the specification's Appendix B, as written there)
+/// for unit normal `n`, view direction `v` and light direction `l` (both away from the
+/// surface):
+///
+/// ```text
+/// specular   = D * V                                  (alpha = roughness^2)
+/// dielectric = mix(base / pi, specular, F0 + (1 - F0) (1 - |v.h|)^5)   (F0 = 0.04: ior 1.5)
+/// metal      = specular * (base + (1 - base) (1 - |v.h|)^5)
+/// brdf       = (1 - metallic) dielectric + metallic metal
+/// ```
+///
+/// `h = normalize(l + v)` (zero where `l = -v`: then `D` and `V` are zero). Alpha is at
+/// least [`GGX_MIN_ALPHA`]. The caller multiplies by the light's irradiance scale and
+/// `n.l` ([`shade_gltf`]). WGSL: `gltf_brdf`.
+#[inline]
+pub fn gltf_brdf(base: Vec3, metallic: f32, roughness: f32, n: Vec3, v: Vec3, l: Vec3) -> Vec3 {
+    let h = (l + v).normalize_or_zero();
+    let alpha = (roughness * roughness).max(GGX_MIN_ALPHA);
+    let d = ggx_distribution(alpha, n.dot(h), n.cross(h).length_squared());
+    let specular = d * smith_visibility(alpha, n.dot(l), n.dot(v), h.dot(l), h.dot(v));
+    let w = schlick_weight(v.dot(h));
+    let f_dielectric = DIELECTRIC_F0 + (1.0 - DIELECTRIC_F0) * w;
+    let diffuse = base * std::f32::consts::FRAC_1_PI;
+    let dielectric = diffuse * (1.0 - f_dielectric) + Vec3::splat(specular * f_dielectric);
+    let metal = (base + (Vec3::ONE - base) * w) * specular;
+    dielectric * (1.0 - metallic) + metal * metallic
+}
+
+/// The glTF shader, one light: [`gltf_brdf`] of the object's material times the light's
+/// irradiance scale `e` and `n.l`, zero where the light is behind the shading normal. The
+/// same direct light for rasterized and ray-traced objects. The caller multiplies by the
+/// shadow visibility and sums over lights.
+#[inline]
+pub fn shade_gltf(obj: &ObjectRecord, n: Vec3, v: Vec3, l: Vec3, e: Vec3) -> Vec3 {
+    let ndl = n.dot(l);
+    if ndl <= 0.0 {
+        return Vec3::ZERO;
+    }
+    gltf_brdf(Vec3::from(obj.base_color), obj.metallic, obj.roughness, n, v, l) * e * ndl
+}
+
 /// Ordinary raster shader, one light: Lambert diffuse times `n.l` and the
 /// irradiance scale (the paper's grey Sponza shader). The caller multiplies by
 /// the ray-traced shadow visibility, so raster objects receive RT shadows.
@@ -361,6 +450,119 @@ mod tests {
         let c = shade_raster(&grey(), Vec3::Y, l, Vec3::ONE);
         assert!((c.x - 0.5 * std::f32::consts::FRAC_1_PI * l.y).abs() < 1e-7);
         assert_eq!(shade_raster(&grey(), Vec3::Y, -Vec3::Y, Vec3::ONE), Vec3::ZERO);
+    }
+
+    /// glTF 2.0 Appendix B in f64, term by term as the specification writes it (the
+    /// bracket of `D` as `(n.h)^2 (alpha^2 - 1) + 1`, `V` as `G / (4 |n.l| |n.v|)`), on the
+    /// directions normalized in f64.
+    fn gltf_brdf_f64(base: [f64; 3], metallic: f64, roughness: f64, n: [f64; 3], v: [f64; 3], l: [f64; 3]) -> [f64; 3] {
+        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let unit = |a: [f64; 3]| {
+            let r = dot(a, a).sqrt();
+            [a[0] / r, a[1] / r, a[2] / r]
+        };
+        let (n, v, l) = (unit(n), unit(v), unit(l));
+        let h = unit([l[0] + v[0], l[1] + v[1], l[2] + v[2]]);
+        let alpha = (roughness * roughness).max(GGX_MIN_ALPHA as f64);
+        let a2 = alpha * alpha;
+        let chi = |x: f64| if x > 0.0 { 1.0 } else { 0.0 };
+        let (nh, nl, nv, hl, hv) = (dot(n, h), dot(n, l), dot(n, v), dot(h, l), dot(h, v));
+        let d = a2 * chi(nh) / (std::f64::consts::PI * (nh * nh * (a2 - 1.0) + 1.0).powi(2));
+        let g1 = |x: f64, c: f64| 2.0 * x.abs() * chi(c) / (x.abs() + (a2 + (1.0 - a2) * x * x).sqrt());
+        let vis = g1(nl, hl) * g1(nv, hv) / (4.0 * nl.abs() * nv.abs());
+        let specular = d * vis;
+        let w = (1.0 - hv.abs()).powi(5);
+        let f_d = 0.04 + (1.0 - 0.04) * w;
+        base.map(|c| {
+            let dielectric = (1.0 - f_d) * c / std::f64::consts::PI + f_d * specular;
+            let metal = specular * (c + (1.0 - c) * w);
+            (1.0 - metallic) * dielectric + metallic * metal
+        })
+    }
+
+    /// Relative error the f32 kernel may have against [`gltf_brdf_f64`], for a half vector
+    /// `l + v` of length `len` and GGX alpha `alpha`: `h`'s direction is off by a few f32
+    /// roundings of `l + v` over its length (`4 eps / len` rad, bound by
+    /// [`gltf_brdf_angle_error`]), which moves `D` by up to `4 dtheta / alpha` relative on
+    /// the flank of its peak; plus some twenty roundings of the products (`3e-6`).
+    fn gltf_brdf_rel_tol(len: f64, alpha: f64) -> f64 {
+        3e-6 + 4.0 * gltf_brdf_angle_error(len) / alpha
+    }
+
+    /// The error of `normalize(l + v)`'s direction in f32, in radians: the rounding of the
+    /// sum (half an ulp of components up to 2, relative to the length) and of the
+    /// normalization, with a factor of two to spare.
+    fn gltf_brdf_angle_error(len: f64) -> f64 {
+        4.0 * f32::EPSILON as f64 / len
+    }
+
+    fn direction() -> impl Strategy<Value = [f32; 3]> {
+        (-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0)
+            .prop_filter("not too short to normalize", |(x, y, z)| x * x + y * y + z * z > 1e-2)
+            .prop_map(|(x, y, z)| Vec3::new(x, y, z).normalize().to_array())
+    }
+
+    proptest! {
+        #[test]
+        fn gltf_brdf_matches_appendix_b_in_f64(
+            base in prop::array::uniform3(0.0f32..=1.0),
+            metallic in 0.0f32..=1.0,
+            roughness in 0.1f32..=1.0,
+            n in direction(),
+            v in direction(),
+            l in direction(),
+        ) {
+            // Light and view on the normal's side (the caller's `n.l > 0`; a view behind
+            // a shading normal is the hard-case test's).
+            let nv = Vec3::from(n);
+            let upper = |d: [f32; 3]| if nv.dot(Vec3::from(d)) < 0.0 { d.map(|c| -c) } else { d };
+            let (l, v) = (upper(l), upper(v));
+            let (lv, vv) = (Vec3::from(l), Vec3::from(v));
+            prop_assume!(nv.dot(lv) > 1e-3 && nv.dot(vv) > 1e-3);
+            let got = gltf_brdf(Vec3::from(base), metallic, roughness, nv, vv, lv);
+            let f = |d: [f32; 3]| d.map(f64::from);
+            let want = gltf_brdf_f64(f(base), metallic as f64, roughness as f64, f(n), f(v), f(l));
+            let alpha = ((roughness * roughness) as f64).max(GGX_MIN_ALPHA as f64);
+            let tol = gltf_brdf_rel_tol((lv + vv).length() as f64, alpha);
+            for c in 0..3 {
+                let (g, w) = (got[c] as f64, want[c]);
+                prop_assert!((g - w).abs() <= tol * w.abs() + 1e-30, "channel {c}: {g} against {w} (tolerance {tol})");
+            }
+        }
+    }
+
+    #[test]
+    fn gltf_brdf_is_finite_on_hard_cases() {
+        // A mirror (roughness 0) at its peak, light opposite the view (h = 0), grazing
+        // view, view behind the shading normal.
+        let n = Vec3::Y;
+        let cases = [
+            (0.0, n, n),
+            (0.5, Vec3::new(0.0, 0.6, 0.8), Vec3::new(0.0, 0.6, -0.8)),
+            (0.0, Vec3::new(1.0, 0.0, 0.0), n),
+            (0.3, Vec3::new(0.0, -0.6, 0.8), n),
+            (1.0, Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -1.0)),
+        ];
+        for (roughness, v, l) in cases {
+            let f = gltf_brdf(Vec3::splat(0.8), 0.5, roughness, n, v, l);
+            assert!(f.is_finite() && f.min_element() >= 0.0, "roughness {roughness}, v {v}, l {l}: {f}");
+        }
+        // The mirror's peak at n = v = l: D = 1 / (pi alpha^2) and V = 1 / 4 with alpha =
+        // GGX_MIN_ALPHA, a white metal's F = 1: 1 / (4 pi 1e-6), bounded (f32 rounding).
+        let peak = gltf_brdf(Vec3::ONE, 1.0, 0.0, n, n, n);
+        let want = 1.0 / (4.0 * std::f64::consts::PI * 1e-6);
+        assert!((peak.x as f64 - want).abs() < 1e-5 * want, "{peak} against {want}");
+    }
+
+    /// A rough dielectric viewed and lit along the normal is `(1 - F) base / pi + F D V` with `F = 0.04`
+    /// exactly (`h = n`, `1 - |v.h| = 0`), D and V at their closed forms.
+    #[test]
+    fn gltf_brdf_at_normal_incidence_is_its_closed_form() {
+        let n = Vec3::Y;
+        let f = gltf_brdf(Vec3::splat(0.5), 0.0, 1.0, n, n, n);
+        // alpha = 1: D = 1 / pi, V = 1 / (1 + 1)^2 = 1 / 4.
+        let want = 0.96 * 0.5 / std::f64::consts::PI + 0.04 / (4.0 * std::f64::consts::PI);
+        assert!((f.x as f64 - want).abs() < 1e-7, "{f} against {want}");
     }
 
     #[test]
