@@ -38,7 +38,7 @@ use hyrt_core::formats::{ObjectRecord, INVALID_ID, MATERIAL_GLASS, OBJ_RAY_TRACE
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::bounce::{bounces, sees_exterior, shade_bouncing, Lobes, IOR_OUTSIDE, MAX_DEPTH_LIMIT};
 use hyrt_core::kernels::environment::environment_radiance;
-use hyrt_core::kernels::shading::{shade_raster_pixel, shade_rt_pixel, shade_rt_surface, ENVIRONMENT_SPECULAR};
+use hyrt_core::kernels::shading::{shade_raster_surface, shade_rt_pixel, shade_rt_surface, ENVIRONMENT_SPECULAR};
 use hyrt_core::scene::Camera;
 use rayon::prelude::*;
 
@@ -290,7 +290,7 @@ impl Paths<'_> {
         } else if obj.flags & OBJ_RAY_TRACED != 0 {
             shade_rt_surface(&s.record, obj, &shadow, &g.lights, (-d).as_vec3()).as_dvec3()
         } else {
-            shade_raster_pixel(&s.record, obj, &shadow, &g.lights).as_dvec3()
+            shade_raster_surface(&s.record, obj, &shadow, &g.lights, (-d).as_vec3()).as_dvec3()
         }
     }
 }
@@ -338,7 +338,8 @@ pub fn render_reference_bounces(
         })
         .unzip();
     let paths = counts.into_iter().fold(PathCounts::default(), PathCounts::add);
-    let image = compose_with_raster(&rt, &reference.surfaces, &reference.shadow, &geometry.objects, &geometry.lights);
+    let (objects, lights) = (&geometry.objects, &geometry.lights);
+    let image = compose_with_raster(&rt, &reference.surfaces, &reference.shadow, objects, lights, eye.as_vec3());
     BounceImage { image, max_depth, paths }
 }
 

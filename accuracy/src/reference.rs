@@ -460,19 +460,20 @@ pub fn shade_image(
     eye: Vec3,
 ) -> Vec<[f32; 4]> {
     let rt = hyrt_cpu::rt_shading::rt_shading(surfaces, shadow, objects, lights, eye);
-    compose_with_raster(&rt, surfaces, shadow, objects, lights)
+    compose_with_raster(&rt, surfaces, shadow, objects, lights, eye)
 }
 
 /// The rest of [`shade_image`] after `rt_shading` (with or without bounces): the raster
-/// shading stage and composition at weight 1.
+/// shading stage (seen from `eye`) and composition at weight 1.
 pub fn compose_with_raster(
     rt: &[[f32; 4]],
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
     objects: &[ObjectRecord],
     lights: &[LightRecord],
+    eye: Vec3,
 ) -> Vec<[f32; 4]> {
-    let raster = hyrt_cpu::raster_shading::raster_shading(surfaces, shadow, objects, lights, 1.0);
+    let raster = hyrt_cpu::raster_shading::raster_shading(surfaces, shadow, objects, lights, eye, 1.0);
     hyrt_cpu::composition::composition(&raster, rt, 1.0)
 }
 

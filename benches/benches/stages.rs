@@ -47,9 +47,9 @@ fn stages(c: &mut Criterion) {
         });
         let rt = rt_shading::rt_shading(&surfaces, &mask, &g.objects, &g.lights, eye);
         group.bench_function("raster_shading", |bn| {
-            bn.iter(|| raster_shading::raster_shading(&surfaces, &mask, &g.objects, &g.lights, 1.0))
+            bn.iter(|| raster_shading::raster_shading(&surfaces, &mask, &g.objects, &g.lights, eye, 1.0))
         });
-        let raster = raster_shading::raster_shading(&surfaces, &mask, &g.objects, &g.lights, 1.0);
+        let raster = raster_shading::raster_shading(&surfaces, &mask, &g.objects, &g.lights, eye, 1.0);
         group.bench_function("composition", |bn| bn.iter(|| composition::composition(&raster, &rt, 1.0)));
         let mut r = Renderer::cpu(None);
         let prepared = r.prepare(&b.scene);

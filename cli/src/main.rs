@@ -170,6 +170,11 @@ struct SceneArgs {
     /// `environment`; without either, the default sky).
     #[arg(long)]
     environment: Option<PathBuf>,
+    /// How direct light is shaded on every object: `paper` (the 2011 model: Lambert on
+    /// rasterized objects, Blinn-Phong on ray-traced ones) or `gltf` (the glTF
+    /// metallic-roughness BRDF on both). Overrides the manifest's `shading`; default paper.
+    #[arg(long, value_parser = ["paper", "gltf"])]
+    shading: Option<String>,
     /// Image size, WIDTHxHEIGHT.
     #[arg(long, default_value = "1280x720", value_parser = parse_size)]
     size: (u32, u32),
@@ -400,6 +405,9 @@ impl SceneArgs {
         scene.ensure_camera_and_lights();
         if let Some(path) = &self.environment {
             scene.environment = hyrt::Environment::load(path).map_err(|e| e.to_string())?;
+        }
+        if let Some(name) = &self.shading {
+            scene.shading = hyrt::ShadingModel::from_name(name).ok_or(format!("unknown shading model {name}"))?;
         }
         for note in &scene.notes {
             eprintln!("note: {note}");

@@ -27,6 +27,9 @@
 //!   checker fence whose holes let light through onto a wall, alpha-mask edges across
 //!   the edges two triangles share, mip selection on a floor seen nearly edge-on, masked
 //!   and textured geometry seen in a mirror, every wrap mode.
+//! - `shading_*`: cases of the families above again with the glTF BRDF on every object
+//!   (`shading_gltf_<case>`): the default scene's cases, every bounce case, and up to
+//!   three textured and three two-level ones.
 //!
 //! Images are small (lavapipe runs the GPU side on the CI's two cores).
 
@@ -38,8 +41,8 @@ use glam::{DMat4, DVec4, Mat4, Quat, Vec2, Vec3};
 use hyrt_core::formats::CameraRecord;
 use hyrt_core::kernels::bounce::DEFAULT_MAX_DEPTH;
 use hyrt_core::scene::{
-    AlphaMode, Camera, Filter, Light, Material, MaterialKind, Mesh, RenderMode, Sampler, Scene, TextureBinding,
-    TextureImage, UvTransform, Wrap,
+    AlphaMode, Camera, Filter, Light, Material, MaterialKind, Mesh, RenderMode, Sampler, Scene, ShadingModel,
+    TextureBinding, TextureImage, UvTransform, Wrap,
 };
 
 /// One scene of the corpus with the image it is rendered at.
@@ -701,7 +704,36 @@ pub fn corpus() -> Vec<Case> {
     bounce_cases(&mut b);
     texture_cases(&mut b);
     instance_cases(&mut b);
+    shading_cases(&mut b);
     b.cases
+}
+
+/// Cases of the other families again with the glTF BRDF on every object
+/// ([`ShadingModel::Gltf`]): the paper's default scene, every bounce case (mirrors and
+/// glass, their direct light through `shade_ray_traced_with`), and up to three textured
+/// and three two-level ones (materials varying per pixel, records in object space).
+fn shading_cases(b: &mut Builder) {
+    let picked: Vec<Case> = b
+        .cases
+        .iter()
+        .filter(|c| {
+            c.name.starts_with("paper_default")
+                || c.name.starts_with("bounce_")
+                || ["texture_", "instance_"].iter().any(|f| c.name.starts_with(f))
+        })
+        .cloned()
+        .collect();
+    let mut per_family = std::collections::HashMap::new();
+    for case in picked {
+        let family = case.name.split('_').next().unwrap_or("").to_string();
+        let n = per_family.entry(family.clone()).or_insert(0);
+        *n += 1;
+        if (family == "texture" || family == "instance") && *n > 3 {
+            continue;
+        }
+        let scene = Scene { shading: ShadingModel::Gltf, ..case.scene };
+        b.cases.push(Case { name: format!("shading_gltf_{}", case.name), scene, ..case });
+    }
 }
 
 /// Scenes traced through two levels: objects prepared as moving, in their own space,
@@ -1266,7 +1298,7 @@ mod tests {
         assert_eq!(names.len(), c.len());
         for case in &c {
             assert!(
-                ["paper_", "raster_", "ray_", "degenerate_", "size_", "bounce_", "texture_", "instance_"]
+                ["paper_", "raster_", "ray_", "degenerate_", "size_", "bounce_", "texture_", "instance_", "shading_"]
                     .iter()
                     .any(|p| case.name.starts_with(p)),
                 "{}",
@@ -1274,6 +1306,10 @@ mod tests {
             );
         }
         assert!(c.len() >= 30, "{} cases", c.len());
+        let gltf = |family: &str| c.iter().filter(|c| c.name.starts_with(&format!("shading_gltf_{family}"))).count();
+        let counts = (gltf("paper_default"), gltf("bounce_"), gltf("texture_"), gltf("instance_"));
+        assert!(counts.0 >= 1 && counts.1 >= 3 && counts.2 == 3 && counts.3 >= 1, "glTF shading cases {counts:?}");
+        assert!(c.iter().filter(|c| c.name.starts_with("shading_")).all(|c| c.scene.shading == ShadingModel::Gltf));
     }
 
     #[test]

@@ -169,7 +169,7 @@ fn full_pipeline(p: &PreparedScene, cam: &CameraRecord, weight: f32) -> Frame {
     let mut shadow = Vec::new();
     compaction::shadow_mask_into(&rays, &occluded, surfaces.len(), g.lights.len(), &mut shadow);
     let rt = rt_shading::rt_shading(&surfaces, &shadow, &g.objects, &g.lights, eye);
-    let raster = raster_shading::raster_shading(&surfaces, &shadow, &g.objects, &g.lights, weight);
+    let raster = raster_shading::raster_shading(&surfaces, &shadow, &g.objects, &g.lights, eye, weight);
     let final_image = composition::composition(&raster, &rt, weight);
     Frame {
         width: cam.width,

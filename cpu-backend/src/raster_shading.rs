@@ -5,7 +5,7 @@
 //! composition weight is below 1 (the frame models only what it needs).
 //!
 //! Inputs: surfaces, the shadow mask, the materials (objects; with textures or vertex
-//! colours also the G-buffer's barycentrics, the eye and the surface tables), lights, the
+//! colours also the G-buffer's barycentrics and the surface tables), the eye, lights, the
 //! composition weight.
 //! Output: the raster image (linear RGBA, background where nothing is shaded).
 
@@ -18,23 +18,25 @@ use rayon::prelude::*;
 
 pub(crate) mod lanes;
 
-/// The stage on a scene without textures or vertex colours. `shadow` is indexed
-/// `pixel * lights.len() + light`.
+/// The stage on a scene without textures or vertex colours, seen from `eye`. `shadow` is
+/// indexed `pixel * lights.len() + light`.
 pub fn raster_shading(
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
     objects: &[ObjectRecord],
     lights: &[LightRecord],
+    eye: Vec3,
     weight: f32,
 ) -> Vec<[f32; 4]> {
     let mut out = Vec::new();
-    let primary = Primary { gbuffer: &[], materials: &Materials::plain(objects), eye: Vec3::ZERO };
+    let primary = Primary { gbuffer: &[], materials: &Materials::plain(objects), eye };
     raster_shading_into(surfaces, shadow, &primary, lights, weight < 1.0, &mut out);
     out
 }
 
-/// What shading a primary hit reads besides its surface: the materials and, where they
-/// vary over surfaces, the G-buffer's barycentrics and the eye (the footprint).
+/// What shading a primary hit reads besides its surface: the materials, the eye (the view
+/// direction; where materials vary over surfaces also the footprint) and, where materials
+/// vary, the G-buffer's barycentrics.
 #[derive(Clone, Copy)]
 pub struct Primary<'a> {
     pub gbuffer: &'a [GBufferTexel],
@@ -102,7 +104,7 @@ pub fn raster_shading_pixel(
     } else {
         obj
     };
-    shade_raster_pixel(s, obj, shadow, lights).extend(1.0).into()
+    shade_raster_pixel(s, obj, shadow, lights, primary.eye).extend(1.0).into()
 }
 
 /// Pixel `i`'s shadow codes in the frame's mask (`nl` per pixel): a miss has none (a plan

@@ -9,8 +9,8 @@ use hyrt_core::kernels::bounce::{IOR_OUTSIDE, MIN_THROUGHPUT, SKY_GROUND, SKY_HO
 use hyrt_core::kernels::environment::{ATAN_SERIES, INV_TWO_PI, TAN_PI_8};
 use hyrt_core::kernels::ray::{gamma, OFFSET_ERROR_SCALE, SLAB_FAR_SCALE, VELTKAMP_SPLIT};
 use hyrt_core::kernels::shading::{
-    AMBIENT, BACKGROUND, DIELECTRIC_F0, ENVIRONMENT_SPECULAR, EXP_SERIES, LOG2_SERIES, MIN_LIGHT_DISTANCE_SQ,
-    POW_FLUSH_EXPONENT, TWO_OVER_LN_2,
+    AMBIENT, BACKGROUND, DIELECTRIC_F0, ENVIRONMENT_SPECULAR, EXP_SERIES, GGX_MIN_ALPHA, LOG2_SERIES,
+    MIN_LIGHT_DISTANCE_SQ, POW_FLUSH_EXPONENT, TWO_OVER_LN_2,
 };
 use hyrt_core::kernels::shadow::SHADOW_T_MAX_POINT;
 
@@ -75,6 +75,7 @@ fn prelude() -> String {
         f32_literal(bb)
     );
     s += &f("DIELECTRIC_F0", DIELECTRIC_F0);
+    s += &f("GGX_MIN_ALPHA", GGX_MIN_ALPHA);
     s += &f("MIN_LIGHT_DISTANCE_SQ", MIN_LIGHT_DISTANCE_SQ);
     s += &f("FRAC_1_PI", std::f32::consts::FRAC_1_PI);
     s += &f("PI", std::f32::consts::PI);

@@ -16,7 +16,7 @@ use hyrt_core::frame::{Backend, Frame, FrameOptions, PreparedScene};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::shading::BACKGROUND_RGBA;
 use hyrt_core::plan::FrameBuffer;
-use hyrt_core::scene::{Light, Scene};
+use hyrt_core::scene::{Light, Scene, ShadingModel};
 use hyrt_cpu::backend::CpuBackend;
 use hyrt_gpu::buffers::{FrameBuffers, FrameParams, SceneBuffers};
 use hyrt_gpu::composition::CompositionStage;
@@ -101,7 +101,18 @@ fn cases() -> Vec<Case> {
         v.push(cpu_case("directional", &directional_scene(), 67, 41, weight));
     }
     v.push(cpu_case("unlit", &unlit_scene(), 33, 17, 0.5));
+    // The glTF BRDF on both paths (OBJ_GLTF_BRDF): the default scene's metals, mirror
+    // and glass, and the directional light.
+    for weight in [1.0, 0.5, 0.0] {
+        v.push(cpu_case("default gltf", &gltf(Scene::default_scene()), 67, 41, weight));
+    }
+    v.push(cpu_case("directional gltf", &gltf(directional_scene()), 67, 41, 0.5));
     v
+}
+
+/// `scene` shaded with the glTF BRDF.
+fn gltf(scene: Scene) -> Scene {
+    Scene { shading: ShadingModel::Gltf, ..scene }
 }
 
 /// GPU buffers holding the CPU's surfaces, shadow mask (u8 -> u32) and images.

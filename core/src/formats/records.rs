@@ -330,6 +330,11 @@ impl TriangleRecord {
 
 /// [`ObjectRecord::flags`]: the object is ray traced.
 pub const OBJ_RAY_TRACED: u32 = 1 << 0;
+/// [`ObjectRecord::flags`]: direct light on the object is the glTF metallic-roughness BRDF
+/// (`hyrt_core::kernels::shading::shade_gltf`) on both paths, rather than the paper's
+/// Lambert (rasterized) and Blinn-Phong (ray traced) shaders: the scene's
+/// [`crate::kernels::shading::ShadingModel`].
+pub const OBJ_GLTF_BRDF: u32 = 1 << 1;
 
 /// [`ObjectRecord::material_kind`]: a diffuse material ([`crate::scene::MaterialKind::Diffuse`]).
 pub const MATERIAL_DIFFUSE: u32 = 0;
@@ -344,7 +349,7 @@ pub const MATERIAL_GLASS: u32 = 2;
 /// |---:|---|---|---|
 /// | 0 | `first_triangle` | u32 | index of its first triangle in the triangle table |
 /// | 4 | `triangle_count` | u32 | number of triangles |
-/// | 8 | `flags` | u32 | [`OBJ_RAY_TRACED`] |
+/// | 8 | `flags` | u32 | [`OBJ_RAY_TRACED`], [`OBJ_GLTF_BRDF`] |
 /// | 12 | `material_kind` | u32 | [`crate::scene::MaterialKind::code`] |
 /// | 16 | `base_color` | [f32; 3] | linear RGB |
 /// | 28 | `metallic` | f32 | [0, 1] |
@@ -387,7 +392,7 @@ impl ObjectRecord {
     /// a finite non-negative offset error.
     pub fn validate(&self) -> Result<(), String> {
         let offset_ok = self.offset_error.is_finite() && self.offset_error >= 0.0;
-        if self.flags & !OBJ_RAY_TRACED != 0 || self.material_kind > MATERIAL_GLASS || !offset_ok {
+        if self.flags & !(OBJ_RAY_TRACED | OBJ_GLTF_BRDF) != 0 || self.material_kind > MATERIAL_GLASS || !offset_ok {
             return Err(format!("object record with unknown flags or kind: {self:?}"));
         }
         if !self.base_color.iter().all(|c| c.is_finite() && *c >= 0.0) {

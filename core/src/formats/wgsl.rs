@@ -224,6 +224,7 @@ pub fn constant_values() -> Vec<(&'static str, u32)> {
         TRI_INWARD,
         TRI_ALPHA_TEST,
         OBJ_RAY_TRACED,
+        OBJ_GLTF_BRDF,
         MATERIAL_DIFFUSE,
         MATERIAL_SPECULAR,
         MATERIAL_GLASS,

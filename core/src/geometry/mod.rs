@@ -489,7 +489,7 @@ impl WorldGeometry {
         self.objects[oi] = ObjectRecord {
             first_triangle: first,
             triangle_count: count,
-            flags: if rt { OBJ_RAY_TRACED } else { 0 },
+            flags: if rt { OBJ_RAY_TRACED } else { 0 } | scene.shading.object_flags(),
             material_kind: mat.kind.code(),
             base_color: mat.base_color.into(),
             metallic: mat.metallic,

@@ -49,7 +49,7 @@ use crate::kernels::environment::environment_radiance;
 pub use crate::kernels::environment::{sky, SKY_GROUND, SKY_HORIZON, SKY_ZENITH};
 use crate::kernels::ray::offset_ray_origin;
 use crate::kernels::shading::{
-    shade_raster_pixel, shade_rt_pixel, shade_rt_surface, sum_visible_lights, AMBIENT, ENVIRONMENT_SPECULAR,
+    shade_raster_surface, shade_rt_pixel, shade_rt_surface, sum_visible_lights, AMBIENT, ENVIRONMENT_SPECULAR,
 };
 use crate::kernels::texture::Materials;
 use crate::scene::Environment;
@@ -430,7 +430,7 @@ pub fn shade_secondary_hit(
     if obj.flags & OBJ_RAY_TRACED != 0 {
         shade_rt_surface(s, obj, shadow, lights, -p.d)
     } else {
-        shade_raster_pixel(s, obj, shadow, lights)
+        shade_raster_surface(s, obj, shadow, lights, -p.d)
     }
 }
 

@@ -10,7 +10,7 @@
 
 use glam::Vec3;
 
-use crate::formats::{LightRecord, ObjectRecord, SurfaceRecord, LIGHT_DIRECTIONAL, SHADOW_LIT};
+use crate::formats::{LightRecord, ObjectRecord, SurfaceRecord, LIGHT_DIRECTIONAL, OBJ_GLTF_BRDF, SHADOW_LIT};
 
 /// Constant ambient term, as a fraction of the base colour, so that fully
 /// shadowed surfaces stay readable (a stand-in for indirect light).
@@ -25,6 +25,46 @@ pub const ENVIRONMENT_SPECULAR: f32 = 0.35;
 pub const BACKGROUND: [f32; 3] = [0.02, 0.025, 0.035];
 /// [`BACKGROUND`] as the raster and final images hold it where nothing is shaded (alpha 1).
 pub const BACKGROUND_RGBA: [f32; 4] = [BACKGROUND[0], BACKGROUND[1], BACKGROUND[2], 1.0];
+
+/// How direct light is shaded, for every object of a scene (the scene's `shading`, manifest
+/// key `shading`, `hyrt render --shading`); each object record carries it
+/// ([`OBJ_GLTF_BRDF`]), so every shader reads it where it reads the material.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum ShadingModel {
+    /// The paper's 2011 model: Lambert on rasterized objects ([`shade_raster`]), Lambert
+    /// plus a normalized Blinn-Phong lobe on ray-traced ones ([`shade_ray_traced`]).
+    #[default]
+    Paper,
+    /// The glTF 2.0 metallic-roughness BRDF ([`gltf_brdf`]) on both, so an object looks
+    /// the same rasterized and ray traced but for what rays add.
+    Gltf,
+}
+
+impl ShadingModel {
+    /// Every model.
+    pub const ALL: [ShadingModel; 2] = [ShadingModel::Paper, ShadingModel::Gltf];
+
+    /// Lower-case name (CLI, manifests, reports).
+    pub fn name(self) -> &'static str {
+        match self {
+            ShadingModel::Paper => "paper",
+            ShadingModel::Gltf => "gltf",
+        }
+    }
+
+    /// The model of a [`ShadingModel::name`].
+    pub fn from_name(name: &str) -> Option<ShadingModel> {
+        ShadingModel::ALL.into_iter().find(|m| m.name() == name)
+    }
+
+    /// The [`ObjectRecord::flags`] bits of the model.
+    pub fn object_flags(self) -> u32 {
+        match self {
+            ShadingModel::Paper => 0,
+            ShadingModel::Gltf => OBJ_GLTF_BRDF,
+        }
+    }
+}
 
 /// Fresnel reflectance at normal incidence of dielectrics (4%, the usual
 /// glTF metallic-roughness convention).
@@ -174,9 +214,13 @@ pub fn shade_ray_traced(obj: &ObjectRecord, n: Vec3, v: Vec3, l: Vec3, e: Vec3) 
 
 /// [`shade_ray_traced`] with the diffuse lobe scaled by `diffuse_scale` (`1 -
 /// transmission` on glass that refracts, [`crate::kernels::bounce::Lobes`]). A scale of 1
-/// gives [`shade_ray_traced`] bit for bit (`x * 1 = x`).
+/// gives [`shade_ray_traced`] bit for bit (`x * 1 = x`). An object of the glTF model
+/// ([`OBJ_GLTF_BRDF`]) is shaded by [`shade_gltf_with`] instead.
 #[inline]
 pub fn shade_ray_traced_with(obj: &ObjectRecord, n: Vec3, v: Vec3, l: Vec3, e: Vec3, diffuse_scale: f32) -> Vec3 {
+    if obj.flags & OBJ_GLTF_BRDF != 0 {
+        return shade_gltf_with(obj, n, v, l, e, diffuse_scale);
+    }
     let ndl = n.dot(l);
     if ndl <= 0.0 {
         return Vec3::ZERO;
@@ -250,17 +294,19 @@ pub fn smith_visibility(alpha: f32, n_dot_l: f32, n_dot_v: f32, h_dot_l: f32, h_
 /// ```
 ///
 /// `h = normalize(l + v)` (zero where `l = -v`: then `D` and `V` are zero). Alpha is at
-/// least [`GGX_MIN_ALPHA`]. The caller multiplies by the light's irradiance scale and
-/// `n.l` ([`shade_gltf`]). WGSL: `gltf_brdf`.
+/// least [`GGX_MIN_ALPHA`]. `diffuse_scale` scales the diffuse lobe (`1 - transmission` on
+/// glass that refracts, as in [`shade_ray_traced_with`]; 1 leaves it as it is, bit for
+/// bit). The caller multiplies by the light's irradiance scale and `n.l`
+/// ([`shade_gltf_with`]). WGSL: `gltf_brdf`.
 #[inline]
-pub fn gltf_brdf(base: Vec3, metallic: f32, roughness: f32, n: Vec3, v: Vec3, l: Vec3) -> Vec3 {
+pub fn gltf_brdf(base: Vec3, metallic: f32, roughness: f32, diffuse_scale: f32, n: Vec3, v: Vec3, l: Vec3) -> Vec3 {
     let h = (l + v).normalize_or_zero();
     let alpha = (roughness * roughness).max(GGX_MIN_ALPHA);
     let d = ggx_distribution(alpha, n.dot(h), n.cross(h).length_squared());
     let specular = d * smith_visibility(alpha, n.dot(l), n.dot(v), h.dot(l), h.dot(v));
     let w = schlick_weight(v.dot(h));
     let f_dielectric = DIELECTRIC_F0 + (1.0 - DIELECTRIC_F0) * w;
-    let diffuse = base * std::f32::consts::FRAC_1_PI;
+    let diffuse = base * (std::f32::consts::FRAC_1_PI * diffuse_scale);
     let dielectric = diffuse * (1.0 - f_dielectric) + Vec3::splat(specular * f_dielectric);
     let metal = (base + (Vec3::ONE - base) * w) * specular;
     dielectric * (1.0 - metallic) + metal * metallic
@@ -272,18 +318,31 @@ pub fn gltf_brdf(base: Vec3, metallic: f32, roughness: f32, n: Vec3, v: Vec3, l:
 /// shadow visibility and sums over lights.
 #[inline]
 pub fn shade_gltf(obj: &ObjectRecord, n: Vec3, v: Vec3, l: Vec3, e: Vec3) -> Vec3 {
+    shade_gltf_with(obj, n, v, l, e, 1.0)
+}
+
+/// [`shade_gltf`] with the diffuse lobe scaled by `diffuse_scale` (see [`gltf_brdf`]).
+/// WGSL: `shade_gltf_with`.
+#[inline]
+pub fn shade_gltf_with(obj: &ObjectRecord, n: Vec3, v: Vec3, l: Vec3, e: Vec3, diffuse_scale: f32) -> Vec3 {
     let ndl = n.dot(l);
     if ndl <= 0.0 {
         return Vec3::ZERO;
     }
-    gltf_brdf(Vec3::from(obj.base_color), obj.metallic, obj.roughness, n, v, l) * e * ndl
+    let base = Vec3::from(obj.base_color);
+    gltf_brdf(base, obj.metallic, obj.roughness, diffuse_scale, n, v, l) * e * ndl
 }
 
 /// Ordinary raster shader, one light: Lambert diffuse times `n.l` and the
 /// irradiance scale (the paper's grey Sponza shader). The caller multiplies by
-/// the ray-traced shadow visibility, so raster objects receive RT shadows.
+/// the ray-traced shadow visibility, so raster objects receive RT shadows. An object of
+/// the glTF model ([`OBJ_GLTF_BRDF`]) is shaded by [`shade_gltf`] seen along `-v` (the
+/// paper's shader does not read `v`).
 #[inline]
-pub fn shade_raster(obj: &ObjectRecord, n: Vec3, l: Vec3, e: Vec3) -> Vec3 {
+pub fn shade_raster(obj: &ObjectRecord, n: Vec3, v: Vec3, l: Vec3, e: Vec3) -> Vec3 {
+    if obj.flags & OBJ_GLTF_BRDF != 0 {
+        return shade_gltf(obj, n, v, l, e);
+    }
     let ndl = n.dot(l);
     if ndl <= 0.0 {
         return Vec3::ZERO;
@@ -330,13 +389,34 @@ pub fn shade_rt_surface(s: &SurfaceRecord, obj: &ObjectRecord, shadow: &[u8], li
     ambient(obj) + sum_visible_lights(shadow, lights, p, |l, e| shade_ray_traced(obj, n, v, l, e))
 }
 
-/// The raster shader at one pixel: [`ambient`] plus [`shade_raster`] from every light
-/// its shadow ray reached (`shadow`: the pixel's `SHADOW_*` codes, one per light).
+/// The raster shader at a surface seen along `-v` (`v`: unit, towards the viewer):
+/// [`ambient`] plus [`shade_raster`] from every light its shadow ray reached (`shadow`: the
+/// pixel's `SHADOW_*` codes, one per light).
 #[inline]
-pub fn shade_raster_pixel(s: &SurfaceRecord, obj: &ObjectRecord, shadow: &[u8], lights: &[LightRecord]) -> Vec3 {
+pub fn shade_raster_surface(
+    s: &SurfaceRecord,
+    obj: &ObjectRecord,
+    shadow: &[u8],
+    lights: &[LightRecord],
+    v: Vec3,
+) -> Vec3 {
     let p = Vec3::from(s.position);
     let n = Vec3::from(s.normal);
-    ambient(obj) + sum_visible_lights(shadow, lights, p, |l, e| shade_raster(obj, n, l, e))
+    ambient(obj) + sum_visible_lights(shadow, lights, p, |l, e| shade_raster(obj, n, v, l, e))
+}
+
+/// The raster shader at one pixel seen from `eye`: [`shade_raster_surface`] with `v`
+/// towards the eye, as [`shade_rt_pixel`] makes it.
+#[inline]
+pub fn shade_raster_pixel(
+    s: &SurfaceRecord,
+    obj: &ObjectRecord,
+    shadow: &[u8],
+    lights: &[LightRecord],
+    eye: Vec3,
+) -> Vec3 {
+    let v = (eye - Vec3::from(s.position)).normalize_or_zero();
+    shade_raster_surface(s, obj, shadow, lights, v)
 }
 
 /// Ambient term of any object: diffuse albedo times [`AMBIENT`] plus the
@@ -447,9 +527,9 @@ mod tests {
     #[test]
     fn lambert_matches_closed_form() {
         let l = Vec3::new(0.0, 1.0, 1.0).normalize();
-        let c = shade_raster(&grey(), Vec3::Y, l, Vec3::ONE);
+        let c = shade_raster(&grey(), Vec3::Y, Vec3::Y, l, Vec3::ONE);
         assert!((c.x - 0.5 * std::f32::consts::FRAC_1_PI * l.y).abs() < 1e-7);
-        assert_eq!(shade_raster(&grey(), Vec3::Y, -Vec3::Y, Vec3::ONE), Vec3::ZERO);
+        assert_eq!(shade_raster(&grey(), Vec3::Y, Vec3::Y, -Vec3::Y, Vec3::ONE), Vec3::ZERO);
     }
 
     /// glTF 2.0 Appendix B in f64, term by term as the specification writes it (the
@@ -519,7 +599,7 @@ mod tests {
             let (l, v) = (upper(l), upper(v));
             let (lv, vv) = (Vec3::from(l), Vec3::from(v));
             prop_assume!(nv.dot(lv) > 1e-3 && nv.dot(vv) > 1e-3);
-            let got = gltf_brdf(Vec3::from(base), metallic, roughness, nv, vv, lv);
+            let got = gltf_brdf(Vec3::from(base), metallic, roughness, 1.0, nv, vv, lv);
             let f = |d: [f32; 3]| d.map(f64::from);
             let want = gltf_brdf_f64(f(base), metallic as f64, roughness as f64, f(n), f(v), f(l));
             let alpha = ((roughness * roughness) as f64).max(GGX_MIN_ALPHA as f64);
@@ -544,12 +624,12 @@ mod tests {
             (1.0, Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.0, 0.0, -1.0)),
         ];
         for (roughness, v, l) in cases {
-            let f = gltf_brdf(Vec3::splat(0.8), 0.5, roughness, n, v, l);
+            let f = gltf_brdf(Vec3::splat(0.8), 0.5, roughness, 1.0, n, v, l);
             assert!(f.is_finite() && f.min_element() >= 0.0, "roughness {roughness}, v {v}, l {l}: {f}");
         }
         // The mirror's peak at n = v = l: D = 1 / (pi alpha^2) and V = 1 / 4 with alpha =
         // GGX_MIN_ALPHA, a white metal's F = 1: 1 / (4 pi 1e-6), bounded (f32 rounding).
-        let peak = gltf_brdf(Vec3::ONE, 1.0, 0.0, n, n, n);
+        let peak = gltf_brdf(Vec3::ONE, 1.0, 0.0, 1.0, n, n, n);
         let want = 1.0 / (4.0 * std::f64::consts::PI * 1e-6);
         assert!((peak.x as f64 - want).abs() < 1e-5 * want, "{peak} against {want}");
     }
@@ -559,7 +639,7 @@ mod tests {
     #[test]
     fn gltf_brdf_at_normal_incidence_is_its_closed_form() {
         let n = Vec3::Y;
-        let f = gltf_brdf(Vec3::splat(0.5), 0.0, 1.0, n, n, n);
+        let f = gltf_brdf(Vec3::splat(0.5), 0.0, 1.0, 1.0, n, n, n);
         // alpha = 1: D = 1 / pi, V = 1 / (1 + 1)^2 = 1 / 4.
         let want = 0.96 * 0.5 / std::f64::consts::PI + 0.04 / (4.0 * std::f64::consts::PI);
         assert!((f.x as f64 - want).abs() < 1e-7, "{f} against {want}");

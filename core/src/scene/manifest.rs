@@ -5,6 +5,8 @@
 //! description = "golden bunny in the grey Sponza atrium"   # optional, free text
 //! environment = "maps/courtyard.hdr"   # optional: what reflection and refraction rays leaving
 //!                                      # the scene see (.hdr or .exr); default: the built-in sky
+//! shading = "gltf"              # optional: "paper" (the 2011 model, the default) | "gltf"
+//!                               # (the glTF metallic-roughness BRDF on every object)
 //!
 //! [camera]                      # optional; without it: the first camera of a model file, else none
 //! eye = [9.0, 2.6, 3.0]
@@ -126,7 +128,9 @@ use serde::Deserialize;
 use super::files::{Budget, Disk, SceneFiles};
 use super::gltf_loader::{load_gltf_detailed, material_kind, LoadedGltf};
 use super::merge::{FileSlot, Merge, Model, Naming};
-use super::{farthest_corner, Camera, Environment, Light, Material, MaterialKind, Mesh, RenderMode, Scene};
+use super::{
+    farthest_corner, Camera, Environment, Light, Material, MaterialKind, Mesh, RenderMode, Scene, ShadingModel,
+};
 use crate::SceneError;
 
 /// `KHR_materials_ior` default, used when a manifest makes a material glass without an ior.
@@ -153,6 +157,9 @@ pub struct Manifest {
     /// An environment map (`.hdr`, `.exr`), relative to the manifest's folder.
     #[serde(default)]
     pub environment: Option<PathBuf>,
+    /// The shading model's name ([`crate::kernels::shading::ShadingModel::name`]).
+    #[serde(default)]
+    pub shading: Option<String>,
     /// `[camera]`.
     #[serde(default)]
     pub camera: Option<CameraEntry>,
@@ -580,6 +587,12 @@ fn build(manifest: &Manifest, path: &Path, files: &dyn SceneFiles, budget: Budge
     let mut loaded_files: HashMap<PathBuf, (FileSlot, LoadedGltf)> = HashMap::new();
     let mut builtins: HashMap<Builtin, (FileSlot, Scene)> = HashMap::new();
     let mut merged = Merge::new(budget);
+    if let Some(name) = &manifest.shading {
+        merged.scene_mut().shading = ShadingModel::from_name(name).ok_or_else(|| {
+            let known: Vec<&str> = ShadingModel::ALL.iter().map(|m| m.name()).collect();
+            invalid(format!("shading = \"{name}\": unknown model (known: {})", known.join(", ")))
+        })?;
+    }
     if let Some(file) = &manifest.environment {
         merged.scene_mut().environment = Environment::load_from(&dir.join(file), files).map_err(|e| {
             SceneError::ManifestEntry { path: path.to_path_buf(), entry: "environment".into(), error: Box::new(e) }
@@ -757,5 +770,19 @@ mod tests {
         assert!(light("type = 'point'\nposition = [0.0, 1.0, 0.0]\nintensity = -1.0").is_err());
         assert!(light("type = 'point'\nposition = [0.0, 1.0, 0.0]\ncolor = [1.0, -1.0, 0.0]\nintensity = 1.0").is_err());
         assert!(light("type = 'directional'\nposition = [0.0, 1.0, 0.0]\nintensity = 1.0").is_err());
+    }
+
+    #[test]
+    fn shading_key_sets_the_model_and_names_an_unknown_one() {
+        let load = |shading: &str| {
+            let text = format!("{shading}\n[[model]]\nbuiltin = 'cube'\n");
+            let files: HashMap<PathBuf, Vec<u8>> = [(PathBuf::from("s.toml"), text.into_bytes())].into();
+            load_manifest_from(Path::new("s.toml"), &files)
+        };
+        assert_eq!(load("").unwrap().shading, ShadingModel::Paper);
+        assert_eq!(load("shading = 'gltf'").unwrap().shading, ShadingModel::Gltf);
+        assert_eq!(load("shading = 'paper'").unwrap().shading, ShadingModel::Paper);
+        let err = load("shading = 'phong'").unwrap_err().to_string();
+        assert!(err.contains("s.toml") && err.contains("phong") && err.contains("gltf"), "{err}");
     }
 }

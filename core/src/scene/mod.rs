@@ -28,6 +28,7 @@ use std::sync::Arc;
 
 use glam::{Mat4, Vec3};
 
+pub use crate::kernels::shading::ShadingModel;
 use crate::SceneError;
 
 /// An indexed triangle mesh in its own (object) space.
@@ -308,6 +309,9 @@ pub struct Scene {
     /// The node hierarchy and animations of a glTF file that has some ([`Scene::set_time`]
     /// poses the scene); `None` for every other scene.
     pub animation: Option<SceneAnimation>,
+    /// How direct light is shaded on every object (manifest key `shading`, `hyrt render
+    /// --shading`): the paper's model or the glTF BRDF.
+    pub shading: ShadingModel,
 }
 
 impl Scene {

@@ -42,7 +42,7 @@ fn shade_secondary_hit(index: u32, p: Parent, children: vec2<u32>) -> vec3<f32> 
     if (obj.flags & OBJ_RAY_TRACED) != 0u {
         return shade_rt_surface(index, s, obj, -p.d);
     }
-    return shade_raster_pixel(index, s, obj);
+    return shade_raster_surface(index, s, obj, -p.d);
 }
 
 @compute @workgroup_size(SHADOW_WG)

@@ -35,5 +35,5 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         raster[pixel] = vec4<f32>(0.0);
         return;
     }
-    raster[pixel] = vec4<f32>(shade_raster_pixel(pixel, s, primary_object(pixel, s)), 1.0);
+    raster[pixel] = vec4<f32>(shade_raster_pixel(pixel, s, primary_object(pixel, s), camera.eye), 1.0);
 }

@@ -57,6 +57,76 @@ fn blinn_phong_exponent(roughness: f32) -> f32 {
     return clamp(rounded(2.0 / mul(a, a)) - 2.0, 1.0, 1e4);
 }
 
+// mirrors glam::Vec3::cross: (y z' - y' z, z x' - z' x, x y' - x' y).
+fn cross3(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(
+        rounded(mul(a.y, b.z) - mul(b.y, a.z)),
+        rounded(mul(a.z, b.x) - mul(b.z, a.x)),
+        rounded(mul(a.x, b.y) - mul(b.x, a.y)),
+    );
+}
+
+// Every sum, difference, square root and quotient below goes through `rounded` before
+// it feeds more arithmetic, as `mul` does for products: the shader compiler may lower a
+// square root or a quotient through a reciprocal and fuse that product into the sum that
+// consumes it.
+
+// mirrors hyrt_core::kernels::shading::schlick_weight
+fn schlick_weight(v_dot_h: f32) -> f32 {
+    let x = rounded(1.0 - abs(v_dot_h));
+    let x2 = mul(x, x);
+    return mul(mul(x2, x2), x);
+}
+
+// mirrors hyrt_core::kernels::shading::ggx_distribution
+fn ggx_distribution(alpha: f32, n_dot_h: f32, sin_sq: f32) -> f32 {
+    if (n_dot_h <= 0.0) {
+        return 0.0;
+    }
+    let a2 = mul(alpha, alpha);
+    let k = rounded(sin_sq + mul(mul(n_dot_h, n_dot_h), a2));
+    return rounded(a2 / mul(PI, mul(k, k)));
+}
+
+// mirrors hyrt_core::kernels::shading::smith_visibility
+fn smith_visibility(alpha: f32, n_dot_l: f32, n_dot_v: f32, h_dot_l: f32, h_dot_v: f32) -> f32 {
+    if (h_dot_l <= 0.0 || h_dot_v <= 0.0) {
+        return 0.0;
+    }
+    let a2 = mul(alpha, alpha);
+    let one_minus_a2 = rounded(1.0 - a2);
+    let gl = rounded(abs(n_dot_l) + rounded(sqrt(rounded(a2 + mul(one_minus_a2, mul(n_dot_l, n_dot_l))))));
+    let gv = rounded(abs(n_dot_v) + rounded(sqrt(rounded(a2 + mul(one_minus_a2, mul(n_dot_v, n_dot_v))))));
+    return rounded(1.0 / mul(gl, gv));
+}
+
+// mirrors hyrt_core::kernels::shading::gltf_brdf
+fn gltf_brdf(base: vec3<f32>, metallic: f32, roughness: f32, diffuse_scale: f32, n: vec3<f32>, v: vec3<f32>,
+             l: vec3<f32>) -> vec3<f32> {
+    let h = normalize_or_zero(l + v);
+    let alpha = max(mul(roughness, roughness), GGX_MIN_ALPHA);
+    let nxh = cross3(n, h);
+    let d = ggx_distribution(alpha, dot3(n, h), dot3(nxh, nxh));
+    let specular = mul(d, smith_visibility(alpha, dot3(n, l), dot3(n, v), dot3(h, l), dot3(h, v)));
+    let w = schlick_weight(dot3(v, h));
+    let f_dielectric = rounded(DIELECTRIC_F0 + mul(rounded(1.0 - DIELECTRIC_F0), w));
+    let diffuse = mul3(base, vec3<f32>(mul(FRAC_1_PI, diffuse_scale)));
+    let dielectric = mul3(diffuse, vec3<f32>(rounded(1.0 - f_dielectric))) + vec3<f32>(mul(specular, f_dielectric));
+    let metal = mul3(base + mul3(vec3<f32>(1.0) - base, vec3<f32>(w)), vec3<f32>(specular));
+    return mul3(dielectric, vec3<f32>(rounded(1.0 - metallic))) + mul3(metal, vec3<f32>(metallic));
+}
+
+// mirrors hyrt_core::kernels::shading::shade_gltf_with
+fn shade_gltf_with(obj: ObjectRecord, n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, e: vec3<f32>,
+                   diffuse_scale: f32) -> vec3<f32> {
+    let ndl = dot3(n, l);
+    if (ndl <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let f = gltf_brdf(obj.base_color, obj.metallic, obj.roughness, diffuse_scale, n, v, l);
+    return mul3(mul3(f, e), vec3<f32>(ndl));
+}
+
 // mirrors hyrt_core::kernels::shading::shade_ray_traced
 fn shade_ray_traced(obj: ObjectRecord, n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, e: vec3<f32>) -> vec3<f32> {
     return shade_ray_traced_with(obj, n, v, l, e, 1.0);
@@ -65,6 +135,9 @@ fn shade_ray_traced(obj: ObjectRecord, n: vec3<f32>, v: vec3<f32>, l: vec3<f32>,
 // mirrors hyrt_core::kernels::shading::shade_ray_traced_with
 fn shade_ray_traced_with(obj: ObjectRecord, n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, e: vec3<f32>,
                          diffuse_scale: f32) -> vec3<f32> {
+    if ((obj.flags & OBJ_GLTF_BRDF) != 0u) {
+        return shade_gltf_with(obj, n, v, l, e, diffuse_scale);
+    }
     let ndl = dot3(n, l);
     if (ndl <= 0.0) {
         return vec3<f32>(0.0);
@@ -79,7 +152,10 @@ fn shade_ray_traced_with(obj: ObjectRecord, n: vec3<f32>, v: vec3<f32>, l: vec3<
 }
 
 // mirrors hyrt_core::kernels::shading::shade_raster
-fn shade_raster(obj: ObjectRecord, n: vec3<f32>, l: vec3<f32>, e: vec3<f32>) -> vec3<f32> {
+fn shade_raster(obj: ObjectRecord, n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, e: vec3<f32>) -> vec3<f32> {
+    if ((obj.flags & OBJ_GLTF_BRDF) != 0u) {
+        return shade_gltf_with(obj, n, v, l, e, 1.0);
+    }
     let ndl = dot3(n, l);
     if (ndl <= 0.0) {
         return vec3<f32>(0.0);

@@ -1,5 +1,6 @@
 // The per-surface shaders of hyrt_core::kernels::shading over the shadow codes of a
-// frame buffer: `shade_rt_pixel`, `shade_rt_surface` and `shade_raster_pixel`, each with
+// frame buffer: `shade_rt_pixel`, `shade_rt_surface`, `shade_raster_surface` and
+// `shade_raster_pixel`, each with
 // its `sum_visible_lights` loop (WGSL has no closures). `index` is the surface's row in
 // the stage's `shadow` binding (`index * light_count + light`): a pixel for the primary
 // stages, a secondary ray for `bounce_shading`.
@@ -34,23 +35,25 @@ fn shade_rt_pixel(pixel: u32, s: SurfaceRecord, obj: ObjectRecord, eye: vec3<f32
 }
 
 // mirrors hyrt_core::kernels::shading::sum_visible_lights with the
-// shade_raster closure of hyrt_core::kernels::shading::shade_raster_pixel.
-fn sum_visible_lights_raster(index: u32, p: vec3<f32>, obj: ObjectRecord, n: vec3<f32>) -> vec3<f32> {
+// shade_raster closure of hyrt_core::kernels::shading::shade_raster_surface.
+fn sum_visible_lights_raster(index: u32, p: vec3<f32>, obj: ObjectRecord, n: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
     var c = vec3<f32>(0.0);
     let nl = params.light_count;
     for (var i = 0u; i < nl; i++) {
         if (light_is_visible(shadow[index * nl + i])) {
             let inc = light_incidence(lights[i], p);
-            c += shade_raster(obj, n, inc.l, inc.e);
+            c += shade_raster(obj, n, v, inc.l, inc.e);
         }
     }
     return c;
 }
 
-// mirrors hyrt_core::kernels::shading::shade_raster_pixel
-fn shade_raster_pixel(index: u32, s: SurfaceRecord, obj: ObjectRecord) -> vec3<f32> {
-    let p = s.position;
-    let n = s.normal;
-    return ambient(obj) + sum_visible_lights_raster(index, p, obj, n);
+// mirrors hyrt_core::kernels::shading::shade_raster_surface
+fn shade_raster_surface(index: u32, s: SurfaceRecord, obj: ObjectRecord, v: vec3<f32>) -> vec3<f32> {
+    return ambient(obj) + sum_visible_lights_raster(index, s.position, obj, s.normal, v);
 }
 
+// mirrors hyrt_core::kernels::shading::shade_raster_pixel
+fn shade_raster_pixel(pixel: u32, s: SurfaceRecord, obj: ObjectRecord, eye: vec3<f32>) -> vec3<f32> {
+    return shade_raster_surface(pixel, s, obj, normalize_or_zero(eye - s.position));
+}
