@@ -1,12 +1,15 @@
-//! Shading kernels: the ray-traced shader (Lambert + Blinn-Phong specular with
-//! ray-traced shadows, paper 3.3) and the ordinary raster shader (Lambert with
-//! ambient, paper 3.4), light evaluation and colour encoding.
+//! Shading kernels: the paper's ray-traced shader (Lambert + Blinn-Phong specular with
+//! ray-traced shadows, paper 3.3) and ordinary raster shader (Lambert with ambient, paper
+//! 3.4), the glTF 2.0 metallic-roughness BRDF that replaces both on the objects of a scene
+//! shaded with [`ShadingModel::Gltf`] ([`gltf_brdf`], [`shade_gltf`]), light evaluation and
+//! colour encoding.
 //!
 //! WGSL mirrors: `orient_to_seen_side` in `reconstruction.wgsl`; `light_incidence` and
 //! `light_can_contribute` in `shading_helpers.wgsl` (shared by the shading stages and
-//! `compaction`); `shade_ray_traced`, `shade_raster`, `ambient`, `compose` and the
-//! portable `pow` in `shading.wgsl`; `shade_rt_pixel` and `shade_raster_pixel` in
-//! `rt_shading.wgsl` and `raster_shading.wgsl`.
+//! `compaction`); `shade_ray_traced`, `shade_raster`, `ambient`, `compose`, the portable
+//! `pow`, `schlick_weight`, `ggx_distribution`, `smith_visibility`, `gltf_brdf` and
+//! `shade_gltf_with` in `shading.wgsl`; `shade_rt_surface`, `shade_rt_pixel`,
+//! `shade_raster_surface` and `shade_raster_pixel` in `surface_shading.wgsl`.
 
 use glam::Vec3;
 
