@@ -406,8 +406,8 @@ pub fn spawn(p: &Parent, triangles: &WorldTriangles, depth: u32) -> [Option<RayR
 /// bounces, its lobes seeing their `children` (links into the next depth's
 /// `radiance`, [`INVALID_ID`] where no ray was traced, as for every lobe at the plan's
 /// deepest bounce); the ray-traced shader on other ray-traced objects; and the raster
-/// shader ([`shade_raster_surface`], seen along the ray) on rasterized objects, as a raster pass would shade
-/// them. `shadow`: the hit's `SHADOW_*` codes, one per light.
+/// shader ([`shade_raster_surface`], seen along the ray) on rasterized objects, as a
+/// raster pass would shade them. `shadow`: the hit's `SHADOW_*` codes, one per light.
 #[allow(clippy::too_many_arguments)]
 #[inline]
 pub fn shade_secondary_hit(
