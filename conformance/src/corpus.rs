@@ -734,6 +734,22 @@ fn shading_cases(b: &mut Builder) {
         let scene = Scene { shading: ShadingModel::Gltf, ..case.scene };
         b.cases.push(Case { name: format!("shading_gltf_{}", case.name), scene, ..case });
     }
+    // Issue 37's check scene: smooth to rough, dielectric to metal, rasterized and ray
+    // traced, one directional light (its analytic twin: cpu-backend/tests/gltf_brdf.rs).
+    let mut scene = Scene { shading: ShadingModel::Gltf, ..Scene::default() };
+    for (i, (metallic, roughness)) in
+        [(0.0, 0.05), (0.0, 0.5), (1.0, 0.2), (1.0, 0.7), (0.5, 0.35), (0.5, 1.0)].into_iter().enumerate()
+    {
+        let base = Vec3::new(0.9, 0.3 + 0.1 * i as f32, 0.2);
+        let material = Material { metallic, roughness, ..diffuse(&format!("sphere {i}"), base) };
+        let at = Mat4::from_translation(Vec3::new(i as f32 * 2.5 - 6.25, 0.0, 0.0));
+        let mode = if i % 2 == 0 { RenderMode::Raster } else { RenderMode::RayTraced };
+        scene.add_object(Mesh::uv_sphere("sphere", 32, 16), material, at, mode);
+    }
+    let direction = Vec3::new(-0.3, -0.8, -0.5).normalize();
+    scene.lights = vec![Light::Directional { direction, color: Vec3::ONE, intensity: 3.0 }];
+    let cam = camera(Vec3::new(0.0, 2.0, 9.0), Vec3::ZERO, 0.1, 30.0);
+    b.add("shading_gltf_spheres", "the glTF BRDF from smooth to rough, dielectric to metal", scene, cam, 96, 40);
 }
 
 /// Scenes traced through two levels: objects prepared as moving, in their own space,

@@ -315,6 +315,36 @@ pub fn gltf_brdf(base: Vec3, metallic: f32, roughness: f32, diffuse_scale: f32, 
     dielectric * (1.0 - metallic) + metal * metallic
 }
 
+/// The specification of [`gltf_brdf`]: glTF 2.0 Appendix B in f64, term by term as the
+/// specification writes it (the bracket of `D` as `(n.h)^2 (alpha^2 - 1) + 1`, `V` as
+/// `G / (4 |n.l| |n.v|)`, alpha at least [`GGX_MIN_ALPHA`]), on the directions normalized in
+/// f64; diffuse scale 1. What the kernel is tested against, here and end to end over
+/// rendered frames (`cpu-backend/tests/gltf_brdf.rs`); not for rendering.
+pub fn gltf_brdf_f64(base: [f64; 3], metallic: f64, roughness: f64, n: [f64; 3], v: [f64; 3], l: [f64; 3]) -> [f64; 3] {
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let unit = |a: [f64; 3]| {
+        let r = dot(a, a).sqrt();
+        [a[0] / r, a[1] / r, a[2] / r]
+    };
+    let (n, v, l) = (unit(n), unit(v), unit(l));
+    let h = unit([l[0] + v[0], l[1] + v[1], l[2] + v[2]]);
+    let alpha = (roughness * roughness).max(GGX_MIN_ALPHA as f64);
+    let a2 = alpha * alpha;
+    let chi = |x: f64| if x > 0.0 { 1.0 } else { 0.0 };
+    let (nh, nl, nv, hl, hv) = (dot(n, h), dot(n, l), dot(n, v), dot(h, l), dot(h, v));
+    let d = a2 * chi(nh) / (std::f64::consts::PI * (nh * nh * (a2 - 1.0) + 1.0).powi(2));
+    let g1 = |x: f64, c: f64| 2.0 * x.abs() * chi(c) / (x.abs() + (a2 + (1.0 - a2) * x * x).sqrt());
+    let vis = g1(nl, hl) * g1(nv, hv) / (4.0 * nl.abs() * nv.abs());
+    let specular = d * vis;
+    let w = (1.0 - hv.abs()).powi(5);
+    let f_d = 0.04 + (1.0 - 0.04) * w;
+    base.map(|c| {
+        let dielectric = (1.0 - f_d) * c / std::f64::consts::PI + f_d * specular;
+        let metal = specular * (c + (1.0 - c) * w);
+        (1.0 - metallic) * dielectric + metallic * metal
+    })
+}
+
 /// The glTF shader, one light: [`gltf_brdf`] of the object's material times the light's
 /// irradiance scale `e` and `n.l`, zero where the light is behind the shading normal. The
 /// same direct light for rasterized and ray-traced objects. The caller multiplies by the
@@ -533,34 +563,6 @@ mod tests {
         let c = shade_raster(&grey(), Vec3::Y, Vec3::Y, l, Vec3::ONE);
         assert!((c.x - 0.5 * std::f32::consts::FRAC_1_PI * l.y).abs() < 1e-7);
         assert_eq!(shade_raster(&grey(), Vec3::Y, Vec3::Y, -Vec3::Y, Vec3::ONE), Vec3::ZERO);
-    }
-
-    /// glTF 2.0 Appendix B in f64, term by term as the specification writes it (the
-    /// bracket of `D` as `(n.h)^2 (alpha^2 - 1) + 1`, `V` as `G / (4 |n.l| |n.v|)`), on the
-    /// directions normalized in f64.
-    fn gltf_brdf_f64(base: [f64; 3], metallic: f64, roughness: f64, n: [f64; 3], v: [f64; 3], l: [f64; 3]) -> [f64; 3] {
-        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-        let unit = |a: [f64; 3]| {
-            let r = dot(a, a).sqrt();
-            [a[0] / r, a[1] / r, a[2] / r]
-        };
-        let (n, v, l) = (unit(n), unit(v), unit(l));
-        let h = unit([l[0] + v[0], l[1] + v[1], l[2] + v[2]]);
-        let alpha = (roughness * roughness).max(GGX_MIN_ALPHA as f64);
-        let a2 = alpha * alpha;
-        let chi = |x: f64| if x > 0.0 { 1.0 } else { 0.0 };
-        let (nh, nl, nv, hl, hv) = (dot(n, h), dot(n, l), dot(n, v), dot(h, l), dot(h, v));
-        let d = a2 * chi(nh) / (std::f64::consts::PI * (nh * nh * (a2 - 1.0) + 1.0).powi(2));
-        let g1 = |x: f64, c: f64| 2.0 * x.abs() * chi(c) / (x.abs() + (a2 + (1.0 - a2) * x * x).sqrt());
-        let vis = g1(nl, hl) * g1(nv, hv) / (4.0 * nl.abs() * nv.abs());
-        let specular = d * vis;
-        let w = (1.0 - hv.abs()).powi(5);
-        let f_d = 0.04 + (1.0 - 0.04) * w;
-        base.map(|c| {
-            let dielectric = (1.0 - f_d) * c / std::f64::consts::PI + f_d * specular;
-            let metal = specular * (c + (1.0 - c) * w);
-            (1.0 - metallic) * dielectric + metallic * metal
-        })
     }
 
     /// Relative error the f32 kernel may have against [`gltf_brdf_f64`], for a half vector
