@@ -80,8 +80,7 @@ use std::collections::TryReserveError;
 
 use glam::Vec3;
 use hyrt_core::formats::{
-    CameraRecord, GBufferTexel, LightRecord, ObjectRecord, RayRecord, SurfaceRecord, OBJ_GLTF_BRDF, SHADOW_LIT,
-    SHADOW_NO_RAY,
+    CameraRecord, GBufferTexel, LightRecord, ObjectRecord, RayRecord, SurfaceRecord, SHADOW_LIT, SHADOW_NO_RAY,
 };
 use hyrt_core::frame::{FrameOptions, PreparedScene};
 use hyrt_core::kernels::shading::BACKGROUND_RGBA;
@@ -97,7 +96,7 @@ use crate::raster_shading::lanes::{raster_shading_lanes, PrimaryLanes};
 use crate::raster_shading::{raster_shading_pixel, Primary};
 use crate::reconstruction::{self, BlockSetups, Reconstruct};
 use crate::rt_shading::lanes::rt_shading_lanes;
-use crate::rt_shading::{rt_shading_bouncing_pixel, rt_shading_pixel, BouncingShading};
+use crate::rt_shading::{rt_shading_bouncing_pixel, BouncingShading};
 use crate::secondary_rays::{may_bounce, Parents};
 use crate::traversal::tiles::{TILE_HEIGHT, TILE_WIDTH};
 use crate::traversal::{occluded_in_object_space_serial, occluded_serial, SimdLevel, Traversal, SHADOW_VISIBLE};
@@ -330,9 +329,6 @@ struct TileInputs<'a> {
     traversal: Traversal,
     /// The SIMD level of the per-pixel kernels ([`SimdLevel::detect`], as the raster's).
     level: SimdLevel,
-    /// Some object is shaded with the glTF BRDF ([`OBJ_GLTF_BRDF`]): the tiles are shaded
-    /// pixel by pixel ([`tile_shading_by_pixel`]).
-    gltf_brdf: bool,
 }
 
 /// What [`fused_frame`] counts and times, and the pixels its tiles deferred.
@@ -378,7 +374,6 @@ pub fn fused_frame(
         weight: options.weight,
         traversal,
         level: SimdLevel::detect(),
-        gltf_brdf: scene.geometry.objects.iter().any(|o| o.flags & OBJ_GLTF_BRDF != 0),
     };
     let area = raster_area(camera);
     if area != (w, h) {
@@ -536,10 +531,6 @@ fn tile(
     }
 
     // rt_shading, raster_shading, composition
-    if inputs.gltf_brdf {
-        tile_shading_by_pixel(inputs, TexelTile { texels, stride }, &s.surfaces, &s.shadow, (tw, th), &mut rows);
-        return counts;
-    }
     dispatch!(
         inputs.level,
         tile_shading,
@@ -548,35 +539,6 @@ fn tile(
         (inputs, TexelTile { texels, stride }, &s.surfaces, &s.shadow, (tw, th), &mut s.lit, &mut rows)
     );
     counts
-}
-
-/// [`tile_shading`] one pixel at a time with the stages' scalar kernels
-/// ([`rt_shading_pixel`], [`raster_shading_pixel`], [`composition_pixel`]): the tiles of a
-/// scene shaded with the glTF BRDF ([`OBJ_GLTF_BRDF`]), whose kernel has no lane version
-/// yet.
-fn tile_shading_by_pixel(
-    inputs: &TileInputs,
-    TexelTile { texels, stride }: TexelTile,
-    surfaces: &[SurfaceRecord],
-    shadow: &[u8],
-    (tw, th): (usize, usize),
-    rows: &mut [&mut [[f32; 4]]],
-) {
-    let (steps, lights) = (inputs.steps, &inputs.scene.geometry.lights);
-    let nl = lights.len();
-    let primary = &Primary { gbuffer: texels, ..inputs.primary };
-    for (ly, row) in rows.iter_mut().enumerate().take(th) {
-        for (lx, texel) in row.iter_mut().enumerate().take(tw) {
-            let (k, i) = (ly * tw + lx, ly * stride + lx);
-            let (surface, codes) = (&surfaces[k], &shadow[k * nl..(k + 1) * nl]);
-            let rt = if steps.rt_shading { rt_shading_pixel(primary, lights, i, surface, codes) } else { [0.0; 4] };
-            let raster = match steps.raster_shading {
-                Some(shade_ray_traced) => raster_shading_pixel(primary, lights, shade_ray_traced, i, surface, codes),
-                None => [0.0; 4],
-            };
-            *texel = composition_pixel(steps.composition, &raster, &rt, inputs.weight);
-        }
-    }
 }
 
 /// `rt_shading`, `raster_shading` and `composition` of a tile's `surfaces` (`tw` x `th`,
@@ -640,7 +602,7 @@ fn tile_shading<L: Lanes>(
             }
             let rt = if steps.rt_shading { rt_shading_lanes::<L>(&block, lit, lights, eye) } else { none };
             let raster = match steps.raster_shading {
-                Some(shade_ray_traced) => raster_shading_lanes::<L>(&block, lit, lights, shade_ray_traced),
+                Some(shade_ray_traced) => raster_shading_lanes::<L>(&block, lit, lights, eye, shade_ray_traced),
                 None => none,
             };
             let out = composition_lanes::<L>(steps.composition, raster, rt, inputs.weight);

@@ -670,6 +670,16 @@ pub(crate) fn dot3<L: Lanes>(a: [L::F; 3], b: [L::F; 3]) -> L::F {
     L::add(L::add(L::mul(a[0], b[0]), L::mul(a[1], b[1])), L::mul(a[2], b[2]))
 }
 
+/// glam's `normalize_or_zero` per lane: `v * (1 / sqrt(v.v))` where that reciprocal is
+/// finite and positive, else zero.
+#[inline(always)]
+pub(crate) fn normalize_or_zero_lanes<L: Lanes>(v: [L::F; 3]) -> [L::F; 3] {
+    let rcp = L::div(L::splat(1.0), L::sqrt(dot3::<L>(v, v)));
+    // `rcp.is_finite() && rcp > 0`: NaN fails both comparisons.
+    let ok = L::and(L::lt(L::splat(0.0), rcp), L::lt(rcp, L::splat(f32::INFINITY)));
+    select3::<L>(ok, [L::mul(v[0], rcp), L::mul(v[1], rcp), L::mul(v[2], rcp)], zero3::<L>())
+}
+
 /// Zero in every component and lane.
 #[inline(always)]
 pub(crate) fn zero3<L: Lanes>() -> [L::F; 3] {

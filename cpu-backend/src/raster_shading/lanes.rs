@@ -14,6 +14,10 @@
 //! Light-independent parts of a kernel (the base colour over pi, the ambient term) are
 //! computed once for all lights: the same operations on the same operands, so the same bits.
 //!
+//! Objects shaded with the glTF BRDF ([`OBJ_GLTF_BRDF`]) take core's `shade_gltf` in lanes
+//! ([`GltfShader`], shared with `rt_shading`'s lanes) instead of the paper's shaders; a
+//! block mixing both models runs both and selects per lane.
+//!
 //! [`shade_raster_pixel`]: hyrt_core::kernels::shading::shade_raster_pixel
 //! [`ambient`]: hyrt_core::kernels::shading::ambient
 //! [`sum_visible_lights`]: hyrt_core::kernels::shading::sum_visible_lights
@@ -22,11 +26,11 @@
 //! [`raster_shading_pixel`]: crate::raster_shading::raster_shading_pixel
 //! [`Materials::varying`]: hyrt_core::kernels::texture::Materials::varying
 
-use hyrt_core::formats::{LightRecord, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
-use hyrt_core::kernels::shading::{AMBIENT, BACKGROUND_RGBA, DIELECTRIC_F0, ENVIRONMENT_SPECULAR};
+use hyrt_core::formats::{LightRecord, ObjectRecord, SurfaceRecord, OBJ_GLTF_BRDF, OBJ_RAY_TRACED};
+use hyrt_core::kernels::shading::{AMBIENT, BACKGROUND_RGBA, DIELECTRIC_F0, ENVIRONMENT_SPECULAR, GGX_MIN_ALPHA};
 
 use crate::compaction::lanes::light_incidence_lanes;
-use crate::lanes::{dot3, mask_lanes, select3, splat3, zero3, Lanes, LANES};
+use crate::lanes::{dot3, mask_lanes, normalize_or_zero_lanes, select3, splat3, sub3, zero3, Lanes, LANES};
 
 // No closures around lane operations (`map`, `from_fn`): a closure does not inherit its
 // caller's target features, so its lane operations would not inline into the AVX2 entry
@@ -40,6 +44,9 @@ pub(crate) struct PrimaryLanes<L: Lanes> {
     pub hit: L::F,
     /// All ones where it is a hit on a ray-traced object ([`OBJ_RAY_TRACED`]).
     pub ray_traced: L::F,
+    /// All ones where it is a hit on an object shaded with the glTF BRDF
+    /// ([`OBJ_GLTF_BRDF`]).
+    pub gltf: L::F,
     pub position: [L::F; 3],
     pub normal: [L::F; 3],
     pub base_color: [L::F; 3],
@@ -69,7 +76,7 @@ impl<L: Lanes> PrimaryLanes<L> {
         objects: &[ObjectRecord],
         shaded: [&ObjectRecord; LANES],
     ) -> PrimaryLanes<L> {
-        let mut w = [[0.0f32; LANES]; 13];
+        let mut w = [[0.0f32; LANES]; 14];
         for (k, (r, obj)) in s.iter().zip(shaded).enumerate() {
             if !r.is_hit() {
                 continue;
@@ -84,10 +91,12 @@ impl<L: Lanes> PrimaryLanes<L> {
             }
             w[11][k] = obj.metallic;
             w[12][k] = obj.roughness;
+            w[13][k] = f32::from_bits(if flags & OBJ_GLTF_BRDF != 0 { u32::MAX } else { 0 });
         }
         PrimaryLanes {
             hit: L::load(&w[0]),
             ray_traced: L::load(&w[1]),
+            gltf: L::load(&w[13]),
             position: [L::load(&w[2]), L::load(&w[3]), L::load(&w[4])],
             normal: [L::load(&w[5]), L::load(&w[6]), L::load(&w[7])],
             base_color: [L::load(&w[8]), L::load(&w[9]), L::load(&w[10])],
@@ -177,15 +186,108 @@ impl<L: Lanes> LightShader<L> for RasterShader<L> {
     }
 }
 
-/// Core's `shade_raster_pixel` per lane: `ambient + sum_visible_lights(shade_raster)`.
+/// Core's `shade_gltf(obj, n, v, l, e)` per lane (`gltf_brdf` with diffuse scale 1, times
+/// `e` and `n.l`), with what does not depend on the light computed once
+/// ([`GltfShader::of`]): the same operations in the same order as the scalar kernel.
+pub(crate) struct GltfShader<L: Lanes> {
+    n: [L::F; 3],
+    v: [L::F; 3],
+    base: [L::F; 3],
+    metallic: L::F,
+    /// `max(roughness^2, GGX_MIN_ALPHA)` squared.
+    a2: L::F,
+    /// `n.v`.
+    ndv: L::F,
+}
+
+impl<L: Lanes> GltfShader<L> {
+    /// The shader of the lanes' materials, seen along `-v`.
+    #[inline(always)]
+    pub(crate) fn of(p: &PrimaryLanes<L>, v: [L::F; 3]) -> GltfShader<L> {
+        // `f32::max(a, c)` against a constant: `MAXPS` with the constant second.
+        let alpha = L::max(L::mul(p.roughness, p.roughness), L::splat(GGX_MIN_ALPHA));
+        GltfShader {
+            n: p.normal,
+            v,
+            base: p.base_color,
+            metallic: p.metallic,
+            a2: L::mul(alpha, alpha),
+            ndv: dot3::<L>(p.normal, v),
+        }
+    }
+}
+
+impl<L: Lanes> LightShader<L> for GltfShader<L> {
+    #[inline(always)]
+    fn shade(&self, l: [L::F; 3], e: [L::F; 3]) -> [L::F; 3] {
+        let (n, v, a2, zero, one) = (self.n, self.v, self.a2, L::splat(0.0), L::splat(1.0));
+        let ndl = dot3::<L>(n, l);
+        let h = normalize_or_zero_lanes::<L>([L::add(l[0], v[0]), L::add(l[1], v[1]), L::add(l[2], v[2])]);
+        // ggx_distribution(alpha, n.h, |n x h|^2)
+        let nxh = [
+            L::sub(L::mul(n[1], h[2]), L::mul(h[1], n[2])),
+            L::sub(L::mul(n[2], h[0]), L::mul(h[2], n[0])),
+            L::sub(L::mul(n[0], h[1]), L::mul(h[0], n[1])),
+        ];
+        let ndh = dot3::<L>(n, h);
+        let k = L::add(dot3::<L>(nxh, nxh), L::mul(L::mul(ndh, ndh), a2));
+        let d = L::div(a2, L::mul(L::splat(std::f32::consts::PI), L::mul(k, k)));
+        let d = L::select(L::le(ndh, zero), zero, d);
+        // smith_visibility(alpha, n.l, n.v, h.l, h.v)
+        let (hdl, hdv) = (dot3::<L>(h, l), dot3::<L>(h, v));
+        let one_minus_a2 = L::sub(one, a2);
+        let gl = L::add(L::abs(ndl), L::sqrt(L::add(a2, L::mul(one_minus_a2, L::mul(ndl, ndl)))));
+        let ndv = self.ndv;
+        let gv = L::add(L::abs(ndv), L::sqrt(L::add(a2, L::mul(one_minus_a2, L::mul(ndv, ndv)))));
+        let vis = L::div(one, L::mul(gl, gv));
+        let vis = L::select(L::or(L::le(hdl, zero), L::le(hdv, zero)), zero, vis);
+        let specular = L::mul(d, vis);
+        // schlick_weight(v.h): `v.h` is `h.v` bit for bit (the same products, summed in
+        // the same order).
+        let x = L::sub(one, L::abs(hdv));
+        let x2 = L::mul(x, x);
+        let w = L::mul(L::mul(x2, x2), x);
+        let f_d = L::add(L::splat(DIELECTRIC_F0), L::mul(L::splat(1.0 - DIELECTRIC_F0), w));
+        let (spec_f, one_minus_f, one_minus_m) = (L::mul(specular, f_d), L::sub(one, f_d), L::sub(one, self.metallic));
+        // `base * (FRAC_1_PI * 1.0)`: the diffuse scale of `shade_gltf`.
+        let pi = L::splat(std::f32::consts::FRAC_1_PI);
+        let mut c = [zero; 3];
+        for (ch, c) in c.iter_mut().enumerate() {
+            let b = self.base[ch];
+            let dielectric = L::add(L::mul(L::mul(b, pi), one_minus_f), spec_f);
+            let metal = L::mul(L::add(b, L::mul(L::sub(one, b), w)), specular);
+            let brdf = L::add(L::mul(dielectric, one_minus_m), L::mul(metal, self.metallic));
+            *c = L::mul(L::mul(brdf, e[ch]), ndl);
+        }
+        // `ndl <= 0` returns zero; a NaN `ndl` goes on, as in the scalar kernel.
+        select3::<L>(L::le(ndl, zero), zero3::<L>(), c)
+    }
+}
+
+/// Core's `shade_raster_pixel` per lane, seen from `eye`: `ambient +
+/// sum_visible_lights(shade_raster)`, the glTF shader on the lanes of objects shaded with it.
 #[inline(always)]
-fn shade_raster_pixel_lanes<L: Lanes>(p: &PrimaryLanes<L>, lit: &LitLanes, lights: &[LightRecord]) -> [L::F; 3] {
+fn shade_raster_pixel_lanes<L: Lanes>(
+    p: &PrimaryLanes<L>,
+    lit: &LitLanes,
+    lights: &[LightRecord],
+    eye: [f32; 3],
+) -> [L::F; 3] {
     let pi = L::splat(std::f32::consts::FRAC_1_PI);
     let b = p.base_color;
     let shader =
         RasterShader::<L> { n: p.normal, base_over_pi: [L::mul(b[0], pi), L::mul(b[1], pi), L::mul(b[2], pi)] };
     let a = ambient_lanes::<L>(p.base_color, p.metallic);
-    let c = sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &shader);
+    let c = if L::bits(p.gltf) == 0 {
+        sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &shader)
+    } else {
+        let v = normalize_or_zero_lanes::<L>(sub3::<L>(splat3::<L>(eye), p.position));
+        let g = sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &GltfShader::of(p, v));
+        match L::bits(L::andnot(p.gltf, p.hit)) {
+            0 => g,
+            _ => select3::<L>(p.gltf, g, sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &shader)),
+        }
+    };
     [L::add(a[0], c[0]), L::add(a[1], c[1]), L::add(a[2], c[2])]
 }
 
@@ -198,10 +300,11 @@ pub(crate) fn raster_shading_lanes<L: Lanes>(
     p: &PrimaryLanes<L>,
     lit: &LitLanes,
     lights: &[LightRecord],
+    eye: [f32; 3],
     shade_ray_traced: bool,
 ) -> [L::F; 4] {
     let shaded = if shade_ray_traced { p.hit } else { L::andnot(p.ray_traced, p.hit) };
-    let c = if L::bits(shaded) != 0 { shade_raster_pixel_lanes::<L>(p, lit, lights) } else { zero3::<L>() };
+    let c = if L::bits(shaded) != 0 { shade_raster_pixel_lanes::<L>(p, lit, lights, eye) } else { zero3::<L>() };
     let [r, g, b, a] = BACKGROUND_RGBA;
     let none = select3::<L>(p.hit, zero3::<L>(), splat3::<L>([r, g, b]));
     let c = select3::<L>(shaded, c, none);
@@ -286,11 +389,11 @@ pub(crate) mod tests {
     }
 
     fn object() -> impl Strategy<Value = ObjectRecord> {
-        (any::<bool>(), [colour(), colour(), colour()], unit(), unit()).prop_map(
-            |(ray_traced, base_color, metallic, roughness)| ObjectRecord {
+        (any::<bool>(), any::<bool>(), [colour(), colour(), colour()], unit(), unit()).prop_map(
+            |(ray_traced, gltf, base_color, metallic, roughness)| ObjectRecord {
                 first_triangle: 0,
                 triangle_count: 1,
-                flags: if ray_traced { OBJ_RAY_TRACED } else { 0 },
+                flags: if ray_traced { OBJ_RAY_TRACED } else { 0 } | if gltf { OBJ_GLTF_BRDF } else { 0 },
                 material_kind: 0,
                 base_color,
                 metallic,
@@ -358,7 +461,7 @@ pub(crate) mod tests {
     impl LevelCheck for RasterCheck<'_> {
         fn check<L: Lanes>(&self) -> Result<(), TestCaseError> {
             let RasterCheck(b, shade_ray_traced) = *self;
-            let got = raster_shading_lanes::<L>(&b.primary::<L>(), &b.lit(), &b.lights, shade_ray_traced);
+            let got = raster_shading_lanes::<L>(&b.primary::<L>(), &b.lit(), &b.lights, b.eye, shade_ray_traced);
             let primary = Primary { gbuffer: &[], materials: &Materials::plain(&b.objects), eye: b.eye.into() };
             for (k, s) in b.surfaces.iter().enumerate() {
                 let want = raster_shading_pixel(&primary, &b.lights, shade_ray_traced, k, s, b.codes(k));
@@ -381,10 +484,17 @@ pub(crate) mod tests {
     /// shadow code, over a block of hits and misses.
     #[test]
     fn raster_shading_lanes_on_hard_cases() {
-        let b = hard_block();
-        for shade_ray_traced in [false, true] {
-            at_every_level(&RasterCheck(&b, shade_ray_traced)).unwrap();
+        for b in [hard_block(), gltf(hard_block())] {
+            for shade_ray_traced in [false, true] {
+                at_every_level(&RasterCheck(&b, shade_ray_traced)).unwrap();
+            }
         }
+    }
+
+    /// `b` with every object shaded with the glTF BRDF.
+    pub(crate) fn gltf(mut b: Block) -> Block {
+        b.objects.iter_mut().for_each(|o| o.flags |= OBJ_GLTF_BRDF);
+        b
     }
 
     /// Lights behind, grazing and on the surface; metallic and roughness 0 and 1; a miss;

@@ -31,24 +31,14 @@ use hyrt_core::kernels::shading::{
     BLINN_PHONG_EXPONENT_RANGE, BLINN_PHONG_MIN_ALPHA, EXP_SERIES, LOG2_SERIES, POW_FLUSH_EXPONENT, TWO_OVER_LN_2,
 };
 
-use crate::lanes::{dot3, select3, splat3, sub3, zero3, Lanes};
+use crate::lanes::{dot3, normalize_or_zero_lanes, select3, splat3, sub3, zero3, Lanes};
 use crate::raster_shading::lanes::{
-    ambient_lanes, f0_lanes, sum_visible_lights_lanes, LightShader, LitLanes, PrimaryLanes,
+    ambient_lanes, f0_lanes, sum_visible_lights_lanes, GltfShader, LightShader, LitLanes, PrimaryLanes,
 };
 
 // No closures around lane operations (`map`, `from_fn`): a closure does not inherit its
 // caller's target features, so its lane operations would not inline into the AVX2 entry
 // points.
-
-/// glam's `normalize_or_zero` per lane: `v * (1 / sqrt(v.v))` where that reciprocal is
-/// finite and positive, else zero.
-#[inline(always)]
-fn normalize_or_zero_lanes<L: Lanes>(v: [L::F; 3]) -> [L::F; 3] {
-    let rcp = L::div(L::splat(1.0), L::sqrt(dot3::<L>(v, v)));
-    // `rcp.is_finite() && rcp > 0`: NaN fails both comparisons.
-    let ok = L::and(L::lt(L::splat(0.0), rcp), L::lt(rcp, L::splat(f32::INFINITY)));
-    select3::<L>(ok, [L::mul(v[0], rcp), L::mul(v[1], rcp), L::mul(v[2], rcp)], zero3::<L>())
-}
 
 /// Core's `round_ties_even_f32` per lane: `(|x| + 2^23) - 2^23` with `x`'s sign below
 /// 2^23, `x` itself from there on (NaN included).
@@ -192,7 +182,18 @@ pub(crate) fn rt_shading_lanes<L: Lanes>(
     let v = normalize_or_zero_lanes::<L>(sub3::<L>(splat3::<L>(eye), p.position));
     // shade_rt_surface
     let a = ambient_lanes::<L>(p.base_color, p.metallic);
-    let c = sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &RtShader::of(p, v));
+    let c = if L::bits(p.gltf) == 0 {
+        sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &RtShader::of(p, v))
+    } else {
+        // The glTF model's lanes (OBJ_GLTF_BRDF), the paper's elsewhere.
+        let g = sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &GltfShader::of(p, v));
+        match L::bits(L::andnot(p.gltf, p.hit)) {
+            0 => g,
+            _ => {
+                select3::<L>(p.gltf, g, sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &RtShader::of(p, v)))
+            }
+        }
+    };
     let c = select3::<L>(p.ray_traced, [L::add(a[0], c[0]), L::add(a[1], c[1]), L::add(a[2], c[2])], zero3::<L>());
     [c[0], c[1], c[2], L::select(p.ray_traced, L::splat(1.0), zero)]
 }
@@ -202,7 +203,7 @@ mod tests {
     use super::*;
     use crate::lanes::tests::{at_every_level, same_bits, LevelCheck};
     use crate::lanes::LANES;
-    use crate::raster_shading::lanes::tests::{block, hard_block, lane, same_texel, Block};
+    use crate::raster_shading::lanes::tests::{block, gltf, hard_block, lane, same_texel, Block};
     use crate::raster_shading::Primary;
     use crate::rt_shading::rt_shading_pixel;
     use hyrt_core::kernels::shading::pow_portable;
@@ -283,6 +284,7 @@ mod tests {
     #[test]
     fn rt_shading_lanes_on_hard_cases() {
         at_every_level(&RtCheck(&hard_block())).unwrap();
+        at_every_level(&RtCheck(&gltf(hard_block()))).unwrap();
     }
 
     /// Exact powers, the flush threshold and its neighbourhood, and the exponent's
