@@ -241,9 +241,16 @@ struct RenderArgs {
     #[command(flatten)]
     common: SceneArgs,
     /// Output image: a name ending in .exr writes the linear image as 32-bit float OpenEXR
-    /// (unclamped), anything else an 8-bit sRGB PNG.
+    /// (unclamped, before exposure and tone mapping), anything else an 8-bit sRGB PNG.
     #[arg(long, default_value = "frame.png")]
     out: PathBuf,
+    /// Exposure of PNG output, in stops (the colour times 2^STOPS before tone mapping).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true, value_parser = parse_stops)]
+    exposure: f32,
+    /// Tone-mapping operator of PNG output: none (clamp, the paper's images), the Khronos
+    /// PBR Neutral operator, or Hill's ACES fit.
+    #[arg(long, default_value = "none", value_parser = ["none", "khronos-pbr-neutral", "aces"])]
+    tone_map: String,
     /// Write every stage's output (npy, png, frame.json) into this directory.
     #[arg(long)]
     dump: Option<PathBuf>,
@@ -521,13 +528,23 @@ fn numbered(out: &std::path::Path, i: u32) -> PathBuf {
     out.with_file_name(name)
 }
 
-/// Write the final image as OpenEXR (a name ending in .exr) or PNG.
-fn write_image(path: &std::path::Path, w: u32, h: u32, frame: &hyrt::Frame) -> Result<(), String> {
+/// An exposure in stops: finite, within +-64.
+fn parse_stops(s: &str) -> Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(x) if x.is_finite() && x.abs() <= 64.0 => Ok(x),
+        _ => Err(format!("expected an exposure in stops between -64 and 64, got '{s}'")),
+    }
+}
+
+/// Write the final image as OpenEXR (a name ending in .exr: linear) or PNG (through the
+/// exposure and tone-mapping operator of `args`).
+fn write_image(path: &std::path::Path, w: u32, h: u32, frame: &hyrt::Frame, args: &RenderArgs) -> Result<(), String> {
     let exr = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
     if exr {
         hyrt::image_io::write_exr(path, w, h, &frame.final_image)
     } else {
-        hyrt::image_io::write_png(path, w, h, &frame.final_image)
+        let op = hyrt::ToneMap::from_name(&args.tone_map).ok_or(format!("unknown tone map {}", args.tone_map))?;
+        hyrt::image_io::write_png_tone_mapped(path, w, h, &frame.final_image, args.exposure, op)
     }
     .map_err(|e| e.to_string())
 }
@@ -578,7 +595,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
         per_frame.push(timed_lines(&frame.stats));
         if let Some((_, fps)) = playing {
             let out = numbered(&args.out, i);
-            write_image(&out, w, h, &frame)?;
+            write_image(&out, w, h, &frame, &args)?;
             println!("wrote {} (t = {:.4} s)", out.display(), start_time + i as f32 / fps);
         }
     }
@@ -590,7 +607,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
     };
     let frame_bytes = before_frames.zip(hyrt::memory::peak_resident_bytes()).map(|(b, p)| p.saturating_sub(b));
     if playing.is_none() {
-        write_image(&args.out, w, h, &frame)?;
+        write_image(&args.out, w, h, &frame, &args)?;
     }
 
     let s = &frame.stats;

@@ -1,9 +1,11 @@
-//! Linear RGBA images to files: 8-bit sRGB PNG ([`write_png`]) or linear 32-bit float
-//! OpenEXR ([`write_exr`]).
+//! Linear RGBA images to files: 8-bit sRGB PNG ([`write_png`], or through an exposure and
+//! a tone-mapping operator: [`write_png_tone_mapped`]) or linear 32-bit float OpenEXR
+//! ([`write_exr`]).
 
 use std::path::Path;
 
 use hyrt_core::kernels::shading::rgba_to_srgb8;
+use hyrt_core::kernels::tone_map::{display, exposure_scale, ToneMap};
 
 use crate::Error;
 
@@ -18,8 +20,23 @@ fn write_error(path: &Path, e: image::ImageError) -> Error {
 /// Encode a linear RGBA image (row 0 on top) as an sRGB PNG. Alpha is written
 /// as-is (clamped), so the ray-traced image keeps its coverage.
 pub fn write_png(path: &Path, width: u32, height: u32, pixels: &[[f32; 4]]) -> Result<(), Error> {
+    write_png_tone_mapped(path, width, height, pixels, 0.0, ToneMap::None)
+}
+
+/// [`write_png`] with every colour first scaled by an exposure of `exposure_stops` and
+/// mapped by `tone_map` ([`hyrt_core::kernels::tone_map::display`]); 0 stops and
+/// [`ToneMap::None`] write what [`write_png`] writes.
+pub fn write_png_tone_mapped(
+    path: &Path,
+    width: u32,
+    height: u32,
+    pixels: &[[f32; 4]],
+    exposure_stops: f32,
+    tone_map: ToneMap,
+) -> Result<(), Error> {
     assert_eq!(pixels.len(), (width * height) as usize, "image size mismatch");
-    let bytes: Vec<u8> = pixels.iter().flat_map(|&p| rgba_to_srgb8(p)).collect();
+    let scale = exposure_scale(exposure_stops);
+    let bytes: Vec<u8> = pixels.iter().flat_map(|&p| rgba_to_srgb8(display(p, scale, tone_map))).collect();
     image::save_buffer(path, &bytes, width, height, image::ExtendedColorType::Rgba8).map_err(|e| write_error(path, e))
 }
 

@@ -50,6 +50,7 @@ pub use hyrt_core::frame::{
 };
 pub use hyrt_core::geometry::WorldGeometry;
 pub use hyrt_core::kernels::bounce::{DEFAULT_MAX_DEPTH, MAX_DEPTH_LIMIT, MIN_THROUGHPUT};
+pub use hyrt_core::kernels::tone_map::ToneMap;
 pub use hyrt_core::plan::{BounceBuffer, Composition, FrameBuffer, FramePlan, SkipReason, Skipped, Step};
 pub use hyrt_core::scene::{
     Camera, Environment, EnvironmentMap, EnvironmentMapError, Light, Material, MaterialKind, Mesh, Object, RenderMode,

@@ -236,3 +236,27 @@ fn save_exr_writes_the_final_image_bit_for_bit() {
     let e = hyrt::image_io::write_exr(&path, 2, 2, &odd).unwrap_err();
     assert!(e.to_string().contains("odd.exr") && e.to_string().contains("3 pixels"), "{e}");
 }
+
+#[test]
+fn png_tone_mapping_is_the_kernel_and_off_by_default() {
+    let dir = temp_dir("render", "png_tone_mapping");
+    // Linear values from shadow to a highlight four times over white.
+    let pixels = [[0.0, 0.02, 0.18, 1.0], [0.5, 0.8, 1.0, 1.0], [4.0, 2.0, 1.0, 0.5]];
+    let read = |name: &str| image::open(dir.join(name)).unwrap().into_rgba8().into_raw();
+    hyrt::image_io::write_png(&dir.join("plain.png"), 1, 3, &pixels).unwrap();
+    hyrt::image_io::write_png_tone_mapped(&dir.join("none.png"), 1, 3, &pixels, 0.0, hyrt::ToneMap::None).unwrap();
+    assert_eq!(read("plain.png"), read("none.png"), "0 stops and no operator write the plain PNG");
+    for op in [hyrt::ToneMap::KhronosPbrNeutral, hyrt::ToneMap::Aces] {
+        let name = format!("{}.png", op.name());
+        hyrt::image_io::write_png_tone_mapped(&dir.join(&name), 1, 3, &pixels, -1.0, op).unwrap();
+        let want: Vec<u8> = pixels
+            .iter()
+            .flat_map(|&p| {
+                let t = hyrt_core::kernels::tone_map::display(p, 0.5, op);
+                hyrt_core::kernels::shading::rgba_to_srgb8(t)
+            })
+            .collect();
+        assert_eq!(read(&name), want, "{name}");
+        assert_ne!(read(&name), read("plain.png"), "{name}");
+    }
+}

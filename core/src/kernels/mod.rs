@@ -14,3 +14,4 @@ pub mod scan;
 pub mod shading;
 pub mod shadow;
 pub mod texture;
+pub mod tone_map;
