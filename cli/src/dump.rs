@@ -18,7 +18,7 @@
 //! | `bounce{d}_shadow_rays.npy` | structured | shadow rays from those surfaces (as `rays.npy`; `pixel` = the secondary ray) |
 //! | `bounce{d}_shadow.npy` | u8, N_d x L | as `shadow.npy`, per secondary ray |
 //! | `bounce{d}_radiance.npy` | f32, N_d x 4 | the linear radiance each ray brings back |
-//! | `frame.json` | | image size, camera (matrices and conventions), lights, environment, object table, counts, times, skipped stages |
+//! | `frame.json` | | image size, camera (matrices and conventions), lights, environment, shading model (`paper`, `gltf`), object table, counts, times, skipped stages |
 //!
 //! The files of a buffer whose stage the frame's plan skipped are not written
 //! (`frame.json` lists the skipped stages and why).
@@ -241,6 +241,7 @@ pub fn frame_json(scene: &Scene, prepared: &PreparedScene, camera: &Camera, fram
             "radiance": l.radiance,
         })).collect::<Vec<_>>(),
         "environment": prepared.geometry.environment.describe(),
+        "shading": scene.shading.name(),
         "objects": objects,
         "triangles": prepared.geometry.triangle_count(),
         "bvh": { "nodes": prepared.bvh.nodes.len(), "preset": format!("{:?}", prepared.bvh.build_preset) },

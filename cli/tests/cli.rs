@@ -59,6 +59,7 @@ fn cli_render_default_scene_with_dump() {
     assert_eq!(json["objects"].as_array().unwrap().len(), 7);
     assert_eq!(json["objects"][0]["render_mode"], "ray_traced");
     assert_eq!(json["environment"], "default sky");
+    assert_eq!(json["shading"], "paper");
     assert!(json["camera"]["view"].is_array() && json["camera"]["projection"].is_array());
     assert!(json["camera"]["conventions"].as_str().unwrap().contains("centre"));
     assert!(json["counts"]["valid_rays"].as_u64().unwrap() > 0);
