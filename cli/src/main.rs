@@ -173,8 +173,8 @@ struct SceneArgs {
     /// How direct light is shaded on every object: `paper` (the 2011 model: Lambert on
     /// rasterized objects, Blinn-Phong on ray-traced ones) or `gltf` (the glTF
     /// metallic-roughness BRDF on both). Overrides the manifest's `shading`; default paper.
-    #[arg(long, value_parser = ["paper", "gltf"])]
-    shading: Option<String>,
+    #[arg(long, value_parser = named(hyrt::ShadingModel::ALL, hyrt::ShadingModel::name))]
+    shading: Option<hyrt::ShadingModel>,
     /// Image size, WIDTHxHEIGHT.
     #[arg(long, default_value = "1280x720", value_parser = parse_size)]
     size: (u32, u32),
@@ -249,8 +249,8 @@ struct RenderArgs {
     exposure: f32,
     /// Tone-mapping operator of PNG output: none (clamp, the paper's images), the Khronos
     /// PBR Neutral operator, or Hill's ACES fit.
-    #[arg(long, default_value = "none", value_parser = ["none", "khronos-pbr-neutral", "aces"])]
-    tone_map: String,
+    #[arg(long, default_value = "none", value_parser = named(hyrt::ToneMap::ALL, hyrt::ToneMap::name))]
+    tone_map: hyrt::ToneMap,
     /// Write every stage's output (npy, png, frame.json) into this directory.
     #[arg(long)]
     dump: Option<PathBuf>,
@@ -413,8 +413,8 @@ impl SceneArgs {
         if let Some(path) = &self.environment {
             scene.environment = hyrt::Environment::load(path).map_err(|e| e.to_string())?;
         }
-        if let Some(name) = &self.shading {
-            scene.shading = hyrt::ShadingModel::from_name(name).ok_or(format!("unknown shading model {name}"))?;
+        if let Some(shading) = self.shading {
+            scene.shading = shading;
         }
         for note in &scene.notes {
             eprintln!("note: {note}");
@@ -528,6 +528,17 @@ fn numbered(out: &std::path::Path, i: u32) -> PathBuf {
     out.with_file_name(name)
 }
 
+/// A parser of the values `all` by their names (clap lists the names in the help and in
+/// its errors).
+fn named<T: Copy + Send + Sync + 'static, const N: usize>(
+    all: [T; N],
+    name: fn(T) -> &'static str,
+) -> impl clap::builder::TypedValueParser<Value = T> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(all.map(name))
+        .map(move |s| all.into_iter().find(|&t| name(t) == s).expect("one of the listed names"))
+}
+
 /// An exposure in stops: finite, within +-64.
 fn parse_stops(s: &str) -> Result<f32, String> {
     match s.trim().parse::<f32>() {
@@ -543,8 +554,7 @@ fn write_image(path: &std::path::Path, w: u32, h: u32, frame: &hyrt::Frame, args
     if exr {
         hyrt::image_io::write_exr(path, w, h, &frame.final_image)
     } else {
-        let op = hyrt::ToneMap::from_name(&args.tone_map).ok_or(format!("unknown tone map {}", args.tone_map))?;
-        hyrt::image_io::write_png_tone_mapped(path, w, h, &frame.final_image, args.exposure, op)
+        hyrt::image_io::write_png_tone_mapped(path, w, h, &frame.final_image, args.exposure, args.tone_map)
     }
     .map_err(|e| e.to_string())
 }

@@ -713,24 +713,15 @@ pub fn corpus() -> Vec<Case> {
 /// glass, their direct light through `shade_ray_traced_with`), and up to three textured
 /// and three two-level ones (materials varying per pixel, records in object space).
 fn shading_cases(b: &mut Builder) {
-    let picked: Vec<Case> = b
-        .cases
-        .iter()
-        .filter(|c| {
-            c.name.starts_with("paper_default")
-                || c.name.starts_with("bounce_")
-                || ["texture_", "instance_"].iter().any(|f| c.name.starts_with(f))
-        })
-        .cloned()
+    let family = |prefix: &'static str, most: usize| {
+        b.cases.iter().filter(move |c| c.name.starts_with(prefix)).take(most).cloned()
+    };
+    let picked: Vec<Case> = family("paper_default", usize::MAX)
+        .chain(family("bounce_", usize::MAX))
+        .chain(family("texture_", 3))
+        .chain(family("instance_", 3))
         .collect();
-    let mut per_family = std::collections::HashMap::new();
     for case in picked {
-        let family = case.name.split('_').next().unwrap_or("").to_string();
-        let n = per_family.entry(family.clone()).or_insert(0);
-        *n += 1;
-        if (family == "texture" || family == "instance") && *n > 3 {
-            continue;
-        }
         let scene = Scene { shading: ShadingModel::Gltf, ..case.scene };
         b.cases.push(Case { name: format!("shading_gltf_{}", case.name), scene, ..case });
     }

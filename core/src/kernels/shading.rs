@@ -239,9 +239,9 @@ pub fn shade_ray_traced_with(obj: &ObjectRecord, n: Vec3, v: Vec3, l: Vec3, e: V
 
 /// Least GGX alpha (roughness², glTF's "alphaRoughness") of [`gltf_brdf`]: a
 /// mirror-smooth surface (roughness 0) keeps a finite highlight under a point light, whose
-/// peak `D = 1 / (pi alpha^2)` is then about 3e5 (alpha 0 gives `0 / 0` there). The value
-/// of [`BLINN_PHONG_MIN_ALPHA`], the paper model's floor, so both models sharpen alike.
-pub const GGX_MIN_ALPHA: f32 = 1e-3;
+/// peak `D = 1 / (pi alpha^2)` is then about 3e5 (alpha 0 gives `0 / 0` there). The paper
+/// model's floor, [`BLINN_PHONG_MIN_ALPHA`], so both models sharpen alike.
+pub const GGX_MIN_ALPHA: f32 = BLINN_PHONG_MIN_ALPHA;
 
 /// Schlick's Fresnel weight `(1 - |v.h|)^5` (glTF 2.0, Appendix B: `fresnel_mix` and
 /// `conductor_fresnel`), as two squarings and a product: exact operations in a stated
@@ -639,8 +639,8 @@ mod tests {
         assert!((peak.x as f64 - want).abs() < 1e-5 * want, "{peak} against {want}");
     }
 
-    /// A rough dielectric viewed and lit along the normal is `(1 - F) base / pi + F D V` with `F = 0.04`
-    /// exactly (`h = n`, `1 - |v.h| = 0`), D and V at their closed forms.
+    /// A rough dielectric viewed and lit along the normal is `(1 - F) base / pi + F D V`
+    /// with `F = 0.04` exactly (`h = n`, `1 - |v.h| = 0`), D and V at their closed forms.
     #[test]
     fn gltf_brdf_at_normal_incidence_is_its_closed_form() {
         let n = Vec3::Y;

@@ -15,8 +15,9 @@
 //! computed once for all lights: the same operations on the same operands, so the same bits.
 //!
 //! Objects shaded with the glTF BRDF ([`OBJ_GLTF_BRDF`]) take core's `shade_gltf` in lanes
-//! ([`GltfShader`], shared with `rt_shading`'s lanes) instead of the paper's shaders; a
-//! block mixing both models runs both and selects per lane.
+//! ([`GltfShader`], through [`sum_visible_lights_gltf_lanes`], which `rt_shading`'s lanes
+//! share) instead of the paper's shaders; a block mixing both models runs both and selects
+//! per lane.
 //!
 //! [`shade_raster_pixel`]: hyrt_core::kernels::shading::shade_raster_pixel
 //! [`ambient`]: hyrt_core::kernels::shading::ambient
@@ -189,31 +190,31 @@ impl<L: Lanes> LightShader<L> for RasterShader<L> {
 /// Core's `shade_gltf(obj, n, v, l, e)` per lane (`gltf_brdf` with diffuse scale 1, times
 /// `e` and `n.l`), with what does not depend on the light computed once
 /// ([`GltfShader::of`]): the same operations in the same order as the scalar kernel.
-pub(crate) struct GltfShader<L: Lanes> {
+struct GltfShader<L: Lanes> {
     n: [L::F; 3],
     v: [L::F; 3],
     base: [L::F; 3],
     metallic: L::F,
     /// `max(roughness^2, GGX_MIN_ALPHA)` squared.
     a2: L::F,
-    /// `n.v`.
-    ndv: L::F,
+    /// `1 - a2`.
+    one_minus_a2: L::F,
+    /// `smith_visibility`'s denominator in `v`, `|n.v| + sqrt(a2 + (1 - a2) (n.v)^2)`,
+    /// which no light changes.
+    gv: L::F,
 }
 
 impl<L: Lanes> GltfShader<L> {
     /// The shader of the lanes' materials, seen along `-v`.
     #[inline(always)]
-    pub(crate) fn of(p: &PrimaryLanes<L>, v: [L::F; 3]) -> GltfShader<L> {
+    fn of(p: &PrimaryLanes<L>, v: [L::F; 3]) -> GltfShader<L> {
         // `f32::max(a, c)` against a constant: `MAXPS` with the constant second.
         let alpha = L::max(L::mul(p.roughness, p.roughness), L::splat(GGX_MIN_ALPHA));
-        GltfShader {
-            n: p.normal,
-            v,
-            base: p.base_color,
-            metallic: p.metallic,
-            a2: L::mul(alpha, alpha),
-            ndv: dot3::<L>(p.normal, v),
-        }
+        let a2 = L::mul(alpha, alpha);
+        let one_minus_a2 = L::sub(L::splat(1.0), a2);
+        let ndv = dot3::<L>(p.normal, v);
+        let gv = L::add(L::abs(ndv), L::sqrt(L::add(a2, L::mul(one_minus_a2, L::mul(ndv, ndv)))));
+        GltfShader { n: p.normal, v, base: p.base_color, metallic: p.metallic, a2, one_minus_a2, gv }
     }
 }
 
@@ -235,11 +236,8 @@ impl<L: Lanes> LightShader<L> for GltfShader<L> {
         let d = L::select(L::le(ndh, zero), zero, d);
         // smith_visibility(alpha, n.l, n.v, h.l, h.v)
         let (hdl, hdv) = (dot3::<L>(h, l), dot3::<L>(h, v));
-        let one_minus_a2 = L::sub(one, a2);
-        let gl = L::add(L::abs(ndl), L::sqrt(L::add(a2, L::mul(one_minus_a2, L::mul(ndl, ndl)))));
-        let ndv = self.ndv;
-        let gv = L::add(L::abs(ndv), L::sqrt(L::add(a2, L::mul(one_minus_a2, L::mul(ndv, ndv)))));
-        let vis = L::div(one, L::mul(gl, gv));
+        let gl = L::add(L::abs(ndl), L::sqrt(L::add(a2, L::mul(self.one_minus_a2, L::mul(ndl, ndl)))));
+        let vis = L::div(one, L::mul(gl, self.gv));
         let vis = L::select(L::or(L::le(hdl, zero), L::le(hdv, zero)), zero, vis);
         let specular = L::mul(d, vis);
         // schlick_weight(v.h): `v.h` is `h.v` bit for bit (the same products, summed in
@@ -264,6 +262,24 @@ impl<L: Lanes> LightShader<L> for GltfShader<L> {
     }
 }
 
+/// [`sum_visible_lights_lanes`] of a block with glTF-shaded lanes ([`PrimaryLanes::gltf`]
+/// not empty), seen along `-v`: the [`GltfShader`] on those lanes and the paper model's
+/// `paper` shader on the others, which runs only where the block mixes both models.
+#[inline(always)]
+pub(crate) fn sum_visible_lights_gltf_lanes<L: Lanes, S: LightShader<L>>(
+    p: &PrimaryLanes<L>,
+    lit: &LitLanes,
+    lights: &[LightRecord],
+    v: [L::F; 3],
+    paper: &S,
+) -> [L::F; 3] {
+    let g = sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &GltfShader::of(p, v));
+    match L::bits(L::andnot(p.gltf, p.hit)) {
+        0 => g,
+        _ => select3::<L>(p.gltf, g, sum_visible_lights_lanes::<L, _>(lit, lights, p.position, paper)),
+    }
+}
+
 /// Core's `shade_raster_pixel` per lane, seen from `eye`: `ambient +
 /// sum_visible_lights(shade_raster)`, the glTF shader on the lanes of objects shaded with it.
 #[inline(always)]
@@ -282,11 +298,7 @@ fn shade_raster_pixel_lanes<L: Lanes>(
         sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &shader)
     } else {
         let v = normalize_or_zero_lanes::<L>(sub3::<L>(splat3::<L>(eye), p.position));
-        let g = sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &GltfShader::of(p, v));
-        match L::bits(L::andnot(p.gltf, p.hit)) {
-            0 => g,
-            _ => select3::<L>(p.gltf, g, sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &shader)),
-        }
+        sum_visible_lights_gltf_lanes::<L, _>(p, lit, lights, v, &shader)
     };
     [L::add(a[0], c[0]), L::add(a[1], c[1]), L::add(a[2], c[2])]
 }

@@ -33,7 +33,8 @@ use hyrt_core::kernels::shading::{
 
 use crate::lanes::{dot3, normalize_or_zero_lanes, select3, splat3, sub3, zero3, Lanes};
 use crate::raster_shading::lanes::{
-    ambient_lanes, f0_lanes, sum_visible_lights_lanes, GltfShader, LightShader, LitLanes, PrimaryLanes,
+    ambient_lanes, f0_lanes, sum_visible_lights_gltf_lanes, sum_visible_lights_lanes, LightShader, LitLanes,
+    PrimaryLanes,
 };
 
 // No closures around lane operations (`map`, `from_fn`): a closure does not inherit its
@@ -182,17 +183,9 @@ pub(crate) fn rt_shading_lanes<L: Lanes>(
     let v = normalize_or_zero_lanes::<L>(sub3::<L>(splat3::<L>(eye), p.position));
     // shade_rt_surface
     let a = ambient_lanes::<L>(p.base_color, p.metallic);
-    let c = if L::bits(p.gltf) == 0 {
-        sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &RtShader::of(p, v))
-    } else {
-        // The glTF model's lanes (OBJ_GLTF_BRDF), the paper's elsewhere.
-        let g = sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &GltfShader::of(p, v));
-        match L::bits(L::andnot(p.gltf, p.hit)) {
-            0 => g,
-            _ => {
-                select3::<L>(p.gltf, g, sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &RtShader::of(p, v)))
-            }
-        }
+    let c = match L::bits(p.gltf) {
+        0 => sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &RtShader::of(p, v)),
+        _ => sum_visible_lights_gltf_lanes::<L, _>(p, lit, lights, v, &RtShader::of(p, v)),
     };
     let c = select3::<L>(p.ray_traced, [L::add(a[0], c[0]), L::add(a[1], c[1]), L::add(a[2], c[2])], zero3::<L>());
     [c[0], c[1], c[2], L::select(p.ray_traced, L::splat(1.0), zero)]
