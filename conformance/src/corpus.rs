@@ -41,8 +41,8 @@ use glam::{DMat4, DVec4, Mat4, Quat, Vec2, Vec3};
 use hyrt_core::formats::CameraRecord;
 use hyrt_core::kernels::bounce::DEFAULT_MAX_DEPTH;
 use hyrt_core::scene::{
-    AlphaMode, Camera, Filter, Light, Material, MaterialKind, Mesh, RenderMode, Sampler, Scene, ShadingModel,
-    TextureBinding, TextureImage, UvTransform, Wrap,
+    AlphaMode, Camera, Filter, Light, Material, MaterialKind, MaterialMaps, Mesh, RenderMode, Sampler, Scene,
+    ShadingModel, TextureBinding, TextureImage, UvTransform, Wrap,
 };
 
 /// One scene of the corpus with the image it is rendered at.
@@ -1290,6 +1290,70 @@ fn texture_cases(b: &mut Builder) {
     }
     let cam = camera(Vec3::new(0.0, 0.0, 6.5), Vec3::ZERO, 0.1, 100.0);
     b.add("texture_wrap_modes", "repeat, clamp-to-edge and mirrored repeat on each axis, three periods", s, cam, w, h);
+
+    // The glTF material textures: a rasterized floor whose one ORM image (occlusion red,
+    // roughness green, metallic blue, linear) is both its metallic-roughness and its
+    // occlusion texture at half its base colour's resolution (the levels of detail
+    // shift); a ray-traced mirror ball whose metallic-roughness texture alone makes bands
+    // of metal and dielectric (its bounces shade the textured record); a glowing ball with
+    // an emissive texture and factor, ray traced, and a rasterized one with emission alone.
+    let mut s =
+        Scene { lights: vec![point(Vec3::new(1.5, 4.0, 3.0), 40.0)], shading: ShadingModel::Gltf, ..Scene::default() };
+    let orm = image("orm", 16, 16, |x, y| {
+        let occlusion = if (x / 2 + y / 2) % 2 == 0 { 255 } else { 90 };
+        [occlusion, (x * 17) as u8, (y * 17) as u8, 255]
+    });
+    let base = bind(&mut s, pattern_image(), Sampler::default(), UvTransform::default());
+    let orm = bind(&mut s, orm, Sampler::default(), UvTransform::default());
+    let floor = Material {
+        metallic: 1.0,
+        roughness: 1.0,
+        maps: MaterialMaps {
+            metallic_roughness: Some(orm),
+            occlusion: Some(orm),
+            occlusion_strength: 0.8,
+            emissive: None,
+        },
+        ..textured("orm_floor", Vec3::ONE, base)
+    };
+    s.add_object(uv_grid("orm_floor", 4, 2.0), floor, Mat4::from_scale(Vec3::splat(8.0)), RASTER);
+    let bands = image("bands", 8, 8, |_, y| [255, 60, if y % 4 < 2 { 255 } else { 0 }, 255]);
+    let bands = bind(&mut s, bands, NEAREST, UvTransform::default());
+    let ball = Material { maps: MaterialMaps { metallic_roughness: Some(bands), ..MaterialMaps::default() }, ..gold() };
+    s.add_object(
+        uv_sphere("banded_mirror", 24, 12),
+        ball,
+        Mat4::from_translation(Vec3::new(-1.1, 0.8, 0.0)) * Mat4::from_scale(Vec3::splat(0.8)),
+        RT,
+    );
+    let glow = image("glow", 8, 4, |x, y| [(x * 36) as u8, 255, (y * 80) as u8, 255]);
+    let glow = bind(&mut s, glow, Sampler::default(), UvTransform::default());
+    let lamp = Material {
+        emissive: Vec3::new(2.0, 1.5, 0.5),
+        maps: MaterialMaps { emissive: Some(glow), ..MaterialMaps::default() },
+        ..diffuse("lamp", Vec3::splat(0.2))
+    };
+    s.add_object(
+        uv_sphere("lamp", 16, 8),
+        lamp,
+        Mat4::from_translation(Vec3::new(1.1, 0.8, 0.0)) * Mat4::from_scale(Vec3::splat(0.6)),
+        RT,
+    );
+    s.add_object(
+        Mesh::cube("ember"),
+        Material { emissive: Vec3::new(0.8, 0.2, 0.05), ..diffuse("ember", Vec3::splat(0.1)) },
+        Mat4::from_translation(Vec3::new(0.0, 0.3, 1.2)) * Mat4::from_scale(Vec3::splat(0.3)),
+        RASTER,
+    );
+    let cam = camera(Vec3::new(0.0, 2.2, 4.5), Vec3::new(0.0, 0.5, 0.0), 0.1, 100.0);
+    b.add(
+        "texture_metallic_roughness_occlusion_emission",
+        "glTF metallic-roughness, occlusion and emissive textures and emission, rasterized, ray traced and reflected",
+        s,
+        cam,
+        w,
+        h,
+    );
 }
 
 #[cfg(test)]

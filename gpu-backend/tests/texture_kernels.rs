@@ -26,7 +26,8 @@ use common::test_context;
 use hyrt_core::formats::wgsl::declarations;
 use hyrt_core::formats::{
     FrameParams, MaterialRecord, ObjectRecord, SurfaceLayout, SurfaceRecord, TextureSet, TriangleRecord,
-    TriangleUvRecord, FILTER_LINEAR, FILTER_NEAREST, INVALID_ID, MAT_ALPHA_TEST, MAT_TEXTURED, MAT_VERTEX_COLORS,
+    TriangleUvRecord, FILTER_LINEAR, FILTER_NEAREST, INVALID_ID, MAT_ALPHA_TEST, MAT_EMISSIVE, MAT_METALLIC_ROUGHNESS,
+    MAT_OCCLUSION, MAT_TEXTURED, MAT_VERTEX_COLORS, TEXEL_LINEAR, TEXEL_SRGB,
 };
 use hyrt_core::geometry::SurfaceTables;
 use hyrt_core::glam::{Vec2, Vec3};
@@ -158,13 +159,13 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     s.geometric_normal = n;
     let obj = shaded_object(s, q.bary_u, q.bary_v, q.cone, vec3<f32>(q.dx, q.dy, q.dz));
     put4(at + 28u, vec4<f32>(obj.base_color, obj.metallic));
+    put4(at + 34u, vec4<f32>(obj.roughness, obj.occlusion, obj.emissive.x, obj.emissive.y));
+    results[at + 38u] = bitcast<u32>(obj.emissive.z);
+    results[at + 39u] = bitcast<u32>(texture_lod(q.lod, surface_texture(0u), tex));
     var tri: TriangleRecord;
     tri.object = q.object;
     results[at + 32u] = select(0u, 1u, alpha_accepts(tri, q.triangle, q.bary_u, q.bary_v));
     results[at + 33u] = bitcast<u32>(primary_cone(n));
-    for (var i = 34u; i < 40u; i++) {
-        results[at + i] = 0u;
-    }
 }
 "#;
 
@@ -182,10 +183,10 @@ fn word_name(word: usize) -> &'static str {
         21..=23 => "wrap_coordinate",
         24..=26 => "wrap_index",
         27 => "alpha_passes",
-        28..=31 => "shaded_object",
+        28..=31 | 34..=38 => "shaded_object",
         32 => "alpha_accepts",
         33 => "primary_cone",
-        _ => "padding",
+        _ => "texture_lod",
     }
 }
 
@@ -221,6 +222,9 @@ fn cpu_results(tables: &SurfaceTables, objects: &[ObjectRecord], q: &Query) -> [
     let obj = materials.at(&s, q.bary_u, q.bary_v, q.cone, Vec3::new(q.dx, q.dy, q.dz));
     let [red, green, blue] = obj.base_color;
     put4(28, [red, green, blue, obj.metallic]);
+    put4(34, [obj.roughness, obj.occlusion, obj.emissive[0], obj.emissive[1]]);
+    r[38] = obj.emissive[2].to_bits();
+    r[39] = cpu::texture_lod(q.lod, &set.records[0], tex).to_bits();
     let alpha = cpu::alpha_at(&set.texels, tex, uv);
     r[12] = alpha.to_bits();
     r[13] = cpu::alpha_passes(alpha, q.cutoff) as u32;
@@ -332,7 +336,7 @@ fn texture_set(rng: &mut Rng) -> TextureSet {
                 let texels = (0..w * h).map(|_| rng.next_u64().to_le_bytes()[..4].try_into().unwrap()).collect();
                 let image = TextureImage::new(format!("t{k}"), w, h, texels).unwrap();
                 let sampler = Sampler { wrap_s: WRAPS[k % 3], wrap_t: WRAPS[(k / 3) % 3], mag, min, mip };
-                set.add(&image, &sampler);
+                set.add(&image, &sampler, [TEXEL_SRGB, TEXEL_LINEAR][k % 2]);
                 k += 1;
             }
         }
@@ -340,7 +344,8 @@ fn texture_set(rng: &mut Rng) -> TextureSet {
     let codes = (0..256u32).map(|k| [k as u8, (255 - k) as u8, (k * 7 % 256) as u8, (k * 13 % 256) as u8]).collect();
     let image = TextureImage::new("codes".into(), 256, 1, codes).unwrap();
     let nearest = Sampler { mag: Filter::Nearest, min: Filter::Nearest, mip: None, ..Sampler::default() };
-    set.add(&image, &nearest);
+    set.add(&image, &nearest, TEXEL_SRGB);
+    set.add(&image, &nearest, TEXEL_LINEAR);
     set.validate().unwrap();
     set
 }
@@ -440,29 +445,46 @@ fn triangles(rng: &mut Rng, count: usize) -> (Vec<TriangleUvRecord>, Vec<[[f32; 
     (uvs, colors)
 }
 
-/// The materials (one per object): every combination of the flags, cycling through the
-/// textures, with base alphas and cutoffs in [0, 1] (some 0 and 1); and the objects,
-/// with random base colours and metallic factors.
+/// The materials (one per object): every combination of the flags, each texture slot
+/// cycling through the textures (of both encodings and different sizes, so the levels
+/// of detail shift), with base alphas, cutoffs and occlusion strengths in [0, 1] (some 0
+/// and 1); and the objects, with random base colours, factors and emission.
 fn materials(rng: &mut Rng, textures: u32, count: u32) -> (Vec<MaterialRecord>, Vec<ObjectRecord>) {
+    let unit = |rng: &mut Rng| if rng.below(4) == 0 { rng.pick(&[0.0, 1.0, 0.5]) } else { rng.range(0.0, 1.0) };
     let materials = (0..count)
         .map(|k| {
-            let flags = [MAT_TEXTURED, MAT_VERTEX_COLORS, MAT_ALPHA_TEST]
-                .iter()
-                .enumerate()
-                .fold(0, |f, (bit, m)| f | if (k >> bit) & 1 != 0 { *m } else { 0 });
-            let unit = |rng: &mut Rng| if rng.below(4) == 0 { rng.pick(&[0.0, 1.0, 0.5]) } else { rng.range(0.0, 1.0) };
-            MaterialRecord {
-                texture: if flags & MAT_TEXTURED != 0 { k % textures } else { INVALID_ID },
+            let bits =
+                [MAT_TEXTURED, MAT_VERTEX_COLORS, MAT_ALPHA_TEST, MAT_METALLIC_ROUGHNESS, MAT_OCCLUSION, MAT_EMISSIVE];
+            let flags = bits.iter().enumerate().fold(0, |f, (bit, m)| f | if (k >> bit) & 1 != 0 { *m } else { 0 });
+            let slot = |flag: u32, shift: u32| if flags & flag != 0 { (k + shift) % textures } else { INVALID_ID };
+            let (texture, metallic_roughness, occlusion, emissive) =
+                (slot(MAT_TEXTURED, 0), slot(MAT_METALLIC_ROUGHNESS, 3), slot(MAT_OCCLUSION, 5), slot(MAT_EMISSIVE, 7));
+            let uv_texture = [texture, metallic_roughness, occlusion, emissive]
+                .into_iter()
+                .find(|&t| t != INVALID_ID)
+                .unwrap_or(INVALID_ID);
+            let record = MaterialRecord {
+                texture,
                 flags,
                 base_alpha: unit(rng),
                 alpha_cutoff: if flags & MAT_ALPHA_TEST != 0 { unit(rng) } else { 0.0 },
-            }
+                metallic_roughness,
+                occlusion,
+                emissive,
+                occlusion_strength: unit(rng),
+                uv_texture,
+            };
+            record.validate(textures as usize).unwrap();
+            record
         })
         .collect();
     let objects = (0..count)
         .map(|_| ObjectRecord {
             base_color: std::array::from_fn(|_| rng.range(0.0, 1.0)),
             metallic: rng.range(0.0, 1.0),
+            roughness: unit(rng),
+            emissive: std::array::from_fn(|_| rng.range(0.0, 4.0)),
+            occlusion: unit(rng),
             ..bytemuck::Zeroable::zeroed()
         })
         .collect();
@@ -580,7 +602,7 @@ fn texture_kernels_match_cpu_bit_for_bit() {
     let mut rng = Rng(0x7e87_04e5);
     let set = texture_set(&mut rng);
     let (uvs, colors) = triangles(&mut rng, 97);
-    let (materials, objects) = materials(&mut rng, set.records.len() as u32, 24);
+    let (materials, objects) = materials(&mut rng, set.records.len() as u32, 64);
     let tables = SurfaceTables { textures: set, materials, uvs, colors };
     let queries = queries(&mut rng, &tables.textures, tables.uvs.len() as u32, objects.len() as u32, 400);
     assert_reaches_the_edge_cases(&tables.textures, &queries);
@@ -612,7 +634,7 @@ fn texture_kernels_match_cpu_bit_for_bit() {
         tables.textures.records.len(),
         tables.textures.texels.len(),
         tables.materials.len(),
-        queries.len() * 34,
+        queries.len() * RESULT_WORDS,
         failures.len()
     );
     // Both answers of the alpha test are reached.

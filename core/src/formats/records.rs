@@ -357,8 +357,12 @@ pub const MATERIAL_GLASS: u32 = 2;
 /// | 36 | `transmission` | f32 | [0, 1] |
 /// | 40 | `ior` | f32 | index of refraction (1.5 unless glass says otherwise) |
 /// | 44 | `offset_error` | f32 | extra error bound of points on it whose rays are traced in its own space ([`crate::kernels::instance::instance_position_error`]); 0 when baked into world space |
+/// | 48 | `emissive` | [f32; 3] | emitted linear radiance (glTF `emissiveFactor` x `KHR_materials_emissive_strength`), added to every shade of the surface; 0 for none |
+/// | 60 | `occlusion` | f32 | ambient occlusion in [0, 1] (1: none): scales the constant ambient and environment terms only ([`crate::kernels::shading::ambient`]) |
 ///
-/// 48 bytes.
+/// 64 bytes. [`crate::kernels::texture::Materials::at`] makes the record a point is shaded
+/// with from its object's: textures scale the base colour, metallic, roughness, occlusion
+/// and emission there.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct ObjectRecord {
@@ -372,8 +376,10 @@ pub struct ObjectRecord {
     pub transmission: f32,
     pub ior: f32,
     pub offset_error: f32,
+    pub emissive: [f32; 3],
+    pub occlusion: f32,
 }
-const _: () = assert!(std::mem::size_of::<ObjectRecord>() == 48);
+const _: () = assert!(std::mem::size_of::<ObjectRecord>() == 64);
 wgsl_struct!(ObjectRecord {
     first_triangle,
     triangle_count,
@@ -384,22 +390,29 @@ wgsl_struct!(ObjectRecord {
     roughness,
     transmission,
     ior,
-    offset_error
+    offset_error,
+    emissive,
+    occlusion
 });
 
 impl ObjectRecord {
-    /// Check: known flags and kind, finite non-negative colour, factors in [0, 1], ior >= 1,
-    /// a finite non-negative offset error.
+    /// Check: known flags and kind, finite non-negative colour and emission, factors and
+    /// occlusion in [0, 1], ior >= 1, a finite non-negative offset error.
     pub fn validate(&self) -> Result<(), String> {
         let offset_ok = self.offset_error.is_finite() && self.offset_error >= 0.0;
         if self.flags & !(OBJ_RAY_TRACED | OBJ_GLTF_BRDF) != 0 || self.material_kind > MATERIAL_GLASS || !offset_ok {
             return Err(format!("object record with unknown flags or kind: {self:?}"));
         }
-        if !self.base_color.iter().all(|c| c.is_finite() && *c >= 0.0) {
-            return Err(format!("object record with invalid colour: {self:?}"));
+        let colour = |c: &[f32; 3]| c.iter().all(|c| c.is_finite() && *c >= 0.0);
+        if !colour(&self.base_color) || !colour(&self.emissive) {
+            return Err(format!("object record with invalid colour or emission: {self:?}"));
         }
         let unit = 0.0..=1.0;
-        if !(unit.contains(&self.metallic) && unit.contains(&self.roughness) && unit.contains(&self.transmission)) {
+        if !(unit.contains(&self.metallic)
+            && unit.contains(&self.roughness)
+            && unit.contains(&self.transmission)
+            && unit.contains(&self.occlusion))
+        {
             return Err(format!("object record with factor outside [0, 1]: {self:?}"));
         }
         if !(self.ior >= 1.0 && self.ior.is_finite()) {

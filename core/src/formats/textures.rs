@@ -4,11 +4,13 @@
 //! triangle. A scene without textures, vertex colours or alpha-tested materials has none of
 //! them ([`TextureSet::is_empty`]) and its frame is the frame it was before textures.
 //!
-//! Texels are RGBA8 packed in a `u32` (`r | g << 8 | b << 16 | a << 24`), RGB sRGB-encoded,
-//! alpha linear; [`crate::kernels::texture`] decodes them. Level `k + 1` of a chain is
-//! `max(1, floor(w / 2)) x max(1, floor(h / 2))` texels, each the mean, in linear values,
-//! of the (up to) 2 x 2 texels of level `k` it covers ([`mip_chain`]); the levels of a
-//! texture follow each other in [`TextureSet::texels`], level 0 first.
+//! Texels are RGBA8 packed in a `u32` (`r | g << 8 | b << 16 | a << 24`), RGB sRGB-encoded
+//! (colours: base colour, emission) or linear (data: metallic-roughness, occlusion) as the
+//! record's [`TextureRecord::encoding`] says, alpha linear; [`crate::kernels::texture`]
+//! decodes them. Level `k + 1` of a chain is `max(1, floor(w / 2)) x max(1, floor(h / 2))`
+//! texels, each the mean, in linear values, of the (up to) 2 x 2 texels of level `k` it
+//! covers ([`mip_chain`]); the levels of a texture follow each other in
+//! [`TextureSet::texels`], level 0 first.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -31,6 +33,12 @@ pub const FILTER_LINEAR: u32 = 1;
 /// [`TextureRecord::mip_filter`]: no mip mapping, level 0 only.
 pub const FILTER_NO_MIP: u32 = 2;
 
+/// [`TextureRecord::encoding`]: RGB are sRGB-encoded colours (glTF base colour and
+/// emissive textures).
+pub const TEXEL_SRGB: u32 = 0;
+/// RGB are linear values, `code / 255` (glTF metallic-roughness and occlusion textures).
+pub const TEXEL_LINEAR: u32 = 1;
+
 /// One sampled texture: where its levels are and how it is sampled.
 ///
 /// | offset | field | type | meaning |
@@ -44,8 +52,9 @@ pub const FILTER_NO_MIP: u32 = 2;
 /// | 24 | `mag_filter` | u32 | `FILTER_NEAREST` or `FILTER_LINEAR` |
 /// | 28 | `min_filter` | u32 | `FILTER_NEAREST` or `FILTER_LINEAR` |
 /// | 32 | `mip_filter` | u32 | `FILTER_NEAREST`, `FILTER_LINEAR` or `FILTER_NO_MIP` |
+/// | 36 | `encoding` | u32 | [`TEXEL_SRGB`] or [`TEXEL_LINEAR`]: how RGB decode |
 ///
-/// 36 bytes.
+/// 40 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Pod, Zeroable)]
 pub struct TextureRecord {
@@ -58,9 +67,21 @@ pub struct TextureRecord {
     pub mag_filter: u32,
     pub min_filter: u32,
     pub mip_filter: u32,
+    pub encoding: u32,
 }
-const _: () = assert!(std::mem::size_of::<TextureRecord>() == 36);
-wgsl_struct!(TextureRecord { first_texel, width, height, levels, wrap_s, wrap_t, mag_filter, min_filter, mip_filter });
+const _: () = assert!(std::mem::size_of::<TextureRecord>() == 40);
+wgsl_struct!(TextureRecord {
+    first_texel,
+    width,
+    height,
+    levels,
+    wrap_s,
+    wrap_t,
+    mag_filter,
+    min_filter,
+    mip_filter,
+    encoding
+});
 
 impl TextureRecord {
     /// Width and height of level `level` (`max(1, side >> level)`).
@@ -95,7 +116,8 @@ impl TextureRecord {
         let wraps = [self.wrap_s, self.wrap_t].iter().all(|&w| w <= WRAP_MIRROR);
         let filters =
             self.mag_filter <= FILTER_LINEAR && self.min_filter <= FILTER_LINEAR && self.mip_filter <= FILTER_NO_MIP;
-        if !wraps || !filters || (self.mip_filter == FILTER_NO_MIP && self.levels != 1) {
+        let codes = wraps && filters && self.encoding <= TEXEL_LINEAR;
+        if !codes || (self.mip_filter == FILTER_NO_MIP && self.levels != 1) {
             return Err(format!("texture record with unknown codes: {self:?}"));
         }
         Ok(())
@@ -108,6 +130,16 @@ pub const MAT_TEXTURED: u32 = 1 << 0;
 pub const MAT_VERTEX_COLORS: u32 = 1 << 1;
 /// Alpha-tested: texels whose alpha is below [`MaterialRecord::alpha_cutoff`] are holes.
 pub const MAT_ALPHA_TEST: u32 = 1 << 2;
+/// Metallic and roughness are multiplied by [`MaterialRecord::metallic_roughness`]'s blue
+/// and green.
+pub const MAT_METALLIC_ROUGHNESS: u32 = 1 << 3;
+/// The occlusion is [`MaterialRecord::occlusion`]'s red, blended towards 1 by
+/// [`MaterialRecord::occlusion_strength`].
+pub const MAT_OCCLUSION: u32 = 1 << 4;
+/// The emission is multiplied by [`MaterialRecord::emissive`]'s colour.
+pub const MAT_EMISSIVE: u32 = 1 << 5;
+/// Every `MAT_*` flag that samples a texture at the triangle's texture coordinates.
+pub const MAT_ANY_TEXTURE: u32 = MAT_TEXTURED | MAT_METALLIC_ROUGHNESS | MAT_OCCLUSION | MAT_EMISSIVE;
 
 /// What an object's material adds to [`super::ObjectRecord`] when the scene has textures,
 /// vertex colours or alpha tests; one per object, indexed by object id.
@@ -118,8 +150,15 @@ pub const MAT_ALPHA_TEST: u32 = 1 << 2;
 /// | 4 | `flags` | u32 | `MAT_*` |
 /// | 8 | `base_alpha` | f32 | the base-colour factor's alpha, [0, 1] |
 /// | 12 | `alpha_cutoff` | f32 | the alpha test's cutoff ([0, 1]; 0 without [`MAT_ALPHA_TEST`]) |
+/// | 16 | `metallic_roughness` | u32 | its metallic-roughness texture ([`TEXEL_LINEAR`]), [`INVALID_ID`] without [`MAT_METALLIC_ROUGHNESS`] |
+/// | 20 | `occlusion` | u32 | its occlusion texture ([`TEXEL_LINEAR`]), [`INVALID_ID`] without [`MAT_OCCLUSION`] |
+/// | 24 | `emissive` | u32 | its emissive texture ([`TEXEL_SRGB`]), [`INVALID_ID`] without [`MAT_EMISSIVE`] |
+/// | 28 | `occlusion_strength` | f32 | glTF `occlusionTexture.strength`, [0, 1] |
+/// | 32 | `uv_texture` | u32 | the texture whose size the triangles' [`TriangleUvRecord::lod_bias`] is computed for, [`INVALID_ID`] without textures |
 ///
-/// 16 bytes.
+/// 36 bytes. All its textures are sampled at the same coordinates, [`TriangleUvRecord`];
+/// one whose size differs from `uv_texture`'s shifts the level of detail by
+/// [`crate::kernels::texture::texture_lod_shift`].
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct MaterialRecord {
@@ -127,26 +166,62 @@ pub struct MaterialRecord {
     pub flags: u32,
     pub base_alpha: f32,
     pub alpha_cutoff: f32,
+    pub metallic_roughness: u32,
+    pub occlusion: u32,
+    pub emissive: u32,
+    pub occlusion_strength: f32,
+    pub uv_texture: u32,
 }
-const _: () = assert!(std::mem::size_of::<MaterialRecord>() == 16);
-wgsl_struct!(MaterialRecord { texture, flags, base_alpha, alpha_cutoff });
+const _: () = assert!(std::mem::size_of::<MaterialRecord>() == 36);
+wgsl_struct!(MaterialRecord {
+    texture,
+    flags,
+    base_alpha,
+    alpha_cutoff,
+    metallic_roughness,
+    occlusion,
+    emissive,
+    occlusion_strength,
+    uv_texture
+});
 
 impl MaterialRecord {
     /// An untextured, opaque material without vertex colours.
-    pub const PLAIN: MaterialRecord =
-        MaterialRecord { texture: INVALID_ID, flags: 0, base_alpha: 1.0, alpha_cutoff: 0.0 };
+    pub const PLAIN: MaterialRecord = MaterialRecord {
+        texture: INVALID_ID,
+        flags: 0,
+        base_alpha: 1.0,
+        alpha_cutoff: 0.0,
+        metallic_roughness: INVALID_ID,
+        occlusion: INVALID_ID,
+        emissive: INVALID_ID,
+        occlusion_strength: 1.0,
+        uv_texture: INVALID_ID,
+    };
 
-    /// Check: known flags, a texture exactly when textured, alpha and cutoff in [0, 1].
+    /// Check: known flags, each texture exactly when its flag is set, `uv_texture` one of
+    /// them exactly when any is, alpha, cutoff and strength in [0, 1].
     pub fn validate(&self, textures: usize) -> Result<(), String> {
-        let textured = self.flags & MAT_TEXTURED != 0;
-        let texture_ok = if textured { (self.texture as usize) < textures } else { self.texture == INVALID_ID };
+        let slot = |flag: u32, t: u32| if self.flags & flag != 0 { (t as usize) < textures } else { t == INVALID_ID };
+        let slots = slot(MAT_TEXTURED, self.texture)
+            && slot(MAT_METALLIC_ROUGHNESS, self.metallic_roughness)
+            && slot(MAT_OCCLUSION, self.occlusion)
+            && slot(MAT_EMISSIVE, self.emissive);
+        let used = [self.texture, self.metallic_roughness, self.occlusion, self.emissive];
+        let uv_ok = if self.flags & MAT_ANY_TEXTURE != 0 {
+            used.contains(&self.uv_texture) && self.uv_texture != INVALID_ID
+        } else {
+            self.uv_texture == INVALID_ID
+        };
         let unit = 0.0..=1.0;
-        if self.flags & !(MAT_TEXTURED | MAT_VERTEX_COLORS | MAT_ALPHA_TEST) != 0
-            || !texture_ok
+        if self.flags & !(MAT_ANY_TEXTURE | MAT_VERTEX_COLORS | MAT_ALPHA_TEST) != 0
+            || !slots
+            || !uv_ok
             || !unit.contains(&self.base_alpha)
             || !unit.contains(&self.alpha_cutoff)
+            || !unit.contains(&self.occlusion_strength)
         {
-            return Err(format!("material record with unknown flags, texture or alpha: {self:?}"));
+            return Err(format!("material record with unknown flags, textures or factors: {self:?}"));
         }
         Ok(())
     }
@@ -184,7 +259,7 @@ wgsl_struct!(TriangleUvRecord { uv0, uv1, uv2, lod_bias, pad });
 /// consecutive u32 words, each record's fields in declaration order and f32 fields as
 /// their bits:
 ///
-/// 1. the [`MaterialRecord`]s (4 words each, one per object);
+/// 1. the [`MaterialRecord`]s (9 words each, one per object);
 /// 2. each object's first global triangle (1 word each,
 ///    [`super::ObjectRecord::first_triangle`]): with it the alpha test finds a triangle
 ///    record's global index (`WorldGeometry::global_triangle`) in `shadow_rays`, whose 8
@@ -192,7 +267,7 @@ wgsl_struct!(TriangleUvRecord { uv0, uv1, uv2, lod_bias, pad });
 ///    leaf-to-triangle table;
 /// 3. the [`TriangleUvRecord`]s (8 words, one per triangle);
 /// 4. the vertex colours (12 words per triangle: its three corners' linear RGBA);
-/// 5. the [`TextureRecord`]s (9 words each);
+/// 5. the [`TextureRecord`]s (10 words each);
 /// 6. the sRGB decoding table, [`crate::kernels::texture::srgb8_table`] (256 f32), when
 ///    there are textures: read from the buffer where a shader samples, not compiled into
 ///    every stage that might (`hyrt_gpu::texture` says why);
@@ -307,13 +382,15 @@ pub fn pack_texel(t: [u8; 4]) -> u32 {
 }
 
 /// The mip chain of `image` down to 1 x 1: level 0 is the image; each further level
-/// averages, in linear values (sRGB decoded by the table of
-/// [`crate::kernels::texture::srgb8_to_linear`], alpha linear), the up to 2 x 2 texels of the
-/// level above that it covers (`2x, 2x + 1` by `2y, 2y + 1`, the last row or column of an
-/// odd side taken once more by the texel that reaches it), and encodes the mean again
-/// ([`crate::kernels::shading::linear_to_srgb8`]). Computed once on the CPU: the GPU is
-/// given the same texels, never recomputes them.
-pub fn mip_chain(image: &TextureImage) -> Vec<Vec<[u8; 4]>> {
+/// averages, in linear values, the up to 2 x 2 texels of the level above that it covers
+/// (`2x, 2x + 1` by `2y, 2y + 1`, the last row or column of an odd side taken once more by
+/// the texel that reaches it), and encodes the mean again. With `encoding`
+/// [`TEXEL_SRGB`], RGB are decoded by the table of
+/// [`crate::kernels::texture::srgb8_to_linear`] and the mean encoded by
+/// [`crate::kernels::shading::linear_to_srgb8`]; with [`TEXEL_LINEAR`] they are averaged
+/// as codes and rounded, as alpha always is. Computed once on the CPU: the GPU is given the
+/// same texels, never recomputes them.
+pub fn mip_chain(image: &TextureImage, encoding: u32) -> Vec<Vec<[u8; 4]>> {
     use crate::kernels::shading::linear_to_srgb8;
     use crate::kernels::texture::srgb8_to_linear;
     let mut levels = vec![image.texels.clone()];
@@ -333,14 +410,15 @@ pub fn mip_chain(image: &TextureImage) -> Vec<Vec<[u8; 4]>> {
                     for xx in cols.clone() {
                         let t = above[(yy * w + xx) as usize];
                         for c in 0..3 {
-                            sum[c] += srgb8_to_linear(t[c]);
+                            sum[c] += if encoding == TEXEL_SRGB { srgb8_to_linear(t[c]) } else { t[c] as f32 };
                         }
                         sum[3] += t[3] as f32;
                     }
                 }
                 let n = (rows.len() * cols.len()) as f32;
-                let a = (sum[3] / n + 0.5) as u8;
-                next.push([linear_to_srgb8(sum[0] / n), linear_to_srgb8(sum[1] / n), linear_to_srgb8(sum[2] / n), a]);
+                let code = |s: f32| (s / n + 0.5) as u8;
+                let rgb = |c: usize| if encoding == TEXEL_SRGB { linear_to_srgb8(sum[c] / n) } else { code(sum[c]) };
+                next.push([rgb(0), rgb(1), rgb(2), code(sum[3])]);
             }
         }
         levels.push(next);
@@ -363,13 +441,14 @@ impl TextureSet {
         self.records.is_empty()
     }
 
-    /// Add `image` sampled with `sampler` (its mip chain when the sampler mip maps) and
-    /// return its record's index. Images shared by several samplers are stored once per
-    /// sampler: the caller dedupes (image, sampler) pairs.
-    pub fn add(&mut self, image: &TextureImage, sampler: &Sampler) -> u32 {
+    /// Add `image` sampled with `sampler` (its mip chain when the sampler mip maps), its
+    /// RGB encoded as `encoding` says ([`TEXEL_SRGB`], [`TEXEL_LINEAR`]), and return its
+    /// record's index. Images shared by several samplers or encodings are stored once per
+    /// pair: the caller dedupes (image, sampler, encoding).
+    pub fn add(&mut self, image: &TextureImage, sampler: &Sampler, encoding: u32) -> u32 {
         let first_texel =
             u32::try_from(self.texels.len()).expect("texels beyond 2^32: the loader's budget prevents this");
-        let levels = if sampler.mip.is_some() { mip_chain(image) } else { vec![image.texels.clone()] };
+        let levels = if sampler.mip.is_some() { mip_chain(image, encoding) } else { vec![image.texels.clone()] };
         let code = |f: Filter| match f {
             Filter::Nearest => FILTER_NEAREST,
             Filter::Linear => FILTER_LINEAR,
@@ -384,6 +463,7 @@ impl TextureSet {
             mag_filter: code(sampler.mag),
             min_filter: code(sampler.min),
             mip_filter: sampler.mip.map(code).unwrap_or(FILTER_NO_MIP),
+            encoding,
         };
         self.texels.extend(levels.iter().flatten().map(|&t| pack_texel(t)));
         self.records.push(record);
@@ -423,36 +503,39 @@ mod tests {
             [255, 255, 255, 0],
         ];
         let image = TextureImage::new("t".into(), 3, 2, texels).unwrap();
-        let chain = mip_chain(&image);
+        let chain = mip_chain(&image, TEXEL_SRGB);
         assert_eq!(chain.len(), 2, "3x2 -> 1x1");
         // Mean of 2 black and 4 white texels in linear light is 2/3: sRGB 213, not 170.
         let expected = crate::kernels::shading::linear_to_srgb8(4.0 / 6.0);
         assert_eq!(expected, 213);
         assert_eq!(chain[1], vec![[213, 213, 213, 170]]);
+        // Data textures average their codes: 4 x 255 / 6 = 170.
+        assert_eq!(mip_chain(&image, TEXEL_LINEAR)[1], vec![[170, 170, 170, 170]]);
     }
 
     #[test]
     fn surface_tables_pack_one_after_another_as_their_layout_says() {
         let image = TextureImage::new("t".into(), 2, 1, vec![[1, 2, 3, 4], [5, 6, 7, 8]]).unwrap();
         let mut tables = crate::geometry::SurfaceTables::default();
-        tables.textures.add(&image, &Sampler { mip: None, ..Sampler::default() });
-        tables.materials =
-            vec![MaterialRecord::PLAIN, MaterialRecord { texture: 0, flags: MAT_TEXTURED, ..MaterialRecord::PLAIN }];
+        tables.textures.add(&image, &Sampler { mip: None, ..Sampler::default() }, TEXEL_SRGB);
+        let textured = MaterialRecord { texture: 0, flags: MAT_TEXTURED, uv_texture: 0, ..MaterialRecord::PLAIN };
+        tables.materials = vec![MaterialRecord::PLAIN, textured];
         tables.uvs = vec![TriangleUvRecord { uv1: [1.0, 0.0], lod_bias: -2.5, ..Default::default() }; 3];
         let objects = [0, 1]
             .map(|first_triangle| crate::formats::ObjectRecord { first_triangle, ..bytemuck::Zeroable::zeroed() });
         let (layout, words) = tables.packed(&objects).unwrap();
         layout.validate().unwrap();
         let starts = [layout.materials, layout.first_triangles, layout.uvs, layout.colors, layout.textures];
-        assert_eq!(starts, [0, 8, 10, 34, 34], "no colours: that table takes no word");
-        assert_eq!((layout.srgb, layout.texels, layout.words), (43, 299, 301));
-        assert_eq!(words.len(), 301);
-        assert_eq!(words[4..8], [0, MAT_TEXTURED, 1f32.to_bits(), 0]);
-        assert_eq!(words[8..10], [0, 1], "each object's first triangle");
-        assert_eq!((f32::from_bits(words[10 + 2]), f32::from_bits(words[10 + 6])), (1.0, -2.5));
-        assert_eq!(words[34..43], *bytemuck::cast_slice::<_, u32>(&tables.textures.records));
-        assert_eq!(words[43..299], *bytemuck::cast_slice::<_, u32>(crate::kernels::texture::srgb8_table()));
-        assert_eq!(words[299..], [pack_texel([1, 2, 3, 4]), pack_texel([5, 6, 7, 8])]);
+        assert_eq!(starts, [0, 18, 20, 44, 44], "no colours: that table takes no word");
+        assert_eq!((layout.srgb, layout.texels, layout.words), (54, 310, 312));
+        assert_eq!(words.len(), 312);
+        assert_eq!(words[9..13], [0, MAT_TEXTURED, 1f32.to_bits(), 0]);
+        assert_eq!(words[17], 0, "its uv texture");
+        assert_eq!(words[18..20], [0, 1], "each object's first triangle");
+        assert_eq!((f32::from_bits(words[20 + 2]), f32::from_bits(words[20 + 6])), (1.0, -2.5));
+        assert_eq!(words[44..54], *bytemuck::cast_slice::<_, u32>(&tables.textures.records));
+        assert_eq!(words[54..310], *bytemuck::cast_slice::<_, u32>(crate::kernels::texture::srgb8_table()));
+        assert_eq!(words[310..], [pack_texel([1, 2, 3, 4]), pack_texel([5, 6, 7, 8])]);
         let none = crate::geometry::SurfaceTables::default().layout().unwrap();
         assert_eq!((none, none.bytes()), (SurfaceLayout::default(), 4), "the zero layout, one dummy word");
         none.validate().unwrap();
@@ -464,8 +547,8 @@ mod tests {
     fn records_of_a_set_point_at_their_levels() {
         let image = TextureImage::new("t".into(), 4, 2, vec![[10, 20, 30, 40]; 8]).unwrap();
         let mut set = TextureSet::default();
-        assert_eq!(set.add(&image, &Sampler { mip: None, ..Sampler::default() }), 0);
-        assert_eq!(set.add(&image, &Sampler::default()), 1);
+        assert_eq!(set.add(&image, &Sampler { mip: None, ..Sampler::default() }, TEXEL_SRGB), 0);
+        assert_eq!(set.add(&image, &Sampler::default(), TEXEL_SRGB), 1);
         let r = set.records[1];
         assert_eq!((r.first_texel, r.levels, r.texel_count()), (8, 3, 8 + 2 + 1));
         assert_eq!((r.level_offset(1), r.level_offset(2), r.level_size(2)), (16, 18, (1, 1)));

@@ -241,6 +241,12 @@ pub fn constant_values() -> Vec<(&'static str, u32)> {
         MAT_TEXTURED,
         MAT_VERTEX_COLORS,
         MAT_ALPHA_TEST,
+        MAT_METALLIC_ROUGHNESS,
+        MAT_OCCLUSION,
+        MAT_EMISSIVE,
+        MAT_ANY_TEXTURE,
+        TEXEL_SRGB,
+        TEXEL_LINEAR,
     )
     .to_vec();
     c.extend(u32_constants!(INSTANCE_IDENTITY, INSTANCE_MIRRORED, INSTANCE_ALPHA_TEST));

@@ -17,10 +17,11 @@ use glam::{DVec3, Mat3, Mat4, Vec2, Vec3};
 
 use crate::formats::{
     LightRecord, MaterialRecord, ObjectRecord, SurfaceLayout, TextureSet, TriangleRecord, TriangleUvRecord,
-    MAT_ALPHA_TEST, MAT_TEXTURED, MAT_VERTEX_COLORS, OBJ_RAY_TRACED, TRI_ALPHA_TEST, TRI_INWARD, TRI_RAY_TRACED,
+    MAT_ALPHA_TEST, MAT_ANY_TEXTURE, MAT_EMISSIVE, MAT_METALLIC_ROUGHNESS, MAT_OCCLUSION, MAT_TEXTURED,
+    MAT_VERTEX_COLORS, OBJ_RAY_TRACED, TEXEL_LINEAR, TEXEL_SRGB, TRI_ALPHA_TEST, TRI_INWARD, TRI_RAY_TRACED,
 };
 use crate::kernels::texture::{triangle_lod_bias, SurfaceView};
-use crate::scene::{Environment, Material, MaterialKind, Mesh, RenderMode, Scene};
+use crate::scene::{Environment, Material, MaterialKind, Mesh, RenderMode, Scene, TextureBinding};
 
 pub use triangles::{world_normals, world_record, ByReference, MeshSource, ObjectTransform, Placement, WorldTriangles};
 
@@ -317,12 +318,26 @@ impl SurfaceTables {
     }
 }
 
+/// A material's textures that a mesh can sample (it has their coordinate set), each with
+/// its `MAT_*` flag and texel encoding, in [`crate::kernels::texture::Materials::at`]'s
+/// order; the first is the one whose coordinates and size the triangles' records use.
+fn material_textures(material: &Material, mesh: &Mesh) -> Vec<(u32, TextureBinding, u32)> {
+    let maps = &material.maps;
+    [
+        (MAT_TEXTURED, material.base_color_texture, TEXEL_SRGB),
+        (MAT_METALLIC_ROUGHNESS, maps.metallic_roughness, TEXEL_LINEAR),
+        (MAT_OCCLUSION, maps.occlusion, TEXEL_LINEAR),
+        (MAT_EMISSIVE, maps.emissive, TEXEL_SRGB),
+    ]
+    .into_iter()
+    .filter_map(|(flag, binding, encoding)| binding.map(|b| (flag, b, encoding)))
+    .filter(|(_, b, _)| mesh.attributes.tex_coords.get(b.tex_coord as usize).is_some_and(Option::is_some))
+    .collect()
+}
+
 /// What an object's material and mesh ask of [`SurfaceTables`].
 fn material_flags(material: &Material, mesh: &Mesh) -> u32 {
-    let textured = material
-        .base_color_texture
-        .is_some_and(|t| mesh.attributes.tex_coords.get(t.tex_coord as usize).is_some_and(Option::is_some));
-    (if textured { MAT_TEXTURED } else { 0 })
+    material_textures(material, mesh).iter().fold(0, |f, (flag, _, _)| f | flag)
         | if mesh.attributes.colors.is_some() { MAT_VERTEX_COLORS } else { 0 }
         | if material.alpha_mode.cutoff().is_some() { MAT_ALPHA_TEST } else { 0 }
 }
@@ -336,14 +351,14 @@ fn surface_tables(scene: &Scene, triangles: &WorldTriangles) -> SurfaceTables {
         return t;
     }
     let any = |bit: u32| flags.iter().any(|&f| f & bit != 0);
-    let (textured, colored) = (any(MAT_TEXTURED), any(MAT_VERTEX_COLORS));
+    let (textured, colored) = (any(MAT_ANY_TEXTURE), any(MAT_VERTEX_COLORS));
     if textured {
         t.uvs = vec![TriangleUvRecord::default(); triangles.len()];
     }
     if colored {
         t.colors = vec![[[1.0; 4]; 3]; triangles.len()];
     }
-    let mut pairs: HashMap<(usize, crate::scene::Sampler), u32> = HashMap::new();
+    let mut records: HashMap<(usize, crate::scene::Sampler, u32), u32> = HashMap::new();
     let mut first = 0usize;
     for (obj, &f) in scene.objects.iter().zip(&flags) {
         let (mesh, material) = (&scene.meshes[obj.mesh], &scene.materials[obj.material]);
@@ -353,16 +368,31 @@ fn surface_tables(scene: &Scene, triangles: &WorldTriangles) -> SurfaceTables {
             flags: f,
             base_alpha: material.base_alpha,
             alpha_cutoff: material.alpha_mode.cutoff().unwrap_or(0.0),
+            occlusion_strength: material.maps.occlusion_strength,
             ..MaterialRecord::PLAIN
         };
-        if f & MAT_TEXTURED != 0 {
-            let binding = material.base_color_texture.expect("MAT_TEXTURED has a binding");
+        let maps = material_textures(material, mesh);
+        for &(flag, binding, encoding) in &maps {
             let image = &scene.textures[binding.image];
-            let texture = *pairs
-                .entry((binding.image, binding.sampler))
-                .or_insert_with(|| t.textures.add(image, &binding.sampler));
-            record.texture = texture;
-            let coords = mesh.attributes.tex_coords[binding.tex_coord as usize].as_ref().expect("flag says so");
+            let index = *records
+                .entry((binding.image, binding.sampler, encoding))
+                .or_insert_with(|| t.textures.add(image, &binding.sampler, encoding));
+            match flag {
+                MAT_TEXTURED => record.texture = index,
+                MAT_METALLIC_ROUGHNESS => record.metallic_roughness = index,
+                MAT_OCCLUSION => record.occlusion = index,
+                _ => record.emissive = index,
+            }
+        }
+        if let Some(&(flag, binding, _)) = maps.first() {
+            record.uv_texture = match flag {
+                MAT_TEXTURED => record.texture,
+                MAT_METALLIC_ROUGHNESS => record.metallic_roughness,
+                MAT_OCCLUSION => record.occlusion,
+                _ => record.emissive,
+            };
+            let image = &scene.textures[binding.image];
+            let coords = mesh.attributes.tex_coords[binding.tex_coord as usize].as_ref().expect("filtered on it");
             let mut world = Vec::new();
             triangles.fill(range.clone(), &mut world);
             fill_uvs(&mut t.uvs[range.clone()], mesh, &world, coords, &binding.transform, image);
@@ -497,6 +527,8 @@ impl WorldGeometry {
             transmission: mat.transmission,
             ior,
             offset_error: 0.0,
+            emissive: mat.emissive.into(),
+            occlusion: 1.0,
         };
     }
 

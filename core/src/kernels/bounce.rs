@@ -11,8 +11,8 @@
 //! and, for glass, a refraction ray (Whitted). Its radiance towards the viewer is
 //!
 //! ```text
-//! L = diffuse_scale * (base (1 - metallic) AMBIENT + direct diffuse) + direct specular
-//!     + R * L(reflection) + T * L(refraction)
+//! L = diffuse_scale * (base (1 - metallic) AMBIENT occlusion + direct diffuse) + emission
+//!     + direct specular + R * L(reflection) + T * L(refraction)
 //! ```
 //!
 //! * `R = F_dielectric(cos, eta) (1 - metallic) + Schlick(base, cos) metallic`: the exact
@@ -289,7 +289,10 @@ pub fn shade_bouncing(
     let n = Vec3::from(s.normal);
     let v = -d;
     let base = Vec3::from(obj.base_color);
-    let ambient = base * (((1.0 - obj.metallic) * AMBIENT) * l.diffuse_scale);
+    // The constant ambient, occluded, and the emission ([`crate::kernels::shading::unlit`]'s
+    // parts; the specular lobe's environment is what its traced ray sees).
+    let ambient =
+        base * (((1.0 - obj.metallic) * AMBIENT) * l.diffuse_scale) * obj.occlusion + Vec3::from(obj.emissive);
     let direct = sum_visible_lights(shadow, lights, p, |li, e| {
         crate::kernels::shading::shade_ray_traced_with(obj, n, v, li, e, l.diffuse_scale)
     });

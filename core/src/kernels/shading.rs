@@ -403,7 +403,7 @@ pub fn sum_visible_lights(
     c
 }
 
-/// The ray-traced shader at one pixel: [`ambient`] plus [`shade_ray_traced`] from every
+/// The ray-traced shader at one pixel: [`unlit`] plus [`shade_ray_traced`] from every
 /// light its shadow ray reached (`shadow`: the pixel's `SHADOW_*` codes, one per light),
 /// seen from `eye`.
 #[inline]
@@ -413,17 +413,17 @@ pub fn shade_rt_pixel(s: &SurfaceRecord, obj: &ObjectRecord, shadow: &[u8], ligh
 }
 
 /// The ray-traced shader at a surface seen along `-v` (`v`: unit, towards the viewer):
-/// [`ambient`] plus [`shade_ray_traced`] from every light its shadow ray reached. Primary
+/// [`unlit`] plus [`shade_ray_traced`] from every light its shadow ray reached. Primary
 /// hits ([`shade_rt_pixel`]) and secondary hits on surfaces that do not bounce use it.
 #[inline]
 pub fn shade_rt_surface(s: &SurfaceRecord, obj: &ObjectRecord, shadow: &[u8], lights: &[LightRecord], v: Vec3) -> Vec3 {
     let p = Vec3::from(s.position);
     let n = Vec3::from(s.normal);
-    ambient(obj) + sum_visible_lights(shadow, lights, p, |l, e| shade_ray_traced(obj, n, v, l, e))
+    unlit(obj) + sum_visible_lights(shadow, lights, p, |l, e| shade_ray_traced(obj, n, v, l, e))
 }
 
 /// The raster shader at a surface seen along `-v` (`v`: unit, towards the viewer):
-/// [`ambient`] plus [`shade_raster`] from every light its shadow ray reached (`shadow`: the
+/// [`unlit`] plus [`shade_raster`] from every light its shadow ray reached (`shadow`: the
 /// pixel's `SHADOW_*` codes, one per light).
 #[inline]
 pub fn shade_raster_surface(
@@ -435,7 +435,7 @@ pub fn shade_raster_surface(
 ) -> Vec3 {
     let p = Vec3::from(s.position);
     let n = Vec3::from(s.normal);
-    ambient(obj) + sum_visible_lights(shadow, lights, p, |l, e| shade_raster(obj, n, v, l, e))
+    unlit(obj) + sum_visible_lights(shadow, lights, p, |l, e| shade_raster(obj, n, v, l, e))
 }
 
 /// The raster shader at one pixel seen from `eye`: [`shade_raster_surface`] with `v`
@@ -454,12 +454,22 @@ pub fn shade_raster_pixel(
 
 /// Ambient term of any object: diffuse albedo times [`AMBIENT`] plus the
 /// specular reflectance F0 times [`ENVIRONMENT_SPECULAR`] (a uniform environment
-/// reflected by the specular lobe, which integrates to F0).
+/// reflected by the specular lobe, which integrates to F0), both times the record's
+/// ambient occlusion (glTF's occlusion texture "applies to indirect lighting" only; 1, an
+/// exact no-op, without one).
 #[inline]
 pub fn ambient(obj: &ObjectRecord) -> Vec3 {
     let base = Vec3::from(obj.base_color);
     let f0 = Vec3::splat(DIELECTRIC_F0).lerp(base, obj.metallic);
-    base * ((1.0 - obj.metallic) * AMBIENT) + f0 * ENVIRONMENT_SPECULAR
+    (base * ((1.0 - obj.metallic) * AMBIENT) + f0 * ENVIRONMENT_SPECULAR) * obj.occlusion
+}
+
+/// What a surface sends out whatever the lights: [`ambient`] plus its emission
+/// ([`ObjectRecord::emissive`]; adding the zero of a surface without one keeps the
+/// ambient's bits). Every shader of a surface starts from it.
+#[inline]
+pub fn unlit(obj: &ObjectRecord) -> Vec3 {
+    ambient(obj) + Vec3::from(obj.emissive)
 }
 
 /// Composition (paper 3.5): the weighted mean `(1 - weight) * raster + weight * rt`.
@@ -546,6 +556,8 @@ mod tests {
             transmission: 0.0,
             ior: 1.5,
             offset_error: 0.0,
+            emissive: [0.0; 3],
+            occlusion: 1.0,
         }
     }
 

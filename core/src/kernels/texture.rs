@@ -25,7 +25,8 @@ use glam::{Vec2, Vec3};
 
 use crate::formats::{
     MaterialRecord, ObjectRecord, SurfaceRecord, TextureRecord, TriangleRecord, TriangleUvRecord, FILTER_NEAREST,
-    FILTER_NO_MIP, MAT_ALPHA_TEST, MAT_TEXTURED, MAT_VERTEX_COLORS, WRAP_CLAMP, WRAP_MIRROR,
+    FILTER_NO_MIP, MAT_ALPHA_TEST, MAT_ANY_TEXTURE, MAT_EMISSIVE, MAT_METALLIC_ROUGHNESS, MAT_OCCLUSION, MAT_TEXTURED,
+    MAT_VERTEX_COLORS, TEXEL_SRGB, WRAP_CLAMP, WRAP_MIRROR,
 };
 use crate::kernels::shading::log2_portable;
 
@@ -61,15 +62,16 @@ pub fn unorm8_to_f32(code: u32) -> f32 {
 /// `1 / 255` rounded to f32.
 pub const UNORM8_SCALE: f32 = 1.0 / 255.0;
 
-/// A packed texel ([`crate::formats::pack_texel`]) as linear RGBA. WGSL: `decode_texel`.
+/// A packed texel ([`crate::formats::pack_texel`]) as linear RGBA: RGB through the sRGB
+/// table when `encoding` is [`TEXEL_SRGB`], as unorm8 values (like alpha) when it is
+/// [`crate::formats::TEXEL_LINEAR`]. WGSL: `decode_texel`.
 #[inline]
-pub fn decode_texel(t: u32) -> [f32; 4] {
-    [
-        srgb8_to_linear(t as u8),
-        srgb8_to_linear((t >> 8) as u8),
-        srgb8_to_linear((t >> 16) as u8),
-        unorm8_to_f32(t >> 24),
-    ]
+pub fn decode_texel(t: u32, encoding: u32) -> [f32; 4] {
+    let a = unorm8_to_f32(t >> 24);
+    if encoding == TEXEL_SRGB {
+        return [srgb8_to_linear(t as u8), srgb8_to_linear((t >> 8) as u8), srgb8_to_linear((t >> 16) as u8), a];
+    }
+    [unorm8_to_f32(t & 0xff), unorm8_to_f32((t >> 8) & 0xff), unorm8_to_f32((t >> 16) & 0xff), a]
 }
 
 /// A texture coordinate reduced to one period of its wrap mode, so that texel indices stay
@@ -123,7 +125,7 @@ pub fn wrap_index(i: i32, n: u32, wrap: u32) -> u32 {
 fn fetch(texels: &[u32], tex: &TextureRecord, base: u32, w: u32, h: u32, x: i32, y: i32) -> [f32; 4] {
     let i = wrap_index(x, w, tex.wrap_s);
     let j = wrap_index(y, h, tex.wrap_t);
-    decode_texel(texels[(base + j * w + i) as usize])
+    decode_texel(texels[(base + j * w + i) as usize], tex.encoding)
 }
 
 /// `a + (b - a) * t` per channel, each operation rounded. WGSL: `lerp4`.
@@ -249,6 +251,21 @@ pub fn hit_lod(bias: f32, cone_width: f32, cos: f32) -> f32 {
     bias + (log2_portable(w) - log2_portable(c))
 }
 
+/// The level of detail of texture `tex` for a hit whose level is `lod` in texture
+/// `reference`'s texels (the texture a material's [`TriangleUvRecord::lod_bias`] is computed
+/// for, [`MaterialRecord::uv_texture`]): `lod` itself for a texture of the same size, else
+/// `lod + 0.5 (log2(w h) - log2(w_ref h_ref))`, the ratio of their texel areas over the
+/// same coordinates (the areas are exact in f32: sides are at most 2^14). WGSL:
+/// `texture_lod`.
+#[inline]
+pub fn texture_lod(lod: f32, reference: &TextureRecord, tex: &TextureRecord) -> f32 {
+    if (tex.width, tex.height) == (reference.width, reference.height) {
+        return lod;
+    }
+    let area = |t: &TextureRecord| (t.width * t.height) as f32;
+    lod + 0.5 * (log2_portable(area(tex)) - log2_portable(area(reference)))
+}
+
 /// The alpha test's sample: level 0 with the sampler's magnification filter, whatever the
 /// footprint. The raster and every ray kind see the same holes at the same place (a
 /// level chosen by footprint would let foliage thin out or fill in with distance, and
@@ -286,9 +303,10 @@ impl SurfaceView<'_> {
         self.materials.iter().any(|m| m.flags & MAT_ALPHA_TEST != 0)
     }
 
-    /// Whether some object's colour varies over its surface: textured or vertex-coloured.
+    /// Whether some object's material varies over its surface: textured (any texture) or
+    /// vertex-coloured.
     pub fn colour_varies(&self) -> bool {
-        self.materials.iter().any(|m| m.flags & (MAT_TEXTURED | MAT_VERTEX_COLORS) != 0)
+        self.materials.iter().any(|m| m.flags & (MAT_ANY_TEXTURE | MAT_VERTEX_COLORS) != 0)
     }
 }
 
@@ -334,39 +352,72 @@ impl<'a> Materials<'a> {
         !self.surface.materials.is_empty()
     }
 
-    /// The record of the object hit at surface `s` (a hit) as shading sees it there: its
-    /// base colour times the texture's colour at the hit (`u`, `v` its barycentrics;
-    /// [`sample_texture`] at [`hit_lod`] of the footprint `cone` and the cosine of the
-    /// unit direction `d` it was seen along with the geometric normal) when textured,
-    /// times the interpolated vertex colour when it has them, in that order; the object's
-    /// own record otherwise. WGSL: `shaded_object`.
+    /// The record of the object hit at surface `s` (a hit) as shading sees it there (`u`,
+    /// `v` its barycentrics; `cone` the footprint and `d` the unit direction it was seen
+    /// along, whose cosine with the geometric normal gives the level of detail,
+    /// [`hit_lod`], shifted per texture by [`texture_lod`]); its object's own record
+    /// where nothing varies. In this order:
+    /// - base colour times the base-colour texture's RGB ([`MAT_TEXTURED`]);
+    /// - times the interpolated vertex colour ([`MAT_VERTEX_COLORS`]);
+    /// - roughness times the metallic-roughness texture's green, metallic times its blue
+    ///   ([`MAT_METALLIC_ROUGHNESS`]);
+    /// - occlusion `1 + strength (red - 1)` of the occlusion texture ([`MAT_OCCLUSION`],
+    ///   glTF's blend towards 1);
+    /// - emission times the emissive texture's RGB ([`MAT_EMISSIVE`]).
+    ///
+    /// WGSL: `shaded_object`.
     #[inline]
     pub fn at(&self, s: &SurfaceRecord, u: f32, v: f32, cone: f32, d: Vec3) -> ObjectRecord {
-        let obj = self.objects[s.object as usize];
+        let mut obj = self.objects[s.object as usize];
         if !self.varying() {
             return obj;
         }
         let m = &self.surface.materials[s.object as usize];
         let global = s.triangle as usize;
-        let mut c = obj.base_color;
-        if m.flags & MAT_TEXTURED != 0 {
+        if m.flags & MAT_ANY_TEXTURE != 0 {
             let t = &self.surface.uvs[global];
             let cos = d.dot(Vec3::from(s.geometric_normal));
             let lod = hit_lod(t.lod_bias, cone, cos);
-            let texel = sample_texture(
-                self.surface.texels,
-                &self.surface.textures[m.texture as usize],
-                interpolate_uv(t, u, v),
-                lod,
-            );
-            c = [c[0] * texel[0], c[1] * texel[1], c[2] * texel[2]];
+            let uv = interpolate_uv(t, u, v);
+            let reference = &self.surface.textures[m.uv_texture as usize];
+            let sample = |index: u32| {
+                let tex = &self.surface.textures[index as usize];
+                sample_texture(self.surface.texels, tex, uv, texture_lod(lod, reference, tex))
+            };
+            if m.flags & MAT_TEXTURED != 0 {
+                let texel = sample(m.texture);
+                let c = obj.base_color;
+                obj.base_color = [c[0] * texel[0], c[1] * texel[1], c[2] * texel[2]];
+            }
+            if m.flags & MAT_VERTEX_COLORS != 0 {
+                obj.base_color = vertex_coloured(obj.base_color, &self.surface.colors[global], u, v);
+            }
+            if m.flags & MAT_METALLIC_ROUGHNESS != 0 {
+                let texel = sample(m.metallic_roughness);
+                obj.roughness *= texel[1];
+                obj.metallic *= texel[2];
+            }
+            if m.flags & MAT_OCCLUSION != 0 {
+                let texel = sample(m.occlusion);
+                obj.occlusion = 1.0 + m.occlusion_strength * (texel[0] - 1.0);
+            }
+            if m.flags & MAT_EMISSIVE != 0 {
+                let texel = sample(m.emissive);
+                let e = obj.emissive;
+                obj.emissive = [e[0] * texel[0], e[1] * texel[1], e[2] * texel[2]];
+            }
+        } else if m.flags & MAT_VERTEX_COLORS != 0 {
+            obj.base_color = vertex_coloured(obj.base_color, &self.surface.colors[global], u, v);
         }
-        if m.flags & MAT_VERTEX_COLORS != 0 {
-            let k = interpolate_color(&self.surface.colors[global], u, v);
-            c = [c[0] * k[0], c[1] * k[1], c[2] * k[2]];
-        }
-        ObjectRecord { base_color: c, ..obj }
+        obj
     }
+}
+
+/// A base colour times the interpolated vertex colour ([`interpolate_color`]) at `(u, v)`.
+#[inline]
+fn vertex_coloured(c: [f32; 3], corners: &[[f32; 4]; 3], u: f32, v: f32) -> [f32; 3] {
+    let k = interpolate_color(corners, u, v);
+    [c[0] * k[0], c[1] * k[1], c[2] * k[2]]
 }
 
 #[cfg(test)]
@@ -377,7 +428,7 @@ mod tests {
 
     fn set_of(w: u32, h: u32, texels: Vec<[u8; 4]>, sampler: Sampler) -> TextureSet {
         let mut set = TextureSet::default();
-        set.add(&TextureImage::new("t".into(), w, h, texels).unwrap(), &sampler);
+        set.add(&TextureImage::new("t".into(), w, h, texels).unwrap(), &sampler, crate::formats::TEXEL_SRGB);
         set
     }
 

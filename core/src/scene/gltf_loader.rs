@@ -15,19 +15,23 @@
 //!   view (all zeros) are supported. `TEXCOORD_0`, `TEXCOORD_1` (float32, or normalized
 //!   unsigned 8/16-bit `VEC2`) and `COLOR_0` (the same types, `VEC3` or `VEC4`, linear) are
 //!   kept with one value per position; another type or count is an error.
-//! * **Textures.** A material's `baseColorTexture` is read with its sampler (wrap modes,
-//!   `magFilter`, `minFilter`; undefined filters are linear, mip-mapped), its `texCoord`
-//!   (0 or 1) and `KHR_texture_transform` (offset, rotation, scale, `texCoord` override).
-//!   Its image (PNG or JPEG, recognised by its signature; from a buffer view, a data URI or
-//!   a file beside a `.gltf`) is decoded once to RGBA8 ([`TextureImage`]), its texels charged
-//!   to the load's budget before the decoder allocates them. Other textures (normal,
-//!   occlusion, emissive, metallic-roughness) are not used, with a note.
+//! * **Textures.** A material's `baseColorTexture`, `metallicRoughnessTexture`,
+//!   `occlusionTexture` (with its `strength`) and `emissiveTexture` are read with their
+//!   samplers (wrap modes, `magFilter`, `minFilter`; undefined filters are linear,
+//!   mip-mapped), `texCoord` (0 or 1) and `KHR_texture_transform` (offset, rotation, scale,
+//!   `texCoord` override). hyrt samples all of a material's textures at the first one's
+//!   coordinates ([`super::MaterialMaps`]); a material whose textures differ there gets a
+//!   note. Each image (PNG or JPEG, recognised by its signature; from a buffer view, a data
+//!   URI or a file beside a `.gltf`) is decoded once to RGBA8 ([`TextureImage`]), its texels
+//!   charged to the load's budget before the decoder allocates them. `normalTexture` is not
+//!   used yet, with a note.
 //! * **Names.** Object name: node name, else mesh name, else `node<i>`, then `#<primitive>`.
 //!   Mesh name: mesh name (else `mesh<i>`), then `#<primitive>`.
 //! * **Materials.** `baseColorFactor` (RGB, and alpha), `metallicFactor`, `roughnessFactor`,
 //!   `alphaMode` with `alphaCutoff` (default 0.5; `BLEND` is rendered as a mask at 0.5,
 //!   with a note: [`AlphaMode::Blend`]),
-//!   `KHR_materials_transmission` factor (default 0) and `KHR_materials_ior` (default 1.5).
+//!   `KHR_materials_transmission` factor (default 0) and `KHR_materials_ior` (default 1.5),
+//!   `emissiveFactor` times `KHR_materials_emissive_strength` (default 1).
 //!   Kind: transmission > 0 gives [`MaterialKind::Glass`], else metallic >= 0.5 gives
 //!   [`MaterialKind::Specular`], else [`MaterialKind::Diffuse`]. Primitives without a material
 //!   get [`Material::grey`].
@@ -91,7 +95,9 @@ use super::animation::{
 use super::files::{Budget, Disk, SceneFiles};
 use super::merge::{Merge, Model};
 use super::texture::{AlphaMode, Filter, Sampler, TextureBinding, TextureImage, UvTransform, VertexAttributes, Wrap};
-use super::{farthest_corner, Camera, Light, Material, MaterialKind, Mesh, Object, ObjectSource, RenderMode, Scene};
+use super::{
+    farthest_corner, Camera, Light, Material, MaterialKind, MaterialMaps, Mesh, Object, ObjectSource, RenderMode, Scene,
+};
 use crate::SceneError;
 
 /// `KHR_materials_ior` default (the extension's specification: 1.5).
@@ -796,26 +802,48 @@ impl<'a> Converter<'a> {
         let metallic = pbr.metallic_factor();
         let transmission = m.transmission().map(|t| t.transmission_factor()).unwrap_or(0.0);
         let ior = m.ior().unwrap_or(DEFAULT_IOR);
-        let unused: Vec<&str> = [
-            (pbr.metallic_roughness_texture().is_some(), "metallicRoughnessTexture"),
-            (m.normal_texture().is_some(), "normalTexture"),
-            (m.occlusion_texture().is_some(), "occlusionTexture"),
-            (m.emissive_texture().is_some(), "emissiveTexture"),
-        ]
-        .into_iter()
-        .filter_map(|(used, name)| used.then_some(name))
-        .collect();
-        if !unused.is_empty() {
+        if m.normal_texture().is_some() {
             self.note_once(format!(
-                "{}: textures other than baseColorTexture are not used ({} in {label}, and any other)",
-                self.path.display(),
-                unused.join(", ")
+                "{}: normalTexture is not used yet ({label}, and any other): surfaces keep their vertex normals",
+                self.path.display()
             ));
         }
         let base_color_texture = match pbr.base_color_texture() {
             None => None,
-            Some(info) => Some(self.texture_binding(&info, &label)?),
+            Some(info) => Some(self.texture_binding(&info, &label, "baseColorTexture")?),
         };
+        let metallic_roughness = match pbr.metallic_roughness_texture() {
+            None => None,
+            Some(info) => Some(self.texture_binding(&info, &label, "metallicRoughnessTexture")?),
+        };
+        let (occlusion, occlusion_strength) = match m.occlusion_texture() {
+            None => (None, 1.0),
+            Some(o) => {
+                let strength = o.strength();
+                if !(0.0..=1.0).contains(&strength) {
+                    return Err(
+                        self.content(format!("{label}: occlusionTexture.strength {strength} is outside [0, 1]"))
+                    );
+                }
+                let transform = o.extension_value("KHR_texture_transform");
+                let parts = TextureInfoParts { texture: o.texture(), tex_coord: o.tex_coord(), transform: None };
+                let binding = self.binding_of(parts, transform, &label, "occlusionTexture")?;
+                (Some(binding), strength)
+            }
+        };
+        let emissive_texture = match m.emissive_texture() {
+            None => None,
+            Some(info) => Some(self.texture_binding(&info, &label, "emissiveTexture")?),
+        };
+        let strength = m.emissive_strength().unwrap_or(1.0);
+        let emissive = Vec3::from(m.emissive_factor()) * strength;
+        if !(emissive.is_finite() && emissive.min_element() >= 0.0) {
+            return Err(self.content(format!(
+                "{label}: emissiveFactor x KHR_materials_emissive_strength is {emissive}, not a finite non-negative colour"
+            )));
+        }
+        let maps = MaterialMaps { metallic_roughness, occlusion, occlusion_strength, emissive: emissive_texture };
+        self.check_shared_coordinates(&label, base_color_texture, &maps);
         let alpha_mode = match m.alpha_mode() {
             gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
             gltf::material::AlphaMode::Mask => {
@@ -844,14 +872,58 @@ impl<'a> Converter<'a> {
             base_alpha: a,
             base_color_texture,
             alpha_mode,
+            emissive,
+            maps,
         })
     }
 
-    /// A material's texture: its image (decoded once), sampler, coordinate set and
-    /// `KHR_texture_transform`.
-    fn texture_binding(&mut self, info: &gltf::texture::Info, label: &str) -> Result<TextureBinding, SceneError> {
+    /// hyrt samples all of a material's textures at one set of coordinates, the first
+    /// texture's (`hyrt_core::scene::MaterialMaps`): say so where the material's textures
+    /// differ in coordinate set or transform.
+    fn check_shared_coordinates(&mut self, label: &str, base: Option<TextureBinding>, maps: &MaterialMaps) {
+        let all = [base, maps.metallic_roughness, maps.occlusion, maps.emissive];
+        let mut bound = all.iter().flatten();
+        let Some(first) = bound.next() else { return };
+        if bound.any(|b| b.tex_coord != first.tex_coord || b.transform != first.transform) {
+            self.note_once(format!(
+                "{}: {label}: its textures use different texture coordinates or transforms; hyrt samples them all \
+                 at the first's (TEXCOORD_{})",
+                self.path.display(),
+                first.tex_coord
+            ));
+        }
+    }
+
+    /// A material's texture (`slot`: its glTF name, for messages): its image (decoded
+    /// once), sampler, coordinate set and `KHR_texture_transform`.
+    fn texture_binding(
+        &mut self,
+        info: &gltf::texture::Info,
+        label: &str,
+        slot: &str,
+    ) -> Result<TextureBinding, SceneError> {
+        let transform = info.texture_transform().map(|t| UvTransformJson {
+            tex_coord: t.tex_coord(),
+            offset: t.offset(),
+            rotation: t.rotation(),
+            scale: t.scale(),
+        });
+        let parts = TextureInfoParts { texture: info.texture(), tex_coord: info.tex_coord(), transform };
+        self.binding_of(parts, None, label, slot)
+    }
+
+    /// [`Self::texture_binding`] of a texture reference's parts; `extension` is its raw
+    /// `KHR_texture_transform` object where the `gltf` crate does not parse it (the
+    /// occlusion and normal textures).
+    fn binding_of(
+        &mut self,
+        parts: TextureInfoParts,
+        extension: Option<&gltf::json::Value>,
+        label: &str,
+        slot: &str,
+    ) -> Result<TextureBinding, SceneError> {
         use gltf::texture::{MagFilter, MinFilter, WrappingMode};
-        let texture = info.texture();
+        let texture = parts.texture;
         let image = self.image(texture.source().index(), label)?;
         let s = texture.sampler();
         let wrap = |w: WrappingMode| match w {
@@ -872,21 +944,28 @@ impl<'a> Converter<'a> {
             Some(MinFilter::LinearMipmapLinear) | None => (Filter::Linear, Some(Filter::Linear)),
         };
         let sampler = Sampler { wrap_s: wrap(s.wrap_s()), wrap_t: wrap(s.wrap_t()), mag, min, mip };
-        let (tex_coord, transform) = match info.texture_transform() {
-            None => (info.tex_coord(), UvTransform::default()),
+        let json =
+            match (parts.transform, extension) {
+                (Some(t), _) => Some(t),
+                (None, Some(value)) => Some(UvTransformJson::parse(value).map_err(|e| {
+                    self.content(format!("{label}: {slot}'s KHR_texture_transform does not parse: {e}"))
+                })?),
+                (None, None) => None,
+            };
+        let (tex_coord, transform) = match json {
+            None => (parts.tex_coord, UvTransform::default()),
             Some(t) => (
-                t.tex_coord().unwrap_or(info.tex_coord()),
-                UvTransform { offset: t.offset().into(), rotation: t.rotation(), scale: t.scale().into() },
+                t.tex_coord.unwrap_or(parts.tex_coord),
+                UvTransform { offset: t.offset.into(), rotation: t.rotation, scale: t.scale.into() },
             ),
         };
         if tex_coord > 1 {
-            return Err(self.content(format!(
-                "{label}: baseColorTexture uses TEXCOORD_{tex_coord}; hyrt reads TEXCOORD_0 and TEXCOORD_1"
-            )));
+            return Err(self
+                .content(format!("{label}: {slot} uses TEXCOORD_{tex_coord}; hyrt reads TEXCOORD_0 and TEXCOORD_1")));
         }
         let finite = transform.offset.is_finite() && transform.rotation.is_finite() && transform.scale.is_finite();
         if !finite {
-            return Err(self.content(format!("{label}: KHR_texture_transform is not finite: {transform:?}")));
+            return Err(self.content(format!("{label}: {slot}'s KHR_texture_transform is not finite: {transform:?}")));
         }
         Ok(TextureBinding { image, sampler, tex_coord, transform })
     }
@@ -1389,6 +1468,37 @@ fn strided<T>(
         }
     }
     Ok((0..count).map(|i| decode(&bytes[offset + i * stride..offset + i * stride + elem])).collect())
+}
+
+/// The parts of a glTF texture reference (`textureInfo`, `occlusionTextureInfo`,
+/// `normalTextureInfo`) that a [`TextureBinding`] is made of.
+struct TextureInfoParts<'a> {
+    texture: gltf::Texture<'a>,
+    tex_coord: u32,
+    transform: Option<UvTransformJson>,
+}
+
+/// A `KHR_texture_transform` object's values (the extension's defaults where absent).
+#[derive(Clone, Copy, Debug, serde::Deserialize)]
+#[serde(rename_all = "camelCase")]
+struct UvTransformJson {
+    tex_coord: Option<u32>,
+    #[serde(default)]
+    offset: [f32; 2],
+    #[serde(default)]
+    rotation: f32,
+    #[serde(default = "unit_scale")]
+    scale: [f32; 2],
+}
+
+fn unit_scale() -> [f32; 2] {
+    [1.0, 1.0]
+}
+
+impl UvTransformJson {
+    fn parse(value: &gltf::json::Value) -> Result<UvTransformJson, String> {
+        serde_json::from_value(value.clone()).map_err(|e| e.to_string())
+    }
 }
 
 #[cfg(test)]

@@ -92,7 +92,8 @@
 //!   texture as it is, and a gold `base_color` tints it). `kind` left out is derived from the
 //!   resulting factors with the glTF loader's rule (transmission > 0: glass; metallic >= 0.5:
 //!   specular; else diffuse). `ior` (>= 1) is used by glass; left out, it keeps the file's
-//!   glass ior, else 1.5.
+//!   glass ior, else 1.5. `emissive` (linear RGB, >= 0) is the emitted radiance, glTF's
+//!   `emissiveFactor` times its strength (so a built-in shape can glow).
 //! * **Render mode** of each object: the model's `render_mode`, else the glTF `hyrt` extra,
 //!   else [`Material::default_render_mode`] of the (overridden) material.
 //! * **Names and ids.** Objects are named `<model name>/<object name>` (a built-in: the model
@@ -301,6 +302,9 @@ pub struct MaterialOverride {
     /// >= 1.
     pub ior: Option<f32>,
     pub kind: Option<KindName>,
+    /// Emitted linear radiance (glTF `emissiveFactor` times its strength), each >= 0; it
+    /// multiplies the model's emissive texture as glTF's factor does.
+    pub emissive: Option<[f32; 3]>,
 }
 
 /// `[[model]]`: a glTF/GLB file or a built-in shape, placed in the world.
@@ -449,10 +453,12 @@ impl ModelEntry {
 
 impl MaterialOverride {
     fn validate(&self) -> Result<(), String> {
-        if let Some(c) = self.base_color {
-            let c = finite(c, "material.base_color")?;
-            if c.min_element() < 0.0 {
-                return Err(format!("material.base_color {c} has a negative component"));
+        for (c, what) in [(self.base_color, "material.base_color"), (self.emissive, "material.emissive")] {
+            if let Some(c) = c {
+                let c = finite(c, what)?;
+                if c.min_element() < 0.0 {
+                    return Err(format!("{what} {c} has a negative component"));
+                }
             }
         }
         unit_interval(self.metallic, "metallic")?;
@@ -476,6 +482,7 @@ impl MaterialOverride {
         Material {
             name: self.name.clone().unwrap_or_else(|| m.name.clone()),
             base_color: self.base_color.map(Vec3::from).unwrap_or(m.base_color),
+            emissive: self.emissive.map(Vec3::from).unwrap_or(m.emissive),
             metallic,
             roughness: self.roughness.unwrap_or(m.roughness),
             transmission,

@@ -129,6 +129,33 @@ pub struct Material {
     pub base_color_texture: Option<TextureBinding>,
     /// glTF `alphaMode` and `alphaCutoff`.
     pub alpha_mode: AlphaMode,
+    /// Emitted linear radiance: glTF `emissiveFactor` times `KHR_materials_emissive_strength`
+    /// (zero: none).
+    pub emissive: Vec3,
+    /// The textures beyond the base colour's.
+    pub maps: MaterialMaps,
+}
+
+/// The textures of a glTF metallic-roughness material other than its base colour's. All
+/// of a material's textures are sampled at the texture coordinates of the first it has
+/// (base colour, metallic-roughness, occlusion, emissive), which the loader checks or notes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MaterialMaps {
+    /// glTF `metallicRoughnessTexture`, linear: blue scales metallic, green roughness.
+    pub metallic_roughness: Option<TextureBinding>,
+    /// glTF `occlusionTexture`, linear: red is the ambient occlusion, blended towards 1 by
+    /// [`MaterialMaps::occlusion_strength`].
+    pub occlusion: Option<TextureBinding>,
+    /// glTF `occlusionTexture.strength` in [0, 1] (1 unless given).
+    pub occlusion_strength: f32,
+    /// glTF `emissiveTexture`, sRGB: scales [`Material::emissive`].
+    pub emissive: Option<TextureBinding>,
+}
+
+impl Default for MaterialMaps {
+    fn default() -> Self {
+        MaterialMaps { metallic_roughness: None, occlusion: None, occlusion_strength: 1.0, emissive: None }
+    }
 }
 
 impl Material {
@@ -144,6 +171,8 @@ impl Material {
             base_alpha: 1.0,
             base_color_texture: None,
             alpha_mode: AlphaMode::Opaque,
+            emissive: Vec3::ZERO,
+            maps: MaterialMaps::default(),
         }
     }
 

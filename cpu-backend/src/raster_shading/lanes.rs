@@ -1,5 +1,5 @@
 //! The raster shader of `raster_shading` over eight pixels at once: core's
-//! [`shade_raster_pixel`] (with [`ambient`], [`sum_visible_lights`], [`light_incidence`]
+//! [`shade_raster_pixel`] (with [`unlit`], [`sum_visible_lights`], [`light_incidence`]
 //! and [`shade_raster`]) and the stage's [`raster_shading_pixel`] around it, each lane
 //! doing the scalar kernels' operations in their order, every one a correctly rounded IEEE
 //! 754 f32 operation or a bit operation ([`Lanes`]), so that every lane's texel is the
@@ -11,7 +11,7 @@
 //! stage makes it per pixel (`Primary::object`: the texture lookups stay scalar, the
 //! shading is in lanes; [`PrimaryLanes::load_shaded`]).
 //!
-//! Light-independent parts of a kernel (the base colour over pi, the ambient term) are
+//! Light-independent parts of a kernel (the base colour over pi, the unlit term) are
 //! computed once for all lights: the same operations on the same operands, so the same bits.
 //!
 //! Objects shaded with the glTF BRDF ([`OBJ_GLTF_BRDF`]) take core's `shade_gltf` in lanes
@@ -20,7 +20,7 @@
 //! per lane.
 //!
 //! [`shade_raster_pixel`]: hyrt_core::kernels::shading::shade_raster_pixel
-//! [`ambient`]: hyrt_core::kernels::shading::ambient
+//! [`unlit`]: hyrt_core::kernels::shading::unlit
 //! [`sum_visible_lights`]: hyrt_core::kernels::shading::sum_visible_lights
 //! [`light_incidence`]: hyrt_core::kernels::shading::light_incidence
 //! [`shade_raster`]: hyrt_core::kernels::shading::shade_raster
@@ -53,6 +53,8 @@ pub(crate) struct PrimaryLanes<L: Lanes> {
     pub base_color: [L::F; 3],
     pub metallic: L::F,
     pub roughness: L::F,
+    pub emissive: [L::F; 3],
+    pub occlusion: L::F,
 }
 
 impl<L: Lanes> PrimaryLanes<L> {
@@ -77,7 +79,7 @@ impl<L: Lanes> PrimaryLanes<L> {
         objects: &[ObjectRecord],
         shaded: [&ObjectRecord; LANES],
     ) -> PrimaryLanes<L> {
-        let mut w = [[0.0f32; LANES]; 14];
+        let mut w = [[0.0f32; LANES]; 18];
         for (k, (r, obj)) in s.iter().zip(shaded).enumerate() {
             if !r.is_hit() {
                 continue;
@@ -93,6 +95,10 @@ impl<L: Lanes> PrimaryLanes<L> {
             w[11][k] = obj.metallic;
             w[12][k] = obj.roughness;
             w[13][k] = f32::from_bits(if flags & OBJ_GLTF_BRDF != 0 { u32::MAX } else { 0 });
+            for a in 0..3 {
+                w[14 + a][k] = obj.emissive[a];
+            }
+            w[17][k] = obj.occlusion;
         }
         PrimaryLanes {
             hit: L::load(&w[0]),
@@ -103,6 +109,8 @@ impl<L: Lanes> PrimaryLanes<L> {
             base_color: [L::load(&w[8]), L::load(&w[9]), L::load(&w[10])],
             metallic: L::load(&w[11]),
             roughness: L::load(&w[12]),
+            emissive: [L::load(&w[14]), L::load(&w[15]), L::load(&w[16])],
+            occlusion: L::load(&w[17]),
         }
     }
 }
@@ -153,17 +161,19 @@ pub(crate) fn f0_lanes<L: Lanes>(base: [L::F; 3], metallic: L::F) -> [L::F; 3] {
     ]
 }
 
-/// Core's `ambient(obj)` per lane: `base * ((1 - metallic) * AMBIENT) + f0 *
-/// ENVIRONMENT_SPECULAR`.
+/// Core's `unlit(obj)` per lane: `ambient(obj) + emissive`, with `ambient(obj)` =
+/// `(base * ((1 - metallic) * AMBIENT) + f0 * ENVIRONMENT_SPECULAR) * occlusion`.
 #[inline(always)]
-pub(crate) fn ambient_lanes<L: Lanes>(base: [L::F; 3], metallic: L::F) -> [L::F; 3] {
+pub(crate) fn unlit_lanes<L: Lanes>(p: &PrimaryLanes<L>) -> [L::F; 3] {
+    let (base, metallic) = (p.base_color, p.metallic);
     let f0 = f0_lanes::<L>(base, metallic);
     let k = L::mul(L::sub(L::splat(1.0), metallic), L::splat(AMBIENT));
     let env = L::splat(ENVIRONMENT_SPECULAR);
+    let (o, e) = (p.occlusion, p.emissive);
     [
-        L::add(L::mul(base[0], k), L::mul(f0[0], env)),
-        L::add(L::mul(base[1], k), L::mul(f0[1], env)),
-        L::add(L::mul(base[2], k), L::mul(f0[2], env)),
+        L::add(L::mul(L::add(L::mul(base[0], k), L::mul(f0[0], env)), o), e[0]),
+        L::add(L::mul(L::add(L::mul(base[1], k), L::mul(f0[1], env)), o), e[1]),
+        L::add(L::mul(L::add(L::mul(base[2], k), L::mul(f0[2], env)), o), e[2]),
     ]
 }
 
@@ -280,7 +290,7 @@ pub(crate) fn sum_visible_lights_gltf_lanes<L: Lanes, S: LightShader<L>>(
     }
 }
 
-/// Core's `shade_raster_pixel` per lane, seen from `eye`: `ambient +
+/// Core's `shade_raster_pixel` per lane, seen from `eye`: `unlit +
 /// sum_visible_lights(shade_raster)`, the glTF shader on the lanes of objects shaded with it.
 #[inline(always)]
 fn shade_raster_pixel_lanes<L: Lanes>(
@@ -293,7 +303,7 @@ fn shade_raster_pixel_lanes<L: Lanes>(
     let b = p.base_color;
     let shader =
         RasterShader::<L> { n: p.normal, base_over_pi: [L::mul(b[0], pi), L::mul(b[1], pi), L::mul(b[2], pi)] };
-    let a = ambient_lanes::<L>(p.base_color, p.metallic);
+    let a = unlit_lanes::<L>(p);
     let c = if L::bits(p.gltf) == 0 {
         sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &shader)
     } else {
@@ -400,9 +410,16 @@ pub(crate) mod tests {
         prop_oneof![4 => 0.0f32..=1.0, 1 => Just(0.0f32), 1 => 0.0f32..1e6, 1 => Just(f32::MAX)]
     }
 
+    /// Emission: none (most objects), or any colour.
+    fn emission() -> impl Strategy<Value = [f32; 3]> {
+        prop_oneof![3 => Just([0.0f32; 3]), 1 => [colour(), colour(), colour()]]
+    }
+
     fn object() -> impl Strategy<Value = ObjectRecord> {
-        (any::<bool>(), any::<bool>(), [colour(), colour(), colour()], unit(), unit()).prop_map(
-            |(ray_traced, gltf, base_color, metallic, roughness)| ObjectRecord {
+        let occlusion = prop_oneof![2 => Just(1.0f32), 1 => unit()];
+        let base = (any::<bool>(), any::<bool>(), [colour(), colour(), colour()], unit(), unit());
+        (base, emission(), occlusion).prop_map(
+            |((ray_traced, gltf, base_color, metallic, roughness), emissive, occlusion)| ObjectRecord {
                 first_triangle: 0,
                 triangle_count: 1,
                 flags: if ray_traced { OBJ_RAY_TRACED } else { 0 } | if gltf { OBJ_GLTF_BRDF } else { 0 },
@@ -413,6 +430,8 @@ pub(crate) mod tests {
                 transmission: 0.0,
                 ior: 1.5,
                 offset_error: 0.0,
+                emissive,
+                occlusion,
             },
         )
     }
@@ -523,8 +542,15 @@ pub(crate) mod tests {
             transmission: 0.0,
             ior: 1.5,
             offset_error: 0.0,
+            emissive: [0.0; 3],
+            occlusion: 1.0,
         };
-        let objects = vec![object(0, 0.0, 1.0), object(OBJ_RAY_TRACED, 1.0, 0.0), object(OBJ_RAY_TRACED, 0.0, 1.0)];
+        let objects = vec![
+            object(0, 0.0, 1.0),
+            object(OBJ_RAY_TRACED, 1.0, 0.0),
+            // Emissive and occluded.
+            ObjectRecord { emissive: [2.0, 0.5, 0.0], occlusion: 0.25, ..object(OBJ_RAY_TRACED, 0.0, 1.0) },
+        ];
         let s = |position: [f32; 3], normal: [f32; 3], object: u32| SurfaceRecord {
             position,
             position_error: 0.0,

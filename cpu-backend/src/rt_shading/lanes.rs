@@ -1,5 +1,5 @@
 //! The ray-traced shader of `rt_shading` over eight pixels at once: core's
-//! [`shade_rt_pixel`] (with [`shade_rt_surface`], [`ambient`], [`sum_visible_lights`],
+//! [`shade_rt_pixel`] (with [`shade_rt_surface`], [`unlit`], [`sum_visible_lights`],
 //! [`light_incidence`], [`shade_ray_traced`], [`blinn_phong_exponent`] and
 //! [`pow_portable`] with [`log2_portable`], [`exp2_portable`] and [`round_ties_even_f32`])
 //! and the stage's [`rt_shading_pixel`] around it, each lane doing the scalar kernels'
@@ -14,7 +14,7 @@
 //!
 //! [`shade_rt_pixel`]: hyrt_core::kernels::shading::shade_rt_pixel
 //! [`shade_rt_surface`]: hyrt_core::kernels::shading::shade_rt_surface
-//! [`ambient`]: hyrt_core::kernels::shading::ambient
+//! [`unlit`]: hyrt_core::kernels::shading::unlit
 //! [`sum_visible_lights`]: hyrt_core::kernels::shading::sum_visible_lights
 //! [`light_incidence`]: hyrt_core::kernels::shading::light_incidence
 //! [`shade_ray_traced`]: hyrt_core::kernels::shading::shade_ray_traced
@@ -33,8 +33,7 @@ use hyrt_core::kernels::shading::{
 
 use crate::lanes::{dot3, normalize_or_zero_lanes, select3, splat3, sub3, zero3, Lanes};
 use crate::raster_shading::lanes::{
-    ambient_lanes, f0_lanes, sum_visible_lights_gltf_lanes, sum_visible_lights_lanes, LightShader, LitLanes,
-    PrimaryLanes,
+    f0_lanes, sum_visible_lights_gltf_lanes, sum_visible_lights_lanes, unlit_lanes, LightShader, LitLanes, PrimaryLanes,
 };
 
 // No closures around lane operations (`map`, `from_fn`): a closure does not inherit its
@@ -182,7 +181,7 @@ pub(crate) fn rt_shading_lanes<L: Lanes>(
     // shade_rt_pixel
     let v = normalize_or_zero_lanes::<L>(sub3::<L>(splat3::<L>(eye), p.position));
     // shade_rt_surface
-    let a = ambient_lanes::<L>(p.base_color, p.metallic);
+    let a = unlit_lanes::<L>(p);
     let c = match L::bits(p.gltf) {
         0 => sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &RtShader::of(p, v)),
         _ => sum_visible_lights_gltf_lanes::<L, _>(p, lit, lights, v, &RtShader::of(p, v)),

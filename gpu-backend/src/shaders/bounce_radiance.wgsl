@@ -22,7 +22,9 @@ fn shade_bouncing(index: u32, s: SurfaceRecord, obj: ObjectRecord, l: Lobes, d: 
     let refracted = lobe_radiance(children.y);
     let v = -d;
     let base = obj.base_color;
-    let ambient_term = mul3(base, vec3<f32>(mul(mul(1.0 - obj.metallic, AMBIENT), l.diffuse_scale)));
+    let ambient_term =
+        mul3(mul3(base, vec3<f32>(mul(mul(1.0 - obj.metallic, AMBIENT), l.diffuse_scale))), vec3<f32>(obj.occlusion))
+        + obj.emissive;
     let direct = sum_visible_lights_rt(index, s.position, obj, s.normal, v, l.diffuse_scale);
     return ((ambient_term + direct) + mul3(l.reflection, reflected)) + mul3(l.refraction, refracted);
 }

@@ -24,6 +24,29 @@ fn hit_lod(bias: f32, cone_width: f32, cos: f32) -> f32 {
     return bias + (log2_portable(w) - log2_portable(c));
 }
 
+// mirrors hyrt_core::kernels::texture::texture_lod
+fn texture_lod(lod: f32, reference: TextureRecord, tex: TextureRecord) -> f32 {
+    if tex.width == reference.width && tex.height == reference.height {
+        return lod;
+    }
+    let area = f32(tex.width * tex.height);
+    let reference_area = f32(reference.width * reference.height);
+    return lod + mul(0.5, rounded(log2_portable(area) - log2_portable(reference_area)));
+}
+
+// mirrors the `sample` closure of hyrt_core::kernels::texture::Materials::at: texture
+// `index` at `uv` and level `lod` of the material's uv texture `reference`.
+fn sample_material_texture(index: u32, reference: TextureRecord, uv: vec2<f32>, lod: f32) -> vec4<f32> {
+    let tex = surface_texture(index);
+    return sample_texture(tex, uv, texture_lod(lod, reference, tex));
+}
+
+// mirrors hyrt_core::kernels::texture::vertex_coloured (private there)
+fn vertex_coloured(c: vec3<f32>, triangle: u32, u: f32, v: f32) -> vec3<f32> {
+    let k = interpolate_color(surface_color(triangle, 0u), surface_color(triangle, 1u), surface_color(triangle, 2u), u, v);
+    return vec3<f32>(mul(c.x, k.x), mul(c.y, k.y), mul(c.z, k.z));
+}
+
 // mirrors hyrt_core::kernels::texture::Materials::varying (a pipeline constant:
 // surface_tables.wgsl)
 fn materials_vary() -> bool {
@@ -40,19 +63,37 @@ fn shaded_object(s: SurfaceRecord, u: f32, v: f32, cone: f32, d: vec3<f32>) -> O
     }
     let m = surface_material(s.object);
     let global = s.triangle;
-    var c = obj.base_color;
-    if (m.flags & MAT_TEXTURED) != 0u {
+    if (m.flags & MAT_ANY_TEXTURE) != 0u {
         let t = surface_uv(global);
         let cos = dot3(d, s.geometric_normal);
         let lod = hit_lod(t.lod_bias, cone, cos);
-        let texel = sample_texture(surface_texture(m.texture), interpolate_uv(t, u, v), lod);
-        c = vec3<f32>(mul(c.x, texel.x), mul(c.y, texel.y), mul(c.z, texel.z));
+        let uv = interpolate_uv(t, u, v);
+        let reference = surface_texture(m.uv_texture);
+        if (m.flags & MAT_TEXTURED) != 0u {
+            let texel = sample_material_texture(m.texture, reference, uv, lod);
+            let c = obj.base_color;
+            obj.base_color = vec3<f32>(mul(c.x, texel.x), mul(c.y, texel.y), mul(c.z, texel.z));
+        }
+        if (m.flags & MAT_VERTEX_COLORS) != 0u {
+            obj.base_color = vertex_coloured(obj.base_color, global, u, v);
+        }
+        if (m.flags & MAT_METALLIC_ROUGHNESS) != 0u {
+            let texel = sample_material_texture(m.metallic_roughness, reference, uv, lod);
+            obj.roughness = mul(obj.roughness, texel.y);
+            obj.metallic = mul(obj.metallic, texel.z);
+        }
+        if (m.flags & MAT_OCCLUSION) != 0u {
+            let texel = sample_material_texture(m.occlusion, reference, uv, lod);
+            obj.occlusion = 1.0 + mul(m.occlusion_strength, rounded(texel.x - 1.0));
+        }
+        if (m.flags & MAT_EMISSIVE) != 0u {
+            let texel = sample_material_texture(m.emissive, reference, uv, lod);
+            let e = obj.emissive;
+            obj.emissive = vec3<f32>(mul(e.x, texel.x), mul(e.y, texel.y), mul(e.z, texel.z));
+        }
+    } else if (m.flags & MAT_VERTEX_COLORS) != 0u {
+        obj.base_color = vertex_coloured(obj.base_color, global, u, v);
     }
-    if (m.flags & MAT_VERTEX_COLORS) != 0u {
-        let k = interpolate_color(surface_color(global, 0u), surface_color(global, 1u), surface_color(global, 2u), u, v);
-        c = vec3<f32>(mul(c.x, k.x), mul(c.y, k.y), mul(c.z, k.z));
-    }
-    obj.base_color = c;
     return obj;
 }
 

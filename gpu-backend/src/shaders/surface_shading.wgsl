@@ -26,7 +26,7 @@ fn sum_visible_lights_rt(index: u32, p: vec3<f32>, obj: ObjectRecord, n: vec3<f3
 
 // mirrors hyrt_core::kernels::shading::shade_rt_surface
 fn shade_rt_surface(index: u32, s: SurfaceRecord, obj: ObjectRecord, v: vec3<f32>) -> vec3<f32> {
-    return ambient(obj) + sum_visible_lights_rt(index, s.position, obj, s.normal, v, 1.0);
+    return unlit(obj) + sum_visible_lights_rt(index, s.position, obj, s.normal, v, 1.0);
 }
 
 // mirrors hyrt_core::kernels::shading::shade_rt_pixel
@@ -50,7 +50,7 @@ fn sum_visible_lights_raster(index: u32, p: vec3<f32>, obj: ObjectRecord, n: vec
 
 // mirrors hyrt_core::kernels::shading::shade_raster_surface
 fn shade_raster_surface(index: u32, s: SurfaceRecord, obj: ObjectRecord, v: vec3<f32>) -> vec3<f32> {
-    return ambient(obj) + sum_visible_lights_raster(index, s.position, obj, s.normal, v);
+    return unlit(obj) + sum_visible_lights_raster(index, s.position, obj, s.normal, v);
 }
 
 // mirrors hyrt_core::kernels::shading::shade_raster_pixel

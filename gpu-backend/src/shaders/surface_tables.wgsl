@@ -27,7 +27,8 @@ fn surface_f32(at: u32) -> f32 {
 // `SurfaceView::materials[object]`
 fn surface_material(object: u32) -> MaterialRecord {
     let at = surface_layout.materials + MATERIAL_WORDS * object;
-    return MaterialRecord(surface[at], surface[at + 1u], surface_f32(at + 2u), surface_f32(at + 3u));
+    return MaterialRecord(surface[at], surface[at + 1u], surface_f32(at + 2u), surface_f32(at + 3u),
+        surface[at + 4u], surface[at + 5u], surface[at + 6u], surface_f32(at + 7u), surface[at + 8u]);
 }
 
 // mirrors hyrt_core::geometry::WorldGeometry::global_triangle: the global index of the
@@ -59,7 +60,7 @@ fn surface_color(triangle: u32, corner: u32) -> vec4<f32> {
 fn surface_texture(index: u32) -> TextureRecord {
     let at = surface_layout.textures + TEXTURE_WORDS * index;
     return TextureRecord(surface[at], surface[at + 1u], surface[at + 2u], surface[at + 3u], surface[at + 4u],
-        surface[at + 5u], surface[at + 6u], surface[at + 7u], surface[at + 8u]);
+        surface[at + 5u], surface[at + 6u], surface[at + 7u], surface[at + 8u], surface[at + 9u]);
 }
 
 // `hyrt_core::kernels::texture::srgb8_table()[code]`: the linear value of an sRGB code.

@@ -40,13 +40,13 @@ fn unorm8_to_f32(code: u32) -> f32 {
 }
 
 // mirrors hyrt_core::kernels::texture::decode_texel
-fn decode_texel(t: u32) -> vec4<f32> {
-    return vec4<f32>(
-        srgb8_to_linear(t & 0xffu),
-        srgb8_to_linear((t >> 8u) & 0xffu),
-        srgb8_to_linear((t >> 16u) & 0xffu),
-        unorm8_to_f32(t >> 24u),
-    );
+fn decode_texel(t: u32, encoding: u32) -> vec4<f32> {
+    let a = unorm8_to_f32(t >> 24u);
+    if encoding == TEXEL_SRGB {
+        return vec4<f32>(srgb8_to_linear(t & 0xffu), srgb8_to_linear((t >> 8u) & 0xffu),
+            srgb8_to_linear((t >> 16u) & 0xffu), a);
+    }
+    return vec4<f32>(unorm8_to_f32(t & 0xffu), unorm8_to_f32((t >> 8u) & 0xffu), unorm8_to_f32((t >> 16u) & 0xffu), a);
 }
 
 // mirrors hyrt_core::kernels::texture::wrap_coordinate
@@ -122,7 +122,7 @@ fn texture_level_offset(tex: TextureRecord, level: u32) -> u32 {
 fn fetch_texel(tex: TextureRecord, base: u32, w: u32, h: u32, x: i32, y: i32) -> vec4<f32> {
     let i = wrap_index(x, w, tex.wrap_s);
     let j = wrap_index(y, h, tex.wrap_t);
-    return decode_texel(surface_texel(base + j * w + i));
+    return decode_texel(surface_texel(base + j * w + i), tex.encoding);
 }
 
 // mirrors hyrt_core::kernels::texture::lerp4
