@@ -220,7 +220,17 @@ pub fn bounce_rt_image(
         if variant.offset != OffsetMethod::PIPELINE {
             reoffset_secondary_rays(&mut b.rays, &b.links, &parents, variant.offset, extent);
         }
-        bounce_trace_into(bvh, None, g, &b.rays, bounce_traversal, &mut closest, &mut b.hits, &mut b.surfaces);
+        bounce_trace_into(
+            bvh,
+            None,
+            g,
+            &materials,
+            &b.rays,
+            bounce_traversal,
+            &mut closest,
+            &mut b.hits,
+            &mut b.surfaces,
+        );
         if !g.lights.is_empty() {
             compaction_into(&b.surfaces, &g.lights, &mut scratch, &mut b.shadow_rays)
                 .unwrap_or_else(|e| panic!("compaction: {e}"));

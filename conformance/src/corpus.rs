@@ -1312,7 +1312,7 @@ fn texture_cases(b: &mut Builder) {
             metallic_roughness: Some(orm),
             occlusion: Some(orm),
             occlusion_strength: 0.8,
-            emissive: None,
+            ..MaterialMaps::default()
         },
         ..textured("orm_floor", Vec3::ONE, base)
     };
@@ -1349,6 +1349,70 @@ fn texture_cases(b: &mut Builder) {
     b.add(
         "texture_metallic_roughness_occlusion_emission",
         "glTF metallic-roughness, occlusion and emissive textures and emission, rasterized, ray traced and reflected",
+        s,
+        cam,
+        w,
+        h,
+    );
+
+    // Normal maps: a rasterized floor of bumps whose tangents are generated (MikkTSpace),
+    // a ray-traced ball with given tangents of both signs, a mirrored copy of it (negative
+    // scale: the sign flips), and a mirror ball, also normal-mapped, that reflects the
+    // floor (bounce hits normal-mapped too).
+    let mut s =
+        Scene { lights: vec![point(Vec3::new(-1.5, 4.0, 3.0), 40.0)], shading: ShadingModel::Gltf, ..Scene::default() };
+    let bumps = image("bumps", 16, 16, |x, y| {
+        let (dx, dy) = ((x % 4) as f32 - 1.5, (y % 4) as f32 - 1.5);
+        let n = Vec3::new(dx * 0.25, dy * 0.25, 1.0).normalize();
+        let code = |c: f32| ((c * 0.5 + 0.5) * 255.0).round() as u8;
+        [code(n.x), code(n.y), code(n.z), 255]
+    });
+    let bumps_map = bind(&mut s, bumps, Sampler::default(), UvTransform::default());
+    let bumpy = |name: &str, base: Material, scale: f32| Material {
+        name: name.into(),
+        maps: MaterialMaps { normal: Some(bumps_map), normal_scale: scale, ..MaterialMaps::default() },
+        ..base
+    };
+    s.add_object(
+        uv_grid("bumpy_floor", 4, 3.0),
+        bumpy("bumpy_floor", diffuse("bumpy_floor", Vec3::splat(0.7)), 1.0),
+        Mat4::from_scale(Vec3::splat(8.0)),
+        RASTER,
+    );
+    let mut ball = uv_sphere("bumpy_ball", 24, 12);
+    // Given tangents: around the sphere (along u), the sign alternating by hemisphere.
+    ball.attributes.tangents = Some(
+        ball.positions
+            .iter()
+            .map(|p| {
+                let t = Vec3::new(-p.z, 0.0, p.x).normalize_or(Vec3::X);
+                [t.x, t.y, t.z, if p.y >= 0.0 { 1.0 } else { -1.0 }]
+            })
+            .collect(),
+    );
+    let ball_material = bumpy("bumpy_ball", diffuse("bumpy_ball", Vec3::new(0.8, 0.4, 0.3)), 0.7);
+    s.add_object(
+        ball.clone(),
+        ball_material.clone(),
+        Mat4::from_translation(Vec3::new(1.2, 0.7, 0.0)) * Mat4::from_scale(Vec3::splat(0.6)),
+        RT,
+    );
+    s.add_object(
+        ball,
+        ball_material,
+        Mat4::from_translation(Vec3::new(0.0, 0.7, 1.0)) * Mat4::from_scale(Vec3::new(-0.5, 0.5, 0.5)),
+        RASTER,
+    );
+    s.add_object(
+        uv_sphere("bumpy_mirror", 24, 12),
+        bumpy("bumpy_mirror", gold(), 0.5),
+        Mat4::from_translation(Vec3::new(-1.2, 0.8, 0.0)) * Mat4::from_scale(Vec3::splat(0.8)),
+        RT,
+    );
+    let cam = camera(Vec3::new(0.0, 2.2, 4.5), Vec3::new(0.0, 0.5, 0.0), 0.1, 100.0);
+    b.add(
+        "texture_normal_maps",
+        "normal maps with generated and given tangents of both signs, mirrored, rasterized, ray traced and reflected",
         s,
         cam,
         w,

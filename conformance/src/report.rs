@@ -211,15 +211,19 @@ pub fn render_case(backend: &mut dyn Backend, prepared: &PreparedScene, case: &C
 
 /// The GPU backend for the conformance tests (software adapters allowed: lavapipe in CI).
 /// Without an adapter it panics when `CI` is set (CI installs lavapipe: a GPU test must
-/// fail there rather than skip) and otherwise says SKIPPED and returns `None`.
+/// fail there rather than skip) and otherwise says SKIPPED and returns `None`. Any other
+/// failure to start (a shader that does not compile, a validation error) is a bug and
+/// panics everywhere: it must not pass for a missing adapter.
 pub fn gpu_for_tests() -> Option<hyrt_gpu::backend::GpuBackend> {
+    use hyrt_core::GpuError;
     match hyrt_gpu::backend::GpuBackend::new(hyrt_gpu::AdapterPolicy::AllowSoftware) {
         Ok(g) => Some(g),
         Err(e) if std::env::var_os("CI").is_some() => panic!("CI needs a GPU adapter (lavapipe): {e}"),
-        Err(e) => {
+        Err(e @ (GpuError::NoAdapter | GpuError::SoftwareOnly { .. } | GpuError::RequestDevice { .. })) => {
             eprintln!("SKIPPED: no GPU adapter: {e}");
             None
         }
+        Err(e) => panic!("the GPU backend does not start: {e}"),
     }
 }
 

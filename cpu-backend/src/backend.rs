@@ -26,7 +26,7 @@ use crate::{
     fused::{fused_frame, shade_deferred, Deferred, FusedSteps},
     memory,
     raster_shading::{raster_shading_into, Primary},
-    reconstruction::{reconstruction_into, reconstruction_reintersected_into},
+    reconstruction::{normal_mapping_into, reconstruction_into, reconstruction_reintersected_into},
     rt_shading::{rt_shading_bouncing_into, rt_shading_into, BouncingShading, FirstBounce},
     secondary_rays::{secondary_rays_into, Parents},
     shadow_rays::{shadow_rays_in_object_space, shadow_rays_of_pairs_into, shadow_rays_with},
@@ -268,6 +268,7 @@ fn bounce_step(
                 &scene.bvh,
                 levels,
                 g,
+                cx.materials,
                 &b.rays,
                 cx.bounce_traversal,
                 closest,
@@ -458,12 +459,17 @@ impl Backend for CpuBackend {
                 let t = Instant::now();
                 match step {
                     Step::VisibilityRaster => covered = visibility_raster_into(g, camera, &mut f.gbuffer) as u64,
-                    Step::Reconstruction => match options.barycentrics {
-                        PrimaryBarycentrics::Raster => reconstruction_into(&f.gbuffer, g, eye, &mut f.surfaces),
-                        PrimaryBarycentrics::Reintersected => {
-                            reconstruction_reintersected_into(&f.gbuffer, g, camera, &mut f.surfaces)
+                    Step::Reconstruction => {
+                        match options.barycentrics {
+                            PrimaryBarycentrics::Raster => reconstruction_into(&f.gbuffer, g, eye, &mut f.surfaces),
+                            PrimaryBarycentrics::Reintersected => {
+                                reconstruction_reintersected_into(&f.gbuffer, g, camera, &mut f.surfaces)
+                            }
                         }
-                    },
+                        if materials.normal_mapped_any() {
+                            normal_mapping_into(&f.gbuffer, &materials, eye, &mut f.surfaces);
+                        }
+                    }
                     Step::Compaction => compact_list(&f.surfaces, g, scratch, lists[0].then_some(&mut f.rays))
                         .map_err(oom("the ray list"))?,
                     Step::ShadowRays => {

@@ -17,7 +17,8 @@ use hyrt_core::bvh::two_level::TwoLevelBvh;
 use hyrt_core::bvh::{Bvh, ClosestHit};
 use hyrt_core::formats::{HitRecord, RayRecord, SurfaceRecord};
 use hyrt_core::geometry::WorldGeometry;
-use hyrt_core::kernels::reconstruction::reconstruct_hit;
+use hyrt_core::kernels::reconstruction::{reconstruct_hit, secondary_normal_mapped};
+use hyrt_core::kernels::texture::Materials;
 use rayon::prelude::*;
 
 use crate::traversal::{closest_hit_alpha_batch_into, closest_hit_in_object_space_into, Traversal};
@@ -30,6 +31,7 @@ pub fn bounce_trace_into(
     bvh: &Bvh,
     levels: Option<&TwoLevelBvh>,
     geometry: &WorldGeometry,
+    materials: &Materials,
     rays: &[RayRecord],
     traversal: Traversal,
     closest: &mut Vec<Option<ClosestHit>>,
@@ -49,6 +51,13 @@ pub fn bounce_trace_into(
         .with_min_len(1024)
         .map(|(r, h)| reconstruct_hit(h, geometry, Vec3::from(r.direction)))
         .collect_into_vec(surfaces);
+    if materials.normal_mapped_any() {
+        surfaces
+            .par_iter_mut()
+            .zip(rays.par_iter().zip(hits.par_iter()))
+            .with_min_len(1024)
+            .for_each(|(s, (r, h))| *s = secondary_normal_mapped(r, h, s, materials));
+    }
     if cfg!(debug_assertions) {
         for (i, (h, s)) in hits.iter().zip(surfaces.iter()).enumerate() {
             if let Err(e) = h.validate().and_then(|()| s.validate()) {

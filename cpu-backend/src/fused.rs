@@ -83,6 +83,7 @@ use hyrt_core::formats::{
     CameraRecord, GBufferTexel, LightRecord, ObjectRecord, RayRecord, SurfaceRecord, SHADOW_LIT, SHADOW_NO_RAY,
 };
 use hyrt_core::frame::{FrameOptions, PreparedScene};
+use hyrt_core::kernels::reconstruction::primary_normal_mapped;
 use hyrt_core::kernels::shading::BACKGROUND_RGBA;
 use hyrt_core::kernels::shadow::shadow_code;
 use hyrt_core::kernels::texture::Materials;
@@ -465,6 +466,13 @@ fn tile(
     s.surfaces.resize(tw * th, SurfaceRecord::MISS);
     let at = ((x0, y0), (tw, th), stride);
     reconstruction::blocks(inputs.level, &inputs.reconstruct, g, texels, at, &mut s.setups, &mut s.surfaces);
+    let materials = inputs.primary.materials;
+    if materials.normal_mapped_any() {
+        let eye = inputs.primary.eye;
+        for (k, s) in s.surfaces.iter_mut().enumerate() {
+            *s = primary_normal_mapped(texel(k % tw, k / tw), s, eye, materials);
+        }
+    }
     reconstruction::validate(&s.surfaces);
 
     // compaction and shadow_rays, light by light

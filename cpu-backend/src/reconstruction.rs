@@ -15,8 +15,9 @@ use hyrt_core::frame::PrimaryBarycentrics;
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::camera::primary_ray;
 use hyrt_core::kernels::reconstruction::{
-    reconstruct_texel_cached, reconstruct_texel_reintersected_cached, TriangleSetup,
+    primary_normal_mapped, reconstruct_texel_cached, reconstruct_texel_reintersected_cached, TriangleSetup,
 };
+use hyrt_core::kernels::texture::Materials;
 use rayon::prelude::*;
 
 use crate::lanes::{avx2_entry_points, dispatch, Lanes, LANES};
@@ -92,6 +93,18 @@ fn image_into(
         },
     );
     validate(out);
+}
+
+/// The stage's normal mapping, after the surfaces are made (a scene with normal maps
+/// only: `materials.normal_mapped_any()`): each hit's surface through core's
+/// [`primary_normal_mapped`] at its G-buffer texel, in parallel. The fused frame runs the
+/// same kernel on each tile's surfaces.
+pub fn normal_mapping_into(gbuffer: &[GBufferTexel], materials: &Materials, eye: Vec3, surfaces: &mut [SurfaceRecord]) {
+    surfaces
+        .par_iter_mut()
+        .zip(gbuffer.par_iter())
+        .with_min_len(1024)
+        .for_each(|(s, t)| *s = primary_normal_mapped(t, s, eye, materials));
 }
 
 /// The stage's per-pixel kernel as every executor runs it: the staged functions above

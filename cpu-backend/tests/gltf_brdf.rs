@@ -185,6 +185,7 @@ fn textured_metallic_roughness_occlusion_and_emission_match_the_formulas() {
             occlusion: Some(occlusion),
             occlusion_strength: t.strength,
             emissive: Some(emissive),
+            ..MaterialMaps::default()
         };
         let mesh = &mut scene.meshes[obj.mesh];
         mesh.attributes.tex_coords[0] = Some(vec![glam::Vec2::ZERO; mesh.positions.len()]);

@@ -194,6 +194,7 @@ fn closest_hits_pass_through_holes() {
             &prepared.bvh,
             prepared.levels.as_ref(),
             &prepared.geometry,
+            &hyrt_core::kernels::texture::Materials::plain(&prepared.geometry.objects),
             &rays,
             traversal,
             &mut closest,

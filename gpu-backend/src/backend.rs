@@ -26,7 +26,7 @@ use crate::composition::CompositionStage;
 use crate::gpu_buffer::{extend_from_bytes, read_back_each, read_back_many};
 use crate::present::Present;
 use crate::raster_shading::RasterShadingStage;
-use crate::reconstruction::ReconstructionStage;
+use crate::reconstruction::{NormalMapping, ReconstructionStage};
 use crate::rt_shading::{RtShadingBouncingStage, RtShadingStage};
 use crate::secondary_rays::SecondaryRaysStage;
 use crate::shadow_rays::ShadowRaysStage;
@@ -67,6 +67,8 @@ struct SurfaceStages {
     /// `None` on a device with fewer than [`BOUNCE_STORAGE_BUFFERS`] storage buffers per
     /// shader stage.
     bounces: Option<BounceStages>,
+    /// The passes after `reconstruction` and `bounce_trace` of a scene with normal maps.
+    normal_mapping: Option<NormalMapping>,
 }
 
 impl SurfaceStages {
@@ -90,7 +92,8 @@ impl SurfaceStages {
         } else {
             None
         };
-        Ok(SurfaceStages { visibility_raster, shadow_rays, rt_shading, raster_shading, bounces })
+        let normal_mapping = if s.normal_mapped { Some(ctx.checked(|| NormalMapping::new(ctx))?) } else { None };
+        Ok(SurfaceStages { visibility_raster, shadow_rays, rt_shading, raster_shading, bounces, normal_mapping })
     }
 }
 
@@ -525,12 +528,20 @@ impl GpuBackend {
                 match step {
                     Step::VisibilityRaster => st.visibility_raster.encode(ctx, &mut enc, sb, fb, slot),
                     Step::Reconstruction => {
-                        self.reconstruction.encode(ctx, &mut enc, sb, fb, options.barycentrics, slot)
+                        self.reconstruction.encode(ctx, &mut enc, sb, fb, options.barycentrics, slot);
+                        if let Some(n) = &st.normal_mapping {
+                            n.encode_primary(ctx, &mut enc, sb, fb);
+                        }
                     }
                     Step::Compaction => self.compaction.encode(ctx, &mut enc, sb, fb, slot),
                     Step::ShadowRays => st.shadow_rays.encode(ctx, &mut enc, sb, fb, slot),
                     Step::SecondaryRays { depth } => bounce().secondary_rays.encode(ctx, &mut enc, sb, fb, depth, slot),
-                    Step::BounceTrace { depth } => bounce().bounce_trace.encode(ctx, &mut enc, sb, fb, depth, slot),
+                    Step::BounceTrace { depth } => {
+                        bounce().bounce_trace.encode(ctx, &mut enc, sb, fb, depth, slot);
+                        if let Some(n) = &st.normal_mapping {
+                            n.encode_secondary(ctx, &mut enc, sb, fb, depth);
+                        }
+                    }
                     Step::BounceCompaction { depth } => {
                         let list = fb.bounces[depth as usize - 1].list();
                         self.compaction.encode_list(ctx, &mut enc, sb, fb, &list, slot)

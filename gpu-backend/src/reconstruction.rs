@@ -104,3 +104,146 @@ impl ReconstructionStage {
         pass.dispatch_workgroups(frame.width.div_ceil(GROUP), frame.band.rows.div_ceil(GROUP), 1);
     }
 }
+
+/// The primary pass of [`NormalMapping`]: its bindings after the shared ones, and its entry.
+const PRIMARY_NORMAL_MAPPING: &str = r#"
+@group(0) @binding(5) var<storage, read> gbuffer: array<GBufferTexel>;
+@group(0) @binding(6) var<uniform> camera: CameraRecord;
+
+// One thread per pixel of the band, as `reconstruction`'s `main`.
+@compute @workgroup_size(8, 8, 1)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x >= params.width || gid.y >= params.height {
+        return;
+    }
+    let pixel = gid.y * params.width + gid.x;
+    surfaces[pixel] = primary_normal_mapped(gbuffer[pixel], surfaces[pixel], camera.eye);
+}
+"#;
+
+/// The secondary pass of [`NormalMapping`]: its bindings after the shared ones, and its
+/// entry.
+const SECONDARY_NORMAL_MAPPING: &str = r#"
+@group(0) @binding(5) var<storage, read> rays: array<RayRecord>;
+@group(0) @binding(6) var<storage, read> ray_count: array<u32, 4>;
+@group(0) @binding(7) var<storage, read> hits: array<HitRecord>;
+
+// One thread per ray of a bounce's list, as `bounce_trace`'s `main`.
+@compute @workgroup_size(NORMAL_MAPPING_WG)
+fn main(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wid: vec3<u32>,
+        @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = (wid.y * nwg.x + wid.x) * NORMAL_MAPPING_WG + lid;
+    if i >= min(ray_count[0], arrayLength(&rays)) {
+        return;
+    }
+    surfaces[i] = secondary_normal_mapped(rays[i], hits[i], surfaces[i]);
+}
+"#;
+
+/// Normal mapping of the surfaces a frame makes, in a scene with normal maps
+/// (`Specialization::normal_mapped`): after `reconstruction`, each pixel's surface through
+/// `primary_normal_mapped` (the primary pass, part of the `reconstruction` step); after
+/// `bounce_trace`, each hit's through `secondary_normal_mapped` (the secondary pass, part
+/// of that step), mirrors of `hyrt_core::kernels::reconstruction`'s kernels in
+/// `shaders/materials.wgsl` (`normal_mapped`, mirror of
+/// `hyrt_core::kernels::texture::Materials::normal_mapped`). The CPU runs the same kernels
+/// at the same points (`hyrt_cpu::reconstruction::normal_mapping_into`,
+/// `hyrt_cpu::bounce_trace`). Compiled with `SURFACE_TABLES` on (a normal-mapped scene
+/// has surface tables).
+pub struct NormalMapping {
+    primary: (wgpu::ComputePipeline, wgpu::BindGroupLayout),
+    secondary: (wgpu::ComputePipeline, wgpu::BindGroupLayout),
+}
+
+impl NormalMapping {
+    /// Compile both passes.
+    pub fn new(ctx: &GpuContext) -> Self {
+        use crate::shader::{shading_source, specialized_pipeline, storage_entry, uniform_entry};
+        let common = format!(
+            "{}\n{}\nconst NORMAL_MAPPING_WG: u32 = {}u;\n{}",
+            crate::texture::texture_wgsl(),
+            crate::texture::materials_wgsl(),
+            crate::shader::SHADOW_RAYS_WORKGROUP_SIZE,
+            include_str!("shaders/normal_mapping.wgsl")
+        );
+        let shared = [
+            uniform_entry(0),
+            storage_entry(1, true),
+            storage_entry(2, true),
+            uniform_entry(3),
+            storage_entry(4, false),
+        ];
+        let constants = [("SURFACE_TABLES", 1.0), ("ALPHA_TESTED", 0.0)];
+        let build = |label: &str, entry: &str, own: &[wgpu::BindGroupLayoutEntry]| {
+            let source = shading_source(&format!("{common}{entry}"));
+            let entries: Vec<_> = shared.iter().chain(own).copied().collect();
+            specialized_pipeline(ctx, label, &source, &entries, &constants)
+        };
+        NormalMapping {
+            primary: build(
+                "reconstruction normal mapping",
+                PRIMARY_NORMAL_MAPPING,
+                &[storage_entry(5, true), uniform_entry(6)],
+            ),
+            secondary: build(
+                "bounce_trace normal mapping",
+                SECONDARY_NORMAL_MAPPING,
+                &[storage_entry(5, true), storage_entry(6, true), storage_entry(7, true)],
+            ),
+        }
+    }
+
+    /// Record the primary pass over `frame.band`, after `reconstruction`.
+    pub fn encode_primary(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &SceneBuffers,
+        frame: &FrameBuffers,
+    ) {
+        if frame.width == 0 || frame.band.rows == 0 {
+            return;
+        }
+        let (pipeline, layout) = &self.primary;
+        let buffers = [
+            &frame.params,
+            &scene.objects,
+            &scene.surface.words,
+            &scene.surface.layout,
+            &frame.surfaces,
+            &frame.gbuffer,
+            &frame.camera,
+        ];
+        let group = crate::shader::bind_buffers(ctx, "reconstruction normal mapping", layout, &buffers);
+        let mut pass = crate::timing::begin_timed_pass(encoder, "reconstruction normal mapping", None);
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, &group, &[]);
+        pass.dispatch_workgroups(frame.width.div_ceil(GROUP), frame.band.rows.div_ceil(GROUP), 1);
+    }
+
+    /// Record the secondary pass over the hits of `frame.bounces[depth - 1]`, after
+    /// `bounce_trace`.
+    pub fn encode_secondary(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &SceneBuffers,
+        frame: &FrameBuffers,
+        depth: u32,
+    ) {
+        let b = &frame.bounces[depth as usize - 1];
+        let (pipeline, layout) = &self.secondary;
+        let buffers = [
+            &frame.params,
+            &scene.objects,
+            &scene.surface.words,
+            &scene.surface.layout,
+            &b.surfaces,
+            &b.rays,
+            &b.ray_count,
+            &b.hits,
+        ];
+        let group = crate::shader::bind_buffers(ctx, "bounce_trace normal mapping", layout, &buffers);
+        crate::shader::encode_list_pass(encoder, "bounce_trace normal mapping", pipeline, &group, &b.ray_count, None);
+    }
+}

@@ -66,6 +66,7 @@ pub fn texture_wgsl() -> String {
     s += &u("MATERIAL_WORDS", SurfaceLayout::MATERIAL_WORDS);
     s += &u("TRIANGLE_UV_WORDS", SurfaceLayout::TRIANGLE_UV_WORDS);
     s += &u("TRIANGLE_COLOR_WORDS", SurfaceLayout::TRIANGLE_COLOR_WORDS);
+    s += &u("TRIANGLE_TANGENT_WORDS", SurfaceLayout::TRIANGLE_TANGENT_WORDS);
     s += &u("TEXTURE_WORDS", SurfaceLayout::TEXTURE_WORDS);
     s += &format!("const UNORM8_SCALE: f32 = {};\n", f32_literal(UNORM8_SCALE));
     s + include_str!("shaders/surface_tables.wgsl") + include_str!("shaders/texture.wgsl")
@@ -106,15 +107,25 @@ pub struct Specialization {
     /// source only when it is set (`shaders/*_two_level.wgsl`), so single-level scenes
     /// bind what they always bound.
     pub two_level: bool,
+    /// Some material is normal-mapped: `reconstruction` and `bounce_trace` are followed by
+    /// the normal-mapping passes (`crate::reconstruction::NormalMapping`). Not a pipeline
+    /// constant: those passes are built only for such scenes.
+    pub normal_mapped: bool,
 }
 
 impl Specialization {
     /// Neither: a scene without surface tables (the pipelines the backend starts with).
-    pub const PLAIN: Specialization = Specialization { surface_tables: false, alpha_tested: false, two_level: false };
+    pub const PLAIN: Specialization =
+        Specialization { surface_tables: false, alpha_tested: false, two_level: false, normal_mapped: false };
 
     /// What `tables` need (a single-level scene).
     pub fn of(tables: &SurfaceTables) -> Specialization {
-        Specialization { surface_tables: !tables.is_empty(), alpha_tested: tables.alpha_tested(), two_level: false }
+        Specialization {
+            surface_tables: !tables.is_empty(),
+            alpha_tested: tables.alpha_tested(),
+            two_level: false,
+            normal_mapped: !tables.tangents.is_empty(),
+        }
     }
 
     /// What a prepared scene needs: its surface tables' and whether it has two levels.

@@ -255,7 +255,7 @@ fn gpu_results(ctx: &GpuContext, tables: &SurfaceTables, objects: &[ObjectRecord
         storage_entry(5, false),
     ];
     // Compiled as the stages of a scene with surface tables and alpha tests are.
-    let tables_and_alpha = Specialization { surface_tables: true, alpha_tested: true, two_level: false };
+    let tables_and_alpha = Specialization { surface_tables: true, alpha_tested: true, two_level: false, normal_mapped: false };
     let (pipeline, layout) =
         specialized_pipeline(ctx, "texture kernels test", &source, &entries, &tables_and_alpha.constants());
     let params = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -473,6 +473,10 @@ fn materials(rng: &mut Rng, textures: u32, count: u32) -> (Vec<MaterialRecord>, 
                 emissive,
                 occlusion_strength: unit(rng),
                 uv_texture,
+                // Normal maps are not a shading-record kernel: the corpus's texture_normal_maps
+                // checks them.
+                normal: INVALID_ID,
+                normal_scale: 1.0,
             };
             record.validate(textures as usize).unwrap();
             record
@@ -603,7 +607,7 @@ fn texture_kernels_match_cpu_bit_for_bit() {
     let set = texture_set(&mut rng);
     let (uvs, colors) = triangles(&mut rng, 97);
     let (materials, objects) = materials(&mut rng, set.records.len() as u32, 64);
-    let tables = SurfaceTables { textures: set, materials, uvs, colors };
+    let tables = SurfaceTables { textures: set, materials, uvs, colors, tangents: Vec::new() };
     let queries = queries(&mut rng, &tables.textures, tables.uvs.len() as u32, objects.len() as u32, 400);
     assert_reaches_the_edge_cases(&tables.textures, &queries);
     let gpu = gpu_results(&ctx, &tables, &objects, &queries);

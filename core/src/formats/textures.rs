@@ -138,8 +138,11 @@ pub const MAT_METALLIC_ROUGHNESS: u32 = 1 << 3;
 pub const MAT_OCCLUSION: u32 = 1 << 4;
 /// The emission is multiplied by [`MaterialRecord::emissive`]'s colour.
 pub const MAT_EMISSIVE: u32 = 1 << 5;
+/// The shading normal comes from [`MaterialRecord::normal`] in the triangle's tangent
+/// frame ([`crate::geometry::SurfaceTables::tangents`]).
+pub const MAT_NORMAL: u32 = 1 << 6;
 /// Every `MAT_*` flag that samples a texture at the triangle's texture coordinates.
-pub const MAT_ANY_TEXTURE: u32 = MAT_TEXTURED | MAT_METALLIC_ROUGHNESS | MAT_OCCLUSION | MAT_EMISSIVE;
+pub const MAT_ANY_TEXTURE: u32 = MAT_TEXTURED | MAT_METALLIC_ROUGHNESS | MAT_OCCLUSION | MAT_EMISSIVE | MAT_NORMAL;
 
 /// What an object's material adds to [`super::ObjectRecord`] when the scene has textures,
 /// vertex colours or alpha tests; one per object, indexed by object id.
@@ -155,8 +158,10 @@ pub const MAT_ANY_TEXTURE: u32 = MAT_TEXTURED | MAT_METALLIC_ROUGHNESS | MAT_OCC
 /// | 24 | `emissive` | u32 | its emissive texture ([`TEXEL_SRGB`]), [`INVALID_ID`] without [`MAT_EMISSIVE`] |
 /// | 28 | `occlusion_strength` | f32 | glTF `occlusionTexture.strength`, [0, 1] |
 /// | 32 | `uv_texture` | u32 | the texture whose size the triangles' [`TriangleUvRecord::lod_bias`] is computed for, [`INVALID_ID`] without textures |
+/// | 36 | `normal` | u32 | its normal texture ([`TEXEL_LINEAR`]), [`INVALID_ID`] without [`MAT_NORMAL`] |
+/// | 40 | `normal_scale` | f32 | glTF `normalTexture.scale`, finite |
 ///
-/// 36 bytes. All its textures are sampled at the same coordinates, [`TriangleUvRecord`];
+/// 44 bytes. All its textures are sampled at the same coordinates, [`TriangleUvRecord`];
 /// one whose size differs from `uv_texture`'s shifts the level of detail by
 /// [`crate::kernels::texture::texture_lod_shift`].
 #[repr(C)]
@@ -171,8 +176,10 @@ pub struct MaterialRecord {
     pub emissive: u32,
     pub occlusion_strength: f32,
     pub uv_texture: u32,
+    pub normal: u32,
+    pub normal_scale: f32,
 }
-const _: () = assert!(std::mem::size_of::<MaterialRecord>() == 36);
+const _: () = assert!(std::mem::size_of::<MaterialRecord>() == 44);
 wgsl_struct!(MaterialRecord {
     texture,
     flags,
@@ -182,7 +189,9 @@ wgsl_struct!(MaterialRecord {
     occlusion,
     emissive,
     occlusion_strength,
-    uv_texture
+    uv_texture,
+    normal,
+    normal_scale
 });
 
 impl MaterialRecord {
@@ -197,6 +206,8 @@ impl MaterialRecord {
         emissive: INVALID_ID,
         occlusion_strength: 1.0,
         uv_texture: INVALID_ID,
+        normal: INVALID_ID,
+        normal_scale: 1.0,
     };
 
     /// Check: known flags, each texture exactly when its flag is set, `uv_texture` one of
@@ -206,8 +217,9 @@ impl MaterialRecord {
         let slots = slot(MAT_TEXTURED, self.texture)
             && slot(MAT_METALLIC_ROUGHNESS, self.metallic_roughness)
             && slot(MAT_OCCLUSION, self.occlusion)
-            && slot(MAT_EMISSIVE, self.emissive);
-        let used = [self.texture, self.metallic_roughness, self.occlusion, self.emissive];
+            && slot(MAT_EMISSIVE, self.emissive)
+            && slot(MAT_NORMAL, self.normal);
+        let used = [self.texture, self.metallic_roughness, self.occlusion, self.emissive, self.normal];
         let uv_ok = if self.flags & MAT_ANY_TEXTURE != 0 {
             used.contains(&self.uv_texture) && self.uv_texture != INVALID_ID
         } else {
@@ -220,6 +232,7 @@ impl MaterialRecord {
             || !unit.contains(&self.base_alpha)
             || !unit.contains(&self.alpha_cutoff)
             || !unit.contains(&self.occlusion_strength)
+            || !self.normal_scale.is_finite()
         {
             return Err(format!("material record with unknown flags, textures or factors: {self:?}"));
         }
@@ -259,7 +272,7 @@ wgsl_struct!(TriangleUvRecord { uv0, uv1, uv2, lod_bias, pad });
 /// consecutive u32 words, each record's fields in declaration order and f32 fields as
 /// their bits:
 ///
-/// 1. the [`MaterialRecord`]s (9 words each, one per object);
+/// 1. the [`MaterialRecord`]s (11 words each, one per object);
 /// 2. each object's first global triangle (1 word each,
 ///    [`super::ObjectRecord::first_triangle`]): with it the alpha test finds a triangle
 ///    record's global index (`WorldGeometry::global_triangle`) in `shadow_rays`, whose 8
@@ -267,11 +280,13 @@ wgsl_struct!(TriangleUvRecord { uv0, uv1, uv2, lod_bias, pad });
 ///    leaf-to-triangle table;
 /// 3. the [`TriangleUvRecord`]s (8 words, one per triangle);
 /// 4. the vertex colours (12 words per triangle: its three corners' linear RGBA);
-/// 5. the [`TextureRecord`]s (10 words each);
-/// 6. the sRGB decoding table, [`crate::kernels::texture::srgb8_table`] (256 f32), when
+/// 5. the world-space tangents (12 words per triangle: its three corners' `xyz`, unit,
+///    and `w`, the bitangent's sign), when some material has a normal map;
+/// 6. the [`TextureRecord`]s (10 words each);
+/// 7. the sRGB decoding table, [`crate::kernels::texture::srgb8_table`] (256 f32), when
 ///    there are textures: read from the buffer where a shader samples, not compiled into
 ///    every stage that might (`hyrt_gpu::texture` says why);
-/// 7. the texels ([`TextureSet::texels`]: a record's `first_texel` counts from `texels`).
+/// 8. the texels ([`TextureSet::texels`]: a record's `first_texel` counts from `texels`).
 ///
 /// An absent table takes no word. The GPU reads this record as a uniform beside the
 /// buffer; a scene without surface tables has the zero record and binds a buffer of one
@@ -284,12 +299,14 @@ wgsl_struct!(TriangleUvRecord { uv0, uv1, uv2, lod_bias, pad });
 /// | 4 | `first_triangles` | u32 | word index of object 0's first global triangle |
 /// | 8 | `uvs` | u32 | word index of the first [`TriangleUvRecord`] (global triangle 0's) |
 /// | 12 | `colors` | u32 | word index of global triangle 0's vertex colours |
-/// | 16 | `textures` | u32 | word index of the first [`TextureRecord`] |
-/// | 20 | `srgb` | u32 | word index of the sRGB decoding of code 0 |
-/// | 24 | `texels` | u32 | word index of texel 0 |
-/// | 28 | `words` | u32 | words of all the tables (0 without surface tables) |
+/// | 16 | `tangents` | u32 | word index of global triangle 0's tangents |
+/// | 20 | `textures` | u32 | word index of the first [`TextureRecord`] |
+/// | 24 | `srgb` | u32 | word index of the sRGB decoding of code 0 |
+/// | 28 | `texels` | u32 | word index of texel 0 |
+/// | 32 | `words` | u32 | words of all the tables (0 without surface tables) |
+/// | 36 | `pad0`..`pad2` | u32 | zero (a uniform's size is a multiple of 16 bytes) |
 ///
-/// 32 bytes. Build with [`crate::geometry::SurfaceTables::layout`].
+/// 48 bytes. Build with [`crate::geometry::SurfaceTables::layout`].
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
 pub struct SurfaceLayout {
@@ -297,13 +314,30 @@ pub struct SurfaceLayout {
     pub first_triangles: u32,
     pub uvs: u32,
     pub colors: u32,
+    pub tangents: u32,
     pub textures: u32,
     pub srgb: u32,
     pub texels: u32,
     pub words: u32,
+    pub pad0: u32,
+    pub pad1: u32,
+    pub pad2: u32,
 }
-const _: () = assert!(std::mem::size_of::<SurfaceLayout>() == 32);
-wgsl_struct!(SurfaceLayout { materials, first_triangles, uvs, colors, textures, srgb, texels, words });
+const _: () = assert!(std::mem::size_of::<SurfaceLayout>() == 48);
+wgsl_struct!(SurfaceLayout {
+    materials,
+    first_triangles,
+    uvs,
+    colors,
+    tangents,
+    textures,
+    srgb,
+    texels,
+    words,
+    pad0,
+    pad1,
+    pad2
+});
 
 impl SurfaceLayout {
     /// Words of one [`MaterialRecord`].
@@ -312,41 +346,47 @@ impl SurfaceLayout {
     pub const TRIANGLE_UV_WORDS: u32 = (std::mem::size_of::<TriangleUvRecord>() / 4) as u32;
     /// Words of one triangle's vertex colours (`[[f32; 4]; 3]`).
     pub const TRIANGLE_COLOR_WORDS: u32 = (std::mem::size_of::<[[f32; 4]; 3]>() / 4) as u32;
+    /// Words of one triangle's tangents (`[[f32; 4]; 3]`).
+    pub const TRIANGLE_TANGENT_WORDS: u32 = (std::mem::size_of::<[[f32; 4]; 3]>() / 4) as u32;
     /// Words of one [`TextureRecord`].
     pub const TEXTURE_WORDS: u32 = (std::mem::size_of::<TextureRecord>() / 4) as u32;
     /// Words of the sRGB decoding table: one per 8-bit code.
     pub const SRGB_WORDS: u32 = 256;
 
-    /// The layout of tables of `materials` material records (and as many first
-    /// triangles), `uvs` uv records, `colors` triangles' vertex colours, `textures`
-    /// texture records (and the sRGB table when there are any) and `texels` texels, in
-    /// that order; `None` when they hold 2^32 words or more.
-    pub fn new(materials: usize, uvs: usize, colors: usize, textures: usize, texels: usize) -> Option<SurfaceLayout> {
+    /// The layout of tables of `counts.materials` material records (and as many first
+    /// triangles), `counts.uvs` uv records, `counts.colors` triangles' vertex colours,
+    /// `counts.tangents` triangles' tangents, `counts.textures` texture records (and the
+    /// sRGB table when there are any) and `counts.texels` texels, in that order; `None`
+    /// when they hold 2^32 words or more.
+    pub fn new(counts: TableCounts) -> Option<SurfaceLayout> {
         let sizes = [
-            materials as u64 * Self::MATERIAL_WORDS as u64,
-            materials as u64,
-            uvs as u64 * Self::TRIANGLE_UV_WORDS as u64,
-            colors as u64 * Self::TRIANGLE_COLOR_WORDS as u64,
-            textures as u64 * Self::TEXTURE_WORDS as u64,
-            if textures > 0 { Self::SRGB_WORDS as u64 } else { 0 },
-            texels as u64,
+            counts.materials as u64 * Self::MATERIAL_WORDS as u64,
+            counts.materials as u64,
+            counts.uvs as u64 * Self::TRIANGLE_UV_WORDS as u64,
+            counts.colors as u64 * Self::TRIANGLE_COLOR_WORDS as u64,
+            counts.tangents as u64 * Self::TRIANGLE_TANGENT_WORDS as u64,
+            counts.textures as u64 * Self::TEXTURE_WORDS as u64,
+            if counts.textures > 0 { Self::SRGB_WORDS as u64 } else { 0 },
+            counts.texels as u64,
         ];
-        let mut starts = [0u32; 7];
+        let mut starts = [0u32; 8];
         let mut end = 0u64;
         for (start, size) in starts.iter_mut().zip(sizes) {
             *start = u32::try_from(end).ok()?;
             end += size;
         }
-        let [materials_at, first_triangles, uvs_at, colors_at, textures_at, srgb, texels_at] = starts;
+        let [materials_at, first_triangles, uvs_at, colors_at, tangents_at, textures_at, srgb, texels_at] = starts;
         Some(SurfaceLayout {
             materials: materials_at,
             first_triangles,
             uvs: uvs_at,
             colors: colors_at,
+            tangents: tangents_at,
             textures: textures_at,
             srgb,
             texels: texels_at,
             words: u32::try_from(end).ok()?,
+            ..SurfaceLayout::default()
         })
     }
 
@@ -363,6 +403,7 @@ impl SurfaceLayout {
             self.first_triangles,
             self.uvs,
             self.colors,
+            self.tangents,
             self.textures,
             self.srgb,
             self.texels,
@@ -373,6 +414,17 @@ impl SurfaceLayout {
         }
         Ok(())
     }
+}
+
+/// How many records each table of a [`SurfaceLayout`] holds.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TableCounts {
+    pub materials: usize,
+    pub uvs: usize,
+    pub colors: usize,
+    pub tangents: usize,
+    pub textures: usize,
+    pub texels: usize,
 }
 
 /// Pack an RGBA8 texel as [`TextureSet::texels`] stores it.
@@ -525,22 +577,24 @@ mod tests {
             .map(|first_triangle| crate::formats::ObjectRecord { first_triangle, ..bytemuck::Zeroable::zeroed() });
         let (layout, words) = tables.packed(&objects).unwrap();
         layout.validate().unwrap();
-        let starts = [layout.materials, layout.first_triangles, layout.uvs, layout.colors, layout.textures];
-        assert_eq!(starts, [0, 18, 20, 44, 44], "no colours: that table takes no word");
-        assert_eq!((layout.srgb, layout.texels, layout.words), (54, 310, 312));
-        assert_eq!(words.len(), 312);
-        assert_eq!(words[9..13], [0, MAT_TEXTURED, 1f32.to_bits(), 0]);
-        assert_eq!(words[17], 0, "its uv texture");
-        assert_eq!(words[18..20], [0, 1], "each object's first triangle");
-        assert_eq!((f32::from_bits(words[20 + 2]), f32::from_bits(words[20 + 6])), (1.0, -2.5));
-        assert_eq!(words[44..54], *bytemuck::cast_slice::<_, u32>(&tables.textures.records));
-        assert_eq!(words[54..310], *bytemuck::cast_slice::<_, u32>(crate::kernels::texture::srgb8_table()));
-        assert_eq!(words[310..], [pack_texel([1, 2, 3, 4]), pack_texel([5, 6, 7, 8])]);
+        let starts =
+            [layout.materials, layout.first_triangles, layout.uvs, layout.colors, layout.tangents, layout.textures];
+        assert_eq!(starts, [0, 22, 24, 48, 48, 48], "no colours or tangents: those tables take no word");
+        assert_eq!((layout.srgb, layout.texels, layout.words), (58, 314, 316));
+        assert_eq!(words.len(), 316);
+        assert_eq!(words[11..15], [0, MAT_TEXTURED, 1f32.to_bits(), 0]);
+        assert_eq!(words[19], 0, "its uv texture");
+        assert_eq!(words[22..24], [0, 1], "each object's first triangle");
+        assert_eq!((f32::from_bits(words[24 + 2]), f32::from_bits(words[24 + 6])), (1.0, -2.5));
+        assert_eq!(words[48..58], *bytemuck::cast_slice::<_, u32>(&tables.textures.records));
+        assert_eq!(words[58..314], *bytemuck::cast_slice::<_, u32>(crate::kernels::texture::srgb8_table()));
+        assert_eq!(words[314..], [pack_texel([1, 2, 3, 4]), pack_texel([5, 6, 7, 8])]);
         let none = crate::geometry::SurfaceTables::default().layout().unwrap();
         assert_eq!((none, none.bytes()), (SurfaceLayout::default(), 4), "the zero layout, one dummy word");
         none.validate().unwrap();
         assert!(SurfaceLayout { uvs: 50, ..layout }.validate().is_err());
-        assert_eq!(SurfaceLayout::new(0, 0, 0, 0, 1 << 32), None, "2^32 words do not fit u32 indices");
+        let huge = TableCounts { texels: 1 << 32, ..TableCounts::default() };
+        assert_eq!(SurfaceLayout::new(huge), None, "2^32 words do not fit u32 indices");
     }
 
     #[test]

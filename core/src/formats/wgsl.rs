@@ -244,6 +244,7 @@ pub fn constant_values() -> Vec<(&'static str, u32)> {
         MAT_METALLIC_ROUGHNESS,
         MAT_OCCLUSION,
         MAT_EMISSIVE,
+        MAT_NORMAL,
         MAT_ANY_TEXTURE,
         TEXEL_SRGB,
         TEXEL_LINEAR,

@@ -6,6 +6,7 @@
 //! Vertices are transformed to world space once, here, in f32, so the raster,
 //! the BVH and reconstruction (on either backend) see the very same bits.
 
+pub mod tangents;
 mod triangles;
 
 use std::collections::HashMap;
@@ -17,7 +18,7 @@ use glam::{DVec3, Mat3, Mat4, Vec2, Vec3};
 
 use crate::formats::{
     LightRecord, MaterialRecord, ObjectRecord, SurfaceLayout, TextureSet, TriangleRecord, TriangleUvRecord,
-    MAT_ALPHA_TEST, MAT_ANY_TEXTURE, MAT_EMISSIVE, MAT_METALLIC_ROUGHNESS, MAT_OCCLUSION, MAT_TEXTURED,
+    MAT_ALPHA_TEST, MAT_ANY_TEXTURE, MAT_EMISSIVE, MAT_METALLIC_ROUGHNESS, MAT_NORMAL, MAT_OCCLUSION, MAT_TEXTURED,
     MAT_VERTEX_COLORS, OBJ_RAY_TRACED, TEXEL_LINEAR, TEXEL_SRGB, TRI_ALPHA_TEST, TRI_INWARD, TRI_RAY_TRACED,
 };
 use crate::kernels::texture::{triangle_lod_bias, SurfaceView};
@@ -250,6 +251,10 @@ pub struct SurfaceTables {
     /// The vertex colours (linear RGBA) at the three corners of each triangle when any
     /// object has them (opaque white for the others).
     pub colors: Vec<[[f32; 4]; 3]>,
+    /// The world-space tangents at the three corners of each triangle (`xyz` unit, `w` the
+    /// bitangent's sign) when any object is normal-mapped ([`tangents`]; zeros for the
+    /// others).
+    pub tangents: Vec<[[f32; 4]; 3]>,
 }
 
 impl SurfaceTables {
@@ -259,6 +264,7 @@ impl SurfaceTables {
             materials: &self.materials,
             uvs: &self.uvs,
             colors: &self.colors,
+            tangents: &self.tangents,
             textures: &self.textures.records,
             texels: &self.textures.texels,
         }
@@ -277,13 +283,14 @@ impl SurfaceTables {
     /// Where each table lies when packed into one buffer of words ([`SurfaceLayout`]);
     /// `None` when they hold 2^32 words or more.
     pub fn layout(&self) -> Option<SurfaceLayout> {
-        SurfaceLayout::new(
-            self.materials.len(),
-            self.uvs.len(),
-            self.colors.len(),
-            self.textures.records.len(),
-            self.textures.texels.len(),
-        )
+        SurfaceLayout::new(crate::formats::TableCounts {
+            materials: self.materials.len(),
+            uvs: self.uvs.len(),
+            colors: self.colors.len(),
+            tangents: self.tangents.len(),
+            textures: self.textures.records.len(),
+            texels: self.textures.texels.len(),
+        })
     }
 
     /// The tables packed into one buffer of words as [`SurfaceLayout`] says (the GPU binds
@@ -300,6 +307,7 @@ impl SurfaceTables {
         }
         words.extend_from_slice(bytemuck::cast_slice(&self.uvs));
         words.extend_from_slice(bytemuck::cast_slice(&self.colors));
+        words.extend_from_slice(bytemuck::cast_slice(&self.tangents));
         words.extend_from_slice(bytemuck::cast_slice(&self.textures.records));
         if !self.textures.is_empty() {
             words.extend_from_slice(bytemuck::cast_slice(crate::kernels::texture::srgb8_table()));
@@ -314,7 +322,7 @@ impl SurfaceTables {
         self.textures.bytes()
             + self.materials.len() * std::mem::size_of::<MaterialRecord>()
             + self.uvs.len() * std::mem::size_of::<TriangleUvRecord>()
-            + self.colors.len() * std::mem::size_of::<[[f32; 4]; 3]>()
+            + (self.colors.len() + self.tangents.len()) * std::mem::size_of::<[[f32; 4]; 3]>()
     }
 }
 
@@ -328,6 +336,7 @@ fn material_textures(material: &Material, mesh: &Mesh) -> Vec<(u32, TextureBindi
         (MAT_METALLIC_ROUGHNESS, maps.metallic_roughness, TEXEL_LINEAR),
         (MAT_OCCLUSION, maps.occlusion, TEXEL_LINEAR),
         (MAT_EMISSIVE, maps.emissive, TEXEL_SRGB),
+        (MAT_NORMAL, maps.normal, TEXEL_LINEAR),
     ]
     .into_iter()
     .filter_map(|(flag, binding, encoding)| binding.map(|b| (flag, b, encoding)))
@@ -351,13 +360,19 @@ fn surface_tables(scene: &Scene, triangles: &WorldTriangles) -> SurfaceTables {
         return t;
     }
     let any = |bit: u32| flags.iter().any(|&f| f & bit != 0);
-    let (textured, colored) = (any(MAT_ANY_TEXTURE), any(MAT_VERTEX_COLORS));
+    let (textured, colored, normal_mapped) = (any(MAT_ANY_TEXTURE), any(MAT_VERTEX_COLORS), any(MAT_NORMAL));
     if textured {
         t.uvs = vec![TriangleUvRecord::default(); triangles.len()];
     }
     if colored {
         t.colors = vec![[[1.0; 4]; 3]; triangles.len()];
     }
+    if normal_mapped {
+        t.tangents = vec![[[0.0; 4]; 3]; triangles.len()];
+    }
+    // Each mesh's object-space tangents for a coordinate set, made once however many
+    // objects draw it.
+    let mut mesh_tangents: HashMap<(usize, u32), Vec<[[f32; 4]; 3]>> = HashMap::new();
     let mut records: HashMap<(usize, crate::scene::Sampler, u32), u32> = HashMap::new();
     let mut first = 0usize;
     for (obj, &f) in scene.objects.iter().zip(&flags) {
@@ -369,6 +384,7 @@ fn surface_tables(scene: &Scene, triangles: &WorldTriangles) -> SurfaceTables {
             base_alpha: material.base_alpha,
             alpha_cutoff: material.alpha_mode.cutoff().unwrap_or(0.0),
             occlusion_strength: material.maps.occlusion_strength,
+            normal_scale: material.maps.normal_scale,
             ..MaterialRecord::PLAIN
         };
         let maps = material_textures(material, mesh);
@@ -381,7 +397,14 @@ fn surface_tables(scene: &Scene, triangles: &WorldTriangles) -> SurfaceTables {
                 MAT_TEXTURED => record.texture = index,
                 MAT_METALLIC_ROUGHNESS => record.metallic_roughness = index,
                 MAT_OCCLUSION => record.occlusion = index,
-                _ => record.emissive = index,
+                MAT_EMISSIVE => record.emissive = index,
+                _ => record.normal = index,
+            }
+            if flag == MAT_NORMAL {
+                let corners = mesh_tangents
+                    .entry((obj.mesh, binding.tex_coord))
+                    .or_insert_with(|| tangents::mesh_tangents(mesh, binding.tex_coord));
+                tangents::world_tangents(&mut t.tangents[range.clone()], corners, &obj.transform);
             }
         }
         if let Some(&(flag, binding, _)) = maps.first() {
@@ -389,7 +412,8 @@ fn surface_tables(scene: &Scene, triangles: &WorldTriangles) -> SurfaceTables {
                 MAT_TEXTURED => record.texture,
                 MAT_METALLIC_ROUGHNESS => record.metallic_roughness,
                 MAT_OCCLUSION => record.occlusion,
-                _ => record.emissive,
+                MAT_EMISSIVE => record.emissive,
+                _ => record.normal,
             };
             let image = &scene.textures[binding.image];
             let coords = mesh.attributes.tex_coords[binding.tex_coord as usize].as_ref().expect("filtered on it");
@@ -685,7 +709,11 @@ impl WorldGeometry {
                     return Err(format!("object {k}: triangle alpha-test flags disagree with its material"));
                 }
             }
-            for (len, what) in [(s.uvs.len(), "texture coordinates"), (s.colors.len(), "vertex colours")] {
+            for (len, what) in [
+                (s.uvs.len(), "texture coordinates"),
+                (s.colors.len(), "vertex colours"),
+                (s.tangents.len(), "tangents"),
+            ] {
                 if len != 0 && len != self.triangles.len() {
                     return Err(format!("{what}: {len} records for {} triangles", self.triangles.len()));
                 }

@@ -9,8 +9,39 @@ use glam::Vec3;
 use crate::formats::{GBufferTexel, HitRecord, RayRecord, SurfaceRecord, TriangleRecord, GBUF_BACK_FACE};
 use crate::geometry::WorldGeometry;
 use crate::kernels::barycentric::{geometric_normal, interpolate_normal, position_error_bound, reconstruct_position};
+use crate::kernels::bounce::primary_cone;
 use crate::kernels::ray::WatertightRay;
 use crate::kernels::shading::orient_to_seen_side;
+use crate::kernels::texture::Materials;
+
+/// The primary hit `s` of G-buffer texel `t` with its material's normal map
+/// ([`Materials::normal_mapped`]), seen as [`crate::kernels::bounce::primary_parent`] sees
+/// it (footprint [`primary_cone`], direction from `eye`) at the G-buffer's barycentrics,
+/// on the side the raster saw. What `reconstruction` does after [`reconstruct_texel`] in
+/// a scene with normal maps. WGSL: `primary_normal_mapped`.
+#[inline]
+pub fn primary_normal_mapped(t: &GBufferTexel, s: &SurfaceRecord, eye: Vec3, m: &Materials) -> SurfaceRecord {
+    if !s.is_hit() {
+        return *s;
+    }
+    let to_eye = eye - Vec3::from(s.position);
+    let d = -to_eye.normalize_or_zero();
+    m.normal_mapped(s, t.bary_u, t.bary_v, primary_cone(m, to_eye), d, t.flags & GBUF_BACK_FACE != 0)
+}
+
+/// The surface `s` a secondary ray hit ([`reconstruct_hit`]) with its material's normal
+/// map, seen as [`crate::kernels::bounce::secondary_parent`] sees it (the ray's cone
+/// widened over the distance, its direction) on the side the ray saw. What
+/// `bounce_trace` does after [`reconstruct_hit`] in a scene with normal maps. WGSL:
+/// `secondary_normal_mapped`.
+#[inline]
+pub fn secondary_normal_mapped(ray: &RayRecord, hit: &HitRecord, s: &SurfaceRecord, m: &Materials) -> SurfaceRecord {
+    if !s.is_hit() {
+        return *s;
+    }
+    let cone = if m.spread == 0.0 { 0.0 } else { ray.cone + m.spread * hit.t };
+    m.normal_mapped(s, hit.u, hit.v, cone, Vec3::from(ray.direction), hit.is_back_face())
+}
 
 /// Rebuild the surface at one G-buffer texel seen from `eye`, from the raster's
 /// barycentrics.

@@ -25,8 +25,8 @@ use glam::{Vec2, Vec3};
 
 use crate::formats::{
     MaterialRecord, ObjectRecord, SurfaceRecord, TextureRecord, TriangleRecord, TriangleUvRecord, FILTER_NEAREST,
-    FILTER_NO_MIP, MAT_ALPHA_TEST, MAT_ANY_TEXTURE, MAT_EMISSIVE, MAT_METALLIC_ROUGHNESS, MAT_OCCLUSION, MAT_TEXTURED,
-    MAT_VERTEX_COLORS, TEXEL_SRGB, WRAP_CLAMP, WRAP_MIRROR,
+    FILTER_NO_MIP, MAT_ALPHA_TEST, MAT_ANY_TEXTURE, MAT_EMISSIVE, MAT_METALLIC_ROUGHNESS, MAT_NORMAL, MAT_OCCLUSION,
+    MAT_TEXTURED, MAT_VERTEX_COLORS, TEXEL_SRGB, WRAP_CLAMP, WRAP_MIRROR,
 };
 use crate::kernels::shading::log2_portable;
 
@@ -293,6 +293,9 @@ pub struct SurfaceView<'a> {
     pub uvs: &'a [TriangleUvRecord],
     /// Per global triangle, when any object has vertex colours.
     pub colors: &'a [[[f32; 4]; 3]],
+    /// Per global triangle, when any object is normal-mapped: each corner's world tangent
+    /// and bitangent sign.
+    pub tangents: &'a [[[f32; 4]; 3]],
     pub textures: &'a [TextureRecord],
     pub texels: &'a [u32],
 }
@@ -410,6 +413,77 @@ impl<'a> Materials<'a> {
             obj.base_color = vertex_coloured(obj.base_color, &self.surface.colors[global], u, v);
         }
         obj
+    }
+}
+
+impl Materials<'_> {
+    /// Whether some object is normal-mapped ([`MAT_NORMAL`]): only then do the stages
+    /// that make surfaces call [`Materials::normal_mapped`].
+    pub fn normal_mapped_any(&self) -> bool {
+        self.surface.materials.iter().any(|m| m.flags & MAT_NORMAL != 0)
+    }
+
+    /// Surface `s` (a hit, or a miss, returned as it is) with its shading normal from its
+    /// material's normal map ([`MAT_NORMAL`]; `s` itself without one): the texel at
+    /// barycentrics `(u, v)`, level of detail as [`Materials::at`] picks it (footprint
+    /// `cone`, unit direction `d` it was seen along), read as the tangent-space normal
+    /// `((2 r - 1) scale, (2 g - 1) scale, 2 b - 1)`, in the frame of the triangle's
+    /// interpolated tangent made orthogonal to the shading normal and the bitangent
+    /// `cross(n, t) w` (`w` of the triangle's first corner), then normalized: glTF 2.0's
+    /// normal texture. `back_face`: the surface was seen from its back, so `s`'s normals
+    /// were turned around ([`crate::kernels::shading::orient_to_seen_side`]); the frame is
+    /// the front's and the result is turned around again. As reconstruction does, a mapped
+    /// normal below the geometric normal's hemisphere is replaced by the geometric normal,
+    /// and one that cannot be made (a zero or parallel tangent, a zero result) leaves `s`
+    /// as it is. WGSL: `normal_mapped`.
+    #[inline]
+    pub fn normal_mapped(
+        &self,
+        s: &SurfaceRecord,
+        u: f32,
+        v: f32,
+        cone: f32,
+        d: Vec3,
+        back_face: bool,
+    ) -> SurfaceRecord {
+        if !self.varying() || !s.is_hit() {
+            return *s;
+        }
+        let m = &self.surface.materials[s.object as usize];
+        if m.flags & MAT_NORMAL == 0 {
+            return *s;
+        }
+        let global = s.triangle as usize;
+        let ng = Vec3::from(s.geometric_normal);
+        let t = &self.surface.uvs[global];
+        let lod = hit_lod(t.lod_bias, cone, d.dot(ng));
+        let reference = &self.surface.textures[m.uv_texture as usize];
+        let tex = &self.surface.textures[m.normal as usize];
+        let texel = sample_texture(self.surface.texels, tex, interpolate_uv(t, u, v), texture_lod(lod, reference, tex));
+        let side = if back_face { -1.0 } else { 1.0 };
+        let n = Vec3::from(s.normal) * side;
+        let c = &self.surface.tangents[global];
+        let w = crate::kernels::barycentric::bary_w(u, v);
+        let tangent = Vec3::new(
+            (w * c[0][0] + u * c[1][0]) + v * c[2][0],
+            (w * c[0][1] + u * c[1][1]) + v * c[2][1],
+            (w * c[0][2] + u * c[1][2]) + v * c[2][2],
+        );
+        let tangent = (tangent - n * n.dot(tangent)).normalize_or_zero();
+        if tangent == Vec3::ZERO {
+            return *s;
+        }
+        let sign = if c[0][3] < 0.0 { -1.0 } else { 1.0 };
+        let bitangent = n.cross(tangent) * sign;
+        let x = (texel[0] * 2.0 - 1.0) * m.normal_scale;
+        let y = (texel[1] * 2.0 - 1.0) * m.normal_scale;
+        let z = texel[2] * 2.0 - 1.0;
+        let mapped = ((tangent * x + bitangent * y) + n * z).normalize_or_zero() * side;
+        if mapped == Vec3::ZERO {
+            return *s;
+        }
+        let normal = if ng != Vec3::ZERO && mapped.dot(ng) < 0.0 { ng } else { mapped };
+        SurfaceRecord { normal: normal.into(), ..*s }
     }
 }
 

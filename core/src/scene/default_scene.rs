@@ -147,7 +147,7 @@ impl Mesh {
             positions,
             normals: Some(vec![Vec3::Z; 4]),
             indices: vec![[0, 1, 2], [0, 2, 3]],
-            attributes: VertexAttributes { tex_coords: [Some(uv), None], colors: None },
+            attributes: VertexAttributes { tex_coords: [Some(uv), None], ..VertexAttributes::default() },
         }
     }
 }

@@ -16,15 +16,17 @@
 //!   unsigned 8/16-bit `VEC2`) and `COLOR_0` (the same types, `VEC3` or `VEC4`, linear) are
 //!   kept with one value per position; another type or count is an error.
 //! * **Textures.** A material's `baseColorTexture`, `metallicRoughnessTexture`,
-//!   `occlusionTexture` (with its `strength`) and `emissiveTexture` are read with their
+//!   `occlusionTexture` (with its `strength`), `emissiveTexture` and `normalTexture` (with
+//!   its `scale`) are read with their
 //!   samplers (wrap modes, `magFilter`, `minFilter`; undefined filters are linear,
 //!   mip-mapped), `texCoord` (0 or 1) and `KHR_texture_transform` (offset, rotation, scale,
 //!   `texCoord` override). hyrt samples all of a material's textures at the first one's
 //!   coordinates ([`super::MaterialMaps`]); a material whose textures differ there gets a
 //!   note. Each image (PNG or JPEG, recognised by its signature; from a buffer view, a data
 //!   URI or a file beside a `.gltf`) is decoded once to RGBA8 ([`TextureImage`]), its texels
-//!   charged to the load's budget before the decoder allocates them. `normalTexture` is not
-//!   used yet, with a note.
+//!   charged to the load's budget before the decoder allocates them. `TANGENT` (float32
+//!   `VEC4`) is kept; a normal-mapped mesh without it gets MikkTSpace tangents
+//!   ([`crate::geometry::tangents`]).
 //! * **Names.** Object name: node name, else mesh name, else `node<i>`, then `#<primitive>`.
 //!   Mesh name: mesh name (else `mesh<i>`), then `#<primitive>`.
 //! * **Materials.** `baseColorFactor` (RGB, and alpha), `metallicFactor`, `roughnessFactor`,
@@ -709,10 +711,16 @@ impl<'a> Converter<'a> {
                 .map(|v| v.into_iter().map(|c| Vec2::new(c[0], c[1])).collect());
         }
         attributes.colors = self.vertex_attribute(primitive, Semantic::Colors(0), positions.len(), label)?;
+        if let Some(acc) = primitive.get(&Semantic::Tangents) {
+            if acc.data_type() != DataType::F32 {
+                return Err(self.content(format!("{label}: TANGENT must be float32 VEC4, found {:?}", acc.data_type())));
+            }
+            attributes.tangents = self.vertex_attribute(primitive, Semantic::Tangents, positions.len(), label)?;
+        }
         Ok(Mesh { name, positions, normals, indices, attributes })
     }
 
-    /// A `TEXCOORD_n` or `COLOR_0` attribute as floats (`[x, y, 0, 1]` for `VEC2`,
+    /// A `TEXCOORD_n`, `COLOR_0` or `TANGENT` attribute as floats (`[x, y, 0, 1]` for `VEC2`,
     /// `[r, g, b, 1]` for `VEC3`), normalized integers divided by their maximum as glTF
     /// says; `None` without one. Any other type, or a count other than the positions', is
     /// an error: a texture mapped through a wrong attribute is silently wrong output.
@@ -731,6 +739,7 @@ impl<'a> Converter<'a> {
             (Semantic::TexCoords(_), Dimensions::Vec2) => 2,
             (Semantic::Colors(_), Dimensions::Vec3) => 3,
             (Semantic::Colors(_), Dimensions::Vec4) => 4,
+            (Semantic::Tangents, Dimensions::Vec4) => 4,
             (_, other) => return Err(self.content(format!("{label}: {what} cannot be {other:?}"))),
         };
         let data_type = acc.data_type();
@@ -802,12 +811,6 @@ impl<'a> Converter<'a> {
         let metallic = pbr.metallic_factor();
         let transmission = m.transmission().map(|t| t.transmission_factor()).unwrap_or(0.0);
         let ior = m.ior().unwrap_or(DEFAULT_IOR);
-        if m.normal_texture().is_some() {
-            self.note_once(format!(
-                "{}: normalTexture is not used yet ({label}, and any other): surfaces keep their vertex normals",
-                self.path.display()
-            ));
-        }
         let base_color_texture = match pbr.base_color_texture() {
             None => None,
             Some(info) => Some(self.texture_binding(&info, &label, "baseColorTexture")?),
@@ -842,7 +845,26 @@ impl<'a> Converter<'a> {
                 "{label}: emissiveFactor x KHR_materials_emissive_strength is {emissive}, not a finite non-negative colour"
             )));
         }
-        let maps = MaterialMaps { metallic_roughness, occlusion, occlusion_strength, emissive: emissive_texture };
+        let (normal, normal_scale) = match m.normal_texture() {
+            None => (None, 1.0),
+            Some(t) => {
+                let scale = t.scale();
+                if !scale.is_finite() {
+                    return Err(self.content(format!("{label}: normalTexture.scale {scale} is not finite")));
+                }
+                let transform = t.extension_value("KHR_texture_transform");
+                let parts = TextureInfoParts { texture: t.texture(), tex_coord: t.tex_coord(), transform: None };
+                (Some(self.binding_of(parts, transform, &label, "normalTexture")?), scale)
+            }
+        };
+        let maps = MaterialMaps {
+            metallic_roughness,
+            occlusion,
+            occlusion_strength,
+            emissive: emissive_texture,
+            normal,
+            normal_scale,
+        };
         self.check_shared_coordinates(&label, base_color_texture, &maps);
         let alpha_mode = match m.alpha_mode() {
             gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
@@ -881,7 +903,7 @@ impl<'a> Converter<'a> {
     /// texture's (`hyrt_core::scene::MaterialMaps`): say so where the material's textures
     /// differ in coordinate set or transform.
     fn check_shared_coordinates(&mut self, label: &str, base: Option<TextureBinding>, maps: &MaterialMaps) {
-        let all = [base, maps.metallic_roughness, maps.occlusion, maps.emissive];
+        let all = [base, maps.metallic_roughness, maps.occlusion, maps.emissive, maps.normal];
         let mut bound = all.iter().flatten();
         let Some(first) = bound.next() else { return };
         if bound.any(|b| b.tex_coord != first.tex_coord || b.transform != first.transform) {

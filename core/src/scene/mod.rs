@@ -150,11 +150,24 @@ pub struct MaterialMaps {
     pub occlusion_strength: f32,
     /// glTF `emissiveTexture`, sRGB: scales [`Material::emissive`].
     pub emissive: Option<TextureBinding>,
+    /// glTF `normalTexture`, linear: the tangent-space normal `2 texel - 1`, its x and y
+    /// scaled by [`MaterialMaps::normal_scale`], replaces the shading normal
+    /// ([`crate::kernels::texture::Materials::normal_mapped`]).
+    pub normal: Option<TextureBinding>,
+    /// glTF `normalTexture.scale` (1 unless given).
+    pub normal_scale: f32,
 }
 
 impl Default for MaterialMaps {
     fn default() -> Self {
-        MaterialMaps { metallic_roughness: None, occlusion: None, occlusion_strength: 1.0, emissive: None }
+        MaterialMaps {
+            metallic_roughness: None,
+            occlusion: None,
+            occlusion_strength: 1.0,
+            emissive: None,
+            normal: None,
+            normal_scale: 1.0,
+        }
     }
 }
 

@@ -197,4 +197,9 @@ pub struct VertexAttributes {
     pub tex_coords: [Option<Vec<Vec2>>; 2],
     /// `COLOR_0` as linear RGBA (glTF vertex colours are linear), one per position.
     pub colors: Option<Vec<[f32; 4]>>,
+    /// `TANGENT`, one per position: the object-space unit tangent (`xyz`, along increasing
+    /// u of the normal texture's coordinates) and the bitangent's sign (`w`, +1 or -1:
+    /// `bitangent = cross(normal, tangent.xyz) * w`). Without it, a normal-mapped mesh
+    /// gets MikkTSpace tangents ([`crate::geometry::tangents`]).
+    pub tangents: Option<Vec<[f32; 4]>>,
 }

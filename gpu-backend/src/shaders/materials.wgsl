@@ -97,6 +97,85 @@ fn shaded_object(s: SurfaceRecord, u: f32, v: f32, cone: f32, d: vec3<f32>) -> O
     return obj;
 }
 
+// mirrors hyrt_core::kernels::texture::Materials::normal_mapped
+fn normal_mapped(s: SurfaceRecord, u: f32, v: f32, cone: f32, d: vec3<f32>, back_face: bool) -> SurfaceRecord {
+    if !materials_vary() || s.object == INVALID_ID {
+        return s;
+    }
+    let m = surface_material(s.object);
+    if (m.flags & MAT_NORMAL) == 0u {
+        return s;
+    }
+    let global = s.triangle;
+    let ng = s.geometric_normal;
+    let t = surface_uv(global);
+    let lod = hit_lod(t.lod_bias, cone, dot3(d, ng));
+    let texel = sample_material_texture(m.normal, surface_texture(m.uv_texture), interpolate_uv(t, u, v), lod);
+    let side = select(1.0, -1.0, back_face);
+    let n = mul3(s.normal, vec3<f32>(side));
+    let c0 = surface_tangent(global, 0u);
+    let c1 = surface_tangent(global, 1u);
+    let c2 = surface_tangent(global, 2u);
+    let w = (1.0 - u) - v;
+    let tangent_in = vec3<f32>(
+        rounded(mul(w, c0.x) + mul(u, c1.x)) + mul(v, c2.x),
+        rounded(mul(w, c0.y) + mul(u, c1.y)) + mul(v, c2.y),
+        rounded(mul(w, c0.z) + mul(u, c1.z)) + mul(v, c2.z),
+    );
+    let along = dot3(n, tangent_in);
+    let tangent = normalize_or_zero(vec3<f32>(
+        rounded(tangent_in.x - mul(n.x, along)),
+        rounded(tangent_in.y - mul(n.y, along)),
+        rounded(tangent_in.z - mul(n.z, along)),
+    ));
+    if all(tangent == vec3<f32>(0.0)) {
+        return s;
+    }
+    let sign = select(1.0, -1.0, c0.w < 0.0);
+    let bitangent = mul3(cross3(n, tangent), vec3<f32>(sign));
+    let x = mul(rounded(mul(texel.x, 2.0) - 1.0), m.normal_scale);
+    let y = mul(rounded(mul(texel.y, 2.0) - 1.0), m.normal_scale);
+    let z = rounded(mul(texel.z, 2.0) - 1.0);
+    let sum = vec3<f32>(
+        rounded(rounded(mul(tangent.x, x) + mul(bitangent.x, y)) + mul(n.x, z)),
+        rounded(rounded(mul(tangent.y, x) + mul(bitangent.y, y)) + mul(n.y, z)),
+        rounded(rounded(mul(tangent.z, x) + mul(bitangent.z, y)) + mul(n.z, z)),
+    );
+    let mapped = mul3(normalize_or_zero(sum), vec3<f32>(side));
+    if all(mapped == vec3<f32>(0.0)) {
+        return s;
+    }
+    var r = s;
+    if any(ng != vec3<f32>(0.0)) && dot3(mapped, ng) < 0.0 {
+        r.normal = ng;
+    } else {
+        r.normal = mapped;
+    }
+    return r;
+}
+
+// mirrors hyrt_core::kernels::reconstruction::primary_normal_mapped
+fn primary_normal_mapped(t: GBufferTexel, s: SurfaceRecord, eye: vec3<f32>) -> SurfaceRecord {
+    if s.object == INVALID_ID {
+        return s;
+    }
+    let to_eye = eye - s.position;
+    let d = -normalize_or_zero(to_eye);
+    return normal_mapped(s, t.bary_u, t.bary_v, primary_cone(to_eye), d, (t.flags & GBUF_BACK_FACE) != 0u);
+}
+
+// mirrors hyrt_core::kernels::reconstruction::secondary_normal_mapped
+fn secondary_normal_mapped(ray: RayRecord, hit: HitRecord, s: SurfaceRecord) -> SurfaceRecord {
+    if s.object == INVALID_ID {
+        return s;
+    }
+    var cone = 0.0;
+    if params.pixel_spread != 0.0 {
+        cone = ray.cone + mul(params.pixel_spread, hit.t);
+    }
+    return normal_mapped(s, hit.u, hit.v, cone, ray.direction, (hit.flags & HIT_BACK_FACE) != 0u);
+}
+
 // mirrors hyrt_core::kernels::bounce::Parent
 struct Parent {
     surface: SurfaceRecord,

@@ -28,7 +28,8 @@ fn surface_f32(at: u32) -> f32 {
 fn surface_material(object: u32) -> MaterialRecord {
     let at = surface_layout.materials + MATERIAL_WORDS * object;
     return MaterialRecord(surface[at], surface[at + 1u], surface_f32(at + 2u), surface_f32(at + 3u),
-        surface[at + 4u], surface[at + 5u], surface[at + 6u], surface_f32(at + 7u), surface[at + 8u]);
+        surface[at + 4u], surface[at + 5u], surface[at + 6u], surface_f32(at + 7u), surface[at + 8u],
+        surface[at + 9u], surface_f32(at + 10u));
 }
 
 // mirrors hyrt_core::geometry::WorldGeometry::global_triangle: the global index of the
@@ -53,6 +54,12 @@ fn surface_uv(triangle: u32) -> TriangleUvRecord {
 // `SurfaceView::colors[triangle][corner]`: a corner's linear RGBA vertex colour.
 fn surface_color(triangle: u32, corner: u32) -> vec4<f32> {
     let at = surface_layout.colors + TRIANGLE_COLOR_WORDS * triangle + 4u * corner;
+    return vec4<f32>(surface_f32(at), surface_f32(at + 1u), surface_f32(at + 2u), surface_f32(at + 3u));
+}
+
+// `SurfaceView::tangents[triangle][corner]`: a corner's world tangent and bitangent sign.
+fn surface_tangent(triangle: u32, corner: u32) -> vec4<f32> {
+    let at = surface_layout.tangents + TRIANGLE_TANGENT_WORDS * triangle + 4u * corner;
     return vec4<f32>(surface_f32(at), surface_f32(at + 1u), surface_f32(at + 2u), surface_f32(at + 3u));
 }
 
