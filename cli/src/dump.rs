@@ -7,7 +7,8 @@
 //! | `bary.npy` | f32, H x W x 2 | barycentrics (u, v) of v1, v2; w = 1 - u - v |
 //! | `depth.npy` | f32, H x W | window depth in [0, 1]; 1 on miss |
 //! | `position.npy` | f32, H x W x 3 | world-space hit point (0 on miss) |
-//! | `normal.npy` | f32, H x W x 3 | viewer-facing unit shading normal (0 on miss) |
+//! | `normal.npy` | f32, H x W x 3 | viewer-facing unit shading normal, after normal mapping (0 on miss) |
+//! | `material.npy` | f32, H x W x 4 | the material each pixel's surface is shaded with: metallic, roughness, ambient occlusion (1 without an occlusion texture), emissive luminance (Rec. 709 weights of the linear emission); 0 on miss |
 //! | `rays.npy` | structured, N | the ray list: `origin` (3,)f4, `t_min` f4, `direction` (3,)f4, `t_max` f4, `pixel` u4, `kind` u4, `depth` u4, `light` u4, `throughput` (3,)f4, `occluded` u4 |
 //! | `shadow.npy` | u8, H x W x L | per light: 0 no ray (miss or light behind the surface), 1 lit, 2 occluded |
 //! | `raster.png`, `rt.png`, `final.png` | sRGB RGBA8 | the three images (`rt.png` alpha = ray-traced coverage) |
@@ -18,7 +19,7 @@
 //! | `bounce{d}_shadow_rays.npy` | structured | shadow rays from those surfaces (as `rays.npy`; `pixel` = the secondary ray) |
 //! | `bounce{d}_shadow.npy` | u8, N_d x L | as `shadow.npy`, per secondary ray |
 //! | `bounce{d}_radiance.npy` | f32, N_d x 4 | the linear radiance each ray brings back |
-//! | `frame.json` | | image size, camera (matrices and conventions), lights, environment, shading model (`paper`, `gltf`), object table, counts, times, skipped stages |
+//! | `frame.json` | | image size, camera (matrices and conventions), lights, environment, shading model (`paper`, `gltf`), ambient level, object table, counts, times, skipped stages |
 //!
 //! The files of a buffer whose stage the frame's plan skipped are not written
 //! (`frame.json` lists the skipped stages and why).
@@ -180,11 +181,43 @@ pub fn write_dump(
             BufferView::Hits(_) | BufferView::Links(_) => unreachable!("bounce buffers are written above"),
         }
     }
+    if !frame.gbuffer.is_empty() && !frame.surfaces.is_empty() {
+        let values = material_values(prepared, camera, frame);
+        write_npy(&out("material.npy"), &[h, w, 4], values.into_iter().flatten())?;
+    }
     let json_path = out("frame.json");
     let doc = frame_json(scene, prepared, camera, frame, backend);
     let text = serde_json::to_string_pretty(&doc).expect("frame.json serializes");
     std::fs::write(&json_path, text).map_err(|source| Error::Write { path: json_path.clone(), source })?;
     Ok(written)
+}
+
+/// Per pixel, the material its primary hit is shaded with, as core's `primary_parent`
+/// makes it (textures and all): metallic, roughness, the ambient occlusion (the record's
+/// ambient scale with the scene's ambient setting taken out: the objects' own scale is
+/// set to 1 here) and the emission's luminance; zeros on a miss.
+fn material_values(prepared: &PreparedScene, camera: &Camera, frame: &Frame) -> Vec<[f32; 4]> {
+    use hyrt_core::kernels::bounce::primary_parent;
+    let rec = CameraRecord::new(camera, frame.width, frame.height);
+    let geometry = &prepared.geometry;
+    let objects: Vec<_> =
+        geometry.objects.iter().map(|o| hyrt_core::formats::ObjectRecord { ambient_scale: 1.0, ..*o }).collect();
+    let materials = hyrt_core::kernels::texture::Materials { objects: &objects, ..geometry.materials(&rec) };
+    let eye = hyrt_core::glam::Vec3::from(rec.eye);
+    frame
+        .gbuffer
+        .iter()
+        .zip(&frame.surfaces)
+        .enumerate()
+        .map(|(i, (t, s))| {
+            if !s.is_hit() {
+                return [0.0; 4];
+            }
+            let o = primary_parent(t, s, eye, i as u32, &materials).object;
+            let e = o.emissive;
+            [o.metallic, o.roughness, o.ambient_scale, 0.2126 * e[0] + 0.7152 * e[1] + 0.0722 * e[2]]
+        })
+        .collect()
 }
 
 /// The `frame.json` document.
@@ -242,6 +275,7 @@ pub fn frame_json(scene: &Scene, prepared: &PreparedScene, camera: &Camera, fram
         })).collect::<Vec<_>>(),
         "environment": prepared.geometry.environment.describe(),
         "shading": scene.shading.name(),
+        "ambient": scene.ambient.0,
         "objects": objects,
         "triangles": prepared.geometry.triangle_count(),
         "bvh": { "nodes": prepared.bvh.nodes.len(), "preset": format!("{:?}", prepared.bvh.build_preset) },

@@ -175,6 +175,11 @@ struct SceneArgs {
     /// metallic-roughness BRDF on both). Overrides the manifest's `shading`; default paper.
     #[arg(long, value_parser = named(hyrt::ShadingModel::ALL, hyrt::ShadingModel::name))]
     shading: Option<hyrt::ShadingModel>,
+    /// The constant ambient light, >= 0: 0.06 by default (the paper's look); 0 removes the
+    /// constant ambient and environment terms, leaving direct light and emission. Overrides
+    /// the manifest's `ambient`.
+    #[arg(long, value_parser = parse_ambient)]
+    ambient: Option<hyrt::Ambient>,
     /// Image size, WIDTHxHEIGHT.
     #[arg(long, default_value = "1280x720", value_parser = parse_size)]
     size: (u32, u32),
@@ -416,6 +421,9 @@ impl SceneArgs {
         if let Some(shading) = self.shading {
             scene.shading = shading;
         }
+        if let Some(ambient) = self.ambient {
+            scene.ambient = ambient;
+        }
         for note in &scene.notes {
             eprintln!("note: {note}");
         }
@@ -537,6 +545,11 @@ fn named<T: Copy + Send + Sync + 'static, const N: usize>(
     use clap::builder::TypedValueParser;
     clap::builder::PossibleValuesParser::new(all.map(name))
         .map(move |s| all.into_iter().find(|&t| name(t) == s).expect("one of the listed names"))
+}
+
+/// An ambient level: a finite number >= 0 ([`hyrt::Ambient::new`]).
+fn parse_ambient(s: &str) -> Result<hyrt::Ambient, String> {
+    s.trim().parse::<f32>().map_err(|e| format!("'{s}': {e}")).and_then(hyrt::Ambient::new)
 }
 
 /// An exposure in stops: finite, within +-64.

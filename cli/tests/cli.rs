@@ -39,6 +39,7 @@ fn cli_render_default_scene_with_dump() {
         ("depth.npy", vec![41, 67], "<f4"),
         ("position.npy", vec![41, 67, 3], "<f4"),
         ("shadow.npy", vec![41, 67, 2], "|u1"),
+        ("material.npy", vec![41, 67, 4], "<f4"),
     ] {
         let (s, d) = read_npy_shape(&dump.join(file));
         assert_eq!(s, shape, "{file}");
@@ -60,6 +61,7 @@ fn cli_render_default_scene_with_dump() {
     assert_eq!(json["objects"][0]["render_mode"], "ray_traced");
     assert_eq!(json["environment"], "default sky");
     assert_eq!(json["shading"], "paper");
+    assert!((json["ambient"].as_f64().unwrap() - 0.06).abs() < 1e-7, "the default ambient");
     assert!(json["camera"]["view"].is_array() && json["camera"]["projection"].is_array());
     assert!(json["camera"]["conventions"].as_str().unwrap().contains("centre"));
     assert!(json["counts"]["valid_rays"].as_u64().unwrap() > 0);

@@ -41,7 +41,7 @@ use glam::{DMat4, DVec4, Mat4, Quat, Vec2, Vec3};
 use hyrt_core::formats::CameraRecord;
 use hyrt_core::kernels::bounce::DEFAULT_MAX_DEPTH;
 use hyrt_core::scene::{
-    AlphaMode, Camera, Filter, Light, Material, MaterialKind, MaterialMaps, Mesh, RenderMode, Sampler, Scene,
+    AlphaMode, Ambient, Camera, Filter, Light, Material, MaterialKind, MaterialMaps, Mesh, RenderMode, Sampler, Scene,
     ShadingModel, TextureBinding, TextureImage, UvTransform, Wrap,
 };
 
@@ -740,7 +740,21 @@ fn shading_cases(b: &mut Builder) {
     let direction = Vec3::new(-0.3, -0.8, -0.5).normalize();
     scene.lights = vec![Light::Directional { direction, color: Vec3::ONE, intensity: 3.0 }];
     let cam = camera(Vec3::new(0.0, 2.0, 9.0), Vec3::ZERO, 0.1, 30.0);
+    let dark = Scene { ambient: Ambient(0.0), ..scene.clone() };
     b.add("shading_gltf_spheres", "the glTF BRDF from smooth to rough, dielectric to metal", scene, cam, 96, 40);
+    b.add(
+        "shading_gltf_spheres_without_ambient",
+        "the same spheres with ambient = 0: direct light alone",
+        dark,
+        cam,
+        96,
+        40,
+    );
+    // A metal mirror and glass with ambient = 0: no constant term anywhere, untraced lobes
+    // and the mirror's own ambient included.
+    let (s, cam) = transformed_default(Vec3::ZERO, 1.0);
+    let s = Scene { ambient: Ambient(0.0), ..s };
+    b.add("shading_default_scene_without_ambient", "mirrors and glass with ambient = 0", s, cam, 64, 48);
 }
 
 /// Scenes traced through two levels: objects prepared as moving, in their own space,

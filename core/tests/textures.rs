@@ -129,7 +129,9 @@ fn images_in_data_uris_are_decoded_once_and_blend_is_a_mask_with_a_note() {
     );
     let notes = scene.notes.join("\n");
     assert!(notes.contains("BLEND is rendered as MASK at alpha 0.5"), "{notes}");
-    assert!(notes.contains("normalTexture"), "unused textures are named: {notes}");
+    // Texture 1 is the same image: decoded once, bound as the normal map.
+    assert_eq!(scene.textures.len(), 1, "one image, decoded once");
+    assert_eq!(m.maps.normal.map(|t| (t.image, m.maps.normal_scale)), Some((0, 1.0)));
 }
 
 #[test]
@@ -167,7 +169,7 @@ fn bad_images_are_errors_naming_the_file_and_the_image() {
 }
 
 #[test]
-fn the_damaged_helmet_loads_its_base_colour_texture() {
+fn the_damaged_helmet_loads_all_five_of_its_textures() {
     let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets");
     if !assets.is_dir() {
         eprintln!("{} not found: skipping the Damaged Helmet test", assets.display());
@@ -175,17 +177,20 @@ fn the_damaged_helmet_loads_its_base_colour_texture() {
     }
     let path = assets.join("DamagedHelmet.glb");
     let scene = Scene::load(&path).unwrap();
-    assert_eq!(scene.textures.len(), 1, "only the base-colour image is decoded");
+    assert_eq!(scene.textures.len(), 5, "base colour, metallic-roughness, emissive, occlusion, normal");
+    assert!(scene.textures.iter().all(|i| (i.width, i.height) == (2048, 2048)));
     let image = &scene.textures[0];
-    assert_eq!((image.width, image.height), (2048, 2048));
     let m = &scene.materials[scene.objects[0].material];
     assert_eq!(m.base_color_texture.map(|t| (t.image, t.tex_coord)), Some((0, 0)));
+    let maps = [m.maps.metallic_roughness, m.maps.emissive, m.maps.occlusion, m.maps.normal];
+    assert!(maps.iter().all(|t| t.is_some_and(|t| t.tex_coord == 0)), "{:?}", m.maps);
+    assert_eq!(m.emissive, Vec3::ONE, "emissiveFactor [1, 1, 1]");
     let mesh = &scene.meshes[scene.objects[0].mesh];
     assert_eq!(mesh.attributes.tex_coords[0].as_ref().map(Vec::len), Some(mesh.positions.len()));
     // Not a flat colour: the texture varies.
     let distinct: std::collections::HashSet<[u8; 4]> = image.texels.iter().step_by(997).copied().collect();
     assert!(distinct.len() > 100, "{} distinct texels", distinct.len());
-    assert!(scene.notes.iter().any(|n| n.contains("metallicRoughnessTexture")), "{:?}", scene.notes);
+    assert!(scene.notes.iter().all(|n| !n.contains("Texture")), "no texture left unused: {:?}", scene.notes);
 }
 
 /// A manifest carries its models' textures: each model's materials sample its own file's

@@ -53,8 +53,8 @@ pub use hyrt_core::kernels::bounce::{DEFAULT_MAX_DEPTH, MAX_DEPTH_LIMIT, MIN_THR
 pub use hyrt_core::kernels::tone_map::ToneMap;
 pub use hyrt_core::plan::{BounceBuffer, Composition, FrameBuffer, FramePlan, SkipReason, Skipped, Step};
 pub use hyrt_core::scene::{
-    Camera, Environment, EnvironmentMap, EnvironmentMapError, Light, Material, MaterialKind, MaterialMaps, Mesh,
-    Object, RenderMode, Scene, ShadingModel,
+    Ambient, Camera, Environment, EnvironmentMap, EnvironmentMapError, Light, Material, MaterialKind, MaterialMaps,
+    Mesh, Object, RenderMode, Scene, ShadingModel,
 };
 pub use hyrt_core::stage::Stage;
 pub use hyrt_core::{glam, memory, AnimationError, GpuError, SceneError};

@@ -358,7 +358,7 @@ pub const MATERIAL_GLASS: u32 = 2;
 /// | 40 | `ior` | f32 | index of refraction (1.5 unless glass says otherwise) |
 /// | 44 | `offset_error` | f32 | extra error bound of points on it whose rays are traced in its own space ([`crate::kernels::instance::instance_position_error`]); 0 when baked into world space |
 /// | 48 | `emissive` | [f32; 3] | emitted linear radiance (glTF `emissiveFactor` x `KHR_materials_emissive_strength`), added to every shade of the surface; 0 for none |
-/// | 60 | `occlusion` | f32 | ambient occlusion in [0, 1] (1: none): scales the constant ambient and environment terms only ([`crate::kernels::shading::ambient`]) |
+/// | 60 | `ambient_scale` | f32 | the scale of the constant ambient and environment terms at a point ([`crate::kernels::shading::ambient`]), >= 0: the scene's [`crate::scene::Scene::ambient`] over [`crate::kernels::shading::AMBIENT`] (1 by default, 0 for none), times the point's ambient occlusion where an occlusion texture gives one |
 ///
 /// 64 bytes. [`crate::kernels::texture::Materials::at`] makes the record a point is shaded
 /// with from its object's: textures scale the base colour, metallic, roughness, occlusion
@@ -377,7 +377,7 @@ pub struct ObjectRecord {
     pub ior: f32,
     pub offset_error: f32,
     pub emissive: [f32; 3],
-    pub occlusion: f32,
+    pub ambient_scale: f32,
 }
 const _: () = assert!(std::mem::size_of::<ObjectRecord>() == 64);
 wgsl_struct!(ObjectRecord {
@@ -392,12 +392,13 @@ wgsl_struct!(ObjectRecord {
     ior,
     offset_error,
     emissive,
-    occlusion
+    ambient_scale
 });
 
 impl ObjectRecord {
-    /// Check: known flags and kind, finite non-negative colour and emission, factors and
-    /// occlusion in [0, 1], ior >= 1, a finite non-negative offset error.
+    /// Check: known flags and kind, finite non-negative colour and emission, factors in
+    /// [0, 1], a finite non-negative ambient scale, ior >= 1, a finite non-negative offset
+    /// error.
     pub fn validate(&self) -> Result<(), String> {
         let offset_ok = self.offset_error.is_finite() && self.offset_error >= 0.0;
         if self.flags & !(OBJ_RAY_TRACED | OBJ_GLTF_BRDF) != 0 || self.material_kind > MATERIAL_GLASS || !offset_ok {
@@ -408,10 +409,11 @@ impl ObjectRecord {
             return Err(format!("object record with invalid colour or emission: {self:?}"));
         }
         let unit = 0.0..=1.0;
+        let scale_ok = self.ambient_scale.is_finite() && self.ambient_scale >= 0.0;
         if !(unit.contains(&self.metallic)
             && unit.contains(&self.roughness)
             && unit.contains(&self.transmission)
-            && unit.contains(&self.occlusion))
+            && scale_ok)
         {
             return Err(format!("object record with factor outside [0, 1]: {self:?}"));
         }

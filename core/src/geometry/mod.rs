@@ -552,7 +552,7 @@ impl WorldGeometry {
             ior,
             offset_error: 0.0,
             emissive: mat.emissive.into(),
-            occlusion: 1.0,
+            ambient_scale: scene.ambient.scale(),
         };
     }
 

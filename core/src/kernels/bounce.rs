@@ -256,11 +256,13 @@ pub fn secondary_rays(
 }
 
 /// The radiance a lobe sees: its traced child's (`link` into `radiance`), or the uniform
-/// [`ENVIRONMENT_SPECULAR`] when the lobe's ray was not traced.
+/// [`ENVIRONMENT_SPECULAR`] times the surface's `ambient_scale`
+/// ([`ObjectRecord::ambient_scale`]: the scene's ambient setting and occlusion) when the
+/// lobe's ray was not traced.
 #[inline]
-pub fn lobe_radiance(link: u32, radiance: &[[f32; 4]]) -> Vec3 {
+pub fn lobe_radiance(link: u32, radiance: &[[f32; 4]], ambient_scale: f32) -> Vec3 {
     if link == INVALID_ID {
-        Vec3::splat(ENVIRONMENT_SPECULAR)
+        Vec3::splat(ENVIRONMENT_SPECULAR * ambient_scale)
     } else {
         Vec3::from_slice(&radiance[link as usize][..3])
     }
@@ -283,8 +285,8 @@ pub fn shade_bouncing(
     children: [u32; 2],
     radiance: &[[f32; 4]],
 ) -> Vec3 {
-    let reflected = lobe_radiance(children[0], radiance);
-    let refracted = lobe_radiance(children[1], radiance);
+    let reflected = lobe_radiance(children[0], radiance, obj.ambient_scale);
+    let refracted = lobe_radiance(children[1], radiance, obj.ambient_scale);
     let p = Vec3::from(s.position);
     let n = Vec3::from(s.normal);
     let v = -d;
@@ -292,7 +294,7 @@ pub fn shade_bouncing(
     // The constant ambient, occluded, and the emission ([`crate::kernels::shading::unlit`]'s
     // parts; the specular lobe's environment is what its traced ray sees).
     let ambient =
-        base * (((1.0 - obj.metallic) * AMBIENT) * l.diffuse_scale) * obj.occlusion + Vec3::from(obj.emissive);
+        base * (((1.0 - obj.metallic) * AMBIENT) * l.diffuse_scale) * obj.ambient_scale + Vec3::from(obj.emissive);
     let direct = sum_visible_lights(shadow, lights, p, |li, e| {
         crate::kernels::shading::shade_ray_traced_with(obj, n, v, li, e, l.diffuse_scale)
     });

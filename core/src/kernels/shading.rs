@@ -455,13 +455,14 @@ pub fn shade_raster_pixel(
 /// Ambient term of any object: diffuse albedo times [`AMBIENT`] plus the
 /// specular reflectance F0 times [`ENVIRONMENT_SPECULAR`] (a uniform environment
 /// reflected by the specular lobe, which integrates to F0), both times the record's
-/// ambient occlusion (glTF's occlusion texture "applies to indirect lighting" only; 1, an
-/// exact no-op, without one).
+/// [`ObjectRecord::ambient_scale`]: the scene's ambient setting and the ambient occlusion
+/// (glTF's occlusion texture "applies to indirect lighting" only); 1, an exact no-op, by
+/// default, 0 with `ambient = 0`.
 #[inline]
 pub fn ambient(obj: &ObjectRecord) -> Vec3 {
     let base = Vec3::from(obj.base_color);
     let f0 = Vec3::splat(DIELECTRIC_F0).lerp(base, obj.metallic);
-    (base * ((1.0 - obj.metallic) * AMBIENT) + f0 * ENVIRONMENT_SPECULAR) * obj.occlusion
+    (base * ((1.0 - obj.metallic) * AMBIENT) + f0 * ENVIRONMENT_SPECULAR) * obj.ambient_scale
 }
 
 /// What a surface sends out whatever the lights: [`ambient`] plus its emission
@@ -470,6 +471,37 @@ pub fn ambient(obj: &ObjectRecord) -> Vec3 {
 #[inline]
 pub fn unlit(obj: &ObjectRecord) -> Vec3 {
     ambient(obj) + Vec3::from(obj.emissive)
+}
+
+/// A scene's constant ambient light (manifest key `ambient`, `hyrt render --ambient`):
+/// the diffuse ambient level, [`AMBIENT`] by default (the paper's look). It scales both
+/// constant terms, the diffuse [`AMBIENT`] and the specular [`ENVIRONMENT_SPECULAR`]
+/// (including what an untraced lobe sees), by `level / AMBIENT`
+/// ([`ObjectRecord::ambient_scale`]); 0 removes them, so that with a black environment a
+/// frame holds direct light and emission alone.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ambient(pub f32);
+
+impl Default for Ambient {
+    fn default() -> Self {
+        Ambient(AMBIENT)
+    }
+}
+
+impl Ambient {
+    /// The level, or why it cannot be one (it must be finite and non-negative).
+    pub fn new(level: f32) -> Result<Ambient, String> {
+        if level.is_finite() && level >= 0.0 {
+            Ok(Ambient(level))
+        } else {
+            Err(format!("ambient {level} must be a finite number >= 0"))
+        }
+    }
+
+    /// The scale of the constant terms: `level / AMBIENT`, exactly 1 at the default.
+    pub fn scale(self) -> f32 {
+        self.0 / AMBIENT
+    }
 }
 
 /// Composition (paper 3.5): the weighted mean `(1 - weight) * raster + weight * rt`.
@@ -557,7 +589,7 @@ mod tests {
             ior: 1.5,
             offset_error: 0.0,
             emissive: [0.0; 3],
-            occlusion: 1.0,
+            ambient_scale: 1.0,
         }
     }
 

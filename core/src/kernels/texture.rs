@@ -364,8 +364,8 @@ impl<'a> Materials<'a> {
     /// - times the interpolated vertex colour ([`MAT_VERTEX_COLORS`]);
     /// - roughness times the metallic-roughness texture's green, metallic times its blue
     ///   ([`MAT_METALLIC_ROUGHNESS`]);
-    /// - occlusion `1 + strength (red - 1)` of the occlusion texture ([`MAT_OCCLUSION`],
-    ///   glTF's blend towards 1);
+    /// - the ambient scale times the occlusion `1 + strength (red - 1)` of the occlusion
+    ///   texture ([`MAT_OCCLUSION`], glTF's blend towards 1);
     /// - emission times the emissive texture's RGB ([`MAT_EMISSIVE`]).
     ///
     /// WGSL: `shaded_object`.
@@ -402,7 +402,7 @@ impl<'a> Materials<'a> {
             }
             if m.flags & MAT_OCCLUSION != 0 {
                 let texel = sample(m.occlusion);
-                obj.occlusion = 1.0 + m.occlusion_strength * (texel[0] - 1.0);
+                obj.ambient_scale *= 1.0 + m.occlusion_strength * (texel[0] - 1.0);
             }
             if m.flags & MAT_EMISSIVE != 0 {
                 let texel = sample(m.emissive);

@@ -7,6 +7,8 @@
 //!                                      # the scene see (.hdr or .exr); default: the built-in sky
 //! shading = "gltf"              # optional: "paper" (the 2011 model, the default) | "gltf"
 //!                               # (the glTF metallic-roughness BRDF on every object)
+//! ambient = 0.06                # optional: the constant ambient light, >= 0 (default 0.06;
+//!                               # 0 leaves direct light and emission alone)
 //!
 //! [camera]                      # optional; without it: the first camera of a model file, else none
 //! eye = [9.0, 2.6, 3.0]
@@ -130,7 +132,7 @@ use super::files::{Budget, Disk, SceneFiles};
 use super::gltf_loader::{load_gltf_detailed, material_kind, LoadedGltf};
 use super::merge::{FileSlot, Merge, Model, Naming};
 use super::{
-    farthest_corner, Camera, Environment, Light, Material, MaterialKind, Mesh, RenderMode, Scene, ShadingModel,
+    farthest_corner, Ambient, Camera, Environment, Light, Material, MaterialKind, Mesh, RenderMode, Scene, ShadingModel,
 };
 use crate::SceneError;
 
@@ -161,6 +163,9 @@ pub struct Manifest {
     /// The shading model's name ([`crate::kernels::shading::ShadingModel::name`]).
     #[serde(default)]
     pub shading: Option<String>,
+    /// The constant ambient light ([`crate::kernels::shading::Ambient`]).
+    #[serde(default)]
+    pub ambient: Option<f32>,
     /// `[camera]`.
     #[serde(default)]
     pub camera: Option<CameraEntry>,
@@ -600,6 +605,9 @@ fn build(manifest: &Manifest, path: &Path, files: &dyn SceneFiles, budget: Budge
             invalid(format!("shading = \"{name}\": unknown model (known: {})", known.join(", ")))
         })?;
     }
+    if let Some(level) = manifest.ambient {
+        merged.scene_mut().ambient = Ambient::new(level).map_err(invalid)?;
+    }
     if let Some(file) = &manifest.environment {
         merged.scene_mut().environment = Environment::load_from(&dir.join(file), files).map_err(|e| {
             SceneError::ManifestEntry { path: path.to_path_buf(), entry: "environment".into(), error: Box::new(e) }
@@ -789,6 +797,9 @@ mod tests {
         assert_eq!(load("").unwrap().shading, ShadingModel::Paper);
         assert_eq!(load("shading = 'gltf'").unwrap().shading, ShadingModel::Gltf);
         assert_eq!(load("shading = 'paper'").unwrap().shading, ShadingModel::Paper);
+        assert_eq!(load("").unwrap().ambient, Ambient::default());
+        assert_eq!(load("ambient = 0.0").unwrap().ambient, Ambient(0.0));
+        assert!(load("ambient = -1.0").unwrap_err().to_string().contains("ambient -1"));
         let err = load("shading = 'phong'").unwrap_err().to_string();
         assert!(err.contains("s.toml") && err.contains("phong") && err.contains("gltf"), "{err}");
     }

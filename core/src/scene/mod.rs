@@ -28,7 +28,7 @@ use std::sync::Arc;
 
 use glam::{Mat4, Vec3};
 
-pub use crate::kernels::shading::ShadingModel;
+pub use crate::kernels::shading::{Ambient, ShadingModel};
 use crate::SceneError;
 
 /// An indexed triangle mesh in its own (object) space.
@@ -354,6 +354,9 @@ pub struct Scene {
     /// How direct light is shaded on every object (manifest key `shading`, `hyrt render
     /// --shading`): the paper's model or the glTF BRDF.
     pub shading: ShadingModel,
+    /// The constant ambient light (manifest key `ambient`, `hyrt render --ambient`):
+    /// [`crate::kernels::shading::AMBIENT`] by default, 0 for none.
+    pub ambient: Ambient,
 }
 
 impl Scene {

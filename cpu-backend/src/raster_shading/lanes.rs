@@ -54,7 +54,7 @@ pub(crate) struct PrimaryLanes<L: Lanes> {
     pub metallic: L::F,
     pub roughness: L::F,
     pub emissive: [L::F; 3],
-    pub occlusion: L::F,
+    pub ambient_scale: L::F,
 }
 
 impl<L: Lanes> PrimaryLanes<L> {
@@ -98,7 +98,7 @@ impl<L: Lanes> PrimaryLanes<L> {
             for a in 0..3 {
                 w[14 + a][k] = obj.emissive[a];
             }
-            w[17][k] = obj.occlusion;
+            w[17][k] = obj.ambient_scale;
         }
         PrimaryLanes {
             hit: L::load(&w[0]),
@@ -110,7 +110,7 @@ impl<L: Lanes> PrimaryLanes<L> {
             metallic: L::load(&w[11]),
             roughness: L::load(&w[12]),
             emissive: [L::load(&w[14]), L::load(&w[15]), L::load(&w[16])],
-            occlusion: L::load(&w[17]),
+            ambient_scale: L::load(&w[17]),
         }
     }
 }
@@ -169,7 +169,7 @@ pub(crate) fn unlit_lanes<L: Lanes>(p: &PrimaryLanes<L>) -> [L::F; 3] {
     let f0 = f0_lanes::<L>(base, metallic);
     let k = L::mul(L::sub(L::splat(1.0), metallic), L::splat(AMBIENT));
     let env = L::splat(ENVIRONMENT_SPECULAR);
-    let (o, e) = (p.occlusion, p.emissive);
+    let (o, e) = (p.ambient_scale, p.emissive);
     [
         L::add(L::mul(L::add(L::mul(base[0], k), L::mul(f0[0], env)), o), e[0]),
         L::add(L::mul(L::add(L::mul(base[1], k), L::mul(f0[1], env)), o), e[1]),
@@ -416,10 +416,10 @@ pub(crate) mod tests {
     }
 
     fn object() -> impl Strategy<Value = ObjectRecord> {
-        let occlusion = prop_oneof![2 => Just(1.0f32), 1 => unit()];
+        let ambient_scale = prop_oneof![2 => Just(1.0f32), 1 => unit(), 1 => 0.0f32..4.0];
         let base = (any::<bool>(), any::<bool>(), [colour(), colour(), colour()], unit(), unit());
-        (base, emission(), occlusion).prop_map(
-            |((ray_traced, gltf, base_color, metallic, roughness), emissive, occlusion)| ObjectRecord {
+        (base, emission(), ambient_scale).prop_map(
+            |((ray_traced, gltf, base_color, metallic, roughness), emissive, ambient_scale)| ObjectRecord {
                 first_triangle: 0,
                 triangle_count: 1,
                 flags: if ray_traced { OBJ_RAY_TRACED } else { 0 } | if gltf { OBJ_GLTF_BRDF } else { 0 },
@@ -431,7 +431,7 @@ pub(crate) mod tests {
                 ior: 1.5,
                 offset_error: 0.0,
                 emissive,
-                occlusion,
+                ambient_scale,
             },
         )
     }
@@ -543,13 +543,13 @@ pub(crate) mod tests {
             ior: 1.5,
             offset_error: 0.0,
             emissive: [0.0; 3],
-            occlusion: 1.0,
+            ambient_scale: 1.0,
         };
         let objects = vec![
             object(0, 0.0, 1.0),
             object(OBJ_RAY_TRACED, 1.0, 0.0),
             // Emissive and occluded.
-            ObjectRecord { emissive: [2.0, 0.5, 0.0], occlusion: 0.25, ..object(OBJ_RAY_TRACED, 0.0, 1.0) },
+            ObjectRecord { emissive: [2.0, 0.5, 0.0], ambient_scale: 0.25, ..object(OBJ_RAY_TRACED, 0.0, 1.0) },
         ];
         let s = |position: [f32; 3], normal: [f32; 3], object: u32| SurfaceRecord {
             position,

@@ -7,9 +7,9 @@
 // which the lobes' links index).
 
 // mirrors hyrt_core::kernels::bounce::lobe_radiance
-fn lobe_radiance(link: u32) -> vec3<f32> {
+fn lobe_radiance(link: u32, ambient_scale: f32) -> vec3<f32> {
     if link == INVALID_ID {
-        return vec3<f32>(ENVIRONMENT_SPECULAR);
+        return vec3<f32>(mul(ENVIRONMENT_SPECULAR, ambient_scale));
     }
     return child_radiance[link].xyz;
 }
@@ -18,12 +18,12 @@ fn lobe_radiance(link: u32) -> vec3<f32> {
 // `shadow`, `children` its [reflection, refraction] links into `child_radiance`.
 fn shade_bouncing(index: u32, s: SurfaceRecord, obj: ObjectRecord, l: Lobes, d: vec3<f32>,
                   children: vec2<u32>) -> vec3<f32> {
-    let reflected = lobe_radiance(children.x);
-    let refracted = lobe_radiance(children.y);
+    let reflected = lobe_radiance(children.x, obj.ambient_scale);
+    let refracted = lobe_radiance(children.y, obj.ambient_scale);
     let v = -d;
     let base = obj.base_color;
     let ambient_term =
-        mul3(mul3(base, vec3<f32>(mul(mul(1.0 - obj.metallic, AMBIENT), l.diffuse_scale))), vec3<f32>(obj.occlusion))
+        mul3(mul3(base, vec3<f32>(mul(mul(1.0 - obj.metallic, AMBIENT), l.diffuse_scale))), vec3<f32>(obj.ambient_scale))
         + obj.emissive;
     let direct = sum_visible_lights_rt(index, s.position, obj, s.normal, v, l.diffuse_scale);
     return ((ambient_term + direct) + mul3(l.reflection, reflected)) + mul3(l.refraction, refracted);

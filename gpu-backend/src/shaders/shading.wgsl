@@ -176,7 +176,7 @@ fn ambient(obj: ObjectRecord) -> vec3<f32> {
     let base = obj.base_color;
     let f0 = lerp3(vec3<f32>(DIELECTRIC_F0), base, obj.metallic);
     let a = mul3(base, vec3<f32>(mul(1.0 - obj.metallic, AMBIENT))) + mul3(f0, vec3<f32>(ENVIRONMENT_SPECULAR));
-    return mul3(vec3<f32>(rounded(a.x), rounded(a.y), rounded(a.z)), vec3<f32>(obj.occlusion));
+    return mul3(vec3<f32>(rounded(a.x), rounded(a.y), rounded(a.z)), vec3<f32>(obj.ambient_scale));
 }
 
 // mirrors hyrt_core::kernels::shading::unlit
