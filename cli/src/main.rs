@@ -241,6 +241,19 @@ enum ExecutorArg {
     Staged,
 }
 
+/// How a linear frame is displayed (PNG output, the viewer's window).
+#[derive(clap::Args, Clone, Copy)]
+pub(crate) struct DisplayArgs {
+    /// Exposure of PNG output and of the viewer's window, in stops (the colour times
+    /// 2^STOPS before tone mapping).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true, value_parser = parse_stops)]
+    pub exposure: f32,
+    /// Tone-mapping operator of PNG output and of the viewer's window: none (clamp, the
+    /// paper's images), the Khronos PBR Neutral operator, or Hill's ACES fit.
+    #[arg(long, default_value = "none", value_parser = named(hyrt::ToneMap::ALL, hyrt::ToneMap::name))]
+    pub tone_map: hyrt::ToneMap,
+}
+
 #[derive(clap::Args)]
 struct RenderArgs {
     #[command(flatten)]
@@ -249,13 +262,8 @@ struct RenderArgs {
     /// (unclamped, before exposure and tone mapping), anything else an 8-bit sRGB PNG.
     #[arg(long, default_value = "frame.png")]
     out: PathBuf,
-    /// Exposure of PNG output, in stops (the colour times 2^STOPS before tone mapping).
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true, value_parser = parse_stops)]
-    exposure: f32,
-    /// Tone-mapping operator of PNG output: none (clamp, the paper's images), the Khronos
-    /// PBR Neutral operator, or Hill's ACES fit.
-    #[arg(long, default_value = "none", value_parser = named(hyrt::ToneMap::ALL, hyrt::ToneMap::name))]
-    tone_map: hyrt::ToneMap,
+    #[command(flatten)]
+    display: DisplayArgs,
     /// Write every stage's output (npy, png, frame.json) into this directory.
     #[arg(long)]
     dump: Option<PathBuf>,
@@ -567,7 +575,14 @@ fn write_image(path: &std::path::Path, w: u32, h: u32, frame: &hyrt::Frame, args
     if exr {
         hyrt::image_io::write_exr(path, w, h, &frame.final_image)
     } else {
-        hyrt::image_io::write_png_tone_mapped(path, w, h, &frame.final_image, args.exposure, args.tone_map)
+        hyrt::image_io::write_png_tone_mapped(
+            path,
+            w,
+            h,
+            &frame.final_image,
+            args.display.exposure,
+            args.display.tone_map,
+        )
     }
     .map_err(|e| e.to_string())
 }

@@ -96,6 +96,20 @@ fn viewer_screenshots_equal_render_and_clicks_pick_objects() {
         let (a, b) = (pixels(&shot), pixels(&rendered));
         assert_eq!(a.dimensions(), (96, 54), "{backend}");
         assert!(a == b, "{backend}: the viewer's screenshot differs from hyrt render of the same camera");
+        // The display's exposure and tone mapping, from the flags and from a script, as
+        // hyrt render writes them.
+        let tone = ["--exposure", "1.5", "--tone-map", "khronos-pbr-neutral"];
+        let toned = dir.path().join(format!("toned-{backend}.png"));
+        let mut args = vec!["render", "--backend", backend, "--out", toned.to_str().unwrap()];
+        args.extend(camera);
+        args.extend(tone);
+        ok(hyrt(None, dir.path(), &args), "hyrt render --exposure");
+        let shot = dir.path().join(format!("toned-view-{backend}.png"));
+        let mut args = vec!["view", "--backend", backend, "--frames", "3", "--screenshot", shot.to_str().unwrap()];
+        args.extend(camera);
+        args.extend(tone);
+        ok(hyrt(Some(&display), dir.path(), &args), "hyrt view --exposure");
+        assert!(pixels(&shot) == pixels(&toned) && pixels(&toned) != b, "{backend}: exposure and tone map");
 
         // A script clicks the middle pixel (an object of the default scene), flips through
         // every view and writes one of them.

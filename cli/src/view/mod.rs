@@ -7,7 +7,9 @@
 //! rasterized; [ and ] (or a drag on the overlay's slider) set the composition weight;
 //! Space plays and pauses the animation (looping), comma and period step it by 1/30 s; L picks the shadow mask's light; H hides the
 //! overlay; P writes the current view as PNG, O the window as shown (with the overlay);
-//! Esc quits.
+//! Page Up and Page Down change the exposure by half a stop and T cycles the tone-mapping
+//! operators (the final, raster and rt views; `--exposure`, `--tone-map` start them, as
+//! in `hyrt render`); Esc quits.
 //!
 //! Unattended: `--frames N --screenshot FILE` renders N frames at `--size` (whatever
 //! the window's size), writes the last one's final image (no overlay: the same PNG as
@@ -64,6 +66,10 @@ pub struct ViewArgs {
     /// Start with the overlay hidden (H shows it).
     #[arg(long)]
     no_overlay: bool,
+    /// The window's exposure and tone mapping (Page Up / Page Down change the exposure by
+    /// half a stop, T cycles the operators).
+    #[command(flatten)]
+    display: crate::DisplayArgs,
 }
 
 /// What stops the viewer.
@@ -166,6 +172,8 @@ struct Running {
     read_back: bool,
     overlay: Option<Overlay>,
     show_overlay: bool,
+    /// How the final, raster and rt images are displayed: exposure in stops and operator.
+    display: crate::DisplayArgs,
     overlay_image: Option<OverlayImage>,
     keys: HashSet<KeyCode>,
     mouse: Mouse,
@@ -179,6 +187,9 @@ struct Running {
     screenshots: u32,
     message: String,
 }
+
+/// The largest exposure, in stops, either way (`hyrt render --exposure`'s range).
+const EXPOSURE_LIMIT: f32 = 64.0;
 
 fn err(e: impl std::fmt::Display) -> ViewError {
     ViewError::Setup(e.to_string())
@@ -244,6 +255,7 @@ impl App {
             read_back: false,
             overlay,
             show_overlay: !self.args.no_overlay,
+            display: self.args.display,
             overlay_image: None,
             keys: HashSet::new(),
             mouse: Mouse::default(),
@@ -294,7 +306,8 @@ impl App {
         r.render(width, height, want_frame)?;
         if last {
             if let Some(path) = &args.screenshot {
-                hyrt::save_png(&r.frame, path)
+                let (f, d) = (&r.frame, r.display);
+                hyrt::image_io::write_png_tone_mapped(path, f.width, f.height, &f.final_image, d.exposure, d.tone_map)
                     .map_err(|e| ViewError::Write { path: path.clone(), message: e.to_string() })?;
                 println!("wrote {} ({width}x{height}, frame {})", path.display(), r.frames_done + 1);
             }
@@ -372,7 +385,8 @@ impl Running {
         }
         self.resolve_pick();
         let lights = self.prepared.geometry.lights.len();
-        let image = (!on_device).then(|| stages::colours(self.view, &self.frame, self.light, lights));
+        let display = (hyrt_core::kernels::tone_map::exposure_scale(self.display.exposure), self.display.tone_map);
+        let image = (!on_device).then(|| stages::colours(self.view, &self.frame, self.light, lights, display));
         if let Some(with_overlay) = self.pending_screenshot.take() {
             self.screenshot(image.as_deref().expect("read back"), width, height, with_overlay)?;
         }
@@ -385,7 +399,7 @@ impl Running {
             Presenter::Cpu(p) => p.present(image.as_deref().expect("read back"), width, height, overlay),
             Presenter::Gpu(p) => {
                 p.resize(self.window.inner_size().width, self.window.inner_size().height);
-                p.present(width, height, image.as_deref(), overlay)
+                p.present(width, height, image.as_deref(), overlay, display)
             }
         }
     }
@@ -512,6 +526,11 @@ impl Running {
             ));
         }
         lines.push(format!("weight {:.2} ([ ] or drag the bar)", self.options.weight));
+        lines.push(format!(
+            "exposure {:+.1} stops (PgUp PgDn), tone map {} (T)",
+            self.display.exposure,
+            self.display.tone_map.name()
+        ));
         lines.push("1 final 2 raster 3 rt 4 bary 5 depth 6 normal 7 tri 8 obj 9 rt/raster".into());
         lines.push("0 shadow (L: light) - ray count = bounce depth".into());
         lines.push("drag turn, wheel zoom, WASD QE move, R reset, C scene cam".into());
@@ -556,6 +575,15 @@ impl Running {
             Action::SetWeight(w) => self.options.weight = w.clamp(0.0, 1.0),
             Action::NextLight => self.light = (self.light + 1) % self.prepared.geometry.lights.len().max(1),
             Action::ToggleOverlay => self.show_overlay = !self.show_overlay,
+            Action::AddExposure(stops) => {
+                self.display.exposure = (self.display.exposure + stops).clamp(-EXPOSURE_LIMIT, EXPOSURE_LIMIT)
+            }
+            Action::SetExposure(stops) => self.display.exposure = stops.clamp(-EXPOSURE_LIMIT, EXPOSURE_LIMIT),
+            Action::NextToneMap => {
+                let all = hyrt::ToneMap::ALL;
+                let at = all.iter().position(|&t| t == self.display.tone_map).unwrap_or(0);
+                self.display.tone_map = all[(at + 1) % all.len()];
+            }
             Action::Screenshot { overlay } => self.pending_screenshot = Some(overlay),
             Action::Orbit(dx, dy) => self.controller.rotate(dx, dy),
             Action::Zoom(f) => self.controller.zoom(f),
@@ -601,6 +629,9 @@ impl Running {
                 KeyCode::BracketRight => Action::AddWeight(0.05),
                 KeyCode::KeyL => Action::NextLight,
                 KeyCode::KeyH => Action::ToggleOverlay,
+                KeyCode::PageUp => Action::AddExposure(0.5),
+                KeyCode::PageDown => Action::AddExposure(-0.5),
+                KeyCode::KeyT => Action::NextToneMap,
                 KeyCode::KeyP => Action::Screenshot { overlay: false },
                 KeyCode::KeyO => Action::Screenshot { overlay: true },
                 KeyCode::Escape => Action::Quit,

@@ -55,6 +55,26 @@ impl CpuPresenter {
     }
 }
 
+/// `present.wgsl` after the tone mappers' constants, from core's values (one source).
+fn shader_source() -> String {
+    use hyrt_core::kernels::tone_map::{ACES_INPUT, ACES_OUTPUT, NEUTRAL_DESATURATION, NEUTRAL_START_COMPRESSION};
+    // A Rust matrix given by rows as a WGSL matrix (given by columns) with the same rows.
+    let matrix = |m: [[f32; 3]; 3]| {
+        let columns: Vec<String> =
+            (0..3).map(|j| format!("vec3<f32>({:?}, {:?}, {:?})", m[0][j], m[1][j], m[2][j])).collect();
+        format!("mat3x3<f32>({})", columns.join(", "))
+    };
+    format!(
+        "const NEUTRAL_START_COMPRESSION: f32 = {:?};\nconst NEUTRAL_DESATURATION: f32 = {:?};\n\
+         const ACES_INPUT: mat3x3<f32> = {};\nconst ACES_OUTPUT: mat3x3<f32> = {};\n{}",
+        NEUTRAL_START_COMPRESSION,
+        NEUTRAL_DESATURATION,
+        matrix(ACES_INPUT),
+        matrix(ACES_OUTPUT),
+        include_str!("present.wgsl")
+    )
+}
+
 /// The shader's uniform: what the source is and where the overlay lies.
 #[repr(C)]
 #[derive(Clone, Copy)]
@@ -65,6 +85,11 @@ struct Params {
     surface_srgb: u32,
     overlay_w: u32,
     overlay_h: u32,
+    /// The frame texture's exposure scale (`tone_map::exposure_scale`), as f32 bits.
+    exposure: u32,
+    /// The tone-mapping operator: its index in `hyrt::ToneMap::ALL`.
+    tone_map: u32,
+    pad: [u32; 2],
 }
 
 /// Textures of one frame size.
@@ -144,7 +169,7 @@ impl GpuPresenter {
         surface.configure(&device, &config);
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("viewer present"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("present.wgsl").into()),
+            source: wgpu::ShaderSource::Wgsl(shader_source().into()),
         });
         let tex = |binding| wgpu::BindGroupLayoutEntry {
             binding,
@@ -279,14 +304,16 @@ impl GpuPresenter {
         );
     }
 
-    /// Draw the frame texture (`view` = None) or a stage view converted on the CPU,
-    /// with `overlay` over it, and present.
+    /// Draw the frame texture (`view` = None; shown through `display`, an exposure scale
+    /// and a tone-mapping operator) or a stage view converted on the CPU, with `overlay`
+    /// over it, and present.
     pub fn present(
         &mut self,
         width: u32,
         height: u32,
         view: Option<&[Rgba8]>,
         overlay: Option<&OverlayImage>,
+        display: (f32, hyrt::ToneMap),
     ) -> Result<(), ViewError> {
         self.targets(width, height);
         if let Some(pixels) = view {
@@ -313,8 +340,20 @@ impl GpuPresenter {
             surface_srgb: self.config.format.is_srgb() as u32,
             overlay_w: ow,
             overlay_h: oh,
+            exposure: display.0.to_bits(),
+            tone_map: hyrt::ToneMap::ALL.iter().position(|&t| t == display.1).unwrap_or(0) as u32,
+            pad: [0; 2],
         };
-        let words = [params.source_hdr, params.surface_srgb, params.overlay_w, params.overlay_h];
+        let words = [
+            params.source_hdr,
+            params.surface_srgb,
+            params.overlay_w,
+            params.overlay_h,
+            params.exposure,
+            params.tone_map,
+            params.pad[0],
+            params.pad[1],
+        ];
         self.queue.write_buffer(&self.params, 0, &words.iter().flat_map(|w| w.to_le_bytes()).collect::<Vec<u8>>());
         let frame = match self.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t) | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,

@@ -17,6 +17,8 @@ FRAME (0 is the first) renders; `#` starts a comment. Actions:
   scene-camera      the scene's own camera
   click X Y         toggle the object at pixel (X, Y) between ray traced and rasterized
   weight W          set the composition weight (0..1)
+  exposure S        set the display's exposure, in stops
+  tone-map          the next tone-mapping operator (none, khronos-pbr-neutral, aces)
   play              play or pause the animation (it loops)
   time T            pose the animation at T seconds
   light             the next light's shadow mask
@@ -40,6 +42,12 @@ pub enum Action {
     SetTime(f32),
     AddWeight(f32),
     SetWeight(f32),
+    /// Change the display's exposure by this many stops.
+    AddExposure(f32),
+    /// Set the display's exposure, in stops.
+    SetExposure(f32),
+    /// The next tone-mapping operator.
+    NextToneMap,
     NextLight,
     ToggleOverlay,
     Screenshot {
@@ -95,6 +103,8 @@ impl Script {
                 "scene-camera" => Action::SceneCamera,
                 "click" => Action::Click(u(2)?, u(3)?),
                 "weight" => Action::SetWeight(f(2)?.clamp(0.0, 1.0)),
+                "exposure" => Action::SetExposure(f(2)?),
+                "tone-map" => Action::NextToneMap,
                 "play" => Action::PlayPause,
                 "time" => Action::SetTime(f(2)?),
                 "light" => Action::NextLight,

@@ -139,8 +139,10 @@ fn gbuffer_view(g: &[GBufferTexel], f: impl Fn(&GBufferTexel) -> Rgba8) -> Vec<R
 }
 
 /// The colours of `view` for `frame` (black where the frame does not hold its buffer);
-/// `light` picks the shadow mask's light.
-pub fn colours(view: View, frame: &Frame, light: usize, lights: usize) -> Vec<Rgba8> {
+/// `light` picks the shadow mask's light; the images (final, raster, rt) are displayed
+/// through `display`, an exposure scale and a tone-mapping operator (core's
+/// `tone_map::display`, as `hyrt render` writes PNGs).
+pub fn colours(view: View, frame: &Frame, light: usize, lights: usize, display: (f32, hyrt::ToneMap)) -> Vec<Rgba8> {
     let pixels = frame.width as usize * frame.height as usize;
     let black = || vec![[0, 0, 0, 255]; pixels];
     let Some(buffer) = frame.holds(view.buffer()).then(|| frame.buffer(view.buffer())).flatten() else {
@@ -148,7 +150,11 @@ pub fn colours(view: View, frame: &Frame, light: usize, lights: usize) -> Vec<Rg
     };
     match (view, buffer) {
         (View::Final | View::Raster | View::RayTraced, BufferView::Image(img)) => {
-            img.iter().map(|&p| rgba_to_srgb8(p)).map(|[r, g, b, _]| [r, g, b, 255]).collect()
+            let (scale, op) = display;
+            img.iter()
+                .map(|&p| rgba_to_srgb8(hyrt_core::kernels::tone_map::display(p, scale, op)))
+                .map(|[r, g, b, _]| [r, g, b, 255])
+                .collect()
         }
         (View::Barycentrics, BufferView::GBuffer(g)) => {
             gbuffer_view(g, |t| [unorm(1.0 - t.bary_u - t.bary_v), unorm(t.bary_u), unorm(t.bary_v), 255])
@@ -250,10 +256,14 @@ mod tests {
         let options = hyrt::FrameOptions { stage_outputs: true, ..Default::default() };
         let frame = renderer.render(&prepared, &scene.camera.unwrap(), 32, 18, &options).unwrap();
         let srgb = frame.final_srgb8();
-        let view = colours(View::Final, &frame, 0, 1);
+        let plain = (1.0, hyrt::ToneMap::None);
+        let view = colours(View::Final, &frame, 0, 1, plain);
         assert!(view.iter().zip(srgb.chunks(4)).all(|(v, s)| v[..3] == s[..3]));
         for v in View::ALL {
-            assert_eq!(colours(v, &frame, 0, prepared.geometry.lights.len()).len(), 32 * 18, "{v:?}");
+            assert_eq!(colours(v, &frame, 0, prepared.geometry.lights.len(), plain).len(), 32 * 18, "{v:?}");
         }
+        // An exposure of one stop brightens the image, as hyrt render's PNG does.
+        let brighter = colours(View::Final, &frame, 0, 1, (2.0, hyrt::ToneMap::None));
+        assert!(brighter.iter().zip(&view).all(|(b, v)| b[0] >= v[0]) && brighter != view);
     }
 }
