@@ -27,7 +27,7 @@ use hyrt_core::formats::wgsl::declarations;
 use hyrt_core::formats::{
     FrameParams, MaterialRecord, ObjectRecord, SurfaceLayout, SurfaceRecord, TextureSet, TriangleRecord,
     TriangleUvRecord, FILTER_LINEAR, FILTER_NEAREST, INVALID_ID, MAT_ALPHA_TEST, MAT_EMISSIVE, MAT_METALLIC_ROUGHNESS,
-    MAT_OCCLUSION, MAT_TEXTURED, MAT_VERTEX_COLORS, TEXEL_LINEAR, TEXEL_SRGB,
+    MAT_NORMAL, MAT_OCCLUSION, MAT_TEXTURED, MAT_VERTEX_COLORS, TEXEL_LINEAR, TEXEL_SRGB,
 };
 use hyrt_core::geometry::SurfaceTables;
 use hyrt_core::glam::{Vec2, Vec3};
@@ -102,7 +102,7 @@ query_record! {
 const _: () = assert!(std::mem::size_of::<Query>() == 96);
 
 /// Words each query writes.
-const RESULT_WORDS: usize = 40;
+const RESULT_WORDS: usize = 44;
 
 /// The frame's cone spread the queries' `primary_cone` and `secondary_parent` see.
 const SPREAD: f32 = 0.0017;
@@ -133,7 +133,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let q = queries[k];
     let tex = surface_texture(q.texture);
     let uv = vec2<f32>(q.u, q.v);
-    let at = k * 40u;
+    let at = k * 44u;
     put4(at, sample_texture(tex, uv, q.lod));
     put4(at + 4u, sample_level(tex, q.level, uv, FILTER_NEAREST));
     put4(at + 8u, sample_level(tex, q.level, uv, FILTER_LINEAR));
@@ -166,6 +166,13 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     tri.object = q.object;
     results[at + 32u] = select(0u, 1u, alpha_accepts(tri, q.triangle, q.bary_u, q.bary_v));
     results[at + 33u] = bitcast<u32>(primary_cone(n));
+    s.normal = normalize_or_zero(n);
+    let d = vec3<f32>(q.dx, q.dy, q.dz);
+    let front = normal_mapped(s, q.bary_u, q.bary_v, q.cone, d, false).normal;
+    results[at + 40u] = bitcast<u32>(front.x);
+    results[at + 41u] = bitcast<u32>(front.y);
+    results[at + 42u] = bitcast<u32>(front.z);
+    results[at + 43u] = bitcast<u32>(normal_mapped(s, q.bary_u, q.bary_v, q.cone, d, true).normal.y);
 }
 "#;
 
@@ -186,7 +193,8 @@ fn word_name(word: usize) -> &'static str {
         28..=31 | 34..=38 => "shaded_object",
         32 => "alpha_accepts",
         33 => "primary_cone",
-        _ => "texture_lod",
+        39 => "texture_lod",
+        _ => "normal_mapped",
     }
 }
 
@@ -225,6 +233,11 @@ fn cpu_results(tables: &SurfaceTables, objects: &[ObjectRecord], q: &Query) -> [
     put4(34, [obj.roughness, obj.ambient_scale, obj.emissive[0], obj.emissive[1]]);
     r[38] = obj.emissive[2].to_bits();
     r[39] = cpu::texture_lod(q.lod, &set.records[0], tex).to_bits();
+    let s = SurfaceRecord { normal: n.normalize_or_zero().into(), ..s };
+    let d = Vec3::new(q.dx, q.dy, q.dz);
+    let front = materials.normal_mapped(&s, q.bary_u, q.bary_v, q.cone, d, false).normal;
+    (r[40], r[41], r[42]) = (front[0].to_bits(), front[1].to_bits(), front[2].to_bits());
+    r[43] = materials.normal_mapped(&s, q.bary_u, q.bary_v, q.cone, d, true).normal[1].to_bits();
     let alpha = cpu::alpha_at(&set.texels, tex, uv);
     r[12] = alpha.to_bits();
     r[13] = cpu::alpha_passes(alpha, q.cutoff) as u32;
@@ -446,6 +459,19 @@ fn triangles(rng: &mut Rng, count: usize) -> (Vec<TriangleUvRecord>, Vec<[[f32; 
     (uvs, colors)
 }
 
+/// Each triangle's corner tangents: random directions (some zero, some long) with either
+/// bitangent sign.
+fn tangents(rng: &mut Rng, count: usize) -> Vec<[[f32; 4]; 3]> {
+    (0..count)
+        .map(|_| {
+            std::array::from_fn(|_| {
+                let d = if rng.below(10) == 0 { Vec3::ZERO } else { direction(rng) * rng.range(0.5, 2.0) };
+                [d.x, d.y, d.z, if rng.below(2) == 0 { 1.0 } else { -1.0 }]
+            })
+        })
+        .collect()
+}
+
 /// The materials (one per object): every combination of the flags, each texture slot
 /// cycling through the textures (of both encodings and different sizes, so the levels
 /// of detail shift), with base alphas, cutoffs and occlusion strengths in [0, 1] (some 0
@@ -454,13 +480,21 @@ fn materials(rng: &mut Rng, textures: u32, count: u32) -> (Vec<MaterialRecord>, 
     let unit = |rng: &mut Rng| if rng.below(4) == 0 { rng.pick(&[0.0, 1.0, 0.5]) } else { rng.range(0.0, 1.0) };
     let materials = (0..count)
         .map(|k| {
-            let bits =
-                [MAT_TEXTURED, MAT_VERTEX_COLORS, MAT_ALPHA_TEST, MAT_METALLIC_ROUGHNESS, MAT_OCCLUSION, MAT_EMISSIVE];
+            let bits = [
+                MAT_TEXTURED,
+                MAT_VERTEX_COLORS,
+                MAT_ALPHA_TEST,
+                MAT_METALLIC_ROUGHNESS,
+                MAT_OCCLUSION,
+                MAT_EMISSIVE,
+                MAT_NORMAL,
+            ];
             let flags = bits.iter().enumerate().fold(0, |f, (bit, m)| f | if (k >> bit) & 1 != 0 { *m } else { 0 });
             let slot = |flag: u32, shift: u32| if flags & flag != 0 { (k + shift) % textures } else { INVALID_ID };
             let (texture, metallic_roughness, occlusion, emissive) =
                 (slot(MAT_TEXTURED, 0), slot(MAT_METALLIC_ROUGHNESS, 3), slot(MAT_OCCLUSION, 5), slot(MAT_EMISSIVE, 7));
-            let uv_texture = [texture, metallic_roughness, occlusion, emissive]
+            let normal = slot(MAT_NORMAL, 11);
+            let uv_texture = [texture, metallic_roughness, occlusion, emissive, normal]
                 .into_iter()
                 .find(|&t| t != INVALID_ID)
                 .unwrap_or(INVALID_ID);
@@ -474,10 +508,8 @@ fn materials(rng: &mut Rng, textures: u32, count: u32) -> (Vec<MaterialRecord>, 
                 emissive,
                 occlusion_strength: unit(rng),
                 uv_texture,
-                // Normal maps are not a shading-record kernel: the corpus's texture_normal_maps
-                // checks them.
-                normal: INVALID_ID,
-                normal_scale: 1.0,
+                normal,
+                normal_scale: rng.range(-2.0, 2.0),
             };
             record.validate(textures as usize).unwrap();
             record
@@ -607,8 +639,9 @@ fn texture_kernels_match_cpu_bit_for_bit() {
     let mut rng = Rng(0x7e87_04e5);
     let set = texture_set(&mut rng);
     let (uvs, colors) = triangles(&mut rng, 97);
-    let (materials, objects) = materials(&mut rng, set.records.len() as u32, 64);
-    let tables = SurfaceTables { textures: set, materials, uvs, colors, tangents: Vec::new() };
+    let (materials, objects) = materials(&mut rng, set.records.len() as u32, 128);
+    let tangents = tangents(&mut rng, uvs.len());
+    let tables = SurfaceTables { textures: set, materials, uvs, colors, tangents };
     let queries = queries(&mut rng, &tables.textures, tables.uvs.len() as u32, objects.len() as u32, 400);
     assert_reaches_the_edge_cases(&tables.textures, &queries);
     let gpu = gpu_results(&ctx, &tables, &objects, &queries);
