@@ -400,6 +400,10 @@ fn surface_tables(scene: &Scene, triangles: &WorldTriangles) -> SurfaceTables {
                 MAT_EMISSIVE => record.emissive = index,
                 _ => record.normal = index,
             }
+            // The first texture (`maps` is in `Materials::at`'s order) sets the coordinates.
+            if record.uv_texture == crate::formats::INVALID_ID {
+                record.uv_texture = index;
+            }
             if flag == MAT_NORMAL {
                 let corners = mesh_tangents
                     .entry((obj.mesh, binding.tex_coord))
@@ -407,14 +411,7 @@ fn surface_tables(scene: &Scene, triangles: &WorldTriangles) -> SurfaceTables {
                 tangents::world_tangents(&mut t.tangents[range.clone()], corners, &obj.transform);
             }
         }
-        if let Some(&(flag, binding, _)) = maps.first() {
-            record.uv_texture = match flag {
-                MAT_TEXTURED => record.texture,
-                MAT_METALLIC_ROUGHNESS => record.metallic_roughness,
-                MAT_OCCLUSION => record.occlusion,
-                MAT_EMISSIVE => record.emissive,
-                _ => record.normal,
-            };
+        if let Some(&(_, binding, _)) = maps.first() {
             let image = &scene.textures[binding.image];
             let coords = mesh.attributes.tex_coords[binding.tex_coord as usize].as_ref().expect("filtered on it");
             let mut world = Vec::new();

@@ -418,9 +418,12 @@ impl<'a> Materials<'a> {
 
 impl Materials<'_> {
     /// Whether some object is normal-mapped ([`MAT_NORMAL`]): only then do the stages
-    /// that make surfaces call [`Materials::normal_mapped`].
+    /// that make surfaces call [`Materials::normal_mapped`]. The tangent table exists
+    /// exactly then (`crate::geometry::SurfaceTables::tangents`), so this is a length test,
+    /// not a scan of the materials: the fused frame asks it per tile.
+    #[inline]
     pub fn normal_mapped_any(&self) -> bool {
-        self.surface.materials.iter().any(|m| m.flags & MAT_NORMAL != 0)
+        !self.surface.tangents.is_empty()
     }
 
     /// Surface `s` (a hit, or a miss, returned as it is) with its shading normal from its
@@ -463,12 +466,9 @@ impl Materials<'_> {
         let side = if back_face { -1.0 } else { 1.0 };
         let n = Vec3::from(s.normal) * side;
         let c = &self.surface.tangents[global];
-        let w = crate::kernels::barycentric::bary_w(u, v);
-        let tangent = Vec3::new(
-            (w * c[0][0] + u * c[1][0]) + v * c[2][0],
-            (w * c[0][1] + u * c[1][1]) + v * c[2][1],
-            (w * c[0][2] + u * c[1][2]) + v * c[2][2],
-        );
+        // Corners interpolated as vertex colours are (the sign, `w`, is the first corner's).
+        let [tx, ty, tz, _] = interpolate_color(c, u, v);
+        let tangent = Vec3::new(tx, ty, tz);
         let tangent = (tangent - n * n.dot(tangent)).normalize_or_zero();
         if tangent == Vec3::ZERO {
             return *s;

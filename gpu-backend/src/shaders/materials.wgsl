@@ -116,12 +116,7 @@ fn normal_mapped(s: SurfaceRecord, u: f32, v: f32, cone: f32, d: vec3<f32>, back
     let c0 = surface_tangent(global, 0u);
     let c1 = surface_tangent(global, 1u);
     let c2 = surface_tangent(global, 2u);
-    let w = (1.0 - u) - v;
-    let tangent_in = vec3<f32>(
-        rounded(mul(w, c0.x) + mul(u, c1.x)) + mul(v, c2.x),
-        rounded(mul(w, c0.y) + mul(u, c1.y)) + mul(v, c2.y),
-        rounded(mul(w, c0.z) + mul(u, c1.z)) + mul(v, c2.z),
-    );
+    let tangent_in = interpolate_color(c0, c1, c2, u, v).xyz;
     let along = dot3(n, tangent_in);
     let tangent = normalize_or_zero(vec3<f32>(
         rounded(tangent_in.x - mul(n.x, along)),
