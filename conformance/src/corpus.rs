@@ -754,7 +754,7 @@ fn shading_cases(b: &mut Builder) {
     // and the mirror's own ambient included.
     let (s, cam) = transformed_default(Vec3::ZERO, 1.0);
     let s = Scene { ambient: Ambient(0.0), ..s };
-    b.add("shading_default_scene_without_ambient", "mirrors and glass with ambient = 0", s, cam, 64, 48);
+    b.add("paper_default_scene_without_ambient", "mirrors and glass with ambient = 0", s, cam, 64, 48);
 }
 
 /// Scenes traced through two levels: objects prepared as moving, in their own space,
