@@ -213,7 +213,7 @@ pub fn bounce_rt_image(
             Some(prev) => Parents::Secondary { rays: &prev.rays, hits: &prev.hits, surfaces: &prev.surfaces },
         };
         match variant.cutoff_log2 {
-            None => secondary_rays_into(parents, &materials, &g.triangles, d, &mut scratch, &mut b.rays, &mut b.links)
+            None => secondary_rays_into(parents, &materials, &g.triangles, d, &mut b.rays, &mut b.links)
                 .unwrap_or_else(|e| panic!("secondary_rays: {e}")),
             Some(e) => spawn_with_cutoff(parents, &materials, &g.triangles, d, e, &mut b.rays, &mut b.links),
         }

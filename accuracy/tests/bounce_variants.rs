@@ -19,7 +19,6 @@ use hyrt_core::formats::{CameraRecord, RayRecord};
 use hyrt_core::frame::{Backend, FrameOptions};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_cpu::backend::CpuBackend;
-use hyrt_cpu::compaction::CompactionScratch;
 use hyrt_cpu::reconstruction::reconstruction;
 use hyrt_cpu::secondary_rays::{secondary_rays_into, Parents};
 use hyrt_cpu::visibility_raster::visibility_raster;
@@ -64,8 +63,7 @@ fn the_pipeline_offset_and_cutoff_leave_the_secondary_rays_bit_identical() {
     let parents = Parents::Primary { gbuffer: &gbuffer, surfaces: &surfaces, eye };
     let materials = hyrt_core::kernels::texture::Materials::plain(&g.objects);
     let (mut rays, mut links) = (Vec::new(), Vec::new());
-    secondary_rays_into(parents, &materials, &g.triangles, 1, &mut CompactionScratch::default(), &mut rays, &mut links)
-        .unwrap();
+    secondary_rays_into(parents, &materials, &g.triangles, 1, &mut rays, &mut links).unwrap();
     assert!(rays.len() > 200, "{}", rays.len());
     let mut again = rays.clone();
     reoffset_secondary_rays(&mut again, &links, &parents, OffsetMethod::ErrorBound, g.scene_extent());

@@ -258,7 +258,7 @@ fn bounce_step(
                 Some(prev) => Parents::Secondary { rays: &prev.rays, hits: &prev.hits, surfaces: &prev.surfaces },
             };
             let b = &mut rest[0];
-            secondary_rays_into(parents, materials, &g.triangles, depth, scratch, &mut b.rays, &mut b.links)
+            secondary_rays_into(parents, materials, &g.triangles, depth, &mut b.rays, &mut b.links)
                 .map_err(oom("a bounce's ray list"))?
         }
         Step::BounceTrace { depth } => {

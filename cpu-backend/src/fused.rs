@@ -94,10 +94,10 @@ use crate::composition::composition_pixel;
 use crate::composition::lanes::composition_lanes;
 use crate::lanes::{avx2_entry_points, dispatch, store3, Lanes, LANES};
 use crate::raster_shading::lanes::{raster_shading_lanes, PrimaryLanes};
-use crate::raster_shading::{raster_shading_pixel, Primary};
+use crate::raster_shading::{raster_shading_record, Primary};
 use crate::reconstruction::{self, BlockSetups, Reconstruct};
 use crate::rt_shading::lanes::rt_shading_lanes;
-use crate::rt_shading::{rt_shading_bouncing_pixel, BouncingShading};
+use crate::rt_shading::{rt_shading_bouncing_record, BouncingShading};
 use crate::secondary_rays::{may_bounce, Parents};
 use crate::traversal::tiles::{TILE_HEIGHT, TILE_WIDTH};
 use crate::traversal::{occluded_in_object_space_serial, occluded_serial, SimdLevel, Traversal, SHADOW_VISIBLE};
@@ -193,6 +193,8 @@ struct DeferredPixel {
     pixel: u32,
     texel: GBufferTexel,
     surface: SurfaceRecord,
+    /// The record its object is shaded with there ([`Primary::object`]).
+    record: ObjectRecord,
     /// Its `raster_shading` colour (zero where the plan has none).
     raster: [f32; 4],
 }
@@ -212,6 +214,8 @@ pub struct Deferred {
     pub pixels: Vec<u32>,
     pub texels: Vec<GBufferTexel>,
     pub surfaces: Vec<SurfaceRecord>,
+    /// The records their objects are shaded with ([`Primary::object`]).
+    pub records: Vec<ObjectRecord>,
     /// `SHADOW_*` per (deferred pixel, light), `k * lights + light`.
     pub shadow: Vec<u8>,
     pub raster: Vec<[f32; 4]>,
@@ -249,12 +253,14 @@ impl Deferred {
         crate::memory::reserve(&mut self.pixels, n)?;
         crate::memory::reserve(&mut self.texels, n)?;
         crate::memory::reserve(&mut self.surfaces, n)?;
+        crate::memory::reserve(&mut self.records, n)?;
         crate::memory::reserve(&mut self.raster, n)?;
         crate::memory::reserve(&mut self.shadow, n * lights)?;
         let order = self.order.par_iter().with_min_len(1024);
         order.clone().map(|k| pixel(k).pixel).collect_into_vec(&mut self.pixels);
         order.clone().map(|k| pixel(k).texel).collect_into_vec(&mut self.texels);
         order.clone().map(|k| pixel(k).surface).collect_into_vec(&mut self.surfaces);
+        order.clone().map(|k| pixel(k).record).collect_into_vec(&mut self.records);
         order.map(|k| pixel(k).raster).collect_into_vec(&mut self.raster);
         self.shadow.clear();
         self.shadow.resize(n * lights, SHADOW_NO_RAY);
@@ -269,7 +275,13 @@ impl Deferred {
 
     /// The deferred pixels as the first bounce's parents, seen from `eye`.
     pub fn parents(&self, eye: Vec3) -> Parents<'_> {
-        Parents::Pixels { pixels: &self.pixels, texels: &self.texels, surfaces: &self.surfaces, eye }
+        Parents::Pixels {
+            pixels: &self.pixels,
+            texels: &self.texels,
+            surfaces: &self.surfaces,
+            records: &self.records,
+            eye,
+        }
     }
 }
 
@@ -294,7 +306,8 @@ pub fn shade_deferred(
         let hi = lo + d.pixels[lo..].partition_point(|&p| p < first + width as u32);
         for k in lo..hi {
             let shadow = &d.shadow[k * nl..(k + 1) * nl];
-            let rt = rt_shading_bouncing_pixel(shading, &d.texels[k], &d.surfaces[k], d.pixels[k], shadow, links[k]);
+            let (t, s, record) = (&d.texels[k], &d.surfaces[k], &d.records[k]);
+            let rt = rt_shading_bouncing_record(shading, t, s, d.pixels[k], record, shadow, links[k]);
             row[(d.pixels[k] - first) as usize] = composition_pixel(steps.composition, &d.raster[k], &rt, weight);
         }
     });
@@ -304,6 +317,9 @@ pub fn shade_deferred(
 #[derive(Default)]
 struct TileScratch {
     surfaces: Vec<SurfaceRecord>,
+    /// Where materials vary over surfaces, each hit's record as shading sees it
+    /// ([`Primary::object`]: its texture lookups), made once and read by every step.
+    records: Vec<ObjectRecord>,
     /// Reconstruction's triangle setups.
     setups: BlockSetups,
     /// `SHADOW_*` per (tile pixel, light), `pixel * lights + light`.
@@ -474,6 +490,17 @@ fn tile(
         }
     }
     reconstruction::validate(&s.surfaces);
+    let primary = &Primary { gbuffer: texels, ..inputs.primary };
+    let varying = materials.varying();
+    s.records.clear();
+    if varying {
+        s.records.resize(tw * th, bytemuck::Zeroable::zeroed());
+        for (k, (record, surface)) in s.records.iter_mut().zip(&s.surfaces).enumerate() {
+            if surface.is_hit() {
+                *record = primary.object((k / tw) * stride + k % tw, surface);
+            }
+        }
+    }
 
     // compaction and shadow_rays, light by light
     let lights = &g.lights;
@@ -519,20 +546,21 @@ fn tile(
     // and raster colour are kept for `shade_deferred`, after the bounce steps. (The shading
     // below may write it too; `shade_deferred` writes it last.)
     if steps.bounces {
-        let primary = &Primary { gbuffer: texels, ..inputs.primary };
-        let objects = primary.materials.objects;
+        let objects = materials.objects;
         for ly in 0..th {
             for lx in (0..tw).filter(|&lx| may_bounce(&s.surfaces[ly * tw + lx], objects)) {
                 let (k, i) = (ly * tw + lx, ly * stride + lx);
                 let (surface, shadow) = (&s.surfaces[k], &s.shadow[k * nl..(k + 1) * nl]);
+                let record = if varying { s.records[k] } else { objects[surface.object as usize] };
                 let raster = match steps.raster_shading {
                     Some(shade_ray_traced) => {
-                        raster_shading_pixel(primary, lights, shade_ray_traced, i, surface, shadow)
+                        raster_shading_record(primary, lights, shade_ray_traced, surface, &record, shadow)
                     }
                     None => [0.0; 4],
                 };
                 let pixel = ((y0 + ly) * width + x0 + lx) as u32;
-                deferred.pixels.push(DeferredPixel { pixel, texel: texels[i], surface: *surface, raster });
+                let texel = texels[i];
+                deferred.pixels.push(DeferredPixel { pixel, texel, surface: *surface, record, raster });
                 deferred.shadow.extend_from_slice(shadow);
             }
         }
@@ -544,7 +572,7 @@ fn tile(
         tile_shading,
         tile_shading_avx512,
         tile_shading_avx2,
-        (inputs, TexelTile { texels, stride }, &s.surfaces, &s.shadow, (tw, th), &mut s.lit, &mut rows)
+        (inputs, &s.surfaces, &s.records, &s.shadow, (tw, th), &mut s.lit, &mut rows)
     );
     counts
 }
@@ -559,8 +587,8 @@ fn tile(
 #[inline(always)]
 fn tile_shading<L: Lanes>(
     inputs: &TileInputs,
-    TexelTile { texels, stride }: TexelTile,
     surfaces: &[SurfaceRecord],
+    records: &[ObjectRecord],
     shadow: &[u8],
     (tw, th): (usize, usize),
     lit: &mut Vec<u32>,
@@ -570,11 +598,9 @@ fn tile_shading<L: Lanes>(
     const BH: usize = TILE_HEIGHT as usize;
     let (steps, lights) = (inputs.steps, &inputs.scene.geometry.lights);
     let (objects, eye, nl) = (inputs.primary.materials.objects, inputs.primary.eye.into(), lights.len());
-    // Where materials vary, each hit's record at its pixel (`Primary::object`: its texel's
-    // texture lookups), as the scalar stages shade it.
-    let primary = &Primary { gbuffer: texels, ..inputs.primary };
-    let varying = primary.materials.varying();
-    let mut at_pixel = [<ObjectRecord as bytemuck::Zeroable>::zeroed(); LANES];
+    // Where materials vary, each hit's record at its pixel (`records`: `Primary::object`),
+    // as the scalar stages shade it.
+    let varying = !records.is_empty();
     lit.resize(nl, 0);
     let none = [L::splat(0.0); 4];
     for by in (0..th).step_by(BH) {
@@ -588,13 +614,12 @@ fn tile_shading<L: Lanes>(
                 _ => &SurfaceRecord::MISS,
             });
             let block = if varying {
-                for (j, (record, s)) in at_pixel.iter_mut().zip(block_surfaces).enumerate() {
-                    if s.is_hit() {
-                        let (lx, ly) = at_lane(j);
-                        *record = primary.object(ly * stride + lx, s);
-                    }
-                }
-                PrimaryLanes::<L>::load_shaded(block_surfaces, objects, std::array::from_fn(|j| &at_pixel[j]))
+                let block_records = std::array::from_fn(|j| match at_lane(j) {
+                    (lx, ly) if inside((lx, ly)) => &records[ly * tw + lx],
+                    // Not read: the lane is a miss.
+                    _ => &records[0],
+                });
+                PrimaryLanes::<L>::load_shaded(block_surfaces, objects, block_records)
             } else {
                 PrimaryLanes::<L>::load(block_surfaces, objects)
             };
@@ -637,8 +662,8 @@ avx2_entry_points!(
     tile_shading_avx512,
     (
         inputs: &TileInputs,
-        texels: TexelTile,
         surfaces: &[SurfaceRecord],
+        records: &[ObjectRecord],
         shadow: &[u8],
         size: (usize, usize),
         lit: &mut Vec<u32>,

@@ -107,6 +107,27 @@ pub fn raster_shading_pixel(
     shade_raster_pixel(s, obj, shadow, lights, primary.eye).extend(1.0).into()
 }
 
+/// [`raster_shading_pixel`] with the pixel's record given: `record` is
+/// [`Primary::object`] of the pixel (the fused frame makes it once per pixel and reads it
+/// in every stage).
+#[inline]
+pub fn raster_shading_record(
+    primary: &Primary,
+    lights: &[LightRecord],
+    shade_ray_traced: bool,
+    s: &SurfaceRecord,
+    record: &ObjectRecord,
+    shadow: &[u8],
+) -> [f32; 4] {
+    if !s.is_hit() {
+        return BACKGROUND_RGBA;
+    }
+    if primary.materials.objects[s.object as usize].flags & OBJ_RAY_TRACED != 0 && !shade_ray_traced {
+        return [0.0; 4];
+    }
+    shade_raster_pixel(s, record, shadow, lights, primary.eye).extend(1.0).into()
+}
+
 /// Pixel `i`'s shadow codes in the frame's mask (`nl` per pixel): a miss has none (a plan
 /// without shadow rays writes no mask, and no hit reads one then).
 #[inline]

@@ -9,7 +9,7 @@
 use glam::Vec3;
 use hyrt_core::formats::{GBufferTexel, LightRecord, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
 use hyrt_core::geometry::WorldTriangles;
-use hyrt_core::kernels::bounce::{primary_parent, shade_rt_pixel_bouncing};
+use hyrt_core::kernels::bounce::{primary_parent, primary_parent_shaded, shade_rt_pixel_bouncing};
 use hyrt_core::kernels::shading::shade_rt_pixel;
 use hyrt_core::kernels::texture::Materials;
 
@@ -137,11 +137,31 @@ pub fn rt_shading_bouncing_pixel(
     shadow: &[u8],
     children: [u32; 2],
 ) -> [f32; 4] {
+    let (materials, eye) = (shading.materials, shading.eye);
+    if ray_traced(materials.objects, s).is_none() {
+        return [0.0; 4];
+    }
+    let record = primary_parent(t, s, eye, pixel, materials).object;
+    rt_shading_bouncing_record(shading, t, s, pixel, &record, shadow, children)
+}
+
+/// [`rt_shading_bouncing_pixel`] with the pixel's record given: `record` is
+/// [`primary_parent`]'s object there (the fused frame makes it once per pixel).
+#[inline]
+pub fn rt_shading_bouncing_record(
+    shading: &BouncingShading,
+    t: &GBufferTexel,
+    s: &SurfaceRecord,
+    pixel: u32,
+    record: &ObjectRecord,
+    shadow: &[u8],
+    children: [u32; 2],
+) -> [f32; 4] {
     let BouncingShading { materials, triangles, lights, eye, radiance } = *shading;
     if ray_traced(materials.objects, s).is_none() {
         return [0.0; 4];
     }
-    let p = primary_parent(t, s, eye, pixel, materials);
+    let p = primary_parent_shaded(t, s, eye, pixel, materials, *record);
     shade_rt_pixel_bouncing(&p, triangles, shadow, lights, eye, children, radiance).extend(1.0).into()
 }
 

@@ -10,20 +10,18 @@
 //! (`INVALID_ID` where that lobe spawned no ray), which `bounce_shading` and
 //! `rt_shading` gather through.
 //!
-//! Each parent is examined twice, as `compaction` does: once to flag the rays that
-//! exist, once to build the survivors after the scan. The kernel is
-//! [`hyrt_core::kernels::bounce::spawn`].
+//! Each parent is examined once, its rays listed chunk by chunk and the lists joined in
+//! order (the GPU flags, scans and writes instead, as `compaction` does; the lists are
+//! the same). The kernel is [`hyrt_core::kernels::bounce::spawn`].
 
 use std::collections::TryReserveError;
 
 use glam::Vec3;
 use hyrt_core::formats::{GBufferTexel, HitRecord, ObjectRecord, RayRecord, SurfaceRecord, INVALID_ID};
 use hyrt_core::geometry::WorldTriangles;
-use hyrt_core::kernels::bounce::{bounces, primary_parent, secondary_parent, spawn, Parent};
+use hyrt_core::kernels::bounce::{bounces, primary_parent, primary_parent_shaded, secondary_parent, spawn, Parent};
 use hyrt_core::kernels::texture::Materials;
 use rayon::prelude::*;
-
-use crate::compaction::{compact_into, CompactionScratch};
 
 /// The parents of one bounce: what [`secondary_rays_into`] spawns from.
 #[derive(Clone, Copy)]
@@ -33,9 +31,16 @@ pub enum Parents<'a> {
     /// The hits of the previous bounce: one parent per ray.
     Secondary { rays: &'a [RayRecord], hits: &'a [HitRecord], surfaces: &'a [SurfaceRecord] },
     /// Some pixels' primary hits, seen from `eye`: parent `i` is pixel `pixels[i]`, with
-    /// texel `texels[i]` and surface `surfaces[i]` (the fused frame's bouncing pixels,
-    /// `crate::fused`: in pixel order, they spawn the rays [`Parents::Primary`] spawns).
-    Pixels { pixels: &'a [u32], texels: &'a [GBufferTexel], surfaces: &'a [SurfaceRecord], eye: Vec3 },
+    /// texel `texels[i]`, surface `surfaces[i]` and the record its object is shaded with
+    /// there, `records[i]` (the fused frame's bouncing pixels, `crate::fused`: in pixel
+    /// order, they spawn the rays [`Parents::Primary`] spawns).
+    Pixels {
+        pixels: &'a [u32],
+        texels: &'a [GBufferTexel],
+        surfaces: &'a [SurfaceRecord],
+        records: &'a [ObjectRecord],
+        eye: Vec3,
+    },
 }
 
 impl<'a> Parents<'a> {
@@ -81,8 +86,8 @@ impl<'a> Parents<'a> {
             Parents::Secondary { rays, hits, surfaces } => {
                 secondary_parent(&rays[i], &hits[i], &surfaces[i], materials)
             }
-            Parents::Pixels { pixels, texels, surfaces, eye } => {
-                primary_parent(&texels[i], &surfaces[i], eye, pixels[i], materials)
+            Parents::Pixels { pixels, texels, surfaces, records, eye } => {
+                primary_parent_shaded(&texels[i], &surfaces[i], eye, pixels[i], materials, records[i])
             }
         }
     }
@@ -96,51 +101,75 @@ pub fn may_bounce(s: &SurfaceRecord, objects: &[ObjectRecord]) -> bool {
     s.is_hit() && bounces(&objects[s.object as usize])
 }
 
+/// Parents a worker spawns from at once: their rays go into a list of the chunk's own,
+/// and the lists are joined in chunk order after. Large enough that the join's per-chunk
+/// work is negligible, small enough that a frame's few bouncing regions spread over the
+/// workers.
+const SPAWN_CHUNK: usize = 1024;
+
 /// The stage into caller-owned buffers (allocations reused): the rays of bounce `depth`
 /// into `rays`, each parent's child indices into `links`. An error where the allocator
-/// cannot hold the flags, the list or the links (the frame then fails with
+/// cannot hold the list or the links (the frame then fails with
 /// `RenderError::OutOfMemory` instead of aborting).
+///
+/// Each parent is examined once: a chunk of parents spawns into a list of its own, its
+/// links numbered in that list; the lists are then joined in chunk order and the links
+/// moved by their chunk's start. The result is the compaction of every parent's
+/// `[reflection, refraction]` flags in order, as the GPU's scan builds it.
 pub fn secondary_rays_into(
     parents: Parents,
     materials: &Materials,
     triangles: &WorldTriangles,
     depth: u32,
-    scratch: &mut CompactionScratch,
     rays: &mut Vec<RayRecord>,
     links: &mut Vec<[u32; 2]>,
 ) -> Result<(), TryReserveError> {
     let n = parents.len();
-    // Every flag is written below: resizing alone leaves a reused buffer untouched.
-    crate::memory::reserve(&mut scratch.flags, 2 * n)?;
-    scratch.flags.resize(2 * n, 0);
-    scratch.flags.par_chunks_mut(2).enumerate().with_min_len(1024).for_each(|(i, f)| {
-        if !parents.may_bounce(i, materials.objects) {
-            f[0] = 0;
-            f[1] = 0;
-            return;
-        }
-        let r = spawn(&parents.get(i, materials), triangles, depth);
-        f[0] = r[0].is_some() as u32;
-        f[1] = r[1].is_some() as u32;
-    });
-    compact_into(&scratch.flags, &mut scratch.active)?;
-    crate::memory::reserve(rays, scratch.active.len())?;
     crate::memory::reserve(links, n)?;
-    scratch
-        .active
-        .par_iter()
-        .with_min_len(1024)
-        .map(|&k| {
-            let (i, lobe) = (k as usize / 2, k as usize % 2);
-            spawn(&parents.get(i, materials), triangles, depth)[lobe].expect("flagged in the first pass")
-        })
-        .collect_into_vec(rays);
+    // Every link is written below: resizing alone leaves a reused buffer untouched.
     links.resize(n, [INVALID_ID; 2]);
-    links.par_iter_mut().with_min_len(4096).for_each(|l| *l = [INVALID_ID; 2]);
-    // `active` is sorted: the child index of flag `k` is its rank in the list.
-    for (j, &k) in scratch.active.iter().enumerate() {
-        links[k as usize / 2][k as usize % 2] = j as u32;
-    }
+    let chunks: Vec<Vec<RayRecord>> = links
+        .par_chunks_mut(SPAWN_CHUNK)
+        .enumerate()
+        .map(|(c, links)| {
+            let (mut list, len) = (Vec::new(), links.len());
+            for (j, link) in links.iter_mut().enumerate() {
+                *link = [INVALID_ID; 2];
+                let i = c * SPAWN_CHUNK + j;
+                if !parents.may_bounce(i, materials.objects) {
+                    continue;
+                }
+                for (lobe, ray) in spawn(&parents.get(i, materials), triangles, depth).into_iter().enumerate() {
+                    if let Some(ray) = ray {
+                        if list.len() == list.capacity() {
+                            // At most two rays a parent: room for the rest of the chunk.
+                            list.try_reserve(2 * (len - j))?;
+                        }
+                        link[lobe] = list.len() as u32;
+                        list.push(ray);
+                    }
+                }
+            }
+            Ok(list)
+        })
+        .collect::<Result<_, TryReserveError>>()?;
+    let starts: Vec<u32> = chunks
+        .iter()
+        .scan(0u32, |at, list| {
+            let start = *at;
+            *at += list.len() as u32;
+            Some(start)
+        })
+        .collect();
+    let total = chunks.iter().map(Vec::len).sum();
+    crate::memory::reserve(rays, total)?;
+    rays.clear();
+    chunks.iter().for_each(|list| rays.extend_from_slice(list));
+    links.par_chunks_mut(SPAWN_CHUNK).zip(starts).for_each(|(links, start)| {
+        for l in links.iter_mut().flatten().filter(|l| **l != INVALID_ID) {
+            *l += start;
+        }
+    });
     if cfg!(debug_assertions) {
         if let Some(e) = rays.iter().find_map(|r| r.validate().err()) {
             panic!("secondary_rays: {e}");

@@ -341,10 +341,27 @@ fn parent_object(m: &Materials, s: &SurfaceRecord, u: f32, v: f32, cone: f32, d:
 /// the spread times the eye's distance, its object shaded at the G-buffer's barycentrics.
 #[inline]
 pub fn primary_parent<'a>(t: &GBufferTexel, s: &'a SurfaceRecord, eye: Vec3, pixel: u32, m: &Materials) -> Parent<'a> {
+    let mut p = primary_parent_shaded(t, s, eye, pixel, m, bytemuck::Zeroable::zeroed());
+    p.object = parent_object(m, s, t.bary_u, t.bary_v, p.cone, p.d);
+    p
+}
+
+/// [`primary_parent`] with its object's record given: `object` is what [`primary_parent`]
+/// would shade it with ([`Materials::at`], made once per pixel by an executor that reads
+/// it several times, as the CPU backend's fused frame does). The direction, facing and
+/// footprint are made here as there.
+#[inline]
+pub fn primary_parent_shaded<'a>(
+    t: &GBufferTexel,
+    s: &'a SurfaceRecord,
+    eye: Vec3,
+    pixel: u32,
+    m: &Materials,
+    object: ObjectRecord,
+) -> Parent<'a> {
     let to_eye = eye - Vec3::from(s.position);
     let d = -to_eye.normalize_or_zero();
     let cone = primary_cone(m, to_eye);
-    let object = parent_object(m, s, t.bary_u, t.bary_v, cone, d);
     Parent { surface: s, d, back_face: t.flags & GBUF_BACK_FACE != 0, throughput: Vec3::ONE, pixel, cone, object }
 }
 
