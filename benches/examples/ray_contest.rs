@@ -9,8 +9,12 @@
 //! ```text
 //! cargo run --release -p hyrt-benches --features embree --example ray_contest -- \
 //!     [--threads N] [--rounds N] [--simd avx2|avx512|sse2|portable] [--kind shadow|primary|both|bounce]
-//!     [--packets-only | --singles-only] SCENE...
+//!     [--packets-only | --singles-only] [--with-avx2] SCENE...
 //! ```
+//!
+//! `--with-avx2`: at the AVX-512 level, also each traversal compiled for AVX2 alone,
+//! interleaved with the rest, so that one run says which level is faster per ray kind
+//! (issue 36's per-kind SIMD level).
 //!
 //! `--kind bounce` traces the frame's reflection and refraction rays (closest hit; scenes
 //! with mirrors or glass only) instead.
@@ -46,6 +50,8 @@ struct Args {
     packets_only: bool,
     /// Only hyrt's single rays (for profiling them alone).
     singles_only: bool,
+    /// At the AVX-512 level, also each traversal at AVX2.
+    with_avx2: bool,
 }
 
 fn parse() -> Result<Args, String> {
@@ -58,6 +64,7 @@ fn parse() -> Result<Args, String> {
         scenes: Vec::new(),
         packets_only: false,
         singles_only: false,
+        with_avx2: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(arg) = it.next() {
@@ -79,6 +86,7 @@ fn parse() -> Result<Args, String> {
             },
             "--packets-only" => a.packets_only = true,
             "--singles-only" => a.singles_only = true,
+            "--with-avx2" => a.with_avx2 = true,
             "all" => a.scenes.extend(ALL.iter().map(|s| s.to_string())),
             s if s.starts_with("--") => return Err(format!("unknown option {s}")),
             s => a.scenes.push(s.to_string()),
@@ -189,13 +197,21 @@ fn main() {
     println!("SIMD level {}, {} threads, {} rounds", level.name(), args.threads, args.rounds);
     println!("Embree: {}", hyrt_benches::bench::peers::embree_peer());
     let pool = rayon::ThreadPoolBuilder::new().num_threads(args.threads).build().expect("rayon pool");
-    let hyrt = if args.packets_only {
+    let mut hyrt = if args.packets_only {
         vec![Traversal::Packet(level)]
     } else if args.singles_only {
         vec![Traversal::Single(level)]
     } else {
         vec![Traversal::Packet(level), Traversal::Single(level)]
     };
+    if args.with_avx2 && level == SimdLevel::Avx512 {
+        let avx2 = |t: &Traversal| match *t {
+            Traversal::Packet(_) => Traversal::Packet(SimdLevel::Avx2),
+            _ => Traversal::Single(SimdLevel::Avx2),
+        };
+        let twins: Vec<Traversal> = hyrt.iter().map(avx2).collect();
+        hyrt.extend(twins);
+    }
     for name in &args.scenes {
         let scene = match load_manifest(name) {
             Ok(s) => s.scene,

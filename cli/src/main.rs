@@ -711,6 +711,10 @@ fn render(args: RenderArgs) -> Result<(), String> {
     } else {
         println!("warm: not measured (one frame; --frames 3 measures the frames after the first)");
     }
+    // The CPU backend's level per kind of walk where it measures AVX-512 against AVX2.
+    for line in hyrt::simd_tuning::summary() {
+        println!("simd level, {line}");
+    }
     if let Some(bytes) = frame_bytes {
         let pixels = (w as u64 * h as u64).max(1);
         println!(

@@ -1,7 +1,7 @@
 //! Forcing the SIMD level of the traversals (`force_simd_level`, `HYRT_SIMD`): one test in
 //! its own binary, since the override is process-wide.
 
-use hyrt_cpu::traversal::{force_simd_level, simd_level_forced, SimdLevel, Traversal};
+use hyrt_cpu::traversal::{force_simd_level, simd_level_forced, tuning, SimdLevel, Traversal};
 
 #[test]
 fn a_forced_level_is_what_traversals_use_until_released() {
@@ -26,4 +26,11 @@ fn a_forced_level_is_what_traversals_use_until_released() {
     force_simd_level(None).unwrap();
     assert_eq!(SimdLevel::detect(), best);
     assert!(!simd_level_forced());
+    // Unforced on a CPU with AVX-512, the stages measure it against AVX2 per kind of walk.
+    let measured = SimdLevel::Avx512.is_available();
+    assert_eq!(tuning::applies(), measured);
+    let expect = if measured { Traversal::PacketAuto } else { Traversal::Packet(best) };
+    assert_eq!(Traversal::simd(), expect);
+    let expect = if measured { Traversal::SingleAuto } else { Traversal::Single(best) };
+    assert_eq!(Traversal::for_bounces(), expect);
 }

@@ -59,6 +59,9 @@ pub use hyrt_core::scene::{
 pub use hyrt_core::stage::Stage;
 pub use hyrt_core::{glam, memory, AnimationError, GpuError, SceneError};
 pub use hyrt_cpu::backend::CpuBackend;
+/// The CPU backend's SIMD level per kind of walk, measured AVX-512 against AVX2 while the
+/// stages trace: which level each kind runs at ([`simd_tuning::levels`]).
+pub use hyrt_cpu::traversal::tuning as simd_tuning;
 /// How the CPU backend traces rays (`CpuBackend::set_shadow_traversal`,
 /// `CpuBackend::set_bounce_traversal`) and which SIMD level it runs.
 pub use hyrt_cpu::traversal::{force_simd_level, SimdLevel, Traversal};

@@ -274,6 +274,10 @@ fn header(options: &BenchOptions, cpu: &FrameBackend, gpu: Option<&FrameBackend>
             format!("{} (this CPU's best)", simd.name())
         },
     ]);
+    let tuned = hyrt_cpu::traversal::tuning::summary();
+    if !tuned.is_empty() {
+        t.row(["level per kind of walk (the stages measure AVX-512 against AVX2)".to_string(), tuned.join("; ")]);
+    }
     t.row([
         "settings".to_string(),
         format!(

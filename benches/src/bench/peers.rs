@@ -199,35 +199,42 @@ fn in_chunks<T: Send>(
     });
 }
 
-/// The name of a hyrt traversal in the tables: the scalar reference or the packets.
+/// The name of a hyrt traversal in the tables: the scalar reference, the packets the
+/// stages run ([`Traversal::simd`]: "hyrt packets", what the goals take), single rays, or
+/// packets at one fixed level named as a comparison where the stages run another (or
+/// measure theirs, [`Traversal::PacketAuto`]).
 fn hyrt_method(reference: &str, traversal: Traversal) -> String {
-    let level = hyrt_cpu::traversal::SimdLevel::detect();
+    let stages = Traversal::simd();
     match traversal {
         Traversal::Scalar => format!("hyrt `{reference}` per ray (scalar reference)"),
-        // Not "hyrt packets ...": the goals take the level the stages run.
-        Traversal::Packet(l) if l != level => {
+        // Not "hyrt packets ...": the goals take the traversal the stages run.
+        Traversal::Packet(_) if traversal != stages => {
             format!(
-                "hyrt `{}`: the packets at another level, for comparison (the stages run `{}`)",
+                "hyrt `{}`: the packets at one level, for comparison (the stages run `{}`)",
                 traversal.name(),
-                level.name()
+                stages.name()
             )
         }
-        Traversal::Packet(_) => format!("hyrt packets of 8 (`{}`)", traversal.name()),
-        Traversal::Single(_) => format!("hyrt single rays, 8-wide tree (`{}`)", traversal.name()),
+        // `packet-auto`: AVX-512 or AVX2, whichever the kind of walk measured faster (the
+        // report's header says which).
+        Traversal::Packet(_) | Traversal::PacketAuto => format!("hyrt packets of 8 (`{}`)", traversal.name()),
+        Traversal::Single(_) | Traversal::SingleAuto => {
+            format!("hyrt single rays, 8-wide tree (`{}`)", traversal.name())
+        }
     }
 }
 
 /// The SIMD traversals the peers table measures besides the scalar reference: the packets
-/// (the `shadow_rays` stage's) and single rays through the wide tree, at this CPU's level;
-/// where that level is AVX-512, also the packets compiled for AVX2 alone, interleaved with
-/// the others, so that one run says which of the two is faster on this CPU (AVX-512 was 5
-/// to 7% faster on an AMD EPYC; a run on an Intel Xeon, not interleaved, had it slower).
+/// the `shadow_rays` stage runs ([`Traversal::simd`]) and single rays through the wide
+/// tree ([`Traversal::for_bounces`]); where the stages measure their level per kind of
+/// walk (a CPU with AVX-512, `hyrt_cpu::traversal::tuning`), also the packets at AVX-512
+/// and at AVX2 alone, interleaved with the others, so that one run shows both levels
+/// beside the one the stages chose.
 fn hyrt_simd() -> Vec<Traversal> {
     use hyrt_cpu::traversal::SimdLevel;
-    let level = SimdLevel::detect();
-    let mut out = vec![Traversal::Packet(level), Traversal::Single(level)];
-    if level == SimdLevel::Avx512 {
-        out.push(Traversal::Packet(SimdLevel::Avx2));
+    let mut out = vec![Traversal::simd(), Traversal::for_bounces()];
+    if Traversal::simd() == Traversal::PacketAuto {
+        out.extend([Traversal::Packet(SimdLevel::Avx512), Traversal::Packet(SimdLevel::Avx2)]);
     }
     out
 }
@@ -938,14 +945,13 @@ mod tests {
 
     fn peers(scene: &str, embree: bool) -> Peers {
         let scalar = hyrt_method("Bvh::occluded", Traversal::Scalar);
-        // The packets at the level the stages run (another level is named as a comparison).
-        let level = hyrt_cpu::traversal::SimdLevel::detect();
-        let packets = hyrt_method("Bvh::occluded", Traversal::Packet(level));
+        // The packets the stages run (another level is named as a comparison).
+        let packets = hyrt_method("Bvh::occluded", Traversal::simd());
         let mut shadow =
             vec![run(&scalar, 1, 800.0), run(&packets, 1, 400.0), run(&scalar, 2, 400.0), run(&packets, 2, 200.0)];
         let mut primary = vec![
             run(&hyrt_method("Bvh::closest_hit", Traversal::Scalar), 2, 1000.0),
-            run(&hyrt_method("Bvh::closest_hit", Traversal::Packet(level)), 2, 500.0),
+            run(&hyrt_method("Bvh::closest_hit", Traversal::simd()), 2, 500.0),
         ];
         if embree {
             shadow.push(run("Embree `rtcOccluded8` (packets of 8)", 2, 50.0));
@@ -1201,20 +1207,26 @@ mod tests {
             md.contains("| hyrt `Bvh::occluded` per ray (scalar reference) | 1 | 1,000,000 | 800.00 | 1.25 | 1.00 | (reference) |"),
             "{md}"
         );
-        let level = hyrt_cpu::traversal::SimdLevel::detect().name();
-        let row = format!("| hyrt packets of 8 (`packet-{level}`) | 1 | 1,000,000 | 400.00 | 2.50 | 2.00 | 0 |");
+        let row = format!(
+            "| {} | 1 | 1,000,000 | 400.00 | 2.50 | 2.00 | 0 |",
+            hyrt_method("Bvh::occluded", Traversal::simd())
+        );
         assert!(md.contains(&row), "{md}");
     }
 
-    /// Packets at a level other than the one the stages run are named as a comparison,
-    /// so that the goals (which take "hyrt packets") keep to the stages' level.
+    /// Packets at a level other than the stages' traversal are named as a comparison, so
+    /// that the goals (which take "hyrt packets") keep to the stages' traversal (measured
+    /// per kind of walk where the CPU has AVX-512: every fixed level is then a comparison).
     #[test]
     fn packets_at_another_level_are_not_the_stages_packets() {
         use hyrt_cpu::traversal::SimdLevel;
-        let level = SimdLevel::detect();
-        let other = if level == SimdLevel::Portable { SimdLevel::Avx2 } else { SimdLevel::Portable };
-        assert!(hyrt_method("Bvh::occluded", Traversal::Packet(level)).starts_with("hyrt packets"));
-        let name = hyrt_method("Bvh::occluded", Traversal::Packet(other));
-        assert!(!name.starts_with("hyrt packets") && name.contains("for comparison"), "{name}");
+        assert!(hyrt_method("Bvh::occluded", Traversal::simd()).starts_with("hyrt packets"));
+        for level in SimdLevel::available() {
+            let name = hyrt_method("Bvh::occluded", Traversal::Packet(level));
+            if Traversal::Packet(level) != Traversal::simd() {
+                assert!(!name.starts_with("hyrt packets") && name.contains("for comparison"), "{name}");
+            }
+        }
+        assert_eq!(hyrt_simd()[..2], [Traversal::simd(), Traversal::for_bounces()]);
     }
 }

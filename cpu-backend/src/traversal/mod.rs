@@ -164,6 +164,7 @@ mod instances;
 mod packet;
 mod single;
 pub(crate) mod tiles;
+pub mod tuning;
 mod watertight;
 
 use rayon::prelude::*;
@@ -247,16 +248,18 @@ impl SimdLevel {
     /// The level traversals use: the one [`force_simd_level`] set, else the one the
     /// [`SIMD_ENV`] variable names (when this CPU has it), else the best this CPU supports.
     pub fn detect() -> SimdLevel {
+        SimdLevel::forced().unwrap_or_else(SimdLevel::best)
+    }
+
+    /// The level [`force_simd_level`] or [`SIMD_ENV`] forces (the best level included), if
+    /// any: then the stages run it for every kind of walk instead of measuring
+    /// ([`tuning::applies`]).
+    pub fn forced() -> Option<SimdLevel> {
         let forced = FORCED_LEVEL.load(std::sync::atomic::Ordering::Relaxed);
         if forced > 0 {
-            return SimdLevel::ALL[forced as usize - 1];
+            return Some(SimdLevel::ALL[forced as usize - 1]);
         }
-        if let Some(l) = std::env::var(SIMD_ENV).ok().and_then(|v| SimdLevel::from_name(&v)) {
-            if l.is_available() {
-                return l;
-            }
-        }
-        SimdLevel::best()
+        std::env::var(SIMD_ENV).ok().and_then(|v| SimdLevel::from_name(&v)).filter(|l| l.is_available())
     }
 
     /// The best level this CPU supports.
@@ -325,12 +328,24 @@ pub enum Traversal {
     /// level (module `single`). For rays that do not travel together. A BVH without a
     /// wide view is traced with packets.
     Single(SimdLevel),
+    /// [`Traversal::Packet`] at the level this CPU runs the kind of walk faster, AVX-512 or
+    /// AVX2, measured interleaved while the stages trace (module [`tuning`]). The stages'
+    /// default on a CPU with AVX-512 where no level is forced.
+    PacketAuto,
+    /// [`Traversal::Single`] at the level measured as [`Traversal::PacketAuto`]'s is.
+    SingleAuto,
 }
 
 impl Traversal {
     /// Packets at the best SIMD level of this CPU: the default of the `shadow_rays` stage.
+    /// Where the CPU has AVX-512 and no level is forced, [`Traversal::PacketAuto`]: the
+    /// faster of AVX-512 and AVX2 for each kind of walk, measured ([`tuning`]).
     pub fn simd() -> Traversal {
-        Traversal::Packet(SimdLevel::detect())
+        if tuning::applies() {
+            Traversal::PacketAuto
+        } else {
+            Traversal::Packet(SimdLevel::detect())
+        }
     }
 
     /// Single rays through the wide tree at the best SIMD level of this CPU: the default of
@@ -340,36 +355,53 @@ impl Traversal {
     /// against 4.3 in packets (and Embree's `rtcIntersect1` 5.5). Packets stay faster on
     /// coherent rays (primary and shadow rays: 2 to 3 times).
     pub fn for_bounces() -> Traversal {
-        Traversal::Single(SimdLevel::detect())
+        if tuning::applies() {
+            Traversal::SingleAuto
+        } else {
+            Traversal::Single(SimdLevel::detect())
+        }
     }
 
-    /// Every SIMD traversal this CPU runs: packets and single rays at each available level
-    /// (what tests compare with the scalar reference).
+    /// Every SIMD traversal this CPU runs: packets and single rays at each available level,
+    /// and measured ones where [`tuning::applies`] (what tests compare with the scalar
+    /// reference).
     pub fn available_simd() -> Vec<Traversal> {
-        SimdLevel::available().into_iter().flat_map(|l| [Traversal::Packet(l), Traversal::Single(l)]).collect()
+        let fixed = SimdLevel::available().into_iter().flat_map(|l| [Traversal::Packet(l), Traversal::Single(l)]);
+        let auto = [Traversal::PacketAuto, Traversal::SingleAuto].into_iter().filter(|_| tuning::applies());
+        fixed.chain(auto).collect()
     }
 
-    /// Short name (reports): `scalar`, `packet-<level>` or `single-<level>`.
+    /// Short name (reports): `scalar`, `packet-<level>`, `single-<level>`, `packet-auto` or
+    /// `single-auto`.
     pub fn name(self) -> String {
         match self {
             Traversal::Scalar => "scalar".into(),
             Traversal::Packet(l) => format!("packet-{}", l.name()),
             Traversal::Single(l) => format!("single-{}", l.name()),
+            Traversal::PacketAuto => "packet-auto".into(),
+            Traversal::SingleAuto => "single-auto".into(),
         }
     }
 
-    /// The SIMD level actually used on this CPU, `None` for scalar.
-    fn level(self) -> Option<SimdLevel> {
+    /// The SIMD level used on this CPU for a walk of kind `walk` (`None` for scalar): a
+    /// measured traversal's the level [`tuning`] runs that kind at now.
+    fn level(self, walk: tuning::Walk) -> Option<SimdLevel> {
         match self {
             Traversal::Scalar => None,
             Traversal::Packet(l) | Traversal::Single(l) if l.is_available() => Some(l),
             Traversal::Packet(_) | Traversal::Single(_) => Some(SimdLevel::detect()),
+            Traversal::PacketAuto | Traversal::SingleAuto => Some(tuning::current(walk)),
         }
     }
 
     /// Whether rays go one at a time through the wide view (which `bvh` must have).
     fn single(self, bvh: &Bvh) -> bool {
-        matches!(self, Traversal::Single(_)) && !bvh.wide.is_empty()
+        matches!(self, Traversal::Single(_) | Traversal::SingleAuto) && !bvh.wide.is_empty()
+    }
+
+    /// Whether the level is measured ([`tuning`]).
+    fn auto(self) -> bool {
+        matches!(self, Traversal::PacketAuto | Traversal::SingleAuto)
     }
 }
 
@@ -415,7 +447,7 @@ pub fn occluded_alpha_batch_into(
     // Every element is written below: resizing alone keeps a reused buffer's memory
     // untouched until the chunks write it (no serial clear of megabytes).
     out.resize(rays.len(), SHADOW_VISIBLE);
-    let mode = traversal_mode(bvh, view, traversal);
+    let mode = traversal_mode(bvh, view, traversal, true);
     out.par_chunks_mut(TRAVERSAL_CHUNK)
         .zip(rays.par_chunks(TRAVERSAL_CHUNK))
         .for_each(|(out, rays)| occluded_any_chunk(bvh, triangles, view, rays, out, mode));
@@ -441,7 +473,7 @@ pub fn occluded_pairs_tiled_into(
     out: &mut Vec<u32>,
 ) {
     out.resize(active.len(), SHADOW_VISIBLE); // every element is written below
-    let mode = traversal_mode(bvh, view, traversal);
+    let mode = traversal_mode(bvh, view, traversal, true);
     let (pixels, width) = (pixels.max(1), width.max(1));
     tile_windows(active, pixels, width, out).into_par_iter().for_each_init(
         || (Vec::new(), Vec::new(), Vec::new(), Vec::new()),
@@ -477,10 +509,36 @@ fn tile_windows<'o>(active: &[u32], pixels: u32, width: u32, out: &'o mut [u32])
     windows
 }
 
-/// `(level, single)` of `traversal` on `bvh` ([`Traversal::level`], [`Traversal::single`]),
-/// packets instead of single rays where `view` has alpha tests.
-fn traversal_mode(bvh: &Bvh, view: &SurfaceView, traversal: Traversal) -> (Option<SimdLevel>, bool) {
-    (traversal.level(), traversal.single(bvh) && !view.alpha_tested())
+/// How a batch is traced: at `level` (none: the scalar reference), single rays or
+/// packets, the level measured per chunk or not.
+#[derive(Clone, Copy)]
+struct Mode {
+    level: Option<SimdLevel>,
+    single: bool,
+    auto: bool,
+}
+
+impl Mode {
+    /// Trace a chunk of `rays` rays of an any-hit (`any_hit`) or closest-hit walk with
+    /// `trace` at this mode's level, or where it is measured at the level [`tuning::timed`]
+    /// gives (timed). Not called for the scalar reference.
+    #[inline(always)]
+    fn run<R>(self, any_hit: bool, rays: usize, trace: impl FnOnce(SimdLevel) -> R) -> R {
+        match self.level {
+            Some(_) if self.auto => tuning::timed(tuning::Walk::of(any_hit, self.single), rays, trace),
+            Some(level) => trace(level),
+            None => unreachable!("the scalar reference has no level"),
+        }
+    }
+}
+
+/// The [`Mode`] of `traversal` on `bvh` for an any-hit or closest-hit walk
+/// ([`Traversal::level`], [`Traversal::single`]), packets instead of single rays where
+/// `view` has alpha tests.
+fn traversal_mode(bvh: &Bvh, view: &SurfaceView, traversal: Traversal, any_hit: bool) -> Mode {
+    let single = traversal.single(bvh) && !view.alpha_tested();
+    let level = traversal.level(tuning::Walk::of(any_hit, single));
+    Mode { level, single, auto: traversal.auto() }
 }
 
 /// [`occluded_batch_into`] over `count` rays made as they are traced, `ray(i)` for ray
@@ -496,7 +554,7 @@ pub fn occluded_generated_into(
     out: &mut Vec<u32>,
 ) {
     out.resize(count, SHADOW_VISIBLE); // every element is written below, as above
-    let mode = traversal_mode(bvh, view, traversal);
+    let mode = traversal_mode(bvh, view, traversal, true);
     out.par_chunks_mut(TRAVERSAL_CHUNK).enumerate().for_each_init(
         || Vec::with_capacity(TRAVERSAL_CHUNK),
         |rays, (c, out)| {
@@ -518,7 +576,7 @@ pub(crate) fn occluded_serial(
     out: &mut [u32],
 ) {
     debug_assert_eq!(rays.len(), out.len());
-    occluded_any_chunk(bvh, triangles, view, rays, out, traversal_mode(bvh, view, traversal))
+    occluded_any_chunk(bvh, triangles, view, rays, out, traversal_mode(bvh, view, traversal, true))
 }
 
 /// Any hit for one chunk of rays with the traversal `(level, single)` of
@@ -529,16 +587,16 @@ fn occluded_any_chunk(
     view: &SurfaceView,
     rays: &[RayRecord],
     out: &mut [u32],
-    (level, single): (Option<SimdLevel>, bool),
+    mode: Mode,
 ) {
-    match level {
+    match mode.level {
         None => {
             for (o, r) in out.iter_mut().zip(rays) {
                 *o = occlusion(scalar_occluded(bvh, triangles, view, r));
             }
         }
-        Some(level) if single => occluded_single_chunk(bvh, rays, out, level),
-        Some(level) => occluded_chunk(bvh, triangles, view, rays, out, level),
+        Some(_) if mode.single => mode.run(true, rays.len(), |level| occluded_single_chunk(bvh, rays, out, level)),
+        Some(_) => mode.run(true, rays.len(), |level| occluded_chunk(bvh, triangles, view, rays, out, level)),
     }
 }
 
@@ -598,15 +656,19 @@ pub fn closest_hit_alpha_batch_into(
     out: &mut Vec<Option<ClosestHit>>,
 ) {
     out.resize(rays.len(), None); // every element is written below, as above
-    let (level, single) = traversal_mode(bvh, view, traversal);
-    out.par_chunks_mut(TRAVERSAL_CHUNK).zip(rays.par_chunks(TRAVERSAL_CHUNK)).for_each(|(out, rays)| match level {
-        None => {
-            for (o, r) in out.iter_mut().zip(rays) {
-                *o = scalar_closest_hit(bvh, triangles, view, r);
+    let mode = traversal_mode(bvh, view, traversal, false);
+    out.par_chunks_mut(TRAVERSAL_CHUNK).zip(rays.par_chunks(TRAVERSAL_CHUNK)).for_each(|(out, rays)| {
+        match mode.level {
+            None => {
+                for (o, r) in out.iter_mut().zip(rays) {
+                    *o = scalar_closest_hit(bvh, triangles, view, r);
+                }
             }
+            Some(_) if mode.single => {
+                mode.run(false, rays.len(), |level| closest_hit_single_chunk(bvh, rays, out, level))
+            }
+            Some(_) => mode.run(false, rays.len(), |level| closest_hit_chunk(bvh, triangles, view, rays, out, level)),
         }
-        Some(level) if single => closest_hit_single_chunk(bvh, rays, out, level),
-        Some(level) => closest_hit_chunk(bvh, triangles, view, rays, out, level),
     });
 }
 
@@ -708,7 +770,7 @@ pub fn occluded_in_object_space_into(
     traversal: Traversal,
     out: &mut [u32],
 ) {
-    let level = traversal.level();
+    let level = traversal.level(tuning::Walk::AnyHitPackets);
     out.par_chunks_mut(TRAVERSAL_CHUNK).enumerate().for_each_init(
         || (Vec::with_capacity(TRAVERSAL_CHUNK), Vec::with_capacity(TRAVERSAL_CHUNK)),
         |scratch, (c, out)| object_space_chunk(levels, view, |k| ray(c * TRAVERSAL_CHUNK + k), level, scratch, out),
@@ -726,7 +788,7 @@ pub(crate) fn occluded_in_object_space_serial(
     scratch: &mut (Vec<RayRecord>, Vec<u32>),
     out: &mut [u32],
 ) {
-    object_space_chunk(levels, view, ray, traversal.level(), scratch, out)
+    object_space_chunk(levels, view, ray, traversal.level(tuning::Walk::AnyHitPackets), scratch, out)
 }
 
 /// The object-space pass over one chunk: the rays `out` says are visible (`ray(k)` for
@@ -780,7 +842,7 @@ pub fn closest_hit_in_object_space_into(
     closest: &mut [Option<ClosestHit>],
 ) {
     assert_eq!(rays.len(), closest.len(), "one world-space hit per ray");
-    let level = traversal.level();
+    let level = traversal.level(tuning::Walk::ClosestHitPackets);
     closest.par_chunks_mut(TRAVERSAL_CHUNK).zip(rays.par_chunks(TRAVERSAL_CHUNK)).for_each(|(out, rays)| match level {
         None => {
             let accept = alpha_test(view);
