@@ -274,10 +274,6 @@ fn header(options: &BenchOptions, cpu: &FrameBackend, gpu: Option<&FrameBackend>
             format!("{} (this CPU's best)", simd.name())
         },
     ]);
-    let tuned = hyrt_cpu::traversal::tuning::summary();
-    if !tuned.is_empty() {
-        t.row(["level per kind of walk (the stages measure AVX-512 against AVX2)".to_string(), tuned.join("; ")]);
-    }
     t.row([
         "settings".to_string(),
         format!(
@@ -375,6 +371,16 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Report, Ben
     let mut header = header;
     if let Some(l) = machine::load_average() {
         let _ = write!(header, "\nLoad average at the end of the run: {:.2} {:.2} {:.2}.\n", l[0], l[1], l[2]);
+    }
+    // Known only now: the level each kind of walk ran at, where the stages measured it.
+    let tuned = hyrt_cpu::traversal::tuning::summary();
+    if !tuned.is_empty() {
+        let _ = writeln!(
+            header,
+            "\nSIMD level per kind of walk (the stages measured AVX-512 against AVX2 on interleaved chunks of \
+             their rays and kept the faster; the packets named `packet-auto` below): {}.",
+            tuned.join("; ")
+        );
     }
     Ok(Report { title: "hyrt benchmark report".into(), header, sections, files })
 }
