@@ -97,7 +97,7 @@ use crate::raster_shading::lanes::{raster_shading_lanes, PrimaryLanes};
 use crate::raster_shading::{raster_shading_record, Primary};
 use crate::reconstruction::{self, BlockSetups, Reconstruct};
 use crate::rt_shading::lanes::rt_shading_lanes;
-use crate::rt_shading::{rt_shading_bouncing_record, BouncingShading};
+use crate::rt_shading::{rt_shading_bouncing_pixel, rt_shading_bouncing_record, BouncingShading};
 use crate::secondary_rays::{may_bounce, Parents};
 use crate::traversal::tiles::{TILE_HEIGHT, TILE_WIDTH};
 use crate::traversal::{occluded_in_object_space_serial, occluded_serial, SimdLevel, Traversal, SHADOW_VISIBLE};
@@ -193,8 +193,6 @@ struct DeferredPixel {
     pixel: u32,
     texel: GBufferTexel,
     surface: SurfaceRecord,
-    /// The record its object is shaded with there ([`Primary::object`]).
-    record: ObjectRecord,
     /// Its `raster_shading` colour (zero where the plan has none).
     raster: [f32; 4],
 }
@@ -204,6 +202,9 @@ struct DeferredPixel {
 pub struct DeferredTile {
     pixels: Vec<DeferredPixel>,
     shadow: Vec<u8>,
+    /// Where materials vary over surfaces, each pixel's shaded record ([`Primary::object`]);
+    /// empty elsewhere.
+    records: Vec<ObjectRecord>,
 }
 
 /// The frame's deferred pixels in pixel order ([`Deferred::gather`]), one array per field:
@@ -214,7 +215,8 @@ pub struct Deferred {
     pub pixels: Vec<u32>,
     pub texels: Vec<GBufferTexel>,
     pub surfaces: Vec<SurfaceRecord>,
-    /// The records their objects are shaded with ([`Primary::object`]).
+    /// The records their objects are shaded with ([`Primary::object`]), where materials
+    /// vary over surfaces (empty elsewhere: each pixel's is its object's own).
     pub records: Vec<ObjectRecord>,
     /// `SHADOW_*` per (deferred pixel, light), `k * lights + light`.
     pub shadow: Vec<u8>,
@@ -229,8 +231,9 @@ const DEFERRED_TILE_BITS: u32 = (TILE_SIZE * TILE_SIZE).trailing_zeros();
 impl Deferred {
     /// The deferred pixels of `tiles` (`lights` shadow codes a pixel), sorted by pixel: the
     /// order in which the staged `secondary_rays` meets them, so the first bounce's rays are
-    /// the staged frame's list. An error where the allocator cannot hold them.
-    pub fn gather(&mut self, tiles: Vec<DeferredTile>, lights: usize) -> Result<(), TryReserveError> {
+    /// the staged frame's list; their shaded records where materials vary (`varying`). An
+    /// error where the allocator cannot hold them.
+    pub fn gather(&mut self, tiles: Vec<DeferredTile>, lights: usize, varying: bool) -> Result<(), TryReserveError> {
         let n = tiles.iter().map(|t| t.pixels.len()).sum::<usize>();
         assert!(tiles.len() < 1 << (32 - DEFERRED_TILE_BITS), "deferred pixels: too many raster tiles");
         self.order.clear();
@@ -253,14 +256,17 @@ impl Deferred {
         crate::memory::reserve(&mut self.pixels, n)?;
         crate::memory::reserve(&mut self.texels, n)?;
         crate::memory::reserve(&mut self.surfaces, n)?;
-        crate::memory::reserve(&mut self.records, n)?;
+        crate::memory::reserve(&mut self.records, if varying { n } else { 0 })?;
         crate::memory::reserve(&mut self.raster, n)?;
         crate::memory::reserve(&mut self.shadow, n * lights)?;
         let order = self.order.par_iter().with_min_len(1024);
         order.clone().map(|k| pixel(k).pixel).collect_into_vec(&mut self.pixels);
         order.clone().map(|k| pixel(k).texel).collect_into_vec(&mut self.texels);
         order.clone().map(|k| pixel(k).surface).collect_into_vec(&mut self.surfaces);
-        order.clone().map(|k| pixel(k).record).collect_into_vec(&mut self.records);
+        self.records.clear();
+        if varying {
+            order.clone().map(|&k| at(k)).map(|(tile, j)| tile.records[j]).collect_into_vec(&mut self.records);
+        }
         order.map(|k| pixel(k).raster).collect_into_vec(&mut self.raster);
         self.shadow.clear();
         self.shadow.resize(n * lights, SHADOW_NO_RAY);
@@ -306,8 +312,11 @@ pub fn shade_deferred(
         let hi = lo + d.pixels[lo..].partition_point(|&p| p < first + width as u32);
         for k in lo..hi {
             let shadow = &d.shadow[k * nl..(k + 1) * nl];
-            let (t, s, record) = (&d.texels[k], &d.surfaces[k], &d.records[k]);
-            let rt = rt_shading_bouncing_record(shading, t, s, d.pixels[k], record, shadow, links[k]);
+            let (t, s, pixel) = (&d.texels[k], &d.surfaces[k], d.pixels[k]);
+            let rt = match d.records.get(k) {
+                Some(record) => rt_shading_bouncing_record(shading, t, s, pixel, record, shadow, links[k]),
+                None => rt_shading_bouncing_pixel(shading, t, s, pixel, shadow, links[k]),
+            };
             row[(d.pixels[k] - first) as usize] = composition_pixel(steps.composition, &d.raster[k], &rt, weight);
         }
     });
@@ -559,8 +568,10 @@ fn tile(
                     None => [0.0; 4],
                 };
                 let pixel = ((y0 + ly) * width + x0 + lx) as u32;
-                let texel = texels[i];
-                deferred.pixels.push(DeferredPixel { pixel, texel, surface: *surface, record, raster });
+                deferred.pixels.push(DeferredPixel { pixel, texel: texels[i], surface: *surface, raster });
+                if varying {
+                    deferred.records.push(record);
+                }
                 deferred.shadow.extend_from_slice(shadow);
             }
         }

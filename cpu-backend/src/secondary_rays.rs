@@ -10,9 +10,10 @@
 //! (`INVALID_ID` where that lobe spawned no ray), which `bounce_shading` and
 //! `rt_shading` gather through.
 //!
-//! Each parent is examined once, its rays listed chunk by chunk and the lists joined in
-//! order (the GPU flags, scans and writes instead, as `compaction` does; the lists are
-//! the same). The kernel is [`hyrt_core::kernels::bounce::spawn`].
+//! Parents are taken in chunks, each numbering its rays from its own start (see
+//! [`secondary_rays_into`]: textured parents spawn once, others twice, to count and to
+//! write); the GPU flags, scans and writes instead, as `compaction` does, and the lists are
+//! the same. The kernel is [`hyrt_core::kernels::bounce::spawn`].
 
 use std::collections::TryReserveError;
 
@@ -32,8 +33,9 @@ pub enum Parents<'a> {
     Secondary { rays: &'a [RayRecord], hits: &'a [HitRecord], surfaces: &'a [SurfaceRecord] },
     /// Some pixels' primary hits, seen from `eye`: parent `i` is pixel `pixels[i]`, with
     /// texel `texels[i]`, surface `surfaces[i]` and the record its object is shaded with
-    /// there, `records[i]` (the fused frame's bouncing pixels, `crate::fused`: in pixel
-    /// order, they spawn the rays [`Parents::Primary`] spawns).
+    /// there, `records[i]` (where materials vary over surfaces; empty elsewhere) (the fused
+    /// frame's bouncing pixels, `crate::fused`: in pixel order, they spawn the rays
+    /// [`Parents::Primary`] spawns).
     Pixels {
         pixels: &'a [u32],
         texels: &'a [GBufferTexel],
@@ -86,9 +88,10 @@ impl<'a> Parents<'a> {
             Parents::Secondary { rays, hits, surfaces } => {
                 secondary_parent(&rays[i], &hits[i], &surfaces[i], materials)
             }
-            Parents::Pixels { pixels, texels, surfaces, records, eye } => {
-                primary_parent_shaded(&texels[i], &surfaces[i], eye, pixels[i], materials, records[i])
-            }
+            Parents::Pixels { pixels, texels, surfaces, records, eye } => match records.get(i) {
+                Some(&record) => primary_parent_shaded(&texels[i], &surfaces[i], eye, pixels[i], materials, record),
+                None => primary_parent(&texels[i], &surfaces[i], eye, pixels[i], materials),
+            },
         }
     }
 }
@@ -101,9 +104,9 @@ pub fn may_bounce(s: &SurfaceRecord, objects: &[ObjectRecord]) -> bool {
     s.is_hit() && bounces(&objects[s.object as usize])
 }
 
-/// Parents a worker spawns from at once: their rays go into a list of the chunk's own,
-/// and the lists are joined in chunk order after. Large enough that the join's per-chunk
-/// work is negligible, small enough that a frame's few bouncing regions spread over the
+/// Parents a worker spawns from at once: the unit of the stage's parallel work, whose rays
+/// are numbered from the chunk's start. Large enough that the per-chunk work (a count, a
+/// list) is negligible, small enough that a frame's few bouncing regions spread over the
 /// workers.
 const SPAWN_CHUNK: usize = 1024;
 
@@ -112,10 +115,15 @@ const SPAWN_CHUNK: usize = 1024;
 /// cannot hold the list or the links (the frame then fails with
 /// `RenderError::OutOfMemory` instead of aborting).
 ///
-/// Each parent is examined once: a chunk of parents spawns into a list of its own, its
-/// links numbered in that list; the lists are then joined in chunk order and the links
-/// moved by their chunk's start. The result is the compaction of every parent's
-/// `[reflection, refraction]` flags in order, as the GPU's scan builds it.
+/// Parents go in chunks of [`SPAWN_CHUNK`], each chunk's links numbered from its first ray,
+/// then moved by the chunk's start in the list. Where materials do not vary over surfaces a
+/// parent's rays are cheap to make, and each chunk spawns twice: once to count its rays,
+/// once to write them into its place in `rays` (no buffer but the list). Where they vary
+/// (textures: [`Materials::at`] is up to four trilinear samples) each parent spawns once,
+/// into its worker's buffer, and each chunk keeps its rays in a list of its own at its exact
+/// size, joined after (the rays are held twice at the peak). Either way the result is the
+/// compaction of every parent's `[reflection, refraction]` flags in order, as the GPU's
+/// scan builds it.
 pub fn secondary_rays_into(
     parents: Parents,
     materials: &Materials,
@@ -128,46 +136,76 @@ pub fn secondary_rays_into(
     crate::memory::reserve(links, n)?;
     // Every link is written below: resizing alone leaves a reused buffer untouched.
     links.resize(n, [INVALID_ID; 2]);
-    let chunks: Vec<Vec<RayRecord>> = links
-        .par_chunks_mut(SPAWN_CHUNK)
-        .enumerate()
-        .map(|(c, links)| {
-            let (mut list, len) = (Vec::new(), links.len());
-            for (j, link) in links.iter_mut().enumerate() {
-                *link = [INVALID_ID; 2];
-                let i = c * SPAWN_CHUNK + j;
-                if !parents.may_bounce(i, materials.objects) {
-                    continue;
-                }
-                for (lobe, ray) in spawn(&parents.get(i, materials), triangles, depth).into_iter().enumerate() {
-                    if let Some(ray) = ray {
-                        if list.len() == list.capacity() {
-                            // At most two rays a parent: room for the rest of the chunk.
-                            list.try_reserve(2 * (len - j))?;
-                        }
-                        link[lobe] = list.len() as u32;
-                        list.push(ray);
-                    }
+    // Chunk `c`'s parents spawn in order, ray `k` of the chunk going to `emit(k, ray)`; its
+    // links are numbered from the chunk's first ray. Its ray count.
+    let spawn_chunk = |c: usize, links: &mut [[u32; 2]], emit: &mut dyn FnMut(usize, RayRecord)| {
+        let mut k = 0;
+        for (j, link) in links.iter_mut().enumerate() {
+            *link = [INVALID_ID; 2];
+            let i = c * SPAWN_CHUNK + j;
+            if !parents.may_bounce(i, materials.objects) {
+                continue;
+            }
+            for (lobe, ray) in spawn(&parents.get(i, materials), triangles, depth).into_iter().enumerate() {
+                if let Some(ray) = ray {
+                    link[lobe] = k as u32;
+                    emit(k, ray);
+                    k += 1;
                 }
             }
-            Ok(list)
-        })
-        .collect::<Result<_, TryReserveError>>()?;
-    let starts: Vec<u32> = chunks
-        .iter()
-        .scan(0u32, |at, list| {
-            let start = *at;
-            *at += list.len() as u32;
-            Some(start)
-        })
-        .collect();
-    let total = chunks.iter().map(Vec::len).sum();
-    crate::memory::reserve(rays, total)?;
-    rays.clear();
-    chunks.iter().for_each(|list| rays.extend_from_slice(list));
+        }
+        k
+    };
+    let starts = |counts: &[usize]| -> Vec<usize> {
+        counts.iter().scan(0, |at, &k| Some(std::mem::replace(at, *at + k))).collect()
+    };
+    let starts = if materials.varying() {
+        let chunks: Vec<Vec<RayRecord>> = links
+            .par_chunks_mut(SPAWN_CHUNK)
+            .enumerate()
+            .map_init(
+                || Vec::with_capacity(2 * SPAWN_CHUNK),
+                |spawned: &mut Vec<RayRecord>, (c, links)| {
+                    spawned.clear();
+                    spawn_chunk(c, links, &mut |_, ray| spawned.push(ray));
+                    // The chunk's list at its exact size (the worker's buffer is reused).
+                    let mut list = Vec::new();
+                    list.try_reserve_exact(spawned.len())?;
+                    list.extend_from_slice(spawned);
+                    Ok(list)
+                },
+            )
+            .collect::<Result<_, TryReserveError>>()?;
+        let counts: Vec<usize> = chunks.iter().map(Vec::len).collect();
+        crate::memory::reserve(rays, counts.iter().sum())?;
+        rays.clear();
+        chunks.iter().for_each(|list| rays.extend_from_slice(list));
+        starts(&counts)
+    } else {
+        let counts: Vec<usize> = links
+            .par_chunks_mut(SPAWN_CHUNK)
+            .enumerate()
+            .map(|(c, links)| spawn_chunk(c, links, &mut |_, _| {}))
+            .collect();
+        let total = counts.iter().sum();
+        crate::memory::reserve(rays, total)?;
+        // Every ray is written below, as the links are.
+        rays.resize(total, bytemuck::Zeroable::zeroed());
+        let mut places = Vec::with_capacity(counts.len());
+        let mut rest = &mut rays[..];
+        for &k in &counts {
+            let (place, tail) = rest.split_at_mut(k);
+            places.push(place);
+            rest = tail;
+        }
+        links.par_chunks_mut(SPAWN_CHUNK).zip(places).enumerate().for_each(|(c, (links, place))| {
+            spawn_chunk(c, links, &mut |k, ray| place[k] = ray);
+        });
+        starts(&counts)
+    };
     links.par_chunks_mut(SPAWN_CHUNK).zip(starts).for_each(|(links, start)| {
         for l in links.iter_mut().flatten().filter(|l| **l != INVALID_ID) {
-            *l += start;
+            *l += start as u32;
         }
     });
     if cfg!(debug_assertions) {
