@@ -399,9 +399,7 @@ impl Backend for CpuBackend {
                     // steps over their rays (every tile's at once), timed step by step; then
                     // their shading and composition.
                     let t = Instant::now();
-                    deferred
-                        .gather(run.deferred, g.lights.len(), materials.varying())
-                        .map_err(oom("the bouncing pixels"))?;
+                    deferred.gather(run.deferred, g.lights.len()).map_err(oom("the bouncing pixels"))?;
                     fused_ms += t.elapsed().as_secs_f64() * 1e3;
                     let mut shadow_rays = vec![0; lists.len()];
                     for &step in plan.steps().iter().filter(|s| s.depth() > 0) {

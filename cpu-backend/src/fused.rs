@@ -231,10 +231,11 @@ const DEFERRED_TILE_BITS: u32 = (TILE_SIZE * TILE_SIZE).trailing_zeros();
 impl Deferred {
     /// The deferred pixels of `tiles` (`lights` shadow codes a pixel), sorted by pixel: the
     /// order in which the staged `secondary_rays` meets them, so the first bounce's rays are
-    /// the staged frame's list; their shaded records where materials vary (`varying`). An
-    /// error where the allocator cannot hold them.
-    pub fn gather(&mut self, tiles: Vec<DeferredTile>, lights: usize, varying: bool) -> Result<(), TryReserveError> {
+    /// the staged frame's list; their shaded records where the tiles kept them (materials
+    /// vary). An error where the allocator cannot hold them.
+    pub fn gather(&mut self, tiles: Vec<DeferredTile>, lights: usize) -> Result<(), TryReserveError> {
         let n = tiles.iter().map(|t| t.pixels.len()).sum::<usize>();
+        let varying = tiles.iter().any(|t| !t.records.is_empty());
         assert!(tiles.len() < 1 << (32 - DEFERRED_TILE_BITS), "deferred pixels: too many raster tiles");
         self.order.clear();
         crate::memory::reserve(&mut self.order, n)?;

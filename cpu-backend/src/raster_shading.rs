@@ -104,7 +104,7 @@ pub fn raster_shading_pixel(
     } else {
         obj
     };
-    shade_raster_pixel(s, obj, shadow, lights, primary.eye).extend(1.0).into()
+    raster_shading_record(primary, lights, shade_ray_traced, s, obj, shadow)
 }
 
 /// [`raster_shading_pixel`] with the pixel's record given: `record` is

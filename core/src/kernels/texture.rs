@@ -135,8 +135,13 @@ fn rem_euclid(i: i32, n: i32) -> i32 {
 /// A texel of level `level` at integer indices (wrapped), as linear RGBA.
 #[inline]
 fn fetch(texels: &[u32], tex: &TextureRecord, base: u32, w: u32, h: u32, x: i32, y: i32) -> [f32; 4] {
-    let i = wrap_index(x, w, tex.wrap_s);
-    let j = wrap_index(y, h, tex.wrap_t);
+    texel_at(texels, tex, base, w, wrap_index(x, w, tex.wrap_s), wrap_index(y, h, tex.wrap_t))
+}
+
+/// The texel at wrapped indices `(i, j)` of the level starting at `base`, `w` texels wide,
+/// as linear RGBA.
+#[inline]
+fn texel_at(texels: &[u32], tex: &TextureRecord, base: u32, w: u32, i: u32, j: u32) -> [f32; 4] {
     decode_texel(texels[(base + j * w + i) as usize], tex.encoding)
 }
 
@@ -164,7 +169,7 @@ pub fn sample_level(texels: &[u32], tex: &TextureRecord, level: u32, uv: Vec2, f
     // The four texels' wrapped indices, each axis's two once ([`fetch`]'s, per texel).
     let (i0, i1) = (wrap_index(i, w, tex.wrap_s), wrap_index(i + 1, w, tex.wrap_s));
     let (j0, j1) = (wrap_index(j, h, tex.wrap_t), wrap_index(j + 1, h, tex.wrap_t));
-    let at = |i: u32, j: u32| decode_texel(texels[(base + j * w + i) as usize], tex.encoding);
+    let at = |i: u32, j: u32| texel_at(texels, tex, base, w, i, j);
     let top = lerp4(at(i0, j0), at(i1, j0), fx);
     let bottom = lerp4(at(i0, j1), at(i1, j1), fx);
     lerp4(top, bottom, fy)
