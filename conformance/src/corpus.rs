@@ -78,9 +78,17 @@ impl Case {
     }
 }
 
-/// The shared models folder (`<repo>/../shared/assets`), if present.
+/// Environment variable naming the shared models folder, for a binary that runs away
+/// from its checkout (`.ci/gpu-check` on a machine with a GPU).
+pub const ASSETS_ENV: &str = "HYRT_SHARED_ASSETS";
+
+/// The shared models folder (`$HYRT_SHARED_ASSETS`, else `<repo>/../shared/assets`), if
+/// present.
 pub fn shared_assets() -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets");
+    let p = match std::env::var_os(ASSETS_ENV) {
+        Some(dir) => PathBuf::from(dir),
+        None => Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets"),
+    };
     p.is_dir().then_some(p)
 }
 

@@ -112,7 +112,7 @@ pub enum AnimationError {
 /// the kind of failure (fall back to the CPU on [`GpuError::DeviceLost`], say) without
 /// downcasting; the GPU backend (`hyrt_gpu::GpuError`) re-exports it. Its messages are
 /// strings because core does not depend on wgpu.
-#[derive(Debug, thiserror::Error)]
+#[derive(Clone, Debug, thiserror::Error)]
 pub enum GpuError {
     /// No Vulkan adapter at all (no driver, no GPU).
     #[error("no GPU adapter found (Vulkan); install a Vulkan driver, or use --backend cpu")]

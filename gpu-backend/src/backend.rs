@@ -212,15 +212,20 @@ impl GpuBackend {
         })
     }
 
-    /// The adapter, the triangle-id source and the timing method, in one line.
+    /// The adapter, the triangle-id source, the timing method and the float probe
+    /// ([`GpuContext::float_probe`](crate::GpuContext::float_probe)), in one line.
     pub fn describe(&self) -> String {
         let timing = if self.timer.is_active() && !crate::context::is_software(&self.ctx.info) {
             "GPU timestamp queries"
         } else {
             "wall clock per stage (submit and wait)"
         };
+        let probe = match self.ctx.float_probe() {
+            Ok(p) => p.to_string(),
+            Err(e) => format!("float probe failed: {e}"),
+        };
         format!(
-            "{}; raster ids from {}; stage times from {timing}",
+            "{}; raster ids from {}; stage times from {timing}; {probe}",
             self.ctx.describe(),
             self.stages[0].1.visibility_raster.triangle_id_source()
         )

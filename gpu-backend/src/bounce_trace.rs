@@ -12,7 +12,7 @@
 //! the instances too. Writes one `HitRecord` and one `SurfaceRecord` per ray and
 //! counts the hits.
 
-use hyrt_core::formats::wgsl::declarations;
+use crate::shader::preamble;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
 use crate::shader::{bind_buffers, specialized_pipeline, surface_wgsl, EXACT_PRODUCTS};
@@ -37,7 +37,7 @@ impl BounceTraceStage {
         } else {
             "fn trace_closest(ray: RayRecord) -> ClosestHit {\n    return closest_hit(ray);\n}\n"
         };
-        let source = declarations()
+        let source = preamble()
             + &ray_wgsl()
             + EXACT_PRODUCTS
             + &surface_wgsl()

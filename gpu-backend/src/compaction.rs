@@ -35,7 +35,7 @@
 //! subnormal and flushed.
 //! On lavapipe the default-scene tests find no difference.
 
-use hyrt_core::formats::wgsl::declarations;
+use crate::shader::preamble;
 
 use crate::buffers::{FrameBuffers, ListBuffers, SceneBuffers};
 use crate::scan::{pipeline, scan_wgsl, ListScan, Scratch};
@@ -50,7 +50,7 @@ use crate::{GpuContext, GpuError};
 /// shading helpers (the light evaluation the shading stages use), `compaction.wgsl`,
 /// then the scan.
 fn compaction_wgsl() -> String {
-    declarations() + &ray_wgsl() + &shading_helpers() + include_str!("shaders/compaction.wgsl") + &scan_wgsl()
+    preamble() + &ray_wgsl() + &shading_helpers() + include_str!("shaders/compaction.wgsl") + &scan_wgsl()
 }
 
 /// The `compaction` stage: the shared scan over the stage's flags, and the test entry
@@ -67,10 +67,7 @@ pub struct CompactionStage {
 impl CompactionStage {
     pub fn new(ctx: &GpuContext) -> Self {
         let device = &ctx.device;
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("compaction"),
-            source: wgpu::ShaderSource::Wgsl(compaction_wgsl().into()),
-        });
+        let module = crate::shader::shader_module(ctx, "compaction", &compaction_wgsl());
         let scan = ListScan::new(
             ctx,
             "compaction",
@@ -90,10 +87,11 @@ impl CompactionStage {
             entries: &[storage_entry(6, false)],
         });
         let with_test = [Some(&scan.scan_layout), Some(&test_layout)];
-        let starts_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("compaction light starts"),
-            source: wgpu::ShaderSource::Wgsl((declarations() + include_str!("shaders/light_starts.wgsl")).into()),
-        });
+        let starts_module = crate::shader::shader_module(
+            ctx,
+            "compaction light starts",
+            &(preamble() + include_str!("shaders/light_starts.wgsl")),
+        );
         let starts_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("compaction light starts"),
             entries: &[storage_entry(0, true), storage_entry(1, true), storage_entry(2, false)],

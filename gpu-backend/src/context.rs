@@ -1,5 +1,6 @@
 //! Adapter and device selection.
 
+use crate::exact::FloatProbe;
 use crate::GpuError;
 
 /// Environment variable that allows a software adapter (Mesa lavapipe) when set to `1`.
@@ -40,6 +41,8 @@ pub struct GpuContext {
     /// Fragment shaders may declare conservative depth (wgpu `SHADER_EARLY_DEPTH_TEST`):
     /// `visibility_raster` then keeps early depth tests while writing `frag_depth`.
     pub early_depth_test: bool,
+    /// The start-up float check, run on the first [`GpuContext::float_probe`] call.
+    probe: std::sync::OnceLock<Result<FloatProbe, GpuError>>,
 }
 
 impl std::fmt::Debug for GpuContext {
@@ -139,6 +142,7 @@ impl GpuContext {
             primitive_index: features.contains(wgpu::Features::PRIMITIVE_INDEX),
             timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
             early_depth_test: features.contains(wgpu::Features::SHADER_EARLY_DEPTH_TEST),
+            probe: std::sync::OnceLock::new(),
         })
     }
 
@@ -160,6 +164,7 @@ impl GpuContext {
             early_depth_test: features.contains(wgpu::Features::SHADER_EARLY_DEPTH_TEST),
             device,
             queue,
+            probe: std::sync::OnceLock::new(),
         }
     }
 
@@ -175,6 +180,14 @@ impl GpuContext {
             if self.timestamps { "available" } else { "unavailable" },
             if self.early_depth_test { "available" } else { "unavailable" },
         )
+    }
+
+    /// What the device's float arithmetic guarantees, as far as bit-identity with the CPU
+    /// reference needs ([`FloatProbe`]): measured by a small compute check the first time
+    /// it is asked for (a few milliseconds), then kept. The GPU backend renders on a device
+    /// that misses a guarantee all the same; conformance then names what is missing.
+    pub fn float_probe(&self) -> Result<&FloatProbe, GpuError> {
+        self.probe.get_or_init(|| FloatProbe::run(self)).as_ref().map_err(Clone::clone)
     }
 
     /// Run `f` and turn any wgpu validation or out-of-memory error it raised into a

@@ -19,6 +19,7 @@ pub mod compaction;
 pub mod composition;
 pub mod context;
 pub mod error;
+pub mod exact;
 pub mod gpu_buffer;
 pub mod present;
 pub mod raster_shading;

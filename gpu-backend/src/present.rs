@@ -71,13 +71,10 @@ impl Present {
         let format = texture.format();
         let mut pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
         let (pipeline, layout) = pipelines.entry(format).or_insert_with(|| {
-            let source = hyrt_core::formats::wgsl::declarations()
+            let source = crate::shader::preamble()
                 + &include_str!("shaders/present.wgsl").replace("TARGET_FORMAT", format_name(format));
             let device = &ctx.device;
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("present"),
-                source: wgpu::ShaderSource::Wgsl(source.into()),
-            });
+            let module = crate::shader::shader_module(ctx, "present", &source);
             let texture_entry = wgpu::BindGroupLayoutEntry {
                 binding: 2,
                 visibility: wgpu::ShaderStages::COMPUTE,

@@ -16,7 +16,7 @@
 //! a division within 2.5 ulp, where a device may differ by a few ulp (the bounds are in
 //! `tests/reconstruction.rs`); ids are identical.
 
-use hyrt_core::formats::wgsl::declarations;
+use crate::shader::preamble;
 use hyrt_core::frame::PrimaryBarycentrics;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
@@ -32,7 +32,7 @@ const SHADER: &str = include_str!("shaders/reconstruction.wgsl");
 /// with their exact f32 constants (the watertight test of re-intersected barycentrics),
 /// the surface kernels, then the shader.
 pub fn shader_source() -> String {
-    format!("{}{}\n{}\n{}", declarations(), ray_wgsl(), surface_wgsl(), SHADER)
+    format!("{}{}\n{}\n{}", preamble(), ray_wgsl(), surface_wgsl(), SHADER)
 }
 
 /// The `reconstruction` stage: one compute pipeline per source of barycentrics
@@ -48,10 +48,7 @@ pub struct ReconstructionStage {
 impl ReconstructionStage {
     /// Build the pipeline.
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("reconstruction"),
-            source: wgpu::ShaderSource::Wgsl(shader_source().into()),
-        });
+        let module = crate::shader::shader_module(ctx, "reconstruction", &shader_source());
         let pipeline = |entry: &str| {
             let p = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some("reconstruction"),

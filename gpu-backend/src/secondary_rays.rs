@@ -38,10 +38,7 @@ impl SecondaryRaysStage {
                 + include_str!("shaders/secondary_rays.wgsl")
                 + &scan_wgsl()),
         );
-        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("secondary_rays"),
-            source: wgpu::ShaderSource::Wgsl(source.into()),
-        });
+        let module = crate::shader::shader_module(ctx, "secondary_rays", &source);
         let mut entries = vec![uniform_entry(0), uniform_entry(1), uniform_entry(2)];
         entries.extend((3..=9).map(|i| storage_entry(i, true)));
         entries.extend((10..=12).map(|i| storage_entry(i, false)));

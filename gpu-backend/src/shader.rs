@@ -7,6 +7,7 @@ use hyrt_core::bvh::{BVH_CULL_SLACK, BVH_STACK_SIZE};
 use hyrt_core::formats::wgsl::declarations;
 use hyrt_core::kernels::bounce::{IOR_OUTSIDE, MIN_THROUGHPUT, SKY_GROUND, SKY_HORIZON, SKY_ZENITH};
 use hyrt_core::kernels::environment::{ATAN_SERIES, INV_TWO_PI, TAN_PI_8};
+use hyrt_core::kernels::exact::{DEFAULT_NAN, EXACT_ESTIMATE_UNITS};
 use hyrt_core::kernels::ray::{gamma, OFFSET_ERROR_SCALE, SLAB_FAR_SCALE, VELTKAMP_SPLIT};
 use hyrt_core::kernels::shading::{
     AMBIENT, BACKGROUND, DIELECTRIC_F0, ENVIRONMENT_SPECULAR, EXP_SERIES, GGX_MIN_ALPHA, LOG2_SERIES,
@@ -34,6 +35,20 @@ pub(crate) const TILE: u32 = 8;
 // ---------------------------------------------------------------------------------------------
 // WGSL sources
 // ---------------------------------------------------------------------------------------------
+
+/// What every stage's WGSL begins with: the generated records and format constants
+/// ([`declarations`]), then the exact division and square root (`shaders/exact.wgsl`,
+/// mirrors of [`hyrt_core::kernels::exact`]) after their constants, generated from the
+/// Rust values. No shader divides floats or takes a square root any other way.
+pub fn preamble() -> String {
+    format!(
+        "{}\n// Generated from hyrt_core::kernels::exact (gpu-backend/src/shader.rs).\nconst EXACT_ESTIMATE_UNITS: u32 = {}u;\nconst EXACT_DEFAULT_NAN: u32 = {:#010x}u;\n{}",
+        declarations(),
+        EXACT_ESTIMATE_UNITS,
+        DEFAULT_NAN,
+        include_str!("shaders/exact.wgsl")
+    )
+}
 
 /// The WGSL both ray stages share after the generated records ([`declarations`]): the
 /// ray constants, generated from their Rust values so they cannot drift, followed by
@@ -105,7 +120,7 @@ pub(crate) fn shading_helpers() -> String {
 /// shading helpers, `shaders/shading.wgsl` (the mirrored kernels), then the stage's
 /// own source.
 pub fn shading_source(stage: &str) -> String {
-    format!("{}\n{}\n{}\n{}", declarations(), shading_helpers(), include_str!("shaders/shading.wgsl"), stage)
+    format!("{}\n{}\n{}\n{}", preamble(), shading_helpers(), include_str!("shaders/shading.wgsl"), stage)
 }
 
 /// [`shading_source`] with the texture kernels and the shaded object records
@@ -181,6 +196,125 @@ pub(crate) fn surface_wgsl() -> String {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Only exact operations
+// ---------------------------------------------------------------------------------------------
+
+/// The functions that may use the device's own `/` and `sqrt`: the exact helpers' float
+/// estimates, which their integer correction makes exact (`shaders/exact.wgsl`).
+pub const EXACT_ESTIMATE_FUNCTIONS: [&str; 2] = ["div_rn_skewed", "sqrt_rn_skewed"];
+
+/// The WGSL builtins a shader may not call: their precision is the device's (Vulkan's
+/// precision appendix and WGSL's "Floating Point Accuracy" allow ulps of error, or a
+/// fused multiply-add, for each), so they would not give the CPU reference's bits.
+/// Square roots and what is built on them go through `sqrt_rn`, divisions through
+/// `div_rn`, dot products through `dot3` (each product rounded apart).
+const INEXACT_BUILTINS: [naga::MathFunction; 27] = {
+    use naga::MathFunction as M;
+    [
+        M::Sqrt,
+        M::InverseSqrt,
+        M::Normalize,
+        M::Length,
+        M::Distance,
+        M::Pow,
+        M::Exp,
+        M::Exp2,
+        M::Log,
+        M::Log2,
+        M::Fma,
+        M::Dot,
+        M::Cross,
+        M::Mix,
+        M::SmoothStep,
+        M::FaceForward,
+        M::Reflect,
+        M::Refract,
+        M::Sin,
+        M::Cos,
+        M::Tan,
+        M::Asin,
+        M::Acos,
+        M::Atan,
+        M::Atan2,
+        M::Determinant,
+        M::Inverse,
+    ]
+};
+
+/// Every use of an operation whose rounding is the device's in a WGSL module: a float
+/// division or remainder, or a builtin of `INEXACT_BUILTINS`, outside
+/// [`EXACT_ESTIMATE_FUNCTIONS`]. One line per use, naming the function; empty when the
+/// module computes only with correctly rounded operations (`+`, `-`, `*`, conversions,
+/// comparisons, integer and bit operations) and the helpers. An error when the source
+/// does not parse or validate.
+pub fn inexact_operations(source: &str) -> Result<Vec<String>, String> {
+    use naga::{BinaryOperator, Expression, ScalarKind};
+    let module = naga::front::wgsl::parse_str(source).map_err(|e| e.emit_to_string(source))?;
+    let info = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
+        .validate(&module)
+        .map_err(|e| e.emit_to_string(source))?;
+    let mut found = Vec::new();
+    let mut check = |name: &str, function: &naga::Function, finfo: &naga::valid::FunctionInfo| {
+        if EXACT_ESTIMATE_FUNCTIONS.contains(&name) {
+            return;
+        }
+        for (_, expression) in function.expressions.iter() {
+            match expression {
+                Expression::Binary { op: op @ (BinaryOperator::Divide | BinaryOperator::Modulo), left, .. } => {
+                    let ty = finfo[*left].ty.inner_with(&module.types);
+                    if ty.scalar_kind() == Some(ScalarKind::Float) {
+                        found.push(format!("{name}: float {op:?} (use div_rn)"));
+                    }
+                }
+                Expression::Math { fun, .. } if INEXACT_BUILTINS.contains(fun) => {
+                    found.push(format!("{name}: {fun:?} (use sqrt_rn, div_rn or the written-out kernels)"));
+                }
+                _ => {}
+            }
+        }
+    };
+    for (handle, function) in module.functions.iter() {
+        check(function.name.as_deref().unwrap_or("?"), function, &info[handle]);
+    }
+    for (i, entry) in module.entry_points.iter().enumerate() {
+        check(&entry.name, &entry.function, info.get_entry_point(i));
+    }
+    Ok(found)
+}
+
+/// The shader module of a stage's WGSL. In debug builds (every test run) each distinct
+/// source is first checked by [`inexact_operations`] and refused with a panic that names
+/// the offending functions: a stage that divides or takes a root with the device's own
+/// operations would differ from the CPU reference on real GPUs, though not on lavapipe.
+pub fn shader_module(ctx: &GpuContext, label: &str, source: &str) -> wgpu::ShaderModule {
+    if cfg!(debug_assertions) {
+        use std::collections::HashSet;
+        use std::sync::Mutex;
+        static CHECKED: Mutex<Option<HashSet<u64>>> = Mutex::new(None);
+        let key = {
+            use std::hash::{Hash, Hasher};
+            let mut h = std::collections::hash_map::DefaultHasher::new();
+            source.hash(&mut h);
+            h.finish()
+        };
+        let fresh = CHECKED.lock().unwrap_or_else(|e| e.into_inner()).get_or_insert_with(HashSet::new).insert(key);
+        if fresh {
+            match inexact_operations(source) {
+                Ok(found) if found.is_empty() => {}
+                Ok(found) => {
+                    panic!("shader {label} uses operations the device rounds its own way:\n{}", found.join("\n"))
+                }
+                Err(e) => panic!("shader {label} does not parse: {e}"),
+            }
+        }
+    }
+    ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    })
+}
+
+// ---------------------------------------------------------------------------------------------
 // Pipelines, bindings, dispatches
 // ---------------------------------------------------------------------------------------------
 
@@ -245,10 +379,7 @@ pub fn specialized_pipeline(
     constants: &[(&str, f64)],
 ) -> (wgpu::ComputePipeline, wgpu::BindGroupLayout) {
     let device = &ctx.device;
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(label),
-        source: wgpu::ShaderSource::Wgsl(source.into()),
-    });
+    let module = shader_module(ctx, label, source);
     let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries });
     (main_pipeline(ctx, label, &module, &layout, constants), layout)
 }

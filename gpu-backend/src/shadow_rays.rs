@@ -20,7 +20,7 @@
 //! function, decided by the exact sign both sides compute in f32
 //! (`hyrt_core::kernels::ray::edge_sign_exact`).
 
-use hyrt_core::formats::wgsl::declarations;
+use crate::shader::preamble;
 
 use crate::buffers::{FrameBuffers, ListBuffers, SceneBuffers};
 use crate::shader::{bind_buffers, ray_wgsl, storage_entry, uniform_entry, EXACT_PRODUCTS};
@@ -50,16 +50,13 @@ impl ShadowRaysStage {
         } else {
             "fn trace_occluded(ray: RayRecord) -> bool {\n    return occluded_any(ray);\n}\n"
         };
-        let source = declarations()
+        let source = preamble()
             + &ray_wgsl()
             + EXACT_PRODUCTS
             + &texture_wgsl()
             + include_str!("shaders/shadow_rays.wgsl")
             + walk;
-        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("shadow_rays"),
-            source: wgpu::ShaderSource::Wgsl(source.into()),
-        });
+        let module = crate::shader::shader_module(ctx, "shadow_rays", &source);
         let mut entries = vec![
             uniform_entry(0),
             storage_entry(1, true),

@@ -58,7 +58,7 @@
 //! elsewhere). Cost: the fragment shader's setup is per fragment, about 15x the old
 //! raster pass on lavapipe (29.6 -> 435 ms at 1280x720, default scene).
 
-use hyrt_core::formats::wgsl::declarations;
+use crate::shader::preamble;
 use std::sync::Mutex;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
@@ -106,11 +106,15 @@ fn raster_constants() -> String {
         FIXED_ONE, FIXED_ONE_F32, GUARD_BAND_PIXELS, INTERIOR_DEPTH_BIAS_ULPS, MAX_CLIP_VERTICES, MAX_FIXED_COORD,
         MAX_IMAGE_DIM, PIXEL_CENTER_OFFSET,
     };
+    const _: () = assert!(FIXED_ONE.count_ones() == 1, "INV_FIXED_ONE_F32 must be exact");
     format!(
         "const HARDWARE_TRIANGLES_PER_TRIANGLE: u32 = {HARDWARE_TRIANGLES_PER_TRIANGLE}u;\nconst MAX_IMAGE_DIM: u32 = {MAX_IMAGE_DIM}u;\nconst GUARD_BAND_PIXELS: f32 = {GUARD_BAND_PIXELS:?};\n\
          const MAX_CLIP_VERTICES: u32 = {MAX_CLIP_VERTICES}u;\nconst PIXEL_CENTER_OFFSET: f32 = {PIXEL_CENTER_OFFSET:?};\n\
          const FIXED_ONE: i32 = {FIXED_ONE};\nconst FIXED_ONE_F32: f32 = {FIXED_ONE_F32:?};\n\
+         const INV_FIXED_ONE_F32: f32 = {:?};\n\
          const MAX_FIXED_COORD_F32: f32 = {:?};\nconst INTERIOR_DEPTH_BIAS_ULPS: u32 = {INTERIOR_DEPTH_BIAS_ULPS}u;\n",
+        // A power of two: x * (1 / FIXED_ONE_F32) is x / FIXED_ONE_F32, bit for bit.
+        1.0 / FIXED_ONE_F32,
         MAX_FIXED_COORD as f32
     )
 }
@@ -120,7 +124,7 @@ fn interpolated_shader_source(primitive_index: bool) -> String {
     if primitive_index {
         format!(
             "enable primitive_index;\n{}{COMMON}{}",
-            declarations(),
+            preamble(),
             INTERPOLATED_SHADER
                 .replace("TRIANGLE_ID_PARAMETER", "@builtin(primitive_index) primitive: u32,")
                 .replace("TRIANGLE_ID_EXPRESSION", "primitive")
@@ -128,7 +132,7 @@ fn interpolated_shader_source(primitive_index: bool) -> String {
     } else {
         let body =
             INTERPOLATED_SHADER.replace("TRIANGLE_ID_PARAMETER", "").replace("TRIANGLE_ID_EXPRESSION", "in.triangle");
-        format!("{}{COMMON}{body}", declarations())
+        format!("{}{COMMON}{body}", preamble())
     }
 }
 
@@ -146,7 +150,7 @@ pub fn shader_source(primitive_index: bool, early_depth_test: bool) -> String {
     let body = body
         .replace("EARLY_DEPTH_TEST_ATTRIBUTE", if early_depth_test { "@early_depth_test(greater_equal)" } else { "" });
     let enable = if primitive_index { "enable primitive_index;\n" } else { "" };
-    format!("{enable}{}{}{COMMON}{body}{}", declarations(), raster_constants(), crate::texture::texture_wgsl())
+    format!("{enable}{}{}{COMMON}{body}{}", preamble(), raster_constants(), crate::texture::texture_wgsl())
 }
 
 /// Render targets of one image size.
@@ -255,10 +259,7 @@ impl VisibilityRasterStage {
             VisibilityMode::Exact => shader_source(primitive_index, ctx.early_depth_test),
             VisibilityMode::HardwareInterpolated => interpolated_shader_source(primitive_index),
         };
-        let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("visibility_raster"),
-            source: wgpu::ShaderSource::Wgsl(source.into()),
-        });
+        let module = crate::shader::shader_module(ctx, "visibility_raster", &source);
         let raster = ctx.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("visibility_raster"),
             layout: None,

@@ -44,14 +44,22 @@ pub enum SceneSet {
     All,
 }
 
-/// `assets/scenes/` of this source tree.
+/// `assets/scenes/` of this source tree, or `$HYRT_SCENES_DIR` for a binary that runs
+/// away from its checkout (`.ci/gpu-check`).
 pub fn scenes_dir() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes")
+    match std::env::var_os("HYRT_SCENES_DIR") {
+        Some(dir) => PathBuf::from(dir),
+        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes"),
+    }
 }
 
-/// The shared models folder (`<repo>/../shared/assets`), if present.
+/// The shared models folder (`$HYRT_SHARED_ASSETS`, else `<repo>/../shared/assets`), if
+/// present.
 pub fn shared_assets() -> Option<PathBuf> {
-    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets");
+    let p = match std::env::var_os("HYRT_SHARED_ASSETS") {
+        Some(dir) => PathBuf::from(dir),
+        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets"),
+    };
     p.is_dir().then_some(p)
 }
 

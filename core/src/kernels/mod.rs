@@ -6,6 +6,7 @@ pub mod barycentric;
 pub mod bounce;
 pub mod camera;
 pub mod environment;
+pub mod exact;
 pub mod instance;
 pub mod raster;
 pub mod ray;

@@ -35,7 +35,7 @@ fn refract_dir(d: vec3<f32>, n: vec3<f32>, eta: f32) -> Refracted {
     if sin2_t >= 1.0 {
         return Refracted(false, vec3<f32>(0.0));
     }
-    let cos_t = sqrt(1.0 - sin2_t);
+    let cos_t = sqrt_rn(1.0 - sin2_t);
     let k = mul(eta, cos_i) - cos_t;
     return Refracted(true, mul3(d, vec3<f32>(eta)) + mul3(n, vec3<f32>(k)));
 }
@@ -47,9 +47,9 @@ fn fresnel_dielectric(cos_in: f32, eta: f32) -> f32 {
     if sin2_t >= 1.0 {
         return 1.0;
     }
-    let cos_t = sqrt(1.0 - sin2_t);
-    let r_perp = (mul(eta, cos_i) - cos_t) / (mul(eta, cos_i) + cos_t);
-    let r_par = (cos_i - mul(eta, cos_t)) / (cos_i + mul(eta, cos_t));
+    let cos_t = sqrt_rn(1.0 - sin2_t);
+    let r_perp = div_rn(mul(eta, cos_i) - cos_t, mul(eta, cos_i) + cos_t);
+    let r_par = div_rn(cos_i - mul(eta, cos_t), cos_i + mul(eta, cos_t));
     return mul(rounded(mul(r_par, r_par) + mul(r_perp, r_perp)), 0.5);
 }
 
@@ -95,9 +95,9 @@ fn lobes(obj: ObjectRecord, s: SurfaceRecord, d: vec3<f32>, exterior: bool) -> L
     let base = obj.base_color;
     let cos_i = -dot3(d, ns);
     let glass = obj.material_kind == MATERIAL_GLASS;
-    var eta = obj.ior / IOR_OUTSIDE;
+    var eta = div_rn(obj.ior, IOR_OUTSIDE);
     if exterior || !glass {
-        eta = IOR_OUTSIDE / obj.ior;
+        eta = div_rn(IOR_OUTSIDE, obj.ior);
     }
     let f = fresnel_dielectric(cos_i, eta);
     let reflection = vec3<f32>(mul(f, 1.0 - obj.metallic)) + mul3(fresnel_schlick(base, cos_i), vec3<f32>(obj.metallic));

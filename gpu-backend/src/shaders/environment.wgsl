@@ -15,8 +15,8 @@ fn is_nan_f32(x: f32) -> bool {
 
 // mirrors hyrt_core::kernels::environment::sky
 fn sky(d: vec3<f32>) -> vec3<f32> {
-    let len = sqrt(dot3(d, d));
-    let y = d.y / len;
+    let len = sqrt_rn(dot3(d, d));
+    let y = div_rn(d.y, len);
     if is_nan_f32(y) || y < 0.0 {
         return SKY_GROUND;
     }
@@ -33,11 +33,11 @@ fn atan2_turns(y: f32, x: f32) -> f32 {
     if den == 0.0 || is_nan_f32(den) {
         return 0.0;
     }
-    let t = num / den;
+    let t = div_rn(num, den);
     var s = t;
     var base = 0.0;
     if t > TAN_PI_8 {
-        s = (t - 1.0) / (t + 1.0);
+        s = div_rn(t - 1.0, t + 1.0);
         base = 0.125;
     }
     let s2 = mul(s, s);
@@ -64,7 +64,7 @@ fn direction_to_uv(d: vec3<f32>) -> vec2<f32> {
     if u < 0.0 {
         u += 1.0;
     }
-    let r = sqrt(rounded(mul(d.x, d.x) + mul(d.z, d.z)));
+    let r = sqrt_rn(rounded(mul(d.x, d.x) + mul(d.z, d.z)));
     let v = 2.0 * atan2_turns(r, d.y);
     return vec2<f32>(u, v);
 }

@@ -198,7 +198,7 @@ fn primary_cone(to_eye: vec3<f32>) -> f32 {
         return 0.0;
     }
     // glam's `length`: the square root of the dot product.
-    return mul(params.pixel_spread, sqrt(dot3(to_eye, to_eye)));
+    return mul(params.pixel_spread, sqrt_rn(dot3(to_eye, to_eye)));
 }
 
 // mirrors hyrt_core::kernels::bounce::primary_parent

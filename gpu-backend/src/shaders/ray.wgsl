@@ -110,7 +110,7 @@ fn safe_inverse_coordinate(d: f32) -> f32 {
     if d == 0.0 {
         return bitcast<f32>(F32_EXP_MASK | (bitcast<u32>(d) & F32_SIGN_MASK));
     }
-    return 1.0 / d;
+    return div_rn(1.0, d);
 }
 
 fn safe_inverse_dir(d: vec3<f32>) -> vec3<f32> {
@@ -183,7 +183,7 @@ struct WatertightRay {
 fn watertight_ray_new(origin: vec3<f32>, dir: vec3<f32>) -> WatertightRay {
     let kz = max_component_index(abs(dir));
     let d = permute_axes(dir, kz);
-    return WatertightRay(origin, kz, vec3<f32>(d.x / d.z, d.y / d.z, 1.0 / d.z));
+    return WatertightRay(origin, kz, vec3<f32>(div_rn(d.x, d.z), div_rn(d.y, d.z), div_rn(1.0, d.z)));
 }
 
 // Exact arithmetic of the ray/triangle test. `zero` is an always-zero uniform word
@@ -299,7 +299,7 @@ fn watertight_intersect(r: WatertightRay, t_min: f32, t_max: f32, v0: vec3<f32>,
         return none;
     }
 
-    let inv_det = 1.0 / det;
+    let inv_det = div_rn(1.0, det);
     let t = mul_exact(t_scaled, inv_det, zero);
     if !(t > t_min && t < t_max) {
         return none;

@@ -58,8 +58,8 @@ fn rounded4(a: vec4<f32>) -> vec4<f32> {
 
 // mirrors hyrt_core::kernels::camera::pixel_centre_ndc
 fn pixel_centre_ndc(width: u32, height: u32, x: u32, y: u32) -> vec2<f32> {
-    let nx = mul((f32(x) + 0.5) / f32(width), 2.0) - 1.0;
-    let ny = 1.0 - mul((f32(y) + 0.5) / f32(height), 2.0);
+    let nx = mul(div_rn(f32(x) + 0.5, f32(width)), 2.0) - 1.0;
+    let ny = 1.0 - mul(div_rn(f32(y) + 0.5, f32(height)), 2.0);
     return vec2<f32>(nx, ny);
 }
 
@@ -72,7 +72,7 @@ fn primary_ray_direction(x: u32, y: u32) -> vec3<f32> {
     far = rounded4(far + mul4(m[1], ndc.y));
     far = rounded4(far + mul4(m[2], 1.0));
     far = rounded4(far + mul4(m[3], 1.0));
-    return far.xyz / far.w;
+    return div_rn3(far.xyz, far.w);
 }
 
 // mirrors hyrt_core::kernels::reconstruction::reintersected_barycentrics: the watertight

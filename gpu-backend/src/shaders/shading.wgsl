@@ -14,7 +14,7 @@ fn log2_portable(x: f32) -> f32 {
         m = m * 0.5;
         e += 1;
     }
-    let t = (m - 1.0) / (m + 1.0);
+    let t = div_rn(m - 1.0, m + 1.0);
     let t2 = mul(t, t);
     var p = LOG2_SERIES[0];
     p = mul(p, t2) + LOG2_SERIES[1];
@@ -54,7 +54,7 @@ fn pow_portable(x: f32, y: f32) -> f32 {
 // mirrors hyrt_core::kernels::shading::blinn_phong_exponent
 fn blinn_phong_exponent(roughness: f32) -> f32 {
     let a = max(mul(roughness, roughness), 1e-3);
-    return clamp(rounded(2.0 / mul(a, a)) - 2.0, 1.0, 1e4);
+    return clamp(rounded(div_rn(2.0, mul(a, a))) - 2.0, 1.0, 1e4);
 }
 
 // mirrors glam::Vec3::cross: (y z' - y' z, z x' - z' x, x y' - x' y).
@@ -85,7 +85,7 @@ fn ggx_distribution(alpha: f32, n_dot_h: f32, sin_sq: f32) -> f32 {
     }
     let a2 = mul(alpha, alpha);
     let k = rounded(sin_sq + mul(mul(n_dot_h, n_dot_h), a2));
-    return rounded(a2 / mul(PI, mul(k, k)));
+    return rounded(div_rn(a2, mul(PI, mul(k, k))));
 }
 
 // mirrors hyrt_core::kernels::shading::smith_visibility
@@ -95,9 +95,9 @@ fn smith_visibility(alpha: f32, n_dot_l: f32, n_dot_v: f32, h_dot_l: f32, h_dot_
     }
     let a2 = mul(alpha, alpha);
     let one_minus_a2 = rounded(1.0 - a2);
-    let gl = rounded(abs(n_dot_l) + rounded(sqrt(rounded(a2 + mul(one_minus_a2, mul(n_dot_l, n_dot_l))))));
-    let gv = rounded(abs(n_dot_v) + rounded(sqrt(rounded(a2 + mul(one_minus_a2, mul(n_dot_v, n_dot_v))))));
-    return rounded(1.0 / mul(gl, gv));
+    let gl = rounded(abs(n_dot_l) + rounded(sqrt_rn(rounded(a2 + mul(one_minus_a2, mul(n_dot_l, n_dot_l))))));
+    let gv = rounded(abs(n_dot_v) + rounded(sqrt_rn(rounded(a2 + mul(one_minus_a2, mul(n_dot_v, n_dot_v))))));
+    return rounded(div_rn(1.0, mul(gl, gv)));
 }
 
 // mirrors hyrt_core::kernels::shading::gltf_brdf
@@ -147,7 +147,7 @@ fn shade_ray_traced_with(obj: ObjectRecord, n: vec3<f32>, v: vec3<f32>, l: vec3<
     let f0 = lerp3(vec3<f32>(DIELECTRIC_F0), base, obj.metallic);
     let h = normalize_or_zero(l + v);
     let s = blinn_phong_exponent(obj.roughness);
-    let spec = mul3(f0, vec3<f32>(mul((s + 8.0) / (8.0 * PI), pow_portable(max(dot3(n, h), 0.0), s))));
+    let spec = mul3(f0, vec3<f32>(mul(div_rn(s + 8.0, 8.0 * PI), pow_portable(max(dot3(n, h), 0.0), s))));
     return mul3(mul3(diffuse + spec, e), vec3<f32>(ndl));
 }
 

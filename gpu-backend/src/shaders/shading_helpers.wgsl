@@ -32,10 +32,10 @@ fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
     return rounded(mul(a.x, b.x) + mul(a.y, b.y)) + mul(a.z, b.z);
 }
 
-// mirrors glam::Vec3::normalize_or_zero: v * (1 / sqrt(v.v)) when that reciprocal
+// mirrors glam::Vec3::normalize_or_zero: v * (1 / sqrt(v.v)), through div_rn and sqrt_rn, when that reciprocal
 // is finite and positive, else zero.
 fn normalize_or_zero(v: vec3<f32>) -> vec3<f32> {
-    let rcp = 1.0 / sqrt(dot3(v, v));
+    let rcp = div_rn(1.0, sqrt_rn(dot3(v, v)));
     if (rcp > 0.0 && rcp <= F32_MAX) {
         return v * rcp;
     }
@@ -62,7 +62,7 @@ fn light_incidence(light: LightRecord, p: vec3<f32>) -> Incidence {
     }
     let d = pd - p;
     let d2 = max(dot3(d, d), MIN_LIGHT_DISTANCE_SQ);
-    return Incidence(d / sqrt(d2), radiance / d2);
+    return Incidence(div_rn3(d, sqrt_rn(d2)), div_rn3(radiance, d2));
 }
 
 // mirrors glam::Vec3::max_element: max(x, max(y, z)), each `if a > b { a } else { b }`.

@@ -33,14 +33,14 @@ fn cross3(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
 
 // glam's Vec3::normalize_or: self * (1 / length) if that reciprocal is finite and > 0.
 fn normalize_or(a: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
-    let len = sqrt(dot3(a, a));
+    let len = sqrt_rn(dot3(a, a));
     // 1 / len is finite and positive exactly when len is positive, finite and not
     // so small that the reciprocal overflows; the explicit test keeps a division by
     // zero (or NaN) out of the shader.
     if !(len > 0.0) || !is_finite(len) {
         return fallback;
     }
-    let rcp = 1.0 / len;
+    let rcp = div_rn(1.0, len);
     if is_finite(rcp) && rcp > 0.0 {
         return a * rcp;
     }
@@ -79,9 +79,9 @@ fn interpolate_normal(u: f32, v: f32, n0: vec3<f32>, n1: vec3<f32>, n2: vec3<f32
         rounded(mul(w, n0.z) + mul(u, n1.z)) + mul(v, n2.z),
     );
     // sqrt + division, as the CPU (not inverseSqrt, which is not exact).
-    let len = sqrt(dot3(s, s));
+    let len = sqrt_rn(dot3(s, s));
     if len > 0.0 && is_finite(len) {
-        return vec3<f32>(s.x / len, s.y / len, s.z / len);
+        return vec3<f32>(div_rn(s.x, len), div_rn(s.y, len), div_rn(s.z, len));
     }
     return fallback;
 }

@@ -110,7 +110,8 @@ const CONSERVATIVE_DEPTH_MARGIN: f32 = 1.0 / 65536.0;
 // The NDC position (w = 1) whose window position in the band's render targets is `win`
 // (pixels; the band's first row is row 0 of the targets: see band_window).
 fn window_to_ndc(win: vec2<f32>, depth: f32) -> vec4<f32> {
-    return vec4<f32>(win.x / f32(params.width) * 2.0 - 1.0, 1.0 - win.y / f32(params.height) * 2.0, depth, 1.0);
+    return vec4<f32>(div_rn(win.x, f32(params.width)) * 2.0 - 1.0, 1.0 - div_rn(win.y, f32(params.height)) * 2.0, depth,
+        1.0);
 }
 
 // The band's window position of image window position `win` (pixels). Exact for a frame
@@ -240,20 +241,29 @@ fn setup(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
 // order, so the depth test sees fragments in the reference's order. Larger fans, and
 // slivers, get one cover triangle over their pixel box.
 
+// The distance between two points of the cover geometry (a conservative outline that
+// the fragment shader's exact coverage test trims, so its rounding is free).
+fn distance_rn(a: vec2<f32>, b: vec2<f32>) -> f32 {
+    let d = a - b;
+    return sqrt_rn(d.x * d.x + d.y * d.y);
+}
+
 // Corner `k` of the triangle (xs, ys) (snapped, normalized) grown by COVER_MARGIN_PX
 // about its incentre, which moves every edge out by exactly the margin; w = 0 when the
 // triangle is a sliver (inradius below the margin) and must be covered otherwise.
 fn grown_corner(xs: vec3<i32>, ys: vec3<i32>, area2: f32, k: u32) -> vec4<f32> {
     let v = array<vec2<f32>, 3>(vec2<f32>(f32(xs.x), f32(ys.x)), vec2<f32>(f32(xs.y), f32(ys.y)),
         vec2<f32>(f32(xs.z), f32(ys.z)));
-    let side = vec3<f32>(distance(v[1], v[2]), distance(v[2], v[0]), distance(v[0], v[1])) / FIXED_ONE_F32;
+    // FIXED_ONE_F32 is a power of two: multiplying by its inverse is dividing by it.
+    let side = vec3<f32>(distance_rn(v[1], v[2]), distance_rn(v[2], v[0]), distance_rn(v[0], v[1])) * INV_FIXED_ONE_F32;
     let perimeter = side.x + side.y + side.z;
-    let inradius = area2 / (FIXED_ONE_F32 * FIXED_ONE_F32) / perimeter;
+    let inradius = div_rn(area2 * (INV_FIXED_ONE_F32 * INV_FIXED_ONE_F32), perimeter);
     if !(inradius >= COVER_MARGIN_PX) {
         return vec4<f32>(0.0);
     }
-    let centre = (side.x * v[0] + side.y * v[1] + side.z * v[2]) / (perimeter * FIXED_ONE_F32);
-    let grown = centre + (v[k] / FIXED_ONE_F32 - centre) * ((inradius + COVER_MARGIN_PX) / inradius);
+    let weighted = side.x * v[0] + side.y * v[1] + side.z * v[2];
+    let centre = vec2<f32>(div_rn(weighted.x, perimeter), div_rn(weighted.y, perimeter)) * INV_FIXED_ONE_F32;
+    let grown = centre + (v[k] * INV_FIXED_ONE_F32 - centre) * div_rn(inradius + COVER_MARGIN_PX, inradius);
     return window_to_ndc(band_window(grown + vec2<f32>(PIXEL_CENTER_OFFSET)), 0.0);
 }
 
@@ -285,7 +295,7 @@ fn hardware_corner(s: RasterSetup, sub: u32, k: u32) -> vec4<f32> {
             // Back to the band's window coordinates: exact (integers below 2^20, then a
             // power of two).
             let fixed = vec2<f32>(f32(s.x[k]), f32(s.y[k] - i32(params.first_row) * FIXED_ONE));
-            return window_to_ndc((fixed + vec2<f32>(PIXEL_CENTER_OFFSET * FIXED_ONE_F32)) / FIXED_ONE_F32,
+            return window_to_ndc((fixed + vec2<f32>(PIXEL_CENTER_OFFSET * FIXED_ONE_F32)) * INV_FIXED_ONE_F32,
                 max(s.z[k] - CONSERVATIVE_DEPTH_MARGIN, 0.0));
         }
         let g = grown_corner(s.x.xyz, s.y.xyz, s.z.w, k);
@@ -356,7 +366,7 @@ fn clip_position_exact(world: vec3<f32>) -> vec4<f32> {
 fn guard_band_ndc() -> vec2<f32> {
     let w = f32(clamp(camera.width, 1u, MAX_IMAGE_DIM));
     let h = f32(clamp(camera.height, 1u, MAX_IMAGE_DIM));
-    return vec2<f32>((2.0 * GUARD_BAND_PIXELS) / w, (2.0 * GUARD_BAND_PIXELS) / h);
+    return vec2<f32>(div_rn(2.0 * GUARD_BAND_PIXELS, w), div_rn(2.0 * GUARD_BAND_PIXELS, h));
 }
 
 // Clip planes in hyrt_core::kernels::raster::CLIP_PLANES order.
@@ -389,7 +399,7 @@ struct ClipVertex {
 
 // mirrors hyrt_core::kernels::raster::clip_edge_intersection
 fn clip_edge_intersection(plane: u32, outside: ClipVertex, inside: ClipVertex, d_out: f32, d_in: f32) -> ClipVertex {
-    let t = d_out / (d_out - d_in);
+    let t = div_rn(d_out, d_out - d_in);
     var pos: vec4<f32>;
     for (var k = 0u; k < 4u; k++) {
         pos[k] = outside.pos[k] + mul(t, inside.pos[k] - outside.pos[k]);
@@ -442,9 +452,9 @@ fn clip_polygon_against_plane(plane: u32, guard: vec2<f32>, n: u32) -> u32 {
 
 // mirrors hyrt_core::kernels::raster::clip_to_window
 fn clip_to_window(p: vec4<f32>) -> vec3<f32> {
-    let ndc_x = p.x / p.w;
-    let ndc_y = p.y / p.w;
-    let ndc_z = p.z / p.w;
+    let ndc_x = div_rn(p.x, p.w);
+    let ndc_y = div_rn(p.y, p.w);
+    let ndc_z = div_rn(p.z, p.w);
     let wx = mul(rounded(mul(ndc_x, 0.5) + 0.5), f32(camera.width));
     let wy = mul(rounded(0.5 - mul(ndc_y, 0.5)), f32(camera.height));
     return vec3<f32>(wx, wy, ndc_z);
@@ -531,11 +541,11 @@ fn edge_bias(a: vec2<i32>, b: vec2<i32>) -> vec2<u32> {
 
 // mirrors hyrt_core::kernels::raster::perspective_barycentrics
 fn perspective_barycentrics(e: vec3<f32>, w: vec3<f32>) -> vec3<f32> {
-    let q0 = e.x / w.x;
-    let q1 = e.y / w.y;
-    let q2 = e.z / w.z;
+    let q0 = div_rn(e.x, w.x);
+    let q1 = div_rn(e.y, w.y);
+    let q2 = div_rn(e.z, w.z);
     let s = rounded(q0 + q1) + q2;
-    return vec3<f32>(q0 / s, q1 / s, q2 / s);
+    return vec3<f32>(div_rn(q0, s), div_rn(q1, s), div_rn(q2, s));
 }
 
 // mirrors hyrt_core::kernels::raster::shows_interior
@@ -554,7 +564,7 @@ fn depth_test_value(depth: f32, interior: bool) -> f32 {
 // mirrors hyrt_core::kernels::raster::interpolate_depth
 fn interpolate_depth(e: vec3<f32>, area2: f32, z: vec3<f32>) -> f32 {
     let num = rounded(rounded(mul(e.x, z.x) + mul(e.y, z.y)) + mul(e.z, z.z));
-    return num / area2;
+    return div_rn(num, area2);
 }
 
 // mirrors hyrt_core::kernels::raster::barycentrics_in_original

@@ -26,8 +26,8 @@ struct VertexOut {
 fn clip_position(v: vec3<f32>) -> vec4<f32> {
     let c = camera.view_proj * vec4<f32>(v - camera.eye, 1.0);
     let rows = f32(params.height);
-    let scale = f32(camera.height) / rows;
-    let shift = 1.0 - (f32(camera.height) - 2.0 * f32(params.first_row)) / rows;
+    let scale = div_rn(f32(camera.height), rows);
+    let shift = 1.0 - div_rn(f32(camera.height) - 2.0 * f32(params.first_row), rows);
     return vec4<f32>(c.x, c.y * scale + c.w * shift, c.z, c.w);
 }
 

@@ -1,0 +1,284 @@
+//! The exact helpers (`shaders/exact.wgsl`: `div_rn`, `sqrt_rn`) on the device against
+//! IEEE 754's `/` and `sqrt` on the CPU, bit for bit (NaN as NaN), through
+//! [`ExactKernel`]; the float probe; and the check that no stage's WGSL divides or takes a
+//! root any other way ([`inexact_operations`]).
+//!
+//! The default run samples: special values against each other, a million random pairs,
+//! strided sweeps over all exponents, and estimates skewed by up to 12 ulp to exercise
+//! the correction (lavapipe's own `/` and `sqrt` are correctly rounded, so without the
+//! skew the correction would hardly run). The exhaustive sweeps are ignored by default:
+//!
+//! ```text
+//! XDG_RUNTIME_DIR=$(mktemp -d) CI=1 cargo test --release -p hyrt-gpu --test exact -- --ignored
+//! ```
+//!
+//! `exhaustive_roots_match_ieee`: `sqrt_rn` over all 2^32 bit patterns (about a minute on
+//! a real GPU, most of it the CPU's comparison; longer on lavapipe);
+//! `random_quotients_match_ieee`: 10^9 random pairs; `exhaustive_quotients_match_ieee`:
+//! `div_rn` with each of the core's fixed operands
+//! (`hyrt_core::kernels::exact::sweep_operands`) as dividend and as divisor over all 2^32
+//! bit patterns (an hour or more: the CPU checks 2.6 * 10^11 quotients on one thread).
+
+mod common;
+
+use common::test_context;
+use hyrt_core::kernels::exact::sweep_operands;
+use hyrt_gpu::exact::{same_bits, ExactKernel, ExactOp};
+use hyrt_gpu::shader::inexact_operations;
+use hyrt_gpu::GpuContext;
+
+fn f(bits: u32) -> f32 {
+    f32::from_bits(bits)
+}
+
+/// Values where rounding, exponents and special cases show (both signs).
+fn specials() -> Vec<u32> {
+    let mut v: Vec<u32> = vec![
+        0,
+        0x7f80_0000,
+        0x7fc0_0000,
+        0x7fa0_0000,
+        1,
+        2,
+        3,
+        0x007f_ffff,
+        0x0040_0000,
+        0x0080_0000,
+        0x7f7f_ffff,
+        0x3f80_0000,
+        0x3f7f_ffff,
+        0x3f80_0001,
+        0x3fff_ffff,
+        0x4000_0000,
+        0x4040_0000,
+        0x3dcc_cccd,
+        0x4b7f_ffff,
+    ];
+    v.extend(sweep_operands().iter().map(|x| x.to_bits()));
+    let negatives: Vec<u32> = v.iter().map(|x| x ^ 0x8000_0000).collect();
+    v.extend(negatives);
+    v
+}
+
+/// A xorshift stream of 32-bit words.
+fn words(seed: u64, n: usize) -> Vec<u32> {
+    let mut s = seed;
+    (0..n)
+        .map(|_| {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s >> 16) as u32
+        })
+        .collect()
+}
+
+fn check_quotients(ctx: &GpuContext, kernel: &ExactKernel, pairs: &[[u32; 3]], skew: i32) {
+    let got = kernel.evaluate(ctx, ExactOp::Div, pairs, skew).expect("div_rn on the device");
+    for (p, g) in pairs.iter().zip(got) {
+        let expected = (f(p[0]) / f(p[1])).to_bits();
+        assert!(
+            same_bits(g, expected),
+            "div_rn({:e}, {:e}) ({:#010x} / {:#010x}, estimate skewed {skew} ulp): device {g:#010x}, IEEE {expected:#010x}",
+            f(p[0]),
+            f(p[1]),
+            p[0],
+            p[1]
+        );
+    }
+}
+
+fn check_roots(ctx: &GpuContext, kernel: &ExactKernel, xs: &[[u32; 3]], skew: i32) {
+    let got = kernel.evaluate(ctx, ExactOp::Sqrt, xs, skew).expect("sqrt_rn on the device");
+    for (x, g) in xs.iter().zip(got) {
+        let expected = f(x[0]).sqrt().to_bits();
+        assert!(
+            same_bits(g, expected),
+            "sqrt_rn({:e}) ({:#010x}, estimate skewed {skew} ulp): device {g:#010x}, IEEE {expected:#010x}",
+            f(x[0]),
+            x[0]
+        );
+    }
+}
+
+#[test]
+fn special_values_divide_and_root_as_ieee() {
+    let Some(ctx) = test_context() else { return };
+    let kernel = ExactKernel::new(&ctx).expect("exact kernel");
+    let s = specials();
+    let pairs: Vec<[u32; 3]> = s.iter().flat_map(|&a| s.iter().map(move |&b| [a, b, 0])).collect();
+    let singles: Vec<[u32; 3]> = s.iter().map(|&x| [x, 0, 0]).collect();
+    for skew in [0, -12, -5, -1, 1, 5, 12] {
+        check_quotients(&ctx, &kernel, &pairs, skew);
+        check_roots(&ctx, &kernel, &singles, skew);
+    }
+}
+
+#[test]
+fn random_operands_divide_and_root_as_ieee() {
+    let Some(ctx) = test_context() else { return };
+    let kernel = ExactKernel::new(&ctx).expect("exact kernel");
+    let w = words(0x853c_49e6_748f_ea9b, 1 << 21);
+    let pairs: Vec<[u32; 3]> = w.chunks(2).map(|c| [c[0], c[1], 0]).collect();
+    let singles: Vec<[u32; 3]> = w[..1 << 20].iter().map(|&x| [x, 0, 0]).collect();
+    check_quotients(&ctx, &kernel, &pairs, 0);
+    check_roots(&ctx, &kernel, &singles, 0);
+    // A loose device's estimates: the correction must still land on IEEE's bits.
+    check_quotients(&ctx, &kernel, &pairs[..1 << 16], 12);
+    check_quotients(&ctx, &kernel, &pairs[..1 << 16], -12);
+    check_roots(&ctx, &kernel, &singles[..1 << 16], 12);
+    check_roots(&ctx, &kernel, &singles[..1 << 16], -12);
+}
+
+/// Runs of consecutive bit patterns, 256 of them spread over all 2^32 (every exponent,
+/// both signs), through the sweeps the exhaustive tests use.
+#[test]
+fn strided_sweeps_match_ieee() {
+    let Some(ctx) = test_context() else { return };
+    let kernel = ExactKernel::new(&ctx).expect("exact kernel");
+    let run = 4096u32;
+    let fixed = [1.0f32, 3.0, f32::from_bits(0x3fff_ffff), f32::from_bits(0x0000_0003), 1e30];
+    for k in 0..256u32 {
+        let first = k.wrapping_mul(0x0100_0000).wrapping_add(k.wrapping_mul(0x9e37));
+        let count = run.min(u32::MAX - first);
+        sweep_and_check(&ctx, &kernel, first, count, &fixed);
+    }
+}
+
+/// One sweep of `sqrt_rn` and of `div_rn` by and into each of `fixed` over `first..first +
+/// count`.
+fn sweep_and_check(ctx: &GpuContext, kernel: &ExactKernel, first: u32, count: u32, fixed: &[f32]) {
+    let roots = kernel.sweep(ctx, ExactOp::SweepSqrt, first, count, 0, 0).expect("sqrt sweep");
+    for (i, g) in roots.into_iter().enumerate() {
+        let x = f(first + i as u32);
+        assert!(same_bits(g, x.sqrt().to_bits()), "sqrt_rn({x:e}) ({:#010x}): device {g:#010x}", x.to_bits());
+    }
+    sweep_quotients(ctx, kernel, first, count, fixed);
+}
+
+/// `div_rn` by and into each of `fixed` over the bit patterns `first..first + count`.
+fn sweep_quotients(ctx: &GpuContext, kernel: &ExactKernel, first: u32, count: u32, fixed: &[f32]) {
+    for &c in fixed {
+        let by = kernel.sweep(ctx, ExactOp::SweepDivFixedBy, first, count, c.to_bits(), 0).expect("div sweep");
+        let into = kernel.sweep(ctx, ExactOp::SweepDivByFixed, first, count, c.to_bits(), 0).expect("div sweep");
+        for (i, (g, h)) in by.into_iter().zip(into).enumerate() {
+            let x = f(first + i as u32);
+            assert!(same_bits(g, (c / x).to_bits()), "div_rn({c:e}, {x:e}) ({:#010x}): device {g:#010x}", x.to_bits());
+            assert!(same_bits(h, (x / c).to_bits()), "div_rn({x:e}, {c:e}) ({:#010x}): device {h:#010x}", x.to_bits());
+        }
+    }
+}
+
+/// Every f32's square root, in batches of 2^24.
+#[test]
+#[ignore = "long: 2^32 roots (see the module docs)"]
+fn exhaustive_roots_match_ieee() {
+    let Some(ctx) = test_context() else { return };
+    let kernel = ExactKernel::new(&ctx).expect("exact kernel");
+    for start in (0..1u64 << 32).step_by(1 << 24) {
+        sweep_and_check(&ctx, &kernel, start as u32, 1 << 24, &[]);
+    }
+}
+
+/// Every f32 divided by and into each of the core's fixed operands, in batches of 2^24.
+#[test]
+#[ignore = "long: 2 x 30 x 2^32 quotients (see the module docs)"]
+fn exhaustive_quotients_match_ieee() {
+    let Some(ctx) = test_context() else { return };
+    let kernel = ExactKernel::new(&ctx).expect("exact kernel");
+    let fixed = sweep_operands();
+    for start in (0..1u64 << 32).step_by(1 << 24) {
+        sweep_quotients(&ctx, &kernel, start as u32, 1 << 24, &fixed);
+    }
+}
+
+/// 10^9 random pairs, in batches of 2^22.
+#[test]
+#[ignore = "long: 10^9 quotients (see the module docs)"]
+fn random_quotients_match_ieee() {
+    let Some(ctx) = test_context() else { return };
+    let kernel = ExactKernel::new(&ctx).expect("exact kernel");
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut done = 0usize;
+    while done < 1_000_000_000 {
+        seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        let w = words(seed, 1 << 23);
+        let pairs: Vec<[u32; 3]> = w.chunks(2).map(|c| [c[0], c[1], 0]).collect();
+        check_quotients(&ctx, &kernel, &pairs, 0);
+        done += pairs.len();
+    }
+}
+
+#[test]
+fn the_probe_finds_the_guarantees_on_this_adapter() {
+    let Some(ctx) = test_context() else { return };
+    let probe = ctx.float_probe().expect("float probe");
+    eprintln!("{}: {probe}", ctx.info.name);
+    assert!(probe.guarantees_met(), "{}: {probe}", ctx.info.name);
+    assert_eq!(probe.helpers_off, 0);
+    assert!(probe.helper_cases > 10_000, "{probe}");
+}
+
+/// The IR check finds every inexact operation it is meant to, and passes the helpers.
+#[test]
+fn inexact_operations_are_named() {
+    let module = |body: &str| {
+        format!("{}\nfn f(a: f32, b: f32, v: vec3<f32>) -> f32 {{\n{body}\n}}\n", hyrt_gpu::shader::preamble())
+    };
+    for (body, what) in [
+        ("    return a / b;", "Divide"),
+        ("    return a % b;", "Modulo"),
+        ("    return sqrt(a);", "Sqrt"),
+        ("    return inverseSqrt(a);", "InverseSqrt"),
+        ("    return length(v);", "Length"),
+        ("    return normalize(v).x;", "Normalize"),
+        ("    return distance(v, v);", "Distance"),
+        ("    return pow(a, b);", "Pow"),
+        ("    return exp2(a) + log2(b);", "Exp2"),
+        ("    return fma(a, b, a);", "Fma"),
+        ("    return dot(v, v);", "Dot"),
+        ("    return (v / a).x;", "Divide"),
+    ] {
+        let found = inexact_operations(&module(body)).expect("parses");
+        assert!(found.iter().any(|l| l.starts_with("f: ") && l.contains(what)), "{body}: {found:?}");
+    }
+    // Integer division and the helpers are exact.
+    let clean = module("    let n = u32(a) / 3u;\n    return div_rn(a, b) + sqrt_rn(f32(n)) + div_rn3(v, a).x;");
+    assert_eq!(inexact_operations(&clean).expect("parses"), Vec::<String>::new());
+}
+
+/// Every stage of the GPU backend, in every specialization, compiles without an inexact
+/// operation: `shader_module` refuses one with a panic in debug builds.
+#[test]
+fn every_stage_uses_only_exact_operations() {
+    if !cfg!(debug_assertions) {
+        eprintln!("SKIPPED: the check runs in debug builds (shader_module)");
+        return;
+    }
+    let Some(ctx) = test_context() else { return };
+    use hyrt_gpu::texture::Specialization;
+    use hyrt_gpu::visibility_raster::{VisibilityMode, VisibilityRasterStage};
+    for bits in 0..16u32 {
+        let s = Specialization {
+            surface_tables: bits & 1 != 0,
+            alpha_tested: bits & 2 != 0,
+            two_level: bits & 4 != 0,
+            normal_mapped: bits & 8 != 0,
+        };
+        hyrt_gpu::bounce_shading::BounceShadingStage::specialized(&ctx, s);
+        hyrt_gpu::bounce_trace::BounceTraceStage::specialized(&ctx, s);
+        hyrt_gpu::raster_shading::RasterShadingStage::specialized(&ctx, s);
+        hyrt_gpu::rt_shading::RtShadingStage::specialized(&ctx, s);
+        hyrt_gpu::rt_shading::RtShadingBouncingStage::specialized(&ctx, s);
+        hyrt_gpu::secondary_rays::SecondaryRaysStage::specialized(&ctx, s);
+        hyrt_gpu::shadow_rays::ShadowRaysStage::specialized(&ctx, s);
+        for mode in [VisibilityMode::Exact, VisibilityMode::HardwareInterpolated] {
+            VisibilityRasterStage::specialized(&ctx, mode, s);
+        }
+    }
+    VisibilityRasterStage::with_id_source(&ctx, false);
+    hyrt_gpu::compaction::CompactionStage::new(&ctx);
+    hyrt_gpu::composition::CompositionStage::new(&ctx);
+    hyrt_gpu::reconstruction::ReconstructionStage::new(&ctx);
+    hyrt_gpu::reconstruction::NormalMapping::new(&ctx);
+}
