@@ -22,11 +22,13 @@ fn shade_bouncing(index: u32, s: SurfaceRecord, obj: ObjectRecord, l: Lobes, d: 
     let refracted = lobe_radiance(children.y, obj.ambient_scale);
     let v = -d;
     let base = obj.base_color;
-    let ambient_term =
+    let ambient_term = rounded3(
         mul3(mul3(base, vec3<f32>(mul(mul(1.0 - obj.metallic, AMBIENT), l.diffuse_scale))), vec3<f32>(obj.ambient_scale))
-        + obj.emissive;
+            + obj.emissive,
+    );
     let direct = sum_visible_lights_rt(index, s.position, obj, s.normal, v, l.diffuse_scale);
-    return ((ambient_term + direct) + mul3(l.reflection, reflected)) + mul3(l.refraction, refracted);
+    // Each partial sum behind the barrier: a device may reassociate an unguarded chain.
+    return rounded3(rounded3(ambient_term + direct) + mul3(l.reflection, reflected)) + mul3(l.refraction, refracted);
 }
 
 // mirrors hyrt_core::kernels::bounce::shade_rt_pixel_bouncing

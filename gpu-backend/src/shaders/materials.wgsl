@@ -21,7 +21,8 @@ fn hit_lod(bias: f32, cone_width: f32, cos: f32) -> f32 {
     if texture_is_finite(cone_width) {
         w = select(LOD_MIN_AREA, cone_width, cone_width > LOD_MIN_AREA);
     }
-    return bias + (log2_portable(w) - log2_portable(c));
+    // The difference behind the barrier: a device may reassociate an unguarded chain.
+    return bias + rounded(log2_portable(w) - log2_portable(c));
 }
 
 // mirrors hyrt_core::kernels::texture::texture_lod

@@ -70,7 +70,7 @@ fn offset_coordinate(p: f32, n: f32, d: f32, zero: u32) -> f32 {
 // point's own error bound): d = ((|n.x| + |n.y|) + |n.z|) * (p_error * OFFSET_ERROR_SCALE),
 // then each coordinate p + n * d, stepped once more away from the surface.
 fn offset_ray_origin(p: vec3<f32>, p_error: f32, n: vec3<f32>, zero: u32) -> vec3<f32> {
-    let d = ((abs(n.x) + abs(n.y)) + abs(n.z)) * (p_error * OFFSET_ERROR_SCALE);
+    let d = opaque(opaque(abs(n.x) + abs(n.y), zero) + abs(n.z), zero) * (p_error * OFFSET_ERROR_SCALE);
     return vec3<f32>(offset_coordinate(p.x, n.x, d, zero), offset_coordinate(p.y, n.y, d, zero),
         offset_coordinate(p.z, n.z, d, zero));
 }

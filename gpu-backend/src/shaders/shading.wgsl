@@ -180,8 +180,10 @@ fn ambient(obj: ObjectRecord) -> vec3<f32> {
 }
 
 // mirrors hyrt_core::kernels::shading::unlit
+// (Behind the barrier: its callers add the lights to it, and a device may reassociate an
+// unguarded chain of sums.)
 fn unlit(obj: ObjectRecord) -> vec3<f32> {
-    return ambient(obj) + obj.emissive;
+    return rounded3(ambient(obj) + obj.emissive);
 }
 
 // mirrors hyrt_core::kernels::shading::compose

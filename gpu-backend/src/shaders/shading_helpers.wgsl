@@ -23,6 +23,10 @@ fn mul(a: f32, b: f32) -> f32 {
     return rounded(a * b);
 }
 
+fn rounded3(v: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(rounded(v.x), rounded(v.y), rounded(v.z));
+}
+
 fn mul3(a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(mul(a.x, b.x), mul(a.y, b.y), mul(a.z, b.z));
 }
@@ -37,7 +41,9 @@ fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
 fn normalize_or_zero(v: vec3<f32>) -> vec3<f32> {
     let rcp = div_rn(1.0, sqrt_rn(dot3(v, v)));
     if (rcp > 0.0 && rcp <= F32_MAX) {
-        return v * rcp;
+        // Each product behind the barrier: a caller's sum (the half vector `l + v`) would
+        // otherwise fuse with it on devices that contract (NVIDIA does; lavapipe did not).
+        return mul3(v, vec3<f32>(rcp));
     }
     return vec3<f32>(0.0);
 }

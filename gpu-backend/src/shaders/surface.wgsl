@@ -42,7 +42,8 @@ fn normalize_or(a: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
     }
     let rcp = div_rn(1.0, len);
     if is_finite(rcp) && rcp > 0.0 {
-        return a * rcp;
+        // Each product behind the barrier: a caller's sum would otherwise fuse with it.
+        return mul3(a, rcp);
     }
     return fallback;
 }
@@ -67,7 +68,7 @@ fn position_error_bound(u: f32, v: f32, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f
     let w = bary_w(u, v);
     let sum = (abs(mul3(v0, w)) + abs(mul3(v1, u))) + abs(mul3(v2, v));
     let w_err = mul(GAMMA_2, rounded(1.0 + abs(u)) + abs(v));
-    return (mul3(sum, GAMMA_3) + mul3(abs(v0), mul(w_err, ONE_PLUS_GAMMA_3))) * ONE_PLUS_GAMMA_3;
+    return mul3(mul3(sum, GAMMA_3) + mul3(abs(v0), mul(w_err, ONE_PLUS_GAMMA_3)), ONE_PLUS_GAMMA_3);
 }
 
 // mirrors hyrt_core::kernels::barycentric::interpolate_normal
