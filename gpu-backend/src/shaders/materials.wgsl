@@ -22,7 +22,7 @@ fn hit_lod(bias: f32, cone_width: f32, cos: f32) -> f32 {
         w = select(LOD_MIN_AREA, cone_width, cone_width > LOD_MIN_AREA);
     }
     // The difference behind the barrier: a device may reassociate an unguarded chain.
-    return bias + rounded(log2_portable(w) - log2_portable(c));
+    return rounded(bias + rounded(log2_portable(w) - log2_portable(c)));
 }
 
 // mirrors hyrt_core::kernels::texture::texture_lod
@@ -32,7 +32,10 @@ fn texture_lod(lod: f32, reference: TextureRecord, tex: TextureRecord) -> f32 {
     }
     let area = f32(tex.width * tex.height);
     let reference_area = f32(reference.width * reference.height);
-    return lod + mul(0.5, rounded(log2_portable(area) - log2_portable(reference_area)));
+    // Behind the barrier: the sampler subtracts the level from it, and a device may
+    // reassociate an unguarded chain of sums (NVIDIA did: hit_lod's sum, this one and
+    // the sampler's difference came out an ulp off).
+    return rounded(lod + mul(0.5, rounded(log2_portable(area) - log2_portable(reference_area))));
 }
 
 // mirrors the `sample` closure of hyrt_core::kernels::texture::Materials::at: texture

@@ -21,7 +21,7 @@ fn log2_portable(x: f32) -> f32 {
     p = mul(p, t2) + LOG2_SERIES[2];
     p = mul(p, t2) + LOG2_SERIES[3];
     p = mul(p, t2) + LOG2_SERIES[4];
-    return f32(e) + mul(mul(t, p), TWO_OVER_LN_2);
+    return rounded(f32(e) + mul(mul(t, p), TWO_OVER_LN_2));
 }
 
 // mirrors hyrt_core::kernels::shading::exp2_portable

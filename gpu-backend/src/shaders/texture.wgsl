@@ -128,10 +128,10 @@ fn fetch_texel(tex: TextureRecord, base: u32, w: u32, h: u32, x: i32, y: i32) ->
 // mirrors hyrt_core::kernels::texture::lerp4
 fn lerp4(a: vec4<f32>, b: vec4<f32>, t: f32) -> vec4<f32> {
     return vec4<f32>(
-        a.x + mul(b.x - a.x, t),
-        a.y + mul(b.y - a.y, t),
-        a.z + mul(b.z - a.z, t),
-        a.w + mul(b.w - a.w, t),
+        rounded(a.x + mul(b.x - a.x, t)),
+        rounded(a.y + mul(b.y - a.y, t)),
+        rounded(a.z + mul(b.z - a.z, t)),
+        rounded(a.w + mul(b.w - a.w, t)),
     );
 }
 
@@ -146,8 +146,9 @@ fn sample_level(tex: TextureRecord, level: u32, uv: vec2<f32>, filter_mode: u32)
     if filter_mode == FILTER_NEAREST {
         return fetch_texel(tex, base, w, h, i32(floor(x)), i32(floor(y)));
     }
-    let xs = x - 0.5;
-    let ys = y - 0.5;
+    // Behind the barrier: `xs - floor(xs)` must not be reassociated into `x - (0.5 + x0)`.
+    let xs = rounded(x - 0.5);
+    let ys = rounded(y - 0.5);
     let x0 = floor(xs);
     let y0 = floor(ys);
     let fx = xs - x0;
@@ -192,8 +193,8 @@ fn sample_texture(tex: TextureRecord, uv: vec2<f32>, lod_in: f32) -> vec4<f32> {
 fn interpolate_uv(t: TriangleUvRecord, u: f32, v: f32) -> vec2<f32> {
     let w = (1.0 - u) - v;
     return vec2<f32>(
-        rounded(mul(w, t.uv0.x) + mul(u, t.uv1.x)) + mul(v, t.uv2.x),
-        rounded(mul(w, t.uv0.y) + mul(u, t.uv1.y)) + mul(v, t.uv2.y),
+        rounded(rounded(mul(w, t.uv0.x) + mul(u, t.uv1.x)) + mul(v, t.uv2.x)),
+        rounded(rounded(mul(w, t.uv0.y) + mul(u, t.uv1.y)) + mul(v, t.uv2.y)),
     );
 }
 
