@@ -12,11 +12,9 @@
 //! the instances too. Writes one `HitRecord` and one `SurfaceRecord` per ray and
 //! counts the hits.
 
-use crate::shader::preamble;
-
 use crate::buffers::{FrameBuffers, SceneBuffers};
 use crate::shader::{bind_buffers, specialized_pipeline, surface_wgsl, EXACT_PRODUCTS};
-use crate::shader::{ray_wgsl, storage_entry, uniform_entry};
+use crate::shader::{preamble, ray_wgsl, storage_entry, uniform_entry};
 use crate::texture::{texture_wgsl, Specialization};
 use crate::GpuContext;
 

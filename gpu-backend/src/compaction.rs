@@ -29,18 +29,16 @@
 //! and a step to the next float done on the bits, the direction is one correctly
 //! rounded subtraction, the rest are constants. A device that flushes subnormals
 //! differs only where an error bound is subnormal (coordinates below about 1e-31).
-//! The flags use `light_incidence`'s `sqrt` and divisions and two dot products,
-//! which a GPU may fuse or round within 2.5 ulp: a flag can then differ only where
-//! `n . l` is within a few ulps of zero (grazing light), or where `radiance / d^2` is
-//! subnormal and flushed.
-//! On lavapipe the default-scene tests find no difference.
-
-use crate::shader::preamble;
+//! The flags use `light_incidence`'s square root and divisions (exact: `sqrt_rn`,
+//! `div_rn`) and two dot products (each product unfused): a flag can differ only where
+//! `radiance / d^2` is subnormal and the device flushes it (its float probe says so).
+//! On lavapipe and the NVIDIA H200 the conformance corpus finds no difference.
 
 use crate::buffers::{FrameBuffers, ListBuffers, SceneBuffers};
 use crate::scan::{pipeline, scan_wgsl, ListScan, Scratch};
-use crate::shader::shading_helpers;
-use crate::shader::{bind_buffers, main_pipeline, ray_wgsl, storage_entry, uniform_entry};
+use crate::shader::{
+    bind_buffers, main_pipeline, preamble, ray_wgsl, shader_module, shading_helpers, storage_entry, uniform_entry,
+};
 
 /// Threads per workgroup of `shaders/light_starts.wgsl` (one per light).
 const LIGHT_STARTS_GROUP: u32 = 64;
@@ -67,7 +65,7 @@ pub struct CompactionStage {
 impl CompactionStage {
     pub fn new(ctx: &GpuContext) -> Self {
         let device = &ctx.device;
-        let module = crate::shader::shader_module(ctx, "compaction", &compaction_wgsl());
+        let module = shader_module(ctx, "compaction", &compaction_wgsl());
         let scan = ListScan::new(
             ctx,
             "compaction",
@@ -87,11 +85,8 @@ impl CompactionStage {
             entries: &[storage_entry(6, false)],
         });
         let with_test = [Some(&scan.scan_layout), Some(&test_layout)];
-        let starts_module = crate::shader::shader_module(
-            ctx,
-            "compaction light starts",
-            &(preamble() + include_str!("shaders/light_starts.wgsl")),
-        );
+        let starts_module =
+            shader_module(ctx, "compaction light starts", &(preamble() + include_str!("shaders/light_starts.wgsl")));
         let starts_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("compaction light starts"),
             entries: &[storage_entry(0, true), storage_entry(1, true), storage_entry(2, false)],

@@ -72,6 +72,23 @@ pub enum ExactOp {
     SweepDivByFixed = 10,
 }
 
+impl ExactOp {
+    /// Every operation with its WGSL name (`OP_<name>`, generated into the kernel).
+    const ALL: [(&'static str, ExactOp); 11] = [
+        ("DIV", ExactOp::Div),
+        ("SQRT", ExactOp::Sqrt),
+        ("DEVICE_DIV", ExactOp::DeviceDiv),
+        ("DEVICE_SQRT", ExactOp::DeviceSqrt),
+        ("PLAIN_MUL_ADD", ExactOp::PlainMulAdd),
+        ("GUARDED_MUL_ADD", ExactOp::GuardedMulAdd),
+        ("ADD", ExactOp::Add),
+        ("MUL", ExactOp::Mul),
+        ("SWEEP_SQRT", ExactOp::SweepSqrt),
+        ("SWEEP_DIV_FIXED_BY", ExactOp::SweepDivFixedBy),
+        ("SWEEP_DIV_BY_FIXED", ExactOp::SweepDivByFixed),
+    ];
+}
+
 /// Declares the job's uniform in Rust and, from the same field list, in WGSL
 /// (`JOB_WGSL`): scalars only, spelled alike in both, so the layouts agree.
 macro_rules! job_record {
@@ -125,12 +142,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     var r = 0u;
-    if job.op >= 8u {
+    if job.op >= OP_SWEEP_SQRT {
         let x = bitcast<f32>(job.first + i);
         let fixed = bitcast<f32>(job.fixed);
         switch job.op {
-            case 8u: { r = bitcast<u32>(sqrt_rn_skewed(x, job.skew)); }
-            case 9u: { r = bitcast<u32>(div_rn_skewed(fixed, x, job.skew)); }
+            case OP_SWEEP_SQRT: { r = bitcast<u32>(sqrt_rn_skewed(x, job.skew)); }
+            case OP_SWEEP_DIV_FIXED_BY: { r = bitcast<u32>(div_rn_skewed(fixed, x, job.skew)); }
             default: { r = bitcast<u32>(div_rn_skewed(x, fixed, job.skew)); }
         }
     } else {
@@ -139,13 +156,13 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
         let b = bitcast<f32>(o.y);
         let c = bitcast<f32>(o.z);
         switch job.op {
-            case 0u: { r = bitcast<u32>(div_rn_skewed(a, b, job.skew)); }
-            case 1u: { r = bitcast<u32>(sqrt_rn_skewed(a, job.skew)); }
-            case 2u: { r = bitcast<u32>(a / b); }
-            case 3u: { r = bitcast<u32>(sqrt(a)); }
-            case 4u: { r = bitcast<u32>(a * b + c); }
-            case 5u: { r = bitcast<u32>(guarded(a * b) + c); }
-            case 6u: { r = bitcast<u32>(a + b); }
+            case OP_DIV: { r = bitcast<u32>(div_rn_skewed(a, b, job.skew)); }
+            case OP_SQRT: { r = bitcast<u32>(sqrt_rn_skewed(a, job.skew)); }
+            case OP_DEVICE_DIV: { r = bitcast<u32>(a / b); }
+            case OP_DEVICE_SQRT: { r = bitcast<u32>(sqrt(a)); }
+            case OP_PLAIN_MUL_ADD: { r = bitcast<u32>(a * b + c); }
+            case OP_GUARDED_MUL_ADD: { r = bitcast<u32>(guarded(a * b) + c); }
+            case OP_ADD: { r = bitcast<u32>(a + b); }
             default: { r = bitcast<u32>(a * b); }
         }
     }
@@ -162,7 +179,9 @@ pub struct ExactKernel {
 impl ExactKernel {
     /// Compile the kernel: the preamble every stage starts with, then the entry point.
     pub fn new(ctx: &GpuContext) -> Result<ExactKernel, GpuError> {
-        let source = format!("{}\nconst GROUPS_PER_ROW: u32 = {GROUPS_PER_ROW}u;\n{JOB_WGSL}{ENTRY}", preamble());
+        let ops: String =
+            ExactOp::ALL.iter().map(|(name, op)| format!("const OP_{name}: u32 = {}u;\n", *op as u32)).collect();
+        let source = format!("{}\nconst GROUPS_PER_ROW: u32 = {GROUPS_PER_ROW}u;\n{ops}{JOB_WGSL}{ENTRY}", preamble());
         let entries = [uniform_entry(0), storage_entry(1, true), storage_entry(2, false)];
         // The one module that uses the device's own `/` and `sqrt` on purpose (to report
         // them), so it is not made through `shader_module`, which refuses them.

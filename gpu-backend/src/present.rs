@@ -14,7 +14,7 @@ use std::collections::HashMap;
 use std::sync::Mutex;
 
 use crate::buffers::FrameBuffers;
-use crate::shader::{encode_pixel_pass, main_pipeline, storage_entry, uniform_entry};
+use crate::shader::{encode_pixel_pass, main_pipeline, preamble, shader_module, storage_entry, uniform_entry};
 use crate::GpuContext;
 
 /// The texture formats `present` writes.
@@ -71,10 +71,10 @@ impl Present {
         let format = texture.format();
         let mut pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
         let (pipeline, layout) = pipelines.entry(format).or_insert_with(|| {
-            let source = crate::shader::preamble()
-                + &include_str!("shaders/present.wgsl").replace("TARGET_FORMAT", format_name(format));
+            let source =
+                preamble() + &include_str!("shaders/present.wgsl").replace("TARGET_FORMAT", format_name(format));
             let device = &ctx.device;
-            let module = crate::shader::shader_module(ctx, "present", &source);
+            let module = shader_module(ctx, "present", &source);
             let texture_entry = wgpu::BindGroupLayoutEntry {
                 binding: 2,
                 visibility: wgpu::ShaderStages::COMPUTE,

@@ -4,23 +4,22 @@
 //! (`hyrt_core::kernels::barycentric::{reconstruct_position, position_error_bound,
 //! interpolate_normal, geometric_normal}`, `hyrt_core::kernels::shading::orient_to_seen_side`)
 //! in `shaders/reconstruction.wgsl`, operation for operation. Normalization is
-//! `sqrt` then division, as on the CPU (WGSL's `inverseSqrt` is not exact).
+//! `sqrt_rn` then `div_rn`, as the CPU's `sqrt` then division (WGSL's `inverseSqrt`,
+//! `sqrt` and `/` are not exact).
 //!
 //! Reads: `frame.gbuffer`, `frame.camera` (eye, image size), `frame.params` (the band),
 //! `scene.triangles`,
 //! `scene.normals`, `scene.objects` (`first_triangle`). Writes: `frame.surfaces`
 //! (every texel of the camera's image).
 //!
-//! Every product that feeds a sum is kept unfused (`mul`), so on a device that rounds
-//! f32 operations as IEEE 754 (lavapipe) the surfaces are the CPU's bits; WGSL allows
-//! a division within 2.5 ulp, where a device may differ by a few ulp (the bounds are in
-//! `tests/reconstruction.rs`); ids are identical.
+//! Every product that feeds a sum is kept unfused (`mul`), and divisions and roots are
+//! exact (`div_rn`, `sqrt_rn`), so the surfaces are the CPU's bits on any device that
+//! rounds `+`, `-` and `*` as IEEE 754 (lavapipe, the NVIDIA H200).
 
-use crate::shader::preamble;
 use hyrt_core::frame::PrimaryBarycentrics;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
-use crate::shader::{ray_wgsl, surface_wgsl};
+use crate::shader::{preamble, ray_wgsl, shader_module, surface_wgsl};
 use crate::GpuContext;
 
 /// Side of the square workgroup (`@workgroup_size(8, 8, 1)`).
@@ -48,7 +47,7 @@ pub struct ReconstructionStage {
 impl ReconstructionStage {
     /// Build the pipeline.
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = crate::shader::shader_module(ctx, "reconstruction", &shader_source());
+        let module = shader_module(ctx, "reconstruction", &shader_source());
         let pipeline = |entry: &str| {
             let p = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some("reconstruction"),

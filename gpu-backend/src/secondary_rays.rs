@@ -18,7 +18,7 @@
 use crate::buffers::{BounceBuffers, FrameBuffers, SceneBuffers};
 use crate::scan::{scan_wgsl, ListScan};
 use crate::shader::{bounce_wgsl, shading_source};
-use crate::shader::{ray_wgsl, storage_entry, uniform_entry};
+use crate::shader::{ray_wgsl, shader_module, storage_entry, uniform_entry};
 use crate::texture::{materials_wgsl, texture_wgsl, Specialization};
 use crate::GpuContext;
 
@@ -38,7 +38,7 @@ impl SecondaryRaysStage {
                 + include_str!("shaders/secondary_rays.wgsl")
                 + &scan_wgsl()),
         );
-        let module = crate::shader::shader_module(ctx, "secondary_rays", &source);
+        let module = shader_module(ctx, "secondary_rays", &source);
         let mut entries = vec![uniform_entry(0), uniform_entry(1), uniform_entry(2)];
         entries.extend((3..=9).map(|i| storage_entry(i, true)));
         entries.extend((10..=12).map(|i| storage_entry(i, false)));

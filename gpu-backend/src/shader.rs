@@ -7,7 +7,7 @@ use hyrt_core::bvh::{BVH_CULL_SLACK, BVH_STACK_SIZE};
 use hyrt_core::formats::wgsl::declarations;
 use hyrt_core::kernels::bounce::{IOR_OUTSIDE, MIN_THROUGHPUT, SKY_GROUND, SKY_HORIZON, SKY_ZENITH};
 use hyrt_core::kernels::environment::{ATAN_SERIES, INV_TWO_PI, TAN_PI_8};
-use hyrt_core::kernels::exact::{DEFAULT_NAN, EXACT_ESTIMATE_UNITS};
+use hyrt_core::kernels::exact::DEFAULT_NAN;
 use hyrt_core::kernels::ray::{gamma, OFFSET_ERROR_SCALE, SLAB_FAR_SCALE, VELTKAMP_SPLIT};
 use hyrt_core::kernels::shading::{
     AMBIENT, BACKGROUND, DIELECTRIC_F0, ENVIRONMENT_SPECULAR, EXP_SERIES, GGX_MIN_ALPHA, LOG2_SERIES,
@@ -37,14 +37,14 @@ pub(crate) const TILE: u32 = 8;
 // ---------------------------------------------------------------------------------------------
 
 /// What every stage's WGSL begins with: the generated records and format constants
-/// ([`declarations`]), then the exact division and square root (`shaders/exact.wgsl`,
-/// mirrors of [`hyrt_core::kernels::exact`]) after their constants, generated from the
-/// Rust values. No shader divides floats or takes a square root any other way.
+/// ([`declarations`]), then the f32 field masks and the exact division and square root
+/// (`shaders/exact.wgsl`, mirrors of [`hyrt_core::kernels::exact`]) after their constant,
+/// generated from the Rust value. No shader divides floats or takes a square root any
+/// other way.
 pub fn preamble() -> String {
     format!(
-        "{}\n// Generated from hyrt_core::kernels::exact (gpu-backend/src/shader.rs).\nconst EXACT_ESTIMATE_UNITS: u32 = {}u;\nconst EXACT_DEFAULT_NAN: u32 = {:#010x}u;\n{}",
+        "{}\n// Generated from hyrt_core::kernels::exact (gpu-backend/src/shader.rs).\nconst EXACT_DEFAULT_NAN: u32 = {:#010x}u;\n{}",
         declarations(),
-        EXACT_ESTIMATE_UNITS,
         DEFAULT_NAN,
         include_str!("shaders/exact.wgsl")
     )

@@ -20,10 +20,8 @@
 //! function, decided by the exact sign both sides compute in f32
 //! (`hyrt_core::kernels::ray::edge_sign_exact`).
 
-use crate::shader::preamble;
-
 use crate::buffers::{FrameBuffers, ListBuffers, SceneBuffers};
-use crate::shader::{bind_buffers, ray_wgsl, storage_entry, uniform_entry, EXACT_PRODUCTS};
+use crate::shader::{bind_buffers, preamble, ray_wgsl, shader_module, storage_entry, uniform_entry, EXACT_PRODUCTS};
 pub use crate::shader::{MAX_WORKGROUPS_PER_DIMENSION, SHADOW_RAYS_WORKGROUP_SIZE};
 use crate::texture::{texture_wgsl, Specialization};
 use crate::GpuContext;
@@ -56,7 +54,7 @@ impl ShadowRaysStage {
             + &texture_wgsl()
             + include_str!("shaders/shadow_rays.wgsl")
             + walk;
-        let module = crate::shader::shader_module(ctx, "shadow_rays", &source);
+        let module = shader_module(ctx, "shadow_rays", &source);
         let mut entries = vec![
             uniform_entry(0),
             storage_entry(1, true),

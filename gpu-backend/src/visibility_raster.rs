@@ -52,13 +52,13 @@
 //! `max_texture_dimension_2d` (the adapter's own: 16384 on lavapipe).
 //!
 //! Agreement with the CPU reference: bit-identical on the conformance corpus on lavapipe
-//! (hyrt-conformance). It rests on the device rasterizing with 8 subpixel bits and the
-//! top-left rule (Vulkan's `subPixelPrecisionBits`, as lavapipe and desktop GPUs do) and
-//! computing f32 division, conversions and `round` exactly (WGSL allows 2.5 ulp division
-//! elsewhere). Cost: the fragment shader's setup is per fragment, about 15x the old
+//! and on an NVIDIA H200 (hyrt-conformance). It rests on the device rasterizing with 8
+//! subpixel bits and the top-left rule (Vulkan's `subPixelPrecisionBits`, as lavapipe and
+//! desktop GPUs do) and computing conversions and `round` exactly; divisions go through
+//! `div_rn`. Cost: the fragment shader's setup is per fragment, about 15x the old
 //! raster pass on lavapipe (29.6 -> 435 ms at 1280x720, default scene).
 
-use crate::shader::preamble;
+use crate::shader::{preamble, shader_module};
 use std::sync::Mutex;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
@@ -259,7 +259,7 @@ impl VisibilityRasterStage {
             VisibilityMode::Exact => shader_source(primitive_index, ctx.early_depth_test),
             VisibilityMode::HardwareInterpolated => interpolated_shader_source(primitive_index),
         };
-        let module = crate::shader::shader_module(ctx, "visibility_raster", &source);
+        let module = shader_module(ctx, "visibility_raster", &source);
         let raster = ctx.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("visibility_raster"),
             layout: None,

@@ -28,7 +28,7 @@
 //! computed modulo 2^32 (wrapping `u32` arithmetic, as WGSL's): the true remainder of an
 //! estimate fewer than [`EXACT_ESTIMATE_UNITS`] units off is below 2^31 in magnitude, so
 //! its 32 low bits, read as an `i32`, are it. The remainder over the divisor (or over
-//! `2 q`) is the estimate's error in units; one float quotient of it, truncated, brings
+//! `2 q`) is the estimate's error in units; one float quotient of it, rounded down, brings
 //! `q` within one unit, and one exact step each way finishes. No loops: lavapipe's LLVM
 //! spent minutes on the scalar evolution of a correction loop inlined at every division.
 //! Rounding (to nearest, ties to even) and the exponent, subnormal results included, are

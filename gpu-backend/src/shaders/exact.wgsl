@@ -6,16 +6,18 @@
 //
 // Prepended to every stage's source after the generated records by
 // `hyrt_gpu::shader::preamble`, with EXACT_DEFAULT_NAN generated from its Rust
-// value (EXACT_ESTIMATE_UNITS, the estimate's allowed error, documents the bound).
+// value. The estimate may be off by fewer than hyrt_core's EXACT_ESTIMATE_UNITS units.
 //
 // Only integer operations decide the result: the float estimate (`/` or `sqrt` of small
 // exact integers) may be a few ulp off and is corrected exactly, without loops (lavapipe's
 // LLVM took minutes over a correction loop inlined at every division). WGSL's u32 and i32
 // arithmetic wraps, as the Rust side's `wrapping_*` operations do.
 
-const EXACT_SIGN: u32 = 0x80000000u;
-const EXACT_EXP_MASK: u32 = 0x7f800000u;
-const EXACT_FRACTION: u32 = 0x007fffffu;
+// The fields of an f32's bits, for every shader (each begins with this preamble).
+const F32_SIGN_MASK: u32 = 0x80000000u;
+const F32_EXP_MASK: u32 = 0x7f800000u;
+const F32_FRACTION_MASK: u32 = 0x007fffffu;
+
 const EXACT_QUIET: u32 = 0x00400000u;
 const EXACT_IMPLICIT: u32 = 0x00800000u;
 const EXACT_BIAS: i32 = 127;
@@ -33,7 +35,7 @@ fn exact_unpack(abs_bits: u32) -> ExactUnpacked {
     let shift = countLeadingZeros(abs_bits) - 8u; // subnormals: normalize
     let subnormal = field == 0;
     return ExactUnpacked(
-        select((abs_bits & EXACT_FRACTION) | EXACT_IMPLICIT, abs_bits << (shift & 31u), subnormal),
+        select((abs_bits & F32_FRACTION_MASK) | EXACT_IMPLICIT, abs_bits << (shift & 31u), subnormal),
         select(field - EXACT_BIAS, 1 - EXACT_BIAS - i32(shift), subnormal),
     );
 }
@@ -49,7 +51,7 @@ fn exact_round_pack(q: u32, sticky: bool, e: i32) -> u32 {
     let rest = q & ((1u << shift) - 1u);
     let half = 1u << (shift - 1u);
     let up = rest > half || (rest == half && (sticky || (kept & 1u) == 1u));
-    return select(base + kept + select(0u, 1u, up), EXACT_EXP_MASK, biased >= 255);
+    return select(base + kept + select(0u, 1u, up), F32_EXP_MASK, biased >= 255);
 }
 
 // An estimate moved by `skew` ulp (0 in every stage; the helpers' test moves it to check
@@ -64,11 +66,11 @@ fn exact_skewed(x: f32, skew: i32) -> f32 {
 fn div_rn_skewed(a: f32, b: f32, skew: i32) -> f32 {
     let ab = bitcast<u32>(a);
     let bb = bitcast<u32>(b);
-    let sign = (ab ^ bb) & EXACT_SIGN;
-    let ax = ab & ~EXACT_SIGN;
-    let bx = bb & ~EXACT_SIGN;
+    let sign = (ab ^ bb) & F32_SIGN_MASK;
+    let ax = ab & ~F32_SIGN_MASK;
+    let bx = bb & ~F32_SIGN_MASK;
     // Zeros, infinities and NaNs take the stand-in 1 / 1.
-    let general = ax != 0u && bx != 0u && ax < EXACT_EXP_MASK && bx < EXACT_EXP_MASK;
+    let general = ax != 0u && bx != 0u && ax < F32_EXP_MASK && bx < F32_EXP_MASK;
     let ua = exact_unpack(select(0x3f800000u, ax, general));
     let ub = exact_unpack(select(0x3f800000u, bx, general));
     let below = ua.m < ub.m;
@@ -94,11 +96,11 @@ fn div_rn_skewed(a: f32, b: f32, skew: i32) -> f32 {
     // The special cases, the Rust kernel's early returns from last to first (the last
     // select that applies wins, as the first return that applies does there).
     var special = sign; // a zero dividend
-    special = select(special, select(sign | EXACT_EXP_MASK, EXACT_DEFAULT_NAN, ax == 0u), bx == 0u);
-    special = select(special, sign, bx == EXACT_EXP_MASK);
-    special = select(special, select(sign | EXACT_EXP_MASK, EXACT_DEFAULT_NAN, bx == EXACT_EXP_MASK), ax == EXACT_EXP_MASK);
-    special = select(special, bb | EXACT_QUIET, bx > EXACT_EXP_MASK);
-    special = select(special, ab | EXACT_QUIET, ax > EXACT_EXP_MASK);
+    special = select(special, select(sign | F32_EXP_MASK, EXACT_DEFAULT_NAN, ax == 0u), bx == 0u);
+    special = select(special, sign, bx == F32_EXP_MASK);
+    special = select(special, select(sign | F32_EXP_MASK, EXACT_DEFAULT_NAN, bx == F32_EXP_MASK), ax == F32_EXP_MASK);
+    special = select(special, bb | EXACT_QUIET, bx > F32_EXP_MASK);
+    special = select(special, ab | EXACT_QUIET, ax > F32_EXP_MASK);
     return bitcast<f32>(select(special, finite, general));
 }
 
@@ -106,9 +108,9 @@ fn div_rn_skewed(a: f32, b: f32, skew: i32) -> f32 {
 // Straight-line, as div_rn_skewed.
 fn sqrt_rn_skewed(x: f32, skew: i32) -> f32 {
     let bits = bitcast<u32>(x);
-    let abs_bits = bits & ~EXACT_SIGN;
+    let abs_bits = bits & ~F32_SIGN_MASK;
     // Zeros, negatives, infinities and NaNs take the stand-in sqrt(1).
-    let general = abs_bits != 0u && (bits & EXACT_SIGN) == 0u && abs_bits < EXACT_EXP_MASK;
+    let general = abs_bits != 0u && (bits & F32_SIGN_MASK) == 0u && abs_bits < F32_EXP_MASK;
     let u = exact_unpack(select(0x3f800000u, abs_bits, general));
     let odd = (u.e & 1) != 0;
     let m = select(u.m, u.m << 1u, odd);
@@ -131,8 +133,8 @@ fn sqrt_rn_skewed(x: f32, skew: i32) -> f32 {
     let finite = exact_round_pack(q, r != 0, e >> 1u);
     // The special cases, in the Rust kernel's order: NaN, zero, negative, +infinity.
     var special = bits; // +-0 and +infinity are their own roots
-    special = select(special, EXACT_DEFAULT_NAN, (bits & EXACT_SIGN) != 0u && abs_bits != 0u);
-    special = select(special, bits | EXACT_QUIET, abs_bits > EXACT_EXP_MASK);
+    special = select(special, EXACT_DEFAULT_NAN, (bits & F32_SIGN_MASK) != 0u && abs_bits != 0u);
+    special = select(special, bits | EXACT_QUIET, abs_bits > F32_EXP_MASK);
     return bitcast<f32>(select(special, finite, general));
 }
 

@@ -33,8 +33,7 @@ fn texture_lod(lod: f32, reference: TextureRecord, tex: TextureRecord) -> f32 {
     let area = f32(tex.width * tex.height);
     let reference_area = f32(reference.width * reference.height);
     // Behind the barrier: the sampler subtracts the level from it, and a device may
-    // reassociate an unguarded chain of sums (NVIDIA did: hit_lod's sum, this one and
-    // the sampler's difference came out an ulp off).
+    // reassociate an unguarded chain of sums.
     return rounded(lod + mul(0.5, rounded(log2_portable(area) - log2_portable(reference_area))));
 }
 

@@ -7,10 +7,9 @@
 
 // The constants of hyrt_core (SLAB_FAR_SCALE, GAMMA_2/3/5 = gamma(n), OFFSET_ERROR_SCALE,
 // MIN_LIGHT_DISTANCE_SQ, ...) come from a prelude the Rust side
-// generates from the core constants as exact bit patterns (see `ray_prelude`).
-
-const F32_EXP_MASK: u32 = 0x7f800000u;
-const F32_SIGN_MASK: u32 = 0x80000000u;
+// generates from the core constants as exact bit patterns (see `ray_prelude`). The
+// f32 field masks (F32_SIGN_MASK, F32_EXP_MASK, F32_FRACTION_MASK) come with the
+// preamble every stage begins with (`exact.wgsl`).
 
 // True for a finite f32 (not inf, not NaN), from its bits.
 fn is_finite_f32(x: f32) -> bool {
@@ -24,7 +23,7 @@ fn is_finite_vec3(v: vec3<f32>) -> bool {
 // mirrors hyrt_core::kernels::ray::next_float_up (bits: exact on any device)
 fn next_float_up(x: f32) -> f32 {
     let bits = bitcast<u32>(x);
-    if (bits & F32_EXP_MASK) == F32_EXP_MASK && (bits == F32_EXP_MASK || (bits & 0x007fffffu) != 0u) {
+    if (bits & F32_EXP_MASK) == F32_EXP_MASK && (bits == F32_EXP_MASK || (bits & F32_FRACTION_MASK) != 0u) {
         return x; // +inf or NaN
     }
     if (bits & 0x7fffffffu) == 0u {
@@ -39,7 +38,7 @@ fn next_float_up(x: f32) -> f32 {
 // mirrors hyrt_core::kernels::ray::next_float_down
 fn next_float_down(x: f32) -> f32 {
     let bits = bitcast<u32>(x);
-    if (bits & F32_EXP_MASK) == F32_EXP_MASK && (bits == (F32_EXP_MASK | F32_SIGN_MASK) || (bits & 0x007fffffu) != 0u) {
+    if (bits & F32_EXP_MASK) == F32_EXP_MASK && (bits == (F32_EXP_MASK | F32_SIGN_MASK) || (bits & F32_FRACTION_MASK) != 0u) {
         return x; // -inf or NaN
     }
     if (bits & 0x7fffffffu) == 0u {
@@ -267,7 +266,7 @@ struct TriangleHit {
 
 // mirrors hyrt_core::kernels::ray::WatertightRay::intersect, operation for operation:
 // the same hits, t and barycentrics as the CPU, bit for bit, on a device that rounds
-// f32 operations as IEEE 754 (lavapipe does; WGSL allows a division within 2.5 ulp).
+// `+`, `-` and `*` as IEEE 754 (the division is `div_rn`'s, exact everywhere).
 fn watertight_intersect(r: WatertightRay, t_min: f32, t_max: f32, v0: vec3<f32>, v1: vec3<f32>, v2: vec3<f32>,
                         zero: u32) -> TriangleHit {
     let none = TriangleHit(false, 0.0, 0.0, 0.0, false);

@@ -36,8 +36,8 @@ fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
     return rounded(mul(a.x, b.x) + mul(a.y, b.y)) + mul(a.z, b.z);
 }
 
-// mirrors glam::Vec3::normalize_or_zero: v * (1 / sqrt(v.v)), through div_rn and sqrt_rn, when that reciprocal
-// is finite and positive, else zero.
+// mirrors glam::Vec3::normalize_or_zero: v * (1 / sqrt(v.v)) (through div_rn and
+// sqrt_rn) when that reciprocal is finite and positive, else zero.
 fn normalize_or_zero(v: vec3<f32>) -> vec3<f32> {
     let rcp = div_rn(1.0, sqrt_rn(dot3(v, v)));
     if (rcp > 0.0 && rcp <= F32_MAX) {

@@ -11,10 +11,8 @@
 // `mul(a: f32, b: f32) -> f32` and binds `triangles: array<TriangleRecord>` and
 // `normals: array<f32>`.
 
-const F32_EXPONENT_MASK: u32 = 0x7f800000u;
-
 fn is_finite(x: f32) -> bool {
-    return (bitcast<u32>(x) & F32_EXPONENT_MASK) != F32_EXPONENT_MASK;
+    return (bitcast<u32>(x) & F32_EXP_MASK) != F32_EXP_MASK;
 }
 
 fn mul3(a: vec3<f32>, s: f32) -> vec3<f32> {
@@ -82,7 +80,7 @@ fn interpolate_normal(u: f32, v: f32, n0: vec3<f32>, n1: vec3<f32>, n2: vec3<f32
     // sqrt + division, as the CPU (not inverseSqrt, which is not exact).
     let len = sqrt_rn(dot3(s, s));
     if len > 0.0 && is_finite(len) {
-        return vec3<f32>(div_rn(s.x, len), div_rn(s.y, len), div_rn(s.z, len));
+        return div_rn3(s, len);
     }
     return fallback;
 }

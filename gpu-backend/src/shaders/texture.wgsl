@@ -14,18 +14,15 @@
 // The level of detail (`hit_lod`) and the shaded object record are in materials.wgsl,
 // for the shading stages.
 
-// The exponent bits of an f32: all set for infinities and NaNs.
-const TEXTURE_F32_EXPONENT: u32 = 0x7f800000u;
-
 // Rust's `f32::is_finite`, as a test of the exponent bits (no comparison a compiler may
 // assume NaN-free).
 fn texture_is_finite(x: f32) -> bool {
-    return (bitcast<u32>(x) & TEXTURE_F32_EXPONENT) != TEXTURE_F32_EXPONENT;
+    return (bitcast<u32>(x) & F32_EXP_MASK) != F32_EXP_MASK;
 }
 
 // Rust's `f32::is_nan`, as a test of the bits: exponent all ones, mantissa not zero.
 fn texture_is_nan(x: f32) -> bool {
-    return (bitcast<u32>(x) & 0x7fffffffu) > TEXTURE_F32_EXPONENT;
+    return (bitcast<u32>(x) & 0x7fffffffu) > F32_EXP_MASK;
 }
 
 // mirrors hyrt_core::kernels::texture::srgb8_to_linear

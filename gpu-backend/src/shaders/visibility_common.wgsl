@@ -4,7 +4,6 @@
 // the scene and the camera, and the compute resolve of the render targets into
 // `array<GBufferTexel>`.
 
-const F32_EXPONENT_MASK: u32 = 0x7f800000u;
 // A clip position outside the view volume (x > w): a triangle with a non-finite
 // vertex gets it at all three corners and is clipped away entirely.
 const OUTSIDE_CLIP: vec4<f32> = vec4<f32>(2.0, 2.0, 0.5, 1.0);
@@ -18,8 +17,8 @@ const OUTSIDE_CLIP: vec4<f32> = vec4<f32>(2.0, 2.0, 0.5, 1.0);
 @group(0) @binding(10) var<uniform> params: FrameParams;
 
 fn is_finite4(p: vec4<f32>) -> bool {
-    let e = bitcast<vec4<u32>>(p) & vec4<u32>(F32_EXPONENT_MASK);
-    return all(e != vec4<u32>(F32_EXPONENT_MASK));
+    let e = bitcast<vec4<u32>>(p) & vec4<u32>(F32_EXP_MASK);
+    return all(e != vec4<u32>(F32_EXP_MASK));
 }
 
 // ---------------------------------------------------------------- resolve pass
