@@ -67,7 +67,6 @@
 
 use hyrt_core::bvh::wide::{WideChild, WideLeaf, WideNode, WIDE};
 use hyrt_core::bvh::{Bvh, BvhNode, ClosestHit, BVH_CULL_SLACK};
-use hyrt_core::formats::TriangleRecord;
 use hyrt_core::kernels::ray::SLAB_FAR_SCALE;
 use hyrt_core::kernels::texture::SurfaceView;
 
@@ -313,20 +312,26 @@ pub(crate) fn closest_hit<L: Lanes>(
 /// interleaved in one process, `ray_contest --packets-only --kind primary`): the dragon's
 /// primary rays 100 ms to 80, the far bunny's 20.6 to 16.9, Sponza's 80 to 77, the
 /// teaser's unchanged; the same answers ray for ray.
+///
+/// The nine vertex values are read one by one (volatile reads) and handed over by value:
+/// read as plain loads into a record or an array, LLVM's SLP vectorizer merged eight of
+/// them into one `vgatherqps` at the AVX-512 level (the AVX2 build kept scalar loads), then
+/// took the values apart again for the broadcasts. Without it (this 2-core Intel Xeon,
+/// one thread, `ray_contest --kind primary --packets-only --with-avx2`, the two binaries
+/// alternated three times, medians): the AVX-512 packets' primary rays 74.2 to 58.4 ms on
+/// the teaser, 65.1 to 51.4 on Sponza, 61.5 to 53.0 on the dragon, 25.1 to 22.7 on the
+/// near bunny, 13.5 to 13.1 on the far horse; the AVX2 build within 1%. The gather had
+/// made AVX-512 the slower level for closest-hit packets on Intel (issue 36, item 4).
 #[inline(always)]
 fn test_leaf_lanes<L: Lanes>(p: &Packet<L>, best: &mut ClosestLanes<L>, leaf: &WideLeaf, m: u32, mut tris: u32) -> u32 {
     let mut improved = 0;
     while tris != 0 {
         let k = tris.trailing_zeros() as usize;
         tris &= tris - 1;
-        // Only the vertices are read (the test, and the scalar kernel for exact lanes).
-        let tri = TriangleRecord {
-            v0: leaf.vertex(0, k),
-            v1: leaf.vertex(1, k),
-            v2: leaf.vertex(2, k),
-            ..bytemuck::Zeroable::zeroed()
-        };
-        let (hit, t, u, v, back) = p.intersect::<true>(m, &tri);
+        // SAFETY: in-bounds reads of the leaf (k < WIDE); volatile so that they stay scalar.
+        let at = |i: usize, a: usize| unsafe { std::ptr::read_volatile(&leaf.v[i][a][k]) };
+        let vertices = [0, 1, 2].map(|i| [at(i, 0), at(i, 1), at(i, 2)]);
+        let (hit, t, u, v, back) = p.intersect_vertices::<true>(m, vertices);
         if hit != 0 {
             improved |= best.offer(hit, t, u, v, back, leaf.ids[k]);
         }

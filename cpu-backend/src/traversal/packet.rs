@@ -336,8 +336,21 @@ impl<'a, L: Lanes> Packet<'a, L> {
         active: u32,
         tri: &TriangleRecord,
     ) -> (u32, L::F, L::F, L::F, u32) {
-        let p = [self.transform(tri.v0), self.transform(tri.v1), self.transform(tri.v2)];
-        self.intersect_in_ray_space::<EARLY_OUT>(active, p, |_| tri)
+        self.intersect_vertices::<EARLY_OUT>(active, [tri.v0, tri.v1, tri.v2])
+    }
+
+    /// [`Self::intersect`] against the triangle of vertices `v`, taken by value: a caller
+    /// reading them from a wide leaf's structure of arrays builds no record in memory (a
+    /// record built there became, at the AVX-512 level, one eight-lane gather of its
+    /// vertices followed by extractions for the broadcasts).
+    #[inline(always)]
+    pub(super) fn intersect_vertices<const EARLY_OUT: bool>(
+        &self,
+        active: u32,
+        v: [[f32; 3]; 3],
+    ) -> (u32, L::F, L::F, L::F, u32) {
+        let p = [self.transform(v[0]), self.transform(v[1]), self.transform(v[2])];
+        self.intersect_in_ray_space::<EARLY_OUT>(active, p, |_| v)
     }
 
     /// [`Self::intersect`] with lane `i` against its own triangle `tris[i]`: the vertices
@@ -348,17 +361,17 @@ impl<'a, L: Lanes> Packet<'a, L> {
     pub(crate) fn intersect_each(&self, active: u32, tris: [&TriangleRecord; LANES]) -> (u32, L::F, L::F, L::F, u32) {
         let v = L::triangle_lanes(tris);
         let p = [self.transform_lanes(v[0]), self.transform_lanes(v[1]), self.transform_lanes(v[2])];
-        self.intersect_in_ray_space::<false>(active, p, |i| tris[i])
+        self.intersect_in_ray_space::<false>(active, p, |i| [tris[i].v0, tris[i].v1, tris[i].v2])
     }
 
     /// The rest of [`Self::intersect`] from the vertices in ray space `p`, lane `i`'s
-    /// triangle `tri(i)` (for the lanes the scalar kernel redoes).
+    /// triangle's vertices `tri(i)` (for the lanes the scalar kernel redoes).
     #[inline(always)]
-    fn intersect_in_ray_space<'t, const EARLY_OUT: bool>(
+    fn intersect_in_ray_space<const EARLY_OUT: bool>(
         &self,
         active: u32,
         p: [[L::F; 3]; 3],
-        tri: impl Fn(usize) -> &'t TriangleRecord,
+        tri: impl Fn(usize) -> [[f32; 3]; 3],
     ) -> (u32, L::F, L::F, L::F, u32) {
         let h = watertight::intersect::<L, EARLY_OUT>(active, p, &self.shear, self.t_min, self.t_max);
         let (mut hit, exact) = (h.hit, h.exact);
@@ -371,7 +384,7 @@ impl<'a, L: Lanes> Packet<'a, L> {
                 lanes &= lanes - 1;
                 let (r, tri) = (&self.rays[i], tri(i));
                 let h = WatertightRay::new(r.origin.into(), r.direction.into())
-                    .and_then(|w| w.intersect(r.t_min, r.t_max, tri.v0.into(), tri.v1.into(), tri.v2.into()));
+                    .and_then(|w| w.intersect(r.t_min, r.t_max, tri[0].into(), tri[1].into(), tri[2].into()));
                 if let Some(h) = h {
                     hit |= 1 << i;
                     (ts[i], us[i], vs[i]) = (h.t, h.u, h.v);
