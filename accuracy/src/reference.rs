@@ -28,7 +28,9 @@
 use glam::{DMat4, DVec3, DVec4, Vec3};
 use hyrt_core::bvh::traversal::{traverse, LeafFlow, NodeTest};
 use hyrt_core::bvh::{Bvh, BvhNode};
-use hyrt_core::formats::{LightRecord, ObjectRecord, SurfaceRecord, TriangleRecord, INVALID_ID, LIGHT_DIRECTIONAL};
+use hyrt_core::formats::{
+    LightRecord, ObjectRecord, SurfaceRecord, TriangleRecord, INVALID_ID, LIGHT_DIRECTIONAL, LIGHT_SPOT,
+};
 use hyrt_core::frame::{SHADOW_LIT, SHADOW_NO_RAY, SHADOW_OCCLUDED};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::scene::Camera;
@@ -436,7 +438,7 @@ pub(crate) fn reference_shadow(
     } else {
         (pd - hit.position, 1.0 - REFERENCE_SHADOW_T_MIN)
     };
-    let energy = light.radiance.iter().any(|&r| r > 0.0);
+    let energy = light.radiance.iter().any(|&r| r > 0.0) && reference_falloff(light, dir) > 0.0;
     if !(ng.dot(dir) > 0.0 && ns.dot(dir) > 0.0 && energy) {
         return SHADOW_NO_RAY;
     }
@@ -448,6 +450,27 @@ pub(crate) fn reference_shadow(
     } else {
         SHADOW_LIT
     }
+}
+
+/// `KHR_lights_punctual`'s range window and spot cone factor in f64 at the offset `dir`
+/// from the surface to the light (the f64 form of
+/// `hyrt_core::kernels::shading::light_falloff`); 1 for directional lights.
+fn reference_falloff(light: &LightRecord, dir: DVec3) -> f64 {
+    if light.kind == LIGHT_DIRECTIONAL {
+        return 1.0;
+    }
+    let d2 = dir.length_squared();
+    let mut f = 1.0;
+    if light.inv_range_sq > 0.0 {
+        let x = d2 * f64::from(light.inv_range_sq);
+        f = (1.0 - x * x).clamp(0.0, 1.0);
+    }
+    if light.kind == LIGHT_SPOT {
+        let cd = -Vec3::from(light.spot_direction).as_dvec3().dot(dir / d2.sqrt());
+        let a = (cd * f64::from(light.spot_scale) + f64::from(light.spot_offset)).clamp(0.0, 1.0);
+        f *= a * a;
+    }
+    f
 }
 
 /// The shading stages of the CPU backend over surfaces and a shadow mask, composed at

@@ -63,7 +63,7 @@ fn square_distance(x: f64, z: f64, s: f64) -> f64 {
 #[test]
 fn reference_shadow_of_a_quad_under_a_point_light_has_the_exact_outline() {
     let light_y = 6.0;
-    let light = Light::Point { position: Vec3::new(0.0, light_y as f32, 0.0), color: Vec3::ONE, intensity: 30.0 };
+    let light = Light::point(Vec3::new(0.0, light_y as f32, 0.0), Vec3::ONE, 30.0);
     let scene = quad_scene(light, 0.0);
     let (_, _, r) = reference_of(&scene, 96, 96);
     // Central projection from the light: the shadow is the square scaled by y_l / (y_l - H).
@@ -136,6 +136,7 @@ fn sphere_scene(center: Vec3, radius: f32) -> Scene {
         position: center + Vec3::new(0.5, 3.0, 0.25) * radius,
         color: Vec3::ONE,
         intensity: 10.0,
+        range: None,
     });
     scene.camera = Some(Camera {
         eye: center + Vec3::new(0.0, 2.0, 5.0) * radius,
@@ -292,7 +293,7 @@ fn tilted_plane_scene() -> Scene {
     let rot = Quat::from_rotation_x(0.7) * Quat::from_rotation_z(0.4);
     add(&mut scene, Mesh::grid("plane", 8), Mat4::from_scale_rotation_translation(Vec3::splat(10.0), rot, center));
     let n = rot * Vec3::Y;
-    scene.lights.push(Light::Point { position: center + n * 6.0 + Vec3::X * 2.0, color: Vec3::ONE, intensity: 40.0 });
+    scene.lights.push(Light::point(center + n * 6.0 + Vec3::X * 2.0, Vec3::ONE, 40.0));
     scene.camera = Some(Camera {
         eye: center + n * 8.0 - Vec3::X * 3.0,
         target: center,
@@ -329,7 +330,7 @@ fn no_offset_gives_shadow_acne_on_a_tilted_plane_and_the_robust_offsets_none() {
 #[test]
 fn shadow_maps_converge_to_the_reference_as_resolution_grows() {
     for light in [
-        Light::Point { position: Vec3::new(0.7, 6.0, -0.4), color: Vec3::ONE, intensity: 30.0 },
+        Light::point(Vec3::new(0.7, 6.0, -0.4), Vec3::ONE, 30.0),
         Light::Directional { direction: Vec3::new(0.3, -1.0, 0.2), color: Vec3::ONE, intensity: 1.0 },
     ] {
         // Turned, so that the outline is aligned with neither the pixels nor the texels
@@ -429,8 +430,7 @@ fn speed_vs_error_skips_the_bounce_groups_without_mirror_or_glass_and_says_why()
         eprintln!("{FONT_PATH} missing: skipped (the default-scene test checks the error)");
         return;
     }
-    let scene =
-        quad_scene(Light::Point { position: Vec3::new(0.7, 6.0, -0.4), color: Vec3::ONE, intensity: 30.0 }, 0.37);
+    let scene = quad_scene(Light::point(Vec3::new(0.7, 6.0, -0.4), Vec3::ONE, 30.0), 0.37);
     let dir = tempfile::tempdir().unwrap();
     let opts = AccuracyOptions { quick: true, threads: 1, width: 24, height: 24 };
     let s = speed_vs_error("quad", &scene, &opts, dir.path(), &|_| {}).unwrap();

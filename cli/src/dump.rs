@@ -268,11 +268,30 @@ pub fn frame_json(scene: &Scene, prepared: &PreparedScene, camera: &Camera, fram
     window x = (ndc_x * 0.5 + 0.5) * width, y = (0.5 - ndc_y * 0.5) * height; row 0 is the top row; \
     pixel (x, y) is sampled at its centre (x + 0.5, y + 0.5)",
         },
-        "lights": prepared.geometry.lights.iter().map(|l| json!({
-            "kind": if l.kind == hyrt_core::formats::LIGHT_DIRECTIONAL { "directional" } else { "point" },
-            "position_or_direction": l.position_or_direction,
-            "radiance": l.radiance,
-        })).collect::<Vec<_>>(),
+        "lights": prepared.geometry.lights.iter().map(|l| {
+            use hyrt_core::formats::{LIGHT_DIRECTIONAL, LIGHT_SPOT};
+            let kind = match l.kind {
+                LIGHT_DIRECTIONAL => "directional",
+                LIGHT_SPOT => "spot",
+                _ => "point",
+            };
+            let mut light = json!({
+                "kind": kind,
+                "position_or_direction": l.position_or_direction,
+                "radiance": l.radiance,
+            });
+            if l.inv_range_sq > 0.0 {
+                light["range"] = json!(1.0 / l.inv_range_sq.sqrt());
+            }
+            if l.kind == LIGHT_SPOT {
+                // The record's cone: cos(outer) = -offset / scale, cos(inner) = cos(outer) + 1 / scale.
+                let cos_outer = -l.spot_offset / l.spot_scale;
+                light["spot_direction"] = json!(l.spot_direction);
+                light["outer_cone_deg"] = json!(cos_outer.acos().to_degrees());
+                light["inner_cone_deg"] = json!((cos_outer + 1.0 / l.spot_scale).min(1.0).acos().to_degrees());
+            }
+            light
+        }).collect::<Vec<_>>(),
         "environment": prepared.geometry.environment.describe(),
         "shading": scene.shading.name(),
         "ambient": scene.ambient.0,

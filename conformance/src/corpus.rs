@@ -120,7 +120,7 @@ const RT: RenderMode = RenderMode::RayTraced;
 const RASTER: RenderMode = RenderMode::Raster;
 
 fn point(position: Vec3, intensity: f32) -> Light {
-    Light::Point { position, color: Vec3::ONE, intensity }
+    Light::point(position, Vec3::ONE, intensity)
 }
 
 fn mesh(name: &str, positions: Vec<Vec3>, indices: Vec<[u32; 3]>) -> Mesh {
@@ -231,6 +231,35 @@ fn default_case(b: &mut Builder) {
         max_depth: DEFAULT_MAX_DEPTH,
         moving: Vec::new(),
     });
+    // KHR_lights_punctual's spot lights and ranges: the default scene's key light as a spot
+    // whose cone edge crosses the objects and the floor, a narrow spot with a range that
+    // ends inside the scene, and the fill light with a range; mirrors and glass bounce
+    // into their cones.
+    let mut s = Scene::default_scene();
+    let &Light::Point { position: key, color, intensity, .. } = &s.lights[0] else { unreachable!("a point key") };
+    let target = Vec3::new(0.0, 0.5, 0.0);
+    s.lights[0] = Light::Spot {
+        position: key,
+        direction: (target - key).normalize(),
+        color,
+        intensity,
+        inner_cone_angle: 8f32.to_radians(),
+        outer_cone_angle: 22f32.to_radians(),
+        range: None,
+    };
+    if let Light::Point { range, .. } = &mut s.lights[1] {
+        *range = Some(9.0);
+    }
+    s.lights.push(Light::Spot {
+        position: Vec3::new(-2.0, 3.0, 2.0),
+        direction: Vec3::new(0.6, -1.0, -0.4).normalize(),
+        color: Vec3::new(0.4, 0.6, 1.0),
+        intensity: 12.0,
+        inner_cone_angle: 0.0,
+        outer_cone_angle: 30f32.to_radians(),
+        range: Some(3.8),
+    });
+    b.add("paper_default_scene_spot_lights", "spot lights' cones and lights' ranges on every stage", s, cam, 96, 54);
 }
 
 fn paper_cases(b: &mut Builder, shared: &Path) {

@@ -411,7 +411,7 @@ pub fn leak_case(
     };
     for p in lights {
         let position = shell_to_world.transform_point3(*p);
-        scene.lights.push(Light::Point { position, color: Vec3::ONE, intensity: 10.0 * s * s });
+        scene.lights.push(Light::point(position, Vec3::ONE, 10.0 * s * s));
     }
     let (eye, target) = match view {
         View::Oblique => (Vec3::new(1.3, 2.4, 4.4), Vec3::new(0.0, -0.9, 0.0)),

@@ -30,11 +30,13 @@ fn gpu_renders_the_teaser_at_3840x2160_with_4_lights_as_the_cpu() {
         position: Vec3::new(-6.0, 3.0, -2.0),
         color: Vec3::new(1.0, 0.7, 0.5),
         intensity: 30.0,
+        range: None,
     });
     scene.lights.push(Light::Point {
         position: Vec3::new(2.0, 9.0, 2.5),
         color: Vec3::new(0.5, 0.6, 1.0),
         intensity: 50.0,
+        range: None,
     });
     assert_eq!(scene.lights.len(), 4);
     let camera = CameraRecord::new(&scene.camera.unwrap(), 3840, 2160);

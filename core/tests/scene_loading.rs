@@ -284,9 +284,9 @@ fn tiny_gltf_loads_every_field() {
     // Lights: the point light at the lamp, the sun pointing down (-Z rotated by -90 about X).
     assert_eq!(s.lights.len(), 2);
     match s.lights[0] {
-        Light::Point { position, color, intensity } => {
+        Light::Point { position, color, intensity, range } => {
             assert_vec3_near(position, Vec3::new(0.0, 5.0, 0.0), "point light");
-            assert_eq!((color, intensity), (Vec3::new(1.0, 0.5, 0.25), 40.0));
+            assert_eq!((color, intensity, range), (Vec3::new(1.0, 0.5, 0.25), 40.0, None));
         }
         other => panic!("expected a point light, got {other:?}"),
     }
@@ -302,6 +302,55 @@ fn tiny_gltf_loads_every_field() {
     let lines: Vec<&String> = s.notes.iter().filter(|n| n.contains("primitive 2") && n.contains("skipped")).collect();
     assert_eq!(lines.len(), 1, "notes: {:?}", s.notes);
     assert!(lines[0].contains("tiny.gltf"), "{}", lines[0]);
+}
+
+/// `KHR_lights_punctual`'s spot lights and `range`, as the extension defines them: the cone
+/// along the node's -Z in world space, its angles in radians as written (glTF's defaults
+/// where absent), the range unscaled by the node's scale; a spot light that breaks the
+/// extension's rules (outer cone beyond pi/2) is left out with a note naming the node.
+#[test]
+fn spot_lights_and_ranges_load_as_the_extension_defines_them() {
+    let dir = temp_dir("spot_lights_and_ranges_load_as_the_extension_defines_them");
+    let mut doc = tiny_doc();
+    doc["extensions"]["KHR_lights_punctual"]["lights"] = json!([
+        { "type": "point", "intensity": 40.0, "range": 7.5 },
+        { "type": "spot", "color": [0.5, 1.0, 1.0], "intensity": 3.0, "range": 12.0,
+          "spot": { "innerConeAngle": 0.25, "outerConeAngle": 0.5 } },
+        { "type": "spot", "intensity": 1.0, "spot": {} },
+        { "type": "spot", "intensity": 1.0, "spot": { "outerConeAngle": 2.0 } }
+    ]);
+    // The sun node (-Z turned to -Y) carries the first spot; two more nodes the others.
+    doc["nodes"][5]["extensions"]["KHR_lights_punctual"]["light"] = json!(1);
+    let nodes = doc["nodes"].as_array_mut().unwrap();
+    nodes.push(json!({ "name": "default cone", "extensions": { "KHR_lights_punctual": { "light": 2 } } }));
+    nodes.push(json!({ "name": "too wide", "extensions": { "KHR_lights_punctual": { "light": 3 } } }));
+    doc["scenes"][0]["nodes"].as_array_mut().unwrap().extend([json!(8), json!(9)]);
+    let path = dir.join("spots.gltf");
+    write_gltf(&path, doc, &tiny_bin());
+    let s = Scene::load(&path).unwrap();
+    assert_eq!(s.lights.len(), 3, "{:?} {:?}", s.lights, s.notes);
+    // The lamp sits under the root node, scaled by 2: its range stays 7.5.
+    assert!(matches!(s.lights[0], Light::Point { range: Some(r), .. } if r == 7.5), "{:?}", s.lights[0]);
+    match s.lights[1] {
+        Light::Spot { position, direction, color, intensity, inner_cone_angle, outer_cone_angle, range } => {
+            assert_vec3_near(position, Vec3::ZERO, "spot position");
+            assert_vec3_near(direction, Vec3::NEG_Y, "spot direction");
+            assert_eq!((color, intensity, range), (Vec3::new(0.5, 1.0, 1.0), 3.0, Some(12.0)));
+            assert_eq!((inner_cone_angle, outer_cone_angle), (0.25, 0.5));
+        }
+        other => panic!("expected a spot light, got {other:?}"),
+    }
+    match s.lights[2] {
+        Light::Spot { direction, inner_cone_angle, outer_cone_angle, range, .. } => {
+            assert_vec3_near(direction, Vec3::NEG_Z, "default spot direction");
+            assert_eq!((inner_cone_angle, outer_cone_angle, range), (0.0, std::f32::consts::FRAC_PI_4, None));
+        }
+        other => panic!("expected a spot light, got {other:?}"),
+    }
+    let ignored: Vec<&String> =
+        s.notes.iter().filter(|n| n.contains("too wide") && n.contains("light ignored")).collect();
+    assert_eq!(ignored.len(), 1, "notes: {:?}", s.notes);
+    assert!(ignored[0].contains("spots.gltf") && ignored[0].contains("cone angles"), "{}", ignored[0]);
 }
 
 #[test]
@@ -626,7 +675,7 @@ material = { metallic = 1.0 }
     assert_eq!(
         s.lights,
         vec![
-            Light::Point { position: Vec3::new(1.0, 2.0, 3.0), color: Vec3::new(1.0, 0.5, 0.5), intensity: 10.0 },
+            Light::point(Vec3::new(1.0, 2.0, 3.0), Vec3::new(1.0, 0.5, 0.5), 10.0),
             Light::Directional { direction: Vec3::NEG_Y, color: Vec3::ONE, intensity: 0.5 },
         ]
     );
@@ -732,7 +781,7 @@ fn manifest_unknown_keys_are_rejected() {
         "[[model]]\nbuiltin = \"cube\"\nscael = 2.0\n",
         "[[model]]\nbuiltin = \"cube\"\nmaterial = { metalic = 1.0 }\n",
         "[camera]\neye = [0, 0, 1]\ntarget = [0, 0, 0]\nfov = 40\n[[model]]\nbuiltin = \"cube\"\n",
-        "[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = 1\nrange = 3\n[[model]]\nbuiltin = \"cube\"\n",
+        "[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = 1\nradius = 3\n[[model]]\nbuiltin = \"cube\"\n",
     ]
     .into_iter()
     .enumerate()

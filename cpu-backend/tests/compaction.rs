@@ -2,7 +2,7 @@
 //! order, for any flag pattern and size, and the ray list it builds is exactly
 //! the set of (light, pixel) pairs whose light can contribute.
 
-use hyrt_core::formats::{LightRecord, SurfaceRecord, INVALID_ID, LIGHT_DIRECTIONAL, LIGHT_POINT, RAY_KIND_SHADOW};
+use hyrt_core::formats::{LightRecord, SurfaceRecord, INVALID_ID, RAY_KIND_SHADOW};
 use hyrt_core::kernels::scan::compact_sequential;
 use hyrt_cpu::compaction::{compact, compaction, shadow_mask, COMPACTION_BLOCK};
 use proptest::prelude::*;
@@ -70,9 +70,9 @@ fn compaction_builds_one_ray_per_contributing_pair_in_light_major_order() {
         surface([2.0, 0.0, 0.0], [0.0, -1.0, 0.0]), // faces away from both lights
     ];
     let lights = vec![
-        LightRecord { position_or_direction: [0.0, 5.0, 0.0], kind: LIGHT_POINT, radiance: [1.0; 3], pad: 0 },
-        LightRecord { position_or_direction: [0.0, -1.0, 0.0], kind: LIGHT_DIRECTIONAL, radiance: [1.0; 3], pad: 0 },
-        LightRecord { position_or_direction: [0.0, 5.0, 0.0], kind: LIGHT_POINT, radiance: [0.0; 3], pad: 0 }, // no energy
+        LightRecord::point([0.0, 5.0, 0.0], [1.0; 3]),
+        LightRecord::directional([0.0, -1.0, 0.0], [1.0; 3]),
+        LightRecord::point([0.0, 5.0, 0.0], [0.0; 3]), // no energy
     ];
     let rays = compaction(&surfaces, &lights);
     let pairs: Vec<(u32, u32)> = rays.iter().map(|r| (r.light, r.pixel)).collect();

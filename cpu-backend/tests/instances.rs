@@ -312,7 +312,7 @@ fn backend_frames_of_moving_scenes_are_identical_with_scalar_and_simd_traversals
     }
     scene.materials[sphere_material].kind = MaterialKind::Specular;
     scene.materials[sphere_material].metallic = 1.0;
-    scene.lights.push(Light::Point { position: Vec3::new(1.0, 6.0, 0.5), color: Vec3::ONE, intensity: 40.0 });
+    scene.lights.push(Light::point(Vec3::new(1.0, 6.0, 0.5), Vec3::ONE, 40.0));
     let prepared = prepare_moving(&scene, BvhPreset::default(), &moving);
     let camera = Camera::look_at(Vec3::new(-1.0, 4.0, 9.0), Vec3::new(0.0, 0.8, 0.0), Vec3::Y);
     let cam = CameraRecord::new(&camera, 160, 120);

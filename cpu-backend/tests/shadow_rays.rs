@@ -51,7 +51,7 @@ fn occluder_scene() -> (WorldGeometry, Vec3) {
                     * Mat4::from_scale(Vec3::splat(2.0 * OCCLUDER_HALF)),
             ),
         ],
-        lights: vec![Light::Point { position: light, color: Vec3::ONE, intensity: 1.0 }],
+        lights: vec![Light::point(light, Vec3::ONE, 1.0)],
         ..Scene::default()
     };
     (WorldGeometry::build(&scene), light)

@@ -5,7 +5,7 @@ mod common;
 
 use common::test_context;
 use hyrt_core::bvh::{Bvh, BvhPreset};
-use hyrt_core::formats::{CameraRecord, LightRecord, RayRecord, SurfaceRecord, LIGHT_DIRECTIONAL, LIGHT_POINT};
+use hyrt_core::formats::{CameraRecord, LightRecord, RayRecord, SurfaceRecord};
 use hyrt_core::frame::PreparedScene;
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::scan::compact_sequential;
@@ -112,15 +112,10 @@ fn compaction_directional_and_dark_lights_match_cpu() {
     let scene = Scene::default_scene();
     let mut prepared = prepare(&scene);
     prepared.geometry.lights = vec![
-        LightRecord { position_or_direction: [0.0, -1.0, 0.0], kind: LIGHT_DIRECTIONAL, radiance: [1.0; 3], pad: 0 },
-        LightRecord { position_or_direction: [0.0, 5.0, 0.0], kind: LIGHT_POINT, radiance: [0.0; 3], pad: 0 },
-        LightRecord { position_or_direction: [0.3, 4.0, -1.0], kind: LIGHT_POINT, radiance: [5.0, 0.0, 1.0], pad: 0 },
-        LightRecord {
-            position_or_direction: [0.6, 0.0, -0.8],
-            kind: LIGHT_DIRECTIONAL,
-            radiance: [0.0, 0.0, 2.0],
-            pad: 0,
-        },
+        LightRecord::directional([0.0, -1.0, 0.0], [1.0; 3]),
+        LightRecord::point([0.0, 5.0, 0.0], [0.0; 3]),
+        LightRecord::point([0.3, 4.0, -1.0], [5.0, 0.0, 1.0]),
+        LightRecord::directional([0.6, 0.0, -0.8], [0.0, 0.0, 2.0]),
     ];
     let (w, h) = (29u32, 17u32);
     let mut surfaces = Vec::new();

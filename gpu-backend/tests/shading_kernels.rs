@@ -1,14 +1,15 @@
 //! The shading kernels of `shaders/shading.wgsl` and `shaders/shading_helpers.wgsl` one by
 //! one against the core's (`hyrt_core::kernels::shading`), bit for bit, on seeded random
 //! inputs: `schlick_weight`, `ggx_distribution`, `smith_visibility`, `gltf_brdf`,
-//! `normalize_or_zero`, `pow_portable`, `blinn_phong_exponent` and `light_incidence`. The
+//! `normalize_or_zero`, `pow_portable`, `blinn_phong_exponent` and `light_incidence` (of a
+//! point light, and of a spot light with a range: `light_falloff`). The
 //! stage tests (`shading.rs`) check whole frames; this one names the kernel that differs
 //! when a device rounds some operation its own way (the float probe says which).
 
 mod common;
 
 use common::test_context;
-use hyrt_core::formats::{FrameParams, LightRecord, LIGHT_POINT};
+use hyrt_core::formats::{FrameParams, LightRecord, LIGHT_SPOT};
 use hyrt_core::glam::Vec3;
 use hyrt_core::kernels::shading as cpu;
 use hyrt_gpu::exact::same_bits;
@@ -18,7 +19,7 @@ use wgpu::util::DeviceExt;
 
 /// Input words per query and result words per query.
 const IN: usize = 20;
-const OUT: usize = 16;
+const OUT: usize = 18;
 
 const ENTRY: &str = r#"
 @group(0) @binding(0) var<uniform> params: FrameParams;
@@ -57,13 +58,22 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     results[o + 8u] = bitcast<u32>(m.z);
     results[o + 9u] = bitcast<u32>(pow_portable(x, mul(y, 100.0)));
     results[o + 10u] = bitcast<u32>(blinn_phong_exponent(roughness));
-    let light = LightRecord(mul3(l, vec3<f32>(10.0)), LIGHT_POINT, mul3(base, vec3<f32>(5.0)), 0u);
+    let position = mul3(l, vec3<f32>(10.0));
+    let radiance = mul3(base, vec3<f32>(5.0));
+    let light = LightRecord(position, LIGHT_POINT, radiance, 0.0, vec3<f32>(0.0), 0.0, 0.0, 0u, vec2<u32>(0u));
     let inc = light_incidence(light, v);
     results[o + 11u] = bitcast<u32>(inc.l.x);
     results[o + 12u] = bitcast<u32>(inc.l.y);
     results[o + 13u] = bitcast<u32>(inc.e.x);
     results[o + 14u] = bitcast<u32>(inc.e.z);
     results[o + 15u] = bitcast<u32>(dot3(n, l));
+    // A spot light with a range at the same place, pointing along -n: the cone from the
+    // scale and offset the inputs give, the window from `u`.
+    let scale = 1.0 + mul(z, 20.0);
+    let spot = LightRecord(position, LIGHT_SPOT, radiance, mul(u, 0.02), -n, scale, -mul(y, scale), 0u, vec2<u32>(0u));
+    let s = light_incidence(spot, v);
+    results[o + 16u] = bitcast<u32>(s.e.x);
+    results[o + 17u] = bitcast<u32>(s.e.y);
 }
 "#;
 
@@ -84,6 +94,8 @@ const NAMES: [&str; OUT] = [
     "light_incidence.e.x",
     "light_incidence.e.z",
     "dot3",
+    "light_incidence.e.x (spot, range)",
+    "light_incidence.e.y (spot, range)",
 ];
 
 fn cpu_results(q: &[f32]) -> [u32; OUT] {
@@ -95,13 +107,18 @@ fn cpu_results(q: &[f32]) -> [u32; OUT] {
     let (x, y, z, w, u) = (q[14], q[15], q[16], q[17], q[18]);
     let f = cpu::gltf_brdf(base, metallic, roughness, w, n, v, l);
     let m = (v + l).normalize_or_zero();
-    let light = LightRecord {
-        position_or_direction: (l * 10.0).into(),
-        kind: LIGHT_POINT,
-        radiance: (base * 5.0).into(),
-        ..bytemuck::Zeroable::zeroed()
-    };
+    let light = LightRecord::point((l * 10.0).into(), (base * 5.0).into());
     let (il, ie) = cpu::light_incidence(&light, v);
+    let scale = 1.0 + z * 20.0;
+    let spot = LightRecord {
+        kind: LIGHT_SPOT,
+        inv_range_sq: u * 0.02,
+        spot_direction: (-n).into(),
+        spot_scale: scale,
+        spot_offset: -(y * scale),
+        ..light
+    };
+    let (_, se) = cpu::light_incidence(&spot, v);
     [
         cpu::schlick_weight(x).to_bits(),
         cpu::ggx_distribution(x, y, z).to_bits(),
@@ -119,6 +136,8 @@ fn cpu_results(q: &[f32]) -> [u32; OUT] {
         ie.x.to_bits(),
         ie.z.to_bits(),
         n.dot(l).to_bits(),
+        se.x.to_bits(),
+        se.y.to_bits(),
     ]
 }
 

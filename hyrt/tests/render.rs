@@ -64,7 +64,7 @@ fn occluder_scene(occluder_mode: RenderMode) -> (Scene, f32) {
         occluder_mode,
     );
     let light_h = 4.0;
-    scene.lights.push(Light::Point { position: Vec3::new(0.0, light_h, 0.0), color: Vec3::ONE, intensity: 20.0 });
+    scene.lights.push(Light::point(Vec3::new(0.0, light_h, 0.0), Vec3::ONE, 20.0));
     scene.camera = Some(Camera {
         eye: Vec3::new(0.3, 9.0, 6.0),
         target: Vec3::ZERO,

@@ -428,60 +428,130 @@ impl ObjectRecord {
 pub const LIGHT_POINT: u32 = 0;
 /// [`LightRecord::kind`]: directional light travelling along `position_or_direction` (unit).
 pub const LIGHT_DIRECTIONAL: u32 = 1;
+/// [`LightRecord::kind`]: spot light at `position_or_direction`, pointing along
+/// `spot_direction`: a point light times the cone factor of `spot_scale` and `spot_offset`.
+pub const LIGHT_SPOT: u32 = 2;
+
+/// Least `cos(inner) - cos(outer)` of a spot light's cone, from `KHR_lights_punctual`'s
+/// recommended implementation (`1 / max(0.001, cos inner - cos outer)`): keeps
+/// [`LightRecord::spot_scale`] finite for cones whose inner and outer angles nearly meet.
+pub const SPOT_MIN_COS_SPAN: f32 = 0.001;
 
 /// One light of the light list.
 ///
 /// | offset | field | type | meaning |
 /// |---:|---|---|---|
-/// | 0 | `position_or_direction` | [f32; 3] | point: world position; directional: unit travel direction |
-/// | 12 | `kind` | u32 | [`LIGHT_POINT`] or [`LIGHT_DIRECTIONAL`] |
-/// | 16 | `radiance` | [f32; 3] | colour x intensity (linear RGB); point lights divide by d^2 |
-/// | 28 | `pad` | u32 | zero |
+/// | 0 | `position_or_direction` | [f32; 3] | point and spot: world position; directional: unit travel direction |
+/// | 12 | `kind` | u32 | [`LIGHT_POINT`], [`LIGHT_DIRECTIONAL`] or [`LIGHT_SPOT`] |
+/// | 16 | `radiance` | [f32; 3] | colour x intensity (linear RGB; candela for point and spot lights, which divide by d², lux for directional lights) |
+/// | 28 | `inv_range_sq` | f32 | 1 / range² (point and spot lights with a range), else 0: no cutoff |
+/// | 32 | `spot_direction` | [f32; 3] | spot: unit direction the cone points along (from the light); else zero |
+/// | 44 | `spot_scale` | f32 | spot: `1 / max(SPOT_MIN_COS_SPAN, cos inner - cos outer)`; else 0 |
+/// | 48 | `spot_offset` | f32 | spot: `-cos(outer) * spot_scale`; else 0 |
+/// | 52 | `pad0` | u32 | zero |
+/// | 56 | `pad` | [u32; 2] | zero |
 ///
-/// 32 bytes.
+/// 64 bytes. The distance window and the cone factor are
+/// [`light_falloff`](crate::kernels::shading::light_falloff)'s.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct LightRecord {
     pub position_or_direction: [f32; 3],
     pub kind: u32,
     pub radiance: [f32; 3],
-    pub pad: u32,
+    pub inv_range_sq: f32,
+    pub spot_direction: [f32; 3],
+    pub spot_scale: f32,
+    pub spot_offset: f32,
+    pub pad0: u32,
+    pub pad: [u32; 2],
 }
-const _: () = assert!(std::mem::size_of::<LightRecord>() == 32);
-wgsl_struct!(LightRecord { position_or_direction, kind, radiance, pad });
+const _: () = assert!(std::mem::size_of::<LightRecord>() == 64);
+wgsl_struct!(LightRecord {
+    position_or_direction,
+    kind,
+    radiance,
+    inv_range_sq,
+    spot_direction,
+    spot_scale,
+    spot_offset,
+    pad0,
+    pad
+});
 
 impl LightRecord {
+    /// A point light at `position` of radiance `radiance` (colour x intensity), no range.
+    pub fn point(position: [f32; 3], radiance: [f32; 3]) -> Self {
+        LightRecord { position_or_direction: position, kind: LIGHT_POINT, radiance, ..Zeroable::zeroed() }
+    }
+
+    /// A directional light travelling along `direction` (unit), of radiance `radiance`.
+    pub fn directional(direction: [f32; 3], radiance: [f32; 3]) -> Self {
+        LightRecord { position_or_direction: direction, kind: LIGHT_DIRECTIONAL, radiance, ..Zeroable::zeroed() }
+    }
+
     /// Build the record of a scene light (directions are normalized here).
     pub fn from_light(light: &crate::scene::Light) -> Self {
         use crate::scene::Light;
+        let inv_range_sq = |range: Option<f32>| range.map_or(0.0, |r| 1.0 / (r * r));
         match *light {
-            Light::Point { position, color, intensity } => LightRecord {
-                position_or_direction: position.into(),
-                kind: LIGHT_POINT,
-                radiance: (color * intensity).into(),
-                pad: 0,
+            Light::Point { position, color, intensity, range } => LightRecord {
+                inv_range_sq: inv_range_sq(range),
+                ..LightRecord::point(position.into(), (color * intensity).into())
             },
-            Light::Directional { direction, color, intensity } => LightRecord {
-                position_or_direction: direction.normalize_or_zero().into(),
-                kind: LIGHT_DIRECTIONAL,
-                radiance: (color * intensity).into(),
-                pad: 0,
-            },
+            Light::Directional { direction, color, intensity } => {
+                LightRecord::directional(direction.normalize_or_zero().into(), (color * intensity).into())
+            }
+            Light::Spot { position, direction, color, intensity, inner_cone_angle, outer_cone_angle, range } => {
+                let cos_outer = outer_cone_angle.cos();
+                let spot_scale = 1.0 / (inner_cone_angle.cos() - cos_outer).max(SPOT_MIN_COS_SPAN);
+                LightRecord {
+                    kind: LIGHT_SPOT,
+                    inv_range_sq: inv_range_sq(range),
+                    spot_direction: direction.normalize_or_zero().into(),
+                    spot_scale,
+                    spot_offset: -cos_outer * spot_scale,
+                    ..LightRecord::point(position.into(), (color * intensity).into())
+                }
+            }
         }
     }
-    /// Check: known kind, finite values, unit direction for directional lights.
+
+    /// Check: known kind, finite values, unit directions, a non-negative `inv_range_sq`,
+    /// the spot fields zero except on spot lights, the padding zero.
     pub fn validate(&self) -> Result<(), String> {
-        if self.kind > LIGHT_DIRECTIONAL || self.pad != 0 {
+        if self.kind > LIGHT_SPOT || self.pad0 != 0 || self.pad != [0; 2] {
             return Err(format!("light with unknown kind: {self:?}"));
         }
         let p = glam::Vec3::from(self.position_or_direction);
-        if !p.is_finite() || !glam::Vec3::from(self.radiance).is_finite() {
+        let spot = glam::Vec3::from(self.spot_direction);
+        let finite = p.is_finite()
+            && glam::Vec3::from(self.radiance).is_finite()
+            && spot.is_finite()
+            && self.inv_range_sq.is_finite()
+            && self.spot_scale.is_finite()
+            && self.spot_offset.is_finite();
+        if !finite {
             return Err(format!("light with non-finite values: {self:?}"));
         }
-        if self.kind == LIGHT_DIRECTIONAL && (p.length() - 1.0).abs() > 1e-5 {
+        let unit = |v: glam::Vec3| (v.length() - 1.0).abs() <= 1e-5;
+        if self.kind == LIGHT_DIRECTIONAL && !unit(p) {
             return Err(format!("directional light without a unit direction: {self:?}"));
         }
-        Ok(())
+        // (Finite, checked above: no NaN.)
+        if self.inv_range_sq < 0.0 || (self.kind == LIGHT_DIRECTIONAL && self.inv_range_sq != 0.0) {
+            return Err(format!("light with a negative or misplaced inv_range_sq: {self:?}"));
+        }
+        match self.kind {
+            LIGHT_SPOT if !unit(spot) || self.spot_scale <= 0.0 => {
+                Err(format!("spot light without a unit direction or a positive cone scale: {self:?}"))
+            }
+            LIGHT_SPOT => Ok(()),
+            _ if spot != glam::Vec3::ZERO || self.spot_scale != 0.0 || self.spot_offset != 0.0 => {
+                Err(format!("spot fields set on a light that is not a spot: {self:?}"))
+            }
+            _ => Ok(()),
+        }
     }
 }
 

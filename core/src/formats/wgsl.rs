@@ -230,6 +230,7 @@ pub fn constant_values() -> Vec<(&'static str, u32)> {
         MATERIAL_GLASS,
         LIGHT_POINT,
         LIGHT_DIRECTIONAL,
+        LIGHT_SPOT,
         ENV_SKY,
         ENV_MAP,
         WRAP_REPEAT,

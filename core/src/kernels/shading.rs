@@ -13,7 +13,9 @@
 
 use glam::Vec3;
 
-use crate::formats::{LightRecord, ObjectRecord, SurfaceRecord, LIGHT_DIRECTIONAL, OBJ_GLTF_BRDF, SHADOW_LIT};
+use crate::formats::{
+    LightRecord, ObjectRecord, SurfaceRecord, LIGHT_DIRECTIONAL, LIGHT_SPOT, OBJ_GLTF_BRDF, SHADOW_LIT,
+};
 
 /// Constant ambient term, as a fraction of the base colour, so that fully
 /// shadowed surfaces stay readable (a stand-in for indirect light).
@@ -79,7 +81,7 @@ pub const MIN_LIGHT_DISTANCE_SQ: f32 = 1e-8;
 
 /// Direction from a surface point towards a light and the irradiance scale:
 /// `(L, E)` with `L` a unit vector and `E` the light's radiance over d² for
-/// point lights, or its radiance for directional lights.
+/// point and spot lights (times [`light_falloff`]), or its radiance for directional lights.
 #[inline]
 pub fn light_incidence(light: &LightRecord, p: Vec3) -> (Vec3, Vec3) {
     let radiance = Vec3::from(light.radiance);
@@ -89,8 +91,39 @@ pub fn light_incidence(light: &LightRecord, p: Vec3) -> (Vec3, Vec3) {
     } else {
         let d = pd - p;
         let d2 = d.length_squared().max(MIN_LIGHT_DISTANCE_SQ);
-        (d / d2.sqrt(), radiance / d2)
+        let l = d / d2.sqrt();
+        (l, radiance / d2 * light_falloff(light, l, d2))
     }
+}
+
+/// The factor `KHR_lights_punctual` puts on a point or spot light's `radiance / d²` at a
+/// surface seen along `l` (unit, towards the light) at squared distance `d2`: 1 for a
+/// point light without a range, so its irradiance keeps its bits.
+///
+/// * Range (`inv_range_sq > 0`): the extension's recommended window
+///   `clamp(1 - (d / range)^4, 0, 1)`, computed as `1 - x * x` with `x = d2 * inv_range_sq`.
+/// * Spot lights: the extension's cone factor: `cd = dot(spot_direction, -l)` (the cosine
+///   of the angle from the cone's axis), `a = clamp(cd * spot_scale + spot_offset, 0, 1)`,
+///   the factor `a * a`: 1 inside the inner cone, 0 beyond the outer one, smooth between.
+///
+/// NaN cannot reach the clamps (`d2` is at least [`MIN_LIGHT_DISTANCE_SQ`] and the
+/// record's values are finite), so WGSL's `clamp` (`min(max(..))`) and the lanes' max and
+/// min give the same bits; where they could differ, on the sign of a zero, `a * a` is +0
+/// either way and `1 - x * x` is never -0. Outside the cone or the range the factor is
+/// 0, so [`light_can_contribute`] traces no shadow ray there.
+#[inline]
+pub fn light_falloff(light: &LightRecord, l: Vec3, d2: f32) -> f32 {
+    let mut f = 1.0;
+    if light.inv_range_sq > 0.0 {
+        let x = d2 * light.inv_range_sq;
+        f = (1.0 - x * x).clamp(0.0, 1.0);
+    }
+    if light.kind == LIGHT_SPOT {
+        let cd = -Vec3::from(light.spot_direction).dot(l);
+        let a = (cd * light.spot_scale + light.spot_offset).clamp(0.0, 1.0);
+        f *= a * a;
+    }
+    f
 }
 
 /// Orient the geometric and shading normals towards the side of the surface that was
@@ -574,7 +607,6 @@ mod tests {
         assert_eq!(exp2_portable(-3.0), 0.125);
         assert_eq!(log2_portable(8.0), 3.0);
     }
-    use crate::formats::LIGHT_POINT;
 
     fn grey() -> ObjectRecord {
         ObjectRecord {
@@ -595,10 +627,123 @@ mod tests {
 
     #[test]
     fn point_light_falls_off_with_distance_squared() {
-        let l = LightRecord { position_or_direction: [0.0, 2.0, 0.0], kind: LIGHT_POINT, radiance: [8.0; 3], pad: 0 };
+        let l = LightRecord::point([0.0, 2.0, 0.0], [8.0; 3]);
         let (dir, e) = light_incidence(&l, Vec3::ZERO);
         assert_eq!(dir, Vec3::Y);
         assert_eq!(e, Vec3::splat(2.0));
+    }
+
+    /// `KHR_lights_punctual`'s recommended range window and spot cone factor in f64, from the
+    /// light's parameters as the extension writes them (angles, range), not from the
+    /// record: the specification the record and [`light_falloff`] must follow.
+    fn punctual_falloff_f64(d: f64, cos_axis: f64, range: Option<f64>, cone: Option<(f64, f64)>) -> f64 {
+        let window = range.map_or(1.0, |r| (1.0 - (d / r).powi(4)).clamp(0.0, 1.0));
+        let angular = cone.map_or(1.0, |(inner, outer)| {
+            let scale = 1.0 / (inner.cos() - outer.cos()).max(0.001);
+            let a = (cos_axis * scale - outer.cos() * scale).clamp(0.0, 1.0);
+            a * a
+        });
+        window * angular
+    }
+
+    /// Tolerance of the f32 factor against the f64 one. Inputs rounded to f32 (the record's
+    /// cosines and scale, `l`, `d2`) move `a = cd * scale + offset` by a few ulps of its
+    /// terms, which `scale` (up to 1000, [`SPOT_MIN_COS_SPAN`]) magnifies: about
+    /// `8 eps * (1 + scale)` on `a`, doubled by the square, plus the window's few ulps.
+    fn falloff_tolerance(scale: f32) -> f64 {
+        16.0 * f64::from(f32::EPSILON) * (1.0 + f64::from(scale)) + 1e-6
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(4096))]
+
+        /// The kernel's factor equals the extension's formulas in f64 over random spots,
+        /// ranges and surface points, within the rounding of its f32 inputs.
+        #[test]
+        fn light_falloff_follows_khr_lights_punctual(
+            axis in [-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0],
+            p in [-10.0f32..10.0, -10.0f32..10.0, -10.0f32..10.0],
+            outer in 0.01f32..std::f32::consts::FRAC_PI_2,
+            inner_fraction in 0.0f32..1.0,
+            range in prop::option::of(0.5f32..20.0),
+        ) {
+            let axis = Vec3::from(axis).normalize_or(Vec3::NEG_Y);
+            let position = Vec3::new(0.5, 3.0, -1.0);
+            let inner = outer * inner_fraction;
+            let spot = crate::scene::Light::Spot {
+                position, direction: axis, color: Vec3::ONE, intensity: 1.0,
+                inner_cone_angle: inner, outer_cone_angle: outer, range,
+            };
+            let record = LightRecord::from_light(&spot);
+            let p = Vec3::from(p);
+            let (l, e) = light_incidence(&record, p);
+            let d = (position - p).as_dvec3();
+            let cos_axis = -axis.as_dvec3().dot(d.normalize());
+            let want = punctual_falloff_f64(
+                d.length(), cos_axis, range.map(f64::from), Some((f64::from(inner), f64::from(outer))),
+            );
+            let d2 = (position - p).length_squared().max(MIN_LIGHT_DISTANCE_SQ);
+            let got = f64::from(light_falloff(&record, l, d2));
+            prop_assert!((got - want).abs() <= falloff_tolerance(record.spot_scale), "{got} vs {want}");
+            // The irradiance is radiance / d² times that factor.
+            prop_assert_eq!(e.x, 1.0 / d2 * light_falloff(&record, l, d2));
+            // A point light with the same range: the window alone.
+            let point = LightRecord::from_light(&crate::scene::Light::Point {
+                position, color: Vec3::ONE, intensity: 1.0, range,
+            });
+            let want = punctual_falloff_f64(d.length(), cos_axis, range.map(f64::from), None);
+            let got = f64::from(light_falloff(&point, l, d2));
+            prop_assert!((got - want).abs() <= falloff_tolerance(0.0), "{got} vs {want}");
+        }
+    }
+
+    /// Exact values of the factor: 1 inside the inner cone and for point lights without a
+    /// range (the irradiance keeps its bits), 0 beyond the outer cone and the range (no
+    /// shadow ray is traced there), the quarter of full light halfway up the ramp.
+    #[test]
+    fn light_falloff_pins_the_cone_and_range_edges() {
+        let spot = |inner_deg: f32, outer_deg: f32, range| {
+            LightRecord::from_light(&crate::scene::Light::Spot {
+                position: Vec3::new(0.0, 4.0, 0.0),
+                direction: Vec3::NEG_Y,
+                color: Vec3::ONE,
+                intensity: 16.0,
+                inner_cone_angle: inner_deg.to_radians(),
+                outer_cone_angle: outer_deg.to_radians(),
+                range,
+            })
+        };
+        let s = spot(20.0, 40.0, None);
+        let below = |x: f32| light_incidence(&s, Vec3::new(x, 0.0, 0.0));
+        // Straight below: full light, 16 / 4².
+        assert_eq!(below(0.0), (Vec3::Y, Vec3::splat(1.0)));
+        // 45 degrees off the axis, beyond the 40 degree cone: nothing, and no shadow ray.
+        let (l, e) = below(4.0);
+        assert_eq!(e, Vec3::ZERO);
+        assert!(!light_can_contribute(Vec3::Y, Vec3::Y, l, e));
+        // Halfway up the ramp in cosine: a = 0.5, a² = 0.25 (within the f32 cosines).
+        let cos_mid = 0.5 * (20f32.to_radians().cos() + 40f32.to_radians().cos());
+        let x = 4.0 * (1.0 - cos_mid * cos_mid).sqrt() / cos_mid;
+        let (l, e) = below(x);
+        let d2 = 16.0 + x * x;
+        assert!((light_falloff(&s, l, d2) - 0.25).abs() < 1e-5, "{}", light_falloff(&s, l, d2));
+        assert!((e.x * d2 / 16.0 - 0.25).abs() < 1e-5);
+        // The range: full at the light, 1 - (d/r)^4 between, zero from the range on.
+        let r = spot(20.0, 40.0, Some(8.0));
+        let at = |y: f32| light_falloff(&r, Vec3::Y, (4.0 - y) * (4.0 - y));
+        assert_eq!(at(4.0 - 1e-4), 1.0);
+        assert_eq!(at(0.0), 1.0 - 0.0625);
+        assert_eq!(at(-4.0), 0.0);
+        assert_eq!(at(-40.0), 0.0);
+        // A point light without a range: exactly 1, the irradiance of before spot lights.
+        let p = LightRecord::point([0.0, 3.0, 0.0], [7.0; 3]);
+        for q in [Vec3::ZERO, Vec3::new(1e-3, 2.999, -5.0), Vec3::splat(1e6)] {
+            let (l, e) = light_incidence(&p, q);
+            let d = Vec3::from(p.position_or_direction) - q;
+            let d2 = d.length_squared().max(MIN_LIGHT_DISTANCE_SQ);
+            assert_eq!(light_falloff(&p, l, d2), 1.0);
+            assert_eq!(e, Vec3::splat(7.0) / d2);
+        }
     }
 
     #[test]

@@ -455,6 +455,10 @@ impl Scene {
             }
             match node.light.and_then(|l| lights.get_mut(l)) {
                 Some(Light::Point { position, .. }) => *position = light_position(world),
+                Some(Light::Spot { position, direction, .. }) => {
+                    *direction = light_direction(world).ok_or_else(|| (node.label.clone(), "spot light"))?;
+                    *position = light_position(world);
+                }
                 Some(Light::Directional { direction, .. }) => {
                     *direction = light_direction(world).ok_or_else(|| (node.label.clone(), "directional light"))?
                 }

@@ -240,8 +240,8 @@ impl Scene {
             RenderMode::Raster,
         );
         scene.lights = vec![
-            Light::Point { position: Vec3::new(3.0, 6.5, 4.0), color: Vec3::new(1.0, 0.95, 0.9), intensity: 60.0 },
-            Light::Point { position: Vec3::new(-1.5, 5.0, 5.0), color: Vec3::new(0.8, 0.85, 1.0), intensity: 30.0 },
+            Light::point(Vec3::new(3.0, 6.5, 4.0), Vec3::new(1.0, 0.95, 0.9), 60.0),
+            Light::point(Vec3::new(-1.5, 5.0, 5.0), Vec3::new(0.8, 0.85, 1.0), 30.0),
         ];
         scene.camera = Some(Camera {
             eye: Vec3::new(4.5, 4.2, 8.5),

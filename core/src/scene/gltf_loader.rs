@@ -48,12 +48,18 @@
 //!   twice `znear`; 1000 `znear` for a scene without finite vertices), with a note.
 //!   `aspectRatio` is ignored: the output image decides. Orthographic cameras are skipped.
 //! * **Lights** (`KHR_lights_punctual`). Point: the node's world translation. Directional:
-//!   travels along the node's world -Z. Spot: loaded as a point light, with a note.
+//!   travels along the node's world -Z. Spot: at the node's translation, its cone along the
+//!   node's world -Z, `innerConeAngle` and `outerConeAngle` as written (glTF's defaults 0
+//!   and pi/4), the extension's smooth falloff between. `range` (point and spot lights):
+//!   the extension's window over 1/d^2, unscaled by the node's scale as the extension says;
+//!   on a directional light it is ignored with a note. A light that breaks the extension's
+//!   rules (a cone beyond pi/2, a negative intensity) is left out with a note naming its
+//!   node and the problem ([`Light::validate`]).
 //!   Units: glTF gives point/spot intensity in candela (lm/sr) and directional intensity in
 //!   lux (lm/m^2). Both are used as-is as [`Light`] `intensity`, which scales `color` (with
-//!   1/d^2 falloff for point lights): the renderer is not photometric, so a point light of
-//!   intensity I lights a surface facing it at distance d like a directional light of
-//!   intensity I / d^2. `range` is ignored (no cutoff).
+//!   1/d^2 falloff for point and spot lights), without a luminous efficacy, as the Khronos
+//!   sample viewer does: a point light of intensity I lights a surface facing it at
+//!   distance d like a directional light of intensity I / d^2.
 //! * **Animations** (`animations`): each becomes an [`Animation`] of the scene's
 //!   [`SceneAnimation`] ([`Scene::animation`]), which also keeps the hierarchy walked (per
 //!   node: parent, TRS or matrix, the objects, camera and light it places), so that
@@ -1120,26 +1126,31 @@ impl<'a> Converter<'a> {
         let file = self.path.display().to_string();
         let color = Vec3::from(light.color());
         let intensity = light.intensity();
-        if light.range().is_some() {
-            self.scene.notes.push(format!("{file}: {node_label}: light range ignored (1/d^2 falloff, no cutoff)"));
-        }
+        let range = light.range();
         let position = light_position(world);
-        match light.kind() {
+        let loaded = match light.kind() {
             Kind::Directional => {
                 let Some(direction) = light_direction(world) else {
                     self.scene.notes.push(format!("{file}: {node_label}: directional light with no direction ignored"));
                     return;
                 };
-                self.scene.lights.push(Light::Directional { direction, color, intensity });
-            }
-            kind => {
-                if matches!(kind, Kind::Spot { .. }) {
-                    self.scene
-                        .notes
-                        .push(format!("{file}: {node_label}: spot light loaded as a point light (cone ignored)"));
+                if range.is_some() {
+                    self.scene.notes.push(format!("{file}: {node_label}: range of a directional light ignored"));
                 }
-                self.scene.lights.push(Light::Point { position, color, intensity });
+                Light::Directional { direction, color, intensity }
             }
+            Kind::Point => Light::Point { position, color, intensity, range },
+            Kind::Spot { inner_cone_angle, outer_cone_angle } => {
+                let Some(direction) = light_direction(world) else {
+                    self.scene.notes.push(format!("{file}: {node_label}: spot light with no direction ignored"));
+                    return;
+                };
+                Light::Spot { position, direction, color, intensity, inner_cone_angle, outer_cone_angle, range }
+            }
+        };
+        match loaded.validate() {
+            Ok(()) => self.scene.lights.push(loaded),
+            Err(problem) => self.scene.notes.push(format!("{file}: {node_label}: light ignored: {problem}")),
         }
     }
 

@@ -19,15 +19,27 @@
 //! far = 80.0                    # default: twice the distance from the eye to the farthest corner of the scene bounds
 //!
 //! [[light]]                     # zero or more; without any: the model files' lights, else none
-//! type = "point"                # "point" | "directional"
-//! position = [3.0, 9.0, 3.0]    # point lights only
+//! type = "point"                # "point" | "directional" | "spot" (glTF's KHR_lights_punctual)
+//! position = [3.0, 9.0, 3.0]    # point and spot lights only
 //! color = [1.0, 0.95, 0.9]      # linear RGB, default [1, 1, 1]
-//! intensity = 150.0             # scales color; point lights fall off with 1/d^2
+//! intensity = 150.0             # scales color: candela for point and spot lights (which fall
+//!                               # off with 1/d^2), lux for directional ones
+//! range = 20.0                  # optional, point and spot lights: fades to nothing at this
+//!                               # distance (the extension's window 1 - (d/range)^4); default none
 //!
 //! [[light]]
 //! type = "directional"
 //! direction = [-0.3, -1.0, -0.2] # the direction the light travels; normalised on load
 //! intensity = 0.5
+//!
+//! [[light]]
+//! type = "spot"
+//! position = [0.0, 6.0, 0.0]
+//! direction = [0.0, -1.0, 0.0]  # the cone's axis, from the light; normalised on load
+//! intensity = 80.0
+//! inner_cone_deg = 10.0         # optional: full light within this angle of the axis, default 0
+//! outer_cone_deg = 25.0         # optional: none beyond it (> inner, <= 90), default 45; the
+//!                               # extension's smooth falloff between
 //!
 //! [[model]]                     # one or more
 //! file = "../../../shared/assets/sponza.glb"   # relative to this manifest's folder (or absolute)
@@ -203,25 +215,41 @@ pub struct CameraEntry {
 pub enum LightType {
     Point,
     Directional,
+    Spot,
 }
 
-/// `[[light]]`: a point light (`position`) or a directional light (`direction`).
+/// `[[light]]`: a point light (`position`), a directional light (`direction`) or a spot
+/// light (`position` and `direction`, the cone's axis), as glTF's `KHR_lights_punctual`
+/// defines them ([`Light`]).
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LightEntry {
     #[serde(rename = "type")]
     pub kind: LightType,
-    /// Point lights: world position.
+    /// Point and spot lights: world position.
     #[serde(default)]
     pub position: Option<[f32; 3]>,
-    /// Directional lights: the direction the light travels (normalised on load).
+    /// Directional lights: the direction the light travels; spot lights: the direction the
+    /// cone points (both normalised on load).
     #[serde(default)]
     pub direction: Option<[f32; 3]>,
     /// Linear RGB, default white.
     #[serde(default = "default_color")]
     pub color: [f32; 3],
-    /// Scales `color`, >= 0.
+    /// Scales `color`, >= 0: candela for point and spot lights, lux for directional lights.
     pub intensity: f32,
+    /// Point and spot lights: the distance at which the light has faded to nothing (the
+    /// extension's window over 1/d²). Default: no cutoff.
+    #[serde(default)]
+    pub range: Option<f32>,
+    /// Spot lights: the angle from the axis (degrees) within which the light is full.
+    /// Default 0.
+    #[serde(default)]
+    pub inner_cone_deg: Option<f32>,
+    /// Spot lights: the angle from the axis (degrees) beyond which there is no light,
+    /// greater than `inner_cone_deg`, at most 90. Default 45 (glTF's pi/4).
+    #[serde(default)]
+    pub outer_cone_deg: Option<f32>,
 }
 
 /// A built-in procedural shape.
@@ -572,17 +600,38 @@ impl LightEntry {
             return Err(format!("intensity {} must be finite and >= 0", self.intensity));
         }
         let intensity = self.intensity;
-        match (self.kind, self.position, self.direction) {
+        let direction = |d| finite(d, "direction")?.try_normalize().ok_or_else(|| "direction is zero".to_string());
+        let range = self.range;
+        let cone = self.inner_cone_deg.is_some() || self.outer_cone_deg.is_some();
+        if self.kind != LightType::Spot && cone {
+            return Err("`inner_cone_deg` and `outer_cone_deg` are for spot lights".into());
+        }
+        if self.kind == LightType::Directional && range.is_some() {
+            return Err("`range` is for point and spot lights".into());
+        }
+        let light = match (self.kind, self.position, self.direction) {
             (LightType::Point, Some(p), None) => {
-                Ok(Light::Point { position: finite(p, "position")?, color, intensity })
+                Light::Point { position: finite(p, "position")?, color, intensity, range }
             }
             (LightType::Directional, None, Some(d)) => {
-                let direction = finite(d, "direction")?.try_normalize().ok_or("direction is zero")?;
-                Ok(Light::Directional { direction, color, intensity })
+                Light::Directional { direction: direction(d)?, color, intensity }
             }
-            (LightType::Point, _, _) => Err("a point light needs `position` and no `direction`".into()),
-            (LightType::Directional, _, _) => Err("a directional light needs `direction` and no `position`".into()),
-        }
+            (LightType::Spot, Some(p), Some(d)) => Light::Spot {
+                position: finite(p, "position")?,
+                direction: direction(d)?,
+                color,
+                intensity,
+                inner_cone_angle: self.inner_cone_deg.unwrap_or(0.0).to_radians(),
+                outer_cone_angle: self.outer_cone_deg.map_or(Light::DEFAULT_OUTER_CONE_ANGLE, f32::to_radians),
+                range,
+            },
+            (LightType::Point, _, _) => return Err("a point light needs `position` and no `direction`".into()),
+            (LightType::Directional, _, _) => {
+                return Err("a directional light needs `direction` and no `position`".into())
+            }
+            (LightType::Spot, _, _) => return Err("a spot light needs `position` and `direction`".into()),
+        };
+        light.validate().map(|()| light)
     }
 }
 
@@ -785,6 +834,44 @@ mod tests {
         assert!(light("type = 'point'\nposition = [0.0, 1.0, 0.0]\nintensity = -1.0").is_err());
         assert!(light("type = 'point'\nposition = [0.0, 1.0, 0.0]\ncolor = [1.0, -1.0, 0.0]\nintensity = 1.0").is_err());
         assert!(light("type = 'directional'\nposition = [0.0, 1.0, 0.0]\nintensity = 1.0").is_err());
+    }
+
+    #[test]
+    fn spot_lights_and_ranges_parse_with_their_defaults_and_rules() {
+        let light = |text: &str| toml::from_str::<LightEntry>(text).unwrap().to_light();
+        let spot = "type = 'spot'\nposition = [0.0, 4.0, 0.0]\ndirection = [0.0, -2.0, 0.0]\nintensity = 5.0";
+        assert_eq!(
+            light(&format!("{spot}\ninner_cone_deg = 10.0\nouter_cone_deg = 30.0\nrange = 8.0")),
+            Ok(Light::Spot {
+                position: Vec3::new(0.0, 4.0, 0.0),
+                direction: Vec3::NEG_Y,
+                color: Vec3::ONE,
+                intensity: 5.0,
+                inner_cone_angle: 10f32.to_radians(),
+                outer_cone_angle: 30f32.to_radians(),
+                range: Some(8.0),
+            })
+        );
+        // glTF's defaults: inner 0, outer pi/4, no range.
+        let Ok(Light::Spot { inner_cone_angle, outer_cone_angle, range, .. }) = light(spot) else { panic!() };
+        assert_eq!((inner_cone_angle, outer_cone_angle, range), (0.0, std::f32::consts::FRAC_PI_4, None));
+        assert_eq!(
+            light("type = 'point'\nposition = [0.0, 1.0, 0.0]\nintensity = 1.0\nrange = 3.0"),
+            Ok(Light::Point { position: Vec3::Y, color: Vec3::ONE, intensity: 1.0, range: Some(3.0) })
+        );
+        let fails = |text: &str, says: &str| {
+            let err = light(text).unwrap_err();
+            assert!(err.contains(says), "{text}: {err}");
+        };
+        fails(&format!("{spot}\ninner_cone_deg = 30.0\nouter_cone_deg = 30.0"), "cone angles");
+        fails(&format!("{spot}\nouter_cone_deg = 91.0"), "cone angles");
+        fails(&format!("{spot}\ninner_cone_deg = -1.0"), "cone angles");
+        fails(&format!("{spot}\nrange = 0.0"), "range 0");
+        fails(&format!("{spot}\nrange = inf"), "range inf");
+        fails("type = 'spot'\nposition = [0.0, 4.0, 0.0]\nintensity = 1.0", "needs `position` and `direction`");
+        fails("type = 'spot'\nposition = [0.0, 4.0, 0.0]\ndirection = [0.0, 0.0, 0.0]\nintensity = 1.0", "zero");
+        fails("type = 'point'\nposition = [0.0, 1.0, 0.0]\nintensity = 1.0\nouter_cone_deg = 20.0", "for spot lights");
+        fails("type = 'directional'\ndirection = [0.0, -1.0, 0.0]\nintensity = 1.0\nrange = 2.0", "`range` is for");
     }
 
     #[test]

@@ -261,8 +261,21 @@ impl Merge {
         }
         self.lights.extend(file.lights.iter().map(|&light| match light {
             _ if identity => light,
-            Light::Point { position, color, intensity } => {
-                Light::Point { position: model.matrix.transform_point3(position), color, intensity }
+            // The light's properties (intensity, range, cone angles) are not scaled by the
+            // transform: KHR_lights_punctual says so of a node's scale.
+            Light::Point { position, color, intensity, range } => {
+                Light::Point { position: model.matrix.transform_point3(position), color, intensity, range }
+            }
+            Light::Spot { position, direction, color, intensity, inner_cone_angle, outer_cone_angle, range } => {
+                Light::Spot {
+                    position: model.matrix.transform_point3(position),
+                    direction: model.matrix.transform_vector3(direction).normalize_or(direction),
+                    color,
+                    intensity,
+                    inner_cone_angle,
+                    outer_cone_angle,
+                    range,
+                }
             }
             Light::Directional { direction, color, intensity } => Light::Directional {
                 direction: model.matrix.transform_vector3(direction).normalize_or(direction),

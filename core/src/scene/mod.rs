@@ -230,20 +230,98 @@ pub struct Object {
     pub source: ObjectSource,
 }
 
-/// A punctual light. `intensity` scales `color`; point lights fall off with 1/d^2.
+/// A punctual light, as glTF's `KHR_lights_punctual` defines them. `intensity` scales
+/// `color` in the extension's units: candela (lm/sr) for point and spot lights, lux (lm/m²)
+/// for directional lights, taken as linear radiometric values without a luminous-efficacy
+/// factor (as the Khronos sample viewer does). So a surface's outgoing radiance is the BRDF
+/// x `color` x `intensity` (over the squared distance, for point and spot lights) x N.L.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Light {
     Point {
         position: Vec3,
         color: Vec3,
         intensity: f32,
+        /// The extension's `range`: the light fades to nothing at this distance, with its
+        /// recommended window `clamp(1 - (d / range)^4, 0, 1)` over the 1/d² falloff
+        /// ([`crate::kernels::shading::light_falloff`]). `None`: no cutoff.
+        range: Option<f32>,
     },
     /// `direction` is the direction the light travels (from the light into the scene).
-    Directional {
+    Directional { direction: Vec3, color: Vec3, intensity: f32 },
+    /// A point light limited to a cone around `direction` (the way it points, from the
+    /// light into the scene): full inside `inner_cone_angle`, none beyond
+    /// `outer_cone_angle` (radians from the axis, `0 <= inner < outer <= pi/2`), the
+    /// extension's smooth falloff between.
+    Spot {
+        position: Vec3,
         direction: Vec3,
         color: Vec3,
         intensity: f32,
+        inner_cone_angle: f32,
+        outer_cone_angle: f32,
+        /// As [`Light::Point`]'s.
+        range: Option<f32>,
     },
+}
+
+impl Light {
+    /// A point light without a range.
+    pub fn point(position: Vec3, color: Vec3, intensity: f32) -> Light {
+        Light::Point { position, color, intensity, range: None }
+    }
+
+    /// glTF's default cone of a spot light: inner 0, outer pi/4.
+    pub const DEFAULT_OUTER_CONE_ANGLE: f32 = std::f32::consts::FRAC_PI_4;
+
+    /// Check the values a light must have to be rendered: finite, non-negative colour and
+    /// intensity, unit-length directions, cone angles with `0 <= inner < outer <= pi/2`, a
+    /// positive finite range. The message names the problem.
+    pub fn validate(&self) -> Result<(), String> {
+        let (color, intensity) = match *self {
+            Light::Point { color, intensity, .. }
+            | Light::Directional { color, intensity, .. }
+            | Light::Spot { color, intensity, .. } => (color, intensity),
+        };
+        if !color.is_finite() || color.min_element() < 0.0 {
+            return Err(format!("color {color} must be finite and non-negative"));
+        }
+        if !(intensity >= 0.0 && intensity.is_finite()) {
+            return Err(format!("intensity {intensity} must be finite and >= 0"));
+        }
+        let unit = |d: Vec3, what: &str| match d.is_finite() && (d.length() - 1.0).abs() <= 1e-5 {
+            true => Ok(()),
+            false => Err(format!("{what} {d} is not a unit vector")),
+        };
+        let range_ok = |range: Option<f32>| match range {
+            Some(r) if !(r > 0.0 && r.is_finite()) => Err(format!("range {r} must be finite and > 0")),
+            _ => Ok(()),
+        };
+        match *self {
+            Light::Point { position, range, .. } => {
+                if !position.is_finite() {
+                    return Err(format!("position {position} is not finite"));
+                }
+                range_ok(range)
+            }
+            Light::Directional { direction, .. } => unit(direction, "direction"),
+            Light::Spot { position, direction, inner_cone_angle, outer_cone_angle, range, .. } => {
+                if !position.is_finite() {
+                    return Err(format!("position {position} is not finite"));
+                }
+                unit(direction, "direction")?;
+                if !(inner_cone_angle >= 0.0
+                    && inner_cone_angle < outer_cone_angle
+                    && outer_cone_angle <= std::f32::consts::FRAC_PI_2)
+                {
+                    return Err(format!(
+                        "cone angles inner {inner_cone_angle} and outer {outer_cone_angle} (radians) need \
+                         0 <= inner < outer <= pi/2"
+                    ));
+                }
+                range_ok(range)
+            }
+        }
+    }
 }
 
 /// A perspective camera (right-handed, looking from `eye` to `target`).
@@ -449,8 +527,8 @@ impl Scene {
             let fill = center + Vec3::Y * radius * 1.5 - side * radius * 2.0 + (eye - center) * 0.3;
             let key_d2 = (key - center).length_squared();
             let fill_d2 = (fill - center).length_squared();
-            self.lights.push(Light::Point { position: key, color: Vec3::ONE, intensity: 2.5 * key_d2 });
-            self.lights.push(Light::Point { position: fill, color: Vec3::ONE, intensity: 0.8 * fill_d2 });
+            self.lights.push(Light::point(key, Vec3::ONE, 2.5 * key_d2));
+            self.lights.push(Light::point(fill, Vec3::ONE, 0.8 * fill_d2));
             self.notes
                 .push(format!("no lights in the scene: added two default point lights at {key:.3?} and {fill:.3?}"));
         }

@@ -17,7 +17,7 @@
 //! [`next_float_up`]: hyrt_core::kernels::ray::next_float_up
 //! [`next_float_down`]: hyrt_core::kernels::ray::next_float_down
 
-use hyrt_core::formats::{LightRecord, RayRecord, SurfaceRecord, LIGHT_DIRECTIONAL};
+use hyrt_core::formats::{LightRecord, RayRecord, SurfaceRecord, LIGHT_DIRECTIONAL, LIGHT_SPOT};
 use hyrt_core::kernels::ray::OFFSET_ERROR_SCALE;
 use hyrt_core::kernels::shading::MIN_LIGHT_DISTANCE_SQ;
 use hyrt_core::kernels::shadow::{shadow_ray_record, SHADOW_T_MAX_POINT};
@@ -125,8 +125,38 @@ pub(crate) fn light_incidence_lanes<L: Lanes>(light: &LightRecord, p: [L::F; 3])
         let d2 = L::max(dot3::<L>(d, d), L::splat(MIN_LIGHT_DISTANCE_SQ));
         let len = L::sqrt(d2);
         let l = [L::div(d[0], len), L::div(d[1], len), L::div(d[2], len)];
-        (l, [L::div(radiance[0], d2), L::div(radiance[1], d2), L::div(radiance[2], d2)])
+        let e = [L::div(radiance[0], d2), L::div(radiance[1], d2), L::div(radiance[2], d2)];
+        match light_falloff_lanes::<L>(light, l, d2) {
+            Some(f) => (l, [L::mul(e[0], f), L::mul(e[1], f), L::mul(e[2], f)]),
+            // Core multiplies by exactly 1, which changes no bits.
+            None => (l, e),
+        }
     }
+}
+
+/// Core's `light_falloff(light, l, d2)` per lane, `None` where it is 1 for every lane (a
+/// point light without a range).
+#[inline(always)]
+fn light_falloff_lanes<L: Lanes>(light: &LightRecord, l: [L::F; 3], d2: L::F) -> Option<L::F> {
+    let ranged = light.inv_range_sq > 0.0;
+    let spot = light.kind == LIGHT_SPOT;
+    if !ranged && !spot {
+        return None;
+    }
+    let (zero, one) = (L::splat(0.0), L::splat(1.0));
+    let mut f = one;
+    if ranged {
+        let x = L::mul(d2, L::splat(light.inv_range_sq));
+        f = L::min(L::max(L::sub(one, L::mul(x, x)), zero), one);
+    }
+    if spot {
+        // `-dot` is a sign flip, as core's unary minus.
+        let cd = L::xor(dot3::<L>(splat3::<L>(light.spot_direction), l), L::splat(-0.0));
+        let ramp = L::add(L::mul(cd, L::splat(light.spot_scale)), L::splat(light.spot_offset));
+        let a = L::min(L::max(ramp, zero), one);
+        f = L::mul(f, L::mul(a, a));
+    }
+    Some(f)
 }
 
 /// Eight surfaces' shadow rays towards one light: which lanes need one (core's
@@ -166,7 +196,6 @@ pub(crate) fn shadow_ray_of_lane(
 pub(crate) mod tests {
     use super::*;
     use crate::lanes::{store3, Portable};
-    use hyrt_core::formats::LIGHT_POINT;
     use hyrt_core::kernels::shadow::{needs_shadow_ray, shadow_ray};
     use proptest::prelude::*;
 
@@ -252,11 +281,36 @@ pub(crate) mod tests {
     }
 
     fn light() -> impl Strategy<Value = LightRecord> {
-        (any::<bool>(), vec3(), [0.0f32..100.0, 0.0f32..100.0, 0.0f32..100.0]).prop_map(|(directional, p, radiance)| {
-            let p = if directional { glam::Vec3::from(p).normalize_or(glam::Vec3::Y).into() } else { p };
-            let kind = if directional { LIGHT_DIRECTIONAL } else { LIGHT_POINT };
-            LightRecord { position_or_direction: p, kind, radiance, pad: 0 }
-        })
+        light_with(0.0f32..100.0)
+    }
+
+    /// Point, directional and spot lights (with and without a range, cones from narrow to
+    /// a half space) of radiance components drawn from `radiance`, as
+    /// `LightRecord::from_light` makes them.
+    pub(crate) fn light_with(radiance: impl Strategy<Value = f32> + Clone) -> impl Strategy<Value = LightRecord> {
+        use glam::Vec3;
+        use hyrt_core::scene::Light;
+        let range = prop::option::of(prop_oneof![1e-3f32..1.0, 1.0f32..100.0]);
+        let cone = (1e-3f32..std::f32::consts::FRAC_PI_2, 0.0f32..1.0);
+        (0..3u32, vec3(), [radiance.clone(), radiance.clone(), radiance], range, vec3(), cone).prop_map(
+            |(kind, p, radiance, range, axis, (outer, inner))| {
+                let (position, color) = (Vec3::from(p), Vec3::from(radiance));
+                let light = match kind {
+                    0 => Light::Point { position, color, intensity: 1.0, range },
+                    1 => Light::Directional { direction: position.normalize_or(Vec3::Y), color, intensity: 1.0 },
+                    _ => Light::Spot {
+                        position,
+                        direction: Vec3::from(axis).normalize_or(Vec3::NEG_Y),
+                        color,
+                        intensity: 1.0,
+                        inner_cone_angle: outer * inner,
+                        outer_cone_angle: outer,
+                        range,
+                    },
+                };
+                LightRecord::from_light(&light)
+            },
+        )
     }
 
     proptest! {
@@ -274,12 +328,7 @@ pub(crate) mod tests {
     /// zero normal, coordinates at zero and at the largest floats.
     #[test]
     fn shadow_ray_lanes_on_hard_cases() {
-        let light = LightRecord {
-            position_or_direction: [1.0, 2.0, 3.0],
-            kind: LIGHT_POINT,
-            radiance: [1.0, 0.0, 0.0],
-            pad: 0,
-        };
+        let light = LightRecord::point([1.0, 2.0, 3.0], [1.0, 0.0, 0.0]);
         let s = |position: [f32; 3], err: f32, n: [f32; 3]| SurfaceRecord {
             position,
             position_error: err,
@@ -299,7 +348,19 @@ pub(crate) mod tests {
             s([1e-40, -1e-40, 2.0], 1e-38, [0.0, 0.0, 1.0]),
         ];
         check_levels(&surfaces, &light).unwrap();
-        let directional = LightRecord { position_or_direction: [0.0, -1.0, 0.0], kind: LIGHT_DIRECTIONAL, ..light };
+        let directional = LightRecord::directional([0.0, -1.0, 0.0], light.radiance);
         check_levels(&surfaces, &directional).unwrap();
+        // A spot at the same place with a range: the window and cone factors on the same
+        // hard cases.
+        let spot = hyrt_core::scene::Light::Spot {
+            position: glam::Vec3::new(1.0, 2.0, 3.0),
+            direction: glam::Vec3::NEG_Y,
+            color: glam::Vec3::X,
+            intensity: 1.0,
+            inner_cone_angle: 0.2,
+            outer_cone_angle: 1.2,
+            range: Some(4.0),
+        };
+        check_levels(&surfaces, &LightRecord::from_light(&spot)).unwrap();
     }
 }

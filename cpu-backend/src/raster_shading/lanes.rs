@@ -337,11 +337,11 @@ pub(crate) fn raster_shading_lanes<L: Lanes>(
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
-    use crate::compaction::lanes::tests::vec3;
+    use crate::compaction::lanes::tests::{light_with, vec3};
     use crate::lanes::tests::{at_every_level, same_bits, LevelCheck};
     use crate::raster_shading::{raster_shading_pixel, Primary};
     use glam::Vec3;
-    use hyrt_core::formats::{LIGHT_DIRECTIONAL, LIGHT_POINT, SHADOW_LIT, SHADOW_NO_RAY, SHADOW_OCCLUDED};
+    use hyrt_core::formats::{LIGHT_DIRECTIONAL, SHADOW_LIT, SHADOW_NO_RAY, SHADOW_OCCLUDED};
     use hyrt_core::kernels::texture::Materials;
     use proptest::prelude::*;
 
@@ -437,14 +437,7 @@ pub(crate) mod tests {
     }
 
     fn light() -> impl Strategy<Value = LightRecord> {
-        let radiance = prop_oneof![4 => 0.0f32..100.0, 1 => Just(0.0f32), 1 => 0.0f32..1e30];
-        (any::<bool>(), vec3(), [radiance.clone(), radiance.clone(), radiance]).prop_map(
-            |(directional, p, radiance)| {
-                let p = if directional { Vec3::from(p).normalize_or(Vec3::Y).into() } else { p };
-                let kind = if directional { LIGHT_DIRECTIONAL } else { LIGHT_POINT };
-                LightRecord { position_or_direction: p, kind, radiance, pad: 0 }
-            },
-        )
+        light_with(prop_oneof![4 => 0.0f32..100.0, 1 => Just(0.0f32), 1 => 0.0f32..1e30])
     }
 
     /// A block: up to three objects, one to three lights, hits and misses (the usual:
@@ -569,18 +562,12 @@ pub(crate) mod tests {
             s([1e30, -1e30, 0.0], [0.0, -1.0, 0.0], 0),
             s([0.0, 5.0, 0.0], [0.6, 0.8, 0.0], 1),
         ];
-        let point =
-            |p: [f32; 3]| LightRecord { position_or_direction: p, kind: LIGHT_POINT, radiance: [8.0; 3], pad: 0 };
+        let point = |p: [f32; 3]| LightRecord::point(p, [8.0; 3]);
         let lights = vec![
             point([0.0, -1.0, 0.0]),
             point([5.0, 0.0, 0.0]),
             point([1.0, 2.0, 3.0]),
-            LightRecord {
-                position_or_direction: [0.0, -1.0, 0.0],
-                kind: LIGHT_DIRECTIONAL,
-                radiance: [1.0; 3],
-                pad: 0,
-            },
+            LightRecord::directional([0.0, -1.0, 0.0], [1.0; 3]),
         ];
         let codes = [SHADOW_LIT, SHADOW_LIT, SHADOW_OCCLUDED, SHADOW_NO_RAY];
         let shadow = (0..LANES * lights.len()).map(|i| codes[(i + i / 4) % 4]).collect();

@@ -68,7 +68,24 @@ fn light_incidence(light: LightRecord, p: vec3<f32>) -> Incidence {
     }
     let d = pd - p;
     let d2 = max(dot3(d, d), MIN_LIGHT_DISTANCE_SQ);
-    return Incidence(div_rn3(d, sqrt_rn(d2)), div_rn3(radiance, d2));
+    let l = div_rn3(d, sqrt_rn(d2));
+    return Incidence(l, mul3(div_rn3(radiance, d2), vec3<f32>(light_falloff(light, l, d2))));
+}
+
+// mirrors hyrt_core::kernels::shading::light_falloff: KHR_lights_punctual's range window
+// and spot cone factor, 1 for a point light without a range.
+fn light_falloff(light: LightRecord, l: vec3<f32>, d2: f32) -> f32 {
+    var f = 1.0;
+    if (light.inv_range_sq > 0.0) {
+        let x = mul(d2, light.inv_range_sq);
+        f = clamp(1.0 - mul(x, x), 0.0, 1.0);
+    }
+    if (light.kind == LIGHT_SPOT) {
+        let cd = -dot3(light.spot_direction, l);
+        let a = clamp(mul(cd, light.spot_scale) + light.spot_offset, 0.0, 1.0);
+        f = mul(f, mul(a, a));
+    }
+    return f;
 }
 
 // mirrors glam::Vec3::max_element: max(x, max(y, z)), each `if a > b { a } else { b }`.
