@@ -18,6 +18,12 @@ const F32_SIGN_MASK: u32 = 0x80000000u;
 const F32_EXP_MASK: u32 = 0x7f800000u;
 const F32_FRACTION_MASK: u32 = 0x007fffffu;
 
+// Rust's `f32::is_finite` (not inf, not NaN), as a test of the exponent bits: no float
+// comparison a compiler may assume NaN-free.
+fn f32_is_finite(x: f32) -> bool {
+    return (bitcast<u32>(x) & F32_EXP_MASK) != F32_EXP_MASK;
+}
+
 const EXACT_QUIET: u32 = 0x00400000u;
 const EXACT_IMPLICIT: u32 = 0x00800000u;
 const EXACT_BIAS: i32 = 127;

@@ -18,7 +18,7 @@ fn hit_lod(bias: f32, cone_width: f32, cos: f32) -> f32 {
     let a = abs(cos);
     let c = select(LOD_MIN_COSINE, a, a > LOD_MIN_COSINE);
     var w = F32_MAX;
-    if texture_is_finite(cone_width) {
+    if f32_is_finite(cone_width) {
         w = select(LOD_MIN_AREA, cone_width, cone_width > LOD_MIN_AREA);
     }
     // The difference behind the barrier: a device may reassociate an unguarded chain.

@@ -8,16 +8,11 @@
 // The constants of hyrt_core (SLAB_FAR_SCALE, GAMMA_2/3/5 = gamma(n), OFFSET_ERROR_SCALE,
 // MIN_LIGHT_DISTANCE_SQ, ...) come from a prelude the Rust side
 // generates from the core constants as exact bit patterns (see `ray_prelude`). The
-// f32 field masks (F32_SIGN_MASK, F32_EXP_MASK, F32_FRACTION_MASK) come with the
-// preamble every stage begins with (`exact.wgsl`).
-
-// True for a finite f32 (not inf, not NaN), from its bits.
-fn is_finite_f32(x: f32) -> bool {
-    return (bitcast<u32>(x) & F32_EXP_MASK) != F32_EXP_MASK;
-}
+// f32 field masks (F32_SIGN_MASK, F32_EXP_MASK, F32_FRACTION_MASK) and `f32_is_finite`
+// come with the preamble every stage begins with (`exact.wgsl`).
 
 fn is_finite_vec3(v: vec3<f32>) -> bool {
-    return is_finite_f32(v.x) && is_finite_f32(v.y) && is_finite_f32(v.z);
+    return f32_is_finite(v.x) && f32_is_finite(v.y) && f32_is_finite(v.z);
 }
 
 // mirrors hyrt_core::kernels::ray::next_float_up (bits: exact on any device)
@@ -283,7 +278,7 @@ fn watertight_intersect(r: WatertightRay, t_min: f32, t_max: f32, v0: vec3<f32>,
         return none;
     }
     let det = opaque(e0 + e1, zero) + e2;
-    if det == 0.0 || !is_finite_f32(det) {
+    if det == 0.0 || !f32_is_finite(det) {
         return none;
     }
 

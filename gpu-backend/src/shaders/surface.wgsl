@@ -11,9 +11,6 @@
 // `mul(a: f32, b: f32) -> f32` and binds `triangles: array<TriangleRecord>` and
 // `normals: array<f32>`.
 
-fn is_finite(x: f32) -> bool {
-    return (bitcast<u32>(x) & F32_EXP_MASK) != F32_EXP_MASK;
-}
 
 fn mul3(a: vec3<f32>, s: f32) -> vec3<f32> {
     return vec3<f32>(mul(a.x, s), mul(a.y, s), mul(a.z, s));
@@ -35,11 +32,11 @@ fn normalize_or(a: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
     // 1 / len is finite and positive exactly when len is positive, finite and not
     // so small that the reciprocal overflows; the explicit test keeps a division by
     // zero (or NaN) out of the shader.
-    if !(len > 0.0) || !is_finite(len) {
+    if !(len > 0.0) || !f32_is_finite(len) {
         return fallback;
     }
     let rcp = div_rn(1.0, len);
-    if is_finite(rcp) && rcp > 0.0 {
+    if f32_is_finite(rcp) && rcp > 0.0 {
         // Each product behind the barrier: a caller's sum would otherwise fuse with it.
         return mul3(a, rcp);
     }
@@ -79,7 +76,7 @@ fn interpolate_normal(u: f32, v: f32, n0: vec3<f32>, n1: vec3<f32>, n2: vec3<f32
     );
     // sqrt + division, as the CPU (not inverseSqrt, which is not exact).
     let len = sqrt_rn(dot3(s, s));
-    if len > 0.0 && is_finite(len) {
+    if len > 0.0 && f32_is_finite(len) {
         return div_rn3(s, len);
     }
     return fallback;

@@ -14,11 +14,6 @@
 // The level of detail (`hit_lod`) and the shaded object record are in materials.wgsl,
 // for the shading stages.
 
-// Rust's `f32::is_finite`, as a test of the exponent bits (no comparison a compiler may
-// assume NaN-free).
-fn texture_is_finite(x: f32) -> bool {
-    return (bitcast<u32>(x) & F32_EXP_MASK) != F32_EXP_MASK;
-}
 
 // Rust's `f32::is_nan`, as a test of the bits: exponent all ones, mantissa not zero.
 fn texture_is_nan(x: f32) -> bool {
@@ -48,7 +43,7 @@ fn decode_texel(t: u32, encoding: u32) -> vec4<f32> {
 
 // mirrors hyrt_core::kernels::texture::wrap_coordinate
 fn wrap_coordinate(x: f32, wrap: u32) -> f32 {
-    if !texture_is_finite(x) {
+    if !f32_is_finite(x) {
         return 0.0;
     }
     if wrap == WRAP_CLAMP {
