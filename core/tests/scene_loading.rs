@@ -934,7 +934,7 @@ fn every_example_manifest_loads() {
     for path in names {
         let s = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
         assert!(s.camera.is_some(), "{}: camera", path.display());
-        assert_eq!(s.lights.len(), 2, "{}: lights", path.display());
+        assert!(!s.lights.is_empty(), "{}: lights", path.display());
         assert!(s.triangle_count() > 0);
         assert!(s.objects.iter().any(|o| o.render_mode == RenderMode::RayTraced), "{}", path.display());
     }

@@ -767,7 +767,8 @@ mod tests {
             .map(|l| format!("{}\n", l.trim_start_matches("//!").strip_prefix(' ').unwrap_or("")))
             .collect();
         let m: Manifest = toml::from_str(&example).unwrap_or_else(|e| panic!("{e}\n{example}"));
-        assert_eq!((m.models.len(), m.lights.len()), (5, 2));
+        assert_eq!((m.models.len(), m.lights.len()), (5, 3));
+        assert!(m.lights.iter().all(|l| l.to_light().is_ok()));
         assert_eq!(m.models[3].repeat.map(|r| r.offsets().unwrap().len()), Some(1000));
         assert_eq!(m.environment.as_deref(), Some(Path::new("maps/courtyard.hdr")));
         assert_eq!(m.models[1].render_mode, Some(RenderMode::RayTraced));
