@@ -244,13 +244,48 @@ type Run<'a> = Box<dyn FnMut() + 'a>;
 /// A contender of a ray list's contest: its name in the tables and its run.
 type Contender<'a> = (String, Run<'a>);
 
+/// Least time one contender's turn of a round should last. A list its fastest contender
+/// traces in less (the far horse's 6,085 shadow rays take about a millisecond on two
+/// threads) is traced several times in a row each turn, the same number for every
+/// contender, and a round's time is the turn's over that number: a turn of a millisecond
+/// is as long as the scheduler's and the thread pool's wake-up jitter, which moved that
+/// row's ratio between 0.79 and 0.87 from run to run.
+pub const MIN_TURN_MS: f64 = 20.0;
+
+/// Most passes of a list in one turn (a list of a few rays would otherwise ask for
+/// thousands).
+const MAX_PASSES: usize = 64;
+
 /// Run the contenders of one ray list in interleaved rounds ([`interleaved_ms`]): their
-/// runs, in order.
+/// runs, in order, each turn `passes` runs of the list (at least [`MIN_TURN_MS`] for the
+/// fastest contender, from one timed pass of each), a round's time per pass.
 fn contest(rounds: usize, threads: usize, rays: usize, contenders: Vec<Contender<'_>>) -> Vec<RayRun> {
     let (names, mut runs): (Vec<String>, Vec<Run<'_>>) = contenders.into_iter().unzip();
-    let mut refs: Vec<&mut dyn FnMut()> = runs.iter_mut().map(|r| &mut **r as &mut dyn FnMut()).collect();
+    let fastest = runs
+        .iter_mut()
+        .map(|run| {
+            let t = std::time::Instant::now();
+            run();
+            t.elapsed().as_secs_f64() * 1e3
+        })
+        .fold(f64::INFINITY, f64::min);
+    let passes = passes_per_turn(fastest);
+    let mut turns: Vec<Run<'_>> =
+        runs.iter_mut().map(|run| Box::new(move || (0..passes).for_each(|_| run())) as Run<'_>).collect();
+    let mut refs: Vec<&mut dyn FnMut()> = turns.iter_mut().map(|r| &mut **r as &mut dyn FnMut()).collect();
     let ms = interleaved_ms(rounds, &mut refs);
-    names.iter().zip(ms).map(|(name, ms)| RayRun::of_rounds(name, threads, rays, ms)).collect()
+    let per_pass = |ms: Vec<f64>| ms.into_iter().map(|m| m / passes as f64).collect();
+    names.iter().zip(ms).map(|(name, ms)| RayRun::of_rounds(name, threads, rays, per_pass(ms))).collect()
+}
+
+/// Passes of a list per turn for a fastest pass of `fastest_ms`: enough for
+/// [`MIN_TURN_MS`], at least 1, at most [`MAX_PASSES`].
+fn passes_per_turn(fastest_ms: f64) -> usize {
+    if fastest_ms.is_finite() && fastest_ms > 0.0 {
+        ((MIN_TURN_MS / fastest_ms).ceil() as usize).clamp(1, MAX_PASSES)
+    } else {
+        1
+    }
 }
 
 /// The shadow rays of a real frame of the scene (the CPU backend, every stage's output kept).
@@ -934,6 +969,31 @@ fn ratio_cell(peer: &[f64], hyrt: &[f64]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn short_lists_are_traced_several_times_a_turn() {
+        assert_eq!(passes_per_turn(1.0), 20);
+        assert_eq!(passes_per_turn(7.0), 3);
+        assert_eq!(passes_per_turn(MIN_TURN_MS), 1);
+        assert_eq!(passes_per_turn(500.0), 1);
+        assert_eq!(passes_per_turn(1e-6), MAX_PASSES);
+        assert_eq!(passes_per_turn(0.0), 1);
+        assert_eq!(passes_per_turn(f64::NAN), 1);
+    }
+
+    /// Each contender runs the same number of passes a turn, and the times are per pass.
+    #[test]
+    fn contest_times_are_per_pass() {
+        use std::cell::Cell;
+        let (a, b) = (Cell::new(0usize), Cell::new(0usize));
+        let contenders: Vec<Contender<'_>> =
+            vec![("a".into(), Box::new(|| a.set(a.get() + 1))), ("b".into(), Box::new(|| b.set(b.get() + 1)))];
+        let runs = contest(3, 1, 10, contenders);
+        // Instant passes: the most passes a turn, for both: one timed pass, the warm-up
+        // turn and three rounds.
+        assert_eq!((a.get(), b.get()), (1 + 4 * MAX_PASSES, 1 + 4 * MAX_PASSES));
+        assert_eq!(runs.len(), 2);
+    }
 
     fn run(method: &str, threads: usize, ms: f64) -> RayRun {
         let mut r = RayRun::new(method, threads, 1_000_000, ms);
