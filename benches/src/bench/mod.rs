@@ -277,11 +277,12 @@ fn header(options: &BenchOptions, cpu: &FrameBackend, gpu: Option<&FrameBackend>
     t.row([
         "settings".to_string(),
         format!(
-            "{}; {} frames per measurement (medians, after one warm-up frame), {} interleaved rounds per peer contest (after a warm-up round; ratios taken round by round; a list traced in under {} ms is traced that many times over in each contender's turn); Table 2 at {}x{}; BVH preset {}",
+            "{}; {} frames per measurement (medians, after one warm-up frame), {} interleaved rounds per peer contest (after a warm-up round; ratios taken round by round; a list its fastest contender traces in under {} ms is traced several times in each turn, until the turn lasts that long (at most {} passes), and timed per pass); Table 2 at {}x{}; BVH preset {}",
             if options.quick { "--quick" } else { "full" },
             options.frames,
             options.repeats,
             peers::MIN_TURN_MS,
+            peers::MAX_PASSES,
             options.table_size.0,
             options.table_size.1,
             BvhPreset::default().name(),

@@ -254,7 +254,7 @@ pub const MIN_TURN_MS: f64 = 20.0;
 
 /// Most passes of a list in one turn (a list of a few rays would otherwise ask for
 /// thousands).
-const MAX_PASSES: usize = 64;
+pub const MAX_PASSES: usize = 64;
 
 /// Run the contenders of one ray list in interleaved rounds ([`interleaved_ms`]): their
 /// runs, in order, each turn `passes` runs of the list (at least [`MIN_TURN_MS`] for the
