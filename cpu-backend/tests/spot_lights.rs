@@ -13,7 +13,7 @@ use hyrt_core::bvh::BvhPreset;
 use hyrt_core::formats::{CameraRecord, SHADOW_LIT, SHADOW_NO_RAY};
 use hyrt_core::frame::{Backend, FrameOptions};
 use hyrt_core::geometry::WorldGeometry;
-use hyrt_core::kernels::shading::gltf_brdf_f64;
+use hyrt_core::kernels::shading::{gltf_brdf_f64, punctual_falloff_f64};
 use hyrt_core::scene::{
     Ambient, Camera, Environment, EnvironmentMap, Light, Material, MaterialKind, Mesh, RenderMode, Scene, ShadingModel,
 };
@@ -40,14 +40,11 @@ const BASE: [f32; 3] = [0.8, 0.8, 0.75];
 const METALLIC: f32 = 0.2;
 const ROUGHNESS: f32 = 0.6;
 
-/// `KHR_lights_punctual`'s recommended cone factor and range window, in f64, from the
-/// angles and the range.
+/// `KHR_lights_punctual`'s cone factor and range window in f64 (core's specification,
+/// [`punctual_falloff_f64`]), from this light's angles and range.
 fn punctual_falloff(d: f64, cos_axis: f64) -> f64 {
-    let window = (1.0 - (d / f64::from(RANGE)).powi(4)).clamp(0.0, 1.0);
-    let (cos_inner, cos_outer) = (f64::from(INNER_DEG).to_radians().cos(), f64::from(OUTER_DEG).to_radians().cos());
-    let scale = 1.0 / (cos_inner - cos_outer).max(0.001);
-    let a = (cos_axis * scale - cos_outer * scale).clamp(0.0, 1.0);
-    window * a * a
+    let cone = (f64::from(INNER_DEG).to_radians(), f64::from(OUTER_DEG).to_radians());
+    punctual_falloff_f64(d, cos_axis, Some(f64::from(RANGE)), Some(cone))
 }
 
 fn scene() -> Scene {

@@ -348,6 +348,22 @@ pub fn gltf_brdf(base: Vec3, metallic: f32, roughness: f32, diffuse_scale: f32, 
     dielectric * (1.0 - metallic) + metal * metallic
 }
 
+/// The specification of [`light_falloff`]: `KHR_lights_punctual`'s recommended range
+/// window and spot cone factor in f64 at distance `d` from the light and at `cos_axis`, the
+/// cosine of the angle from the cone's axis, written from the light's parameters as the
+/// extension states them (`range`; the cone's inner and outer angles in radians) rather
+/// than from the record. What the kernel is tested against, here and end to end over
+/// rendered frames (`cpu-backend/tests/spot_lights.rs`); not for rendering.
+pub fn punctual_falloff_f64(d: f64, cos_axis: f64, range: Option<f64>, cone: Option<(f64, f64)>) -> f64 {
+    let window = range.map_or(1.0, |r| (1.0 - (d / r).powi(4)).clamp(0.0, 1.0));
+    let angular = cone.map_or(1.0, |(inner, outer)| {
+        let scale = 1.0 / (inner.cos() - outer.cos()).max(0.001);
+        let a = (cos_axis * scale - outer.cos() * scale).clamp(0.0, 1.0);
+        a * a
+    });
+    window * angular
+}
+
 /// The specification of [`gltf_brdf`]: glTF 2.0 Appendix B in f64, term by term as the
 /// specification writes it (the bracket of `D` as `(n.h)^2 (alpha^2 - 1) + 1`, `V` as
 /// `G / (4 |n.l| |n.v|)`, alpha at least [`GGX_MIN_ALPHA`]), on the directions normalized in
@@ -631,19 +647,6 @@ mod tests {
         let (dir, e) = light_incidence(&l, Vec3::ZERO);
         assert_eq!(dir, Vec3::Y);
         assert_eq!(e, Vec3::splat(2.0));
-    }
-
-    /// `KHR_lights_punctual`'s recommended range window and spot cone factor in f64, from the
-    /// light's parameters as the extension writes them (angles, range), not from the
-    /// record: the specification the record and [`light_falloff`] must follow.
-    fn punctual_falloff_f64(d: f64, cos_axis: f64, range: Option<f64>, cone: Option<(f64, f64)>) -> f64 {
-        let window = range.map_or(1.0, |r| (1.0 - (d / r).powi(4)).clamp(0.0, 1.0));
-        let angular = cone.map_or(1.0, |(inner, outer)| {
-            let scale = 1.0 / (inner.cos() - outer.cos()).max(0.001);
-            let a = (cos_axis * scale - outer.cos() * scale).clamp(0.0, 1.0);
-            a * a
-        });
-        window * angular
     }
 
     /// Tolerance of the f32 factor against the f64 one. Inputs rounded to f32 (the record's

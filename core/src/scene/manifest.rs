@@ -592,13 +592,8 @@ impl CameraEntry {
 
 impl LightEntry {
     fn to_light(&self) -> Result<Light, String> {
+        // Colour and intensity ranges, cone angles and the range: `Light::validate`, below.
         let color = finite(self.color, "color")?;
-        if color.min_element() < 0.0 {
-            return Err(format!("color {color} has a negative component"));
-        }
-        if !(self.intensity >= 0.0 && self.intensity.is_finite()) {
-            return Err(format!("intensity {} must be finite and >= 0", self.intensity));
-        }
         let intensity = self.intensity;
         let direction = |d| finite(d, "direction")?.try_normalize().ok_or_else(|| "direction is zero".to_string());
         let range = self.range;
