@@ -11,7 +11,6 @@
 // `mul(a: f32, b: f32) -> f32` and binds `triangles: array<TriangleRecord>` and
 // `normals: array<f32>`.
 
-
 fn mul3(a: vec3<f32>, s: f32) -> vec3<f32> {
     return vec3<f32>(mul(a.x, s), mul(a.y, s), mul(a.z, s));
 }

@@ -14,7 +14,6 @@
 // The level of detail (`hit_lod`) and the shaded object record are in materials.wgsl,
 // for the shading stages.
 
-
 // Rust's `f32::is_nan`, as a test of the bits: exponent all ones, mantissa not zero.
 fn texture_is_nan(x: f32) -> bool {
     return (bitcast<u32>(x) & 0x7fffffffu) > F32_EXP_MASK;
