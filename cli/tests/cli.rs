@@ -201,6 +201,8 @@ fn cli_renders_shared_sponza_and_says_what_it_added() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("no camera") && err.contains("no lights"), "notes missing: {err}");
+    // An interior: seen from inside (core/tests/framing.rs checks what the view shows).
+    assert!(err.contains("camera placed inside") && err.contains("lights inside"), "{err}");
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(stdout.contains("66454 triangles"), "{stdout}");
     assert_eq!(image::open(&out).unwrap().width(), 96);

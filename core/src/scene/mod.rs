@@ -13,6 +13,7 @@ pub mod animation;
 pub mod default_scene;
 pub mod environment;
 pub mod files;
+pub mod framing;
 pub mod gltf_loader;
 pub mod manifest;
 pub mod merge;
@@ -494,12 +495,20 @@ impl Scene {
         (lo.x <= hi.x).then_some((lo, hi))
     }
 
-    /// Frame the scene if it has no camera and add default lights if it has none;
-    /// each decision is recorded in [`Scene::notes`].
+    /// Give the scene a camera if it has none and default lights if it has none; each
+    /// decision is recorded in [`Scene::notes`]. An interior (a building, a room: free space
+    /// that the scene's surfaces enclose) is seen from inside, lights inside too
+    /// ([`framing::interior_view`]); anything else is framed from outside, its bounding
+    /// sphere fitting the field of view.
     pub fn ensure_camera_and_lights(&mut self) {
         let (lo, hi) = self.world_bounds().unwrap_or((Vec3::splat(-1.0), Vec3::splat(1.0)));
         let center = (lo + hi) * 0.5;
         let radius = ((hi - lo).length() * 0.5).max(1e-3);
+        let interior = if self.camera.is_none() { framing::interior_view(self, lo, hi) } else { None };
+        if let Some(view) = &interior {
+            self.notes.push(view.note.clone());
+            self.camera = Some(view.camera);
+        }
         if self.camera.is_none() {
             let fov_y_deg = 45.0f32;
             // Distance at which a sphere of `radius` fits the vertical field of view.
@@ -518,6 +527,17 @@ impl Scene {
                 cam.eye, cam.target
             ));
             self.camera = Some(cam);
+        }
+        if let (true, Some(view)) = (self.lights.is_empty(), &interior) {
+            // Inside: above the eye and above the point looked at, each bright enough for
+            // an irradiance of about 2.5 there (as outside lights give the centre).
+            let [key, fill] = view.lights;
+            let dist2 = |p: Vec3, at: Vec3| (p - at).length_squared().max(1e-6);
+            self.lights.push(Light::point(key, Vec3::ONE, 2.5 * dist2(key, view.camera.eye)));
+            self.lights.push(Light::point(fill, Vec3::ONE, 2.5 * dist2(fill, view.camera.target)));
+            self.notes.push(format!(
+                "no lights in the scene: added two default point lights inside, at {key:.3?} and {fill:.3?}"
+            ));
         }
         if self.lights.is_empty() {
             // A key light above and to the side of the camera, and a weaker fill light.
