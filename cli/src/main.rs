@@ -172,7 +172,8 @@ struct SceneArgs {
     environment: Option<PathBuf>,
     /// How direct light is shaded on every object: `paper` (the 2011 model: Lambert on
     /// rasterized objects, Blinn-Phong on ray-traced ones) or `gltf` (the glTF
-    /// metallic-roughness BRDF on both). Overrides the manifest's `shading`; default paper.
+    /// metallic-roughness BRDF on both). Overrides the manifest's `shading`; default gltf
+    /// (the paper's figures and the report use paper).
     #[arg(long, value_parser = named(hyrt::ShadingModel::ALL, hyrt::ShadingModel::name))]
     shading: Option<hyrt::ShadingModel>,
     /// The constant ambient light, >= 0: 0.06 by default (the paper's look); 0 removes the
@@ -249,8 +250,26 @@ pub(crate) struct DisplayArgs {
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true, value_parser = parse_stops)]
     pub exposure: f32,
     /// Tone-mapping operator of PNG output and of the viewer's window: none (clamp, the
-    /// paper's images), the Khronos PBR Neutral operator, or Hill's ACES fit.
-    #[arg(long, default_value = "none", value_parser = named(hyrt::ToneMap::ALL, hyrt::ToneMap::name))]
+    /// paper's images), the Khronos PBR Neutral operator, or Hill's ACES fit. Default: the
+    /// one the scene's shading model is meant for (khronos-pbr-neutral for the glTF BRDF,
+    /// none for the paper's model).
+    #[arg(long, value_parser = named(hyrt::ToneMap::ALL, hyrt::ToneMap::name))]
+    pub tone_map: Option<hyrt::ToneMap>,
+}
+
+impl DisplayArgs {
+    /// The display settings for a scene shaded with `shading`: `--tone-map`, else
+    /// [`hyrt::ToneMap::for_shading`].
+    pub fn resolve(self, shading: hyrt::ShadingModel) -> Display {
+        Display { exposure: self.exposure, tone_map: self.tone_map.unwrap_or(hyrt::ToneMap::for_shading(shading)) }
+    }
+}
+
+/// How a linear frame is displayed: [`DisplayArgs`] with the operator decided.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Display {
+    /// In stops.
+    pub exposure: f32,
     pub tone_map: hyrt::ToneMap,
 }
 
@@ -569,20 +588,13 @@ fn parse_stops(s: &str) -> Result<f32, String> {
 }
 
 /// Write the final image as OpenEXR (a name ending in .exr: linear) or PNG (through the
-/// exposure and tone-mapping operator of `args`).
-fn write_image(path: &std::path::Path, w: u32, h: u32, frame: &hyrt::Frame, args: &RenderArgs) -> Result<(), String> {
+/// exposure and tone-mapping operator of `display`).
+fn write_image(path: &std::path::Path, w: u32, h: u32, frame: &hyrt::Frame, display: Display) -> Result<(), String> {
     let exr = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
     if exr {
         hyrt::image_io::write_exr(path, w, h, &frame.final_image)
     } else {
-        hyrt::image_io::write_png_tone_mapped(
-            path,
-            w,
-            h,
-            &frame.final_image,
-            args.display.exposure,
-            args.display.tone_map,
-        )
+        hyrt::image_io::write_png_tone_mapped(path, w, h, &frame.final_image, display.exposure, display.tone_map)
     }
     .map_err(|e| e.to_string())
 }
@@ -633,7 +645,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
         per_frame.push(timed_lines(&frame.stats));
         if let Some((_, fps)) = playing {
             let out = numbered(&args.out, i);
-            write_image(&out, w, h, &frame, &args)?;
+            write_image(&out, w, h, &frame, args.display.resolve(scene.shading))?;
             println!("wrote {} (t = {:.4} s)", out.display(), start_time + i as f32 / fps);
         }
     }
@@ -645,7 +657,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
     };
     let frame_bytes = before_frames.zip(hyrt::memory::peak_resident_bytes()).map(|(b, p)| p.saturating_sub(b));
     if playing.is_none() {
-        write_image(&args.out, w, h, &frame, &args)?;
+        write_image(&args.out, w, h, &frame, args.display.resolve(scene.shading))?;
     }
 
     let s = &frame.stats;

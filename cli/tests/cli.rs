@@ -60,7 +60,8 @@ fn cli_render_default_scene_with_dump() {
     assert_eq!(json["objects"].as_array().unwrap().len(), 7);
     assert_eq!(json["objects"][0]["render_mode"], "ray_traced");
     assert_eq!(json["environment"], "default sky");
-    assert_eq!(json["shading"], "paper");
+    // The default scene is shaded with the glTF BRDF (`--shading paper` for the paper's model).
+    assert_eq!(json["shading"], "gltf");
     assert!((json["ambient"].as_f64().unwrap() - 0.06).abs() < 1e-7, "the default ambient");
     assert!(json["camera"]["view"].is_array() && json["camera"]["projection"].is_array());
     assert!(json["camera"]["conventions"].as_str().unwrap().contains("centre"));
@@ -91,6 +92,30 @@ fn cli_render_default_scene_with_dump() {
             assert!(px[0] < objects[px[1] as usize]["triangle_count"].as_u64().unwrap() as u32);
         }
     }
+}
+
+#[test]
+fn cli_png_tone_map_follows_the_shading_model_unless_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(format!("{name}.png"));
+        let o = hyrt()
+            .args(["render", "--size", "32x24", "--max-depth", "1", "--out"])
+            .arg(&out)
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        image::open(&out).unwrap().to_rgba8().into_raw()
+    };
+    // The glTF BRDF (the default scene's model) is displayed through Khronos PBR Neutral...
+    let gltf = run("gltf", &[]);
+    assert_eq!(gltf, run("gltf_neutral", &["--tone-map", "khronos-pbr-neutral"]));
+    assert_ne!(gltf, run("gltf_none", &["--tone-map", "none"]));
+    // ...the paper's model without an operator, as the paper's images are.
+    let paper = run("paper", &["--shading", "paper"]);
+    assert_eq!(paper, run("paper_none", &["--shading", "paper", "--tone-map", "none"]));
+    assert_ne!(paper, run("paper_neutral", &["--shading", "paper", "--tone-map", "khronos-pbr-neutral"]));
 }
 
 #[test]

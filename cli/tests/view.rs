@@ -112,7 +112,13 @@ fn viewer_screenshots_equal_render_and_clicks_pick_objects() {
         assert!(pixels(&shot) == pixels(&toned) && pixels(&toned) != b, "{backend}: exposure and tone map");
 
         // A script clicks the middle pixel (an object of the default scene), flips through
-        // every view and writes one of them.
+        // every view and writes one of them. With the paper's model: under the glTF BRDF a
+        // diffuse object looks the same rasterized and ray traced (what that model is for),
+        // so the change of mode would not show in the final image.
+        let paper = dir.path().join(format!("paper-{backend}.png"));
+        let mut args = vec!["render", "--backend", backend, "--shading", "paper", "--out", paper.to_str().unwrap()];
+        args.extend(camera);
+        ok(hyrt(None, dir.path(), &args), "hyrt render --shading paper");
         let script = dir.path().join("script.txt");
         let views: String = ["2", "3", "4", "5", "6", "7", "8", "9", "0", "-", "="]
             .iter()
@@ -122,14 +128,14 @@ fn viewer_screenshots_equal_render_and_clicks_pick_objects() {
         std::fs::write(&script, format!("0 click 48 30\n{views}12 screenshot\n13 view 1\n")).unwrap();
         let shot = dir.path().join(format!("script-{backend}.png"));
         let mut args = vec!["view", "--backend", backend, "--frames", "14", "--screenshot", shot.to_str().unwrap()];
-        args.extend(["--script", script.to_str().unwrap()]);
+        args.extend(["--script", script.to_str().unwrap(), "--shading", "paper"]);
         args.extend(camera);
         let out = ok(hyrt(Some(&display), dir.path(), &args), "hyrt view --script");
         assert!(out.contains("pick (48, 30): object") && out.contains("is now"), "{out}");
         assert!(dir.path().join("hyrt-view-0000.png").exists(), "{out}");
         std::fs::remove_file(dir.path().join("hyrt-view-0000.png")).unwrap();
         // The picked object changed mode: the final image differs from the unpicked one.
-        assert!(pixels(&shot) != b, "{backend}: picking changed nothing");
+        assert!(pixels(&shot) != pixels(&paper), "{backend}: picking changed nothing");
     }
 }
 

@@ -275,6 +275,14 @@ fn header(options: &BenchOptions, cpu: &FrameBackend, gpu: Option<&FrameBackend>
         },
     ]);
     t.row([
+        "shading".to_string(),
+        format!(
+            "the {} model (`--shading {}`) on every scene of every section, so that Table 2 and the speed-against-error figures compare with the paper and with earlier reports (`hyrt render` shades glTF files, manifests and the default scene with the glTF BRDF unless told otherwise)",
+            scenes::REPORT_SHADING.name(),
+            scenes::REPORT_SHADING.name()
+        ),
+    ]);
+    t.row([
         "settings".to_string(),
         format!(
             "{}; {} frames per measurement (medians, after one warm-up frame), {} interleaved rounds per peer contest (after a warm-up round; ratios taken round by round; a list its fastest contender traces in under {} ms is traced several times in each turn, until the turn lasts that long (at most {} passes), and timed per pass); Table 2 at {}x{}; BVH preset {}",

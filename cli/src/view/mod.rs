@@ -173,7 +173,7 @@ struct Running {
     overlay: Option<Overlay>,
     show_overlay: bool,
     /// How the final, raster and rt images are displayed: exposure in stops and operator.
-    display: crate::DisplayArgs,
+    display: crate::Display,
     overlay_image: Option<OverlayImage>,
     keys: HashSet<KeyCode>,
     mouse: Mouse,
@@ -227,6 +227,7 @@ impl App {
         let motion = crate::Motion::of(&scene, animation);
         let prepared = motion.prepare(&renderer, &scene);
         let size = scene.world_bounds().map_or(10.0, |(lo, hi)| (hi - lo).length());
+        let display = self.args.display.resolve(scene.shading);
         let overlay = match Overlay::load() {
             Ok(o) => Some(o),
             Err(e) => {
@@ -255,7 +256,7 @@ impl App {
             read_back: false,
             overlay,
             show_overlay: !self.args.no_overlay,
-            display: self.args.display,
+            display,
             overlay_image: None,
             keys: HashSet::new(),
             mouse: Mouse::default(),

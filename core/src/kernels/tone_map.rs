@@ -14,8 +14,9 @@ use glam::Vec3;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum ToneMap {
     /// None: values are clamped to [0, 1] by the encoding (the paper's images, and every
-    /// figure of the report's accuracy sections, are of this kind). The default: hyrt's
-    /// default shading is still the paper's, whose lights and albedos were chosen for it.
+    /// figure of the report's accuracy sections, are of this kind). What the paper's
+    /// shading model is displayed with ([`ToneMap::for_shading`]); `Default` for that
+    /// reason, and because it leaves every value below 1 as it is.
     #[default]
     None,
     /// The Khronos PBR Neutral tone mapper (Khronos Group, 2024): base colours under
@@ -38,6 +39,19 @@ impl ToneMap {
             ToneMap::None => "none",
             ToneMap::KhronosPbrNeutral => "khronos-pbr-neutral",
             ToneMap::Aces => "aces",
+        }
+    }
+
+    /// The operator a frame shaded with `shading` is displayed with unless one is named:
+    /// [`ToneMap::KhronosPbrNeutral`] for the glTF BRDF, whose physically based materials
+    /// and light units (candela, lux) easily exceed 1 in highlights and which Khronos made
+    /// the operator for (base colours under direct light come out as authored); no operator
+    /// for the paper's model, whose lights and albedos were chosen for clamped output (the
+    /// paper's images, and the report's accuracy figures).
+    pub fn for_shading(shading: crate::kernels::shading::ShadingModel) -> ToneMap {
+        match shading {
+            crate::kernels::shading::ShadingModel::Gltf => ToneMap::KhronosPbrNeutral,
+            crate::kernels::shading::ShadingModel::Paper => ToneMap::None,
         }
     }
 

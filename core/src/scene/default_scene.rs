@@ -3,6 +3,9 @@
 //! golden specular ray-traced object that reflects them, two purple rasterized
 //! objects, and two point lights that make the objects cast shadows onto the planes;
 //! and, beyond the figure, a ray-traced glass ball (IOR 1.5) that refracts them.
+//! Shaded with the glTF BRDF ([`ShadingModel::Gltf`]) like every scene loaded from a file;
+//! the paper's figures and its Table 2 use the paper's model (`scene.shading =
+//! ShadingModel::Paper`, `hyrt render --shading paper`).
 //!
 //! Also the procedural meshes it is made of, which tests use too.
 
@@ -10,7 +13,7 @@ use std::f32::consts::{PI, TAU};
 
 use glam::{Mat4, Quat, Vec2, Vec3};
 
-use super::{Camera, Light, Material, MaterialKind, Mesh, RenderMode, Scene, VertexAttributes};
+use super::{Camera, Light, Material, MaterialKind, Mesh, RenderMode, Scene, ShadingModel, VertexAttributes};
 
 impl Mesh {
     /// A unit square in the XZ plane centred at the origin, facing +Y, split into
@@ -155,7 +158,7 @@ impl Mesh {
 impl Scene {
     /// The built-in default scene (paper Figure 8); see the module docs.
     pub fn default_scene() -> Scene {
-        let mut scene = Scene::default();
+        let mut scene = Scene { shading: ShadingModel::Gltf, ..Scene::default() };
         let diffuse = |name: &str, rgb: Vec3| Material {
             name: name.into(),
             base_color: rgb,

@@ -5,8 +5,8 @@
 //! description = "golden bunny in the grey Sponza atrium"   # optional, free text
 //! environment = "maps/courtyard.hdr"   # optional: what reflection and refraction rays leaving
 //!                                      # the scene see (.hdr or .exr); default: the built-in sky
-//! shading = "gltf"              # optional: "paper" (the 2011 model, the default) | "gltf"
-//!                               # (the glTF metallic-roughness BRDF on every object)
+//! shading = "gltf"              # optional: "gltf" (the glTF metallic-roughness BRDF on every
+//!                               # object, the default) | "paper" (the paper's 2011 model)
 //! ambient = 0.06                # optional: the constant ambient light, >= 0 (default 0.06;
 //!                               # 0 leaves direct light and emission alone)
 //!
@@ -877,7 +877,7 @@ mod tests {
             let files: HashMap<PathBuf, Vec<u8>> = [(PathBuf::from("s.toml"), text.into_bytes())].into();
             load_manifest_from(Path::new("s.toml"), &files)
         };
-        assert_eq!(load("").unwrap().shading, ShadingModel::Paper);
+        assert_eq!(load("").unwrap().shading, ShadingModel::Gltf);
         assert_eq!(load("shading = 'gltf'").unwrap().shading, ShadingModel::Gltf);
         assert_eq!(load("shading = 'paper'").unwrap().shading, ShadingModel::Paper);
         assert_eq!(load("").unwrap().ambient, Ambient::default());

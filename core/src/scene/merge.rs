@@ -36,7 +36,7 @@ use glam::{Mat4, Vec3};
 
 use super::animation::{Animation, AnimationChannel, NodeTransform, SceneAnimation, SceneNode};
 use super::files::Budget;
-use super::{Camera, Light, Material, Object, RenderMode, Scene};
+use super::{Camera, Light, Material, Object, RenderMode, Scene, ShadingModel};
 
 /// The name of the animation that plays every animated model of a manifest together (the
 /// scene's first when several models are animated).
@@ -139,7 +139,10 @@ pub(crate) struct Merge {
 impl Merge {
     pub(crate) fn new(budget: Budget) -> Merge {
         Merge {
-            scene: Scene::default(),
+            // Every scene loaded from a file (a glTF file alone, or a manifest's models)
+            // is shaded with the glTF BRDF unless a manifest's `shading` says otherwise:
+            // glTF materials mean metallic-roughness (issue 37).
+            scene: Scene { shading: ShadingModel::Gltf, ..Scene::default() },
             budget,
             lights: Vec::new(),
             camera: None,

@@ -431,7 +431,9 @@ pub struct Scene {
     /// poses the scene); `None` for every other scene.
     pub animation: Option<SceneAnimation>,
     /// How direct light is shaded on every object (manifest key `shading`, `hyrt render
-    /// --shading`): the paper's model or the glTF BRDF.
+    /// --shading`): the paper's model or the glTF BRDF. Scenes loaded from files and
+    /// [`Scene::default_scene`] use the glTF BRDF; a `Scene` built by hand starts with the
+    /// paper's model ([`ShadingModel::default`]) until it says otherwise.
     pub shading: ShadingModel,
     /// The constant ambient light (manifest key `ambient`, `hyrt render --ambient`):
     /// [`crate::kernels::shading::AMBIENT`] by default, 0 for none.
