@@ -190,10 +190,17 @@ fn stage_set(scene: &mut Scene, size: f32) {
     );
 }
 
+/// The default scene with the paper's model: the families below are the paper's, and
+/// [`shading_cases`] repeats the default scene's cases with the glTF BRDF (the model
+/// `Scene::default_scene` itself has).
+fn paper_default_scene() -> Scene {
+    Scene { shading: ShadingModel::Paper, ..Scene::default_scene() }
+}
+
 /// The default scene moved by `offset` and scaled by `scale` (camera, lights and clip
 /// planes with it).
 fn transformed_default(offset: Vec3, scale: f32) -> (Scene, Camera) {
-    let mut s = Scene::default_scene();
+    let mut s = paper_default_scene();
     let m = Mat4::from_translation(offset) * Mat4::from_scale(Vec3::splat(scale));
     for o in &mut s.objects {
         o.transform = m * o.transform;
@@ -217,7 +224,7 @@ fn transformed_default(offset: Vec3, scale: f32) -> (Scene, Camera) {
 }
 
 fn default_case(b: &mut Builder) {
-    let s = Scene::default_scene();
+    let s = paper_default_scene();
     let cam = s.camera.unwrap();
     b.add("paper_default_scene", "the built-in Figure-8 scene: every stage on mixed objects", s.clone(), cam, 96, 54);
     b.cases.push(Case {
@@ -235,7 +242,7 @@ fn default_case(b: &mut Builder) {
     // whose cone edge crosses the objects and the floor, a narrow spot with a range that
     // ends inside the scene, and the fill light with a range; mirrors and glass bounce
     // into their cones.
-    let mut s = Scene::default_scene();
+    let mut s = paper_default_scene();
     let &Light::Point { position: key, color, intensity, .. } = &s.lights[0] else { unreachable!("a point key") };
     let target = Vec3::new(0.0, 0.5, 0.0);
     s.lights[0] = Light::Spot {
@@ -713,7 +720,7 @@ fn degenerate_cases(b: &mut Builder) {
 }
 
 fn size_cases(b: &mut Builder) {
-    let s = Scene::default_scene();
+    let s = paper_default_scene();
     let cam = s.camera.unwrap();
     for (name, w, h, stresses) in [
         ("size_1x1", 1, 1, "a single pixel"),

@@ -71,7 +71,7 @@ fn cpu_case(name: &str, scene: &Scene, width: u32, height: u32, weight: f32) -> 
 
 /// The default scene with a directional light (and one of its point lights).
 fn directional_scene() -> Scene {
-    let mut s = Scene::default_scene();
+    let mut s = paper_default_scene();
     s.lights = vec![
         Light::Directional {
             direction: Vec3::new(-0.4, -1.0, -0.3).normalize(),
@@ -85,7 +85,7 @@ fn directional_scene() -> Scene {
 
 /// The default scene without lights: ambient only, an empty shadow mask.
 fn unlit_scene() -> Scene {
-    let mut s = Scene::default_scene();
+    let mut s = paper_default_scene();
     s.lights.clear();
     s
 }
@@ -94,7 +94,7 @@ fn cases() -> Vec<Case> {
     let mut v = Vec::new();
     for (w, h) in [(67, 41), (160, 90)] {
         for weight in [1.0, 0.5, 0.0] {
-            v.push(cpu_case("default", &Scene::default_scene(), w, h, weight));
+            v.push(cpu_case("default", &paper_default_scene(), w, h, weight));
         }
     }
     for weight in [1.0, 0.5] {
@@ -104,10 +104,16 @@ fn cases() -> Vec<Case> {
     // The glTF BRDF on both paths (OBJ_GLTF_BRDF): the default scene's metals, mirror
     // and glass, and the directional light.
     for weight in [1.0, 0.5, 0.0] {
-        v.push(cpu_case("default gltf", &gltf(Scene::default_scene()), 67, 41, weight));
+        v.push(cpu_case("default gltf", &gltf(paper_default_scene()), 67, 41, weight));
     }
     v.push(cpu_case("directional gltf", &gltf(directional_scene()), 67, 41, 0.5));
     v
+}
+
+/// The default scene with the paper's model (it defaults to the glTF BRDF): the cases
+/// below cover both models.
+fn paper_default_scene() -> Scene {
+    Scene { shading: ShadingModel::Paper, ..Scene::default_scene() }
 }
 
 /// `scene` shaded with the glTF BRDF.
@@ -311,7 +317,7 @@ fn composition_matches_cpu() {
 fn composition_after_gpu_shading_matches_cpu_final_image() {
     let Some(ctx) = test_context() else { return };
     let (rt, raster, comp) = (RtShadingStage::new(&ctx), RasterShadingStage::new(&ctx), CompositionStage::new(&ctx));
-    let c = cpu_case("default", &Scene::default_scene(), 67, 41, 0.5);
+    let c = cpu_case("default", &paper_default_scene(), 67, 41, 0.5);
     let gpu = upload_case(&ctx, &c);
     let pixels = c.cpu.final_image.len();
     let nan = vec![[f32::NAN; 4]; pixels];
@@ -331,7 +337,7 @@ fn composition_after_gpu_shading_matches_cpu_final_image() {
 fn timing_stage_timer_times_a_compute_pass() {
     let Some(ctx) = test_context() else { return };
     let stage = CompositionStage::new(&ctx);
-    let c = cpu_case("default", &Scene::default_scene(), 33, 17, 0.5);
+    let c = cpu_case("default", &paper_default_scene(), 33, 17, 0.5);
     let gpu = upload_case(&ctx, &c);
     let timer = StageTimer::new(&ctx, 3).expect("timer");
     assert_eq!(timer.stages(), 3);
