@@ -4,10 +4,11 @@
 //! Keys: 1-9, 0, -, = pick the view ([`stages::View`]); Tab orbit/fly; drag turns, the
 //! wheel zooms, WASD (Q/E down/up, Shift faster) moves; R resets the camera, C takes the
 //! scene's camera; a click toggles the object under the cursor between ray traced and
-//! rasterized; [ and ] (or a drag on the overlay's slider) set the composition weight;
+//! rasterized; [ and ] (or a drag on the overlay's upper slider) set the composition weight;
 //! Space plays and pauses the animation (looping), comma and period step it by 1/30 s; L picks the shadow mask's light; H hides the
 //! overlay; P writes the current view as PNG, O the window as shown (with the overlay);
-//! Page Up and Page Down change the exposure by half a stop and T cycles the tone-mapping
+//! Page Up and Page Down (or a drag on the overlay's lower slider, ±8 stops) change the
+//! exposure by half a stop and T cycles the tone-mapping
 //! operators (the final, raster and rt views; `--exposure`, `--tone-map` start them, as
 //! in `hyrt render`); Esc quits.
 //!
@@ -38,7 +39,7 @@ use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
 use camera::{Controller, Mode};
-use overlay::{Overlay, OverlayImage};
+use overlay::{Overlay, OverlayImage, Slider};
 use present::{CpuPresenter, GpuPresenter};
 use script::{Action, Script};
 use stages::{Rgba8, View};
@@ -144,8 +145,8 @@ struct Mouse {
     at: (f64, f64),
     /// Where the left button went down, and whether it has moved far enough to be a drag.
     pressed: Option<((f64, f64), bool)>,
-    /// The press began on the weight slider.
-    on_slider: bool,
+    /// The press began on this slider.
+    on_slider: Option<Slider>,
 }
 
 /// The viewer once its window is open.
@@ -392,7 +393,10 @@ impl Running {
             self.screenshot(image.as_deref().expect("read back"), width, height, with_overlay)?;
         }
         self.overlay_image = match (&self.overlay, self.show_overlay) {
-            (Some(o), true) => Some(o.draw(&self.overlay_lines(width, height), self.options.weight)),
+            (Some(o), true) => Some(o.draw(
+                &self.overlay_lines(width, height),
+                [Slider::Weight.fraction(self.options.weight), Slider::Exposure.fraction(self.display.exposure)],
+            )),
             _ => None,
         };
         let overlay = self.overlay_image.as_ref();
@@ -526,9 +530,9 @@ impl Running {
                 a.duration()
             ));
         }
-        lines.push(format!("weight {:.2} ([ ] or drag the bar)", self.options.weight));
+        lines.push(format!("weight {:.2} ([ ] or the upper bar)", self.options.weight));
         lines.push(format!(
-            "exposure {:+.1} stops (PgUp PgDn), tone map {} (T)",
+            "exposure {:+.1} stops (PgUp PgDn or the lower bar), tone map {} (T)",
             self.display.exposure,
             self.display.tone_map.name()
         ));
@@ -642,10 +646,14 @@ impl Running {
         self.apply(action)
     }
 
-    /// The weight at window x on the slider.
-    fn slider_weight(&self, x: f64) -> Option<f32> {
-        let s = self.overlay_image.as_ref()?.slider;
-        Some(((x - s.x as f64) / s.w.max(1) as f64).clamp(0.0, 1.0) as f32)
+    /// Set `slider`'s value from window x on its track.
+    fn drag_slider(&mut self, slider: Slider, x: f64) {
+        let Some(o) = &self.overlay_image else { return };
+        let value = o.value_at(slider, x);
+        match slider {
+            Slider::Weight => self.options.weight = value,
+            Slider::Exposure => self.display.exposure = value,
+        }
     }
 
     /// True over the overlay's panel: a click there picks nothing.
@@ -653,8 +661,8 @@ impl Running {
         self.overlay_image.as_ref().is_some_and(|o| x < o.width as f64 && y < o.height as f64)
     }
 
-    fn on_slider(&self, (x, y): (f64, f64)) -> bool {
-        self.overlay_image.as_ref().is_some_and(|o| o.slider.contains(x, y))
+    fn on_slider(&self, (x, y): (f64, f64)) -> Option<Slider> {
+        self.overlay_image.as_ref().and_then(|o| o.slider_at(x, y)).map(|(s, _)| s)
     }
 
     fn mouse_event(&mut self, event: &WindowEvent) {
@@ -667,11 +675,10 @@ impl Running {
                     if (x - start.0).abs() + (y - start.1).abs() > 3.0 {
                         *dragged = true;
                     }
-                    if self.mouse.on_slider {
-                        if let Some(w) = self.slider_weight(x) {
-                            self.options.weight = w;
-                        }
-                    } else if *dragged {
+                    let dragged = *dragged;
+                    if let Some(slider) = self.mouse.on_slider {
+                        self.drag_slider(slider, x);
+                    } else if dragged {
                         self.controller.rotate(((x - px) * 0.005) as f32, ((y - py) * 0.005) as f32);
                     }
                 }
@@ -684,15 +691,13 @@ impl Running {
                 ElementState::Released => {
                     if let Some((_, dragged)) = self.mouse.pressed.take() {
                         let (x, y) = self.mouse.at;
-                        if self.mouse.on_slider {
-                            if let Some(w) = self.slider_weight(x) {
-                                self.options.weight = w;
-                            }
+                        if let Some(slider) = self.mouse.on_slider {
+                            self.drag_slider(slider, x);
                         } else if !dragged && x >= 0.0 && y >= 0.0 && !self.on_overlay((x, y)) {
                             self.pending_pick = Some((x as u32, y as u32));
                         }
                     }
-                    self.mouse.on_slider = false;
+                    self.mouse.on_slider = None;
                 }
             },
             WindowEvent::MouseWheel { delta, .. } => {
