@@ -7,6 +7,7 @@ pub mod bounce;
 pub mod camera;
 pub mod environment;
 pub mod exact;
+pub mod ibl;
 pub mod instance;
 pub mod raster;
 pub mod ray;
