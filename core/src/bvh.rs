@@ -829,7 +829,7 @@ impl Bvh {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::formats::{RAY_KIND_PRIMARY, TRI_RAY_TRACED};
+    use crate::formats::TRI_RAY_TRACED;
 
     fn geometry(tris: &[[Vec3; 3]]) -> WorldGeometry {
         let (mut records, mut normals) = (Vec::new(), Vec::new());
@@ -848,18 +848,7 @@ mod tests {
     }
 
     fn ray(o: Vec3, d: Vec3) -> RayRecord {
-        RayRecord {
-            origin: o.into(),
-            t_min: 0.0,
-            direction: d.into(),
-            t_max: f32::INFINITY,
-            pixel: 0,
-            kind: RAY_KIND_PRIMARY,
-            depth: 0,
-            light: INVALID_ID,
-            throughput: [1.0; 3],
-            cone: 0.0,
-        }
+        RayRecord::query(o.into(), d.into(), 0.0, f32::INFINITY)
     }
 
     /// Triangles growing geometrically along x: obvhs' PLOC chains them into a tree

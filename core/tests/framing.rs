@@ -1,7 +1,7 @@
 //! The view a scene without a camera gets (`Scene::ensure_camera_and_lights`,
 //! `hyrt_core::scene::framing`): objects framed from outside, interiors seen from inside.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::{Mat4, Vec3};
 use hyrt_core::bvh::{Bvh, BvhPreset};
@@ -119,13 +119,20 @@ fn objects_are_framed_from_outside() {
     }
 }
 
+/// `../shared/assets` if it holds `file`, else `None` with a message (the test skips).
+fn shared_assets_with(file: &str) -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets");
+    if dir.join(file).is_file() {
+        Some(dir)
+    } else {
+        eprintln!("{} is absent: shared-asset test skipped", dir.display());
+        None
+    }
+}
+
 #[test]
 fn sponza_is_seen_from_inside_the_atrium() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets");
-    if !dir.join("sponza.glb").is_file() {
-        eprintln!("{} is absent: shared-asset test skipped", dir.display());
-        return;
-    }
+    let Some(dir) = shared_assets_with("sponza.glb") else { return };
     let mut s = Scene::load(&dir.join("sponza.glb")).unwrap();
     assert!(s.camera.is_none(), "sponza.glb has no camera: this test is about the view it gets");
     let (lo, hi) = s.world_bounds().unwrap();
@@ -140,11 +147,7 @@ fn sponza_is_seen_from_inside_the_atrium() {
 
 #[test]
 fn shared_objects_are_framed_from_outside() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets");
-    if !dir.join("DamagedHelmet.glb").is_file() {
-        eprintln!("{} is absent: shared-asset test skipped", dir.display());
-        return;
-    }
+    let Some(dir) = shared_assets_with("DamagedHelmet.glb") else { return };
     // The helmet's head cavity is free space its open meshes enclose, seen from inside on
     // front faces: 2.5% of the candidates, an object's cavity, not an interior.
     for file in ["DamagedHelmet.glb", "bunny.glb", "teapot.glb", "hard_cycloidal.glb"] {

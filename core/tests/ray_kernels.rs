@@ -7,7 +7,7 @@ use std::collections::HashMap;
 
 use glam::{Mat4, Quat, Vec3};
 use hyrt_core::bvh::{Bvh, BvhPreset, ClosestHit};
-use hyrt_core::formats::{RayRecord, TriangleRecord, INVALID_ID, RAY_KIND_PRIMARY, RAY_KIND_SHADOW, TRI_RAY_TRACED};
+use hyrt_core::formats::{RayRecord, TriangleRecord, RAY_KIND_SHADOW, TRI_RAY_TRACED};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::barycentric::{position_error_bound, reconstruct_position};
 use hyrt_core::kernels::ray::{
@@ -22,18 +22,7 @@ use proptest::prelude::*;
 // ---------------------------------------------------------------------------------------------
 
 fn ray(origin: Vec3, dir: Vec3, t_min: f32, t_max: f32) -> RayRecord {
-    RayRecord {
-        origin: origin.into(),
-        t_min,
-        direction: dir.into(),
-        t_max,
-        pixel: 0,
-        kind: RAY_KIND_PRIMARY,
-        depth: 0,
-        light: INVALID_ID,
-        throughput: [1.0; 3],
-        cone: 0.0,
-    }
+    RayRecord::query(origin.into(), dir.into(), t_min, t_max)
 }
 
 /// Geometry from raw triangles (one object), without `WorldGeometry::build`, so that

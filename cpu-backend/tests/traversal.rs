@@ -8,7 +8,7 @@ use std::path::PathBuf;
 
 use glam::{Mat4, Vec3};
 use hyrt_core::bvh::{Bvh, BvhPreset};
-use hyrt_core::formats::{CameraRecord, RayRecord, TriangleRecord, INVALID_ID, RAY_KIND_PRIMARY, TRI_RAY_TRACED};
+use hyrt_core::formats::{CameraRecord, RayRecord, TriangleRecord, TRI_RAY_TRACED};
 use hyrt_core::frame::{Backend, FrameOptions, PreparedScene};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::camera::primary_rays;
@@ -42,18 +42,7 @@ fn check(g: &WorldGeometry, bvh: &Bvh, rays: &[RayRecord]) -> usize {
 }
 
 fn ray(o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> RayRecord {
-    RayRecord {
-        origin: o.into(),
-        t_min,
-        direction: d.into(),
-        t_max,
-        pixel: 0,
-        kind: RAY_KIND_PRIMARY,
-        depth: 0,
-        light: INVALID_ID,
-        throughput: [1.0; 3],
-        cone: 0.0,
-    }
+    RayRecord::query(o.into(), d.into(), t_min, t_max)
 }
 
 fn soup(tris: &[[Vec3; 3]]) -> WorldGeometry {

@@ -136,6 +136,25 @@ const _: () = assert!(std::mem::size_of::<RayRecord>() == 64);
 wgsl_struct!(RayRecord { origin, t_min, direction, t_max, pixel, kind, depth, light, throughput, cone });
 
 impl RayRecord {
+    /// A closest-hit query from `origin` along `direction` for `t_min < t < t_max`, of kind
+    /// [`RAY_KIND_PRIMARY`], outside any frame: pixel 0, no light, unit throughput, no
+    /// cone. What rays cast for a scene's own sake (a camera's placement,
+    /// [`crate::scene::framing`]) and tests' single rays are.
+    pub fn query(origin: [f32; 3], direction: [f32; 3], t_min: f32, t_max: f32) -> RayRecord {
+        RayRecord {
+            origin,
+            t_min,
+            direction,
+            t_max,
+            pixel: 0,
+            kind: RAY_KIND_PRIMARY,
+            depth: 0,
+            light: INVALID_ID,
+            throughput: [1.0; 3],
+            cone: 0.0,
+        }
+    }
+
     /// Check: finite origin and direction, non-zero direction, `0 <= t_min < t_max`,
     /// known kind, a light index exactly on shadow rays.
     pub fn validate(&self) -> Result<(), String> {

@@ -4,7 +4,7 @@
 
 use glam::{Mat4, Vec3, Vec4};
 
-use crate::formats::{CameraRecord, RayRecord, INVALID_ID, RAY_KIND_PRIMARY};
+use crate::formats::{CameraRecord, RayRecord};
 
 /// Normalized device coordinates of the centre of pixel `(x, y)` (row 0 on top, NDC y up):
 /// `ndc_x = (x + 0.5) / width * 2 - 1`, `ndc_y = 1 - (y + 0.5) / height * 2`.
@@ -18,7 +18,7 @@ pub fn pixel_centre_ndc(width: u32, height: u32, x: u32, y: u32) -> (f32, f32) {
 /// The primary ray of pixel `(x, y)`: from the eye through the pixel centre's point on
 /// the far plane (NDC depth 1, unprojected with the eye-relative `inv_view_proj`, which
 /// gives the direction directly), so `t = 1` is the far plane and `t_min = near / far` is
-/// the near plane: the ray sees exactly the depth range the raster pass keeps. `kind` is [`RAY_KIND_PRIMARY`], `pixel` is `y * width + x`.
+/// the near plane: the ray sees exactly the depth range the raster pass keeps. `kind` is [`RAY_KIND_PRIMARY`](crate::formats::RAY_KIND_PRIMARY), `pixel` is `y * width + x`.
 #[inline]
 pub fn primary_ray(camera: &CameraRecord, x: u32, y: u32) -> RayRecord {
     let (nx, ny) = pixel_centre_ndc(camera.width, camera.height, x, y);
@@ -26,16 +26,8 @@ pub fn primary_ray(camera: &CameraRecord, x: u32, y: u32) -> RayRecord {
     let far = inv * Vec4::new(nx, ny, 1.0, 1.0);
     let direction: Vec3 = far.truncate() / far.w;
     RayRecord {
-        origin: camera.eye,
-        t_min: camera.near / camera.far,
-        direction: direction.into(),
-        t_max: 1.0,
         pixel: y * camera.width + x,
-        kind: RAY_KIND_PRIMARY,
-        depth: 0,
-        light: INVALID_ID,
-        throughput: [1.0; 3],
-        cone: 0.0,
+        ..RayRecord::query(camera.eye, direction.into(), camera.near / camera.far, 1.0)
     }
 }
 

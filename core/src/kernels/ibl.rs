@@ -51,9 +51,36 @@ const SH9_ORDER: [usize; 9] = [0, 1, 1, 1, 2, 2, 2, 2, 2];
 /// the horizon, falls between two rows.
 pub const SKY_QUADRATURE: (u32, u32) = (256, 128);
 
+/// The direction through the centre of cell `(i, j)` of a `w` x `h` lat-long grid laid out
+/// as the environment's maps are ([`crate::kernels::environment`]: `u = φ / 2π`,
+/// `v = θ / π` from +Y, `d = (sin θ sin φ, cos θ, -sin θ cos φ)`), and the cell's solid
+/// angle, exact in latitude: `(2π / w) (cos θ0 - cos θ1)`.
+pub fn latlong_cell(i: u32, j: u32, w: u32, h: u32) -> ([f64; 3], f64) {
+    let (t0, t1) = (std::f64::consts::PI * j as f64 / h as f64, std::f64::consts::PI * (j + 1) as f64 / h as f64);
+    let theta = 0.5 * (t0 + t1);
+    let dphi = std::f64::consts::TAU / w as f64;
+    let phi = dphi * (i as f64 + 0.5);
+    let d = [theta.sin() * phi.sin(), theta.cos(), -theta.sin() * phi.cos()];
+    (d, dphi * (t0.cos() - t1.cos()))
+}
+
+/// Point `s` of the `n`-point Hammersley set: `(s / n, the base-2 radical inverse of s)`.
+fn hammersley(s: u32, n: u32) -> (f64, f64) {
+    (s as f64 / n as f64, s.reverse_bits() as f64 / 4_294_967_296.0)
+}
+
+/// The half vector, around +z, that the point `(u1, u2)` of the unit square maps to when
+/// half vectors are drawn with density `D(h) (n·h)` for GGX of `alpha² = a2`.
+fn ggx_half_vector((u1, u2): (f64, f64), a2: f64) -> [f64; 3] {
+    let cos_t = ((1.0 - u2) / (1.0 + (a2 - 1.0) * u2)).sqrt();
+    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    let phi = std::f64::consts::TAU * u1;
+    [sin_t * phi.cos(), sin_t * phi.sin(), cos_t]
+}
+
 /// The nine real harmonics at `(x, y, z)` (a unit vector), without their normalisations:
 /// `1, x, y, z, xy, yz, xz, 3z² - 1, x² - y²`.
-fn sh9_basis(d: [f64; 3]) -> [f64; 9] {
+pub fn sh9_basis(d: [f64; 3]) -> [f64; 9] {
     let [x, y, z] = d;
     [1.0, x, y, z, x * y, y * z, x * z, 3.0 * z * z - 1.0, x * x - y * y]
 }
@@ -69,8 +96,7 @@ pub struct IrradianceSh9 {
 
 impl IrradianceSh9 {
     /// The irradiance coefficients of `env`: a map integrated texel by texel (each texel's
-    /// solid angle exact in latitude: `(2π / W) (cos θ0 - cos θ1)`, its radiance taken at
-    /// its centre), the default sky over [`SKY_QUADRATURE`]'s grid of cell centres; sums in
+    /// solid angle exact in latitude, its radiance taken at its centre: [`latlong_cell`]), the default sky over [`SKY_QUADRATURE`]'s grid of cell centres; sums in
     /// f64, rounded to f32 once.
     pub fn of(env: &Environment) -> IrradianceSh9 {
         let (w, h) = match env {
@@ -78,17 +104,9 @@ impl IrradianceSh9 {
             Environment::Sky => SKY_QUADRATURE,
         };
         let mut sum = [[0.0f64; 3]; 9];
-        let dphi = std::f64::consts::TAU / w as f64;
         for j in 0..h {
-            let (t0, t1) =
-                (std::f64::consts::PI * j as f64 / h as f64, std::f64::consts::PI * (j + 1) as f64 / h as f64);
-            let theta = 0.5 * (t0 + t1);
-            let solid_angle = dphi * (t0.cos() - t1.cos());
             for i in 0..w {
-                // The environment's lat-long convention (kernels::environment): u = φ / 2π
-                // with d = (sin θ sin φ, cos θ, -sin θ cos φ); v = θ / π from +Y.
-                let phi = dphi * (i as f64 + 0.5);
-                let d = [theta.sin() * phi.sin(), theta.cos(), -theta.sin() * phi.cos()];
+                let (d, solid_angle) = latlong_cell(i, j, w, h);
                 let radiance = match env {
                     Environment::Map(m) => {
                         let t = m.texel(i, j);
@@ -153,12 +171,13 @@ impl SplitSumTable {
     pub fn compute() -> SplitSumTable {
         let n = SPLIT_SUM_SIZE;
         let mut cells = Vec::with_capacity(n * n);
+        let samples: Vec<(f64, f64)> = (0..SPLIT_SUM_SAMPLES).map(|s| hammersley(s, SPLIT_SUM_SAMPLES)).collect();
         for j in 0..n {
             let roughness = (j as f64 + 0.5) / n as f64;
             let alpha = roughness * roughness;
             for i in 0..n {
                 let n_dot_v = (i as f64 + 0.5) / n as f64;
-                cells.push(split_sum_f64(n_dot_v, alpha).map(|x| x as f32));
+                cells.push(split_sum_f64(n_dot_v, alpha, &samples).map(|x| x as f32));
             }
         }
         SplitSumTable { cells }
@@ -179,19 +198,14 @@ impl SplitSumTable {
     }
 }
 
-/// The split-sum factors at one `(n·v, alpha)`, in f64 (see [`SplitSumTable::compute`]).
-fn split_sum_f64(n_dot_v: f64, alpha: f64) -> [f64; 2] {
+/// The split-sum factors at one `(n·v, alpha)` over the Hammersley `samples`, in f64 (see
+/// [`SplitSumTable::compute`]).
+fn split_sum_f64(n_dot_v: f64, alpha: f64, samples: &[(f64, f64)]) -> [f64; 2] {
     let v = [(1.0 - n_dot_v * n_dot_v).max(0.0).sqrt(), 0.0, n_dot_v];
     let a2 = alpha * alpha;
     let (mut a, mut b) = (0.0, 0.0);
-    for s in 0..SPLIT_SUM_SAMPLES {
-        // Hammersley point: (s / N, radical inverse of s in base 2).
-        let (u1, u2) = (s as f64 / SPLIT_SUM_SAMPLES as f64, s.reverse_bits() as f64 / 4_294_967_296.0);
-        // GGX half vector around +z with density D(h) (n.h).
-        let cos_t = ((1.0 - u2) / (1.0 + (a2 - 1.0) * u2)).sqrt();
-        let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-        let phi = std::f64::consts::TAU * u1;
-        let h = [sin_t * phi.cos(), sin_t * phi.sin(), cos_t];
+    for &u in samples {
+        let h = ggx_half_vector(u, a2);
         let v_dot_h = v[0] * h[0] + v[2] * h[2];
         let l = [2.0 * v_dot_h * h[0] - v[0], 2.0 * v_dot_h * h[1], 2.0 * v_dot_h * h[2] - v[2]];
         let (n_dot_l, n_dot_h) = (l[2], h[2]);
@@ -207,7 +221,7 @@ fn split_sum_f64(n_dot_v: f64, alpha: f64) -> [f64; 2] {
         a += (1.0 - fc) * weight;
         b += fc * weight;
     }
-    [a / SPLIT_SUM_SAMPLES as f64, b / SPLIT_SUM_SAMPLES as f64]
+    [a / samples.len() as f64, b / samples.len() as f64]
 }
 
 /// Roughness levels of the [`PrefilteredEnvironment`]: roughness `k / (LEVELS - 1)`, from a
@@ -246,9 +260,7 @@ impl PrefilteredEnvironment {
     /// direction; level `k` averages [`PREFILTER_SAMPLES`] lobe samples per texel (weights
     /// `n·l`, the radiance by [`environment_radiance`], sums in f64).
     pub fn of(env: &Environment) -> PrefilteredEnvironment {
-        let samples: Vec<(f64, f64)> = (0..PREFILTER_SAMPLES)
-            .map(|s| (s as f64 / PREFILTER_SAMPLES as f64, s.reverse_bits() as f64 / 4_294_967_296.0))
-            .collect();
+        let samples: Vec<(f64, f64)> = (0..PREFILTER_SAMPLES).map(|s| hammersley(s, PREFILTER_SAMPLES)).collect();
         let levels = (0..PREFILTER_LEVELS)
             .map(|k| {
                 let (width, height) = (PREFILTER_BASE.0 >> k, PREFILTER_BASE.1 >> k);
@@ -257,9 +269,7 @@ impl PrefilteredEnvironment {
                 let texels = (0..height)
                     .flat_map(|j| (0..width).map(move |i| (i, j)))
                     .map(|(i, j)| {
-                        let theta = std::f64::consts::PI * (j as f64 + 0.5) / height as f64;
-                        let phi = std::f64::consts::TAU * (i as f64 + 0.5) / width as f64;
-                        let r = [theta.sin() * phi.sin(), theta.cos(), -theta.sin() * phi.cos()];
+                        let (r, _) = latlong_cell(i, j, width, height);
                         if k == 0 {
                             let l = environment_radiance(env, Vec3::new(r[0] as f32, r[1] as f32, r[2] as f32));
                             return l.to_array();
@@ -288,11 +298,8 @@ fn prefiltered_f64(env: &Environment, r: [f64; 3], alpha: f64, samples: &[(f64, 
     let ty = cross(r, tx);
     let a2 = alpha * alpha;
     let (mut sum, mut weight) = ([0.0f64; 3], 0.0f64);
-    for &(u1, u2) in samples {
-        let cos_t = ((1.0 - u2) / (1.0 + (a2 - 1.0) * u2)).sqrt();
-        let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-        let phi = std::f64::consts::TAU * u1;
-        let (hx, hy, hz) = (sin_t * phi.cos(), sin_t * phi.sin(), cos_t);
+    for &u in samples {
+        let [hx, hy, hz] = ggx_half_vector(u, a2);
         let h: [f64; 3] = std::array::from_fn(|c| tx[c] * hx + ty[c] * hy + r[c] * hz);
         // l = reflect(-v, h) with v = r: 2 (r.h) h - r; n.l = 2 (r.h)^2 - 1.
         let r_dot_h = hz;
@@ -368,13 +375,10 @@ mod tests {
             let (w, h) = (512u32, 256u32);
             let mut e = [0.0f64; 3];
             for j in 0..h {
-                let (t0, t1) =
-                    (std::f64::consts::PI * j as f64 / h as f64, std::f64::consts::PI * (j + 1) as f64 / h as f64);
-                let t = 0.5 * (t0 + t1);
                 for i in 0..w {
-                    let p = std::f64::consts::TAU * (i as f64 + 0.5) / w as f64;
-                    let d = Vec3::new((t.sin() * p.sin()) as f32, t.cos() as f32, (-t.sin() * p.cos()) as f32);
-                    let c = n.dot(d).max(0.0) as f64 * std::f64::consts::TAU / w as f64 * (t0.cos() - t1.cos());
+                    let ([x, y, z], solid_angle) = latlong_cell(i, j, w, h);
+                    let d = Vec3::new(x as f32, y as f32, z as f32);
+                    let c = n.dot(d).max(0.0) as f64 * solid_angle;
                     let r = environment_radiance(&Environment::Sky, d);
                     for (e, r) in e.iter_mut().zip(r.to_array()) {
                         *e += r as f64 * c;

@@ -31,7 +31,7 @@ use glam::Vec3;
 
 use super::{Camera, Scene};
 use crate::bvh::{Bvh, BvhPreset};
-use crate::formats::{RayRecord, INVALID_ID, RAY_KIND_PRIMARY, TRI_INWARD};
+use crate::formats::{RayRecord, TRI_INWARD};
 use crate::geometry::WorldGeometry;
 use crate::kernels::raster::shows_interior;
 
@@ -100,7 +100,7 @@ pub const LIGHT_HEIGHT: f32 = 0.8;
 /// A camera inside `scene` (bounds `lo`..`hi`), if the scene encloses free space (see the
 /// module docs); `None` for scenes to be framed from outside.
 pub fn interior_view(scene: &Scene, lo: Vec3, hi: Vec3) -> Option<InteriorView> {
-    if scene.triangle_count() == 0 || scene.triangle_count() > MAX_TRIANGLES {
+    if !(1..=MAX_TRIANGLES).contains(&scene.triangle_count()) {
         return None;
     }
     let extent = hi - lo;
@@ -112,18 +112,7 @@ pub fn interior_view(scene: &Scene, lo: Vec3, hi: Vec3) -> Option<InteriorView> 
     let bvh = Bvh::build(&geometry, BvhPreset::Fastest);
     let triangles = geometry.stored_table();
     let cast = |origin: Vec3, direction: Vec3| -> Option<(f32, bool)> {
-        let ray = RayRecord {
-            origin: origin.into(),
-            t_min: 0.0,
-            direction: direction.into(),
-            t_max: diagonal * 2.0,
-            pixel: 0,
-            kind: RAY_KIND_PRIMARY,
-            depth: 0,
-            light: INVALID_ID,
-            throughput: [1.0; 3],
-            cone: 0.0,
-        };
+        let ray = RayRecord::query(origin.into(), direction.into(), 0.0, diagonal * 2.0);
         let hit = bvh.closest_hit(triangles, &ray)?;
         let inward = triangles[hit.triangle as usize].flags & TRI_INWARD != 0;
         Some((hit.t, shows_interior(hit.back_face, inward)))

@@ -297,18 +297,15 @@ impl Light {
             Some(r) if !(r > 0.0 && r.is_finite()) => Err(format!("range {r} must be finite and > 0")),
             _ => Ok(()),
         };
-        match *self {
-            Light::Point { position, range, .. } => {
-                if !position.is_finite() {
-                    return Err(format!("position {position} is not finite"));
-                }
-                range_ok(range)
+        if let Light::Point { position, .. } | Light::Spot { position, .. } = *self {
+            if !position.is_finite() {
+                return Err(format!("position {position} is not finite"));
             }
+        }
+        match *self {
+            Light::Point { range, .. } => range_ok(range),
             Light::Directional { direction, .. } => unit(direction, "direction"),
-            Light::Spot { position, direction, inner_cone_angle, outer_cone_angle, range, .. } => {
-                if !position.is_finite() {
-                    return Err(format!("position {position} is not finite"));
-                }
+            Light::Spot { direction, inner_cone_angle, outer_cone_angle, range, .. } => {
                 unit(direction, "direction")?;
                 if !(inner_cone_angle >= 0.0
                     && inner_cone_angle < outer_cone_angle
