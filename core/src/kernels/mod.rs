@@ -12,6 +12,7 @@ pub mod instance;
 pub mod raster;
 pub mod ray;
 pub mod reconstruction;
+pub mod sampling;
 pub mod scan;
 pub mod shading;
 pub mod shadow;
