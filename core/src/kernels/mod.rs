@@ -2,6 +2,7 @@
 //! The CPU backend calls them; each WGSL function of the GPU backend mirrors one
 //! by name and says so in a comment.
 
+pub mod area_light;
 pub mod barycentric;
 pub mod bounce;
 pub mod camera;
