@@ -36,9 +36,11 @@ use glam::{DVec3, Vec3};
 use hyrt_core::bvh::Bvh;
 use hyrt_core::formats::{ObjectRecord, INVALID_ID, MATERIAL_GLASS, OBJ_RAY_TRACED, TRI_INWARD};
 use hyrt_core::geometry::WorldGeometry;
-use hyrt_core::kernels::bounce::{bounces, sees_exterior, shade_bouncing, Lobes, IOR_OUTSIDE, MAX_DEPTH_LIMIT};
+use hyrt_core::kernels::bounce::{
+    bounces, lobe_radiance, sees_exterior, shade_bouncing, Lobes, IOR_OUTSIDE, MAX_DEPTH_LIMIT,
+};
 use hyrt_core::kernels::environment::environment_radiance;
-use hyrt_core::kernels::shading::{shade_raster_surface, shade_rt_pixel, shade_rt_surface, ENVIRONMENT_SPECULAR};
+use hyrt_core::kernels::shading::{shade_raster_surface, shade_rt_pixel, shade_rt_surface};
 use hyrt_core::scene::Camera;
 use rayon::prelude::*;
 
@@ -248,18 +250,23 @@ impl Paths<'_> {
             refract_dir: Vec3::ZERO,
             diffuse_scale: 1.0 - transmission,
         };
-        let local = shade_bouncing(&s.record, obj, &local_lobes, d.as_vec3(), shadow, &g.lights, [INVALID_ID; 2], &[]);
+        let (ambient, d32) = (&g.ambient, d.as_vec3());
+        let local = shade_bouncing(&s.record, obj, &local_lobes, d32, shadow, &g.lights, ambient, [INVALID_ID; 2], &[]);
         let mut out = local.as_dvec3();
+        let n = Vec3::from(s.record.normal);
         for (dir, weight) in [(l.reflect_dir, l.reflection), (l.refract_dir, l.refraction)] {
             if weight == DVec3::ZERO {
                 continue;
             }
+            // What an untraced lobe sees: the kernels' stand-in (the paper's uniform
+            // environment specular, or the glTF model's prefiltered environment).
+            let stand_in = || lobe_radiance(INVALID_ID, &[], obj, dir.as_vec3(), n, ambient).as_dvec3();
             let seen = if dir == DVec3::ZERO {
-                DVec3::splat(ENVIRONMENT_SPECULAR as f64)
+                stand_in()
             } else if at.depth >= self.max_depth {
                 counts.truncated += 1;
                 counts.truncated_weight = counts.truncated_weight.max((at.weight * weight).max_element());
-                DVec3::splat(ENVIRONMENT_SPECULAR as f64)
+                stand_in()
             } else {
                 let next = PathState { depth: at.depth + 1, weight: at.weight * weight };
                 self.trace(hit.position, dir, hit.triangle, next, counts)
@@ -288,9 +295,9 @@ impl Paths<'_> {
         if bounces(obj) {
             self.bouncing(&rh, &s, &shadow, d, at, counts)
         } else if obj.flags & OBJ_RAY_TRACED != 0 {
-            shade_rt_surface(&s.record, obj, &shadow, &g.lights, (-d).as_vec3()).as_dvec3()
+            shade_rt_surface(&s.record, obj, &shadow, &g.lights, &g.ambient, (-d).as_vec3()).as_dvec3()
         } else {
-            shade_raster_surface(&s.record, obj, &shadow, &g.lights, (-d).as_vec3()).as_dvec3()
+            shade_raster_surface(&s.record, obj, &shadow, &g.lights, &g.ambient, (-d).as_vec3()).as_dvec3()
         }
     }
 }
@@ -325,7 +332,7 @@ pub fn render_reference_bounces(
             let shadow = &reference.shadow[i * nl..(i + 1) * nl];
             if max_depth == 0 || !bounces(obj) {
                 return (
-                    shade_rt_pixel(s, obj, shadow, &geometry.lights, camera.eye).extend(1.0).into(),
+                    shade_rt_pixel(s, obj, shadow, &geometry.lights, &geometry.ambient, camera.eye).extend(1.0).into(),
                     PathCounts::default(),
                 );
             }
@@ -339,7 +346,8 @@ pub fn render_reference_bounces(
         .unzip();
     let paths = counts.into_iter().fold(PathCounts::default(), PathCounts::add);
     let (objects, lights) = (&geometry.objects, &geometry.lights);
-    let image = compose_with_raster(&rt, &reference.surfaces, &reference.shadow, objects, lights, eye.as_vec3());
+    let (surfaces, shadow, ambient) = (&reference.surfaces, &reference.shadow, &geometry.ambient);
+    let image = compose_with_raster(&rt, surfaces, shadow, objects, lights, ambient, eye.as_vec3());
     BounceImage { image, max_depth, paths }
 }
 

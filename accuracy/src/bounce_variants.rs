@@ -252,6 +252,7 @@ pub fn bounce_rt_image(
             &g.triangles,
             &g.lights,
             &g.environment,
+            &g.ambient,
             children,
             &mut b.radiance,
         );
@@ -260,12 +261,23 @@ pub fn bounce_rt_image(
     let mut rt = Vec::new();
     match levels.first() {
         None => {
-            let primary = Primary { gbuffer, materials: &materials, eye };
+            let primary = Primary { gbuffer, materials: &materials, ambient: &g.ambient, eye };
             rt_shading_into(surfaces, shadow, &primary, &g.lights, &mut rt)
         }
         Some(first) => {
             let bounce = FirstBounce { gbuffer, links: &first.links, radiance: &first.radiance };
-            rt_shading_bouncing_into(surfaces, shadow, &materials, &g.triangles, &g.lights, eye, bounce, &mut rt)
+            let lights = &g.lights;
+            rt_shading_bouncing_into(
+                surfaces,
+                shadow,
+                &materials,
+                &g.triangles,
+                lights,
+                &g.ambient,
+                eye,
+                bounce,
+                &mut rt,
+            )
         }
     }
     BounceRt { rt, rays: levels.iter().map(|b| b.rays.len() as u64).sum(), bounce_ms }

@@ -259,9 +259,12 @@ fn run_frame(g: &WorldGeometry, bvh: &Bvh, camera: &CameraRecord, config: Config
         Config::Bounces { max_depth, variant } => {
             let primary = PrimaryBuffers { gbuffer: &gbuffer, surfaces: &surfaces, shadow: &mask, eye };
             let b = bounce_rt_image(g, bvh, primary, max_depth, variant);
-            (compose_with_raster(&b.rt, &surfaces, &mask, &g.objects, &g.lights, eye), Some((b.rays, b.bounce_ms)))
+            (
+                compose_with_raster(&b.rt, &surfaces, &mask, &g.objects, &g.lights, &g.ambient, eye),
+                Some((b.rays, b.bounce_ms)),
+            )
         }
-        _ => (shade_image(&surfaces, &mask, &g.objects, &g.lights, eye), None),
+        _ => (shade_image(&surfaces, &mask, &g.objects, &g.lights, &g.ambient, eye), None),
     };
     let frame_ms = ms_since(t_frame);
     let stage_ms = match config {

@@ -33,6 +33,7 @@ use hyrt_core::formats::{
 };
 use hyrt_core::frame::{SHADOW_LIT, SHADOW_NO_RAY, SHADOW_OCCLUDED};
 use hyrt_core::geometry::WorldGeometry;
+use hyrt_core::kernels::shading::AmbientLight;
 use hyrt_core::scene::Camera;
 use rayon::prelude::*;
 
@@ -480,10 +481,11 @@ pub fn shade_image(
     shadow: &[u8],
     objects: &[ObjectRecord],
     lights: &[LightRecord],
+    ambient: &AmbientLight,
     eye: Vec3,
 ) -> Vec<[f32; 4]> {
-    let rt = hyrt_cpu::rt_shading::rt_shading(surfaces, shadow, objects, lights, eye);
-    compose_with_raster(&rt, surfaces, shadow, objects, lights, eye)
+    let rt = hyrt_cpu::rt_shading::rt_shading(surfaces, shadow, objects, lights, ambient, eye);
+    compose_with_raster(&rt, surfaces, shadow, objects, lights, ambient, eye)
 }
 
 /// The rest of [`shade_image`] after `rt_shading` (with or without bounces): the raster
@@ -494,9 +496,10 @@ pub fn compose_with_raster(
     shadow: &[u8],
     objects: &[ObjectRecord],
     lights: &[LightRecord],
+    ambient: &AmbientLight,
     eye: Vec3,
 ) -> Vec<[f32; 4]> {
-    let raster = hyrt_cpu::raster_shading::raster_shading(surfaces, shadow, objects, lights, eye, 1.0);
+    let raster = hyrt_cpu::raster_shading::raster_shading(surfaces, shadow, objects, lights, ambient, eye, 1.0);
     hyrt_cpu::composition::composition(&raster, rt, 1.0)
 }
 
@@ -536,7 +539,7 @@ pub fn render_reference(
         surfaces.push(s);
         shadow.extend_from_slice(&m);
     }
-    let image = shade_image(&surfaces, &shadow, &geometry.objects, &geometry.lights, camera.eye);
+    let image = shade_image(&surfaces, &shadow, &geometry.objects, &geometry.lights, &geometry.ambient, camera.eye);
     ReferenceFrame { width, height, hits, shadow, surfaces, image }
 }
 

@@ -43,13 +43,13 @@ fn stages(c: &mut Criterion) {
         let occluded = shadow_rays::shadow_rays(&bvh, &g, &rays);
         let mask = compaction::shadow_mask(&rays, &occluded, surfaces.len(), g.lights.len());
         group.bench_function("rt_shading", |bn| {
-            bn.iter(|| rt_shading::rt_shading(&surfaces, &mask, &g.objects, &g.lights, eye))
+            bn.iter(|| rt_shading::rt_shading(&surfaces, &mask, &g.objects, &g.lights, &g.ambient, eye))
         });
-        let rt = rt_shading::rt_shading(&surfaces, &mask, &g.objects, &g.lights, eye);
+        let rt = rt_shading::rt_shading(&surfaces, &mask, &g.objects, &g.lights, &g.ambient, eye);
         group.bench_function("raster_shading", |bn| {
-            bn.iter(|| raster_shading::raster_shading(&surfaces, &mask, &g.objects, &g.lights, eye, 1.0))
+            bn.iter(|| raster_shading::raster_shading(&surfaces, &mask, &g.objects, &g.lights, &g.ambient, eye, 1.0))
         });
-        let raster = raster_shading::raster_shading(&surfaces, &mask, &g.objects, &g.lights, eye, 1.0);
+        let raster = raster_shading::raster_shading(&surfaces, &mask, &g.objects, &g.lights, &g.ambient, eye, 1.0);
         group.bench_function("composition", |bn| bn.iter(|| composition::composition(&raster, &rt, 1.0)));
         let mut r = Renderer::cpu(None);
         let prepared = r.prepare(&b.scene);

@@ -193,16 +193,14 @@ pub fn write_dump(
 }
 
 /// Per pixel, the material its primary hit is shaded with, as core's `primary_parent`
-/// makes it (textures and all): metallic, roughness, the ambient occlusion (the record's
-/// ambient scale with the scene's ambient setting taken out: the objects' own scale is
-/// set to 1 here) and the emission's luminance; zeros on a miss.
+/// makes it (textures and all): metallic, roughness, the ambient occlusion
+/// ([`hyrt_core::formats::ObjectRecord::occlusion`]) and the emission's luminance; zeros on
+/// a miss.
 fn material_values(prepared: &PreparedScene, camera: &Camera, frame: &Frame) -> Vec<[f32; 4]> {
     use hyrt_core::kernels::bounce::primary_parent;
     let rec = CameraRecord::new(camera, frame.width, frame.height);
     let geometry = &prepared.geometry;
-    let objects: Vec<_> =
-        geometry.objects.iter().map(|o| hyrt_core::formats::ObjectRecord { ambient_scale: 1.0, ..*o }).collect();
-    let materials = hyrt_core::kernels::texture::Materials { objects: &objects, ..geometry.materials(&rec) };
+    let materials = geometry.materials(&rec);
     let eye = hyrt_core::glam::Vec3::from(rec.eye);
     frame
         .gbuffer
@@ -215,7 +213,7 @@ fn material_values(prepared: &PreparedScene, camera: &Camera, frame: &Frame) -> 
             }
             let o = primary_parent(t, s, eye, i as u32, &materials).object;
             let e = o.emissive;
-            [o.metallic, o.roughness, o.ambient_scale, 0.2126 * e[0] + 0.7152 * e[1] + 0.0722 * e[2]]
+            [o.metallic, o.roughness, o.occlusion, 0.2126 * e[0] + 0.7152 * e[1] + 0.0722 * e[2]]
         })
         .collect()
 }

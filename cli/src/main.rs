@@ -177,8 +177,9 @@ struct SceneArgs {
     #[arg(long, value_parser = named(hyrt::ShadingModel::ALL, hyrt::ShadingModel::name))]
     shading: Option<hyrt::ShadingModel>,
     /// The constant ambient light, >= 0: 0.06 by default (the paper's look); 0 removes the
-    /// constant ambient and environment terms, leaving direct light and emission. Overrides
-    /// the manifest's `ambient`.
+    /// constant ambient and environment terms (with the glTF BRDF the environment's
+    /// image-based light stays: a black environment removes it too), leaving direct light
+    /// and emission. Overrides the manifest's `ambient`.
     #[arg(long, value_parser = parse_ambient)]
     ambient: Option<hyrt::Ambient>,
     /// Image size, WIDTHxHEIGHT.

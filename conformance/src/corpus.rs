@@ -29,7 +29,9 @@
 //!   and textured geometry seen in a mirror, every wrap mode.
 //! - `shading_*`: cases of the families above again with the glTF BRDF on every object
 //!   (`shading_gltf_<case>`): the default scene's cases, every bounce case, and up to
-//!   three textured and three two-level ones.
+//!   three textured and three two-level ones; spheres from smooth to rough; and the
+//!   image-based light of a procedural environment map (every other glTF case has the
+//!   default sky's) on the spheres and on the default scene, at its depth and at depth 1.
 //!
 //! Images are small (lavapipe runs the GPU side on the CI's two cores).
 
@@ -41,8 +43,8 @@ use glam::{DMat4, DVec4, Mat4, Quat, Vec2, Vec3};
 use hyrt_core::formats::CameraRecord;
 use hyrt_core::kernels::bounce::DEFAULT_MAX_DEPTH;
 use hyrt_core::scene::{
-    AlphaMode, Ambient, Camera, Filter, Light, Material, MaterialKind, MaterialMaps, Mesh, RenderMode, Sampler, Scene,
-    ShadingModel, TextureBinding, TextureImage, UvTransform, Wrap,
+    AlphaMode, Ambient, Camera, Environment, EnvironmentMap, Filter, Light, Material, MaterialKind, MaterialMaps, Mesh,
+    RenderMode, Sampler, Scene, ShadingModel, TextureBinding, TextureImage, UvTransform, Wrap,
 };
 
 /// One scene of the corpus with the image it is rendered at.
@@ -785,7 +787,16 @@ fn shading_cases(b: &mut Builder) {
     scene.lights = vec![Light::Directional { direction, color: Vec3::ONE, intensity: 3.0 }];
     let cam = camera(Vec3::new(0.0, 2.0, 9.0), Vec3::ZERO, 0.1, 30.0);
     let dark = Scene { ambient: Ambient(0.0), ..scene.clone() };
+    let mapped = Scene { environment: procedural_environment(), ..scene.clone() };
     b.add("shading_gltf_spheres", "the glTF BRDF from smooth to rough, dielectric to metal", scene, cam, 96, 40);
+    b.add(
+        "shading_gltf_spheres_environment_map",
+        "the spheres under an environment map's image-based light: every prefiltered level",
+        mapped,
+        cam,
+        96,
+        40,
+    );
     b.add(
         "shading_gltf_spheres_without_ambient",
         "the same spheres with ambient = 0: direct light alone",
@@ -799,6 +810,55 @@ fn shading_cases(b: &mut Builder) {
     let (s, cam) = transformed_default(Vec3::ZERO, 1.0);
     let s = Scene { ambient: Ambient(0.0), ..s };
     b.add("paper_default_scene_without_ambient", "mirrors and glass with ambient = 0", s, cam, 64, 48);
+    // The image-based light of an environment map (every other glTF case has the default
+    // sky's): the default scene's rasterized and ray-traced objects, its golden mirror and
+    // glass at the library's depth, and at depth 1, where the lobes of the first bounce's
+    // mirror and glass hits are not traced and see the prefiltered map instead.
+    let s = Scene { shading: ShadingModel::Gltf, environment: procedural_environment(), ..Scene::default_scene() };
+    let cam = s.camera.unwrap();
+    b.add(
+        "shading_gltf_environment_map",
+        "the default scene under an environment map's image-based light, mirrors and glass",
+        s.clone(),
+        cam,
+        64,
+        48,
+    );
+    b.add(
+        "shading_gltf_environment_map_depth_1",
+        "an environment map's prefiltered light in the untraced lobes of depth 1",
+        s,
+        cam,
+        64,
+        48,
+    );
+    b.cases.last_mut().expect("a case").max_depth = 1;
+}
+
+/// A small procedural environment map (32 x 16, linear RGB): a blue gradient sky with a
+/// bright sun, a warm band along the horizon and a dark checkered ground, so that the
+/// prefiltered levels and the irradiance vary with the direction.
+fn procedural_environment() -> Environment {
+    let (w, h) = (32u32, 16u32);
+    let texels = (0..h)
+        .flat_map(|j| (0..w).map(move |i| (i, j)))
+        .map(|(i, j)| {
+            let t = j as f32 / (h / 2) as f32;
+            let rgb = if (i, j) == (9, 3) {
+                [60.0, 55.0, 45.0]
+            } else if j + 1 == h / 2 {
+                [1.2, 0.7, 0.35]
+            } else if j < h / 2 {
+                [0.2 + 0.5 * t, 0.35 + 0.45 * t, 0.9 - 0.2 * t]
+            } else if (i / 4 + j / 2) % 2 == 0 {
+                [0.12, 0.1, 0.08]
+            } else {
+                [0.3, 0.25, 0.18]
+            };
+            [rgb[0], rgb[1], rgb[2], 1.0]
+        })
+        .collect();
+    Environment::Map(Arc::new(EnvironmentMap::new(w, h, texels).expect("a valid environment map")))
 }
 
 /// Scenes traced through two levels: objects prepared as moving, in their own space,

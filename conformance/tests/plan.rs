@@ -168,8 +168,8 @@ fn full_pipeline(p: &PreparedScene, cam: &CameraRecord, weight: f32) -> Frame {
     shadow_rays::shadow_rays_with(&p.bvh, g, &rays, Traversal::Scalar, &mut occluded);
     let mut shadow = Vec::new();
     compaction::shadow_mask_into(&rays, &occluded, surfaces.len(), g.lights.len(), &mut shadow);
-    let rt = rt_shading::rt_shading(&surfaces, &shadow, &g.objects, &g.lights, eye);
-    let raster = raster_shading::raster_shading(&surfaces, &shadow, &g.objects, &g.lights, eye, weight);
+    let rt = rt_shading::rt_shading(&surfaces, &shadow, &g.objects, &g.lights, &g.ambient, eye);
+    let raster = raster_shading::raster_shading(&surfaces, &shadow, &g.objects, &g.lights, &g.ambient, eye, weight);
     let final_image = composition::composition(&raster, &rt, weight);
     Frame {
         width: cam.width,

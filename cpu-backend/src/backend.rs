@@ -300,6 +300,7 @@ fn bounce_step(
                 &g.triangles,
                 &g.lights,
                 &g.environment,
+                &g.ambient,
                 children,
                 &mut b.radiance,
             )
@@ -420,6 +421,7 @@ impl Backend for CpuBackend {
                         materials: &materials,
                         triangles: &g.triangles,
                         lights: &g.lights,
+                        ambient: &g.ambient,
                         eye,
                         radiance: &first.radiance,
                     };
@@ -487,7 +489,7 @@ impl Backend for CpuBackend {
                         bounce_step(&cx, step, first, &mut f.bounces, scratch, closest, &mut shadow_rays)?
                     }
                     Step::RtShading { bounces: false } => {
-                        let primary = Primary { gbuffer: &f.gbuffer, materials: &materials, eye };
+                        let primary = Primary { gbuffer: &f.gbuffer, materials: &materials, ambient: &g.ambient, eye };
                         rt_shading_into(&f.surfaces, &f.shadow, &primary, &g.lights, &mut f.rt)
                     }
                     Step::RtShading { bounces: true } => {
@@ -500,6 +502,7 @@ impl Backend for CpuBackend {
                             &materials,
                             &g.triangles,
                             &g.lights,
+                            &g.ambient,
                             eye,
                             bounce,
                             &mut f.rt,
@@ -508,7 +511,7 @@ impl Backend for CpuBackend {
                     Step::RasterShading { shade_ray_traced } => raster_shading_into(
                         &f.surfaces,
                         &f.shadow,
-                        &Primary { gbuffer: &f.gbuffer, materials: &materials, eye },
+                        &Primary { gbuffer: &f.gbuffer, materials: &materials, ambient: &g.ambient, eye },
                         &g.lights,
                         shade_ray_traced,
                         &mut f.raster,

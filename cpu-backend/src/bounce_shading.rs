@@ -5,7 +5,7 @@
 //!
 //! Inputs: the rays, hits, surfaces and shadow codes of depth `d`; unless `d` is the
 //! plan's deepest bounce, the links and radiance of depth `d + 1`; the materials, triangles,
-//! lights, the scene's environment. Output: one linear RGBA value per ray (alpha 1). The
+//! lights, the scene's environment and ambient light. Output: one linear RGBA value per ray (alpha 1). The
 //! kernel is [`hyrt_core::kernels::bounce::shade_secondary_hit`]: the environment (the
 //! default sky or the scene's map) on a miss, the
 //! bouncing shader on mirrors and glass, the ray-traced shader on other ray-traced
@@ -14,6 +14,7 @@
 use hyrt_core::formats::{HitRecord, LightRecord, RayRecord, SurfaceRecord, INVALID_ID};
 use hyrt_core::geometry::WorldTriangles;
 use hyrt_core::kernels::bounce::{secondary_parent, shade_secondary_hit};
+use hyrt_core::kernels::shading::AmbientLight;
 use hyrt_core::kernels::texture::Materials;
 use hyrt_core::scene::Environment;
 use rayon::prelude::*;
@@ -29,7 +30,7 @@ pub struct Children<'a> {
 
 /// The stage into a caller-owned buffer. `shadow` is indexed `ray * lights + light`
 /// (empty without lights); `children` is `None` at the plan's deepest bounce; `env` is
-/// what the rays that hit nothing see.
+/// what the rays that hit nothing see, `ambient` the frame's ambient light.
 #[allow(clippy::too_many_arguments)]
 pub fn bounce_shading_into(
     rays: &[RayRecord],
@@ -40,6 +41,7 @@ pub fn bounce_shading_into(
     triangles: &WorldTriangles,
     lights: &[LightRecord],
     env: &Environment,
+    ambient: &AmbientLight,
     children: Option<Children>,
     out: &mut Vec<[f32; 4]>,
 ) {
@@ -55,7 +57,7 @@ pub fn bounce_shading_into(
         .map(|i| {
             let p = secondary_parent(&rays[i], &hits[i], &surfaces[i], materials);
             let kids = links.get(i).copied().unwrap_or([INVALID_ID; 2]);
-            shade_secondary_hit(&p, env, triangles, &shadow[i * nl..(i + 1) * nl], lights, kids, radiance)
+            shade_secondary_hit(&p, env, triangles, &shadow[i * nl..(i + 1) * nl], lights, ambient, kids, radiance)
                 .extend(1.0)
                 .into()
         })

@@ -397,7 +397,12 @@ pub fn fused_frame(
         camera,
         steps,
         reconstruct: Reconstruct::new(options.barycentrics, camera),
-        primary: Primary { gbuffer: &[], materials: &materials, eye: camera.eye.into() },
+        primary: Primary {
+            gbuffer: &[],
+            materials: &materials,
+            ambient: &scene.geometry.ambient,
+            eye: camera.eye.into(),
+        },
         weight: options.weight,
         traversal,
         level: SimdLevel::detect(),
@@ -610,6 +615,7 @@ fn tile_shading<L: Lanes>(
     const BH: usize = TILE_HEIGHT as usize;
     let (steps, lights) = (inputs.steps, &inputs.scene.geometry.lights);
     let (objects, eye, nl) = (inputs.primary.materials.objects, inputs.primary.eye.into(), lights.len());
+    let ambient = inputs.primary.ambient;
     // Where materials vary, each hit's record at its pixel (`records`: `Primary::object`),
     // as the scalar stages shade it.
     let varying = !records.is_empty();
@@ -645,9 +651,11 @@ fn tile_shading<L: Lanes>(
                     }
                 }
             }
-            let rt = if steps.rt_shading { rt_shading_lanes::<L>(&block, lit, lights, eye) } else { none };
+            let rt = if steps.rt_shading { rt_shading_lanes::<L>(&block, lit, lights, ambient, eye) } else { none };
             let raster = match steps.raster_shading {
-                Some(shade_ray_traced) => raster_shading_lanes::<L>(&block, lit, lights, eye, shade_ray_traced),
+                Some(shade_ray_traced) => {
+                    raster_shading_lanes::<L>(&block, lit, lights, ambient, eye, shade_ray_traced)
+                }
                 None => none,
             };
             let out = composition_lanes::<L>(steps.composition, raster, rt, inputs.weight);

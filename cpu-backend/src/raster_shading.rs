@@ -12,35 +12,38 @@
 use glam::Vec3;
 use hyrt_core::formats::{GBufferTexel, LightRecord, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
 use hyrt_core::kernels::bounce::primary_parent;
-use hyrt_core::kernels::shading::{shade_raster_pixel, BACKGROUND_RGBA};
+use hyrt_core::kernels::shading::{shade_raster_pixel, AmbientLight, BACKGROUND_RGBA};
 use hyrt_core::kernels::texture::Materials;
 use rayon::prelude::*;
 
 pub(crate) mod lanes;
 
-/// The stage on a scene without textures or vertex colours, seen from `eye`. `shadow` is
-/// indexed `pixel * lights.len() + light`.
+/// The stage on a scene without textures or vertex colours, seen from `eye` under the
+/// frame's `ambient` light (`WorldGeometry::ambient`). `shadow` is indexed
+/// `pixel * lights.len() + light`.
 pub fn raster_shading(
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
     objects: &[ObjectRecord],
     lights: &[LightRecord],
+    ambient: &AmbientLight,
     eye: Vec3,
     weight: f32,
 ) -> Vec<[f32; 4]> {
     let mut out = Vec::new();
-    let primary = Primary { gbuffer: &[], materials: &Materials::plain(objects), eye };
+    let primary = Primary { gbuffer: &[], materials: &Materials::plain(objects), ambient, eye };
     raster_shading_into(surfaces, shadow, &primary, lights, weight < 1.0, &mut out);
     out
 }
 
-/// What shading a primary hit reads besides its surface: the materials, the eye (the view
-/// direction; where materials vary over surfaces also the footprint) and, where materials
-/// vary, the G-buffer's barycentrics.
+/// What shading a primary hit reads besides its surface and the lights: the materials, the
+/// frame's ambient light, the eye (the view direction; where materials vary over surfaces
+/// also the footprint) and, where materials vary, the G-buffer's barycentrics.
 #[derive(Clone, Copy)]
 pub struct Primary<'a> {
     pub gbuffer: &'a [GBufferTexel],
     pub materials: &'a Materials<'a>,
+    pub ambient: &'a AmbientLight,
     pub eye: Vec3,
 }
 
@@ -125,7 +128,7 @@ pub fn raster_shading_record(
     if primary.materials.objects[s.object as usize].flags & OBJ_RAY_TRACED != 0 && !shade_ray_traced {
         return [0.0; 4];
     }
-    shade_raster_pixel(s, record, shadow, lights, primary.eye).extend(1.0).into()
+    shade_raster_pixel(s, record, shadow, lights, primary.ambient, primary.eye).extend(1.0).into()
 }
 
 /// Pixel `i`'s shadow codes in the frame's mask (`nl` per pixel): a miss has none (a plan

@@ -10,7 +10,7 @@ use glam::Vec3;
 use hyrt_core::formats::{GBufferTexel, LightRecord, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
 use hyrt_core::geometry::WorldTriangles;
 use hyrt_core::kernels::bounce::{primary_parent, primary_parent_shaded, shade_rt_pixel_bouncing};
-use hyrt_core::kernels::shading::shade_rt_pixel;
+use hyrt_core::kernels::shading::{shade_rt_pixel, AmbientLight};
 use hyrt_core::kernels::texture::Materials;
 
 use crate::raster_shading::{pixel_codes, Primary};
@@ -18,17 +18,18 @@ use rayon::prelude::*;
 
 pub(crate) mod lanes;
 
-/// The stage on a scene without textures or vertex colours. `shadow` is indexed
-/// `pixel * lights.len() + light`.
+/// The stage on a scene without textures or vertex colours, under the frame's `ambient`
+/// light (`WorldGeometry::ambient`). `shadow` is indexed `pixel * lights.len() + light`.
 pub fn rt_shading(
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
     objects: &[ObjectRecord],
     lights: &[LightRecord],
+    ambient: &AmbientLight,
     eye: Vec3,
 ) -> Vec<[f32; 4]> {
     let mut out = Vec::new();
-    let primary = Primary { gbuffer: &[], materials: &Materials::plain(objects), eye };
+    let primary = Primary { gbuffer: &[], materials: &Materials::plain(objects), ambient, eye };
     rt_shading_into(surfaces, shadow, &primary, lights, &mut out);
     out
 }
@@ -67,9 +68,9 @@ pub fn rt_shading_pixel(
         return [0.0; 4];
     };
     let c = if primary.materials.varying() {
-        shade_rt_pixel(s, &primary.object(i, s), shadow, lights, primary.eye)
+        shade_rt_pixel(s, &primary.object(i, s), shadow, lights, primary.ambient, primary.eye)
     } else {
-        shade_rt_pixel(s, obj, shadow, lights, primary.eye)
+        shade_rt_pixel(s, obj, shadow, lights, primary.ambient, primary.eye)
     };
     c.extend(1.0).into()
 }
@@ -96,12 +97,13 @@ pub fn rt_shading_bouncing_into(
     materials: &Materials,
     triangles: &WorldTriangles,
     lights: &[LightRecord],
+    ambient: &AmbientLight,
     eye: Vec3,
     bounce: FirstBounce,
     out: &mut Vec<[f32; 4]>,
 ) {
     let nl = lights.len();
-    let shading = BouncingShading { materials, triangles, lights, eye, radiance: bounce.radiance };
+    let shading = BouncingShading { materials, triangles, lights, ambient, eye, radiance: bounce.radiance };
     surfaces
         .par_iter()
         .enumerate()
@@ -119,6 +121,7 @@ pub struct BouncingShading<'a> {
     pub materials: &'a Materials<'a>,
     pub triangles: &'a WorldTriangles,
     pub lights: &'a [LightRecord],
+    pub ambient: &'a AmbientLight,
     pub eye: Vec3,
     /// The radiance the first bounce's rays bring back.
     pub radiance: &'a [[f32; 4]],
@@ -157,12 +160,12 @@ pub fn rt_shading_bouncing_record(
     shadow: &[u8],
     children: [u32; 2],
 ) -> [f32; 4] {
-    let BouncingShading { materials, triangles, lights, eye, radiance } = *shading;
+    let BouncingShading { materials, triangles, lights, ambient, eye, radiance } = *shading;
     if ray_traced(materials.objects, s).is_none() {
         return [0.0; 4];
     }
     let p = primary_parent_shaded(t, s, eye, pixel, materials, *record);
-    shade_rt_pixel_bouncing(&p, triangles, shadow, lights, eye, children, radiance).extend(1.0).into()
+    shade_rt_pixel_bouncing(&p, triangles, shadow, lights, ambient, eye, children, radiance).extend(1.0).into()
 }
 
 /// The object of surface `s` where it is a hit on a ray-traced object: the pixels the

@@ -13,7 +13,7 @@ use hyrt_core::bvh::BvhPreset;
 use hyrt_core::formats::{CameraRecord, ObjectRecord, SHADOW_LIT, SHADOW_NO_RAY};
 use hyrt_core::frame::{Backend, Frame, FrameOptions};
 use hyrt_core::geometry::WorldGeometry;
-use hyrt_core::kernels::shading::{ambient, gltf_brdf_f64, AMBIENT, DIELECTRIC_F0, ENVIRONMENT_SPECULAR};
+use hyrt_core::kernels::shading::{ambient, gltf_brdf_f64, AmbientLight, AMBIENT};
 use hyrt_core::scene::{
     Ambient, Camera, Environment, EnvironmentMap, Light, Material, MaterialKind, MaterialMaps, Mesh, RenderMode,
     Sampler, Scene, ShadingModel, TextureBinding, TextureImage, UvTransform,
@@ -64,23 +64,22 @@ fn scene() -> (Scene, Vec3, Vec3) {
 }
 
 /// `scene` rendered on the CPU at 320 x 120, one thread, no bounces, with the stages'
-/// outputs kept: the frame, its camera and the object records.
-fn render(scene: &Scene) -> (Frame, CameraRecord, Vec<ObjectRecord>) {
+/// outputs kept: the frame, its camera, the object records and the ambient light.
+fn render(scene: &Scene) -> (Frame, CameraRecord, Vec<ObjectRecord>, AmbientLight) {
     let mut cpu = CpuBackend::new(Some(1));
     let prepared = cpu.prepare(WorldGeometry::build(scene), BvhPreset::default());
     let camera = CameraRecord::new(&scene.camera.expect("camera"), 320, 120);
     let options = FrameOptions { max_depth: 0, ..FrameOptions::with_stage_outputs() };
     let frame = cpu.render(&prepared, &camera, &options).expect("frame");
-    (frame, camera, prepared.geometry.objects.clone())
+    (frame, camera, prepared.geometry.objects.clone(), prepared.geometry.ambient.clone())
 }
 
 #[test]
 fn gltf_brdf_frames_match_appendix_b_at_the_dumped_surfaces() {
     let (mut scene, direction, irradiance) = scene();
     scene.ambient = Ambient(0.0);
-    let black = EnvironmentMap::new(1, 1, vec![[0.0, 0.0, 0.0, 1.0]]).expect("a black map");
-    scene.environment = Environment::Map(std::sync::Arc::new(black));
-    let (frame, camera, objects) = render(&scene);
+    scene.environment = black_environment();
+    let (frame, camera, objects, ambient_light) = render(&scene);
     let (eye, l) = (Vec3::from(camera.eye).as_dvec3(), (-direction).as_dvec3());
     let (mut checked, mut by_mode) = (0usize, [0usize; 2]);
     let mut worst = 0.0f64;
@@ -103,7 +102,12 @@ fn gltf_brdf_frames_match_appendix_b_at_the_dumped_surfaces() {
             v.to_array(),
             l.to_array(),
         );
-        assert_eq!(ambient(obj), Vec3::ZERO, "ambient = 0 removes the constant terms");
+        let (n32, v32) = (Vec3::from(s.normal), v.as_vec3());
+        assert_eq!(
+            ambient(obj, n32, v32, &ambient_light),
+            Vec3::ZERO,
+            "ambient = 0 and a black environment remove every ambient term"
+        );
         let got = frame.final_image[i];
         for c in 0..3 {
             let direct = if lit && nl > 0.0 { f[c] * irradiance.as_dvec3()[c] * nl } else { 0.0 };
@@ -157,6 +161,17 @@ const TEXTURED: [Textured; 3] = [
     },
 ];
 
+/// An environment that sends no light.
+fn black_environment() -> Environment {
+    uniform_environment(0.0)
+}
+
+/// An environment of radiance `l` in every direction.
+fn uniform_environment(l: f32) -> Environment {
+    let map = EnvironmentMap::new(4, 2, vec![[l, l, l, 1.0]; 8]).expect("a uniform map");
+    Environment::Map(std::sync::Arc::new(map))
+}
+
 /// The sRGB decoding of an 8-bit code in f64 (IEC 61966-2-1).
 fn srgb(code: u8) -> f64 {
     let c = code as f64 / 255.0;
@@ -170,6 +185,9 @@ fn srgb(code: u8) -> f64 {
 #[test]
 fn textured_metallic_roughness_occlusion_and_emission_match_the_formulas() {
     let (mut scene, direction, irradiance) = scene();
+    // A black environment: the ambient light is the constant diffuse term alone, which
+    // reads the textured metallic and occlusion.
+    scene.environment = black_environment();
     let one = |scene: &mut Scene, name: &str, texel: [u8; 4]| {
         scene.textures.push(std::sync::Arc::new(TextureImage::new(name.into(), 1, 1, vec![texel]).unwrap()));
         let sampler = Sampler { mip: None, ..Sampler::default() };
@@ -193,7 +211,7 @@ fn textured_metallic_roughness_occlusion_and_emission_match_the_formulas() {
         let mesh = &mut scene.meshes[obj.mesh];
         mesh.attributes.tex_coords[0] = Some(vec![glam::Vec2::ZERO; mesh.positions.len()]);
     }
-    let (frame, camera, _) = render(&scene);
+    let (frame, camera, ..) = render(&scene);
     let (eye, l) = (Vec3::from(camera.eye).as_dvec3(), (-direction).as_dvec3());
     let mut checked = [0usize; 2];
     for (i, s) in frame.surfaces.iter().enumerate() {
@@ -211,8 +229,7 @@ fn textured_metallic_roughness_occlusion_and_emission_match_the_formulas() {
         let got = frame.final_image[i];
         for c in 0..3 {
             let b = base[c] as f64;
-            let f0 = DIELECTRIC_F0 as f64 * (1.0 - metallic) + b * metallic;
-            let ambient = (b * (1.0 - metallic) * AMBIENT as f64 + f0 * ENVIRONMENT_SPECULAR as f64) * occlusion;
+            let ambient = b * (1.0 - metallic) * AMBIENT as f64 * occlusion;
             let emission = t.emissive_factor[c] as f64 * srgb(t.emissive_texel[c]);
             let direct = if lit && nl > 0.0 { f[c] * irradiance.as_dvec3()[c] * nl } else { 0.0 };
             let want = ambient + emission + direct;
@@ -226,4 +243,54 @@ fn textured_metallic_roughness_occlusion_and_emission_match_the_formulas() {
         checked[(mode == RenderMode::RayTraced) as usize] += 1;
     }
     assert!(checked.iter().all(|&k| k > 2000), "{checked:?} pixels per path");
+}
+
+/// The image-based light in a furnace: under an environment of uniform radiance `L`, no
+/// lights and `ambient = 0`, a white dielectric reflects `L` whatever its roughness (its
+/// diffuse lobe keeps what its specular lobe does not reflect, `1 - (0.04 A + B)`, and the
+/// irradiance of a uniform environment is `pi L`), and a white metal reflects `L (A + B)`,
+/// its GGX lobe's directional albedo: below `L`, and near it on a smooth lobe seen head on.
+/// Rasterized and ray-traced spheres alike.
+#[test]
+fn image_based_light_in_a_uniform_environment_keeps_a_white_dielectric_at_its_radiance() {
+    const L: f32 = 0.5;
+    /// The irradiance coefficients (a sum over 8 texels in f64, rounded once), the split-sum
+    /// cells' f32 rounding and a dozen f32 operations of values below 1.
+    const FURNACE_TOL: f64 = 1e-5;
+    let (mut scene, ..) = scene();
+    scene.lights.clear();
+    scene.ambient = Ambient(0.0);
+    scene.environment = uniform_environment(L);
+    scene.materials.iter_mut().for_each(|m| m.base_color = Vec3::ONE);
+    let (frame, ..) = render(&scene);
+    let (mut dielectric, mut metal) = ([0usize; 2], [0usize; 2]);
+    let mut darkest_metal = f64::MAX;
+    for (i, s) in frame.surfaces.iter().enumerate() {
+        if !s.is_hit() {
+            continue;
+        }
+        let (_, metallic, _, mode) = SPHERES[s.object as usize];
+        let got = frame.final_image[i];
+        let path = (mode == RenderMode::RayTraced) as usize;
+        for (c, &g) in got[..3].iter().enumerate() {
+            let g = g as f64;
+            if metallic == 0.0 {
+                assert!((g - L as f64).abs() <= FURNACE_TOL, "pixel {i} ({mode:?}) channel {c}: {g} against {L}");
+            } else {
+                assert!(
+                    g <= L as f64 * (1.0 + FURNACE_TOL),
+                    "pixel {i} ({mode:?}, metallic {metallic}): {g} above {L}"
+                );
+            }
+        }
+        if metallic == 0.0 {
+            dielectric[path] += 1;
+        } else if metallic == 1.0 {
+            metal[path] += 1;
+            darkest_metal = darkest_metal.min(got[0] as f64);
+        }
+    }
+    assert!(dielectric.iter().chain(&metal).all(|&k| k > 500), "dielectric {dielectric:?}, metal {metal:?} pixels");
+    // Roughness 0.35: the lobe's albedo stays above 0.8 even at the silhouette.
+    assert!(darkest_metal > 0.8 * L as f64, "darkest metal pixel {darkest_metal}");
 }

@@ -2,6 +2,7 @@
 //! from raster to final image, one readback at the end.
 
 use std::collections::TryReserveError;
+use std::sync::Arc;
 use std::time::Instant;
 
 use hyrt_core::formats::{
@@ -44,55 +45,81 @@ const MAX_STEPS: u32 = Stage::ALL.len() as u32 - 1 - 3 + 5 * MAX_DEPTH_LIMIT;
 /// Storage buffers the bounce stages bind in one shader stage, at most: `secondary_rays`
 /// binds the scan's three (flags, levels, the list's count) and eleven of its own (objects,
 /// triangles, the G-buffer, the parents' surfaces, rays, hits and count, the rays, links
-/// and counters it writes, the surface tables). WebGPU's default limit is 8;
+/// and counters it writes, the surface tables); `bounce_shading` as many (the depth's rays,
+/// count, hits, surfaces and shadow codes, objects, triangles, lights, the environment's
+/// texels, the next depth's links and radiance, the radiance it writes, the surface tables
+/// and the ambient light's texels). WebGPU's default limit is 8;
 /// `GpuContext::new` asks for up to 16. On a device with fewer, the backend renders frames
 /// without bounces and refuses the others with `GpuError::Limits`.
 pub const BOUNCE_STORAGE_BUFFERS: u32 = 14;
 
 /// The pipelines of the bounce stages (and of `rt_shading` gathering the first bounce).
 struct BounceStages {
-    secondary_rays: SecondaryRaysStage,
-    bounce_trace: BounceTraceStage,
+    secondary_rays: Arc<SecondaryRaysStage>,
+    bounce_trace: Arc<BounceTraceStage>,
     bounce_shading: BounceShadingStage,
     rt_shading: RtShadingBouncingStage,
 }
 
 /// The stages that read the surface tables, compiled for one [`Specialization`] (the
-/// others, `reconstruction`, `compaction` and `composition`, read none).
+/// others, `reconstruction`, `compaction` and `composition`, read none). The stages that
+/// shade no surface (in `Arc`s) read no ambient light: two specializations that differ
+/// only in [`Specialization::ambient_image`] share them.
 struct SurfaceStages {
-    visibility_raster: VisibilityRasterStage,
-    shadow_rays: ShadowRaysStage,
+    visibility_raster: Arc<VisibilityRasterStage>,
+    shadow_rays: Arc<ShadowRaysStage>,
     rt_shading: RtShadingStage,
     raster_shading: RasterShadingStage,
     /// `None` on a device with fewer than [`BOUNCE_STORAGE_BUFFERS`] storage buffers per
     /// shader stage.
     bounces: Option<BounceStages>,
     /// The passes after `reconstruction` and `bounce_trace` of a scene with normal maps.
-    normal_mapping: Option<NormalMapping>,
+    normal_mapping: Option<Arc<NormalMapping>>,
 }
 
 impl SurfaceStages {
-    /// Build the pipelines for scenes that need `s`, `visibility_raster` in `mode`.
-    fn new(ctx: &GpuContext, mode: VisibilityMode, s: Specialization) -> Result<SurfaceStages, GpuError> {
+    /// Build the pipelines for scenes that need `s`, `visibility_raster` in `mode`; those
+    /// that shade no surface taken from `sibling` where given (the stages of `s` with the
+    /// other [`Specialization::ambient_image`], in `mode`).
+    fn new(
+        ctx: &GpuContext,
+        mode: VisibilityMode,
+        s: Specialization,
+        sibling: Option<&SurfaceStages>,
+    ) -> Result<SurfaceStages, GpuError> {
         let (visibility_raster, shadow_rays, rt_shading, raster_shading) = ctx.checked(|| {
             (
-                VisibilityRasterStage::specialized(ctx, mode, s),
-                ShadowRaysStage::specialized(ctx, s),
+                sibling.map_or_else(
+                    || Arc::new(VisibilityRasterStage::specialized(ctx, mode, s)),
+                    |t| t.visibility_raster.clone(),
+                ),
+                sibling.map_or_else(|| Arc::new(ShadowRaysStage::specialized(ctx, s)), |t| t.shadow_rays.clone()),
                 RtShadingStage::specialized(ctx, s),
                 RasterShadingStage::specialized(ctx, s),
             )
         })?;
         let bounces = if ctx.limits.max_storage_buffers_per_shader_stage >= BOUNCE_STORAGE_BUFFERS {
-            Some(ctx.checked(|| BounceStages {
-                secondary_rays: SecondaryRaysStage::specialized(ctx, s),
-                bounce_trace: BounceTraceStage::specialized(ctx, s),
-                bounce_shading: BounceShadingStage::specialized(ctx, s),
-                rt_shading: RtShadingBouncingStage::specialized(ctx, s),
+            let shared = sibling.and_then(|t| t.bounces.as_ref());
+            Some(ctx.checked(|| {
+                BounceStages {
+                    secondary_rays: shared.map_or_else(
+                        || Arc::new(SecondaryRaysStage::specialized(ctx, s)),
+                        |b| b.secondary_rays.clone(),
+                    ),
+                    bounce_trace: shared
+                        .map_or_else(|| Arc::new(BounceTraceStage::specialized(ctx, s)), |b| b.bounce_trace.clone()),
+                    bounce_shading: BounceShadingStage::specialized(ctx, s),
+                    rt_shading: RtShadingBouncingStage::specialized(ctx, s),
+                }
             })?)
         } else {
             None
         };
-        let normal_mapping = if s.normal_mapped { Some(ctx.checked(|| NormalMapping::new(ctx))?) } else { None };
+        let normal_mapping = match (s.normal_mapped, sibling) {
+            (false, _) => None,
+            (true, Some(t)) => t.normal_mapping.clone(),
+            (true, None) => Some(Arc::new(ctx.checked(|| NormalMapping::new(ctx))?)),
+        };
         Ok(SurfaceStages { visibility_raster, shadow_rays, rt_shading, raster_shading, bounces, normal_mapping })
     }
 }
@@ -192,7 +219,7 @@ impl GpuBackend {
         let (reconstruction, compaction, composition) =
             ctx.checked(|| (ReconstructionStage::new(&ctx), CompactionStage::new(&ctx), CompositionStage::new(&ctx)))?;
         let visibility_mode = VisibilityMode::default();
-        let plain = SurfaceStages::new(&ctx, visibility_mode, Specialization::PLAIN)?;
+        let plain = SurfaceStages::new(&ctx, visibility_mode, Specialization::PLAIN, None)?;
         let timer = StageTimer::new(&ctx, MAX_STEPS)?;
         Ok(GpuBackend {
             ctx,
@@ -239,19 +266,24 @@ impl GpuBackend {
         if self.visibility_mode != mode {
             for (s, stages) in &mut self.stages {
                 let ctx = &self.ctx;
-                stages.visibility_raster = ctx.checked(|| VisibilityRasterStage::specialized(ctx, mode, *s))?;
+                stages.visibility_raster = Arc::new(ctx.checked(|| VisibilityRasterStage::specialized(ctx, mode, *s))?);
             }
             self.visibility_mode = mode;
         }
         Ok(())
     }
 
-    /// The stages specialized as `s`, built now if no scene needed them before.
+    /// The stages specialized as `s`, built now if no scene needed them before (but for
+    /// those they share with the stages of `s` with the other
+    /// [`Specialization::ambient_image`], if built).
     fn stages(&mut self, s: Specialization) -> Result<&SurfaceStages, GpuError> {
         let at = match self.stages.iter().position(|(k, _)| *k == s) {
             Some(at) => at,
             None => {
-                self.stages.push((s, SurfaceStages::new(&self.ctx, self.visibility_mode, s)?));
+                let other = Specialization { ambient_image: !s.ambient_image, ..s };
+                let sibling = self.stages.iter().find(|(k, _)| *k == other).map(|(_, t)| t);
+                let stages = SurfaceStages::new(&self.ctx, self.visibility_mode, s, sibling)?;
+                self.stages.push((s, stages));
                 self.stages.len() - 1
             }
         };

@@ -7,9 +7,10 @@
 //!
 //! Reads the depth's rays, count (indirect dispatch), hits, surfaces and shadow codes;
 //! unless it is the plan's deepest bounce, the next depth's links and radiance; objects,
-//! triangles, lights, the scene's environment, and the surface tables (each hit's object
-//! shaded as [`hyrt_core::kernels::texture::Materials::at`] sees it, its footprint the
-//! ray's cone widened over the hit's distance). Writes one linear RGBA value per ray.
+//! triangles, lights, the scene's environment and ambient light (its image-based light's
+//! texels under the glTF model), and the surface tables (each hit's object shaded as
+//! [`hyrt_core::kernels::texture::Materials::at`] sees it, its footprint the ray's cone
+//! widened over the hit's distance). Writes one linear RGBA value per ray.
 //! Also home of the WGSL the radiance-gathering stages share (this one and `rt_shading`
 //! with bounces).
 
@@ -37,7 +38,8 @@ impl BounceShadingStage {
         entries.extend((11..=13).map(|i| storage_entry(i, true)));
         entries.push(storage_entry(14, false));
         entries.extend([storage_entry(15, true), uniform_entry(16)]);
-        let (pipeline, layout) = specialized_pipeline(ctx, "bounce_shading", &source, &entries, &s.constants());
+        entries.extend([uniform_entry(17), storage_entry(18, true)]);
+        let (pipeline, layout) = specialized_pipeline(ctx, "bounce_shading", &source, &entries, &s.shading_constants());
         BounceShadingStage { pipeline, layout }
     }
 
@@ -84,6 +86,8 @@ impl BounceShadingStage {
                 &b.radiance,
                 &scene.surface.words,
                 &scene.surface.layout,
+                &scene.ambient_light,
+                &scene.ambient_texels,
             ],
         );
         crate::shader::encode_list_pass(encoder, "bounce_shading", &self.pipeline, &bind_group, &b.ray_count, timing);

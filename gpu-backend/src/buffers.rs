@@ -4,8 +4,8 @@
 //! in [`hyrt_core::formats`]) unless said otherwise here.
 
 use hyrt_core::formats::{
-    BvhNode, CameraRecord, EnvironmentRecord, GBufferTexel, HitRecord, InstanceRecord, LightRecord, ListParams,
-    ObjectRecord, RayRecord, SurfaceRecord, TriangleRecord,
+    AmbientLightRecord, BvhNode, CameraRecord, EnvironmentRecord, GBufferTexel, HitRecord, InstanceRecord, LightRecord,
+    ListParams, ObjectRecord, RayRecord, SurfaceRecord, TriangleRecord,
 };
 use hyrt_core::frame::{PreparedScene, SceneChanges};
 use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan};
@@ -52,6 +52,13 @@ pub struct SceneBuffers {
     pub environment: wgpu::Buffer,
     /// `array<vec4<f32>>`: the environment map's texels (one zero texel for the sky).
     pub environment_texels: wgpu::Buffer,
+    /// Uniform [`AmbientLightRecord`]: the frame's ambient light
+    /// ([`hyrt_core::geometry::WorldGeometry::ambient`]), its constant level and whether
+    /// the scene has an image-based light.
+    pub ambient_light: wgpu::Buffer,
+    /// `array<vec4<f32>>`: the image-based light's tables
+    /// ([`hyrt_core::kernels::ibl::AmbientLight::texels`]; one zero texel without one).
+    pub ambient_texels: wgpu::Buffer,
     /// The surface tables (materials, texture coordinates, vertex colours, textures),
     /// packed into one binding with their layout; one unread word without them.
     pub surface: SurfaceBuffers,
@@ -77,6 +84,16 @@ impl SceneBuffers {
             mapped_at_creation: false,
         });
         ctx.queue.write_buffer(&environment_header, 0, bytemuck::bytes_of(&environment));
+        let ambient = g.ambient.record();
+        let ambient_texels = g.ambient.texels();
+        debug_assert_eq!(ambient.validate(ambient_texels.len()), Ok(()));
+        let ambient_header = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("ambient light"),
+            size: std::mem::size_of::<AmbientLightRecord>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        ctx.queue.write_buffer(&ambient_header, 0, bytemuck::bytes_of(&ambient));
         let packed = scene.levels.as_ref().map(|l| l.packed());
         let (nodes, leaf_triangles, prim_indices, instances) = match &packed {
             Some(p) => (&p.nodes, &p.leaf_triangles, &p.prim_indices, &p.instances[..]),
@@ -85,6 +102,8 @@ impl SceneBuffers {
         SceneBuffers {
             environment: environment_header,
             environment_texels: upload::<[f32; 4]>(ctx, "environment texels", texels),
+            ambient_light: ambient_header,
+            ambient_texels: upload::<[f32; 4]>(ctx, "ambient light texels", &ambient_texels),
             triangles: upload::<TriangleRecord>(ctx, "triangles", &triangles),
             normals: upload(ctx, "normals", &normals),
             objects: upload::<ObjectRecord>(ctx, "objects", &g.objects),

@@ -10,8 +10,9 @@
 //! G-buffer's barycentrics and the eye's footprint.
 //!
 //! Reads `frame.surfaces`, `frame.shadow`, `scene.objects`, `scene.lights`,
-//! `frame.params` (width, height, light count, weight, cone spread); where materials vary
-//! also `frame.gbuffer`, `frame.camera` (the eye) and `scene.surface`.
+//! `frame.params` (width, height, light count, weight, cone spread), `frame.camera` (the
+//! eye), `scene.ambient_light` (and under an image-based light `scene.ambient_texels`);
+//! where materials vary also `frame.gbuffer` and `scene.surface`.
 //! Writes `frame.raster`: linear RGBA; `BACKGROUND` with alpha 1 on pixels without
 //! a hit, (0, 0, 0, 0) on ray-traced pixels when the weight is 1, alpha 1 where shaded.
 
@@ -56,8 +57,10 @@ impl RasterShadingStage {
                 uniform_entry(7),        // camera
                 storage_entry(8, true),  // surface tables
                 uniform_entry(9),        // surface layout
+                uniform_entry(10),       // ambient light
+                storage_entry(11, true), // ambient light texels
             ],
-            &s.constants(),
+            &s.shading_constants(),
         );
         RasterShadingStage { pipeline, layout }
     }
@@ -88,6 +91,8 @@ impl RasterShadingStage {
                 &frame.camera,
                 &scene.surface.words,
                 &scene.surface.layout,
+                &scene.ambient_light,
+                &scene.ambient_texels,
             ],
         );
         encode_pixel_pass(encoder, "raster_shading", &self.pipeline, &bind_group, frame.width, frame.band.rows, timing);

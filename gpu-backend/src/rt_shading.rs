@@ -10,8 +10,9 @@
 //! footprint.
 //!
 //! Reads `frame.surfaces`, `frame.shadow`, `scene.objects`, `scene.lights`,
-//! `frame.camera` (the eye), `frame.params` (width, height, light count, cone spread);
-//! where materials vary also `frame.gbuffer` and `scene.surface`.
+//! `frame.camera` (the eye), `frame.params` (width, height, light count, cone spread),
+//! `scene.ambient_light` (and under an image-based light `scene.ambient_texels`); where
+//! materials vary also `frame.gbuffer` and `scene.surface`.
 //! Writes `frame.rt`: linear RGBA, alpha 1 on ray-traced pixels, (0, 0, 0, 0) elsewhere.
 //!
 //! Also home of the helpers the three shading stages share (WGSL assembly,
@@ -25,7 +26,7 @@ use crate::texture::Specialization;
 use crate::GpuContext;
 
 /// The bindings of `shaders/rt_shading.wgsl`.
-fn rt_entries() -> [wgpu::BindGroupLayoutEntry; 10] {
+fn rt_entries() -> [wgpu::BindGroupLayoutEntry; 12] {
     [
         storage_entry(0, true),  // surfaces
         storage_entry(1, true),  // shadow
@@ -37,11 +38,13 @@ fn rt_entries() -> [wgpu::BindGroupLayoutEntry; 10] {
         storage_entry(7, true),  // gbuffer
         storage_entry(8, true),  // surface tables
         uniform_entry(9),        // surface layout
+        uniform_entry(10),       // ambient light
+        storage_entry(11, true), // ambient light texels
     ]
 }
 
 /// The buffers of [`rt_entries`], in binding order.
-fn rt_buffers<'a>(scene: &'a SceneBuffers, frame: &'a FrameBuffers) -> [&'a wgpu::Buffer; 10] {
+fn rt_buffers<'a>(scene: &'a SceneBuffers, frame: &'a FrameBuffers) -> [&'a wgpu::Buffer; 12] {
     [
         &frame.surfaces,
         &frame.shadow,
@@ -53,6 +56,8 @@ fn rt_buffers<'a>(scene: &'a SceneBuffers, frame: &'a FrameBuffers) -> [&'a wgpu
         &frame.gbuffer,
         &scene.surface.words,
         &scene.surface.layout,
+        &scene.ambient_light,
+        &scene.ambient_texels,
     ]
 }
 
@@ -86,7 +91,8 @@ impl RtShadingStage {
             include_str!("shaders/rt_shading.wgsl"),
             include_str!("shaders/primary_object.wgsl")
         ));
-        let (pipeline, layout) = specialized_pipeline(ctx, "rt_shading", &source, &rt_entries(), &s.constants());
+        let (pipeline, layout) =
+            specialized_pipeline(ctx, "rt_shading", &source, &rt_entries(), &s.shading_constants());
         RtShadingStage { pipeline, layout }
     }
 
@@ -121,13 +127,13 @@ impl RtShadingBouncingStage {
             &[
                 rt_entries().as_slice(),
                 &[
-                    storage_entry(10, true), // triangles
-                    storage_entry(11, true), // links of depth 1
-                    storage_entry(12, true), // radiance of depth 1
+                    storage_entry(12, true), // triangles
+                    storage_entry(13, true), // links of depth 1
+                    storage_entry(14, true), // radiance of depth 1
                 ],
             ]
             .concat(),
-            &s.constants(),
+            &s.shading_constants(),
         );
         RtShadingBouncingStage { pipeline, layout }
     }

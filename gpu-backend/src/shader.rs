@@ -8,6 +8,9 @@ use hyrt_core::formats::wgsl::declarations;
 use hyrt_core::kernels::bounce::{IOR_OUTSIDE, MIN_THROUGHPUT, SKY_GROUND, SKY_HORIZON, SKY_ZENITH};
 use hyrt_core::kernels::environment::{ATAN_SERIES, INV_TWO_PI, TAN_PI_8};
 use hyrt_core::kernels::exact::DEFAULT_NAN;
+use hyrt_core::kernels::ibl::{
+    prefiltered_offset, AMBIENT_TEXELS_SPLIT_SUM, PREFILTER_BASE, PREFILTER_LEVELS, SH9_TERMS, SPLIT_SUM_SIZE,
+};
 use hyrt_core::kernels::ray::{gamma, OFFSET_ERROR_SCALE, SLAB_FAR_SCALE, VELTKAMP_SPLIT};
 use hyrt_core::kernels::shading::{
     AMBIENT, BACKGROUND, DIELECTRIC_F0, ENVIRONMENT_SPECULAR, EXP_SERIES, GGX_MIN_ALPHA, LOG2_SERIES,
@@ -124,15 +127,19 @@ pub fn shading_source(stage: &str) -> String {
 }
 
 /// [`shading_source`] with the texture kernels and the shaded object records
-/// ([`crate::texture::texture_wgsl`], [`crate::texture::materials_wgsl`]) and the
-/// per-surface shaders over a `shadow` binding (`shaders/surface_shading.wgsl`) before the
-/// stage's source: for the stages that bind `shadow`, `lights`, `objects` and the surface
-/// tables (`rt_shading`, `raster_shading`, `bounce_shading`).
+/// ([`crate::texture::texture_wgsl`], [`crate::texture::materials_wgsl`]), the ambient
+/// light ([`lat_long_wgsl`], [`ambient_light_wgsl`]) and the per-surface shaders over a
+/// `shadow` binding (`shaders/surface_shading.wgsl`: `ambient`, `unlit` and the shaders
+/// that start from them) before the stage's source: for the stages that bind `shadow`,
+/// `lights`, `objects`, the surface tables and the ambient light (`rt_shading`,
+/// `raster_shading`, `bounce_shading`).
 pub fn surface_shading_source(stage: &str) -> String {
     shading_source(&format!(
-        "{}\n{}\n{}\n{stage}",
+        "{}\n{}\n{}\n{}\n{}\n{stage}",
         crate::texture::texture_wgsl(),
         crate::texture::materials_wgsl(),
+        lat_long_wgsl(),
+        ambient_light_wgsl(),
         include_str!("shaders/surface_shading.wgsl")
     ))
 }
@@ -166,7 +173,21 @@ pub(crate) fn radiance_source(stage: &str) -> String {
     ))
 }
 
-/// The constants of `shaders/environment.wgsl` from their Rust values, then the file.
+/// The constants of `shaders/lat_long.wgsl` (the portable atan2 in turns and the
+/// lat-long lookup of [`hyrt_core::kernels::environment`], without a binding) from their
+/// Rust values, then the file: in every stage that reads the environment or the ambient
+/// light ([`surface_shading_source`]), once.
+pub fn lat_long_wgsl() -> String {
+    let series: Vec<String> = ATAN_SERIES.iter().map(|&c| f32_literal(c)).collect();
+    let mut s = String::from("// Generated from hyrt_core::kernels::environment (gpu-backend/src/shader.rs).\n");
+    s += &format!("const ATAN_SERIES = array<f32, {}>({});\n", ATAN_SERIES.len(), series.join(", "));
+    s += &format!("const TAN_PI_8: f32 = {};\n", f32_literal(TAN_PI_8));
+    s += &format!("const INV_TWO_PI: f32 = {};\n", f32_literal(INV_TWO_PI));
+    s + include_str!("shaders/lat_long.wgsl")
+}
+
+/// The constants of `shaders/environment.wgsl` from their Rust values, then the file:
+/// after [`lat_long_wgsl`] (which [`surface_shading_source`] includes).
 pub(crate) fn environment_wgsl() -> String {
     let vec3 = |name: &str, v: [f32; 3]| {
         format!(
@@ -176,17 +197,31 @@ pub(crate) fn environment_wgsl() -> String {
             f32_literal(v[2])
         )
     };
-    let series: Vec<String> = ATAN_SERIES.iter().map(|&c| f32_literal(c)).collect();
-    let mut s = String::from(
-        "// Generated from hyrt_core::kernels::{bounce, environment} (gpu-backend/src/bounce_shading.rs).\n",
-    );
-    s += &format!("const ATAN_SERIES = array<f32, {}>({});\n", ATAN_SERIES.len(), series.join(", "));
-    s += &format!("const TAN_PI_8: f32 = {};\n", f32_literal(TAN_PI_8));
-    s += &format!("const INV_TWO_PI: f32 = {};\n", f32_literal(INV_TWO_PI));
+    let mut s = String::from("// Generated from hyrt_core::kernels::bounce (gpu-backend/src/shader.rs).\n");
     s += &vec3("SKY_ZENITH", SKY_ZENITH);
     s += &vec3("SKY_HORIZON", SKY_HORIZON);
     s += &vec3("SKY_GROUND", SKY_GROUND);
     s + include_str!("shaders/environment.wgsl")
+}
+
+// `ambient_light.wgsl` writes out the irradiance's nine terms (`sh9_basis`).
+const _: () = assert!(SH9_TERMS == 9);
+
+/// The constants of `shaders/ambient_light.wgsl` (the layout of
+/// [`hyrt_core::kernels::ibl::AmbientLight::texels`]) from their Rust values, then the file:
+/// after [`lat_long_wgsl`].
+pub fn ambient_light_wgsl() -> String {
+    let u = |name: &str, x: usize| format!("const {name}: u32 = {x}u;\n");
+    let mut s = String::from("// Generated from hyrt_core::kernels::ibl (gpu-backend/src/shader.rs).\n");
+    s += &u("SH9_TERMS", SH9_TERMS);
+    s += &u("AMBIENT_TEXELS_SPLIT_SUM", AMBIENT_TEXELS_SPLIT_SUM);
+    s += &u("SPLIT_SUM_SIZE", SPLIT_SUM_SIZE);
+    s += &u("PREFILTER_LEVELS", PREFILTER_LEVELS);
+    s += &u("PREFILTER_BASE_WIDTH", PREFILTER_BASE.0 as usize);
+    s += &u("PREFILTER_BASE_HEIGHT", PREFILTER_BASE.1 as usize);
+    let offsets: Vec<String> = (0..=PREFILTER_LEVELS).map(|k| format!("{}u", prefiltered_offset(k))).collect();
+    s += &format!("const PREFILTERED_OFFSET = array<u32, {}>({});\n", offsets.len(), offsets.join(", "));
+    s + include_str!("shaders/ambient_light.wgsl")
 }
 
 /// The surface kernels (`shaders/surface.wgsl`) after `ONE_PLUS_GAMMA_3`; they also

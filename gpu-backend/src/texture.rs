@@ -26,7 +26,10 @@
 //! `raster_shading` of the untextured default scene about 7 times slower and `shadow_rays`
 //! 2.5 times at 640 x 360),
 //! and the one word they bind is never read. `GpuBackend` builds the plain pipelines with
-//! the backend and the others the first time a scene needs them.
+//! the backend and the others the first time a scene needs them. The shading stages take
+//! one constant more, `AMBIENT_IMAGE` ([`Specialization::ambient_image`]): scenes of the
+//! paper's model run them without the image-based light's code. Two specializations that
+//! differ only in it share the backend's other pipelines.
 //!
 //! # The sRGB table: read from the surface buffer
 //! The 256 decoded sRGB codes ([`hyrt_core::kernels::texture::srgb8_table`]) are packed
@@ -111,12 +114,26 @@ pub struct Specialization {
     /// the normal-mapping passes (`crate::reconstruction::NormalMapping`). Not a pipeline
     /// constant: those passes are built only for such scenes.
     pub normal_mapped: bool,
+    /// `AMBIENT_IMAGE` (a constant of the shading stages alone,
+    /// [`Specialization::shading_constants`]): the scene has an image-based light (it is
+    /// shaded with the glTF model, [`hyrt_core::kernels::ibl::AmbientLight::image`]), which
+    /// `shaders/ambient_light.wgsl` evaluates where an object's record asks for it. Without
+    /// one the shading stages are compiled without that code: merely skipped at run time,
+    /// it made `rt_shading` and `raster_shading` of the paper's default scene about 1.5
+    /// times slower on lavapipe (640 x 360).
+    pub ambient_image: bool,
 }
 
 impl Specialization {
-    /// Neither: a scene without surface tables (the pipelines the backend starts with).
-    pub const PLAIN: Specialization =
-        Specialization { surface_tables: false, alpha_tested: false, two_level: false, normal_mapped: false };
+    /// None: a scene without surface tables or image-based light (the pipelines the backend
+    /// starts with).
+    pub const PLAIN: Specialization = Specialization {
+        surface_tables: false,
+        alpha_tested: false,
+        two_level: false,
+        normal_mapped: false,
+        ambient_image: false,
+    };
 
     /// What `tables` need (a single-level scene).
     pub fn of(tables: &SurfaceTables) -> Specialization {
@@ -125,17 +142,31 @@ impl Specialization {
             alpha_tested: tables.alpha_tested(),
             two_level: false,
             normal_mapped: !tables.tangents.is_empty(),
+            ambient_image: false,
         }
     }
 
-    /// What a prepared scene needs: its surface tables' and whether it has two levels.
+    /// What a prepared scene needs: its surface tables', whether it has two levels and
+    /// whether it has an image-based light.
     pub fn of_scene(scene: &hyrt_core::frame::PreparedScene) -> Specialization {
-        Specialization { two_level: scene.levels.is_some(), ..Specialization::of(&scene.geometry.surface) }
+        Specialization {
+            two_level: scene.levels.is_some(),
+            ambient_image: scene.geometry.ambient.image.is_some(),
+            ..Specialization::of(&scene.geometry.surface)
+        }
     }
 
     /// The constants' values, as pipelines take them.
     pub fn constants(self) -> [(&'static str, f64); 2] {
         [("SURFACE_TABLES", self.surface_tables as u32 as f64), ("ALPHA_TESTED", self.alpha_tested as u32 as f64)]
+    }
+
+    /// [`Specialization::constants`] and `AMBIENT_IMAGE`, for the stages that shade
+    /// surfaces (`rt_shading`, `raster_shading`, `bounce_shading`): those that include
+    /// `shaders/ambient_light.wgsl`.
+    pub fn shading_constants(self) -> [(&'static str, f64); 3] {
+        let [tables, alpha] = self.constants();
+        [tables, alpha, ("AMBIENT_IMAGE", self.ambient_image as u32 as f64)]
     }
 }
 

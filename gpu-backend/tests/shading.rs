@@ -4,9 +4,14 @@
 //!
 //! Every channel must be bit-identical: the shaders mirror the kernels' order, keep
 //! their products from fusing, and use the core's `pow_portable` instead of WGSL `pow`.
-//! Misses, pixels a stage leaves to the other one and alpha are checked by kind too.
+//! Misses, pixels a stage leaves to the other one and alpha are checked by kind too. The
+//! shading stages are compiled as each scene needs them (`SceneBuffers::specialization`:
+//! the glTF cases with their sky's image-based light).
 
 mod common;
+
+use std::collections::HashMap;
+use std::sync::Arc;
 
 use common::test_context;
 use glam::Vec3;
@@ -16,7 +21,7 @@ use hyrt_core::frame::{Backend, Frame, FrameOptions, PreparedScene};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::shading::BACKGROUND_RGBA;
 use hyrt_core::plan::FrameBuffer;
-use hyrt_core::scene::{Light, Scene, ShadingModel};
+use hyrt_core::scene::{Environment, EnvironmentMap, Light, Scene, ShadingModel};
 use hyrt_cpu::backend::CpuBackend;
 use hyrt_gpu::buffers::{FrameBuffers, FrameParams, SceneBuffers};
 use hyrt_gpu::composition::CompositionStage;
@@ -64,7 +69,7 @@ fn cpu_case(name: &str, scene: &Scene, width: u32, height: u32, weight: f32) -> 
         // the final image the raster copy the plan made.
         let g = &prepared.geometry;
         let eye = Vec3::from(camera.eye);
-        cpu.rt = hyrt_cpu::rt_shading::rt_shading(&cpu.surfaces, &cpu.shadow, &g.objects, &g.lights, eye);
+        cpu.rt = hyrt_cpu::rt_shading::rt_shading(&cpu.surfaces, &cpu.shadow, &g.objects, &g.lights, &g.ambient, eye);
     }
     Case { name: format!("{name} {width}x{height} w={weight}"), scene: prepared, camera, weight, cpu }
 }
@@ -107,7 +112,26 @@ fn cases() -> Vec<Case> {
         v.push(cpu_case("default gltf", &gltf(paper_default_scene()), 67, 41, weight));
     }
     v.push(cpu_case("directional gltf", &gltf(directional_scene()), 67, 41, 0.5));
+    // The image-based light of an environment map (the cases above have the sky's).
+    for weight in [1.0, 0.5] {
+        let s = Scene { environment: procedural_environment(), ..gltf(directional_scene()) };
+        v.push(cpu_case("directional gltf map", &s, 67, 41, weight));
+    }
     v
+}
+
+/// A 16 x 8 environment map: a sky bright towards a sun, a dark ground.
+fn procedural_environment() -> Environment {
+    let (w, h) = (16u32, 8u32);
+    let texels = (0..h)
+        .flat_map(|j| (0..w).map(move |i| (i, j)))
+        .map(|(i, j)| match (i, j) {
+            (3, 1) => [30.0, 28.0, 20.0, 1.0],
+            (_, j) if j < h / 2 => [0.3 + 0.05 * i as f32, 0.5, 0.9 - 0.1 * j as f32, 1.0],
+            _ => [0.15, 0.1 + 0.01 * i as f32, 0.05, 1.0],
+        })
+        .collect();
+    Environment::Map(Arc::new(EnvironmentMap::new(w, h, texels).expect("a valid map")))
 }
 
 /// The default scene with the paper's model (it defaults to the glTF BRDF): the cases
@@ -208,10 +232,12 @@ fn object_of(c: &Case, pixel: usize) -> Option<&ObjectRecord> {
 #[test]
 fn rt_shading_matches_cpu() {
     let Some(ctx) = test_context() else { return };
-    let stage = RtShadingStage::new(&ctx);
+    let mut stages = HashMap::new();
     let mut overall = Worst::default();
     for c in cases() {
         let gpu = upload_case(&ctx, &c);
+        let s = gpu.scene.specialization;
+        let stage = stages.entry(s).or_insert_with(|| RtShadingStage::specialized(&ctx, s));
         // Poison: every pixel must be written.
         let pixels = c.cpu.rt.len();
         ctx.queue.write_buffer(&gpu.frame.rt, 0, bytemuck::cast_slice(&vec![[f32::NAN; 4]; pixels]));
@@ -242,10 +268,12 @@ fn rt_shading_matches_cpu() {
 #[test]
 fn raster_shading_matches_cpu() {
     let Some(ctx) = test_context() else { return };
-    let stage = RasterShadingStage::new(&ctx);
+    let mut stages = HashMap::new();
     let mut overall = Worst::default();
     for c in cases() {
         let gpu = upload_case(&ctx, &c);
+        let s = gpu.scene.specialization;
+        let stage = stages.entry(s).or_insert_with(|| RasterShadingStage::specialized(&ctx, s));
         let pixels = c.cpu.raster.len();
         ctx.queue.write_buffer(&gpu.frame.raster, 0, bytemuck::cast_slice(&vec![[f32::NAN; 4]; pixels]));
         run(&ctx, |e| stage.encode(&ctx, e, &gpu.scene, &gpu.frame, None));

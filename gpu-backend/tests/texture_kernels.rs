@@ -159,7 +159,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     s.geometric_normal = n;
     let obj = shaded_object(s, q.bary_u, q.bary_v, q.cone, vec3<f32>(q.dx, q.dy, q.dz));
     put4(at + 28u, vec4<f32>(obj.base_color, obj.metallic));
-    put4(at + 34u, vec4<f32>(obj.roughness, obj.ambient_scale, obj.emissive.x, obj.emissive.y));
+    put4(at + 34u, vec4<f32>(obj.roughness, obj.occlusion, obj.emissive.x, obj.emissive.y));
     results[at + 38u] = bitcast<u32>(obj.emissive.z);
     results[at + 39u] = bitcast<u32>(texture_lod(q.lod, surface_texture(0u), tex));
     var tri: TriangleRecord;
@@ -230,7 +230,7 @@ fn cpu_results(tables: &SurfaceTables, objects: &[ObjectRecord], q: &Query) -> [
     let obj = materials.at(&s, q.bary_u, q.bary_v, q.cone, Vec3::new(q.dx, q.dy, q.dz));
     let [red, green, blue] = obj.base_color;
     put4(28, [red, green, blue, obj.metallic]);
-    put4(34, [obj.roughness, obj.ambient_scale, obj.emissive[0], obj.emissive[1]]);
+    put4(34, [obj.roughness, obj.occlusion, obj.emissive[0], obj.emissive[1]]);
     r[38] = obj.emissive[2].to_bits();
     r[39] = cpu::texture_lod(q.lod, &set.records[0], tex).to_bits();
     let s = SurfaceRecord { normal: n.normalize_or_zero().into(), ..s };
@@ -268,8 +268,7 @@ fn gpu_results(ctx: &GpuContext, tables: &SurfaceTables, objects: &[ObjectRecord
         storage_entry(5, false),
     ];
     // Compiled as the stages of a scene with surface tables and alpha tests are.
-    let tables_and_alpha =
-        Specialization { surface_tables: true, alpha_tested: true, two_level: false, normal_mapped: false };
+    let tables_and_alpha = Specialization { surface_tables: true, alpha_tested: true, ..Specialization::PLAIN };
     let (pipeline, layout) =
         specialized_pipeline(ctx, "texture kernels test", &source, &entries, &tables_and_alpha.constants());
     let params = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -521,7 +520,7 @@ fn materials(rng: &mut Rng, textures: u32, count: u32) -> (Vec<MaterialRecord>, 
             metallic: rng.range(0.0, 1.0),
             roughness: unit(rng),
             emissive: std::array::from_fn(|_| rng.range(0.0, 4.0)),
-            ambient_scale: unit(rng),
+            occlusion: unit(rng),
             ..bytemuck::Zeroable::zeroed()
         })
         .collect();

@@ -1,4 +1,4 @@
-//! An 8-wide view of the binary [`Bvh`](super::Bvh): the same boxes with up to [`WIDE`]
+//! An 8-wide view of the binary [`super::Bvh`]: the same boxes with up to [`WIDE`]
 //! children per node, for the CPU's single-ray SIMD traversal (one ray against the eight
 //! child boxes of a node at once, as Embree's `rtcIntersect1` does), and each leaf's
 //! triangles as structure of arrays ([`WideLeaf`]: one ray against all of a leaf's

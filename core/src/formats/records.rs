@@ -377,7 +377,7 @@ pub const MATERIAL_GLASS: u32 = 2;
 /// | 40 | `ior` | f32 | index of refraction (1.5 unless glass says otherwise) |
 /// | 44 | `offset_error` | f32 | extra error bound of points on it whose rays are traced in its own space ([`crate::kernels::instance::instance_position_error`]); 0 when baked into world space |
 /// | 48 | `emissive` | [f32; 3] | emitted linear radiance (glTF `emissiveFactor` x `KHR_materials_emissive_strength`), added to every shade of the surface; 0 for none |
-/// | 60 | `ambient_scale` | f32 | the scale of the constant ambient and environment terms at a point ([`crate::kernels::shading::ambient`]), >= 0: the scene's [`crate::scene::Scene::ambient`] over [`crate::kernels::shading::AMBIENT`] (1 by default, 0 for none), times the point's ambient occlusion where an occlusion texture gives one |
+/// | 60 | `occlusion` | f32 | the ambient occlusion at a point, in [0, 1]: 1 on an object's own record, the occlusion texture's where one gives it ([`crate::kernels::texture::Materials::at`]); it scales the ambient light alone ([`crate::kernels::shading::ambient`]) |
 ///
 /// 64 bytes. [`crate::kernels::texture::Materials::at`] makes the record a point is shaded
 /// with from its object's: textures scale the base colour, metallic, roughness, occlusion
@@ -396,7 +396,7 @@ pub struct ObjectRecord {
     pub ior: f32,
     pub offset_error: f32,
     pub emissive: [f32; 3],
-    pub ambient_scale: f32,
+    pub occlusion: f32,
 }
 const _: () = assert!(std::mem::size_of::<ObjectRecord>() == 64);
 wgsl_struct!(ObjectRecord {
@@ -411,12 +411,12 @@ wgsl_struct!(ObjectRecord {
     ior,
     offset_error,
     emissive,
-    ambient_scale
+    occlusion
 });
 
 impl ObjectRecord {
     /// Check: known flags and kind, finite non-negative colour and emission, factors in
-    /// [0, 1], a finite non-negative ambient scale, ior >= 1, a finite non-negative offset
+    /// in [0, 1], a finite non-negative occlusion, ior >= 1, a finite non-negative offset
     /// error.
     pub fn validate(&self) -> Result<(), String> {
         let offset_ok = self.offset_error.is_finite() && self.offset_error >= 0.0;
@@ -428,11 +428,11 @@ impl ObjectRecord {
             return Err(format!("object record with invalid colour or emission: {self:?}"));
         }
         let unit = 0.0..=1.0;
-        let scale_ok = self.ambient_scale.is_finite() && self.ambient_scale >= 0.0;
         if !(unit.contains(&self.metallic)
             && unit.contains(&self.roughness)
             && unit.contains(&self.transmission)
-            && scale_ok)
+            && self.occlusion.is_finite()
+            && self.occlusion >= 0.0)
         {
             return Err(format!("object record with factor outside [0, 1]: {self:?}"));
         }
@@ -890,6 +890,49 @@ pub struct EnvironmentRecord {
 }
 const _: () = assert!(std::mem::size_of::<EnvironmentRecord>() == 16);
 wgsl_struct!(EnvironmentRecord { kind, width, height, pad });
+
+/// A frame's ambient light ([`crate::kernels::ibl::AmbientLight`]) as the GPU reads it:
+/// this header, and the image-based light's tables in a buffer of their own
+/// ([`crate::kernels::ibl::AmbientLight::texels`]: `vec4<f32>` texels, one zero texel
+/// without image-based light).
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `scale` | f32 | the constant ambient terms' scale, >= 0 ([`crate::kernels::shading::Ambient::scale`]) |
+/// | 4 | `image` | u32 | 1 when the texels hold an image-based light, else 0 |
+/// | 8 | `pad` | [u32; 2] | zero |
+///
+/// 16 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct AmbientLightRecord {
+    pub scale: f32,
+    pub image: u32,
+    pub pad: [u32; 2],
+}
+const _: () = assert!(std::mem::size_of::<AmbientLightRecord>() == 16);
+wgsl_struct!(AmbientLightRecord { scale, image, pad });
+
+impl AmbientLightRecord {
+    /// Check: a finite non-negative scale, `image` 0 or 1, zero padding, and `texels`
+    /// entries as [`crate::kernels::ibl::AmbientLight::texels`] makes them (1 without an
+    /// image).
+    pub fn validate(&self, texels: usize) -> Result<(), String> {
+        let scale_ok = self.scale.is_finite() && self.scale >= 0.0;
+        if !scale_ok || self.image > 1 || self.pad != [0; 2] {
+            return Err(format!("bad ambient light record {self:?}"));
+        }
+        let want = if self.image == 1 {
+            crate::kernels::ibl::prefiltered_offset(crate::kernels::ibl::PREFILTER_LEVELS)
+        } else {
+            1
+        };
+        if texels != want {
+            return Err(format!("{texels} ambient light texels, {want} expected"));
+        }
+        Ok(())
+    }
+}
 
 impl EnvironmentRecord {
     /// The header of `env`, and its texels (one zero texel for the sky).

@@ -163,7 +163,7 @@ pub const MAT_ANY_TEXTURE: u32 = MAT_TEXTURED | MAT_METALLIC_ROUGHNESS | MAT_OCC
 ///
 /// 44 bytes. All its textures are sampled at the same coordinates, [`TriangleUvRecord`];
 /// one whose size differs from `uv_texture`'s shifts the level of detail by
-/// [`crate::kernels::texture::texture_lod_shift`].
+/// [`crate::kernels::texture::texture_lod`].
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct MaterialRecord {

@@ -10,9 +10,9 @@
 //! the same way, by name, from their Rust values ([`constants`]).
 
 use crate::formats::{
-    BvhNode, CameraRecord, EnvironmentRecord, FrameParams, GBufferTexel, HitRecord, InstanceRecord, LightRecord,
-    ListParams, MaterialRecord, ObjectRecord, RayRecord, SurfaceLayout, SurfaceRecord, TextureRecord, TriangleRecord,
-    TriangleUvRecord,
+    AmbientLightRecord, BvhNode, CameraRecord, EnvironmentRecord, FrameParams, GBufferTexel, HitRecord, InstanceRecord,
+    LightRecord, ListParams, MaterialRecord, ObjectRecord, RayRecord, SurfaceLayout, SurfaceRecord, TextureRecord,
+    TriangleRecord, TriangleUvRecord,
 };
 
 /// The WGSL type of a record field.
@@ -279,6 +279,7 @@ pub fn struct_declarations() -> String {
         FrameParams::declaration(),
         BvhNode::declaration(),
         EnvironmentRecord::declaration(),
+        AmbientLightRecord::declaration(),
         ListParams::declaration(),
         TextureRecord::declaration(),
         MaterialRecord::declaration(),
@@ -317,6 +318,7 @@ mod tests {
         FrameParams::check_layout().unwrap();
         BvhNode::check_layout().unwrap();
         EnvironmentRecord::check_layout().unwrap();
+        AmbientLightRecord::check_layout().unwrap();
         ListParams::check_layout().unwrap();
         TextureRecord::check_layout().unwrap();
         MaterialRecord::check_layout().unwrap();

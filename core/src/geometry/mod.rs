@@ -21,6 +21,7 @@ use crate::formats::{
     MAT_ALPHA_TEST, MAT_ANY_TEXTURE, MAT_EMISSIVE, MAT_METALLIC_ROUGHNESS, MAT_NORMAL, MAT_OCCLUSION, MAT_TEXTURED,
     MAT_VERTEX_COLORS, OBJ_RAY_TRACED, TEXEL_LINEAR, TEXEL_SRGB, TRI_ALPHA_TEST, TRI_INWARD, TRI_RAY_TRACED,
 };
+use crate::kernels::ibl::AmbientLight;
 use crate::kernels::texture::{triangle_lod_bias, SurfaceView};
 use crate::scene::{Environment, Material, MaterialKind, Mesh, RenderMode, Scene, TextureBinding};
 
@@ -150,6 +151,10 @@ pub struct WorldGeometry {
     /// What secondary rays that leave the scene see ([`Scene::environment`]; a map is
     /// shared, not copied).
     pub environment: Environment,
+    /// The frame's ambient light: the scene's constant level ([`Scene::ambient`]) and, for
+    /// a scene shaded with the glTF model, its environment's image-based light
+    /// ([`crate::kernels::ibl::AmbientLight`], computed here once).
+    pub ambient: AmbientLight,
     /// Textures, vertex colours and alpha tests: empty tables for a scene that has none
     /// ([`SurfaceTables::is_empty`]).
     pub surface: SurfaceTables,
@@ -457,7 +462,7 @@ impl WorldGeometry {
     }
 
     /// [`WorldGeometry::build`] with the objects flagged in `by_reference` (indexed by
-    /// object id; shorter means false) kept by reference ([`triangles`](self::triangles)):
+    /// object id; shorter means false) kept by reference (`triangles`):
     /// their mesh once, however many objects draw it, and their transform; their records
     /// are made on read, the same bits as stored ones.
     pub fn build_placed(scene: &Scene, by_reference: &[bool]) -> WorldGeometry {
@@ -492,6 +497,7 @@ impl WorldGeometry {
         }
         g.lights = scene.lights.iter().map(LightRecord::from_light).collect();
         g.environment = scene.environment.clone();
+        g.ambient = AmbientLight::of_scene(scene);
         g.surface = surface_tables(scene, &g.triangles);
         g.union_extents();
         if cfg!(debug_assertions) {
@@ -549,7 +555,7 @@ impl WorldGeometry {
             ior,
             offset_error: 0.0,
             emissive: mat.emissive.into(),
-            ambient_scale: scene.ambient.scale(),
+            occlusion: 1.0,
         };
     }
 

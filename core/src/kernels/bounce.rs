@@ -11,7 +11,7 @@
 //! and, for glass, a refraction ray (Whitted). Its radiance towards the viewer is
 //!
 //! ```text
-//! L = diffuse_scale * (base (1 - metallic) AMBIENT occlusion + direct diffuse) + emission
+//! L = diffuse_scale * (ambient diffuse + direct diffuse) + emission
 //!     + direct specular + R * L(reflection) + T * L(refraction)
 //! ```
 //!
@@ -22,8 +22,10 @@
 //! * `T = base (1 - metallic) transmission (1 - F_dielectric)`, zero under total
 //!   internal reflection; `diffuse_scale = 1 - transmission`;
 //! * a lobe whose ray is not traced (its path weight fell below [`MIN_THROUGHPUT`], or
-//!   no direction leaves on the right side of the surface) sees the uniform
-//!   [`ENVIRONMENT_SPECULAR`], as every specular surface did before secondary rays;
+//!   no direction leaves on the right side of the surface) sees the ambient light's
+//!   stand-in ([`lobe_radiance`]): the uniform [`ENVIRONMENT_SPECULAR`] in the paper's
+//!   model, as every specular surface did before secondary rays, the prefiltered
+//!   environment in the glTF model;
 //! * a surface that does not bounce (a diffuse or rasterized object, or the depth budget
 //!   spent) is shaded as a primary hit is: [`crate::kernels::shading::shade_rt_surface`]
 //!   or, for rasterized objects, the raster shader.
@@ -49,7 +51,8 @@ use crate::kernels::environment::environment_radiance;
 pub use crate::kernels::environment::{sky, SKY_GROUND, SKY_HORIZON, SKY_ZENITH};
 use crate::kernels::ray::offset_ray_origin;
 use crate::kernels::shading::{
-    shade_raster_surface, shade_rt_pixel, shade_rt_surface, sum_visible_lights, AMBIENT, ENVIRONMENT_SPECULAR,
+    shade_raster_surface, shade_rt_pixel, shade_rt_surface, sum_visible_lights, AmbientLight, AMBIENT,
+    ENVIRONMENT_SPECULAR,
 };
 use crate::kernels::texture::Materials;
 use crate::scene::Environment;
@@ -255,16 +258,31 @@ pub fn secondary_rays(
     ]
 }
 
-/// The radiance a lobe sees: its traced child's (`link` into `radiance`), or the uniform
-/// [`ENVIRONMENT_SPECULAR`] times the surface's `ambient_scale`
-/// ([`ObjectRecord::ambient_scale`]: the scene's ambient setting and occlusion) when the
-/// lobe's ray was not traced.
+/// The radiance a lobe of surface `obj` (shading normal `n`) in direction `dir` sees: its
+/// traced child's (`link` into `radiance`) or, when the lobe's ray was not traced, the
+/// ambient light's stand-in: for the paper's model the uniform [`ENVIRONMENT_SPECULAR`]
+/// times the scene's level and the occlusion (`scale occlusion`, [`AmbientLight`]); for
+/// the glTF model under an image-based light the prefiltered environment
+/// ([`crate::kernels::ibl::ImageBasedLight::specular_radiance`]) along `dir` (along `n` where the lobe has no
+/// direction) at the surface's roughness, times the occlusion. WGSL: `lobe_radiance`.
 #[inline]
-pub fn lobe_radiance(link: u32, radiance: &[[f32; 4]], ambient_scale: f32) -> Vec3 {
-    if link == INVALID_ID {
-        Vec3::splat(ENVIRONMENT_SPECULAR * ambient_scale)
-    } else {
-        Vec3::from_slice(&radiance[link as usize][..3])
+pub fn lobe_radiance(
+    link: u32,
+    radiance: &[[f32; 4]],
+    obj: &ObjectRecord,
+    dir: Vec3,
+    n: Vec3,
+    ambient: &AmbientLight,
+) -> Vec3 {
+    if link != INVALID_ID {
+        return Vec3::from_slice(&radiance[link as usize][..3]);
+    }
+    match ambient.image_for(obj.flags) {
+        None => Vec3::splat(ENVIRONMENT_SPECULAR * (ambient.scale * obj.occlusion)),
+        Some(ibl) => {
+            let dir = if dir == Vec3::ZERO { n } else { dir };
+            ibl.specular_radiance(dir, obj.roughness) * obj.occlusion
+        }
     }
 }
 
@@ -272,7 +290,10 @@ pub fn lobe_radiance(link: u32, radiance: &[[f32; 4]], ambient_scale: f32) -> Ve
 /// terms scaled by `l.diffuse_scale`, the specular lobe of every light its shadow ray
 /// reached (`shadow`: its `SHADOW_*` codes), and what its lobes see times their weights:
 /// [`lobe_radiance`] of its `[reflection, refraction]` `children` in `radiance` (the next
-/// depth's, [`INVALID_ID`] where a lobe traced no ray).
+/// depth's, [`INVALID_ID`] where a lobe traced no ray). The diffuse part of the ambient
+/// light is [`crate::kernels::shading::ambient`]'s (the constant term, and under an
+/// image-based light [`crate::kernels::ibl::ImageBasedLight::diffuse`]), scaled by `l.diffuse_scale`; the
+/// specular part is what the lobes see.
 #[inline]
 #[allow(clippy::too_many_arguments)]
 pub fn shade_bouncing(
@@ -282,19 +303,25 @@ pub fn shade_bouncing(
     d: Vec3,
     shadow: &[u8],
     lights: &[LightRecord],
+    ambient_light: &AmbientLight,
     children: [u32; 2],
     radiance: &[[f32; 4]],
 ) -> Vec3 {
-    let reflected = lobe_radiance(children[0], radiance, obj.ambient_scale);
-    let refracted = lobe_radiance(children[1], radiance, obj.ambient_scale);
     let p = Vec3::from(s.position);
     let n = Vec3::from(s.normal);
+    let reflected = lobe_radiance(children[0], radiance, obj, l.reflect_dir, n, ambient_light);
+    let refracted = lobe_radiance(children[1], radiance, obj, l.refract_dir, n, ambient_light);
     let v = -d;
     let base = Vec3::from(obj.base_color);
-    // The constant ambient, occluded, and the emission ([`crate::kernels::shading::unlit`]'s
-    // parts; the specular lobe's environment is what its traced ray sees).
-    let ambient =
-        base * (((1.0 - obj.metallic) * AMBIENT) * l.diffuse_scale) * obj.ambient_scale + Vec3::from(obj.emissive);
+    // The constant ambient, occluded, the environment's diffuse light under an image-based
+    // light, and the emission ([`crate::kernels::shading::unlit`]'s parts; the specular
+    // lobe's environment is what its traced ray sees).
+    let constant = base * (((1.0 - obj.metallic) * AMBIENT) * l.diffuse_scale) * (ambient_light.scale * obj.occlusion);
+    let constant = match ambient_light.image_for(obj.flags) {
+        None => constant,
+        Some(ibl) => constant + ibl.diffuse(base, obj.metallic, n, l.diffuse_scale) * obj.occlusion,
+    };
+    let ambient = constant + Vec3::from(obj.emissive);
     let direct = sum_visible_lights(shadow, lights, p, |li, e| {
         crate::kernels::shading::shade_ray_traced_with(obj, n, v, li, e, l.diffuse_scale)
     });
@@ -438,6 +465,7 @@ pub fn shade_secondary_hit(
     triangles: &WorldTriangles,
     shadow: &[u8],
     lights: &[LightRecord],
+    ambient: &AmbientLight,
     children: [u32; 2],
     radiance: &[[f32; 4]],
 ) -> Vec3 {
@@ -446,13 +474,13 @@ pub fn shade_secondary_hit(
         return environment_radiance(env, p.d);
     }
     if let Some((obj, l)) = parent_lobes(p, triangles) {
-        return shade_bouncing(s, obj, &l, p.d, shadow, lights, children, radiance);
+        return shade_bouncing(s, obj, &l, p.d, shadow, lights, ambient, children, radiance);
     }
     let obj = &p.object;
     if obj.flags & OBJ_RAY_TRACED != 0 {
-        shade_rt_surface(s, obj, shadow, lights, -p.d)
+        shade_rt_surface(s, obj, shadow, lights, ambient, -p.d)
     } else {
-        shade_raster_surface(s, obj, shadow, lights, -p.d)
+        shade_raster_surface(s, obj, shadow, lights, ambient, -p.d)
     }
 }
 
@@ -466,14 +494,15 @@ pub fn shade_rt_pixel_bouncing(
     triangles: &WorldTriangles,
     shadow: &[u8],
     lights: &[LightRecord],
+    ambient: &AmbientLight,
     eye: Vec3,
     children: [u32; 2],
     radiance: &[[f32; 4]],
 ) -> Vec3 {
     let s = p.surface;
     match parent_lobes(p, triangles) {
-        Some((obj, l)) => shade_bouncing(s, obj, &l, p.d, shadow, lights, children, radiance),
-        None => shade_rt_pixel(s, &p.object, shadow, lights, eye),
+        Some((obj, l)) => shade_bouncing(s, obj, &l, p.d, shadow, lights, ambient, children, radiance),
+        None => shade_rt_pixel(s, &p.object, shadow, lights, ambient, eye),
     }
 }
 

@@ -125,7 +125,16 @@ pub fn direction_to_uv(d: Vec3) -> (f32, f32) {
 /// map or give NaN, never out of bounds. WGSL: `sample_bilinear`.
 #[inline]
 pub fn sample_bilinear(map: &EnvironmentMap, u: f32, v: f32) -> Vec3 {
-    let (w, h) = (map.width() as i32, map.height() as i32);
+    sample_bilinear_grid(map.width(), map.height(), |i, j| Vec3::from_slice(&map.texel(i, j)[..3]), u, v)
+}
+
+/// [`sample_bilinear`] on any `w` x `h` lat-long grid laid out as the maps are, its texel
+/// `(i, j)` read by `texel`: the one filter of the environment's map and of the
+/// image-based light's prefiltered levels ([`crate::kernels::ibl`]). `w` and `h` are at
+/// least 1. WGSL: `sample_bilinear` and `sample_prefiltered_level`, the same operations.
+#[inline]
+pub fn sample_bilinear_grid(w: u32, h: u32, texel: impl Fn(u32, u32) -> Vec3, u: f32, v: f32) -> Vec3 {
+    let (w, h) = (w as i32, h as i32);
     let x = u * w as f32 - 0.5;
     let y = v * h as f32 - 0.5;
     let (x0, y0) = (x.floor(), y.floor());
@@ -138,7 +147,7 @@ pub fn sample_bilinear(map: &EnvironmentMap, u: f32, v: f32) -> Vec3 {
     let j = y0 as i32;
     let j0 = j.clamp(0, h - 1);
     let j1 = (j + 1).clamp(0, h - 1);
-    let t = |i: i32, j: i32| Vec3::from_slice(&map.texel(i as u32, j as u32)[..3]);
+    let t = |i: i32, j: i32| texel(i as u32, j as u32);
     let lerp = |a: Vec3, b: Vec3, f: f32| a + (b - a) * f;
     let top = lerp(t(i0, j0), t(i1, j0), fx);
     let bottom = lerp(t(i0, j1), t(i1, j1), fx);

@@ -17,13 +17,203 @@
 //!   [`PREFILTER_LEVELS`] roughnesses (Karis's first sum, with `n = v = r`), each level a
 //!   lat-long grid half the size of the one before.
 //!
-//! Not read by the shading stages yet (the stages' use of the three tables, on both
-//! backends, is the next step of the issue): frames are unchanged.
+//! [`ImageBasedLight`] holds the three for one environment and evaluates them
+//! ([`ImageBasedLight::radiance`], [`ImageBasedLight::specular_radiance`]); an
+//! [`AmbientLight`] is a frame's whole ambient light: the scene's constant level and, for
+//! scenes shaded with the glTF model, the image-based light. The shading kernels read it
+//! through [`crate::kernels::shading::ambient`].
+//!
+//! On the GPU the tables travel as [`AmbientLight::texels`] (one buffer of `vec4<f32>`:
+//! the irradiance coefficients, the split-sum cells, then the prefiltered levels, at the
+//! offsets of [`AMBIENT_TEXELS_SPLIT_SUM`] and [`prefiltered_offset`]) beside an
+//! [`crate::formats::AmbientLightRecord`]. WGSL mirrors (`ambient_light.wgsl`):
+//! `irradiance_sh9`, `split_sum_lookup`, `sample_prefiltered_level`,
+//! `specular_radiance`, `image_based_light`, by these functions' names.
+
+use std::sync::{Arc, OnceLock};
 
 use glam::Vec3;
 
-use crate::kernels::environment::environment_radiance;
+use crate::formats::{AmbientLightRecord, OBJ_GLTF_BRDF};
+use crate::kernels::environment::{direction_to_uv, environment_radiance, sample_bilinear_grid};
+use crate::kernels::shading::{ShadingModel, DIELECTRIC_F0};
 use crate::scene::Environment;
+
+/// The ambient light of a frame: the scene's constant ambient level
+/// ([`crate::scene::Scene::ambient`]) and, for a scene shaded with the glTF model, the
+/// light of its environment.
+///
+/// * `scale`: the constant terms' scale, the level over [`crate::kernels::shading::AMBIENT`]
+///   ([`crate::kernels::shading::Ambient::scale`]): 1 by default, 0 for none.
+/// * `image`: the environment's [`ImageBasedLight`], present when the scene is shaded with
+///   [`crate::kernels::shading::ShadingModel::Gltf`]. Objects of that model then take their
+///   ambient light from it (diffuse irradiance and prefiltered specular) besides the
+///   constant diffuse term; the paper's model keeps its constants
+///   ([`crate::kernels::shading::ENVIRONMENT_SPECULAR`]). Tables built by hand without it
+///   shade glTF objects with the constants too.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AmbientLight {
+    pub scale: f32,
+    pub image: Option<Arc<ImageBasedLight>>,
+}
+
+impl Default for AmbientLight {
+    /// The default level without image-based light.
+    fn default() -> Self {
+        AmbientLight { scale: 1.0, image: None }
+    }
+}
+
+impl AmbientLight {
+    /// The ambient light of `scene`: its level, and its environment's image-based light
+    /// when it is shaded with the glTF model.
+    pub fn of_scene(scene: &crate::scene::Scene) -> AmbientLight {
+        let image = (scene.shading == ShadingModel::Gltf).then(|| ImageBasedLight::shared(&scene.environment));
+        AmbientLight { scale: scene.ambient.scale(), image }
+    }
+
+    /// The constant level `scale` alone.
+    pub fn constant(scale: f32) -> AmbientLight {
+        AmbientLight { scale, image: None }
+    }
+
+    /// The image-based light an object is shaded with: the frame's, for an object of the
+    /// glTF model ([`OBJ_GLTF_BRDF`]); `None` for the paper's model.
+    #[inline]
+    pub fn image_for(&self, flags: u32) -> Option<&ImageBasedLight> {
+        if flags & OBJ_GLTF_BRDF != 0 {
+            self.image.as_deref()
+        } else {
+            None
+        }
+    }
+
+    /// The record the GPU reads ([`AmbientLightRecord`]).
+    pub fn record(&self) -> AmbientLightRecord {
+        AmbientLightRecord { scale: self.scale, image: self.image.is_some() as u32, pad: [0; 2] }
+    }
+
+    /// The tables as the GPU reads them: [`SH9_TERMS`] irradiance coefficients (RGB, 0),
+    /// the [`SPLIT_SUM_SIZE`]² split-sum cells (`A, B, 0, 0`, row-major by roughness) from
+    /// [`AMBIENT_TEXELS_SPLIT_SUM`], then every prefiltered level (RGB, 0; row-major, row 0
+    /// at +Y) from [`prefiltered_offset`]`(k)`. One zero texel without image-based light.
+    pub fn texels(&self) -> Vec<[f32; 4]> {
+        let Some(ibl) = &self.image else { return vec![[0.0; 4]] };
+        let mut t = Vec::with_capacity(prefiltered_offset(PREFILTER_LEVELS));
+        t.extend(ibl.irradiance.coeffs.iter().map(|&[r, g, b]| [r, g, b, 0.0]));
+        t.extend(ibl.split_sum.cells.iter().map(|&[a, b]| [a, b, 0.0, 0.0]));
+        for level in &ibl.prefiltered.levels {
+            t.extend(level.texels.iter().map(|&[r, g, b]| [r, g, b, 0.0]));
+        }
+        debug_assert_eq!(t.len(), prefiltered_offset(PREFILTER_LEVELS));
+        t
+    }
+}
+
+/// Terms of the irradiance's spherical-harmonic expansion ([`IrradianceSh9`]).
+pub const SH9_TERMS: usize = 9;
+
+/// Where the split-sum cells start in [`AmbientLight::texels`].
+pub const AMBIENT_TEXELS_SPLIT_SUM: usize = SH9_TERMS;
+
+/// Where prefiltered level `k` starts in [`AmbientLight::texels`] (`k = PREFILTER_LEVELS`:
+/// the number of texels).
+pub const fn prefiltered_offset(k: usize) -> usize {
+    let mut offset = AMBIENT_TEXELS_SPLIT_SUM + SPLIT_SUM_SIZE * SPLIT_SUM_SIZE;
+    let mut i = 0;
+    while i < k {
+        offset += ((PREFILTER_BASE.0 >> i) * (PREFILTER_BASE.1 >> i)) as usize;
+        i += 1;
+    }
+    offset
+}
+
+/// The image-based light of one environment: its irradiance ([`IrradianceSh9`]), the
+/// split-sum factors ([`SplitSumTable`], the same for every environment, computed once per
+/// process) and its prefiltered radiance ([`PrefilteredEnvironment`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ImageBasedLight {
+    pub irradiance: IrradianceSh9,
+    pub split_sum: Arc<SplitSumTable>,
+    pub prefiltered: PrefilteredEnvironment,
+}
+
+impl ImageBasedLight {
+    /// The tables of `env`.
+    pub fn of(env: &Environment) -> ImageBasedLight {
+        static SPLIT_SUM: OnceLock<Arc<SplitSumTable>> = OnceLock::new();
+        ImageBasedLight {
+            irradiance: IrradianceSh9::of(env),
+            split_sum: SPLIT_SUM.get_or_init(|| Arc::new(SplitSumTable::compute())).clone(),
+            prefiltered: PrefilteredEnvironment::of(env),
+        }
+    }
+
+    /// [`ImageBasedLight::of`] shared: the default sky's tables are computed once per
+    /// process (every scene without a map has them), a map's for each call.
+    pub fn shared(env: &Environment) -> Arc<ImageBasedLight> {
+        static SKY: OnceLock<Arc<ImageBasedLight>> = OnceLock::new();
+        match env {
+            Environment::Sky => SKY.get_or_init(|| Arc::new(ImageBasedLight::of(env))).clone(),
+            Environment::Map(_) => Arc::new(ImageBasedLight::of(env)),
+        }
+    }
+
+    /// The environment's radiance through the GGX lobe of `roughness` around the
+    /// direction `r` (any length, non-zero): the prefiltered levels at `r`'s lat-long
+    /// coordinates ([`direction_to_uv`]), each bilinear ([`sample_bilinear_grid`]), blended
+    /// linearly between the two levels around `roughness (LEVELS - 1)` (roughness clamped
+    /// to [0, 1]). WGSL: `specular_radiance`.
+    #[inline]
+    pub fn specular_radiance(&self, r: Vec3, roughness: f32) -> Vec3 {
+        let (u, v) = direction_to_uv(r);
+        let x = roughness.clamp(0.0, 1.0) * (PREFILTER_LEVELS - 1) as f32;
+        let k = (x.floor() as usize).min(PREFILTER_LEVELS - 2);
+        let f = x - k as f32;
+        let sample = |level: &PrefilteredLevel| {
+            let texel = |i: u32, j: u32| Vec3::from(level.texels[(j * level.width + i) as usize]);
+            sample_bilinear_grid(level.width, level.height, texel, u, v)
+        };
+        let (a, b) = (sample(&self.prefiltered.levels[k]), sample(&self.prefiltered.levels[k + 1]));
+        a + (b - a) * f
+    }
+
+    /// The light a surface of the glTF model reflects from the environment towards `v`
+    /// (unit, towards the viewer) at the unit shading normal `n`, before ambient occlusion:
+    /// the split-sum form of glTF 2.0 Appendix B's BRDF under the environment,
+    ///
+    /// ```text
+    /// n.v = max(n.v, 0),  r = 2 (n.v) n - v          (the mirror direction; n where it is zero)
+    /// (A, B) = split sum (n.v, roughness),  F0 = mix(0.04, base, metallic)
+    /// specular = prefiltered(r, roughness) (F0 A + B)
+    /// diffuse  = base (1 - metallic) (1 - (0.04 A + B)) E(n) / pi
+    /// ```
+    ///
+    /// `E(n)` the irradiance ([`IrradianceSh9::irradiance`]). As in Appendix B's
+    /// `fresnel_mix`, the dielectric's diffuse lobe keeps what its specular lobe does not
+    /// reflect (`1 - (0.04 A + B)`, the lobe's directional albedo); the metal has none.
+    /// WGSL: `image_based_light`.
+    #[inline]
+    pub fn radiance(&self, base: Vec3, metallic: f32, roughness: f32, n: Vec3, v: Vec3) -> Vec3 {
+        let n_dot_v = n.dot(v).max(0.0);
+        let r = n * (2.0 * n_dot_v) - v;
+        let r = if r == Vec3::ZERO { n } else { r };
+        let [a, b] = self.split_sum.lookup(n_dot_v, roughness);
+        let f0 = Vec3::splat(DIELECTRIC_F0).lerp(base, metallic);
+        let specular = self.specular_radiance(r, roughness) * (f0 * a + Vec3::splat(b));
+        let kd = (1.0 - metallic) * (1.0 - (DIELECTRIC_F0 * a + b));
+        let diffuse = base * kd * (self.irradiance.irradiance(n) * std::f32::consts::FRAC_1_PI);
+        diffuse + specular
+    }
+
+    /// The diffuse part of [`ImageBasedLight::radiance`] alone, scaled by `diffuse_scale`:
+    /// what a surface whose specular lobe is traced (a bouncing surface,
+    /// [`crate::kernels::bounce::shade_bouncing`]) adds. WGSL: `image_based_diffuse`.
+    #[inline]
+    pub fn diffuse(&self, base: Vec3, metallic: f32, n: Vec3, diffuse_scale: f32) -> Vec3 {
+        base * ((1.0 - metallic) * diffuse_scale) * (self.irradiance.irradiance(n) * std::f32::consts::FRAC_1_PI)
+    }
+}
 
 /// The clamped cosine's harmonic coefficients per order, `Â_l` (Ramamoorthi and Hanrahan,
 /// equation 8): `π`, `2π/3`, `π/4`.
@@ -78,6 +268,45 @@ fn ggx_half_vector((u1, u2): (f64, f64), a2: f64) -> [f64; 3] {
     [sin_t * phi.cos(), sin_t * phi.sin(), cos_t]
 }
 
+/// The exact integrals of [`sh9_basis`]'s nine harmonics over cell `(i, j)` of a `w` x `h`
+/// lat-long grid ([`latlong_cell`]'s layout: `θ` in `[π j / h, π (j + 1) / h]` from +Y,
+/// `φ` in `[2π i / w, 2π (i + 1) / w]`, `d = (sin θ sin φ, cos θ, -sin θ cos φ)`,
+/// `dω = sin θ dθ dφ`): each harmonic is a product of powers of `sin` and `cos` of `θ` and
+/// of `φ`, integrated in closed form, in f64. A midpoint rule would be off by about the
+/// cell's angular size squared on the quadratic harmonics (a tenth on a 4 x 2 map).
+pub fn sh9_cell_integrals(i: u32, j: u32, w: u32, h: u32) -> [f64; 9] {
+    use std::f64::consts::{PI, TAU};
+    let (t0, t1) = (PI * j as f64 / h as f64, PI * (j + 1) as f64 / h as f64);
+    let (p0, p1) = (TAU * i as f64 / w as f64, TAU * (i + 1) as f64 / w as f64);
+    let over_t = |f: fn(f64) -> f64| f(t1) - f(t0);
+    let over_p = |f: fn(f64) -> f64| f(p1) - f(p0);
+    // θ integrals with the solid angle's sin θ.
+    let t_s = over_t(|t| -t.cos()); // ∫ sin
+    let t_ss = over_t(|t| t / 2.0 - (2.0 * t).sin() / 4.0); // ∫ sin²
+    let t_sc = over_t(|t| t.sin() * t.sin() / 2.0); // ∫ cos sin
+    let t_ssc = over_t(|t| t.sin().powi(3) / 3.0); // ∫ cos sin²
+    let t_sss = over_t(|t| -t.cos() + t.cos().powi(3) / 3.0); // ∫ sin³
+    let t_scc = over_t(|t| -t.cos().powi(3) / 3.0); // ∫ cos² sin
+                                                    // φ integrals.
+    let p_1 = p1 - p0;
+    let p_s = over_p(|p| -p.cos()); // ∫ sin
+    let p_c = over_p(|p| p.sin()); // ∫ cos
+    let p_ss = over_p(|p| p / 2.0 - (2.0 * p).sin() / 4.0); // ∫ sin²
+    let p_cc = over_p(|p| p / 2.0 + (2.0 * p).sin() / 4.0); // ∫ cos²
+    let p_sc = over_p(|p| p.sin() * p.sin() / 2.0); // ∫ sin cos
+    [
+        t_s * p_1,                      // 1
+        t_ss * p_s,                     // x = sin θ sin φ
+        t_sc * p_1,                     // y = cos θ
+        -t_ss * p_c,                    // z = -sin θ cos φ
+        t_ssc * p_s,                    // xy
+        -t_ssc * p_c,                   // yz
+        -t_sss * p_sc,                  // xz
+        3.0 * t_sss * p_cc - t_s * p_1, // 3z² - 1
+        t_sss * p_ss - t_scc * p_1,     // x² - y²
+    ]
+}
+
 /// The nine real harmonics at `(x, y, z)` (a unit vector), without their normalisations:
 /// `1, x, y, z, xy, yz, xz, 3z² - 1, x² - y²`.
 pub fn sh9_basis(d: [f64; 3]) -> [f64; 9] {
@@ -95,31 +324,36 @@ pub struct IrradianceSh9 {
 }
 
 impl IrradianceSh9 {
-    /// The irradiance coefficients of `env`: a map integrated texel by texel (each texel's
-    /// solid angle exact in latitude, its radiance taken at its centre: [`latlong_cell`]), the default sky over [`SKY_QUADRATURE`]'s grid of cell centres; sums in
-    /// f64, rounded to f32 once.
+    /// The irradiance coefficients of `env`, over a lat-long grid of at least
+    /// [`SKY_QUADRATURE`]'s cells (a larger map's own texels): each cell's radiance taken
+    /// at its centre (a map's texel on its own grid, else the lookup rays make,
+    /// [`environment_radiance`]: the default sky, or a small map's bilinear blend) times the
+    /// harmonics' exact integrals over the cell ([`sh9_cell_integrals`]), so that a uniform
+    /// environment projects exactly onto the constant harmonic; sums in f64, rounded to f32
+    /// once.
     pub fn of(env: &Environment) -> IrradianceSh9 {
         let (w, h) = match env {
-            Environment::Map(m) => (m.width(), m.height()),
+            Environment::Map(m) => (m.width().max(SKY_QUADRATURE.0), m.height().max(SKY_QUADRATURE.1)),
             Environment::Sky => SKY_QUADRATURE,
         };
+        let own_texels = env.map().filter(|m| (m.width(), m.height()) == (w, h));
         let mut sum = [[0.0f64; 3]; 9];
         for j in 0..h {
             for i in 0..w {
-                let (d, solid_angle) = latlong_cell(i, j, w, h);
-                let radiance = match env {
-                    Environment::Map(m) => {
+                let radiance = match own_texels {
+                    Some(m) => {
                         let t = m.texel(i, j);
                         [t[0] as f64, t[1] as f64, t[2] as f64]
                     }
-                    Environment::Sky => {
+                    None => {
+                        let (d, _) = latlong_cell(i, j, w, h);
                         let r = environment_radiance(env, Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32));
                         [r.x as f64, r.y as f64, r.z as f64]
                     }
                 };
-                for (k, y) in sh9_basis(d).into_iter().enumerate() {
+                for (k, y) in sh9_cell_integrals(i, j, w, h).into_iter().enumerate() {
                     for c in 0..3 {
-                        sum[k][c] += radiance[c] * y * solid_angle;
+                        sum[k][c] += radiance[c] * y;
                     }
                 }
             }
@@ -331,6 +565,40 @@ mod tests {
 
     fn unit(a: f32, b: f32) -> Vec3 {
         Vec3::new(a.cos() * b.sin(), b.cos(), a.sin() * b.sin())
+    }
+
+    /// The closed-form cell integrals: over the whole sphere the non-constant harmonics
+    /// integrate to zero and the constant one to 4π, on grids down to 1 x 1 cell; one cell
+    /// against a fine midpoint rule.
+    #[test]
+    fn sh9_cell_integrals_are_exact() {
+        for (w, h) in [(1, 1), (4, 2), (7, 3), (256, 128)] {
+            let mut total = [0.0f64; 9];
+            for j in 0..h {
+                for i in 0..w {
+                    for (t, x) in total.iter_mut().zip(sh9_cell_integrals(i, j, w, h)) {
+                        *t += x;
+                    }
+                }
+            }
+            assert!((total[0] - 4.0 * std::f64::consts::PI).abs() < 1e-12, "{w}x{h}: {total:?}");
+            assert!(total[1..].iter().all(|x| x.abs() < 1e-12), "{w}x{h}: {total:?}");
+        }
+        // Cell (1, 0) of a 4 x 2 grid (θ in [0, π/2], φ in [π/2, π]), by a 400 x 400
+        // midpoint rule (error about 1e-5 of the cell's values, far above f64's).
+        let (n, mut fine) = (400u32, [0.0f64; 9]);
+        for jj in 0..n {
+            for ii in 0..n {
+                let (d, solid_angle) = latlong_cell(4 * n / 4 + ii, jj, 4 * n, 2 * n);
+                for (f, y) in fine.iter_mut().zip(sh9_basis(d)) {
+                    *f += y * solid_angle;
+                }
+            }
+        }
+        let exact = sh9_cell_integrals(1, 0, 4, 2);
+        for k in 0..9 {
+            assert!((exact[k] - fine[k]).abs() < 1e-4, "harmonic {k}: {} vs {}", exact[k], fine[k]);
+        }
     }
 
     #[test]

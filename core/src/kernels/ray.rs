@@ -170,7 +170,7 @@ pub fn product_error(a: f32, b: f32, p: f32) -> f32 {
 }
 
 /// A value with the exact sign of the edge function `a.x * b.y - a.y * b.x` whose f32
-/// value ([`edge_function`]) is exactly zero: both products then round to the same `p`,
+/// value (`edge_function`) is exactly zero: both products then round to the same `p`,
 /// so the exact difference is `(a.x b.y - p) - (a.y b.x - p)`, the difference of the two
 /// exact rounding errors ([`product_error`]), which one rounded subtraction returns with
 /// its exact sign (zero only when it is exactly zero). Antisymmetric like the edge

@@ -16,6 +16,7 @@ use glam::Vec3;
 use crate::formats::{
     LightRecord, ObjectRecord, SurfaceRecord, LIGHT_DIRECTIONAL, LIGHT_SPOT, OBJ_GLTF_BRDF, SHADOW_LIT,
 };
+pub use crate::kernels::ibl::{AmbientLight, ImageBasedLight};
 
 /// Constant ambient term, as a fraction of the base colour, so that fully
 /// shadowed surfaces stay readable (a stand-in for indirect light).
@@ -456,19 +457,33 @@ pub fn sum_visible_lights(
 /// light its shadow ray reached (`shadow`: the pixel's `SHADOW_*` codes, one per light),
 /// seen from `eye`.
 #[inline]
-pub fn shade_rt_pixel(s: &SurfaceRecord, obj: &ObjectRecord, shadow: &[u8], lights: &[LightRecord], eye: Vec3) -> Vec3 {
+pub fn shade_rt_pixel(
+    s: &SurfaceRecord,
+    obj: &ObjectRecord,
+    shadow: &[u8],
+    lights: &[LightRecord],
+    ambient: &AmbientLight,
+    eye: Vec3,
+) -> Vec3 {
     let v = (eye - Vec3::from(s.position)).normalize_or_zero();
-    shade_rt_surface(s, obj, shadow, lights, v)
+    shade_rt_surface(s, obj, shadow, lights, ambient, v)
 }
 
 /// The ray-traced shader at a surface seen along `-v` (`v`: unit, towards the viewer):
 /// [`unlit`] plus [`shade_ray_traced`] from every light its shadow ray reached. Primary
 /// hits ([`shade_rt_pixel`]) and secondary hits on surfaces that do not bounce use it.
 #[inline]
-pub fn shade_rt_surface(s: &SurfaceRecord, obj: &ObjectRecord, shadow: &[u8], lights: &[LightRecord], v: Vec3) -> Vec3 {
+pub fn shade_rt_surface(
+    s: &SurfaceRecord,
+    obj: &ObjectRecord,
+    shadow: &[u8],
+    lights: &[LightRecord],
+    ambient: &AmbientLight,
+    v: Vec3,
+) -> Vec3 {
     let p = Vec3::from(s.position);
     let n = Vec3::from(s.normal);
-    unlit(obj) + sum_visible_lights(shadow, lights, p, |l, e| shade_ray_traced(obj, n, v, l, e))
+    unlit(obj, n, v, ambient) + sum_visible_lights(shadow, lights, p, |l, e| shade_ray_traced(obj, n, v, l, e))
 }
 
 /// The raster shader at a surface seen along `-v` (`v`: unit, towards the viewer):
@@ -480,11 +495,12 @@ pub fn shade_raster_surface(
     obj: &ObjectRecord,
     shadow: &[u8],
     lights: &[LightRecord],
+    ambient: &AmbientLight,
     v: Vec3,
 ) -> Vec3 {
     let p = Vec3::from(s.position);
     let n = Vec3::from(s.normal);
-    unlit(obj) + sum_visible_lights(shadow, lights, p, |l, e| shade_raster(obj, n, v, l, e))
+    unlit(obj, n, v, ambient) + sum_visible_lights(shadow, lights, p, |l, e| shade_raster(obj, n, v, l, e))
 }
 
 /// The raster shader at one pixel seen from `eye`: [`shade_raster_surface`] with `v`
@@ -495,39 +511,61 @@ pub fn shade_raster_pixel(
     obj: &ObjectRecord,
     shadow: &[u8],
     lights: &[LightRecord],
+    ambient: &AmbientLight,
     eye: Vec3,
 ) -> Vec3 {
     let v = (eye - Vec3::from(s.position)).normalize_or_zero();
-    shade_raster_surface(s, obj, shadow, lights, v)
+    shade_raster_surface(s, obj, shadow, lights, ambient, v)
 }
 
-/// Ambient term of any object: diffuse albedo times [`AMBIENT`] plus the
-/// specular reflectance F0 times [`ENVIRONMENT_SPECULAR`] (a uniform environment
-/// reflected by the specular lobe, which integrates to F0), both times the record's
-/// [`ObjectRecord::ambient_scale`]: the scene's ambient setting and the ambient occlusion
-/// (glTF's occlusion texture "applies to indirect lighting" only); 1, an exact no-op, by
-/// default, 0 with `ambient = 0`.
+/// The ambient light a surface reflects towards `v` (unit, towards the viewer) at the unit
+/// shading normal `n`, under the frame's `light` ([`AmbientLight`]), all of it times the
+/// point's ambient occlusion ([`ObjectRecord::occlusion`]: glTF's occlusion texture
+/// "applies to indirect lighting" only):
+///
+/// * the constant diffuse term: diffuse albedo `base (1 - metallic)` times [`AMBIENT`]
+///   times the scene's level (`light.scale`: 1, an exact no-op, by default; 0 with
+///   `ambient = 0`);
+/// * the paper's model (and glTF objects of tables without image-based light): plus the
+///   specular reflectance F0 times [`ENVIRONMENT_SPECULAR`] (a uniform environment reflected
+///   by the specular lobe, which integrates to F0), at the same level:
+///   `(base (1 - metallic) AMBIENT + F0 ENVIRONMENT_SPECULAR) (scale occlusion)`;
+/// * the glTF model with the environment's image-based light: plus
+///   [`ImageBasedLight::radiance`] (diffuse irradiance and prefiltered specular), which the
+///   level does not scale: `base ((1 - metallic) AMBIENT) (scale occlusion) + IBL
+///   occlusion`.
+///
+/// `n` and `v` are read only by the image-based light. WGSL: `ambient`.
 #[inline]
-pub fn ambient(obj: &ObjectRecord) -> Vec3 {
+pub fn ambient(obj: &ObjectRecord, n: Vec3, v: Vec3, light: &AmbientLight) -> Vec3 {
     let base = Vec3::from(obj.base_color);
-    let f0 = Vec3::splat(DIELECTRIC_F0).lerp(base, obj.metallic);
-    (base * ((1.0 - obj.metallic) * AMBIENT) + f0 * ENVIRONMENT_SPECULAR) * obj.ambient_scale
+    let constant = light.scale * obj.occlusion;
+    match light.image_for(obj.flags) {
+        None => {
+            let f0 = Vec3::splat(DIELECTRIC_F0).lerp(base, obj.metallic);
+            (base * ((1.0 - obj.metallic) * AMBIENT) + f0 * ENVIRONMENT_SPECULAR) * constant
+        }
+        Some(ibl) => {
+            base * ((1.0 - obj.metallic) * AMBIENT) * constant
+                + ibl.radiance(base, obj.metallic, obj.roughness, n, v) * obj.occlusion
+        }
+    }
 }
 
 /// What a surface sends out whatever the lights: [`ambient`] plus its emission
 /// ([`ObjectRecord::emissive`]; adding the zero of a surface without one keeps the
-/// ambient's bits). Every shader of a surface starts from it.
+/// ambient's bits). Every shader of a surface starts from it. WGSL: `unlit`.
 #[inline]
-pub fn unlit(obj: &ObjectRecord) -> Vec3 {
-    ambient(obj) + Vec3::from(obj.emissive)
+pub fn unlit(obj: &ObjectRecord, n: Vec3, v: Vec3, light: &AmbientLight) -> Vec3 {
+    ambient(obj, n, v, light) + Vec3::from(obj.emissive)
 }
 
 /// A scene's constant ambient light (manifest key `ambient`, `hyrt render --ambient`):
 /// the diffuse ambient level, [`AMBIENT`] by default (the paper's look). It scales both
 /// constant terms, the diffuse [`AMBIENT`] and the specular [`ENVIRONMENT_SPECULAR`]
-/// (including what an untraced lobe sees), by `level / AMBIENT`
-/// ([`ObjectRecord::ambient_scale`]); 0 removes them, so that with a black environment a
-/// frame holds direct light and emission alone.
+/// (including what an untraced lobe sees), by `level / AMBIENT` ([`AmbientLight::scale`]);
+/// 0 removes them, so that with a black environment (no image-based light either) a frame
+/// holds direct light and emission alone.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ambient(pub f32);
 
@@ -637,7 +675,7 @@ mod tests {
             ior: 1.5,
             offset_error: 0.0,
             emissive: [0.0; 3],
-            ambient_scale: 1.0,
+            occlusion: 1.0,
         }
     }
 

@@ -385,8 +385,8 @@ impl<'a> Materials<'a> {
     /// - times the interpolated vertex colour ([`MAT_VERTEX_COLORS`]);
     /// - roughness times the metallic-roughness texture's green, metallic times its blue
     ///   ([`MAT_METALLIC_ROUGHNESS`]);
-    /// - the ambient scale times the occlusion `1 + strength (red - 1)` of the occlusion
-    ///   texture ([`MAT_OCCLUSION`], glTF's blend towards 1);
+    /// - the occlusion times `1 + strength (red - 1)` of the occlusion texture
+    ///   ([`MAT_OCCLUSION`], glTF's blend towards 1);
     /// - emission times the emissive texture's RGB ([`MAT_EMISSIVE`]).
     ///
     /// WGSL: `shaded_object`.
@@ -423,7 +423,7 @@ impl<'a> Materials<'a> {
             }
             if m.flags & MAT_OCCLUSION != 0 {
                 let texel = sample(m.occlusion);
-                obj.ambient_scale *= 1.0 + m.occlusion_strength * (texel[0] - 1.0);
+                obj.occlusion *= 1.0 + m.occlusion_strength * (texel[0] - 1.0);
             }
             if m.flags & MAT_EMISSIVE != 0 {
                 let texel = sample(m.emissive);

@@ -8,7 +8,8 @@
 //! shading = "gltf"              # optional: "gltf" (the glTF metallic-roughness BRDF on every
 //!                               # object, the default) | "paper" (the paper's 2011 model)
 //! ambient = 0.06                # optional: the constant ambient light, >= 0 (default 0.06;
-//!                               # 0 leaves direct light and emission alone)
+//!                               # 0 removes it; with a black environment, whose image-based
+//!                               # light the glTF BRDF adds, direct light and emission alone)
 //!
 //! [camera]                      # optional; without it: the first camera of a model file, else none
 //! eye = [9.0, 2.6, 3.0]

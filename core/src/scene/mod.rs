@@ -433,7 +433,9 @@ pub struct Scene {
     /// paper's model ([`ShadingModel::default`]) until it says otherwise.
     pub shading: ShadingModel,
     /// The constant ambient light (manifest key `ambient`, `hyrt render --ambient`):
-    /// [`crate::kernels::shading::AMBIENT`] by default, 0 for none.
+    /// [`crate::kernels::shading::AMBIENT`] by default, 0 for none. With the glTF model the
+    /// environment's image-based light comes on top of it
+    /// ([`crate::kernels::ibl::AmbientLight`]).
     pub ambient: Ambient,
 }
 

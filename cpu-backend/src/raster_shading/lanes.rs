@@ -27,8 +27,11 @@
 //! [`raster_shading_pixel`]: crate::raster_shading::raster_shading_pixel
 //! [`Materials::varying`]: hyrt_core::kernels::texture::Materials::varying
 
+use glam::Vec3;
 use hyrt_core::formats::{LightRecord, ObjectRecord, SurfaceRecord, OBJ_GLTF_BRDF, OBJ_RAY_TRACED};
-use hyrt_core::kernels::shading::{AMBIENT, BACKGROUND_RGBA, DIELECTRIC_F0, ENVIRONMENT_SPECULAR, GGX_MIN_ALPHA};
+use hyrt_core::kernels::shading::{
+    AmbientLight, AMBIENT, BACKGROUND_RGBA, DIELECTRIC_F0, ENVIRONMENT_SPECULAR, GGX_MIN_ALPHA,
+};
 
 use crate::compaction::lanes::light_incidence_lanes;
 use crate::lanes::{dot3, mask_lanes, normalize_or_zero_lanes, select3, splat3, sub3, zero3, Lanes, LANES};
@@ -54,7 +57,7 @@ pub(crate) struct PrimaryLanes<L: Lanes> {
     pub metallic: L::F,
     pub roughness: L::F,
     pub emissive: [L::F; 3],
-    pub ambient_scale: L::F,
+    pub occlusion: L::F,
 }
 
 impl<L: Lanes> PrimaryLanes<L> {
@@ -98,7 +101,7 @@ impl<L: Lanes> PrimaryLanes<L> {
             for a in 0..3 {
                 w[14 + a][k] = obj.emissive[a];
             }
-            w[17][k] = obj.ambient_scale;
+            w[17][k] = obj.occlusion;
         }
         PrimaryLanes {
             hit: L::load(&w[0]),
@@ -110,7 +113,7 @@ impl<L: Lanes> PrimaryLanes<L> {
             metallic: L::load(&w[11]),
             roughness: L::load(&w[12]),
             emissive: [L::load(&w[14]), L::load(&w[15]), L::load(&w[16])],
-            ambient_scale: L::load(&w[17]),
+            occlusion: L::load(&w[17]),
         }
     }
 }
@@ -161,20 +164,55 @@ pub(crate) fn f0_lanes<L: Lanes>(base: [L::F; 3], metallic: L::F) -> [L::F; 3] {
     ]
 }
 
-/// Core's `unlit(obj)` per lane: `ambient(obj) + emissive`, with `ambient(obj)` =
-/// `(base * ((1 - metallic) * AMBIENT) + f0 * ENVIRONMENT_SPECULAR) * occlusion`.
+/// Core's `unlit(obj, n, v, ambient)` per lane, seen from `eye` (`v` is the unit vector
+/// from the surface to the eye, as `shade_rt_pixel` and `shade_raster_pixel` make it):
+/// `ambient(..) + emissive`, with `ambient(..)` =
+/// `(base * ((1 - metallic) * AMBIENT) + f0 * ENVIRONMENT_SPECULAR) * (scale * occlusion)`
+/// for the paper's model, and on the glTF lanes of a frame with image-based light
+/// `base * ((1 - metallic) * AMBIENT) * (scale * occlusion) + IBL * occlusion`, the
+/// image-based term by core's scalar kernel lane by lane (its table lookups do not
+/// vectorize; the same operations on the same operands, so the same bits).
 #[inline(always)]
-pub(crate) fn unlit_lanes<L: Lanes>(p: &PrimaryLanes<L>) -> [L::F; 3] {
+pub(crate) fn unlit_lanes<L: Lanes>(p: &PrimaryLanes<L>, ambient: &AmbientLight, eye: [f32; 3]) -> [L::F; 3] {
     let (base, metallic) = (p.base_color, p.metallic);
     let f0 = f0_lanes::<L>(base, metallic);
     let k = L::mul(L::sub(L::splat(1.0), metallic), L::splat(AMBIENT));
     let env = L::splat(ENVIRONMENT_SPECULAR);
-    let (o, e) = (p.ambient_scale, p.emissive);
-    [
+    let (o, e) = (L::mul(L::splat(ambient.scale), p.occlusion), p.emissive);
+    let paper = [
         L::add(L::mul(L::add(L::mul(base[0], k), L::mul(f0[0], env)), o), e[0]),
         L::add(L::mul(L::add(L::mul(base[1], k), L::mul(f0[1], env)), o), e[1]),
         L::add(L::mul(L::add(L::mul(base[2], k), L::mul(f0[2], env)), o), e[2]),
-    ]
+    ];
+    let image_lanes = L::bits(L::and(p.gltf, p.hit));
+    let Some(ibl) = ambient.image.as_deref() else { return paper };
+    if image_lanes == 0 {
+        return paper;
+    }
+    // The image-based term, lane by lane, times the occlusion.
+    let [bx, by, bz] = [L::store(base[0]), L::store(base[1]), L::store(base[2])];
+    let [nx, ny, nz] = [L::store(p.normal[0]), L::store(p.normal[1]), L::store(p.normal[2])];
+    let [px, py, pz] = [L::store(p.position[0]), L::store(p.position[1]), L::store(p.position[2])];
+    let (m, r, occ) = (L::store(metallic), L::store(p.roughness), L::store(p.occlusion));
+    let mut image = [[0.0f32; LANES]; 3];
+    for lane in 0..LANES {
+        if image_lanes & (1 << lane) == 0 {
+            continue;
+        }
+        let v = (Vec3::from(eye) - Vec3::new(px[lane], py[lane], pz[lane])).normalize_or_zero();
+        let (b, n) = (Vec3::new(bx[lane], by[lane], bz[lane]), Vec3::new(nx[lane], ny[lane], nz[lane]));
+        let c = ibl.radiance(b, m[lane], r[lane], n, v) * occ[lane];
+        for (image, c) in image.iter_mut().zip(c.to_array()) {
+            image[lane] = c;
+        }
+    }
+    let image = [L::load(&image[0]), L::load(&image[1]), L::load(&image[2])];
+    let gltf = [
+        L::add(L::add(L::mul(L::mul(base[0], k), o), image[0]), e[0]),
+        L::add(L::add(L::mul(L::mul(base[1], k), o), image[1]), e[1]),
+        L::add(L::add(L::mul(L::mul(base[2], k), o), image[2]), e[2]),
+    ];
+    select3::<L>(p.gltf, gltf, paper)
 }
 
 /// Core's `shade_raster(obj, n, l, e)` per lane: `((base * FRAC_1_PI) * e) * n.l`, zero
@@ -297,13 +335,14 @@ fn shade_raster_pixel_lanes<L: Lanes>(
     p: &PrimaryLanes<L>,
     lit: &LitLanes,
     lights: &[LightRecord],
+    ambient: &AmbientLight,
     eye: [f32; 3],
 ) -> [L::F; 3] {
     let pi = L::splat(std::f32::consts::FRAC_1_PI);
     let b = p.base_color;
     let shader =
         RasterShader::<L> { n: p.normal, base_over_pi: [L::mul(b[0], pi), L::mul(b[1], pi), L::mul(b[2], pi)] };
-    let a = unlit_lanes::<L>(p);
+    let a = unlit_lanes::<L>(p, ambient, eye);
     let c = if L::bits(p.gltf) == 0 {
         sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &shader)
     } else {
@@ -322,11 +361,13 @@ pub(crate) fn raster_shading_lanes<L: Lanes>(
     p: &PrimaryLanes<L>,
     lit: &LitLanes,
     lights: &[LightRecord],
+    ambient: &AmbientLight,
     eye: [f32; 3],
     shade_ray_traced: bool,
 ) -> [L::F; 4] {
     let shaded = if shade_ray_traced { p.hit } else { L::andnot(p.ray_traced, p.hit) };
-    let c = if L::bits(shaded) != 0 { shade_raster_pixel_lanes::<L>(p, lit, lights, eye) } else { zero3::<L>() };
+    let c =
+        if L::bits(shaded) != 0 { shade_raster_pixel_lanes::<L>(p, lit, lights, ambient, eye) } else { zero3::<L>() };
     let [r, g, b, a] = BACKGROUND_RGBA;
     let none = select3::<L>(p.hit, zero3::<L>(), splat3::<L>([r, g, b]));
     let c = select3::<L>(shaded, c, none);
@@ -342,6 +383,7 @@ pub(crate) mod tests {
     use crate::raster_shading::{raster_shading_pixel, Primary};
     use glam::Vec3;
     use hyrt_core::formats::{LIGHT_DIRECTIONAL, SHADOW_LIT, SHADOW_NO_RAY, SHADOW_OCCLUDED};
+    use hyrt_core::kernels::shading::ImageBasedLight;
     use hyrt_core::kernels::texture::Materials;
     use proptest::prelude::*;
 
@@ -354,6 +396,19 @@ pub(crate) mod tests {
         pub lights: Vec<LightRecord>,
         pub shadow: Vec<u8>,
         pub eye: [f32; 3],
+        pub ambient: AmbientLight,
+    }
+
+    /// The default sky's image-based light (computed once per process).
+    pub(crate) fn sky_light() -> std::sync::Arc<ImageBasedLight> {
+        ImageBasedLight::shared(&hyrt_core::scene::Environment::Sky)
+    }
+
+    /// An ambient light: the default, a constant level, or a level with the sky's
+    /// image-based light.
+    fn ambient_light() -> impl Strategy<Value = AmbientLight> {
+        let scale = prop_oneof![2 => Just(1.0f32), 1 => Just(0.0f32), 1 => 0.0f32..4.0];
+        (scale, any::<bool>()).prop_map(|(scale, image)| AmbientLight { scale, image: image.then(sky_light) })
     }
 
     impl Block {
@@ -416,10 +471,10 @@ pub(crate) mod tests {
     }
 
     fn object() -> impl Strategy<Value = ObjectRecord> {
-        let ambient_scale = prop_oneof![2 => Just(1.0f32), 1 => unit(), 1 => 0.0f32..4.0];
+        let occlusion = prop_oneof![2 => Just(1.0f32), 1 => unit(), 1 => 0.0f32..4.0];
         let base = (any::<bool>(), any::<bool>(), [colour(), colour(), colour()], unit(), unit());
-        (base, emission(), ambient_scale).prop_map(
-            |((ray_traced, gltf, base_color, metallic, roughness), emissive, ambient_scale)| ObjectRecord {
+        (base, emission(), occlusion).prop_map(
+            |((ray_traced, gltf, base_color, metallic, roughness), emissive, occlusion)| ObjectRecord {
                 first_triangle: 0,
                 triangle_count: 1,
                 flags: if ray_traced { OBJ_RAY_TRACED } else { 0 } | if gltf { OBJ_GLTF_BRDF } else { 0 },
@@ -431,7 +486,7 @@ pub(crate) mod tests {
                 ior: 1.5,
                 offset_error: 0.0,
                 emissive,
-                ambient_scale,
+                occlusion,
             },
         )
     }
@@ -451,9 +506,9 @@ pub(crate) mod tests {
             prop::collection::vec(light(), 1..4),
             prop::collection::vec(surface, LANES),
             prop::collection::vec(code, 3 * LANES),
-            (any::<bool>(), any::<bool>(), vec3()),
+            (any::<bool>(), any::<bool>(), vec3(), ambient_light()),
         )
-            .prop_map(|(objects, mut lights, surfaces, codes, (one_object, above, eye))| {
+            .prop_map(|(objects, mut lights, surfaces, codes, (one_object, above, eye, ambient))| {
                 let surfaces: [SurfaceRecord; LANES] = std::array::from_fn(|k| {
                     let (hit, position, normal, object) = surfaces[k];
                     if !hit {
@@ -476,7 +531,7 @@ pub(crate) mod tests {
                     }
                 }
                 let shadow = codes[..LANES * lights.len()].to_vec();
-                Block { surfaces, objects, lights, shadow, eye }
+                Block { surfaces, objects, lights, shadow, eye, ambient }
             })
     }
 
@@ -485,8 +540,10 @@ pub(crate) mod tests {
     impl LevelCheck for RasterCheck<'_> {
         fn check<L: Lanes>(&self) -> Result<(), TestCaseError> {
             let RasterCheck(b, shade_ray_traced) = *self;
-            let got = raster_shading_lanes::<L>(&b.primary::<L>(), &b.lit(), &b.lights, b.eye, shade_ray_traced);
-            let primary = Primary { gbuffer: &[], materials: &Materials::plain(&b.objects), eye: b.eye.into() };
+            let got =
+                raster_shading_lanes::<L>(&b.primary::<L>(), &b.lit(), &b.lights, &b.ambient, b.eye, shade_ray_traced);
+            let materials = Materials::plain(&b.objects);
+            let primary = Primary { gbuffer: &[], materials: &materials, ambient: &b.ambient, eye: b.eye.into() };
             for (k, s) in b.surfaces.iter().enumerate() {
                 let want = raster_shading_pixel(&primary, &b.lights, shade_ray_traced, k, s, b.codes(k));
                 same_texel(k, lane::<L>(got, k), want)?;
@@ -508,11 +565,16 @@ pub(crate) mod tests {
     /// shadow code, over a block of hits and misses.
     #[test]
     fn raster_shading_lanes_on_hard_cases() {
-        for b in [hard_block(), gltf(hard_block())] {
+        for b in [hard_block(), gltf(hard_block()), with_sky(gltf(hard_block())), with_sky(hard_block())] {
             for shade_ray_traced in [false, true] {
                 at_every_level(&RasterCheck(&b, shade_ray_traced)).unwrap();
             }
         }
+    }
+
+    /// `b` under the default sky's image-based light, at half the default constant level.
+    pub(crate) fn with_sky(b: Block) -> Block {
+        Block { ambient: AmbientLight { scale: 0.5, image: Some(sky_light()) }, ..b }
     }
 
     /// `b` with every object shaded with the glTF BRDF.
@@ -536,13 +598,13 @@ pub(crate) mod tests {
             ior: 1.5,
             offset_error: 0.0,
             emissive: [0.0; 3],
-            ambient_scale: 1.0,
+            occlusion: 1.0,
         };
         let objects = vec![
             object(0, 0.0, 1.0),
             object(OBJ_RAY_TRACED, 1.0, 0.0),
             // Emissive and occluded.
-            ObjectRecord { emissive: [2.0, 0.5, 0.0], ambient_scale: 0.25, ..object(OBJ_RAY_TRACED, 0.0, 1.0) },
+            ObjectRecord { emissive: [2.0, 0.5, 0.0], occlusion: 0.25, ..object(OBJ_RAY_TRACED, 0.0, 1.0) },
         ];
         let s = |position: [f32; 3], normal: [f32; 3], object: u32| SurfaceRecord {
             position,
@@ -571,6 +633,6 @@ pub(crate) mod tests {
         ];
         let codes = [SHADOW_LIT, SHADOW_LIT, SHADOW_OCCLUDED, SHADOW_NO_RAY];
         let shadow = (0..LANES * lights.len()).map(|i| codes[(i + i / 4) % 4]).collect();
-        Block { surfaces, objects, lights, shadow, eye: [0.0, 1.0, 2.0] }
+        Block { surfaces, objects, lights, shadow, eye: [0.0, 1.0, 2.0], ambient: AmbientLight::default() }
     }
 }

@@ -28,7 +28,8 @@
 use hyrt_core::formats::LightRecord;
 use hyrt_core::kernels::raster::F32_INTEGER_THRESHOLD;
 use hyrt_core::kernels::shading::{
-    BLINN_PHONG_EXPONENT_RANGE, BLINN_PHONG_MIN_ALPHA, EXP_SERIES, LOG2_SERIES, POW_FLUSH_EXPONENT, TWO_OVER_LN_2,
+    AmbientLight, BLINN_PHONG_EXPONENT_RANGE, BLINN_PHONG_MIN_ALPHA, EXP_SERIES, LOG2_SERIES, POW_FLUSH_EXPONENT,
+    TWO_OVER_LN_2,
 };
 
 use crate::lanes::{dot3, normalize_or_zero_lanes, select3, splat3, sub3, zero3, Lanes};
@@ -172,6 +173,7 @@ pub(crate) fn rt_shading_lanes<L: Lanes>(
     p: &PrimaryLanes<L>,
     lit: &LitLanes,
     lights: &[LightRecord],
+    ambient: &AmbientLight,
     eye: [f32; 3],
 ) -> [L::F; 4] {
     let zero = L::splat(0.0);
@@ -181,7 +183,7 @@ pub(crate) fn rt_shading_lanes<L: Lanes>(
     // shade_rt_pixel
     let v = normalize_or_zero_lanes::<L>(sub3::<L>(splat3::<L>(eye), p.position));
     // shade_rt_surface
-    let a = unlit_lanes::<L>(p);
+    let a = unlit_lanes::<L>(p, ambient, eye);
     let c = match L::bits(p.gltf) {
         0 => sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &RtShader::of(p, v)),
         _ => sum_visible_lights_gltf_lanes::<L, _>(p, lit, lights, v, &RtShader::of(p, v)),
@@ -195,7 +197,7 @@ mod tests {
     use super::*;
     use crate::lanes::tests::{at_every_level, same_bits, LevelCheck};
     use crate::lanes::LANES;
-    use crate::raster_shading::lanes::tests::{block, gltf, hard_block, lane, same_texel, Block};
+    use crate::raster_shading::lanes::tests::{block, gltf, hard_block, lane, same_texel, with_sky, Block};
     use crate::raster_shading::Primary;
     use crate::rt_shading::rt_shading_pixel;
     use hyrt_core::kernels::shading::pow_portable;
@@ -207,8 +209,9 @@ mod tests {
     impl LevelCheck for RtCheck<'_> {
         fn check<L: Lanes>(&self) -> Result<(), TestCaseError> {
             let b = self.0;
-            let got = rt_shading_lanes::<L>(&b.primary::<L>(), &b.lit(), &b.lights, b.eye);
-            let primary = Primary { gbuffer: &[], materials: &Materials::plain(&b.objects), eye: b.eye.into() };
+            let got = rt_shading_lanes::<L>(&b.primary::<L>(), &b.lit(), &b.lights, &b.ambient, b.eye);
+            let materials = Materials::plain(&b.objects);
+            let primary = Primary { gbuffer: &[], materials: &materials, ambient: &b.ambient, eye: b.eye.into() };
             for (k, s) in b.surfaces.iter().enumerate() {
                 let want = rt_shading_pixel(&primary, &b.lights, k, s, b.codes(k));
                 same_texel(k, lane::<L>(got, k), want)?;
@@ -277,6 +280,8 @@ mod tests {
     fn rt_shading_lanes_on_hard_cases() {
         at_every_level(&RtCheck(&hard_block())).unwrap();
         at_every_level(&RtCheck(&gltf(hard_block()))).unwrap();
+        at_every_level(&RtCheck(&with_sky(gltf(hard_block())))).unwrap();
+        at_every_level(&RtCheck(&with_sky(hard_block()))).unwrap();
     }
 
     /// Exact powers, the flush threshold and its neighbourhood, and the exponent's

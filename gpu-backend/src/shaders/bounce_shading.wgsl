@@ -6,8 +6,8 @@
 // `ray_count`.
 //
 // Prepended: the generated records and constants, the shading helpers, shading.wgsl,
-// the texture kernels and materials.wgsl, surface_shading.wgsl, ray.wgsl, bounce.wgsl,
-// bounce_radiance.wgsl, environment.wgsl.
+// the texture kernels and materials.wgsl, lat_long.wgsl, ambient_light.wgsl,
+// surface_shading.wgsl, ray.wgsl, bounce.wgsl, bounce_radiance.wgsl, environment.wgsl.
 
 @group(0) @binding(0) var<uniform> params: FrameParams;
 @group(0) @binding(1) var<uniform> list: ListParams;
@@ -26,6 +26,8 @@
 @group(0) @binding(14) var<storage, read_write> radiance: array<vec4<f32>>;
 @group(0) @binding(15) var<storage, read> surface: array<u32>;
 @group(0) @binding(16) var<uniform> surface_layout: SurfaceLayout;
+@group(0) @binding(17) var<uniform> ambient_light: AmbientLightRecord;
+@group(0) @binding(18) var<storage, read> ambient_texels: array<vec4<f32>>;
 
 // mirrors hyrt_core::kernels::bounce::shade_secondary_hit; `index` is the ray's row of
 // `shadow`.

@@ -87,7 +87,7 @@ fn shaded_object(s: SurfaceRecord, u: f32, v: f32, cone: f32, d: vec3<f32>) -> O
         }
         if (m.flags & MAT_OCCLUSION) != 0u {
             let texel = sample_material_texture(m.occlusion, reference, uv, lod);
-            obj.ambient_scale = mul(obj.ambient_scale, rounded(1.0 + mul(m.occlusion_strength, rounded(texel.x - 1.0))));
+            obj.occlusion = mul(obj.occlusion, rounded(1.0 + mul(m.occlusion_strength, rounded(texel.x - 1.0))));
         }
         if (m.flags & MAT_EMISSIVE) != 0u {
             let texel = sample_material_texture(m.emissive, reference, uv, lod);

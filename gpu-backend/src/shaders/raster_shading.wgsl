@@ -5,7 +5,8 @@
 // invocation per pixel, the object shaded as the pixel sees it (primary_object.wgsl:
 // textured and vertex-coloured at the G-buffer's barycentrics where materials vary).
 // Appended to the generated records, shading_helpers.wgsl, shading.wgsl, the texture
-// kernels, materials.wgsl, surface_shading.wgsl and primary_object.wgsl.
+// kernels, materials.wgsl, lat_long.wgsl, ambient_light.wgsl, surface_shading.wgsl and
+// primary_object.wgsl.
 
 @group(0) @binding(0) var<storage, read> surfaces: array<SurfaceRecord>;
 @group(0) @binding(1) var<storage, read> shadow: array<u32>;
@@ -17,6 +18,8 @@
 @group(0) @binding(7) var<uniform> camera: CameraRecord;
 @group(0) @binding(8) var<storage, read> surface: array<u32>;
 @group(0) @binding(9) var<uniform> surface_layout: SurfaceLayout;
+@group(0) @binding(10) var<uniform> ambient_light: AmbientLightRecord;
+@group(0) @binding(11) var<storage, read> ambient_texels: array<vec4<f32>>;
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {

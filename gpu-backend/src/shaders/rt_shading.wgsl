@@ -2,11 +2,12 @@
 // objects, Lambert + Blinn-Phong from every visible light plus ambient; alpha 1
 // there, (0, 0, 0, 0) on every other pixel. One invocation per pixel.
 // Appended to the generated records, shading_helpers.wgsl, shading.wgsl, the texture
-// kernels, materials.wgsl and surface_shading.wgsl, and followed by the frame's
+// kernels, materials.wgsl, lat_long.wgsl, ambient_light.wgsl and surface_shading.wgsl, and followed by the frame's
 // `rt_pixel(pixel, surface)`: `shade_rt_pixel` of the pixel's shaded object
 // (primary_object.wgsl) in the paper's frame, `shade_rt_pixel_bouncing` in one that
 // traces bounces (rt_shading_bouncing.wgsl). The G-buffer (barycentrics) and the surface
-// tables are read only where materials vary (textures, vertex colours).
+// tables are read only where materials vary (textures, vertex colours), the ambient
+// light's texels only under an image-based light.
 
 @group(0) @binding(0) var<storage, read> surfaces: array<SurfaceRecord>;
 @group(0) @binding(1) var<storage, read> shadow: array<u32>;
@@ -18,6 +19,8 @@
 @group(0) @binding(7) var<storage, read> gbuffer: array<GBufferTexel>;
 @group(0) @binding(8) var<storage, read> surface: array<u32>;
 @group(0) @binding(9) var<uniform> surface_layout: SurfaceLayout;
+@group(0) @binding(10) var<uniform> ambient_light: AmbientLightRecord;
+@group(0) @binding(11) var<storage, read> ambient_texels: array<vec4<f32>>;
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {

@@ -1,5 +1,7 @@
 // Shading kernels of `rt_shading`, `raster_shading` and `composition`: WGSL mirrors of
-// `hyrt_core::kernels::shading`, same names, same operation order.
+// `hyrt_core::kernels::shading`, same names, same operation order. (`ambient` and
+// `unlit`, which read the frame's ambient light, are in surface_shading.wgsl: the stages
+// that include only this file bind none.)
 //
 // Prepended at pipeline creation by `hyrt_gpu::rt_shading::shading_source`, after the
 // generated declarations and `shading_helpers.wgsl` (exact arithmetic, light evaluation:
@@ -169,21 +171,6 @@ fn shade_raster(obj: ObjectRecord, n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, e: 
 // `sum_visible_lights_raster`) and this filter.
 fn light_is_visible(shadow_code: u32) -> bool {
     return shadow_code == SHADOW_LIT;
-}
-
-// mirrors hyrt_core::kernels::shading::ambient
-fn ambient(obj: ObjectRecord) -> vec3<f32> {
-    let base = obj.base_color;
-    let f0 = lerp3(vec3<f32>(DIELECTRIC_F0), base, obj.metallic);
-    let a = mul3(base, vec3<f32>(mul(1.0 - obj.metallic, AMBIENT))) + mul3(f0, vec3<f32>(ENVIRONMENT_SPECULAR));
-    return mul3(vec3<f32>(rounded(a.x), rounded(a.y), rounded(a.z)), vec3<f32>(obj.ambient_scale));
-}
-
-// mirrors hyrt_core::kernels::shading::unlit
-// (Behind the barrier: its callers add the lights to it, and a device may reassociate an
-// unguarded chain of sums.)
-fn unlit(obj: ObjectRecord) -> vec3<f32> {
-    return rounded3(ambient(obj) + obj.emissive);
 }
 
 // mirrors hyrt_core::kernels::shading::compose
