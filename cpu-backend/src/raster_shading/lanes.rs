@@ -171,9 +171,15 @@ pub(crate) fn f0_lanes<L: Lanes>(base: [L::F; 3], metallic: L::F) -> [L::F; 3] {
 /// for the paper's model, and on the glTF lanes of a frame with image-based light
 /// `base * ((1 - metallic) * AMBIENT) * (scale * occlusion) + IBL * occlusion`, the
 /// image-based term by core's scalar kernel lane by lane (its table lookups do not
-/// vectorize; the same operations on the same operands, so the same bits).
+/// vectorize; the same operations on the same operands, so the same bits), only on the
+/// `wanted` lanes (the ones the caller keeps: the others get the paper's terms).
 #[inline(always)]
-pub(crate) fn unlit_lanes<L: Lanes>(p: &PrimaryLanes<L>, ambient: &AmbientLight, eye: [f32; 3]) -> [L::F; 3] {
+pub(crate) fn unlit_lanes<L: Lanes>(
+    p: &PrimaryLanes<L>,
+    ambient: &AmbientLight,
+    eye: [f32; 3],
+    wanted: L::F,
+) -> [L::F; 3] {
     let (base, metallic) = (p.base_color, p.metallic);
     let f0 = f0_lanes::<L>(base, metallic);
     let k = L::mul(L::sub(L::splat(1.0), metallic), L::splat(AMBIENT));
@@ -184,7 +190,7 @@ pub(crate) fn unlit_lanes<L: Lanes>(p: &PrimaryLanes<L>, ambient: &AmbientLight,
         L::add(L::mul(L::add(L::mul(base[1], k), L::mul(f0[1], env)), o), e[1]),
         L::add(L::mul(L::add(L::mul(base[2], k), L::mul(f0[2], env)), o), e[2]),
     ];
-    let image_lanes = L::bits(L::and(p.gltf, p.hit));
+    let image_lanes = L::bits(L::and(L::and(p.gltf, p.hit), wanted));
     let Some(ibl) = ambient.image.as_deref() else { return paper };
     if image_lanes == 0 {
         return paper;
@@ -337,12 +343,13 @@ fn shade_raster_pixel_lanes<L: Lanes>(
     lights: &[LightRecord],
     ambient: &AmbientLight,
     eye: [f32; 3],
+    shaded: L::F,
 ) -> [L::F; 3] {
     let pi = L::splat(std::f32::consts::FRAC_1_PI);
     let b = p.base_color;
     let shader =
         RasterShader::<L> { n: p.normal, base_over_pi: [L::mul(b[0], pi), L::mul(b[1], pi), L::mul(b[2], pi)] };
-    let a = unlit_lanes::<L>(p, ambient, eye);
+    let a = unlit_lanes::<L>(p, ambient, eye, shaded);
     let c = if L::bits(p.gltf) == 0 {
         sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &shader)
     } else {
@@ -366,8 +373,11 @@ pub(crate) fn raster_shading_lanes<L: Lanes>(
     shade_ray_traced: bool,
 ) -> [L::F; 4] {
     let shaded = if shade_ray_traced { p.hit } else { L::andnot(p.ray_traced, p.hit) };
-    let c =
-        if L::bits(shaded) != 0 { shade_raster_pixel_lanes::<L>(p, lit, lights, ambient, eye) } else { zero3::<L>() };
+    let c = if L::bits(shaded) != 0 {
+        shade_raster_pixel_lanes::<L>(p, lit, lights, ambient, eye, shaded)
+    } else {
+        zero3::<L>()
+    };
     let [r, g, b, a] = BACKGROUND_RGBA;
     let none = select3::<L>(p.hit, zero3::<L>(), splat3::<L>([r, g, b]));
     let c = select3::<L>(shaded, c, none);

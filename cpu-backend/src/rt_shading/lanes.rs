@@ -183,7 +183,7 @@ pub(crate) fn rt_shading_lanes<L: Lanes>(
     // shade_rt_pixel
     let v = normalize_or_zero_lanes::<L>(sub3::<L>(splat3::<L>(eye), p.position));
     // shade_rt_surface
-    let a = unlit_lanes::<L>(p, ambient, eye);
+    let a = unlit_lanes::<L>(p, ambient, eye, p.ray_traced);
     let c = match L::bits(p.gltf) {
         0 => sum_visible_lights_lanes::<L, _>(lit, lights, p.position, &RtShader::of(p, v)),
         _ => sum_visible_lights_gltf_lanes::<L, _>(p, lit, lights, v, &RtShader::of(p, v)),
