@@ -168,7 +168,9 @@ impl ImageBasedLight {
     pub fn specular_radiance(&self, r: Vec3, roughness: f32) -> Vec3 {
         let (u, v) = direction_to_uv(r);
         let x = roughness.clamp(0.0, 1.0) * (PREFILTER_LEVELS - 1) as f32;
-        let k = (x.floor() as usize).min(PREFILTER_LEVELS - 2);
+        // x >= 0 (or NaN, which converts to 0 either way): the conversion's truncation is
+        // its floor, without a libm call on baseline x86-64 (WGSL: floor).
+        let k = (x as usize).min(PREFILTER_LEVELS - 2);
         let f = x - k as f32;
         let sample = |level: &PrefilteredLevel| {
             let texel = |i: u32, j: u32| Vec3::from(level.texels[(j * level.width + i) as usize]);
@@ -422,7 +424,8 @@ impl SplitSumTable {
         let n = SPLIT_SUM_SIZE;
         let at = |x: f32| {
             let p = (x.clamp(0.0, 1.0) * n as f32 - 0.5).clamp(0.0, (n - 1) as f32);
-            let i0 = (p.floor() as usize).min(n - 2);
+            // p >= 0 (or NaN): truncation is the floor (WGSL: floor), without a libm call.
+            let i0 = (p as usize).min(n - 2);
             (i0, p - i0 as f32)
         };
         let ((i, fx), (j, fy)) = (at(n_dot_v), at(roughness));
