@@ -10,6 +10,7 @@ pub mod environment;
 pub mod exact;
 pub mod ibl;
 pub mod instance;
+pub mod occlusion;
 pub mod raster;
 pub mod ray;
 pub mod reconstruction;
