@@ -77,22 +77,12 @@ impl SceneBuffers {
         let normals = corner_normals(g, 0..g.triangles.len());
         let (environment, texels) = EnvironmentRecord::of(&g.environment);
         debug_assert_eq!(environment.validate(texels.len()), Ok(()));
-        let environment_header = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("environment"),
-            size: std::mem::size_of::<EnvironmentRecord>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let environment_header = uniform(ctx, "environment", std::mem::size_of::<EnvironmentRecord>() as u64);
         ctx.queue.write_buffer(&environment_header, 0, bytemuck::bytes_of(&environment));
         let ambient = g.ambient.record();
         let ambient_texels = g.ambient.texels();
         debug_assert_eq!(ambient.validate(ambient_texels.len()), Ok(()));
-        let ambient_header = ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("ambient light"),
-            size: std::mem::size_of::<AmbientLightRecord>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let ambient_header = uniform(ctx, "ambient light", std::mem::size_of::<AmbientLightRecord>() as u64);
         ctx.queue.write_buffer(&ambient_header, 0, bytemuck::bytes_of(&ambient));
         let packed = scene.levels.as_ref().map(|l| l.packed());
         let (nodes, leaf_triangles, prim_indices, instances) = match &packed {
@@ -359,7 +349,8 @@ fn words4(ctx: &GpuContext, label: &str) -> wgpu::Buffer {
     })
 }
 
-/// A uniform buffer of `size` bytes, written before each frame.
+/// A uniform buffer of `size` bytes, written before each frame (or once, for a scene's
+/// headers).
 fn uniform(ctx: &GpuContext, label: &str, size: u64) -> wgpu::Buffer {
     ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some(label),

@@ -72,11 +72,6 @@ impl AmbientLight {
         AmbientLight { scale: scene.ambient.scale(), image }
     }
 
-    /// The constant level `scale` alone.
-    pub fn constant(scale: f32) -> AmbientLight {
-        AmbientLight { scale, image: None }
-    }
-
     /// The image-based light an object is shaded with: the frame's, for an object of the
     /// glTF model ([`OBJ_GLTF_BRDF`]); `None` for the paper's model.
     #[inline]
