@@ -261,7 +261,8 @@ pub fn bounce_rt_image(
     let mut rt = Vec::new();
     match levels.first() {
         None => {
-            let primary = Primary { gbuffer, materials: &materials, ambient: &g.ambient, eye };
+            let primary =
+                Primary { gbuffer, materials: &materials, ambient: &g.ambient, eye, visibility: Default::default() };
             rt_shading_into(surfaces, shadow, &primary, &g.lights, &mut rt)
         }
         Some(first) => {
@@ -276,6 +277,7 @@ pub fn bounce_rt_image(
                 &g.ambient,
                 eye,
                 bounce,
+                Default::default(),
                 &mut rt,
             )
         }

@@ -123,16 +123,17 @@ fn gpu_stages(c: &mut Criterion) {
                     Stage::RasterShading => raster.encode(&ctx, &mut enc, &sb, &fb, None),
                     Stage::Composition => compose.encode(&ctx, &mut enc, &sb, &fb, None),
                     Stage::BvhBuild => unreachable!("bvh_build runs on the CPU"),
-                    Stage::SecondaryRays | Stage::BounceTrace | Stage::BounceShading => {
-                        unreachable!("the GPU backend has no bounce stage yet: not in `frame_stages`")
+                    Stage::SecondaryRays | Stage::BounceTrace | Stage::BounceShading | Stage::ShadowDenoise => {
+                        unreachable!("not in `frame_stages`")
                     }
                 }
             }
             ctx.queue.submit([enc.finish()]);
             ctx.device.poll(wgpu::PollType::Wait { submission_index: None, timeout: None }).expect("GPU wait");
         };
-        // The paper's frame: the GPU backend runs no bounce stage yet.
-        let bounces = [Stage::SecondaryRays, Stage::BounceTrace, Stage::BounceShading];
+        // The paper's frame: no bounce, and no `shadow_denoise` (area lights and ambient
+        // occlusion run on the CPU backend only).
+        let bounces = [Stage::SecondaryRays, Stage::BounceTrace, Stage::BounceShading, Stage::ShadowDenoise];
         let frame_stages: Vec<Stage> =
             Stage::ALL.into_iter().filter(|&s| s != Stage::BvhBuild && !bounces.contains(&s)).collect();
         // One whole frame first, so every stage's inputs are a real frame's.

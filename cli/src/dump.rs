@@ -10,7 +10,10 @@
 //! | `normal.npy` | f32, H x W x 3 | viewer-facing unit shading normal, after normal mapping (0 on miss) |
 //! | `material.npy` | f32, H x W x 4 | the material each pixel's surface is shaded with: metallic, roughness, ambient occlusion (1 without an occlusion texture), emissive luminance (Rec. 709 weights of the linear emission); 0 on miss |
 //! | `rays.npy` | structured, N | the ray list: `origin` (3,)f4, `t_min` f4, `direction` (3,)f4, `t_max` f4, `pixel` u4, `kind` u4, `depth` u4, `light` u4, `throughput` (3,)f4, `occluded` u4 |
-//! | `shadow.npy` | u8, H x W x L | per light: 0 no ray (miss or light behind the surface), 1 lit, 2 occluded |
+//! | `shadow.npy` | u8, H x W x S | per mask slot (one per point, spot or directional light, `--shadow-samples` per area light, in light order, then `--ao-samples` for ambient occlusion; `hyrt_core::kernels::soft_shadow`): 0 no ray (miss, light behind the surface, occlusion ray below it), 1 lit, 2 occluded |
+//! | `visibility_raw.npy` | f32, H x W x L | per light, the fraction of it the pixel's surface sees: 1 or 0 for point, spot and directional lights; for area lights the visible share of the unoccluded irradiance of its samples (`soft_shadow::light_visibility`), before denoising; 0 on miss |
+//! | `visibility.npy` | f32, H x W x L | as `visibility_raw.npy`, with the area lights' values after `shadow_denoise` (the same where the frame did not denoise: `--no-denoise`, or no area light) |
+//! | `ao_raw.npy`, `ao.npy` | f32, H x W | with `--ao-samples`: the ambient occlusion, the fraction of occlusion rays that met nothing within the radius, before and after `shadow_denoise`; 1 on miss |
 //! | `raster.png`, `rt.png`, `final.png` | sRGB RGBA8 | the three images (`rt.png` alpha = ray-traced coverage) |
 //! | `bounce{d}_rays.npy` | structured, N_d | the reflection and refraction rays of bounce `d` (as `rays.npy`; `occluded` is `0xFFFFFFFF`) |
 //! | `bounce{d}_links.npy` | u32, P x 2 | per parent (pixel for `d = 1`, else ray of `d - 1`): its reflection and refraction child in `bounce{d}_rays.npy`, `0xFFFFFFFF` for none |
@@ -29,7 +32,8 @@ use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
 use hyrt_core::formats::CameraRecord;
-use hyrt_core::frame::{BufferView, Frame, PreparedScene};
+use hyrt_core::frame::{BufferView, Frame, FrameLighting, FrameOptions, PreparedScene};
+use hyrt_core::kernels::soft_shadow::{ambient_occlusion, light_visibility};
 use hyrt_core::plan::{BounceBuffer, FrameBuffer};
 use hyrt_core::scene::{Camera, Scene};
 use npyz::WriterBuilder;
@@ -141,13 +145,14 @@ pub fn write_dump(
     dir: &Path,
     scene: &Scene,
     prepared: &PreparedScene,
-    camera: &Camera,
+    (camera, options): (&Camera, &FrameOptions),
     frame: &Frame,
     backend: &str,
 ) -> Result<Vec<PathBuf>, Error> {
     std::fs::create_dir_all(dir).map_err(|source| Error::Write { path: dir.to_path_buf(), source })?;
     let (w, h) = (frame.width as u64, frame.height as u64);
-    let lights = prepared.geometry.lights.len() as u64;
+    let lighting = prepared.frame_lighting(options);
+    let lights = lighting.slots() as u64;
     let mut written = Vec::new();
     let mut out = |name: &str| {
         let p = dir.join(name);
@@ -175,11 +180,16 @@ pub fn write_dump(
             // The occlusion results are the `occluded` column of rays.npy.
             BufferView::Words(_) => {}
             BufferView::Codes(codes) => write_npy(&out("shadow.npy"), &[h, w, lights], codes.iter().copied())?,
+            // Written with the raw visibility, below.
+            BufferView::Values(_) => {}
             BufferView::Image(img) => {
                 write_png(&out(&format!("{}.png", buffer.name())), frame.width, frame.height, img)?
             }
             BufferView::Hits(_) | BufferView::Links(_) => unreachable!("bounce buffers are written above"),
         }
+    }
+    if frame.holds(FrameBuffer::Shadow) && frame.holds(FrameBuffer::Surfaces) {
+        write_visibility(&mut out, frame, &lighting, (w, h))?;
     }
     if !frame.gbuffer.is_empty() && !frame.surfaces.is_empty() {
         let values = material_values(prepared, camera, frame);
@@ -190,6 +200,49 @@ pub fn write_dump(
     let text = serde_json::to_string_pretty(&doc).expect("frame.json serializes");
     std::fs::write(&json_path, text).map_err(|source| Error::Write { path: json_path.clone(), source })?;
     Ok(written)
+}
+
+/// `visibility_raw.npy` and `ao_raw.npy` from the shadow mask, and `visibility.npy` and
+/// `ao.npy` as the shaders applied them: `shadow_denoise`'s channels where it ran, else the
+/// raw values (the module docs' table).
+fn write_visibility(
+    out: &mut impl FnMut(&str) -> PathBuf,
+    frame: &Frame,
+    lighting: &FrameLighting,
+    (w, h): (u64, u64),
+) -> Result<(), Error> {
+    let (ls, ao) = (&lighting.lights[..], &lighting.ambient.occlusion);
+    let (nl, slots) = (ls.len(), lighting.slots());
+    let pixels = frame.surfaces.len();
+    let mut visibility = vec![0.0f32; pixels * nl];
+    let mut occlusion = vec![1.0f32; pixels];
+    for (i, s) in frame.surfaces.iter().enumerate().filter(|(_, s)| s.is_hit()) {
+        let codes = &frame.shadow[i * slots..(i + 1) * slots];
+        light_visibility(codes, ls, s, &mut visibility[i * nl..(i + 1) * nl]);
+        occlusion[i] = ambient_occlusion(codes, ls, ao).unwrap_or(1.0);
+    }
+    write_npy(&out("visibility_raw.npy"), &[h, w, nl as u64], visibility.iter().copied())?;
+    if ao.samples > 0 {
+        write_npy(&out("ao_raw.npy"), &[h, w], occlusion.iter().copied())?;
+    }
+    if frame.holds(FrameBuffer::Visibility) {
+        let channels = frame.plan.visibility_channels() as usize;
+        for i in (0..pixels).filter(|&i| frame.surfaces[i].is_hit()) {
+            let filtered = &frame.visibility[i * channels..(i + 1) * channels];
+            let area = ls.iter().enumerate().filter(|(_, l)| l.is_area()).map(|(l, _)| l);
+            for (k, l) in area.enumerate() {
+                visibility[i * nl + l] = filtered[k];
+            }
+            if ao.samples > 0 {
+                occlusion[i] = filtered[channels - 1];
+            }
+        }
+    }
+    write_npy(&out("visibility.npy"), &[h, w, nl as u64], visibility)?;
+    if ao.samples > 0 {
+        write_npy(&out("ao.npy"), &[h, w], occlusion)?;
+    }
+    Ok(())
 }
 
 /// Per pixel, the material its primary hit is shaded with, as core's `primary_parent`

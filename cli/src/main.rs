@@ -223,6 +223,22 @@ struct SceneArgs {
     /// glass; 0 traces none (the paper's frame). Default 4, on either backend.
     #[arg(long, value_parser = clap::value_parser!(u32).range(0..=hyrt::MAX_DEPTH_LIMIT as i64))]
     max_depth: Option<u32>,
+    /// Shadow rays per pixel for each area light (quad, sphere, sun: soft shadows);
+    /// point, spot and directional lights keep one. Default 4. CPU backend only for now.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=hyrt::MAX_SAMPLES as i64))]
+    shadow_samples: Option<u32>,
+    /// Ambient-occlusion rays per pixel (0, the default: none): their unoccluded fraction
+    /// scales the ambient and environment light. CPU backend only for now.
+    #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=hyrt::MAX_SAMPLES as i64))]
+    ao_samples: u32,
+    /// How far ambient-occlusion rays look, in scene units (default: a twentieth of the
+    /// scene's extent).
+    #[arg(long)]
+    ao_radius: Option<f32>,
+    /// Shade area lights and ambient occlusion from their raw samples, without the
+    /// `shadow_denoise` filter.
+    #[arg(long)]
+    no_denoise: bool,
     /// Where primary hit points come from: each pixel's camera ray re-intersected with the
     /// rasterized triangle (default: as exact as a ray tracer's hit points; visibility stays
     /// the raster's), or the raster's barycentrics (a few percent faster; hit points carry
@@ -521,7 +537,8 @@ impl SceneArgs {
         }
     }
 
-    /// The frame options `--weight`, `--max-depth` and `--barycentrics` say, returning every
+    /// The frame options `--weight`, `--max-depth`, `--barycentrics`, `--shadow-samples` and
+    /// `--ao-*` say, returning every
     /// stage's output with `stage_outputs` and the G-buffer with `keep_gbuffer`.
     fn frame_options(&self, stage_outputs: bool, keep_gbuffer: bool) -> FrameOptions {
         let barycentrics = match self.barycentrics {
@@ -534,6 +551,11 @@ impl SceneArgs {
             keep_gbuffer,
             max_depth: self.max_depth.unwrap_or(hyrt::DEFAULT_MAX_DEPTH),
             barycentrics,
+            shadow_samples: self.shadow_samples.unwrap_or(hyrt::DEFAULT_SHADOW_SAMPLES),
+            ao_samples: self.ao_samples,
+            ao_radius: self.ao_radius,
+            frame_index: 0,
+            denoise: !self.no_denoise,
         }
     }
 }
@@ -745,7 +767,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
         println!("wrote {}", args.out.display());
     }
     if let Some(dir) = &args.dump {
-        let files = dump::write_dump(dir, &scene, &prepared, &camera, &frame, renderer.backend_name())
+        let files = dump::write_dump(dir, &scene, &prepared, (&camera, &options), &frame, renderer.backend_name())
             .map_err(|e| e.to_string())?;
         println!("dumped {} files to {}", files.len(), dir.display());
     }

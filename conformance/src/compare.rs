@@ -360,6 +360,17 @@ pub fn compare_stages(expected: &Frame, actual: &Frame) -> Vec<BufferComparison>
             FrameBuffer::Rays => std::mem::replace(&mut rays, BufferComparison::new(stage, name)),
             FrameBuffer::Occluded => std::mem::replace(&mut occluded, BufferComparison::new(stage, name)),
             FrameBuffer::Shadow => compare_shadow(expected, actual, width, &id_differs),
+            // Channels per pixel (`visibility_channels`): compared value by value, located
+            // by index (width 0: no pixel coordinates).
+            FrameBuffer::Visibility => compare_per_pixel::<f32>(
+                stage,
+                name,
+                &[Word::Float("value")],
+                0,
+                &expected.visibility,
+                &actual.visibility,
+                &[],
+            ),
             FrameBuffer::Rt => {
                 compare_per_pixel(stage, name, &RGBA_WORDS, width, &expected.rt, &actual.rt, &id_differs)
             }

@@ -32,6 +32,12 @@
 //!   three textured and three two-level ones; spheres from smooth to rough; and the
 //!   image-based light of a procedural environment map (every other glTF case has the
 //!   default sky's) on the spheres and on the default scene, at its depth and at depth 1.
+//! - `stochastic_*`: stochastic shadow rays (issue 38), rendered without the denoiser
+//!   (which runs on the CPU only; [`Case::options`]): a quad light over a floor with a box
+//!   (the paper's model and the glTF one), a sphere light beside a point light, a sun of
+//!   finite angular size, ambient occlusion alone in a corner, and a quad light with
+//!   occlusion rays in front of a mirror (every bounce depth traces and shades the same
+//!   slots); few samples, small images.
 //!
 //! Images are small (lavapipe runs the GPU side on the CI's two cores).
 
@@ -41,6 +47,7 @@ use std::sync::Arc;
 
 use glam::{DMat4, DVec4, Mat4, Quat, Vec2, Vec3};
 use hyrt_core::formats::CameraRecord;
+use hyrt_core::frame::{FrameOptions, DEFAULT_SHADOW_SAMPLES};
 use hyrt_core::kernels::bounce::DEFAULT_MAX_DEPTH;
 use hyrt_core::scene::{
     AlphaMode, Ambient, Camera, Environment, EnvironmentMap, Filter, Light, Material, MaterialKind, MaterialMaps, Mesh,
@@ -66,9 +73,37 @@ pub struct Case {
     /// Objects prepared as moving (a two-level BVH, `instance_*` cases); empty: the scene
     /// is prepared as one world-space tree.
     pub moving: Vec<u32>,
+    /// Shadow rays per surface and area light (`FrameOptions::shadow_samples`): the
+    /// library's default unless the case says otherwise (`stochastic_*` cases).
+    pub shadow_samples: u32,
+    /// Ambient-occlusion rays per surface (`FrameOptions::ao_samples`): none unless the
+    /// case says otherwise (`stochastic_*` cases).
+    pub ao_samples: u32,
 }
 
 impl Case {
+    /// The options the case renders with (every stage output is the caller's choice):
+    /// its weight, depth and samples, without the shadow denoiser (`FrameOptions::denoise`
+    /// false: the conformance compares the stages both backends run, and the denoiser runs
+    /// on the CPU backend only; a frame without stochastic rays does not denoise anyway).
+    pub fn options(&self) -> FrameOptions {
+        FrameOptions {
+            weight: self.weight,
+            max_depth: self.max_depth,
+            shadow_samples: self.shadow_samples,
+            ao_samples: self.ao_samples,
+            denoise: false,
+            ..FrameOptions::default()
+        }
+    }
+
+    /// Whether the case traces stochastic shadow rays: an area light (quad, sphere, sun),
+    /// or ambient occlusion. Such frames run staged on the CPU backend.
+    pub fn stochastic(&self) -> bool {
+        self.ao_samples > 0
+            || self.scene.lights.iter().any(|l| hyrt_core::formats::LightRecord::from_light(l).is_area())
+    }
+
     /// The case's scene prepared on `cpu` (`bvh_build` on its pool): with its moving
     /// objects in a two-level BVH when it has some, else as one world-space tree.
     pub fn prepare(&self, cpu: &hyrt_cpu::backend::CpuBackend) -> hyrt_core::frame::PreparedScene {
@@ -170,6 +205,8 @@ impl Builder {
             weight: 1.0,
             max_depth: DEFAULT_MAX_DEPTH,
             moving: Vec::new(),
+            shadow_samples: DEFAULT_SHADOW_SAMPLES,
+            ao_samples: 0,
         });
     }
 }
@@ -239,6 +276,8 @@ fn default_case(b: &mut Builder) {
         weight: 0.5,
         max_depth: DEFAULT_MAX_DEPTH,
         moving: Vec::new(),
+        shadow_samples: DEFAULT_SHADOW_SAMPLES,
+        ao_samples: 0,
     });
     // KHR_lights_punctual's spot lights and ranges: the default scene's key light as a spot
     // whose cone edge crosses the objects and the floor, a narrow spot with a range that
@@ -751,7 +790,143 @@ pub fn corpus() -> Vec<Case> {
     texture_cases(&mut b);
     instance_cases(&mut b);
     shading_cases(&mut b);
+    stochastic_cases(&mut b);
     b.cases
+}
+
+/// Shadow rays per area light of the `stochastic_*` cases: few, so that CI stays fast.
+const STOCHASTIC_SHADOW_SAMPLES: u32 = 3;
+/// Ambient-occlusion rays of the `stochastic_*` cases that trace them.
+const STOCHASTIC_AO_SAMPLES: u32 = 2;
+
+/// A floor (rasterized) with a box on it (ray traced) and a ball (rasterized) for the
+/// stochastic cases' lights to shadow: penumbrae across both kinds of pixels.
+fn box_on_floor(lights: Vec<Light>, shading: ShadingModel) -> Scene {
+    let mut s = Scene { lights, shading, ..Scene::default() };
+    s.add_object(
+        Mesh::grid("floor", 4),
+        diffuse("floor", Vec3::splat(0.7)),
+        Mat4::from_scale(Vec3::splat(6.0)),
+        RASTER,
+    );
+    s.add_object(
+        Mesh::cube("box"),
+        diffuse("box", Vec3::new(0.8, 0.45, 0.2)),
+        Mat4::from_translation(Vec3::new(-0.3, 0.4, 0.0))
+            * Mat4::from_quat(Quat::from_rotation_y(0.5))
+            * Mat4::from_scale(Vec3::splat(0.4)),
+        RT,
+    );
+    s.add_object(
+        Mesh::uv_sphere("ball", 16, 8),
+        diffuse("ball", Vec3::new(0.3, 0.5, 0.8)),
+        Mat4::from_translation(Vec3::new(0.8, 0.3, 0.4)) * Mat4::from_scale(Vec3::splat(0.3)),
+        RASTER,
+    );
+    s
+}
+
+/// The `stochastic_*` cases (module docs): area lights' samples and ambient-occlusion
+/// rays on every stage, without the denoiser.
+fn stochastic_cases(b: &mut Builder) {
+    let (w, h) = (96u32, 64u32);
+    let cam = camera(Vec3::new(0.6, 2.0, 3.2), Vec3::new(0.0, 0.3, 0.0), 0.05, 50.0);
+    let quad = || Light::Quad {
+        corner: Vec3::new(-0.7, 2.0, -0.5),
+        edge_u: Vec3::new(1.0, 0.0, 0.0),
+        edge_v: Vec3::new(0.0, 0.0, 0.8),
+        color: Vec3::new(1.0, 0.95, 0.85),
+        intensity: 8.0,
+    };
+    let samples = |b: &mut Builder, shadow: u32, ao: u32| {
+        let case = b.cases.last_mut().expect("a case");
+        (case.shadow_samples, case.ao_samples) = (shadow, ao);
+    };
+    for (name, shading, stresses) in [
+        (
+            "stochastic_quad_light_box",
+            ShadingModel::Paper,
+            "a quad light's samples over a box and a ball on a floor: penumbrae on rasterized and ray-traced pixels",
+        ),
+        (
+            "stochastic_gltf_quad_light_box",
+            ShadingModel::Gltf,
+            "the quad light's samples through the glTF BRDF and the image-based light",
+        ),
+    ] {
+        b.add(name, stresses, box_on_floor(vec![quad()], shading), cam, w, h);
+        samples(b, STOCHASTIC_SHADOW_SAMPLES, 0);
+    }
+    let sphere = Light::Sphere {
+        position: Vec3::new(-1.0, 1.3, 0.8),
+        radius: 0.3,
+        color: Vec3::new(1.0, 0.85, 0.6),
+        intensity: 12.0,
+    };
+    b.add(
+        "stochastic_sphere_light",
+        "a sphere light's cone samples beside a point light's one slot",
+        box_on_floor(vec![point(Vec3::new(1.5, 2.5, 1.5), 6.0), sphere], ShadingModel::Paper),
+        cam,
+        w,
+        h,
+    );
+    samples(b, STOCHASTIC_SHADOW_SAMPLES, 0);
+    let sun = Light::Sun {
+        direction: Vec3::new(0.5, -1.0, -0.4).normalize(),
+        angular_diameter: 0.2,
+        color: Vec3::new(1.0, 0.95, 0.9),
+        intensity: 2.5,
+    };
+    b.add(
+        "stochastic_sun",
+        "a sun of finite angular size: directions in its cone, rays to infinity",
+        box_on_floor(vec![sun], ShadingModel::Gltf),
+        cam,
+        w,
+        h,
+    );
+    samples(b, STOCHASTIC_SHADOW_SAMPLES, 0);
+    // Ambient occlusion alone: a box in the corner of a floor and a wall, a point light.
+    let mut s = box_on_floor(vec![point(Vec3::new(1.0, 2.5, 2.0), 10.0)], ShadingModel::Paper);
+    s.add_object(
+        Mesh::grid("wall", 4),
+        diffuse("wall", Vec3::new(0.8, 0.3, 0.25)),
+        Mat4::from_translation(Vec3::new(0.0, 1.0, -0.5))
+            * Mat4::from_quat(Quat::from_rotation_x(std::f32::consts::FRAC_PI_2))
+            * Mat4::from_scale(Vec3::splat(6.0)),
+        RT,
+    );
+    b.add(
+        "stochastic_ambient_occlusion",
+        "ambient-occlusion rays alone (a point light's one slot, then theirs) in the corners of a box, a floor and a wall",
+        s,
+        cam,
+        w,
+        h,
+    );
+    samples(b, DEFAULT_SHADOW_SAMPLES, STOCHASTIC_AO_SAMPLES);
+    // A quad light and occlusion rays in front of a ray-traced mirror: the bounces' hits
+    // trace and shade the same slots.
+    let mut s = box_on_floor(vec![quad(), point(Vec3::new(1.5, 2.0, 2.0), 4.0)], ShadingModel::Paper);
+    s.add_object(
+        Mesh::grid("mirror", 2),
+        mirror(),
+        Mat4::from_translation(Vec3::new(0.0, 0.9, -1.0))
+            * Mat4::from_quat(Quat::from_rotation_x(std::f32::consts::FRAC_PI_2))
+            * Mat4::from_scale(Vec3::new(3.0, 1.0, 1.8)),
+        RT,
+    );
+    b.add(
+        "stochastic_mirror_bounces",
+        "a quad light's samples and occlusion rays at the hits of a mirror's reflection rays (every bounce depth)",
+        s,
+        cam,
+        w,
+        h,
+    );
+    samples(b, STOCHASTIC_SHADOW_SAMPLES, STOCHASTIC_AO_SAMPLES);
+    b.cases.last_mut().expect("a case").max_depth = 2;
 }
 
 /// Cases of the other families again with the glTF BRDF on every object
@@ -1551,13 +1726,35 @@ mod tests {
         assert_eq!(names.len(), c.len());
         for case in &c {
             assert!(
-                ["paper_", "raster_", "ray_", "degenerate_", "size_", "bounce_", "texture_", "instance_", "shading_"]
-                    .iter()
-                    .any(|p| case.name.starts_with(p)),
+                [
+                    "paper_",
+                    "raster_",
+                    "ray_",
+                    "degenerate_",
+                    "size_",
+                    "bounce_",
+                    "texture_",
+                    "instance_",
+                    "shading_",
+                    "stochastic_"
+                ]
+                .iter()
+                .any(|p| case.name.starts_with(p)),
                 "{}",
                 case.name
             );
+            // Stochastic rays exactly in their family, rendered without the denoiser.
+            assert_eq!(case.stochastic(), case.name.starts_with("stochastic_"), "{}", case.name);
+            assert!(!case.options().denoise, "{}", case.name);
         }
+        let stochastic: Vec<&Case> = c.iter().filter(|c| c.stochastic()).collect();
+        let lit_by = |kind: fn(&Light) -> bool| stochastic.iter().filter(|c| c.scene.lights.iter().any(kind)).count();
+        let quads = lit_by(|l| matches!(l, Light::Quad { .. }));
+        let spheres = lit_by(|l| matches!(l, Light::Sphere { .. }));
+        let suns = lit_by(|l| matches!(l, Light::Sun { .. }));
+        assert!(quads >= 2 && spheres >= 1 && suns >= 1, "area lights of every kind: {quads}, {spheres}, {suns}");
+        assert!(stochastic.iter().any(|c| c.ao_samples > 0 && c.max_depth > 0 && c.name.contains("mirror")));
+        assert!(stochastic.iter().any(|c| c.scene.shading == ShadingModel::Gltf));
         assert!(c.len() >= 30, "{} cases", c.len());
         let gltf = |family: &str| c.iter().filter(|c| c.name.starts_with(&format!("shading_gltf_{family}"))).count();
         let counts = (gltf("paper_default"), gltf("bounce_"), gltf("texture_"), gltf("instance_"));

@@ -446,6 +446,8 @@ pub fn leak_case(
         // Shadow rays are what leaks; the shells are diffuse.
         max_depth: 0,
         moving: Vec::new(),
+        shadow_samples: hyrt_core::frame::DEFAULT_SHADOW_SAMPLES,
+        ao_samples: 0,
     };
     let far = placement.centre.abs().max_element() + 2.0 * s;
     let feature_ulps = GAP_FRACTION * s / ulp(far);

@@ -201,11 +201,11 @@ pub fn run_case(reference: &mut CpuBackend, candidate: &mut dyn Backend, case: &
     }
 }
 
-/// Render a case on one backend with every stage output.
+/// Render a case on one backend with every stage output ([`Case::options`]: without the
+/// shadow denoiser).
 pub fn render_case(backend: &mut dyn Backend, prepared: &PreparedScene, case: &Case) -> Result<Frame, String> {
     let camera = CameraRecord::new(&case.camera, case.width, case.height);
-    let opts =
-        FrameOptions { weight: case.weight, stage_outputs: true, max_depth: case.max_depth, ..FrameOptions::default() };
+    let opts = FrameOptions { stage_outputs: true, ..case.options() };
     backend.render(prepared, &camera, &opts).map_err(|e| e.to_string())
 }
 

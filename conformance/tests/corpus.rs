@@ -87,13 +87,7 @@ fn conformance_gpu_matches_cpu_with_raster_barycentrics_over_the_corpus() {
     for case in corpus() {
         let p = case.prepare(&cpu);
         let camera = CameraRecord::new(&case.camera, case.width, case.height);
-        let opts = |barycentrics| FrameOptions {
-            weight: case.weight,
-            stage_outputs: true,
-            max_depth: case.max_depth,
-            barycentrics,
-            ..FrameOptions::default()
-        };
+        let opts = |barycentrics| FrameOptions { stage_outputs: true, barycentrics, ..case.options() };
         let a = cpu.render(&p, &camera, &opts(PrimaryBarycentrics::Raster)).unwrap();
         let b = gpu.render(&p, &camera, &opts(PrimaryBarycentrics::Raster)).unwrap();
         for cmp in compare_stages(&a, &b) {
@@ -121,10 +115,10 @@ fn conformance_gpu_in_bands_is_the_whole_frame_over_the_corpus() {
         let whole = render_case(&mut gpu, &p, &case).unwrap();
         assert_eq!(gpu.last_frame_bands(), 1, "{}: a corpus frame fits whole", case.name);
         let camera = CameraRecord::new(&case.camera, case.width, case.height);
-        let opts = FrameOptions { weight: case.weight, max_depth: case.max_depth, ..FrameOptions::default() };
-        let plan = FramePlan::new(&p, &opts).unwrap();
+        let plan = FramePlan::new(&p, &case.options()).unwrap();
         let rows = case.height.div_ceil(4);
-        let lights = p.geometry.lights.len() as u32;
+        // Shadow-mask slots per surface: the lights, or more with area lights and occlusion.
+        let lights = plan.lights();
         gpu.set_max_band_bytes(Some(band_binding_bytes((camera.width * rows) as u64, lights, &plan)));
         let bands = render_case(&mut gpu, &p, &case).unwrap();
         let n = gpu.last_frame_bands();
@@ -160,12 +154,7 @@ fn cpu_frames_without_the_ray_list_are_the_frames_with_it_over_the_corpus() {
     for case in corpus() {
         let p = case.prepare(&cpu);
         let camera = CameraRecord::new(&case.camera, case.width, case.height);
-        let opts = |stage_outputs| FrameOptions {
-            weight: case.weight,
-            stage_outputs,
-            max_depth: case.max_depth,
-            ..FrameOptions::default()
-        };
+        let opts = |stage_outputs| FrameOptions { stage_outputs, ..case.options() };
         let (with, without) =
             (cpu.render(&p, &camera, &opts(true)).unwrap(), cpu.render(&p, &camera, &opts(false)).unwrap());
         // A display frame holds the final image alone.

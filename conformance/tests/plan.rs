@@ -193,13 +193,28 @@ fn bits(img: &[[f32; 4]]) -> Vec<u32> {
 fn check_plan(case: &Case, backend: &str, f: &Frame) {
     let ran: Vec<Stage> = f.stats.stage_ms.iter().map(|t| t.stage).collect();
     assert_eq!(ran, case.ran, "{backend} / {}: stages that ran", case.name);
-    let skipped: Vec<(Stage, SkipReason)> =
-        f.stats.skipped.iter().filter(|s| !BOUNCES.contains(&s.stage)).map(|s| (s.stage, s.reason)).collect();
+    let skipped: Vec<(Stage, SkipReason)> = f
+        .stats
+        .skipped
+        .iter()
+        .filter(|s| !BOUNCES.contains(&s.stage) && s.stage != Stage::ShadowDenoise)
+        .map(|s| (s.stage, s.reason))
+        .collect();
     assert_eq!(skipped, case.skipped, "{backend} / {}: skipped stages", case.name);
     // The bounces are skipped for `rt_shading`'s reason where it is skipped, else for
     // the depth.
     let rt_reason = case.skipped.iter().find(|(s, _)| *s == Stage::RtShading).map(|&(_, r)| r);
     let bounce_reason = rt_reason.unwrap_or(SkipReason::MaxDepthZero);
+    // No case traces stochastic rays: `shadow_denoise` is skipped for that, or for the
+    // reason the shadow rays are.
+    let rays_reason = case.skipped.iter().find(|(s, _)| *s == Stage::ShadowRays).map(|&(_, r)| r);
+    let denoise_reason = rays_reason.unwrap_or(SkipReason::NothingToDenoise);
+    assert!(
+        f.stats.skipped.iter().any(|s| s.stage == Stage::ShadowDenoise && s.reason == denoise_reason),
+        "{backend} / {}: shadow_denoise skipped for {denoise_reason:?}: {:?}",
+        case.name,
+        f.stats.skipped
+    );
     for &stage in BOUNCES {
         assert!(
             f.stats.skipped.iter().any(|s| s.stage == stage && s.reason == bounce_reason),
@@ -222,6 +237,7 @@ fn check_plan(case: &Case, backend: &str, f: &Frame) {
                 FrameBuffer::Rays => f.rays.len(),
                 FrameBuffer::Occluded => f.occluded.len(),
                 FrameBuffer::Shadow => f.shadow.len(),
+                FrameBuffer::Visibility => f.visibility.len(),
                 FrameBuffer::Rt => f.rt.len(),
                 FrameBuffer::Raster => f.raster.len(),
                 FrameBuffer::Final => f.final_image.len(),

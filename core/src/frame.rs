@@ -10,8 +10,8 @@ use crate::stage::Stage;
 // and the options, and with the other errors (`crate::error`); re-exported here beside
 // what a backend gives.
 pub use crate::error::RenderError;
-pub use crate::options::{FrameOptions, PrimaryBarycentrics};
-pub use crate::prepared::{PreparedScene, SceneChanges, CHANGE_LOG_LENGTH};
+pub use crate::options::{FrameOptions, PrimaryBarycentrics, DEFAULT_AO_RADIUS_FRACTION, DEFAULT_SHADOW_SAMPLES};
+pub use crate::prepared::{FrameLighting, PreparedScene, SceneChanges, CHANGE_LOG_LENGTH};
 
 /// The `SHADOW_*` codes of [`Frame::shadow`], defined in [`crate::formats`]; re-exported
 /// here for the code that still names them by their old path.
@@ -183,8 +183,13 @@ pub struct Frame {
     pub rays: Vec<RayRecord>,
     /// `shadow_rays`: one per ray, 1 = occluded, 0 = reached the light.
     pub occluded: Vec<u32>,
-    /// Per pixel and light (`(y * width + x) * lights + light`): `SHADOW_*`.
+    /// Per pixel and light (`(y * width + x) * lights + light`): `SHADOW_*`. With area
+    /// lights or ambient occlusion, per pixel and mask slot
+    /// ([`crate::kernels::soft_shadow`]).
     pub shadow: Vec<u8>,
+    /// `shadow_denoise`: per pixel, the filtered visibility of each area light, then the
+    /// filtered ambient occlusion ([`crate::kernels::denoise::channel_count`] per pixel).
+    pub visibility: Vec<f32>,
     /// `raster_shading`: rasterized objects (and ray-traced ones when weight < 1).
     pub raster: Vec<[f32; 4]>,
     /// `rt_shading`: ray-traced objects only; alpha 1 where shaded, 0 elsewhere.
@@ -267,6 +272,8 @@ pub enum BufferView<'a> {
     Words(&'a [u32]),
     /// `shadow`: one `SHADOW_*` code per (pixel, light).
     Codes(&'a [u8]),
+    /// `visibility`: f32 channels per pixel.
+    Values(&'a [f32]),
     /// `rt`, `raster`, `final`: linear RGBA per pixel; a bounce's radiance per ray.
     Image(&'a [[f32; 4]]),
     /// A bounce's closest hits.
@@ -290,6 +297,7 @@ impl Frame {
             FrameBuffer::Rays => BufferView::Rays(&self.rays),
             FrameBuffer::Occluded => BufferView::Words(&self.occluded),
             FrameBuffer::Shadow => BufferView::Codes(&self.shadow),
+            FrameBuffer::Visibility => BufferView::Values(&self.visibility),
             FrameBuffer::Rt => BufferView::Image(&self.rt),
             FrameBuffer::Raster => BufferView::Image(&self.raster),
             FrameBuffer::Final => BufferView::Image(&self.final_image),
@@ -358,6 +366,7 @@ impl Frame {
             FrameBuffer::Rays => self.rays.clear(),
             FrameBuffer::Occluded => self.occluded.clear(),
             FrameBuffer::Shadow => self.shadow.clear(),
+            FrameBuffer::Visibility => self.visibility.clear(),
             FrameBuffer::Rt => self.rt.clear(),
             FrameBuffer::Raster => self.raster.clear(),
             FrameBuffer::Final => self.final_image.clear(),

@@ -5,6 +5,7 @@
 
 use crate::error::RenderError;
 use crate::kernels::bounce::MAX_DEPTH_LIMIT;
+use crate::kernels::soft_shadow::MAX_SAMPLES;
 
 /// Per-frame settings.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -32,7 +33,31 @@ pub struct FrameOptions {
     pub max_depth: u32,
     /// Where `reconstruction` takes the primary hits' barycentrics from.
     pub barycentrics: PrimaryBarycentrics,
+    /// Shadow rays per surface for each area light (quad, sphere, sun), in `1..=`
+    /// [`MAX_SAMPLES`]; point, spot and directional lights keep one
+    /// ([`crate::kernels::soft_shadow`]). Default [`DEFAULT_SHADOW_SAMPLES`].
+    pub shadow_samples: u32,
+    /// Ambient-occlusion rays per surface, at most [`MAX_SAMPLES`]; 0 (the default) traces
+    /// none.
+    pub ao_samples: u32,
+    /// How far an ambient-occlusion ray looks (scene units, > 0); `None`: the scene's
+    /// extent times [`DEFAULT_AO_RADIUS_FRACTION`].
+    pub ao_radius: Option<f32>,
+    /// The frame's number in a sequence: it seeds the sample streams of area lights and
+    /// occlusion, so that following frames see independent samples. Default 0.
+    pub frame_index: u32,
+    /// Filter the stochastic visibility of area lights and ambient occlusion
+    /// (`shadow_denoise`, [`crate::kernels::denoise`]) before shading; true by default.
+    /// Without it the shaders average the raw samples.
+    pub denoise: bool,
 }
+
+/// Default [`FrameOptions::shadow_samples`]: four rays per surface and area light.
+pub const DEFAULT_SHADOW_SAMPLES: u32 = 4;
+
+/// Default ambient-occlusion radius as a fraction of the scene's extent (the diagonal of
+/// its bounds): a twentieth, about 2 m in Sponza's atrium.
+pub const DEFAULT_AO_RADIUS_FRACTION: f32 = 0.05;
 
 /// The barycentrics `reconstruction` rebuilds primary hit points from (paper eq. 1).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -75,6 +100,11 @@ impl Default for FrameOptions {
             keep_gbuffer: false,
             max_depth: crate::kernels::bounce::DEFAULT_MAX_DEPTH,
             barycentrics: PrimaryBarycentrics::Reintersected,
+            shadow_samples: DEFAULT_SHADOW_SAMPLES,
+            ao_samples: 0,
+            ao_radius: None,
+            frame_index: 0,
+            denoise: true,
         }
     }
 }
@@ -99,6 +129,25 @@ impl FrameOptions {
                 "max depth must be at most {MAX_DEPTH_LIMIT}, got {}",
                 self.max_depth
             )));
+        }
+        if !(1..=MAX_SAMPLES).contains(&self.shadow_samples) {
+            return Err(RenderError::InvalidOptions(format!(
+                "shadow samples must be in 1..={MAX_SAMPLES}, got {}",
+                self.shadow_samples
+            )));
+        }
+        if self.ao_samples > MAX_SAMPLES {
+            return Err(RenderError::InvalidOptions(format!(
+                "ambient-occlusion samples must be at most {MAX_SAMPLES}, got {}",
+                self.ao_samples
+            )));
+        }
+        if let Some(r) = self.ao_radius {
+            if !(r > 0.0 && r.is_finite()) {
+                return Err(RenderError::InvalidOptions(format!(
+                    "ambient-occlusion radius must be finite and > 0, got {r}"
+                )));
+            }
         }
         Ok(())
     }

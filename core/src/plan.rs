@@ -20,6 +20,7 @@
 //! | `reconstruction` | always (shading reads its surfaces) | |
 //! | `compaction` | the scene has a light and a triangle | [`SkipReason::NoLights`], [`SkipReason::NoGeometry`] |
 //! | `shadow_rays` | as `compaction` | as `compaction` |
+//! | `shadow_denoise` | as `compaction`, the frame traces stochastic rays (an area light or ambient occlusion) and [`FrameOptions::denoise`] | [`SkipReason::NothingToDenoise`], or `compaction`'s reason |
 //! | `rt_shading` | a ray-traced object has triangles and the weight is above 0 | [`SkipReason::NoRayTracedObjects`], [`SkipReason::WeightZero`] |
 //! | `raster_shading` | unless every object with triangles is ray traced and the weight is 1 | [`SkipReason::AllRayTracedWeightOne`] |
 //! | `composition` | always, as [`Composition::WeightedMean`] when both images exist, else a copy | |
@@ -78,6 +79,9 @@ pub enum FrameBuffer {
     Occluded,
     /// `shadow_rays`: one `SHADOW_*` code per (pixel, light).
     Shadow,
+    /// `shadow_denoise`: per pixel, the filtered visibility of each area light, then the
+    /// filtered ambient occlusion, f32 ([`crate::kernels::denoise`]).
+    Visibility,
     /// `rt_shading`: the ray-traced image, linear RGBA per pixel.
     Rt,
     /// `raster_shading`: the raster image, linear RGBA per pixel.
@@ -169,12 +173,13 @@ impl FrameOptions {
 
 impl FrameBuffer {
     /// The buffers of the primary hits (no bounce), in the order the stages write them.
-    pub const ALL: [FrameBuffer; 8] = [
+    pub const ALL: [FrameBuffer; 9] = [
         FrameBuffer::GBuffer,
         FrameBuffer::Surfaces,
         FrameBuffer::Rays,
         FrameBuffer::Occluded,
         FrameBuffer::Shadow,
+        FrameBuffer::Visibility,
         FrameBuffer::Rt,
         FrameBuffer::Raster,
         FrameBuffer::Final,
@@ -190,6 +195,7 @@ impl FrameBuffer {
             FrameBuffer::Rays => "rays",
             FrameBuffer::Occluded => "occluded",
             FrameBuffer::Shadow => "shadow",
+            FrameBuffer::Visibility => "visibility",
             FrameBuffer::Rt => "rt",
             FrameBuffer::Raster => "raster",
             FrameBuffer::Final => "final",
@@ -221,6 +227,7 @@ impl FrameBuffer {
             FrameBuffer::Surfaces => Stage::Reconstruction,
             FrameBuffer::Rays => Stage::Compaction,
             FrameBuffer::Occluded | FrameBuffer::Shadow => Stage::ShadowRays,
+            FrameBuffer::Visibility => Stage::ShadowDenoise,
             FrameBuffer::Rt => Stage::RtShading,
             FrameBuffer::Raster => Stage::RasterShading,
             FrameBuffer::Final => Stage::Composition,
@@ -272,6 +279,7 @@ pub enum Step {
     Reconstruction,
     Compaction,
     ShadowRays,
+    ShadowDenoise,
     /// Spawn the rays of bounce `depth` from the surfaces of `depth - 1`.
     SecondaryRays {
         depth: u32,
@@ -315,6 +323,7 @@ impl Step {
             Step::Reconstruction => Stage::Reconstruction,
             Step::Compaction | Step::BounceCompaction { .. } => Stage::Compaction,
             Step::ShadowRays | Step::BounceShadowRays { .. } => Stage::ShadowRays,
+            Step::ShadowDenoise => Stage::ShadowDenoise,
             Step::SecondaryRays { .. } => Stage::SecondaryRays,
             Step::BounceTrace { .. } => Stage::BounceTrace,
             Step::BounceShading { .. } => Stage::BounceShading,
@@ -343,16 +352,21 @@ impl Step {
     }
 
     /// The frame buffers this step reads, given whether the plan has shadow results
-    /// (it has none without lights: shading then reads no mask).
-    fn reads(self, with_shadow: bool) -> Vec<FrameBuffer> {
+    /// (it has none without lights: shading then reads no mask) and denoised ones.
+    fn reads(self, with_shadow: bool, denoised: bool) -> Vec<FrameBuffer> {
         use BounceBuffer as K;
         use FrameBuffer as B;
-        let shadow: &[B] = if with_shadow { &[B::Shadow] } else { &[] };
+        let shadow: &[B] = match (with_shadow, denoised) {
+            (false, _) => &[],
+            (true, false) => &[B::Shadow],
+            (true, true) => &[B::Shadow, B::Visibility],
+        };
         match self {
             Step::VisibilityRaster => vec![],
             Step::Reconstruction => vec![B::GBuffer],
             Step::Compaction => vec![B::Surfaces],
             Step::ShadowRays => vec![B::Rays],
+            Step::ShadowDenoise => vec![B::Surfaces, B::Shadow],
             Step::SecondaryRays { depth: 1 } => vec![B::GBuffer, B::Surfaces],
             Step::SecondaryRays { depth } => {
                 vec![K::Rays.at(depth - 1), K::Hits.at(depth - 1), K::Surfaces.at(depth - 1)]
@@ -393,6 +407,7 @@ impl Step {
             Step::Reconstruction => vec![B::Surfaces],
             Step::Compaction => vec![B::Rays],
             Step::ShadowRays => vec![B::Occluded, B::Shadow],
+            Step::ShadowDenoise => vec![B::Visibility],
             Step::SecondaryRays { depth } => vec![K::Rays.at(depth), K::Links.at(depth)],
             Step::BounceTrace { depth } => vec![K::Hits.at(depth), K::Surfaces.at(depth)],
             Step::BounceCompaction { depth } => vec![K::ShadowRays.at(depth)],
@@ -412,6 +427,7 @@ impl Step {
             Step::Reconstruction => &[I::Triangles, I::Normals, I::Camera],
             Step::Compaction | Step::BounceCompaction { .. } => &[I::Lights],
             Step::ShadowRays | Step::BounceShadowRays { .. } => &[I::Bvh, I::Triangles],
+            Step::ShadowDenoise => &[I::Lights, I::Camera, I::Options],
             Step::SecondaryRays { .. } => &[I::Triangles, I::Objects, I::Camera, I::Options],
             Step::BounceTrace { .. } => &[I::Bvh, I::Triangles, I::Normals],
             Step::BounceShading { .. } => &[I::Objects, I::Lights, I::Triangles, I::Environment],
@@ -440,6 +456,9 @@ pub enum SkipReason {
     MaxDepthZero,
     /// No ray-traced object with triangles has a specular or glass material.
     NoMirrorsOrGlass,
+    /// The frame traces no stochastic rays (no area light, no ambient occlusion), or its
+    /// options turn the denoiser off ([`FrameOptions::denoise`]).
+    NothingToDenoise,
 }
 
 impl SkipReason {
@@ -453,6 +472,7 @@ impl SkipReason {
             SkipReason::AllRayTracedWeightOne => "every object ray traced, weight 1",
             SkipReason::MaxDepthZero => "max depth 0",
             SkipReason::NoMirrorsOrGlass => "no ray-traced mirror or glass",
+            SkipReason::NothingToDenoise => "no area light or ambient occlusion to denoise, or the denoiser is off",
         }
     }
 }
@@ -477,6 +497,8 @@ pub struct FramePlan {
     skipped: Vec<Skipped>,
     lights: u32,
     depth: u32,
+    stochastic: bool,
+    channels: u32,
 }
 
 impl FramePlan {
@@ -487,20 +509,27 @@ impl FramePlan {
         let with_triangles = || g.objects.iter().filter(|o| o.triangle_count > 0);
         let any_rt = with_triangles().any(|o| o.flags & OBJ_RAY_TRACED != 0);
         let any_raster = with_triangles().any(|o| o.flags & OBJ_RAY_TRACED == 0);
-        Ok(FramePlan::from_counts(SceneNeeds {
-            lights: g.lights.len() as u32,
+        let lighting = scene.frame_lighting(options);
+        let plan = FramePlan::from_counts(SceneNeeds {
+            lights: lighting.slots() as u32,
             triangles: !g.triangles.is_empty(),
             ray_traced: any_rt,
             rasterized: any_raster,
             bouncing: g.objects.iter().any(bounces),
             weight: options.weight,
             max_depth: options.max_depth,
-        }))
+            denoise: options.denoise && lighting.is_stochastic(),
+        });
+        let channels = match plan.runs(Stage::ShadowDenoise) {
+            true => crate::kernels::denoise::channel_count(&lighting.lights, &lighting.ambient.occlusion) as u32,
+            false => 0,
+        };
+        Ok(FramePlan { stochastic: lighting.is_stochastic(), channels, ..plan })
     }
 
     /// The plan for what a scene holds (see the module docs for the rules).
     pub fn from_counts(needs: SceneNeeds) -> FramePlan {
-        let SceneNeeds { lights, triangles, ray_traced, rasterized, bouncing, weight, max_depth } = needs;
+        let SceneNeeds { lights, triangles, ray_traced, rasterized, bouncing, weight, max_depth, denoise } = needs;
         let mut steps = vec![Step::VisibilityRaster, Step::Reconstruction];
         let mut skipped = Vec::new();
         let mut skip = |stage, reason| skipped.push(Skipped { stage, reason });
@@ -516,6 +545,11 @@ impl FramePlan {
                 skip(Stage::Compaction, reason);
                 skip(Stage::ShadowRays, reason);
             }
+        }
+        match (rays, denoise) {
+            (None, true) => steps.push(Step::ShadowDenoise),
+            (None, false) => skip(Stage::ShadowDenoise, SkipReason::NothingToDenoise),
+            (Some(reason), _) => skip(Stage::ShadowDenoise, reason),
         }
         let rt = if !ray_traced {
             Err(SkipReason::NoRayTracedObjects)
@@ -566,7 +600,7 @@ impl FramePlan {
             (false, false) => unreachable!("raster_shading is skipped only when rt_shading runs"),
         }));
         skipped.sort_by_key(|s| s.stage);
-        FramePlan { steps, skipped, lights, depth }
+        FramePlan { steps, skipped, lights, depth, stochastic: false, channels: 0 }
     }
 
     /// The steps to run, in order.
@@ -602,9 +636,24 @@ impl FramePlan {
         FrameBuffer::ALL.into_iter().chain(bounce).filter(|&b| self.produces(b))
     }
 
-    /// The lights of the scene the plan was made for.
+    /// The shadow-mask slots per surface of the frame the plan was made for: one per
+    /// light, more for area lights and ambient occlusion
+    /// ([`crate::kernels::soft_shadow::surface_slots`]; the scene's light count where it
+    /// has no area light and traces no occlusion).
     pub fn lights(&self) -> u32 {
         self.lights
+    }
+
+    /// The channels `shadow_denoise` writes per pixel ([`FrameBuffer::Visibility`]): one
+    /// per area light, then one for the ambient occlusion; 0 where it does not run.
+    pub fn visibility_channels(&self) -> u32 {
+        self.channels
+    }
+
+    /// Whether the frame traces stochastic rays: samples of area lights, or ambient
+    /// occlusion ([`crate::kernels::soft_shadow`]).
+    pub fn stochastic(&self) -> bool {
+        self.stochastic
     }
 
     /// The deepest bounce the plan traces: 0 when it traces none.
@@ -614,7 +663,7 @@ impl FramePlan {
 
     /// The frame buffers `step` reads in this plan.
     pub fn reads(&self, step: Step) -> Vec<FrameBuffer> {
-        step.reads(self.produces(FrameBuffer::Shadow))
+        step.reads(self.produces(FrameBuffer::Shadow), self.produces(FrameBuffer::Visibility))
     }
 
     /// How `composition` runs (every plan has a composition step).
@@ -644,7 +693,8 @@ impl FramePlan {
 /// options that decide which stages a frame needs.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SceneNeeds {
-    /// Lights in the scene.
+    /// Shadow-mask slots per surface ([`FramePlan::lights`]): the lights, or more where
+    /// area lights and ambient occlusion take several.
     pub lights: u32,
     /// The scene has at least one triangle.
     pub triangles: bool,
@@ -659,6 +709,9 @@ pub struct SceneNeeds {
     pub weight: f32,
     /// The deepest bounce the options allow.
     pub max_depth: u32,
+    /// The frame traces stochastic rays (area lights, ambient occlusion) and denoises
+    /// them: `shadow_denoise` runs.
+    pub denoise: bool,
 }
 
 impl SceneNeeds {
@@ -674,6 +727,7 @@ impl SceneNeeds {
             bouncing: false,
             weight: 0.5,
             max_depth: 0,
+            denoise: false,
         }
     }
 }
@@ -691,6 +745,7 @@ mod tests {
             bouncing: ray_traced,
             weight,
             max_depth: 0,
+            denoise: false,
         })
     }
 
@@ -703,6 +758,7 @@ mod tests {
             bouncing: true,
             weight: 1.0,
             max_depth,
+            denoise: false,
         })
     }
 
@@ -714,9 +770,22 @@ mod tests {
     fn the_full_scene_runs_every_frame_stage_but_the_bounces_at_depth_zero() {
         let p = plan(2, true, true, true, 0.5);
         let bounce = [Stage::SecondaryRays, Stage::BounceTrace, Stage::BounceShading];
-        let want: Vec<_> = Stage::ALL[1..].iter().filter(|s| !bounce.contains(s)).map(|s| s.name()).collect();
+        let want: Vec<_> = Stage::ALL[1..]
+            .iter()
+            .filter(|s| !bounce.contains(s) && **s != Stage::ShadowDenoise)
+            .map(|s| s.name())
+            .collect();
         assert_eq!(stages(&p), want);
-        assert!(p.skipped().iter().all(|s| s.reason == SkipReason::MaxDepthZero && bounce.contains(&s.stage)));
+        assert!(p.skipped().iter().all(|s| (s.reason == SkipReason::MaxDepthZero && bounce.contains(&s.stage))
+            || (s.stage == Stage::ShadowDenoise && s.reason == SkipReason::NothingToDenoise)));
+        // A frame with stochastic rays denoises them right after tracing them.
+        let mut needs = SceneNeeds::every_primary_stage(2);
+        needs.denoise = true;
+        let p = FramePlan::from_counts(needs);
+        let names = stages(&p);
+        assert_eq!(names[3..5], ["shadow_rays", "shadow_denoise"]);
+        assert!(p.reads(Step::RtShading { bounces: false }).contains(&FrameBuffer::Visibility));
+        p.validate().unwrap();
         assert_eq!(p.bounce_depth(), 0);
         assert_eq!(p.composition(), Composition::WeightedMean);
         assert_eq!(p.step(Stage::RasterShading), Some(Step::RasterShading { shade_ray_traced: true }));
@@ -749,7 +818,10 @@ mod tests {
     #[test]
     fn weight_zero_skips_rt_shading() {
         let p = plan(1, true, true, true, 0.0);
-        assert!(p.skipped().iter().all(|s| s.reason == SkipReason::WeightZero));
+        assert!(p
+            .skipped()
+            .iter()
+            .all(|s| s.reason == SkipReason::WeightZero || s.reason == SkipReason::NothingToDenoise));
         assert!(p.skipped().contains(&Skipped { stage: Stage::RtShading, reason: SkipReason::WeightZero }));
         assert_eq!(p.composition(), Composition::CopyRaster);
         p.validate().unwrap();
@@ -826,7 +898,7 @@ mod tests {
         assert!(p.produces(BounceBuffer::Radiance.at(2)) && !p.produces(BounceBuffer::Radiance.at(3)));
         assert_eq!(p.buffers().filter(|b| b.depth() == 2).count(), BounceBuffer::ALL.len());
         assert_eq!(BounceBuffer::Links.at(2).label(), "bounce2_links");
-        assert!(p.skipped().is_empty());
+        assert_eq!(p.skipped(), [Skipped { stage: Stage::ShadowDenoise, reason: SkipReason::NothingToDenoise }]);
         // Only the gathering of radiance reads what rays leaving the scene see.
         let env: Vec<String> =
             p.steps().iter().filter(|s| s.inputs().contains(&Input::Environment)).map(|s| s.label()).collect();
@@ -861,6 +933,7 @@ mod tests {
             bouncing: true,
             weight: 1.0,
             max_depth: 4,
+            denoise: false,
         }
     }
 

@@ -2,11 +2,37 @@
 //! tables and the BVH, or its two levels), and the in-place changes it logs for device
 //! caches ([`SceneChanges`]). Re-exported by [`crate::frame`].
 
+use std::borrow::Cow;
+
+use glam::Vec3;
+
 use crate::bvh::two_level::{MoveError, TwoLevelBvh};
 use crate::bvh::Bvh;
-use crate::formats::INVALID_ID;
+use crate::formats::{LightRecord, INVALID_ID};
 use crate::geometry::WorldGeometry;
+use crate::kernels::shading::AmbientLight;
+use crate::kernels::soft_shadow::{frame_lights, frame_occlusion, is_stochastic, surface_slots};
+use crate::options::{FrameOptions, DEFAULT_AO_RADIUS_FRACTION};
 use crate::scene::Scene;
+
+/// The lights and ambient light of one frame ([`PreparedScene::frame_lighting`]).
+#[derive(Clone, Debug)]
+pub struct FrameLighting<'a> {
+    pub lights: Cow<'a, [LightRecord]>,
+    pub ambient: Cow<'a, AmbientLight>,
+}
+
+impl FrameLighting<'_> {
+    /// Whether the frame traces stochastic rays (an area light, or ambient occlusion).
+    pub fn is_stochastic(&self) -> bool {
+        is_stochastic(&self.lights, &self.ambient.occlusion)
+    }
+
+    /// The slots of a surface's shadow mask ([`crate::kernels::soft_shadow::surface_slots`]).
+    pub fn slots(&self) -> usize {
+        surface_slots(&self.lights, &self.ambient.occlusion)
+    }
+}
 
 /// A scene ready to render: world-space tables and the BVH over all of them,
 /// built once and shared by every frame and by both backends.
@@ -111,6 +137,43 @@ impl PreparedScene {
     /// keep the id and bump the [`PreparedScene::revision`].
     pub fn id(&self) -> u64 {
         self.id
+    }
+
+    /// The diagonal of the scene's bounds (every traceable triangle's, the moving
+    /// objects' where they are now): the scale of derived lengths such as the default
+    /// ambient-occlusion radius. 0 for a scene with nothing to trace.
+    pub fn extent(&self) -> f32 {
+        let roots = self.bvh.nodes.first().into_iter().chain(self.levels.iter().flat_map(|l| l.top.first()));
+        let (lo, hi) = roots.fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), n| {
+            (lo.min(Vec3::from(n.aabb_min)), hi.max(Vec3::from(n.aabb_max)))
+        });
+        if lo.cmple(hi).all() {
+            (hi - lo).length()
+        } else {
+            0.0
+        }
+    }
+
+    /// The lights and ambient light a frame under `options` shades with: the scene's,
+    /// with its area lights given `options.shadow_samples` rays and their streams seeded
+    /// for `options.frame_index`, and the ambient occlusion `options` asks for
+    /// ([`crate::kernels::soft_shadow`]). Borrowed where the frame traces nothing
+    /// stochastic (the scene's own tables, bit for bit).
+    pub fn frame_lighting(&self, options: &FrameOptions) -> FrameLighting<'_> {
+        let g = &self.geometry;
+        let lights = match g.lights.iter().any(LightRecord::is_area) {
+            true => Cow::Owned(frame_lights(&g.lights, options.shadow_samples, options.frame_index)),
+            false => Cow::Borrowed(&g.lights[..]),
+        };
+        let ambient = match options.ao_samples {
+            0 => Cow::Borrowed(&g.ambient),
+            samples => {
+                let radius = options.ao_radius.unwrap_or(DEFAULT_AO_RADIUS_FRACTION * self.extent());
+                let occlusion = frame_occlusion(samples, radius, options.frame_index);
+                Cow::Owned(AmbientLight { occlusion, ..g.ambient.clone() })
+            }
+        };
+        FrameLighting { lights, ambient }
     }
 
     /// How many in-place changes the scene has had (0 as prepared).

@@ -15,6 +15,10 @@ pub enum Stage {
     Compaction,
     /// Trace the shadow-ray list through the BVH, any hit with early exit.
     ShadowRays,
+    /// Filter the stochastic visibility of area lights and ambient occlusion over the
+    /// visibility buffer's surfaces (issue 38: an edge-aware à-trous wavelet filter,
+    /// [`crate::kernels::denoise`]); frames without area lights or occlusion skip it.
+    ShadowDenoise,
     /// Spawn the reflection and refraction rays of the surfaces that bounce into the
     /// next depth's ray list (compaction again, over the surfaces' two lobes).
     SecondaryRays,
@@ -34,12 +38,13 @@ pub enum Stage {
 
 impl Stage {
     /// Every stage, in execution order.
-    pub const ALL: [Stage; 11] = [
+    pub const ALL: [Stage; 12] = [
         Stage::BvhBuild,
         Stage::VisibilityRaster,
         Stage::Reconstruction,
         Stage::Compaction,
         Stage::ShadowRays,
+        Stage::ShadowDenoise,
         Stage::SecondaryRays,
         Stage::BounceTrace,
         Stage::BounceShading,
@@ -66,6 +71,7 @@ impl Stage {
             Stage::Reconstruction => "reconstruction",
             Stage::Compaction => "compaction",
             Stage::ShadowRays => "shadow_rays",
+            Stage::ShadowDenoise => "shadow_denoise",
             Stage::SecondaryRays => "secondary_rays",
             Stage::BounceTrace => "bounce_trace",
             Stage::BounceShading => "bounce_shading",

@@ -781,7 +781,7 @@ fn manifest_unknown_keys_are_rejected() {
         "[[model]]\nbuiltin = \"cube\"\nscael = 2.0\n",
         "[[model]]\nbuiltin = \"cube\"\nmaterial = { metalic = 1.0 }\n",
         "[camera]\neye = [0, 0, 1]\ntarget = [0, 0, 0]\nfov = 40\n[[model]]\nbuiltin = \"cube\"\n",
-        "[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = 1\nradius = 3\n[[model]]\nbuiltin = \"cube\"\n",
+        "[[light]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = 1\nsize = 3\n[[model]]\nbuiltin = \"cube\"\n",
     ]
     .into_iter()
     .enumerate()

@@ -7,10 +7,12 @@ use glam::Vec3;
 use hyrt_core::bvh::{BvhPreset, ClosestHit};
 use hyrt_core::formats::{CameraRecord, RayRecord, SurfaceRecord, RAY_KIND_COUNT, RAY_KIND_SHADOW};
 use hyrt_core::frame::{
-    Backend, BounceBuffers, BounceStats, Executor, Frame, FrameOptions, FrameStats, PreparedScene, PrimaryBarycentrics,
-    RenderError, StageTime, StageWork,
+    Backend, BounceBuffers, BounceStats, Executor, Frame, FrameLighting, FrameOptions, FrameStats, PreparedScene,
+    PrimaryBarycentrics, RenderError, StageTime, StageWork,
 };
 use hyrt_core::geometry::WorldGeometry;
+use hyrt_core::kernels::denoise::channel_count;
+use hyrt_core::kernels::soft_shadow::{FilteredVisibility, Slots};
 use hyrt_core::kernels::texture::Materials;
 use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan, Step};
 
@@ -20,7 +22,8 @@ use crate::{
     bounce_shading::{bounce_shading_into, Children},
     bounce_trace::bounce_trace_into,
     compaction::{
-        active_pairs_into, compaction_into, pair_ray, shadow_mask_into, shadow_mask_of_pairs_into, CompactionScratch,
+        active_pairs_into, compaction_slots_into, pair_ray, shadow_mask_into, shadow_mask_of_pairs_into,
+        CompactionScratch,
     },
     composition::composition_into,
     fused::{fused_frame, shade_deferred, Deferred, FusedSteps},
@@ -29,6 +32,7 @@ use crate::{
     reconstruction::{normal_mapping_into, reconstruction_into, reconstruction_reintersected_into},
     rt_shading::{rt_shading_bouncing_into, rt_shading_into, BouncingShading, FirstBounce},
     secondary_rays::{secondary_rays_into, Parents},
+    shadow_denoise::{shadow_denoise_into, DenoiseScratch},
     shadow_rays::{shadow_rays_in_object_space, shadow_rays_of_pairs_into, shadow_rays_with},
     traversal::Traversal,
     visibility_raster::visibility_raster_into,
@@ -40,6 +44,8 @@ pub struct CpuBackend {
     pool: rayon::ThreadPool,
     /// Stage buffers that are not part of a [`Frame`], kept between frames.
     scratch: CompactionScratch,
+    /// `shadow_denoise`'s ping-pong buffer and tile flags, kept between frames.
+    denoise: DenoiseScratch,
     /// `bounce_trace`'s closest hits before they become records, kept between frames.
     closest: Vec<Option<ClosestHit>>,
     /// The fused frame's bouncing pixels, kept between frames.
@@ -63,6 +69,7 @@ impl CpuBackend {
         CpuBackend {
             pool: b.build().expect("rayon thread pool"),
             scratch: CompactionScratch::default(),
+            denoise: DenoiseScratch::default(),
             closest: Vec::new(),
             deferred: Deferred::default(),
             shadow_traversal: Traversal::simd(),
@@ -92,9 +99,11 @@ impl CpuBackend {
     }
 
     /// What the fused tiles run of `plan` where the frame runs fused ([`Self::executor_for`]).
+    /// Frames with stochastic rays (area lights, ambient occlusion) run staged: the fused
+    /// tiles trace one shadow ray per light.
     fn fused_steps(&self, plan: &FramePlan, options: &FrameOptions) -> Option<FusedSteps> {
         match self.executor {
-            Executor::Fused if !options.stage_outputs => Some(FusedSteps::of(plan)),
+            Executor::Fused if !options.stage_outputs && !plan.stochastic() => Some(FusedSteps::of(plan)),
             _ => None,
         }
     }
@@ -138,13 +147,13 @@ impl CpuBackend {
 /// returns it, else only the active pairs (in `scratch`, which `trace_list` reads).
 fn compact_list(
     surfaces: &[SurfaceRecord],
-    g: &WorldGeometry,
+    slots: &Slots,
     scratch: &mut CompactionScratch,
     rays: Option<&mut Vec<RayRecord>>,
 ) -> Result<(), std::collections::TryReserveError> {
     match rays {
-        Some(rays) => compaction_into(surfaces, &g.lights, scratch, rays),
-        None => active_pairs_into(surfaces, &g.lights, scratch),
+        Some(rays) => compaction_slots_into(surfaces, slots, scratch, rays),
+        None => active_pairs_into(surfaces, slots, scratch),
     }
 }
 
@@ -152,9 +161,11 @@ fn compact_list(
 /// pairs made as they are traced; the occlusion results and the shadow mask into `out`.
 /// `image_width` where the surfaces are an image's pixels (depth 0: the generated rays
 /// are traced in pixel tiles). The number of rays.
+#[allow(clippy::too_many_arguments)]
 fn trace_list(
     scene: &PreparedScene,
     surfaces: &[SurfaceRecord],
+    slots: &Slots,
     scratch: &CompactionScratch,
     list: Option<&[RayRecord]>,
     image_width: Option<u32>,
@@ -162,7 +173,7 @@ fn trace_list(
     (occluded, shadow): (&mut Vec<u32>, &mut Vec<u8>),
 ) -> usize {
     let (bvh, g) = (&scene.bvh, &scene.geometry);
-    let lights = g.lights.len();
+    let lights = slots.len();
     match list {
         Some(rays) => {
             shadow_rays_with(bvh, g, rays, traversal, occluded);
@@ -172,9 +183,9 @@ fn trace_list(
             shadow_mask_into(rays, occluded, surfaces.len(), lights, shadow);
         }
         None => {
-            shadow_rays_of_pairs_into(bvh, g, surfaces, &scratch.active, image_width, traversal, occluded);
+            shadow_rays_of_pairs_into(bvh, g, surfaces, slots, &scratch.active, image_width, traversal, occluded);
             if let Some(levels) = &scene.levels {
-                let ray = |i: usize| pair_ray(surfaces, &g.lights, scratch.active[i]);
+                let ray = |i: usize| pair_ray(surfaces, slots, scratch.active[i]);
                 shadow_rays_in_object_space(levels, g, ray, traversal, occluded);
             }
             shadow_mask_of_pairs_into(&scratch.active, occluded, surfaces.len(), lights, shadow);
@@ -223,6 +234,10 @@ fn oom(width: u32, height: u32, what: &'static str) -> impl Fn(TryReserveError) 
 /// What the bounce steps read besides their buffers, the same for both executors.
 struct BounceContext<'a> {
     scene: &'a PreparedScene,
+    /// The frame's lights and ambient light ([`PreparedScene::frame_lighting`]).
+    lighting: &'a FrameLighting<'a>,
+    /// Their shadow-mask slots.
+    slots: &'a Slots<'a>,
     materials: &'a Materials<'a>,
     /// How shadow rays trace (any hit).
     traversal: Traversal,
@@ -278,14 +293,15 @@ fn bounce_step(
         }
         Step::BounceCompaction { depth } => {
             let b = &mut bounces[depth as usize - 1];
-            compact_list(&b.surfaces, g, scratch, cx.lists[depth as usize].then_some(&mut b.shadow_rays))
+            compact_list(&b.surfaces, cx.slots, scratch, cx.lists[depth as usize].then_some(&mut b.shadow_rays))
                 .map_err(oom("a bounce's shadow rays"))?
         }
         Step::BounceShadowRays { depth } => {
             let b = &mut bounces[depth as usize - 1];
             let list = cx.lists[depth as usize].then_some(&b.shadow_rays[..]);
             let out = (&mut b.occluded, &mut b.shadow);
-            shadow_rays[depth as usize] = trace_list(scene, &b.surfaces, scratch, list, None, cx.traversal, out);
+            shadow_rays[depth as usize] =
+                trace_list(scene, &b.surfaces, cx.slots, scratch, list, None, cx.traversal, out);
         }
         Step::BounceShading { depth, last } => {
             let (this, deeper) = bounces.split_at_mut(depth as usize);
@@ -298,9 +314,9 @@ fn bounce_step(
                 &b.shadow,
                 materials,
                 &g.triangles,
-                &g.lights,
+                &cx.lighting.lights,
                 &g.environment,
-                &g.ambient,
+                &cx.lighting.ambient,
                 children,
                 &mut b.radiance,
             )
@@ -342,6 +358,7 @@ impl Backend for CpuBackend {
         let threads = self.threads();
         let (traversal, bounce_traversal) = (self.shadow_traversal, self.bounce_traversal);
         let scratch = &mut self.scratch;
+        let denoise = &mut self.denoise;
         let closest = &mut self.closest;
         let f = frame;
         f.begin(&plan, options);
@@ -360,8 +377,15 @@ impl Backend for CpuBackend {
         // What shading knows of materials (textures, vertex colours; the plain object
         // records in a scene without them).
         let materials = g.materials(camera);
+        let lighting = scene.frame_lighting(options);
+        let slots = Slots::new(&lighting.lights, &lighting.ambient.occlusion);
+        let (lights, ambient) = (&lighting.lights[..], &*lighting.ambient);
+        // `shadow_denoise`'s channels per pixel (none unless the plan denoises).
+        let channels = channel_count(lights, &ambient.occlusion);
         let cx = BounceContext {
             scene,
+            lighting: &lighting,
+            slots: &slots,
             materials: &materials,
             traversal,
             bounce_traversal,
@@ -400,7 +424,7 @@ impl Backend for CpuBackend {
                     // steps over their rays (every tile's at once), timed step by step; then
                     // their shading and composition.
                     let t = Instant::now();
-                    deferred.gather(run.deferred, g.lights.len()).map_err(oom("the bouncing pixels"))?;
+                    deferred.gather(run.deferred, slots.len()).map_err(oom("the bouncing pixels"))?;
                     fused_ms += t.elapsed().as_secs_f64() * 1e3;
                     let mut shadow_rays = vec![0; lists.len()];
                     for &step in plan.steps().iter().filter(|s| s.depth() > 0) {
@@ -420,10 +444,11 @@ impl Backend for CpuBackend {
                     let shading = BouncingShading {
                         materials: &materials,
                         triangles: &g.triangles,
-                        lights: &g.lights,
-                        ambient: &g.ambient,
+                        lights,
+                        ambient,
                         eye,
                         radiance: &first.radiance,
+                        visibility: Default::default(),
                     };
                     shade_deferred(
                         deferred,
@@ -472,14 +497,23 @@ impl Backend for CpuBackend {
                             normal_mapping_into(&f.gbuffer, &materials, eye, &mut f.surfaces);
                         }
                     }
-                    Step::Compaction => compact_list(&f.surfaces, g, scratch, lists[0].then_some(&mut f.rays))
+                    Step::Compaction => compact_list(&f.surfaces, &slots, scratch, lists[0].then_some(&mut f.rays))
                         .map_err(oom("the ray list"))?,
                     Step::ShadowRays => {
                         let list = lists[0].then_some(&f.rays[..]);
                         let out = (&mut f.occluded, &mut f.shadow);
                         let width = Some(camera.width);
-                        shadow_rays[0] = trace_list(scene, &f.surfaces, scratch, list, width, traversal, out);
+                        shadow_rays[0] = trace_list(scene, &f.surfaces, &slots, scratch, list, width, traversal, out);
                     }
+                    Step::ShadowDenoise => shadow_denoise_into(
+                        &f.surfaces,
+                        &f.shadow,
+                        lights,
+                        &ambient.occlusion,
+                        camera,
+                        denoise,
+                        &mut f.visibility,
+                    ),
                     Step::SecondaryRays { .. }
                     | Step::BounceTrace { .. }
                     | Step::BounceCompaction { .. }
@@ -489,10 +523,12 @@ impl Backend for CpuBackend {
                         bounce_step(&cx, step, first, &mut f.bounces, scratch, closest, &mut shadow_rays)?
                     }
                     Step::RtShading { bounces: false } => {
-                        let primary = Primary { gbuffer: &f.gbuffer, materials: &materials, ambient: &g.ambient, eye };
-                        rt_shading_into(&f.surfaces, &f.shadow, &primary, &g.lights, &mut f.rt)
+                        let visibility = FilteredVisibility { values: &f.visibility, channels };
+                        let primary = Primary { gbuffer: &f.gbuffer, materials: &materials, ambient, eye, visibility };
+                        rt_shading_into(&f.surfaces, &f.shadow, &primary, lights, &mut f.rt)
                     }
                     Step::RtShading { bounces: true } => {
+                        let visibility = FilteredVisibility { values: &f.visibility, channels };
                         let first = &f.bounces[0];
                         let bounce =
                             FirstBounce { gbuffer: &f.gbuffer, links: &first.links, radiance: &first.radiance };
@@ -501,21 +537,25 @@ impl Backend for CpuBackend {
                             &f.shadow,
                             &materials,
                             &g.triangles,
-                            &g.lights,
-                            &g.ambient,
+                            lights,
+                            ambient,
                             eye,
                             bounce,
+                            visibility,
                             &mut f.rt,
                         )
                     }
-                    Step::RasterShading { shade_ray_traced } => raster_shading_into(
-                        &f.surfaces,
-                        &f.shadow,
-                        &Primary { gbuffer: &f.gbuffer, materials: &materials, ambient: &g.ambient, eye },
-                        &g.lights,
-                        shade_ray_traced,
-                        &mut f.raster,
-                    ),
+                    Step::RasterShading { shade_ray_traced } => {
+                        let visibility = FilteredVisibility { values: &f.visibility, channels };
+                        raster_shading_into(
+                            &f.surfaces,
+                            &f.shadow,
+                            &Primary { gbuffer: &f.gbuffer, materials: &materials, ambient, eye, visibility },
+                            lights,
+                            shade_ray_traced,
+                            &mut f.raster,
+                        )
+                    }
                     Step::Composition(mode) => {
                         composition_into(mode, &f.raster, &f.rt, options.weight, &mut f.final_image)
                     }

@@ -15,6 +15,7 @@ use hyrt_core::formats::{HitRecord, LightRecord, RayRecord, SurfaceRecord, INVAL
 use hyrt_core::geometry::WorldTriangles;
 use hyrt_core::kernels::bounce::{secondary_parent, shade_secondary_hit};
 use hyrt_core::kernels::shading::AmbientLight;
+use hyrt_core::kernels::soft_shadow::surface_slots;
 use hyrt_core::kernels::texture::Materials;
 use hyrt_core::scene::Environment;
 use rayon::prelude::*;
@@ -28,8 +29,8 @@ pub struct Children<'a> {
     pub radiance: &'a [[f32; 4]],
 }
 
-/// The stage into a caller-owned buffer. `shadow` is indexed `ray * lights + light`
-/// (empty without lights); `children` is `None` at the plan's deepest bounce; `env` is
+/// The stage into a caller-owned buffer. `shadow` is indexed `ray * slots + slot`
+/// (empty without lights; one slot per light without area lights or occlusion); `children` is `None` at the plan's deepest bounce; `env` is
 /// what the rays that hit nothing see, `ambient` the frame's ambient light.
 #[allow(clippy::too_many_arguments)]
 pub fn bounce_shading_into(
@@ -45,8 +46,9 @@ pub fn bounce_shading_into(
     children: Option<Children>,
     out: &mut Vec<[f32; 4]>,
 ) {
-    let nl = if shadow.is_empty() { 0 } else { lights.len() };
-    let lights = &lights[..nl];
+    // Mask slots per ray ([`hyrt_core::kernels::soft_shadow`]); none without lights.
+    let nl = if shadow.is_empty() { 0 } else { surface_slots(lights, &ambient.occlusion) };
+    let lights = if nl == 0 { &lights[..0] } else { lights };
     let (links, radiance): (&[[u32; 2]], &[[f32; 4]]) = match children {
         Some(c) => (c.links, c.radiance),
         None => (&[], &[]),

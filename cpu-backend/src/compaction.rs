@@ -1,9 +1,11 @@
 //! Stage `compaction`: active (pixel, light) pairs -> the shadow-ray list
 //! (paper 3.3: one thread per active ray, no idle threads for missed pixels).
 //!
-//! Inputs: the surface buffer and the light list. Output: [`RayRecord`]s,
-//! light-major then in pixel order (neighbouring rays go to the same light from
-//! neighbouring pixels, which keeps traversal coherent).
+//! Inputs: the surface buffer and the light list (with area lights and ambient occlusion,
+//! the mask slots of [`hyrt_core::kernels::soft_shadow`]: a pair is then a (pixel, slot),
+//! one per light sample or occlusion ray). Output: [`RayRecord`]s, light-major (slot-major)
+//! then in pixel order (neighbouring rays go to the same light from neighbouring pixels,
+//! which keeps traversal coherent).
 //!
 //! The compaction itself ([`compact`]) is a parallel, stable, deterministic
 //! exclusive prefix sum over u32 flags; it equals
@@ -23,7 +25,8 @@ use std::collections::TryReserveError;
 use std::sync::atomic::{AtomicU8, Ordering};
 
 use hyrt_core::formats::{LightRecord, RayRecord, SurfaceRecord, INVALID_ID, SHADOW_NO_RAY};
-use hyrt_core::kernels::shadow::{shadow_code, shadow_ray};
+use hyrt_core::kernels::shadow::shadow_code;
+use hyrt_core::kernels::soft_shadow::{AmbientOcclusion, Slots};
 use rayon::prelude::*;
 
 pub(crate) mod lanes;
@@ -106,9 +109,20 @@ pub fn compaction_into(
     scratch: &mut CompactionScratch,
     rays: &mut Vec<RayRecord>,
 ) -> Result<(), TryReserveError> {
-    active_pairs_into(surfaces, lights, scratch)?;
+    compaction_slots_into(surfaces, &Slots::new(lights, &AmbientOcclusion::default()), scratch, rays)
+}
+
+/// [`compaction_into`] over a frame's mask slots (area lights' samples, occlusion rays):
+/// one ray per active (pixel, slot) pair, its `light` field the slot.
+pub fn compaction_slots_into(
+    surfaces: &[SurfaceRecord],
+    slots: &Slots,
+    scratch: &mut CompactionScratch,
+    rays: &mut Vec<RayRecord>,
+) -> Result<(), TryReserveError> {
+    active_pairs_into(surfaces, slots, scratch)?;
     crate::memory::reserve(rays, scratch.active.len())?;
-    scratch.active.par_iter().with_min_len(1024).map(|&k| pair_ray(surfaces, lights, k)).collect_into_vec(rays);
+    scratch.active.par_iter().with_min_len(1024).map(|&k| pair_ray(surfaces, slots, k)).collect_into_vec(rays);
     if cfg!(debug_assertions) {
         for r in rays.iter() {
             if let Err(e) = r.validate() {
@@ -119,36 +133,38 @@ pub fn compaction_into(
     Ok(())
 }
 
-/// The stage without its list: the active pairs `k = light * surfaces + surface`, in
-/// the list's order, into `scratch.active` (each pair's ray is [`pair_ray`]).
+/// The stage without its list: the active pairs `k = slot * surfaces + surface`, in
+/// the list's order, into `scratch.active` (each pair's ray is [`pair_ray`]). A scene of
+/// point, spot and directional lights without occlusion has a slot per light.
 pub fn active_pairs_into(
     surfaces: &[SurfaceRecord],
-    lights: &[LightRecord],
+    slots: &Slots,
     scratch: &mut CompactionScratch,
 ) -> Result<(), TryReserveError> {
     let n = surfaces.len();
-    crate::memory::reserve(&mut scratch.flags, n * lights.len())?;
-    (0..n * lights.len())
+    crate::memory::reserve(&mut scratch.flags, n * slots.len())?;
+    (0..n * slots.len())
         .into_par_iter()
         .with_min_len(4096)
         .map(|k| {
             let (l, p) = (k / n, k % n);
-            needs_shadow_ray(&surfaces[p], &lights[l]) as u32
+            slots.needs_ray(&surfaces[p], l) as u32
         })
         .collect_into_vec(&mut scratch.flags);
     compact_into(&scratch.flags, &mut scratch.active)
 }
 
-/// The shadow ray of active pair `k = light * surfaces.len() + surface`.
+/// The shadow ray of active pair `k = slot * surfaces.len() + surface`.
 #[inline]
-pub fn pair_ray(surfaces: &[SurfaceRecord], lights: &[LightRecord], k: u32) -> RayRecord {
+pub fn pair_ray(surfaces: &[SurfaceRecord], slots: &Slots, k: u32) -> RayRecord {
     let n = surfaces.len();
     let (l, p) = (k as usize / n, k as usize % n);
-    shadow_ray(&surfaces[p], &lights[l], l as u32, p as u32)
+    slots.ray(&surfaces[p], l, p as u32)
 }
 
 /// Scatter the traced shadow rays back to a per-(pixel, light) mask of
-/// `SHADOW_*` values, indexed `pixel * lights + light`.
+/// `SHADOW_*` values, indexed `pixel * lights + light` (with area lights or occlusion,
+/// `lights` is the slots per surface and a ray's `light` its slot).
 pub fn shadow_mask(rays: &[RayRecord], occluded: &[u32], pixels: usize, lights: usize) -> Vec<u8> {
     let mut mask = Vec::new();
     shadow_mask_into(rays, occluded, pixels, lights, &mut mask);

@@ -138,7 +138,8 @@ impl FusedSteps {
         };
         for &step in plan.steps() {
             match step {
-                Step::VisibilityRaster | Step::Reconstruction | Step::Compaction => {}
+                // Frames that denoise trace stochastic rays, which run staged.
+                Step::VisibilityRaster | Step::Reconstruction | Step::Compaction | Step::ShadowDenoise => {}
                 Step::ShadowRays => steps.shadow_rays = true,
                 Step::RtShading { bounces } => (steps.rt_shading, steps.bounces) = (true, bounces),
                 Step::RasterShading { shade_ray_traced } => steps.raster_shading = Some(shade_ray_traced),
@@ -402,6 +403,8 @@ pub fn fused_frame(
             materials: &materials,
             ambient: &scene.geometry.ambient,
             eye: camera.eye.into(),
+            // Fused frames trace no stochastic rays: nothing to denoise.
+            visibility: Default::default(),
         },
         weight: options.weight,
         traversal,
@@ -569,7 +572,7 @@ fn tile(
                 let record = if varying { s.records[k] } else { objects[surface.object as usize] };
                 let raster = match steps.raster_shading {
                     Some(shade_ray_traced) => {
-                        raster_shading_record(primary, lights, shade_ray_traced, surface, &record, shadow)
+                        raster_shading_record(primary, lights, shade_ray_traced, surface, &record, shadow.into())
                     }
                     None => [0.0; 4],
                 };

@@ -23,6 +23,7 @@ pub mod raster_shading;
 pub mod reconstruction;
 pub mod rt_shading;
 pub mod secondary_rays;
+pub mod shadow_denoise;
 pub mod shadow_rays;
 pub mod traversal;
 pub mod visibility_raster;

@@ -127,6 +127,8 @@ pub fn frame_bytes(plan: &FramePlan, run: impl Into<FrameRun>, width: u32, heigh
             FrameBuffer::Rays => (pairs.saturating_mul(4), pairs.saturating_mul(size_of::<RayRecord>() as u64 + 4)),
             FrameBuffer::Occluded => (0, pairs.saturating_mul(4)),
             FrameBuffer::Shadow => (pairs, 0),
+            // The channels and the denoiser's ping-pong copy.
+            FrameBuffer::Visibility => (pixels.saturating_mul(8 * plan.visibility_channels() as u64), 0),
             FrameBuffer::Rt | FrameBuffer::Raster | FrameBuffer::Final => (pixels.saturating_mul(16), 0),
             FrameBuffer::Bounce { .. } => (0, 0),
         };
@@ -204,6 +206,10 @@ pub fn reserve_frame(
             FrameBuffer::GBuffer => fit(&mut frame.gbuffer, pixels, "the G-buffer", size)?,
             FrameBuffer::Surfaces => fit(&mut frame.surfaces, pixels, "the surfaces", size)?,
             FrameBuffer::Shadow => fit(&mut frame.shadow, pairs, "the shadow mask", size)?,
+            FrameBuffer::Visibility => {
+                let n = pixels.saturating_mul(plan.visibility_channels() as usize);
+                fit(&mut frame.visibility, n, "the denoised visibility", size)?
+            }
             FrameBuffer::Rt => fit(&mut frame.rt, pixels, "the ray-traced image", size)?,
             FrameBuffer::Raster => fit(&mut frame.raster, pixels, "the raster image", size)?,
             FrameBuffer::Final => fit(&mut frame.final_image, pixels, "the final image", size)?,

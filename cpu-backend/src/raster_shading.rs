@@ -13,6 +13,7 @@ use glam::Vec3;
 use hyrt_core::formats::{GBufferTexel, LightRecord, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
 use hyrt_core::kernels::bounce::primary_parent;
 use hyrt_core::kernels::shading::{shade_raster_pixel, AmbientLight, BACKGROUND_RGBA};
+use hyrt_core::kernels::soft_shadow::{surface_slots, FilteredVisibility, SurfaceShadow};
 use hyrt_core::kernels::texture::Materials;
 use rayon::prelude::*;
 
@@ -31,20 +32,23 @@ pub fn raster_shading(
     weight: f32,
 ) -> Vec<[f32; 4]> {
     let mut out = Vec::new();
-    let primary = Primary { gbuffer: &[], materials: &Materials::plain(objects), ambient, eye };
+    let primary =
+        Primary { gbuffer: &[], materials: &Materials::plain(objects), ambient, eye, visibility: Default::default() };
     raster_shading_into(surfaces, shadow, &primary, lights, weight < 1.0, &mut out);
     out
 }
 
 /// What shading a primary hit reads besides its surface and the lights: the materials, the
 /// frame's ambient light, the eye (the view direction; where materials vary over surfaces
-/// also the footprint) and, where materials vary, the G-buffer's barycentrics.
+/// also the footprint), where materials vary, the G-buffer's barycentrics, and where the
+/// frame denoised its stochastic shadows, `shadow_denoise`'s channels.
 #[derive(Clone, Copy)]
 pub struct Primary<'a> {
     pub gbuffer: &'a [GBufferTexel],
     pub materials: &'a Materials<'a>,
     pub ambient: &'a AmbientLight,
     pub eye: Vec3,
+    pub visibility: FilteredVisibility<'a>,
 }
 
 impl Primary<'_> {
@@ -71,7 +75,7 @@ pub fn raster_shading_into(
     shade_ray_traced: bool,
     out: &mut Vec<[f32; 4]>,
 ) {
-    let nl = lights.len();
+    let nl = surface_slots(lights, &primary.ambient.occlusion);
     surfaces
         .par_iter()
         .enumerate()
@@ -107,7 +111,7 @@ pub fn raster_shading_pixel(
     } else {
         obj
     };
-    raster_shading_record(primary, lights, shade_ray_traced, s, obj, shadow)
+    raster_shading_record(primary, lights, shade_ray_traced, s, obj, primary.visibility.surface(i, shadow))
 }
 
 /// [`raster_shading_pixel`] with the pixel's record given: `record` is
@@ -120,7 +124,7 @@ pub fn raster_shading_record(
     shade_ray_traced: bool,
     s: &SurfaceRecord,
     record: &ObjectRecord,
-    shadow: &[u8],
+    shadow: SurfaceShadow,
 ) -> [f32; 4] {
     if !s.is_hit() {
         return BACKGROUND_RGBA;

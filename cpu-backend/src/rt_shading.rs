@@ -11,6 +11,7 @@ use hyrt_core::formats::{GBufferTexel, LightRecord, ObjectRecord, SurfaceRecord,
 use hyrt_core::geometry::WorldTriangles;
 use hyrt_core::kernels::bounce::{primary_parent, primary_parent_shaded, shade_rt_pixel_bouncing};
 use hyrt_core::kernels::shading::{shade_rt_pixel, AmbientLight};
+use hyrt_core::kernels::soft_shadow::{surface_slots, FilteredVisibility};
 use hyrt_core::kernels::texture::Materials;
 
 use crate::raster_shading::{pixel_codes, Primary};
@@ -19,7 +20,9 @@ use rayon::prelude::*;
 pub(crate) mod lanes;
 
 /// The stage on a scene without textures or vertex colours, under the frame's `ambient`
-/// light (`WorldGeometry::ambient`). `shadow` is indexed `pixel * lights.len() + light`.
+/// light (`WorldGeometry::ambient`). `shadow` is indexed `pixel * slots + slot`
+/// ([`hyrt_core::kernels::soft_shadow`]: `pixel * lights.len() + light` without area
+/// lights or occlusion).
 pub fn rt_shading(
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
@@ -29,7 +32,8 @@ pub fn rt_shading(
     eye: Vec3,
 ) -> Vec<[f32; 4]> {
     let mut out = Vec::new();
-    let primary = Primary { gbuffer: &[], materials: &Materials::plain(objects), ambient, eye };
+    let primary =
+        Primary { gbuffer: &[], materials: &Materials::plain(objects), ambient, eye, visibility: Default::default() };
     rt_shading_into(surfaces, shadow, &primary, lights, &mut out);
     out
 }
@@ -43,7 +47,7 @@ pub fn rt_shading_into(
     lights: &[LightRecord],
     out: &mut Vec<[f32; 4]>,
 ) {
-    let nl = lights.len();
+    let nl = surface_slots(lights, &primary.ambient.occlusion);
     surfaces
         .par_iter()
         .enumerate()
@@ -67,6 +71,7 @@ pub fn rt_shading_pixel(
     let Some(obj) = ray_traced(primary.materials.objects, s) else {
         return [0.0; 4];
     };
+    let shadow = primary.visibility.surface(i, shadow);
     let c = if primary.materials.varying() {
         shade_rt_pixel(s, &primary.object(i, s), shadow, lights, primary.ambient, primary.eye)
     } else {
@@ -100,10 +105,11 @@ pub fn rt_shading_bouncing_into(
     ambient: &AmbientLight,
     eye: Vec3,
     bounce: FirstBounce,
+    visibility: FilteredVisibility,
     out: &mut Vec<[f32; 4]>,
 ) {
-    let nl = lights.len();
-    let shading = BouncingShading { materials, triangles, lights, ambient, eye, radiance: bounce.radiance };
+    let nl = surface_slots(lights, &ambient.occlusion);
+    let shading = BouncingShading { materials, triangles, lights, ambient, eye, radiance: bounce.radiance, visibility };
     surfaces
         .par_iter()
         .enumerate()
@@ -125,6 +131,8 @@ pub struct BouncingShading<'a> {
     pub eye: Vec3,
     /// The radiance the first bounce's rays bring back.
     pub radiance: &'a [[f32; 4]],
+    /// `shadow_denoise`'s channels, where the frame denoised its stochastic shadows.
+    pub visibility: FilteredVisibility<'a>,
 }
 
 /// The stage's kernel in a frame that traces bounces, for pixel `pixel` with texel `t`,
@@ -160,11 +168,12 @@ pub fn rt_shading_bouncing_record(
     shadow: &[u8],
     children: [u32; 2],
 ) -> [f32; 4] {
-    let BouncingShading { materials, triangles, lights, ambient, eye, radiance } = *shading;
+    let BouncingShading { materials, triangles, lights, ambient, eye, radiance, visibility } = *shading;
     if ray_traced(materials.objects, s).is_none() {
         return [0.0; 4];
     }
     let p = primary_parent_shaded(t, s, eye, pixel, materials, *record);
+    let shadow = visibility.surface(pixel as usize, shadow);
     shade_rt_pixel_bouncing(&p, triangles, shadow, lights, ambient, eye, children, radiance).extend(1.0).into()
 }
 

@@ -21,6 +21,7 @@ use crate::traversal::{
     occluded_alpha_batch_into, occluded_generated_into, occluded_in_object_space_into, occluded_pairs_tiled_into,
     Traversal,
 };
+use hyrt_core::kernels::soft_shadow::Slots;
 
 /// [`shadow_rays`] output values, the traversal's any-hit answers: re-exported from
 /// [`crate::traversal`], which makes them.
@@ -58,7 +59,7 @@ pub fn shadow_rays_with(
 }
 
 /// [`shadow_rays_with`] over the rays of active pairs (`compaction::active_pairs_into`:
-/// `k = light * surfaces.len() + surface`), each made as it is traced
+/// `k = slot * surfaces.len() + surface`, over the frame's mask `slots`), each made as it is traced
 /// (`compaction::pair_ray`): the same answers as tracing the list `compaction` writes,
 /// without the list.
 ///
@@ -68,18 +69,19 @@ pub fn shadow_rays_with(
 /// keeps its stage outputs, the peers of `hyrt bench`) is traced in its own order: copying
 /// its 64-byte records into tile order cost more than the tiles saved on the teaser and
 /// Sponza.
+#[allow(clippy::too_many_arguments)]
 pub fn shadow_rays_of_pairs_into(
     bvh: &Bvh,
     geometry: &WorldGeometry,
     surfaces: &[SurfaceRecord],
+    slots: &Slots,
     active: &[u32],
     image_width: Option<u32>,
     traversal: Traversal,
     out: &mut Vec<u32>,
 ) {
-    let lights = &geometry.lights;
     let ray = |i: usize| {
-        let r = pair_ray(surfaces, lights, active[i]);
+        let r = pair_ray(surfaces, slots, active[i]);
         debug_assert_eq!(r.validate(), Ok(()), "shadow_rays: invalid ray");
         r
     };

@@ -20,7 +20,8 @@ use crate::band::{self, Band, BandMerge, BounceRoom, Room};
 use crate::bounce_shading::BounceShadingStage;
 use crate::bounce_trace::BounceTraceStage;
 use crate::buffers::{
-    FrameBuffers, FrameParams, SceneBuffers, COUNTER_HITS, COUNTER_OCCLUDED, COUNTER_REFLECTION, COUNTER_REFRACTION,
+    FrameBuffers, FrameParams, SceneBuffers, SlotParams, COUNTER_HITS, COUNTER_OCCLUDED, COUNTER_REFLECTION,
+    COUNTER_REFRACTION,
 };
 use crate::compaction::CompactionStage;
 use crate::composition::CompositionStage;
@@ -63,8 +64,9 @@ struct BounceStages {
 
 /// The stages that read the surface tables, compiled for one [`Specialization`] (the
 /// others, `reconstruction`, `compaction` and `composition`, read none). The stages that
-/// shade no surface (in `Arc`s) read no ambient light: two specializations that differ
-/// only in [`Specialization::ambient_image`] share them.
+/// shade no surface (in `Arc`s) read no ambient light and no mask slot: two
+/// specializations that differ only in [`Specialization::ambient_image`] and
+/// [`Specialization::stochastic`] share them ([`Specialization::same_rays`]).
 struct SurfaceStages {
     visibility_raster: Arc<VisibilityRasterStage>,
     shadow_rays: Arc<ShadowRaysStage>,
@@ -79,8 +81,8 @@ struct SurfaceStages {
 
 impl SurfaceStages {
     /// Build the pipelines for scenes that need `s`, `visibility_raster` in `mode`; those
-    /// that shade no surface taken from `sibling` where given (the stages of `s` with the
-    /// other [`Specialization::ambient_image`], in `mode`).
+    /// that shade no surface taken from `sibling` where given (the stages of a
+    /// specialization with the same rays, [`Specialization::same_rays`], in `mode`).
     fn new(
         ctx: &GpuContext,
         mode: VisibilityMode,
@@ -180,9 +182,17 @@ impl Counts {
     }
 }
 
-/// The GPU backend. Pipelines are created once (those of scenes with surface tables the
-/// first time such a scene is rendered: [`Specialization`]); scene buffers once per
-/// [`PreparedScene`]; frame buffers once per image size and light count.
+/// The GPU backend. Pipelines are created once (those of scenes with surface tables, and
+/// those of frames with stochastic shadow rays, the first time such a frame is rendered:
+/// [`Specialization`]); scene buffers once per [`PreparedScene`] (the lights and the
+/// ambient light written again when a frame's differ: area lights' samples and seeds,
+/// ambient occlusion); frame buffers once per image size and count of shadow-mask slots
+/// per surface (the light count without area lights and ambient occlusion).
+///
+/// Area lights and ambient occlusion render bit for bit the CPU reference's frame when the
+/// frame is not denoised (`FrameOptions::denoise` false); a frame whose plan runs
+/// `shadow_denoise` is refused ([`RenderError::Unsupported`]): the denoiser runs on the CPU
+/// backend only for now.
 pub struct GpuBackend {
     ctx: GpuContext,
     reconstruction: ReconstructionStage,
@@ -273,15 +283,14 @@ impl GpuBackend {
         Ok(())
     }
 
-    /// The stages specialized as `s`, built now if no scene needed them before (but for
-    /// those they share with the stages of `s` with the other
-    /// [`Specialization::ambient_image`], if built).
+    /// The stages specialized as `s`, built now if no frame needed them before (but for
+    /// those they share with the stages of a specialization with the same rays,
+    /// [`Specialization::same_rays`], if built).
     fn stages(&mut self, s: Specialization) -> Result<&SurfaceStages, GpuError> {
         let at = match self.stages.iter().position(|(k, _)| *k == s) {
             Some(at) => at,
             None => {
-                let other = Specialization { ambient_image: !s.ambient_image, ..s };
-                let sibling = self.stages.iter().find(|(k, _)| *k == other).map(|(_, t)| t);
+                let sibling = self.stages.iter().find(|(k, _)| k.same_rays(s)).map(|(_, t)| t);
                 let stages = SurfaceStages::new(&self.ctx, self.visibility_mode, s, sibling)?;
                 self.stages.push((s, stages));
                 self.stages.len() - 1
@@ -352,12 +361,23 @@ impl GpuBackend {
                 self.scene_writes.0 += 1;
             }
         }
-        // The pipelines this scene's surface tables need, built before its first frame.
-        self.stages(Specialization::of_scene(scene))?;
-        let lights = scene.geometry.lights.len() as u32;
+        // The frame's lights and ambient light: the scene's, or with area lights their
+        // samples and this frame's seeds, with ambient occlusion its rays.
+        let lighting = scene.frame_lighting(options);
+        let held = &mut self.scene.as_mut().expect("scene buffers").2;
+        let ambient = lighting.ambient.record();
+        ctx.checked(|| held.set_lighting(ctx, &lighting.lights, &ambient))?;
+        // The pipelines this scene's surface tables and the frame's rays need, built before
+        // the first frame that needs them.
+        let stochastic = plan.stochastic();
+        self.stages(Specialization { stochastic, ..Specialization::of_scene(scene) })?;
+        // Shadow-mask slots per surface: one per light, or with area lights and ambient
+        // occlusion the slots of `hyrt_core::kernels::soft_shadow`.
+        let slots = SlotParams::of(&lighting.lights, lighting.ambient.occlusion.samples);
+        debug_assert_eq!(slots.slots, plan.lights(), "the plan's slots");
         let limit = self.band_binding_limit();
         let max_side = self.ctx.limits.max_texture_dimension_2d;
-        let mut rows = band::rows_per_band(camera.width, camera.height, lights, plan, limit, max_side)?;
+        let mut rows = band::rows_per_band(camera.width, camera.height, slots.slots, plan, limit, max_side)?;
         let mut banded = rows < camera.height;
         if let Sink::Frame(out) = sink {
             for b in out.buffers().collect::<Vec<_>>() {
@@ -371,7 +391,8 @@ impl GpuBackend {
         self.last_bands = 0;
         while first_row < camera.height {
             let band = Band { first_row, rows: rows.min(camera.height - first_row) };
-            match self.run_band(scene, plan, camera, options, band, (rows, banded), sink, &mut merge)? {
+            let shape = (rows, banded, &slots, stochastic);
+            match self.run_band(scene, plan, camera, options, band, shape, sink, &mut merge)? {
                 Some(counts) => {
                     total.add(&counts);
                     self.last_bands += 1;
@@ -399,9 +420,10 @@ impl GpuBackend {
     }
 
     /// Run the plan over `band` (of a frame of bands of `rows` rows, `banded` if more
-    /// than one) with room for its lists, then read it back or present it: its counts,
-    /// or `None` when a list needs more room than a binding holds (the band must split).
-    /// A band whose lists outgrow their room runs again with more.
+    /// than one, with the mask `slots` per surface, `stochastic` if the frame traces
+    /// stochastic rays) with room for its lists, then read it back or present it: its
+    /// counts, or `None` when a list needs more room than a binding holds (the band must
+    /// split). A band whose lists outgrow their room runs again with more.
     #[allow(clippy::too_many_arguments)]
     fn run_band(
         &mut self,
@@ -410,11 +432,11 @@ impl GpuBackend {
         camera: &CameraRecord,
         options: &FrameOptions,
         band: Band,
-        (rows, banded): (u32, bool),
+        (rows, banded, slots, stochastic): (u32, bool, &SlotParams, bool),
         sink: &mut Sink<'_>,
         merge: &mut BandMerge,
     ) -> Result<Option<Counts>, GpuError> {
-        let lights = scene.geometry.lights.len() as u32;
+        let lights = slots.slots;
         let pixels = camera.width as usize * rows as usize;
         let pairs = pixels * lights as usize;
         // Ray buffers hold the rays a band has, known only on the GPU after each list's
@@ -422,7 +444,9 @@ impl GpuBackend {
         // a ray per FIRST_BOUNCE_ROOM_PIXELS_PER_RAY pixels per bounce at first); if a
         // list finds more, its rays past the room are not written, and the band runs
         // again with room for them plus a quarter (primary shadow rays never past one
-        // per pair, which always fits a band). What is returned traced every ray.
+        // per (pixel, slot) pair, which always fits a band). What is returned traced
+        // every ray. (`lights` here are the mask's slots: one per light without area
+        // lights and ambient occlusion.)
         let mut room = self.first_room(plan, pixels, pairs, lights);
         loop {
             if band::bounce_binding_bytes(&room, lights) > self.band_binding_limit() {
@@ -433,7 +457,9 @@ impl GpuBackend {
                 let (ctx, w) = (&self.ctx, camera.width);
                 self.frame = Some(ctx.checked(|| FrameBuffers::for_plan(ctx, w, rows, lights, plan, &room))??);
             }
-            self.frame.as_mut().expect("frame buffers").set_band(&self.ctx, band, banded);
+            let fb = self.frame.as_mut().expect("frame buffers");
+            fb.set_band(&self.ctx, band, banded);
+            fb.set_slots(&self.ctx, slots, stochastic);
             // The frame's cone spread, by the CPU's rule (0 unless colours vary over surfaces).
             self.run_plan(plan, camera, options, scene.geometry.materials(camera).spread)?;
             let counts = match sink {
@@ -490,6 +516,7 @@ impl GpuBackend {
         target: &wgpu::Texture,
     ) -> Result<FrameStats, RenderError> {
         let plan = FramePlan::new(scene, options)?;
+        check_denoiser(&plan)?;
         self.check_supported(scene, &plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         crate::present::check_target(target, camera.width, camera.height).map_err(RenderError::InvalidOptions)?;
@@ -532,13 +559,14 @@ impl GpuBackend {
     ) -> Result<(), GpuError> {
         let ctx = &self.ctx;
         let (sb, fb) = (&self.scene.as_ref().expect("scene buffers").2, self.frame.as_ref().expect("frame buffers"));
+        let specialization = Specialization { stochastic: fb.stochastic, ..sb.specialization };
         let st = self
             .stages
             .iter()
-            .find(|(s, _)| *s == sb.specialization)
+            .find(|(s, _)| *s == specialization)
             .map(|(_, stages)| stages)
-            .expect("run_frame builds the scene's specialization");
-        let params = FrameParams::new(camera.width, camera.height, fb.light_count, options.weight)
+            .expect("run_frame builds the frame's specialization");
+        let params = FrameParams::new(camera.width, camera.height, sb.light_count, options.weight)
             .with_composition(plan.composition())
             .with_pixel_spread(spread)
             .for_band(fb.band.first_row, fb.band.rows);
@@ -572,6 +600,7 @@ impl GpuBackend {
                     }
                     Step::Compaction => self.compaction.encode(ctx, &mut enc, sb, fb, slot),
                     Step::ShadowRays => st.shadow_rays.encode(ctx, &mut enc, sb, fb, slot),
+                    Step::ShadowDenoise => unreachable!("denoised frames are refused (check_denoiser)"),
                     Step::SecondaryRays { depth } => bounce().secondary_rays.encode(ctx, &mut enc, sb, fb, depth, slot),
                     Step::BounceTrace { depth } => {
                         bounce().bounce_trace.encode(ctx, &mut enc, sb, fb, depth, slot);
@@ -633,7 +662,7 @@ impl GpuBackend {
             parts.extend([(&b.ray_count, 4), (&b.shadow_ray_count, 4), (&b.counters, 16)]);
         }
         if fb.banded {
-            let starts = 4 * fb.light_count as u64;
+            let starts = 4 * fb.slots as u64;
             if rays {
                 parts.push((&fb.light_starts, starts));
             }
@@ -658,7 +687,8 @@ impl GpuBackend {
         let ctx = &self.ctx;
         let fb = self.frame.as_ref().expect("frame buffers");
         let pixels = fb.width as usize * fb.band.rows as usize;
-        let lights = fb.light_count as usize;
+        // Mask slots per surface (one per light without area lights and occlusion).
+        let lights = fb.slots as usize;
         let pairs = pixels * lights;
         // The first readback holds the counts: until then the primary occlusion results
         // are read to their room, and appended to the count.
@@ -675,6 +705,8 @@ impl GpuBackend {
                 FrameBuffer::Rays => (counts.shadow_rays, std::mem::size_of::<RayRecord>()),
                 FrameBuffer::Occluded => (counts.shadow_rays, 4),
                 FrameBuffer::Shadow => (pairs, 4),
+                // Denoised frames are refused (check_denoiser).
+                FrameBuffer::Visibility => (0, 4),
                 FrameBuffer::Rt | FrameBuffer::Raster | FrameBuffer::Final => (pixels, 16),
                 FrameBuffer::Bounce { buffer, depth } => {
                     let c = counts.bounces[depth as usize - 1];
@@ -735,6 +767,7 @@ impl GpuBackend {
                     FrameBuffer::Occluded => extend_from_bytes(&mut out.occluded, data),
                     // u32 codes on the GPU, u8 in the frame.
                     FrameBuffer::Shadow => shadow_codes_into(&mut out.shadow, data),
+                    FrameBuffer::Visibility => extend_from_bytes(&mut out.visibility, data),
                     FrameBuffer::Rt => extend_from_bytes(&mut out.rt, data),
                     FrameBuffer::Raster => extend_from_bytes(&mut out.raster, data),
                     FrameBuffer::Final => extend_from_bytes(&mut out.final_image, data),
@@ -963,14 +996,32 @@ impl Backend for GpuBackend {
         frame: &mut Frame,
     ) -> Result<(), RenderError> {
         let plan = FramePlan::new(scene, options)?;
+        check_denoiser(&plan)?;
         self.check_supported(scene, &plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         frame.begin(&plan, options);
-        band::check_host_memory(frame, camera, scene.geometry.lights.len() as u32)?;
+        band::check_host_memory(frame, camera, plan.lights())?;
         let counts = self.run_frame(scene, &plan, camera, options, &mut Sink::Frame(frame))?;
         frame.stats = self.frame_stats(&plan, camera, &counts, frame);
         (frame.width, frame.height) = (camera.width, camera.height);
         frame.end();
         Ok(())
+    }
+}
+
+/// Refuse a frame whose plan denoises its stochastic shadow rays (`shadow_denoise`: area
+/// lights or ambient occlusion with [`FrameOptions::denoise`], the default): the denoiser
+/// runs on the CPU backend only for now, and a frame without it would be silently another
+/// image. The same frame without the denoiser renders here, bit for bit the CPU's.
+fn check_denoiser(plan: &FramePlan) -> Result<(), RenderError> {
+    match plan.runs(Stage::ShadowDenoise) {
+        false => Ok(()),
+        true => Err(RenderError::Unsupported {
+            backend: "gpu",
+            stage: Stage::ShadowDenoise.name().into(),
+            why:
+                "the shadow denoiser of area lights (quad, sphere, sun) and ambient occlusion runs on the CPU backend \
+                  only for now (--backend cpu); --no-denoise renders the frame on the GPU",
+        }),
     }
 }

@@ -21,9 +21,15 @@
 //!   ray's `pixel` (a shadow or bounce ray's pixel, a bounce shadow ray's surface in its
 //!   depth's list), a link's children;
 //! * shadow-ray lists are light-major (every ray to light 0 in pixel order, then light 1,
-//!   ...): `compaction` of a banded frame also writes where each light's rays start in
-//!   the band's list (`shaders/light_starts.wgsl`), and the merge takes light 0's rays
-//!   of every band, then light 1's, and so on, with their `occluded` words.
+//!   ...; with area lights and ambient occlusion, slot-major: a ray's `light` is its
+//!   shadow-mask slot, [`crate::buffers::SlotParams`]): `compaction` of a banded frame also
+//!   writes where each light's (slot's) rays start in the band's list
+//!   (`shaders/light_starts.wgsl`), and the merge takes light 0's rays of every band, then
+//!   light 1's, and so on, with their `occluded` words.
+//!
+//! Where this module counts `lights` per pixel, it means shadow-mask slots per surface
+//! ([`hyrt_core::plan::FramePlan::lights`]): one per light in a frame without area lights
+//! and ambient occlusion, more with them.
 //!
 //! A bounce list whose room outgrows a binding (reflection and refraction rays can
 //! double with every depth) makes the band split in two and run again. A frame one row
@@ -151,7 +157,8 @@ pub fn host_frame_bytes(frame: &Frame, width: u32, height: u32, lights: u32) -> 
             FrameBuffer::Surfaces => std::mem::size_of::<SurfaceRecord>() as u64,
             FrameBuffer::Shadow => lights as u64,
             FrameBuffer::Rt | FrameBuffer::Raster | FrameBuffer::Final => 16,
-            FrameBuffer::Rays | FrameBuffer::Occluded | FrameBuffer::Bounce { .. } => 0,
+            // Visibility: denoised frames are refused (`GpuBackend`: the denoiser runs on the CPU).
+            FrameBuffer::Rays | FrameBuffer::Occluded | FrameBuffer::Visibility | FrameBuffer::Bounce { .. } => 0,
         })
         .sum();
     pixels.saturating_mul(per_pixel)

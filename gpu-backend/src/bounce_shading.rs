@@ -5,7 +5,9 @@
 //! bouncing shader on mirrors and glass, the ray-traced shader on other ray-traced
 //! objects, the raster shader on rasterized ones).
 //!
-//! Reads the depth's rays, count (indirect dispatch), hits, surfaces and shadow codes;
+//! Reads the depth's rays, count (indirect dispatch), hits, surfaces and shadow codes
+//! (their slots per `frame.slot_params`: area lights' samples and occlusion rays as for
+//! the primary hits);
 //! unless it is the plan's deepest bounce, the next depth's links and radiance; objects,
 //! triangles, lights, the scene's environment and ambient light (its image-based light's
 //! texels under the glTF model), and the surface tables (each hit's object shaded as
@@ -38,7 +40,7 @@ impl BounceShadingStage {
         entries.extend((11..=13).map(|i| storage_entry(i, true)));
         entries.push(storage_entry(14, false));
         entries.extend([storage_entry(15, true), uniform_entry(16)]);
-        entries.extend([uniform_entry(17), storage_entry(18, true)]);
+        entries.extend([uniform_entry(17), storage_entry(18, true), uniform_entry(19)]);
         let (pipeline, layout) = specialized_pipeline(ctx, "bounce_shading", &source, &entries, &s.shading_constants());
         BounceShadingStage { pipeline, layout }
     }
@@ -88,6 +90,7 @@ impl BounceShadingStage {
                 &scene.surface.layout,
                 &scene.ambient_light,
                 &scene.ambient_texels,
+                &frame.slot_params,
             ],
         );
         crate::shader::encode_list_pass(encoder, "bounce_shading", &self.pipeline, &bind_group, &b.ray_count, timing);

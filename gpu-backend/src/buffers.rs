@@ -1,5 +1,6 @@
 //! The GPU buffers of a scene and of a frame. Created once per scene and once
-//! per image size and light count, reused across frames; every stage binds
+//! per image size and count of shadow-mask slots ([`SlotParams`]), reused across frames;
+//! every stage binds
 //! these by name. Element layouts are the core formats (documented to the byte
 //! in [`hyrt_core::formats`]) unless said otherwise here.
 
@@ -19,6 +20,65 @@ use crate::{GpuContext, GpuError};
 /// other records the shaders declare); re-exported at their old path.
 pub use hyrt_core::formats::FrameParams;
 
+/// The shadow-mask slots of a frame as the GPU stages read them (one uniform buffer,
+/// [`FrameBuffers::slot_params`]): a surface's mask holds `slots` codes, one per point,
+/// spot or directional light, [`LightRecord::samples`] per area light (in light order),
+/// then the ambient occlusion's rays ([`hyrt_core::kernels::soft_shadow`]); the lights'
+/// take the first `light_slots`. A frame without area lights and ambient occlusion has
+/// one slot per light: `slots == light_slots ==` its light count (the paper's mask).
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `slots` | u32 | slots per surface ([`FramePlan::lights`]) |
+/// | 4 | `light_slots` | u32 | slots of the lights ([`hyrt_core::kernels::soft_shadow::lights_slots`]): the first ambient-occlusion slot |
+/// | 8 | `pad` | [u32; 2] | zero |
+///
+/// 16 bytes. Defined here, not with the core records: only the GPU stages read it (the
+/// CPU backend walks [`hyrt_core::kernels::soft_shadow::Slots`]). A uniform, and no slot
+/// table: `rt_shading` and `raster_shading` already bind 8 storage buffers, WebGPU's
+/// default limit per shader stage, and `compaction` 7 (the scan's 3 among them), so the
+/// stages walk the frame's light records (each area light's `samples`) to a slot's light
+/// instead of reading a table, and no stage binds a storage buffer more than before area
+/// lights (the device's limits are requested as before, `GpuContext::new`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SlotParams {
+    pub slots: u32,
+    pub light_slots: u32,
+    pub pad: [u32; 2],
+}
+
+impl SlotParams {
+    /// The slots of a frame with `lights` (the frame's records: area lights carry their
+    /// samples) and `ao_samples` occlusion rays per surface.
+    pub fn of(lights: &[LightRecord], ao_samples: u32) -> SlotParams {
+        let light_slots = hyrt_core::kernels::soft_shadow::lights_slots(lights) as u32;
+        SlotParams { slots: light_slots + ao_samples, light_slots, pad: [0; 2] }
+    }
+
+    /// One slot per light: `light_count` point, spot or directional lights, no occlusion.
+    pub fn per_light(light_count: u32) -> SlotParams {
+        SlotParams { slots: light_count, light_slots: light_count, pad: [0; 2] }
+    }
+}
+
+impl hyrt_core::formats::wgsl::WgslStruct for SlotParams {
+    const NAME: &'static str = "SlotParams";
+
+    fn fields() -> Vec<hyrt_core::formats::wgsl::Field> {
+        use hyrt_core::formats::wgsl::{field_type, Field};
+        vec![
+            Field { name: "slots", ty: field_type::<Self, _>(|r| &r.slots), offset: std::mem::offset_of!(Self, slots) },
+            Field {
+                name: "light_slots",
+                ty: field_type::<Self, _>(|r| &r.light_slots),
+                offset: std::mem::offset_of!(Self, light_slots),
+            },
+            Field { name: "pad", ty: field_type::<Self, _>(|r| &r.pad), offset: std::mem::offset_of!(Self, pad) },
+        ]
+    }
+}
+
 /// The room of the ray lists, defined in [`crate::band`] (which sizes bands by it);
 /// re-exported at their old path.
 pub use crate::band::{BounceRoom, Room};
@@ -31,7 +91,8 @@ pub struct SceneBuffers {
     pub normals: wgpu::Buffer,
     /// `array<ObjectRecord>`.
     pub objects: wgpu::Buffer,
-    /// `array<LightRecord>`.
+    /// `array<LightRecord>`: the frame's lights ([`SceneBuffers::set_lighting`]: the scene's,
+    /// with area lights given the frame's samples and seeds).
     pub lights: wgpu::Buffer,
     /// `array<BvhNode>`: the flattened BVH ([`hyrt_core::bvh`]); empty BVH: one zero node and `bvh_node_count == 0`.
     /// A scene with two levels: every level's nodes, the top level's first
@@ -53,8 +114,9 @@ pub struct SceneBuffers {
     /// `array<vec4<f32>>`: the environment map's texels (one zero texel for the sky).
     pub environment_texels: wgpu::Buffer,
     /// Uniform [`AmbientLightRecord`]: the frame's ambient light
-    /// ([`hyrt_core::geometry::WorldGeometry::ambient`]), its constant level and whether
-    /// the scene has an image-based light.
+    /// ([`hyrt_core::geometry::WorldGeometry::ambient`] with the frame's ambient occlusion,
+    /// [`SceneBuffers::set_lighting`]), its constant level and whether the scene has an
+    /// image-based light.
     pub ambient_light: wgpu::Buffer,
     /// `array<vec4<f32>>`: the image-based light's tables
     /// ([`hyrt_core::kernels::ibl::AmbientLight::texels`]; one zero texel without one).
@@ -66,6 +128,9 @@ pub struct SceneBuffers {
     pub object_count: u32,
     pub light_count: u32,
     pub bvh_node_count: u32,
+    /// What `lights` and `ambient_light` hold now (the scene's, or the last frame's).
+    held_lights: Vec<LightRecord>,
+    held_ambient: AmbientLightRecord,
 }
 
 impl SceneBuffers {
@@ -108,6 +173,29 @@ impl SceneBuffers {
             object_count: g.objects.len() as u32,
             light_count: g.lights.len() as u32,
             bvh_node_count: nodes.len() as u32,
+            held_lights: g.lights.clone(),
+            held_ambient: ambient,
+        }
+    }
+}
+
+impl SceneBuffers {
+    /// Hold the lights and ambient light of the next frame
+    /// ([`PreparedScene::frame_lighting`]: with area lights, their samples and the frame's
+    /// seeds; with ambient occlusion, its rays), writing what differs from what the
+    /// buffers hold (nothing for a frame of the scene's own lighting after another).
+    pub fn set_lighting(&mut self, ctx: &GpuContext, lights: &[LightRecord], ambient: &AmbientLightRecord) {
+        debug_assert_eq!(lights.len(), self.held_lights.len(), "a frame's lights are the scene's");
+        // By their bits: a record's fields compare as floats, where 0.0 == -0.0.
+        let held: &[u8] = bytemuck::cast_slice(&self.held_lights);
+        if !lights.is_empty() && bytemuck::cast_slice::<LightRecord, u8>(lights) != held {
+            ctx.queue.write_buffer(&self.lights, 0, bytemuck::cast_slice(lights));
+            self.held_lights.clear();
+            self.held_lights.extend_from_slice(lights);
+        }
+        if bytemuck::bytes_of(ambient) != bytemuck::bytes_of(&self.held_ambient) {
+            ctx.queue.write_buffer(&self.ambient_light, 0, bytemuck::bytes_of(ambient));
+            self.held_ambient = *ambient;
         }
     }
 }
@@ -164,6 +252,7 @@ impl SceneBuffers {
         }
         if changes.lights {
             write(&self.lights, 0, bytemuck::cast_slice(&g.lights));
+            self.held_lights.clone_from(&g.lights);
         }
         if !changes.objects.is_empty() && !g.surface.is_empty() {
             self.surface = SurfaceBuffers::new(ctx, &g.surface, &g.objects);
@@ -171,8 +260,9 @@ impl SceneBuffers {
     }
 }
 
-/// Per-frame buffers for one band size (image width and rows), light count and set of
-/// planned stages, reused across frames. A buffer whose stage the plan skips is not
+/// Per-frame buffers for one band size (image width and rows), count of mask slots per
+/// surface ([`SlotParams`]: the light count in a frame without area lights and ambient
+/// occlusion) and set of planned stages, reused across frames. A buffer whose stage the plan skips is not
 /// allocated: its field holds `empty` (one 64-byte buffer shared by every absent one),
 /// so bind groups stay valid while no skipped stage is encoded.
 ///
@@ -186,10 +276,17 @@ pub struct FrameBuffers {
     /// The band being rendered ([`FrameBuffers::set_band`]); the whole of `rows` at first.
     pub band: Band,
     /// The frame is rendered in more than one band: `compaction` also writes where each
-    /// light's rays start in its list (`light_starts`), so that the bands' lists can be
-    /// merged into the frame's light-major order.
+    /// slot's rays start in its list (`light_starts`), so that the bands' lists can be
+    /// merged into the frame's slot-major order.
     pub banded: bool,
-    pub light_count: u32,
+    /// Shadow-mask slots per surface ([`SlotParams::slots`]): what the shadow codes, the
+    /// pairs of `compaction` and `light_starts` are sized by.
+    pub slots: u32,
+    /// The frame traces stochastic rays (area lights, ambient occlusion): `compaction` and
+    /// the shading stages run their pipelines specialized for slots
+    /// ([`crate::texture::Specialization::stochastic`]). Set with the slots
+    /// ([`FrameBuffers::set_slots`]).
+    pub stochastic: bool,
     /// Rays `rays` and `occluded` have room for (0 when the plan traces none). The
     /// frame's rays are known only after `compaction`: a frame with more reallocates
     /// and runs again (see `GpuBackend`).
@@ -207,6 +304,9 @@ pub struct FrameBuffers {
     pub camera: wgpu::Buffer,
     /// Uniform [`FrameParams`].
     pub params: wgpu::Buffer,
+    /// Uniform [`SlotParams`] of the frame ([`FrameBuffers::set_slots`]; one slot per light
+    /// until then).
+    pub slot_params: wgpu::Buffer,
     /// `array<GBufferTexel>`, one per pixel (`visibility_raster`).
     pub gbuffer: wgpu::Buffer,
     /// `array<SurfaceRecord>`, one per pixel (`reconstruction`).
@@ -219,10 +319,10 @@ pub struct FrameBuffers {
     pub ray_count: wgpu::Buffer,
     /// `array<u32>`, one per ray slot: 1 occluded, 0 reached the light (`shadow_rays`).
     pub occluded: wgpu::Buffer,
-    /// `array<u32>`, one per light: the index of the light's first ray in `rays`
+    /// `array<u32>`, one per slot: the index of the slot's first ray in `rays`
     /// (`compaction`, in banded frames only).
     pub light_starts: wgpu::Buffer,
-    /// `array<u32>`, `pixels * lights`, index `pixel * lights + light`: the `SHADOW_*` codes
+    /// `array<u32>`, `pixels * slots`, index `pixel * slots + slot`: the `SHADOW_*` codes
     /// of [`hyrt_core::frame`] (u32 here; u8 on the CPU, converted on readback).
     pub shadow: wgpu::Buffer,
     /// `array<vec4<f32>>`, one per pixel: `rt_shading`, `raster_shading`, `composition`.
@@ -261,10 +361,10 @@ pub struct BounceBuffers {
     pub shadow_ray_count: wgpu::Buffer,
     /// `array<u32>`, `room.shadow_rays` (`shadow_rays`).
     pub occluded: wgpu::Buffer,
-    /// `array<u32>`, one per light: where each light's rays start in `shadow_rays`
+    /// `array<u32>`, one per slot: where each slot's rays start in `shadow_rays`
     /// (`compaction`, in banded frames only).
     pub light_starts: wgpu::Buffer,
-    /// `array<u32>`, `room.rays * lights` `SHADOW_*` codes (`shadow_rays`).
+    /// `array<u32>`, `room.rays * slots` `SHADOW_*` codes (`shadow_rays`).
     pub shadow: wgpu::Buffer,
     /// `array<vec4<f32>>`, `room.rays` (`bounce_shading`).
     pub radiance: wgpu::Buffer,
@@ -361,8 +461,9 @@ fn uniform(ctx: &GpuContext, label: &str, size: u64) -> wgpu::Buffer {
 }
 
 impl FrameBuffers {
-    /// Every buffer of a `width` x `height` frame of one band with `light_count` lights,
-    /// with room for a ray per (pixel, light): what the stage tests bind.
+    /// Every buffer of a `width` x `height` frame of one band with `light_count` lights
+    /// (one mask slot each: no area light, no occlusion), with room for a ray per (pixel,
+    /// light): what the stage tests bind.
     pub fn new(ctx: &GpuContext, width: u32, height: u32, light_count: u32) -> Result<FrameBuffers, GpuError> {
         let everything = FramePlan::from_counts(hyrt_core::plan::SceneNeeds::every_primary_stage(light_count.max(1)));
         let pairs = width as usize * height as usize * light_count as usize;
@@ -372,19 +473,20 @@ impl FrameBuffers {
     }
 
     /// Allocate the buffers `plan` produces for bands of `width` x `rows` pixels with
-    /// `light_count` lights and the lists' `room` (the primary shadow rays', and one
-    /// entry per bounce depth of the plan). The band is the first `rows` rows until
-    /// [`FrameBuffers::set_band`].
+    /// `slots` shadow-mask slots per surface ([`FramePlan::lights`]) and the lists' `room`
+    /// (the primary shadow rays', and one entry per bounce depth of the plan). The band is
+    /// the first `rows` rows until [`FrameBuffers::set_band`]; the slots are one per light
+    /// until [`FrameBuffers::set_slots`].
     pub fn for_plan(
         ctx: &GpuContext,
         width: u32,
         rows: u32,
-        light_count: u32,
+        slots: u32,
         plan: &FramePlan,
         room: &Room,
     ) -> Result<FrameBuffers, GpuError> {
         let pixels = width as usize * rows as usize;
-        let pairs = pixels * light_count as usize;
+        let pairs = pixels * slots as usize;
         let uniform = |label: &str, size: u64| uniform(ctx, label, size);
         // One element of the largest record a shader binds (`RayRecord`, 64 bytes).
         let empty = storage::<RayRecord>(ctx, "empty (a skipped stage's buffer)", 1)?;
@@ -411,8 +513,8 @@ impl FrameBuffers {
                 shadow_rays: storage::<RayRecord>(ctx, &label("shadow_rays"), shadow_rays)?,
                 shadow_ray_count: words4(ctx, &label("shadow_ray_count")),
                 occluded: storage::<u32>(ctx, &label("occluded"), shadow_rays)?,
-                light_starts: storage::<u32>(ctx, &label("light_starts"), light_count as usize)?,
-                shadow: storage::<u32>(ctx, &label("shadow"), rays * light_count.max(1) as usize)?,
+                light_starts: storage::<u32>(ctx, &label("light_starts"), slots as usize)?,
+                shadow: storage::<u32>(ctx, &label("shadow"), rays * slots.max(1) as usize)?,
                 radiance: storage::<[f32; 4]>(ctx, &label("radiance"), rays)?,
                 counters: words4(ctx, &label("counters")),
             });
@@ -430,13 +532,15 @@ impl FrameBuffers {
             rows,
             band: Band { first_row: 0, rows },
             banded: false,
-            light_count,
+            slots,
+            stochastic: false,
             ray_capacity,
             bounces,
             pixel_count: words4(ctx, "pixel count"),
             list: uniform("list params", std::mem::size_of::<ListParams>() as u64),
             camera: uniform("camera", std::mem::size_of::<CameraRecord>() as u64),
             params: uniform("frame params", std::mem::size_of::<FrameParams>() as u64),
+            slot_params: uniform("slot params", std::mem::size_of::<SlotParams>() as u64),
             gbuffer: alloc(FrameBuffer::GBuffer, &|| storage::<GBufferTexel>(ctx, "gbuffer", pixels))?,
             surfaces: alloc(FrameBuffer::Surfaces, &|| storage::<SurfaceRecord>(ctx, "surfaces", pixels))?,
             rays: alloc(FrameBuffer::Rays, &|| storage::<RayRecord>(ctx, "rays", ray_capacity as usize))?,
@@ -447,7 +551,7 @@ impl FrameBuffers {
                 mapped_at_creation: false,
             }),
             occluded: alloc(FrameBuffer::Occluded, &|| storage::<u32>(ctx, "occluded", ray_capacity as usize))?,
-            light_starts: storage::<u32>(ctx, "light_starts", light_count as usize)?,
+            light_starts: storage::<u32>(ctx, "light_starts", slots as usize)?,
             shadow: alloc(FrameBuffer::Shadow, &|| storage::<u32>(ctx, "shadow", pairs))?,
             rt: alloc(FrameBuffer::Rt, &|| storage::<[f32; 4]>(ctx, "rt image", pixels))?,
             raster: alloc(FrameBuffer::Raster, &|| storage::<[f32; 4]>(ctx, "raster image", pixels))?,
@@ -459,10 +563,10 @@ impl FrameBuffers {
         Ok(frame)
     }
 
-    /// True if these buffers fit bands of `width` x `rows` pixels with this light count
-    /// under `plan` with lists that need `room`.
-    pub fn fits(&self, width: u32, rows: u32, light_count: u32, plan: &FramePlan, room: &Room) -> bool {
-        (self.width, self.rows, self.light_count) == (width, rows, light_count)
+    /// True if these buffers fit bands of `width` x `rows` pixels with `slots` mask slots
+    /// per surface under `plan` with lists that need `room`.
+    pub fn fits(&self, width: u32, rows: u32, slots: u32, plan: &FramePlan, room: &Room) -> bool {
+        (self.width, self.rows, self.slots) == (width, rows, slots)
             && self.allocated.iter().copied().eq(plan.buffers())
             && (!plan.produces(FrameBuffer::Rays) || room.shadow_rays <= self.ray_capacity)
             && self.bounces.len() == room.bounces.len()
@@ -502,6 +606,7 @@ impl FrameBuffers {
             FrameBuffer::Rays => &self.rays,
             FrameBuffer::Occluded => &self.occluded,
             FrameBuffer::Shadow => &self.shadow,
+            FrameBuffer::Visibility => unreachable!("denoised frames are refused (check_denoiser)"),
             FrameBuffer::Rt => &self.rt,
             FrameBuffer::Raster => &self.raster,
             FrameBuffer::Final => &self.final_image,
@@ -527,9 +632,20 @@ impl FrameBuffers {
         ctx.queue.write_buffer(&self.pixel_count, 0, bytemuck::bytes_of(&[pixels, 0, 0, 0]));
     }
 
-    /// Write what the lists' room fixes: the primary surfaces' live count (all `rows`)
-    /// and every list's [`ListParams`] (once, when the buffers are made).
+    /// The frame's mask slots next ([`SlotParams`], whose `slots` must be these buffers'),
+    /// and whether it traces stochastic rays (`stochastic`: the pipelines specialized for
+    /// slots run).
+    pub fn set_slots(&mut self, ctx: &GpuContext, slots: &SlotParams, stochastic: bool) {
+        debug_assert_eq!(slots.slots, self.slots, "{slots:?} in buffers of {} slots", self.slots);
+        self.stochastic = stochastic;
+        ctx.queue.write_buffer(&self.slot_params, 0, bytemuck::bytes_of(slots));
+    }
+
+    /// Write what the lists' room fixes: the primary surfaces' live count (all `rows`),
+    /// every list's [`ListParams`] (once, when the buffers are made) and one mask slot
+    /// per light ([`SlotParams::per_light`], until [`FrameBuffers::set_slots`]).
     fn write_lists(&self, ctx: &GpuContext) {
+        ctx.queue.write_buffer(&self.slot_params, 0, bytemuck::bytes_of(&SlotParams::per_light(self.slots)));
         let pixels = self.width * self.rows;
         ctx.queue.write_buffer(&self.pixel_count, 0, bytemuck::bytes_of(&[pixels, 0, 0, 0]));
         let primary = ListParams { slots: pixels, parents: 0, depth: 0, last: 0 };

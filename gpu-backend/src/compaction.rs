@@ -1,23 +1,40 @@
-//! Stage `compaction` on the GPU: active (pixel, light) pairs -> the shadow-ray
-//! list, light-major then pixel order, bit for bit the list of
-//! `hyrt_cpu::compaction::compaction`; per pair the kernels of
+//! Stage `compaction` on the GPU: active (pixel, slot) pairs -> the shadow-ray
+//! list, slot-major then pixel order, bit for bit the list of
+//! `hyrt_cpu::compaction::compaction_slots_into`; per pair the kernels of
 //! [`hyrt_core::kernels::shadow`], with the shading stages' light evaluation
-//! (`shaders/shading_helpers.wgsl`).
+//! (`shaders/shading_helpers.wgsl`), and in a frame with area lights or ambient occlusion
+//! those of [`hyrt_core::kernels::soft_shadow`] (`needs_slot_ray`, `slot_ray` in
+//! `shaders/compaction.wgsl`, over the samplers of `shaders/soft_shadow.wgsl`).
+//!
+//! # Slots
+//!
+//! A surface has one shadow-mask slot per point, spot or directional light: a pair is a
+//! (pixel, light), as in the paper. With area lights and ambient occlusion it has
+//! `samples` slots per area light, then one per occlusion ray
+//! ([`hyrt_core::kernels::soft_shadow::slot_table`]); a ray's `light` field is its slot.
+//! The slot table is not uploaded: the shader walks the frame's lights (each area light's
+//! `samples`) to the slot's light, and the uniform [`crate::buffers::SlotParams`] says how
+//! many slots the lights take. Frames of point, spot and directional lights without
+//! occlusion run the stage compiled without the walk and the samplers (the pipeline
+//! constant `STOCHASTIC` false: [`crate::texture::Specialization::stochastic`]); the
+//! others, a second compilation built the first time a frame needs it.
 //!
 //! Reads `frame.surfaces` (or, at bounce depth `d`, the surfaces the rays of depth `d`
-//! hit, as many as that list's count), `scene.lights`, `frame.params`. Writes
+//! hit, as many as that list's count), `scene.lights` and `scene.ambient_light` (the
+//! frame's: [`crate::buffers::SceneBuffers::set_lighting`]), `frame.params`,
+//! `frame.slot_params`. Writes
 //! `frame.rays` and `frame.ray_count` (`[count, dispatch_x, dispatch_y, 1]`:
 //! indirect-dispatch arguments for one thread per ray in workgroups of
 //! [`SHADOW_RAYS_WORKGROUP_SIZE`](crate::shadow_rays::SHADOW_RAYS_WORKGROUP_SIZE),
 //! `dispatch_x <= 65535`), or the bounce's shadow rays and their count. Scratch (flags
 //! and scan levels) is owned by the stage and kept per list size. In a frame rendered in
-//! bands ([`crate::band`]) it also writes where each light's rays start in the list
-//! (`light_starts`, `shaders/light_starts.wgsl`: one binary search per light), so that
-//! the bands' lists merge into the frame's light-major order.
+//! bands ([`crate::band`]) it also writes where each slot's rays start in the list
+//! (`light_starts`, `shaders/light_starts.wgsl`: one binary search per slot), so that
+//! the bands' lists merge into the frame's slot-major order.
 //!
 //! # Scan
 //!
-//! The flags are indexed `k = light * slots + surface` (`slots`: the pixels, or the
+//! The flags are indexed `k = slot * room + surface` (`room`: the pixels, or the
 //! bounce's ray room; surfaces past the live count have none) and compacted by the
 //! shared deterministic reduce-then-scan of [`crate::scan`].
 //!
@@ -32,29 +49,63 @@
 //! The flags use `light_incidence`'s square root and divisions (exact: `sqrt_rn`,
 //! `div_rn`) and two dot products (each product unfused): a flag can differ only where
 //! `radiance / d^2` is subnormal and the device flushes it (its float probe says so).
-//! On lavapipe and the NVIDIA H200 the conformance corpus finds no difference.
+//! The sample streams are integer arithmetic and the samples' warps correctly rounded
+//! operations in the core's order (`shaders/sampling.wgsl`, `shaders/area_light.wgsl`,
+//! `shaders/occlusion.wgsl`), so an area light's or an occlusion ray's flag and record
+//! are the CPU's on the same terms. On lavapipe the conformance corpus finds no
+//! difference.
+
+use std::sync::OnceLock;
 
 use crate::buffers::{FrameBuffers, ListBuffers, SceneBuffers};
 use crate::scan::{pipeline, scan_wgsl, ListScan, Scratch};
 use crate::shader::{
-    bind_buffers, main_pipeline, preamble, ray_wgsl, shader_module, shading_helpers, storage_entry, uniform_entry,
+    bind_buffers, main_pipeline, preamble, ray_wgsl, shader_module, shading_helpers, soft_shadow_wgsl, storage_entry,
+    uniform_entry,
 };
+use crate::texture::Specialization;
 
 /// Threads per workgroup of `shaders/light_starts.wgsl` (one per light).
 const LIGHT_STARTS_GROUP: u32 = 64;
 use crate::{GpuContext, GpuError};
 
 /// The compaction WGSL: the generated records and format constants, `ray.wgsl`, the
-/// shading helpers (the light evaluation the shading stages use), `compaction.wgsl`,
-/// then the scan.
-fn compaction_wgsl() -> String {
-    preamble() + &ray_wgsl() + &shading_helpers() + include_str!("shaders/compaction.wgsl") + &scan_wgsl()
+/// shading helpers (the light evaluation the shading stages use), the soft-shadow kernels
+/// (area-light samples, occlusion directions), `compaction.wgsl`, then the scan.
+pub fn compaction_wgsl() -> String {
+    preamble()
+        + &ray_wgsl()
+        + &shading_helpers()
+        + &soft_shadow_wgsl()
+        + include_str!("shaders/compaction.wgsl")
+        + &scan_wgsl()
 }
 
-/// The `compaction` stage: the shared scan over the stage's flags, and the test entry
-/// point that scatters the indices of given flags.
+/// The bindings of the stage's group 1 (`shaders/compaction.wgsl`), but for the test
+/// entry point's.
+fn list_entries() -> [wgpu::BindGroupLayoutEntry; 8] {
+    [
+        uniform_entry(0),        // params
+        storage_entry(1, true),  // surfaces
+        storage_entry(2, true),  // lights
+        storage_entry(3, false), // rays
+        uniform_entry(4),        // list
+        storage_entry(5, true),  // live
+        uniform_entry(6),        // ambient light (its occlusion rays)
+        uniform_entry(7),        // slot params
+    ]
+}
+
+/// The `compaction` stage: the shared scan over the stage's flags (compiled for frames of
+/// one slot per light, and for frames with stochastic rays the first time one comes), and
+/// the test entry point that scatters the indices of given flags.
 pub struct CompactionStage {
     scan: ListScan,
+    /// The scan compiled with `STOCHASTIC` (module docs), built the first time a frame
+    /// traces stochastic rays.
+    stochastic: OnceLock<ListScan>,
+    /// The stage's module, which both scans compile.
+    module: wgpu::ShaderModule,
     /// Banded frames: where each light's rays start in the list (`shaders/light_starts.wgsl`).
     light_starts: (wgpu::ComputePipeline, wgpu::BindGroupLayout),
     scatter_indices: wgpu::ComputePipeline,
@@ -66,23 +117,11 @@ impl CompactionStage {
     pub fn new(ctx: &GpuContext) -> Self {
         let device = &ctx.device;
         let module = shader_module(ctx, "compaction", &compaction_wgsl());
-        let scan = ListScan::new(
-            ctx,
-            "compaction",
-            &module,
-            &[
-                uniform_entry(0),        // params
-                storage_entry(1, true),  // surfaces
-                storage_entry(2, true),  // lights
-                storage_entry(3, false), // rays
-                uniform_entry(4),        // list
-                storage_entry(5, true),  // live
-            ],
-            &[],
-        );
+        let plain = Specialization::PLAIN.stochastic_constant();
+        let scan = ListScan::new(ctx, "compaction", &module, &list_entries(), &[plain]);
         let test_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("compaction scan test"),
-            entries: &[storage_entry(6, false)],
+            entries: &[storage_entry(8, false)],
         });
         let with_test = [Some(&scan.scan_layout), Some(&test_layout)];
         let starts_module =
@@ -96,11 +135,21 @@ impl CompactionStage {
                 main_pipeline(ctx, "compaction light starts", &starts_module, &starts_layout, &[]),
                 starts_layout,
             ),
-            scatter_indices: pipeline(device, &module, "scatter_indices", &with_test, &[]),
-            reduce_for_test: pipeline(device, &module, "reduce", &with_test, &[]),
+            scatter_indices: pipeline(device, &module, "scatter_indices", &with_test, &[plain]),
+            reduce_for_test: pipeline(device, &module, "reduce", &with_test, &[plain]),
             scan,
+            stochastic: OnceLock::new(),
+            module,
             test_layout,
         }
+    }
+
+    /// The scan of frames with stochastic rays, compiled now if no frame needed it before.
+    fn stochastic_scan(&self, ctx: &GpuContext) -> &ListScan {
+        self.stochastic.get_or_init(|| {
+            let constant = Specialization { stochastic: true, ..Specialization::PLAIN }.stochastic_constant();
+            ListScan::new(ctx, "compaction (stochastic)", &self.module, &list_entries(), &[constant])
+        })
     }
 
     /// Flag, scan and scatter the shadow rays of the primary hits: `frame.rays` and
@@ -117,7 +166,8 @@ impl CompactionStage {
     }
 
     /// The stage over one list's surfaces: its shadow rays and their count (and in a
-    /// banded frame where each light's rays start, [`crate::band`]).
+    /// banded frame where each slot's rays start, [`crate::band`]). The frame's slots are
+    /// `frame.slots` ([`FrameBuffers::set_slots`]).
     pub fn encode_list(
         &self,
         ctx: &GpuContext,
@@ -127,10 +177,20 @@ impl CompactionStage {
         list: &ListBuffers,
         timing: Option<(&wgpu::QuerySet, u32)>,
     ) {
-        let n = list.slots * frame.light_count;
-        let buffers = [&frame.params, list.surfaces, &scene.lights, list.shadow_rays, list.params, list.live];
-        self.scan.encode(ctx, encoder, "compaction", n, &buffers, list.shadow_ray_count, timing);
-        if frame.banded && frame.light_count > 0 {
+        let n = list.slots * frame.slots;
+        let buffers = [
+            &frame.params,
+            list.surfaces,
+            &scene.lights,
+            list.shadow_rays,
+            list.params,
+            list.live,
+            &scene.ambient_light,
+            &frame.slot_params,
+        ];
+        let scan = if frame.stochastic { self.stochastic_scan(ctx) } else { &self.scan };
+        scan.encode(ctx, encoder, "compaction", n, &buffers, list.shadow_ray_count, timing);
+        if frame.banded && frame.slots > 0 {
             let (pipeline, layout) = &self.light_starts;
             let group = bind_buffers(
                 ctx,
@@ -144,7 +204,7 @@ impl CompactionStage {
             });
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &group, &[]);
-            pass.dispatch_workgroups(frame.light_count.div_ceil(LIGHT_STARTS_GROUP), 1, 1);
+            pass.dispatch_workgroups(frame.slots.div_ceil(LIGHT_STARTS_GROUP), 1, 1);
         }
     }
 
@@ -167,7 +227,7 @@ impl CompactionStage {
         let test_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("compaction scan test"),
             layout: &self.test_layout,
-            entries: &[wgpu::BindGroupEntry { binding: 6, resource: out_indices.as_entire_binding() }],
+            entries: &[wgpu::BindGroupEntry { binding: 8, resource: out_indices.as_entire_binding() }],
         });
         self.scan.encode_passes(
             encoder,

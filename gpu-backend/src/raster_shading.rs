@@ -11,8 +11,10 @@
 //!
 //! Reads `frame.surfaces`, `frame.shadow`, `scene.objects`, `scene.lights`,
 //! `frame.params` (width, height, light count, weight, cone spread), `frame.camera` (the
-//! eye), `scene.ambient_light` (and under an image-based light `scene.ambient_texels`);
-//! where materials vary also `frame.gbuffer` and `scene.surface`.
+//! eye), `frame.slot_params` (the mask's slots), `scene.ambient_light` (and under an
+//! image-based light `scene.ambient_texels`); where materials vary also `frame.gbuffer`
+//! and `scene.surface`. Area lights and ambient occlusion as in `rt_shading`
+//! ([`crate::rt_shading`]).
 //! Writes `frame.raster`: linear RGBA; `BACKGROUND` with alpha 1 on pixels without
 //! a hit, (0, 0, 0, 0) on ray-traced pixels when the weight is 1, alpha 1 where shaded.
 
@@ -59,6 +61,7 @@ impl RasterShadingStage {
                 uniform_entry(9),        // surface layout
                 uniform_entry(10),       // ambient light
                 storage_entry(11, true), // ambient light texels
+                uniform_entry(12),       // slot params
             ],
             &s.shading_constants(),
         );
@@ -93,6 +96,7 @@ impl RasterShadingStage {
                 &scene.surface.layout,
                 &scene.ambient_light,
                 &scene.ambient_texels,
+                &frame.slot_params,
             ],
         );
         encode_pixel_pass(encoder, "raster_shading", &self.pipeline, &bind_group, frame.width, frame.band.rows, timing);

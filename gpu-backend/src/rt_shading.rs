@@ -11,8 +11,13 @@
 //!
 //! Reads `frame.surfaces`, `frame.shadow`, `scene.objects`, `scene.lights`,
 //! `frame.camera` (the eye), `frame.params` (width, height, light count, cone spread),
-//! `scene.ambient_light` (and under an image-based light `scene.ambient_texels`); where
-//! materials vary also `frame.gbuffer` and `scene.surface`.
+//! `frame.slot_params` (the mask's slots), `scene.ambient_light` (and under an
+//! image-based light `scene.ambient_texels`); where materials vary also `frame.gbuffer`
+//! and `scene.surface`. With area lights and ambient occlusion (pipelines specialized
+//! with `STOCHASTIC`, [`Specialization::stochastic`]) each area light adds the mean of
+//! its visible samples and the occlusion rays scale the ambient term
+//! ([`hyrt_core::kernels::shading::sum_visible_lights`],
+//! [`hyrt_core::kernels::soft_shadow::occluded_object`]).
 //! Writes `frame.rt`: linear RGBA, alpha 1 on ray-traced pixels, (0, 0, 0, 0) elsewhere.
 //!
 //! Also home of the helpers the three shading stages share (WGSL assembly,
@@ -26,7 +31,7 @@ use crate::texture::Specialization;
 use crate::GpuContext;
 
 /// The bindings of `shaders/rt_shading.wgsl`.
-fn rt_entries() -> [wgpu::BindGroupLayoutEntry; 12] {
+fn rt_entries() -> [wgpu::BindGroupLayoutEntry; 13] {
     [
         storage_entry(0, true),  // surfaces
         storage_entry(1, true),  // shadow
@@ -40,11 +45,12 @@ fn rt_entries() -> [wgpu::BindGroupLayoutEntry; 12] {
         uniform_entry(9),        // surface layout
         uniform_entry(10),       // ambient light
         storage_entry(11, true), // ambient light texels
+        uniform_entry(12),       // slot params
     ]
 }
 
 /// The buffers of [`rt_entries`], in binding order.
-fn rt_buffers<'a>(scene: &'a SceneBuffers, frame: &'a FrameBuffers) -> [&'a wgpu::Buffer; 12] {
+fn rt_buffers<'a>(scene: &'a SceneBuffers, frame: &'a FrameBuffers) -> [&'a wgpu::Buffer; 13] {
     [
         &frame.surfaces,
         &frame.shadow,
@@ -58,6 +64,7 @@ fn rt_buffers<'a>(scene: &'a SceneBuffers, frame: &'a FrameBuffers) -> [&'a wgpu
         &scene.surface.layout,
         &scene.ambient_light,
         &scene.ambient_texels,
+        &frame.slot_params,
     ]
 }
 
@@ -127,9 +134,9 @@ impl RtShadingBouncingStage {
             &[
                 rt_entries().as_slice(),
                 &[
-                    storage_entry(12, true), // triangles
-                    storage_entry(13, true), // links of depth 1
-                    storage_entry(14, true), // radiance of depth 1
+                    storage_entry(13, true), // triangles
+                    storage_entry(14, true), // links of depth 1
+                    storage_entry(15, true), // radiance of depth 1
                 ],
             ]
             .concat(),

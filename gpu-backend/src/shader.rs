@@ -5,18 +5,24 @@
 
 use hyrt_core::bvh::{BVH_CULL_SLACK, BVH_STACK_SIZE};
 use hyrt_core::formats::wgsl::declarations;
+use hyrt_core::kernels::area_light::MIN_AREA_LIGHT_DISTANCE_SQ;
 use hyrt_core::kernels::bounce::{IOR_OUTSIDE, MIN_THROUGHPUT, SKY_GROUND, SKY_HORIZON, SKY_ZENITH};
 use hyrt_core::kernels::environment::{ATAN_SERIES, INV_TWO_PI, TAN_PI_8};
 use hyrt_core::kernels::exact::DEFAULT_NAN;
 use hyrt_core::kernels::ibl::{
     prefiltered_offset, AMBIENT_TEXELS_SPLIT_SUM, PREFILTER_BASE, PREFILTER_LEVELS, SH9_TERMS, SPLIT_SUM_SIZE,
 };
+use hyrt_core::kernels::occlusion::AO_STREAM;
 use hyrt_core::kernels::ray::{gamma, OFFSET_ERROR_SCALE, SLAB_FAR_SCALE, VELTKAMP_SPLIT};
+use hyrt_core::kernels::sampling::{COS_SERIES, SIN_SERIES};
 use hyrt_core::kernels::shading::{
     AMBIENT, BACKGROUND, DIELECTRIC_F0, ENVIRONMENT_SPECULAR, EXP_SERIES, GGX_MIN_ALPHA, LOG2_SERIES,
     MIN_LIGHT_DISTANCE_SQ, POW_FLUSH_EXPONENT, TWO_OVER_LN_2,
 };
 use hyrt_core::kernels::shadow::SHADOW_T_MAX_POINT;
+
+use crate::buffers::SlotParams;
+use hyrt_core::formats::{LIGHT_QUAD, LIGHT_SPHERE, LIGHT_SUN};
 
 use crate::wgsl::f32_literal;
 use crate::GpuContext;
@@ -128,18 +134,20 @@ pub fn shading_source(stage: &str) -> String {
 
 /// [`shading_source`] with the texture kernels and the shaded object records
 /// ([`crate::texture::texture_wgsl`], [`crate::texture::materials_wgsl`]), the ambient
-/// light ([`lat_long_wgsl`], [`ambient_light_wgsl`]) and the per-surface shaders over a
+/// light ([`lat_long_wgsl`], [`ambient_light_wgsl`]), the soft-shadow kernels
+/// ([`soft_shadow_wgsl`]: area-light samples) and the per-surface shaders over a
 /// `shadow` binding (`shaders/surface_shading.wgsl`: `ambient`, `unlit` and the shaders
-/// that start from them) before the stage's source: for the stages that bind `shadow`,
-/// `lights`, `objects`, the surface tables and the ambient light (`rt_shading`,
-/// `raster_shading`, `bounce_shading`).
+/// that start from them, reading the mask's slots) before the stage's source: for the
+/// stages that bind `shadow`, `slot_params`, `lights`, `objects`, the surface tables and
+/// the ambient light (`rt_shading`, `raster_shading`, `bounce_shading`).
 pub fn surface_shading_source(stage: &str) -> String {
     shading_source(&format!(
-        "{}\n{}\n{}\n{}\n{}\n{stage}",
+        "{}\n{}\n{}\n{}\n{}\n{}\n{stage}",
         crate::texture::texture_wgsl(),
         crate::texture::materials_wgsl(),
         lat_long_wgsl(),
         ambient_light_wgsl(),
+        soft_shadow_wgsl(),
         include_str!("shaders/surface_shading.wgsl")
     ))
 }
@@ -222,6 +230,70 @@ pub fn ambient_light_wgsl() -> String {
     let offsets: Vec<String> = (0..=PREFILTER_LEVELS).map(|k| format!("{}u", prefiltered_offset(k))).collect();
     s += &format!("const PREFILTERED_OFFSET = array<u32, {}>({});\n", offsets.len(), offsets.join(", "));
     s + include_str!("shaders/ambient_light.wgsl")
+}
+
+// `sampling.wgsl`'s `sin_cos_quarter` runs six Horner terms of each series.
+const _: () = assert!(SIN_SERIES.len() == 6 && COS_SERIES.len() == 6);
+
+/// The constants of `shaders/sampling.wgsl` (the mirrors of
+/// [`hyrt_core::kernels::sampling`]: the sample sequence and its warps) from their Rust
+/// values, then the file: in a stage that begins with [`preamble`] and defines
+/// `rounded` and `mul` (the shading helpers, or the ray stages' `EXACT_PRODUCTS`), before
+/// [`area_light_wgsl`] and [`occlusion_wgsl`].
+pub fn sampling_wgsl() -> String {
+    let array = |name: &str, xs: &[f32]| {
+        let items: Vec<String> = xs.iter().map(|&x| f32_literal(x)).collect();
+        format!("const {name} = array<f32, {}>({});\n", xs.len(), items.join(", "))
+    };
+    let mut s = String::from("// Generated from hyrt_core::kernels::sampling (gpu-backend/src/shader.rs).\n");
+    s += &array("SIN_SERIES", &SIN_SERIES);
+    s += &array("COS_SERIES", &COS_SERIES);
+    s += &format!("const FRAC_PI_4: f32 = {};\n", f32_literal(std::f32::consts::FRAC_PI_4));
+    s + include_str!("shaders/sampling.wgsl")
+}
+
+/// The constants of `shaders/area_light.wgsl` (the mirrors of
+/// [`hyrt_core::kernels::area_light`]'s samplers) from their Rust values, then the file:
+/// after [`sampling_wgsl`], in a stage that binds `params: FrameParams`.
+pub fn area_light_wgsl() -> String {
+    let mut s = String::from("// Generated from hyrt_core::kernels::area_light (gpu-backend/src/shader.rs).\n");
+    s += &format!("const MIN_AREA_LIGHT_DISTANCE_SQ: f32 = {};\n", f32_literal(MIN_AREA_LIGHT_DISTANCE_SQ));
+    s += &format!("const TAU: f32 = {};\n", f32_literal(std::f32::consts::TAU));
+    s + include_str!("shaders/area_light.wgsl")
+}
+
+/// The constant of `shaders/occlusion.wgsl` (the mirrors of
+/// [`hyrt_core::kernels::occlusion`]) from its Rust value, then the file: after
+/// [`sampling_wgsl`].
+pub fn occlusion_wgsl() -> String {
+    format!(
+        "// Generated from hyrt_core::kernels::occlusion (gpu-backend/src/shader.rs).\nconst AO_STREAM: u32 = {AO_STREAM:#010x}u;\n{}",
+        include_str!("shaders/occlusion.wgsl")
+    )
+}
+
+/// The soft-shadow kernels (`shaders/soft_shadow.wgsl`, mirrors of
+/// [`hyrt_core::kernels::soft_shadow`]: the sample streams and the samples a mask slot
+/// stands for) after what they build on: [`sampling_wgsl`], [`area_light_wgsl`],
+/// [`occlusion_wgsl`], the area lights' kinds (from their Rust values: the generated
+/// declarations name the other lights' only) and the [`SlotParams`] declaration. For the
+/// stages that make or read stochastic rays (`compaction`, the shading stages), once;
+/// after [`preamble`] and the shading helpers, in a stage that binds `params`, `lights`
+/// and `ambient_light` (and `slot_params` where it reads the mask).
+pub fn soft_shadow_wgsl() -> String {
+    let mut s = format!("{}\n{}\n{}\n", sampling_wgsl(), area_light_wgsl(), occlusion_wgsl());
+    s += "// Generated from hyrt_core::formats (gpu-backend/src/shader.rs).\n";
+    for (name, kind) in [("LIGHT_QUAD", LIGHT_QUAD), ("LIGHT_SPHERE", LIGHT_SPHERE), ("LIGHT_SUN", LIGHT_SUN)] {
+        s += &format!("const {name}: u32 = {kind}u;\n");
+    }
+    s + &slot_params_wgsl() + include_str!("shaders/soft_shadow.wgsl")
+}
+
+/// The WGSL declaration of [`SlotParams`], the uniform of a frame's mask slots: for a stage
+/// that reads the mask without [`soft_shadow_wgsl`] (`shadow_rays`).
+pub fn slot_params_wgsl() -> String {
+    use hyrt_core::formats::wgsl::WgslStruct;
+    SlotParams::declaration().replace("// hyrt_core: SlotParams", "// hyrt_gpu::buffers::SlotParams")
 }
 
 /// The surface kernels (`shaders/surface.wgsl`) after `ONE_PLUS_GAMMA_3`; they also
@@ -496,4 +568,51 @@ pub(crate) fn encode_list_pass(
     pass.set_pipeline(pipeline);
     pass.set_bind_group(0, bind_group, &[]);
     pass.dispatch_workgroups_indirect(count, 4);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The sample sequence, area-light and occlusion mirrors parse, validate and use only
+    /// exact operations in both kinds of stage they are written for: after the shading
+    /// helpers (the shading stages) and after the ray stages' `EXACT_PRODUCTS`.
+    #[test]
+    fn sampling_modules_fit_shading_and_ray_stages() {
+        let modules = format!("{}\n{}\n{}", sampling_wgsl(), area_light_wgsl(), occlusion_wgsl());
+        let params = "@group(0) @binding(0) var<uniform> params: FrameParams;\n";
+        let shading = shading_source(&format!("{params}{modules}"));
+        let ray = format!("{}{}{params}{EXACT_PRODUCTS}\n{modules}", preamble(), ray_wgsl());
+        for (kind, source) in [("shading", shading), ("ray", ray)] {
+            assert_eq!(inexact_operations(&source), Ok(Vec::new()), "in a {kind} stage");
+        }
+    }
+
+    /// The stages that make or read stochastic rays parse, validate and use only exact
+    /// operations with the soft-shadow kernels in (`shader_module` checks this in debug
+    /// builds alone; this runs in every build).
+    #[test]
+    fn soft_shadow_stages_use_only_exact_operations() {
+        let surface_stage = |bindings: &str| {
+            surface_shading_source(&format!("{bindings}\n{}", include_str!("shaders/primary_object.wgsl")))
+        };
+        let sources = [
+            ("compaction", crate::compaction::compaction_wgsl()),
+            ("raster_shading", surface_stage(include_str!("shaders/raster_shading.wgsl"))),
+            (
+                "rt_shading",
+                surface_stage(&format!(
+                    "{}\nfn rt_pixel(pixel: u32, s: SurfaceRecord) -> vec3<f32> {{ return shade_rt_pixel(pixel, s, primary_object(pixel, s), camera.eye); }}",
+                    include_str!("shaders/rt_shading.wgsl")
+                )),
+            ),
+            (
+                "bounce_shading",
+                radiance_source(&format!("{}\n{}", environment_wgsl(), include_str!("shaders/bounce_shading.wgsl"))),
+            ),
+        ];
+        for (stage, source) in sources {
+            assert_eq!(inexact_operations(&source), Ok(Vec::new()), "{stage}");
+        }
+    }
 }

@@ -6,12 +6,15 @@
 //!
 //! Reads `frame.rays`, `frame.ray_count` (indirect dispatch: one thread per ray,
 //! [`SHADOW_RAYS_WORKGROUP_SIZE`] per workgroup, threads past the count exit),
-//! `frame.params` (light count), `scene.bvh_nodes`, `scene.bvh_leaf_triangles`,
+//! `frame.params`, `frame.slot_params` (the mask's slots per surface), `scene.bvh_nodes`,
+//! `scene.bvh_leaf_triangles`,
 //! `scene.surface` (the alpha test's tables, and each object's first triangle: a leaf
 //! triangle's global index without a 9th storage buffer for the BVH's `prim_indices`).
 //! Writes `frame.occluded` (1 occluded, 0 reached the light, per ray) and
 //! `frame.shadow` (cleared to `SHADOW_NO_RAY`, then `SHADOW_LIT` or
-//! `SHADOW_OCCLUDED` at `pixel * light_count + light` for every ray).
+//! `SHADOW_OCCLUDED` at `pixel * slots + light` for every ray: `slots` the frame's mask
+//! slots per surface, `frame.slot_params`, and a ray's `light` its slot; one slot per
+//! light without area lights and ambient occlusion).
 //!
 //! The WGSL (`shaders/ray.wgsl`, `shaders/shadow_rays.wgsl`) mirrors the core ray
 //! kernels function by function and operation by operation, every product kept
@@ -21,7 +24,9 @@
 //! (`hyrt_core::kernels::ray::edge_sign_exact`).
 
 use crate::buffers::{FrameBuffers, ListBuffers, SceneBuffers};
-use crate::shader::{bind_buffers, preamble, ray_wgsl, shader_module, storage_entry, uniform_entry, EXACT_PRODUCTS};
+use crate::shader::{
+    bind_buffers, preamble, ray_wgsl, shader_module, slot_params_wgsl, storage_entry, uniform_entry, EXACT_PRODUCTS,
+};
 pub use crate::shader::{MAX_WORKGROUPS_PER_DIMENSION, SHADOW_RAYS_WORKGROUP_SIZE};
 use crate::texture::{texture_wgsl, Specialization};
 use crate::GpuContext;
@@ -49,6 +54,7 @@ impl ShadowRaysStage {
             "fn trace_occluded(ray: RayRecord) -> bool {\n    return occluded_any(ray);\n}\n"
         };
         let source = preamble()
+            + &slot_params_wgsl()
             + &ray_wgsl()
             + EXACT_PRODUCTS
             + &texture_wgsl()
@@ -67,9 +73,10 @@ impl ShadowRaysStage {
             storage_entry(8, false),
             storage_entry(9, true),
             uniform_entry(10),
+            uniform_entry(11),
         ];
         if s.two_level {
-            entries.push(storage_entry(11, true));
+            entries.push(storage_entry(12, true));
         }
         let layout = ctx.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("shadow_rays"),
@@ -126,9 +133,10 @@ impl ShadowRaysStage {
             list.counters,
             &scene.surface.words,
             &scene.surface.layout,
+            &frame.slot_params,
             &scene.instances,
         ];
-        let bound = if self.two_level { &buffers[..] } else { &buffers[..11] };
+        let bound = if self.two_level { &buffers[..] } else { &buffers[..12] };
         let bind_group = bind_buffers(ctx, "shadow_rays", &self.layout, bound);
         // SHADOW_NO_RAY is 0.
         encoder.clear_buffer(list.shadow, 0, None);

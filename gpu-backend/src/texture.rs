@@ -122,6 +122,17 @@ pub struct Specialization {
     /// it made `rt_shading` and `raster_shading` of the paper's default scene about 1.5
     /// times slower on lavapipe (640 x 360).
     pub ambient_image: bool,
+    /// `STOCHASTIC` (a constant of the shading stages and `compaction`, which include
+    /// `shaders/soft_shadow.wgsl`): the frame traces stochastic shadow rays, samples of area
+    /// lights or ambient-occlusion rays ([`hyrt_core::plan::FramePlan::stochastic`]), and a
+    /// surface's mask holds their slots ([`crate::buffers::SlotParams`]). A property of the
+    /// frame (its options ask for ambient occlusion), not only of the scene
+    /// ([`Specialization::of_scene`] leaves it false). Without it the stages are compiled
+    /// without the slot walks and the samplers, so frames of point, spot and directional
+    /// lights run the code they ran before area lights (lavapipe runs both sides of a
+    /// branch under a lane mask: merely skipped at run time, that code would cost every
+    /// frame).
+    pub stochastic: bool,
 }
 
 impl Specialization {
@@ -133,6 +144,7 @@ impl Specialization {
         two_level: false,
         normal_mapped: false,
         ambient_image: false,
+        stochastic: false,
     };
 
     /// What `tables` need (a single-level scene).
@@ -143,6 +155,7 @@ impl Specialization {
             two_level: false,
             normal_mapped: !tables.tangents.is_empty(),
             ambient_image: false,
+            stochastic: false,
         }
     }
 
@@ -161,12 +174,27 @@ impl Specialization {
         [("SURFACE_TABLES", self.surface_tables as u32 as f64), ("ALPHA_TESTED", self.alpha_tested as u32 as f64)]
     }
 
-    /// [`Specialization::constants`] and `AMBIENT_IMAGE`, for the stages that shade
-    /// surfaces (`rt_shading`, `raster_shading`, `bounce_shading`): those that include
-    /// `shaders/ambient_light.wgsl`.
-    pub fn shading_constants(self) -> [(&'static str, f64); 3] {
+    /// [`Specialization::constants`], `AMBIENT_IMAGE` and `STOCHASTIC`, for the stages
+    /// that shade surfaces (`rt_shading`, `raster_shading`, `bounce_shading`): those that
+    /// include `shaders/ambient_light.wgsl` and `shaders/soft_shadow.wgsl`.
+    pub fn shading_constants(self) -> [(&'static str, f64); 4] {
         let [tables, alpha] = self.constants();
-        [tables, alpha, ("AMBIENT_IMAGE", self.ambient_image as u32 as f64)]
+        [tables, alpha, ("AMBIENT_IMAGE", self.ambient_image as u32 as f64), self.stochastic_constant()]
+    }
+
+    /// `STOCHASTIC` alone, for `compaction` (which includes `shaders/soft_shadow.wgsl` and
+    /// reads no surface table).
+    pub fn stochastic_constant(self) -> (&'static str, f64) {
+        ("STOCHASTIC", self.stochastic as u32 as f64)
+    }
+
+    /// Whether the stages that shade no surface (the raster, the ray stages, the
+    /// normal-mapping passes) are the same for `self` and `other`: they differ at most in
+    /// the constants of the shading stages alone ([`Specialization::ambient_image`],
+    /// [`Specialization::stochastic`]).
+    pub fn same_rays(self, other: Specialization) -> bool {
+        Specialization { ambient_image: false, stochastic: false, ..self }
+            == Specialization { ambient_image: false, stochastic: false, ..other }
     }
 }
 

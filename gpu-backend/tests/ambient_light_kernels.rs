@@ -194,7 +194,8 @@ fn ambient_light_kernels_match_cpu_bit_for_bit() {
     let input_buffer = upload(&ctx, "inputs", &inputs);
     let mut failures = Vec::new();
     for (name, env) in [("sky", Environment::Sky), ("map", procedural_map())] {
-        let light = AmbientLight { scale: 1.0, image: Some(Arc::new(ImageBasedLight::of(&env))) };
+        let light =
+            AmbientLight { scale: 1.0, image: Some(Arc::new(ImageBasedLight::of(&env))), ..AmbientLight::default() };
         let ibl = light.image.as_deref().expect("an image");
         let record = ctx.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("ambient light"),

@@ -258,13 +258,14 @@ fn every_stage_uses_only_exact_operations() {
     let Some(ctx) = test_context() else { return };
     use hyrt_gpu::texture::Specialization;
     use hyrt_gpu::visibility_raster::{VisibilityMode, VisibilityRasterStage};
-    for bits in 0..32u32 {
+    for bits in 0..64u32 {
         let s = Specialization {
             surface_tables: bits & 1 != 0,
             alpha_tested: bits & 2 != 0,
             two_level: bits & 4 != 0,
             normal_mapped: bits & 8 != 0,
             ambient_image: bits & 16 != 0,
+            stochastic: bits & 32 != 0,
         };
         hyrt_gpu::bounce_shading::BounceShadingStage::specialized(&ctx, s);
         hyrt_gpu::bounce_trace::BounceTraceStage::specialized(&ctx, s);

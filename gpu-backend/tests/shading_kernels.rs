@@ -60,7 +60,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     results[o + 10u] = bitcast<u32>(blinn_phong_exponent(roughness));
     let position = mul3(l, vec3<f32>(10.0));
     let radiance = mul3(base, vec3<f32>(5.0));
-    let light = LightRecord(position, LIGHT_POINT, radiance, 0.0, vec3<f32>(0.0), 0.0, 0.0, 0u, vec2<u32>(0u));
+    let light = LightRecord(position, LIGHT_POINT, radiance, 0.0, vec3<f32>(0.0), 0.0, 0.0, 0.0, 0u, 0u, vec3<f32>(0.0), 0u, vec3<f32>(0.0), 0u);
     let inc = light_incidence(light, v);
     results[o + 11u] = bitcast<u32>(inc.l.x);
     results[o + 12u] = bitcast<u32>(inc.l.y);
@@ -70,7 +70,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     // A spot light with a range at the same place, pointing along -n: the cone from the
     // scale and offset the inputs give, the window from `u`.
     let scale = 1.0 + mul(z, 20.0);
-    let spot = LightRecord(position, LIGHT_SPOT, radiance, mul(u, 0.02), -n, scale, -mul(y, scale), 0u, vec2<u32>(0u));
+    let spot = LightRecord(position, LIGHT_SPOT, radiance, mul(u, 0.02), -n, scale, -mul(y, scale), 0.0, 0u, 0u, vec3<f32>(0.0), 0u, vec3<f32>(0.0), 0u);
     let s = light_incidence(spot, v);
     results[o + 16u] = bitcast<u32>(s.e.x);
     results[o + 17u] = bitcast<u32>(s.e.y);

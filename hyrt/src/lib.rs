@@ -48,8 +48,10 @@ pub use hyrt_core::frame::{
     Backend, BounceBuffers, BounceStats, BufferView, Executor, Frame, FrameOptions, FrameStats, PreparedScene,
     PrimaryBarycentrics, RenderError, SceneChanges, StageTime, StageWork, CHANGE_LOG_LENGTH,
 };
+pub use hyrt_core::frame::{DEFAULT_AO_RADIUS_FRACTION, DEFAULT_SHADOW_SAMPLES};
 pub use hyrt_core::geometry::WorldGeometry;
 pub use hyrt_core::kernels::bounce::{DEFAULT_MAX_DEPTH, MAX_DEPTH_LIMIT, MIN_THROUGHPUT};
+pub use hyrt_core::kernels::soft_shadow::MAX_SAMPLES;
 pub use hyrt_core::kernels::tone_map::ToneMap;
 pub use hyrt_core::plan::{BounceBuffer, Composition, FrameBuffer, FramePlan, SkipReason, Skipped, Step};
 pub use hyrt_core::scene::{

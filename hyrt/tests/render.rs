@@ -28,9 +28,14 @@ fn end_to_end_default_scene_renders() {
     assert!(s.occluded_shadow_rays > 0, "the objects cast shadows on the planes");
     // Every stage ran, the bounces too at the default max depth (bvh_build is per scene,
     // timed in the prepared scene); at max depth 0 the bounces are skipped, and say so.
-    for stage in Stage::ALL.into_iter().filter(|&s| s != Stage::BvhBuild) {
+    // (shadow_denoise runs only where area lights or ambient occlusion trace stochastic rays.)
+    for stage in Stage::ALL.into_iter().filter(|&s| s != Stage::BvhBuild && s != Stage::ShadowDenoise) {
         assert!(s.ms(stage).is_some(), "stage {stage} has no time");
     }
+    assert!(s
+        .skipped
+        .iter()
+        .any(|k| k.stage == Stage::ShadowDenoise && k.reason == hyrt::SkipReason::NothingToDenoise));
     assert_eq!(s.bounces.len(), hyrt::DEFAULT_MAX_DEPTH as usize);
     let paper = FrameOptions { max_depth: 0, ..FrameOptions::default() };
     let flat = r.render(&prepared, &scene.camera.unwrap(), 320, 180, &paper).unwrap();

@@ -18,6 +18,7 @@ pub mod plots;
 pub mod report;
 pub mod scaling;
 pub mod scenes;
+pub mod soft_shadows;
 pub mod stats;
 pub mod table2;
 pub mod traffic;
@@ -327,6 +328,7 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Report, Ben
     let peers = peers::run(options, &table2, progress)?;
     let scaling = scaling::run(options, &table2, &mut cpu, gpu.as_mut(), &mut notes, progress)?;
     let bounces = bounces::run(options, &table2, &mut cpu, gpu.as_mut(), progress)?;
+    let soft_shadows = soft_shadows::run(options, progress)?;
     // Last, so that its 871 million triangles disturb no other measurement; its peak
     // resident memory is counted from a reset (what the process held before is reported).
     let instancing = instancing::run(options, progress)?;
@@ -334,12 +336,14 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Report, Ben
     let mut sections = vec![
         table2.section(),
         bounces.section(&table2),
+        soft_shadows.section(&options.out_dir),
         peers.section(&table2),
         scaling.section.clone(),
         moving.section(),
         instancing.section(),
     ];
     let mut files = scaling.files.clone();
+    files.extend(soft_shadows.plot.clone());
     if !accuracy_scenes.is_empty() {
         let (width, height) = options.table_size;
         let threads = options.frame_threads.unwrap_or_else(rayon::current_num_threads);

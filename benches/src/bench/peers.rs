@@ -1226,10 +1226,13 @@ mod tests {
     fn frame_table_has_every_frame_stage_and_the_ratio_row() {
         let summary = |shadow: f64| FrameSummary {
             frames: 3,
-            // The paper's frame: no bounce stage ran, so the table has no column for one.
+            // The paper's frame: no bounce stage and no denoiser ran, so the table has no
+            // column for them.
             stage_ms: Stage::ALL
                 .iter()
-                .filter(|s| ![Stage::SecondaryRays, Stage::BounceTrace, Stage::BounceShading].contains(s))
+                .filter(|s| {
+                    ![Stage::SecondaryRays, Stage::BounceTrace, Stage::BounceShading, Stage::ShadowDenoise].contains(s)
+                })
                 .map(|&s| (s, if s == Stage::ShadowRays { shadow } else { 1.0 }))
                 .collect(),
             frame_ms: 6.0 + shadow,

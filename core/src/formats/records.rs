@@ -450,6 +450,18 @@ pub const LIGHT_DIRECTIONAL: u32 = 1;
 /// [`LightRecord::kind`]: spot light at `position_or_direction`, pointing along
 /// `spot_direction`: a point light times the cone factor of `spot_scale` and `spot_offset`.
 pub const LIGHT_SPOT: u32 = 2;
+/// [`LightRecord::kind`]: quad area light, the parallelogram `position_or_direction +
+/// [0, 1] edge_u + [0, 1] edge_v`, emitting `radiance` to the side of `edge_u x edge_v`;
+/// sampled by area ([`crate::kernels::area_light::sample_quad_light`]).
+pub const LIGHT_QUAD: u32 = 3;
+/// [`LightRecord::kind`]: sphere area light of centre `position_or_direction` and radius
+/// `size`, emitting `radiance`; sampled in the cone it subtends
+/// ([`crate::kernels::area_light::sample_sphere_light`]).
+pub const LIGHT_SPHERE: u32 = 4;
+/// [`LightRecord::kind`]: a sun, a directional light of finite angular size travelling along
+/// `position_or_direction` (unit), its disk's half angle having `1 - cos = size`; `radiance`
+/// is its illuminance at normal incidence ([`crate::kernels::area_light::sample_sun`]).
+pub const LIGHT_SUN: u32 = 5;
 
 /// Least `cos(inner) - cos(outer)` of a spot light's cone, from `KHR_lights_punctual`'s
 /// recommended implementation (`1 / max(0.001, cos inner - cos outer)`): keeps
@@ -460,18 +472,24 @@ pub const SPOT_MIN_COS_SPAN: f32 = 0.001;
 ///
 /// | offset | field | type | meaning |
 /// |---:|---|---|---|
-/// | 0 | `position_or_direction` | [f32; 3] | point and spot: world position; directional: unit travel direction |
-/// | 12 | `kind` | u32 | [`LIGHT_POINT`], [`LIGHT_DIRECTIONAL`] or [`LIGHT_SPOT`] |
-/// | 16 | `radiance` | [f32; 3] | colour x intensity (linear RGB; candela for point and spot lights, which divide by d², lux for directional lights) |
+/// | 0 | `position_or_direction` | [f32; 3] | point and spot: world position; directional and sun: unit travel direction; quad: a corner; sphere: the centre |
+/// | 12 | `kind` | u32 | [`LIGHT_POINT`], [`LIGHT_DIRECTIONAL`], [`LIGHT_SPOT`], [`LIGHT_QUAD`], [`LIGHT_SPHERE`] or [`LIGHT_SUN`] |
+/// | 16 | `radiance` | [f32; 3] | colour x intensity (linear RGB; candela for point and spot lights, which divide by d², lux for directional lights and suns, nits (emitted radiance) for quads and spheres) |
 /// | 28 | `inv_range_sq` | f32 | 1 / range² (point and spot lights with a range), else 0: no cutoff |
 /// | 32 | `spot_direction` | [f32; 3] | spot: unit direction the cone points along (from the light); else zero |
 /// | 44 | `spot_scale` | f32 | spot: `1 / max(SPOT_MIN_COS_SPAN, cos inner - cos outer)`; else 0 |
 /// | 48 | `spot_offset` | f32 | spot: `-cos(outer) * spot_scale`; else 0 |
-/// | 52 | `pad0` | u32 | zero |
-/// | 56 | `pad` | [u32; 2] | zero |
+/// | 52 | `size` | f32 | sphere: radius; sun: `1 - cos` of its disk's half angle; else 0 |
+/// | 56 | `samples` | u32 | area lights (quad, sphere, sun): shadow rays per surface this frame, at least 1; else 0 |
+/// | 60 | `seed` | u32 | area lights: the seed of this light's sample streams this frame ([`crate::kernels::soft_shadow`]); else 0 |
+/// | 64 | `edge_u` | [f32; 3] | quad: the first edge from the corner; else zero |
+/// | 76 | `pad0` | u32 | zero |
+/// | 80 | `edge_v` | [f32; 3] | quad: the second edge from the corner; else zero |
+/// | 92 | `pad1` | u32 | zero |
 ///
-/// 64 bytes. The distance window and the cone factor are
-/// [`light_falloff`](crate::kernels::shading::light_falloff)'s.
+/// 96 bytes. The distance window and the cone factor are
+/// [`light_falloff`](crate::kernels::shading::light_falloff)'s; area lights are sampled by
+/// [`crate::kernels::soft_shadow`].
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct LightRecord {
@@ -482,10 +500,15 @@ pub struct LightRecord {
     pub spot_direction: [f32; 3],
     pub spot_scale: f32,
     pub spot_offset: f32,
+    pub size: f32,
+    pub samples: u32,
+    pub seed: u32,
+    pub edge_u: [f32; 3],
     pub pad0: u32,
-    pub pad: [u32; 2],
+    pub edge_v: [f32; 3],
+    pub pad1: u32,
 }
-const _: () = assert!(std::mem::size_of::<LightRecord>() == 64);
+const _: () = assert!(std::mem::size_of::<LightRecord>() == 96);
 wgsl_struct!(LightRecord {
     position_or_direction,
     kind,
@@ -494,8 +517,13 @@ wgsl_struct!(LightRecord {
     spot_direction,
     spot_scale,
     spot_offset,
+    size,
+    samples,
+    seed,
+    edge_u,
     pad0,
-    pad
+    edge_v,
+    pad1
 });
 
 impl LightRecord {
@@ -533,14 +561,65 @@ impl LightRecord {
                     ..LightRecord::point(position.into(), (color * intensity).into())
                 }
             }
+            Light::Quad { corner, edge_u, edge_v, color, intensity } => LightRecord {
+                position_or_direction: corner.into(),
+                kind: LIGHT_QUAD,
+                radiance: (color * intensity).into(),
+                samples: 1,
+                edge_u: edge_u.into(),
+                edge_v: edge_v.into(),
+                ..Zeroable::zeroed()
+            },
+            Light::Sphere { position, radius, color, intensity } => LightRecord {
+                position_or_direction: position.into(),
+                kind: LIGHT_SPHERE,
+                radiance: (color * intensity).into(),
+                size: radius,
+                samples: 1,
+                ..Zeroable::zeroed()
+            },
+            Light::Sun { direction, angular_diameter, color, intensity } => LightRecord {
+                position_or_direction: direction.normalize_or_zero().into(),
+                kind: LIGHT_SUN,
+                radiance: (color * intensity).into(),
+                size: crate::kernels::area_light::sun_one_minus_cos(angular_diameter as f64),
+                samples: 1,
+                ..Zeroable::zeroed()
+            },
         }
+    }
+
+    /// Whether the light is an area light (quad, sphere or sun), sampled by
+    /// [`LightRecord::samples`] shadow rays per surface instead of one.
+    #[inline]
+    pub fn is_area(&self) -> bool {
+        matches!(self.kind, LIGHT_QUAD | LIGHT_SPHERE | LIGHT_SUN)
     }
 
     /// Check: known kind, finite values, unit directions, a non-negative `inv_range_sq`,
     /// the spot fields zero except on spot lights, the padding zero.
     pub fn validate(&self) -> Result<(), String> {
-        if self.kind > LIGHT_SPOT || self.pad0 != 0 || self.pad != [0; 2] {
+        if self.kind > LIGHT_SUN || self.pad0 != 0 || self.pad1 != 0 {
             return Err(format!("light with unknown kind: {self:?}"));
+        }
+        let (edge_u, edge_v) = (glam::Vec3::from(self.edge_u), glam::Vec3::from(self.edge_v));
+        if !(edge_u.is_finite() && edge_v.is_finite() && self.size.is_finite()) {
+            return Err(format!("light with non-finite values: {self:?}"));
+        }
+        if self.is_area() != (self.samples > 0) || (!self.is_area() && self.seed != 0) {
+            return Err(format!("samples and seed must be set on area lights (samples >= 1) only: {self:?}"));
+        }
+        let quad = self.kind == LIGHT_QUAD;
+        if quad != (edge_u.cross(edge_v) != glam::Vec3::ZERO)
+            || (!quad && (edge_u, edge_v) != (glam::Vec3::ZERO, glam::Vec3::ZERO))
+        {
+            return Err(format!("a quad light needs two non-parallel edges, other lights none: {self:?}"));
+        }
+        let sized = matches!(self.kind, LIGHT_SPHERE | LIGHT_SUN);
+        if sized != (self.size > 0.0) || self.size < 0.0 || (self.kind == LIGHT_SUN && self.size > 1.0) {
+            return Err(format!(
+                "a sphere needs a radius > 0, a sun a cone with 0 < 1 - cos <= 1, others size 0: {self:?}"
+            ));
         }
         let p = glam::Vec3::from(self.position_or_direction);
         let spot = glam::Vec3::from(self.spot_direction);
@@ -554,11 +633,11 @@ impl LightRecord {
             return Err(format!("light with non-finite values: {self:?}"));
         }
         let unit = |v: glam::Vec3| (v.length() - 1.0).abs() <= 1e-5;
-        if self.kind == LIGHT_DIRECTIONAL && !unit(p) {
+        if matches!(self.kind, LIGHT_DIRECTIONAL | LIGHT_SUN) && !unit(p) {
             return Err(format!("directional light without a unit direction: {self:?}"));
         }
         // (Finite, checked above: no NaN.)
-        if self.inv_range_sq < 0.0 || (self.kind == LIGHT_DIRECTIONAL && self.inv_range_sq != 0.0) {
+        if self.inv_range_sq < 0.0 || (!matches!(self.kind, LIGHT_POINT | LIGHT_SPOT) && self.inv_range_sq != 0.0) {
             return Err(format!("light with a negative or misplaced inv_range_sq: {self:?}"));
         }
         match self.kind {
@@ -900,26 +979,39 @@ wgsl_struct!(EnvironmentRecord { kind, width, height, pad });
 /// |---:|---|---|---|
 /// | 0 | `scale` | f32 | the constant ambient terms' scale, >= 0 ([`crate::kernels::shading::Ambient::scale`]) |
 /// | 4 | `image` | u32 | 1 when the texels hold an image-based light, else 0 |
-/// | 8 | `pad` | [u32; 2] | zero |
+/// | 8 | `ao_samples` | u32 | ambient-occlusion rays per surface this frame; 0: none ([`crate::kernels::soft_shadow::AmbientOcclusion`]) |
+/// | 12 | `ao_seed` | u32 | the seed of their sample streams this frame |
+/// | 16 | `ao_radius` | f32 | how far they look (scene units); 0 without them |
+/// | 20 | `pad0` | u32 | zero |
+/// | 24 | `pad` | [u32; 2] | zero |
 ///
-/// 16 bytes.
+/// 32 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
 pub struct AmbientLightRecord {
     pub scale: f32,
     pub image: u32,
+    pub ao_samples: u32,
+    pub ao_seed: u32,
+    pub ao_radius: f32,
+    pub pad0: u32,
     pub pad: [u32; 2],
 }
-const _: () = assert!(std::mem::size_of::<AmbientLightRecord>() == 16);
-wgsl_struct!(AmbientLightRecord { scale, image, pad });
+const _: () = assert!(std::mem::size_of::<AmbientLightRecord>() == 32);
+wgsl_struct!(AmbientLightRecord { scale, image, ao_samples, ao_seed, ao_radius, pad0, pad });
 
 impl AmbientLightRecord {
-    /// Check: a finite non-negative scale, `image` 0 or 1, zero padding, and `texels`
+    /// Check: a finite non-negative scale, `image` 0 or 1, a finite positive radius where
+    /// occlusion rays are traced (0 and no seed without them), zero padding, and `texels`
     /// entries as [`crate::kernels::ibl::AmbientLight::texels`] makes them (1 without an
     /// image).
     pub fn validate(&self, texels: usize) -> Result<(), String> {
         let scale_ok = self.scale.is_finite() && self.scale >= 0.0;
-        if !scale_ok || self.image > 1 || self.pad != [0; 2] {
+        let ao_ok = match self.ao_samples {
+            0 => self.ao_radius == 0.0 && self.ao_seed == 0,
+            _ => self.ao_radius > 0.0 && self.ao_radius.is_finite(),
+        };
+        if !scale_ok || !ao_ok || self.image > 1 || self.pad0 != 0 || self.pad != [0; 2] {
             return Err(format!("bad ambient light record {self:?}"));
         }
         let want = if self.image == 1 {

@@ -42,6 +42,8 @@
 
 use glam::Vec3;
 
+use crate::kernels::soft_shadow::SurfaceShadow;
+
 use crate::formats::{
     GBufferTexel, HitRecord, LightRecord, ObjectRecord, RayRecord, SurfaceRecord, GBUF_BACK_FACE, INVALID_ID,
     MATERIAL_GLASS, MATERIAL_SPECULAR, OBJ_RAY_TRACED, RAY_KIND_REFLECTION, RAY_KIND_REFRACTION, TRI_INWARD,
@@ -296,12 +298,12 @@ pub fn lobe_radiance(
 /// specular part is what the lobes see.
 #[inline]
 #[allow(clippy::too_many_arguments)]
-pub fn shade_bouncing(
+pub fn shade_bouncing<'s>(
     s: &SurfaceRecord,
     obj: &ObjectRecord,
     l: &Lobes,
     d: Vec3,
-    shadow: &[u8],
+    shadow: impl Into<SurfaceShadow<'s>>,
     lights: &[LightRecord],
     ambient_light: &AmbientLight,
     children: [u32; 2],
@@ -309,6 +311,9 @@ pub fn shade_bouncing(
 ) -> Vec3 {
     let p = Vec3::from(s.position);
     let n = Vec3::from(s.normal);
+    let shadow = shadow.into();
+    let occluded = crate::kernels::soft_shadow::occluded_object(obj, shadow, lights, &ambient_light.occlusion);
+    let obj = occluded.as_ref().unwrap_or(obj);
     let reflected = lobe_radiance(children[0], radiance, obj, l.reflect_dir, n, ambient_light);
     let refracted = lobe_radiance(children[1], radiance, obj, l.refract_dir, n, ambient_light);
     let v = -d;
@@ -459,16 +464,17 @@ pub fn spawn(p: &Parent, triangles: &WorldTriangles, depth: u32) -> [Option<RayR
 /// raster pass would shade them. `shadow`: the hit's `SHADOW_*` codes, one per light.
 #[allow(clippy::too_many_arguments)]
 #[inline]
-pub fn shade_secondary_hit(
+pub fn shade_secondary_hit<'s>(
     p: &Parent,
     env: &Environment,
     triangles: &WorldTriangles,
-    shadow: &[u8],
+    shadow: impl Into<SurfaceShadow<'s>>,
     lights: &[LightRecord],
     ambient: &AmbientLight,
     children: [u32; 2],
     radiance: &[[f32; 4]],
 ) -> Vec3 {
+    let shadow: SurfaceShadow = shadow.into();
     let s = p.surface;
     if !s.is_hit() {
         return environment_radiance(env, p.d);
@@ -489,16 +495,17 @@ pub fn shade_secondary_hit(
 /// [`crate::kernels::shading::shade_rt_pixel`] bit for bit elsewhere.
 #[inline]
 #[allow(clippy::too_many_arguments)]
-pub fn shade_rt_pixel_bouncing(
+pub fn shade_rt_pixel_bouncing<'s>(
     p: &Parent,
     triangles: &WorldTriangles,
-    shadow: &[u8],
+    shadow: impl Into<SurfaceShadow<'s>>,
     lights: &[LightRecord],
     ambient: &AmbientLight,
     eye: Vec3,
     children: [u32; 2],
     radiance: &[[f32; 4]],
 ) -> Vec3 {
+    let shadow: SurfaceShadow = shadow.into();
     let s = p.surface;
     match parent_lobes(p, triangles) {
         Some((obj, l)) => shade_bouncing(s, obj, &l, p.d, shadow, lights, ambient, children, radiance),

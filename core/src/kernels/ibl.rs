@@ -37,6 +37,7 @@ use glam::Vec3;
 use crate::formats::{AmbientLightRecord, OBJ_GLTF_BRDF};
 use crate::kernels::environment::{direction_to_uv, environment_radiance, sample_bilinear_grid};
 use crate::kernels::shading::{ShadingModel, DIELECTRIC_F0};
+use crate::kernels::soft_shadow::AmbientOcclusion;
 use crate::scene::Environment;
 
 /// The ambient light of a frame: the scene's constant ambient level
@@ -55,12 +56,16 @@ use crate::scene::Environment;
 pub struct AmbientLight {
     pub scale: f32,
     pub image: Option<Arc<ImageBasedLight>>,
+    /// The frame's ambient-occlusion rays (none by default): their fraction that meets
+    /// nothing scales the ambient and image-based terms
+    /// ([`crate::kernels::soft_shadow::occluded_object`]).
+    pub occlusion: AmbientOcclusion,
 }
 
 impl Default for AmbientLight {
     /// The default level without image-based light.
     fn default() -> Self {
-        AmbientLight { scale: 1.0, image: None }
+        AmbientLight { scale: 1.0, image: None, occlusion: AmbientOcclusion::default() }
     }
 }
 
@@ -69,7 +74,7 @@ impl AmbientLight {
     /// when it is shaded with the glTF model.
     pub fn of_scene(scene: &crate::scene::Scene) -> AmbientLight {
         let image = (scene.shading == ShadingModel::Gltf).then(|| ImageBasedLight::shared(&scene.environment));
-        AmbientLight { scale: scene.ambient.scale(), image }
+        AmbientLight { scale: scene.ambient.scale(), image, occlusion: AmbientOcclusion::default() }
     }
 
     /// The image-based light an object is shaded with: the frame's, for an object of the
@@ -85,7 +90,16 @@ impl AmbientLight {
 
     /// The record the GPU reads ([`AmbientLightRecord`]).
     pub fn record(&self) -> AmbientLightRecord {
-        AmbientLightRecord { scale: self.scale, image: self.image.is_some() as u32, pad: [0; 2] }
+        let ao = &self.occlusion;
+        AmbientLightRecord {
+            scale: self.scale,
+            image: self.image.is_some() as u32,
+            ao_samples: ao.samples,
+            ao_seed: ao.seed,
+            ao_radius: ao.radius,
+            pad0: 0,
+            pad: [0; 2],
+        }
     }
 
     /// The tables as the GPU reads them: [`SH9_TERMS`] irradiance coefficients (RGB, 0),

@@ -14,9 +14,10 @@
 use glam::Vec3;
 
 use crate::formats::{
-    LightRecord, ObjectRecord, SurfaceRecord, LIGHT_DIRECTIONAL, LIGHT_SPOT, OBJ_GLTF_BRDF, SHADOW_LIT,
+    LightRecord, ObjectRecord, SurfaceRecord, LIGHT_DIRECTIONAL, LIGHT_SPOT, OBJ_GLTF_BRDF, SHADOW_LIT, SHADOW_NO_RAY,
 };
 pub use crate::kernels::ibl::{AmbientLight, ImageBasedLight};
+use crate::kernels::soft_shadow::{area_light_sample, occluded_object, SurfaceShadow};
 
 /// Constant ambient term, as a fraction of the base colour, so that fully
 /// shadowed surfaces stay readable (a stand-in for indirect light).
@@ -433,21 +434,59 @@ pub fn shade_raster(obj: &ObjectRecord, n: Vec3, v: Vec3, l: Vec3, e: Vec3) -> V
     Vec3::from(obj.base_color) * std::f32::consts::FRAC_1_PI * e * ndl
 }
 
-/// Sum `shade(l, e)` over the lights whose shadow ray reached them
-/// (`shadow[i] == SHADOW_LIT`), with `(l, e)` from [`light_incidence`] at `p`.
-/// Both shaders use it, so they agree on which lights count.
+/// Sum `shade(l, e)` over the lights whose shadow ray reached them, in light order:
+/// `shadow` holds the surface's mask slots ([`crate::kernels::soft_shadow`]: one per
+/// point, spot or directional light, `samples` per area light). A light of one slot counts
+/// where its code is `SHADOW_LIT`, with `(l, e)` from [`light_incidence`] at `p`. An area
+/// light adds `(1 / N) sum shade(l_s, weight_s)` over its `N` samples whose ray reached it
+/// ([`area_light_sample`]); where the frame denoised its visibility (`shadow.filtered`),
+/// it adds the sum over the samples that traced a ray, lit or not, times the filtered
+/// visibility `V`: `V (1 / N) sum shade(l_s, weight_s)` (the unshadowed estimate times the
+/// visible share, which equals the first where nothing is filtered and the BRDF does not
+/// vary over the light). Every shader uses it, so they agree on which lights count.
 #[inline]
-pub fn sum_visible_lights(
-    shadow: &[u8],
+pub fn sum_visible_lights<'s>(
+    shadow: impl Into<SurfaceShadow<'s>>,
     lights: &[LightRecord],
     p: Vec3,
     mut shade: impl FnMut(Vec3, Vec3) -> Vec3,
 ) -> Vec3 {
+    let SurfaceShadow { codes: shadow, filtered } = shadow.into();
     let mut c = Vec3::ZERO;
-    for (light, &s) in lights.iter().zip(shadow) {
-        if s == SHADOW_LIT {
-            let (l, e) = light_incidence(light, p);
-            c += shade(l, e);
+    let mut slot = 0;
+    let mut area = 0;
+    for light in lights {
+        if light.is_area() {
+            let n = light.samples as usize;
+            let visibility = filtered.get(area).copied();
+            let mut sum = Vec3::ZERO;
+            let mut seen = false;
+            for (sample, &code) in shadow[slot..slot + n].iter().enumerate() {
+                let counts = match visibility {
+                    None => code == SHADOW_LIT,
+                    Some(_) => code != SHADOW_NO_RAY,
+                };
+                if counts {
+                    if let Some(ls) = area_light_sample(light, p, sample as u32) {
+                        sum += shade(ls.l, ls.weight);
+                        seen = true;
+                    }
+                }
+            }
+            if seen {
+                c += match visibility {
+                    None => sum / n as f32,
+                    Some(v) => (sum / n as f32) * v,
+                };
+            }
+            slot += n;
+            area += 1;
+        } else {
+            if shadow[slot] == SHADOW_LIT {
+                let (l, e) = light_incidence(light, p);
+                c += shade(l, e);
+            }
+            slot += 1;
         }
     }
     c
@@ -457,10 +496,10 @@ pub fn sum_visible_lights(
 /// light its shadow ray reached (`shadow`: the pixel's `SHADOW_*` codes, one per light),
 /// seen from `eye`.
 #[inline]
-pub fn shade_rt_pixel(
+pub fn shade_rt_pixel<'s>(
     s: &SurfaceRecord,
     obj: &ObjectRecord,
-    shadow: &[u8],
+    shadow: impl Into<SurfaceShadow<'s>>,
     lights: &[LightRecord],
     ambient: &AmbientLight,
     eye: Vec3,
@@ -473,16 +512,19 @@ pub fn shade_rt_pixel(
 /// [`unlit`] plus [`shade_ray_traced`] from every light its shadow ray reached. Primary
 /// hits ([`shade_rt_pixel`]) and secondary hits on surfaces that do not bounce use it.
 #[inline]
-pub fn shade_rt_surface(
+pub fn shade_rt_surface<'s>(
     s: &SurfaceRecord,
     obj: &ObjectRecord,
-    shadow: &[u8],
+    shadow: impl Into<SurfaceShadow<'s>>,
     lights: &[LightRecord],
     ambient: &AmbientLight,
     v: Vec3,
 ) -> Vec3 {
     let p = Vec3::from(s.position);
     let n = Vec3::from(s.normal);
+    let shadow = shadow.into();
+    let occluded = occluded_object(obj, shadow, lights, &ambient.occlusion);
+    let obj = occluded.as_ref().unwrap_or(obj);
     unlit(obj, n, v, ambient) + sum_visible_lights(shadow, lights, p, |l, e| shade_ray_traced(obj, n, v, l, e))
 }
 
@@ -490,26 +532,29 @@ pub fn shade_rt_surface(
 /// [`unlit`] plus [`shade_raster`] from every light its shadow ray reached (`shadow`: the
 /// pixel's `SHADOW_*` codes, one per light).
 #[inline]
-pub fn shade_raster_surface(
+pub fn shade_raster_surface<'s>(
     s: &SurfaceRecord,
     obj: &ObjectRecord,
-    shadow: &[u8],
+    shadow: impl Into<SurfaceShadow<'s>>,
     lights: &[LightRecord],
     ambient: &AmbientLight,
     v: Vec3,
 ) -> Vec3 {
     let p = Vec3::from(s.position);
     let n = Vec3::from(s.normal);
+    let shadow = shadow.into();
+    let occluded = occluded_object(obj, shadow, lights, &ambient.occlusion);
+    let obj = occluded.as_ref().unwrap_or(obj);
     unlit(obj, n, v, ambient) + sum_visible_lights(shadow, lights, p, |l, e| shade_raster(obj, n, v, l, e))
 }
 
 /// The raster shader at one pixel seen from `eye`: [`shade_raster_surface`] with `v`
 /// towards the eye, as [`shade_rt_pixel`] makes it.
 #[inline]
-pub fn shade_raster_pixel(
+pub fn shade_raster_pixel<'s>(
     s: &SurfaceRecord,
     obj: &ObjectRecord,
-    shadow: &[u8],
+    shadow: impl Into<SurfaceShadow<'s>>,
     lights: &[LightRecord],
     ambient: &AmbientLight,
     eye: Vec3,

@@ -462,7 +462,9 @@ impl Scene {
                 Some(Light::Directional { direction, .. }) => {
                     *direction = light_direction(world).ok_or_else(|| (node.label.clone(), "directional light"))?
                 }
-                None => {}
+                // glTF nodes carry KHR_lights_punctual lights only; area lights come from
+                // manifests, which do not animate them.
+                Some(Light::Quad { .. } | Light::Sphere { .. } | Light::Sun { .. }) | None => {}
             }
         }
         for (node, &world) in animation.nodes.iter().zip(&world) {

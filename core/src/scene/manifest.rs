@@ -20,7 +20,8 @@
 //! far = 80.0                    # default: twice the distance from the eye to the farthest corner of the scene bounds
 //!
 //! [[light]]                     # zero or more; without any: the model files' lights, else none
-//! type = "point"                # "point" | "directional" | "spot" (glTF's KHR_lights_punctual)
+//! type = "point"                # "point" | "directional" | "spot" (glTF's KHR_lights_punctual),
+//!                               # or the area lights "quad" | "sphere" (below)
 //! position = [3.0, 9.0, 3.0]    # point and spot lights only
 //! color = [1.0, 0.95, 0.9]      # linear RGB, default [1, 1, 1]
 //! intensity = 150.0             # scales color: candela for point and spot lights (which fall
@@ -41,6 +42,25 @@
 //! inner_cone_deg = 10.0         # optional: full light within this angle of the axis, default 0
 //! outer_cone_deg = 25.0         # optional: none beyond it (> inner, <= 90), default 45; the
 //!                               # extension's smooth falloff between
+//!
+//! [[light]]                     # area lights: soft shadows, `--shadow-samples` rays per surface
+//! type = "quad"                 # a parallelogram; not visible to the camera
+//! corner = [-0.5, 3.0, -0.5]
+//! edge_u = [1.0, 0.0, 0.0]
+//! edge_v = [0.0, 0.0, 1.0]      # emits to the side of cross(edge_u, edge_v): here -Y, downwards
+//! intensity = 20.0              # nits: the emitted radiance, whatever the size
+//!
+//! [[light]]
+//! type = "sphere"
+//! position = [2.0, 2.0, 0.0]
+//! radius = 0.25
+//! intensity = 40.0              # nits
+//!
+//! [[light]]
+//! type = "directional"
+//! direction = [-0.3, -1.0, -0.2]
+//! angular_diameter_deg = 0.53   # optional: above 0, a sun with soft shadows (lux, as directional)
+//! intensity = 3.0
 //!
 //! [[model]]                     # one or more
 //! file = "../../../shared/assets/sponza.glb"   # relative to this manifest's folder (or absolute)
@@ -217,11 +237,15 @@ pub enum LightType {
     Point,
     Directional,
     Spot,
+    Quad,
+    Sphere,
 }
 
-/// `[[light]]`: a point light (`position`), a directional light (`direction`) or a spot
-/// light (`position` and `direction`, the cone's axis), as glTF's `KHR_lights_punctual`
-/// defines them ([`Light`]).
+/// `[[light]]`: a point light (`position`), a directional light (`direction`; with
+/// `angular_diameter_deg` a sun) or a spot light (`position` and `direction`, the cone's
+/// axis), as glTF's `KHR_lights_punctual` defines them; or an area light: a quad
+/// (`corner`, `edge_u`, `edge_v`, emitting to the side of `cross(edge_u, edge_v)`) or a
+/// sphere (`position`, `radius`) ([`Light`]).
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LightEntry {
@@ -237,7 +261,8 @@ pub struct LightEntry {
     /// Linear RGB, default white.
     #[serde(default = "default_color")]
     pub color: [f32; 3],
-    /// Scales `color`, >= 0: candela for point and spot lights, lux for directional lights.
+    /// Scales `color`, >= 0: candela for point and spot lights, lux for directional lights
+    /// and suns, nits (the emitted radiance) for quads and spheres.
     pub intensity: f32,
     /// Point and spot lights: the distance at which the light has faded to nothing (the
     /// extension's window over 1/d²). Default: no cutoff.
@@ -251,6 +276,22 @@ pub struct LightEntry {
     /// greater than `inner_cone_deg`, at most 90. Default 45 (glTF's pi/4).
     #[serde(default)]
     pub outer_cone_deg: Option<f32>,
+    /// Directional lights: the angle (degrees, in `[0, 180)`) the light's disk spans; above
+    /// 0 the light is a sun with soft shadows (the real sun: about 0.53). Default 0.
+    #[serde(default)]
+    pub angular_diameter_deg: Option<f32>,
+    /// Quads: one corner.
+    #[serde(default)]
+    pub corner: Option<[f32; 3]>,
+    /// Quads: the two edges from `corner`; the light emits to the side of their cross
+    /// product.
+    #[serde(default)]
+    pub edge_u: Option<[f32; 3]>,
+    #[serde(default)]
+    pub edge_v: Option<[f32; 3]>,
+    /// Spheres: the radius, > 0.
+    #[serde(default)]
+    pub radius: Option<f32>,
 }
 
 /// A built-in procedural shape.
@@ -602,15 +643,48 @@ impl LightEntry {
         if self.kind != LightType::Spot && cone {
             return Err("`inner_cone_deg` and `outer_cone_deg` are for spot lights".into());
         }
-        if self.kind == LightType::Directional && range.is_some() {
+        if !matches!(self.kind, LightType::Point | LightType::Spot) && range.is_some() {
             return Err("`range` is for point and spot lights".into());
+        }
+        if self.kind != LightType::Directional && self.angular_diameter_deg.is_some() {
+            return Err("`angular_diameter_deg` is for directional lights".into());
+        }
+        let quad_keys = self.corner.is_some() || self.edge_u.is_some() || self.edge_v.is_some();
+        if self.kind != LightType::Quad && quad_keys {
+            return Err("`corner`, `edge_u` and `edge_v` are for quad lights".into());
+        }
+        if self.kind != LightType::Sphere && self.radius.is_some() {
+            return Err("`radius` is for sphere lights".into());
         }
         let light = match (self.kind, self.position, self.direction) {
             (LightType::Point, Some(p), None) => {
                 Light::Point { position: finite(p, "position")?, color, intensity, range }
             }
-            (LightType::Directional, None, Some(d)) => {
-                Light::Directional { direction: direction(d)?, color, intensity }
+            (LightType::Directional, None, Some(d)) => match self.angular_diameter_deg {
+                Some(deg) if deg != 0.0 => {
+                    Light::Sun { direction: direction(d)?, angular_diameter: deg.to_radians(), color, intensity }
+                }
+                _ => Light::Directional { direction: direction(d)?, color, intensity },
+            },
+            (LightType::Quad, None, None) => match (self.corner, self.edge_u, self.edge_v) {
+                (Some(c), Some(u), Some(v)) => Light::Quad {
+                    corner: finite(c, "corner")?,
+                    edge_u: finite(u, "edge_u")?,
+                    edge_v: finite(v, "edge_v")?,
+                    color,
+                    intensity,
+                },
+                _ => return Err("a quad light needs `corner`, `edge_u` and `edge_v`".into()),
+            },
+            (LightType::Sphere, Some(p), None) => match self.radius {
+                Some(radius) => Light::Sphere { position: finite(p, "position")?, radius, color, intensity },
+                None => return Err("a sphere light needs `radius`".into()),
+            },
+            (LightType::Quad, _, _) => {
+                return Err("a quad light needs `corner`, `edge_u` and `edge_v`, no `position` or `direction`".into())
+            }
+            (LightType::Sphere, _, _) => {
+                return Err("a sphere light needs `position` and `radius`, no `direction`".into())
             }
             (LightType::Spot, Some(p), Some(d)) => Light::Spot {
                 position: finite(p, "position")?,
@@ -763,7 +837,7 @@ mod tests {
             .map(|l| format!("{}\n", l.trim_start_matches("//!").strip_prefix(' ').unwrap_or("")))
             .collect();
         let m: Manifest = toml::from_str(&example).unwrap_or_else(|e| panic!("{e}\n{example}"));
-        assert_eq!((m.models.len(), m.lights.len()), (5, 3));
+        assert_eq!((m.models.len(), m.lights.len()), (5, 6));
         assert!(m.lights.iter().all(|l| l.to_light().is_ok()));
         assert_eq!(m.models[3].repeat.map(|r| r.offsets().unwrap().len()), Some(1000));
         assert_eq!(m.environment.as_deref(), Some(Path::new("maps/courtyard.hdr")));
@@ -819,6 +893,54 @@ mod tests {
         assert_eq!(matte.kind, MaterialKind::Diffuse);
         let forced = MaterialOverride { kind: Some(KindName::Diffuse), ..Default::default() }.apply(&gold);
         assert_eq!((forced.kind, forced.metallic), (MaterialKind::Diffuse, 1.0), "explicit kind wins");
+    }
+
+    #[test]
+    fn area_light_entries_parse_and_validate() {
+        let light = |text: &str| toml::from_str::<LightEntry>(text).unwrap().to_light();
+        let quad = light("type = 'quad'\ncorner = [0.0, 3.0, 0.0]\nedge_u = [1.0, 0.0, 0.0]\nedge_v = [0.0, 0.0, 2.0]\nintensity = 4.0");
+        assert_eq!(
+            quad,
+            Ok(Light::Quad {
+                corner: Vec3::new(0.0, 3.0, 0.0),
+                edge_u: Vec3::X,
+                edge_v: Vec3::new(0.0, 0.0, 2.0),
+                color: Vec3::ONE,
+                intensity: 4.0
+            })
+        );
+        let sphere = light("type = 'sphere'\nposition = [1.0, 2.0, 3.0]\nradius = 0.5\nintensity = 1.0");
+        assert_eq!(
+            sphere,
+            Ok(Light::Sphere { position: Vec3::new(1.0, 2.0, 3.0), radius: 0.5, color: Vec3::ONE, intensity: 1.0 })
+        );
+        let Ok(Light::Sun { direction, angular_diameter, .. }) =
+            light("type = 'directional'\ndirection = [0.0, -2.0, 0.0]\nangular_diameter_deg = 0.53\nintensity = 3.0")
+        else {
+            panic!("a directional light with an angular size is a sun")
+        };
+        assert_eq!((direction, angular_diameter), (Vec3::NEG_Y, 0.53f32.to_radians()));
+        assert!(matches!(
+            light("type = 'directional'\ndirection = [0.0, -1.0, 0.0]\nangular_diameter_deg = 0.0\nintensity = 3.0"),
+            Ok(Light::Directional { .. })
+        ));
+        let errors = [
+            // Parallel edges span no area.
+            ("type = 'quad'\ncorner = [0.0, 0.0, 0.0]\nedge_u = [1.0, 0.0, 0.0]\nedge_v = [2.0, 0.0, 0.0]\nintensity = 1.0", "no area"),
+            ("type = 'quad'\ncorner = [0.0, 0.0, 0.0]\nedge_u = [1.0, 0.0, 0.0]\nintensity = 1.0", "needs `corner`"),
+            ("type = 'quad'\nposition = [0.0, 0.0, 0.0]\ncorner = [0.0, 0.0, 0.0]\nedge_u = [1.0, 0.0, 0.0]\nedge_v = [0.0, 0.0, 1.0]\nintensity = 1.0", "no `position`"),
+            ("type = 'sphere'\nposition = [0.0, 0.0, 0.0]\nradius = 0.0\nintensity = 1.0", "radius 0"),
+            ("type = 'sphere'\nposition = [0.0, 0.0, 0.0]\nintensity = 1.0", "needs `radius`"),
+            ("type = 'point'\nposition = [0.0, 0.0, 0.0]\nradius = 1.0\nintensity = 1.0", "for sphere lights"),
+            ("type = 'point'\nposition = [0.0, 0.0, 0.0]\nedge_u = [1.0, 0.0, 0.0]\nintensity = 1.0", "for quad lights"),
+            ("type = 'spot'\nposition = [0.0, 0.0, 0.0]\ndirection = [0.0, -1.0, 0.0]\nangular_diameter_deg = 1.0\nintensity = 1.0", "for directional"),
+            ("type = 'directional'\ndirection = [0.0, -1.0, 0.0]\nangular_diameter_deg = 180.0\nintensity = 1.0", "(0, 180)"),
+            ("type = 'quad'\ncorner = [0.0, 0.0, 0.0]\nedge_u = [1.0, 0.0, 0.0]\nedge_v = [0.0, 0.0, 1.0]\nrange = 2.0\nintensity = 1.0", "point and spot"),
+        ];
+        for (text, why) in errors {
+            let e = light(text).expect_err(text);
+            assert!(e.contains(why), "{text}: {e} (expected it to say {why:?})");
+        }
     }
 
     #[test]

@@ -285,6 +285,27 @@ impl Merge {
                 color,
                 intensity,
             },
+            Light::Sun { direction, angular_diameter, color, intensity } => Light::Sun {
+                direction: model.matrix.transform_vector3(direction).normalize_or(direction),
+                angular_diameter,
+                color,
+                intensity,
+            },
+            // Area lights are placed with the model: their size follows its transform (a
+            // sphere's radius by the cube root of the volume scale), their radiance does not.
+            Light::Quad { corner, edge_u, edge_v, color, intensity } => Light::Quad {
+                corner: model.matrix.transform_point3(corner),
+                edge_u: model.matrix.transform_vector3(edge_u),
+                edge_v: model.matrix.transform_vector3(edge_v),
+                color,
+                intensity,
+            },
+            Light::Sphere { position, radius, color, intensity } => Light::Sphere {
+                position: model.matrix.transform_point3(position),
+                radius: radius * model.matrix.determinant().abs().cbrt(),
+                color,
+                intensity,
+            },
         }));
         if let (true, Some(c)) = (gives_camera, file.camera) {
             let camera = if identity {

@@ -263,6 +263,20 @@ pub enum Light {
         /// As [`Light::Point`]'s.
         range: Option<f32>,
     },
+    /// An area light: the parallelogram `corner + [0, 1] edge_u + [0, 1] edge_v`, emitting
+    /// to the side of `edge_u x edge_v` with radiance `color * intensity` (nits: unlike a
+    /// point light's candela, its brightness does not depend on its size). Not visible
+    /// to the camera (lights are not geometry); its shadows are soft, traced with
+    /// `FrameOptions::shadow_samples` rays per surface.
+    Quad { corner: Vec3, edge_u: Vec3, edge_v: Vec3, color: Vec3, intensity: f32 },
+    /// An area light: a sphere of `radius` around `position`, emitting radiance `color *
+    /// intensity` (nits) in every direction; sampled as [`Light::Quad`].
+    Sphere { position: Vec3, radius: f32, color: Vec3, intensity: f32 },
+    /// A directional light of finite angular size (a sun): it travels along `direction`,
+    /// its disk spans `angular_diameter` (radians, in `(0, pi)`), and `color * intensity`
+    /// is its illuminance at normal incidence (lux), as a directional light's. Sampled as
+    /// [`Light::Quad`].
+    Sun { direction: Vec3, angular_diameter: f32, color: Vec3, intensity: f32 },
 }
 
 impl Light {
@@ -281,7 +295,10 @@ impl Light {
         let (color, intensity) = match *self {
             Light::Point { color, intensity, .. }
             | Light::Directional { color, intensity, .. }
-            | Light::Spot { color, intensity, .. } => (color, intensity),
+            | Light::Spot { color, intensity, .. }
+            | Light::Quad { color, intensity, .. }
+            | Light::Sphere { color, intensity, .. }
+            | Light::Sun { color, intensity, .. } => (color, intensity),
         };
         if !color.is_finite() || color.min_element() < 0.0 {
             return Err(format!("color {color} must be finite and non-negative"));
@@ -297,7 +314,7 @@ impl Light {
             Some(r) if !(r > 0.0 && r.is_finite()) => Err(format!("range {r} must be finite and > 0")),
             _ => Ok(()),
         };
-        if let Light::Point { position, .. } | Light::Spot { position, .. } = *self {
+        if let Light::Point { position, .. } | Light::Spot { position, .. } | Light::Sphere { position, .. } = *self {
             if !position.is_finite() {
                 return Err(format!("position {position} is not finite"));
             }
@@ -318,7 +335,38 @@ impl Light {
                 }
                 range_ok(range)
             }
+            Light::Quad { corner, edge_u, edge_v, .. } => {
+                if !(corner.is_finite() && edge_u.is_finite() && edge_v.is_finite()) {
+                    return Err(format!("corner {corner} and edges {edge_u}, {edge_v} must be finite"));
+                }
+                let area = edge_u.cross(edge_v).length();
+                if !(area > 0.0 && area.is_finite()) {
+                    return Err(format!(
+                        "edges {edge_u} and {edge_v} span no area: they must be non-zero and not parallel"
+                    ));
+                }
+                Ok(())
+            }
+            Light::Sphere { radius, .. } => match radius > 0.0 && radius.is_finite() {
+                true => Ok(()),
+                false => Err(format!("radius {radius} must be finite and > 0")),
+            },
+            Light::Sun { direction, angular_diameter, .. } => {
+                unit(direction, "direction")?;
+                match angular_diameter > 0.0 && angular_diameter < std::f32::consts::PI {
+                    true => Ok(()),
+                    false => {
+                        Err(format!("angular diameter {} deg must lie in (0, 180)", angular_diameter.to_degrees()))
+                    }
+                }
+            }
         }
+    }
+
+    /// Whether the light has an area (quad, sphere, sun): its shadows are soft, traced with
+    /// several rays per surface.
+    pub fn is_area(&self) -> bool {
+        matches!(self, Light::Quad { .. } | Light::Sphere { .. } | Light::Sun { .. })
     }
 }
 

@@ -418,7 +418,11 @@ pub(crate) mod tests {
     /// image-based light.
     fn ambient_light() -> impl Strategy<Value = AmbientLight> {
         let scale = prop_oneof![2 => Just(1.0f32), 1 => Just(0.0f32), 1 => 0.0f32..4.0];
-        (scale, any::<bool>()).prop_map(|(scale, image)| AmbientLight { scale, image: image.then(sky_light) })
+        (scale, any::<bool>()).prop_map(|(scale, image)| AmbientLight {
+            scale,
+            image: image.then(sky_light),
+            ..AmbientLight::default()
+        })
     }
 
     impl Block {
@@ -553,7 +557,13 @@ pub(crate) mod tests {
             let got =
                 raster_shading_lanes::<L>(&b.primary::<L>(), &b.lit(), &b.lights, &b.ambient, b.eye, shade_ray_traced);
             let materials = Materials::plain(&b.objects);
-            let primary = Primary { gbuffer: &[], materials: &materials, ambient: &b.ambient, eye: b.eye.into() };
+            let primary = Primary {
+                gbuffer: &[],
+                materials: &materials,
+                ambient: &b.ambient,
+                eye: b.eye.into(),
+                visibility: Default::default(),
+            };
             for (k, s) in b.surfaces.iter().enumerate() {
                 let want = raster_shading_pixel(&primary, &b.lights, shade_ray_traced, k, s, b.codes(k));
                 same_texel(k, lane::<L>(got, k), want)?;
@@ -584,7 +594,7 @@ pub(crate) mod tests {
 
     /// `b` under the default sky's image-based light, at half the default constant level.
     pub(crate) fn with_sky(b: Block) -> Block {
-        Block { ambient: AmbientLight { scale: 0.5, image: Some(sky_light()) }, ..b }
+        Block { ambient: AmbientLight { scale: 0.5, image: Some(sky_light()), ..AmbientLight::default() }, ..b }
     }
 
     /// `b` with every object shaded with the glTF BRDF.

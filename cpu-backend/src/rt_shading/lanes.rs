@@ -211,7 +211,13 @@ mod tests {
             let b = self.0;
             let got = rt_shading_lanes::<L>(&b.primary::<L>(), &b.lit(), &b.lights, &b.ambient, b.eye);
             let materials = Materials::plain(&b.objects);
-            let primary = Primary { gbuffer: &[], materials: &materials, ambient: &b.ambient, eye: b.eye.into() };
+            let primary = Primary {
+                gbuffer: &[],
+                materials: &materials,
+                ambient: &b.ambient,
+                eye: b.eye.into(),
+                visibility: Default::default(),
+            };
             for (k, s) in b.surfaces.iter().enumerate() {
                 let want = rt_shading_pixel(&primary, &b.lights, k, s, b.codes(k));
                 same_texel(k, lane::<L>(got, k), want)?;

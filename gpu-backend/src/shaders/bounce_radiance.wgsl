@@ -3,7 +3,7 @@
 // `shade_rt_pixel_bouncing`), same names, same operation order.
 //
 // Prepended after bounce.wgsl, shading.wgsl, ambient_light.wgsl and surface_shading.wgsl.
-// The stage binds `lights`, `shadow`, the ambient light (`ambient_light`,
+// The stage binds `lights`, `shadow`, `slot_params`, the ambient light (`ambient_light`,
 // `ambient_texels`) and `child_radiance: array<vec4<f32>>` (the next depth's radiance,
 // which the lobes' links index).
 
@@ -27,9 +27,11 @@ fn lobe_radiance(link: u32, obj: ObjectRecord, dir: vec3<f32>, n: vec3<f32>) -> 
 }
 
 // mirrors hyrt_core::kernels::bounce::shade_bouncing; `index` is the surface's row of
-// `shadow`, `children` its [reflection, refraction] links into `child_radiance`.
-fn shade_bouncing(index: u32, s: SurfaceRecord, obj: ObjectRecord, l: Lobes, d: vec3<f32>,
+// `shadow`, `children` its [reflection, refraction] links into `child_radiance`. The
+// record is the surface's ambient occlusion's from here on (`occluded_object`).
+fn shade_bouncing(index: u32, s: SurfaceRecord, shaded: ObjectRecord, l: Lobes, d: vec3<f32>,
                   children: vec2<u32>) -> vec3<f32> {
+    let obj = occluded_object(index, shaded);
     let n = s.normal;
     let reflected = lobe_radiance(children.x, obj, l.reflect_dir, n);
     let refracted = lobe_radiance(children.y, obj, l.refract_dir, n);

@@ -28,6 +28,9 @@
 @group(0) @binding(16) var<uniform> surface_layout: SurfaceLayout;
 @group(0) @binding(17) var<uniform> ambient_light: AmbientLightRecord;
 @group(0) @binding(18) var<storage, read> ambient_texels: array<vec4<f32>>;
+// The frame's shadow-mask slots (the depth's `shadow` rows; read with area lights or
+// ambient occlusion).
+@group(0) @binding(19) var<uniform> slot_params: SlotParams;
 
 // mirrors hyrt_core::kernels::bounce::shade_secondary_hit; `index` is the ray's row of
 // `shadow`.

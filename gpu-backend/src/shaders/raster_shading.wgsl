@@ -1,5 +1,6 @@
 // Stage `raster_shading` (hyrt_core::kernels::shading::shade_raster_pixel per pixel): Lambert from every
-// visible light plus ambient on the pixels of rasterized objects, and on those of
+// visible light (the visible samples of area lights) plus ambient (times the ambient
+// occlusion of the pixel's occlusion rays) on the pixels of rasterized objects, and on those of
 // ray-traced objects only when the composition weight is below 1 (else
 // (0, 0, 0, 0) there); BACKGROUND with alpha 1 where nothing was hit. One
 // invocation per pixel, the object shaded as the pixel sees it (primary_object.wgsl:
@@ -20,6 +21,8 @@
 @group(0) @binding(9) var<uniform> surface_layout: SurfaceLayout;
 @group(0) @binding(10) var<uniform> ambient_light: AmbientLightRecord;
 @group(0) @binding(11) var<storage, read> ambient_texels: array<vec4<f32>>;
+// The frame's shadow-mask slots (read with area lights or ambient occlusion).
+@group(0) @binding(12) var<uniform> slot_params: SlotParams;
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {

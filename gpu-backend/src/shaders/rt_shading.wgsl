@@ -1,5 +1,6 @@
 // Stage `rt_shading` (hyrt_core::kernels::shading::shade_rt_pixel per pixel): the pixels of ray-traced
-// objects, Lambert + Blinn-Phong from every visible light plus ambient; alpha 1
+// objects, Lambert + Blinn-Phong from every visible light (the visible samples of area
+// lights) plus ambient (times the ambient occlusion of the pixel's occlusion rays); alpha 1
 // there, (0, 0, 0, 0) on every other pixel. One invocation per pixel.
 // Appended to the generated records, shading_helpers.wgsl, shading.wgsl, the texture
 // kernels, materials.wgsl, lat_long.wgsl, ambient_light.wgsl and surface_shading.wgsl, and followed by the frame's
@@ -21,6 +22,8 @@
 @group(0) @binding(9) var<uniform> surface_layout: SurfaceLayout;
 @group(0) @binding(10) var<uniform> ambient_light: AmbientLightRecord;
 @group(0) @binding(11) var<storage, read> ambient_texels: array<vec4<f32>>;
+// The frame's shadow-mask slots (read with area lights or ambient occlusion).
+@group(0) @binding(12) var<uniform> slot_params: SlotParams;
 
 @compute @workgroup_size(8, 8, 1)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {

@@ -8,11 +8,11 @@
 // Prepended: the generated records and constants, the shading helpers, shading.wgsl,
 // the texture kernels, materials.wgsl, lat_long.wgsl, ambient_light.wgsl,
 // surface_shading.wgsl, ray.wgsl, bounce.wgsl, bounce_radiance.wgsl, rt_shading.wgsl (the
-// bindings 0 to 11 and the pixel loop, which calls this file's `rt_pixel`).
+// bindings 0 to 12 and the pixel loop, which calls this file's `rt_pixel`).
 
-@group(0) @binding(12) var<storage, read> triangles: array<TriangleRecord>;
-@group(0) @binding(13) var<storage, read> links: array<vec2<u32>>;
-@group(0) @binding(14) var<storage, read> child_radiance: array<vec4<f32>>;
+@group(0) @binding(13) var<storage, read> triangles: array<TriangleRecord>;
+@group(0) @binding(14) var<storage, read> links: array<vec2<u32>>;
+@group(0) @binding(15) var<storage, read> child_radiance: array<vec4<f32>>;
 
 // mirrors the pixel closure of hyrt_cpu::rt_shading::rt_shading_bouncing_into
 fn rt_pixel(pixel: u32, s: SurfaceRecord) -> vec3<f32> {

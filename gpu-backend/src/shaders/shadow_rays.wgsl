@@ -2,13 +2,15 @@
 // test of hyrt_core::kernels::texture::alpha_accepts, the CPU's reference traversal):
 // one thread per ray of the compacted list, any hit with early exit; a hit on an
 // alpha-tested triangle (TRI_ALPHA_TEST) where its alpha fails the cutoff is no hit.
-// Indirect dispatch from `ray_count`; threads past the count exit. Writes `occluded[ray]` (1/0) and `shadow[pixel * light_count + light]`
-// (SHADOW_LIT or SHADOW_OCCLUDED; the caller cleared it to SHADOW_NO_RAY); at a bounce
-// depth `pixel` is the secondary ray the shadow ray leaves from, and occluded rays are
-// counted.
+// Indirect dispatch from `ray_count`; threads past the count exit. Writes `occluded[ray]`
+// (1/0) and `shadow[pixel * slot_params.slots + light]` (SHADOW_LIT or SHADOW_OCCLUDED;
+// the caller cleared it to SHADOW_NO_RAY): a ray's `light` is its mask slot, one per
+// light without area lights and ambient occlusion (hyrt_core::kernels::soft_shadow); at
+// a bounce depth `pixel` is the secondary ray the shadow ray leaves from, and occluded
+// rays are counted.
 //
 // Prepended at pipeline creation: the generated records and format constants
-// (hyrt_core::formats::wgsl), the ray constants and ray.wgsl, `rounded` and `mul` over
+// (hyrt_core::formats::wgsl), the `SlotParams` declaration, the ray constants and ray.wgsl, `rounded` and `mul` over
 // `params.zero`, the texture kernels (`hyrt_gpu::texture::texture_wgsl`). Appended:
 // `trace_occluded`, the walk of the scene's BVH: `occluded_any` for a single-level tree,
 // or for a two-level one `shadow_two_level.wgsl` (with the instances' binding).
@@ -28,6 +30,8 @@
 // `prim_indices` would be the 9th storage buffer, past WebGPU's default limit.
 @group(0) @binding(9) var<storage, read> surface: array<u32>;
 @group(0) @binding(10) var<uniform> surface_layout: SurfaceLayout;
+// The frame's mask slots per surface (the codes' stride).
+@group(0) @binding(11) var<uniform> slot_params: SlotParams;
 
 // mirrors hyrt_core::bvh::Bvh::occluded_filtered with alpha_accepts. An empty BVH is
 // uploaded as one zero node: an inner node whose left child would be itself, which no
@@ -128,5 +132,5 @@ fn shadow_rays(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id)
     if o && list.depth > 0u {
         atomicAdd(&counters[3], 1u);
     }
-    shadow[ray.pixel * params.light_count + ray.light] = shadow_code(o);
+    shadow[ray.pixel * slot_params.slots + ray.light] = shadow_code(o);
 }

@@ -6,7 +6,7 @@
 // node 0, an instance's `bottom` its level's root). Appended to shadow_rays.wgsl, after
 // instance.wgsl.
 
-@group(0) @binding(11) var<storage, read> instances: array<InstanceRecord>;
+@group(0) @binding(12) var<storage, read> instances: array<InstanceRecord>;
 
 fn instance_occludes(inst: InstanceRecord, ray: RayRecord, r: TraversalRay) -> bool {
     if (inst.flags & INSTANCE_IDENTITY) != 0u {

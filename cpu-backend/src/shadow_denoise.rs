@@ -1,0 +1,144 @@
+//! Stage `shadow_denoise`: the stochastic visibility of area lights and ambient occlusion,
+//! filtered over the visibility buffer (issue 38 item 4) with core's
+//! [`hyrt_core::kernels::denoise`] kernels: the raw channels of every pixel
+//! ([`raw_channels`]), the 8 x 8 tiles that need filtering per channel ([`tile_agrees`]:
+//! not those fully lit or in umbra), then [`DENOISE_PASSES`] à-trous passes
+//! ([`atrous_pixel`]), row by row in parallel. Deterministic: each output is a fixed sum
+//! over fixed taps, whatever the thread count.
+//!
+//! Inputs: the surfaces, the shadow mask, the frame's lights and ambient occlusion, the
+//! eye and a pixel's angle. Output: `channels` f32 per pixel
+//! ([`hyrt_core::kernels::denoise::channel_count`]).
+
+use glam::Vec3;
+use hyrt_core::formats::{CameraRecord, LightRecord, SurfaceRecord};
+use hyrt_core::kernels::camera::primary_ray;
+use hyrt_core::kernels::denoise::{
+    atrous_pixel, channel_count, channel_samples, clamp_pixel, noise_sigma, pixel_footprint, raw_channels, tile_agrees,
+    DENOISE_PASSES, DENOISE_TILE, MAX_CHANNELS,
+};
+use hyrt_core::kernels::soft_shadow::{surface_slots, AmbientOcclusion};
+use rayon::prelude::*;
+
+/// The angle one pixel spans at the image's centre: the chord between the unit directions
+/// of the primary rays through the two centre pixels of a column (a pixel is far below a
+/// degree, where the chord is the angle to 1e-5 relative).
+pub fn pixel_angle(camera: &CameraRecord) -> f32 {
+    let (x, y) = (camera.width / 2, camera.height / 2);
+    let d0 = Vec3::from(primary_ray(camera, x, y).direction).normalize();
+    let d1 = Vec3::from(primary_ray(camera, x, y.saturating_sub(1)).direction).normalize();
+    (d1 - d0).length()
+}
+
+/// Buffers the stage keeps between frames.
+#[derive(Clone, Debug, Default)]
+pub struct DenoiseScratch {
+    /// The other half of the ping-pong between passes.
+    pub values: Vec<f32>,
+    /// The raw channels, which bound the filtered ones.
+    pub raw: Vec<f32>,
+    /// Per pixel and channel, the noise deviation of the raw value (`noise_sigma`).
+    pub sigma: Vec<f32>,
+    /// Per tile and channel, whether the tile is filtered.
+    pub filter: Vec<bool>,
+}
+
+/// The stage over a `width` x `height` image: `surfaces` and their mask `shadow`
+/// (`surface_slots` codes per pixel) under `lights` and `ao`, seen from `camera`, into
+/// `out` (`channel_count(lights, ao)` values per pixel).
+#[allow(clippy::too_many_arguments)]
+pub fn shadow_denoise_into(
+    surfaces: &[SurfaceRecord],
+    shadow: &[u8],
+    lights: &[LightRecord],
+    ao: &AmbientOcclusion,
+    camera: &CameraRecord,
+    scratch: &mut DenoiseScratch,
+    out: &mut Vec<f32>,
+) {
+    let (width, height) = (camera.width as usize, camera.height as usize);
+    let channels = channel_count(lights, ao);
+    let slots = surface_slots(lights, ao);
+    assert!(channels <= MAX_CHANNELS, "{channels} denoised channels, at most {MAX_CHANNELS}");
+    assert_eq!(surfaces.len(), width * height);
+    out.clear();
+    out.resize(surfaces.len() * channels, 0.0);
+    if channels == 0 || surfaces.is_empty() {
+        return;
+    }
+    // Raw channels, a row at a time.
+    let row = width * channels;
+    out.par_chunks_mut(row).enumerate().for_each(|(y, values)| {
+        let mut lights_scratch = vec![0.0f32; lights.len()];
+        for x in 0..width {
+            let i = y * width + x;
+            let codes = if surfaces[i].is_hit() { &shadow[i * slots..(i + 1) * slots] } else { &[][..] };
+            let v = &mut values[x * channels..(x + 1) * channels];
+            raw_channels(codes, lights, ao, &surfaces[i], &mut lights_scratch, v);
+        }
+    });
+    // Tiles whose hit pixels agree on 0 or 1 keep them.
+    let (tiles_x, tiles_y) = (width.div_ceil(DENOISE_TILE), height.div_ceil(DENOISE_TILE));
+    let raw = &*out;
+    scratch.filter.clear();
+    scratch.filter.resize(tiles_x * tiles_y * channels, false);
+    scratch.filter.par_chunks_mut(channels).enumerate().for_each(|(t, filter)| {
+        let (tx, ty) = (t % tiles_x, t / tiles_x);
+        let pixels = (ty * DENOISE_TILE..((ty + 1) * DENOISE_TILE).min(height))
+            .flat_map(|y| (tx * DENOISE_TILE..((tx + 1) * DENOISE_TILE).min(width)).map(move |x| y * width + x))
+            .filter(|&i| surfaces[i].is_hit());
+        for (c, f) in filter.iter_mut().enumerate() {
+            *f = !tile_agrees(pixels.clone().map(|i| raw[i * channels + c]));
+        }
+    });
+    if !scratch.filter.iter().any(|&f| f) {
+        return;
+    }
+    let (eye, angle) = (Vec3::from(camera.eye), pixel_angle(camera));
+    scratch.raw.clone_from(out);
+    let samples = channel_samples(lights, ao);
+    let raw = &scratch.raw;
+    scratch.sigma.clear();
+    scratch.sigma.resize(out.len(), 0.0);
+    scratch.sigma.par_chunks_mut(row).enumerate().for_each(|(y, sigma)| {
+        for x in 0..width {
+            let v = &mut sigma[x * channels..(x + 1) * channels];
+            noise_sigma(raw, surfaces, (width, height), (x, y), &samples, v);
+        }
+    });
+    let (filter, sigma) = (&scratch.filter, &scratch.sigma);
+    scratch.values.clear();
+    scratch.values.resize(out.len(), 0.0);
+    {
+        let (mut src, mut dst) = (&mut *out, &mut scratch.values);
+        for pass in 0..DENOISE_PASSES {
+            let step = 1usize << pass;
+            let input = &**src;
+            dst.par_chunks_mut(row).enumerate().for_each(|(y, values)| {
+                for x in 0..width {
+                    let i = y * width + x;
+                    let tile = (y / DENOISE_TILE) * tiles_x + x / DENOISE_TILE;
+                    let footprint = pixel_footprint(Vec3::from(surfaces[i].position), eye, angle);
+                    let v = &mut values[x * channels..(x + 1) * channels];
+                    let f = &filter[tile * channels..(tile + 1) * channels];
+                    let s = &sigma[i * channels..(i + 1) * channels];
+                    atrous_pixel(input, surfaces, (width, height), (x, y), step, footprint, (f, s), v);
+                }
+            });
+            std::mem::swap(&mut src, &mut dst);
+        }
+        // After an odd number of passes the result is in the scratch buffer.
+        if DENOISE_PASSES % 2 == 1 {
+            std::mem::swap(src, dst);
+        }
+    }
+    let raw = &scratch.raw;
+    out.par_chunks_mut(row).enumerate().for_each(|(y, values)| {
+        for x in 0..width {
+            let tile = (y / DENOISE_TILE) * tiles_x + x / DENOISE_TILE;
+            let v = &mut values[x * channels..(x + 1) * channels];
+            let f = &filter[tile * channels..(tile + 1) * channels];
+            clamp_pixel(raw, surfaces, (width, height), (x, y), f, v);
+        }
+    });
+}

@@ -1,0 +1,215 @@
+//! Area lights and ambient occlusion (issue 38) on the GPU backend: their stochastic shadow
+//! rays (`compaction` over mask slots, `shadow_rays`, the shading stages' slot loops, and
+//! the same slots at every bounce depth) render bit for bit the CPU reference's frame when
+//! the frame is not denoised (`FrameOptions::denoise` false, `--no-denoise`); a frame whose
+//! plan runs `shadow_denoise` (the default) is refused with `RenderError::Unsupported`,
+//! never rendered without it. (The conformance corpus' `stochastic_*` cases compare such
+//! frames stage by stage too.)
+
+mod common;
+
+use common::test_context;
+use glam::{Mat4, Vec3};
+use hyrt_core::bvh::{Bvh, BvhPreset};
+use hyrt_core::formats::{CameraRecord, RAY_KIND_SHADOW};
+use hyrt_core::frame::{Backend, Frame, FrameOptions, PreparedScene, RenderError};
+use hyrt_core::geometry::WorldGeometry;
+use hyrt_core::scene::{Camera, Light, Material, MaterialKind, Mesh, RenderMode, Scene, ShadingModel};
+use hyrt_core::stage::Stage;
+use hyrt_cpu::backend::CpuBackend;
+use hyrt_gpu::backend::GpuBackend;
+
+/// A floor with a box on it, the box ray traced, under `lights`; with `mirror`, a
+/// ray-traced mirror stands behind the box (bounces shade with slots).
+fn scene(lights: Vec<Light>, shading: ShadingModel, mirror: bool) -> Scene {
+    let mut scene = Scene { shading, ..Scene::default() };
+    scene.add_object(Mesh::grid("floor", 4), Material::grey(), Mat4::from_scale(Vec3::splat(4.0)), RenderMode::Raster);
+    scene.add_object(
+        Mesh::cube("box"),
+        Material { base_color: Vec3::new(0.8, 0.4, 0.2), ..Material::grey() },
+        Mat4::from_translation(Vec3::new(0.2, 0.35, 0.0)) * Mat4::from_scale(Vec3::splat(0.35)),
+        RenderMode::RayTraced,
+    );
+    if mirror {
+        let mirror = Material {
+            name: "mirror".into(),
+            base_color: Vec3::splat(0.9),
+            metallic: 1.0,
+            roughness: 0.05,
+            kind: MaterialKind::Specular,
+            ..Material::grey()
+        };
+        scene.add_object(
+            Mesh::grid("mirror", 2),
+            mirror,
+            Mat4::from_translation(Vec3::new(0.0, 0.8, -1.2))
+                * Mat4::from_quat(glam::Quat::from_rotation_x(std::f32::consts::FRAC_PI_2))
+                * Mat4::from_scale(Vec3::new(2.5, 1.0, 1.6)),
+            RenderMode::RayTraced,
+        );
+    }
+    scene.lights = lights;
+    scene.camera = Some(Camera::look_at(Vec3::new(0.4, 2.2, 2.6), Vec3::new(0.0, 0.3, 0.0), Vec3::Y));
+    scene
+}
+
+fn quad() -> Light {
+    Light::Quad {
+        corner: Vec3::new(-0.6, 1.8, -0.4),
+        edge_u: Vec3::new(0.8, 0.0, 0.0),
+        edge_v: Vec3::new(0.0, 0.0, 0.6),
+        color: Vec3::ONE,
+        intensity: 6.0,
+    }
+}
+
+fn sphere() -> Light {
+    Light::Sphere { position: Vec3::new(-0.8, 1.4, 0.6), radius: 0.25, color: Vec3::new(1.0, 0.9, 0.7), intensity: 9.0 }
+}
+
+fn sun() -> Light {
+    Light::Sun {
+        direction: Vec3::new(0.4, -1.0, -0.3),
+        angular_diameter: 0.15,
+        color: Vec3::new(1.0, 0.95, 0.9),
+        intensity: 2.0,
+    }
+}
+
+fn point() -> Light {
+    Light::point(Vec3::new(1.0, 2.0, 1.0), Vec3::ONE, 3.0)
+}
+
+fn prepare(scene: &Scene) -> PreparedScene {
+    let geometry = WorldGeometry::build(scene);
+    let bvh = Bvh::build(&geometry, BvhPreset::default());
+    PreparedScene::new(geometry, bvh, 0.0)
+}
+
+fn camera(scene: &Scene) -> CameraRecord {
+    CameraRecord::new(&scene.camera.unwrap(), 48, 32)
+}
+
+#[test]
+fn denoised_stochastic_frames_are_refused_and_others_render() {
+    let Some(ctx) = test_context() else { return };
+    let mut gpu = GpuBackend::with_context(ctx).expect("backend");
+    for (lights, ao_samples, refused) in [(vec![quad()], 0, true), (vec![point()], 4, true), (vec![point()], 0, false)]
+    {
+        let scene = scene(lights.clone(), ShadingModel::Paper, false);
+        let prepared = prepare(&scene);
+        let options = FrameOptions { ao_samples, ..FrameOptions::default() };
+        assert!(options.denoise, "frames denoise by default");
+        match gpu.render(&prepared, &camera(&scene), &options) {
+            Err(RenderError::Unsupported { backend: "gpu", stage, why }) if refused => {
+                assert_eq!(stage, Stage::ShadowDenoise.name());
+                assert!(why.contains("--no-denoise"), "{why}");
+            }
+            Ok(_) if !refused => {}
+            other => panic!("{lights:?} with {ao_samples} occlusion rays: {:?}", other.map(|f| f.width)),
+        }
+    }
+}
+
+/// Every buffer two frames hold, by their bytes: the first that differs, if any.
+fn first_difference(a: &Frame, b: &Frame) -> Option<String> {
+    fn bytes<T: bytemuck::Pod>(v: &[T]) -> &[u8] {
+        bytemuck::cast_slice(v)
+    }
+    let mut buffers: Vec<(String, &[u8], &[u8])> = vec![
+        ("gbuffer".into(), bytes(&a.gbuffer), bytes(&b.gbuffer)),
+        ("surfaces".into(), bytes(&a.surfaces), bytes(&b.surfaces)),
+        ("rays".into(), bytes(&a.rays), bytes(&b.rays)),
+        ("occluded".into(), bytes(&a.occluded), bytes(&b.occluded)),
+        ("shadow".into(), &a.shadow, &b.shadow),
+        ("rt".into(), bytes(&a.rt), bytes(&b.rt)),
+        ("raster".into(), bytes(&a.raster), bytes(&b.raster)),
+        ("final".into(), bytes(&a.final_image), bytes(&b.final_image)),
+    ];
+    if a.bounces.len() != b.bounces.len() {
+        return Some(format!("{} against {} bounce depths", a.bounces.len(), b.bounces.len()));
+    }
+    for (d, (x, y)) in a.bounces.iter().zip(&b.bounces).enumerate() {
+        let at = |name: &str| format!("bounce {} {name}", d + 1);
+        buffers.extend([
+            (at("rays"), bytes(&x.rays), bytes(&y.rays)),
+            (at("links"), bytes(&x.links), bytes(&y.links)),
+            (at("hits"), bytes(&x.hits), bytes(&y.hits)),
+            (at("surfaces"), bytes(&x.surfaces), bytes(&y.surfaces)),
+            (at("shadow_rays"), bytes(&x.shadow_rays), bytes(&y.shadow_rays)),
+            (at("occluded"), bytes(&x.occluded), bytes(&y.occluded)),
+            (at("shadow"), &x.shadow[..], &y.shadow[..]),
+            (at("radiance"), bytes(&x.radiance), bytes(&y.radiance)),
+        ]);
+    }
+    buffers.into_iter().find(|(_, x, y)| x != y).map(|(name, x, y)| {
+        let at = x.iter().zip(y).position(|(p, q)| p != q).unwrap_or(x.len().min(y.len()));
+        format!("{name} differs ({} against {} bytes, first at byte {at})", x.len(), y.len())
+    })
+}
+
+/// Undenoised frames with area lights (quad, sphere, sun, and a point light beside them),
+/// ambient occlusion alone and with both, paper and glTF models, with and without a mirror
+/// (bounce depths trace and shade the same slots): the GPU's frame is the CPU's, every
+/// stage buffer, byte for byte; and the frame changes with its index (the streams' seeds
+/// reach the GPU).
+#[test]
+fn undenoised_stochastic_frames_are_the_cpu_frames_bit_for_bit() {
+    let Some(ctx) = test_context() else { return };
+    let mut gpu = GpuBackend::with_context(ctx).expect("backend");
+    let mut cpu = CpuBackend::new(Some(2));
+    let cases: [(&str, Vec<Light>, u32, ShadingModel, bool); 7] = [
+        ("quad light, paper", vec![quad()], 0, ShadingModel::Paper, false),
+        ("quad light, glTF", vec![quad()], 0, ShadingModel::Gltf, false),
+        ("sphere light and a point light", vec![point(), sphere()], 0, ShadingModel::Paper, false),
+        ("sun", vec![sun()], 0, ShadingModel::Gltf, false),
+        ("ambient occlusion alone", vec![point()], 2, ShadingModel::Paper, false),
+        ("quad light, occlusion and a mirror", vec![quad(), point()], 2, ShadingModel::Paper, true),
+        ("every kind, glTF, a mirror", vec![sun(), quad(), sphere()], 2, ShadingModel::Gltf, true),
+    ];
+    for (name, lights, ao_samples, shading, mirror) in cases {
+        let scene = scene(lights, shading, mirror);
+        let prepared = prepare(&scene);
+        let camera = camera(&scene);
+        let mut images = Vec::new();
+        for frame_index in [0, 1] {
+            let options = FrameOptions {
+                stage_outputs: true,
+                shadow_samples: 3,
+                ao_samples,
+                denoise: false,
+                frame_index,
+                max_depth: 2,
+                ..FrameOptions::default()
+            };
+            let want = cpu.render(&prepared, &camera, &options).expect("cpu frame");
+            assert!(want.plan.stochastic() && !want.plan.runs(Stage::ShadowDenoise), "{name}");
+            assert_eq!(want.plan.bounce_depth() > 0, mirror, "{name}");
+            let got = gpu.render(&prepared, &camera, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
+            assert!(want.rays.len() > 100 && want.occluded.iter().any(|&o| o != 0), "{name}: rays, some occluded");
+            if let Some(d) = first_difference(&want, &got) {
+                panic!("{name}, frame {frame_index}: {d}");
+            }
+            assert_eq!(want.stats.rays_per_kind, got.stats.rays_per_kind, "{name}");
+            assert_eq!(want.stats.bounces, got.stats.bounces, "{name}");
+            if mirror {
+                let shadow_rays = want.stats.bounces[0].rays_per_kind[RAY_KIND_SHADOW as usize];
+                assert!(shadow_rays > 0, "{name}: the first bounce traces shadow rays");
+            }
+            images.push(got.final_image);
+        }
+        assert!(images[0] != images[1], "{name}: frames 0 and 1 sample alike");
+    }
+    // Point lights with occlusion, then without: the second frame shades with the scene's
+    // own ambient record and one slot per light again (the paper's pipelines).
+    let scene = scene(vec![point()], ShadingModel::Paper, false);
+    let prepared = prepare(&scene);
+    let options = FrameOptions { stage_outputs: true, denoise: false, max_depth: 0, ..FrameOptions::default() };
+    for ao_samples in [3, 0, 1] {
+        let opts = FrameOptions { ao_samples, ..options };
+        let want = cpu.render(&prepared, &camera(&scene), &opts).unwrap();
+        let got = gpu.render(&prepared, &camera(&scene), &opts).unwrap();
+        assert_eq!(want.plan.stochastic(), ao_samples > 0);
+        assert_eq!(first_difference(&want, &got), None, "{ao_samples} occlusion rays");
+    }
+}
