@@ -19,7 +19,7 @@ use std::path::PathBuf;
 
 use hyrt_core::formats::CameraRecord;
 use hyrt_core::frame::{Backend, Frame, FrameOptions, PreparedScene};
-use hyrt_core::kernels::soft_shadow::{frame_lights, light_visibility, slot_ray, AmbientOcclusion, Slot};
+use hyrt_core::kernels::soft_shadow::{frame_lights, light_visibility, lights_slots, slot_ray, AmbientOcclusion, Slot};
 use hyrt_core::stage::Stage;
 use hyrt_cpu::backend::CpuBackend;
 use hyrt_cpu::traversal::{occluded_batch_into, Traversal};
@@ -80,8 +80,10 @@ fn reference_visibility(prepared: &PreparedScene, frame: &Frame, light: usize) -
             if !s.is_hit() {
                 return None;
             }
-            let mut codes = vec![0u8; REFERENCE_SAMPLES as usize];
-            for (sample, code) in codes.iter_mut().enumerate() {
+            // Every light's slots (`light_visibility` walks them all); the others trace none.
+            let mut all = vec![0u8; lights_slots(&lights)];
+            let first = lights_slots(&lights[..light]);
+            for (sample, code) in all[first..first + REFERENCE_SAMPLES as usize].iter_mut().enumerate() {
                 let slot = Slot::Light { light: light as u32, sample: sample as u32 };
                 if !hyrt_core::kernels::soft_shadow::needs_slot_ray(s, &lights, &ao, slot) {
                     continue;
@@ -90,10 +92,6 @@ fn reference_visibility(prepared: &PreparedScene, frame: &Frame, light: usize) -
                 *code = hyrt_core::kernels::shadow::shadow_code(prepared.bvh.occluded(g.traversal_table(), &ray));
             }
             let mut v = vec![0.0f32; lights.len()];
-            // `light_visibility` walks every light's slots: give the others none.
-            let mut all = vec![0u8; lights.iter().map(|l| if l.is_area() { l.samples as usize } else { 1 }).sum()];
-            let first: usize = lights[..light].iter().map(|l| if l.is_area() { l.samples as usize } else { 1 }).sum();
-            all[first..first + codes.len()].copy_from_slice(&codes);
             light_visibility(&all, &lights, s, &mut v);
             (v[light] >= 0.0).then_some(v[light])
         })
@@ -306,7 +304,7 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("hyrt-soft-shadows-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let options =
-            BenchOptions { frames: 1, repeats: 1, table_size: (640, 360), ..BenchOptions::quick(dir.clone()) };
+            BenchOptions { frames: 1, repeats: 1, table_size: (160, 90), ..BenchOptions::quick(dir.clone()) };
         let s = run(&options, &ProgressBar::hidden()).unwrap();
         assert_eq!(s.rows.len(), SAMPLES.len() * 2);
         let rmse = |samples: u32, denoise: bool| {
