@@ -239,6 +239,11 @@ struct SceneArgs {
     /// `shadow_denoise` filter.
     #[arg(long)]
     no_denoise: bool,
+    /// With --frames: each frame takes its own samples of area lights and ambient
+    /// occlusion, and the denoiser accumulates them over the frames (CPU backend; the
+    /// temporal pass reprojects through camera and object motion).
+    #[arg(long)]
+    temporal: bool,
     /// Where primary hit points come from: each pixel's camera ray re-intersected with the
     /// rasterized triangle (default: as exact as a ray tracer's hit points; visibility stays
     /// the raster's), or the raster's barycentrics (a few percent faster; hit points carry
@@ -304,8 +309,9 @@ struct RenderArgs {
     #[arg(long)]
     dump: Option<PathBuf>,
     /// Render this many frames (reusing every buffer) and report the median time of
-    /// each stage over them; the image is the last frame's. With --fps: that many frames of
-    /// the animation, each to its own numbered image.
+    /// each stage over them; the image is the last frame's (with --temporal: the frames'
+    /// samples accumulated). With --fps: that many frames of the animation, each to its own
+    /// numbered image.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1000))]
     frames: u32,
     /// Render --frames N frames of the animation at --time (default 0) + i / FPS seconds, each
@@ -556,6 +562,7 @@ impl SceneArgs {
             ao_radius: self.ao_radius,
             frame_index: 0,
             denoise: !self.no_denoise,
+            temporal: false,
         }
     }
 }
@@ -645,6 +652,7 @@ fn render(args: RenderArgs) -> Result<(), String> {
     // Every stage's output is kept only for --dump (the GPU then reads them back too).
     // An image to write needs no G-buffer (`--dump` returns every stage's output).
     let options = common.frame_options(args.dump.is_some(), false);
+    let temporal = common.temporal;
     let mut per_frame = Vec::with_capacity(args.frames as usize);
     // What the frames add to the prepared scene: the resident memory now, and the peak from
     // now on (Linux; the scene's load and preparation do not count).
@@ -663,6 +671,11 @@ fn render(args: RenderArgs) -> Result<(), String> {
             motion.apply(&mut prepared, &scene)?;
         }
         let t = Instant::now();
+        // With --temporal, frames take their own samples and blend them over time.
+        let options = match temporal {
+            true => FrameOptions { frame_index: i, temporal: true, ..options },
+            false => options,
+        };
         renderer.render_into(&prepared, &camera, w, h, &options, &mut frame).map_err(|e| e.to_string())?;
         walls.push((ms_since(t), frame.stats.frame_ms()));
         per_frame.push(timed_lines(&frame.stats));

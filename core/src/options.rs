@@ -50,6 +50,13 @@ pub struct FrameOptions {
     /// (`shadow_denoise`, [`crate::kernels::denoise`]) before shading; true by default.
     /// Without it the shaders average the raw samples.
     pub denoise: bool,
+    /// Frames follow each other (an animation, a viewer, `--frames`): the denoiser also
+    /// blends each pixel with what the previous frame the backend rendered saw of the
+    /// same surface point, reprojected through the previous camera and the objects'
+    /// previous transforms ([`crate::kernels::temporal`]). Each frame then needs its own
+    /// [`FrameOptions::frame_index`] for its samples to add anything. Only where the frame
+    /// denoises; false by default (a frame on its own depends on nothing before it).
+    pub temporal: bool,
 }
 
 /// Default [`FrameOptions::shadow_samples`]: four rays per surface and area light.
@@ -105,6 +112,7 @@ impl Default for FrameOptions {
             ao_radius: None,
             frame_index: 0,
             denoise: true,
+            temporal: false,
         }
     }
 }

@@ -270,6 +270,10 @@ pub enum Input {
     /// What secondary rays that leave the scene see: the default sky or the scene's
     /// environment map ([`crate::geometry::WorldGeometry::environment`]).
     Environment,
+    /// What the backend kept of the previous frame for the denoiser's temporal pass
+    /// ([`crate::kernels::temporal::History`]: its camera, surfaces, visibility, and the
+    /// objects' transforms), read where [`FrameOptions::temporal`] asks for it.
+    History,
 }
 
 /// One stage of a plan, with what it needs to know of the plan.
@@ -427,7 +431,7 @@ impl Step {
             Step::Reconstruction => &[I::Triangles, I::Normals, I::Camera],
             Step::Compaction | Step::BounceCompaction { .. } => &[I::Lights],
             Step::ShadowRays | Step::BounceShadowRays { .. } => &[I::Bvh, I::Triangles],
-            Step::ShadowDenoise => &[I::Lights, I::Camera, I::Options],
+            Step::ShadowDenoise => &[I::Lights, I::Camera, I::Options, I::History],
             Step::SecondaryRays { .. } => &[I::Triangles, I::Objects, I::Camera, I::Options],
             Step::BounceTrace { .. } => &[I::Bvh, I::Triangles, I::Normals],
             Step::BounceShading { .. } => &[I::Objects, I::Lights, I::Triangles, I::Environment],

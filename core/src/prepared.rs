@@ -8,7 +8,7 @@ use glam::Vec3;
 
 use crate::bvh::two_level::{MoveError, TwoLevelBvh};
 use crate::bvh::Bvh;
-use crate::formats::{LightRecord, INVALID_ID};
+use crate::formats::{LightRecord, ObjectMap, INVALID_ID, MAP_IDENTITY};
 use crate::geometry::WorldGeometry;
 use crate::kernels::shading::AmbientLight;
 use crate::kernels::soft_shadow::{frame_lights, frame_occlusion, is_stochastic, surface_slots};
@@ -174,6 +174,25 @@ impl PreparedScene {
             }
         };
         FrameLighting { lights, ambient }
+    }
+
+    /// Per object, its world-to-object map now: its instance's for an object traced in
+    /// its own space (one that can move: [`PreparedScene::move_objects`]), else
+    /// [`MAP_IDENTITY`] (baked into world space, it never moves). What the denoiser's
+    /// temporal pass compares from frame to frame ([`crate::kernels::temporal::motion_records`]).
+    pub fn object_maps(&self) -> Vec<ObjectMap> {
+        let count = self.geometry.objects.len();
+        let Some(levels) = &self.levels else {
+            return vec![MAP_IDENTITY; count];
+        };
+        (0..count)
+            .map(|o| match levels.object_instance.get(o) {
+                Some(&i) if i != INVALID_ID && levels.in_object_space[o] => {
+                    levels.instances[i as usize].world_to_object()
+                }
+                _ => MAP_IDENTITY,
+            })
+            .collect()
     }
 
     /// How many in-place changes the scene has had (0 as prepared).

@@ -32,7 +32,7 @@ use crate::{
     reconstruction::{normal_mapping_into, reconstruction_into, reconstruction_reintersected_into},
     rt_shading::{rt_shading_bouncing_into, rt_shading_into, BouncingShading, FirstBounce},
     secondary_rays::{secondary_rays_into, Parents},
-    shadow_denoise::{shadow_denoise_into, DenoiseScratch},
+    shadow_denoise::{shadow_denoise_into, DenoiseScratch, Temporal, TemporalHistory},
     shadow_rays::{shadow_rays_in_object_space, shadow_rays_of_pairs_into, shadow_rays_with},
     traversal::Traversal,
     visibility_raster::visibility_raster_into,
@@ -46,6 +46,8 @@ pub struct CpuBackend {
     scratch: CompactionScratch,
     /// `shadow_denoise`'s ping-pong buffer and tile flags, kept between frames.
     denoise: DenoiseScratch,
+    /// What the last denoised frame left for the next one's temporal pass.
+    history: TemporalHistory,
     /// `bounce_trace`'s closest hits before they become records, kept between frames.
     closest: Vec<Option<ClosestHit>>,
     /// The fused frame's bouncing pixels, kept between frames.
@@ -70,6 +72,7 @@ impl CpuBackend {
             pool: b.build().expect("rayon thread pool"),
             scratch: CompactionScratch::default(),
             denoise: DenoiseScratch::default(),
+            history: TemporalHistory::default(),
             closest: Vec::new(),
             deferred: Deferred::default(),
             shadow_traversal: Traversal::simd(),
@@ -359,6 +362,7 @@ impl Backend for CpuBackend {
         let (traversal, bounce_traversal) = (self.shadow_traversal, self.bounce_traversal);
         let scratch = &mut self.scratch;
         let denoise = &mut self.denoise;
+        let history = &mut self.history;
         let closest = &mut self.closest;
         let f = frame;
         f.begin(&plan, options);
@@ -505,15 +509,16 @@ impl Backend for CpuBackend {
                         let width = Some(camera.width);
                         shadow_rays[0] = trace_list(scene, &f.surfaces, &slots, scratch, list, width, traversal, out);
                     }
-                    Step::ShadowDenoise => shadow_denoise_into(
-                        &f.surfaces,
-                        &f.shadow,
-                        lights,
-                        &ambient.occlusion,
-                        camera,
-                        denoise,
-                        &mut f.visibility,
-                    ),
+                    Step::ShadowDenoise => {
+                        let temporal = options.temporal.then(|| Temporal {
+                            scene: scene.id(),
+                            maps: scene.object_maps(),
+                            history: &mut *history,
+                        });
+                        let occlusion = &ambient.occlusion;
+                        let out = &mut f.visibility;
+                        shadow_denoise_into(&f.surfaces, &f.shadow, lights, occlusion, camera, denoise, temporal, out)
+                    }
                     Step::SecondaryRays { .. }
                     | Step::BounceTrace { .. }
                     | Step::BounceCompaction { .. }

@@ -332,3 +332,164 @@ fn stochastic_frames_are_the_same_bits_at_any_thread_count_and_differ_between_fr
     let other = render(&mut cpu, &prepared, &scene, (w, h), &next);
     assert_ne!(other.shadow, frames[0].shadow, "frame 1 traced the samples of frame 0");
 }
+
+/// A frame's denoised visibility against `traced_visibility`: the mean absolute error over
+/// the pixels with a reference and over those it puts in penumbra, and the pixels deep in
+/// umbra and deep in full light (the reference 0 over the clamp's 5 x 5 neighbourhood, or
+/// 1 over the 9 x 9 one), which must be exactly 0 (every raw sample around them is
+/// occluded, and the spatial clamp and the temporal pass's history clamp pin them), or at
+/// least 0.98.
+/// Objects 0 and 1 of `scene`: the floor's two halves.
+const FLOOR_OBJECTS: u32 = 2;
+
+struct VisibilityError {
+    mae: f64,
+    penumbra_mae: f64,
+    umbra: Vec<usize>,
+    lit: Vec<usize>,
+}
+
+fn visibility_error(prepared: &PreparedScene, frame: &Frame, (w, h): (usize, usize)) -> VisibilityError {
+    let reference: Vec<Option<f64>> = frame
+        .surfaces
+        .iter()
+        .map(|s| {
+            s.is_hit().then(|| traced_visibility(prepared, Vec3::from(s.position), Vec3::from(s.normal))).flatten()
+        })
+        .collect();
+    let (mut sum, mut count, mut p_sum, mut p_count) = (0.0f64, 0usize, 0.0f64, 0usize);
+    for (i, want) in reference.iter().enumerate() {
+        if let Some(want) = want {
+            let err = (frame.visibility[i].max(0.0) as f64 - want).abs();
+            sum += err;
+            count += 1;
+            if *want > 0.0 && *want < 1.0 {
+                p_sum += err;
+                p_count += 1;
+            }
+        }
+    }
+    // Full light: over a wider neighbourhood, 2 pixels more, where the reference's 32 x 32
+    // grid over the light may miss the slivers of it that a box edge hides from the pixels
+    // next to the penumbra (and that a random sample finds).
+    let reach = hyrt_core::kernels::denoise::CLAMP_RADIUS as usize;
+    let wide = reach + 2;
+    let (mut umbra, mut lit) = (Vec::new(), Vec::new());
+    for y in wide..h - wide {
+        for x in wide..w - wide {
+            let all = |value: f64, r: usize| {
+                (y - r..=y + r).all(|yy| (x - r..=x + r).all(|xx| reference[yy * w + xx] == Some(value)))
+            };
+            let v = frame.visibility[y * w + x];
+            // On the floor (the box's faces see the light at grazing angles, where the grid
+            // and the samples part most).
+            if frame.surfaces[y * w + x].object >= FLOOR_OBJECTS {
+                continue;
+            }
+            if all(0.0, reach) {
+                assert_eq!(v, 0.0, "pixel ({x}, {y}) in the umbra sees the light");
+                umbra.push(y * w + x);
+            } else if all(1.0, wide) {
+                // Not held to exactly 1: the grid does not see every sliver of the light
+                // the box hides, which a random sample finds (0.986 measured at worst).
+                assert!(v >= 0.98, "pixel ({x}, {y}) in full light is shadowed ({v})");
+                lit.push(y * w + x);
+            }
+        }
+    }
+    VisibilityError { mae: sum / count as f64, penumbra_mae: p_sum / p_count as f64, umbra, lit }
+}
+
+/// The denoiser's temporal pass (`FrameOptions::temporal`): eight frames of 4 samples
+/// each, their own samples (`frame_index`), accumulated over time before the spatial
+/// filter, come closer to the reference in the penumbra than any one of them denoised
+/// alone, with the camera still; with the camera panning (the history resampled at the
+/// nearest previous pixel every frame) the umbra stays exactly dark, and the error is
+/// printed, not bounded: the resampling blurs the penumbra more than the samples gain
+/// (measured: 0.058 against 0.041 alone; bilinear reprojection is the next step).
+#[test]
+fn frames_that_follow_each_other_blend_their_samples_over_time() {
+    let scene = scene(true);
+    let (w, h) = (160usize, 90usize);
+    let base = scene.camera.expect("camera");
+    for panning in [false, true] {
+        let mut cpu = CpuBackend::new(Some(2));
+        let prepared = cpu.prepare(WorldGeometry::build(&scene), BvhPreset::default());
+        let (mut alone, mut blended) = (Vec::new(), 0.0);
+        for i in 0..8u32 {
+            // A pan of 2 cm a frame: about a pixel.
+            let shift = if panning { Vec3::new(0.02 * i as f32, 0.0, 0.0) } else { Vec3::ZERO };
+            let camera = Camera { eye: base.eye + shift, target: base.target + shift, ..base };
+            let record = CameraRecord::new(&camera, w as u32, h as u32);
+            let single = FrameOptions { frame_index: i, ..options(4) };
+            let frame = CpuBackend::new(Some(2)).render(&prepared, &record, &single).expect("frame");
+            alone.push(visibility_error(&prepared, &frame, (w, h)).penumbra_mae);
+            // `visibility_error` holds the umbra at exactly 0.
+            let frame = cpu.render(&prepared, &record, &FrameOptions { temporal: true, ..single }).expect("frame");
+            let e = visibility_error(&prepared, &frame, (w, h));
+            assert!(e.umbra.len() > 20 && e.lit.len() > 1000, "{} umbra and {} lit pixels", e.umbra.len(), e.lit.len());
+            blended = e.penumbra_mae;
+        }
+        let best_alone = alone.iter().copied().fold(f64::INFINITY, f64::min);
+        let mean_alone = alone.iter().sum::<f64>() / alone.len() as f64;
+        eprintln!(
+            "panning {panning}: 4 samples a frame, penumbra's mean absolute error alone {alone:.4?} (mean \
+             {mean_alone:.4}), after 8 frames accumulated {blended:.4}"
+        );
+        if !panning {
+            // Eight frames' samples, at most 8 behind a pixel: the noise part of the error
+            // shrinks, the spatial filter's bias stays. Measured: 0.0325 against 0.037 to
+            // 0.045 alone (0.041 on average); one frame of 64 samples gets 0.022.
+            assert!(blended < best_alone, "accumulated {blended} against {best_alone} for the best frame alone");
+            assert!(blended < 0.85 * mean_alone, "accumulated {blended} against {mean_alone} on average alone");
+        }
+    }
+}
+
+/// The first frame is the frame denoised alone; a moving occluder's shadow moves at once
+/// (where the floor is now in umbra, exactly 0, and where it is in full light, 0.98 or
+/// more: no ghost of the old shadow); another prepared scene starts afresh.
+#[test]
+fn the_temporal_pass_keeps_still_frames_and_follows_moving_shadows() {
+    let scene = scene(true);
+    let (w, h) = (160usize, 90usize);
+    let camera = CameraRecord::new(&scene.camera.expect("camera"), w as u32, h as u32);
+    let temporal = FrameOptions { temporal: true, ..options(4) };
+    let box_object = (scene.objects.len() - 1) as u32;
+    let mut cpu = CpuBackend::new(Some(2));
+    let mut prepared = hyrt_cpu::bvh_build::prepare_moving(&scene, BvhPreset::default(), &[box_object]);
+    let first = cpu.render(&prepared, &camera, &temporal).expect("frame");
+    let bits = |f: &Frame| f.visibility.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    let alone = CpuBackend::new(Some(2)).render(&prepared, &camera, &options(4)).expect("frame");
+    assert_eq!(bits(&first), bits(&alone), "the first frame has nothing to blend");
+    // The references trace scenes prepared whole (the moving scene's own BVH copy holds
+    // only what is baked into world space: not the box).
+    let baked = |s: &Scene| cpu.prepare(WorldGeometry::build(s), BvhPreset::default());
+    let before = visibility_error(&baked(&scene), &first, (w, h));
+    // The box moves 0.3 m along x: its shadow moves with it.
+    let mut moved = scene.clone();
+    moved.objects[box_object as usize].transform =
+        Mat4::from_translation(Vec3::new(0.4, 0.6, 0.0)) * Mat4::from_scale(Vec3::splat(0.3));
+    prepared.move_objects(&moved, &[box_object]).expect("the box moves");
+    let reference = baked(&moved);
+    for i in 1..4 {
+        let frame = cpu.render(&prepared, &camera, &FrameOptions { frame_index: i, ..temporal }).expect("frame");
+        // `visibility_error` holds the new umbra at exactly 0 and full light at exactly 1.
+        let e = visibility_error(&reference, &frame, (w, h));
+        // The old umbra now in full light: lit, no ghost of the old shadow (`visibility_error`
+        // holds them at 0.98 or more).
+        let uncovered = e.lit.iter().filter(|i| before.umbra.contains(i)).count();
+        let covered = e.umbra.iter().filter(|i| before.lit.contains(i)).count();
+        eprintln!(
+            "frame {i} after the move: mean absolute error {:.4}; {uncovered} pixels of the old umbra in full light, \
+             {covered} lit ones in the new umbra",
+            e.mae
+        );
+        assert!(e.mae <= 0.03, "frame {i} after the move: mean absolute error {}", e.mae);
+        assert!(e.umbra.len() > 20, "an umbra worth checking: {}", e.umbra.len());
+    }
+    // Another prepared scene: no history from this one.
+    let other = cpu.prepare(WorldGeometry::build(&scene), BvhPreset::default());
+    let fresh = cpu.render(&other, &camera, &temporal).expect("frame");
+    assert_eq!(bits(&fresh), bits(&alone), "a new scene starts afresh");
+}

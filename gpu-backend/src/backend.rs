@@ -517,6 +517,7 @@ impl GpuBackend {
     ) -> Result<FrameStats, RenderError> {
         let plan = FramePlan::new(scene, options)?;
         check_denoiser(&plan)?;
+        check_temporal(&plan, options)?;
         self.check_supported(scene, &plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         crate::present::check_target(target, camera.width, camera.height).map_err(RenderError::InvalidOptions)?;
@@ -997,6 +998,7 @@ impl Backend for GpuBackend {
     ) -> Result<(), RenderError> {
         let plan = FramePlan::new(scene, options)?;
         check_denoiser(&plan)?;
+        check_temporal(&plan, options)?;
         self.check_supported(scene, &plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         frame.begin(&plan, options);
@@ -1022,6 +1024,22 @@ fn check_denoiser(plan: &FramePlan) -> Result<(), RenderError> {
             why:
                 "the shadow denoiser of area lights (quad, sphere, sun) and ambient occlusion runs on the CPU backend \
                   only for now (--backend cpu); --no-denoise renders the frame on the GPU",
+        }),
+    }
+}
+
+/// Refuse a frame whose denoiser blends in the frames before it
+/// ([`FrameOptions::temporal`]): the temporal pass runs on the CPU backend only for now, and
+/// a frame without it would silently be another image. The same frame without it (each
+/// frame denoised on its own) renders here.
+fn check_temporal(plan: &FramePlan, options: &FrameOptions) -> Result<(), RenderError> {
+    match options.temporal && plan.runs(Stage::ShadowDenoise) {
+        false => Ok(()),
+        true => Err(RenderError::Unsupported {
+            backend: "gpu",
+            stage: Stage::ShadowDenoise.name().into(),
+            why: "the denoiser's temporal pass (FrameOptions::temporal) runs on the CPU backend only for now; \
+                  --no-temporal denoises each frame on its own",
         }),
     }
 }

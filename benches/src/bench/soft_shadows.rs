@@ -303,8 +303,7 @@ mod tests {
     fn the_section_measures_every_row_and_the_denoiser_helps() {
         let dir = std::env::temp_dir().join(format!("hyrt-soft-shadows-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let options =
-            BenchOptions { frames: 1, repeats: 1, table_size: (160, 90), ..BenchOptions::quick(dir.clone()) };
+        let options = BenchOptions { frames: 1, repeats: 1, table_size: (160, 90), ..BenchOptions::quick(dir.clone()) };
         let s = run(&options, &ProgressBar::hidden()).unwrap();
         assert_eq!(s.rows.len(), SAMPLES.len() * 2);
         let rmse = |samples: u32, denoise: bool| {

@@ -11,8 +11,8 @@
 
 use crate::formats::{
     AmbientLightRecord, BvhNode, CameraRecord, EnvironmentRecord, FrameParams, GBufferTexel, HitRecord, InstanceRecord,
-    LightRecord, ListParams, MaterialRecord, ObjectRecord, RayRecord, SurfaceLayout, SurfaceRecord, TextureRecord,
-    TriangleRecord, TriangleUvRecord,
+    LightRecord, ListParams, MaterialRecord, MotionRecord, ObjectRecord, RayRecord, SurfaceLayout, SurfaceRecord,
+    TextureRecord, TriangleRecord, TriangleUvRecord,
 };
 
 /// The WGSL type of a record field.
@@ -251,7 +251,7 @@ pub fn constant_values() -> Vec<(&'static str, u32)> {
         TEXEL_LINEAR,
     )
     .to_vec();
-    c.extend(u32_constants!(INSTANCE_IDENTITY, INSTANCE_MIRRORED, INSTANCE_ALPHA_TEST));
+    c.extend(u32_constants!(INSTANCE_IDENTITY, INSTANCE_MIRRORED, INSTANCE_ALPHA_TEST, MOTION_NONE));
     c.extend([
         ("COMPOSITION_WEIGHTED_MEAN", Composition::WeightedMean.code()),
         ("COMPOSITION_COPY_RASTER", Composition::CopyRaster.code()),
@@ -286,6 +286,7 @@ pub fn struct_declarations() -> String {
         TriangleUvRecord::declaration(),
         SurfaceLayout::declaration(),
         InstanceRecord::declaration(),
+        MotionRecord::declaration(),
     ]
     .join("\n")
 }
@@ -325,6 +326,7 @@ mod tests {
         TriangleUvRecord::check_layout().unwrap();
         SurfaceLayout::check_layout().unwrap();
         InstanceRecord::check_layout().unwrap();
+        MotionRecord::check_layout().unwrap();
     }
 
     #[test]

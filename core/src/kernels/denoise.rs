@@ -258,7 +258,7 @@ pub const CLAMP_RADIUS: i64 = 2;
 
 /// The pixels of the [`CLAMP_RADIUS`] neighbourhood of `(x, y)` (itself included) that are
 /// hits on its object, in row-major order.
-fn neighbourhood(
+pub fn neighbourhood(
     surfaces: &[SurfaceRecord],
     (width, height): (usize, usize),
     (x, y): (usize, usize),
@@ -289,6 +289,26 @@ pub fn clamp_pixel(
     if !centre.is_hit() {
         return;
     }
+    let (lo, hi) = raw_range(raw, surfaces, (width, height), (x, y), channels);
+    for c in 0..channels {
+        if filter[c] && out[c] >= 0.0 && lo[c] <= hi[c] {
+            out[c] = out[c].max(lo[c]).min(hi[c]);
+        }
+    }
+}
+
+/// Per channel, the least and the greatest of the raw values `raw` (`channels` per pixel)
+/// with an estimate in the 5 x 5 neighbourhood of hit pixel `(x, y)` on its object
+/// ([`CLAMP_RADIUS`]); `lo > hi` (infinities) for a channel without any. What
+/// [`clamp_pixel`] bounds a filtered value by, and the temporal pass a pixel's history
+/// ([`crate::kernels::temporal`]).
+pub fn raw_range(
+    raw: &[f32],
+    surfaces: &[SurfaceRecord],
+    (width, height): (usize, usize),
+    (x, y): (usize, usize),
+    channels: usize,
+) -> ([f32; MAX_CHANNELS], [f32; MAX_CHANNELS]) {
     let mut lo = [f32::INFINITY; MAX_CHANNELS];
     let mut hi = [f32::NEG_INFINITY; MAX_CHANNELS];
     for j in neighbourhood(surfaces, (width, height), (x, y)) {
@@ -300,11 +320,7 @@ pub fn clamp_pixel(
             }
         }
     }
-    for c in 0..channels {
-        if filter[c] && out[c] >= 0.0 && lo[c] <= hi[c] {
-            out[c] = out[c].max(lo[c]).min(hi[c]);
-        }
-    }
+    (lo, hi)
 }
 
 /// Most channels a frame filters: area lights plus the ambient occlusion.

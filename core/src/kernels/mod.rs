@@ -20,5 +20,6 @@ pub mod scan;
 pub mod shading;
 pub mod shadow;
 pub mod soft_shadow;
+pub mod temporal;
 pub mod texture;
 pub mod tone_map;
