@@ -177,9 +177,9 @@ fn denoise_kernels_match_cpu_bit_for_bit() {
         })
         .collect();
     let sigma: Vec<f32> =
-        (0..w * h * channels).map(|_| if rng.u32() % 4 == 0 { 0.0 } else { rng.range(0.0, 0.3) }).collect();
+        (0..w * h * channels).map(|_| if rng.u32().is_multiple_of(4) { 0.0 } else { rng.range(0.0, 0.3) }).collect();
     let (tiles_x, tiles_y) = (w.div_ceil(DENOISE_TILE), h.div_ceil(DENOISE_TILE));
-    let flags: Vec<bool> = (0..tiles_x * tiles_y * channels).map(|_| rng.u32() % 4 != 0).collect();
+    let flags: Vec<bool> = (0..tiles_x * tiles_y * channels).map(|_| !rng.u32().is_multiple_of(4)).collect();
     let codes: Vec<u32> = (0..w * h * slots)
         .map(|_| match rng.u32() % 3 {
             0 => SHADOW_NO_RAY as u32,
