@@ -224,11 +224,11 @@ struct SceneArgs {
     #[arg(long, value_parser = clap::value_parser!(u32).range(0..=hyrt::MAX_DEPTH_LIMIT as i64))]
     max_depth: Option<u32>,
     /// Shadow rays per pixel for each area light (quad, sphere, sun: soft shadows);
-    /// point, spot and directional lights keep one. Default 4. CPU backend only for now.
+    /// point, spot and directional lights keep one. Default 4.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=hyrt::MAX_SAMPLES as i64))]
     shadow_samples: Option<u32>,
     /// Ambient-occlusion rays per pixel (0, the default: none): their unoccluded fraction
-    /// scales the ambient and environment light. CPU backend only for now.
+    /// scales the ambient and environment light.
     #[arg(long, default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=hyrt::MAX_SAMPLES as i64))]
     ao_samples: u32,
     /// How far ambient-occlusion rays look, in scene units (default: a twentieth of the

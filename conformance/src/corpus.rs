@@ -32,12 +32,13 @@
 //!   three textured and three two-level ones; spheres from smooth to rough; and the
 //!   image-based light of a procedural environment map (every other glTF case has the
 //!   default sky's) on the spheres and on the default scene, at its depth and at depth 1.
-//! - `stochastic_*`: stochastic shadow rays (issue 38), rendered without the denoiser
-//!   (which runs on the CPU only; [`Case::options`]): a quad light over a floor with a box
-//!   (the paper's model and the glTF one), a sphere light beside a point light, a sun of
-//!   finite angular size, ambient occlusion alone in a corner, and a quad light with
+//! - `stochastic_*`: stochastic shadow rays (issue 38): a quad light over a floor with a
+//!   box (the paper's model and the glTF one), a sphere light beside a point light, a sun
+//!   of finite angular size, ambient occlusion alone in a corner, and a quad light with
 //!   occlusion rays in front of a mirror (every bounce depth traces and shades the same
-//!   slots); few samples, small images.
+//!   slots); few samples, small images. Each without the denoiser ([`Case::denoise`]
+//!   false: the raw samples), and again denoised (`stochastic_denoised_*`: `shadow_denoise`
+//!   and its filtered visibility, which the shading of primary surfaces reads).
 //!
 //! Images are small (lavapipe runs the GPU side on the CI's two cores).
 
@@ -79,20 +80,22 @@ pub struct Case {
     /// Ambient-occlusion rays per surface (`FrameOptions::ao_samples`): none unless the
     /// case says otherwise (`stochastic_*` cases).
     pub ao_samples: u32,
+    /// Whether the frame denoises its stochastic shadows (`FrameOptions::denoise`): false
+    /// unless the case says otherwise (`stochastic_denoised_*` cases).
+    pub denoise: bool,
 }
 
 impl Case {
     /// The options the case renders with (every stage output is the caller's choice):
-    /// its weight, depth and samples, without the shadow denoiser (`FrameOptions::denoise`
-    /// false: the conformance compares the stages both backends run, and the denoiser runs
-    /// on the CPU backend only; a frame without stochastic rays does not denoise anyway).
+    /// its weight, depth and samples, and whether it denoises ([`Case::denoise`]; a frame
+    /// without stochastic rays does not denoise anyway).
     pub fn options(&self) -> FrameOptions {
         FrameOptions {
             weight: self.weight,
             max_depth: self.max_depth,
             shadow_samples: self.shadow_samples,
             ao_samples: self.ao_samples,
-            denoise: false,
+            denoise: self.denoise,
             ..FrameOptions::default()
         }
     }
@@ -207,6 +210,7 @@ impl Builder {
             moving: Vec::new(),
             shadow_samples: DEFAULT_SHADOW_SAMPLES,
             ao_samples: 0,
+            denoise: false,
         });
     }
 }
@@ -278,6 +282,7 @@ fn default_case(b: &mut Builder) {
         moving: Vec::new(),
         shadow_samples: DEFAULT_SHADOW_SAMPLES,
         ao_samples: 0,
+        denoise: false,
     });
     // KHR_lights_punctual's spot lights and ranges: the default scene's key light as a spot
     // whose cone edge crosses the objects and the floor, a narrow spot with a range that
@@ -827,7 +832,8 @@ fn box_on_floor(lights: Vec<Light>, shading: ShadingModel) -> Scene {
 }
 
 /// The `stochastic_*` cases (module docs): area lights' samples and ambient-occlusion
-/// rays on every stage, without the denoiser.
+/// rays on every stage, without the denoiser, then the same scenes denoised
+/// (`stochastic_denoised_*`).
 fn stochastic_cases(b: &mut Builder) {
     let (w, h) = (96u32, 64u32);
     let cam = camera(Vec3::new(0.6, 2.0, 3.2), Vec3::new(0.0, 0.3, 0.0), 0.05, 50.0);
@@ -927,6 +933,12 @@ fn stochastic_cases(b: &mut Builder) {
     );
     samples(b, STOCHASTIC_SHADOW_SAMPLES, STOCHASTIC_AO_SAMPLES);
     b.cases.last_mut().expect("a case").max_depth = 2;
+    // Every case again, denoised.
+    let raw: Vec<Case> = b.cases.iter().filter(|c| c.name.starts_with("stochastic_")).cloned().collect();
+    for case in raw {
+        let name = format!("stochastic_denoised_{}", &case.name["stochastic_".len()..]);
+        b.cases.push(Case { name, denoise: true, ..case });
+    }
 }
 
 /// Cases of the other families again with the glTF BRDF on every object
@@ -1743,9 +1755,9 @@ mod tests {
                 "{}",
                 case.name
             );
-            // Stochastic rays exactly in their family, rendered without the denoiser.
+            // Stochastic rays exactly in their family, denoised exactly in its cases so named.
             assert_eq!(case.stochastic(), case.name.starts_with("stochastic_"), "{}", case.name);
-            assert!(!case.options().denoise, "{}", case.name);
+            assert_eq!(case.options().denoise, case.name.starts_with("stochastic_denoised_"), "{}", case.name);
         }
         let stochastic: Vec<&Case> = c.iter().filter(|c| c.stochastic()).collect();
         let lit_by = |kind: fn(&Light) -> bool| stochastic.iter().filter(|c| c.scene.lights.iter().any(kind)).count();
@@ -1755,6 +1767,8 @@ mod tests {
         assert!(quads >= 2 && spheres >= 1 && suns >= 1, "area lights of every kind: {quads}, {spheres}, {suns}");
         assert!(stochastic.iter().any(|c| c.ao_samples > 0 && c.max_depth > 0 && c.name.contains("mirror")));
         assert!(stochastic.iter().any(|c| c.scene.shading == ShadingModel::Gltf));
+        let denoised = stochastic.iter().filter(|c| c.denoise).count();
+        assert_eq!(2 * denoised, stochastic.len(), "every stochastic case denoised and not");
         assert!(c.len() >= 30, "{} cases", c.len());
         let gltf = |family: &str| c.iter().filter(|c| c.name.starts_with(&format!("shading_gltf_{family}"))).count();
         let counts = (gltf("paper_default"), gltf("bounce_"), gltf("texture_"), gltf("instance_"));

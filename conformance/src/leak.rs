@@ -448,6 +448,7 @@ pub fn leak_case(
         moving: Vec::new(),
         shadow_samples: hyrt_core::frame::DEFAULT_SHADOW_SAMPLES,
         ao_samples: 0,
+        denoise: false,
     };
     let far = placement.centre.abs().max_element() + 2.0 * s;
     let feature_ulps = GAP_FRACTION * s / ulp(far);

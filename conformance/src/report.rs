@@ -201,8 +201,8 @@ pub fn run_case(reference: &mut CpuBackend, candidate: &mut dyn Backend, case: &
     }
 }
 
-/// Render a case on one backend with every stage output ([`Case::options`]: without the
-/// shadow denoiser).
+/// Render a case on one backend with every stage output ([`Case::options`]: denoised
+/// where the case says so).
 pub fn render_case(backend: &mut dyn Backend, prepared: &PreparedScene, case: &Case) -> Result<Frame, String> {
     let camera = CameraRecord::new(&case.camera, case.width, case.height);
     let opts = FrameOptions { stage_outputs: true, ..case.options() };

@@ -103,7 +103,12 @@ fn conformance_gpu_matches_cpu_with_raster_barycentrics_over_the_corpus() {
 /// Frames larger than the device's bindings render in bands of rows (`hyrt_gpu::band`):
 /// here every case is forced into bands of about a quarter of its rows (bounce lists
 /// that outgrow them split the band again), and every stage's buffers, merged from the
-/// bands, are the whole frame's bit for bit, and so the CPU's.
+/// bands, are the whole frame's bit for bit, and so the CPU's. A denoised case's bands are
+/// rendered with a halo of rows on each side (the denoiser's neighbours): bindings that
+/// hold 8 rows and the halo's, so that band edges cross its penumbrae every 8 rows.
+/// Own rows of the bands of the banded test's denoised cases.
+const DENOISED_BAND_ROWS: u32 = 8;
+
 #[test]
 fn conformance_gpu_in_bands_is_the_whole_frame_over_the_corpus() {
     let Some(mut gpu) = gpu_for_tests() else { return };
@@ -116,10 +121,14 @@ fn conformance_gpu_in_bands_is_the_whole_frame_over_the_corpus() {
         assert_eq!(gpu.last_frame_bands(), 1, "{}: a corpus frame fits whole", case.name);
         let camera = CameraRecord::new(&case.camera, case.width, case.height);
         let plan = FramePlan::new(&p, &case.options()).unwrap();
-        let rows = case.height.div_ceil(4);
+        let rows = if case.denoise { DENOISED_BAND_ROWS } else { case.height.div_ceil(4) };
+        let held = match case.denoise {
+            true => hyrt_gpu::band::buffer_rows(rows, u32::MAX, hyrt_gpu::shadow_denoise::DENOISE_HALO),
+            false => rows,
+        };
         // Shadow-mask slots per surface: the lights, or more with area lights and occlusion.
         let lights = plan.lights();
-        gpu.set_max_band_bytes(Some(band_binding_bytes((camera.width * rows) as u64, lights, &plan)));
+        gpu.set_max_band_bytes(Some(band_binding_bytes((camera.width * held) as u64, lights, &plan)));
         let bands = render_case(&mut gpu, &p, &case).unwrap();
         let n = gpu.last_frame_bands();
         assert!(n >= case.height.div_ceil(rows), "{}: {n} bands of {rows} rows", case.name);

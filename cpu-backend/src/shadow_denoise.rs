@@ -16,24 +16,13 @@
 
 use glam::Vec3;
 use hyrt_core::formats::{CameraRecord, LightRecord, ObjectMap, SurfaceRecord};
-use hyrt_core::kernels::camera::primary_ray;
 use hyrt_core::kernels::denoise::{
-    atrous_pixel, channel_count, channel_samples, clamp_pixel, noise_sigma, pixel_footprint, raw_channels, tile_agrees,
-    DENOISE_PASSES, DENOISE_TILE, MAX_CHANNELS,
+    atrous_pixel, channel_count, channel_samples, clamp_pixel, noise_sigma, pixel_angle, pixel_footprint, raw_channels,
+    tile_agrees, DENOISE_PASSES, DENOISE_TILE, MAX_CHANNELS,
 };
 use hyrt_core::kernels::soft_shadow::{surface_slots, AmbientOcclusion};
 use hyrt_core::kernels::temporal::{motion_records, temporal_pixel, History};
 use rayon::prelude::*;
-
-/// The angle one pixel spans at the image's centre: the chord between the unit directions
-/// of the primary rays through the two centre pixels of a column (a pixel is far below a
-/// degree, where the chord is the angle to 1e-5 relative).
-pub fn pixel_angle(camera: &CameraRecord) -> f32 {
-    let (x, y) = (camera.width / 2, camera.height / 2);
-    let d0 = Vec3::from(primary_ray(camera, x, y).direction).normalize();
-    let d1 = Vec3::from(primary_ray(camera, x, y.saturating_sub(1)).direction).normalize();
-    (d1 - d0).length()
-}
 
 /// Buffers the stage keeps between frames.
 #[derive(Clone, Debug, Default)]

@@ -31,6 +31,7 @@ use crate::raster_shading::RasterShadingStage;
 use crate::reconstruction::{NormalMapping, ReconstructionStage};
 use crate::rt_shading::{RtShadingBouncingStage, RtShadingStage};
 use crate::secondary_rays::SecondaryRaysStage;
+use crate::shadow_denoise::ShadowDenoiseStage;
 use crate::shadow_rays::ShadowRaysStage;
 use crate::texture::Specialization;
 use crate::timing::StageTimer;
@@ -136,9 +137,14 @@ const FIRST_BOUNCE_ROOM_PIXELS_PER_RAY: u32 = 4;
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 struct Counts {
     shadow_rays: usize,
+    /// The primary shadow rays of the band's own pixels (`shadow_rays` but in a band
+    /// with a halo, [`crate::band`]): what the frame keeps.
+    own_shadow_rays: usize,
     bounces: Vec<BounceCounts>,
     /// A band of a banded frame: where each light's rays start in its primary
-    /// shadow-ray list, and in each bounce depth's (empty otherwise).
+    /// shadow-ray list, and in each bounce depth's (empty otherwise); three words per
+    /// slot (`shaders/light_starts.wgsl`: the slot's first ray, its first and its last but
+    /// one of the band's own pixels).
     primary_starts: Vec<u32>,
     bounce_starts: Vec<Vec<u32>>,
 }
@@ -189,10 +195,10 @@ impl Counts {
 /// ambient occlusion); frame buffers once per image size and count of shadow-mask slots
 /// per surface (the light count without area lights and ambient occlusion).
 ///
-/// Area lights and ambient occlusion render bit for bit the CPU reference's frame when the
-/// frame is not denoised (`FrameOptions::denoise` false); a frame whose plan runs
-/// `shadow_denoise` is refused ([`RenderError::Unsupported`]): the denoiser runs on the CPU
-/// backend only for now.
+/// Area lights and ambient occlusion render bit for bit the CPU reference's frame, denoised
+/// (`shadow_denoise`, [`crate::shadow_denoise`]: its pipelines and those of the shading
+/// stages that read its channels built the first time a frame denoises) or not
+/// ([`FrameOptions::denoise`] false).
 pub struct GpuBackend {
     ctx: GpuContext,
     reconstruction: ReconstructionStage,
@@ -215,6 +221,8 @@ pub struct GpuBackend {
     max_band_bytes: Option<u64>,
     /// [`GpuBackend::last_frame_bands`].
     last_bands: u32,
+    /// The `shadow_denoise` stage, built the first time a frame denoises.
+    shadow_denoise: Option<ShadowDenoiseStage>,
 }
 
 impl GpuBackend {
@@ -246,6 +254,7 @@ impl GpuBackend {
             present: Present::default(),
             max_band_bytes: None,
             last_bands: 0,
+            shadow_denoise: None,
         })
     }
 
@@ -370,14 +379,22 @@ impl GpuBackend {
         // The pipelines this scene's surface tables and the frame's rays need, built before
         // the first frame that needs them.
         let stochastic = plan.stochastic();
-        self.stages(Specialization { stochastic, ..Specialization::of_scene(scene) })?;
+        let denoised = plan.runs(Stage::ShadowDenoise);
+        self.stages(Specialization { stochastic, denoised, ..Specialization::of_scene(scene) })?;
+        if denoised && self.shadow_denoise.is_none() {
+            let ctx = &self.ctx;
+            self.shadow_denoise = Some(ctx.checked(|| ShadowDenoiseStage::new(ctx))?);
+        }
         // Shadow-mask slots per surface: one per light, or with area lights and ambient
         // occlusion the slots of `hyrt_core::kernels::soft_shadow`.
         let slots = SlotParams::of(&lighting.lights, lighting.ambient.occlusion.samples);
         debug_assert_eq!(slots.slots, plan.lights(), "the plan's slots");
         let limit = self.band_binding_limit();
         let max_side = self.ctx.limits.max_texture_dimension_2d;
-        let mut rows = band::rows_per_band(camera.width, camera.height, slots.slots, plan, limit, max_side)?;
+        let fit = band::rows_per_band(camera.width, camera.height, slots.slots, plan, limit, max_side)?;
+        // A band of a denoised frame of several bands is rendered with a halo of rows.
+        let halo = if denoised { crate::shadow_denoise::DENOISE_HALO } else { 0 };
+        let mut rows = band::own_rows(fit, camera.height, halo)?;
         let mut banded = rows < camera.height;
         if let Sink::Frame(out) = sink {
             for b in out.buffers().collect::<Vec<_>>() {
@@ -391,8 +408,10 @@ impl GpuBackend {
         self.last_bands = 0;
         while first_row < camera.height {
             let band = Band { first_row, rows: rows.min(camera.height - first_row) };
-            let shape = (rows, banded, &slots, stochastic);
-            match self.run_band(scene, plan, camera, options, band, shape, sink, &mut merge)? {
+            let halo = if banded { halo } else { 0 };
+            let (extended, own) = band::with_halo(band, camera.height, halo);
+            let shape = (band::buffer_rows(rows, camera.height, halo), banded, &slots, stochastic);
+            match self.run_band(scene, plan, camera, options, (extended, own), shape, sink, &mut merge)? {
                 Some(counts) => {
                     total.add(&counts);
                     self.last_bands += 1;
@@ -419,11 +438,12 @@ impl GpuBackend {
         Ok(total)
     }
 
-    /// Run the plan over `band` (of a frame of bands of `rows` rows, `banded` if more
-    /// than one, with the mask `slots` per surface, `stochastic` if the frame traces
-    /// stochastic rays) with room for its lists, then read it back or present it: its
-    /// counts, or `None` when a list needs more room than a binding holds (the band must
-    /// split). A band whose lists outgrow their room runs again with more.
+    /// Run the plan over `band` keeping its rows `own` (from the band's first row: all of
+    /// them but for a halo, [`crate::band`]; of a frame whose buffers hold `rows` rows,
+    /// `banded` if more than one band, with the mask `slots` per surface, `stochastic` if
+    /// the frame traces stochastic rays) with room for its lists, then read it back or
+    /// present it: its counts, or `None` when a list needs more room than a binding holds
+    /// (the band must split). A band whose lists outgrow their room runs again with more.
     #[allow(clippy::too_many_arguments)]
     fn run_band(
         &mut self,
@@ -431,7 +451,7 @@ impl GpuBackend {
         plan: &FramePlan,
         camera: &CameraRecord,
         options: &FrameOptions,
-        band: Band,
+        (band, own): (Band, Band),
         (rows, banded, slots, stochastic): (u32, bool, &SlotParams, bool),
         sink: &mut Sink<'_>,
         merge: &mut BandMerge,
@@ -458,7 +478,7 @@ impl GpuBackend {
                 self.frame = Some(ctx.checked(|| FrameBuffers::for_plan(ctx, w, rows, lights, plan, &room))??);
             }
             let fb = self.frame.as_mut().expect("frame buffers");
-            fb.set_band(&self.ctx, band, banded);
+            fb.set_band(&self.ctx, band, own, banded);
             fb.set_slots(&self.ctx, slots, stochastic);
             // The frame's cone spread, by the CPU's rule (0 unless colours vary over surfaces).
             self.run_plan(plan, camera, options, scene.geometry.materials(camera).spread)?;
@@ -516,7 +536,6 @@ impl GpuBackend {
         target: &wgpu::Texture,
     ) -> Result<FrameStats, RenderError> {
         let plan = FramePlan::new(scene, options)?;
-        check_denoiser(&plan)?;
         check_temporal(&plan, options)?;
         self.check_supported(scene, &plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
@@ -560,7 +579,8 @@ impl GpuBackend {
     ) -> Result<(), GpuError> {
         let ctx = &self.ctx;
         let (sb, fb) = (&self.scene.as_ref().expect("scene buffers").2, self.frame.as_ref().expect("frame buffers"));
-        let specialization = Specialization { stochastic: fb.stochastic, ..sb.specialization };
+        let denoised = plan.runs(Stage::ShadowDenoise);
+        let specialization = Specialization { stochastic: fb.stochastic, denoised, ..sb.specialization };
         let st = self
             .stages
             .iter()
@@ -573,6 +593,10 @@ impl GpuBackend {
             .for_band(fb.band.first_row, fb.band.rows);
         debug_assert_eq!(params.validate(), Ok(()));
         fb.write_uniforms(ctx, camera, &params);
+        if let Some(d) = &fb.denoise {
+            // The pixel's angle by the CPU stage's own function.
+            d.write_params(ctx, hyrt_core::kernels::denoise::pixel_angle(camera));
+        }
 
         // With timestamp queries the frame is one command buffer and the GPU times each
         // stage. Without them each stage is submitted alone and waited for, so the wall
@@ -601,7 +625,11 @@ impl GpuBackend {
                     }
                     Step::Compaction => self.compaction.encode(ctx, &mut enc, sb, fb, slot),
                     Step::ShadowRays => st.shadow_rays.encode(ctx, &mut enc, sb, fb, slot),
-                    Step::ShadowDenoise => unreachable!("denoised frames are refused (check_denoiser)"),
+                    Step::ShadowDenoise => self
+                        .shadow_denoise
+                        .as_ref()
+                        .expect("run_frame builds the denoiser")
+                        .encode(ctx, &mut enc, sb, fb, slot),
                     Step::SecondaryRays { depth } => bounce().secondary_rays.encode(ctx, &mut enc, sb, fb, depth, slot),
                     Step::BounceTrace { depth } => {
                         bounce().bounce_trace.encode(ctx, &mut enc, sb, fb, depth, slot);
@@ -610,11 +638,11 @@ impl GpuBackend {
                         }
                     }
                     Step::BounceCompaction { depth } => {
-                        let list = fb.bounces[depth as usize - 1].list();
+                        let list = fb.bounces[depth as usize - 1].list(&fb.all_surfaces);
                         self.compaction.encode_list(ctx, &mut enc, sb, fb, &list, slot)
                     }
                     Step::BounceShadowRays { depth } => {
-                        let list = fb.bounces[depth as usize - 1].list();
+                        let list = fb.bounces[depth as usize - 1].list(&fb.all_surfaces);
                         st.shadow_rays.encode_list(ctx, &mut enc, sb, fb, &list, slot)
                     }
                     Step::BounceShading { depth, last } => {
@@ -663,7 +691,8 @@ impl GpuBackend {
             parts.extend([(&b.ray_count, 4), (&b.shadow_ray_count, 4), (&b.counters, 16)]);
         }
         if fb.banded {
-            let starts = 4 * fb.slots as u64;
+            // Three words per slot (`shaders/light_starts.wgsl`).
+            let starts = 12 * fb.slots as u64;
             if rays {
                 parts.push((&fb.light_starts, starts));
             }
@@ -706,8 +735,7 @@ impl GpuBackend {
                 FrameBuffer::Rays => (counts.shadow_rays, std::mem::size_of::<RayRecord>()),
                 FrameBuffer::Occluded => (counts.shadow_rays, 4),
                 FrameBuffer::Shadow => (pairs, 4),
-                // Denoised frames are refused (check_denoiser).
-                FrameBuffer::Visibility => (0, 4),
+                FrameBuffer::Visibility => (pixels, 4 * fb.channels as usize),
                 FrameBuffer::Rt | FrameBuffer::Raster | FrameBuffer::Final => (pixels, 16),
                 FrameBuffer::Bounce { buffer, depth } => {
                     let c = counts.bounces[depth as usize - 1];
@@ -732,6 +760,13 @@ impl GpuBackend {
         // What earlier bands held: the offsets of this band's indices into the frame's lists.
         let pixel_offset = merge.pixels;
         let rays_before = |depth: u32| merge.rays.get(depth as usize - 1).copied().unwrap_or(0);
+        // The band's own pixels (all of them but in a band with a halo, [`crate::band`]):
+        // what the frame keeps of its per-pixel buffers; its ray indices made the frame's.
+        let (own_lo, own_hi) = (fb.width as usize * fb.own.first_row as usize, fb.width as usize * band::own_end(fb));
+        let own_pixels = |data: &[u8], size: usize| -> std::ops::Range<usize> {
+            (own_lo * size).min(data.len())..(own_hi * size).min(data.len())
+        };
+        let ray_offset = pixel_offset.wrapping_sub(own_lo as u32);
         for always in [true, false] {
             let wanted = read_in(out, always);
             let mut parts: Vec<(&wgpu::Buffer, u64)> =
@@ -761,24 +796,39 @@ impl GpuBackend {
                 }
                 // Lists read to their room before the counts were known: to the count.
                 let data = &data[..bytes(b, &counts).min(data.len())];
+                // Per-pixel buffers: the band's own rows; the primary lists: its own rays.
+                let per_pixel = bytes(b, &counts) / pixels.max(1);
+                let own = |data: &[u8]| own_pixels(data, per_pixel);
+                let own_rays = |data: &[u8], size: usize| match fb.banded {
+                    true => band::own_rays(data, size, &counts.primary_starts),
+                    false => data.to_vec(),
+                };
                 let appended = match b {
-                    FrameBuffer::GBuffer => extend_from_bytes(&mut out.gbuffer, data),
-                    FrameBuffer::Surfaces => extend_from_bytes(&mut out.surfaces, data),
-                    FrameBuffer::Rays => appended(&mut out.rays, data, |r| band::offset_pixels(r, pixel_offset)),
-                    FrameBuffer::Occluded => extend_from_bytes(&mut out.occluded, data),
+                    FrameBuffer::GBuffer => extend_from_bytes(&mut out.gbuffer, &data[own(data)]),
+                    FrameBuffer::Surfaces => extend_from_bytes(&mut out.surfaces, &data[own(data)]),
+                    FrameBuffer::Rays => {
+                        let data = own_rays(data, std::mem::size_of::<RayRecord>());
+                        appended(&mut out.rays, &data, |r| band::offset_pixels(r, ray_offset))
+                    }
+                    FrameBuffer::Occluded => extend_from_bytes(&mut out.occluded, &own_rays(data, 4)),
                     // u32 codes on the GPU, u8 in the frame.
-                    FrameBuffer::Shadow => shadow_codes_into(&mut out.shadow, data),
-                    FrameBuffer::Visibility => extend_from_bytes(&mut out.visibility, data),
-                    FrameBuffer::Rt => extend_from_bytes(&mut out.rt, data),
-                    FrameBuffer::Raster => extend_from_bytes(&mut out.raster, data),
-                    FrameBuffer::Final => extend_from_bytes(&mut out.final_image, data),
+                    FrameBuffer::Shadow => shadow_codes_into(&mut out.shadow, &data[own(data)]),
+                    FrameBuffer::Visibility => extend_from_bytes(&mut out.visibility, &data[own(data)]),
+                    FrameBuffer::Rt => extend_from_bytes(&mut out.rt, &data[own(data)]),
+                    FrameBuffer::Raster => extend_from_bytes(&mut out.raster, &data[own(data)]),
+                    FrameBuffer::Final => extend_from_bytes(&mut out.final_image, &data[own(data)]),
                     FrameBuffer::Bounce { buffer, depth } => {
                         // A bounce ray's `pixel` is its primary pixel at every depth; a bounce
                         // shadow ray's, its surface in the depth's list.
                         let own = rays_before(depth);
                         let o = out.bounce_mut(depth);
                         match buffer {
-                            BounceBuffer::Rays => appended(&mut o.rays, data, |r| band::offset_pixels(r, pixel_offset)),
+                            BounceBuffer::Rays => appended(&mut o.rays, data, |r| band::offset_pixels(r, ray_offset)),
+                            // Depth 1's parents are the pixels: the band's own (its halo
+                            // spawns no ray, `secondary_rays`).
+                            BounceBuffer::Links if depth == 1 => {
+                                appended(&mut o.links, &data[own_pixels(data, 8)], |l| band::offset_links(l, own))
+                            }
                             BounceBuffer::Links => appended(&mut o.links, data, |l| band::offset_links(l, own)),
                             BounceBuffer::Hits => extend_from_bytes(&mut o.hits, data),
                             BounceBuffer::Surfaces => extend_from_bytes(&mut o.surfaces, data),
@@ -806,12 +856,13 @@ impl GpuBackend {
                 return Ok(counts);
             }
         }
-        merge.add(pixels as u32, &counts.bounces.iter().map(|c| c.rays as u32).collect::<Vec<_>>());
+        merge.add((own_hi - own_lo) as u32, &counts.bounces.iter().map(|c| c.rays as u32).collect::<Vec<_>>());
         if fb.banded {
-            merge.primary_lights.push(BandMerge::light_counts(&counts.primary_starts, counts.shadow_rays as u32));
+            merge.primary_lights.push(BandMerge::own_light_counts(&counts.primary_starts));
             merge.bounce_lights.resize(counts.bounces.len(), Vec::new());
             for (d, (c, starts)) in counts.bounces.iter().zip(&counts.bounce_starts).enumerate() {
-                merge.bounce_lights[d].push(BandMerge::light_counts(starts, c.shadow_rays as u32));
+                let slots = starts.len() / 3;
+                merge.bounce_lights[d].push(BandMerge::light_counts(&starts[..slots], c.shadow_rays as u32));
             }
         }
         Ok(counts)
@@ -889,13 +940,18 @@ impl Counts {
             }
             bounce_starts = bounces.iter().map(|_| words(data.next())).collect();
         }
-        Counts { shadow_rays, bounces, primary_starts, bounce_starts }
+        let own_shadow_rays = match banded && rays {
+            true => BandMerge::own_light_counts(&primary_starts).iter().map(|&n| n as usize).sum(),
+            false => shadow_rays,
+        };
+        Counts { shadow_rays, own_shadow_rays, bounces, primary_starts, bounce_starts }
     }
 
     /// Add the counts of another band of the frame (its light starts are the band's
     /// own, kept by [`BandMerge`], not summed).
     fn add(&mut self, band: &Counts) {
-        self.shadow_rays += band.shadow_rays;
+        self.shadow_rays += band.own_shadow_rays;
+        self.own_shadow_rays += band.own_shadow_rays;
         self.bounces.resize(band.bounces.len().max(self.bounces.len()), BounceCounts::default());
         for (sum, c) in self.bounces.iter_mut().zip(&band.bounces) {
             sum.rays += c.rays;
@@ -933,6 +989,11 @@ impl GpuBackend {
     /// ([`BOUNCE_STORAGE_BUFFERS`]). An error, never a frame without them.
     fn check_supported(&self, scene: &PreparedScene, plan: &FramePlan) -> Result<(), GpuError> {
         let storage = self.ctx.limits.max_storage_buffers_per_shader_stage;
+        if plan.runs(Stage::ShadowDenoise) && storage < DENOISED_SHADING_STORAGE_BUFFERS {
+            return Err(GpuError::Limits(format!(
+                "the shadow denoiser's channels make the shading stages bind {DENOISED_SHADING_STORAGE_BUFFERS} storage buffers per shader stage; this device allows {storage} (render with --no-denoise)"
+            )));
+        }
         if scene.levels.is_some() && storage < TWO_LEVEL_STORAGE_BUFFERS {
             return Err(GpuError::Limits(format!(
                 "a scene with moving objects (a two-level BVH) binds {TWO_LEVEL_STORAGE_BUFFERS} storage buffers per shader stage to trace shadow rays; this device allows {storage}"
@@ -980,6 +1041,11 @@ fn read_in(out: &Frame, first: bool) -> Vec<FrameBuffer> {
     out.plan.buffers().filter(|&b| in_first(b) == first && (out.holds(b) || counted(b))).collect()
 }
 
+/// Storage buffers `rt_shading` and `raster_shading` bind in a denoised frame: their eight
+/// and the frame's visibility. WebGPU's default limit is 8; `GpuContext::new` asks for up
+/// to 16.
+pub const DENOISED_SHADING_STORAGE_BUFFERS: u32 = 9;
+
 /// Storage buffers `shadow_rays` binds in a two-level scene: its eight and the instance
 /// table. WebGPU's default limit is 8; `GpuContext::new` asks for up to 16.
 pub const TWO_LEVEL_STORAGE_BUFFERS: u32 = 9;
@@ -997,7 +1063,6 @@ impl Backend for GpuBackend {
         frame: &mut Frame,
     ) -> Result<(), RenderError> {
         let plan = FramePlan::new(scene, options)?;
-        check_denoiser(&plan)?;
         check_temporal(&plan, options)?;
         self.check_supported(scene, &plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
@@ -1008,23 +1073,6 @@ impl Backend for GpuBackend {
         (frame.width, frame.height) = (camera.width, camera.height);
         frame.end();
         Ok(())
-    }
-}
-
-/// Refuse a frame whose plan denoises its stochastic shadow rays (`shadow_denoise`: area
-/// lights or ambient occlusion with [`FrameOptions::denoise`], the default): the denoiser
-/// runs on the CPU backend only for now, and a frame without it would be silently another
-/// image. The same frame without the denoiser renders here, bit for bit the CPU's.
-fn check_denoiser(plan: &FramePlan) -> Result<(), RenderError> {
-    match plan.runs(Stage::ShadowDenoise) {
-        false => Ok(()),
-        true => Err(RenderError::Unsupported {
-            backend: "gpu",
-            stage: Stage::ShadowDenoise.name().into(),
-            why:
-                "the shadow denoiser of area lights (quad, sphere, sun) and ambient occlusion runs on the CPU backend \
-                  only for now (--backend cpu); --no-denoise renders the frame on the GPU",
-        }),
     }
 }
 
@@ -1039,7 +1087,7 @@ fn check_temporal(plan: &FramePlan, options: &FrameOptions) -> Result<(), Render
             backend: "gpu",
             stage: Stage::ShadowDenoise.name().into(),
             why: "the denoiser's temporal pass (FrameOptions::temporal) runs on the CPU backend only for now; \
-                  --no-temporal denoises each frame on its own",
+                  without --temporal each frame is denoised on its own",
         }),
     }
 }

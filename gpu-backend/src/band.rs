@@ -27,6 +27,21 @@
 //!   (`shaders/light_starts.wgsl`), and the merge takes light 0's rays of every band, then
 //!   light 1's, and so on, with their `occluded` words.
 //!
+//! # Denoised frames
+//!
+//! `shadow_denoise` filters each pixel over its neighbours up to
+//! [`crate::shadow_denoise::DENOISE_HALO`] rows away (its à-trous taps, the raw
+//! neighbourhood, the 8 x 8 tiles aligned to the image's rows). A band of a denoised frame
+//! of several bands is therefore rendered over its rows and a halo of that many rows on
+//! each side ([`with_halo`]: its first row aligned down to a multiple of the tile, so that
+//! its tiles are the frame's; clipped to the image), and the merge keeps only the band's
+//! own rows: the per-pixel buffers are cut to them, the primary shadow-ray lists to the
+//! rays of its own pixels (`compaction` writes, per slot, where they start and end in the
+//! band's list: `shaders/light_starts.wgsl`), and the halo's pixels spawn no bounce
+//! (`secondary_rays` spawns only from the band's own pixels, `[live[1], live[2])`), so the
+//! bounce lists hold the band's own rays alone. Every buffer of the merged frame is the
+//! CPU reference's; `present` writes the band's own rows alone.
+//!
 //! Where this module counts `lights` per pixel, it means shadow-mask slots per surface
 //! ([`hyrt_core::plan::FramePlan::lights`]): one per light in a frame without area lights
 //! and ambient occlusion, more with them.
@@ -68,15 +83,19 @@ pub struct BounceRoom {
     pub shadow_rays: u32,
 }
 
-/// Bytes of a pixel in the largest per-pixel buffer: the surfaces (48), the G-buffer
-/// (24), an image (16), a bounce's links (8).
-const fn pixel_bytes() -> u64 {
+/// Bytes of a pixel in the largest per-pixel buffer of a plan with `channels` denoised
+/// channels: the surfaces (48), the G-buffer (24), an image (16), a bounce's links (8),
+/// the denoiser's channels (4 each).
+const fn pixel_bytes(channels: u32) -> u64 {
     let mut m = std::mem::size_of::<SurfaceRecord>();
     if std::mem::size_of::<GBufferTexel>() > m {
         m = std::mem::size_of::<GBufferTexel>();
     }
     if 16 > m {
         m = 16;
+    }
+    if 4 * channels as usize > m {
+        m = 4 * channels as usize;
     }
     m as u64
 }
@@ -96,7 +115,7 @@ fn pair_bytes(plan: &FramePlan) -> u64 {
 /// `plan`, but for its bounce lists (see [`bounce_binding_bytes`]): its shadow rays, one
 /// per pair at most, or its surfaces.
 pub fn band_binding_bytes(pixels: u64, lights: u32, plan: &FramePlan) -> u64 {
-    (pixels * pixel_bytes()).max(pixels * lights as u64 * pair_bytes(plan))
+    (pixels * pixel_bytes(plan.visibility_channels())).max(pixels * lights as u64 * pair_bytes(plan))
 }
 
 /// Bytes of the largest binding of the bounce lists with `room`: a depth's rays (64
@@ -143,6 +162,71 @@ pub fn rows_per_band(
     Ok(rows.min(height as u64).min(max_side as u64) as u32)
 }
 
+/// The own rows of each band of a `height`-row frame whose buffers hold `fit` rows
+/// ([`rows_per_band`]) when each band is rendered with `halo` rows more on each side
+/// ([`with_halo`]; 0 but in denoised frames): every row when they fit at once (one band,
+/// no halo). An error when the halo leaves no row.
+pub fn own_rows(fit: u32, height: u32, halo: u32) -> Result<u32, GpuError> {
+    if fit >= height || halo == 0 {
+        return Ok(fit);
+    }
+    match fit.checked_sub(halo_rows(halo)) {
+        Some(rows) if rows > 0 => Ok(rows),
+        _ => Err(GpuError::Limits(format!(
+            "shadow_denoise: a band of {fit} rows (what one storage binding holds) leaves no row besides the \
+             {} rows of halo the denoiser reads across band edges",
+            halo_rows(halo)
+        ))),
+    }
+}
+
+/// The most rows a band's halo adds: `halo` on each side, and up to a tile less one above
+/// (its first row aligned down, [`with_halo`]).
+fn halo_rows(halo: u32) -> u32 {
+    2 * halo + hyrt_core::kernels::denoise::DENOISE_TILE as u32 - 1
+}
+
+/// The rows the frame buffers hold for bands of `rows` own rows of a `height`-row frame
+/// with a `halo` ([`with_halo`]).
+pub fn buffer_rows(rows: u32, height: u32, halo: u32) -> u32 {
+    match halo {
+        0 => rows,
+        _ => (rows + halo_rows(halo)).min(height),
+    }
+}
+
+/// `band` of a `height`-row frame rendered with `halo` rows more on each side, its first
+/// row aligned down to a multiple of the denoiser's tile, clipped to the image: the band
+/// rendered, and its own rows from the rendered band's first row (`band` itself, and all of
+/// it, when `halo` is 0).
+pub fn with_halo(band: Band, height: u32, halo: u32) -> (Band, Band) {
+    if halo == 0 {
+        return (band, Band { first_row: 0, rows: band.rows });
+    }
+    let tile = hyrt_core::kernels::denoise::DENOISE_TILE as u32;
+    let first = band.first_row.saturating_sub(halo) / tile * tile;
+    let end = (band.first_row + band.rows + halo).min(height);
+    (Band { first_row: first, rows: end - first }, Band { first_row: band.first_row - first, rows: band.rows })
+}
+
+/// The end of the own rows of the band `frame` holds, from the band's first row.
+pub fn own_end(frame: &crate::buffers::FrameBuffers) -> usize {
+    (frame.own.first_row + frame.own.rows) as usize
+}
+
+/// The rays of a band's own pixels in its primary shadow-ray list `data` (elements of
+/// `size` bytes), in slot order: per slot the range `[starts[slots + s], starts[2 slots +
+/// s])` of the three words per slot of `shaders/light_starts.wgsl`.
+pub fn own_rays(data: &[u8], size: usize, starts: &[u32]) -> Vec<u8> {
+    let slots = starts.len() / 3;
+    let mut out = Vec::with_capacity(data.len());
+    for s in 0..slots {
+        let (lo, hi) = (starts[slots + s] as usize * size, starts[2 * slots + s] as usize * size);
+        out.extend_from_slice(&data[lo.min(data.len())..hi.min(data.len()).max(lo.min(data.len()))]);
+    }
+    out
+}
+
 /// The host bytes of the frame the backend reads back into `frame` (its plan and the
 /// buffers it holds set by `Frame::begin`) at `width` x `height` with `lights` lights:
 /// per pixel, the G-buffer (24), the surfaces (48), the images (16 each), the shadow
@@ -157,8 +241,8 @@ pub fn host_frame_bytes(frame: &Frame, width: u32, height: u32, lights: u32) -> 
             FrameBuffer::Surfaces => std::mem::size_of::<SurfaceRecord>() as u64,
             FrameBuffer::Shadow => lights as u64,
             FrameBuffer::Rt | FrameBuffer::Raster | FrameBuffer::Final => 16,
-            // Visibility: denoised frames are refused (`GpuBackend`: the denoiser runs on the CPU).
-            FrameBuffer::Rays | FrameBuffer::Occluded | FrameBuffer::Visibility | FrameBuffer::Bounce { .. } => 0,
+            FrameBuffer::Visibility => 4 * frame.plan.visibility_channels() as u64,
+            FrameBuffer::Rays | FrameBuffer::Occluded | FrameBuffer::Bounce { .. } => 0,
         })
         .sum();
     pixels.saturating_mul(per_pixel)
@@ -213,6 +297,13 @@ impl BandMerge {
         starts.iter().zip(ends).map(|(&s, e)| e.saturating_sub(s)).collect()
     }
 
+    /// The per-slot counts of a band's own rays in its primary shadow-ray list, from the
+    /// three words per slot of `shaders/light_starts.wgsl`.
+    pub fn own_light_counts(starts: &[u32]) -> Vec<u32> {
+        let slots = starts.len() / 3;
+        (0..slots).map(|s| starts[2 * slots + s].saturating_sub(starts[slots + s])).collect()
+    }
+
     /// Put the frame's shadow-ray lists (and their `occluded` words), read back band after
     /// band, into light-major order: light 0's rays of every band, then light 1's, ...
     /// Nothing to do for a frame of one band.
@@ -231,10 +322,11 @@ impl BandMerge {
     }
 }
 
-/// Add `offset` to each ray's `pixel` (its pixel, or its surface's index in its list).
+/// Add `offset` to each ray's `pixel` (its pixel, or its surface's index in its list),
+/// wrapping (a band with a halo moves its rays' pixels back by the halo's).
 pub fn offset_pixels(rays: &mut [RayRecord], offset: u32) {
     if offset != 0 {
-        rays.iter_mut().for_each(|r| r.pixel += offset);
+        rays.iter_mut().for_each(|r| r.pixel = r.pixel.wrapping_add(offset));
     }
 }
 

@@ -31,7 +31,8 @@ pub use hyrt_core::formats::FrameParams;
 /// |---:|---|---|---|
 /// | 0 | `slots` | u32 | slots per surface ([`FramePlan::lights`]) |
 /// | 4 | `light_slots` | u32 | slots of the lights ([`hyrt_core::kernels::soft_shadow::lights_slots`]): the first ambient-occlusion slot |
-/// | 8 | `pad` | [u32; 2] | zero |
+/// | 8 | `channels` | u32 | the denoised channels per pixel ([`FramePlan::visibility_channels`]: one per area light, then one for the ambient occlusion); read where the frame denoises (`shadow_denoise`, [`FrameBuffer::Visibility`]) |
+/// | 12 | `pad` | u32 | zero |
 ///
 /// 16 bytes. Defined here, not with the core records: only the GPU stages read it (the
 /// CPU backend walks [`hyrt_core::kernels::soft_shadow::Slots`]). A uniform, and no slot
@@ -45,7 +46,8 @@ pub use hyrt_core::formats::FrameParams;
 pub struct SlotParams {
     pub slots: u32,
     pub light_slots: u32,
-    pub pad: [u32; 2],
+    pub channels: u32,
+    pub pad: u32,
 }
 
 impl SlotParams {
@@ -53,12 +55,13 @@ impl SlotParams {
     /// samples) and `ao_samples` occlusion rays per surface.
     pub fn of(lights: &[LightRecord], ao_samples: u32) -> SlotParams {
         let light_slots = hyrt_core::kernels::soft_shadow::lights_slots(lights) as u32;
-        SlotParams { slots: light_slots + ao_samples, light_slots, pad: [0; 2] }
+        let channels = lights.iter().filter(|l| l.is_area()).count() as u32 + (ao_samples > 0) as u32;
+        SlotParams { slots: light_slots + ao_samples, light_slots, channels, pad: 0 }
     }
 
     /// One slot per light: `light_count` point, spot or directional lights, no occlusion.
     pub fn per_light(light_count: u32) -> SlotParams {
-        SlotParams { slots: light_count, light_slots: light_count, pad: [0; 2] }
+        SlotParams { slots: light_count, light_slots: light_count, channels: 0, pad: 0 }
     }
 }
 
@@ -73,6 +76,11 @@ impl hyrt_core::formats::wgsl::WgslStruct for SlotParams {
                 name: "light_slots",
                 ty: field_type::<Self, _>(|r| &r.light_slots),
                 offset: std::mem::offset_of!(Self, light_slots),
+            },
+            Field {
+                name: "channels",
+                ty: field_type::<Self, _>(|r| &r.channels),
+                offset: std::mem::offset_of!(Self, channels),
             },
             Field { name: "pad", ty: field_type::<Self, _>(|r| &r.pad), offset: std::mem::offset_of!(Self, pad) },
         ]
@@ -275,6 +283,10 @@ pub struct FrameBuffers {
     pub rows: u32,
     /// The band being rendered ([`FrameBuffers::set_band`]); the whole of `rows` at first.
     pub band: Band,
+    /// The rows of `band` the frame keeps (`band` itself but in a denoised banded frame,
+    /// whose bands are rendered with a halo of rows: [`crate::band`]), from the band's
+    /// first row: `own.first_row` rows of halo above them.
+    pub own: Band,
     /// The frame is rendered in more than one band: `compaction` also writes where each
     /// slot's rays start in its list (`light_starts`), so that the bands' lists can be
     /// merged into the frame's slot-major order.
@@ -293,8 +305,10 @@ pub struct FrameBuffers {
     pub ray_capacity: u32,
     /// The buffers of each bounce depth the plan traces (depth `i + 1` at `i`).
     pub bounces: Vec<BounceBuffers>,
-    /// `array<u32, 4>`: `[pixels, 0, 0, 0]`, the live count of the primary surfaces
-    /// (the list stages read every list's count from a buffer).
+    /// `array<u32, 4>`: `[pixels, own_lo, own_hi, 0]`, the live count of the primary
+    /// surfaces (the list stages read every list's count from a buffer), then the band's
+    /// own pixels `[own_lo, own_hi)` (all of them but in a band with a halo, whose other
+    /// pixels spawn no bounce: `secondary_rays`).
     pub pixel_count: wgpu::Buffer,
     /// Uniform [`ListParams`] of the primary hits' list (depth 0).
     pub list: wgpu::Buffer,
@@ -319,9 +333,21 @@ pub struct FrameBuffers {
     pub ray_count: wgpu::Buffer,
     /// `array<u32>`, one per ray slot: 1 occluded, 0 reached the light (`shadow_rays`).
     pub occluded: wgpu::Buffer,
-    /// `array<u32>`, one per slot: the index of the slot's first ray in `rays`
-    /// (`compaction`, in banded frames only).
+    /// `array<u32>`, three per slot: the index of the slot's first ray in `rays`, then of
+    /// its first ray from the band's own rows (`own`), then of its first past them
+    /// (`compaction`, in banded frames only; `shaders/light_starts.wgsl`).
     pub light_starts: wgpu::Buffer,
+    /// `array<u32, 4>`: `[0, 0, u32::MAX, 0]`, the surface bounds of the bounce lists'
+    /// light starts (every surface is the band's own).
+    pub all_surfaces: wgpu::Buffer,
+    /// `array<f32>`, [`FrameBuffers::channels`] per pixel: the denoised visibility
+    /// (`shadow_denoise`).
+    pub visibility: wgpu::Buffer,
+    /// The denoised channels per pixel ([`FramePlan::visibility_channels`]; 0 when the plan
+    /// does not denoise).
+    pub channels: u32,
+    /// The scratch of `shadow_denoise`, when the plan runs it.
+    pub denoise: Option<crate::shadow_denoise::DenoiseBuffers>,
     /// `array<u32>`, `pixels * slots`, index `pixel * slots + slot`: the `SHADOW_*` codes
     /// of [`hyrt_core::frame`] (u32 here; u8 on the CPU, converted on readback).
     pub shadow: wgpu::Buffer,
@@ -361,8 +387,8 @@ pub struct BounceBuffers {
     pub shadow_ray_count: wgpu::Buffer,
     /// `array<u32>`, `room.shadow_rays` (`shadow_rays`).
     pub occluded: wgpu::Buffer,
-    /// `array<u32>`, one per slot: where each slot's rays start in `shadow_rays`
-    /// (`compaction`, in banded frames only).
+    /// `array<u32>`, three per slot: where each slot's rays start in `shadow_rays`
+    /// (`compaction`, in banded frames only; the other two as the primary list's).
     pub light_starts: wgpu::Buffer,
     /// `array<u32>`, `room.rays * slots` `SHADOW_*` codes (`shadow_rays`).
     pub shadow: wgpu::Buffer,
@@ -396,14 +422,18 @@ pub struct ListBuffers<'a> {
     pub shadow_ray_count: &'a wgpu::Buffer,
     pub occluded: &'a wgpu::Buffer,
     pub light_starts: &'a wgpu::Buffer,
+    /// `array<u32, 4>` whose words 1 and 2 bound the surfaces the band keeps (see
+    /// [`FrameBuffers::pixel_count`]).
+    pub bounds: &'a wgpu::Buffer,
     pub shadow: &'a wgpu::Buffer,
     /// `array<atomic<u32>, 4>`, written at bounce depths only.
     pub counters: &'a wgpu::Buffer,
 }
 
 impl BounceBuffers {
-    /// The depth's shadow-ray list.
-    pub fn list(&self) -> ListBuffers<'_> {
+    /// The depth's shadow-ray list, its surfaces bounded by `bounds` (all of them:
+    /// [`FrameBuffers::all_surfaces`]).
+    pub fn list<'a>(&'a self, bounds: &'a wgpu::Buffer) -> ListBuffers<'a> {
         ListBuffers {
             slots: self.room.rays,
             params: &self.list,
@@ -413,6 +443,7 @@ impl BounceBuffers {
             shadow_ray_count: &self.shadow_ray_count,
             occluded: &self.occluded,
             light_starts: &self.light_starts,
+            bounds,
             shadow: &self.shadow,
             counters: &self.counters,
         }
@@ -513,7 +544,7 @@ impl FrameBuffers {
                 shadow_rays: storage::<RayRecord>(ctx, &label("shadow_rays"), shadow_rays)?,
                 shadow_ray_count: words4(ctx, &label("shadow_ray_count")),
                 occluded: storage::<u32>(ctx, &label("occluded"), shadow_rays)?,
-                light_starts: storage::<u32>(ctx, &label("light_starts"), slots as usize)?,
+                light_starts: storage::<u32>(ctx, &label("light_starts"), 3 * slots as usize)?,
                 shadow: storage::<u32>(ctx, &label("shadow"), rays * slots.max(1) as usize)?,
                 radiance: storage::<[f32; 4]>(ctx, &label("radiance"), rays)?,
                 counters: words4(ctx, &label("counters")),
@@ -527,10 +558,16 @@ impl FrameBuffers {
                 Ok(empty.clone())
             }
         };
+        let channels = plan.visibility_channels();
+        let denoise = match plan.produces(FrameBuffer::Visibility) {
+            true => Some(crate::shadow_denoise::DenoiseBuffers::new(ctx, width, rows, channels)?),
+            false => None,
+        };
         let frame = FrameBuffers {
             width,
             rows,
             band: Band { first_row: 0, rows },
+            own: Band { first_row: 0, rows },
             banded: false,
             slots,
             stochastic: false,
@@ -551,7 +588,13 @@ impl FrameBuffers {
                 mapped_at_creation: false,
             }),
             occluded: alloc(FrameBuffer::Occluded, &|| storage::<u32>(ctx, "occluded", ray_capacity as usize))?,
-            light_starts: storage::<u32>(ctx, "light_starts", slots as usize)?,
+            light_starts: storage::<u32>(ctx, "light_starts", 3 * slots as usize)?,
+            all_surfaces: words4(ctx, "all surfaces"),
+            visibility: alloc(FrameBuffer::Visibility, &|| {
+                storage::<f32>(ctx, "visibility", pixels * channels as usize)
+            })?,
+            channels,
+            denoise,
             shadow: alloc(FrameBuffer::Shadow, &|| storage::<u32>(ctx, "shadow", pairs))?,
             rt: alloc(FrameBuffer::Rt, &|| storage::<[f32; 4]>(ctx, "rt image", pixels))?,
             raster: alloc(FrameBuffer::Raster, &|| storage::<[f32; 4]>(ctx, "raster image", pixels))?,
@@ -593,6 +636,7 @@ impl FrameBuffers {
             shadow_ray_count: &self.ray_count,
             occluded: &self.occluded,
             light_starts: &self.light_starts,
+            bounds: &self.pixel_count,
             shadow: &self.shadow,
             counters: &self.empty,
         }
@@ -606,7 +650,7 @@ impl FrameBuffers {
             FrameBuffer::Rays => &self.rays,
             FrameBuffer::Occluded => &self.occluded,
             FrameBuffer::Shadow => &self.shadow,
-            FrameBuffer::Visibility => unreachable!("denoised frames are refused (check_denoiser)"),
+            FrameBuffer::Visibility => &self.visibility,
             FrameBuffer::Rt => &self.rt,
             FrameBuffer::Raster => &self.raster,
             FrameBuffer::Final => &self.final_image,
@@ -620,16 +664,20 @@ impl FrameBuffers {
         ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
     }
 
-    /// Render `band` next (at most [`FrameBuffers::rows`] rows): the pixel stages run over
-    /// its pixels, and the primary surfaces' live count is its pixel count. The
-    /// [`FrameParams`] of the band are the caller's to write ([`FrameParams::for_band`]).
-    /// `banded`: the frame has more than one band.
-    pub fn set_band(&mut self, ctx: &GpuContext, band: Band, banded: bool) {
+    /// Render `band` next (at most [`FrameBuffers::rows`] rows), keeping its rows `own`
+    /// (from the band's first row: `band` but for a halo, [`crate::band`]): the pixel
+    /// stages run over its pixels, and the primary surfaces' live count is its pixel
+    /// count. The [`FrameParams`] of the band are the caller's to write
+    /// ([`FrameParams::for_band`]). `banded`: the frame has more than one band.
+    pub fn set_band(&mut self, ctx: &GpuContext, band: Band, own: Band, banded: bool) {
         debug_assert!(band.rows <= self.rows, "{band:?} in buffers of {} rows", self.rows);
+        debug_assert!(own.first_row + own.rows <= band.rows, "{own:?} in {band:?}");
         self.band = band;
+        self.own = own;
         self.banded = banded;
         let pixels = self.width * band.rows;
-        ctx.queue.write_buffer(&self.pixel_count, 0, bytemuck::bytes_of(&[pixels, 0, 0, 0]));
+        let (lo, hi) = (self.width * own.first_row, self.width * (own.first_row + own.rows));
+        ctx.queue.write_buffer(&self.pixel_count, 0, bytemuck::bytes_of(&[pixels, lo, hi, 0]));
     }
 
     /// The frame's mask slots next ([`SlotParams`], whose `slots` must be these buffers'),
@@ -647,7 +695,8 @@ impl FrameBuffers {
     fn write_lists(&self, ctx: &GpuContext) {
         ctx.queue.write_buffer(&self.slot_params, 0, bytemuck::bytes_of(&SlotParams::per_light(self.slots)));
         let pixels = self.width * self.rows;
-        ctx.queue.write_buffer(&self.pixel_count, 0, bytemuck::bytes_of(&[pixels, 0, 0, 0]));
+        ctx.queue.write_buffer(&self.pixel_count, 0, bytemuck::bytes_of(&[pixels, 0, pixels, 0]));
+        ctx.queue.write_buffer(&self.all_surfaces, 0, bytemuck::bytes_of(&[0, 0, u32::MAX, 0]));
         let primary = ListParams { slots: pixels, parents: 0, depth: 0, last: 0 };
         ctx.queue.write_buffer(&self.list, 0, bytemuck::bytes_of(&primary));
         for b in &self.bounces {

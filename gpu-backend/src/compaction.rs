@@ -128,7 +128,7 @@ impl CompactionStage {
             shader_module(ctx, "compaction light starts", &(preamble() + include_str!("shaders/light_starts.wgsl")));
         let starts_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("compaction light starts"),
-            entries: &[storage_entry(0, true), storage_entry(1, true), storage_entry(2, false)],
+            entries: &[storage_entry(0, true), storage_entry(1, true), storage_entry(2, false), storage_entry(3, true)],
         });
         CompactionStage {
             light_starts: (
@@ -196,7 +196,7 @@ impl CompactionStage {
                 ctx,
                 "compaction light starts",
                 layout,
-                &[list.shadow_rays, list.shadow_ray_count, list.light_starts],
+                &[list.shadow_rays, list.shadow_ray_count, list.light_starts, list.bounds],
             );
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("compaction light starts"),
@@ -204,7 +204,7 @@ impl CompactionStage {
             });
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &group, &[]);
-            pass.dispatch_workgroups(frame.slots.div_ceil(LIGHT_STARTS_GROUP), 1, 1);
+            pass.dispatch_workgroups((3 * frame.slots).div_ceil(LIGHT_STARTS_GROUP), 1, 1);
         }
     }
 

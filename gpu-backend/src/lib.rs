@@ -28,6 +28,7 @@ pub mod rt_shading;
 pub mod scan;
 pub mod secondary_rays;
 pub mod shader;
+pub mod shadow_denoise;
 pub mod shadow_rays;
 pub mod texture;
 pub mod timing;

@@ -87,7 +87,7 @@ impl Present {
             };
             let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("present"),
-                entries: &[storage_entry(0, true), uniform_entry(1), texture_entry],
+                entries: &[storage_entry(0, true), uniform_entry(1), texture_entry, storage_entry(3, true)],
             });
             (main_pipeline(ctx, "present", &module, &layout, &[]), layout)
         });
@@ -99,6 +99,7 @@ impl Present {
                 wgpu::BindGroupEntry { binding: 0, resource: frame.final_image.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 1, resource: frame.params.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&view) },
+                wgpu::BindGroupEntry { binding: 3, resource: frame.pixel_count.as_entire_binding() },
             ],
         });
         encode_pixel_pass(encoder, "present", pipeline, &bind_group, frame.width, frame.band.rows, None);

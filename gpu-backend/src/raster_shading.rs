@@ -14,13 +14,13 @@
 //! eye), `frame.slot_params` (the mask's slots), `scene.ambient_light` (and under an
 //! image-based light `scene.ambient_texels`); where materials vary also `frame.gbuffer`
 //! and `scene.surface`. Area lights and ambient occlusion as in `rt_shading`
-//! ([`crate::rt_shading`]).
+//! ([`crate::rt_shading`]), the denoised visibility too (`frame.visibility`, binding 13).
 //! Writes `frame.raster`: linear RGBA; `BACKGROUND` with alpha 1 on pixels without
 //! a hit, (0, 0, 0, 0) on ray-traced pixels when the weight is 1, alpha 1 where shaded.
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
 use crate::shader::{
-    bind_buffers, encode_pixel_pass, specialized_pipeline, storage_entry, surface_shading_source, uniform_entry,
+    bind_buffers, encode_pixel_pass, specialized_pipeline, storage_entry, surface_shading_source_for, uniform_entry,
 };
 use crate::texture::Specialization;
 use crate::GpuContext;
@@ -29,7 +29,12 @@ use crate::GpuContext;
 pub struct RasterShadingStage {
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
+    /// Compiled for denoised frames: binds `frame.visibility`.
+    denoised: bool,
 }
+
+/// The binding of `frame.visibility` in a denoised frame.
+const VISIBILITY: u32 = 13;
 
 impl RasterShadingStage {
     /// Compile the stage's pipeline for scenes without surface tables.
@@ -39,33 +44,41 @@ impl RasterShadingStage {
 
     /// Compile the stage's pipeline for scenes whose surface tables need `s`.
     pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
-        let source = surface_shading_source(&format!(
-            "{}\n{}",
-            include_str!("shaders/primary_object.wgsl"),
-            include_str!("shaders/raster_shading.wgsl")
-        ));
+        let source = surface_shading_source_for(
+            &format!(
+                "{}\n{}",
+                include_str!("shaders/primary_object.wgsl"),
+                include_str!("shaders/raster_shading.wgsl")
+            ),
+            s.denoised.then_some(VISIBILITY),
+        );
+        let visibility = [storage_entry(VISIBILITY, true)];
         let (pipeline, layout) = specialized_pipeline(
             ctx,
             "raster_shading",
             &source,
             &[
-                storage_entry(0, true),  // surfaces
-                storage_entry(1, true),  // shadow
-                storage_entry(2, true),  // objects
-                storage_entry(3, true),  // lights
-                uniform_entry(4),        // params
-                storage_entry(5, false), // raster
-                storage_entry(6, true),  // gbuffer
-                uniform_entry(7),        // camera
-                storage_entry(8, true),  // surface tables
-                uniform_entry(9),        // surface layout
-                uniform_entry(10),       // ambient light
-                storage_entry(11, true), // ambient light texels
-                uniform_entry(12),       // slot params
-            ],
+                &[
+                    storage_entry(0, true),  // surfaces
+                    storage_entry(1, true),  // shadow
+                    storage_entry(2, true),  // objects
+                    storage_entry(3, true),  // lights
+                    uniform_entry(4),        // params
+                    storage_entry(5, false), // raster
+                    storage_entry(6, true),  // gbuffer
+                    uniform_entry(7),        // camera
+                    storage_entry(8, true),  // surface tables
+                    uniform_entry(9),        // surface layout
+                    uniform_entry(10),       // ambient light
+                    storage_entry(11, true), // ambient light texels
+                    uniform_entry(12),       // slot params
+                ][..],
+                if s.denoised { &visibility } else { &[] },
+            ]
+            .concat(),
             &s.shading_constants(),
         );
-        RasterShadingStage { pipeline, layout }
+        RasterShadingStage { pipeline, layout, denoised: s.denoised }
     }
 
     /// Record the stage: `frame.raster` from `frame.surfaces`, `frame.shadow`,
@@ -79,25 +92,30 @@ impl RasterShadingStage {
         frame: &FrameBuffers,
         timing: Option<(&wgpu::QuerySet, u32)>,
     ) {
+        let visibility = [&frame.visibility];
         let bind_group = bind_buffers(
             ctx,
             "raster_shading",
             &self.layout,
             &[
-                &frame.surfaces,
-                &frame.shadow,
-                &scene.objects,
-                &scene.lights,
-                &frame.params,
-                &frame.raster,
-                &frame.gbuffer,
-                &frame.camera,
-                &scene.surface.words,
-                &scene.surface.layout,
-                &scene.ambient_light,
-                &scene.ambient_texels,
-                &frame.slot_params,
-            ],
+                &[
+                    &frame.surfaces,
+                    &frame.shadow,
+                    &scene.objects,
+                    &scene.lights,
+                    &frame.params,
+                    &frame.raster,
+                    &frame.gbuffer,
+                    &frame.camera,
+                    &scene.surface.words,
+                    &scene.surface.layout,
+                    &scene.ambient_light,
+                    &scene.ambient_texels,
+                    &frame.slot_params,
+                ][..],
+                if self.denoised { &visibility } else { &[] },
+            ]
+            .concat(),
         );
         encode_pixel_pass(encoder, "raster_shading", &self.pipeline, &bind_group, frame.width, frame.band.rows, timing);
     }

@@ -17,7 +17,10 @@
 //! with `STOCHASTIC`, [`Specialization::stochastic`]) each area light adds the mean of
 //! its visible samples and the occlusion rays scale the ambient term
 //! ([`hyrt_core::kernels::shading::sum_visible_lights`],
-//! [`hyrt_core::kernels::soft_shadow::occluded_object`]).
+//! [`hyrt_core::kernels::soft_shadow::occluded_object`]); in a frame that denoised them
+//! (pipelines specialized with [`Specialization::denoised`]) it also reads
+//! `frame.visibility`, each area light adding the mean over its samples that traced a ray
+//! times its filtered visibility and the filtered occlusion scaling the ambient term.
 //! Writes `frame.rt`: linear RGBA, alpha 1 on ray-traced pixels, (0, 0, 0, 0) elsewhere.
 //!
 //! Also home of the helpers the three shading stages share (WGSL assembly,
@@ -25,7 +28,7 @@
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
 use crate::shader::{
-    bind_buffers, encode_pixel_pass, specialized_pipeline, storage_entry, surface_shading_source, uniform_entry,
+    bind_buffers, encode_pixel_pass, specialized_pipeline, storage_entry, surface_shading_source_for, uniform_entry,
 };
 use crate::texture::Specialization;
 use crate::GpuContext;
@@ -72,10 +75,20 @@ fn rt_buffers<'a>(scene: &'a SceneBuffers, frame: &'a FrameBuffers) -> [&'a wgpu
 /// `hyrt_cpu::rt_shading::rt_shading_into`).
 const PAPER_RT_PIXEL: &str = "// mirrors hyrt_core::kernels::shading::shade_rt_pixel of the pixel's shaded object\nfn rt_pixel(pixel: u32, s: SurfaceRecord) -> vec3<f32> {\n    return shade_rt_pixel(pixel, s, primary_object(pixel, s), camera.eye);\n}\n";
 
+/// The binding of `frame.visibility` in `rt_shading` of a denoised frame (after
+/// [`rt_entries`]).
+const RT_VISIBILITY: u32 = 13;
+
+/// The binding of `frame.visibility` in `rt_shading` (bounces) of a denoised frame (after
+/// [`rt_entries`] and the first bounce's three).
+const RT_BOUNCING_VISIBILITY: u32 = 16;
+
 /// The `rt_shading` stage of the paper's frame.
 pub struct RtShadingStage {
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
+    /// Compiled for denoised frames: binds `frame.visibility`.
+    denoised: bool,
 }
 
 /// The `rt_shading` stage of frames that trace bounces: mirrors and glass gather their
@@ -83,6 +96,8 @@ pub struct RtShadingStage {
 pub struct RtShadingBouncingStage {
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
+    /// Compiled for denoised frames: binds `frame.visibility`.
+    denoised: bool,
 }
 
 impl RtShadingStage {
@@ -93,14 +108,18 @@ impl RtShadingStage {
 
     /// Compile the stage's pipeline for scenes whose surface tables need `s`.
     pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
-        let source = surface_shading_source(&format!(
-            "{}\n{}\n{PAPER_RT_PIXEL}",
-            include_str!("shaders/rt_shading.wgsl"),
-            include_str!("shaders/primary_object.wgsl")
-        ));
-        let (pipeline, layout) =
-            specialized_pipeline(ctx, "rt_shading", &source, &rt_entries(), &s.shading_constants());
-        RtShadingStage { pipeline, layout }
+        let source = surface_shading_source_for(
+            &format!(
+                "{}\n{}\n{PAPER_RT_PIXEL}",
+                include_str!("shaders/rt_shading.wgsl"),
+                include_str!("shaders/primary_object.wgsl")
+            ),
+            s.denoised.then_some(RT_VISIBILITY),
+        );
+        let visibility = [storage_entry(RT_VISIBILITY, true)];
+        let entries = [rt_entries().as_slice(), if s.denoised { &visibility } else { &[] }].concat();
+        let (pipeline, layout) = specialized_pipeline(ctx, "rt_shading", &source, &entries, &s.shading_constants());
+        RtShadingStage { pipeline, layout, denoised: s.denoised }
     }
 
     /// Record the stage: `frame.rt` from `frame.surfaces`, `frame.shadow`,
@@ -114,7 +133,9 @@ impl RtShadingStage {
         frame: &FrameBuffers,
         timing: Option<(&wgpu::QuerySet, u32)>,
     ) {
-        let bind_group = bind_buffers(ctx, "rt_shading", &self.layout, &rt_buffers(scene, frame));
+        let visibility = [&frame.visibility];
+        let buffers = [rt_buffers(scene, frame).as_slice(), if self.denoised { &visibility } else { &[] }].concat();
+        let bind_group = bind_buffers(ctx, "rt_shading", &self.layout, &buffers);
         encode_pixel_pass(encoder, "rt_shading", &self.pipeline, &bind_group, frame.width, frame.band.rows, timing);
     }
 }
@@ -122,11 +143,15 @@ impl RtShadingStage {
 impl RtShadingBouncingStage {
     /// Compile the stage's pipeline for scenes whose surface tables need `s`.
     pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
-        let source = crate::shader::radiance_source(&format!(
-            "{}\n{}",
-            include_str!("shaders/rt_shading.wgsl"),
-            include_str!("shaders/rt_shading_bouncing.wgsl")
-        ));
+        let source = crate::shader::radiance_source_for(
+            &format!(
+                "{}\n{}",
+                include_str!("shaders/rt_shading.wgsl"),
+                include_str!("shaders/rt_shading_bouncing.wgsl")
+            ),
+            s.denoised.then_some(RT_BOUNCING_VISIBILITY),
+        );
+        let visibility = [storage_entry(RT_BOUNCING_VISIBILITY, true)];
         let (pipeline, layout) = specialized_pipeline(
             ctx,
             "rt_shading (bounces)",
@@ -138,11 +163,12 @@ impl RtShadingBouncingStage {
                     storage_entry(14, true), // links of depth 1
                     storage_entry(15, true), // radiance of depth 1
                 ],
+                if s.denoised { &visibility } else { &[] },
             ]
             .concat(),
             &s.shading_constants(),
         );
-        RtShadingBouncingStage { pipeline, layout }
+        RtShadingBouncingStage { pipeline, layout, denoised: s.denoised }
     }
 
     /// Record the stage: as [`RtShadingStage::encode`], the pixels of mirrors and glass
@@ -155,12 +181,18 @@ impl RtShadingBouncingStage {
         frame: &FrameBuffers,
         timing: Option<(&wgpu::QuerySet, u32)>,
     ) {
+        let visibility = [&frame.visibility];
         let first = &frame.bounces[0];
         let bind_group = bind_buffers(
             ctx,
             "rt_shading (bounces)",
             &self.layout,
-            &[rt_buffers(scene, frame).as_slice(), &[&scene.triangles, &first.links, &first.radiance]].concat(),
+            &[
+                rt_buffers(scene, frame).as_slice(),
+                &[&scene.triangles, &first.links, &first.radiance],
+                if self.denoised { &visibility } else { &[] },
+            ]
+            .concat(),
         );
         encode_pixel_pass(encoder, "rt_shading", &self.pipeline, &bind_group, frame.width, frame.band.rows, timing);
     }

@@ -139,17 +139,42 @@ pub fn shading_source(stage: &str) -> String {
 /// `shadow` binding (`shaders/surface_shading.wgsl`: `ambient`, `unlit` and the shaders
 /// that start from them, reading the mask's slots) before the stage's source: for the
 /// stages that bind `shadow`, `slot_params`, `lights`, `objects`, the surface tables and
-/// the ambient light (`rt_shading`, `raster_shading`, `bounce_shading`).
+/// the ambient light (`rt_shading`, `raster_shading`, `bounce_shading`). Shades from the
+/// mask's codes alone ([`filtered_visibility_wgsl`] of `None`).
 pub fn surface_shading_source(stage: &str) -> String {
+    surface_shading_source_for(stage, None)
+}
+
+/// [`surface_shading_source`] for a stage that shades a denoised frame's primary
+/// surfaces from `shadow_denoise`'s channels, bound at `visibility` (`None`: the codes
+/// alone; [`filtered_visibility_wgsl`]).
+pub fn surface_shading_source_for(stage: &str, visibility: Option<u32>) -> String {
     shading_source(&format!(
-        "{}\n{}\n{}\n{}\n{}\n{}\n{stage}",
+        "{}\n{}\n{}\n{}\n{}\n{}\n{}\n{stage}",
         crate::texture::texture_wgsl(),
         crate::texture::materials_wgsl(),
         lat_long_wgsl(),
         ambient_light_wgsl(),
         soft_shadow_wgsl(),
+        filtered_visibility_wgsl(visibility),
         include_str!("shaders/surface_shading.wgsl")
     ))
+}
+
+/// What `shaders/surface_shading.wgsl` reads of a frame's denoised visibility: with a
+/// binding, `DENOISED` true and `filtered_channel(index, c)`, channel `c` of surface
+/// `index` of `visibility: array<f32>` (`slot_params.channels` per surface) bound there;
+/// without, `DENOISED` false (the stage shades from the codes, and binds no visibility).
+pub fn filtered_visibility_wgsl(binding: Option<u32>) -> String {
+    match binding {
+        Some(b) => format!(
+            "// The frame's denoised visibility (hyrt_gpu::shader::filtered_visibility_wgsl).\n\
+             @group(0) @binding({b}) var<storage, read> visibility: array<f32>;\n\
+             const DENOISED: bool = true;\n\
+             fn filtered_channel(index: u32, c: u32) -> f32 {{\n    return visibility[index * slot_params.channels + c];\n}}\n"
+        ),
+        None => "// No denoised visibility (hyrt_gpu::shader::filtered_visibility_wgsl).\nconst DENOISED: bool = false;\nfn filtered_channel(index: u32, c: u32) -> f32 {\n    return 0.0;\n}\n".to_string(),
+    }
 }
 
 /// `rounded` and `mul` (the shading helpers' names, for `surface.wgsl` and the texture
@@ -173,12 +198,16 @@ pub(crate) fn bounce_wgsl() -> String {
 /// stages' sources ([`surface_shading_source`]), `ray.wgsl`, `bounce.wgsl`,
 /// `bounce_radiance.wgsl`, then `stage`.
 pub(crate) fn radiance_source(stage: &str) -> String {
-    surface_shading_source(&format!(
-        "{}\n{}\n{}\n{stage}",
-        ray_wgsl(),
-        bounce_wgsl(),
-        include_str!("shaders/bounce_radiance.wgsl")
-    ))
+    radiance_source_for(stage, None)
+}
+
+/// [`radiance_source`] with the denoised visibility bound at `visibility`
+/// ([`surface_shading_source_for`]).
+pub(crate) fn radiance_source_for(stage: &str, visibility: Option<u32>) -> String {
+    surface_shading_source_for(
+        &format!("{}\n{}\n{}\n{stage}", ray_wgsl(), bounce_wgsl(), include_str!("shaders/bounce_radiance.wgsl")),
+        visibility,
+    )
 }
 
 /// The constants of `shaders/lat_long.wgsl` (the portable atan2 in turns and the

@@ -133,6 +133,16 @@ pub struct Specialization {
     /// branch under a lane mask: merely skipped at run time, that code would cost every
     /// frame).
     pub stochastic: bool,
+    /// The frame denoised its stochastic shadows (`shadow_denoise`: [`FrameOptions::denoise`]
+    /// with area lights or ambient occlusion; implies `stochastic`): the stages that shade
+    /// primary surfaces (`rt_shading`, `raster_shading`) bind the frame's visibility and
+    /// shade from its filtered channels (`DENOISED` in `shaders/surface_shading.wgsl`). Not
+    /// a pipeline constant: the binding and its reads are in the source only when it is
+    /// set ([`crate::shader::filtered_visibility_wgsl`]), so other frames bind what they
+    /// always bound.
+    ///
+    /// [`FrameOptions::denoise`]: hyrt_core::frame::FrameOptions::denoise
+    pub denoised: bool,
 }
 
 impl Specialization {
@@ -145,6 +155,7 @@ impl Specialization {
         normal_mapped: false,
         ambient_image: false,
         stochastic: false,
+        denoised: false,
     };
 
     /// What `tables` need (a single-level scene).
@@ -156,6 +167,7 @@ impl Specialization {
             normal_mapped: !tables.tangents.is_empty(),
             ambient_image: false,
             stochastic: false,
+            denoised: false,
         }
     }
 
@@ -190,11 +202,12 @@ impl Specialization {
 
     /// Whether the stages that shade no surface (the raster, the ray stages, the
     /// normal-mapping passes) are the same for `self` and `other`: they differ at most in
-    /// the constants of the shading stages alone ([`Specialization::ambient_image`],
-    /// [`Specialization::stochastic`]).
+    /// the constants and bindings of the shading stages alone
+    /// ([`Specialization::ambient_image`], [`Specialization::stochastic`],
+    /// [`Specialization::denoised`]).
     pub fn same_rays(self, other: Specialization) -> bool {
-        Specialization { ambient_image: false, stochastic: false, ..self }
-            == Specialization { ambient_image: false, stochastic: false, ..other }
+        let rays = |s: Specialization| Specialization { ambient_image: false, stochastic: false, denoised: false, ..s };
+        rays(self) == rays(other)
     }
 }
 

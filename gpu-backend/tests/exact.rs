@@ -266,6 +266,8 @@ fn every_stage_uses_only_exact_operations() {
             normal_mapped: bits & 8 != 0,
             ambient_image: bits & 16 != 0,
             stochastic: bits & 32 != 0,
+            // Denoised frames are stochastic ones.
+            denoised: bits & 32 != 0 && bits & 1 != 0,
         };
         hyrt_gpu::bounce_shading::BounceShadingStage::specialized(&ctx, s);
         hyrt_gpu::bounce_trace::BounceTraceStage::specialized(&ctx, s);
@@ -280,6 +282,7 @@ fn every_stage_uses_only_exact_operations() {
     }
     VisibilityRasterStage::with_id_source(&ctx, false);
     hyrt_gpu::compaction::CompactionStage::new(&ctx);
+    hyrt_gpu::shadow_denoise::ShadowDenoiseStage::new(&ctx);
     hyrt_gpu::composition::CompositionStage::new(&ctx);
     hyrt_gpu::reconstruction::ReconstructionStage::new(&ctx);
     hyrt_gpu::reconstruction::NormalMapping::new(&ctx);

@@ -1,10 +1,10 @@
 //! Area lights and ambient occlusion (issue 38) on the GPU backend: their stochastic shadow
 //! rays (`compaction` over mask slots, `shadow_rays`, the shading stages' slot loops, and
-//! the same slots at every bounce depth) render bit for bit the CPU reference's frame when
-//! the frame is not denoised (`FrameOptions::denoise` false, `--no-denoise`); a frame whose
-//! plan runs `shadow_denoise` (the default) is refused with `RenderError::Unsupported`,
-//! never rendered without it. (The conformance corpus' `stochastic_*` cases compare such
-//! frames stage by stage too.)
+//! the same slots at every bounce depth) render bit for bit the CPU reference's frame,
+//! denoised (`shadow_denoise`, the default: the filtered visibility and the shading from
+//! it) or not (`FrameOptions::denoise` false, `--no-denoise`), whole or in bands of rows
+//! (a denoised band is rendered with a halo of rows, `hyrt_gpu::band`). (The conformance
+//! corpus' `stochastic_*` cases compare such frames stage by stage too.)
 
 mod common;
 
@@ -12,7 +12,7 @@ use common::test_context;
 use glam::{Mat4, Vec3};
 use hyrt_core::bvh::{Bvh, BvhPreset};
 use hyrt_core::formats::{CameraRecord, RAY_KIND_SHADOW};
-use hyrt_core::frame::{Backend, Frame, FrameOptions, PreparedScene, RenderError};
+use hyrt_core::frame::{Backend, Frame, FrameOptions, PreparedScene};
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::scene::{Camera, Light, Material, MaterialKind, Mesh, RenderMode, Scene, ShadingModel};
 use hyrt_core::stage::Stage;
@@ -90,27 +90,6 @@ fn camera(scene: &Scene) -> CameraRecord {
     CameraRecord::new(&scene.camera.unwrap(), 48, 32)
 }
 
-#[test]
-fn denoised_stochastic_frames_are_refused_and_others_render() {
-    let Some(ctx) = test_context() else { return };
-    let mut gpu = GpuBackend::with_context(ctx).expect("backend");
-    for (lights, ao_samples, refused) in [(vec![quad()], 0, true), (vec![point()], 4, true), (vec![point()], 0, false)]
-    {
-        let scene = scene(lights.clone(), ShadingModel::Paper, false);
-        let prepared = prepare(&scene);
-        let options = FrameOptions { ao_samples, ..FrameOptions::default() };
-        assert!(options.denoise, "frames denoise by default");
-        match gpu.render(&prepared, &camera(&scene), &options) {
-            Err(RenderError::Unsupported { backend: "gpu", stage, why }) if refused => {
-                assert_eq!(stage, Stage::ShadowDenoise.name());
-                assert!(why.contains("--no-denoise"), "{why}");
-            }
-            Ok(_) if !refused => {}
-            other => panic!("{lights:?} with {ao_samples} occlusion rays: {:?}", other.map(|f| f.width)),
-        }
-    }
-}
-
 /// Every buffer two frames hold, by their bytes: the first that differs, if any.
 fn first_difference(a: &Frame, b: &Frame) -> Option<String> {
     fn bytes<T: bytemuck::Pod>(v: &[T]) -> &[u8] {
@@ -125,6 +104,7 @@ fn first_difference(a: &Frame, b: &Frame) -> Option<String> {
         ("rt".into(), bytes(&a.rt), bytes(&b.rt)),
         ("raster".into(), bytes(&a.raster), bytes(&b.raster)),
         ("final".into(), bytes(&a.final_image), bytes(&b.final_image)),
+        ("visibility".into(), bytes(&a.visibility), bytes(&b.visibility)),
     ];
     if a.bounces.len() != b.bounces.len() {
         return Some(format!("{} against {} bounce depths", a.bounces.len(), b.bounces.len()));
@@ -212,4 +192,109 @@ fn undenoised_stochastic_frames_are_the_cpu_frames_bit_for_bit() {
         assert_eq!(want.plan.stochastic(), ao_samples > 0);
         assert_eq!(first_difference(&want, &got), None, "{ao_samples} occlusion rays");
     }
+}
+
+/// The cases of the denoised tests: area lights of every kind, ambient occlusion, both
+/// models, mirrors (the bounces' shading of primary surfaces reads the filtered channels,
+/// their hits the codes).
+fn denoised_cases() -> [(&'static str, Vec<Light>, u32, ShadingModel, bool); 6] {
+    [
+        ("quad light, paper", vec![quad()], 0, ShadingModel::Paper, false),
+        ("quad light, glTF", vec![quad()], 0, ShadingModel::Gltf, false),
+        ("sphere light and a point light", vec![point(), sphere()], 0, ShadingModel::Paper, false),
+        ("sun", vec![sun()], 0, ShadingModel::Gltf, false),
+        ("ambient occlusion alone", vec![point()], 2, ShadingModel::Paper, false),
+        ("every kind, occlusion, glTF, a mirror", vec![sun(), quad(), sphere()], 2, ShadingModel::Gltf, true),
+    ]
+}
+
+/// Denoised frames (`shadow_denoise`, the default) with area lights and ambient occlusion:
+/// the GPU's frame is the CPU's, every stage buffer and the filtered visibility, byte for
+/// byte; and the filter changed the raw values (it ran).
+#[test]
+fn denoised_stochastic_frames_are_the_cpu_frames_bit_for_bit() {
+    let Some(ctx) = test_context() else { return };
+    let mut gpu = GpuBackend::with_context(ctx).expect("backend");
+    let mut cpu = CpuBackend::new(Some(2));
+    for (name, lights, ao_samples, shading, mirror) in denoised_cases() {
+        let scene = scene(lights, shading, mirror);
+        let prepared = prepare(&scene);
+        let camera = camera(&scene);
+        let options = FrameOptions {
+            stage_outputs: true,
+            shadow_samples: 2,
+            ao_samples,
+            max_depth: 2,
+            ..FrameOptions::default()
+        };
+        assert!(options.denoise, "frames denoise by default");
+        let want = cpu.render(&prepared, &camera, &options).expect("cpu frame");
+        assert!(want.plan.runs(Stage::ShadowDenoise), "{name}");
+        let got = gpu.render(&prepared, &camera, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(want.visibility.len(), (48 * 32) * want.plan.visibility_channels() as usize, "{name}");
+        if let Some(d) = first_difference(&want, &got) {
+            panic!("{name}: {d}");
+        }
+        assert_eq!(want.stats.rays_per_kind, got.stats.rays_per_kind, "{name}");
+        assert_eq!(want.stats.bounces, got.stats.bounces, "{name}");
+        let undenoised = cpu.render(&prepared, &camera, &FrameOptions { denoise: false, ..options }).unwrap();
+        assert!(undenoised.final_image != got.final_image, "{name}: the denoiser changed nothing");
+    }
+}
+
+/// Denoised frames in bands of a few rows (`GpuBackend::set_max_band_bytes`): each band is
+/// rendered with a halo of rows for the filter's neighbours across its edges, and the
+/// merged frame is the CPU's, every buffer, bit for bit; band edges fall inside the
+/// penumbrae (checked: a row at a band edge has partly lit pixels).
+#[test]
+fn denoised_frames_in_bands_are_the_cpu_frames_bit_for_bit() {
+    let Some(ctx) = test_context() else { return };
+    let mut gpu = GpuBackend::with_context(ctx).expect("backend");
+    let mut cpu = CpuBackend::new(Some(2));
+    let (width, height) = (64, 90);
+    let own_rows = 7;
+    let mut edges_in_penumbrae = 0;
+    for (name, lights, ao_samples, shading, mirror) in [
+        ("quad light, paper", vec![quad()], 0, ShadingModel::Paper, false),
+        ("quad light, occlusion and a mirror", vec![quad(), point()], 2, ShadingModel::Paper, true),
+        ("every kind, occlusion, glTF, a mirror", vec![sun(), quad(), sphere()], 2, ShadingModel::Gltf, true),
+    ] {
+        let scene = scene(lights, shading, mirror);
+        let prepared = prepare(&scene);
+        let camera = CameraRecord::new(&scene.camera.unwrap(), width, height);
+        let options = FrameOptions {
+            stage_outputs: true,
+            shadow_samples: 2,
+            ao_samples,
+            max_depth: 2,
+            ..FrameOptions::default()
+        };
+        let want = cpu.render(&prepared, &camera, &options).expect("cpu frame");
+        let plan = &want.plan;
+        let rows = hyrt_gpu::band::buffer_rows(own_rows, u32::MAX, hyrt_gpu::shadow_denoise::DENOISE_HALO);
+        let bytes = hyrt_gpu::band::band_binding_bytes((width * rows) as u64, plan.lights(), plan);
+        gpu.set_max_band_bytes(Some(bytes));
+        let got = gpu.render(&prepared, &camera, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let bands = gpu.last_frame_bands();
+        assert!(bands >= height.div_ceil(own_rows), "{name}: {bands} bands");
+        if let Some(d) = first_difference(&want, &got) {
+            panic!("{name}, {bands} bands: {d}");
+        }
+        assert_eq!(want.stats.rays_per_kind, got.stats.rays_per_kind, "{name}");
+        assert_eq!(want.stats.bounces, got.stats.bounces, "{name}");
+        // Rows at band edges with pixels in a penumbra (a first channel strictly between
+        // 0 and 1).
+        let channels = plan.visibility_channels() as usize;
+        edges_in_penumbrae += (1..height.div_ceil(own_rows))
+            .filter(|b| {
+                let y = (b * own_rows) as usize;
+                (0..width as usize).any(|x| {
+                    let v = want.visibility[(y * width as usize + x) * channels];
+                    v > 0.0 && v < 1.0
+                })
+            })
+            .count();
+        gpu.set_max_band_bytes(None);
+    }
+    assert!(edges_in_penumbrae > 3, "{edges_in_penumbrae} band edges in penumbrae");
 }

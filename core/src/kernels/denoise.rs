@@ -155,6 +155,18 @@ pub fn raw_channels(
     }
 }
 
+/// The angle one pixel spans at the image's centre: the chord between the unit directions
+/// of the primary rays through the two centre pixels of a column (a pixel is far below a
+/// degree, where the chord is the angle to 1e-5 relative). Computed on the host once a
+/// frame; the GPU stage takes it as a uniform.
+pub fn pixel_angle(camera: &crate::formats::CameraRecord) -> f32 {
+    use crate::kernels::camera::primary_ray;
+    let (x, y) = (camera.width / 2, camera.height / 2);
+    let d0 = Vec3::from(primary_ray(camera, x, y).direction).normalize();
+    let d1 = Vec3::from(primary_ray(camera, x, y.saturating_sub(1)).direction).normalize();
+    (d1 - d0).length()
+}
+
 /// The footprint of a pixel at `p` seen from `eye`: its distance times the angle one pixel
 /// spans (`pixel_angle`, `2 tan(fov / 2) / height`).
 #[inline]

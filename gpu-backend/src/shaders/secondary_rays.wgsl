@@ -34,9 +34,11 @@ fn parent(i: u32) -> Parent {
 }
 
 // Whether parent `i` can spawn anything (mirrors hyrt_cpu::secondary_rays::Parents::may_bounce):
-// a live parent that hit an object that bounces.
+// a live parent that hit an object that bounces. At depth 1 only the band's own pixels
+// `[live[1], live[2])` spawn (all of them but in a band rendered with a halo of rows,
+// whose halo serves the denoiser alone: gpu-backend/src/band.rs).
 fn may_bounce(i: u32) -> bool {
-    if i >= live[0] {
+    if i >= live[0] || (list.depth == 1u && (i < live[1] || i >= live[2])) {
         return false;
     }
     let s = parent_surfaces[i];

@@ -9,6 +9,13 @@
 // Also the ambient light every one of them starts from (`ambient`, `unlit`), and the
 // ambient occlusion that scales it (`occluded_object`).
 //
+// A frame that denoised its stochastic shadows (`shadow_denoise`) shades the primary
+// surfaces from the filtered channels (hyrt_core::kernels::soft_shadow::SurfaceShadow's
+// `filtered`): the stage is compiled with `DENOISED` true and `filtered_channel(index, c)`
+// reading its `visibility` binding (hyrt_gpu::shader::filtered_visibility_wgsl); every
+// other stage, and `bounce_shading` (secondary hits shade from their codes), with
+// `DENOISED` false.
+//
 // Prepended by `hyrt_gpu::shader::surface_shading_source` after shading.wgsl,
 // ambient_light.wgsl and the soft-shadow kernels (soft_shadow.wgsl); the stage binds
 // `shadow: array<u32>`, `lights: array<LightRecord>` (the frame's),
@@ -51,26 +58,34 @@ fn ambient_occlusion(index: u32) -> f32 {
     return ao_fraction(lit, samples);
 }
 
-// mirrors hyrt_core::kernels::soft_shadow::occluded_object (the codes alone: no denoised
-// channel), the record kept as it is (its bits) without occlusion rays.
+// mirrors hyrt_core::kernels::soft_shadow::occluded_object: the denoised channel (the
+// last) where the frame has one (DENOISED), else the codes' ambient occlusion; the record
+// kept as it is (its bits) without occlusion rays.
 fn occluded_object(index: u32, obj: ObjectRecord) -> ObjectRecord {
     if !STOCHASTIC || ambient_light.ao_samples == 0u {
         return obj;
     }
     var o = obj;
-    o.occlusion = mul(obj.occlusion, ambient_occlusion(index));
+    if DENOISED {
+        o.occlusion = mul(obj.occlusion, filtered_channel(index, slot_params.channels - 1u));
+    } else {
+        o.occlusion = mul(obj.occlusion, ambient_occlusion(index));
+    }
     return o;
 }
 
-// The loop of hyrt_core::kernels::shading::sum_visible_lights over a surface's slots
-// (the codes alone: no denoised channel), with the shade_ray_traced_with closure
-// (`raster` false) or the shade_raster one (`raster` true): a light of one slot where its
-// code is SHADOW_LIT, at light_incidence; an area light of N slots the mean
-// `(1 / N) sum shade(l_s, weight_s)` over its samples whose ray reached it.
+// The loop of hyrt_core::kernels::shading::sum_visible_lights over a surface's slots,
+// with the shade_ray_traced_with closure (`raster` false) or the shade_raster one
+// (`raster` true): a light of one slot where its code is SHADOW_LIT, at light_incidence;
+// an area light of N slots the mean `(1 / N) sum shade(l_s, weight_s)` over its samples
+// whose ray reached it, or where the frame denoised (DENOISED) the sum over its samples
+// that traced a ray, lit or not, `(1 / N) sum shade(l_s, weight_s)`, times its filtered
+// visibility.
 fn sum_visible_slots(index: u32, p: vec3<f32>, obj: ObjectRecord, n: vec3<f32>, v: vec3<f32>,
                      diffuse_scale: f32, raster: bool) -> vec3<f32> {
     var c = vec3<f32>(0.0);
     var slot = index * slot_params.slots;
+    var area = 0u;
     for (var i = 0u; i < params.light_count; i++) {
         let light = lights[i];
         if light_is_area(light) {
@@ -78,7 +93,12 @@ fn sum_visible_slots(index: u32, p: vec3<f32>, obj: ObjectRecord, n: vec3<f32>, 
             var sum = vec3<f32>(0.0);
             var seen = false;
             for (var sample = 0u; sample < count; sample++) {
-                if light_is_visible(shadow[slot + sample]) {
+                let code = shadow[slot + sample];
+                var counts = light_is_visible(code);
+                if DENOISED {
+                    counts = code != SHADOW_NO_RAY;
+                }
+                if counts {
                     let ls = area_light_sample(light, p, sample);
                     if ls.valid {
                         sum = rounded3(sum + shade_slot(obj, n, v, ls.l, ls.weight, diffuse_scale, raster));
@@ -87,9 +107,15 @@ fn sum_visible_slots(index: u32, p: vec3<f32>, obj: ObjectRecord, n: vec3<f32>, 
                 }
             }
             if seen {
-                c = rounded3(c + div_rn3(sum, u32_to_f32_rn(count)));
+                if DENOISED {
+                    let v = filtered_channel(index, area);
+                    c = rounded3(c + mul3(div_rn3(sum, u32_to_f32_rn(count)), vec3<f32>(v)));
+                } else {
+                    c = rounded3(c + div_rn3(sum, u32_to_f32_rn(count)));
+                }
             }
             slot += count;
+            area += 1u;
         } else {
             if light_is_visible(shadow[slot]) {
                 let inc = light_incidence(light, p);

@@ -1,0 +1,328 @@
+//! Stage `shadow_denoise` (as [`hyrt_cpu::shadow_denoise::shadow_denoise_into`]): the
+//! stochastic visibility of area lights and ambient occlusion, filtered over the band's
+//! surfaces with the WGSL mirrors of [`hyrt_core::kernels::denoise`]
+//! (`shaders/shadow_denoise.wgsl`), in the CPU stage's order: each pixel's raw channels,
+//! the 8 x 8 tiles that need filtering per channel, each pixel's noise deviation, then
+//! [`DENOISE_PASSES`] à-trous passes (ping-pong), the last one clamped to the raw
+//! neighbourhood (`shaders/shadow_denoise_stage.wgsl`, one entry point per pass, all in
+//! one compute pass).
+//!
+//! Reads `frame.surfaces`, `frame.shadow`, `scene.lights`, `scene.ambient_light` (the
+//! frame's occlusion), `frame.camera` (the eye), `frame.params`, `frame.slot_params`
+//! (`channels`: [`hyrt_core::kernels::denoise::channel_count`]) and the pixel's angle, a
+//! uniform computed on the host by the CPU stage's own
+//! [`hyrt_core::kernels::denoise::pixel_angle`]. Writes `frame.visibility` (`channels` f32
+//! per pixel), with the scratch of [`DenoiseBuffers`].
+//!
+//! The filter reaches [`DENOISE_HALO`] rows past a pixel: a band of a banded frame is
+//! rendered over its rows and that many more on each side ([`crate::band`]).
+
+use hyrt_core::kernels::denoise::{
+    ATROUS_KERNEL, CLAMP_RADIUS, DENOISE_PASSES, DENOISE_TILE, MAX_CHANNELS, NORMAL_SQUARINGS, VALUE_TOLERANCE,
+};
+use hyrt_core::kernels::soft_shadow::NO_ESTIMATE;
+
+use crate::buffers::{FrameBuffers, SceneBuffers};
+use crate::gpu_buffer::storage;
+use crate::shader::{preamble, shader_module, shading_helpers, soft_shadow_wgsl, storage_entry, uniform_entry};
+use crate::wgsl::f32_literal;
+use crate::{GpuContext, GpuError};
+
+/// Rows past a pixel whose values its filtered value depends on, rounded up: the
+/// à-trous taps reach `2 (1 + 2 + 4) = 14` rows, the raw neighbourhood of the noise
+/// deviation and the clamp 2 more, and the tiles whose flags the taps read up to
+/// `DENOISE_TILE - 1` beyond (19 in all); 24 keeps a margin. A band of a denoised frame
+/// is rendered with this many more rows on each side, its first row aligned down to a
+/// multiple of [`DENOISE_TILE`] (so that its tiles are the frame's).
+pub const DENOISE_HALO: u32 = 24;
+
+// The halo covers the filter's reach (taps, the neighbourhood, a tile).
+const _: () = assert!(
+    2 * ((1 << DENOISE_PASSES) - 1) + CLAMP_RADIUS as u32 + DENOISE_TILE as u32 - 1 <= DENOISE_HALO,
+    "DENOISE_HALO is shorter than the filter's reach"
+);
+
+/// The uniform of one pass of the stage (`shaders/shadow_denoise_stage.wgsl`).
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `pixel_angle` | f32 | [`hyrt_core::kernels::denoise::pixel_angle`] of the frame's camera |
+/// | 4 | `step` | u32 | the à-trous pass's step (1, 2, 4, ...) |
+/// | 8 | `last` | u32 | 1 on the last pass (clamped), else 0 |
+/// | 12 | `pad` | u32 | zero |
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct DenoiseParams {
+    pub pixel_angle: f32,
+    pub step: u32,
+    pub last: u32,
+    pub pad: u32,
+}
+
+impl hyrt_core::formats::wgsl::WgslStruct for DenoiseParams {
+    const NAME: &'static str = "DenoiseParams";
+
+    fn fields() -> Vec<hyrt_core::formats::wgsl::Field> {
+        use hyrt_core::formats::wgsl::{field_type, Field};
+        vec![
+            Field {
+                name: "pixel_angle",
+                ty: field_type::<Self, _>(|r| &r.pixel_angle),
+                offset: std::mem::offset_of!(Self, pixel_angle),
+            },
+            Field { name: "step", ty: field_type::<Self, _>(|r| &r.step), offset: std::mem::offset_of!(Self, step) },
+            Field { name: "last", ty: field_type::<Self, _>(|r| &r.last), offset: std::mem::offset_of!(Self, last) },
+            Field { name: "pad", ty: field_type::<Self, _>(|r| &r.pad), offset: std::mem::offset_of!(Self, pad) },
+        ]
+    }
+}
+
+/// The constants of `shaders/shadow_denoise.wgsl` from their Rust values, then the file:
+/// after the shading helpers and [`soft_shadow_wgsl`], in a stage that binds what the
+/// file's header names.
+pub fn denoise_wgsl() -> String {
+    let mut s = String::from("// Generated from hyrt_core::kernels::denoise (gpu-backend/src/shadow_denoise.rs).\n");
+    let kernel: Vec<String> = ATROUS_KERNEL.iter().map(|&k| f32_literal(k)).collect();
+    s += &format!("const ATROUS_KERNEL = array<f32, {}>({});\n", ATROUS_KERNEL.len(), kernel.join(", "));
+    s += &format!("const NORMAL_SQUARINGS: u32 = {NORMAL_SQUARINGS}u;\n");
+    s += &format!("const VALUE_TOLERANCE: f32 = {};\n", f32_literal(VALUE_TOLERANCE));
+    s += &format!("const CLAMP_RADIUS: i32 = {CLAMP_RADIUS}i;\n");
+    s += &format!("const DENOISE_TILE: u32 = {DENOISE_TILE}u;\n");
+    s += &format!("const MAX_CHANNELS: u32 = {MAX_CHANNELS}u;\n");
+    s += &format!("const NO_ESTIMATE: f32 = {};\n", f32_literal(NO_ESTIMATE));
+    s + include_str!("shaders/shadow_denoise.wgsl")
+}
+
+/// The stage's WGSL: the generated records, the shading helpers, the soft-shadow kernels,
+/// the [`DenoiseParams`] declaration, [`denoise_wgsl`], then the passes.
+pub fn shadow_denoise_wgsl() -> String {
+    use hyrt_core::formats::wgsl::WgslStruct;
+    format!(
+        "{}\n{}\n{}\n{}\n{}\n{}",
+        preamble(),
+        shading_helpers(),
+        soft_shadow_wgsl(),
+        DenoiseParams::declaration()
+            .replace("// hyrt_core: DenoiseParams", "// hyrt_gpu::shadow_denoise::DenoiseParams"),
+        denoise_wgsl(),
+        include_str!("shaders/shadow_denoise_stage.wgsl")
+    )
+}
+
+/// The scratch of the stage in a frame's buffers ([`FrameBuffers::denoise`]), for bands of
+/// `pixels` pixels with `channels` channels each.
+pub struct DenoiseBuffers {
+    /// `array<f32>`, `channels` per pixel: the raw channels.
+    pub raw: wgpu::Buffer,
+    /// `array<f32>`, `channels` per pixel: the noise deviations.
+    pub sigma: wgpu::Buffer,
+    /// `array<f32>`, `channels` per pixel: the other half of the ping-pong.
+    pub values: wgpu::Buffer,
+    /// `array<u32>`, `channels` per tile: 1 where the tile's channel is filtered.
+    pub tiles: wgpu::Buffer,
+    /// One uniform [`DenoiseParams`] per à-trous pass.
+    pub passes: Vec<wgpu::Buffer>,
+}
+
+impl DenoiseBuffers {
+    /// The scratch for bands of `width` x `rows` pixels of `channels` channels.
+    pub fn new(ctx: &GpuContext, width: u32, rows: u32, channels: u32) -> Result<DenoiseBuffers, GpuError> {
+        let values = width as usize * rows as usize * channels as usize;
+        let tiles = (width as usize).div_ceil(DENOISE_TILE) * (rows as usize).div_ceil(DENOISE_TILE);
+        Ok(DenoiseBuffers {
+            raw: storage::<f32>(ctx, "shadow_denoise raw", values)?,
+            sigma: storage::<f32>(ctx, "shadow_denoise sigma", values)?,
+            values: storage::<f32>(ctx, "shadow_denoise values", values)?,
+            tiles: storage::<u32>(ctx, "shadow_denoise tiles", tiles * channels as usize)?,
+            passes: (0..DENOISE_PASSES)
+                .map(|_| {
+                    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some("shadow_denoise pass"),
+                        size: std::mem::size_of::<DenoiseParams>() as u64,
+                        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                        mapped_at_creation: false,
+                    })
+                })
+                .collect(),
+        })
+    }
+
+    /// Write the passes' parameters for a frame whose pixel spans `pixel_angle`.
+    pub fn write_params(&self, ctx: &GpuContext, pixel_angle: f32) {
+        for (pass, buffer) in self.passes.iter().enumerate() {
+            let p = DenoiseParams {
+                pixel_angle,
+                step: 1 << pass,
+                last: (pass as u32 + 1 == DENOISE_PASSES) as u32,
+                pad: 0,
+            };
+            ctx.queue.write_buffer(buffer, 0, bytemuck::bytes_of(&p));
+        }
+    }
+}
+
+/// The stage's bindings (`shaders/shadow_denoise_stage.wgsl`).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Binding {
+    Params = 0,
+    Camera = 1,
+    SlotParams = 2,
+    AmbientLight = 3,
+    Denoise = 4,
+    Surfaces = 5,
+    Shadow = 6,
+    Lights = 7,
+    RawOut = 8,
+    Raw = 9,
+    SigmaOut = 10,
+    Sigma = 11,
+    TilesOut = 12,
+    Tiles = 13,
+    ValuesIn = 14,
+    ValuesOut = 15,
+}
+
+impl Binding {
+    fn entry(self) -> wgpu::BindGroupLayoutEntry {
+        use Binding::*;
+        let b = self as u32;
+        match self {
+            Params | Camera | SlotParams | AmbientLight | Denoise => uniform_entry(b),
+            RawOut | SigmaOut | TilesOut | ValuesOut => storage_entry(b, false),
+            _ => storage_entry(b, true),
+        }
+    }
+}
+
+/// One pass: its entry point's pipeline over the bindings it uses.
+struct Pass {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+    bindings: &'static [Binding],
+}
+
+/// The `shadow_denoise` stage: one pipeline per pass.
+pub struct ShadowDenoiseStage {
+    raw: Pass,
+    tiles: Pass,
+    sigma: Pass,
+    atrous: Pass,
+}
+
+impl ShadowDenoiseStage {
+    /// Compile the stage's pipelines.
+    pub fn new(ctx: &GpuContext) -> Self {
+        use Binding::*;
+        let module = shader_module(ctx, "shadow_denoise", &shadow_denoise_wgsl());
+        let pass = |entry: &str, bindings: &'static [Binding]| {
+            let label = format!("shadow_denoise {entry}");
+            let entries: Vec<_> = bindings.iter().map(|b| b.entry()).collect();
+            let layout = ctx
+                .device
+                .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(&label), entries: &entries });
+            let pipeline_layout = ctx.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(&label),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let pipeline = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(&label),
+                layout: Some(&pipeline_layout),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            });
+            Pass { pipeline, layout, bindings }
+        };
+        ShadowDenoiseStage {
+            raw: pass("raw_pass", &[Params, SlotParams, AmbientLight, Surfaces, Shadow, Lights, RawOut]),
+            tiles: pass("tiles_pass", &[Params, SlotParams, Surfaces, Raw, TilesOut]),
+            sigma: pass("sigma_pass", &[Params, SlotParams, AmbientLight, Surfaces, Lights, Raw, SigmaOut]),
+            atrous: pass(
+                "atrous_pass",
+                &[Params, Camera, SlotParams, Denoise, Surfaces, Raw, Sigma, Tiles, ValuesIn, ValuesOut],
+            ),
+        }
+    }
+
+    /// Record the stage over the frame's band: `frame.visibility` from `frame.surfaces`
+    /// and `frame.shadow` (the passes' parameters written by
+    /// [`DenoiseBuffers::write_params`]).
+    pub fn encode(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &SceneBuffers,
+        frame: &FrameBuffers,
+        timing: Option<(&wgpu::QuerySet, u32)>,
+    ) {
+        let d = frame.denoise.as_ref().expect("a denoised frame's buffers have the stage's scratch");
+        let group = |pass: &Pass, uniform: &wgpu::Buffer, input: &wgpu::Buffer, output: &wgpu::Buffer| {
+            use Binding::*;
+            let entries: Vec<wgpu::BindGroupEntry> = pass
+                .bindings
+                .iter()
+                .map(|&b| {
+                    let buffer = match b {
+                        Params => &frame.params,
+                        Camera => &frame.camera,
+                        SlotParams => &frame.slot_params,
+                        AmbientLight => &scene.ambient_light,
+                        Denoise => uniform,
+                        Surfaces => &frame.surfaces,
+                        Shadow => &frame.shadow,
+                        Lights => &scene.lights,
+                        RawOut | Raw => &d.raw,
+                        SigmaOut | Sigma => &d.sigma,
+                        TilesOut | Tiles => &d.tiles,
+                        ValuesIn => input,
+                        ValuesOut => output,
+                    };
+                    wgpu::BindGroupEntry { binding: b as u32, resource: buffer.as_entire_binding() }
+                })
+                .collect();
+            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("shadow_denoise"),
+                layout: &pass.layout,
+                entries: &entries,
+            })
+        };
+        let first = &d.passes[0];
+        let (width, rows) = (frame.width, frame.band.rows);
+        let tile = DENOISE_TILE as u32;
+        let grid = |w: u32, h: u32| (w.div_ceil(crate::shader::TILE), h.div_ceil(crate::shader::TILE));
+        // Ping-pong from the raw channels, ending in the frame's visibility.
+        let mut groups = vec![
+            (&self.raw, group(&self.raw, first, &d.raw, &d.raw), grid(width, rows)),
+            (&self.tiles, group(&self.tiles, first, &d.raw, &d.raw), grid(width.div_ceil(tile), rows.div_ceil(tile))),
+            (&self.sigma, group(&self.sigma, first, &d.raw, &d.raw), grid(width, rows)),
+        ];
+        let targets = [&frame.visibility, &d.values];
+        let mut input = &d.raw;
+        for pass in 0..DENOISE_PASSES as usize {
+            // The last pass writes the visibility: start there when the count is odd.
+            let output = targets[(DENOISE_PASSES as usize - 1 - pass) % 2];
+            groups.push((&self.atrous, group(&self.atrous, &d.passes[pass], input, output), grid(width, rows)));
+            input = output;
+        }
+        let mut cpass = crate::timing::begin_timed_pass(encoder, "shadow_denoise", timing);
+        for (pass, group, (x, y)) in &groups {
+            cpass.set_pipeline(&pass.pipeline);
+            cpass.set_bind_group(0, group, &[]);
+            cpass.dispatch_workgroups(*x, *y, 1);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The stage's WGSL parses, validates and uses only exact operations (the stage's
+    /// `shader_module` checks this in debug builds alone).
+    #[test]
+    fn shadow_denoise_uses_only_exact_operations() {
+        assert_eq!(crate::shader::inexact_operations(&shadow_denoise_wgsl()), Ok(Vec::new()));
+    }
+}
