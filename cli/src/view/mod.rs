@@ -164,6 +164,9 @@ struct Running {
     initial_camera: hyrt::Camera,
     controller: Controller,
     options: FrameOptions,
+    /// Each frame takes its own samples of area lights and ambient occlusion, which the
+    /// denoiser accumulates over the frames ([`FrameOptions::temporal`]): on the CPU backend.
+    temporal: bool,
     view: View,
     light: usize,
     frame: Frame,
@@ -216,6 +219,9 @@ impl App {
         };
         let mut renderer = renderer.with_bvh_preset(common.bvh_preset());
         common.set_executor(&mut renderer);
+        // The CPU backend's denoiser accumulates the frames' samples while the view holds
+        // (the GPU backend denoises each frame on its own for now).
+        let temporal = renderer.cpu_backend().is_some();
         eprintln!("backend: {}", renderer.choice_details());
         let presenter = match presenter {
             Some(p) => Presenter::Gpu(Box::new(p)),
@@ -250,6 +256,7 @@ impl App {
             controller: Controller::new(camera, size),
             // The G-buffer for picking (and its views), whatever the view.
             options: common.frame_options(false, true),
+            temporal,
             view: View::Final,
             light: 0,
             frame: Frame::default(),
@@ -366,6 +373,10 @@ impl Running {
     fn render(&mut self, width: u32, height: u32, want_frame: bool) -> Result<(), ViewError> {
         let camera = self.controller.camera;
         self.options.stage_outputs = self.view.needs_stage_outputs();
+        if self.temporal {
+            self.options.frame_index = self.options.frame_index.wrapping_add(1);
+            self.options.temporal = true;
+        }
         // The GPU keeps the final image on the device unless a pick, a screenshot or a
         // stage view needs the frame on the CPU.
         let on_device = matches!(self.presenter, Presenter::Gpu(_))

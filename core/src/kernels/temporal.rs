@@ -9,12 +9,14 @@
 //! * the pixel's surface point `p` on object `o` is moved to where it was one frame ago by
 //!   the object's motion ([`MotionRecord`], from its previous and current transforms:
 //!   [`motion_record`], [`apply_motion`]; objects baked into world space do not move);
-//! * projected with the previous camera, it lands in one previous pixel
-//!   ([`previous_pixel`]: the pixel whose square holds it);
-//! * that pixel's history is taken only if it saw the same surface ([`accepts`]): the same
+//! * projected with the previous camera ([`previous_window`]), it lands between four
+//!   previous pixel centres ([`bilinear_taps`]), whose histories are blended bilinearly
+//!   (so that a moving camera does not resample the history at the nearest pixel every
+//!   frame, which smears a penumbra);
+//! * a previous pixel counts only if it saw the same surface ([`accepts`]): the same
 //!   object, normals within [`TEMPORAL_NORMAL_COS`], and its point within
 //!   [`TEMPORAL_PLANE_FOOTPRINTS`] pixel footprints of the moved point's tangent plane.
-//!   Disoccluded pixels start afresh;
+//!   Where none does (disoccluded), the pixel starts afresh;
 //! * and only if this frame's samples could have come from it ([`plausible`]): the mean of
 //!   this frame's raw values in the pixel's 5 x 5 neighbourhood within three binomial
 //!   deviations of the history. Where a shadow moved (the samples around are all lit
@@ -129,25 +131,59 @@ pub fn move_normal(m: &MotionRecord, n: Vec3) -> Vec3 {
     }
 }
 
-/// The pixel (index `y * width + x` of `camera`'s image) whose square holds the world point
-/// `p` seen through `camera` ([`clip_position_from_eye`], [`clip_to_window`], then the
-/// window coordinates truncated); `None` behind the eye or outside the image.
+/// Where the world point `p` lies in `camera`'s image, in window coordinates (pixel `(x, y)`
+/// spans `[x, x + 1) x [y, y + 1)`, its centre at `+ 0.5`): [`clip_position_from_eye`], then
+/// [`clip_to_window`]. `None` behind the eye or outside the image.
 #[inline]
-pub fn previous_pixel(p: Vec3, camera: &CameraRecord) -> Option<usize> {
+pub fn previous_window(p: Vec3, camera: &CameraRecord) -> Option<[f32; 2]> {
     let clip = clip_position_from_eye(&camera.view_proj, camera.eye, p.into());
-    if !(clip[3] > 0.0) {
+    // Behind the eye, or NaN.
+    if clip[3].partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return None;
     }
     let (w, h) = (camera.width as f32, camera.height as f32);
     let [x, y, _] = clip_to_window(clip, w, h);
-    if !(x >= 0.0 && x < w && y >= 0.0 && y < h) {
-        return None;
-    }
-    let (x, y) = ((x as u32).min(camera.width - 1), (y as u32).min(camera.height - 1));
-    Some(y as usize * camera.width as usize + x as usize)
+    (x >= 0.0 && x < w && y >= 0.0 && y < h).then_some([x, y])
 }
 
-/// Whether the previous frame's surface `previous` (at the pixel [`previous_pixel`] found)
+/// The pixel (index `y * width + x` of `camera`'s image) whose square holds the world point
+/// `p` ([`previous_window`] truncated).
+#[inline]
+pub fn previous_pixel(p: Vec3, camera: &CameraRecord) -> Option<usize> {
+    previous_window(p, camera).map(|w| nearest(w, camera))
+}
+
+/// The pixel whose square holds window point `w` (inside the image).
+#[inline]
+fn nearest([x, y]: [f32; 2], camera: &CameraRecord) -> usize {
+    let (x, y) = ((x as u32).min(camera.width - 1), (y as u32).min(camera.height - 1));
+    y as usize * camera.width as usize + x as usize
+}
+
+/// The four pixels whose centres surround window point `w` in a `width` x `height` image, and
+/// their bilinear weights, in the order `(x0, y0)`, `(x0 + 1, y0)`, `(x0, y0 + 1)`,
+/// `(x0 + 1, y0 + 1)` with `x0 = floor(w.x - 0.5)`, `fx = w.x - 0.5 - x0` (and so for y): weights
+/// `(1 - fx)(1 - fy)`, `fx (1 - fy)`, `(1 - fx) fy`, `fx fy`. A pixel off the image is `None`
+/// (its weight is dropped by the caller).
+#[inline]
+pub fn bilinear_taps([x, y]: [f32; 2], (width, height): (usize, usize)) -> [(Option<usize>, f32); 4] {
+    let (gx, gy) = (x - 0.5, y - 0.5);
+    let (x0, y0) = (gx.floor(), gy.floor());
+    let (fx, fy) = (gx - x0, gy - y0);
+    let at = |dx: f32, dy: f32| {
+        let (xx, yy) = (x0 + dx, y0 + dy);
+        let inside = xx >= 0.0 && yy >= 0.0 && xx < width as f32 && yy < height as f32;
+        inside.then(|| yy as usize * width + xx as usize)
+    };
+    [
+        (at(0.0, 0.0), (1.0 - fx) * (1.0 - fy)),
+        (at(1.0, 0.0), fx * (1.0 - fy)),
+        (at(0.0, 1.0), (1.0 - fx) * fy),
+        (at(1.0, 1.0), fx * fy),
+    ]
+}
+
+/// Whether the previous frame's surface `previous` (at a pixel [`bilinear_taps`] found)
 /// saw the surface `current` has now, moved to `p` with normal `n` ([`apply_motion`],
 /// [`move_normal`]): a hit on the same object, normals within [`TEMPORAL_NORMAL_COS`], its
 /// point within `tolerance` of the plane through `p` normal to `previous`'s normal.
@@ -269,26 +305,57 @@ pub fn temporal_pixel(
     }
     let m = motion.get(s.object as usize).unwrap_or(&MotionRecord::NONE);
     let p = apply_motion(m, Vec3::from(s.position));
-    let Some(j) = previous_pixel(p, history.camera) else {
+    let Some(window) = previous_window(p, history.camera) else {
         return 0;
     };
     let n = move_normal(m, Vec3::from(s.normal));
-    if !accepts(s, p, n, &history.surfaces[j], footprint * TEMPORAL_PLANE_FOOTPRINTS) {
-        return 0;
+    let tolerance = footprint * TEMPORAL_PLANE_FOOTPRINTS;
+    let (pw, ph) = (history.camera.width as usize, history.camera.height as usize);
+    // The previous pixels around the moved point that saw the same surface, bilinearly
+    // weighted; the history of each channel their weighted mean over those with an
+    // estimate; its length the least of theirs; the plausibility measured around the
+    // heaviest.
+    let mut taps = bilinear_taps(window, (pw, ph));
+    for (k, w) in taps.iter_mut() {
+        if !k.is_some_and(|k| accepts(s, p, n, &history.surfaces[k], tolerance)) {
+            (*k, *w) = (None, 0.0);
+        }
     }
-    let old = &history.visibility[j * channels..(j + 1) * channels];
+    let Some((centre, _)) = taps.iter().filter_map(|&(k, w)| k.map(|k| (k, w))).fold(None, |best, (k, w)| match best {
+        Some((_, bw)) if bw >= w => best,
+        _ => Some((k, w)),
+    }) else {
+        return 0;
+    };
+    let mut old = [0.0f32; MAX_CHANNELS];
+    for (c, o) in old.iter_mut().enumerate().take(channels) {
+        let (mut sum, mut weight) = (0.0f32, 0.0f32);
+        for &(k, w) in &taps {
+            if let Some(k) = k {
+                let v = history.visibility[k * channels + c];
+                if v >= 0.0 && w > 0.0 {
+                    sum += w * v;
+                    weight += w;
+                }
+            }
+        }
+        *o = match weight > 0.0 {
+            true => sum / weight,
+            false => crate::kernels::soft_shadow::NO_ESTIMATE,
+        };
+    }
+    let behind = taps.iter().filter_map(|&(k, _)| k.map(|k| history.length[k])).min().unwrap_or(0);
     // This frame's mean around the pixel and the history's around the previous pixel, per
     // channel: two estimates of the same neighbourhood's light where nothing moved.
     let now = neighbourhood_mean(raw, surfaces, (width, height), (x, y), channels);
-    let (pw, ph) = (history.camera.width as usize, history.camera.height as usize);
-    let then = neighbourhood_mean(history.visibility, history.surfaces, (pw, ph), (j % pw, j / pw), channels);
+    let then = neighbourhood_mean(history.visibility, history.surfaces, (pw, ph), (centre % pw, centre / pw), channels);
     for c in 0..channels {
         let ((mean, count), (old_mean, old_count)) = (now[c], then[c]);
         if old[c] >= 0.0 && count > 0 && old_count > 0 && !plausible(old_mean, mean, count * samples[c]) {
             return 0;
         }
     }
-    let length = (history.length[j] + 1).min(TEMPORAL_MAX_LENGTH);
+    let length = (behind + 1).min(TEMPORAL_MAX_LENGTH);
     let (lo, hi) = raw_range(raw, surfaces, (width, height), (x, y), channels);
     for c in 0..channels {
         out[c] = temporal_blend(raw[i * channels + c], old[c], (lo[c], hi[c]), length);
