@@ -4,6 +4,7 @@
 //! stage, so the stage modules stand side by side above it.
 
 use hyrt_core::bvh::{BVH_CULL_SLACK, BVH_STACK_SIZE};
+use hyrt_core::formats::wgsl::declarations;
 use hyrt_core::kernels::area_light::MIN_AREA_LIGHT_DISTANCE_SQ;
 use hyrt_core::kernels::bounce::{IOR_OUTSIDE, MIN_THROUGHPUT, SKY_GROUND, SKY_HORIZON, SKY_ZENITH};
 use hyrt_core::kernels::environment::{ATAN_SERIES, INV_TWO_PI, TAN_PI_8};
@@ -43,17 +44,6 @@ pub(crate) const TILE: u32 = 8;
 // ---------------------------------------------------------------------------------------------
 // WGSL sources
 // ---------------------------------------------------------------------------------------------
-
-/// The generated records and format constants of every stage
-/// ([`hyrt_core::formats::wgsl::declarations`]), with the fields whose names WGSL reserves
-/// renamed: [`hyrt_core::formats::MotionRecord`]'s `from` is `from_point` here (`from` is
-/// a reserved word: naga refuses the module). The layout is the record's.
-pub fn declarations() -> String {
-    let core = hyrt_core::formats::wgsl::declarations();
-    let start = core.find("struct MotionRecord {").unwrap_or(core.len());
-    let end = core[start..].find('}').map_or(core.len(), |e| start + e);
-    format!("{}{}{}", &core[..start], core[start..end].replace("\n    from: ", "\n    from_point: "), &core[end..])
-}
 
 /// What every stage's WGSL begins with: the generated records and format constants
 /// ([`declarations`]), then the f32 field masks and the exact division and square root

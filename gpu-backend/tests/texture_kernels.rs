@@ -23,6 +23,7 @@ mod common;
 
 use bytemuck::{Pod, Zeroable};
 use common::test_context;
+use hyrt_core::formats::wgsl::declarations;
 use hyrt_core::formats::{
     FrameParams, MaterialRecord, ObjectRecord, SurfaceLayout, SurfaceRecord, TextureSet, TriangleRecord,
     TriangleUvRecord, FILTER_LINEAR, FILTER_NEAREST, INVALID_ID, MAT_ALPHA_TEST, MAT_EMISSIVE, MAT_METALLIC_ROUGHNESS,
@@ -34,7 +35,6 @@ use hyrt_core::kernels::bounce::primary_cone;
 use hyrt_core::kernels::texture::{self as cpu, Materials};
 use hyrt_core::scene::texture::{Filter, Sampler, TextureImage, Wrap};
 use hyrt_gpu::gpu_buffer::{read_back, storage, upload};
-use hyrt_gpu::shader::declarations;
 use hyrt_gpu::shader::{bind_buffers, shading_source, specialized_pipeline, storage_entry, uniform_entry};
 use hyrt_gpu::texture::{materials_wgsl, texture_wgsl, Specialization, SurfaceBuffers};
 use hyrt_gpu::GpuContext;

@@ -26,7 +26,7 @@ fn object_motion(object: u32) -> MotionRecord {
     m.map_x = vec4<f32>(1.0, 0.0, 0.0, 0.0);
     m.map_y = vec4<f32>(0.0, 1.0, 0.0, 0.0);
     m.map_z = vec4<f32>(0.0, 0.0, 1.0, 0.0);
-    m.from_point = vec3<f32>(0.0);
+    m.translation = vec3<f32>(0.0);
     m.flags = MOTION_NONE;
     return m;
 }
@@ -41,7 +41,7 @@ fn apply_motion(m: MotionRecord, p: vec3<f32>) -> vec3<f32> {
     if (m.flags & MOTION_NONE) != 0u {
         return p;
     }
-    let q = vec3<f32>(rounded(p.x - m.from_point.x), rounded(p.y - m.from_point.y), rounded(p.z - m.from_point.z));
+    let q = vec3<f32>(rounded(p.x - m.translation.x), rounded(p.y - m.translation.y), rounded(p.z - m.translation.z));
     return vec3<f32>(motion_row(m.map_x, q), motion_row(m.map_y, q), motion_row(m.map_z, q));
 }
 
