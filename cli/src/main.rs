@@ -240,8 +240,9 @@ struct SceneArgs {
     #[arg(long)]
     no_denoise: bool,
     /// With --frames: each frame takes its own samples of area lights and ambient
-    /// occlusion, and the denoiser accumulates them over the frames (CPU backend; the
-    /// temporal pass reprojects through camera and object motion).
+    /// occlusion, and the denoiser accumulates them over the frames (the temporal pass
+    /// reprojects through camera and object motion; the GPU backend renders such frames
+    /// in one band of storage bindings only, and refuses larger ones).
     #[arg(long)]
     temporal: bool,
     /// Where primary hit points come from: each pixel's camera ray re-intersected with the

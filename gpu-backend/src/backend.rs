@@ -31,7 +31,7 @@ use crate::raster_shading::RasterShadingStage;
 use crate::reconstruction::{NormalMapping, ReconstructionStage};
 use crate::rt_shading::{RtShadingBouncingStage, RtShadingStage};
 use crate::secondary_rays::SecondaryRaysStage;
-use crate::shadow_denoise::ShadowDenoiseStage;
+use crate::shadow_denoise::{GpuHistory, ShadowDenoiseStage};
 use crate::shadow_rays::ShadowRaysStage;
 use crate::texture::Specialization;
 use crate::timing::StageTimer;
@@ -223,6 +223,9 @@ pub struct GpuBackend {
     last_bands: u32,
     /// The `shadow_denoise` stage, built the first time a frame denoises.
     shadow_denoise: Option<ShadowDenoiseStage>,
+    /// What the last frame of the denoiser's temporal pass left for the next
+    /// ([`FrameOptions::temporal`]), made by the first such frame.
+    history: Option<GpuHistory>,
 }
 
 impl GpuBackend {
@@ -255,6 +258,7 @@ impl GpuBackend {
             max_band_bytes: None,
             last_bands: 0,
             shadow_denoise: None,
+            history: None,
         })
     }
 
@@ -396,6 +400,22 @@ impl GpuBackend {
         let halo = if denoised { crate::shadow_denoise::DENOISE_HALO } else { 0 };
         let mut rows = band::own_rows(fit, camera.height, halo)?;
         let mut banded = rows < camera.height;
+        // The denoiser's temporal pass reads the previous frame's history at reprojected
+        // rows: a frame in one band only (the history starts afresh as the CPU's does, on
+        // another scene or channel count).
+        let temporal = options.temporal && denoised;
+        if temporal {
+            if banded {
+                return Err(temporal_banded(camera, limit));
+            }
+            let ctx = &self.ctx;
+            if self.history.is_none() {
+                self.history = Some(ctx.checked(|| GpuHistory::new(ctx))??);
+            }
+            let samples = hyrt_core::kernels::denoise::channel_samples(&lighting.lights, &lighting.ambient.occlusion);
+            let history = self.history.as_mut().expect("the history");
+            ctx.checked(|| history.prepare(ctx, scene.id(), scene.object_maps(), camera, &samples))??;
+        }
         if let Sink::Frame(out) = sink {
             for b in out.buffers().collect::<Vec<_>>() {
                 out.clear(b);
@@ -418,7 +438,9 @@ impl GpuBackend {
                     stage_ms.iter_mut().zip(&self.stage_ms).for_each(|(sum, ms)| *sum += ms);
                     first_row += band.rows;
                 }
-                // A bounce list outgrew a binding: the band splits and runs again.
+                // A bounce list outgrew a binding: the band splits and runs again (not
+                // in a frame of the temporal pass, which must be one band).
+                None if temporal && band.rows > 1 => return Err(temporal_banded(camera, limit)),
                 None if band.rows > 1 => {
                     rows = band.rows.div_ceil(2);
                     banded = true;
@@ -433,6 +455,9 @@ impl GpuBackend {
         }
         if let Sink::Frame(out) = sink {
             merge.finish(out);
+        }
+        if temporal {
+            self.history.as_mut().expect("the history").commit();
         }
         self.stage_ms = stage_ms;
         Ok(total)
@@ -536,7 +561,6 @@ impl GpuBackend {
         target: &wgpu::Texture,
     ) -> Result<FrameStats, RenderError> {
         let plan = FramePlan::new(scene, options)?;
-        check_temporal(&plan, options)?;
         self.check_supported(scene, &plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         crate::present::check_target(target, camera.width, camera.height).map_err(RenderError::InvalidOptions)?;
@@ -595,7 +619,7 @@ impl GpuBackend {
         fb.write_uniforms(ctx, camera, &params);
         if let Some(d) = &fb.denoise {
             // The pixel's angle by the CPU stage's own function.
-            d.write_params(ctx, hyrt_core::kernels::denoise::pixel_angle(camera));
+            d.write_params(ctx, hyrt_core::kernels::denoise::pixel_angle(camera), options.temporal);
         }
 
         // With timestamp queries the frame is one command buffer and the GPU times each
@@ -605,6 +629,11 @@ impl GpuBackend {
         // reconstructing 921,600 pixels on a CPU): on software adapters each stage is
         // timed by the wall clock instead.
         let timed_by_gpu = self.timer.is_active() && !crate::context::is_software(&ctx.info);
+        // The temporal pass's history, prepared by `run_frame`.
+        let history = match options.temporal && denoised {
+            true => Some(self.history.as_ref().expect("run_frame prepares the history")),
+            false => None,
+        };
         let mut wall_ms = Vec::with_capacity(plan.steps().len());
         let bounce = || st.bounces.as_ref().expect("plans with bounces need the bounce stages (check_supported)");
         ctx.checked(|| -> Result<(), GpuError> {
@@ -629,7 +658,7 @@ impl GpuBackend {
                         .shadow_denoise
                         .as_ref()
                         .expect("run_frame builds the denoiser")
-                        .encode(ctx, &mut enc, sb, fb, slot),
+                        .encode(ctx, &mut enc, sb, fb, history, slot),
                     Step::SecondaryRays { depth } => bounce().secondary_rays.encode(ctx, &mut enc, sb, fb, depth, slot),
                     Step::BounceTrace { depth } => {
                         bounce().bounce_trace.encode(ctx, &mut enc, sb, fb, depth, slot);
@@ -1063,7 +1092,6 @@ impl Backend for GpuBackend {
         frame: &mut Frame,
     ) -> Result<(), RenderError> {
         let plan = FramePlan::new(scene, options)?;
-        check_temporal(&plan, options)?;
         self.check_supported(scene, &plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         frame.begin(&plan, options);
@@ -1076,18 +1104,14 @@ impl Backend for GpuBackend {
     }
 }
 
-/// Refuse a frame whose denoiser blends in the frames before it
-/// ([`FrameOptions::temporal`]): the temporal pass runs on the CPU backend only for now, and
-/// a frame without it would silently be another image. The same frame without it (each
-/// frame denoised on its own) renders here.
-fn check_temporal(plan: &FramePlan, options: &FrameOptions) -> Result<(), RenderError> {
-    match options.temporal && plan.runs(Stage::ShadowDenoise) {
-        false => Ok(()),
-        true => Err(RenderError::Unsupported {
-            backend: "gpu",
-            stage: Stage::ShadowDenoise.name().into(),
-            why: "the denoiser's temporal pass (FrameOptions::temporal) runs on the CPU backend only for now; \
-                  without --temporal each frame is denoised on its own",
-        }),
-    }
+/// The refusal of a frame of the denoiser's temporal pass ([`FrameOptions::temporal`]) that
+/// does not fit one band of storage bindings of `limit` bytes: the history is read at
+/// reprojected rows of the whole previous frame, which bands do not have.
+fn temporal_banded(camera: &CameraRecord, limit: u64) -> GpuError {
+    GpuError::Limits(format!(
+        "the denoiser's temporal pass (FrameOptions::temporal, --temporal) renders a frame in one band only, and a \
+         {}x{} frame needs more than the {limit} bytes a storage binding holds: render it smaller, or without \
+         --temporal (each frame denoised on its own)",
+        camera.width, camera.height
+    ))
 }

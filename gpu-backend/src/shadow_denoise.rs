@@ -17,13 +17,17 @@
 //! The filter reaches [`DENOISE_HALO`] rows past a pixel: a band of a banded frame is
 //! rendered over its rows and that many more on each side ([`crate::band`]).
 
+use hyrt_core::formats::{CameraRecord, MotionRecord, ObjectMap, SurfaceRecord};
 use hyrt_core::kernels::denoise::{
     ATROUS_KERNEL, CLAMP_RADIUS, DENOISE_PASSES, DENOISE_TILE, MAX_CHANNELS, NORMAL_SQUARINGS, VALUE_TOLERANCE,
 };
 use hyrt_core::kernels::soft_shadow::NO_ESTIMATE;
+use hyrt_core::kernels::temporal::{
+    motion_records, TEMPORAL_MAX_LENGTH, TEMPORAL_NORMAL_COS, TEMPORAL_PLANE_FOOTPRINTS, TEMPORAL_TOLERANCE,
+};
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
-use crate::gpu_buffer::storage;
+use crate::gpu_buffer::{storage, upload};
 use crate::shader::{preamble, shader_module, shading_helpers, soft_shadow_wgsl, storage_entry, uniform_entry};
 use crate::wgsl::f32_literal;
 use crate::{GpuContext, GpuError};
@@ -49,14 +53,14 @@ const _: () = assert!(
 /// | 0 | `pixel_angle` | f32 | [`hyrt_core::kernels::denoise::pixel_angle`] of the frame's camera |
 /// | 4 | `step` | u32 | the à-trous pass's step (1, 2, 4, ...) |
 /// | 8 | `last` | u32 | 1 on the last pass (clamped), else 0 |
-/// | 12 | `pad` | u32 | zero |
+/// | 12 | `temporal` | u32 | 1 in a frame of the temporal pass (the noise from the samples of the frames behind each pixel), else 0 |
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct DenoiseParams {
     pub pixel_angle: f32,
     pub step: u32,
     pub last: u32,
-    pub pad: u32,
+    pub temporal: u32,
 }
 
 impl hyrt_core::formats::wgsl::WgslStruct for DenoiseParams {
@@ -72,7 +76,11 @@ impl hyrt_core::formats::wgsl::WgslStruct for DenoiseParams {
             },
             Field { name: "step", ty: field_type::<Self, _>(|r| &r.step), offset: std::mem::offset_of!(Self, step) },
             Field { name: "last", ty: field_type::<Self, _>(|r| &r.last), offset: std::mem::offset_of!(Self, last) },
-            Field { name: "pad", ty: field_type::<Self, _>(|r| &r.pad), offset: std::mem::offset_of!(Self, pad) },
+            Field {
+                name: "temporal",
+                ty: field_type::<Self, _>(|r| &r.temporal),
+                offset: std::mem::offset_of!(Self, temporal),
+            },
         ]
     }
 }
@@ -93,18 +101,67 @@ pub fn denoise_wgsl() -> String {
     s + include_str!("shaders/shadow_denoise.wgsl")
 }
 
+/// The uniform of the temporal pass (`shaders/temporal.wgsl`, `temporal`).
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `usable` | u32 | 1 where the history is this scene's with these channels (else the pass copies the raw channels, lengths 0) |
+/// | 4 | `motion_count` | u32 | motion records in `motion` |
+/// | 8 | `pad` | 2 x u32 | zero |
+/// | 16 | `samples` | 4 x vec4<u32> | per channel, its samples per frame ([`hyrt_core::kernels::denoise::channel_samples`]), channel `c` at `[c / 4][c % 4]` |
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct TemporalParams {
+    pub usable: u32,
+    pub motion_count: u32,
+    pub pad: [u32; 2],
+    pub samples: [[u32; 4]; MAX_CHANNELS / 4],
+}
+
+const _: () = assert!(MAX_CHANNELS % 4 == 0 && std::mem::size_of::<TemporalParams>() == 16 + 4 * MAX_CHANNELS);
+
+impl TemporalParams {
+    /// The parameters of a frame with `samples` per channel and frame, `motion_count`
+    /// motion records, its history `usable` or not.
+    pub fn new(usable: bool, motion_count: u32, samples: &[u32]) -> TemporalParams {
+        let mut p = TemporalParams { usable: usable as u32, motion_count, ..Default::default() };
+        for (c, &n) in samples.iter().enumerate().take(MAX_CHANNELS) {
+            p.samples[c / 4][c % 4] = n;
+        }
+        p
+    }
+}
+
+/// The constants of `shaders/temporal.wgsl` from their Rust values, the [`TemporalParams`]
+/// declaration, then the file: after [`denoise_wgsl`], in a stage that binds what the
+/// file's header names.
+pub fn temporal_wgsl() -> String {
+    let mut s = String::from("// Generated from hyrt_core::kernels::temporal (gpu-backend/src/shadow_denoise.rs).\n");
+    s += &format!("const TEMPORAL_MAX_LENGTH: u32 = {TEMPORAL_MAX_LENGTH}u;\n");
+    s += &format!("const TEMPORAL_NORMAL_COS: f32 = {};\n", f32_literal(TEMPORAL_NORMAL_COS));
+    s += &format!("const TEMPORAL_PLANE_FOOTPRINTS: f32 = {};\n", f32_literal(TEMPORAL_PLANE_FOOTPRINTS));
+    s += &format!("const TEMPORAL_TOLERANCE: f32 = {};\n", f32_literal(TEMPORAL_TOLERANCE));
+    s += &format!(
+        "// hyrt_gpu::shadow_denoise::TemporalParams\nstruct TemporalParams {{\n    usable: u32,\n    motion_count: u32,\n    \
+         pad0: u32,\n    pad1: u32,\n    samples: array<vec4<u32>, {}>,\n}}\n",
+        MAX_CHANNELS / 4
+    );
+    s + include_str!("shaders/temporal.wgsl")
+}
+
 /// The stage's WGSL: the generated records, the shading helpers, the soft-shadow kernels,
-/// the [`DenoiseParams`] declaration, [`denoise_wgsl`], then the passes.
+/// the [`DenoiseParams`] declaration, [`denoise_wgsl`], [`temporal_wgsl`], then the passes.
 pub fn shadow_denoise_wgsl() -> String {
     use hyrt_core::formats::wgsl::WgslStruct;
     format!(
-        "{}\n{}\n{}\n{}\n{}\n{}",
+        "{}\n{}\n{}\n{}\n{}\n{}\n{}",
         preamble(),
         shading_helpers(),
         soft_shadow_wgsl(),
         DenoiseParams::declaration()
             .replace("// hyrt_core: DenoiseParams", "// hyrt_gpu::shadow_denoise::DenoiseParams"),
         denoise_wgsl(),
+        temporal_wgsl(),
         include_str!("shaders/shadow_denoise_stage.wgsl")
     )
 }
@@ -147,16 +204,137 @@ impl DenoiseBuffers {
         })
     }
 
-    /// Write the passes' parameters for a frame whose pixel spans `pixel_angle`.
-    pub fn write_params(&self, ctx: &GpuContext, pixel_angle: f32) {
+    /// Write the passes' parameters for a frame whose pixel spans `pixel_angle`, `temporal`
+    /// if it runs the temporal pass.
+    pub fn write_params(&self, ctx: &GpuContext, pixel_angle: f32, temporal: bool) {
         for (pass, buffer) in self.passes.iter().enumerate() {
             let p = DenoiseParams {
                 pixel_angle,
                 step: 1 << pass,
                 last: (pass as u32 + 1 == DENOISE_PASSES) as u32,
-                pad: 0,
+                temporal: temporal as u32,
             };
             ctx.queue.write_buffer(buffer, 0, bytemuck::bytes_of(&p));
+        }
+    }
+}
+
+/// One frame's history on the device: its surfaces, its channels after the temporal pass
+/// and per pixel the frames behind them.
+pub struct HistorySet {
+    /// `array<SurfaceRecord>`, one per pixel.
+    pub surfaces: wgpu::Buffer,
+    /// `array<f32>`, `channels` per pixel.
+    pub values: wgpu::Buffer,
+    /// `array<u32>`, one per pixel.
+    pub lengths: wgpu::Buffer,
+    /// Pixels and values the buffers have room for.
+    room: (usize, usize),
+}
+
+impl HistorySet {
+    fn new(ctx: &GpuContext, pixels: usize, values: usize) -> Result<HistorySet, GpuError> {
+        Ok(HistorySet {
+            surfaces: storage::<SurfaceRecord>(ctx, "shadow_denoise history surfaces", pixels)?,
+            values: storage::<f32>(ctx, "shadow_denoise history values", values)?,
+            lengths: storage::<u32>(ctx, "shadow_denoise history lengths", pixels)?,
+            room: (pixels, values),
+        })
+    }
+}
+
+/// What the backend keeps of the last frame of the temporal pass (as the CPU backend's
+/// `hyrt_cpu::shadow_denoise::TemporalHistory`), on the device: two [`HistorySet`]s, the
+/// previous frame's, which a frame reads, and the other, which it writes (a band that runs
+/// again reads the same history); [`GpuHistory::commit`] swaps them once the frame is done.
+/// On the host: the scene, camera, object maps and channel count of the frame the history
+/// holds. A frame of another scene or channel count, or the first, starts afresh.
+pub struct GpuHistory {
+    /// The scene of the history's frame; `None` before any.
+    scene: Option<u64>,
+    camera: CameraRecord,
+    maps: Vec<ObjectMap>,
+    channels: u32,
+    /// The two sets; `sets[previous]` holds the history.
+    sets: [HistorySet; 2],
+    previous: usize,
+    /// What the frame being rendered becomes at its commit.
+    pending: Option<(u64, CameraRecord, Vec<ObjectMap>, u32)>,
+    /// Uniform `CameraRecord`: the history's camera.
+    pub prev_camera: wgpu::Buffer,
+    /// Uniform [`TemporalParams`].
+    pub params: wgpu::Buffer,
+    /// `array<MotionRecord>`, one per object: their motion since the history's frame.
+    pub motion: wgpu::Buffer,
+}
+
+impl GpuHistory {
+    /// No history yet.
+    pub fn new(ctx: &GpuContext) -> Result<GpuHistory, GpuError> {
+        let uniform = |label: &str, size: usize| {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        Ok(GpuHistory {
+            scene: None,
+            camera: bytemuck::Zeroable::zeroed(),
+            maps: Vec::new(),
+            channels: 0,
+            sets: [HistorySet::new(ctx, 1, 1)?, HistorySet::new(ctx, 1, 1)?],
+            previous: 0,
+            pending: None,
+            prev_camera: uniform("shadow_denoise history camera", std::mem::size_of::<CameraRecord>()),
+            params: uniform("shadow_denoise temporal", std::mem::size_of::<TemporalParams>()),
+            motion: upload(ctx, "shadow_denoise motion", &[MotionRecord::NONE]),
+        })
+    }
+
+    /// Get ready for a frame of scene `scene` with the objects' maps `maps` now, seen from
+    /// `camera`, with `samples` per channel and frame: whether the history counts (the
+    /// CPU's rule: the same scene and channel count, a frame before), the objects' motion
+    /// since it ([`motion_records`]), room for this frame in the set it writes.
+    pub fn prepare(
+        &mut self,
+        ctx: &GpuContext,
+        scene: u64,
+        maps: Vec<ObjectMap>,
+        camera: &CameraRecord,
+        samples: &[u32],
+    ) -> Result<(), GpuError> {
+        let channels = samples.len() as u32;
+        let usable = self.scene == Some(scene) && self.channels == channels;
+        let motion = match usable {
+            true => motion_records(&self.maps, &maps),
+            false => Vec::new(),
+        };
+        self.motion = upload(ctx, "shadow_denoise motion", &motion);
+        let params = TemporalParams::new(usable, motion.len() as u32, samples);
+        ctx.queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        ctx.queue.write_buffer(&self.prev_camera, 0, bytemuck::bytes_of(&self.camera));
+        let pixels = camera.width as usize * camera.height as usize;
+        let values = pixels * channels as usize;
+        let next = &mut self.sets[1 - self.previous];
+        if next.room.0 < pixels || next.room.1 < values {
+            *next = HistorySet::new(ctx, pixels, values)?;
+        }
+        self.pending = Some((scene, *camera, maps, channels));
+        Ok(())
+    }
+
+    /// The set the frame reads (the previous frame's) and the one it writes.
+    pub fn sets(&self) -> (&HistorySet, &HistorySet) {
+        (&self.sets[self.previous], &self.sets[1 - self.previous])
+    }
+
+    /// The frame [`GpuHistory::prepare`]d is done: it becomes the history.
+    pub fn commit(&mut self) {
+        if let Some((scene, camera, maps, channels)) = self.pending.take() {
+            (self.scene, self.camera, self.maps, self.channels) = (Some(scene), camera, maps, channels);
+            self.previous = 1 - self.previous;
         }
     }
 }
@@ -180,6 +358,15 @@ enum Binding {
     Tiles = 13,
     ValuesIn = 14,
     ValuesOut = 15,
+    PrevCamera = 16,
+    Temporal = 17,
+    Motion = 18,
+    PrevSurfaces = 19,
+    PrevValues = 20,
+    PrevLengths = 21,
+    AccumulatedOut = 22,
+    LengthsOut = 23,
+    Lengths = 24,
 }
 
 impl Binding {
@@ -187,8 +374,8 @@ impl Binding {
         use Binding::*;
         let b = self as u32;
         match self {
-            Params | Camera | SlotParams | AmbientLight | Denoise => uniform_entry(b),
-            RawOut | SigmaOut | TilesOut | ValuesOut => storage_entry(b, false),
+            Params | Camera | SlotParams | AmbientLight | Denoise | PrevCamera | Temporal => uniform_entry(b),
+            RawOut | SigmaOut | TilesOut | ValuesOut | AccumulatedOut | LengthsOut => storage_entry(b, false),
             _ => storage_entry(b, true),
         }
     }
@@ -204,6 +391,7 @@ struct Pass {
 /// The `shadow_denoise` stage: one pipeline per pass.
 pub struct ShadowDenoiseStage {
     raw: Pass,
+    temporal: Pass,
     tiles: Pass,
     sigma: Pass,
     atrous: Pass,
@@ -237,8 +425,30 @@ impl ShadowDenoiseStage {
         };
         ShadowDenoiseStage {
             raw: pass("raw_pass", &[Params, SlotParams, AmbientLight, Surfaces, Shadow, Lights, RawOut]),
+            temporal: pass(
+                "temporal_pass",
+                &[
+                    Params,
+                    Camera,
+                    SlotParams,
+                    Denoise,
+                    PrevCamera,
+                    Temporal,
+                    Surfaces,
+                    Raw,
+                    Motion,
+                    PrevSurfaces,
+                    PrevValues,
+                    PrevLengths,
+                    AccumulatedOut,
+                    LengthsOut,
+                ],
+            ),
             tiles: pass("tiles_pass", &[Params, SlotParams, Surfaces, Raw, TilesOut]),
-            sigma: pass("sigma_pass", &[Params, SlotParams, AmbientLight, Surfaces, Lights, Raw, SigmaOut]),
+            sigma: pass(
+                "sigma_pass",
+                &[Params, SlotParams, AmbientLight, Denoise, Surfaces, Lights, Raw, Lengths, SigmaOut],
+            ),
             atrous: pass(
                 "atrous_pass",
                 &[Params, Camera, SlotParams, Denoise, Surfaces, Raw, Sigma, Tiles, ValuesIn, ValuesOut],
@@ -248,62 +458,97 @@ impl ShadowDenoiseStage {
 
     /// Record the stage over the frame's band: `frame.visibility` from `frame.surfaces`
     /// and `frame.shadow` (the passes' parameters written by
-    /// [`DenoiseBuffers::write_params`]).
+    /// [`DenoiseBuffers::write_params`]); with `history` ([`GpuHistory::prepare`]d for
+    /// this frame, which must be one band), the temporal pass between the raw channels and
+    /// the filter: the filter's tiles and noise from the accumulated channels (written to
+    /// the history's next set with their lengths, the frame's surfaces copied beside
+    /// them), its clamp from this frame's raw ones.
     pub fn encode(
         &self,
         ctx: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
         scene: &SceneBuffers,
         frame: &FrameBuffers,
+        history: Option<&GpuHistory>,
         timing: Option<(&wgpu::QuerySet, u32)>,
     ) {
         let d = frame.denoise.as_ref().expect("a denoised frame's buffers have the stage's scratch");
-        let group = |pass: &Pass, uniform: &wgpu::Buffer, input: &wgpu::Buffer, output: &wgpu::Buffer| {
-            use Binding::*;
-            let entries: Vec<wgpu::BindGroupEntry> = pass
-                .bindings
-                .iter()
-                .map(|&b| {
-                    let buffer = match b {
-                        Params => &frame.params,
-                        Camera => &frame.camera,
-                        SlotParams => &frame.slot_params,
-                        AmbientLight => &scene.ambient_light,
-                        Denoise => uniform,
-                        Surfaces => &frame.surfaces,
-                        Shadow => &frame.shadow,
-                        Lights => &scene.lights,
-                        RawOut | Raw => &d.raw,
-                        SigmaOut | Sigma => &d.sigma,
-                        TilesOut | Tiles => &d.tiles,
-                        ValuesIn => input,
-                        ValuesOut => output,
-                    };
-                    wgpu::BindGroupEntry { binding: b as u32, resource: buffer.as_entire_binding() }
-                })
-                .collect();
-            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("shadow_denoise"),
-                layout: &pass.layout,
-                entries: &entries,
-            })
+        let sets = history.map(|h| h.sets());
+        // What a pass reads as `raw`, and as `lengths` (a stand-in without the temporal pass).
+        let (filter_raw, lengths) = match sets {
+            Some((_, next)) => (&next.values, &next.lengths),
+            None => (&d.raw, &d.tiles),
         };
+        let group =
+            |pass: &Pass, uniform: &wgpu::Buffer, raw: &wgpu::Buffer, input: &wgpu::Buffer, output: &wgpu::Buffer| {
+                use Binding::*;
+                let entries: Vec<wgpu::BindGroupEntry> = pass
+                    .bindings
+                    .iter()
+                    .map(|&b| {
+                        let h = || history.expect("the temporal pass has a history");
+                        let hs = || sets.expect("the temporal pass has a history");
+                        let buffer = match b {
+                            Params => &frame.params,
+                            Camera => &frame.camera,
+                            SlotParams => &frame.slot_params,
+                            AmbientLight => &scene.ambient_light,
+                            Denoise => uniform,
+                            Surfaces => &frame.surfaces,
+                            Shadow => &frame.shadow,
+                            Lights => &scene.lights,
+                            RawOut => &d.raw,
+                            Raw => raw,
+                            SigmaOut | Sigma => &d.sigma,
+                            TilesOut | Tiles => &d.tiles,
+                            ValuesIn => input,
+                            ValuesOut => output,
+                            PrevCamera => &h().prev_camera,
+                            Temporal => &h().params,
+                            Motion => &h().motion,
+                            PrevSurfaces => &hs().0.surfaces,
+                            PrevValues => &hs().0.values,
+                            PrevLengths => &hs().0.lengths,
+                            AccumulatedOut => &hs().1.values,
+                            LengthsOut => &hs().1.lengths,
+                            Lengths => lengths,
+                        };
+                        wgpu::BindGroupEntry { binding: b as u32, resource: buffer.as_entire_binding() }
+                    })
+                    .collect();
+                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("shadow_denoise"),
+                    layout: &pass.layout,
+                    entries: &entries,
+                })
+            };
         let first = &d.passes[0];
         let (width, rows) = (frame.width, frame.band.rows);
         let tile = DENOISE_TILE as u32;
         let grid = |w: u32, h: u32| (w.div_ceil(crate::shader::TILE), h.div_ceil(crate::shader::TILE));
-        // Ping-pong from the raw channels, ending in the frame's visibility.
-        let mut groups = vec![
-            (&self.raw, group(&self.raw, first, &d.raw, &d.raw), grid(width, rows)),
-            (&self.tiles, group(&self.tiles, first, &d.raw, &d.raw), grid(width.div_ceil(tile), rows.div_ceil(tile))),
-            (&self.sigma, group(&self.sigma, first, &d.raw, &d.raw), grid(width, rows)),
-        ];
+        // Ping-pong from the raw (or accumulated) channels, ending in the frame's visibility.
+        let mut groups = vec![(&self.raw, group(&self.raw, first, &d.raw, &d.raw, &d.raw), grid(width, rows))];
+        if let Some((_, next)) = sets {
+            // The history keeps this frame's surfaces.
+            let bytes = (width as usize * rows as usize * std::mem::size_of::<SurfaceRecord>()) as u64;
+            encoder.copy_buffer_to_buffer(&frame.surfaces, 0, &next.surfaces, 0, bytes);
+            groups.push((&self.temporal, group(&self.temporal, first, &d.raw, &d.raw, &d.raw), grid(width, rows)));
+        }
+        groups.extend([
+            (
+                &self.tiles,
+                group(&self.tiles, first, filter_raw, &d.raw, &d.raw),
+                grid(width.div_ceil(tile), rows.div_ceil(tile)),
+            ),
+            (&self.sigma, group(&self.sigma, first, filter_raw, &d.raw, &d.raw), grid(width, rows)),
+        ]);
         let targets = [&frame.visibility, &d.values];
-        let mut input = &d.raw;
+        let mut input = filter_raw;
         for pass in 0..DENOISE_PASSES as usize {
             // The last pass writes the visibility: start there when the count is odd.
             let output = targets[(DENOISE_PASSES as usize - 1 - pass) % 2];
-            groups.push((&self.atrous, group(&self.atrous, &d.passes[pass], input, output), grid(width, rows)));
+            // The clamp reads this frame's raw channels.
+            groups.push((&self.atrous, group(&self.atrous, &d.passes[pass], &d.raw, input, output), grid(width, rows)));
             input = output;
         }
         let mut cpass = crate::timing::begin_timed_pass(encoder, "shadow_denoise", timing);

@@ -298,3 +298,100 @@ fn denoised_frames_in_bands_are_the_cpu_frames_bit_for_bit() {
     }
     assert!(edges_in_penumbrae > 3, "{edges_in_penumbrae} band edges in penumbrae");
 }
+
+/// The denoiser's temporal pass (`FrameOptions::temporal`): one GPU backend renders a
+/// sequence of frames, each with its own samples (`frame_index`), the camera panning, the
+/// box moving (`PreparedScene::move_objects`: a motion record), a frame of another size,
+/// one without the temporal pass (which leaves the history alone) and one with another
+/// channel count (which starts afresh), then another scene (afresh); each frame is the
+/// frame the CPU backend renders as the same frame of its own sequence, every buffer and
+/// the accumulated, filtered visibility, bit for bit. The history counted (frames differ
+/// from the same frames denoised alone).
+#[test]
+fn temporal_frames_are_the_cpu_frames_bit_for_bit() {
+    let Some(ctx) = test_context() else { return };
+    let mut gpu = GpuBackend::with_context(ctx).expect("backend");
+    let mut cpu = CpuBackend::new(Some(2));
+    for (name, lights, ao_samples, shading, mirror) in [
+        ("quad light, paper", vec![quad()], 0, ShadingModel::Paper, false),
+        ("every kind, occlusion, glTF, a mirror", vec![sun(), quad(), sphere()], 2, ShadingModel::Gltf, true),
+    ] {
+        let scene = scene(lights, shading, mirror);
+        let box_object = 1u32;
+        let mut prepared = hyrt_cpu::bvh_build::prepare_moving(&scene, BvhPreset::default(), &[box_object]);
+        let base = scene.camera.unwrap();
+        let mut blended = 0;
+        for i in 0..8u32 {
+            if i >= 2 {
+                // The box slides along x, 3 cm a frame.
+                let mut moved = scene.clone();
+                moved.objects[box_object as usize].transform =
+                    Mat4::from_translation(Vec3::new(0.2 + 0.03 * i as f32, 0.35, 0.0))
+                        * Mat4::from_scale(Vec3::splat(0.35));
+                prepared.move_objects(&moved, &[box_object]).expect("the box moves");
+            }
+            // A pan of 2 cm a frame; frame 4 is larger.
+            let shift = Vec3::new(0.02 * i as f32, 0.0, 0.0);
+            let view = Camera { eye: base.eye + shift, target: base.target + shift, ..base };
+            let (width, height) = if i == 4 { (56, 36) } else { (48, 32) };
+            let camera = CameraRecord::new(&view, width, height);
+            let options = FrameOptions {
+                stage_outputs: true,
+                shadow_samples: 2,
+                // Frame 6 has one more channel (or one less): the history starts afresh.
+                ao_samples: if i == 6 { 2 - ao_samples } else { ao_samples },
+                max_depth: 2,
+                frame_index: i,
+                // Frame 3 is denoised alone.
+                temporal: i != 3,
+                ..FrameOptions::default()
+            };
+            let want = cpu.render(&prepared, &camera, &options).expect("cpu frame");
+            assert!(want.plan.runs(Stage::ShadowDenoise), "{name}");
+            let got = gpu.render(&prepared, &camera, &options).unwrap_or_else(|e| panic!("{name}, frame {i}: {e}"));
+            if let Some(d) = first_difference(&want, &got) {
+                panic!("{name}, frame {i}: {d}");
+            }
+            assert_eq!(gpu.last_frame_bands(), 1);
+            let alone = CpuBackend::new(Some(2))
+                .render(&prepared, &camera, &FrameOptions { temporal: false, ..options })
+                .expect("cpu frame");
+            let differs = alone.visibility != want.visibility;
+            assert!(!(i == 0 || i == 3 || i >= 6) || !differs, "{name}, frame {i}: no history to blend");
+            blended += differs as u32;
+        }
+        assert!(blended >= 3, "{name}: {blended} frames blended their history");
+    }
+}
+
+/// A frame of the temporal pass too large for one band of storage bindings
+/// (`GpuBackend::set_max_band_bytes`) is refused (the history is read at reprojected rows
+/// of the whole previous frame); the same frame without the pass renders in bands, and the
+/// temporal frame in one band renders as the CPU's.
+#[test]
+fn temporal_frames_in_bands_are_refused() {
+    let Some(ctx) = test_context() else { return };
+    let mut gpu = GpuBackend::with_context(ctx).expect("backend");
+    let scene = scene(vec![quad()], ShadingModel::Paper, false);
+    let prepared = prepare(&scene);
+    let (width, height) = (64, 90);
+    let camera = CameraRecord::new(&scene.camera.unwrap(), width, height);
+    let options = FrameOptions {
+        stage_outputs: true,
+        shadow_samples: 2,
+        temporal: true,
+        max_depth: 0,
+        ..FrameOptions::default()
+    };
+    let want = CpuBackend::new(Some(2)).render(&prepared, &camera, &options).expect("cpu frame");
+    let plan = &want.plan;
+    let rows = hyrt_gpu::band::buffer_rows(7, u32::MAX, hyrt_gpu::shadow_denoise::DENOISE_HALO);
+    gpu.set_max_band_bytes(Some(hyrt_gpu::band::band_binding_bytes((width * rows) as u64, plan.lights(), plan)));
+    let err = gpu.render(&prepared, &camera, &options).expect_err("a banded temporal frame");
+    assert!(err.to_string().contains("temporal pass"), "{err}");
+    gpu.render(&prepared, &camera, &FrameOptions { temporal: false, ..options }).expect("a banded frame");
+    assert!(gpu.last_frame_bands() > 1);
+    gpu.set_max_band_bytes(None);
+    let got = gpu.render(&prepared, &camera, &options).expect("a temporal frame");
+    assert_eq!(first_difference(&want, &got), None);
+}

@@ -165,7 +165,8 @@ struct Running {
     controller: Controller,
     options: FrameOptions,
     /// Each frame takes its own samples of area lights and ambient occlusion, which the
-    /// denoiser accumulates over the frames ([`FrameOptions::temporal`]): on the CPU backend.
+    /// denoiser accumulates over the frames ([`FrameOptions::temporal`]); off after the GPU
+    /// backend refused a frame too large for its temporal pass.
     temporal: bool,
     view: View,
     light: usize,
@@ -219,9 +220,9 @@ impl App {
         };
         let mut renderer = renderer.with_bvh_preset(common.bvh_preset());
         common.set_executor(&mut renderer);
-        // The CPU backend's denoiser accumulates the frames' samples while the view holds
-        // (the GPU backend denoises each frame on its own for now).
-        let temporal = renderer.cpu_backend().is_some();
+        // The denoiser accumulates the frames' samples while the view holds (on either
+        // backend; the GPU's in frames of one band, see `render`).
+        let temporal = true;
         eprintln!("backend: {}", renderer.choice_details());
         let presenter = match presenter {
             Some(p) => Presenter::Gpu(Box::new(p)),
@@ -384,18 +385,32 @@ impl Running {
             && !want_frame
             && self.pending_pick.is_none()
             && self.pending_screenshot.is_none();
-        if on_device {
+        let rendered = if on_device {
             let Presenter::Gpu(p) = &mut self.presenter else { unreachable!() };
             let target = p.frame_texture(width, height);
             let gpu = self.renderer.gpu_backend().expect("the GPU presenter goes with the GPU backend");
             let record = CameraRecord::new(&camera, width, height);
-            self.stats = gpu.render_to_texture(&self.prepared, &record, &self.options, &target)?;
-            self.read_back = false;
+            gpu.render_to_texture(&self.prepared, &record, &self.options, &target).map(|stats| (stats, false))
         } else {
-            self.renderer.render_into(&self.prepared, &camera, width, height, &self.options, &mut self.frame)?;
-            self.stats = self.frame.stats.clone();
-            self.read_back = true;
-        }
+            self.renderer
+                .render_into(&self.prepared, &camera, width, height, &self.options, &mut self.frame)
+                .map(|()| (self.frame.stats.clone(), true))
+        };
+        (self.stats, self.read_back) = match rendered {
+            Ok(r) => r,
+            // The GPU backend's temporal pass renders a frame in one band only: a frame
+            // too large for that is denoised on its own from then on.
+            Err(e @ hyrt::RenderError::Gpu(hyrt::GpuError::Limits(_)))
+                if self.options.temporal && self.renderer.cpu_backend().is_none() =>
+            {
+                self.temporal = false;
+                self.options.temporal = false;
+                self.message = format!("frames denoised each on its own: {e}");
+                eprintln!("{}", self.message);
+                return self.render(width, height, want_frame);
+            }
+            Err(e) => return Err(e.into()),
+        };
         self.resolve_pick();
         let lights = self.prepared.geometry.lights.len();
         let display = (hyrt_core::kernels::tone_map::exposure_scale(self.display.exposure), self.display.tone_map);

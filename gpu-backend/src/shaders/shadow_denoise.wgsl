@@ -157,8 +157,15 @@ fn in_neighbourhood(j: u32, object: u32) -> bool {
 
 // mirrors hyrt_core::kernels::denoise::noise_sigma at pixel (x, y) of the `width` x
 // `height` image: the raw values of `raw` in its neighbourhood (rows, then columns, of
-// the CLAMP_RADIUS square clipped to the image).
+// the CLAMP_RADIUS square clipped to the image), each channel's samples those of one
+// frame (channel_samples).
 fn noise_sigma(width: u32, height: u32, x: u32, y: u32) -> Channels {
+    return noise_sigma_frames(width, height, x, y, 1u);
+}
+
+// noise_sigma with each channel's samples those of `frames` frames (channel_samples times
+// `frames`, a u32 product: the CPU stage's samples behind a pixel of the temporal pass).
+fn noise_sigma_frames(width: u32, height: u32, x: u32, y: u32, frames: u32) -> Channels {
     var res: Channels;
     let channels = slot_params.channels;
     for (var c = 0u; c < channels; c++) {
@@ -197,7 +204,7 @@ fn noise_sigma(width: u32, height: u32, x: u32, y: u32) -> Channels {
     for (var c = 0u; c < channels; c++) {
         if counts[c] > 0u {
             let m = div_rn(sums[c], u32_to_f32_rn(counts[c]));
-            res[c] = sqrt_rn(div_rn(f32_max(mul(m, 1.0 - m), 0.0), u32_to_f32_rn(samples[c])));
+            res[c] = sqrt_rn(div_rn(f32_max(mul(m, 1.0 - m), 0.0), u32_to_f32_rn(samples[c] * frames)));
         }
     }
     return res;

@@ -3,6 +3,13 @@
 // backend builds one pipeline per entry point, each over the bindings it uses):
 //
 // 1. `raw_pass`: each pixel's raw channels (raw_channels) into `raw_out`;
+// 1b. in a frame of the temporal pass (hyrt_core::options::FrameOptions::temporal), then
+//    `temporal_pass`: each pixel's raw channels blended with the history (temporal_pixel)
+//    into `accumulated_out`, the frames behind them into `lengths_out` (where the history
+//    does not count, `temporal.usable` 0: the raw channels, 0). The passes below then read
+//    the accumulated channels as `raw` and as the first pass's `values_in` but for the
+//    clamp, which reads this frame's raw channels; the noise deviations count each
+//    channel's samples times the frames behind the pixel (`lengths` plus one);
 // 2. `tiles_pass`: per DENOISE_TILE x DENOISE_TILE tile (aligned to the band's rows, which
 //    start at a multiple of DENOISE_TILE of the image's) and channel, whether the tile is
 //    filtered (not tile_agrees) into `tile_filter_out`;
@@ -34,6 +41,15 @@
 @group(0) @binding(13) var<storage, read> tile_filter: array<u32>;
 @group(0) @binding(14) var<storage, read> values_in: array<f32>;
 @group(0) @binding(15) var<storage, read_write> values_out: array<f32>;
+@group(0) @binding(16) var<uniform> prev_camera: CameraRecord;
+@group(0) @binding(17) var<uniform> temporal: TemporalParams;
+@group(0) @binding(18) var<storage, read> motion: array<MotionRecord>;
+@group(0) @binding(19) var<storage, read> prev_surfaces: array<SurfaceRecord>;
+@group(0) @binding(20) var<storage, read> prev_values: array<f32>;
+@group(0) @binding(21) var<storage, read> prev_lengths: array<u32>;
+@group(0) @binding(22) var<storage, read_write> accumulated_out: array<f32>;
+@group(0) @binding(23) var<storage, read_write> lengths_out: array<u32>;
+@group(0) @binding(24) var<storage, read> lengths: array<u32>;
 
 fn in_band(id: vec3<u32>) -> bool {
     return id.x < params.width && id.y < params.height;
@@ -50,6 +66,32 @@ fn raw_pass(@builtin(global_invocation_id) id: vec3<u32>) {
     for (var c = 0u; c < channels; c++) {
         raw_out[i * channels + c] = v[c];
     }
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn temporal_pass(@builtin(global_invocation_id) id: vec3<u32>) {
+    if !in_band(id) {
+        return;
+    }
+    let i = id.y * params.width + id.x;
+    let channels = slot_params.channels;
+    var res: TemporalPixel;
+    res.length = 0u;
+    for (var c = 0u; c < channels; c++) {
+        res.values[c] = raw[i * channels + c];
+    }
+    if temporal.usable != 0u {
+        var samples: array<u32, MAX_CHANNELS>;
+        for (var c = 0u; c < channels; c++) {
+            samples[c] = temporal.samples[c / 4u][c % 4u];
+        }
+        let footprint = pixel_footprint(surfaces[i].position, camera.eye, denoise.pixel_angle);
+        res = temporal_pixel(params.width, params.height, id.x, id.y, footprint, samples);
+    }
+    for (var c = 0u; c < channels; c++) {
+        accumulated_out[i * channels + c] = res.values[c];
+    }
+    lengths_out[i] = res.length;
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -74,7 +116,11 @@ fn sigma_pass(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let i = id.y * params.width + id.x;
     let channels = slot_params.channels;
-    let s = noise_sigma(params.width, params.height, id.x, id.y);
+    var frames = 1u;
+    if denoise.temporal != 0u {
+        frames = lengths[i] + 1u;
+    }
+    let s = noise_sigma_frames(params.width, params.height, id.x, id.y, frames);
     for (var c = 0u; c < channels; c++) {
         sigma_out[i * channels + c] = s[c];
     }
