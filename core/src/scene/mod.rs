@@ -133,6 +133,9 @@ pub struct Material {
     /// Emitted linear radiance: glTF `emissiveFactor` times `KHR_materials_emissive_strength`
     /// (zero: none).
     pub emissive: Vec3,
+    /// glTF `doubleSided`: as an emitter (`Scene::emissive_lights`) the surface emits on both
+    /// sides, else only on its front (counter-clockwise) side. Shading is two-sided either way.
+    pub double_sided: bool,
     /// The textures beyond the base colour's.
     pub maps: MaterialMaps,
 }
@@ -186,6 +189,7 @@ impl Material {
             base_color_texture: None,
             alpha_mode: AlphaMode::Opaque,
             emissive: Vec3::ZERO,
+            double_sided: false,
             maps: MaterialMaps::default(),
         }
     }
@@ -485,6 +489,11 @@ pub struct Scene {
     /// environment's image-based light comes on top of it
     /// ([`crate::kernels::ibl::AmbientLight`]).
     pub ambient: Ambient,
+    /// Whether emissive objects light the scene (manifest key `emissive_lights`): every
+    /// triangle of an object whose material's `emissive` is non-zero becomes part of one
+    /// area light sampled by area ([`crate::formats::LIGHT_EMITTERS`],
+    /// [`crate::geometry::emitter_table`]). Off by default: emission is then only seen.
+    pub emissive_lights: bool,
 }
 
 impl Scene {
