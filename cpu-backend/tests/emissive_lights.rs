@@ -276,3 +276,23 @@ fn the_damaged_helmet_lights_with_its_emissive_texture() {
     eprintln!("{brighter} floor pixels brighter with the helmet's emitters");
     assert!(brighter > 0, "the helmet's emission lights the floor");
 }
+
+#[test]
+fn the_example_manifest_renders_lit_by_its_emissive_meshes_alone() {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../assets/scenes/emissive_lights.toml");
+    let mut scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    scene.ensure_camera_and_lights();
+    assert!(scene.lights.is_empty(), "no default lights over emissive ones: {:?}", scene.notes);
+    let g = WorldGeometry::build(&scene);
+    // The panel's 16 x 16 cells and the glowing sphere's 48 x 24 (less the poles' slivers).
+    assert!(g.emitters.len() > 512, "{} emitters", g.emitters.len());
+    assert_eq!(g.lights.len(), 1);
+    let mut cpu = CpuBackend::new(Some(2));
+    let prepared = cpu.prepare(g, BvhPreset::default());
+    let frame = render(&mut cpu, &prepared, &scene, (96, 54), &options(4));
+    // The floor under the panel is lit (well above the ambient's 0.02 x 0.7).
+    let lit = frame.surfaces.iter().zip(&frame.final_image).filter(|(s, c)| {
+        s.is_hit() && s.position[1].abs() < 1e-3 && Vec3::from(s.position).length() < 1.0 && c[0] > 0.2
+    });
+    assert!(lit.count() > 20, "the floor under the panel is lit");
+}

@@ -521,8 +521,8 @@ fn mean_texture(view: &crate::kernels::texture::SurfaceView, tex: u32, uv: &Tria
     let mut sum = [0.0f64; 3];
     for &(u, v) in &points {
         let texel = sample_texture(view.texels, record, interpolate_uv(uv, u, v), lod);
-        for c in 0..3 {
-            sum[c] += texel[c] as f64;
+        for (s, t) in sum.iter_mut().zip(texel) {
+            *s += t as f64;
         }
     }
     sum.map(|s| s / points.len() as f64)

@@ -22,9 +22,8 @@
 //!   uniform in its area, `weight = L_i cos_light A_i / (d^2 p_i)`.
 //!
 //! Every step is a correctly rounded operation in a stated order (the warps of
-//! [`crate::kernels::sampling`]), so the GPU's twins will give the same bits. Not used by a
-//! stage yet: the stochastic shadow rays that read these samples are the next
-//! step.
+//! [`crate::kernels::sampling`]), so the GPU's twins will give the same bits (the emitters'
+//! have none yet). The stages read them through [`crate::kernels::soft_shadow`].
 
 use glam::Vec3;
 

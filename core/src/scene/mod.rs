@@ -553,7 +553,15 @@ impl Scene {
         (lo.x <= hi.x).then_some((lo, hi))
     }
 
-    /// Give the scene a camera if it has none and default lights if it has none; each
+    /// Whether emissive meshes light the scene: [`Scene::emissive_lights`] and some object's
+    /// material emits (a non-zero `emissive`; its texture may still leave every triangle
+    /// black, which [`crate::geometry::emitter_table`] tells).
+    pub fn emits_light(&self) -> bool {
+        self.emissive_lights && self.objects.iter().any(|o| self.materials[o.material].emissive != Vec3::ZERO)
+    }
+
+    /// Give the scene a camera if it has none and default lights if it has none (nor
+    /// emissive meshes as lights, [`Scene::emits_light`]); each
     /// decision is recorded in [`Scene::notes`]. An interior (a building, a room: free space
     /// that the scene's surfaces enclose) is seen from inside, lights inside too
     /// ([`framing::interior_view`]); anything else is framed from outside, its bounding
@@ -586,7 +594,9 @@ impl Scene {
             ));
             self.camera = Some(cam);
         }
-        if let (true, Some(view)) = (self.lights.is_empty(), &interior) {
+        // A scene lit by its emissive meshes alone (`emissive_lights`) gets no default lights.
+        let unlit = self.lights.is_empty() && !self.emits_light();
+        if let (true, Some(view)) = (unlit, &interior) {
             // Inside: above the eye and above the point looked at, each bright enough for
             // an irradiance of about 2.5 there (as outside lights give the centre).
             let [key, fill] = view.lights;
@@ -597,7 +607,7 @@ impl Scene {
                 "no lights in the scene: added two default point lights inside, at {key:.3?} and {fill:.3?}"
             ));
         }
-        if self.lights.is_empty() {
+        if unlit && self.lights.is_empty() {
             // A key light above and to the side of the camera, and a weaker fill light.
             let eye = self.camera.map(|c| c.eye).unwrap_or(center + Vec3::Z * radius * 3.0);
             let side = (eye - center).cross(Vec3::Y).normalize_or(Vec3::X);
