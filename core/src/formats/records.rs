@@ -795,12 +795,12 @@ pub const MOTION_NONE: u32 = 1;
 /// How an object moved between the previous frame and this one, for the denoiser's
 /// temporal pass ([`crate::kernels::temporal`]): the map from a point of the object where
 /// it is now to where the same point was,
-/// `p_prev = M (p - from) + t_prev` per row `(m_x, m_y, m_z)` = `(M_i0, M_i1, M_i2, t_prev_i)`.
+/// `p_prev = M (p - translation) + t_prev` per row `(m_x, m_y, m_z)` = `(M_i0, M_i1, M_i2, t_prev_i)`.
 ///
 /// | offset | field | type | meaning |
 /// |---:|---|---|---|
 /// | 0 | `map_x`, `map_y`, `map_z` | 3 x [f32; 4] | rows of `M` = the previous object-to-world linear part times the current world-to-object one, then the previous frame's object-to-world translation `t_prev` |
-/// | 48 | `from` | [f32; 3] | the current object-to-world translation, subtracted first (as an [`crate::formats::ObjectMap`]'s `t`: the map rounds relative to the object's size, not its distance from the origin) |
+/// | 48 | `translation` | [f32; 3] | the current object-to-world translation, subtracted first (as an [`crate::formats::ObjectMap`]'s `t`: the map rounds relative to the object's size, not its distance from the origin) |
 /// | 60 | `flags` | u32 | [`MOTION_NONE`] or 0 |
 ///
 /// 64 bytes, one per object, made on the host ([`crate::kernels::temporal::motion_record`]).
@@ -810,11 +810,11 @@ pub struct MotionRecord {
     pub map_x: [f32; 4],
     pub map_y: [f32; 4],
     pub map_z: [f32; 4],
-    pub from: [f32; 3],
+    pub translation: [f32; 3],
     pub flags: u32,
 }
 const _: () = assert!(std::mem::size_of::<MotionRecord>() == 64);
-wgsl_struct!(MotionRecord { map_x, map_y, map_z, from, flags });
+wgsl_struct!(MotionRecord { map_x, map_y, map_z, translation, flags });
 
 impl MotionRecord {
     /// An object that did not move.
@@ -822,13 +822,14 @@ impl MotionRecord {
         map_x: [1.0, 0.0, 0.0, 0.0],
         map_y: [0.0, 1.0, 0.0, 0.0],
         map_z: [0.0, 0.0, 1.0, 0.0],
-        from: [0.0; 3],
+        translation: [0.0; 3],
         flags: MOTION_NONE,
     };
 
     /// Check: finite entries, known flags.
     pub fn validate(&self) -> Result<(), String> {
-        let finite = self.map_x.iter().chain(&self.map_y).chain(&self.map_z).chain(&self.from).all(|v| v.is_finite());
+        let finite =
+            self.map_x.iter().chain(&self.map_y).chain(&self.map_z).chain(&self.translation).all(|v| v.is_finite());
         if !finite {
             return Err("motion record with non-finite entries".into());
         }

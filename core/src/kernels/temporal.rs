@@ -82,7 +82,7 @@ pub fn motion_record(previous: &ObjectMap, current: &ObjectMap) -> MotionRecord 
         map_x: row(0),
         map_y: row(1),
         map_z: row(2),
-        from: [current[0][3], current[1][3], current[2][3]],
+        translation: [current[0][3], current[1][3], current[2][3]],
         flags: 0,
     }
 }
@@ -98,7 +98,7 @@ pub fn motion_records(previous: &[ObjectMap], current: &[ObjectMap]) -> Vec<Moti
         .collect()
 }
 
-/// Where the point `p` of an object that moved by `m` was one frame ago: `q = p - from` per
+/// Where the point `p` of an object that moved by `m` was one frame ago: `q = p - translation` per
 /// coordinate, then per row `((m_0 q.x + m_1 q.y) + m_2 q.z) + m_3` (unfused). `p` itself
 /// for [`MOTION_NONE`].
 #[inline]
@@ -106,7 +106,7 @@ pub fn apply_motion(m: &MotionRecord, p: Vec3) -> Vec3 {
     if m.flags & MOTION_NONE != 0 {
         return p;
     }
-    let q = Vec3::new(p.x - m.from[0], p.y - m.from[1], p.z - m.from[2]);
+    let q = Vec3::new(p.x - m.translation[0], p.y - m.translation[1], p.z - m.translation[2]);
     let row = |r: &[f32; 4]| ((r[0] * q.x + r[1] * q.y) + r[2] * q.z) + r[3];
     Vec3::new(row(&m.map_x), row(&m.map_y), row(&m.map_z))
 }
