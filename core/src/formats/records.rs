@@ -712,7 +712,7 @@ impl EmitterRecord {
     pub fn validate(&self) -> Result<(), String> {
         let finite = [self.v0, self.e1, self.e2].iter().all(|v| glam::Vec3::from(*v).is_finite());
         let radiance = self.radiance.iter().all(|c| c.is_finite() && *c >= 0.0);
-        if !finite || !radiance || !(self.cdf > 0.0 && self.cdf <= 1.0) {
+        if !(finite && radiance && self.cdf > 0.0 && self.cdf <= 1.0) {
             return Err(format!("emitter with non-finite values, negative radiance or a cdf outside (0, 1]: {self:?}"));
         }
         if self.flags & !EMITTER_DOUBLE_SIDED != 0 || self.object == INVALID_ID || self.triangle == INVALID_ID {
