@@ -218,7 +218,7 @@ fn write_visibility(
     let mut occlusion = vec![1.0f32; pixels];
     for (i, s) in frame.surfaces.iter().enumerate().filter(|(_, s)| s.is_hit()) {
         let codes = &frame.shadow[i * slots..(i + 1) * slots];
-        light_visibility(codes, ls, s, &mut visibility[i * nl..(i + 1) * nl]);
+        light_visibility(codes, lighting.lights(), s, &mut visibility[i * nl..(i + 1) * nl]);
         occlusion[i] = ambient_occlusion(codes, ls, ao).unwrap_or(1.0);
     }
     write_npy(&out("visibility_raw.npy"), &[h, w, nl as u64], visibility.iter().copied())?;

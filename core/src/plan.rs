@@ -476,7 +476,7 @@ impl SkipReason {
             SkipReason::AllRayTracedWeightOne => "every object ray traced, weight 1",
             SkipReason::MaxDepthZero => "max depth 0",
             SkipReason::NoMirrorsOrGlass => "no ray-traced mirror or glass",
-            SkipReason::NothingToDenoise => "no area light or ambient occlusion to denoise, or the denoiser is off",
+            SkipReason::NothingToDenoise => "no area light or ambient occlusion to denoise, the denoiser is off, or emissive meshes are lights (not denoised yet)",
         }
     }
 }
@@ -522,7 +522,11 @@ impl FramePlan {
             bouncing: g.objects.iter().any(bounces),
             weight: options.weight,
             max_depth: options.max_depth,
-            denoise: options.denoise && lighting.is_stochastic(),
+            // Not over emissive meshes as lights yet: the denoiser's raw channels
+            // (`kernels::denoise::raw_channels`) take the light records without the
+            // emitter table that weighs their samples; such frames shade from the raw
+            // samples ([`FrameOptions::denoise`]).
+            denoise: options.denoise && lighting.is_stochastic() && !lighting.has_emitters(),
         });
         let channels = match plan.runs(Stage::ShadowDenoise) {
             true => crate::kernels::denoise::channel_count(&lighting.lights, &lighting.ambient.occlusion) as u32,

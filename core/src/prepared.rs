@@ -8,10 +8,10 @@ use glam::Vec3;
 
 use crate::bvh::two_level::{MoveError, TwoLevelBvh};
 use crate::bvh::Bvh;
-use crate::formats::{LightRecord, ObjectMap, INVALID_ID, MAP_IDENTITY};
+use crate::formats::{EmitterRecord, LightRecord, ObjectMap, INVALID_ID, MAP_IDENTITY};
 use crate::geometry::WorldGeometry;
 use crate::kernels::shading::AmbientLight;
-use crate::kernels::soft_shadow::{frame_lights, frame_occlusion, is_stochastic, surface_slots};
+use crate::kernels::soft_shadow::{frame_lights, frame_occlusion, is_stochastic, surface_slots, Lights};
 use crate::options::{FrameOptions, DEFAULT_AO_RADIUS_FRACTION};
 use crate::scene::Scene;
 
@@ -19,10 +19,23 @@ use crate::scene::Scene;
 #[derive(Clone, Debug)]
 pub struct FrameLighting<'a> {
     pub lights: Cow<'a, [LightRecord]>,
+    /// The emitter table the lights' [`crate::formats::LIGHT_EMITTERS`] record samples
+    /// (the scene's, [`WorldGeometry::emitters`]; empty without one).
+    pub emitters: &'a [EmitterRecord],
     pub ambient: Cow<'a, AmbientLight>,
 }
 
 impl FrameLighting<'_> {
+    /// The lights with their emitter table, as the kernels that sample them take them.
+    pub fn lights(&self) -> Lights<'_> {
+        Lights::new(&self.lights, self.emitters)
+    }
+
+    /// Whether the frame has emissive meshes as lights (an emitter table).
+    pub fn has_emitters(&self) -> bool {
+        !self.emitters.is_empty()
+    }
+
     /// Whether the frame traces stochastic rays (an area light, or ambient occlusion).
     pub fn is_stochastic(&self) -> bool {
         is_stochastic(&self.lights, &self.ambient.occlusion)
@@ -173,7 +186,7 @@ impl PreparedScene {
                 Cow::Owned(AmbientLight { occlusion, ..g.ambient.clone() })
             }
         };
-        FrameLighting { lights, ambient }
+        FrameLighting { lights, emitters: &g.emitters, ambient }
     }
 
     /// Per object, its world-to-object map now: its instance's for an object traced in
@@ -233,7 +246,7 @@ impl PreparedScene {
     /// the number of lights changed).
     pub fn update_lights(&mut self, scene: &Scene) {
         let count = self.geometry.lights.len();
-        self.geometry.lights = scene.lights.iter().map(crate::formats::LightRecord::from_light).collect();
+        self.geometry.lights = crate::geometry::light_records(scene, &self.geometry.emitters);
         if self.geometry.lights.len() == count {
             self.record(SceneChanges { lights: true, ..SceneChanges::default() });
         } else {
@@ -261,13 +274,21 @@ impl PreparedScene {
             });
         };
         let moves = levels.moves(scene, objects)?;
+        let lights = self.geometry.lights.len();
         self.geometry.update_objects(scene, objects);
         levels.apply_moves(scene, &self.geometry, moves);
         take_offset_errors(&mut self.geometry, levels);
         let mut moved = objects.to_vec();
         moved.sort_unstable();
         moved.dedup();
-        self.record(SceneChanges { objects: moved, ..SceneChanges::default() });
+        // Emitters that moved move the emitter table; one that emptied it (or filled it)
+        // changed the number of lights: a new scene for every device cache.
+        let emitters = !self.geometry.emitters.is_empty();
+        if self.geometry.lights.len() != lights {
+            self.id = next_id();
+        } else {
+            self.record(SceneChanges { objects: moved, lights: emitters, ..SceneChanges::default() });
+        }
         Ok(())
     }
 
@@ -286,8 +307,10 @@ impl PreparedScene {
         let Some(levels) = &mut self.levels else {
             return Ok(());
         };
+        let lights = self.geometry.lights.len();
         self.geometry.deform_mesh(scene, mesh);
         let rebuilt = levels.deform_mesh(scene, &self.geometry, mesh)?;
+        let rebuilt = rebuilt || self.geometry.lights.len() != lights;
         take_offset_errors(&mut self.geometry, levels);
         if rebuilt {
             self.bvh = levels.world_level().cloned().unwrap_or_default();

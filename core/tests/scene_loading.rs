@@ -934,7 +934,8 @@ fn every_example_manifest_loads() {
     for path in names {
         let s = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
         assert!(s.camera.is_some(), "{}: camera", path.display());
-        assert!(!s.lights.is_empty(), "{}: lights", path.display());
+        // Lights, or emissive meshes that are (`emissive_lights = true`).
+        assert!(!s.lights.is_empty() || s.emissive_lights, "{}: lights", path.display());
         assert!(s.triangle_count() > 0);
         assert!(s.objects.iter().any(|o| o.render_mode == RenderMode::RayTraced), "{}", path.display());
     }

@@ -317,7 +317,7 @@ fn bounce_step(
                 &b.shadow,
                 materials,
                 &g.triangles,
-                &cx.lighting.lights,
+                cx.lighting.lights(),
                 &g.environment,
                 &cx.lighting.ambient,
                 children,
@@ -382,10 +382,10 @@ impl Backend for CpuBackend {
         // records in a scene without them).
         let materials = g.materials(camera);
         let lighting = scene.frame_lighting(options);
-        let slots = Slots::new(&lighting.lights, &lighting.ambient.occlusion);
-        let (lights, ambient) = (&lighting.lights[..], &*lighting.ambient);
+        let slots = Slots::new(lighting.lights(), &lighting.ambient.occlusion);
+        let (lights, ambient) = (lighting.lights(), &*lighting.ambient);
         // `shadow_denoise`'s channels per pixel (none unless the plan denoises).
-        let channels = channel_count(lights, &ambient.occlusion);
+        let channels = channel_count(&lights, &ambient.occlusion);
         let cx = BounceContext {
             scene,
             lighting: &lighting,
@@ -517,7 +517,7 @@ impl Backend for CpuBackend {
                         });
                         let occlusion = &ambient.occlusion;
                         let out = &mut f.visibility;
-                        shadow_denoise_into(&f.surfaces, &f.shadow, lights, occlusion, camera, denoise, temporal, out)
+                        shadow_denoise_into(&f.surfaces, &f.shadow, &lights, occlusion, camera, denoise, temporal, out)
                     }
                     Step::SecondaryRays { .. }
                     | Step::BounceTrace { .. }

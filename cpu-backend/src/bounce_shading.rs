@@ -11,11 +11,11 @@
 //! bouncing shader on mirrors and glass, the ray-traced shader on other ray-traced
 //! objects and the raster shader on rasterized ones.
 
-use hyrt_core::formats::{HitRecord, LightRecord, RayRecord, SurfaceRecord, INVALID_ID};
+use hyrt_core::formats::{HitRecord, RayRecord, SurfaceRecord, INVALID_ID};
 use hyrt_core::geometry::WorldTriangles;
 use hyrt_core::kernels::bounce::{secondary_parent, shade_secondary_hit};
 use hyrt_core::kernels::shading::AmbientLight;
-use hyrt_core::kernels::soft_shadow::surface_slots;
+use hyrt_core::kernels::soft_shadow::{surface_slots, Lights};
 use hyrt_core::kernels::texture::Materials;
 use hyrt_core::scene::Environment;
 use rayon::prelude::*;
@@ -33,22 +33,23 @@ pub struct Children<'a> {
 /// (empty without lights; one slot per light without area lights or occlusion); `children` is `None` at the plan's deepest bounce; `env` is
 /// what the rays that hit nothing see, `ambient` the frame's ambient light.
 #[allow(clippy::too_many_arguments)]
-pub fn bounce_shading_into(
+pub fn bounce_shading_into<'l>(
     rays: &[RayRecord],
     hits: &[HitRecord],
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
     materials: &Materials,
     triangles: &WorldTriangles,
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     env: &Environment,
     ambient: &AmbientLight,
     children: Option<Children>,
     out: &mut Vec<[f32; 4]>,
 ) {
+    let lights: Lights = lights.into();
     // Mask slots per ray ([`hyrt_core::kernels::soft_shadow`]); none without lights.
-    let nl = if shadow.is_empty() { 0 } else { surface_slots(lights, &ambient.occlusion) };
-    let lights = if nl == 0 { &lights[..0] } else { lights };
+    let nl = if shadow.is_empty() { 0 } else { surface_slots(&lights, &ambient.occlusion) };
+    let lights = if nl == 0 { Lights::default() } else { lights };
     let (links, radiance): (&[[u32; 2]], &[[f32; 4]]) = match children {
         Some(c) => (c.links, c.radiance),
         None => (&[], &[]),

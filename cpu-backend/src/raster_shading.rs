@@ -10,10 +10,10 @@
 //! Output: the raster image (linear RGBA, background where nothing is shaded).
 
 use glam::Vec3;
-use hyrt_core::formats::{GBufferTexel, LightRecord, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
+use hyrt_core::formats::{GBufferTexel, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
 use hyrt_core::kernels::bounce::primary_parent;
 use hyrt_core::kernels::shading::{shade_raster_pixel, AmbientLight, BACKGROUND_RGBA};
-use hyrt_core::kernels::soft_shadow::{surface_slots, FilteredVisibility, SurfaceShadow};
+use hyrt_core::kernels::soft_shadow::{surface_slots, FilteredVisibility, Lights, SurfaceShadow};
 use hyrt_core::kernels::texture::Materials;
 use rayon::prelude::*;
 
@@ -22,15 +22,16 @@ pub(crate) mod lanes;
 /// The stage on a scene without textures or vertex colours, seen from `eye` under the
 /// frame's `ambient` light (`WorldGeometry::ambient`). `shadow` is indexed
 /// `pixel * lights.len() + light`.
-pub fn raster_shading(
+pub fn raster_shading<'l>(
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
     objects: &[ObjectRecord],
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     ambient: &AmbientLight,
     eye: Vec3,
     weight: f32,
 ) -> Vec<[f32; 4]> {
+    let lights: Lights = lights.into();
     let mut out = Vec::new();
     let primary =
         Primary { gbuffer: &[], materials: &Materials::plain(objects), ambient, eye, visibility: Default::default() };
@@ -67,15 +68,16 @@ impl Primary<'_> {
 /// [`raster_shading`] into a caller-owned image, reusing its allocation, with any
 /// materials; `shade_ray_traced` (the weight is below 1) shades ray-traced objects too,
 /// as the plan's [`Step::RasterShading`](hyrt_core::plan::Step::RasterShading) says.
-pub fn raster_shading_into(
+pub fn raster_shading_into<'l>(
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
     primary: &Primary,
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     shade_ray_traced: bool,
     out: &mut Vec<[f32; 4]>,
 ) {
-    let nl = surface_slots(lights, &primary.ambient.occlusion);
+    let lights: Lights = lights.into();
+    let nl = surface_slots(&lights, &primary.ambient.occlusion);
     surfaces
         .par_iter()
         .enumerate()
@@ -89,14 +91,15 @@ pub fn raster_shading_into(
 /// `shade_ray_traced`, else the raster shader. What [`raster_shading_into`] writes at `i`;
 /// the fused frame (`crate::fused`) calls it tile by tile.
 #[inline]
-pub fn raster_shading_pixel(
+pub fn raster_shading_pixel<'l>(
     primary: &Primary,
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     shade_ray_traced: bool,
     i: usize,
     s: &SurfaceRecord,
     shadow: &[u8],
 ) -> [f32; 4] {
+    let lights: Lights = lights.into();
     if !s.is_hit() {
         return BACKGROUND_RGBA;
     }
@@ -118,14 +121,15 @@ pub fn raster_shading_pixel(
 /// [`Primary::object`] of the pixel (the fused frame makes it once per pixel and reads it
 /// in every stage).
 #[inline]
-pub fn raster_shading_record(
+pub fn raster_shading_record<'l>(
     primary: &Primary,
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     shade_ray_traced: bool,
     s: &SurfaceRecord,
     record: &ObjectRecord,
     shadow: SurfaceShadow,
 ) -> [f32; 4] {
+    let lights: Lights = lights.into();
     if !s.is_hit() {
         return BACKGROUND_RGBA;
     }

@@ -7,11 +7,11 @@
 //! Output: the ray-traced image (linear RGBA; alpha 1 on ray-traced pixels, 0 elsewhere).
 
 use glam::Vec3;
-use hyrt_core::formats::{GBufferTexel, LightRecord, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
+use hyrt_core::formats::{GBufferTexel, ObjectRecord, SurfaceRecord, OBJ_RAY_TRACED};
 use hyrt_core::geometry::WorldTriangles;
 use hyrt_core::kernels::bounce::{primary_parent, primary_parent_shaded, shade_rt_pixel_bouncing};
 use hyrt_core::kernels::shading::{shade_rt_pixel, AmbientLight};
-use hyrt_core::kernels::soft_shadow::{surface_slots, FilteredVisibility};
+use hyrt_core::kernels::soft_shadow::{surface_slots, FilteredVisibility, Lights};
 use hyrt_core::kernels::texture::Materials;
 
 use crate::raster_shading::{pixel_codes, Primary};
@@ -23,14 +23,15 @@ pub(crate) mod lanes;
 /// light (`WorldGeometry::ambient`). `shadow` is indexed `pixel * slots + slot`
 /// ([`hyrt_core::kernels::soft_shadow`]: `pixel * lights.len() + light` without area
 /// lights or occlusion).
-pub fn rt_shading(
+pub fn rt_shading<'l>(
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
     objects: &[ObjectRecord],
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     ambient: &AmbientLight,
     eye: Vec3,
 ) -> Vec<[f32; 4]> {
+    let lights: Lights = lights.into();
     let mut out = Vec::new();
     let primary =
         Primary { gbuffer: &[], materials: &Materials::plain(objects), ambient, eye, visibility: Default::default() };
@@ -40,14 +41,15 @@ pub fn rt_shading(
 
 /// [`rt_shading`] into a caller-owned image, reusing its allocation, with any materials
 /// (each pixel's object as [`Primary::object`] sees it).
-pub fn rt_shading_into(
+pub fn rt_shading_into<'l>(
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
     primary: &Primary,
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     out: &mut Vec<[f32; 4]>,
 ) {
-    let nl = surface_slots(lights, &primary.ambient.occlusion);
+    let lights: Lights = lights.into();
+    let nl = surface_slots(&lights, &primary.ambient.occlusion);
     surfaces
         .par_iter()
         .enumerate()
@@ -61,13 +63,14 @@ pub fn rt_shading_into(
 /// transparent black elsewhere. What [`rt_shading_into`] writes at `i`; the fused frame
 /// (`crate::fused`) calls it tile by tile.
 #[inline]
-pub fn rt_shading_pixel(
+pub fn rt_shading_pixel<'l>(
     primary: &Primary,
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     i: usize,
     s: &SurfaceRecord,
     shadow: &[u8],
 ) -> [f32; 4] {
+    let lights: Lights = lights.into();
     let Some(obj) = ray_traced(primary.materials.objects, s) else {
         return [0.0; 4];
     };
@@ -96,19 +99,20 @@ pub struct FirstBounce<'a> {
 /// ([`hyrt_core::kernels::bounce::shade_rt_pixel_bouncing`]); every other pixel is
 /// shaded as [`rt_shading_into`] shades it, bit for bit.
 #[allow(clippy::too_many_arguments)]
-pub fn rt_shading_bouncing_into(
+pub fn rt_shading_bouncing_into<'l>(
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
     materials: &Materials,
     triangles: &WorldTriangles,
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     ambient: &AmbientLight,
     eye: Vec3,
     bounce: FirstBounce,
     visibility: FilteredVisibility,
     out: &mut Vec<[f32; 4]>,
 ) {
-    let nl = surface_slots(lights, &ambient.occlusion);
+    let lights: Lights = lights.into();
+    let nl = surface_slots(&lights, &ambient.occlusion);
     let shading = BouncingShading { materials, triangles, lights, ambient, eye, radiance: bounce.radiance, visibility };
     surfaces
         .par_iter()
@@ -126,7 +130,7 @@ pub fn rt_shading_bouncing_into(
 pub struct BouncingShading<'a> {
     pub materials: &'a Materials<'a>,
     pub triangles: &'a WorldTriangles,
-    pub lights: &'a [LightRecord],
+    pub lights: Lights<'a>,
     pub ambient: &'a AmbientLight,
     pub eye: Vec3,
     /// The radiance the first bounce's rays bring back.

@@ -22,7 +22,7 @@ use hyrt_core::kernels::shading::{
 use hyrt_core::kernels::shadow::SHADOW_T_MAX_POINT;
 
 use crate::buffers::SlotParams;
-use hyrt_core::formats::{LIGHT_QUAD, LIGHT_SPHERE, LIGHT_SUN};
+use hyrt_core::formats::{LIGHT_EMITTERS, LIGHT_QUAD, LIGHT_SPHERE, LIGHT_SUN};
 
 use crate::wgsl::f32_literal;
 use crate::GpuContext;
@@ -312,7 +312,12 @@ pub fn occlusion_wgsl() -> String {
 pub fn soft_shadow_wgsl() -> String {
     let mut s = format!("{}\n{}\n{}\n", sampling_wgsl(), area_light_wgsl(), occlusion_wgsl());
     s += "// Generated from hyrt_core::formats (gpu-backend/src/shader.rs).\n";
-    for (name, kind) in [("LIGHT_QUAD", LIGHT_QUAD), ("LIGHT_SPHERE", LIGHT_SPHERE), ("LIGHT_SUN", LIGHT_SUN)] {
+    for (name, kind) in [
+        ("LIGHT_QUAD", LIGHT_QUAD),
+        ("LIGHT_SPHERE", LIGHT_SPHERE),
+        ("LIGHT_SUN", LIGHT_SUN),
+        ("LIGHT_EMITTERS", LIGHT_EMITTERS),
+    ] {
         s += &format!("const {name}: u32 = {kind}u;\n");
     }
     s + &slot_params_wgsl() + include_str!("shaders/soft_shadow.wgsl")

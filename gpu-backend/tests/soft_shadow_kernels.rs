@@ -74,7 +74,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let key = surface_key(s.position);
     results[o] = key;
     results[o + 1u] = stream_seed(key, light.seed);
-    let ls = area_light_sample(light, s.position, k);
+    let ls = area_light_sample(light, &[], s.position, k);
     out_v3(o + 2u, ls.l);
     results[o + 5u] = bitcast<u32>(ls.distance);
     out_v3(o + 6u, ls.weight);
@@ -236,7 +236,7 @@ fn soft_shadow_kernels_match_cpu_bit_for_bit() {
         let mut want = [0u32; OUT];
         want[0] = key;
         want[1] = stream_seed(key, l.seed);
-        if let Some(ls) = area_light_sample(l, p, n) {
+        if let Some(ls) = area_light_sample(l, &[], p, n) {
             want[2..5].copy_from_slice(&words(ls.l));
             want[5] = ls.distance.to_bits();
             want[6..9].copy_from_slice(&words(ls.weight));

@@ -395,3 +395,27 @@ fn temporal_frames_in_bands_are_refused() {
     let got = gpu.render(&prepared, &camera, &options).expect("a temporal frame");
     assert_eq!(first_difference(&want, &got), None);
 }
+
+/// Emissive meshes as lights (`Scene::emissive_lights`, an emitter table) run on the CPU
+/// backend only for now: the GPU refuses the scene, naming the stage and the manifest key,
+/// rather than render a frame without their light.
+#[test]
+fn emissive_lights_are_refused_clearly() {
+    let Some(ctx) = test_context() else { return };
+    let mut gpu = GpuBackend::with_context(ctx).expect("backend");
+    let mut scene = scene(vec![point()], ShadingModel::Paper, false);
+    scene.emissive_lights = true;
+    let glow = Material { emissive: Vec3::splat(4.0), ..Material::grey() };
+    let place = Mat4::from_translation(Vec3::new(0.0, 1.8, 0.0)) * Mat4::from_rotation_x(std::f32::consts::PI);
+    scene.add_object(Mesh::grid("panel", 1), glow, place, RenderMode::Raster);
+    let prepared = prepare(&scene);
+    assert_eq!(prepared.geometry.emitters.len(), 2);
+    let err = gpu.render(&prepared, &camera(&scene), &FrameOptions::default()).unwrap_err();
+    let message = err.to_string();
+    assert!(
+        matches!(err, hyrt_core::error::RenderError::Unsupported { backend: "gpu", .. })
+            && message.contains("compaction")
+            && message.contains("emissive_lights"),
+        "{message}"
+    );
+}

@@ -154,7 +154,7 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<SoftShadows
                 let got = if denoise {
                     f.visibility[i * f.plan.visibility_channels() as usize]
                 } else {
-                    light_visibility(&f.shadow[i * slots..(i + 1) * slots], &lighting.lights, s, &mut v);
+                    light_visibility(&f.shadow[i * slots..(i + 1) * slots], lighting.lights(), s, &mut v);
                     v[light]
                 };
                 let e = got.max(0.0) as f64 - want as f64;

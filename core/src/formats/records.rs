@@ -462,6 +462,12 @@ pub const LIGHT_SPHERE: u32 = 4;
 /// `position_or_direction` (unit), its disk's half angle having `1 - cos = size`; `radiance`
 /// is its illuminance at normal incidence ([`crate::kernels::area_light::sample_sun`]).
 pub const LIGHT_SUN: u32 = 5;
+/// [`LightRecord::kind`]: the scene's emissive triangles (manifest `emissive_lights =
+/// true`), one area light over the frame's whole emitter table ([`EmitterRecord`]): a
+/// triangle picked in proportion to its power, a point uniform on it
+/// ([`crate::kernels::area_light::sample_emitters`]). Its other fields are zero but
+/// `samples` and `seed`.
+pub const LIGHT_EMITTERS: u32 = 6;
 
 /// Least `cos(inner) - cos(outer)` of a spot light's cone, from `KHR_lights_punctual`'s
 /// recommended implementation (`1 / max(0.001, cos inner - cos outer)`): keeps
@@ -473,14 +479,14 @@ pub const SPOT_MIN_COS_SPAN: f32 = 0.001;
 /// | offset | field | type | meaning |
 /// |---:|---|---|---|
 /// | 0 | `position_or_direction` | [f32; 3] | point and spot: world position; directional and sun: unit travel direction; quad: a corner; sphere: the centre |
-/// | 12 | `kind` | u32 | [`LIGHT_POINT`], [`LIGHT_DIRECTIONAL`], [`LIGHT_SPOT`], [`LIGHT_QUAD`], [`LIGHT_SPHERE`] or [`LIGHT_SUN`] |
-/// | 16 | `radiance` | [f32; 3] | colour x intensity (linear RGB; candela for point and spot lights, which divide by d², lux for directional lights and suns, nits (emitted radiance) for quads and spheres) |
+/// | 12 | `kind` | u32 | [`LIGHT_POINT`], [`LIGHT_DIRECTIONAL`], [`LIGHT_SPOT`], [`LIGHT_QUAD`], [`LIGHT_SPHERE`], [`LIGHT_SUN`] or [`LIGHT_EMITTERS`] |
+/// | 16 | `radiance` | [f32; 3] | colour x intensity (linear RGB; candela for point and spot lights, which divide by d², lux for directional lights and suns, nits (emitted radiance) for quads and spheres); zero for emitters (each [`EmitterRecord`] has its own) |
 /// | 28 | `inv_range_sq` | f32 | 1 / range² (point and spot lights with a range), else 0: no cutoff |
 /// | 32 | `spot_direction` | [f32; 3] | spot: unit direction the cone points along (from the light); else zero |
 /// | 44 | `spot_scale` | f32 | spot: `1 / max(SPOT_MIN_COS_SPAN, cos inner - cos outer)`; else 0 |
 /// | 48 | `spot_offset` | f32 | spot: `-cos(outer) * spot_scale`; else 0 |
 /// | 52 | `size` | f32 | sphere: radius; sun: `1 - cos` of its disk's half angle; else 0 |
-/// | 56 | `samples` | u32 | area lights (quad, sphere, sun): shadow rays per surface this frame, at least 1; else 0 |
+/// | 56 | `samples` | u32 | area lights (quad, sphere, sun, emitters): shadow rays per surface this frame, at least 1; else 0 |
 /// | 60 | `seed` | u32 | area lights: the seed of this light's sample streams this frame ([`crate::kernels::soft_shadow`]); else 0 |
 /// | 64 | `edge_u` | [f32; 3] | quad: the first edge from the corner; else zero |
 /// | 76 | `pad0` | u32 | zero |
@@ -589,17 +595,23 @@ impl LightRecord {
         }
     }
 
-    /// Whether the light is an area light (quad, sphere or sun), sampled by
+    /// The light of a scene's emitter table ([`LIGHT_EMITTERS`]), one sample per surface
+    /// until a frame sets its own ([`crate::kernels::soft_shadow::frame_lights`]).
+    pub fn emitters() -> Self {
+        LightRecord { kind: LIGHT_EMITTERS, samples: 1, ..Zeroable::zeroed() }
+    }
+
+    /// Whether the light is an area light (quad, sphere, sun or the emitters), sampled by
     /// [`LightRecord::samples`] shadow rays per surface instead of one.
     #[inline]
     pub fn is_area(&self) -> bool {
-        matches!(self.kind, LIGHT_QUAD | LIGHT_SPHERE | LIGHT_SUN)
+        matches!(self.kind, LIGHT_QUAD | LIGHT_SPHERE | LIGHT_SUN | LIGHT_EMITTERS)
     }
 
     /// Check: known kind, finite values, unit directions, a non-negative `inv_range_sq`,
     /// the spot fields zero except on spot lights, the padding zero.
     pub fn validate(&self) -> Result<(), String> {
-        if self.kind > LIGHT_SUN || self.pad0 != 0 || self.pad1 != 0 {
+        if self.kind > LIGHT_EMITTERS || self.pad0 != 0 || self.pad1 != 0 {
             return Err(format!("light with unknown kind: {self:?}"));
         }
         let (edge_u, edge_v) = (glam::Vec3::from(self.edge_u), glam::Vec3::from(self.edge_v));
@@ -640,6 +652,10 @@ impl LightRecord {
         if self.inv_range_sq < 0.0 || (!matches!(self.kind, LIGHT_POINT | LIGHT_SPOT) && self.inv_range_sq != 0.0) {
             return Err(format!("light with a negative or misplaced inv_range_sq: {self:?}"));
         }
+        if self.kind == LIGHT_EMITTERS && (p != glam::Vec3::ZERO || glam::Vec3::from(self.radiance) != glam::Vec3::ZERO)
+        {
+            return Err(format!("the emitters' light has no position or radiance of its own: {self:?}"));
+        }
         match self.kind {
             LIGHT_SPOT if !unit(spot) || self.spot_scale <= 0.0 => {
                 Err(format!("spot light without a unit direction or a positive cone scale: {self:?}"))
@@ -650,6 +666,59 @@ impl LightRecord {
             }
             _ => Ok(()),
         }
+    }
+}
+
+/// [`EmitterRecord::flags`]: the triangle emits on both sides (its material is glTF
+/// `doubleSided`); else only to the side of `e1 x e2`, glTF's counter-clockwise front.
+pub const EMITTER_DOUBLE_SIDED: u32 = 1 << 0;
+
+/// One emissive triangle of the emitter table ([`LIGHT_EMITTERS`], manifest
+/// `emissive_lights = true`), built when the scene is prepared
+/// ([`crate::geometry::emitter_table`]): the table's triangles in the order of the scene's
+/// triangles, those emitting nothing left out.
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `v0` | [f32; 3] | world-space vertex 0 |
+/// | 12 | `cdf` | f32 | inclusive cumulative probability of picking this triangle or one before it, in proportion to `area x luminance(radiance)`; the last is exactly 1.0 |
+/// | 16 | `e1` | [f32; 3] | `v1 - v0` (world space) |
+/// | 28 | `flags` | u32 | [`EMITTER_DOUBLE_SIDED`] |
+/// | 32 | `e2` | [f32; 3] | `v2 - v0` (world space) |
+/// | 44 | `object` | u32 | the object the triangle belongs to |
+/// | 48 | `radiance` | [f32; 3] | emitted linear radiance: the material's `emissive` (factor x strength) times, with an emissive texture, the texture's mean over the triangle ([`crate::geometry::EMITTER_TEXTURE_POINTS`] points): a textured emitter lights the scene with each triangle's mean emission |
+/// | 60 | `triangle` | u32 | the triangle's index within its object's mesh |
+///
+/// 64 bytes. The picking probability of triangle `i` is `cdf_i - cdf_{i-1}` (`cdf_{-1} =
+/// 0`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct EmitterRecord {
+    pub v0: [f32; 3],
+    pub cdf: f32,
+    pub e1: [f32; 3],
+    pub flags: u32,
+    pub e2: [f32; 3],
+    pub object: u32,
+    pub radiance: [f32; 3],
+    pub triangle: u32,
+}
+const _: () = assert!(std::mem::size_of::<EmitterRecord>() == 64);
+wgsl_struct!(EmitterRecord { v0, cdf, e1, flags, e2, object, radiance, triangle });
+
+impl EmitterRecord {
+    /// Check: finite vertices and edges, a finite non-negative radiance, known flags, valid
+    /// ids and a cdf in (0, 1].
+    pub fn validate(&self) -> Result<(), String> {
+        let finite = [self.v0, self.e1, self.e2].iter().all(|v| glam::Vec3::from(*v).is_finite());
+        let radiance = self.radiance.iter().all(|c| c.is_finite() && *c >= 0.0);
+        if !(finite && radiance && self.cdf > 0.0 && self.cdf <= 1.0) {
+            return Err(format!("emitter with non-finite values, negative radiance or a cdf outside (0, 1]: {self:?}"));
+        }
+        if self.flags & !EMITTER_DOUBLE_SIDED != 0 || self.object == INVALID_ID || self.triangle == INVALID_ID {
+            return Err(format!("emitter with unknown flags or an invalid id: {self:?}"));
+        }
+        Ok(())
     }
 }
 

@@ -10,9 +10,9 @@
 //! the same way, by name, from their Rust values ([`constants`]).
 
 use crate::formats::{
-    AmbientLightRecord, BvhNode, CameraRecord, EnvironmentRecord, FrameParams, GBufferTexel, HitRecord, InstanceRecord,
-    LightRecord, ListParams, MaterialRecord, MotionRecord, ObjectRecord, RayRecord, SurfaceLayout, SurfaceRecord,
-    TextureRecord, TriangleRecord, TriangleUvRecord,
+    AmbientLightRecord, BvhNode, CameraRecord, EmitterRecord, EnvironmentRecord, FrameParams, GBufferTexel, HitRecord,
+    InstanceRecord, LightRecord, ListParams, MaterialRecord, MotionRecord, ObjectRecord, RayRecord, SurfaceLayout,
+    SurfaceRecord, TextureRecord, TriangleRecord, TriangleUvRecord,
 };
 
 /// The WGSL type of a record field.
@@ -251,7 +251,13 @@ pub fn constant_values() -> Vec<(&'static str, u32)> {
         TEXEL_LINEAR,
     )
     .to_vec();
-    c.extend(u32_constants!(INSTANCE_IDENTITY, INSTANCE_MIRRORED, INSTANCE_ALPHA_TEST, MOTION_NONE));
+    c.extend(u32_constants!(
+        INSTANCE_IDENTITY,
+        INSTANCE_MIRRORED,
+        INSTANCE_ALPHA_TEST,
+        MOTION_NONE,
+        EMITTER_DOUBLE_SIDED
+    ));
     c.extend([
         ("COMPOSITION_WEIGHTED_MEAN", Composition::WeightedMean.code()),
         ("COMPOSITION_COPY_RASTER", Composition::CopyRaster.code()),
@@ -287,6 +293,7 @@ pub fn struct_declarations() -> String {
         SurfaceLayout::declaration(),
         InstanceRecord::declaration(),
         MotionRecord::declaration(),
+        EmitterRecord::declaration(),
     ]
     .join("\n")
 }
@@ -327,6 +334,7 @@ mod tests {
         SurfaceLayout::check_layout().unwrap();
         InstanceRecord::check_layout().unwrap();
         MotionRecord::check_layout().unwrap();
+        EmitterRecord::check_layout().unwrap();
     }
 
     #[test]

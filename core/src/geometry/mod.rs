@@ -1,7 +1,9 @@
 //! The world-space scene tables every stage reads: one [`TriangleRecord`] per
 //! triangle (objects contiguous, in mesh order), per-corner world normals, one
-//! [`ObjectRecord`] per object and one [`LightRecord`] per light; and the scene's
-//! [`Environment`], which `bounce_shading` reads where secondary rays leave the scene.
+//! [`ObjectRecord`] per object and one [`LightRecord`] per light (and, for a scene whose
+//! emissive objects are lights, their triangles' [`EmitterRecord`] table, [`emitter_table`]);
+//! and the scene's [`Environment`], which `bounce_shading` reads where secondary rays leave
+//! the scene.
 //!
 //! Vertices are transformed to world space once, here, in f32, so the raster,
 //! the BVH and reconstruction (on either backend) see the very same bits.
@@ -17,9 +19,10 @@ use bytemuck::Zeroable;
 use glam::{DVec3, Mat3, Mat4, Vec2, Vec3};
 
 use crate::formats::{
-    LightRecord, MaterialRecord, ObjectRecord, SurfaceLayout, TextureSet, TriangleRecord, TriangleUvRecord,
-    MAT_ALPHA_TEST, MAT_ANY_TEXTURE, MAT_EMISSIVE, MAT_METALLIC_ROUGHNESS, MAT_NORMAL, MAT_OCCLUSION, MAT_TEXTURED,
-    MAT_VERTEX_COLORS, OBJ_RAY_TRACED, TEXEL_LINEAR, TEXEL_SRGB, TRI_ALPHA_TEST, TRI_INWARD, TRI_RAY_TRACED,
+    EmitterRecord, LightRecord, MaterialRecord, ObjectRecord, SurfaceLayout, TextureSet, TriangleRecord,
+    TriangleUvRecord, EMITTER_DOUBLE_SIDED, LIGHT_EMITTERS, MAT_ALPHA_TEST, MAT_ANY_TEXTURE, MAT_EMISSIVE,
+    MAT_METALLIC_ROUGHNESS, MAT_NORMAL, MAT_OCCLUSION, MAT_TEXTURED, MAT_VERTEX_COLORS, OBJ_RAY_TRACED, TEXEL_LINEAR,
+    TEXEL_SRGB, TRI_ALPHA_TEST, TRI_INWARD, TRI_RAY_TRACED,
 };
 use crate::kernels::ibl::AmbientLight;
 use crate::kernels::texture::{triangle_lod_bias, SurfaceView};
@@ -142,6 +145,10 @@ pub struct WorldGeometry {
     pub triangles: WorldTriangles,
     pub objects: Vec<ObjectRecord>,
     pub lights: Vec<LightRecord>,
+    /// The emitter table of a scene whose emissive objects are lights
+    /// ([`Scene::emissive_lights`], [`emitter_table`]); empty otherwise. Not empty exactly
+    /// when `lights` ends with the [`LIGHT_EMITTERS`] record that samples it.
+    pub emitters: Vec<EmitterRecord>,
     /// World bounds of the triangles' finite vertices (min, max); a unit box around the
     /// origin for a scene without finite vertices.
     pub bounds: (Vec3, Vec3),
@@ -455,6 +462,154 @@ fn fill_uvs(
     }
 }
 
+/// The light records of `scene` as the frame's tables hold them: its lights, then the
+/// [`LIGHT_EMITTERS`] record where the emitter table `emitters` is not empty.
+pub fn light_records(scene: &Scene, emitters: &[EmitterRecord]) -> Vec<LightRecord> {
+    let mut lights: Vec<LightRecord> = scene.lights.iter().map(LightRecord::from_light).collect();
+    if !emitters.is_empty() {
+        lights.push(LightRecord::emitters());
+    }
+    lights
+}
+
+/// Points per side of the barycentric lattice an emissive texture is averaged over, per
+/// triangle: the centroids of the `EMITTER_TEXTURE_GRID^2` equal sub-triangles of the
+/// triangle's regular subdivision (an exact stratification of its area).
+pub const EMITTER_TEXTURE_GRID: u32 = 4;
+
+/// Texture points averaged per emissive triangle ([`EMITTER_TEXTURE_GRID`] squared).
+pub const EMITTER_TEXTURE_POINTS: u32 = EMITTER_TEXTURE_GRID * EMITTER_TEXTURE_GRID;
+
+/// Rec. 709 luminance weights of linear RGB: how an emitter's radiance counts towards
+/// its picking probability (the cdf of [`EmitterRecord`]).
+pub const LUMINANCE_WEIGHTS: [f64; 3] = [0.2126, 0.7152, 0.0722];
+
+/// The barycentrics `(u, v)` (weights of v1 and v2) of the [`EMITTER_TEXTURE_POINTS`]
+/// lattice points: the centroid of each sub-triangle of the regular subdivision into
+/// `n^2` (`n` = [`EMITTER_TEXTURE_GRID`]), upward ones then downward ones.
+pub fn emitter_texture_points() -> Vec<(f32, f32)> {
+    let n = EMITTER_TEXTURE_GRID;
+    let f = n as f32;
+    let mut points = Vec::with_capacity(EMITTER_TEXTURE_POINTS as usize);
+    for i in 0..n {
+        for j in 0..n - i {
+            points.push(((i as f32 + 1.0 / 3.0) / f, (j as f32 + 1.0 / 3.0) / f));
+            if i + j + 1 < n {
+                points.push(((i as f32 + 2.0 / 3.0) / f, (j as f32 + 2.0 / 3.0) / f));
+            }
+        }
+    }
+    points
+}
+
+/// The mean of an emissive texture's RGB over a triangle whose texture coordinates are
+/// `uv` (in the table, transformed): the texture at every [`emitter_texture_points`] point,
+/// each at the level of detail of its share of the triangle's texel area (`0.5 log2(area /
+/// points)`, level 0's texels), so the points together filter the whole triangle; in f64.
+/// Computed once when the scene is prepared, on the CPU.
+fn mean_texture(view: &crate::kernels::texture::SurfaceView, tex: u32, uv: &TriangleUvRecord) -> [f64; 3] {
+    use crate::kernels::texture::{interpolate_uv, sample_texture};
+    let record = &view.textures[tex as usize];
+    let scale = Vec2::new(record.width as f32, record.height as f32);
+    let (a, b) = ((Vec2::from(uv.uv1) - Vec2::from(uv.uv0)) * scale, (Vec2::from(uv.uv2) - Vec2::from(uv.uv0)) * scale);
+    let texels = 0.5 * (a.x as f64 * b.y as f64 - a.y as f64 * b.x as f64).abs();
+    let lod = match texels / EMITTER_TEXTURE_POINTS as f64 {
+        t if t.is_finite() && t > 1.0 => (0.5 * t.log2()) as f32,
+        _ => 0.0,
+    };
+    let points = emitter_texture_points();
+    let mut sum = [0.0f64; 3];
+    for &(u, v) in &points {
+        let texel = sample_texture(view.texels, record, interpolate_uv(uv, u, v), lod);
+        for (s, t) in sum.iter_mut().zip(texel) {
+            *s += t as f64;
+        }
+    }
+    sum.map(|s| s / points.len() as f64)
+}
+
+/// The emitter table of `scene` over its world tables `g` (triangles, object records and
+/// surface tables already built): empty unless [`Scene::emissive_lights`]; else every
+/// triangle of every object whose record's `emissive` is non-zero, in world space (an
+/// instance's by its transform), in triangle order, with its radiance (the emission, times
+/// the emissive texture's mean over the triangle where the material has one:
+/// [`EMITTER_TEXTURE_POINTS`] points) and the cumulative probability of picking it, in
+/// proportion to its power `area x luminance(radiance)` ([`LUMINANCE_WEIGHTS`]), summed in
+/// f64 and rounded once to f32, the last exactly 1. Triangles of zero (or non-finite)
+/// power are left out.
+pub fn emitter_table(scene: &Scene, g: &WorldGeometry) -> Vec<EmitterRecord> {
+    if !scene.emissive_lights {
+        return Vec::new();
+    }
+    let view = g.surface.view();
+    let mut table = Vec::new();
+    let mut tris = Vec::new();
+    for (oi, o) in g.objects.iter().enumerate() {
+        let emissive = Vec3::from(o.emissive);
+        if emissive == Vec3::ZERO {
+            continue;
+        }
+        let double_sided = scene.materials[scene.objects[oi].material].double_sided;
+        let texture =
+            view.materials.get(oi).filter(|m| m.flags & MAT_EMISSIVE != 0 && !view.uvs.is_empty()).map(|m| m.emissive);
+        let first = o.first_triangle as usize;
+        g.triangles.fill(first..first + o.triangle_count as usize, &mut tris);
+        for (k, t) in tris.iter().enumerate() {
+            let [v0, v1, v2] = t.vertices();
+            let (e1, e2) = (v1 - v0, v2 - v0);
+            let scale = match texture {
+                Some(tex) => mean_texture(&view, tex, &view.uvs[first + k]),
+                None => [1.0; 3],
+            };
+            let radiance = Vec3::new(
+                (emissive.x as f64 * scale[0]) as f32,
+                (emissive.y as f64 * scale[1]) as f32,
+                (emissive.z as f64 * scale[2]) as f32,
+            );
+            table.push(EmitterRecord {
+                v0: v0.into(),
+                cdf: 0.0,
+                e1: e1.into(),
+                flags: if double_sided { EMITTER_DOUBLE_SIDED } else { 0 },
+                e2: e2.into(),
+                object: oi as u32,
+                radiance: radiance.into(),
+                triangle: t.triangle,
+            });
+        }
+    }
+    with_emitter_cdf(table)
+}
+
+/// An emitter's power up to a constant, what its picking probability is proportional to:
+/// its area (`|e1 x e2| / 2`) times the luminance of its radiance ([`LUMINANCE_WEIGHTS`]),
+/// in f64; 0 (or NaN) for one that emits nothing, infinite or NaN for non-finite vertices.
+pub fn emitter_power(e: &EmitterRecord) -> f64 {
+    let (e1, e2) = (Vec3::from(e.e1).as_dvec3(), Vec3::from(e.e2).as_dvec3());
+    let area = 0.5 * e1.cross(e2).length();
+    let luminance: f64 = (0..3).map(|c| LUMINANCE_WEIGHTS[c] * e.radiance[c] as f64).sum();
+    area * luminance
+}
+
+/// `table` without its emitters of zero or non-finite power ([`emitter_power`]; non-finite
+/// vertices too), each given its cumulative picking probability (`cdf`): the powers summed
+/// in table order in f64, divided by their total, rounded once to f32 (so non-decreasing);
+/// the last set to exactly 1.
+pub fn with_emitter_cdf(mut table: Vec<EmitterRecord>) -> Vec<EmitterRecord> {
+    let finite = |e: &EmitterRecord| [e.v0, e.e1, e.e2].iter().all(|v| Vec3::from(*v).is_finite());
+    table.retain(|e| finite(e) && emitter_power(e) > 0.0 && emitter_power(e).is_finite());
+    let total: f64 = table.iter().map(emitter_power).sum();
+    let mut sum = 0.0f64;
+    for e in table.iter_mut() {
+        sum += emitter_power(e);
+        e.cdf = (sum / total) as f32;
+    }
+    if let Some(last) = table.last_mut() {
+        last.cdf = 1.0;
+    }
+    table
+}
+
 impl WorldGeometry {
     /// Transform every object of `scene` to world space, every object stored.
     pub fn build(scene: &Scene) -> WorldGeometry {
@@ -495,11 +650,12 @@ impl WorldGeometry {
         for oi in 0..scene.objects.len() {
             g.write_object(scene, oi, g.windings[oi]);
         }
-        g.lights = scene.lights.iter().map(LightRecord::from_light).collect();
         g.environment = scene.environment.clone();
         g.ambient = AmbientLight::of_scene(scene);
         g.surface = surface_tables(scene, &g.triangles);
         g.union_extents();
+        g.emitters = emitter_table(scene, &g);
+        g.lights = light_records(scene, &g.emitters);
         if cfg!(debug_assertions) {
             g.validate().expect("world geometry invariants");
         }
@@ -599,9 +755,22 @@ impl WorldGeometry {
         if !self.surface.uvs.is_empty() {
             self.surface = surface_tables(scene, &self.triangles);
         }
+        if scene.emissive_lights {
+            self.set_emitters(emitter_table(scene, self));
+        }
         if cfg!(debug_assertions) {
             self.validate().expect("world geometry invariants");
         }
+    }
+
+    /// Take a new emitter table: the [`LIGHT_EMITTERS`] record follows the other lights
+    /// exactly when it is not empty (the other records untouched).
+    pub fn set_emitters(&mut self, emitters: Vec<EmitterRecord>) {
+        self.lights.retain(|l| l.kind != LIGHT_EMITTERS);
+        if !emitters.is_empty() {
+            self.lights.push(LightRecord::emitters());
+        }
+        self.emitters = emitters;
     }
 
     /// Set what depends on every object's extent: the triangles with a NaN or infinite
@@ -694,6 +863,22 @@ impl WorldGeometry {
         }
         for l in &self.lights {
             l.validate()?;
+        }
+        let emitter_lights = self.lights.iter().filter(|l| l.kind == LIGHT_EMITTERS).count();
+        if emitter_lights != (!self.emitters.is_empty()) as usize {
+            return Err(format!(
+                "{emitter_lights} emitter lights for an emitter table of {} triangles",
+                self.emitters.len()
+            ));
+        }
+        for (k, e) in self.emitters.iter().enumerate() {
+            e.validate().map_err(|m| format!("emitter {k}: {m}"))?;
+            if k > 0 && e.cdf < self.emitters[k - 1].cdf {
+                return Err(format!("emitter {k}: its cdf decreases"));
+            }
+        }
+        if self.emitters.last().is_some_and(|e| e.cdf != 1.0) {
+            return Err("the emitter table's last cdf is not 1".into());
         }
         let s = &self.surface;
         if !s.is_empty() {

@@ -42,11 +42,11 @@
 
 use glam::Vec3;
 
-use crate::kernels::soft_shadow::SurfaceShadow;
+use crate::kernels::soft_shadow::{Lights, SurfaceShadow};
 
 use crate::formats::{
-    GBufferTexel, HitRecord, LightRecord, ObjectRecord, RayRecord, SurfaceRecord, GBUF_BACK_FACE, INVALID_ID,
-    MATERIAL_GLASS, MATERIAL_SPECULAR, OBJ_RAY_TRACED, RAY_KIND_REFLECTION, RAY_KIND_REFRACTION, TRI_INWARD,
+    GBufferTexel, HitRecord, ObjectRecord, RayRecord, SurfaceRecord, GBUF_BACK_FACE, INVALID_ID, MATERIAL_GLASS,
+    MATERIAL_SPECULAR, OBJ_RAY_TRACED, RAY_KIND_REFLECTION, RAY_KIND_REFRACTION, TRI_INWARD,
 };
 use crate::geometry::WorldTriangles;
 use crate::kernels::environment::environment_radiance;
@@ -298,13 +298,13 @@ pub fn lobe_radiance(
 /// specular part is what the lobes see.
 #[inline]
 #[allow(clippy::too_many_arguments)]
-pub fn shade_bouncing<'s>(
+pub fn shade_bouncing<'s, 'l>(
     s: &SurfaceRecord,
     obj: &ObjectRecord,
     l: &Lobes,
     d: Vec3,
     shadow: impl Into<SurfaceShadow<'s>>,
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     ambient_light: &AmbientLight,
     children: [u32; 2],
     radiance: &[[f32; 4]],
@@ -312,7 +312,8 @@ pub fn shade_bouncing<'s>(
     let p = Vec3::from(s.position);
     let n = Vec3::from(s.normal);
     let shadow = shadow.into();
-    let occluded = crate::kernels::soft_shadow::occluded_object(obj, shadow, lights, &ambient_light.occlusion);
+    let lights: Lights = lights.into();
+    let occluded = crate::kernels::soft_shadow::occluded_object(obj, shadow, &lights, &ambient_light.occlusion);
     let obj = occluded.as_ref().unwrap_or(obj);
     let reflected = lobe_radiance(children[0], radiance, obj, l.reflect_dir, n, ambient_light);
     let refracted = lobe_radiance(children[1], radiance, obj, l.refract_dir, n, ambient_light);
@@ -464,12 +465,12 @@ pub fn spawn(p: &Parent, triangles: &WorldTriangles, depth: u32) -> [Option<RayR
 /// raster pass would shade them. `shadow`: the hit's `SHADOW_*` codes, one per light.
 #[allow(clippy::too_many_arguments)]
 #[inline]
-pub fn shade_secondary_hit<'s>(
+pub fn shade_secondary_hit<'s, 'l>(
     p: &Parent,
     env: &Environment,
     triangles: &WorldTriangles,
     shadow: impl Into<SurfaceShadow<'s>>,
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     ambient: &AmbientLight,
     children: [u32; 2],
     radiance: &[[f32; 4]],
@@ -495,11 +496,11 @@ pub fn shade_secondary_hit<'s>(
 /// [`crate::kernels::shading::shade_rt_pixel`] bit for bit elsewhere.
 #[inline]
 #[allow(clippy::too_many_arguments)]
-pub fn shade_rt_pixel_bouncing<'s>(
+pub fn shade_rt_pixel_bouncing<'s, 'l>(
     p: &Parent,
     triangles: &WorldTriangles,
     shadow: impl Into<SurfaceShadow<'s>>,
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     ambient: &AmbientLight,
     eye: Vec3,
     children: [u32; 2],

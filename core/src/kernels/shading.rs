@@ -17,7 +17,7 @@ use crate::formats::{
     LightRecord, ObjectRecord, SurfaceRecord, LIGHT_DIRECTIONAL, LIGHT_SPOT, OBJ_GLTF_BRDF, SHADOW_LIT, SHADOW_NO_RAY,
 };
 pub use crate::kernels::ibl::{AmbientLight, ImageBasedLight};
-use crate::kernels::soft_shadow::{area_light_sample, occluded_object, SurfaceShadow};
+use crate::kernels::soft_shadow::{area_light_sample, occluded_object, Lights, SurfaceShadow};
 
 /// Constant ambient term, as a fraction of the base colour, so that fully
 /// shadowed surfaces stay readable (a stand-in for indirect light).
@@ -445,17 +445,18 @@ pub fn shade_raster(obj: &ObjectRecord, n: Vec3, v: Vec3, l: Vec3, e: Vec3) -> V
 /// visible share, which equals the first where nothing is filtered and the BRDF does not
 /// vary over the light). Every shader uses it, so they agree on which lights count.
 #[inline]
-pub fn sum_visible_lights<'s>(
+pub fn sum_visible_lights<'s, 'l>(
     shadow: impl Into<SurfaceShadow<'s>>,
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     p: Vec3,
     mut shade: impl FnMut(Vec3, Vec3) -> Vec3,
 ) -> Vec3 {
     let SurfaceShadow { codes: shadow, filtered } = shadow.into();
+    let lights = lights.into();
     let mut c = Vec3::ZERO;
     let mut slot = 0;
     let mut area = 0;
-    for light in lights {
+    for light in lights.iter() {
         if light.is_area() {
             let n = light.samples as usize;
             let visibility = filtered.get(area).copied();
@@ -467,7 +468,7 @@ pub fn sum_visible_lights<'s>(
                     Some(_) => code != SHADOW_NO_RAY,
                 };
                 if counts {
-                    if let Some(ls) = area_light_sample(light, p, sample as u32) {
+                    if let Some(ls) = area_light_sample(light, lights.emitters, p, sample as u32) {
                         sum += shade(ls.l, ls.weight);
                         seen = true;
                     }
@@ -496,11 +497,11 @@ pub fn sum_visible_lights<'s>(
 /// light its shadow ray reached (`shadow`: the pixel's `SHADOW_*` codes, one per light),
 /// seen from `eye`.
 #[inline]
-pub fn shade_rt_pixel<'s>(
+pub fn shade_rt_pixel<'s, 'l>(
     s: &SurfaceRecord,
     obj: &ObjectRecord,
     shadow: impl Into<SurfaceShadow<'s>>,
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     ambient: &AmbientLight,
     eye: Vec3,
 ) -> Vec3 {
@@ -512,18 +513,19 @@ pub fn shade_rt_pixel<'s>(
 /// [`unlit`] plus [`shade_ray_traced`] from every light its shadow ray reached. Primary
 /// hits ([`shade_rt_pixel`]) and secondary hits on surfaces that do not bounce use it.
 #[inline]
-pub fn shade_rt_surface<'s>(
+pub fn shade_rt_surface<'s, 'l>(
     s: &SurfaceRecord,
     obj: &ObjectRecord,
     shadow: impl Into<SurfaceShadow<'s>>,
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     ambient: &AmbientLight,
     v: Vec3,
 ) -> Vec3 {
     let p = Vec3::from(s.position);
     let n = Vec3::from(s.normal);
     let shadow = shadow.into();
-    let occluded = occluded_object(obj, shadow, lights, &ambient.occlusion);
+    let lights = lights.into();
+    let occluded = occluded_object(obj, shadow, &lights, &ambient.occlusion);
     let obj = occluded.as_ref().unwrap_or(obj);
     unlit(obj, n, v, ambient) + sum_visible_lights(shadow, lights, p, |l, e| shade_ray_traced(obj, n, v, l, e))
 }
@@ -532,18 +534,19 @@ pub fn shade_rt_surface<'s>(
 /// [`unlit`] plus [`shade_raster`] from every light its shadow ray reached (`shadow`: the
 /// pixel's `SHADOW_*` codes, one per light).
 #[inline]
-pub fn shade_raster_surface<'s>(
+pub fn shade_raster_surface<'s, 'l>(
     s: &SurfaceRecord,
     obj: &ObjectRecord,
     shadow: impl Into<SurfaceShadow<'s>>,
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     ambient: &AmbientLight,
     v: Vec3,
 ) -> Vec3 {
     let p = Vec3::from(s.position);
     let n = Vec3::from(s.normal);
     let shadow = shadow.into();
-    let occluded = occluded_object(obj, shadow, lights, &ambient.occlusion);
+    let lights = lights.into();
+    let occluded = occluded_object(obj, shadow, &lights, &ambient.occlusion);
     let obj = occluded.as_ref().unwrap_or(obj);
     unlit(obj, n, v, ambient) + sum_visible_lights(shadow, lights, p, |l, e| shade_raster(obj, n, v, l, e))
 }
@@ -551,11 +554,11 @@ pub fn shade_raster_surface<'s>(
 /// The raster shader at one pixel seen from `eye`: [`shade_raster_surface`] with `v`
 /// towards the eye, as [`shade_rt_pixel`] makes it.
 #[inline]
-pub fn shade_raster_pixel<'s>(
+pub fn shade_raster_pixel<'s, 'l>(
     s: &SurfaceRecord,
     obj: &ObjectRecord,
     shadow: impl Into<SurfaceShadow<'s>>,
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     ambient: &AmbientLight,
     eye: Vec3,
 ) -> Vec3 {

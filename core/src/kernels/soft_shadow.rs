@@ -6,7 +6,7 @@
 //!
 //! Per surface (a pixel's primary hit, or a secondary hit of a bounce list) the shadow
 //! mask holds one `SHADOW_*` code per *slot*: one slot for each point, spot or directional
-//! light, [`LightRecord::samples`] for each area light (quad, sphere, sun), in light order,
+//! light, [`LightRecord::samples`] for each area light (quad, sphere, sun, emitters), in light order,
 //! then [`AmbientOcclusion::samples`] for the ambient occlusion ([`surface_slots`]). A scene
 //! of point lights without occlusion has one slot per light: the paper's mask, bit for bit.
 //! `compaction` makes the ray of slot `k` of surface `i` ([`needs_slot_ray`],
@@ -32,13 +32,25 @@
 //! fraction of its `N` rays that met nothing within [`AmbientOcclusion::radius`]
 //! ([`crate::kernels::occlusion::ao_fraction`]); it multiplies the surface's occlusion
 //! ([`ObjectRecord::occlusion`], which scales the ambient and image-based terms).
+//!
+//! # Emissive meshes
+//!
+//! With `emissive_lights = true` (manifest), every triangle of an emissive object becomes
+//! part of one area light, [`LIGHT_EMITTERS`], whose triangles are the frame's emitter
+//! table ([`EmitterRecord`], [`crate::geometry::emitter_table`]): each sample picks a
+//! triangle in proportion to its power and a point on it
+//! ([`crate::kernels::area_light::sample_emitters`]). The kernels that make or read its
+//! samples take the light records with that table, [`Lights`]. Its shadow rays end short
+//! of the sampled point as every area light's do ([`SHADOW_T_MAX_POINT`] of the way), so
+//! the emitting triangle does not shadow its own light.
 
 use glam::Vec3;
 
 use crate::formats::{
-    LightRecord, ObjectRecord, RayRecord, SurfaceRecord, LIGHT_QUAD, LIGHT_SPHERE, LIGHT_SUN, SHADOW_LIT,
+    EmitterRecord, LightRecord, ObjectRecord, RayRecord, SurfaceRecord, LIGHT_EMITTERS, LIGHT_QUAD, LIGHT_SPHERE,
+    LIGHT_SUN, SHADOW_LIT,
 };
-use crate::kernels::area_light::{sample_quad_light, sample_sphere_light, sample_sun, LightSample};
+use crate::kernels::area_light::{sample_emitters, sample_quad_light, sample_sphere_light, sample_sun, LightSample};
 use crate::kernels::occlusion::{ao_direction, ao_fraction, AO_STREAM};
 use crate::kernels::ray::offset_ray_origin;
 use crate::kernels::sampling::{hash_combine, hash_u32, sample_2d};
@@ -59,6 +71,71 @@ pub struct AmbientOcclusion {
     pub samples: u32,
     pub radius: f32,
     pub seed: u32,
+}
+
+/// A frame's lights as the kernels that sample them read them: the light records and the
+/// emitter table a [`LIGHT_EMITTERS`] record samples (empty without one). Dereferences to
+/// the records, so code that only counts slots reads it as a slice; made from a slice of
+/// records alone for frames without emitters.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Lights<'a> {
+    pub records: &'a [LightRecord],
+    pub emitters: &'a [EmitterRecord],
+}
+
+impl<'a> Lights<'a> {
+    /// The records `records` with the emitter table `emitters`.
+    #[inline]
+    pub fn new(records: &'a [LightRecord], emitters: &'a [EmitterRecord]) -> Lights<'a> {
+        Lights { records, emitters }
+    }
+}
+
+impl std::ops::Deref for Lights<'_> {
+    type Target = [LightRecord];
+    #[inline]
+    fn deref(&self) -> &[LightRecord] {
+        self.records
+    }
+}
+
+impl<'a> From<&'a [LightRecord]> for Lights<'a> {
+    /// The records without emitters.
+    #[inline]
+    fn from(records: &'a [LightRecord]) -> Self {
+        Lights { records, emitters: &[] }
+    }
+}
+
+impl<'a, const N: usize> From<&'a [LightRecord; N]> for Lights<'a> {
+    /// The records without emitters.
+    #[inline]
+    fn from(records: &'a [LightRecord; N]) -> Self {
+        Lights { records, emitters: &[] }
+    }
+}
+
+impl<'a> From<&'a Vec<LightRecord>> for Lights<'a> {
+    /// The records without emitters.
+    #[inline]
+    fn from(records: &'a Vec<LightRecord>) -> Self {
+        Lights { records, emitters: &[] }
+    }
+}
+
+impl<'a> From<&'a std::borrow::Cow<'_, [LightRecord]>> for Lights<'a> {
+    /// The records without emitters.
+    #[inline]
+    fn from(records: &'a std::borrow::Cow<'_, [LightRecord]>) -> Self {
+        Lights { records, emitters: &[] }
+    }
+}
+
+impl<'a> From<&Lights<'a>> for Lights<'a> {
+    #[inline]
+    fn from(lights: &Lights<'a>) -> Self {
+        *lights
+    }
 }
 
 /// The seed of stream `stream` (a light's index, or [`AO_STREAM`]) in frame `frame`.
@@ -152,9 +229,10 @@ pub fn slot_table(lights: &[LightRecord], ao: &AmbientOcclusion) -> Vec<Slot> {
 
 /// Sample `sample` of area light `light` seen from the surface point `p` (the module docs'
 /// stream); `None` where the sampled point does not face `p` (or `p` is inside a sphere).
-/// Call only on area lights.
+/// `emitters` is the frame's emitter table, which a [`LIGHT_EMITTERS`] light samples
+/// ([`Lights::emitters`]). Call only on area lights.
 #[inline]
-pub fn area_light_sample(light: &LightRecord, p: Vec3, sample: u32) -> Option<LightSample> {
+pub fn area_light_sample(light: &LightRecord, emitters: &[EmitterRecord], p: Vec3, sample: u32) -> Option<LightSample> {
     let u = sample_2d(sample, stream_seed(surface_key(p), light.seed));
     let radiance = Vec3::from(light.radiance);
     let at = Vec3::from(light.position_or_direction);
@@ -162,6 +240,7 @@ pub fn area_light_sample(light: &LightRecord, p: Vec3, sample: u32) -> Option<Li
         LIGHT_QUAD => sample_quad_light(at, Vec3::from(light.edge_u), Vec3::from(light.edge_v), radiance, p, u),
         LIGHT_SPHERE => sample_sphere_light(at, light.size, radiance, p, u),
         LIGHT_SUN => Some(sample_sun(at, light.size, radiance, u)),
+        LIGHT_EMITTERS => sample_emitters(emitters, p, u),
         _ => None,
     }
 }
@@ -179,17 +258,18 @@ pub fn occlusion_direction(s: &SurfaceRecord, ao: &AmbientOcclusion, sample: u32
 /// one that can contribute (as [`crate::kernels::shadow::needs_shadow_ray`] for the other
 /// lights), for an occlusion ray one above the geometric surface.
 #[inline]
-pub fn needs_slot_ray(s: &SurfaceRecord, lights: &[LightRecord], ao: &AmbientOcclusion, slot: Slot) -> bool {
+pub fn needs_slot_ray<'l>(s: &SurfaceRecord, lights: impl Into<Lights<'l>>, ao: &AmbientOcclusion, slot: Slot) -> bool {
     if !s.is_hit() {
         return false;
     }
+    let lights = lights.into();
     match slot {
         Slot::Light { light, sample } => {
             let light = &lights[light as usize];
             if !light.is_area() {
                 return crate::kernels::shadow::needs_shadow_ray(s, light);
             }
-            match area_light_sample(light, Vec3::from(s.position), sample) {
+            match area_light_sample(light, lights.emitters, Vec3::from(s.position), sample) {
                 Some(ls) => light_can_contribute(Vec3::from(s.geometric_normal), Vec3::from(s.normal), ls.l, ls.weight),
                 None => false,
             }
@@ -206,14 +286,15 @@ pub fn needs_slot_ray(s: &SurfaceRecord, lights: &[LightRecord], ao: &AmbientOcc
 /// [`SHADOW_T_MAX_POINT`] of the way) or along the sun's sampled direction; an occlusion
 /// ray's goes [`AmbientOcclusion::radius`] along its direction.
 #[inline]
-pub fn slot_ray(
+pub fn slot_ray<'l>(
     s: &SurfaceRecord,
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     ao: &AmbientOcclusion,
     slot: Slot,
     slot_index: u32,
     index: u32,
 ) -> RayRecord {
+    let lights = lights.into();
     let p = Vec3::from(s.position);
     let origin = || offset_ray_origin(p, s.position_error, Vec3::from(s.geometric_normal));
     match slot {
@@ -223,7 +304,7 @@ pub fn slot_ray(
                 return shadow_ray(s, light, slot_index, index);
             }
             // Callers checked `needs_slot_ray`: the sample exists.
-            let Some(ls) = area_light_sample(light, p, sample) else {
+            let Some(ls) = area_light_sample(light, lights.emitters, p, sample) else {
                 return shadow_ray_record(origin().into(), [0.0; 3], 0.0, slot_index, index);
             };
             let origin = origin();
@@ -336,19 +417,20 @@ pub fn occluded_object(
     surface_ambient_occlusion(shadow, lights, ao).map(|f| ObjectRecord { occlusion: obj.occlusion * f, ..*obj })
 }
 
-/// A frame's mask slots: its lights, its ambient occlusion and every slot's meaning
-/// ([`slot_table`]), what `compaction` flags and makes rays of.
+/// A frame's mask slots: its lights (with their emitter table), its ambient occlusion and
+/// every slot's meaning ([`slot_table`]), what `compaction` flags and makes rays of.
 #[derive(Clone, Debug)]
 pub struct Slots<'a> {
-    pub lights: &'a [LightRecord],
+    pub lights: Lights<'a>,
     pub ao: AmbientOcclusion,
     pub table: Vec<Slot>,
 }
 
 impl<'a> Slots<'a> {
     /// The slots of `lights` and `ao`.
-    pub fn new(lights: &'a [LightRecord], ao: &AmbientOcclusion) -> Slots<'a> {
-        Slots { lights, ao: *ao, table: slot_table(lights, ao) }
+    pub fn new(lights: impl Into<Lights<'a>>, ao: &AmbientOcclusion) -> Slots<'a> {
+        let lights = lights.into();
+        Slots { lights, ao: *ao, table: slot_table(&lights, ao) }
     }
 
     /// Slots per surface.
@@ -383,8 +465,10 @@ impl<'a> Slots<'a> {
 /// l_s, 0)` (the sample's irradiance up to the light's colour), [`NO_ESTIMATE`] where no
 /// sample traced one (every sampled point lies behind the surface: the samples say nothing
 /// of the light's visible part); in f32, summed in sample order. What `visibility_raw.npy` holds and the
-/// denoiser filters ([`crate::kernels::denoise`]).
-pub fn light_visibility(codes: &[u8], lights: &[LightRecord], s: &SurfaceRecord, out: &mut [f32]) {
+/// denoiser filters ([`crate::kernels::denoise`]). An emitter light's samples need the
+/// emitter table ([`Lights`]; records alone give it [`NO_ESTIMATE`]).
+pub fn light_visibility<'l>(codes: &[u8], lights: impl Into<Lights<'l>>, s: &SurfaceRecord, out: &mut [f32]) {
+    let lights = lights.into();
     let (p, n) = (Vec3::from(s.position), Vec3::from(s.normal));
     let mut slot = 0;
     for (light, v) in lights.iter().zip(out.iter_mut()) {
@@ -395,7 +479,7 @@ pub fn light_visibility(codes: &[u8], lights: &[LightRecord], s: &SurfaceRecord,
                 if code == crate::formats::SHADOW_NO_RAY {
                     continue;
                 }
-                if let Some(ls) = area_light_sample(light, p, sample as u32) {
+                if let Some(ls) = area_light_sample(light, lights.emitters, p, sample as u32) {
                     let c = ls.weight.max_element() * n.dot(ls.l).max(0.0);
                     all += c;
                     if code == SHADOW_LIT {
@@ -499,7 +583,7 @@ mod tests {
         let lights = frame_lights(&[quad()], 4, 0);
         let s = floor(Vec3::new(0.1, 0.0, 0.2));
         let p = Vec3::from(s.position);
-        let samples: Vec<LightSample> = (0..4).map(|k| area_light_sample(&lights[0], p, k).unwrap()).collect();
+        let samples: Vec<LightSample> = (0..4).map(|k| area_light_sample(&lights[0], &[], p, k).unwrap()).collect();
         let shade = |l: Vec3, e: Vec3| e * l.y;
         let codes = [SHADOW_LIT, SHADOW_OCCLUDED, SHADOW_LIT, SHADOW_NO_RAY];
         let got = sum_visible_lights(&codes, &lights, p, shade);

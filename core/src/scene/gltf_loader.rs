@@ -901,6 +901,7 @@ impl<'a> Converter<'a> {
             base_color_texture,
             alpha_mode,
             emissive,
+            double_sided: m.double_sided(),
             maps,
         })
     }

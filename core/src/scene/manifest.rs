@@ -10,6 +10,8 @@
 //! ambient = 0.06                # optional: the constant ambient light, >= 0 (default 0.06;
 //!                               # 0 removes it; with a black environment, whose image-based
 //!                               # light the glTF BRDF adds, direct light and emission alone)
+//! emissive_lights = true        # optional (default false): emissive objects light the scene,
+//!                               # their triangles sampled by area as one area light
 //!
 //! [camera]                      # optional; without it: the first camera of a model file, else none
 //! eye = [9.0, 2.6, 3.0]
@@ -199,6 +201,9 @@ pub struct Manifest {
     /// The constant ambient light ([`crate::kernels::shading::Ambient`]).
     #[serde(default)]
     pub ambient: Option<f32>,
+    /// Whether emissive objects are lights ([`Scene::emissive_lights`]); default false.
+    #[serde(default)]
+    pub emissive_lights: bool,
     /// `[camera]`.
     #[serde(default)]
     pub camera: Option<CameraEntry>,
@@ -727,6 +732,7 @@ fn build(manifest: &Manifest, path: &Path, files: &dyn SceneFiles, budget: Budge
     if let Some(level) = manifest.ambient {
         merged.scene_mut().ambient = Ambient::new(level).map_err(invalid)?;
     }
+    merged.scene_mut().emissive_lights = manifest.emissive_lights;
     if let Some(file) = &manifest.environment {
         merged.scene_mut().environment = Environment::load_from(&dir.join(file), files).map_err(|e| {
             SceneError::ManifestEntry { path: path.to_path_buf(), entry: "environment".into(), error: Box::new(e) }
@@ -1008,5 +1014,31 @@ mod tests {
         assert!(load("ambient = -1.0").unwrap_err().to_string().contains("ambient -1"));
         let err = load("shading = 'phong'").unwrap_err().to_string();
         assert!(err.contains("s.toml") && err.contains("phong") && err.contains("gltf"), "{err}");
+    }
+
+    #[test]
+    fn emissive_lights_key_is_a_boolean_off_by_default() {
+        let load = |key: &str| {
+            let text = format!(
+                "{key}
+[[model]]
+builtin = 'cube'
+material = {{ emissive = [1.0, 0.5, 0.0] }}
+"
+            );
+            let files: HashMap<PathBuf, Vec<u8>> = [(PathBuf::from("s.toml"), text.into_bytes())].into();
+            load_manifest_from(Path::new("s.toml"), &files)
+        };
+        assert!(!load("").unwrap().emissive_lights);
+        assert!(!load("emissive_lights = false").unwrap().emissive_lights);
+        let scene = load("emissive_lights = true").unwrap();
+        assert!(scene.emissive_lights);
+        // The cube's 12 triangles, all glowing: one emitter light over them.
+        let g = crate::geometry::WorldGeometry::build(&scene);
+        assert_eq!((g.emitters.len(), g.lights.len()), (12, 1));
+        for bad in ["emissive_lights = 1", "emissive_lights = 'yes'"] {
+            let err = load(bad).unwrap_err().to_string();
+            assert!(err.contains("s.toml") && err.contains("emissive_lights") && err.contains("bool"), "{bad}: {err}");
+        }
     }
 }

@@ -133,6 +133,9 @@ pub struct Material {
     /// Emitted linear radiance: glTF `emissiveFactor` times `KHR_materials_emissive_strength`
     /// (zero: none).
     pub emissive: Vec3,
+    /// glTF `doubleSided`: as an emitter (`Scene::emissive_lights`) the surface emits on both
+    /// sides, else only on its front (counter-clockwise) side. Shading is two-sided either way.
+    pub double_sided: bool,
     /// The textures beyond the base colour's.
     pub maps: MaterialMaps,
 }
@@ -186,6 +189,7 @@ impl Material {
             base_color_texture: None,
             alpha_mode: AlphaMode::Opaque,
             emissive: Vec3::ZERO,
+            double_sided: false,
             maps: MaterialMaps::default(),
         }
     }
@@ -485,6 +489,11 @@ pub struct Scene {
     /// environment's image-based light comes on top of it
     /// ([`crate::kernels::ibl::AmbientLight`]).
     pub ambient: Ambient,
+    /// Whether emissive objects light the scene (manifest key `emissive_lights`): every
+    /// triangle of an object whose material's `emissive` is non-zero becomes part of one
+    /// area light sampled by area ([`crate::formats::LIGHT_EMITTERS`],
+    /// [`crate::geometry::emitter_table`]). Off by default: emission is then only seen.
+    pub emissive_lights: bool,
 }
 
 impl Scene {
@@ -544,7 +553,15 @@ impl Scene {
         (lo.x <= hi.x).then_some((lo, hi))
     }
 
-    /// Give the scene a camera if it has none and default lights if it has none; each
+    /// Whether emissive meshes light the scene: [`Scene::emissive_lights`] and some object's
+    /// material emits (a non-zero `emissive`; its texture may still leave every triangle
+    /// black, which [`crate::geometry::emitter_table`] tells).
+    pub fn emits_light(&self) -> bool {
+        self.emissive_lights && self.objects.iter().any(|o| self.materials[o.material].emissive != Vec3::ZERO)
+    }
+
+    /// Give the scene a camera if it has none and default lights if it has none (nor
+    /// emissive meshes as lights, [`Scene::emits_light`]); each
     /// decision is recorded in [`Scene::notes`]. An interior (a building, a room: free space
     /// that the scene's surfaces enclose) is seen from inside, lights inside too
     /// ([`framing::interior_view`]); anything else is framed from outside, its bounding
@@ -577,7 +594,9 @@ impl Scene {
             ));
             self.camera = Some(cam);
         }
-        if let (true, Some(view)) = (self.lights.is_empty(), &interior) {
+        // A scene lit by its emissive meshes alone (`emissive_lights`) gets no default lights.
+        let unlit = self.lights.is_empty() && !self.emits_light();
+        if let (true, Some(view)) = (unlit, &interior) {
             // Inside: above the eye and above the point looked at, each bright enough for
             // an irradiance of about 2.5 there (as outside lights give the centre).
             let [key, fill] = view.lights;
@@ -588,7 +607,7 @@ impl Scene {
                 "no lights in the scene: added two default point lights inside, at {key:.3?} and {fill:.3?}"
             ));
         }
-        if self.lights.is_empty() {
+        if unlit && self.lights.is_empty() {
             // A key light above and to the side of the camera, and a weaker fill light.
             let eye = self.camera.map(|c| c.eye).unwrap_or(center + Vec3::Z * radius * 3.0);
             let side = (eye - center).cross(Vec3::Y).normalize_or(Vec3::X);
