@@ -74,7 +74,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let key = surface_key(s.position);
     results[o] = key;
     results[o + 1u] = stream_seed(key, light.seed);
-    let ls = area_light_sample(light, &[], s.position, k);
+    let ls = area_light_sample(light, s.position, k);
     out_v3(o + 2u, ls.l);
     results[o + 5u] = bitcast<u32>(ls.distance);
     out_v3(o + 6u, ls.weight);
