@@ -118,7 +118,7 @@ pub struct TemporalParams {
     pub samples: [[u32; 4]; MAX_CHANNELS / 4],
 }
 
-const _: () = assert!(MAX_CHANNELS % 4 == 0 && std::mem::size_of::<TemporalParams>() == 16 + 4 * MAX_CHANNELS);
+const _: () = assert!(MAX_CHANNELS.is_multiple_of(4) && std::mem::size_of::<TemporalParams>() == 16 + 4 * MAX_CHANNELS);
 
 impl TemporalParams {
     /// The parameters of a frame with `samples` per channel and frame, `motion_count`

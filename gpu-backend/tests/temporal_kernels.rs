@@ -172,7 +172,7 @@ fn surfaces_of(camera: &CameraRecord, band: usize, rng: &mut Rng, jitter: bool) 
             let (o, d) = (Vec3::from(ray.origin), Vec3::from(ray.direction));
             let (n, c) = plane(object);
             let t = (c - o.dot(n)) / d.dot(n);
-            if !(t > 0.0) {
+            if t.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
                 return SurfaceRecord::MISS;
             }
             let mut p = o + d * t;
