@@ -90,23 +90,41 @@ pub fn noise_sigma(
     if !centre.is_hit() {
         return;
     }
+    let means = neighbourhood_mean(raw, surfaces, (width, height), (x, y), channels);
+    for c in 0..channels {
+        if let (m, 1..) = means[c] {
+            out[c] = ((m * (1.0 - m)).max(0.0) / samples[c] as f32).sqrt();
+        }
+    }
+}
+
+/// Per channel, the mean of the values `values` (`channels` per pixel) with an estimate in
+/// the 5 x 5 neighbourhood of hit pixel `(x, y)` on its object
+/// ([`neighbourhood`]); [`noise_sigma`]'s mean, and the temporal pass's
+/// ([`crate::kernels::temporal`]), in row-major order, and how many there
+/// are (mean 0 where none).
+pub fn neighbourhood_mean(
+    values: &[f32],
+    surfaces: &[SurfaceRecord],
+    (width, height): (usize, usize),
+    (x, y): (usize, usize),
+    channels: usize,
+) -> [(f32, u32); MAX_CHANNELS] {
     let mut sums = [0.0f32; MAX_CHANNELS];
     let mut counts = [0u32; MAX_CHANNELS];
-    for j in neighbourhood(surfaces, (width, height), (x, y)) {
+    for k in neighbourhood(surfaces, (width, height), (x, y)) {
         for c in 0..channels {
-            let v = raw[j * channels + c];
+            let v = values[k * channels + c];
             if v >= 0.0 {
                 sums[c] += v;
                 counts[c] += 1;
             }
         }
     }
-    for c in 0..channels {
-        if counts[c] > 0 {
-            let m = sums[c] / counts[c] as f32;
-            out[c] = ((m * (1.0 - m)).max(0.0) / samples[c] as f32).sqrt();
-        }
-    }
+    std::array::from_fn(|c| match counts[c] {
+        0 => (0.0, 0),
+        n => (sums[c] / n as f32, n),
+    })
 }
 
 /// The weight of a tap of value `other` for a centre of value `centre` whose noise

@@ -36,7 +36,8 @@
 use glam::{DMat3, DVec3, Vec3};
 
 use crate::formats::{CameraRecord, MotionRecord, ObjectMap, SurfaceRecord, MOTION_NONE};
-use crate::kernels::denoise::{neighbourhood, raw_range, MAX_CHANNELS};
+pub use crate::kernels::denoise::neighbourhood_mean;
+use crate::kernels::denoise::{raw_range, MAX_CHANNELS};
 use crate::kernels::raster::{clip_position_from_eye, clip_to_window};
 
 /// Most frames a pixel's history stands for: the blend weight of a new frame never drops
@@ -232,34 +233,6 @@ pub fn temporal_blend(current: f32, history: f32, (lo, hi): (f32, f32), length: 
         return h;
     }
     h + (current - h) / (length + 1) as f32
-}
-
-/// Per channel, the mean of the values `values` (`channels` per pixel) with an estimate in
-/// the 5 x 5 neighbourhood of hit pixel `(x, y)` on its object
-/// ([`crate::kernels::denoise::neighbourhood`]), in row-major order, and how many there
-/// are (mean 0 where none).
-pub fn neighbourhood_mean(
-    values: &[f32],
-    surfaces: &[SurfaceRecord],
-    (width, height): (usize, usize),
-    (x, y): (usize, usize),
-    channels: usize,
-) -> [(f32, u32); MAX_CHANNELS] {
-    let mut sums = [0.0f32; MAX_CHANNELS];
-    let mut counts = [0u32; MAX_CHANNELS];
-    for k in neighbourhood(surfaces, (width, height), (x, y)) {
-        for c in 0..channels {
-            let v = values[k * channels + c];
-            if v >= 0.0 {
-                sums[c] += v;
-                counts[c] += 1;
-            }
-        }
-    }
-    std::array::from_fn(|c| match counts[c] {
-        0 => (0.0, 0),
-        n => (sums[c] / n as f32, n),
-    })
 }
 
 /// What the temporal pass reads of the previous frame.
