@@ -48,8 +48,7 @@ pub struct FrameOptions {
     pub frame_index: u32,
     /// Filter the stochastic visibility of area lights and ambient occlusion
     /// (`shadow_denoise`, [`crate::kernels::denoise`]) before shading; true by default.
-    /// Without it the shaders average the raw samples, as they do in frames with emissive
-    /// meshes as lights (`Scene::emissive_lights`), which the denoiser does not take yet.
+    /// Without it the shaders average the raw samples.
     pub denoise: bool,
     /// Frames follow each other (an animation, a viewer, `--frames`): the denoiser also
     /// blends each pixel with what the previous frame the backend rendered saw of the

@@ -522,11 +522,7 @@ impl FramePlan {
             bouncing: g.objects.iter().any(bounces),
             weight: options.weight,
             max_depth: options.max_depth,
-            // Not over emissive meshes as lights yet: the denoiser's raw channels
-            // (`kernels::denoise::raw_channels`) take the light records without the
-            // emitter table that weighs their samples; such frames shade from the raw
-            // samples ([`FrameOptions::denoise`]).
-            denoise: options.denoise && lighting.is_stochastic() && !lighting.has_emitters(),
+            denoise: options.denoise && lighting.is_stochastic(),
         });
         let channels = match plan.runs(Stage::ShadowDenoise) {
             true => crate::kernels::denoise::channel_count(&lighting.lights, &lighting.ambient.occlusion) as u32,

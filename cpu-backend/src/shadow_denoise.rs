@@ -20,7 +20,7 @@ use hyrt_core::kernels::denoise::{
     atrous_pixel, channel_count, channel_samples, clamp_pixel, noise_sigma, pixel_angle, pixel_footprint, raw_channels,
     tile_agrees, DENOISE_PASSES, DENOISE_TILE, MAX_CHANNELS,
 };
-use hyrt_core::kernels::soft_shadow::{surface_slots, AmbientOcclusion};
+use hyrt_core::kernels::soft_shadow::{surface_slots, AmbientOcclusion, Lights};
 use hyrt_core::kernels::temporal::{motion_records, temporal_pixel, History};
 use rayon::prelude::*;
 
@@ -93,19 +93,20 @@ pub struct Temporal<'a> {
 /// previous frames' where `temporal` is given (the history then becomes this frame's),
 /// then filtered.
 #[allow(clippy::too_many_arguments)]
-pub fn shadow_denoise_into(
+pub fn shadow_denoise_into<'l>(
     surfaces: &[SurfaceRecord],
     shadow: &[u8],
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     ao: &AmbientOcclusion,
     camera: &CameraRecord,
     scratch: &mut DenoiseScratch,
     temporal: Option<Temporal>,
     out: &mut Vec<f32>,
 ) {
+    let lights = lights.into();
     let (width, height) = (camera.width as usize, camera.height as usize);
-    let channels = channel_count(lights, ao);
-    let slots = surface_slots(lights, ao);
+    let channels = channel_count(&lights, ao);
+    let slots = surface_slots(&lights, ao);
     assert!(channels <= MAX_CHANNELS, "{channels} denoised channels, at most {MAX_CHANNELS}");
     assert_eq!(surfaces.len(), width * height);
     out.clear();
@@ -131,11 +132,11 @@ pub fn shadow_denoise_into(
     let lengths = match temporal {
         Some(t) => {
             scratch.current.clone_from(out);
-            Some(temporal_into(surfaces, (lights, ao), camera, t, scratch, out))
+            Some(temporal_into(surfaces, (lights.records, ao), camera, t, scratch, out))
         }
         None => None,
     };
-    filter_into(surfaces, (lights, ao), camera, lengths, scratch, out);
+    filter_into(surfaces, (lights.records, ao), camera, lengths, scratch, out);
 }
 
 /// The temporal pass over the raw channels `out` (in place): each pixel blended with its

@@ -31,7 +31,7 @@
 use glam::Vec3;
 
 use crate::formats::{LightRecord, SurfaceRecord};
-use crate::kernels::soft_shadow::{ambient_occlusion, light_visibility, AmbientOcclusion};
+use crate::kernels::soft_shadow::{ambient_occlusion, light_visibility, AmbientOcclusion, Lights};
 
 /// The B3-spline taps at offsets 0, 1 and 2 (`1/16 [1 4 6 4 1]`).
 pub const ATROUS_KERNEL: [f32; 3] = [3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
@@ -146,16 +146,18 @@ pub fn value_weight(centre: f32, other: f32, sigma: f32) -> f32 {
 }
 
 /// A pixel's raw channels ([`channel_count`] of them) from its mask `codes`: each area
-/// light's visible share ([`light_visibility`]), then the ambient occlusion; 0 (and 1
-/// for the occlusion) on a miss. `scratch` holds one value per light.
-pub fn raw_channels(
+/// light's visible share ([`light_visibility`]; emissive meshes' through the emitter table
+/// `lights` carries), then the ambient occlusion; 0 (and 1 for the occlusion) on a miss.
+/// `scratch` holds one value per light.
+pub fn raw_channels<'l>(
     codes: &[u8],
-    lights: &[LightRecord],
+    lights: impl Into<Lights<'l>>,
     ao: &AmbientOcclusion,
     s: &SurfaceRecord,
     scratch: &mut [f32],
     out: &mut [f32],
 ) {
+    let lights = lights.into();
     let mut k = 0;
     if s.is_hit() {
         light_visibility(codes, lights, s, scratch);
@@ -169,7 +171,7 @@ pub fn raw_channels(
         }
     }
     if ao.samples > 0 {
-        out[k] = if s.is_hit() { ambient_occlusion(codes, lights, ao).unwrap_or(1.0) } else { 1.0 };
+        out[k] = if s.is_hit() { ambient_occlusion(codes, lights.records, ao).unwrap_or(1.0) } else { 1.0 };
     }
 }
 
