@@ -82,22 +82,57 @@ pub fn nested_uniform_scramble(x: u32, seed: u32) -> u32 {
     laine_karras_permutation(x.reverse_bits(), seed).reverse_bits()
 }
 
+/// Direction number `k` (0-based) of Sobol's second dimension: `v_0 = 1/2`,
+/// `v_(k+1) = v_k xor (v_k / 2)` (`0.1, 0.11, 0.101, 0.1111, 0.10001, ...` in binary),
+/// as a 32-bit fraction.
+pub const fn sobol_direction(k: u32) -> u32 {
+    let mut v = 1u32 << 31;
+    let mut i = 0;
+    while i < k {
+        v ^= v >> 1;
+        i += 1;
+    }
+    v
+}
+
+/// Sobol's second dimension a byte at a time: `SOBOL_BYTES[b][x]` is the xor of the
+/// direction numbers `8 b + j` over the set bits `j` of `x`. The dimension is linear over
+/// xor in the index's bits, so [`sobol_2d`] is the xor of four lookups, the same bits as
+/// the loop over the index's bits that defines it (and that the WGSL twin runs; the tests
+/// check every direction number).
+const SOBOL_BYTES: [[u32; 256]; 4] = {
+    let mut t = [[0u32; 256]; 4];
+    let mut b = 0;
+    while b < 4 {
+        let mut x = 0;
+        while x < 256 {
+            let mut y = 0u32;
+            let mut j = 0;
+            while j < 8 {
+                if x & (1 << j) != 0 {
+                    y ^= sobol_direction(8 * b as u32 + j);
+                }
+                j += 1;
+            }
+            t[b][x] = y;
+            x += 1;
+        }
+        b += 1;
+    }
+    t
+};
+
 /// Point `index` of the first two dimensions of the Sobol' sequence, as 32-bit fractions:
-/// the van der Corput sequence (the reversed bits) and Sobol's second dimension, whose
-/// direction numbers follow `v_1 = 1/2`, `v_(k+1) = v_k xor (v_k / 2)`
-/// (`0.1, 0.11, 0.101, 0.1111, 0.10001, ...` in binary).
+/// the van der Corput sequence (the reversed bits) and Sobol's second dimension, the xor
+/// of the direction numbers ([`sobol_direction`]) of the index's set bits (by bytes,
+/// [`SOBOL_BYTES`]).
 #[inline]
 pub fn sobol_2d(index: u32) -> [u32; 2] {
-    let mut y = 0u32;
-    let mut v = 1u32 << 31;
-    let mut i = index;
-    while i != 0 {
-        if i & 1 != 0 {
-            y ^= v;
-        }
-        i >>= 1;
-        v ^= v >> 1;
-    }
+    let [b0, b1, b2, b3] = index.to_le_bytes();
+    let y = SOBOL_BYTES[0][b0 as usize]
+        ^ SOBOL_BYTES[1][b1 as usize]
+        ^ SOBOL_BYTES[2][b2 as usize]
+        ^ SOBOL_BYTES[3][b3 as usize];
     [index.reverse_bits(), y]
 }
 
@@ -250,6 +285,39 @@ mod tests {
             }
         }
         Ok(())
+    }
+
+    /// Sobol's second dimension as defined: the xor of the direction numbers over the
+    /// index's set bits, bit by bit (the WGSL twin's loop).
+    fn sobol_y_by_bits(index: u32) -> u32 {
+        let mut y = 0u32;
+        let mut v = 1u32 << 31;
+        let mut i = index;
+        while i != 0 {
+            if i & 1 != 0 {
+                y ^= v;
+            }
+            i >>= 1;
+            v ^= v >> 1;
+        }
+        y
+    }
+
+    /// Both forms are xor-linear in the index's bits, so agreeing on the 32 single bits
+    /// (and on 0) they agree on every index; the random indices check the tables' layout
+    /// once more.
+    #[test]
+    fn sobol_tables_are_the_bit_loop() {
+        assert_eq!(sobol_2d(0)[1], 0);
+        for k in 0..32 {
+            assert_eq!(sobol_2d(1 << k)[1], sobol_y_by_bits(1 << k), "direction number {k}");
+            assert_eq!(sobol_direction(k), sobol_y_by_bits(1 << k));
+        }
+        let mut x = 0x9e37_79b9u32;
+        for _ in 0..100_000 {
+            x = hash_u32(x);
+            assert_eq!(sobol_2d(x)[1], sobol_y_by_bits(x), "index {x:#x}");
+        }
     }
 
     #[test]

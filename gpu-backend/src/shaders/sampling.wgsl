@@ -100,7 +100,8 @@ fn nested_uniform_scramble(x: u32, seed: u32) -> u32 {
     return reverseBits(laine_karras_permutation(reverseBits(x), seed));
 }
 
-// mirrors hyrt_core::kernels::sampling::sobol_2d: the two 32-bit fractions of point `index`.
+// mirrors hyrt_core::kernels::sampling::sobol_2d: the two 32-bit fractions of point `index`
+// (the CPU looks the second up a byte at a time; the xor over the index's bits is the same).
 fn sobol_2d(index: u32) -> vec2<u32> {
     var y = 0u;
     var v = 1u << 31u;
