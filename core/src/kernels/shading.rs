@@ -521,13 +521,27 @@ pub fn shade_rt_surface<'s, 'l>(
     ambient: &AmbientLight,
     v: Vec3,
 ) -> Vec3 {
+    shade_surface_with(s, obj, shadow.into(), lights.into(), ambient, v, shade_ray_traced)
+}
+
+/// [`unlit`] plus `brdf(obj, n, v, l, e)` summed over the lights [`sum_visible_lights`]
+/// counts, with the object's occlusion applied ([`occluded_object`]): the body of
+/// [`shade_rt_surface`] and [`shade_raster_surface`], which differ in `brdf` alone.
+#[inline]
+fn shade_surface_with(
+    s: &SurfaceRecord,
+    obj: &ObjectRecord,
+    shadow: SurfaceShadow,
+    lights: Lights,
+    ambient: &AmbientLight,
+    v: Vec3,
+    brdf: impl Fn(&ObjectRecord, Vec3, Vec3, Vec3, Vec3) -> Vec3,
+) -> Vec3 {
     let p = Vec3::from(s.position);
     let n = Vec3::from(s.normal);
-    let shadow = shadow.into();
-    let lights = lights.into();
     let occluded = occluded_object(obj, shadow, &lights, &ambient.occlusion);
     let obj = occluded.as_ref().unwrap_or(obj);
-    unlit(obj, n, v, ambient) + sum_visible_lights(shadow, lights, p, |l, e| shade_ray_traced(obj, n, v, l, e))
+    unlit(obj, n, v, ambient) + sum_visible_lights(shadow, lights, p, |l, e| brdf(obj, n, v, l, e))
 }
 
 /// The raster shader at a surface seen along `-v` (`v`: unit, towards the viewer):
@@ -542,13 +556,7 @@ pub fn shade_raster_surface<'s, 'l>(
     ambient: &AmbientLight,
     v: Vec3,
 ) -> Vec3 {
-    let p = Vec3::from(s.position);
-    let n = Vec3::from(s.normal);
-    let shadow = shadow.into();
-    let lights = lights.into();
-    let occluded = occluded_object(obj, shadow, &lights, &ambient.occlusion);
-    let obj = occluded.as_ref().unwrap_or(obj);
-    unlit(obj, n, v, ambient) + sum_visible_lights(shadow, lights, p, |l, e| shade_raster(obj, n, v, l, e))
+    shade_surface_with(s, obj, shadow.into(), lights.into(), ambient, v, shade_raster)
 }
 
 /// The raster shader at one pixel seen from `eye`: [`shade_raster_surface`] with `v`
