@@ -14,79 +14,32 @@ use std::path::PathBuf;
 
 use glam::{Mat4, Vec3};
 use hyrt_core::bvh::BvhPreset;
-use hyrt_core::formats::{CameraRecord, RayRecord, LIGHT_EMITTERS, SHADOW_OCCLUDED};
-use hyrt_core::frame::{Backend, Frame, FrameOptions, PreparedScene};
+use hyrt_core::formats::{LIGHT_EMITTERS, SHADOW_OCCLUDED};
+use hyrt_core::frame::FrameOptions;
 use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::area_light::polygon_irradiance_f64;
 use hyrt_core::kernels::soft_shadow::light_visibility;
-use hyrt_core::scene::{
-    Ambient, Camera, Environment, EnvironmentMap, Material, MaterialKind, Mesh, RenderMode, Scene, ShadingModel,
-};
+use hyrt_core::scene::{Material, Mesh, RenderMode, Scene};
 use hyrt_cpu::backend::CpuBackend;
 
-/// The emitter: the 1 m x 1 m square 3 m above the floor, facing down, as the quad light
-/// `CORNER + [0, 1] EDGE_U + [0, 1] EDGE_V` (which emits to the side of `EDGE_U x EDGE_V`).
-const CORNER: Vec3 = Vec3::new(-0.5, 3.0, -0.5);
-const EDGE_U: Vec3 = Vec3::new(1.0, 0.0, 0.0);
-const EDGE_V: Vec3 = Vec3::new(0.0, 0.0, 1.0);
-const RADIANCE: f32 = 5.0;
-const BASE: f32 = 0.6;
-
-/// The bar for the raw visibility at 256 samples against an independent trace (as
-/// for quad lights, `soft_shadows.rs`).
-const VISIBILITY_MAE: f64 = 0.01;
+mod common;
+use common::{
+    floor_scene, material, options, render, traced_visibility, BASE, CORNER, EDGE_U, EDGE_V, RADIANCE, VISIBILITY_MAE,
+};
 
 /// The bar for the denoised visibility at 4 samples (as for quad lights).
 const DENOISED_MAE: f64 = 0.03;
 
-fn material(base: f32) -> Material {
-    Material {
-        name: "grey".into(),
-        base_color: Vec3::splat(base),
-        metallic: 0.0,
-        roughness: 1.0,
-        kind: MaterialKind::Diffuse,
-        ..Material::grey()
-    }
-}
-
-/// `soft_shadows.rs`'s scene with the quad light made of an emissive mesh: no ambient or
-/// environment light, the paper's model, a 10 x 10 floor (left half rasterized, right half
-/// ray traced), the emitter (a one-cell grid, two triangles, turned to face down; black,
-/// glowing `RADIANCE`), optionally a box floating between them.
+/// `soft_shadows.rs`'s scene ([`common::floor_scene`]) with the quad light made of an
+/// emissive mesh: the square `CORNER + [0, 1] EDGE_U + [0, 1] EDGE_V` as a one-cell grid (two
+/// triangles) turned to face down, black, glowing `RADIANCE`.
 fn scene(with_box: bool) -> Scene {
-    let mut scene = Scene { shading: ShadingModel::Paper, ambient: Ambient(0.0), ..Scene::default() };
+    let mut scene = floor_scene(with_box);
     scene.emissive_lights = true;
-    let black = EnvironmentMap::new(1, 1, vec![[0.0, 0.0, 0.0, 1.0]]).expect("a black map");
-    scene.environment = Environment::Map(std::sync::Arc::new(black));
-    for (x, mode) in [(-2.5, RenderMode::Raster), (2.5, RenderMode::RayTraced)] {
-        let place = Mat4::from_translation(Vec3::new(x, 0.0, 0.0)) * Mat4::from_scale(Vec3::new(5.0, 1.0, 10.0));
-        scene.add_object(Mesh::grid("floor", 8), material(BASE), place, mode);
-    }
     let glow = Material { emissive: Vec3::splat(RADIANCE), ..material(0.0) };
     let place = Mat4::from_translation(Vec3::new(0.0, 3.0, 0.0)) * Mat4::from_rotation_x(std::f32::consts::PI);
     scene.add_object(Mesh::grid("emitter", 1), glow, place, RenderMode::Raster);
-    if with_box {
-        let place = Mat4::from_translation(Vec3::new(0.1, 0.6, 0.0)) * Mat4::from_scale(Vec3::splat(0.3));
-        scene.add_object(Mesh::cube("box"), material(0.5), place, RenderMode::Raster);
-    }
-    scene.camera = Some(Camera::look_at(Vec3::new(0.0, 2.6, 2.2), Vec3::new(0.0, 0.0, 0.0), Vec3::Y));
     scene
-}
-
-fn render(
-    cpu: &mut CpuBackend,
-    prepared: &PreparedScene,
-    scene: &Scene,
-    (w, h): (u32, u32),
-    o: &FrameOptions,
-) -> Frame {
-    let camera = CameraRecord::new(&scene.camera.expect("camera"), w, h);
-    cpu.render(prepared, &camera, o).expect("frame")
-}
-
-fn options(shadow_samples: u32) -> FrameOptions {
-    FrameOptions { max_depth: 0, shadow_samples, ..FrameOptions::with_stage_outputs() }
 }
 
 #[test]
@@ -141,35 +94,6 @@ fn an_emissive_quad_mesh_lights_the_floor_as_a_quad_light_and_does_not_shadow_it
     // coordinate reused within its bin): far below a percent on average.
     assert!(mean <= 2e-3, "mean relative error {mean}");
     assert!(worst <= 1e-2, "worst relative error {worst}");
-}
-
-/// The visibility of the emitter from `p` (normal `n`) traced towards the centres of a
-/// 32 x 32 grid over it, each weighted by its irradiance, with the BVH's scalar any-hit
-/// query from `p` lifted 1e-4 along `n`, ending as the renderer's rays do just short of
-/// the emitter (`1 - 2^-16` of the way). `None` where no grid point lights the surface.
-fn traced_visibility(prepared: &PreparedScene, p: Vec3, n: Vec3) -> Option<f64> {
-    const GRID: usize = 32;
-    let light_normal = EDGE_U.cross(EDGE_V).normalize().as_dvec3();
-    let origin = p + n * 1e-4;
-    let (mut lit, mut all) = (0.0, 0.0);
-    for i in 0..GRID {
-        for j in 0..GRID {
-            let (u, v) = ((i as f32 + 0.5) / GRID as f32, (j as f32 + 0.5) / GRID as f32);
-            let q = CORNER + EDGE_U * u + EDGE_V * v;
-            let d = (q - p).as_dvec3();
-            let (dist, l) = (d.length(), d.normalize());
-            let c = (-l.dot(light_normal)).max(0.0) * l.dot(n.as_dvec3()).max(0.0) / (dist * dist);
-            if c <= 0.0 {
-                continue;
-            }
-            all += c;
-            let ray = RayRecord::query(origin.into(), (q - origin).into(), 0.0, 1.0 - 1.0 / 65536.0);
-            if !prepared.bvh.occluded(prepared.geometry.traversal_table(), &ray) {
-                lit += c;
-            }
-        }
-    }
-    (all > 0.0).then_some(lit / all)
 }
 
 #[test]
