@@ -234,9 +234,18 @@ fn filter_into(
     let raw = &scratch.raw;
     scratch.sigma.clear();
     scratch.sigma.resize(out.len(), 0.0);
+    let filter = &scratch.filter;
+    // Only a filtered tile's pixels read their noise (`atrous_pixel` copies the others).
+    let filtered = |x: usize, y: usize| {
+        let tile = (y / DENOISE_TILE) * tiles_x + x / DENOISE_TILE;
+        filter[tile * channels..(tile + 1) * channels].iter().any(|&f| f)
+    };
     scratch.sigma.par_chunks_mut(row).enumerate().for_each(|(y, sigma)| {
         let mut behind = samples.clone();
         for x in 0..width {
+            if !filtered(x, y) {
+                continue;
+            }
             if let Some(lengths) = lengths {
                 let frames = lengths[y * width + x] + 1;
                 for (b, s) in behind.iter_mut().zip(&samples) {

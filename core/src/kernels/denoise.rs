@@ -307,7 +307,8 @@ pub fn neighbourhood(
 /// neighbourhood on the same object ([`CLAMP_RADIUS`]). Where every sample around is
 /// occluded the light stays out (an umbra next to a penumbra does not take the
 /// penumbra's light from the wide taps), and where every sample around is lit no shadow
-/// comes in; elsewhere the clamp does nothing. A miss is left as it is.
+/// comes in; elsewhere the clamp does nothing. A miss, and a pixel none of whose channels
+/// is filtered, is left as it is.
 pub fn clamp_pixel(
     raw: &[f32],
     surfaces: &[SurfaceRecord],
@@ -318,7 +319,7 @@ pub fn clamp_pixel(
 ) {
     let channels = out.len();
     let centre = &surfaces[y * width + x];
-    if !centre.is_hit() {
+    if !centre.is_hit() || !filter.iter().any(|&f| f) {
         return;
     }
     let (lo, hi) = raw_range(raw, surfaces, (width, height), (x, y), channels);

@@ -312,7 +312,11 @@ fn clamp_pixel(width: u32, height: u32, x: u32, y: u32, flags: ChannelFlags, res
     let channels = slot_params.channels;
     var result = res;
     let object = surfaces[y * width + x].object;
-    if object == INVALID_ID {
+    var filtered_any = false;
+    for (var c = 0u; c < channels; c++) {
+        filtered_any = filtered_any || flags[c];
+    }
+    if object == INVALID_ID || !filtered_any {
         return result;
     }
     var lo: Channels;
