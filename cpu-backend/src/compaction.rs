@@ -143,14 +143,14 @@ pub fn active_pairs_into(
 ) -> Result<(), TryReserveError> {
     let n = surfaces.len();
     crate::memory::reserve(&mut scratch.flags, n * slots.len())?;
-    (0..n * slots.len())
-        .into_par_iter()
-        .with_min_len(4096)
-        .map(|k| {
-            let (l, p) = (k / n, k % n);
-            slots.needs_ray(&surfaces[p], l) as u32
-        })
-        .collect_into_vec(&mut scratch.flags);
+    scratch.flags.clear();
+    scratch.flags.resize(n * slots.len(), 0);
+    // Slot-major, as the pairs are numbered: slot `l`'s flags are the `l`-th run of `n`.
+    if n > 0 {
+        scratch.flags.par_chunks_mut(n).enumerate().for_each(|(l, flags)| {
+            flags.par_iter_mut().with_min_len(4096).zip(surfaces).for_each(|(f, s)| *f = slots.needs_ray(s, l) as u32);
+        });
+    }
     compact_into(&scratch.flags, &mut scratch.active)
 }
 
