@@ -1030,13 +1030,30 @@ impl GpuBackend {
             )));
         }
         let binding = self.ctx.limits.max_storage_buffer_binding_size.min(self.ctx.limits.max_buffer_size);
-        // The GPU reads one world table: objects the CPU keeps by reference are stored
-        // whole there (the normals take 36 of every 48 + 36 bytes; the records, 48).
-        let triangles = scene.geometry.triangles.len() as u64;
-        if triangles * std::mem::size_of::<hyrt_core::formats::TriangleRecord>() as u64 > binding {
+        // The world tables as uploaded (`SceneBuffers::new`): the stored records (48 bytes
+        // each; their normals take 36) and, with objects by reference, each shared mesh once
+        // and a placement per object.
+        for (table, bytes) in world_table_bytes(scene) {
+            if bytes > binding {
+                return Err(GpuError::Limits(format!(
+                    "the scene's {table} need {bytes} bytes in one storage binding; this device allows {binding}"
+                )));
+            }
+        }
+        // The raster's setup records, one per world triangle (stored or by reference).
+        let setups = scene.geometry.triangles.len() as u64 * crate::visibility_raster::RASTER_SETUP_BYTES;
+        if self.visibility_mode == VisibilityMode::Exact && setups > binding {
             return Err(GpuError::Limits(format!(
-                "the scene's {triangles} world triangles need {} bytes in one storage binding; this device allows {binding} (instanced objects are read by reference on the CPU backend only)",
-                triangles * std::mem::size_of::<hyrt_core::formats::TriangleRecord>() as u64
+                "visibility_raster's setup records of the scene's {} world triangles need {setups} bytes in one storage binding; this device allows {binding}",
+                scene.geometry.triangles.len()
+            )));
+        }
+        if scene.geometry.triangles.has_references()
+            && plan.bounce_depth() > 0
+            && storage < BY_REFERENCE_BOUNCE_STORAGE_BUFFERS
+        {
+            return Err(GpuError::Limits(format!(
+                "reflection and refraction in a scene with objects by reference bind {BY_REFERENCE_BOUNCE_STORAGE_BUFFERS} storage buffers per shader stage (bounce_trace); this device allows {storage} (render with max depth 0)"
             )));
         }
         match scene.geometry.surface.layout().map(|l| l.bytes()) {
@@ -1070,6 +1087,31 @@ fn read_in(out: &Frame, first: bool) -> Vec<FrameBuffer> {
     let in_first = |b: FrameBuffer| b.always_returned() || counted(b);
     out.plan.buffers().filter(|&b| in_first(b) == first && (out.holds(b) || counted(b))).collect()
 }
+
+/// What the world tables of `scene` take on the device, table by table, as
+/// [`crate::buffers::SceneBuffers::new`] uploads them: `(what, bytes)`, the bytes `u64::MAX`
+/// where the mesh words would pass 2^32 words.
+pub fn world_table_bytes(scene: &PreparedScene) -> Vec<(String, u64)> {
+    let t = &scene.geometry.triangles;
+    let stored = t.stored_records().len() as u64;
+    let mut tables = vec![(
+        format!("{stored} stored world triangles"),
+        stored * std::mem::size_of::<hyrt_core::formats::TriangleRecord>() as u64,
+    )];
+    if t.has_references() {
+        let objects = scene.geometry.objects.len() as u64;
+        let placement = std::mem::size_of::<hyrt_core::formats::PlacementRecord>() as u64;
+        tables.push((format!("placements of {objects} objects"), objects * placement));
+        let words = t.mesh_word_count() as u64;
+        let words = if words >= hyrt_core::formats::INVALID_ID as u64 { u64::MAX } else { words * 4 };
+        tables.push(("shared meshes (positions, normals, triangles)".to_string(), words));
+    }
+    tables
+}
+
+/// Storage buffers `bounce_trace` binds in a scene with objects by reference: its 13 of a
+/// two-level scene, the placements and the mesh words. `GpuContext::new` asks for up to 16.
+pub const BY_REFERENCE_BOUNCE_STORAGE_BUFFERS: u32 = 15;
 
 /// Storage buffers `rt_shading` and `raster_shading` bind in a denoised frame: their eight
 /// and the frame's visibility. WebGPU's default limit is 8; `GpuContext::new` asks for up

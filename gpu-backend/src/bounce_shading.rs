@@ -29,11 +29,21 @@ pub struct BounceShadingStage {
     layout: wgpu::BindGroupLayout,
 }
 
+/// The WGSL of the stage for scenes that need `s` (its triangle flags read as
+/// [`crate::world_triangles::triangle_flags_wgsl`] says).
+pub fn shader_source(s: Specialization) -> String {
+    radiance_source(&format!(
+        "{}\n{}\n{}",
+        environment_wgsl(),
+        include_str!("shaders/bounce_shading.wgsl"),
+        crate::world_triangles::triangle_flags_wgsl(0, 8, s.by_reference)
+    ))
+}
+
 impl BounceShadingStage {
     /// Compile the stage's pipeline for scenes whose surface tables need `s`.
     pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
-        let source =
-            radiance_source(&format!("{}\n{}", environment_wgsl(), include_str!("shaders/bounce_shading.wgsl")));
+        let source = shader_source(s);
         let mut entries = vec![uniform_entry(0), uniform_entry(1)];
         entries.extend((2..=9).map(|i| storage_entry(i, true)));
         entries.push(uniform_entry(10));
@@ -79,7 +89,7 @@ impl BounceShadingStage {
                 &b.surfaces,
                 &b.shadow,
                 &scene.objects,
-                &scene.triangles,
+                scene.flags_table(),
                 &scene.lights,
                 &scene.environment,
                 &scene.environment_texels,

@@ -9,7 +9,8 @@
 //!
 //! Reads the depth's rays and count (indirect dispatch, one thread per ray), the BVH,
 //! triangles, normals, the object records (offset errors) and the surface tables (alpha tests); with two levels
-//! the instances too. Writes one `HitRecord` and one `SurfaceRecord` per ray and
+//! the instances too, and with objects by reference their placements and meshes
+//! ([`crate::world_triangles`]). Writes one `HitRecord` and one `SurfaceRecord` per ray and
 //! counts the hits.
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
@@ -18,39 +19,58 @@ use crate::shader::{preamble, ray_wgsl, storage_entry, uniform_entry};
 use crate::texture::{texture_wgsl, Specialization};
 use crate::GpuContext;
 
+/// The WGSL of the stage for scenes that need `s`: the generated records, the ray kernels,
+/// the surface kernels, the world-triangle accessors ([`crate::world_triangles`]), the
+/// texture kernels, the shader and the walk of the scene's BVH (one tree, or two levels
+/// with the instances' binding).
+pub fn shader_source(s: Specialization) -> String {
+    use crate::world_triangles::{world_normals_wgsl, world_triangles_wgsl};
+    let walk = if s.two_level {
+        concat!(include_str!("shaders/instance.wgsl"), include_str!("shaders/bounce_two_level.wgsl"))
+    } else {
+        "fn trace_closest(ray: RayRecord) -> ClosestHit {\n    return closest_hit(ray);\n}\n"
+    };
+    preamble()
+        + &ray_wgsl()
+        + EXACT_PRODUCTS
+        + &surface_wgsl()
+        + &world_triangles_wgsl(s.by_reference.then_some((0, BY_REFERENCE_BINDING)))
+        + &world_normals_wgsl(s.by_reference)
+        + &texture_wgsl()
+        + include_str!("shaders/bounce_trace.wgsl")
+        + walk
+}
+
 /// The `bounce_trace` stage: one pipeline.
 pub struct BounceTraceStage {
     pipeline: wgpu::ComputePipeline,
     layout: wgpu::BindGroupLayout,
     /// Compiled for a two-level scene: binds `SceneBuffers::instances` too.
     two_level: bool,
+    /// Compiled for a scene with objects by reference: binds the instances (at 14, read or
+    /// not), then `SceneBuffers::placements` and `SceneBuffers::mesh_words` at 15 and 16.
+    by_reference: bool,
 }
+
+/// Where the stage's by-reference bindings start (`placements`, then `mesh_words`).
+const BY_REFERENCE_BINDING: u32 = 15;
 
 impl BounceTraceStage {
     /// Compile the stage's pipeline for scenes whose surface tables need `s`.
     pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
-        // The walk of the scene's BVH: one tree, or two levels with the instances' binding.
-        let walk = if s.two_level {
-            concat!(include_str!("shaders/instance.wgsl"), include_str!("shaders/bounce_two_level.wgsl"))
-        } else {
-            "fn trace_closest(ray: RayRecord) -> ClosestHit {\n    return closest_hit(ray);\n}\n"
-        };
-        let source = preamble()
-            + &ray_wgsl()
-            + EXACT_PRODUCTS
-            + &surface_wgsl()
-            + &texture_wgsl()
-            + include_str!("shaders/bounce_trace.wgsl")
-            + walk;
+        let source = shader_source(s);
         let mut entries = vec![uniform_entry(0)];
         entries.extend((1..=7).map(|i| storage_entry(i, true)));
         entries.extend((8..=10).map(|i| storage_entry(i, false)));
         entries.extend([storage_entry(11, true), uniform_entry(12), storage_entry(13, true)]);
-        if s.two_level {
+        if s.two_level || s.by_reference {
             entries.push(storage_entry(14, true));
         }
+        if s.by_reference {
+            entries.extend([storage_entry(BY_REFERENCE_BINDING, true), storage_entry(BY_REFERENCE_BINDING + 1, true)]);
+        }
         let (pipeline, layout) = specialized_pipeline(ctx, "bounce_trace", &source, &entries, &s.constants());
-        BounceTraceStage { pipeline, layout, two_level: s.two_level }
+        BounceTraceStage { pipeline, layout, two_level: s.two_level, by_reference: s.by_reference }
     }
 
     /// Trace the rays of `frame.bounces[depth - 1]`.
@@ -80,8 +100,14 @@ impl BounceTraceStage {
             &scene.surface.layout,
             &scene.objects,
             &scene.instances,
+            &scene.placements,
+            &scene.mesh_words,
         ];
-        let bound = if self.two_level { &buffers[..] } else { &buffers[..14] };
+        let bound = match (self.by_reference, self.two_level) {
+            (true, _) => &buffers[..],
+            (false, true) => &buffers[..15],
+            (false, false) => &buffers[..14],
+        };
         let bind_group = bind_buffers(ctx, "bounce_trace", &self.layout, bound);
         crate::shader::encode_list_pass(encoder, "bounce_trace", &self.pipeline, &bind_group, &b.ray_count, timing);
     }

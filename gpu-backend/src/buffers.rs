@@ -6,9 +6,10 @@
 
 use hyrt_core::formats::{
     AmbientLightRecord, BvhNode, CameraRecord, EnvironmentRecord, GBufferTexel, HitRecord, InstanceRecord, LightRecord,
-    ListParams, ObjectRecord, RayRecord, SurfaceRecord, TriangleRecord,
+    ListParams, ObjectRecord, PlacementRecord, RayRecord, SurfaceRecord, TriangleRecord,
 };
 use hyrt_core::frame::{PreparedScene, SceneChanges};
+use hyrt_core::geometry::MeshWords;
 use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan};
 
 use crate::band::Band;
@@ -93,10 +94,25 @@ pub use crate::band::{BounceRoom, Room};
 
 /// Scene tables on the GPU (from a [`PreparedScene`]; built once per scene).
 pub struct SceneBuffers {
-    /// `array<TriangleRecord>`: the world triangle table.
+    /// `array<TriangleRecord>`: the world triangle table by global id; with objects by
+    /// reference, the stored objects' records alone, by record index
+    /// ([`hyrt_core::geometry::WorldTriangles::stored_records`]).
     pub triangles: wgpu::Buffer,
-    /// `array<f32>`, 9 per triangle: the world normals at its three corners (x, y, z each).
+    /// `array<f32>`, 9 per triangle (per stored record with objects by reference): the
+    /// world normals at its three corners (x, y, z each).
     pub normals: wgpu::Buffer,
+    /// Whether some object is kept by reference: its records are made on read from
+    /// `placements` and `mesh_words` ([`crate::world_triangles`]).
+    pub by_reference: bool,
+    /// `array<PlacementRecord>`, one per object, with objects by reference; one zero record
+    /// (read by no stage) otherwise.
+    pub placements: wgpu::Buffer,
+    /// `array<u32>`: every shared mesh's positions, normals and triangles, once
+    /// ([`hyrt_core::geometry::WorldTriangles::mesh_words`]); one zero word without objects
+    /// by reference.
+    pub mesh_words: wgpu::Buffer,
+    /// Where each mesh starts in `mesh_words`.
+    mesh_offsets: Vec<MeshWords>,
     /// `array<ObjectRecord>`.
     pub objects: wgpu::Buffer,
     /// `array<LightRecord>`: the frame's lights ([`SceneBuffers::set_lighting`]: the scene's,
@@ -145,9 +161,22 @@ impl SceneBuffers {
     /// Upload the tables of `scene`.
     pub fn new(ctx: &GpuContext, scene: &PreparedScene) -> SceneBuffers {
         let g = &scene.geometry;
-        // Objects by reference are made whole here: the GPU reads one world table.
-        let triangles = g.triangles.whole();
-        let normals = corner_normals(g, 0..g.triangles.len());
+        let by_reference = g.triangles.has_references();
+        // With objects by reference: the stored records, each mesh once, a placement per object.
+        let (triangles, normals, placements, (mesh_words, mesh_offsets)) = match by_reference {
+            false => (
+                g.triangles.stored_records(),
+                corner_normals(g, 0..g.triangles.len()),
+                Vec::new(),
+                (Vec::new(), Vec::new()),
+            ),
+            true => {
+                let words = g.triangles.mesh_words().expect("mesh words fewer than 2^32 (check_supported)");
+                let placements = placement_records(g, &words.1);
+                let normals = g.triangles.stored_normals().iter().flat_map(|n| n.iter().flat_map(|v| v.to_array()));
+                (g.triangles.stored_records(), normals.collect(), placements, words)
+            }
+        };
         let (environment, texels) = EnvironmentRecord::of(&g.environment);
         debug_assert_eq!(environment.validate(texels.len()), Ok(()));
         let environment_header = uniform(ctx, "environment", std::mem::size_of::<EnvironmentRecord>() as u64);
@@ -167,8 +196,12 @@ impl SceneBuffers {
             environment_texels: upload::<[f32; 4]>(ctx, "environment texels", texels),
             ambient_light: ambient_header,
             ambient_texels: upload::<[f32; 4]>(ctx, "ambient light texels", &ambient_texels),
-            triangles: upload::<TriangleRecord>(ctx, "triangles", &triangles),
+            triangles: upload::<TriangleRecord>(ctx, "triangles", triangles),
             normals: upload(ctx, "normals", &normals),
+            by_reference,
+            placements: upload::<PlacementRecord>(ctx, "placements", &placements),
+            mesh_words: upload::<u32>(ctx, "mesh words", &mesh_words),
+            mesh_offsets,
             objects: upload::<ObjectRecord>(ctx, "objects", &g.objects),
             lights: upload::<LightRecord>(ctx, "lights", &g.lights),
             bvh_nodes: upload::<BvhNode>(ctx, "bvh nodes", nodes),
@@ -188,6 +221,30 @@ impl SceneBuffers {
 }
 
 impl SceneBuffers {
+    /// The table the bounce kernels read triangle flags from
+    /// ([`crate::world_triangles::triangle_flags_wgsl`]): the placements with objects by
+    /// reference, else the triangles.
+    pub fn flags_table(&self) -> &wgpu::Buffer {
+        match self.by_reference {
+            true => &self.placements,
+            false => &self.triangles,
+        }
+    }
+
+    /// Write the mesh words of `scene` again (a mesh deformed): in place when their layout
+    /// is the one held, else into a new buffer, with every placement again (their offsets).
+    fn write_meshes(&mut self, ctx: &GpuContext, scene: &PreparedScene) {
+        let (words, offsets) = scene.geometry.triangles.mesh_words().expect("mesh words fewer than 2^32");
+        if offsets == self.mesh_offsets && (words.len() * 4) as u64 == self.mesh_words.size() {
+            ctx.queue.write_buffer(&self.mesh_words, 0, bytemuck::cast_slice(&words));
+        } else {
+            self.mesh_words = upload::<u32>(ctx, "mesh words", &words);
+            self.mesh_offsets = offsets;
+            let placements = placement_records(&scene.geometry, &self.mesh_offsets);
+            ctx.queue.write_buffer(&self.placements, 0, bytemuck::cast_slice(&placements));
+        }
+    }
+
     /// Hold the lights and ambient light of the next frame
     /// ([`PreparedScene::frame_lighting`]: with area lights, their samples and the frame's
     /// seeds; with ambient occlusion, its rays), writing what differs from what the
@@ -206,6 +263,19 @@ impl SceneBuffers {
             self.held_ambient = *ambient;
         }
     }
+}
+
+/// Every object's [`PlacementRecord`], its mesh in the words at `meshes`.
+fn placement_records(g: &hyrt_core::geometry::WorldGeometry, meshes: &[MeshWords]) -> Vec<PlacementRecord> {
+    let records: Vec<PlacementRecord> = (0..g.objects.len() as u32).map(|o| placement_record(g, o, meshes)).collect();
+    debug_assert_eq!(records.iter().try_for_each(PlacementRecord::validate), Ok(()));
+    records
+}
+
+/// Object `o`'s [`PlacementRecord`].
+fn placement_record(g: &hyrt_core::geometry::WorldGeometry, o: u32, meshes: &[MeshWords]) -> PlacementRecord {
+    let r = &g.objects[o as usize];
+    g.triangles.placement_record(o, r.first_triangle, r.triangle_count, meshes)
 }
 
 /// The corner normals of global triangles `range` as the GPU reads them: nine floats each.
@@ -229,14 +299,30 @@ impl SceneBuffers {
                 ctx.queue.write_buffer(buffer, offset as u64, bytes);
             }
         };
+        if self.by_reference && !changes.bottoms.is_empty() {
+            // Deformed meshes: their words again (a move writes none).
+            self.write_meshes(ctx, scene);
+        }
         for &o in &changes.objects {
             let record = &g.objects[o as usize];
             let range = record.first_triangle as usize..(record.first_triangle + record.triangle_count) as usize;
-            let tri = std::mem::size_of::<TriangleRecord>();
-            let mut triangles = Vec::new();
-            g.triangles.fill(range.clone(), &mut triangles);
-            write(&self.triangles, range.start * tri, bytemuck::cast_slice(&triangles));
-            write(&self.normals, range.start * 9 * 4, bytemuck::cast_slice(&corner_normals(g, range)));
+            // Where its records are: by global id, or with objects by reference its placement
+            // says (an object by reference has none: its placement is its transform).
+            let first_record = match self.by_reference {
+                false => Some(range.start),
+                true => {
+                    let p = placement_record(g, o, &self.mesh_offsets);
+                    let size = std::mem::size_of::<PlacementRecord>();
+                    write(&self.placements, o as usize * size, bytemuck::bytes_of(&p));
+                    (!p.by_reference()).then_some(p.first_record as usize)
+                }
+            };
+            if let Some(first) = first_record {
+                let mut triangles = Vec::new();
+                g.triangles.fill(range.clone(), &mut triangles);
+                write(&self.triangles, first * std::mem::size_of::<TriangleRecord>(), bytemuck::cast_slice(&triangles));
+                write(&self.normals, first * 9 * 4, bytemuck::cast_slice(&corner_normals(g, range)));
+            }
             write(&self.objects, o as usize * std::mem::size_of::<ObjectRecord>(), bytemuck::bytes_of(record));
         }
         if let (false, Some(levels)) = (changes.objects.is_empty(), &scene.levels) {

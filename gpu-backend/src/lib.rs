@@ -34,6 +34,7 @@ pub mod texture;
 pub mod timing;
 pub mod visibility_raster;
 mod wgsl;
+pub mod world_triangles;
 
 pub use context::{AdapterPolicy, GpuContext};
 pub use error::GpuError;

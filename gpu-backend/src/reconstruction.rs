@@ -9,8 +9,10 @@
 //!
 //! Reads: `frame.gbuffer`, `frame.camera` (eye, image size), `frame.params` (the band),
 //! `scene.triangles`,
-//! `scene.normals`, `scene.objects` (`first_triangle`). Writes: `frame.surfaces`
-//! (every texel of the camera's image).
+//! `scene.normals`, `scene.objects` (`first_triangle`); in a scene with objects by
+//! reference also `scene.placements` and `scene.mesh_words` ([`crate::world_triangles`]:
+//! those objects' records and normals made on read). Writes: `frame.surfaces` (every texel
+//! of the camera's image).
 //!
 //! Every product that feeds a sum is kept unfused (`mul`), and divisions and roots are
 //! exact (`div_rn`, `sqrt_rn`), so the surfaces are the CPU's bits on any device that
@@ -27,27 +29,68 @@ const GROUP: u32 = 8;
 
 const SHADER: &str = include_str!("shaders/reconstruction.wgsl");
 
+/// Where the stage's by-reference bindings start (`placements`, then `mesh_words`).
+const BY_REFERENCE_BINDING: u32 = 7;
+
 /// The WGSL of the stage: the generated records and format constants, the ray kernels
 /// with their exact f32 constants (the watertight test of re-intersected barycentrics),
-/// the surface kernels, then the shader.
-pub fn shader_source() -> String {
-    format!("{}{}\n{}\n{}", preamble(), ray_wgsl(), surface_wgsl(), SHADER)
+/// the surface kernels, the world-triangle accessors (through placements for a scene with
+/// objects `by_reference`, [`crate::world_triangles`]), then the shader.
+pub fn shader_source(by_reference: bool) -> String {
+    use crate::world_triangles::{world_normals_wgsl, world_triangles_wgsl};
+    format!(
+        "{}{}\n{}\n{}\n{}\n{}",
+        preamble(),
+        ray_wgsl(),
+        surface_wgsl(),
+        world_triangles_wgsl(by_reference.then_some((0, BY_REFERENCE_BINDING))),
+        world_normals_wgsl(by_reference),
+        SHADER
+    )
 }
 
 /// The `reconstruction` stage: one compute pipeline per source of barycentrics
 /// (`main`: the raster's; `main_reintersected`: the camera rays', mirroring
 /// `hyrt_core::kernels::reconstruction::reconstruct_texel_reintersected` and
-/// `hyrt_core::kernels::camera::primary_ray`).
+/// `hyrt_core::kernels::camera::primary_ray`), for scenes of stored objects, and the same
+/// for scenes with objects by reference, built the first time one is rendered.
 pub struct ReconstructionStage {
+    plain: Pipelines,
+    by_reference: std::sync::OnceLock<Pipelines>,
+}
+
+/// The pipelines of one kind of scene.
+struct Pipelines {
     /// (pipeline, its bind group layout): the raster's barycentrics, then re-intersected.
     raster: (wgpu::ComputePipeline, wgpu::BindGroupLayout),
     reintersected: (wgpu::ComputePipeline, wgpu::BindGroupLayout),
 }
 
 impl ReconstructionStage {
-    /// Build the pipeline.
+    /// Build the pipelines of scenes of stored objects.
     pub fn new(ctx: &GpuContext) -> Self {
-        let module = shader_module(ctx, "reconstruction", &shader_source());
+        ReconstructionStage { plain: Pipelines::new(ctx, false), by_reference: std::sync::OnceLock::new() }
+    }
+
+    /// Build the pipelines of both kinds of scene now.
+    pub fn with_by_reference(ctx: &GpuContext) -> Self {
+        let stage = Self::new(ctx);
+        stage.pipelines(ctx, true);
+        stage
+    }
+
+    /// The pipelines of scenes with objects `by_reference` or without.
+    fn pipelines(&self, ctx: &GpuContext, by_reference: bool) -> &Pipelines {
+        match by_reference {
+            false => &self.plain,
+            true => self.by_reference.get_or_init(|| Pipelines::new(ctx, true)),
+        }
+    }
+}
+
+impl Pipelines {
+    fn new(ctx: &GpuContext, by_reference: bool) -> Self {
+        let module = shader_module(ctx, "reconstruction", &shader_source(by_reference));
         let pipeline = |entry: &str| {
             let p = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some("reconstruction"),
@@ -60,9 +103,11 @@ impl ReconstructionStage {
             let layout = p.get_bind_group_layout(0);
             (p, layout)
         };
-        ReconstructionStage { raster: pipeline("main"), reintersected: pipeline("main_reintersected") }
+        Pipelines { raster: pipeline("main"), reintersected: pipeline("main_reintersected") }
     }
+}
 
+impl ReconstructionStage {
     /// Record the pass over `frame.band` (the frame parameters describe it; the camera
     /// uniform, the whole image).
     pub fn encode(
@@ -77,23 +122,24 @@ impl ReconstructionStage {
         if frame.width == 0 || frame.band.rows == 0 {
             return;
         }
+        let pipelines = self.pipelines(ctx, scene.by_reference);
         let (pipeline, layout) = match barycentrics {
-            PrimaryBarycentrics::Raster => &self.raster,
-            PrimaryBarycentrics::Reintersected => &self.reintersected,
+            PrimaryBarycentrics::Raster => &pipelines.raster,
+            PrimaryBarycentrics::Reintersected => &pipelines.reintersected,
         };
-        let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("reconstruction"),
-            layout,
-            entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: scene.triangles.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 1, resource: scene.normals.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 2, resource: scene.objects.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 3, resource: frame.camera.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 4, resource: frame.gbuffer.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 5, resource: frame.surfaces.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 6, resource: frame.params.as_entire_binding() },
-            ],
-        });
+        let mut buffers = vec![
+            &scene.triangles,
+            &scene.normals,
+            &scene.objects,
+            &frame.camera,
+            &frame.gbuffer,
+            &frame.surfaces,
+            &frame.params,
+        ];
+        if scene.by_reference {
+            buffers.extend([&scene.placements, &scene.mesh_words]);
+        }
+        let group = crate::shader::bind_buffers(ctx, "reconstruction", layout, &buffers);
         let mut pass = crate::timing::begin_timed_pass(encoder, "reconstruction", timing);
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &group, &[]);

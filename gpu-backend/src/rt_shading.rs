@@ -145,9 +145,10 @@ impl RtShadingBouncingStage {
     pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
         let source = crate::shader::radiance_source_for(
             &format!(
-                "{}\n{}",
+                "{}\n{}\n{}",
                 include_str!("shaders/rt_shading.wgsl"),
-                include_str!("shaders/rt_shading_bouncing.wgsl")
+                include_str!("shaders/rt_shading_bouncing.wgsl"),
+                crate::world_triangles::triangle_flags_wgsl(0, 13, s.by_reference)
             ),
             s.denoised.then_some(RT_BOUNCING_VISIBILITY),
         );
@@ -159,7 +160,7 @@ impl RtShadingBouncingStage {
             &[
                 rt_entries().as_slice(),
                 &[
-                    storage_entry(13, true), // triangles
+                    storage_entry(13, true), // triangle flags (triangles, or placements)
                     storage_entry(14, true), // links of depth 1
                     storage_entry(15, true), // radiance of depth 1
                 ],
@@ -189,7 +190,7 @@ impl RtShadingBouncingStage {
             &self.layout,
             &[
                 rt_buffers(scene, frame).as_slice(),
-                &[&scene.triangles, &first.links, &first.radiance],
+                &[scene.flags_table(), &first.links, &first.radiance],
                 if self.denoised { &visibility } else { &[] },
             ]
             .concat(),

@@ -36,6 +36,7 @@ impl SecondaryRaysStage {
                 + &materials_wgsl()
                 + &bounce_wgsl()
                 + include_str!("shaders/secondary_rays.wgsl")
+                + &crate::world_triangles::triangle_flags_wgsl(1, 4, s.by_reference)
                 + &scan_wgsl()),
         );
         let module = shader_module(ctx, "secondary_rays", &source);
@@ -71,7 +72,7 @@ impl SecondaryRaysStage {
             &b.list,
             &frame.camera,
             &scene.objects,
-            &scene.triangles,
+            scene.flags_table(),
             &frame.gbuffer,
             parent_surfaces,
             parent_rays,

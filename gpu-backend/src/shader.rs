@@ -640,10 +640,7 @@ mod tests {
                     include_str!("shaders/rt_shading.wgsl")
                 )),
             ),
-            (
-                "bounce_shading",
-                radiance_source(&format!("{}\n{}", environment_wgsl(), include_str!("shaders/bounce_shading.wgsl"))),
-            ),
+            ("bounce_shading", crate::bounce_shading::shader_source(crate::texture::Specialization::PLAIN)),
         ];
         for (stage, source) in sources {
             assert_eq!(inexact_operations(&source), Ok(Vec::new()), "{stage}");

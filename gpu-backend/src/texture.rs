@@ -110,6 +110,12 @@ pub struct Specialization {
     /// source only when it is set (`shaders/*_two_level.wgsl`), so single-level scenes
     /// bind what they always bound.
     pub two_level: bool,
+    /// Some object is kept by reference ([`hyrt_core::geometry::WorldTriangles::has_references`]):
+    /// the stages that read world triangles make those objects' records on read from their
+    /// placements and meshes, and bind them ([`crate::world_triangles`]). Not a pipeline
+    /// constant: the accessors and their bindings are in the source only when it is set, so
+    /// scenes of stored objects bind and run what they always did.
+    pub by_reference: bool,
     /// Some material is normal-mapped: `reconstruction` and `bounce_trace` are followed by
     /// the normal-mapping passes (`crate::reconstruction::NormalMapping`). Not a pipeline
     /// constant: those passes are built only for such scenes.
@@ -152,6 +158,7 @@ impl Specialization {
         surface_tables: false,
         alpha_tested: false,
         two_level: false,
+        by_reference: false,
         normal_mapped: false,
         ambient_image: false,
         stochastic: false,
@@ -164,6 +171,7 @@ impl Specialization {
             surface_tables: !tables.is_empty(),
             alpha_tested: tables.alpha_tested(),
             two_level: false,
+            by_reference: false,
             normal_mapped: !tables.tangents.is_empty(),
             ambient_image: false,
             stochastic: false,
@@ -171,11 +179,12 @@ impl Specialization {
         }
     }
 
-    /// What a prepared scene needs: its surface tables', whether it has two levels and
-    /// whether it has an image-based light.
+    /// What a prepared scene needs: its surface tables', whether it has two levels, objects
+    /// by reference and an image-based light.
     pub fn of_scene(scene: &hyrt_core::frame::PreparedScene) -> Specialization {
         Specialization {
             two_level: scene.levels.is_some(),
+            by_reference: scene.geometry.triangles.has_references(),
             ambient_image: scene.geometry.ambient.image.is_some(),
             ..Specialization::of(&scene.geometry.surface)
         }

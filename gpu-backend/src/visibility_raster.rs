@@ -119,9 +119,25 @@ fn raster_constants() -> String {
     )
 }
 
-/// The WGSL of [`VisibilityMode::HardwareInterpolated`], specialized for the triangle id source.
-fn interpolated_shader_source(primitive_index: bool) -> String {
-    if primitive_index {
+/// Where the raster's by-reference bindings start (`placements`, then `mesh_words`:
+/// [`crate::world_triangles::world_triangles_wgsl`]), in a scene with objects by reference.
+const BY_REFERENCE_BINDING: u32 = 13;
+
+/// The world-triangle accessors of the stage ([`crate::world_triangles::world_triangles_wgsl`]).
+fn world_triangles(by_reference: bool) -> String {
+    crate::world_triangles::world_triangles_wgsl(by_reference.then_some((0, BY_REFERENCE_BINDING)))
+}
+
+/// The WGSL of [`VisibilityMode::HardwareInterpolated`], specialized for the triangle id
+/// source and for objects by reference (whose records are made with products kept apart
+/// by `camera.pad`, as the exact shader's).
+fn interpolated_shader_source(primitive_index: bool, by_reference: bool) -> String {
+    let mut world = world_triangles(by_reference);
+    if by_reference {
+        world += "fn rounded(x: f32) -> f32 {\n    return bitcast<f32>(bitcast<u32>(x) | camera.pad);\n}\n\
+                  fn mul(a: f32, b: f32) -> f32 {\n    return rounded(a * b);\n}\n";
+    }
+    let source = if primitive_index {
         format!(
             "enable primitive_index;\n{}{COMMON}{}",
             preamble(),
@@ -133,13 +149,16 @@ fn interpolated_shader_source(primitive_index: bool) -> String {
         let body =
             INTERPOLATED_SHADER.replace("TRIANGLE_ID_PARAMETER", "").replace("TRIANGLE_ID_EXPRESSION", "in.triangle");
         format!("{}{COMMON}{body}", preamble())
-    }
+    };
+    source + &world
 }
 
 /// The WGSL of the stage, specialized for the triangle id source and for conservative
 /// depth (`early_depth_test`: the fragment shader declares that the depth it writes is
-/// at least the interpolated one, so the device may keep its early depth test).
-pub fn shader_source(primitive_index: bool, early_depth_test: bool) -> String {
+/// at least the interpolated one, so the device may keep its early depth test) and for
+/// objects by reference (`by_reference`: the world triangles read through their
+/// placements, [`crate::world_triangles`]).
+pub fn shader_source(primitive_index: bool, early_depth_test: bool, by_reference: bool) -> String {
     let body = if primitive_index {
         SHADER
             .replace("TRIANGLE_ID_PARAMETER", "@builtin(primitive_index) primitive: u32,")
@@ -150,7 +169,13 @@ pub fn shader_source(primitive_index: bool, early_depth_test: bool) -> String {
     let body = body
         .replace("EARLY_DEPTH_TEST_ATTRIBUTE", if early_depth_test { "@early_depth_test(greater_equal)" } else { "" });
     let enable = if primitive_index { "enable primitive_index;\n" } else { "" };
-    format!("{enable}{}{}{COMMON}{body}{}", preamble(), raster_constants(), crate::texture::texture_wgsl())
+    format!(
+        "{enable}{}{}{COMMON}{body}{}{}",
+        preamble(),
+        raster_constants(),
+        crate::texture::texture_wgsl(),
+        world_triangles(by_reference)
+    )
 }
 
 /// Render targets of one image size.
@@ -219,6 +244,9 @@ pub struct VisibilityRasterStage {
     resolve_layout: wgpu::BindGroupLayout,
     primitive_index: bool,
     mode: VisibilityMode,
+    /// Compiled for a scene with objects by reference: binds the placements and mesh
+    /// words at [`BY_REFERENCE_BINDING`] on.
+    by_reference: bool,
     /// Render targets of the last image size.
     targets: Mutex<Option<std::sync::Arc<Targets>>>,
     /// Setup records of the last triangle count.
@@ -256,8 +284,8 @@ impl VisibilityRasterStage {
         let constants = s.constants();
         let constants: &[(&str, f64)] = if mode == VisibilityMode::Exact { &constants } else { &[] };
         let source = match mode {
-            VisibilityMode::Exact => shader_source(primitive_index, ctx.early_depth_test),
-            VisibilityMode::HardwareInterpolated => interpolated_shader_source(primitive_index),
+            VisibilityMode::Exact => shader_source(primitive_index, ctx.early_depth_test, s.by_reference),
+            VisibilityMode::HardwareInterpolated => interpolated_shader_source(primitive_index, s.by_reference),
         };
         let module = shader_module(ctx, "visibility_raster", &source);
         let raster = ctx.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -323,8 +351,24 @@ impl VisibilityRasterStage {
             resolve,
             primitive_index,
             mode,
+            by_reference: s.by_reference,
             targets: Mutex::new(None),
             setups: Mutex::new(None),
+        }
+    }
+
+    /// The bindings of the by-reference tables (placements, mesh words) from
+    /// [`BY_REFERENCE_BINDING`] on, for a stage compiled for them; none otherwise.
+    fn by_reference_entries<'a>(&self, scene: &'a SceneBuffers) -> Vec<wgpu::BindGroupEntry<'a>> {
+        match self.by_reference {
+            false => Vec::new(),
+            true => vec![
+                wgpu::BindGroupEntry { binding: BY_REFERENCE_BINDING, resource: scene.placements.as_entire_binding() },
+                wgpu::BindGroupEntry {
+                    binding: BY_REFERENCE_BINDING + 1,
+                    resource: scene.mesh_words.as_entire_binding(),
+                },
+            ],
         }
     }
 
@@ -402,6 +446,8 @@ impl VisibilityRasterStage {
         if width == 0 || rows == 0 {
             return;
         }
+        debug_assert_eq!(self.by_reference, scene.by_reference, "a raster compiled for the scene's world triangles");
+        let by_reference = self.by_reference_entries(scene);
         let targets = self.targets(ctx, width, frame.rows);
         let run_setup = self.setup.is_some() && frame.band.first_row == 0;
         let raster_group = match (&self.setup, &self.setup_layout) {
@@ -428,6 +474,7 @@ impl VisibilityRasterStage {
                             wgpu::BindGroupEntry { binding: 12, resource: scene.surface.layout.as_entire_binding() },
                         ]),
                     }
+                    entries.extend(by_reference.iter().cloned());
                     ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                         label: Some(label),
                         layout,
@@ -464,10 +511,14 @@ impl VisibilityRasterStage {
                 label: Some("visibility_raster (hardware interpolated)"),
                 layout: &self.raster_layout,
                 entries: &[
-                    wgpu::BindGroupEntry { binding: 0, resource: scene.triangles.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 1, resource: frame.camera.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 10, resource: frame.params.as_entire_binding() },
-                ],
+                    &[
+                        wgpu::BindGroupEntry { binding: 0, resource: scene.triangles.as_entire_binding() },
+                        wgpu::BindGroupEntry { binding: 1, resource: frame.camera.as_entire_binding() },
+                        wgpu::BindGroupEntry { binding: 10, resource: frame.params.as_entire_binding() },
+                    ],
+                    &by_reference[..],
+                ]
+                .concat(),
             }),
         };
         self.encode_band(ctx, encoder, scene, frame, &targets, &raster_group, timing, !run_setup)
@@ -488,16 +539,23 @@ impl VisibilityRasterStage {
         first_timestamp: bool,
     ) {
         let (width, rows) = (frame.width, frame.band.rows);
+        let camera = [wgpu::BindGroupEntry { binding: 1, resource: frame.camera.as_entire_binding() }];
         let resolve_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("visibility_raster resolve"),
             layout: &self.resolve_layout,
             entries: &[
-                wgpu::BindGroupEntry { binding: 0, resource: scene.triangles.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&targets.id) },
-                wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::TextureView(&targets.surface) },
-                wgpu::BindGroupEntry { binding: 4, resource: frame.gbuffer.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 10, resource: frame.params.as_entire_binding() },
-            ],
+                &[
+                    wgpu::BindGroupEntry { binding: 0, resource: scene.triangles.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&targets.id) },
+                    wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::TextureView(&targets.surface) },
+                    wgpu::BindGroupEntry { binding: 4, resource: frame.gbuffer.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 10, resource: frame.params.as_entire_binding() },
+                ][..],
+                &self.by_reference_entries(scene)[..],
+                // Records made on read keep their products apart with `camera.pad`.
+                if self.by_reference { &camera[..] } else { &[] },
+            ]
+            .concat(),
         });
         {
             let clear = |view| {

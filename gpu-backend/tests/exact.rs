@@ -258,11 +258,12 @@ fn every_stage_uses_only_exact_operations() {
     let Some(ctx) = test_context() else { return };
     use hyrt_gpu::texture::Specialization;
     use hyrt_gpu::visibility_raster::{VisibilityMode, VisibilityRasterStage};
-    for bits in 0..64u32 {
+    for bits in 0..128u32 {
         let s = Specialization {
             surface_tables: bits & 1 != 0,
             alpha_tested: bits & 2 != 0,
             two_level: bits & 4 != 0,
+            by_reference: bits & 64 != 0,
             normal_mapped: bits & 8 != 0,
             ambient_image: bits & 16 != 0,
             stochastic: bits & 32 != 0,
@@ -284,6 +285,6 @@ fn every_stage_uses_only_exact_operations() {
     hyrt_gpu::compaction::CompactionStage::new(&ctx);
     hyrt_gpu::shadow_denoise::ShadowDenoiseStage::new(&ctx);
     hyrt_gpu::composition::CompositionStage::new(&ctx);
-    hyrt_gpu::reconstruction::ReconstructionStage::new(&ctx);
+    hyrt_gpu::reconstruction::ReconstructionStage::with_by_reference(&ctx);
     hyrt_gpu::reconstruction::NormalMapping::new(&ctx);
 }

@@ -10,11 +10,13 @@
 //!   the shaders' structs are generated from them ([`wgsl::declarations`]).
 
 mod bvh;
+mod placement;
 mod records;
 mod textures;
 pub mod wgsl;
 
 pub use bvh::*;
+pub use placement::*;
 pub use records::*;
 pub use textures::*;
 

@@ -11,8 +11,8 @@
 
 use crate::formats::{
     AmbientLightRecord, BvhNode, CameraRecord, EmitterRecord, EnvironmentRecord, FrameParams, GBufferTexel, HitRecord,
-    InstanceRecord, LightRecord, ListParams, MaterialRecord, MotionRecord, ObjectRecord, RayRecord, SurfaceLayout,
-    SurfaceRecord, TextureRecord, TriangleRecord, TriangleUvRecord,
+    InstanceRecord, LightRecord, ListParams, MaterialRecord, MotionRecord, ObjectRecord, PlacementRecord, RayRecord,
+    SurfaceLayout, SurfaceRecord, TextureRecord, TriangleRecord, TriangleUvRecord,
 };
 
 /// The WGSL type of a record field.
@@ -294,6 +294,7 @@ pub fn struct_declarations() -> String {
         InstanceRecord::declaration(),
         MotionRecord::declaration(),
         EmitterRecord::declaration(),
+        PlacementRecord::declaration(),
     ]
     .join("\n")
 }
@@ -335,6 +336,7 @@ mod tests {
         InstanceRecord::check_layout().unwrap();
         MotionRecord::check_layout().unwrap();
         EmitterRecord::check_layout().unwrap();
+        PlacementRecord::check_layout().unwrap();
     }
 
     #[test]

@@ -28,7 +28,9 @@ use crate::kernels::ibl::AmbientLight;
 use crate::kernels::texture::{triangle_lod_bias, SurfaceView};
 use crate::scene::{Environment, Material, MaterialKind, Mesh, RenderMode, Scene, TextureBinding};
 
-pub use triangles::{world_normals, world_record, ByReference, MeshSource, ObjectTransform, Placement, WorldTriangles};
+pub use triangles::{
+    world_normals, world_record, ByReference, MeshSource, MeshWords, ObjectTransform, Placement, WorldTriangles,
+};
 
 /// How a mesh's triangles are wound, as far as the renderer needs to know: which side of a
 /// closed mesh is its exterior.
@@ -957,6 +959,62 @@ mod tests {
         assert_eq!(MeshWinding::Outward.transformed(-1.0), MeshWinding::Inward);
         assert_eq!(MeshWinding::Inward.transformed(-2.0), MeshWinding::Outward);
         assert_eq!(MeshWinding::Open.transformed(-1.0), MeshWinding::Open);
+    }
+
+    /// What a device reads of a table with objects by reference: the mesh words hold each
+    /// shared mesh once (its positions, normals and triangles where the offsets say), and a
+    /// placement per object names its stored records or its transform, normal matrix, mesh
+    /// and flags; a table of stored objects has every placement stored from its first id.
+    #[test]
+    fn placements_and_mesh_words_describe_every_object() {
+        let mut scene = Scene::default();
+        let torus = Mesh::torus("torus", 1.0, 0.3, 8, 6);
+        let mut material = Material::grey();
+        material.alpha_mode = crate::scene::AlphaMode::Mask { cutoff: 0.5 };
+        scene.add_object(Mesh::grid("floor", 2), Material::grey(), Mat4::IDENTITY, RenderMode::Raster);
+        scene.add_object(torus.clone(), material, Mat4::from_translation(Vec3::X), RenderMode::RayTraced);
+        scene.add_object(Mesh::cube("cube"), Material::grey(), Mat4::from_scale(Vec3::splat(-2.0)), RenderMode::Raster);
+        let mut copy = scene.objects[1].clone();
+        copy.id = 3;
+        copy.transform = Mat4::from_rotation_z(0.5) * Mat4::from_scale(Vec3::new(1.0, -2.0, 3.0));
+        scene.objects.push(copy);
+        let g = WorldGeometry::build_placed(&scene, &[false, true, false, true]);
+        let (words, meshes) = g.triangles.mesh_words().expect("a small table");
+        assert_eq!(meshes.len(), 1, "the torus once, for both of its objects");
+        assert_eq!(words.len(), g.triangles.mesh_word_count());
+        let m = meshes[0];
+        let vec3 = |first: u32, i: usize| {
+            Vec3::from_array(std::array::from_fn(|k| f32::from_bits(words[first as usize + 3 * i + k])))
+        };
+        assert!(torus.positions.iter().enumerate().all(|(i, p)| vec3(m.positions, i) == *p));
+        let normals = torus.normals.as_ref().expect("the torus has normals");
+        assert!(normals.iter().enumerate().all(|(i, n)| vec3(m.normals, i) == *n));
+        let indices = &words[m.indices as usize..];
+        assert!(torus.indices.iter().flatten().zip(indices).all(|(a, b)| a == b));
+        let mut stored_records = 0;
+        for (o, r) in g.objects.iter().enumerate() {
+            let p = g.triangles.placement_record(o as u32, r.first_triangle, r.triangle_count, &meshes);
+            assert_eq!(p.validate(), Ok(()));
+            assert_eq!((p.first_triangle, p.triangle_count), (r.first_triangle, r.triangle_count));
+            assert_eq!(p.flags, g.triangles.flags(r.first_triangle as usize), "object {o}");
+            assert_eq!(p.by_reference(), o % 2 == 1, "object {o}");
+            if p.by_reference() {
+                let t = ObjectTransform::new(scene.objects[o].transform);
+                assert_eq!(Vec3::from(p.to_world_w), t.to_world.w_axis.truncate());
+                assert_eq!(Vec3::from(p.normal_y), t.normal_matrix.y_axis);
+                assert_eq!((p.mesh_indices, p.mesh_positions, p.mesh_normals), (m.indices, m.positions, m.normals));
+            } else {
+                assert_eq!(p.first_record, stored_records, "object {o}: stored after the stored objects before it");
+                stored_records += r.triangle_count;
+            }
+        }
+        assert_eq!(g.triangles.stored_records().len(), stored_records as usize);
+        assert_eq!(g.triangles.stored_normals().len(), stored_records as usize);
+        let all_stored = WorldGeometry::build(&scene);
+        for (o, r) in all_stored.objects.iter().enumerate() {
+            let p = all_stored.triangles.placement_record(o as u32, r.first_triangle, r.triangle_count, &[]);
+            assert_eq!((p.by_reference(), p.first_record), (false, r.first_triangle));
+        }
     }
 
     /// An object by reference gets the extent its stored copy gets, bit for bit, also on

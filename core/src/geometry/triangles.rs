@@ -22,7 +22,7 @@ use bytemuck::Zeroable;
 
 use glam::{Mat3, Mat4, Vec3};
 
-use crate::formats::TriangleRecord;
+use crate::formats::{PlacementRecord, TriangleRecord, INVALID_ID};
 use crate::scene::Mesh;
 
 /// The part of a mesh that world records are made from, shared by the objects that draw
@@ -106,6 +106,17 @@ pub fn world_normals(world: [Vec3; 3], idx: [u32; 3], normals: Option<&[Vec3]>, 
         }),
         None => [face; 3],
     }
+}
+
+/// Where one shared mesh's words start in [`WorldTriangles::mesh_words`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MeshWords {
+    /// First word of its triangles (three vertex indices each).
+    pub indices: u32,
+    /// First word of its positions (three f32 bit patterns each).
+    pub positions: u32,
+    /// First word of its vertex normals; [`INVALID_ID`] for a mesh without them.
+    pub normals: u32,
 }
 
 /// An object whose records are made on read.
@@ -421,6 +432,102 @@ impl WorldTriangles {
     /// The mesh an object by reference draws.
     pub fn mesh(&self, index: u32) -> &MeshSource {
         &self.meshes[index as usize]
+    }
+
+    /// The stored objects' corner normals, object after object (by record index, as
+    /// [`WorldTriangles::stored_records`]).
+    pub fn stored_normals(&self) -> &[[Vec3; 3]] {
+        &self.normals
+    }
+
+    /// The meshes of objects by reference as one table of words, for a device that makes
+    /// their records on read ([`PlacementRecord`]): each mesh's positions (three f32 bit
+    /// patterns a vertex), then its vertex normals (likewise, when it has them), then its
+    /// triangles (three vertex indices each), mesh after mesh. Returns the words and, per
+    /// mesh, the first word of its `[indices, positions, normals]` (normals
+    /// [`INVALID_ID`] for a mesh without them); `None` when they would take 2^32 words or
+    /// more (word offsets are u32).
+    pub fn mesh_words(&self) -> Option<(Vec<u32>, Vec<MeshWords>)> {
+        let total = self.mesh_word_count();
+        if total >= INVALID_ID as usize {
+            return None;
+        }
+        let mut words = Vec::with_capacity(total);
+        let mut offsets = Vec::with_capacity(self.meshes.len());
+        let vec3_words = |v: &Vec3| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits()];
+        for m in &self.meshes {
+            let positions = words.len() as u32;
+            words.extend(m.positions.iter().flat_map(vec3_words));
+            let normals = match &m.normals {
+                Some(ns) => {
+                    let first = words.len() as u32;
+                    words.extend(ns.iter().flat_map(vec3_words));
+                    first
+                }
+                None => INVALID_ID,
+            };
+            let indices = words.len() as u32;
+            words.extend(m.indices.iter().flatten());
+            offsets.push(MeshWords { indices, positions, normals });
+        }
+        Some((words, offsets))
+    }
+
+    /// The number of words [`WorldTriangles::mesh_words`] takes (it gives none from
+    /// [`INVALID_ID`] words on).
+    pub fn mesh_word_count(&self) -> usize {
+        self.meshes
+            .iter()
+            .map(|m| 3 * (m.positions.len() + m.normals.as_ref().map_or(0, Vec::len) + m.indices.len()))
+            .sum()
+    }
+
+    /// Object `object`'s [`PlacementRecord`] (its first global id `first_triangle`, its
+    /// `count` triangles), its mesh found in the words of [`WorldTriangles::mesh_words`] at
+    /// `meshes`: a stored object's first record and flags, or an object by reference's
+    /// transform, normal matrix, mesh words and flags. A table without objects by reference
+    /// has every object stored from its first id.
+    pub fn placement_record(
+        &self,
+        object: u32,
+        first_triangle: u32,
+        count: u32,
+        meshes: &[MeshWords],
+    ) -> PlacementRecord {
+        let mut record = PlacementRecord {
+            first_triangle,
+            triangle_count: count,
+            mesh_indices: INVALID_ID,
+            mesh_positions: INVALID_ID,
+            mesh_normals: INVALID_ID,
+            ..PlacementRecord::zeroed()
+        };
+        match self.placement(object, first_triangle) {
+            Placement::Stored { first_record } => {
+                record.first_record = first_record;
+                // Every triangle of an object carries the object's flags.
+                let own = &self.records[first_record as usize..(first_record + count) as usize];
+                record.flags = own.first().map_or(0, |r| r.flags);
+                debug_assert!(own.iter().all(|r| r.flags == record.flags), "object {object}: mixed triangle flags");
+            }
+            Placement::ByReference(r) => {
+                let words = meshes[r.mesh as usize];
+                let (m, n) = (r.transform.to_world, r.transform.normal_matrix);
+                record.to_world_x = m.x_axis.truncate().into();
+                record.to_world_y = m.y_axis.truncate().into();
+                record.to_world_z = m.z_axis.truncate().into();
+                record.to_world_w = m.w_axis.truncate().into();
+                record.normal_x = n.x_axis.into();
+                record.normal_y = n.y_axis.into();
+                record.normal_z = n.z_axis.into();
+                record.mesh_indices = words.indices;
+                record.mesh_positions = words.positions;
+                record.mesh_normals = words.normals;
+                record.flags = r.flags;
+                record.first_record = INVALID_ID;
+            }
+        }
+        record
     }
 
     /// Bytes held: stored records and normals, placements and shared meshes.

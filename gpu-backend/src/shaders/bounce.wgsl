@@ -183,7 +183,7 @@ fn parent_lobes(p: Parent) -> ParentLobes {
     if !bounces(obj) {
         return out;
     }
-    let inward = (triangles[s.triangle].flags & TRI_INWARD) != 0u;
+    let inward = (triangle_flags(s.object, s.triangle) & TRI_INWARD) != 0u;
     return ParentLobes(true, obj, lobes(obj, s, p.d, sees_exterior(p.back_face, inward)));
 }
 

@@ -17,7 +17,7 @@
 @group(0) @binding(5) var<storage, read> surfaces: array<SurfaceRecord>;
 @group(0) @binding(6) var<storage, read> shadow: array<u32>;
 @group(0) @binding(7) var<storage, read> objects: array<ObjectRecord>;
-@group(0) @binding(8) var<storage, read> triangles: array<TriangleRecord>;
+// Binding 8: the triangle flags (hyrt_gpu::world_triangles::triangle_flags_wgsl).
 @group(0) @binding(9) var<storage, read> lights: array<LightRecord>;
 @group(0) @binding(10) var<uniform> environment: EnvironmentRecord;
 @group(0) @binding(11) var<storage, read> environment_texels: array<vec4<f32>>;

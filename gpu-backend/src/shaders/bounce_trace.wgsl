@@ -170,7 +170,7 @@ fn reconstruct_hit(hit: HitRecord, direction: vec3<f32>) -> SurfaceRecord {
         return SurfaceRecord(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), INVALID_ID, vec3<f32>(0.0), INVALID_ID);
     }
     let gi = hit.triangle;
-    let tri = triangles[gi];
+    let tri = world_triangle(gi);
     let p = reconstruct_position(hit.u, hit.v, tri.v0, tri.v1, tri.v2);
     return surface_at(gi, hit.u, hit.v, (hit.flags & HIT_BACK_FACE) != 0u, p, -direction);
 }

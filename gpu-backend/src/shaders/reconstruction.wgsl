@@ -45,7 +45,7 @@ fn reconstruct_texel(t: GBufferTexel) -> SurfaceRecord {
         return MISS_SURFACE;
     }
     let gi = objects[t.object].first_triangle + t.triangle;
-    return texel_surface(t, gi, triangles[gi], vec2<f32>(t.bary_u, t.bary_v));
+    return texel_surface(t, gi, world_triangle(gi), vec2<f32>(t.bary_u, t.bary_v));
 }
 
 fn mul4(a: vec4<f32>, s: f32) -> vec4<f32> {
@@ -98,7 +98,7 @@ fn reconstruct_texel_reintersected(t: GBufferTexel, x: u32, y: u32) -> SurfaceRe
         return MISS_SURFACE;
     }
     let gi = objects[t.object].first_triangle + t.triangle;
-    let tri = triangles[gi];
+    let tri = world_triangle(gi);
     return texel_surface(t, gi, tri, reintersected_barycentrics(t, tri, primary_ray_direction(x, y)));
 }
 

@@ -10,7 +10,7 @@
 // surface_shading.wgsl, ray.wgsl, bounce.wgsl, bounce_radiance.wgsl, rt_shading.wgsl (the
 // bindings 0 to 12 and the pixel loop, which calls this file's `rt_pixel`).
 
-@group(0) @binding(13) var<storage, read> triangles: array<TriangleRecord>;
+// Binding 13: the triangle flags (hyrt_gpu::world_triangles::triangle_flags_wgsl).
 @group(0) @binding(14) var<storage, read> links: array<vec2<u32>>;
 @group(0) @binding(15) var<storage, read> child_radiance: array<vec4<f32>>;
 

@@ -13,7 +13,7 @@
 @group(1) @binding(1) var<uniform> list: ListParams;
 @group(1) @binding(2) var<uniform> camera: CameraRecord;
 @group(1) @binding(3) var<storage, read> objects: array<ObjectRecord>;
-@group(1) @binding(4) var<storage, read> triangles: array<TriangleRecord>;
+// Binding 4: the triangle flags (hyrt_gpu::world_triangles::triangle_flags_wgsl).
 @group(1) @binding(5) var<storage, read> gbuffer: array<GBufferTexel>;
 @group(1) @binding(6) var<storage, read> parent_surfaces: array<SurfaceRecord>;
 @group(1) @binding(7) var<storage, read> parent_rays: array<RayRecord>;

@@ -112,14 +112,15 @@ fn any_nonzero(a: vec3<f32>) -> bool {
 // from its back when `back_face`; a degenerate triangle without vertex normals gets the
 // normal `toward` normalized (the direction towards the viewer).
 fn surface_at(gi: u32, u: f32, v: f32, back_face: bool, p: vec3<f32>, toward: vec3<f32>) -> SurfaceRecord {
-    let tri = triangles[gi];
+    let tri = world_triangle(gi);
     let v0 = tri.v0;
     let v1 = tri.v1;
     let v2 = tri.v2;
     // Its object's offset error (0 unless its rays are traced in its own space).
     let err = max_element(position_error_bound(u, v, v0, v1, v2)) + objects[tri.object].offset_error;
     var ng = geometric_normal(v0, v1, v2);
-    var ns = interpolate_normal(u, v, corner_normal(gi, 0u), corner_normal(gi, 1u), corner_normal(gi, 2u), ng);
+    let corners = world_triangle_normals(gi, tri);
+    var ns = interpolate_normal(u, v, corners[0], corners[1], corners[2], ng);
     // The side the ray saw, exactly.
     let oriented = orient_to_seen_side(ng, ns, back_face);
     ng = oriented[0];

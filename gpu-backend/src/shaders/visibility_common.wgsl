@@ -41,7 +41,7 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
         gbuffer[pixel] = GBufferTexel(0.0, 0.0, 1.0, INVALID_ID, INVALID_ID, 0u);
         return;
     }
-    let t = triangles[id - 1u];
+    let t = world_triangle(id - 1u);
     let s = textureLoad(surface_target, vec2<u32>(gid.xy), 0);
     var flags = GBUF_HIT;
     if (t.flags & TRI_RAY_TRACED) != 0u {

@@ -149,7 +149,7 @@ fn setup(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
     }
     var out: RasterSetup;
     out.x = vec4<i32>(0, 0, 0, i32(SETUP_NONE));
-    let t = triangles[index];
+    let t = world_triangle(index);
     let c = array<vec4<f32>, 3>(clip_position_exact(t.v0), clip_position_exact(t.v1), clip_position_exact(t.v2));
     let outcodes = reference_outcodes(c);
     if !(is_finite4(c[0]) && is_finite4(c[1]) && is_finite4(c[2])) || outcodes.x != 0u {
@@ -834,12 +834,12 @@ fn fs_main(
             discard;
         }
     } else {
-        sample = sample_clipped(triangles[id], p);
+        sample = sample_clipped(world_triangle(id), p);
         if !sample.covered {
             discard;
         }
     }
-    let t = triangles[id];
+    let t = world_triangle(id);
     // A masked fragment (hyrt_cpu visibility_raster's `AlphaTested` sink): where the
     // alpha test fails at the barycentrics this fragment's texel would get, there is no
     // surface, and the fragment is dropped before the depth test. ALPHA_TESTED is a

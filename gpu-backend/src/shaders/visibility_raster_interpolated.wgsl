@@ -35,7 +35,7 @@ fn clip_position(v: vec3<f32>) -> vec4<f32> {
 fn vs_main(@builtin(vertex_index) vertex_index: u32) -> VertexOut {
     let tri_index = vertex_index / 3u;
     let corner = vertex_index % 3u;
-    let t = triangles[tri_index];
+    let t = world_triangle(tri_index);
     // All three corners, so every vertex of a triangle makes the same decision.
     let c0 = clip_position(t.v0);
     let c1 = clip_position(t.v1);
