@@ -21,6 +21,7 @@ use hyrt_core::glam::Vec3;
 use hyrt_core::kernels::area_light::{pick_emitter, sample_emitters, triangle_point, LightSample, ONE_BELOW_ONE};
 use hyrt_core::kernels::soft_shadow::{
     area_light_sample, frame_lights, frame_occlusion, light_slots, occlusion_direction, stream_seed, surface_key,
+    Lights,
 };
 use hyrt_core::scene::Light;
 use hyrt_gpu::buffers::{packed_lights, SlotParams};
@@ -56,11 +57,13 @@ const NAMES: [&str; OUT] = [
     "ambient_occlusion.samples",
 ];
 
-const ENTRY: &str = r#"
+/// The bindings of both tests' entries ([`entries`]): the frame's params, ambient light and
+/// lights (with the emitter table after the records), each query's inputs at 3 (the test's
+/// own) and sample index at 4, the results, the slot params; and a result writer.
+const BINDINGS: &str = r#"
 @group(0) @binding(0) var<uniform> params: FrameParams;
 @group(0) @binding(1) var<uniform> ambient_light: AmbientLightRecord;
 @group(0) @binding(2) var<storage, read> lights: array<LightRecord>;
-@group(0) @binding(3) var<storage, read> surfaces: array<SurfaceRecord>;
 @group(0) @binding(4) var<storage, read> samples: array<u32>;
 @group(0) @binding(5) var<storage, read_write> results: array<u32>;
 @group(0) @binding(6) var<uniform> slot_params: SlotParams;
@@ -70,6 +73,23 @@ fn out_v3(o: u32, v: vec3<f32>) {
     results[o + 1u] = bitcast<u32>(v.y);
     results[o + 2u] = bitcast<u32>(v.z);
 }
+"#;
+
+/// The layout of [`BINDINGS`] and a test's binding 3.
+fn entries() -> [wgpu::BindGroupLayoutEntry; 7] {
+    [
+        uniform_entry(0),
+        uniform_entry(1),
+        storage_entry(2, true),
+        storage_entry(3, true),
+        storage_entry(4, true),
+        storage_entry(5, false),
+        uniform_entry(6),
+    ]
+}
+
+const ENTRY: &str = r#"
+@group(0) @binding(3) var<storage, read> surfaces: array<SurfaceRecord>;
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -268,17 +288,8 @@ fn soft_shadow_kernels_match_cpu_bit_for_bit() {
         ao_radius: ao.radius,
         ..bytemuck::Zeroable::zeroed()
     };
-    let source = shading_source(&format!("const OUT: u32 = {OUT}u;\n{}\n{ENTRY}", soft_shadow_wgsl()));
+    let source = shading_source(&format!("const OUT: u32 = {OUT}u;\n{}\n{BINDINGS}\n{ENTRY}", soft_shadow_wgsl()));
     assert_eq!(inexact_operations(&source), Ok(Vec::new()));
-    let entries = [
-        uniform_entry(0),
-        uniform_entry(1),
-        storage_entry(2, true),
-        storage_entry(3, true),
-        storage_entry(4, true),
-        storage_entry(5, false),
-        uniform_entry(6),
-    ];
     let buffers = [
         &uniform(&ctx, bytemuck::bytes_of(&FrameParams::new(1, 1, 1, 1.0))),
         &uniform(&ctx, bytemuck::bytes_of(&ambient)),
@@ -289,7 +300,7 @@ fn soft_shadow_kernels_match_cpu_bit_for_bit() {
         // No emitter table (the lights are one per query).
         &uniform(&ctx, bytemuck::bytes_of(&SlotParams::of(&lights, ao.samples))),
     ];
-    let gpu = dispatch(&ctx, &source, &entries, &buffers, 5, count);
+    let gpu = dispatch(&ctx, &source, &entries(), &buffers, 5, count);
 
     let (mut some_light, mut some_ao) = (0, 0);
     let mut differing = Differing::new();
@@ -322,8 +333,8 @@ fn soft_shadow_kernels_match_cpu_bit_for_bit() {
 }
 
 /// Input words per query of the emitter kernels: `x`, the triangle `v0, e1, e2`, the
-/// sequence point `u`, the point `p`, the sample index.
-const EMITTER_IN: usize = 16;
+/// sequence point `u`, the point `p` (the sample index in `samples`).
+const EMITTER_IN: usize = 15;
 
 /// Result words per query of the emitter kernels.
 const EMITTER_OUT: usize = 23;
@@ -358,12 +369,7 @@ const EMITTER_NAMES: [&str; EMITTER_OUT] = [
 /// The emitter kernels of query `i` (inputs `queries`, in the words of `EMITTER_IN`) over
 /// the table packed into `lights` after its one record, a `LIGHT_EMITTERS` light.
 const EMITTER_ENTRY: &str = r#"
-@group(0) @binding(0) var<uniform> params: FrameParams;
-@group(0) @binding(1) var<uniform> ambient_light: AmbientLightRecord;
-@group(0) @binding(2) var<storage, read> lights: array<LightRecord>;
 @group(0) @binding(3) var<storage, read> queries: array<u32>;
-@group(0) @binding(4) var<storage, read_write> results: array<u32>;
-@group(0) @binding(5) var<uniform> slot_params: SlotParams;
 
 fn in_f32(q: u32, w: u32) -> f32 {
     return bitcast<f32>(queries[q * EMITTER_IN + w]);
@@ -371,12 +377,6 @@ fn in_f32(q: u32, w: u32) -> f32 {
 
 fn in_v3(q: u32, w: u32) -> vec3<f32> {
     return vec3<f32>(in_f32(q, w), in_f32(q, w + 1u), in_f32(q, w + 2u));
-}
-
-fn out_v3(o: u32, v: vec3<f32>) {
-    results[o] = bitcast<u32>(v.x);
-    results[o + 1u] = bitcast<u32>(v.y);
-    results[o + 2u] = bitcast<u32>(v.z);
 }
 
 fn out_sample(o: u32, ls: LightSample) {
@@ -389,7 +389,7 @@ fn out_sample(o: u32, ls: LightSample) {
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
-    if i >= arrayLength(&queries) / EMITTER_IN {
+    if i >= arrayLength(&samples) {
         return;
     }
     let o = i * EMITTER_OUT;
@@ -406,7 +406,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     out_v3(o + 3u, triangle_point(in_v3(i, 1u), in_v3(i, 4u), in_v3(i, 7u), u));
     out_sample(o + 6u, sample_emitters(p, u));
     let light = lights[0];
-    out_sample(o + 14u, area_light_sample(light, p, queries[i * EMITTER_IN + 15u]));
+    out_sample(o + 14u, area_light_sample(light, p, samples[i]));
     results[o + 22u] = light_slots(light);
 }
 "#;
@@ -472,7 +472,6 @@ fn emitter_query(rng: &mut Rng, k: usize, table: &[EmitterRecord]) -> [u32; EMIT
     }
     q[10..12].copy_from_slice(&u.map(f32::to_bits));
     q[12..15].copy_from_slice(&words(p));
-    q[15] = if k % 7 == 0 { rng.u32() } else { rng.u32() % 64 };
     q
 }
 
@@ -486,18 +485,10 @@ fn emitter_query(rng: &mut Rng, k: usize, table: &[EmitterRecord]) -> [u32; EMIT
 fn emitter_kernels_match_cpu_bit_for_bit() {
     let Some(ctx) = test_context() else { return };
     let source = shading_source(&format!(
-        "const EMITTER_IN: u32 = {EMITTER_IN}u;\nconst EMITTER_OUT: u32 = {EMITTER_OUT}u;\n{}\n{EMITTER_ENTRY}",
+        "const EMITTER_IN: u32 = {EMITTER_IN}u;\nconst EMITTER_OUT: u32 = {EMITTER_OUT}u;\n{}\n{BINDINGS}\n{EMITTER_ENTRY}",
         soft_shadow_wgsl()
     ));
     assert_eq!(inexact_operations(&source), Ok(Vec::new()));
-    let entries = [
-        uniform_entry(0),
-        uniform_entry(1),
-        storage_entry(2, true),
-        storage_entry(3, true),
-        storage_entry(4, false),
-        uniform_entry(5),
-    ];
     let mut rng = Rng(0x2545_f491_4f6c_dd1d);
     let ambient: AmbientLightRecord = bytemuck::Zeroable::zeroed();
     let count = 1 << 12;
@@ -508,18 +499,17 @@ fn emitter_kernels_match_cpu_bit_for_bit() {
         let light = frame_lights(&[LightRecord::emitters()], 4, rng.u32()).remove(0);
         let lights = packed_lights(&[light], &table);
         let queries: Vec<u32> = (0..count).flat_map(|k| emitter_query(&mut rng, k, &table)).collect();
+        let samples: Vec<u32> = (0..count).map(|k| if k % 7 == 0 { rng.u32() } else { rng.u32() % 64 }).collect();
         let buffers = [
             &uniform(&ctx, bytemuck::bytes_of(&FrameParams::new(1, 1, 1, 1.0))),
             &uniform(&ctx, bytemuck::bytes_of(&ambient)),
             &upload(&ctx, "lights", &lights),
             &upload(&ctx, "queries", &queries),
+            &upload(&ctx, "samples", &samples),
             &storage::<u32>(&ctx, "results", count * EMITTER_OUT).expect("results buffer"),
-            &uniform(
-                &ctx,
-                bytemuck::bytes_of(&SlotParams::of(hyrt_core::kernels::soft_shadow::Lights::new(&[light], &table), 0)),
-            ),
+            &uniform(&ctx, bytemuck::bytes_of(&SlotParams::of(Lights::new(&[light], &table), 0))),
         ];
-        let gpu = dispatch(&ctx, &source, &entries, &buffers, 4, count);
+        let gpu = dispatch(&ctx, &source, &entries(), &buffers, 5, count);
         let mut hits = vec![0usize; table.len()];
         for k in 0..count {
             let q = &queries[k * EMITTER_IN..(k + 1) * EMITTER_IN];
@@ -536,7 +526,7 @@ fn emitter_kernels_match_cpu_bit_for_bit() {
             let ls = sample_emitters(&table, p, u);
             some += ls.is_some() as usize;
             want[6..14].copy_from_slice(&sample_words(ls));
-            want[14..22].copy_from_slice(&sample_words(area_light_sample(&light, &table, p, q[15])));
+            want[14..22].copy_from_slice(&sample_words(area_light_sample(&light, &table, p, samples[k])));
             want[22] = light_slots(&light) as u32;
             compare_words(
                 &mut differing,
@@ -544,7 +534,7 @@ fn emitter_kernels_match_cpu_bit_for_bit() {
                 k,
                 &gpu[k * EMITTER_OUT..(k + 1) * EMITTER_OUT],
                 &want,
-                || format!("{n} emitters (giant {giant}), x {x}, u {u:?}, p {p}, sample {}", q[15]),
+                || format!("{n} emitters (giant {giant}), x {x}, u {u:?}, p {p}, sample {}", samples[k]),
             );
         }
         picked += hits.iter().filter(|&&h| h > 0).count();

@@ -5,9 +5,9 @@
 //! it) or not (`FrameOptions::denoise` false, `--no-denoise`), whole or in bands of rows
 //! (a denoised band is rendered with a halo of rows, `hyrt_gpu::band`); and so do emissive
 //! meshes as lights (`emissive_lights`: the emitter table packed into the lights' binding,
-//! `hyrt_gpu::buffers::packed_lights`), moving or not, and the `DamagedHelmet` through a
-//! manifest where the shared assets hold it. (The conformance corpus' `stochastic_*` cases
-//! compare such frames stage by stage too.)
+//! `hyrt_gpu::buffers::packed_lights`), moving or not. (The conformance corpus'
+//! `stochastic_*` cases compare such frames stage by stage too, and
+//! `conformance/tests/emissive_lights.rs` the `DamagedHelmet` as emitters.)
 
 mod common;
 
@@ -131,6 +131,33 @@ fn first_difference(a: &Frame, b: &Frame) -> Option<String> {
     })
 }
 
+/// The frame `options` on both backends: the CPU's, checked to trace shadow rays (some
+/// occluded) and to be the GPU's, every buffer byte for byte and the statistics; with a
+/// `mirror`, its first bounce traces shadow rays. `what` names the frame in a failure;
+/// the GPU's final image is returned with the CPU's frame.
+fn stochastic_frame(
+    (cpu, gpu): (&mut CpuBackend, &mut GpuBackend),
+    prepared: &PreparedScene,
+    camera: &CameraRecord,
+    options: &FrameOptions,
+    (what, mirror): (&str, bool),
+) -> (Frame, Vec<[f32; 4]>) {
+    let want = cpu.render(prepared, camera, options).expect("cpu frame");
+    assert_eq!(want.plan.bounce_depth() > 0, mirror, "{what}");
+    let got = gpu.render(prepared, camera, options).unwrap_or_else(|e| panic!("{what}: {e}"));
+    assert!(want.rays.len() > 100 && want.occluded.iter().any(|&o| o != 0), "{what}: rays, some occluded");
+    if let Some(d) = first_difference(&want, &got) {
+        panic!("{what}: {d}");
+    }
+    assert_eq!(want.stats.rays_per_kind, got.stats.rays_per_kind, "{what}");
+    assert_eq!(want.stats.bounces, got.stats.bounces, "{what}");
+    if mirror {
+        let shadow_rays = want.stats.bounces[0].rays_per_kind[RAY_KIND_SHADOW as usize];
+        assert!(shadow_rays > 0, "{what}: the first bounce traces shadow rays");
+    }
+    (want, got.final_image)
+}
+
 /// Undenoised frames with area lights (quad, sphere, sun, and a point light beside them),
 /// ambient occlusion alone and with both, paper and glTF models, with and without a mirror
 /// (bounce depths trace and shade the same slots): the GPU's frame is the CPU's, every
@@ -165,21 +192,10 @@ fn undenoised_stochastic_frames_are_the_cpu_frames_bit_for_bit() {
                 max_depth: 2,
                 ..FrameOptions::default()
             };
-            let want = cpu.render(&prepared, &camera, &options).expect("cpu frame");
+            let what = format!("{name}, frame {frame_index}");
+            let (want, image) = stochastic_frame((&mut cpu, &mut gpu), &prepared, &camera, &options, (&what, mirror));
             assert!(want.plan.stochastic() && !want.plan.runs(Stage::ShadowDenoise), "{name}");
-            assert_eq!(want.plan.bounce_depth() > 0, mirror, "{name}");
-            let got = gpu.render(&prepared, &camera, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
-            assert!(want.rays.len() > 100 && want.occluded.iter().any(|&o| o != 0), "{name}: rays, some occluded");
-            if let Some(d) = first_difference(&want, &got) {
-                panic!("{name}, frame {frame_index}: {d}");
-            }
-            assert_eq!(want.stats.rays_per_kind, got.stats.rays_per_kind, "{name}");
-            assert_eq!(want.stats.bounces, got.stats.bounces, "{name}");
-            if mirror {
-                let shadow_rays = want.stats.bounces[0].rays_per_kind[RAY_KIND_SHADOW as usize];
-                assert!(shadow_rays > 0, "{name}: the first bounce traces shadow rays");
-            }
-            images.push(got.final_image);
+            images.push(image);
         }
         assert!(images[0] != images[1], "{name}: frames 0 and 1 sample alike");
     }
@@ -461,21 +477,10 @@ fn emissive_light_frames_are_the_cpu_frames_bit_for_bit() {
                 max_depth: 2,
                 ..FrameOptions::default()
             };
-            let want = cpu.render(&prepared, &camera, &options).expect("cpu frame");
+            let what = format!("{name}, frame {frame_index}, denoise {denoise}");
+            let (want, image) = stochastic_frame((&mut cpu, &mut gpu), &prepared, &camera, &options, (&what, mirror));
             assert!(want.plan.stochastic() && want.plan.runs(Stage::ShadowDenoise) == denoise, "{name}");
-            assert_eq!(want.plan.bounce_depth() > 0, mirror, "{name}");
-            let got = gpu.render(&prepared, &camera, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
-            assert!(want.rays.len() > 100 && want.occluded.iter().any(|&o| o != 0), "{name}: rays, some occluded");
-            if let Some(d) = first_difference(&want, &got) {
-                panic!("{name}, frame {frame_index}, denoise {denoise}: {d}");
-            }
-            assert_eq!(want.stats.rays_per_kind, got.stats.rays_per_kind, "{name}");
-            assert_eq!(want.stats.bounces, got.stats.bounces, "{name}");
-            if mirror {
-                let shadow_rays = want.stats.bounces[0].rays_per_kind[RAY_KIND_SHADOW as usize];
-                assert!(shadow_rays > 0, "{name}: the first bounce traces shadow rays");
-            }
-            images.push(got.final_image);
+            images.push(image);
         }
         assert!(images[0] != images[1], "{name}: frames 0 and 1 sample alike");
         assert!(images[0] != images[2], "{name}: the denoiser changed nothing");
@@ -540,50 +545,4 @@ fn a_moving_emitter_lights_the_gpu_frame_as_the_cpu_frame() {
         images.push(got.final_image);
     }
     assert!(images[0] != images[1] && images[1] != images[2], "the panel's light moved");
-}
-
-/// `../shared/assets` of the repository, if it holds `file` (else the test says so and
-/// skips).
-fn asset(file: &str) -> Option<std::path::PathBuf> {
-    let path = std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/assets").join(file);
-    if !path.is_file() {
-        eprintln!("skipped: {} not found", path.display());
-        return None;
-    }
-    Some(path)
-}
-
-/// The real `DamagedHelmet.glb` through a manifest with `emissive_lights = true` (its
-/// emissive texture's glowing triangles the emitter table) over a floor: the frame,
-/// denoised and not, is the CPU's, every buffer, bit for bit.
-#[test]
-fn the_damaged_helmet_as_emitters_renders_as_the_cpu_frame() {
-    let Some(helmet) = asset("DamagedHelmet.glb") else { return };
-    let Some(ctx) = test_context() else { return };
-    let dir = std::env::temp_dir().join(format!("hyrt-gpu-emissive-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let manifest = dir.join("helmet.toml");
-    let text = format!(
-        "emissive_lights = true\nambient = 0.0\n[camera]\neye = [0.0, 0.5, 3.0]\ntarget = [0.0, 0.0, 0.0]\n\
-         [[model]]\nfile = {:?}\n[[model]]\nbuiltin = 'grid'\nscale = [6.0, 1.0, 6.0]\ntranslate = [0.0, -1.0, 0.0]\n",
-        helmet.display().to_string()
-    );
-    std::fs::write(&manifest, text).unwrap();
-    let scene = Scene::load(&manifest).unwrap_or_else(|e| panic!("{e}"));
-    std::fs::remove_dir_all(&dir).ok();
-    let prepared = prepare(&scene);
-    eprintln!("{} emitters", prepared.geometry.emitters.len());
-    assert!(!prepared.geometry.emitters.is_empty(), "the helmet's emissive texture glows");
-    let mut gpu = GpuBackend::with_context(ctx).expect("backend");
-    let mut cpu = CpuBackend::new(Some(2));
-    let camera = CameraRecord::new(&scene.camera.unwrap(), 64, 48);
-    for denoise in [false, true] {
-        let options = FrameOptions { stage_outputs: true, shadow_samples: 2, denoise, ..FrameOptions::default() };
-        let want = cpu.render(&prepared, &camera, &options).expect("cpu frame");
-        let got = gpu.render(&prepared, &camera, &options).unwrap_or_else(|e| panic!("{e}"));
-        assert!(want.rays.len() > 100, "the emitters trace shadow rays");
-        if let Some(d) = first_difference(&want, &got) {
-            panic!("denoise {denoise}: {d}");
-        }
-    }
 }
