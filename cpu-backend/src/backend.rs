@@ -517,7 +517,7 @@ impl Backend for CpuBackend {
                         });
                         let occlusion = &ambient.occlusion;
                         let out = &mut f.visibility;
-                        shadow_denoise_into(&f.surfaces, &f.shadow, &lights, occlusion, camera, denoise, temporal, out)
+                        shadow_denoise_into(&f.surfaces, &f.shadow, lights, occlusion, camera, denoise, temporal, out)
                     }
                     Step::SecondaryRays { .. }
                     | Step::BounceTrace { .. }

@@ -458,7 +458,7 @@ fn emitter_query(rng: &mut Rng, k: usize, table: &[EmitterRecord]) -> [u32; EMIT
         1 => [ONE_BELOW_ONE, 0.0],
         _ => [rng.range(0.0, 1.0), rng.range(0.0, 1.0)],
     };
-    let scale = if k % 11 == 0 { 1e4 } else { 2.0 };
+    let scale = if k.is_multiple_of(11) { 1e4 } else { 2.0 };
     let triangle = [rng.vec(scale), rng.vec(scale), rng.vec(scale)];
     let p = match (k % 9, table.first()) {
         (0, Some(e)) => Vec3::from(e.v0),
