@@ -36,7 +36,9 @@
 //!   box (the paper's model and the glTF one), a sphere light beside a point light, a sun
 //!   of finite angular size, ambient occlusion alone in a corner, and a quad light with
 //!   occlusion rays in front of a mirror (every bounce depth traces and shades the same
-//!   slots); few samples, small images. Each without the denoiser ([`Case::denoise`]
+//!   slots), emissive meshes as lights (`emissive_lights`: a glowing panel and ball over
+//!   the box, the paper's model; the glTF model beside a point light, in front of the
+//!   mirror); few samples, small images. Each without the denoiser ([`Case::denoise`]
 //!   false: the raw samples), and again denoised (`stochastic_denoised_*`: `shadow_denoise`
 //!   and its filtered visibility, which the shading of primary surfaces reads).
 //!
@@ -100,10 +102,12 @@ impl Case {
         }
     }
 
-    /// Whether the case traces stochastic shadow rays: an area light (quad, sphere, sun),
-    /// or ambient occlusion. Such frames run staged on the CPU backend.
+    /// Whether the case traces stochastic shadow rays: an area light (quad, sphere, sun, or
+    /// emissive meshes as lights: the corpus sets `emissive_lights` only on scenes that
+    /// glow), or ambient occlusion. Such frames run staged on the CPU backend.
     pub fn stochastic(&self) -> bool {
         self.ao_samples > 0
+            || self.scene.emissive_lights
             || self.scene.lights.iter().any(|l| hyrt_core::formats::LightRecord::from_light(l).is_area())
     }
 
@@ -831,6 +835,48 @@ fn box_on_floor(lights: Vec<Light>, shading: ShadingModel) -> Scene {
     s
 }
 
+/// `s` with a ray-traced mirror standing behind the box: the hits of its reflection rays
+/// trace and shade the same slots as the primary hits.
+fn before_mirror(mut s: Scene) -> Scene {
+    s.add_object(
+        Mesh::grid("mirror", 2),
+        mirror(),
+        Mat4::from_translation(Vec3::new(0.0, 0.9, -1.0))
+            * Mat4::from_quat(Quat::from_rotation_x(std::f32::consts::FRAC_PI_2))
+            * Mat4::from_scale(Vec3::new(3.0, 1.0, 1.8)),
+        RT,
+    );
+    s
+}
+
+/// `s` with emissive meshes as lights (`emissive_lights`): a panel over the box (a one-cell
+/// grid turned to face down, two single-sided triangles) and a small double-sided glowing
+/// ball (of another colour and power).
+fn with_emitters(mut s: Scene) -> Scene {
+    s.emissive_lights = true;
+    let glow = |name: &str, emissive: Vec3, double_sided: bool| Material {
+        base_color: Vec3::ZERO,
+        emissive,
+        double_sided,
+        ..diffuse(name, Vec3::ZERO)
+    };
+    s.add_object(
+        Mesh::grid("panel", 1),
+        glow("panel", Vec3::new(7.0, 6.5, 5.8), false),
+        Mat4::from_translation(Vec3::new(-0.2, 1.9, 0.0))
+            * Mat4::from_quat(Quat::from_rotation_x(std::f32::consts::PI))
+            * Mat4::from_scale(Vec3::new(1.0, 1.0, 0.8)),
+        RASTER,
+    );
+    s.add_object(
+        Mesh::uv_sphere("glow", 8, 4),
+        glow("glow", Vec3::new(1.0, 2.5, 5.0), true),
+        Mat4::from_translation(Vec3::new(-1.1, 0.4, 0.9)) * Mat4::from_scale(Vec3::splat(0.15)),
+        RASTER,
+    );
+    s
+}
+
 /// The `stochastic_*` cases (module docs): area lights' samples and ambient-occlusion
 /// rays on every stage, without the denoiser, then the same scenes denoised
 /// (`stochastic_denoised_*`).
@@ -914,15 +960,7 @@ fn stochastic_cases(b: &mut Builder) {
     samples(b, DEFAULT_SHADOW_SAMPLES, STOCHASTIC_AO_SAMPLES);
     // A quad light and occlusion rays in front of a ray-traced mirror: the bounces' hits
     // trace and shade the same slots.
-    let mut s = box_on_floor(vec![quad(), point(Vec3::new(1.5, 2.0, 2.0), 4.0)], ShadingModel::Paper);
-    s.add_object(
-        Mesh::grid("mirror", 2),
-        mirror(),
-        Mat4::from_translation(Vec3::new(0.0, 0.9, -1.0))
-            * Mat4::from_quat(Quat::from_rotation_x(std::f32::consts::FRAC_PI_2))
-            * Mat4::from_scale(Vec3::new(3.0, 1.0, 1.8)),
-        RT,
-    );
+    let s = before_mirror(box_on_floor(vec![quad(), point(Vec3::new(1.5, 2.0, 2.0), 4.0)], ShadingModel::Paper));
     b.add(
         "stochastic_mirror_bounces",
         "a quad light's samples and occlusion rays at the hits of a mirror's reflection rays (every bounce depth)",
@@ -932,6 +970,28 @@ fn stochastic_cases(b: &mut Builder) {
         h,
     );
     samples(b, STOCHASTIC_SHADOW_SAMPLES, STOCHASTIC_AO_SAMPLES);
+    b.cases.last_mut().expect("a case").max_depth = 2;
+    // Emissive meshes as lights: the panel and ball of `with_emitters` over the box, then
+    // beside a point light in front of the mirror (the bounces' hits sample the emitters).
+    b.add(
+        "stochastic_emitters_box",
+        "emissive meshes as lights: a triangle picked by power, a point on it, the box's soft shadow",
+        with_emitters(box_on_floor(vec![], ShadingModel::Paper)),
+        cam,
+        w,
+        h,
+    );
+    samples(b, STOCHASTIC_SHADOW_SAMPLES, 0);
+    let s = before_mirror(with_emitters(box_on_floor(vec![point(Vec3::new(1.5, 2.0, 2.0), 4.0)], ShadingModel::Gltf)));
+    b.add(
+        "stochastic_gltf_emitters_mirror_bounces",
+        "the emitter light (last, after a point light) through the glTF BRDF at the primary hits and at every bounce depth's",
+        s,
+        cam,
+        w,
+        h,
+    );
+    samples(b, STOCHASTIC_SHADOW_SAMPLES, 0);
     b.cases.last_mut().expect("a case").max_depth = 2;
     // Every case again, denoised.
     let raw: Vec<Case> = b.cases.iter().filter(|c| c.name.starts_with("stochastic_")).cloned().collect();
@@ -1765,6 +1825,15 @@ mod tests {
         let spheres = lit_by(|l| matches!(l, Light::Sphere { .. }));
         let suns = lit_by(|l| matches!(l, Light::Sun { .. }));
         assert!(quads >= 2 && spheres >= 1 && suns >= 1, "area lights of every kind: {quads}, {spheres}, {suns}");
+        let emitters = stochastic.iter().filter(|c| c.scene.emissive_lights);
+        assert!(
+            emitters.clone().count() >= 4 && emitters.clone().any(|c| c.max_depth > 0),
+            "emissive meshes as lights"
+        );
+        for case in emitters {
+            let g = hyrt_core::geometry::WorldGeometry::build(&case.scene);
+            assert!(g.emitters.len() > 2, "{}: {} emitters", case.name, g.emitters.len());
+        }
         assert!(stochastic.iter().any(|c| c.ao_samples > 0 && c.max_depth > 0 && c.name.contains("mirror")));
         assert!(stochastic.iter().any(|c| c.scene.shading == ShadingModel::Gltf));
         let denoised = stochastic.iter().filter(|c| c.denoise).count();

@@ -476,7 +476,7 @@ impl SkipReason {
             SkipReason::AllRayTracedWeightOne => "every object ray traced, weight 1",
             SkipReason::MaxDepthZero => "max depth 0",
             SkipReason::NoMirrorsOrGlass => "no ray-traced mirror or glass",
-            SkipReason::NothingToDenoise => "no area light or ambient occlusion to denoise, the denoiser is off, or emissive meshes are lights (not denoised yet)",
+            SkipReason::NothingToDenoise => "no area light or ambient occlusion to denoise, or the denoiser is off",
         }
     }
 }

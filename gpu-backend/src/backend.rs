@@ -391,7 +391,7 @@ impl GpuBackend {
         }
         // Shadow-mask slots per surface: one per light, or with area lights and ambient
         // occlusion the slots of `hyrt_core::kernels::soft_shadow`.
-        let slots = SlotParams::of(&lighting.lights, lighting.ambient.occlusion.samples);
+        let slots = SlotParams::of(lighting.lights(), lighting.ambient.occlusion.samples);
         debug_assert_eq!(slots.slots, plan.lights(), "the plan's slots");
         let limit = self.band_binding_limit();
         let max_side = self.ctx.limits.max_texture_dimension_2d;
@@ -561,7 +561,6 @@ impl GpuBackend {
         target: &wgpu::Texture,
     ) -> Result<FrameStats, RenderError> {
         let plan = FramePlan::new(scene, options)?;
-        check_emitters(scene)?;
         self.check_supported(scene, &plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         crate::present::check_target(target, camera.width, camera.height).map_err(RenderError::InvalidOptions)?;
@@ -1135,7 +1134,6 @@ impl Backend for GpuBackend {
         frame: &mut Frame,
     ) -> Result<(), RenderError> {
         let plan = FramePlan::new(scene, options)?;
-        check_emitters(scene)?;
         self.check_supported(scene, &plan)?;
         camera.validate().map_err(RenderError::InvalidCamera)?;
         frame.begin(&plan, options);
@@ -1158,19 +1156,4 @@ fn temporal_banded(camera: &CameraRecord, limit: u64) -> GpuError {
          --temporal (each frame denoised on its own)",
         camera.width, camera.height
     ))
-}
-
-/// Refuse a scene whose emissive meshes are lights (manifest `emissive_lights = true`, an
-/// emitter table: [`hyrt_core::formats::LIGHT_EMITTERS`]): their sampling runs on the CPU
-/// backend only for now, and a frame without them would silently be another image.
-fn check_emitters(scene: &PreparedScene) -> Result<(), RenderError> {
-    match scene.geometry.emitters.is_empty() {
-        true => Ok(()),
-        false => Err(RenderError::Unsupported {
-            backend: "gpu",
-            stage: Stage::Compaction.name().into(),
-            why: "emissive meshes as area lights (emissive_lights = true) are sampled on the CPU backend only for \
-                  now; render with --backend cpu, or without emissive_lights",
-        }),
-    }
 }

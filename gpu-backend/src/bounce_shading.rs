@@ -9,7 +9,9 @@
 //! (their slots per `frame.slot_params`: area lights' samples and occlusion rays as for
 //! the primary hits);
 //! unless it is the plan's deepest bounce, the next depth's links and radiance; objects,
-//! triangles, lights, the scene's environment and ambient light (its image-based light's
+//! triangles, lights (with an emitter light, the emitter table its samples pick from,
+//! packed after the records: [`crate::buffers::SceneBuffers::lights`]), the scene's
+//! environment and ambient light (its image-based light's
 //! texels under the glTF model), and the surface tables (each hit's object shaded as
 //! [`hyrt_core::kernels::texture::Materials::at`] sees it, its footprint the ray's cone
 //! widened over the hit's distance). Writes one linear RGBA value per ray.

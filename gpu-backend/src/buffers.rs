@@ -5,11 +5,12 @@
 //! in [`hyrt_core::formats`]) unless said otherwise here.
 
 use hyrt_core::formats::{
-    AmbientLightRecord, BvhNode, CameraRecord, EnvironmentRecord, GBufferTexel, HitRecord, InstanceRecord, LightRecord,
-    ListParams, ObjectRecord, PlacementRecord, RayRecord, SurfaceRecord, TriangleRecord,
+    AmbientLightRecord, BvhNode, CameraRecord, EmitterRecord, EnvironmentRecord, GBufferTexel, HitRecord,
+    InstanceRecord, LightRecord, ListParams, ObjectRecord, PlacementRecord, RayRecord, SurfaceRecord, TriangleRecord,
 };
 use hyrt_core::frame::{PreparedScene, SceneChanges};
 use hyrt_core::geometry::MeshWords;
+use hyrt_core::kernels::soft_shadow::Lights;
 use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan};
 
 use crate::band::Band;
@@ -33,7 +34,7 @@ pub use hyrt_core::formats::FrameParams;
 /// | 0 | `slots` | u32 | slots per surface ([`FramePlan::lights`]) |
 /// | 4 | `light_slots` | u32 | slots of the lights ([`hyrt_core::kernels::soft_shadow::lights_slots`]): the first ambient-occlusion slot |
 /// | 8 | `channels` | u32 | the denoised channels per pixel ([`FramePlan::visibility_channels`]: one per area light, then one for the ambient occlusion); read where the frame denoises (`shadow_denoise`, [`FrameBuffer::Visibility`]) |
-/// | 12 | `pad` | u32 | zero |
+/// | 12 | `emitters` | u32 | the length of the frame's emitter table ([`hyrt_core::geometry::WorldGeometry::emitters`], which its [`hyrt_core::formats::LIGHT_EMITTERS`] light samples), packed into the lights' binding after the records ([`SceneBuffers::lights`]); 0 without one |
 ///
 /// 16 bytes. Defined here, not with the core records: only the GPU stages read it (the
 /// CPU backend walks [`hyrt_core::kernels::soft_shadow::Slots`]). A uniform, and no slot
@@ -41,28 +42,32 @@ pub use hyrt_core::formats::FrameParams;
 /// default limit per shader stage, and `compaction` 7 (the scan's 3 among them), so the
 /// stages walk the frame's light records (each area light's `samples`) to a slot's light
 /// instead of reading a table, and no stage binds a storage buffer more than before area
-/// lights (the device's limits are requested as before, `GpuContext::new`).
+/// lights (the device's limits are requested as before, `GpuContext::new`); for the same
+/// reason the emitter table travels in the lights' binding.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct SlotParams {
     pub slots: u32,
     pub light_slots: u32,
     pub channels: u32,
-    pub pad: u32,
+    pub emitters: u32,
 }
 
 impl SlotParams {
     /// The slots of a frame with `lights` (the frame's records: area lights carry their
-    /// samples) and `ao_samples` occlusion rays per surface.
-    pub fn of(lights: &[LightRecord], ao_samples: u32) -> SlotParams {
-        let light_slots = hyrt_core::kernels::soft_shadow::lights_slots(lights) as u32;
+    /// samples; with the emitter table, whose length it holds) and `ao_samples` occlusion
+    /// rays per surface.
+    pub fn of<'a>(lights: impl Into<Lights<'a>>, ao_samples: u32) -> SlotParams {
+        let lights = lights.into();
+        let light_slots = hyrt_core::kernels::soft_shadow::lights_slots(&lights) as u32;
         let channels = lights.iter().filter(|l| l.is_area()).count() as u32 + (ao_samples > 0) as u32;
-        SlotParams { slots: light_slots + ao_samples, light_slots, channels, pad: 0 }
+        let emitters = lights.emitters.len() as u32;
+        SlotParams { slots: light_slots + ao_samples, light_slots, channels, emitters }
     }
 
     /// One slot per light: `light_count` point, spot or directional lights, no occlusion.
     pub fn per_light(light_count: u32) -> SlotParams {
-        SlotParams { slots: light_count, light_slots: light_count, channels: 0, pad: 0 }
+        SlotParams { slots: light_count, light_slots: light_count, channels: 0, emitters: 0 }
     }
 }
 
@@ -83,7 +88,11 @@ impl hyrt_core::formats::wgsl::WgslStruct for SlotParams {
                 ty: field_type::<Self, _>(|r| &r.channels),
                 offset: std::mem::offset_of!(Self, channels),
             },
-            Field { name: "pad", ty: field_type::<Self, _>(|r| &r.pad), offset: std::mem::offset_of!(Self, pad) },
+            Field {
+                name: "emitters",
+                ty: field_type::<Self, _>(|r| &r.emitters),
+                offset: std::mem::offset_of!(Self, emitters),
+            },
         ]
     }
 }
@@ -116,7 +125,13 @@ pub struct SceneBuffers {
     /// `array<ObjectRecord>`.
     pub objects: wgpu::Buffer,
     /// `array<LightRecord>`: the frame's lights ([`SceneBuffers::set_lighting`]: the scene's,
-    /// with area lights given the frame's samples and seeds).
+    /// with area lights given the frame's samples and seeds), then the scene's emitter table
+    /// ([`hyrt_core::geometry::WorldGeometry::emitters`]), one [`emitter_slot`] per emitter
+    /// ([`packed_lights`]): record `light_count + i` is emitter `i`, which the stages that
+    /// sample area lights read there (`shaders/soft_shadow.wgsl`'s `emitter_at`;
+    /// [`SlotParams::emitters`] says how many). Packed rather than bound on its own: the
+    /// shading stages already bind 8 storage buffers, WebGPU's default limit, and
+    /// `bounce_shading` [`crate::backend::BOUNCE_STORAGE_BUFFERS`].
     pub lights: wgpu::Buffer,
     /// `array<BvhNode>`: the flattened BVH ([`hyrt_core::bvh`]); empty BVH: one zero node and `bvh_node_count == 0`.
     /// A scene with two levels: every level's nodes, the top level's first
@@ -203,7 +218,7 @@ impl SceneBuffers {
             mesh_words: upload::<u32>(ctx, "mesh words", &mesh_words),
             mesh_offsets,
             objects: upload::<ObjectRecord>(ctx, "objects", &g.objects),
-            lights: upload::<LightRecord>(ctx, "lights", &g.lights),
+            lights: upload::<LightRecord>(ctx, "lights", &packed_lights(&g.lights, &g.emitters)),
             bvh_nodes: upload::<BvhNode>(ctx, "bvh nodes", nodes),
             bvh_leaf_triangles: upload::<TriangleRecord>(ctx, "bvh leaf triangles", leaf_triangles),
             bvh_prim_indices: upload::<u32>(ctx, "bvh prim indices", prim_indices),
@@ -278,6 +293,48 @@ fn placement_record(g: &hyrt_core::geometry::WorldGeometry, o: u32, meshes: &[Me
     g.triangles.placement_record(o, r.first_triangle, r.triangle_count, meshes)
 }
 
+/// Emitter `e` in a slot of the lights' binding ([`SceneBuffers::lights`], read back by
+/// `shaders/soft_shadow.wgsl`'s `emitter_at`): each [`EmitterRecord`] field in a
+/// [`LightRecord`] field of its WGSL type, so that no value is read through another type.
+///
+/// | offset | [`LightRecord`] field | [`EmitterRecord`] field |
+/// |---:|---|---|
+/// | 0 | `position_or_direction` | `v0` |
+/// | 12 | `kind` | `flags` |
+/// | 16 | `radiance` | `e1` |
+/// | 28 | `inv_range_sq` | `cdf` |
+/// | 32 | `spot_direction` | `e2` |
+/// | 44 | `spot_scale` | `radiance[0]` |
+/// | 48 | `spot_offset` | `radiance[1]` |
+/// | 52 | `size` | `radiance[2]` |
+/// | 56 | `samples` | `object` |
+/// | 60 | `seed` | `triangle` |
+/// | 64 | `edge_u`, `pad0`, `edge_v`, `pad1` | zero |
+///
+/// 96 bytes per emitter (the record's 64 and 32 of zeros). The slot is no light: only
+/// `emitter_at` reads it (the stages walk `params.light_count` records).
+pub fn emitter_slot(e: &EmitterRecord) -> LightRecord {
+    LightRecord {
+        position_or_direction: e.v0,
+        kind: e.flags,
+        radiance: e.e1,
+        inv_range_sq: e.cdf,
+        spot_direction: e.e2,
+        spot_scale: e.radiance[0],
+        spot_offset: e.radiance[1],
+        size: e.radiance[2],
+        samples: e.object,
+        seed: e.triangle,
+        ..bytemuck::Zeroable::zeroed()
+    }
+}
+
+/// What [`SceneBuffers::lights`] holds: the light records `lights`, then each of `emitters`
+/// in its [`emitter_slot`].
+pub fn packed_lights(lights: &[LightRecord], emitters: &[EmitterRecord]) -> Vec<LightRecord> {
+    lights.iter().copied().chain(emitters.iter().map(emitter_slot)).collect()
+}
+
 /// The corner normals of global triangles `range` as the GPU reads them: nine floats each.
 fn corner_normals(g: &hyrt_core::geometry::WorldGeometry, range: std::ops::Range<usize>) -> Vec<f32> {
     let mut normals = Vec::new();
@@ -344,8 +401,15 @@ impl SceneBuffers {
                 );
             }
         }
-        if changes.lights {
-            write(&self.lights, 0, bytemuck::cast_slice(&g.lights));
+        // Moved emitters move the emitter table (a deformed one too, which its change does
+        // not log as the lights'), whose length may change with the light count's the same.
+        if changes.lights || (!changes.objects.is_empty() && !g.emitters.is_empty()) {
+            let packed = packed_lights(&g.lights, &g.emitters);
+            let bytes: &[u8] = bytemuck::cast_slice(&packed);
+            match bytes.len() as u64 == self.lights.size() {
+                true => write(&self.lights, 0, bytes),
+                false => self.lights = upload::<LightRecord>(ctx, "lights", &packed),
+            }
             self.held_lights.clone_from(&g.lights);
         }
         if !changes.objects.is_empty() && !g.surface.is_empty() {

@@ -20,9 +20,11 @@
 //! others, a second compilation built the first time a frame needs it.
 //!
 //! Reads `frame.surfaces` (or, at bounce depth `d`, the surfaces the rays of depth `d`
-//! hit, as many as that list's count), `scene.lights` and `scene.ambient_light` (the
-//! frame's: [`crate::buffers::SceneBuffers::set_lighting`]), `frame.params`,
-//! `frame.slot_params`. Writes
+//! hit, as many as that list's count), `scene.lights` (with an emitter light, whose samples
+//! pick emissive triangles, the emitter table after the records:
+//! [`crate::buffers::SceneBuffers::lights`]) and `scene.ambient_light` (the frame's:
+//! [`crate::buffers::SceneBuffers::set_lighting`]), `frame.params`, `frame.slot_params`
+//! (with the emitter table's length). Writes
 //! `frame.rays` and `frame.ray_count` (`[count, dispatch_x, dispatch_y, 1]`:
 //! indirect-dispatch arguments for one thread per ray in workgroups of
 //! [`SHADOW_RAYS_WORKGROUP_SIZE`](crate::shadow_rays::SHADOW_RAYS_WORKGROUP_SIZE),

@@ -14,7 +14,9 @@
 //! eye), `frame.slot_params` (the mask's slots), `scene.ambient_light` (and under an
 //! image-based light `scene.ambient_texels`); where materials vary also `frame.gbuffer`
 //! and `scene.surface`. Area lights and ambient occlusion as in `rt_shading`
-//! ([`crate::rt_shading`]), the denoised visibility too (`frame.visibility`, binding 13).
+//! ([`crate::rt_shading`]), the denoised visibility too (`frame.visibility`, binding 13),
+//! and an emitter light's samples from the emitter table in `scene.lights`
+//! ([`crate::buffers::SceneBuffers::lights`]).
 //! Writes `frame.raster`: linear RGBA; `BACKGROUND` with alpha 1 on pixels without
 //! a hit, (0, 0, 0, 0) on ray-traced pixels when the weight is 1, alpha 1 where shaded.
 

@@ -20,7 +20,10 @@
 //! [`hyrt_core::kernels::soft_shadow::occluded_object`]); in a frame that denoised them
 //! (pipelines specialized with [`Specialization::denoised`]) it also reads
 //! `frame.visibility`, each area light adding the mean over its samples that traced a ray
-//! times its filtered visibility and the filtered occlusion scaling the ambient term.
+//! times its filtered visibility and the filtered occlusion scaling the ambient term. An
+//! emitter light's samples (emissive meshes as lights) read the emitter table packed into
+//! `scene.lights` after the records ([`crate::buffers::SceneBuffers::lights`]; its length
+//! in `frame.slot_params`); so does the bouncing pipeline ([`RtShadingBouncingStage`]).
 //! Writes `frame.rt`: linear RGBA, alpha 1 on ray-traced pixels, (0, 0, 0, 0) elsewhere.
 //!
 //! Also home of the helpers the three shading stages share (WGSL assembly,

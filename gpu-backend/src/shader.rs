@@ -5,7 +5,7 @@
 
 use hyrt_core::bvh::{BVH_CULL_SLACK, BVH_STACK_SIZE};
 use hyrt_core::formats::wgsl::declarations;
-use hyrt_core::kernels::area_light::MIN_AREA_LIGHT_DISTANCE_SQ;
+use hyrt_core::kernels::area_light::{MIN_AREA_LIGHT_DISTANCE_SQ, ONE_BELOW_ONE};
 use hyrt_core::kernels::bounce::{IOR_OUTSIDE, MIN_THROUGHPUT, SKY_GROUND, SKY_HORIZON, SKY_ZENITH};
 use hyrt_core::kernels::environment::{ATAN_SERIES, INV_TWO_PI, TAN_PI_8};
 use hyrt_core::kernels::exact::DEFAULT_NAN;
@@ -283,11 +283,13 @@ pub fn sampling_wgsl() -> String {
 
 /// The constants of `shaders/area_light.wgsl` (the mirrors of
 /// [`hyrt_core::kernels::area_light`]'s samplers) from their Rust values, then the file:
-/// after [`sampling_wgsl`], in a stage that binds `params: FrameParams`.
+/// after [`sampling_wgsl`], in a stage that binds `params: FrameParams` and defines the
+/// emitter table's `emitter_count` and `emitter_at` ([`soft_shadow_wgsl`] does).
 pub fn area_light_wgsl() -> String {
     let mut s = String::from("// Generated from hyrt_core::kernels::area_light (gpu-backend/src/shader.rs).\n");
     s += &format!("const MIN_AREA_LIGHT_DISTANCE_SQ: f32 = {};\n", f32_literal(MIN_AREA_LIGHT_DISTANCE_SQ));
     s += &format!("const TAU: f32 = {};\n", f32_literal(std::f32::consts::TAU));
+    s += &format!("const ONE_BELOW_ONE: f32 = {};\n", f32_literal(ONE_BELOW_ONE));
     s + include_str!("shaders/area_light.wgsl")
 }
 
@@ -306,9 +308,10 @@ pub fn occlusion_wgsl() -> String {
 /// stands for) after what they build on: [`sampling_wgsl`], [`area_light_wgsl`],
 /// [`occlusion_wgsl`], the area lights' kinds (from their Rust values: the generated
 /// declarations name the other lights' only) and the [`SlotParams`] declaration. For the
-/// stages that make or read stochastic rays (`compaction`, the shading stages), once;
-/// after [`preamble`] and the shading helpers, in a stage that binds `params`, `lights`
-/// and `ambient_light` (and `slot_params` where it reads the mask).
+/// stages that make or read stochastic rays (`compaction`, `shadow_denoise`, the shading
+/// stages), once; after [`preamble`] and the shading helpers, in a stage that binds
+/// `params`, `lights` (the light records, then the emitter table:
+/// [`crate::buffers::SceneBuffers::lights`]), `ambient_light` and `slot_params`.
 pub fn soft_shadow_wgsl() -> String {
     let mut s = format!("{}\n{}\n{}\n", sampling_wgsl(), area_light_wgsl(), occlusion_wgsl());
     s += "// Generated from hyrt_core::formats (gpu-backend/src/shader.rs).\n";
@@ -614,7 +617,11 @@ mod tests {
     #[test]
     fn sampling_modules_fit_shading_and_ray_stages() {
         let modules = format!("{}\n{}\n{}", sampling_wgsl(), area_light_wgsl(), occlusion_wgsl());
-        let params = "@group(0) @binding(0) var<uniform> params: FrameParams;\n";
+        // The emitter table as a stage without soft_shadow.wgsl would give it.
+        let params = "@group(0) @binding(0) var<uniform> params: FrameParams;\n\
+                      @group(0) @binding(1) var<storage, read> emitters: array<EmitterRecord>;\n\
+                      fn emitter_count() -> u32 { return arrayLength(&emitters); }\n\
+                      fn emitter_at(i: u32) -> EmitterRecord { return emitters[i]; }\n";
         let shading = shading_source(&format!("{params}{modules}"));
         let ray = format!("{}{}{params}{EXACT_PRODUCTS}\n{modules}", preamble(), ray_wgsl());
         for (kind, source) in [("shading", shading), ("ray", ray)] {

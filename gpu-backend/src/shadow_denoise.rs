@@ -7,9 +7,11 @@
 //! neighbourhood (`shaders/shadow_denoise_stage.wgsl`, one entry point per pass, all in
 //! one compute pass).
 //!
-//! Reads `frame.surfaces`, `frame.shadow`, `scene.lights`, `scene.ambient_light` (the
-//! frame's occlusion), `frame.camera` (the eye), `frame.params`, `frame.slot_params`
-//! (`channels`: [`hyrt_core::kernels::denoise::channel_count`]) and the pixel's angle, a
+//! Reads `frame.surfaces`, `frame.shadow`, `scene.lights` (with an emitter light, the
+//! emitter table after the records, whose samples the raw channels regenerate:
+//! [`crate::buffers::SceneBuffers::lights`]), `scene.ambient_light` (the frame's
+//! occlusion), `frame.camera` (the eye), `frame.params`, `frame.slot_params` (`channels`:
+//! [`hyrt_core::kernels::denoise::channel_count`]; `emitters`, the table's length) and the pixel's angle, a
 //! uniform computed on the host by the CPU stage's own
 //! [`hyrt_core::kernels::denoise::pixel_angle`]. Writes `frame.visibility` (`channels` f32
 //! per pixel), with the scratch of [`DenoiseBuffers`].

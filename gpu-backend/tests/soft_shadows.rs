@@ -3,8 +3,11 @@
 //! the same slots at every bounce depth) render bit for bit the CPU reference's frame,
 //! denoised (`shadow_denoise`, the default: the filtered visibility and the shading from
 //! it) or not (`FrameOptions::denoise` false, `--no-denoise`), whole or in bands of rows
-//! (a denoised band is rendered with a halo of rows, `hyrt_gpu::band`). (The conformance
-//! corpus' `stochastic_*` cases compare such frames stage by stage too.)
+//! (a denoised band is rendered with a halo of rows, `hyrt_gpu::band`); and so do emissive
+//! meshes as lights (`emissive_lights`: the emitter table packed into the lights' binding,
+//! `hyrt_gpu::buffers::packed_lights`), moving or not. (The conformance corpus'
+//! `stochastic_*` cases compare such frames stage by stage too, and
+//! `conformance/tests/emissive_lights.rs` the `DamagedHelmet` as emitters.)
 
 mod common;
 
@@ -128,6 +131,33 @@ fn first_difference(a: &Frame, b: &Frame) -> Option<String> {
     })
 }
 
+/// The frame `options` on both backends: the CPU's, checked to trace shadow rays (some
+/// occluded) and to be the GPU's, every buffer byte for byte and the statistics; with a
+/// `mirror`, its first bounce traces shadow rays. `what` names the frame in a failure;
+/// the GPU's final image is returned with the CPU's frame.
+fn stochastic_frame(
+    (cpu, gpu): (&mut CpuBackend, &mut GpuBackend),
+    prepared: &PreparedScene,
+    camera: &CameraRecord,
+    options: &FrameOptions,
+    (what, mirror): (&str, bool),
+) -> (Frame, Vec<[f32; 4]>) {
+    let want = cpu.render(prepared, camera, options).expect("cpu frame");
+    assert_eq!(want.plan.bounce_depth() > 0, mirror, "{what}");
+    let got = gpu.render(prepared, camera, options).unwrap_or_else(|e| panic!("{what}: {e}"));
+    assert!(want.rays.len() > 100 && want.occluded.iter().any(|&o| o != 0), "{what}: rays, some occluded");
+    if let Some(d) = first_difference(&want, &got) {
+        panic!("{what}: {d}");
+    }
+    assert_eq!(want.stats.rays_per_kind, got.stats.rays_per_kind, "{what}");
+    assert_eq!(want.stats.bounces, got.stats.bounces, "{what}");
+    if mirror {
+        let shadow_rays = want.stats.bounces[0].rays_per_kind[RAY_KIND_SHADOW as usize];
+        assert!(shadow_rays > 0, "{what}: the first bounce traces shadow rays");
+    }
+    (want, got.final_image)
+}
+
 /// Undenoised frames with area lights (quad, sphere, sun, and a point light beside them),
 /// ambient occlusion alone and with both, paper and glTF models, with and without a mirror
 /// (bounce depths trace and shade the same slots): the GPU's frame is the CPU's, every
@@ -162,21 +192,10 @@ fn undenoised_stochastic_frames_are_the_cpu_frames_bit_for_bit() {
                 max_depth: 2,
                 ..FrameOptions::default()
             };
-            let want = cpu.render(&prepared, &camera, &options).expect("cpu frame");
+            let what = format!("{name}, frame {frame_index}");
+            let (want, image) = stochastic_frame((&mut cpu, &mut gpu), &prepared, &camera, &options, (&what, mirror));
             assert!(want.plan.stochastic() && !want.plan.runs(Stage::ShadowDenoise), "{name}");
-            assert_eq!(want.plan.bounce_depth() > 0, mirror, "{name}");
-            let got = gpu.render(&prepared, &camera, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
-            assert!(want.rays.len() > 100 && want.occluded.iter().any(|&o| o != 0), "{name}: rays, some occluded");
-            if let Some(d) = first_difference(&want, &got) {
-                panic!("{name}, frame {frame_index}: {d}");
-            }
-            assert_eq!(want.stats.rays_per_kind, got.stats.rays_per_kind, "{name}");
-            assert_eq!(want.stats.bounces, got.stats.bounces, "{name}");
-            if mirror {
-                let shadow_rays = want.stats.bounces[0].rays_per_kind[RAY_KIND_SHADOW as usize];
-                assert!(shadow_rays > 0, "{name}: the first bounce traces shadow rays");
-            }
-            images.push(got.final_image);
+            images.push(image);
         }
         assert!(images[0] != images[1], "{name}: frames 0 and 1 sample alike");
     }
@@ -396,26 +415,134 @@ fn temporal_frames_in_bands_are_refused() {
     assert_eq!(first_difference(&want, &got), None);
 }
 
-/// Emissive meshes as lights (`Scene::emissive_lights`, an emitter table) run on the CPU
-/// backend only for now: the GPU refuses the scene, naming the stage and the manifest key,
-/// rather than render a frame without their light.
+/// `scene` (the floor, the ray-traced box, with `mirror` the mirror) lit by emissive meshes
+/// as lights (`Scene::emissive_lights`: one `LIGHT_EMITTERS` area light over their
+/// triangles) beside `lights`: a panel over the box (a one-cell grid turned to face down:
+/// two single-sided triangles, glowing warm white; object 2, or 3 with the mirror) and a
+/// small double-sided glowing ball beside it (48 triangles of another colour and power:
+/// picking by power over two meshes).
+fn emissive_scene(lights: Vec<Light>, shading: ShadingModel, mirror: bool) -> Scene {
+    let mut scene = scene(lights, shading, mirror);
+    scene.emissive_lights = true;
+    let glow = |emissive: Vec3, double_sided: bool| Material {
+        base_color: Vec3::ZERO,
+        emissive,
+        double_sided,
+        kind: MaterialKind::Diffuse,
+        ..Material::grey()
+    };
+    let panel = Mat4::from_translation(Vec3::new(0.0, 1.8, 0.1))
+        * Mat4::from_rotation_x(std::f32::consts::PI)
+        * Mat4::from_scale(Vec3::new(0.9, 1.0, 0.7));
+    scene.add_object(Mesh::grid("panel", 1), glow(Vec3::new(6.0, 5.6, 5.0), false), panel, RenderMode::Raster);
+    let ball = Mat4::from_translation(Vec3::new(-0.9, 0.5, 0.7)) * Mat4::from_scale(Vec3::splat(0.15));
+    scene.add_object(Mesh::uv_sphere("glow", 8, 4), glow(Vec3::new(1.0, 2.5, 5.0), true), ball, RenderMode::Raster);
+    scene
+}
+
+/// The emissive cases: the emitters alone (paper, glTF), beside a point and a quad light
+/// (the emitter light last among three), and in front of a mirror (bounce depths sample
+/// the emitters at their hits).
+fn emissive_cases() -> [(&'static str, Vec<Light>, ShadingModel, bool); 4] {
+    [
+        ("emitters, paper", vec![], ShadingModel::Paper, false),
+        ("emitters, glTF", vec![], ShadingModel::Gltf, false),
+        ("emitters beside a point and a quad light", vec![point(), quad()], ShadingModel::Paper, false),
+        ("emitters, glTF, a mirror", vec![], ShadingModel::Gltf, true),
+    ]
+}
+
+/// Emissive meshes as lights (`emissive_lights`, an emitter table sampled by `compaction`,
+/// the shading stages and `shadow_denoise`): raw (`denoise` false, two frame indices) and
+/// denoised frames of every emissive case are the CPU's, every stage buffer byte for byte
+/// (the bounce depths' too); the box casts a shadow (occluded samples), the frames change
+/// with their index, and the denoiser ran.
 #[test]
-fn emissive_lights_are_refused_clearly() {
+fn emissive_light_frames_are_the_cpu_frames_bit_for_bit() {
     let Some(ctx) = test_context() else { return };
     let mut gpu = GpuBackend::with_context(ctx).expect("backend");
-    let mut scene = scene(vec![point()], ShadingModel::Paper, false);
-    scene.emissive_lights = true;
-    let glow = Material { emissive: Vec3::splat(4.0), ..Material::grey() };
-    let place = Mat4::from_translation(Vec3::new(0.0, 1.8, 0.0)) * Mat4::from_rotation_x(std::f32::consts::PI);
-    scene.add_object(Mesh::grid("panel", 1), glow, place, RenderMode::Raster);
-    let prepared = prepare(&scene);
-    assert_eq!(prepared.geometry.emitters.len(), 2);
-    let err = gpu.render(&prepared, &camera(&scene), &FrameOptions::default()).unwrap_err();
-    let message = err.to_string();
-    assert!(
-        matches!(err, hyrt_core::error::RenderError::Unsupported { backend: "gpu", .. })
-            && message.contains("compaction")
-            && message.contains("emissive_lights"),
-        "{message}"
-    );
+    let mut cpu = CpuBackend::new(Some(2));
+    for (name, lights, shading, mirror) in emissive_cases() {
+        let scene = emissive_scene(lights, shading, mirror);
+        let prepared = prepare(&scene);
+        assert_eq!(prepared.geometry.emitters.len(), 2 + 48, "{name}: the panel's and the ball's triangles");
+        let camera = camera(&scene);
+        let mut images = Vec::new();
+        for (frame_index, denoise) in [(0, false), (1, false), (0, true)] {
+            let options = FrameOptions {
+                stage_outputs: true,
+                shadow_samples: 3,
+                denoise,
+                frame_index,
+                max_depth: 2,
+                ..FrameOptions::default()
+            };
+            let what = format!("{name}, frame {frame_index}, denoise {denoise}");
+            let (want, image) = stochastic_frame((&mut cpu, &mut gpu), &prepared, &camera, &options, (&what, mirror));
+            assert!(want.plan.stochastic() && want.plan.runs(Stage::ShadowDenoise) == denoise, "{name}");
+            images.push(image);
+        }
+        assert!(images[0] != images[1], "{name}: frames 0 and 1 sample alike");
+        assert!(images[0] != images[2], "{name}: the denoiser changed nothing");
+    }
+}
+
+/// Denoised emissive frames in bands of a few rows (as
+/// `denoised_frames_in_bands_are_the_cpu_frames_bit_for_bit`): the merged frame is the
+/// CPU's, every buffer, bit for bit.
+#[test]
+fn emissive_light_frames_in_bands_are_the_cpu_frames_bit_for_bit() {
+    let Some(ctx) = test_context() else { return };
+    let mut gpu = GpuBackend::with_context(ctx).expect("backend");
+    let mut cpu = CpuBackend::new(Some(2));
+    let (width, height, own_rows) = (64, 90, 7);
+    for (name, lights, shading, mirror) in [emissive_cases()[0].clone(), emissive_cases()[3].clone()] {
+        let scene = emissive_scene(lights, shading, mirror);
+        let prepared = prepare(&scene);
+        let camera = CameraRecord::new(&scene.camera.unwrap(), width, height);
+        let options = FrameOptions { stage_outputs: true, shadow_samples: 2, max_depth: 2, ..FrameOptions::default() };
+        let want = cpu.render(&prepared, &camera, &options).expect("cpu frame");
+        let plan = &want.plan;
+        let rows = hyrt_gpu::band::buffer_rows(own_rows, u32::MAX, hyrt_gpu::shadow_denoise::DENOISE_HALO);
+        gpu.set_max_band_bytes(Some(hyrt_gpu::band::band_binding_bytes((width * rows) as u64, plan.lights(), plan)));
+        let got = gpu.render(&prepared, &camera, &options).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let bands = gpu.last_frame_bands();
+        assert!(bands >= height.div_ceil(own_rows), "{name}: {bands} bands");
+        if let Some(d) = first_difference(&want, &got) {
+            panic!("{name}, {bands} bands: {d}");
+        }
+        gpu.set_max_band_bytes(None);
+    }
+}
+
+/// A moving emitter (`PreparedScene::move_objects` of the panel): the emitter table moves
+/// with it, the GPU writes it again with the object (`SceneBuffers::apply`), and each frame
+/// is the CPU's bit for bit; the panel's move changed the frame.
+#[test]
+fn a_moving_emitter_lights_the_gpu_frame_as_the_cpu_frame() {
+    let Some(ctx) = test_context() else { return };
+    let mut gpu = GpuBackend::with_context(ctx).expect("backend");
+    let mut cpu = CpuBackend::new(Some(2));
+    let scene = emissive_scene(vec![], ShadingModel::Paper, false);
+    let panel = 2u32;
+    assert_eq!(scene.objects[panel as usize].name, "panel");
+    let mut prepared = hyrt_cpu::bvh_build::prepare_moving(&scene, BvhPreset::default(), &[panel]);
+    let camera = camera(&scene);
+    let options = FrameOptions { stage_outputs: true, shadow_samples: 2, ..FrameOptions::default() };
+    let mut images = Vec::new();
+    for step in 0..3 {
+        if step > 0 {
+            let mut moved = scene.clone();
+            moved.objects[panel as usize].transform = Mat4::from_translation(Vec3::new(0.3 * step as f32, 0.0, 0.0))
+                * scene.objects[panel as usize].transform;
+            prepared.move_objects(&moved, &[panel]).expect("the panel moves");
+        }
+        let want = cpu.render(&prepared, &camera, &options).expect("cpu frame");
+        let got = gpu.render(&prepared, &camera, &options).unwrap_or_else(|e| panic!("step {step}: {e}"));
+        if let Some(d) = first_difference(&want, &got) {
+            panic!("step {step}: {d}");
+        }
+        images.push(got.final_image);
+    }
+    assert!(images[0] != images[1] && images[1] != images[2], "the panel's light moved");
 }

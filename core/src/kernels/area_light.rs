@@ -22,8 +22,9 @@
 //!   uniform in its area, `weight = L_i cos_light A_i / (d^2 p_i)`.
 //!
 //! Every step is a correctly rounded operation in a stated order (the warps of
-//! [`crate::kernels::sampling`]), so the GPU's twins will give the same bits (the emitters'
-//! have none yet). The stages read them through [`crate::kernels::soft_shadow`].
+//! [`crate::kernels::sampling`]), so the GPU's twins give the same bits
+//! (`gpu-backend/src/shaders/area_light.wgsl`, the emitters' over the table the GPU packs
+//! into its lights' binding). The stages read them through [`crate::kernels::soft_shadow`].
 
 use glam::Vec3;
 

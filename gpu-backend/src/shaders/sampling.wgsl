@@ -27,6 +27,13 @@ fn f32_max(x: f32, y: f32) -> f32 {
     return select(x, y, x_nan || y > x);
 }
 
+// mirrors Rust's f32::min as f32_max mirrors f32::max: the smaller operand, the other one
+// where one is NaN (from its bits); equal operands give `x`.
+fn f32_min(x: f32, y: f32) -> f32 {
+    let x_nan = (bitcast<u32>(x) & ~F32_SIGN_MASK) > F32_EXP_MASK;
+    return select(x, y, x_nan || y < x);
+}
+
 // Rust's `x as f32` for a u32: rounded to nearest even, from integer operations (WGSL
 // allows either neighbour for an integer above 2^24).
 fn u32_to_f32_rn(x: u32) -> f32 {
