@@ -131,8 +131,8 @@ fn gpu_stages(c: &mut Criterion) {
             ctx.queue.submit([enc.finish()]);
             ctx.device.poll(wgpu::PollType::Wait { submission_index: None, timeout: None }).expect("GPU wait");
         };
-        // The paper's frame: no bounce, and no `shadow_denoise` (area lights and ambient
-        // occlusion run on the CPU backend only).
+        // The paper's frame: no bounce, and no `shadow_denoise` (a frame of point lights
+        // has no area light or ambient occlusion to denoise).
         let bounces = [Stage::SecondaryRays, Stage::BounceTrace, Stage::BounceShading, Stage::ShadowDenoise];
         let frame_stages: Vec<Stage> =
             Stage::ALL.into_iter().filter(|&s| s != Stage::BvhBuild && !bounces.contains(&s)).collect();
