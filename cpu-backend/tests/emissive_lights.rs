@@ -17,15 +17,12 @@ use hyrt_core::bvh::BvhPreset;
 use hyrt_core::formats::{LIGHT_EMITTERS, SHADOW_OCCLUDED};
 use hyrt_core::frame::FrameOptions;
 use hyrt_core::geometry::WorldGeometry;
-use hyrt_core::kernels::area_light::polygon_irradiance_f64;
 use hyrt_core::kernels::soft_shadow::light_visibility;
 use hyrt_core::scene::{Material, Mesh, RenderMode, Scene};
 use hyrt_cpu::backend::CpuBackend;
 
 mod common;
-use common::{
-    floor_scene, material, options, render, traced_visibility, BASE, CORNER, EDGE_U, EDGE_V, RADIANCE, VISIBILITY_MAE,
-};
+use common::{floor_scene, material, options, raster_floor_error, render, traced_visibility, RADIANCE, VISIBILITY_MAE};
 
 /// The bar for the denoised visibility at 4 samples (as for quad lights).
 const DENOISED_MAE: f64 = 0.03;
@@ -70,23 +67,8 @@ fn an_emissive_quad_mesh_lights_the_floor_as_a_quad_light_and_does_not_shadow_it
     let occluded = frame.shadow.iter().filter(|&&c| c == SHADOW_OCCLUDED).count();
     assert_eq!(occluded, 0, "shadow rays blocked with nothing in between");
     assert!(frame.stats.rays_per_kind[0] > 100_000, "the floor traced its samples");
-    let corners = [CORNER, CORNER + EDGE_U, CORNER + EDGE_U + EDGE_V, CORNER + EDGE_V].map(|c| c.as_dvec3().to_array());
-    let (mut sum, mut count, mut worst) = (0.0f64, 0usize, 0.0f64);
     // The rasterized half of the floor: the paper's raster shader is Lambert's alone.
-    for (i, s) in frame.surfaces.iter().enumerate() {
-        if !(s.is_hit() && s.position[0] < -1e-3 && s.position[1].abs() < 1e-3) {
-            continue;
-        }
-        let p = Vec3::from(s.position).as_dvec3();
-        let e = polygon_irradiance_f64(&corners, p.to_array(), [0.0, 1.0, 0.0], RADIANCE as f64);
-        let want = BASE as f64 / std::f64::consts::PI * e;
-        let got = frame.final_image[i][0] as f64;
-        let rel = (got - want).abs() / want;
-        sum += rel;
-        count += 1;
-        worst = worst.max(rel);
-    }
-    let mean = sum / count as f64;
+    let (mean, worst, count) = raster_floor_error(&frame);
     eprintln!("{count} floor pixels: mean relative error {mean:.2e}, worst {worst:.2e}");
     assert!(count > 2000, "floor pixels worth comparing: {count}");
     // As for the quad light (`soft_shadows.rs`): 256 points of a scrambled (0, 8, 2)-net

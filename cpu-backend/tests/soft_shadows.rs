@@ -17,7 +17,6 @@ use hyrt_core::bvh::BvhPreset;
 use hyrt_core::formats::CameraRecord;
 use hyrt_core::frame::{Backend, Frame, FrameOptions, PreparedScene};
 use hyrt_core::geometry::WorldGeometry;
-use hyrt_core::kernels::area_light::polygon_irradiance_f64;
 use hyrt_core::kernels::occlusion::ao_blocked_by_wall_f64;
 use hyrt_core::kernels::soft_shadow::{ambient_occlusion, light_visibility};
 use hyrt_core::scene::{Camera, Environment, EnvironmentMap, Light, Mesh, RenderMode, Scene, ShadingModel};
@@ -25,7 +24,8 @@ use hyrt_cpu::backend::CpuBackend;
 
 mod common;
 use common::{
-    floor_scene, material, options, render, traced_visibility, BASE, CORNER, EDGE_U, EDGE_V, RADIANCE, VISIBILITY_MAE,
+    floor_scene, material, options, raster_floor_error, render, traced_visibility, BASE, CORNER, EDGE_U, EDGE_V,
+    RADIANCE, VISIBILITY_MAE,
 };
 
 /// [`common::floor_scene`] under the quad light.
@@ -171,24 +171,13 @@ fn an_unoccluded_quad_light_gives_its_closed_form_irradiance() {
     let mut cpu = CpuBackend::new(Some(2));
     let prepared = cpu.prepare(WorldGeometry::build(&scene), BvhPreset::default());
     let frame = render(&mut cpu, &prepared, &scene, (160, 90), &options(256));
-    let corners = [CORNER, CORNER + EDGE_U, CORNER + EDGE_U + EDGE_V, CORNER + EDGE_V].map(|c| c.as_dvec3().to_array());
-    let (mut sum, mut count, mut worst) = (0.0f64, 0usize, 0.0f64);
     // The rasterized half: the paper's raster shader is Lambert's alone (its ray-traced
     // shader adds a specular lobe).
-    for (i, s) in frame.surfaces.iter().enumerate().filter(|(_, s)| s.is_hit() && s.position[0] < -1e-3) {
-        let p = Vec3::from(s.position).as_dvec3();
-        let e = polygon_irradiance_f64(&corners, p.to_array(), [0.0, 1.0, 0.0], RADIANCE as f64);
-        let want = BASE as f64 / std::f64::consts::PI * e;
-        let got = frame.final_image[i][0] as f64;
-        let rel = (got - want).abs() / want;
-        sum += rel;
-        count += 1;
-        worst = worst.max(rel);
-    }
-    eprintln!("{count} pixels: mean relative error {:.2e}, worst {worst:.2e}", sum / count as f64);
+    let (mean, worst, count) = raster_floor_error(&frame);
+    eprintln!("{count} pixels: mean relative error {mean:.2e}, worst {worst:.2e}");
     // 256 points of a scrambled (0, 8, 2)-net over a smooth integrand: the estimator's
     // error is far below a percent on average (measured: see the line above).
-    assert!(sum / count as f64 <= 2e-3, "mean relative error {}", sum / count as f64);
+    assert!(mean <= 2e-3, "mean relative error {mean}");
     assert!(worst <= 1e-2, "worst relative error {worst}");
 }
 

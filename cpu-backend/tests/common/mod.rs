@@ -7,6 +7,7 @@
 use glam::{Mat4, Vec3};
 use hyrt_core::formats::{CameraRecord, RayRecord};
 use hyrt_core::frame::{Backend, Frame, FrameOptions, PreparedScene};
+use hyrt_core::kernels::area_light::polygon_irradiance_f64;
 use hyrt_core::scene::{
     Ambient, Camera, Environment, EnvironmentMap, Material, MaterialKind, Mesh, RenderMode, Scene, ShadingModel,
 };
@@ -103,4 +104,27 @@ pub fn traced_visibility(prepared: &PreparedScene, p: Vec3, n: Vec3) -> Option<f
         }
     }
     (all > 0.0).then_some(lit / all)
+}
+
+/// The relative error of `frame`'s rasterized floor (its hits at x < 0 on the plane
+/// y = 0) against the light's closed-form irradiance (Lambert's polygon formula) times the
+/// paper's raster shader, Lambert's `BASE / pi` alone: the mean and the worst over those
+/// pixels, and how many there are.
+pub fn raster_floor_error(frame: &Frame) -> (f64, f64, usize) {
+    let corners = [CORNER, CORNER + EDGE_U, CORNER + EDGE_U + EDGE_V, CORNER + EDGE_V].map(|c| c.as_dvec3().to_array());
+    let (mut sum, mut count, mut worst) = (0.0f64, 0usize, 0.0f64);
+    for (i, s) in frame.surfaces.iter().enumerate() {
+        if !(s.is_hit() && s.position[0] < -1e-3 && s.position[1].abs() < 1e-3) {
+            continue;
+        }
+        let p = Vec3::from(s.position).as_dvec3();
+        let e = polygon_irradiance_f64(&corners, p.to_array(), [0.0, 1.0, 0.0], RADIANCE as f64);
+        let want = BASE as f64 / std::f64::consts::PI * e;
+        let got = frame.final_image[i][0] as f64;
+        let rel = (got - want).abs() / want;
+        sum += rel;
+        count += 1;
+        worst = worst.max(rel);
+    }
+    (sum / count as f64, worst, count)
 }
