@@ -18,7 +18,9 @@
 //! AVX2, one thread, `ray_contest --singles-only`, the two alternated three times on a
 //! noisy host): the dragon's shadow rays 197 to 212 ms against 170 to 212, the far
 //! bunny's 12.3 to 14.6 against 10.9 to 12.1; the teaser's reflection rays within the
-//! noise. A 4-triangle leaf fills half the lanes of the test it costs.
+//! noise. A 4-triangle leaf fills half the lanes of the test it costs. Leaves storing only
+//! their used lanes, and child boxes quantized to bytes (nodes of two lines), were measured
+//! too and not kept: see the single-ray walk's docs in `hyrt-cpu` (`traversal::single`).
 //!
 //! Children keep the binary tree's depth-first order, and wide nodes are numbered depth
 //! first, so the layout keeps the binary tree's locality. No box is recomputed: every

@@ -58,6 +58,53 @@
 //! out-of-order core already overlaps what the interleaving would, and the state kept in
 //! memory between visits costs more than it hides.
 //!
+//! Fewer lines per visit, tried and not kept (issue 36; this project's AMD EPYC, family 25,
+//! AVX-512 lanes, one thread, `ray_contest --singles-only --kind shadow` and `--kind
+//! bounce`, every variant behind a switch and interleaved round by round in one process,
+//! medians of 15 rounds, ms; every variant gave the scalar answers ray for ray):
+//!
+//! * *used lanes*: leaves storing only their used lanes, each leaf's nine vertex rows of
+//!   `count` floats back to back in slot order (36 bytes a triangle, the ids apart), read
+//!   with the same eight-lane loads (lanes past the count lie outside the active mask);
+//! * *4/8 rows*: leaves of at most 4 triangles as rows of 4 floats at 32-byte alignment
+//!   (144 bytes, always three lines; 128-bit loads, zeros above), the others as today;
+//! * *quantized*: child boxes as bytes (Ylitie et al. 2017), per axis an origin (the
+//!   children's least minimum) and a power-of-two scale, each plane rounded outward at
+//!   build time and checked with the decode the walk runs (`origin + q as f32 * scale`),
+//!   decoded per visit before the unchanged slab test: 128-byte nodes, two lines, and
+//!   conservative, hence the same answers;
+//! * *looser boxes*: those decoded boxes stored in the full node, to separate the visits
+//!   the coarser boxes add from the decode's cost.
+//!
+//! | rays | today | used lanes | 4/8 rows | quantized | looser boxes |
+//! |---|---:|---:|---:|---:|---:|
+//! | teaser, shadow | 112.6 | 114.5 | 132.3 | 158.3 | 125.8 |
+//! | Sponza, shadow | 103.1 | 105.2 | 116.9 | 154.9 | 119.8 |
+//! | near horse, shadow | 8.39 | 8.77 | 8.99 | 10.57 | 8.61 |
+//! | far horse, shadow | 0.92 | 1.04 | 1.05 | 1.17 | 0.94 |
+//! | near bunny, shadow | 14.34 | 14.75 | 15.26 | 17.91 | 14.75 |
+//! | far bunny, shadow | 6.12 | 6.43 | 6.64 | 7.69 | 6.40 |
+//! | dragon, shadow | 85.9 | 85.0 | 91.6 | 102.4 | 87.2 |
+//! | teaser, reflections and refractions | 26.4 | 26.9 | 27.8 | 31.7 | 27.5 |
+//!
+//! Callgrind (AVX2, `--cache-sim=yes --branch-sim=yes`, the near bunny's shadow rays), per
+//! ray in the same order: instructions 1,081, 1,102, 1,181, 1,280 and 1,106; L1 data misses
+//! (its 32 KB L1) 4.91, 4.08, 4.60, 4.03 and 4.97; mispredicted branches 5.60, 5.63 and
+//! 6.75 for the first three. The wide leaves hold 5.1 to 5.9 triangles on these scenes, so
+//! used lanes save a third of the leaf bytes (the dragon's 52 MB to 31 MB, the teaser's 7.9
+//! to 4.9) and a sixth of the L1 misses, for 2% more instructions (a row's address is
+//! `9 first + (3 i + k) count` with the ray's axis `k`). That pays only where the leaves
+//! outgrow the 32 MB L3: the dragon, 0 to 6% faster at AVX-512 in six runs and 12% at AVX2
+//! (104.9 against 92.3 ms, one run); elsewhere the leaves stay in L2 and L3, and it was 2 to
+//! 5% slower (the far horse's 6,085 rays 13%). The 4/8 rows lose on the branch between the
+//! two leaf tests. Quantized nodes lose twice: the coarser boxes alone cost 2 to 16% (Sponza
+//! and the teaser most) in added visits, and the decode (per node three origin and three
+//! scale broadcasts, six conversions, multiplies and adds: 16% more instructions than the
+//! same boxes stored in full) costs more than loading half the node lines saves. So a node
+//! test's added arithmetic is not hidden behind its loads on this machine; a decode folded
+//! into the slab distances (Embree's `q * (scale * inv) + (origin - o) * inv`) would need
+//! an error bound of its own to stay conservative.
+//!
 //! [`ray_aabb_conservative`]: hyrt_core::kernels::ray::ray_aabb_conservative
 
 use glam::Vec3;
