@@ -215,8 +215,20 @@ pub fn render_case(backend: &mut dyn Backend, prepared: &PreparedScene, case: &C
 /// failure to start (a shader that does not compile, a validation error) is a bug and
 /// panics everywhere: it must not pass for a missing adapter.
 pub fn gpu_for_tests() -> Option<hyrt_gpu::backend::GpuBackend> {
+    gpu_for_tests_with(None)
+}
+
+/// As [`gpu_for_tests`], on a device whose storage bindings hold at most `binding_limit`
+/// bytes where given ([`hyrt_gpu::GpuContext::with_binding_limit`]).
+pub fn gpu_for_tests_with(binding_limit: Option<u64>) -> Option<hyrt_gpu::backend::GpuBackend> {
     use hyrt_core::GpuError;
-    match hyrt_gpu::backend::GpuBackend::new(hyrt_gpu::AdapterPolicy::AllowSoftware) {
+    let policy = hyrt_gpu::AdapterPolicy::AllowSoftware;
+    let backend = match binding_limit {
+        None => hyrt_gpu::backend::GpuBackend::new(policy),
+        Some(bytes) => hyrt_gpu::GpuContext::with_binding_limit(policy, bytes)
+            .and_then(hyrt_gpu::backend::GpuBackend::with_context),
+    };
+    match backend {
         Ok(g) => Some(g),
         Err(e) if std::env::var_os("CI").is_some() => panic!("CI needs a GPU adapter (lavapipe): {e}"),
         Err(e @ (GpuError::NoAdapter | GpuError::SoftwareOnly { .. } | GpuError::RequestDevice { .. })) => {

@@ -5,7 +5,7 @@
 //! moves; the device holds the mesh once, and a move writes its placement, not the mesh.
 
 use hyrt_conformance::compare::compare_stages;
-use hyrt_conformance::report::gpu_for_tests;
+use hyrt_conformance::report::{gpu_for_tests, gpu_for_tests_with};
 use hyrt_core::bvh::BvhPreset;
 use hyrt_core::formats::CameraRecord;
 use hyrt_core::frame::{Backend, FrameOptions, PreparedScene};
@@ -13,6 +13,8 @@ use hyrt_core::glam::{Mat4, Quat, Vec3};
 use hyrt_core::scene::{Camera, Light, Material, MaterialKind, Mesh, Object, RenderMode, Scene};
 use hyrt_cpu::backend::CpuBackend;
 use hyrt_gpu::backend::world_table_bytes;
+use hyrt_gpu::paging::{Table, TablePages};
+use hyrt_gpu::visibility_raster::batch_triangles;
 
 /// Copies of the torus in the grid: 6 x 5.
 const COLUMNS: usize = 6;
@@ -147,41 +149,72 @@ fn gpu_reads_instances_by_reference_as_the_cpu_and_moves_them() {
     assert_eq!(gpu.scene_writes(), (1, 1), "the scene went to the device once, then the move");
 }
 
-/// Dragons by reference on the GPU: a manifest grid of `HYRT_DRAGONS` (default 1) copies of
-/// the Stanford dragon (871,414 triangles), traced as instances of one mesh, rendered by both
-/// backends at 160 x 90 (the first seen as `assets/scenes/dragon.toml` sees it) and compared
-/// buffer by buffer; prints the device's world tables
-/// against a flat table and both frames' times. Ignored: minutes on lavapipe (and until the
-/// raster takes its setup records in batches, a device binding must hold 80 bytes per world
-/// triangle: 1 dragon on lavapipe). Run with `--ignored` where `../shared/assets` is.
+/// Scenes past one storage binding: on devices whose storage bindings hold 1 MiB and
+/// 4 MiB (the device enforces it), the grid's 69,248 world triangles are set up and drawn
+/// in six and two batches ([`batch_triangles`]), and stored, their tables (3.3 MB of
+/// records, as much again in BVH leaf order) are read in pages of one binding each
+/// ([`TablePages`]: five and two pages of records); by reference and stored, every buffer
+/// is still the CPU's bit for bit: the batches keep the scene's order, so the depth test's
+/// ties (the earlier triangle wins) fall as in one draw, and a page holds the records the
+/// whole table holds at the same index.
 #[test]
-#[ignore]
-fn gpu_renders_dragons_by_reference_as_the_cpu() {
+fn gpu_renders_past_one_binding_in_batches_and_pages_as_the_cpu() {
+    let scene = grid_scene();
+    let mut cpu = CpuBackend::new(Some(2));
+    let camera = CameraRecord::new(&scene.camera.unwrap(), 96, 64);
+    for (binding, batches, pages) in [(1u64 << 20, 6, 5), (4 << 20, 2, 2)] {
+        let Some(mut gpu) = gpu_for_tests_with(Some(binding)) else { return };
+        let limits = gpu.context().limits.clone();
+        assert_eq!(limits.max_storage_buffer_binding_size, binding);
+        let batch = batch_triangles(&limits) as usize;
+        assert_eq!(batch, binding as usize / 80);
+        for (what, prepared) in [
+            ("by reference", hyrt_cpu::bvh_build::prepare_moving(&scene, BvhPreset::default(), &[7])),
+            ("stored", hyrt_cpu::bvh_build::prepare_scene(&scene, BvhPreset::default())),
+        ] {
+            let triangles = &prepared.geometry.triangles;
+            assert_eq!(triangles.has_references(), what == "by reference");
+            assert_eq!(triangles.len().div_ceil(batch), batches, "{what}: {batches} batches");
+            let paged = TablePages::of_scene(&prepared, &limits).unwrap();
+            if what == "stored" {
+                assert_eq!(paged.pages(Table::Triangles), pages, "{what}: pages of records");
+                assert_eq!(paged.pages(Table::LeafTriangles), pages, "{what}: pages of leaf slots");
+            }
+            same_frames(&mut cpu, &mut gpu, &prepared, &camera, &format!("{what}, {binding}-byte bindings"));
+        }
+    }
+}
+
+/// Dragons on the GPU as the CPU renders them: a manifest grid of `columns` x `rows`
+/// copies of the Stanford dragon (871,414 triangles), prepared as the facade prepares it
+/// (`prepare_scene`: instances of one mesh past `AUTO_INSTANCING_BYTES`, else every copy
+/// stored), rendered by both backends at 160 x 90 (the first seen as
+/// `assets/scenes/dragon.toml` sees it) and compared buffer by buffer twice; prints the
+/// device's world tables, its pages and both backends' times. `None` without the shared
+/// assets or an adapter.
+fn dragons_as_the_cpu(columns: u32, rows: u32) -> Option<PreparedScene> {
     let Some(assets) = hyrt_conformance::corpus::shared_assets() else {
         eprintln!("SKIPPED: ../shared/assets not found (dragon.glb)");
-        return;
+        return None;
     };
-    let Some(mut gpu) = gpu_for_tests() else { return };
-    let count: u32 = std::env::var("HYRT_DRAGONS").ok().and_then(|s| s.parse().ok()).unwrap_or(1);
+    let mut gpu = gpu_for_tests()?;
     let manifest = format!(
         "[camera]\neye = [0.089, 0.236, 0.313]\ntarget = [-0.0059, 0.125, -0.0046]\nfov_deg = 45.0\nnear = 0.01\nfar = 30.0\n\n\
          [[light]]\ntype = \"point\"\nposition = [1.0, 2.0, 2.0]\nintensity = 6.0\n\n\
          [[model]]\nfile = {:?}\nname = \"dragon\"\nrender_mode = \"ray_traced\"\n\
-         repeat = {{ count = [{count}, 1, 1], step = [0.25, 0.0, 0.0] }}\n",
+         repeat = {{ count = [{columns}, 1, {rows}], step = [0.25, 0.0, -0.3] }}\n",
         assets.join("dragon.glb").display().to_string()
     );
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("instances");
     std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("dragons.toml");
+    let path = dir.join(format!("dragons_{columns}x{rows}.toml"));
     std::fs::write(&path, manifest).unwrap();
     let scene = Scene::load(&path).unwrap();
     let mut cpu = CpuBackend::new(Some(2));
-    // The first dragon moves: every copy (and with one, the one) is traced by reference.
-    let prepared = hyrt_cpu::bvh_build::prepare_moving(&scene, BvhPreset::default(), &[0]);
-    assert!(prepared.geometry.triangles.has_references());
-    let uploaded: u64 = world_table_bytes(&prepared).iter().map(|(_, b)| b).sum();
+    let prepared = hyrt_cpu::bvh_build::prepare_scene(&scene, BvhPreset::default());
+    let tables: Vec<String> = world_table_bytes(&prepared).iter().map(|(t, b)| format!("{t}: {b} bytes")).collect();
+    let pages = TablePages::of_scene(&prepared, &gpu.context().limits).unwrap();
     let n = prepared.geometry.triangles.len();
-    let flat = (n * std::mem::size_of::<hyrt_core::formats::TriangleRecord>()) as u64;
     let camera = CameraRecord::new(&scene.camera.unwrap(), 160, 90);
     let options = FrameOptions { stage_outputs: true, ..FrameOptions::default() };
     let t = std::time::Instant::now();
@@ -194,8 +227,9 @@ fn gpu_renders_dragons_by_reference_as_the_cpu() {
     let again = gpu.render(&prepared, &camera, &options).expect("gpu frame");
     let gpu_s = t.elapsed().as_secs_f64();
     eprintln!(
-        "{count} dragons, {n} triangles by reference: world tables on the device {uploaded} bytes (a flat table: \
-         {flat}); cpu {cpu_s:.2} s, gpu {first_s:.2} s (first frame, pipelines and upload), {gpu_s:.2} s (again) on {}",
+        "{columns} x {rows} dragons, {n} triangles ({}): world tables on the device {tables:?}, pages {pages:?}; \
+         cpu {cpu_s:.2} s, gpu {first_s:.2} s (first frame, pipelines and upload), {gpu_s:.2} s (again) on {}",
+        if prepared.geometry.triangles.has_references() { "by reference" } else { "stored" },
         gpu.describe()
     );
     for f in [&frame, &again] {
@@ -205,4 +239,29 @@ fn gpu_renders_dragons_by_reference_as_the_cpu() {
     }
     let hits = reference.gbuffer.iter().filter(|t| t.is_hit()).count();
     assert!(hits > 1000, "{hits} pixels see a dragon");
+    Some(prepared)
+}
+
+/// 30 dragons (26 million triangles) read by reference: the device holds the mesh once
+/// (21 MB of world tables against 1.25 GB flat) and rasterizes them in batches. Ignored:
+/// about a minute on lavapipe. Run with `--ignored` where `../shared/assets` is.
+#[test]
+#[ignore]
+fn gpu_renders_dragons_by_reference_as_the_cpu() {
+    if let Some(prepared) = dragons_as_the_cpu(6, 5) {
+        assert!(prepared.geometry.triangles.has_references());
+    }
+}
+
+/// Four dragons stored (3.5 million world records: 167 MB, past lavapipe's 128 MiB
+/// binding): the records, normals and BVH tables in pages. Ignored: about a minute on
+/// lavapipe.
+#[test]
+#[ignore]
+fn gpu_renders_dragons_stored_in_pages_as_the_cpu() {
+    if let Some(prepared) = dragons_as_the_cpu(2, 2) {
+        assert!(!prepared.geometry.triangles.has_references());
+        let records = prepared.geometry.triangles.stored_records().len() * 48;
+        assert!(records > 128 << 20, "{records} bytes of records");
+    }
 }

@@ -26,6 +26,7 @@ use crate::buffers::{
 use crate::compaction::CompactionStage;
 use crate::composition::CompositionStage;
 use crate::gpu_buffer::{extend_from_bytes, read_back_each, read_back_many};
+use crate::paging::{page_shift, Table, TablePages, MAX_PAGES};
 use crate::present::Present;
 use crate::raster_shading::RasterShadingStage;
 use crate::reconstruction::{NormalMapping, ReconstructionStage};
@@ -51,7 +52,7 @@ const MAX_STEPS: u32 = Stage::ALL.len() as u32 - 1 - 3 + 5 * MAX_DEPTH_LIMIT;
 /// count, hits, surfaces and shadow codes, objects, triangles, lights, the environment's
 /// texels, the next depth's links and radiance, the radiance it writes, the surface tables
 /// and the ambient light's texels). WebGPU's default limit is 8;
-/// `GpuContext::new` asks for up to 16. On a device with fewer, the backend renders frames
+/// `GpuContext::new` asks for all the adapter has. On a device with fewer, the backend renders frames
 /// without bounces and refuses the others with `GpuError::Limits`.
 pub const BOUNCE_STORAGE_BUFFERS: u32 = 14;
 
@@ -370,7 +371,16 @@ impl GpuBackend {
                 }
             }
             None => {
-                self.scene = Some((scene.id(), scene.revision(), ctx.checked(|| SceneBuffers::new(ctx, scene))?));
+                // Device memory is what bounds a scene (its tables past one binding are in
+                // pages): running out of it says how much the scene needed.
+                let buffers = ctx.checked(|| SceneBuffers::new(ctx, scene)).map_err(|e| match e {
+                    GpuError::OutOfMemory(m) => GpuError::OutOfMemory(format!(
+                        "the scene's tables need {} bytes of device memory: {m}",
+                        scene_table_bytes(scene)
+                    )),
+                    e => e,
+                })?;
+                self.scene = Some((scene.id(), scene.revision(), buffers));
                 self.scene_writes.0 += 1;
             }
         }
@@ -384,7 +394,8 @@ impl GpuBackend {
         // the first frame that needs them.
         let stochastic = plan.stochastic();
         let denoised = plan.runs(Stage::ShadowDenoise);
-        self.stages(Specialization { stochastic, denoised, ..Specialization::of_scene(scene) })?;
+        let of_scene = self.scene.as_ref().expect("scene buffers").2.specialization;
+        self.stages(Specialization { stochastic, denoised, ..of_scene })?;
         if denoised && self.shadow_denoise.is_none() {
             let ctx = &self.ctx;
             self.shadow_denoise = Some(ctx.checked(|| ShadowDenoiseStage::new(ctx))?);
@@ -1029,23 +1040,36 @@ impl GpuBackend {
             )));
         }
         let binding = self.ctx.limits.max_storage_buffer_binding_size.min(self.ctx.limits.max_buffer_size);
-        // The world tables as uploaded (`SceneBuffers::new`): the stored records (48 bytes
-        // each; their normals take 36) and, with objects by reference, each shared mesh once
-        // and a placement per object.
-        for (table, bytes) in world_table_bytes(scene) {
+        // The tables that grow with the triangles go in pages of one binding each
+        // (`crate::paging`), up to MAX_PAGES; each further page binds one more storage
+        // buffer in the stages that read it.
+        let Some(pages) = TablePages::of_scene(scene, &self.ctx.limits) else {
+            return Err(GpuError::Limits(format!(
+                "the scene's world records or BVH need more than {MAX_PAGES} pages of {} records (one storage binding of {binding} bytes each)",
+                1u64 << page_shift(&self.ctx.limits)
+            )));
+        };
+        let extra = pages.extra_bindings(&Table::ALL);
+        let most = match (plan.bounce_depth() > 0, scene.geometry.triangles.has_references()) {
+            (true, true) => BY_REFERENCE_BOUNCE_STORAGE_BUFFERS,
+            (true, false) => BOUNCE_STORAGE_BUFFERS,
+            (false, _) => TWO_LEVEL_STORAGE_BUFFERS.max(DENOISED_SHADING_STORAGE_BUFFERS),
+        };
+        if extra > 0 && most + extra > storage {
+            return Err(GpuError::Limits(format!(
+                "the scene's world records and BVH take {} pages on this device (one storage binding of {binding} bytes each), which with the frame's other tables bind up to {} storage buffers per shader stage; this device allows {storage}",
+                extra + Table::ALL.len() as u32,
+                most + extra
+            )));
+        }
+        // The other world tables in one binding each: with objects by reference, each shared
+        // mesh once and a placement per object.
+        for (table, bytes) in world_table_bytes(scene).into_iter().skip(1) {
             if bytes > binding {
                 return Err(GpuError::Limits(format!(
                     "the scene's {table} need {bytes} bytes in one storage binding; this device allows {binding}"
                 )));
             }
-        }
-        // The raster's setup records, one per world triangle (stored or by reference).
-        let setups = scene.geometry.triangles.len() as u64 * crate::visibility_raster::RASTER_SETUP_BYTES;
-        if self.visibility_mode == VisibilityMode::Exact && setups > binding {
-            return Err(GpuError::Limits(format!(
-                "visibility_raster's setup records of the scene's {} world triangles need {setups} bytes in one storage binding; this device allows {binding}",
-                scene.geometry.triangles.len()
-            )));
         }
         if scene.geometry.triangles.has_references()
             && plan.bounce_depth() > 0
@@ -1108,17 +1132,42 @@ pub fn world_table_bytes(scene: &PreparedScene) -> Vec<(String, u64)> {
     tables
 }
 
+/// Bytes of the tables [`SceneBuffers::new`] uploads for `scene`: the world tables
+/// ([`world_table_bytes`]), their normals, the BVH (both levels), the objects, lights and
+/// instances, and the surface tables; the environment's and ambient light's texels aside.
+pub fn scene_table_bytes(scene: &PreparedScene) -> u64 {
+    use hyrt_core::formats::{BvhNode, InstanceRecord, LightRecord, ObjectRecord, TriangleRecord};
+    use std::mem::size_of;
+    let g = &scene.geometry;
+    let world: u64 = world_table_bytes(scene).iter().map(|(_, b)| *b).fold(0, u64::saturating_add);
+    let normals = g.triangles.stored_records().len() as u64 * 36;
+    let (nodes, slots, instances) = match &scene.levels {
+        Some(l) => (
+            l.top.len() + l.bottoms.iter().map(|b| b.nodes.len()).sum::<usize>(),
+            l.bottoms.iter().map(|b| b.leaf_triangles.len()).sum::<usize>(),
+            l.instances.len(),
+        ),
+        None => (scene.bvh.nodes.len(), scene.bvh.leaf_triangles.len(), 0),
+    };
+    let bvh = nodes * size_of::<BvhNode>() + slots * (size_of::<TriangleRecord>() + 4);
+    let records = g.objects.len() * size_of::<ObjectRecord>()
+        + (g.lights.len() + g.emitters.len()) * size_of::<LightRecord>()
+        + instances * size_of::<InstanceRecord>();
+    let surface = g.surface.layout().map_or(0, |l| l.bytes());
+    [world, normals, bvh as u64, records as u64, surface].into_iter().fold(0, u64::saturating_add)
+}
+
 /// Storage buffers `bounce_trace` binds in a scene with objects by reference: its 13 of a
-/// two-level scene, the placements and the mesh words. `GpuContext::new` asks for up to 16.
+/// two-level scene, the placements and the mesh words. `GpuContext::new` asks for all the adapter has.
 pub const BY_REFERENCE_BOUNCE_STORAGE_BUFFERS: u32 = 15;
 
 /// Storage buffers `rt_shading` and `raster_shading` bind in a denoised frame: their eight
-/// and the frame's visibility. WebGPU's default limit is 8; `GpuContext::new` asks for up
-/// to 16.
+/// and the frame's visibility. WebGPU's default limit is 8; `GpuContext::new` asks for all
+/// the adapter has.
 pub const DENOISED_SHADING_STORAGE_BUFFERS: u32 = 9;
 
 /// Storage buffers `shadow_rays` binds in a two-level scene: its eight and the instance
-/// table. WebGPU's default limit is 8; `GpuContext::new` asks for up to 16.
+/// table. WebGPU's default limit is 8; `GpuContext::new` asks for all the adapter has.
 pub const TWO_LEVEL_STORAGE_BUFFERS: u32 = 9;
 
 impl Backend for GpuBackend {

@@ -19,9 +19,7 @@
 //! with bounces).
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
-use crate::shader::{
-    bind_buffers, environment_wgsl, radiance_source, specialized_pipeline, storage_entry, uniform_entry,
-};
+use crate::shader::{environment_wgsl, radiance_source, specialized_pipeline, storage_entry, uniform_entry};
 use crate::texture::Specialization;
 use crate::GpuContext;
 
@@ -34,12 +32,13 @@ pub struct BounceShadingStage {
 /// The WGSL of the stage for scenes that need `s` (its triangle flags read as
 /// [`crate::world_triangles::triangle_flags_wgsl`] says).
 pub fn shader_source(s: Specialization) -> String {
-    radiance_source(&format!(
+    let source = radiance_source(&format!(
         "{}\n{}\n{}",
         environment_wgsl(),
         include_str!("shaders/bounce_shading.wgsl"),
         crate::world_triangles::triangle_flags_wgsl(0, 8, s.by_reference)
-    ))
+    ));
+    crate::paging::paged_source(&source, s.flags_pages())
 }
 
 impl BounceShadingStage {
@@ -53,6 +52,7 @@ impl BounceShadingStage {
         entries.push(storage_entry(14, false));
         entries.extend([storage_entry(15, true), uniform_entry(16)]);
         entries.extend([uniform_entry(17), storage_entry(18, true), uniform_entry(19)]);
+        entries.extend(s.flags_pages().layout_entries(&[crate::paging::Table::Triangles]));
         let (pipeline, layout) = specialized_pipeline(ctx, "bounce_shading", &source, &entries, &s.shading_constants());
         BounceShadingStage { pipeline, layout }
     }
@@ -78,7 +78,7 @@ impl BounceShadingStage {
                 (&c.links, &c.radiance)
             }
         };
-        let bind_group = bind_buffers(
+        let bind_group = crate::shader::bind_paged_buffers(
             ctx,
             "bounce_shading",
             &self.layout,
@@ -104,6 +104,7 @@ impl BounceShadingStage {
                 &scene.ambient_texels,
                 &frame.slot_params,
             ],
+            scene.flags_table_pages(),
         );
         crate::shader::encode_list_pass(encoder, "bounce_shading", &self.pipeline, &bind_group, &b.ray_count, timing);
     }

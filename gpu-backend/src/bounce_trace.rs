@@ -14,7 +14,8 @@
 //! counts the hits.
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
-use crate::shader::{bind_buffers, specialized_pipeline, surface_wgsl, EXACT_PRODUCTS};
+use crate::paging::Table;
+use crate::shader::{bind_paged_buffers, specialized_pipeline, surface_wgsl, EXACT_PRODUCTS};
 use crate::shader::{preamble, ray_wgsl, storage_entry, uniform_entry};
 use crate::texture::{texture_wgsl, Specialization};
 use crate::GpuContext;
@@ -30,7 +31,7 @@ pub fn shader_source(s: Specialization) -> String {
     } else {
         "fn trace_closest(ray: RayRecord) -> ClosestHit {\n    return closest_hit(ray);\n}\n"
     };
-    preamble()
+    let source = preamble()
         + &ray_wgsl()
         + EXACT_PRODUCTS
         + &surface_wgsl()
@@ -38,8 +39,13 @@ pub fn shader_source(s: Specialization) -> String {
         + &world_normals_wgsl(s.by_reference)
         + &texture_wgsl()
         + include_str!("shaders/bounce_trace.wgsl")
-        + walk
+        + walk;
+    crate::paging::paged_source(&source, s.pages)
 }
+
+/// The paged tables the stage reads ([`crate::paging`]).
+const PAGED_TABLES: [Table; 5] =
+    [Table::Nodes, Table::LeafTriangles, Table::PrimIndices, Table::Triangles, Table::Normals];
 
 /// The `bounce_trace` stage: one pipeline.
 pub struct BounceTraceStage {
@@ -69,6 +75,7 @@ impl BounceTraceStage {
         if s.by_reference {
             entries.extend([storage_entry(BY_REFERENCE_BINDING, true), storage_entry(BY_REFERENCE_BINDING + 1, true)]);
         }
+        entries.extend(s.pages.layout_entries(&PAGED_TABLES));
         let (pipeline, layout) = specialized_pipeline(ctx, "bounce_trace", &source, &entries, &s.constants());
         BounceTraceStage { pipeline, layout, two_level: s.two_level, by_reference: s.by_reference }
     }
@@ -88,11 +95,11 @@ impl BounceTraceStage {
             &frame.params,
             &b.rays,
             &b.ray_count,
-            &scene.bvh_nodes,
-            &scene.bvh_leaf_triangles,
-            &scene.bvh_prim_indices,
-            &scene.triangles,
-            &scene.normals,
+            scene.bvh_nodes.first(),
+            scene.bvh_leaf_triangles.first(),
+            scene.bvh_prim_indices.first(),
+            scene.triangles.first(),
+            scene.normals.first(),
             &b.hits,
             &b.surfaces,
             &b.counters,
@@ -108,7 +115,11 @@ impl BounceTraceStage {
             (false, true) => &buffers[..15],
             (false, false) => &buffers[..14],
         };
-        let bind_group = bind_buffers(ctx, "bounce_trace", &self.layout, bound);
+        let further =
+            [&scene.bvh_nodes, &scene.bvh_leaf_triangles, &scene.bvh_prim_indices, &scene.triangles, &scene.normals]
+                .into_iter()
+                .flat_map(|t| t.further());
+        let bind_group = bind_paged_buffers(ctx, "bounce_trace", &self.layout, bound, further);
         crate::shader::encode_list_pass(encoder, "bounce_trace", &self.pipeline, &bind_group, &b.ray_count, timing);
     }
 }

@@ -15,6 +15,7 @@ use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan};
 
 use crate::band::Band;
 use crate::gpu_buffer::{storage, upload};
+use crate::paging::{PagedBuffer, Table};
 use crate::texture::{Specialization, SurfaceBuffers};
 use crate::{GpuContext, GpuError};
 
@@ -101,15 +102,18 @@ impl hyrt_core::formats::wgsl::WgslStruct for SlotParams {
 /// re-exported at their old path.
 pub use crate::band::{BounceRoom, Room};
 
-/// Scene tables on the GPU (from a [`PreparedScene`]; built once per scene).
+/// Scene tables on the GPU (from a [`PreparedScene`]; built once per scene). The tables
+/// that grow with the triangles ([`PagedBuffer`]: `triangles`, `normals`, `bvh_nodes`,
+/// `bvh_leaf_triangles`, `bvh_prim_indices`) are split into pages of one storage binding
+/// each where they outgrow one ([`crate::paging`]; `specialization.pages` says how).
 pub struct SceneBuffers {
     /// `array<TriangleRecord>`: the world triangle table by global id; with objects by
     /// reference, the stored objects' records alone, by record index
     /// ([`hyrt_core::geometry::WorldTriangles::stored_records`]).
-    pub triangles: wgpu::Buffer,
+    pub triangles: PagedBuffer,
     /// `array<f32>`, 9 per triangle (per stored record with objects by reference): the
     /// world normals at its three corners (x, y, z each).
-    pub normals: wgpu::Buffer,
+    pub normals: PagedBuffer,
     /// Whether some object is kept by reference: its records are made on read from
     /// `placements` and `mesh_words` ([`crate::world_triangles`]).
     pub by_reference: bool,
@@ -136,13 +140,13 @@ pub struct SceneBuffers {
     /// `array<BvhNode>`: the flattened BVH ([`hyrt_core::bvh`]); empty BVH: one zero node and `bvh_node_count == 0`.
     /// A scene with two levels: every level's nodes, the top level's first
     /// ([`hyrt_core::bvh::two_level::PackedLevels`]).
-    pub bvh_nodes: wgpu::Buffer,
+    pub bvh_nodes: PagedBuffer,
     /// `array<TriangleRecord>`: triangles in BVH leaf order (`Bvh::leaf_triangles`; every
     /// bottom level's in turn with two levels).
-    pub bvh_leaf_triangles: wgpu::Buffer,
+    pub bvh_leaf_triangles: PagedBuffer,
     /// `array<u32>`: global triangle index of each leaf slot (`Bvh::prim_indices`); with
     /// two levels, each bottom level's, to which an instance adds its first triangle.
-    pub bvh_prim_indices: wgpu::Buffer,
+    pub bvh_prim_indices: PagedBuffer,
     /// `array<InstanceRecord>`: a two-level scene's instances, each naming its level's
     /// root in `bvh_nodes`; one zero record (bound by no stage) for a single-level scene.
     pub instances: wgpu::Buffer,
@@ -202,6 +206,8 @@ impl SceneBuffers {
         let ambient_header = uniform(ctx, "ambient light", std::mem::size_of::<AmbientLightRecord>() as u64);
         ctx.queue.write_buffer(&ambient_header, 0, bytemuck::bytes_of(&ambient));
         let packed = scene.levels.as_ref().map(|l| l.packed());
+        let specialization = Specialization::of_scene(scene, &ctx.limits);
+        let pages = specialization.pages;
         let (nodes, leaf_triangles, prim_indices, instances) = match &packed {
             Some(p) => (&p.nodes, &p.leaf_triangles, &p.prim_indices, &p.instances[..]),
             None => (&scene.bvh.nodes, &scene.bvh.leaf_triangles, &scene.bvh.prim_indices, &[][..]),
@@ -211,19 +217,19 @@ impl SceneBuffers {
             environment_texels: upload::<[f32; 4]>(ctx, "environment texels", texels),
             ambient_light: ambient_header,
             ambient_texels: upload::<[f32; 4]>(ctx, "ambient light texels", &ambient_texels),
-            triangles: upload::<TriangleRecord>(ctx, "triangles", triangles),
-            normals: upload(ctx, "normals", &normals),
+            triangles: PagedBuffer::upload::<TriangleRecord>(ctx, Table::Triangles, triangles, pages),
+            normals: PagedBuffer::upload(ctx, Table::Normals, &normals, pages),
             by_reference,
             placements: upload::<PlacementRecord>(ctx, "placements", &placements),
             mesh_words: upload::<u32>(ctx, "mesh words", &mesh_words),
             mesh_offsets,
             objects: upload::<ObjectRecord>(ctx, "objects", &g.objects),
             lights: upload::<LightRecord>(ctx, "lights", &packed_lights(&g.lights, &g.emitters)),
-            bvh_nodes: upload::<BvhNode>(ctx, "bvh nodes", nodes),
-            bvh_leaf_triangles: upload::<TriangleRecord>(ctx, "bvh leaf triangles", leaf_triangles),
-            bvh_prim_indices: upload::<u32>(ctx, "bvh prim indices", prim_indices),
+            bvh_nodes: PagedBuffer::upload::<BvhNode>(ctx, Table::Nodes, nodes, pages),
+            bvh_leaf_triangles: PagedBuffer::upload::<TriangleRecord>(ctx, Table::LeafTriangles, leaf_triangles, pages),
+            bvh_prim_indices: PagedBuffer::upload::<u32>(ctx, Table::PrimIndices, prim_indices, pages),
             instances: upload::<InstanceRecord>(ctx, "instances", instances),
-            specialization: Specialization::of_scene(scene),
+            specialization,
             surface: SurfaceBuffers::new(ctx, &g.surface, &g.objects),
             triangle_count: g.triangles.len() as u32,
             object_count: g.objects.len() as u32,
@@ -242,7 +248,16 @@ impl SceneBuffers {
     pub fn flags_table(&self) -> &wgpu::Buffer {
         match self.by_reference {
             true => &self.placements,
-            false => &self.triangles,
+            false => self.triangles.first(),
+        }
+    }
+
+    /// The further pages of [`SceneBuffers::flags_table`] ([`crate::paging`]): the
+    /// triangles' when they are the table, else none.
+    pub fn flags_table_pages(&self) -> Vec<wgpu::BindGroupEntry<'_>> {
+        match self.by_reference {
+            true => Vec::new(),
+            false => self.triangles.further().collect(),
         }
     }
 
@@ -377,28 +392,23 @@ impl SceneBuffers {
             if let Some(first) = first_record {
                 let mut triangles = Vec::new();
                 g.triangles.fill(range.clone(), &mut triangles);
-                write(&self.triangles, first * std::mem::size_of::<TriangleRecord>(), bytemuck::cast_slice(&triangles));
-                write(&self.normals, first * 9 * 4, bytemuck::cast_slice(&corner_normals(g, range)));
+                let offset = (first * std::mem::size_of::<TriangleRecord>()) as u64;
+                self.triangles.write(&ctx.queue, offset, bytemuck::cast_slice(&triangles));
+                self.normals.write(&ctx.queue, (first * 9 * 4) as u64, bytemuck::cast_slice(&corner_normals(g, range)));
             }
             write(&self.objects, o as usize * std::mem::size_of::<ObjectRecord>(), bytemuck::bytes_of(record));
         }
         if let (false, Some(levels)) = (changes.objects.is_empty(), &scene.levels) {
-            write(&self.bvh_nodes, 0, bytemuck::cast_slice(&levels.top));
+            self.bvh_nodes.write(&ctx.queue, 0, bytemuck::cast_slice(&levels.top));
             write(&self.instances, 0, bytemuck::cast_slice(&levels.packed_instances()));
             // Refitted bottom levels (deformed meshes): same places, new boxes and vertices.
             for &b in &changes.bottoms {
                 let (node_base, nodes, slot_base) = levels.packed_bottom(b as usize);
-                write(
-                    &self.bvh_nodes,
-                    node_base as usize * std::mem::size_of::<BvhNode>(),
-                    bytemuck::cast_slice(&nodes),
-                );
+                let node_offset = node_base as u64 * std::mem::size_of::<BvhNode>() as u64;
+                self.bvh_nodes.write(&ctx.queue, node_offset, bytemuck::cast_slice(&nodes));
                 let leaf = &levels.bottoms[b as usize].leaf_triangles;
-                write(
-                    &self.bvh_leaf_triangles,
-                    slot_base as usize * std::mem::size_of::<TriangleRecord>(),
-                    bytemuck::cast_slice(leaf),
-                );
+                let slot_offset = slot_base as u64 * std::mem::size_of::<TriangleRecord>() as u64;
+                self.bvh_leaf_triangles.write(&ctx.queue, slot_offset, bytemuck::cast_slice(leaf));
             }
         }
         // Moved emitters move the emitter table (a deformed one too, which its change does

@@ -93,6 +93,23 @@ impl GpuContext {
         compatible_surface: Option<&wgpu::Surface<'_>>,
         policy: AdapterPolicy,
     ) -> Result<GpuContext, GpuError> {
+        Self::create(instance, compatible_surface, policy, None)
+    }
+
+    /// As [`GpuContext::new`], with storage bindings of at most `bytes` (or the adapter's
+    /// own limit where that is lower), enforced by the device: a large device behaves as a
+    /// small one. Tests use it to make lavapipe split what does not fit one binding (the
+    /// raster's batches, frames in bands) on scenes small enough to run in CI.
+    pub fn with_binding_limit(policy: AdapterPolicy, bytes: u64) -> Result<GpuContext, GpuError> {
+        Self::create(&Self::vulkan_instance(None), None, policy, Some(bytes))
+    }
+
+    fn create(
+        instance: &wgpu::Instance,
+        compatible_surface: Option<&wgpu::Surface<'_>>,
+        policy: AdapterPolicy,
+        binding_limit: Option<u64>,
+    ) -> Result<GpuContext, GpuError> {
         let adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::VULKAN));
         // Hardware first (discrete, integrated, virtual), software last.
         let rank = |a: &wgpu::Adapter| match a.get_info().device_type {
@@ -120,9 +137,17 @@ impl GpuContext {
         // larger than a binding are rendered in bands (`crate::band`).
         let limits = wgpu::Limits {
             max_texture_dimension_2d: adapter.limits().max_texture_dimension_2d,
-            max_storage_buffer_binding_size: adapter.limits().max_storage_buffer_binding_size,
+            max_storage_buffer_binding_size: adapter
+                .limits()
+                .max_storage_buffer_binding_size
+                .min(binding_limit.unwrap_or(u64::MAX)),
             max_buffer_size: adapter.limits().max_buffer_size,
-            max_storage_buffers_per_shader_stage: adapter.limits().max_storage_buffers_per_shader_stage.min(16),
+            // All the adapter has: a scene whose tables are paged (`crate::paging`) binds one
+            // more for each further page (lavapipe offers 32).
+            max_storage_buffers_per_shader_stage: adapter.limits().max_storage_buffers_per_shader_stage,
+            max_buffers_and_acceleration_structures_per_shader_stage: adapter
+                .limits()
+                .max_buffers_and_acceleration_structures_per_shader_stage,
             max_compute_workgroup_storage_size: adapter.limits().max_compute_workgroup_storage_size,
             ..wgpu::Limits::default()
         };

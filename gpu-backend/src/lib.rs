@@ -21,6 +21,7 @@ pub mod context;
 pub mod error;
 pub mod exact;
 pub mod gpu_buffer;
+pub mod paging;
 pub mod present;
 pub mod raster_shading;
 pub mod reconstruction;

@@ -21,6 +21,7 @@
 use hyrt_core::frame::PrimaryBarycentrics;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
+use crate::paging::{paged_source, TablePages};
 use crate::shader::{preamble, ray_wgsl, shader_module, surface_wgsl};
 use crate::GpuContext;
 
@@ -53,11 +54,15 @@ pub fn shader_source(by_reference: bool) -> String {
 /// (`main`: the raster's; `main_reintersected`: the camera rays', mirroring
 /// `hyrt_core::kernels::reconstruction::reconstruct_texel_reintersected` and
 /// `hyrt_core::kernels::camera::primary_ray`), for scenes of stored objects, and the same
-/// for scenes with objects by reference, built the first time one is rendered.
+/// for other kinds of scene (objects by reference, tables in pages: [`crate::paging`]),
+/// built the first time one is rendered.
 pub struct ReconstructionStage {
-    plain: Pipelines,
-    by_reference: std::sync::OnceLock<Pipelines>,
+    plain: std::sync::Arc<Pipelines>,
+    others: std::sync::Mutex<Vec<(Kind, std::sync::Arc<Pipelines>)>>,
 }
+
+/// A kind of scene: objects by reference or not, and its tables' pages.
+type Kind = (bool, TablePages);
 
 /// The pipelines of one kind of scene.
 struct Pipelines {
@@ -69,28 +74,37 @@ struct Pipelines {
 impl ReconstructionStage {
     /// Build the pipelines of scenes of stored objects.
     pub fn new(ctx: &GpuContext) -> Self {
-        ReconstructionStage { plain: Pipelines::new(ctx, false), by_reference: std::sync::OnceLock::new() }
+        ReconstructionStage {
+            plain: std::sync::Arc::new(Pipelines::new(ctx, (false, TablePages::default()))),
+            others: std::sync::Mutex::new(Vec::new()),
+        }
     }
 
-    /// Build the pipelines of both kinds of scene now.
+    /// Build the pipelines of both kinds of scene (unpaged) now.
     pub fn with_by_reference(ctx: &GpuContext) -> Self {
         let stage = Self::new(ctx);
-        stage.pipelines(ctx, true);
+        stage.pipelines(ctx, (true, TablePages::default()));
         stage
     }
 
-    /// The pipelines of scenes with objects `by_reference` or without.
-    fn pipelines(&self, ctx: &GpuContext, by_reference: bool) -> &Pipelines {
-        match by_reference {
-            false => &self.plain,
-            true => self.by_reference.get_or_init(|| Pipelines::new(ctx, true)),
+    /// The pipelines of scenes of `kind`.
+    fn pipelines(&self, ctx: &GpuContext, kind: Kind) -> std::sync::Arc<Pipelines> {
+        if kind == (false, TablePages::default()) {
+            return self.plain.clone();
         }
+        let mut others = self.others.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, p)) = others.iter().find(|(k, _)| *k == kind) {
+            return p.clone();
+        }
+        let p = std::sync::Arc::new(Pipelines::new(ctx, kind));
+        others.push((kind, p.clone()));
+        p
     }
 }
 
 impl Pipelines {
-    fn new(ctx: &GpuContext, by_reference: bool) -> Self {
-        let module = shader_module(ctx, "reconstruction", &shader_source(by_reference));
+    fn new(ctx: &GpuContext, (by_reference, pages): Kind) -> Self {
+        let module = shader_module(ctx, "reconstruction", &paged_source(&shader_source(by_reference), pages));
         let pipeline = |entry: &str| {
             let p = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some("reconstruction"),
@@ -122,14 +136,14 @@ impl ReconstructionStage {
         if frame.width == 0 || frame.band.rows == 0 {
             return;
         }
-        let pipelines = self.pipelines(ctx, scene.by_reference);
+        let pipelines = self.pipelines(ctx, (scene.by_reference, scene.specialization.pages));
         let (pipeline, layout) = match barycentrics {
             PrimaryBarycentrics::Raster => &pipelines.raster,
             PrimaryBarycentrics::Reintersected => &pipelines.reintersected,
         };
         let mut buffers = vec![
-            &scene.triangles,
-            &scene.normals,
+            scene.triangles.first(),
+            scene.normals.first(),
             &scene.objects,
             &frame.camera,
             &frame.gbuffer,
@@ -139,7 +153,8 @@ impl ReconstructionStage {
         if scene.by_reference {
             buffers.extend([&scene.placements, &scene.mesh_words]);
         }
-        let group = crate::shader::bind_buffers(ctx, "reconstruction", layout, &buffers);
+        let further = scene.triangles.further().chain(scene.normals.further());
+        let group = crate::shader::bind_paged_buffers(ctx, "reconstruction", layout, &buffers, further);
         let mut pass = crate::timing::begin_timed_pass(encoder, "reconstruction", timing);
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &group, &[]);

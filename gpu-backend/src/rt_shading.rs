@@ -155,7 +155,9 @@ impl RtShadingBouncingStage {
             ),
             s.denoised.then_some(RT_BOUNCING_VISIBILITY),
         );
+        let source = crate::paging::paged_source(&source, s.flags_pages());
         let visibility = [storage_entry(RT_BOUNCING_VISIBILITY, true)];
+        let pages = s.flags_pages().layout_entries(&[crate::paging::Table::Triangles]);
         let (pipeline, layout) = specialized_pipeline(
             ctx,
             "rt_shading (bounces)",
@@ -168,6 +170,7 @@ impl RtShadingBouncingStage {
                     storage_entry(15, true), // radiance of depth 1
                 ],
                 if s.denoised { &visibility } else { &[] },
+                &pages,
             ]
             .concat(),
             &s.shading_constants(),
@@ -187,7 +190,7 @@ impl RtShadingBouncingStage {
     ) {
         let visibility = [&frame.visibility];
         let first = &frame.bounces[0];
-        let bind_group = bind_buffers(
+        let bind_group = crate::shader::bind_paged_buffers(
             ctx,
             "rt_shading (bounces)",
             &self.layout,
@@ -197,6 +200,7 @@ impl RtShadingBouncingStage {
                 if self.denoised { &visibility } else { &[] },
             ]
             .concat(),
+            scene.flags_table_pages(),
         );
         encode_pixel_pass(encoder, "rt_shading", &self.pipeline, &bind_group, frame.width, frame.band.rows, timing);
     }

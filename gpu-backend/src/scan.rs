@@ -257,6 +257,23 @@ impl ListScan {
         count: &wgpu::Buffer,
         timing: Option<(&wgpu::QuerySet, u32)>,
     ) {
+        self.encode_paged(ctx, encoder, label, n, list, Vec::new(), count, timing)
+    }
+
+    /// [`ListScan::encode`] with `further` entries in group 1 after the list's buffers:
+    /// the further pages of a paged table among them ([`crate::paging`]).
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode_paged(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        label: &str,
+        n: u32,
+        list: &[&wgpu::Buffer],
+        further: Vec<wgpu::BindGroupEntry<'_>>,
+        count: &wgpu::Buffer,
+        timing: Option<(&wgpu::QuerySet, u32)>,
+    ) {
         let mut cache = self.scratch.lock().unwrap_or_else(|e| e.into_inner());
         if !cache.contains_key(&n) {
             if cache.len() >= MAX_CACHED_SCANS {
@@ -272,7 +289,7 @@ impl ListScan {
         }
         let scratch = &cache[&n];
         let scan_group = self.scan_bind_group(ctx, scratch, &scratch.flags, count);
-        let list_group = crate::shader::bind_buffers(ctx, label, &self.list_layout, list);
+        let list_group = crate::shader::bind_paged_buffers(ctx, label, &self.list_layout, list, further);
         self.encode_passes(
             encoder,
             label,

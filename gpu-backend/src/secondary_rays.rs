@@ -39,11 +39,12 @@ impl SecondaryRaysStage {
                 + &crate::world_triangles::triangle_flags_wgsl(1, 4, s.by_reference)
                 + &scan_wgsl()),
         );
-        let module = shader_module(ctx, "secondary_rays", &source);
+        let module = shader_module(ctx, "secondary_rays", &crate::paging::paged_source(&source, s.flags_pages()));
         let mut entries = vec![uniform_entry(0), uniform_entry(1), uniform_entry(2)];
         entries.extend((3..=9).map(|i| storage_entry(i, true)));
         entries.extend((10..=12).map(|i| storage_entry(i, false)));
         entries.extend([storage_entry(13, true), uniform_entry(14)]);
+        entries.extend(s.flags_pages().layout_entries(&[crate::paging::Table::Triangles]));
         SecondaryRaysStage { scan: ListScan::new(ctx, "secondary_rays", &module, &entries, &s.constants()) }
     }
 
@@ -84,6 +85,7 @@ impl SecondaryRaysStage {
             &scene.surface.words,
             &scene.surface.layout,
         ];
-        self.scan.encode(ctx, encoder, "secondary_rays", 2 * b.parents, &buffers, &b.ray_count, timing);
+        let further = scene.flags_table_pages();
+        self.scan.encode_paged(ctx, encoder, "secondary_rays", 2 * b.parents, &buffers, further, &b.ray_count, timing);
     }
 }

@@ -567,6 +567,24 @@ pub fn bind_buffers(
     ctx.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries: &entries })
 }
 
+/// [`bind_buffers`], and `further`: the further pages of the paged tables among them
+/// ([`crate::paging::PagedBuffer::further`]).
+pub fn bind_paged_buffers<'a>(
+    ctx: &GpuContext,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    buffers: &[&'a wgpu::Buffer],
+    further: impl IntoIterator<Item = wgpu::BindGroupEntry<'a>>,
+) -> wgpu::BindGroup {
+    let mut entries: Vec<wgpu::BindGroupEntry> = buffers
+        .iter()
+        .enumerate()
+        .map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() })
+        .collect();
+    entries.extend(further);
+    ctx.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries: &entries })
+}
+
 /// One compute pass that runs `pipeline` once per pixel of a `width` x `height`
 /// image (8 x 8 workgroups; the shader skips the invocations past the edges), with
 /// the stage's timestamps when `timing` is `Some((set, i))`: index `i` at the

@@ -24,8 +24,10 @@
 //! (`hyrt_core::kernels::ray::edge_sign_exact`).
 
 use crate::buffers::{FrameBuffers, ListBuffers, SceneBuffers};
+use crate::paging::Table;
 use crate::shader::{
-    bind_buffers, preamble, ray_wgsl, shader_module, slot_params_wgsl, storage_entry, uniform_entry, EXACT_PRODUCTS,
+    bind_paged_buffers, preamble, ray_wgsl, shader_module, slot_params_wgsl, storage_entry, uniform_entry,
+    EXACT_PRODUCTS,
 };
 pub use crate::shader::{MAX_WORKGROUPS_PER_DIMENSION, SHADOW_RAYS_WORKGROUP_SIZE};
 use crate::texture::{texture_wgsl, Specialization};
@@ -60,6 +62,7 @@ impl ShadowRaysStage {
             + &texture_wgsl()
             + include_str!("shaders/shadow_rays.wgsl")
             + walk;
+        let source = crate::paging::paged_source(&source, s.pages);
         let module = shader_module(ctx, "shadow_rays", &source);
         let mut entries = vec![
             uniform_entry(0),
@@ -78,6 +81,7 @@ impl ShadowRaysStage {
         if s.two_level {
             entries.push(storage_entry(12, true));
         }
+        entries.extend(s.pages.layout_entries(&[Table::Nodes, Table::LeafTriangles]));
         let layout = ctx.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("shadow_rays"),
             entries: &entries,
@@ -125,8 +129,8 @@ impl ShadowRaysStage {
             &frame.params,
             list.shadow_rays,
             list.shadow_ray_count,
-            &scene.bvh_nodes,
-            &scene.bvh_leaf_triangles,
+            scene.bvh_nodes.first(),
+            scene.bvh_leaf_triangles.first(),
             list.occluded,
             list.shadow,
             list.params,
@@ -137,7 +141,8 @@ impl ShadowRaysStage {
             &scene.instances,
         ];
         let bound = if self.two_level { &buffers[..] } else { &buffers[..12] };
-        let bind_group = bind_buffers(ctx, "shadow_rays", &self.layout, bound);
+        let further = scene.bvh_nodes.further().chain(scene.bvh_leaf_triangles.further());
+        let bind_group = bind_paged_buffers(ctx, "shadow_rays", &self.layout, bound, further);
         // SHADOW_NO_RAY is 0.
         encoder.clear_buffer(list.shadow, 0, None);
         let mut pass = crate::timing::begin_timed_pass(encoder, "shadow_rays", timing);

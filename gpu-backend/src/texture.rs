@@ -49,6 +49,8 @@ use hyrt_core::geometry::SurfaceTables;
 use hyrt_core::kernels::texture::{LOD_MIN_AREA, LOD_MIN_COSINE, UNORM8_SCALE};
 use wgpu::util::DeviceExt;
 
+use crate::paging::TablePages;
+
 use crate::gpu_buffer::upload;
 use crate::wgsl::f32_literal;
 use crate::GpuContext;
@@ -149,6 +151,11 @@ pub struct Specialization {
     ///
     /// [`FrameOptions::denoise`]: hyrt_core::frame::FrameOptions::denoise
     pub denoised: bool,
+    /// How the scene's tables that outgrow one storage binding are split into pages
+    /// ([`crate::paging`]): the stages that read them are compiled with an accessor per
+    /// paged table and bind its further pages. The default (nothing paged) leaves the
+    /// source as written.
+    pub pages: TablePages,
 }
 
 impl Specialization {
@@ -163,6 +170,7 @@ impl Specialization {
         ambient_image: false,
         stochastic: false,
         denoised: false,
+        pages: TablePages { shift: 0, triangles: 0, slots: 0, nodes: 0 },
     };
 
     /// What `tables` need (a single-level scene).
@@ -176,17 +184,30 @@ impl Specialization {
             ambient_image: false,
             stochastic: false,
             denoised: false,
+            pages: TablePages::default(),
         }
     }
 
-    /// What a prepared scene needs: its surface tables', whether it has two levels, objects
-    /// by reference and an image-based light.
-    pub fn of_scene(scene: &hyrt_core::frame::PreparedScene) -> Specialization {
+    /// What a prepared scene needs on a device with `limits`: its surface tables', whether
+    /// it has two levels, objects by reference and an image-based light, and its tables'
+    /// pages (none past [`crate::paging::MAX_PAGES`]: the backend refuses such a scene).
+    pub fn of_scene(scene: &hyrt_core::frame::PreparedScene, limits: &wgpu::Limits) -> Specialization {
         Specialization {
+            pages: TablePages::of_scene(scene, limits).unwrap_or_default(),
             two_level: scene.levels.is_some(),
             by_reference: scene.geometry.triangles.has_references(),
             ambient_image: scene.geometry.ambient.image.is_some(),
             ..Specialization::of(&scene.geometry.surface)
+        }
+    }
+
+    /// The pages of the table the triangle flags are read from
+    /// ([`crate::world_triangles::triangle_flags_wgsl`]): the triangles' in a scene of stored
+    /// objects; none with objects by reference (the placements, never paged).
+    pub fn flags_pages(self) -> TablePages {
+        match self.by_reference {
+            true => TablePages::default(),
+            false => self.pages,
         }
     }
 

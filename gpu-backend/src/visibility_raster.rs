@@ -38,6 +38,15 @@
 //!   vertex output `vertex_index / 3` (vertices are not shared, so every corner of a
 //!   triangle carries its id); [`VisibilityRasterStage::triangle_id_source`] says which.
 //!
+//! Setup pass (`setup`, exact mode): one thread per triangle runs the reference's setup
+//! once and records what the raster pass needs (`RasterSetup`, 80 bytes). Triangles are
+//! set up and drawn in batches whose records fit one storage binding
+//! ([`batch_triangles`]: 1.67 million triangles under lavapipe's 128 MiB), each batch a
+//! setup pass then a raster pass that keeps the targets and depth of the batches before
+//! it; the draws keep the scene's order, so the depth test's tie rule (the earlier
+//! triangle) and the G-buffer do not depend on the batch size. Only device memory bounds
+//! the triangle count: one batch's records are held at a time.
+//!
 //! Resolve pass (`resolve`): one thread per pixel (8x8 groups): id 0 gives
 //! `GBufferTexel::MISS`, else the triangle's record gives `triangle`, `object` and
 //! `GBUF_RAY_TRACED` (from `TRI_RAY_TRACED`), the surface target the rest.
@@ -217,19 +226,62 @@ pub const HARDWARE_TRIANGLES_PER_TRIANGLE: u32 = 2;
 
 /// Bytes of one `ClippedSetup` record of the shader (six 16-byte vectors).
 pub const CLIPPED_SETUP_BYTES: u64 = 96;
-/// Sub-triangle slots for clipped triangles, per triangle of the scene, at least
+/// Sub-triangle slots for clipped triangles, per triangle of a batch, at least
 /// [`MIN_CLIPPED_SLOTS`]: clipping is rare (77 of 135,905 triangles in the teaser, each
 /// a fan of at most 7), and a triangle that finds the slots full is set up per fragment
 /// instead, with the same result.
 const CLIPPED_SLOTS_PER_TRIANGLE: f64 = 1.0 / 16.0;
 const MIN_CLIPPED_SLOTS: u32 = 4096;
 
-/// The setup records of one triangle count.
+/// Bytes of one `RasterBatch` uniform of the shader (first triangle, count, two pad words).
+const RASTER_BATCH_BYTES: u64 = 16;
+
+/// The most triangles of one batch on a device with `limits`: their setup records fit
+/// one storage binding (and one buffer), and their hardware vertices a `u32` count.
+pub fn batch_triangles(limits: &wgpu::Limits) -> u32 {
+    let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+    let by_binding = binding / RASTER_SETUP_BYTES;
+    let by_vertices = u64::from(u32::MAX / (3 * HARDWARE_TRIANGLES_PER_TRIANGLE));
+    by_binding.min(by_vertices).max(1) as u32
+}
+
+/// The setup records of one triangle count, set up and drawn batch by batch: a scene of
+/// `triangles` triangles is `batches()` batches of at most `batch` triangles each, in
+/// the scene's order (the depth test keeps the earlier triangle at equal depth, and the
+/// draws keep the order), so the G-buffer does not depend on the batch size.
 struct Setups {
     triangles: u32,
+    /// Triangles per batch ([`batch_triangles`], at most `triangles`).
+    batch: u32,
+    /// One batch's records: `RasterSetup` per triangle.
     buffer: wgpu::Buffer,
     clipped: wgpu::Buffer,
     clipped_count: wgpu::Buffer,
+    /// One `RasterBatch` record per batch, `stride` bytes apart (the device's uniform
+    /// offset alignment), bound one at a time.
+    batch_records: wgpu::Buffer,
+    stride: u64,
+}
+
+impl Setups {
+    fn batches(&self) -> u32 {
+        self.triangles.div_ceil(self.batch).max(1)
+    }
+
+    /// Batch `k`'s first triangle and triangle count.
+    fn batch_range(&self, k: u32) -> (u32, u32) {
+        let first = k * self.batch;
+        (first, self.batch.min(self.triangles - first))
+    }
+
+    /// Batch `k`'s `RasterBatch` record, for binding 15.
+    fn batch_binding(&self, k: u32) -> wgpu::BindingResource<'_> {
+        wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+            buffer: &self.batch_records,
+            offset: u64::from(k) * self.stride,
+            size: std::num::NonZeroU64::new(RASTER_BATCH_BYTES),
+        })
+    }
 }
 
 /// The `visibility_raster` stage: a setup compute pipeline (one thread per triangle),
@@ -287,7 +339,7 @@ impl VisibilityRasterStage {
             VisibilityMode::Exact => shader_source(primitive_index, ctx.early_depth_test, s.by_reference),
             VisibilityMode::HardwareInterpolated => interpolated_shader_source(primitive_index, s.by_reference),
         };
-        let module = shader_module(ctx, "visibility_raster", &source);
+        let module = shader_module(ctx, "visibility_raster", &crate::paging::paged_source(&source, s.pages));
         let raster = ctx.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("visibility_raster"),
             layout: None,
@@ -357,19 +409,21 @@ impl VisibilityRasterStage {
         }
     }
 
-    /// The bindings of the by-reference tables (placements, mesh words) from
-    /// [`BY_REFERENCE_BINDING`] on, for a stage compiled for them; none otherwise.
+    /// The bindings that go with the triangles' in every bind group of the stage: the
+    /// by-reference tables (placements, mesh words) from [`BY_REFERENCE_BINDING`] on, for a
+    /// stage compiled for them, and the triangles' further pages ([`crate::paging`]).
     fn by_reference_entries<'a>(&self, scene: &'a SceneBuffers) -> Vec<wgpu::BindGroupEntry<'a>> {
-        match self.by_reference {
-            false => Vec::new(),
-            true => vec![
+        let mut entries: Vec<wgpu::BindGroupEntry<'a>> = scene.triangles.further().collect();
+        if self.by_reference {
+            entries.extend([
                 wgpu::BindGroupEntry { binding: BY_REFERENCE_BINDING, resource: scene.placements.as_entire_binding() },
                 wgpu::BindGroupEntry {
                     binding: BY_REFERENCE_BINDING + 1,
                     resource: scene.mesh_words.as_entire_binding(),
                 },
-            ],
+            ]);
         }
+        entries
     }
 
     /// How this stage computes the G-buffer.
@@ -415,12 +469,33 @@ impl VisibilityRasterStage {
                     })
                 };
                 let storage = wgpu::BufferUsages::STORAGE;
-                let slots = ((triangles as f64 * CLIPPED_SLOTS_PER_TRIANGLE) as u32).max(MIN_CLIPPED_SLOTS);
+                let batch = batch_triangles(&ctx.limits).min(triangles.max(1));
+                let slots = ((batch as f64 * CLIPPED_SLOTS_PER_TRIANGLE) as u32).max(MIN_CLIPPED_SLOTS);
+                let stride = u64::from(ctx.limits.min_uniform_buffer_offset_alignment).max(RASTER_BATCH_BYTES);
+                let batches = triangles.div_ceil(batch).max(1);
+                let mut records = vec![0u8; (u64::from(batches) * stride) as usize];
+                for k in 0..batches {
+                    let first = k * batch;
+                    let words = [first, batch.min(triangles - first), 0, 0];
+                    let at = (u64::from(k) * stride) as usize;
+                    records[at..at + RASTER_BATCH_BYTES as usize].copy_from_slice(bytemuck::cast_slice(&words));
+                }
+                let batch_records = wgpu::util::DeviceExt::create_buffer_init(
+                    &ctx.device,
+                    &wgpu::util::BufferInitDescriptor {
+                        label: Some("visibility_raster batches"),
+                        contents: &records,
+                        usage: wgpu::BufferUsages::UNIFORM,
+                    },
+                );
                 let s = std::sync::Arc::new(Setups {
                     triangles,
-                    buffer: make("visibility_raster setups", triangles.max(1) as u64 * RASTER_SETUP_BYTES, storage),
+                    batch,
+                    buffer: make("visibility_raster setups", u64::from(batch) * RASTER_SETUP_BYTES, storage),
                     clipped: make("visibility_raster clipped setups", slots as u64 * CLIPPED_SETUP_BYTES, storage),
                     clipped_count: make("visibility_raster clipped count", 4, storage | wgpu::BufferUsages::COPY_DST),
+                    batch_records,
+                    stride,
                 });
                 *guard = Some(s.clone());
                 s
@@ -432,8 +507,10 @@ impl VisibilityRasterStage {
     /// `frame.width` x `frame.rows` (at most the device's `max_texture_dimension_2d` a
     /// side: [`crate::band::rows_per_band`]), the band's rows drawn into their top. The
     /// camera uniform describes the whole image; the frame parameters the band. The
-    /// setup records are the whole image's, computed with the first band (`first_row`
-    /// 0) and kept for the frame's other bands.
+    /// setup records are the whole image's: a scene of one batch ([`batch_triangles`])
+    /// is set up by the first band (`first_row` 0) and kept for the frame's other bands;
+    /// one of several batches is set up and drawn batch by batch, in every band, the
+    /// render targets and depth kept from one batch's raster pass to the next.
     pub fn encode(
         &self,
         ctx: &GpuContext,
@@ -449,94 +526,149 @@ impl VisibilityRasterStage {
         debug_assert_eq!(self.by_reference, scene.by_reference, "a raster compiled for the scene's world triangles");
         let by_reference = self.by_reference_entries(scene);
         let targets = self.targets(ctx, width, frame.rows);
-        let run_setup = self.setup.is_some() && frame.band.first_row == 0;
-        let raster_group = match (&self.setup, &self.setup_layout) {
-            (Some(setup), Some(setup_layout)) => {
-                let setups = self.setups(ctx, scene.triangle_count);
-                let with_setups = |label, layout, first_binding: u32, count: Option<&wgpu::Buffer>| {
-                    let mut entries = vec![
-                        wgpu::BindGroupEntry { binding: 0, resource: scene.triangles.as_entire_binding() },
-                        wgpu::BindGroupEntry { binding: 1, resource: frame.camera.as_entire_binding() },
-                        wgpu::BindGroupEntry { binding: first_binding, resource: setups.buffer.as_entire_binding() },
-                        wgpu::BindGroupEntry {
-                            binding: first_binding + 2,
-                            resource: setups.clipped.as_entire_binding(),
-                        },
-                    ];
-                    match count {
-                        Some(count) => {
-                            entries.push(wgpu::BindGroupEntry { binding: 9, resource: count.as_entire_binding() })
-                        }
-                        // The raster pass reads the band and the surface tables (alpha tests).
-                        None => entries.extend([
-                            wgpu::BindGroupEntry { binding: 10, resource: frame.params.as_entire_binding() },
-                            wgpu::BindGroupEntry { binding: 11, resource: scene.surface.words.as_entire_binding() },
-                            wgpu::BindGroupEntry { binding: 12, resource: scene.surface.layout.as_entire_binding() },
-                        ]),
-                    }
-                    entries.extend(by_reference.iter().cloned());
-                    ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                        label: Some(label),
-                        layout,
-                        entries: &entries,
-                    })
-                };
-                // Bindings: setup writes 6 (setups), 8 (clipped), 9 (count); the raster reads 5, 7,
-                // the band (10) and the surface tables (11, 12).
-                let raster_group = with_setups("visibility_raster", &self.raster_layout, 5, None);
-                // The setup records are the whole image's: the first band computes them.
-                if run_setup {
-                    let setup_group =
-                        with_setups("visibility_raster setup", setup_layout, 6, Some(&setups.clipped_count));
-                    encoder.clear_buffer(&setups.clipped_count, 0, None);
-                    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                        label: Some("visibility_raster setup"),
-                        timestamp_writes: timing.map(|(query_set, i)| wgpu::ComputePassTimestampWrites {
-                            query_set,
-                            beginning_of_pass_write_index: Some(i),
-                            end_of_pass_write_index: None,
-                        }),
-                    });
-                    if scene.triangle_count > 0 {
-                        let groups = scene.triangle_count.div_ceil(SETUP_GROUP);
-                        let gx = groups.min(MAX_GROUPS_PER_DIMENSION);
-                        pass.set_pipeline(setup);
-                        pass.set_bind_group(0, &setup_group, &[]);
-                        pass.dispatch_workgroups(gx, groups.div_ceil(gx), 1);
-                    }
-                }
-                raster_group
-            }
-            _ => ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        let (Some(setup), Some(setup_layout)) = (&self.setup, &self.setup_layout) else {
+            // Hardware interpolated: no setup records, one draw of every triangle.
+            let group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("visibility_raster (hardware interpolated)"),
                 layout: &self.raster_layout,
                 entries: &[
                     &[
-                        wgpu::BindGroupEntry { binding: 0, resource: scene.triangles.as_entire_binding() },
+                        wgpu::BindGroupEntry { binding: 0, resource: scene.triangles.first().as_entire_binding() },
                         wgpu::BindGroupEntry { binding: 1, resource: frame.camera.as_entire_binding() },
                         wgpu::BindGroupEntry { binding: 10, resource: frame.params.as_entire_binding() },
                     ],
                     &by_reference[..],
                 ]
                 .concat(),
-            }),
+            });
+            let pass = RasterPass { load: false, keep_depth: false, first_timestamp: true };
+            // Saturating: a table that large exceeds the storage binding limits anyway.
+            self.raster_pass(encoder, frame, &targets, &group, scene.triangle_count.saturating_mul(3), pass, timing);
+            self.resolve_pass(ctx, encoder, scene, frame, &targets, timing);
+            return;
         };
-        self.encode_band(ctx, encoder, scene, frame, &targets, &raster_group, timing, !run_setup)
+        let setups = self.setups(ctx, scene.triangle_count);
+        let batches = setups.batches();
+        let run_setup = frame.band.first_row == 0 || batches > 1;
+        // Bindings: setup writes 6 (setups), 8 (clipped), 9 (count); the raster reads 5, 7,
+        // the band (10) and the surface tables (11, 12); both read the batch (15).
+        let group = |label, layout, k: u32, setup: bool| {
+            let first_binding = if setup { 6 } else { 5 };
+            let mut entries = vec![
+                wgpu::BindGroupEntry { binding: 0, resource: scene.triangles.first().as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: frame.camera.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: first_binding, resource: setups.buffer.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: first_binding + 2, resource: setups.clipped.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 15, resource: setups.batch_binding(k) },
+            ];
+            if setup {
+                entries.push(wgpu::BindGroupEntry { binding: 9, resource: setups.clipped_count.as_entire_binding() });
+            } else {
+                entries.extend([
+                    wgpu::BindGroupEntry { binding: 10, resource: frame.params.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 11, resource: scene.surface.words.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 12, resource: scene.surface.layout.as_entire_binding() },
+                ]);
+            }
+            entries.extend(by_reference.iter().cloned());
+            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries: &entries })
+        };
+        for k in 0..batches {
+            let (_, count) = setups.batch_range(k);
+            if run_setup {
+                let setup_group = group("visibility_raster setup", setup_layout, k, true);
+                encoder.clear_buffer(&setups.clipped_count, 0, None);
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("visibility_raster setup"),
+                    timestamp_writes: timing.filter(|_| k == 0).map(|(query_set, i)| {
+                        wgpu::ComputePassTimestampWrites {
+                            query_set,
+                            beginning_of_pass_write_index: Some(i),
+                            end_of_pass_write_index: None,
+                        }
+                    }),
+                });
+                if count > 0 {
+                    let groups = count.div_ceil(SETUP_GROUP);
+                    let gx = groups.min(MAX_GROUPS_PER_DIMENSION);
+                    pass.set_pipeline(setup);
+                    pass.set_bind_group(0, &setup_group, &[]);
+                    pass.dispatch_workgroups(gx, groups.div_ceil(gx), 1);
+                }
+            }
+            let raster_group = group("visibility_raster", &self.raster_layout, k, false);
+            let pass = RasterPass { load: k > 0, keep_depth: k + 1 < batches, first_timestamp: k == 0 && !run_setup };
+            let vertices = count * 3 * HARDWARE_TRIANGLES_PER_TRIANGLE;
+            self.raster_pass(encoder, frame, &targets, &raster_group, vertices, pass, timing);
+        }
+        self.resolve_pass(ctx, encoder, scene, frame, &targets, timing);
     }
 
-    /// The raster and resolve passes of `frame.band`; `first_timestamp`: the raster pass
-    /// writes the stage's first timestamp (no setup pass ran before it).
+    /// One raster pass over the band's render targets: `vertices` hardware vertices
+    /// drawn with `group`.
     #[allow(clippy::too_many_arguments)]
-    fn encode_band(
+    fn raster_pass(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        frame: &FrameBuffers,
+        targets: &Targets,
+        group: &wgpu::BindGroup,
+        vertices: u32,
+        how: RasterPass,
+        timing: Option<(&wgpu::QuerySet, u32)>,
+    ) {
+        let color = |view| {
+            Some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: if how.load { wgpu::LoadOp::Load } else { wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT) },
+                    store: wgpu::StoreOp::Store,
+                },
+            })
+        };
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("visibility_raster"),
+            color_attachments: &[color(&targets.id), color(&targets.surface)],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &targets.depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: if how.load { wgpu::LoadOp::Load } else { wgpu::LoadOp::Clear(DEPTH_CLEAR) },
+                    store: if how.keep_depth { wgpu::StoreOp::Store } else { wgpu::StoreOp::Discard },
+                }),
+                stencil_ops: None,
+            }),
+            // Unless a setup pass ran first and wrote the start.
+            timestamp_writes: timing.filter(|_| how.first_timestamp).map(|(query_set, i)| {
+                wgpu::RenderPassTimestampWrites {
+                    query_set,
+                    beginning_of_pass_write_index: Some(i),
+                    end_of_pass_write_index: None,
+                }
+            }),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        // The band's rows: the top of the render targets (the last band may be shorter).
+        pass.set_viewport(0.0, 0.0, frame.width as f32, frame.band.rows as f32, 0.0, 1.0);
+        if vertices > 0 {
+            pass.set_pipeline(&self.raster);
+            pass.set_bind_group(0, group, &[]);
+            pass.draw(0..vertices, 0..1);
+        }
+    }
+
+    /// The resolve pass of `frame.band`: render targets into the G-buffer. It writes the
+    /// stage's last timestamp.
+    fn resolve_pass(
         &self,
         ctx: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
         scene: &SceneBuffers,
         frame: &FrameBuffers,
         targets: &Targets,
-        raster_group: &wgpu::BindGroup,
         timing: Option<(&wgpu::QuerySet, u32)>,
-        first_timestamp: bool,
     ) {
         let (width, rows) = (frame.width, frame.band.rows);
         let camera = [wgpu::BindGroupEntry { binding: 1, resource: frame.camera.as_entire_binding() }];
@@ -545,7 +677,7 @@ impl VisibilityRasterStage {
             layout: &self.resolve_layout,
             entries: &[
                 &[
-                    wgpu::BindGroupEntry { binding: 0, resource: scene.triangles.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 0, resource: scene.triangles.first().as_entire_binding() },
                     wgpu::BindGroupEntry { binding: 2, resource: wgpu::BindingResource::TextureView(&targets.id) },
                     wgpu::BindGroupEntry { binding: 3, resource: wgpu::BindingResource::TextureView(&targets.surface) },
                     wgpu::BindGroupEntry { binding: 4, resource: frame.gbuffer.as_entire_binding() },
@@ -557,50 +689,6 @@ impl VisibilityRasterStage {
             ]
             .concat(),
         });
-        {
-            let clear = |view| {
-                Some(wgpu::RenderPassColorAttachment {
-                    view,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })
-            };
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("visibility_raster"),
-                color_attachments: &[clear(&targets.id), clear(&targets.surface)],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &targets.depth,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(DEPTH_CLEAR),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                // Unless a setup pass ran first and wrote the start.
-                timestamp_writes: timing.filter(|_| first_timestamp).map(|(query_set, i)| {
-                    wgpu::RenderPassTimestampWrites {
-                        query_set,
-                        beginning_of_pass_write_index: Some(i),
-                        end_of_pass_write_index: None,
-                    }
-                }),
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            // The band's rows: the top of the render targets (the last band may be shorter).
-            pass.set_viewport(0.0, 0.0, width as f32, rows as f32, 0.0, 1.0);
-            if scene.triangle_count > 0 {
-                pass.set_pipeline(&self.raster);
-                pass.set_bind_group(0, raster_group, &[]);
-                // Saturating: a table that large exceeds the storage binding limits anyway.
-                let vertices = if self.setup.is_some() { 3 * HARDWARE_TRIANGLES_PER_TRIANGLE } else { 3 };
-                pass.draw(0..scene.triangle_count.saturating_mul(vertices), 0..1);
-            }
-        }
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("visibility_raster resolve"),
             timestamp_writes: timing.map(|(query_set, i)| wgpu::ComputePassTimestampWrites {
@@ -613,4 +701,15 @@ impl VisibilityRasterStage {
         pass.set_bind_group(0, &resolve_group, &[]);
         pass.dispatch_workgroups(width.div_ceil(RESOLVE_GROUP), rows.div_ceil(RESOLVE_GROUP), 1);
     }
+}
+
+/// How [`VisibilityRasterStage::raster_pass`] treats the render targets.
+#[derive(Clone, Copy)]
+struct RasterPass {
+    /// Keep what an earlier batch drew (else clear).
+    load: bool,
+    /// Keep the depth for a later batch (else discard it).
+    keep_depth: bool,
+    /// The pass writes the stage's first timestamp (no setup pass ran before it).
+    first_timestamp: bool,
 }

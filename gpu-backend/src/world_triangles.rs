@@ -125,6 +125,41 @@ mod tests {
         }
     }
 
+    /// The same stages with their tables in pages ([`crate::paging`]: three pages of the
+    /// world records, two of the leaf slots and of the nodes) parse, validate and use only
+    /// exact operations, and read no paged table but through its accessor.
+    #[test]
+    fn stages_parse_with_tables_in_pages() {
+        use crate::paging::{paged_source, TablePages};
+        let pages = TablePages { shift: 20, triangles: 3, slots: 2, nodes: 2 };
+        for by_reference in [false, true] {
+            let s = Specialization { by_reference, two_level: by_reference, pages, ..Specialization::PLAIN };
+            let mut sources = vec![
+                ("reconstruction", paged_source(&crate::reconstruction::shader_source(by_reference), pages)),
+                ("bounce_trace", crate::bounce_trace::shader_source(s)),
+                ("bounce_shading", crate::bounce_shading::shader_source(s)),
+            ];
+            for primitive_index in [false, true] {
+                let raster = crate::visibility_raster::shader_source(primitive_index, true, by_reference);
+                sources.push(("visibility_raster", paged_source(&raster, pages)));
+            }
+            for (stage, source) in sources {
+                assert_eq!(inexact_operations(&source), Ok(Vec::new()), "{stage}, by reference: {by_reference}");
+                for table in ["triangles", "normals", "bvh_nodes", "bvh_leaf_triangles", "bvh_prim_indices"] {
+                    let pattern = format!("{table}[");
+                    let reads = source
+                        .match_indices(&pattern)
+                        .filter(|(i, _)| !source[..*i].ends_with(|c: char| c.is_ascii_alphanumeric() || c == '_'))
+                        .count();
+                    let accessor = usize::from(source.contains(&format!("fn {table}_at(")));
+                    // The accessor's own read of the first page is the only one left.
+                    let stored_flags = stage == "bounce_shading" && by_reference;
+                    assert!(reads <= accessor || stored_flags, "{stage}: {reads} reads of {table} past its pages");
+                }
+            }
+        }
+    }
+
     /// The flags accessor names the binding it is given and reads what each kind binds.
     #[test]
     fn triangle_flags_read_the_table_bound() {

@@ -10,12 +10,14 @@
 // `TRIANGLE_ID_SOURCE` is replaced at pipeline creation (see `shader_source`):
 // with `@builtin(primitive_index)` the file is prefixed with `enable primitive_index;`
 // and the fragment shader reads the id from the builtin; otherwise the vertex shader
-// passes `vertex_index / 3` as a flat-interpolated output (every vertex belongs to
-// exactly one triangle: the draw is non-indexed over unshared vertices).
+// passes its triangle as a flat-interpolated output (every vertex belongs to exactly one
+// triangle: the draw is non-indexed over unshared vertices). Either way the id is the
+// triangle's within its batch's draw (`RasterBatch`), to which the batch's first
+// triangle is added.
 
 struct VertexOut {
     @builtin(position) clip: vec4<f32>,
-    // Global triangle index (used only without primitive_index).
+    // Triangle index within the batch's draw (used only without primitive_index).
     @location(0) @interpolate(flat) triangle: u32,
 }
 
@@ -74,6 +76,18 @@ struct ClippedSetup {
     // ... and 2.
     b2: vec4<f32>,
 }
+
+// The batch of triangles being set up and drawn (gpu-backend/src/visibility_raster.rs
+// `RasterBatch`): global triangles [first, first + count). `setups`, `setups_out` and
+// the clipped setups hold that batch's records, indexed from 0 (the batch's first
+// triangle); a scene whose setup records fit one binding is one batch.
+struct RasterBatch {
+    first: u32,
+    count: u32,
+    pad0: u32,
+    pad1: u32,
+}
+@group(0) @binding(15) var<uniform> batch: RasterBatch;
 
 @group(0) @binding(5) var<storage, read> setups: array<RasterSetup>;
 @group(0) @binding(6) var<storage, read_write> setups_out: array<RasterSetup>;
@@ -144,12 +158,12 @@ fn pixel_box(lo: vec2<i32>, hi: vec2<i32>) -> vec4<i32> {
 @compute @workgroup_size(64, 1, 1)
 fn setup(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let index = gid.x + gid.y * groups.x * 64u;
-    if index >= arrayLength(&setups_out) {
+    if index >= batch.count {
         return;
     }
     var out: RasterSetup;
     out.x = vec4<i32>(0, 0, 0, i32(SETUP_NONE));
-    let t = world_triangle(index);
+    let t = world_triangle(batch.first + index);
     let c = array<vec4<f32>, 3>(clip_position_exact(t.v0), clip_position_exact(t.v1), clip_position_exact(t.v2));
     let outcodes = reference_outcodes(c);
     if !(is_finite4(c[0]) && is_finite4(c[1]) && is_finite4(c[2])) || outcodes.x != 0u {
@@ -319,6 +333,7 @@ fn hardware_corner(s: RasterSetup, sub: u32, k: u32) -> vec4<f32> {
 @vertex
 fn vs_main(@builtin(vertex_index) vertex_index: u32) -> VertexOut {
     let per_triangle = 3u * HARDWARE_TRIANGLES_PER_TRIANGLE;
+    // The draw is the batch's: its triangles from 0.
     let tri_index = vertex_index / per_triangle;
     let sub = (vertex_index % per_triangle) / 3u;
     var out: VertexOut;
@@ -795,10 +810,12 @@ fn fs_main(
     in: VertexOut,
     TRIANGLE_ID_PARAMETER
 ) -> FragmentOut {
-    let id = TRIANGLE_ID_EXPRESSION;
+    // The triangle within the batch's draw, and its global index.
+    let local = TRIANGLE_ID_EXPRESSION;
+    let id = batch.first + local;
     // The image pixel: the band's window position plus its first row.
     let pixel = vec2<i32>(in.clip.xy) + vec2<i32>(0, i32(params.first_row));
-    let s = setups[id];
+    let s = setups[local];
     let flags = u32(s.x.w);
     if any(pixel < s.box_.xy) || any(pixel >= s.box_.zw) {
         discard;

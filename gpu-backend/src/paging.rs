@@ -1,0 +1,381 @@
+//! Scene tables larger than one storage binding, split into pages (issue 40).
+//!
+//! A device binds at most `max_storage_buffer_binding_size` bytes of a buffer at once
+//! (lavapipe: 128 MiB, 2.8 million world records). The scene tables that grow with the
+//! triangle count are uploaded in pages of `1 << shift` records, each page a buffer and
+//! a binding of its own:
+//!
+//! | index space | tables ([`Table`]) | record bytes |
+//! |---|---|---:|
+//! | stored world record | `triangles`, `normals` | 48, 36 |
+//! | BVH leaf slot | `bvh_leaf_triangles`, `bvh_prim_indices` | 48, 4 |
+//! | BVH node | `bvh_nodes` | 32 |
+//!
+//! `shift` is the device's ([`page_shift`]): the largest with a page of the largest record
+//! (48 bytes) within one binding. A scene whose tables each fit one page is uploaded and
+//! compiled as before ([`TablePages::default`]): its shaders are the same text. Otherwise
+//! the stages that read a paged table are compiled for its page count ([`TablePages`], part
+//! of the scene's [`crate::texture::Specialization`]): [`paged_source`] declares the further
+//! pages in the table's group at [`page_binding`] and rewrites every `table[i]` of the
+//! source into `table_at(i)`, whose switch reads page `i >> shift` at `i & mask`. Those are
+//! the same records the unpaged table holds at `i`, so frames are the same bits; what a
+//! device can hold is bounded by its memory, not by one binding.
+//!
+//! Each further page is one more storage buffer bound per stage: a stage that reads every
+//! paged table (`bounce_trace`) binds `(pages - 1)` more for each, within the adapter's
+//! `max_storage_buffers_per_shader_stage` (lavapipe: 32), which
+//! [`crate::backend::GpuBackend`] checks before a frame.
+
+/// The most pages of one table.
+pub const MAX_PAGES: u32 = 16;
+
+/// Bytes of the largest record of a paged table (a `TriangleRecord`): a page of any
+/// table fits one binding.
+const LARGEST_RECORD_BYTES: u64 = 48;
+
+/// The first binding of the further pages: page `k` (from 1) of table `t` is at
+/// [`page_binding`]`(t, k)`, in the group that declares the table's first page. Above
+/// every binding the stages declare.
+pub const PAGE_BINDING: u32 = 64;
+
+/// A paged table, as the stages name it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Table {
+    /// `array<TriangleRecord>`: the stored world records.
+    Triangles,
+    /// `array<f32>`: nine per stored world record.
+    Normals,
+    /// `array<TriangleRecord>`: the BVH's triangles in leaf-slot order.
+    LeafTriangles,
+    /// `array<u32>`: the global (or mesh-local) index of each leaf slot.
+    PrimIndices,
+    /// `array<BvhNode>`.
+    Nodes,
+}
+
+impl Table {
+    pub const ALL: [Table; 5] =
+        [Table::Triangles, Table::Normals, Table::LeafTriangles, Table::PrimIndices, Table::Nodes];
+
+    /// The name of the table's (first page's) binding in the WGSL.
+    pub fn name(self) -> &'static str {
+        match self {
+            Table::Triangles => "triangles",
+            Table::Normals => "normals",
+            Table::LeafTriangles => "bvh_leaf_triangles",
+            Table::PrimIndices => "bvh_prim_indices",
+            Table::Nodes => "bvh_nodes",
+        }
+    }
+
+    /// Bytes of one record: what one index of its index space takes (nine floats for the
+    /// normals of one world record).
+    pub fn record_bytes(self) -> u64 {
+        match self {
+            Table::Triangles | Table::LeafTriangles => 48,
+            Table::Normals => 36,
+            Table::PrimIndices => 4,
+            Table::Nodes => 32,
+        }
+    }
+
+    /// Array elements per record (the normals' nine floats; one for the others).
+    fn elements_per_record(self) -> u32 {
+        match self {
+            Table::Normals => 9,
+            _ => 1,
+        }
+    }
+
+    fn index(self) -> u32 {
+        Table::ALL.iter().position(|&t| t == self).unwrap() as u32
+    }
+}
+
+/// Where page `k` (1 to [`MAX_PAGES`] - 1) of `table` is bound.
+pub fn page_binding(table: Table, k: u32) -> u32 {
+    debug_assert!((1..MAX_PAGES).contains(&k));
+    PAGE_BINDING + table.index() * MAX_PAGES + k
+}
+
+/// log2 of the records per page on a device with `limits`: the largest with a page of
+/// 48-byte records within one storage binding (and one buffer). Lavapipe's 128 MiB: 21
+/// (2,097,152 records, 96 MiB).
+pub fn page_shift(limits: &wgpu::Limits) -> u32 {
+    let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+    (binding / LARGEST_RECORD_BYTES).max(1).ilog2().min(31)
+}
+
+/// How a scene's paged tables are split: the page shift and each index space's page
+/// count. The default (every count 0) is a scene whose tables fit one page each: nothing
+/// paged, the shaders as written.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct TablePages {
+    /// log2 of the records per page ([`page_shift`]); 0 when nothing is paged.
+    pub shift: u8,
+    /// Pages of the stored world records (and their normals).
+    pub triangles: u8,
+    /// Pages of the BVH's leaf slots.
+    pub slots: u8,
+    /// Pages of the BVH's nodes.
+    pub nodes: u8,
+}
+
+impl TablePages {
+    /// The pages of tables of `triangles` stored records, `slots` leaf slots and `nodes`
+    /// nodes with `1 << shift` records a page; `None` past [`MAX_PAGES`] pages.
+    pub fn of_counts(triangles: u64, slots: u64, nodes: u64, shift: u32) -> Option<TablePages> {
+        let pages = |n: u64| n.div_ceil(1 << shift).max(1);
+        let (t, s, n) = (pages(triangles), pages(slots), pages(nodes));
+        if t.max(s).max(n) > MAX_PAGES as u64 {
+            return None;
+        }
+        Some(match t.max(s).max(n) {
+            1 => TablePages::default(),
+            _ => TablePages { shift: shift as u8, triangles: t as u8, slots: s as u8, nodes: n as u8 },
+        })
+    }
+
+    /// The pages of `scene`'s tables on a device with `limits`; `None` past [`MAX_PAGES`].
+    pub fn of_scene(scene: &hyrt_core::frame::PreparedScene, limits: &wgpu::Limits) -> Option<TablePages> {
+        let (slots, nodes) = match &scene.levels {
+            Some(l) => (
+                l.bottoms.iter().map(|b| b.leaf_triangles.len() as u64).sum(),
+                l.top.len() as u64 + l.bottoms.iter().map(|b| b.nodes.len() as u64).sum::<u64>(),
+            ),
+            None => (scene.bvh.leaf_triangles.len() as u64, scene.bvh.nodes.len() as u64),
+        };
+        let triangles = scene.geometry.triangles.stored_records().len() as u64;
+        Self::of_counts(triangles, slots, nodes, page_shift(limits))
+    }
+
+    /// Whether some table is paged.
+    pub fn any(self) -> bool {
+        self.pages(Table::Triangles).max(self.pages(Table::LeafTriangles)).max(self.pages(Table::Nodes)) > 1
+    }
+
+    /// Pages of `table` (1 when unpaged).
+    pub fn pages(self, table: Table) -> u32 {
+        let n = match table {
+            Table::Triangles | Table::Normals => self.triangles,
+            Table::LeafTriangles | Table::PrimIndices => self.slots,
+            Table::Nodes => self.nodes,
+        };
+        u32::from(n).max(1)
+    }
+
+    /// Records of `table` per page: `1 << shift`, or every record when it is unpaged.
+    pub fn page_records(self, table: Table) -> Option<u64> {
+        (self.pages(table) > 1).then(|| 1u64 << self.shift)
+    }
+
+    /// Storage buffers the further pages add to a stage that binds `tables`.
+    pub fn extra_bindings(self, tables: &[Table]) -> u32 {
+        tables.iter().map(|&t| self.pages(t) - 1).sum()
+    }
+
+    /// The bind group layout entries of the further pages of `tables` (read-only storage,
+    /// compute), for a stage with an explicit layout.
+    pub fn layout_entries(self, tables: &[Table]) -> Vec<wgpu::BindGroupLayoutEntry> {
+        let page = |t: Table| (1..self.pages(t)).map(move |k| crate::shader::storage_entry(page_binding(t, k), true));
+        tables.iter().flat_map(|&t| page(t)).collect()
+    }
+}
+
+/// One table on the device: its pages, `page_bytes` each but the last (one page when
+/// unpaged, however large).
+pub struct PagedBuffer {
+    table: Table,
+    pages: Vec<wgpu::Buffer>,
+    page_bytes: u64,
+}
+
+impl PagedBuffer {
+    /// Upload `data`, the records of `table`, in the pages `pages` gives it.
+    pub fn upload<T: bytemuck::Pod>(ctx: &crate::GpuContext, table: Table, data: &[T], pages: TablePages) -> Self {
+        let bytes: &[u8] = bytemuck::cast_slice(data);
+        let label = table.name();
+        match pages.page_records(table) {
+            None => PagedBuffer {
+                table,
+                pages: vec![crate::gpu_buffer::upload(ctx, label, data)],
+                page_bytes: bytes.len().max(1) as u64,
+            },
+            Some(records) => {
+                let page_bytes = records * table.record_bytes();
+                let pages = (0..pages.pages(table) as usize)
+                    .map(|k| {
+                        let lo = (k as u64 * page_bytes).min(bytes.len() as u64) as usize;
+                        let hi = ((k as u64 + 1) * page_bytes).min(bytes.len() as u64) as usize;
+                        crate::gpu_buffer::upload::<u8>(ctx, &format!("{label} page {k}"), &bytes[lo..hi])
+                    })
+                    .collect();
+                PagedBuffer { table, pages, page_bytes }
+            }
+        }
+    }
+
+    /// The first page: the table's own binding.
+    pub fn first(&self) -> &wgpu::Buffer {
+        &self.pages[0]
+    }
+
+    /// The further pages' bind group entries, at [`page_binding`]: none when unpaged.
+    pub fn further(&self) -> impl Iterator<Item = wgpu::BindGroupEntry<'_>> + '_ {
+        self.pages.iter().enumerate().skip(1).map(|(k, b)| wgpu::BindGroupEntry {
+            binding: page_binding(self.table, k as u32),
+            resource: b.as_entire_binding(),
+        })
+    }
+
+    /// Write `bytes` at byte `offset` of the table as if it were one buffer.
+    pub fn write(&self, queue: &wgpu::Queue, offset: u64, bytes: &[u8]) {
+        let mut at = offset;
+        let mut rest = bytes;
+        while !rest.is_empty() {
+            let (page, within) = (at / self.page_bytes, at % self.page_bytes);
+            let n = rest.len().min((self.page_bytes - within) as usize);
+            queue.write_buffer(&self.pages[page as usize], within, &rest[..n]);
+            at += n as u64;
+            rest = &rest[n..];
+        }
+    }
+
+    /// Bytes on the device, every page.
+    pub fn size(&self) -> u64 {
+        self.pages.iter().map(|b| b.size()).sum()
+    }
+}
+
+/// `source` for tables split as `pages` say: for each paged table the source declares
+/// (`@group(G) @binding(B) var<storage, read> NAME: array<T>;`), its further pages
+/// declared at [`page_binding`] in group `G`, every `NAME[i]` rewritten to `NAME_at(i)`,
+/// and that accessor appended. Unchanged where nothing is paged.
+pub fn paged_source(source: &str, pages: TablePages) -> String {
+    let mut out = source.to_string();
+    for table in Table::ALL {
+        let n = pages.pages(table);
+        if n <= 1 {
+            continue;
+        }
+        let name = table.name();
+        let Some((group, element)) = declaration(&out, name) else { continue };
+        debug_assert!(!out.contains(&format!("arrayLength(&{name})")), "{name} is paged: no arrayLength");
+        out = rewrite_indexing(&out, name);
+        for k in 1..n {
+            out += &format!(
+                "@group({group}) @binding({}) var<storage, read> {name}_page{k}: array<{element}>;\n",
+                page_binding(table, k)
+            );
+        }
+        out += &accessor(table, &element, n, u32::from(pages.shift));
+    }
+    out
+}
+
+/// The group and element type of `name`'s read-only storage declaration in `source`.
+fn declaration(source: &str, name: &str) -> Option<(u32, String)> {
+    let needle = format!(" var<storage, read> {name}: array<");
+    let at = source.find(&needle)?;
+    let line_start = source[..at].rfind('\n').map_or(0, |i| i + 1);
+    let head = &source[line_start..at];
+    let group = head.split("@group(").nth(1)?.split(')').next()?.trim().parse().ok()?;
+    let rest = &source[at + needle.len()..];
+    let element = rest[..rest.find(">;")?].to_string();
+    Some((group, element))
+}
+
+/// `source` with every `name[expr]` (the identifier alone, not a longer one ending in it)
+/// replaced by `name_at(expr)`; brackets inside `expr` are matched.
+fn rewrite_indexing(source: &str, name: &str) -> String {
+    let pattern = format!("{name}[");
+    let mut out = String::with_capacity(source.len());
+    let mut rest = source;
+    while let Some(at) = rest.find(&pattern) {
+        let before = rest[..at].chars().next_back();
+        let is_identifier = |c: char| c.is_ascii_alphanumeric() || c == '_';
+        if before.is_some_and(is_identifier) {
+            out += &rest[..at + pattern.len()];
+            rest = &rest[at + pattern.len()..];
+            continue;
+        }
+        out += &rest[..at];
+        out += name;
+        out += "_at(";
+        let mut depth = 1;
+        let body = &rest[at + pattern.len()..];
+        let mut end = body.len();
+        for (i, c) in body.char_indices() {
+            match c {
+                '[' => depth += 1,
+                ']' => {
+                    depth -= 1;
+                    if depth == 0 {
+                        end = i;
+                        break;
+                    }
+                }
+                _ => {}
+            }
+        }
+        assert!(end < body.len(), "unmatched bracket after {name}[");
+        out += &body[..end];
+        out += ")";
+        rest = &body[end + 1..];
+    }
+    out + rest
+}
+
+/// `NAME_at(i)`: element `i` of the table as if unpaged, read from its page.
+fn accessor(table: Table, element: &str, pages: u32, shift: u32) -> String {
+    let name = table.name();
+    let per = table.elements_per_record();
+    // The page of element `i` (record `i / per`), and where it starts in elements.
+    let (page, local) = match per {
+        1 => (format!("i >> {shift}u"), format!("i & {}u", (1u64 << shift) - 1)),
+        _ => (format!("(i / {per}u) >> {shift}u"), format!("i - page * ({per}u << {shift}u)")),
+    };
+    let mut s = format!(
+        "// Element `i` of `{name}` as if it were one array: page `i >> {shift}` of its records\n\
+         // (hyrt_gpu::paging).\nfn {name}_at(i: u32) -> {element} {{\n    let page = {page};\n    let local = {local};\n    switch page {{\n"
+    );
+    for k in 1..pages {
+        s += &format!("        case {k}u: {{\n            return {name}_page{k}[local];\n        }}\n");
+    }
+    s += &format!("        default: {{\n            return {name}[local];\n        }}\n    }}\n}}\n");
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pages_fit_one_binding() {
+        let limits = wgpu::Limits { max_storage_buffer_binding_size: 128 << 20, ..wgpu::Limits::default() };
+        assert_eq!(page_shift(&limits), 21);
+        for t in Table::ALL {
+            assert!(t.record_bytes() << 21 <= 128 << 20, "{t:?}");
+        }
+        // Four dragons, stored: 3,485,656 records, 2 pages; everything else one page.
+        let p = TablePages::of_counts(3_485_656, 3_485_656, 1_500_000, 21).unwrap();
+        assert_eq!((p.pages(Table::Normals), p.pages(Table::PrimIndices), p.pages(Table::Nodes)), (2, 2, 1));
+        assert_eq!(TablePages::of_counts(2_097_152, 10, 10, 21), Some(TablePages::default()));
+        assert_eq!(TablePages::of_counts(16 << 21, 10, 10, 21).map(|p| p.triangles), Some(16));
+        assert_eq!(TablePages::of_counts((16 << 21) + 1, 10, 10, 21), None);
+    }
+
+    #[test]
+    fn indexing_is_rewritten_through_the_pages() {
+        let source = "@group(1) @binding(4) var<storage, read> triangles: array<TriangleRecord>;\n\
+                      @group(1) @binding(5) var<storage, read> normals: array<f32>;\n\
+                      fn f(i: u32) -> f32 { return triangles[ids[i]].v0.x + normals[9u * i] + my_triangles[i]; }\n";
+        let pages = TablePages { shift: 3, triangles: 3, slots: 1, nodes: 1 };
+        let s = paged_source(source, pages);
+        assert!(s.contains("return triangles_at(ids[i]).v0.x + normals_at(9u * i) + my_triangles[i];"), "{s}");
+        assert!(s.contains("@group(1) @binding(65) var<storage, read> triangles_page1: array<TriangleRecord>;"));
+        assert!(s.contains("@group(1) @binding(82) var<storage, read> normals_page2: array<f32>;"));
+        assert!(s.contains("let local = i - page * (9u << 3u);"));
+        assert_eq!(paged_source(source, TablePages::default()), source);
+    }
+}
