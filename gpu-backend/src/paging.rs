@@ -241,6 +241,11 @@ impl PagedBuffer {
         }
     }
 
+    /// The pages, first to last.
+    pub fn pages(&self) -> &[wgpu::Buffer] {
+        &self.pages
+    }
+
     /// Bytes on the device, every page.
     pub fn size(&self) -> u64 {
         self.pages.iter().map(|b| b.size()).sum()
