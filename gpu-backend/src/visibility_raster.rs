@@ -236,13 +236,17 @@ const MIN_CLIPPED_SLOTS: u32 = 4096;
 /// Bytes of one `RasterBatch` uniform of the shader (first triangle, count, two pad words).
 const RASTER_BATCH_BYTES: u64 = 16;
 
+/// The most triangles of one batch whatever the device: 320 MiB of setup records. A
+/// device whose bindings hold 4 GiB (an NVIDIA H200) would otherwise hold 53 million
+/// records at once; a batch costs a setup and a raster pass (microseconds on such a
+/// device), so smaller batches cost little and bound the memory the stage holds.
+pub const MAX_BATCH_TRIANGLES: u32 = 1 << 22;
+
 /// The most triangles of one batch on a device with `limits`: their setup records fit
-/// one storage binding (and one buffer), and their hardware vertices a `u32` count.
+/// one storage binding (and one buffer), at most [`MAX_BATCH_TRIANGLES`].
 pub fn batch_triangles(limits: &wgpu::Limits) -> u32 {
     let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
-    let by_binding = binding / RASTER_SETUP_BYTES;
-    let by_vertices = u64::from(u32::MAX / (3 * HARDWARE_TRIANGLES_PER_TRIANGLE));
-    by_binding.min(by_vertices).max(1) as u32
+    (binding / RASTER_SETUP_BYTES).clamp(1, u64::from(MAX_BATCH_TRIANGLES)) as u32
 }
 
 /// The setup records of one triangle count, set up and drawn batch by batch: a scene of
@@ -712,4 +716,25 @@ struct RasterPass {
     keep_depth: bool,
     /// The pass writes the stage's first timestamp (no setup pass ran before it).
     first_timestamp: bool,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Batches fill one binding (lavapipe's 128 MiB: 1,677,721 triangles), at most
+    /// `MAX_BATCH_TRIANGLES` (a 4 GiB binding), at least one triangle.
+    #[test]
+    fn batches_fit_one_binding_and_the_cap() {
+        let limits = |binding: u64| wgpu::Limits {
+            max_storage_buffer_binding_size: binding,
+            max_buffer_size: u64::MAX,
+            ..wgpu::Limits::default()
+        };
+        assert_eq!(batch_triangles(&limits(128 << 20)), 1_677_721);
+        assert_eq!(batch_triangles(&limits((4 << 30) - 4)), MAX_BATCH_TRIANGLES);
+        assert_eq!(batch_triangles(&limits(16)), 1);
+        assert!(u64::from(MAX_BATCH_TRIANGLES) * RASTER_SETUP_BYTES <= 320 << 20);
+        assert!(MAX_BATCH_TRIANGLES.checked_mul(3 * HARDWARE_TRIANGLES_PER_TRIANGLE).is_some());
+    }
 }
