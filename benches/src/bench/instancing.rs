@@ -5,7 +5,9 @@
 //! (its copies by reference), a raster that makes each copy's world triangles batch by
 //! batch. Measured: the load, the preparation (world tables and both levels), the frame
 //! (medians after a warm-up frame), and the process's peak resident memory over all of it
-//! (`VmHWM`, reset before the load), against what the stored world tables would take.
+//! (`VmHWM`, reset before the load), against what the stored world tables would take. The
+//! GPU backend renders `dragons_30` (30 of them: a software rasterizer would take hours
+//! over 1,000), against the CPU backend in the same run ([`run_gpu`]).
 
 use std::fmt::Write as _;
 use std::time::Instant;
@@ -48,31 +50,65 @@ pub struct Instancing {
     pub image: Option<String>,
 }
 
+/// A manifest loaded for the section, after a reset of the peak resident memory.
+struct Loaded {
+    scene: hyrt_core::scene::Scene,
+    load_ms: f64,
+    /// The peak resident memory could be reset (it is counted from the load on).
+    resets: bool,
+    resident_before: Option<u64>,
+}
+
+/// Load manifest `name` (the shared assets there, the section asked for), or say why not.
+fn load(name: &str, options: &BenchOptions, progress: &ProgressBar) -> Result<Loaded, String> {
+    if options.scenes == super::scenes::SceneSet::DefaultOnly {
+        return Err("only the default scene was asked for (`--scenes default`)".into());
+    }
+    if super::scenes::shared_assets().is_none() {
+        return Err("the shared assets (the dragon) are not there".into());
+    }
+    progress.set_message(format!("instancing: loading {name}"));
+    let resets = reset_peak_resident_bytes();
+    let resident_before = resident_bytes();
+    let t = Instant::now();
+    let bench = super::scenes::load_manifest(name)?;
+    Ok(Loaded { scene: bench.scene, load_ms: t.elapsed().as_secs_f64() * 1e3, resets, resident_before })
+}
+
+/// `median (least to greatest, n frames)` of frame times in ms.
+fn frame_times(v: &[f64]) -> String {
+    let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let n = match v.len() {
+        1 => "1 frame".to_string(),
+        n => format!("{n} frames"),
+    };
+    format!("{:.0} ms ({:.0} to {:.0}, {n})", median(v).unwrap_or(f64::NAN), lo, hi)
+}
+
+/// The peak resident memory from a load on, what the process held before it, and what the
+/// scene and its frames added.
+fn resident(peak: Option<u64>, before: Option<u64>) -> String {
+    match (peak, before) {
+        (Some(p), Some(b)) => format!("{} ({} before; {} added)", mib(p), mib(b), mib(p.saturating_sub(b))),
+        (Some(p), None) => mib(p),
+        _ => "not known on this system".to_string(),
+    }
+}
+
 /// Measure the scene with `threads` on the CPU backend at `options.table_size`.
 pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Instancing, BenchError> {
     let threads = options.frame_threads.unwrap_or_else(rayon::current_num_threads);
     let mut out = Instancing { size: options.table_size, threads, ..Instancing::default() };
-    if options.scenes == super::scenes::SceneSet::DefaultOnly {
-        out.skipped = Some("only the default scene was asked for (`--scenes default`)".into());
-        return Ok(out);
-    }
-    if super::scenes::shared_assets().is_none() {
-        out.skipped = Some("the shared assets (the dragon) are not there".into());
-        return Ok(out);
-    }
-    progress.set_message(format!("instancing: loading {SCENE}"));
-    let resets = reset_peak_resident_bytes();
-    out.resident_before = resident_bytes();
-    let t = Instant::now();
-    let bench = match super::scenes::load_manifest(SCENE) {
-        Ok(b) => b,
-        Err(e) => {
-            out.skipped = Some(e);
+    let loaded = match load(SCENE, options, progress) {
+        Ok(l) => l,
+        Err(why) => {
+            out.skipped = Some(why);
             return Ok(out);
         }
     };
-    out.load_ms = t.elapsed().as_secs_f64() * 1e3;
-    let scene = bench.scene;
+    let (scene, resets) = (loaded.scene, loaded.resets);
+    (out.load_ms, out.resident_before) = (loaded.load_ms, loaded.resident_before);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
@@ -118,13 +154,161 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Instancing,
     Ok(out)
 }
 
+/// The manifest the GPU backend renders (in `assets/scenes/`): 30 of the dragons, which a
+/// software rasterizer renders in about half a minute a frame.
+pub const GPU_SCENE: &str = "dragons_30";
+
+/// The GPU backend on [`GPU_SCENE`] (and the CPU backend on it, for comparison).
+#[derive(Clone, Debug, Default)]
+pub struct GpuInstancing {
+    /// Why nothing was measured (no GPU backend, no shared assets, a load error).
+    pub skipped: Option<String>,
+    /// The backend's description.
+    pub label: String,
+    pub triangles: u64,
+    pub by_reference: bool,
+    pub load_ms: f64,
+    pub prepare_ms: f64,
+    /// The first frame: the scene's upload, the pipelines it needs and the frame.
+    pub first_frame_ms: f64,
+    pub frame_ms: Vec<f64>,
+    pub cpu_frame_ms: Vec<f64>,
+    /// The tables the device holds ([`hyrt_gpu::backend::scene_table_bytes`]).
+    pub device_table_bytes: u64,
+    /// What the world records would take stored.
+    pub stored_table_bytes: usize,
+    pub resident_before: Option<u64>,
+    pub peak_resident: Option<u64>,
+    /// The G-buffers' triangle and object ids are the CPU's, pixel for pixel.
+    pub same_ids: bool,
+    pub covered_pixels: u64,
+}
+
+/// Measure [`GPU_SCENE`] on `gpu` (the report's GPU backend) and on the CPU backend with
+/// `threads`, at `options.table_size`: the load, the preparation, the first frame and the
+/// next ones (one in a quick run, else two), the peak resident memory of the process from
+/// the load on (on a software rasterizer the device's memory is the process's).
+pub fn run_gpu(
+    options: &BenchOptions,
+    gpu: Option<&mut super::FrameBackend>,
+    progress: &ProgressBar,
+) -> Result<GpuInstancing, BenchError> {
+    let mut out = GpuInstancing::default();
+    let Some(gpu) = gpu else {
+        out.skipped = Some("no GPU backend in this run".into());
+        return Ok(out);
+    };
+    out.label = gpu.label.clone();
+    let loaded = match load(GPU_SCENE, options, progress) {
+        Ok(l) => l,
+        Err(why) => {
+            out.skipped = Some(why);
+            return Ok(out);
+        }
+    };
+    let (scene, resets) = (loaded.scene, loaded.resets);
+    (out.load_ms, out.resident_before) = (loaded.load_ms, loaded.resident_before);
+    let t = Instant::now();
+    let prepared = hyrt_cpu::bvh_build::prepare_scene(&scene, BvhPreset::default());
+    out.prepare_ms = t.elapsed().as_secs_f64() * 1e3;
+    out.triangles = prepared.geometry.triangle_count() as u64;
+    out.by_reference = prepared.geometry.triangles.has_references();
+    out.device_table_bytes = hyrt_gpu::backend::scene_table_bytes(&prepared);
+    out.stored_table_bytes = prepared.geometry.triangles.stored_bytes();
+    let camera = CameraRecord::new(
+        &scene.camera.expect("the manifest has a camera"),
+        options.table_size.0,
+        options.table_size.1,
+    );
+    let frame_options = FrameOptions::default();
+    let render_error = |source| BenchError::Render { scene: GPU_SCENE.into(), source };
+    let measured = if options.quick { 1 } else { 2 };
+    let mut frame = hyrt_core::frame::Frame::default();
+    for k in 0..=measured {
+        progress.set_message(format!("instancing: {GPU_SCENE} on the GPU backend, frame {k} of {measured}"));
+        let t = Instant::now();
+        gpu.backend.render_into(&prepared, &camera, &frame_options, &mut frame).map_err(render_error)?;
+        let ms = t.elapsed().as_secs_f64() * 1e3;
+        match k {
+            0 => out.first_frame_ms = ms,
+            _ => out.frame_ms.push(ms),
+        }
+    }
+    out.peak_resident = if resets { peak_resident_bytes() } else { None };
+    out.covered_pixels = frame.stats.covered_pixels;
+    let threads = options.frame_threads.unwrap_or_else(rayon::current_num_threads);
+    let mut cpu = hyrt_cpu::backend::CpuBackend::new(Some(threads));
+    let mut reference = hyrt_core::frame::Frame::default();
+    let keep = FrameOptions { keep_gbuffer: true, ..FrameOptions::default() };
+    for k in 0..=measured {
+        progress.set_message(format!("instancing: {GPU_SCENE} on the CPU backend, frame {k} of {measured}"));
+        let t = Instant::now();
+        cpu.render_into(&prepared, &camera, &keep, &mut reference).map_err(render_error)?;
+        if k > 0 {
+            out.cpu_frame_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    gpu.backend.render_into(&prepared, &camera, &keep, &mut frame).map_err(render_error)?;
+    let ids = |f: &hyrt_core::frame::Frame| f.gbuffer.iter().map(|t| (t.triangle, t.object)).collect::<Vec<_>>();
+    out.same_ids = !reference.gbuffer.is_empty() && ids(&reference) == ids(&frame);
+    Ok(out)
+}
+
+impl GpuInstancing {
+    /// The section's part on the GPU backend.
+    pub fn markdown(&self, size: (u32, u32)) -> String {
+        let mut md = format!(
+            "**The GPU backend** on `assets/scenes/{GPU_SCENE}.toml`, 30 of the dragons (lavapipe would take hours \
+             to rasterize 871 million triangles), against the CPU backend in the same run, {}x{}: {}.\n\n",
+            size.0, size.1, self.label
+        );
+        if let Some(why) = &self.skipped {
+            let _ = writeln!(md, "Not measured: {why}.\n");
+            return md;
+        }
+        let mut t = Table::new(["", "this run"]).align(1, super::report::Align::Left);
+        t.row([
+            "triangles".to_string(),
+            format!("{} ({})", count(self.triangles), if self.by_reference { "by reference" } else { "stored" }),
+        ]);
+        t.row(["load (`Scene::load`)".to_string(), format!("{:.0} ms", self.load_ms)]);
+        t.row(["prepare (world tables + `bvh_build`)".to_string(), format!("{:.0} ms", self.prepare_ms)]);
+        t.row(["first GPU frame (upload, pipelines, frame)".to_string(), format!("{:.0} ms", self.first_frame_ms)]);
+        t.row(["GPU frame".to_string(), frame_times(&self.frame_ms)]);
+        t.row(["CPU frame, same run".to_string(), frame_times(&self.cpu_frame_ms)]);
+        t.row([
+            "scene tables on the device (world records stored would be)".to_string(),
+            format!("{} ({})", mib(self.device_table_bytes), mib(self.stored_table_bytes as u64)),
+        ]);
+        t.row([
+            "peak resident memory of the process from the load on (on lavapipe the device's too)".to_string(),
+            resident(self.peak_resident, self.resident_before),
+        ]);
+        t.row(["covered pixels".to_string(), count(self.covered_pixels)]);
+        t.row([
+            "triangle and object ids".to_string(),
+            if self.same_ids { "the CPU's, pixel for pixel" } else { "DIFFER from the CPU's" }.to_string(),
+        ]);
+        md += &t.to_markdown();
+        md
+    }
+}
+
 fn mib(bytes: u64) -> String {
     format!("{:.0} MiB", bytes as f64 / (1u64 << 20) as f64)
 }
 
 impl Instancing {
-    /// The report section.
-    pub fn section(&self) -> Section {
+    /// The report section, with the GPU backend's part.
+    pub fn section(&self, gpu: &GpuInstancing) -> Section {
+        let mut section = self.cpu_section();
+        section.markdown += "\n";
+        section.markdown += &gpu.markdown(self.size);
+        section
+    }
+
+    /// The section's part on the CPU backend.
+    fn cpu_section(&self) -> Section {
         let mut md = String::new();
         let _ = writeln!(
             md,
@@ -160,12 +344,7 @@ impl Instancing {
             "prepare (world tables + `bvh_build`)".to_string(),
             format!("{:.0} ms (`bvh_build` {:.0} ms)", self.prepare_ms, self.bvh_build_ms),
         ]);
-        let lo = self.frame_ms.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = self.frame_ms.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        t.row([
-            "frame".to_string(),
-            format!("{:.0} ms ({:.0} to {:.0})", median(&self.frame_ms).unwrap_or(f64::NAN), lo, hi),
-        ]);
+        t.row(["frame".to_string(), frame_times(&self.frame_ms)]);
         t.row(["covered pixels".to_string(), count(self.covered_pixels)]);
         t.row([
             "world tables held (stored would be)".to_string(),
@@ -173,12 +352,8 @@ impl Instancing {
         ]);
         t.row(["BVH levels".to_string(), mib(self.levels_bytes as u64)]);
         t.row([
-            "peak resident memory of the process (before the load)".to_string(),
-            match (self.peak_resident, self.resident_before) {
-                (Some(p), Some(b)) => format!("{} ({})", mib(p), mib(b)),
-                (Some(p), None) => mib(p),
-                _ => "not known on this system".to_string(),
-            },
+            "peak resident memory of the process from the load on".to_string(),
+            resident(self.peak_resident, self.resident_before),
         ]);
         md += &t.to_markdown();
         if let Some(img) = &self.image {

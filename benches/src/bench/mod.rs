@@ -331,6 +331,7 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Report, Ben
     let soft_shadows = soft_shadows::run(options, progress)?;
     // Last, so that its 871 million triangles disturb no other measurement; its peak
     // resident memory is counted from a reset (what the process held before is reported).
+    let gpu_instancing = instancing::run_gpu(options, gpu.as_mut(), progress)?;
     let instancing = instancing::run(options, progress)?;
 
     let mut sections = vec![
@@ -340,7 +341,7 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Report, Ben
         peers.section(&table2),
         scaling.section.clone(),
         moving.section(),
-        instancing.section(),
+        instancing.section(&gpu_instancing),
     ];
     let mut files = scaling.files.clone();
     files.extend(soft_shadows.plot.clone());
