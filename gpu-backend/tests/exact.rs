@@ -247,8 +247,8 @@ fn inexact_operations_are_named() {
     assert_eq!(inexact_operations(&clean).expect("parses"), Vec::<String>::new());
 }
 
-/// Every stage of the GPU backend, in every specialization, compiles without an inexact
-/// operation: `shader_module` refuses one with a panic in debug builds.
+/// Every stage of the GPU backend, in the specializations below, compiles without an
+/// inexact operation: `shader_module` refuses one with a panic in debug builds.
 #[test]
 fn every_stage_uses_only_exact_operations() {
     if !cfg!(debug_assertions) {
@@ -258,7 +258,17 @@ fn every_stage_uses_only_exact_operations() {
     let Some(ctx) = test_context() else { return };
     use hyrt_gpu::texture::Specialization;
     use hyrt_gpu::visibility_raster::{VisibilityMode, VisibilityRasterStage};
-    for bits in 0..128u32 {
+    // Every flag alone and in pairs, all of them at once, and tables in pages (with and
+    // without two levels and objects by reference; the surface tables' words in pages with
+    // every flag that reads them): the flags choose fragments of source, and an inexact
+    // operation lies in one fragment or where two meet. 33 of the 128 combinations of
+    // flags (each about 8 s of CI's debug run on lavapipe).
+    use hyrt_gpu::paging::TablePages;
+    let paged = TablePages { shift: 20, triangles: 3, slots: 2, nodes: 2, ..TablePages::default() };
+    let surface = TablePages { word_shift: 24, surface: 3, ..paged };
+    let combinations = (0..128u32).filter(|b| b.count_ones() <= 2 || *b == 127).map(|b| (b, Default::default()));
+    let paged_combinations = [(0, paged), (4 | 64, paged), (1 | 2 | 4, paged), (63, surface), (127, surface)];
+    for (bits, pages) in combinations.chain(paged_combinations) {
         let s = Specialization {
             surface_tables: bits & 1 != 0,
             alpha_tested: bits & 2 != 0,
@@ -269,6 +279,7 @@ fn every_stage_uses_only_exact_operations() {
             stochastic: bits & 32 != 0,
             // Denoised frames are stochastic ones.
             denoised: bits & 32 != 0 && bits & 1 != 0,
+            pages,
         };
         hyrt_gpu::bounce_shading::BounceShadingStage::specialized(&ctx, s);
         hyrt_gpu::bounce_trace::BounceTraceStage::specialized(&ctx, s);
@@ -292,4 +303,5 @@ fn every_stage_uses_only_exact_operations() {
     hyrt_gpu::composition::CompositionStage::new(&ctx);
     hyrt_gpu::reconstruction::ReconstructionStage::with_by_reference(&ctx);
     hyrt_gpu::reconstruction::NormalMapping::new(&ctx);
+    hyrt_gpu::reconstruction::NormalMapping::paged(&ctx, surface);
 }
