@@ -193,29 +193,19 @@ fn enlarged(image: &TextureImage, k: u32) -> TextureImage {
     TextureImage::new(format!("{} x{k}", image.name), w, h, texels.collect()).expect("a valid image")
 }
 
-/// The `texture_` cases of [`gpu_reads_surface_tables_in_pages_as_the_cpu`]: textures
-/// sampled on rasterized and ray-traced objects, alpha tests in the raster and in shadow
-/// rays, normal maps, and textured geometry in a mirror. (Every `texture_` case passed
-/// when this was written, in 250 s on two cores; these four take about half of that.)
-const PAGED_TEXTURE_CASES: [&str; 4] = [
-    "texture_raster_and_ray_traced_filtering",
-    "texture_alpha_fence_shadow",
-    "texture_masked_geometry_in_a_mirror",
-    "texture_normal_maps",
-];
-
-/// Surface tables past one storage binding: `texture_` cases of the corpus
-/// ([`PAGED_TEXTURE_CASES`]), their images enlarged to 4 MiB of texels or more, on a device
-/// whose storage bindings hold a power of two between a quarter and half of their surface
-/// tables, so that their words take three or four pages ([`Table::Surface`]); every buffer
-/// is the CPU's bit for bit: a page holds the words the whole table holds at the same
-/// index. A frame that reflects or refracts with its surface tables in pages is refused
-/// (it crashes lavapipe: `GpuBackend::check_supported`), and rendered without bounces.
+/// Surface tables past one storage binding: every `texture_` case of the corpus (textures
+/// sampled on rasterized and ray-traced objects, vertex colours, alpha tests in the raster,
+/// in shadow rays and in a mirror, normal maps, metallic-roughness and emission maps, every
+/// wrap mode), its images enlarged to 4 MiB of texels or more, on a device whose storage
+/// bindings hold a power of two between a quarter and half of its surface tables, so that
+/// their words take three or four pages ([`Table::Surface`]); every buffer is the CPU's bit
+/// for bit, the bounces' too: a page holds the words the whole table holds at the same
+/// index.
 #[test]
 fn gpu_reads_surface_tables_in_pages_as_the_cpu() {
     let mut cpu = CpuBackend::new(Some(2));
-    let (mut cases, mut refused) = (0, 0);
-    for mut case in hyrt_conformance::corpus::corpus().into_iter().filter(|c| PAGED_TEXTURE_CASES.contains(&&*c.name)) {
+    let (mut cases, mut bounced) = (0, 0);
+    for mut case in hyrt_conformance::corpus::corpus().into_iter().filter(|c| c.name.starts_with("texture_")) {
         let started = std::time::Instant::now();
         let texels: usize = case.scene.textures.iter().map(|t| t.texels.len()).sum();
         let k = ((1usize << 20) as f64 / texels as f64).sqrt().ceil() as u32;
@@ -229,15 +219,11 @@ fn gpu_reads_surface_tables_in_pages_as_the_cpu() {
         let pages = TablePages::of_scene(&prepared, &limits).expect("within MAX_PAGES");
         let surface = pages.pages(Table::Surface);
         assert!((3..=4).contains(&surface), "{}: {bytes} bytes of surface tables in {surface} pages", case.name);
-        let frame = hyrt_conformance::report::render_case(&mut gpu, &prepared, &case).or_else(|e| {
-            assert!(e.contains("max depth 0"), "{}: {e}", case.name);
-            (case.max_depth, refused) = (0, refused + 1);
-            hyrt_conformance::report::render_case(&mut gpu, &prepared, &case)
-        });
-        let frame = frame.expect("gpu frame");
+        let frame = hyrt_conformance::report::render_case(&mut gpu, &prepared, &case).expect("gpu frame");
         let reference = hyrt_conformance::report::render_case(&mut cpu, &prepared, &case).expect("cpu frame");
         let compared = compare_stages(&reference, &frame);
         assert!(compared.iter().any(|c| c.buffer == "gbuffer"), "{}: the G-buffer was compared", case.name);
+        bounced += usize::from(!reference.bounces.is_empty());
         for cmp in compared {
             assert!(cmp.is_exact(), "{}: cpu vs gpu: {} / {} differs: {cmp:?}", case.name, cmp.stage, cmp.buffer);
         }
@@ -248,8 +234,8 @@ fn gpu_reads_surface_tables_in_pages_as_the_cpu() {
         );
         cases += 1;
     }
-    assert_eq!(cases, PAGED_TEXTURE_CASES.len(), "the cases are in the corpus");
-    assert_eq!(refused, 2, "the bounces of the mirror case and of the normal maps' refused");
+    assert!(cases >= 9, "{cases} texture cases");
+    assert!(bounced >= 2, "{bounced} cases bounced");
 }
 
 /// Dragons on the GPU as the CPU renders them: a manifest grid of `columns` x `rows`

@@ -1059,16 +1059,6 @@ impl GpuBackend {
                 ),
             }));
         };
-        // Reflection and refraction with the surface tables in pages crash lavapipe (Mesa
-        // 24, SIGSEGV in its command thread; texture_masked_geometry_in_a_mirror with its
-        // textures enlarged, 3 pages of 2 MiB) where the same frame without bounces, and
-        // with bounces in one page, renders the CPU's bits: refused until understood.
-        if pages.pages(Table::Surface) > 1 && plan.bounce_depth() > 0 {
-            return Err(GpuError::Limits(format!(
-                "the scene's textures, texture coordinates and vertex colours take {} pages on this device (one storage binding of {binding} bytes each), and reflection and refraction do not read surface tables in pages yet (render with max depth 0)",
-                pages.pages(Table::Surface)
-            )));
-        }
         let extra = pages.extra_bindings(&Table::ALL);
         let most = match (plan.bounce_depth() > 0, scene.geometry.triangles.has_references()) {
             (true, true) => BY_REFERENCE_BOUNCE_STORAGE_BUFFERS,

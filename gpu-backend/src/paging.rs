@@ -33,12 +33,11 @@
 //! Each further page is one more storage buffer bound per stage: a stage that reads every
 //! paged table (`bounce_trace`) binds `(pages - 1)` more for each, within the adapter's
 //! `max_storage_buffers_per_shader_stage` (lavapipe: 32), which
-//! [`crate::backend::GpuBackend`] checks before a frame. The surface tables in pages are
-//! read by every stage that reads them (the raster's and the shadow rays' alpha tests,
-//! the shading stages, normal mapping), but a frame with reflection or refraction and
-//! surface tables in pages is refused for now: on lavapipe it crashes the driver (a
-//! SIGSEGV in its command thread, `conformance/tests/instances.rs`), though the same
-//! frames without bounces are the CPU's bits.
+//! [`crate::backend::GpuBackend`] checks before a frame. The surface tables are read at
+//! many places of the largest stages (texels, materials, alpha tests, normal maps in the
+//! bounce stages): their accessor reads every page and selects one, without a branch; with
+//! a switch (or ifs) at each read, lavapipe crashed (a SIGSEGV in its command thread) on
+//! the bounce stages of textured cases at three pages.
 
 /// The most pages of one table.
 pub const MAX_PAGES: u32 = 16;
@@ -416,8 +415,21 @@ fn accessor(table: Table, element: &str, pages: u32, shift: u32) -> String {
     };
     let mut s = format!(
         "// Element `i` of `{name}` as if it were one array: page `i >> {shift}` of its records\n\
-         // (hyrt_gpu::paging).\nfn {function}(i: u32) -> {element} {{\n    let page = {page};\n    let local = {local};\n    switch page {{\n"
+         // (hyrt_gpu::paging).\nfn {function}(i: u32) -> {element} {{\n    let page = {page};\n    let local = {local};\n"
     );
+    if table.is_words() {
+        // Every page read and one selected, without branches: the surface tables are read
+        // at many places of the largest stages, and a branch at each (a switch, or ifs)
+        // crashed lavapipe (Mesa 24: SIGSEGV in its command thread) in the bounce stages.
+        // A read past a shorter page's end is in bounds of the binding or reads a value
+        // WGSL allows (never the one selected).
+        s += &format!("    var e = {name}[local];\n");
+        for k in 1..pages {
+            s += &format!("    e = select(e, {name}_page{k}[local], page == {k}u);\n");
+        }
+        return s + "    return e;\n}\n";
+    }
+    s += "    switch page {\n";
     for k in 1..pages {
         s += &format!("        case {k}u: {{\n            return {name}_page{k}[local];\n        }}\n");
     }
@@ -491,6 +503,7 @@ mod tests {
         assert!(s.contains("@group(0) @binding(146) var<storage, read> surface_page2: array<u32>;"), "{s}");
         assert!(s.contains("fn surface_word(i: u32) -> u32 {"), "{s}");
         assert!(s.contains("let page = i >> 4u;") && s.contains("let local = i & 15u;"), "{s}");
+        assert!(s.contains("e = select(e, surface_page2[local], page == 2u);") && !s.contains("switch"), "{s}");
         // Paged record tables alone leave the surface tables as written.
         let records = TablePages { shift: 3, triangles: 3, slots: 1, nodes: 1, ..TablePages::default() };
         assert_eq!(paged_source(source, records), source);
