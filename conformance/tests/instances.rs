@@ -10,11 +10,12 @@ use hyrt_core::bvh::BvhPreset;
 use hyrt_core::formats::CameraRecord;
 use hyrt_core::frame::{Backend, FrameOptions, PreparedScene};
 use hyrt_core::glam::{Mat4, Quat, Vec3};
-use hyrt_core::scene::{Camera, Light, Material, MaterialKind, Mesh, Object, RenderMode, Scene};
+use hyrt_core::scene::{Camera, Light, Material, MaterialKind, Mesh, Object, RenderMode, Scene, TextureImage};
 use hyrt_cpu::backend::CpuBackend;
 use hyrt_gpu::backend::world_table_bytes;
 use hyrt_gpu::paging::{Table, TablePages};
 use hyrt_gpu::visibility_raster::batch_triangles;
+use std::sync::Arc;
 
 /// Copies of the torus in the grid: 6 x 5.
 const COLUMNS: usize = 6;
@@ -183,6 +184,58 @@ fn gpu_renders_past_one_binding_in_batches_and_pages_as_the_cpu() {
             same_frames(&mut cpu, &mut gpu, &prepared, &camera, &format!("{what}, {binding}-byte bindings"));
         }
     }
+}
+
+/// `image` scaled up `k` times on each side, each texel a `k` x `k` block.
+fn enlarged(image: &TextureImage, k: u32) -> TextureImage {
+    let (w, h) = (image.width * k, image.height * k);
+    let texels = (0..h).flat_map(|y| (0..w).map(move |x| image.texels[((y / k) * image.width + x / k) as usize]));
+    TextureImage::new(format!("{} x{k}", image.name), w, h, texels.collect()).expect("a valid image")
+}
+
+/// Surface tables past one storage binding: every `texture_` case of the corpus (textures
+/// sampled on rasterized and ray-traced objects, vertex colours, alpha tests in the raster,
+/// in shadow rays and in a mirror, normal maps, metallic-roughness and emission maps, every
+/// wrap mode), its images enlarged to 4 MiB of texels or more, on a device whose storage
+/// bindings hold a power of two between a quarter and half of its surface tables, so that
+/// their words take three or four pages ([`Table::Surface`]); every buffer is the CPU's bit
+/// for bit, the bounces' too: a page holds the words the whole table holds at the same
+/// index.
+#[test]
+fn gpu_reads_surface_tables_in_pages_as_the_cpu() {
+    let mut cpu = CpuBackend::new(Some(2));
+    let (mut cases, mut bounced) = (0, 0);
+    for mut case in hyrt_conformance::corpus::corpus().into_iter().filter(|c| c.name.starts_with("texture_")) {
+        let started = std::time::Instant::now();
+        let texels: usize = case.scene.textures.iter().map(|t| t.texels.len()).sum();
+        let k = ((1usize << 20) as f64 / texels as f64).sqrt().ceil() as u32;
+        case.scene.textures = case.scene.textures.iter().map(|t| Arc::new(enlarged(t, k))).collect();
+        let prepared = case.prepare(&cpu);
+        let bytes = prepared.geometry.surface.layout().expect("a small table").bytes();
+        let binding = (bytes / 4).next_power_of_two();
+        let Some(mut gpu) = gpu_for_tests_with(Some(binding)) else { return };
+        let limits = gpu.context().limits.clone();
+        assert_eq!(limits.max_storage_buffer_binding_size, binding);
+        let pages = TablePages::of_scene(&prepared, &limits).expect("within MAX_PAGES");
+        let surface = pages.pages(Table::Surface);
+        assert!((3..=4).contains(&surface), "{}: {bytes} bytes of surface tables in {surface} pages", case.name);
+        let frame = hyrt_conformance::report::render_case(&mut gpu, &prepared, &case).expect("gpu frame");
+        let reference = hyrt_conformance::report::render_case(&mut cpu, &prepared, &case).expect("cpu frame");
+        let compared = compare_stages(&reference, &frame);
+        assert!(compared.iter().any(|c| c.buffer == "gbuffer"), "{}: the G-buffer was compared", case.name);
+        bounced += usize::from(!reference.bounces.is_empty());
+        for cmp in compared {
+            assert!(cmp.is_exact(), "{}: cpu vs gpu: {} / {} differs: {cmp:?}", case.name, cmp.stage, cmp.buffer);
+        }
+        eprintln!(
+            "{}: textures x{k}, {bytes} bytes of surface tables in {surface} pages of {binding} bytes, {:.1} s",
+            case.name,
+            started.elapsed().as_secs_f64()
+        );
+        cases += 1;
+    }
+    assert!(cases >= 9, "{cases} texture cases");
+    assert!(bounced >= 2, "{bounced} cases bounced");
 }
 
 /// Dragons on the GPU as the CPU renders them: a manifest grid of `columns` x `rows`

@@ -26,7 +26,7 @@ use crate::buffers::{
 use crate::compaction::CompactionStage;
 use crate::composition::CompositionStage;
 use crate::gpu_buffer::{extend_from_bytes, read_back_each, read_back_many};
-use crate::paging::{page_shift, Table, TablePages, MAX_PAGES};
+use crate::paging::{page_shift, word_page_shift, Table, TablePages, MAX_PAGES};
 use crate::present::Present;
 use crate::raster_shading::RasterShadingStage;
 use crate::reconstruction::{NormalMapping, ReconstructionStage};
@@ -122,7 +122,7 @@ impl SurfaceStages {
         let normal_mapping = match (s.normal_mapped, sibling) {
             (false, _) => None,
             (true, Some(t)) => t.normal_mapping.clone(),
-            (true, None) => Some(Arc::new(ctx.checked(|| NormalMapping::new(ctx))?)),
+            (true, None) => Some(Arc::new(ctx.checked(|| NormalMapping::paged(ctx, s.pages))?)),
         };
         Ok(SurfaceStages { visibility_raster, shadow_rays, rt_shading, raster_shading, bounces, normal_mapping })
     }
@@ -1023,10 +1023,11 @@ impl Counts {
 }
 
 impl GpuBackend {
-    /// Refuse a plan this device cannot run: surface tables (textures, texture
-    /// coordinates, vertex colours) larger than one storage binding, and bounces on a
-    /// device with fewer storage buffers per shader stage than the bounce stages bind
-    /// ([`BOUNCE_STORAGE_BUFFERS`]). An error, never a frame without them.
+    /// Refuse a plan this device cannot run: tables that need more than
+    /// [`MAX_PAGES`] pages of one storage binding, or more storage buffers per shader stage
+    /// with their pages than the device allows, and bounces on a device with fewer storage
+    /// buffers per shader stage than the bounce stages bind ([`BOUNCE_STORAGE_BUFFERS`]).
+    /// An error, never a frame without them.
     fn check_supported(&self, scene: &PreparedScene, plan: &FramePlan) -> Result<(), GpuError> {
         let storage = self.ctx.limits.max_storage_buffers_per_shader_stage;
         if plan.runs(Stage::ShadowDenoise) && storage < DENOISED_SHADING_STORAGE_BUFFERS {
@@ -1040,14 +1041,23 @@ impl GpuBackend {
             )));
         }
         let binding = self.ctx.limits.max_storage_buffer_binding_size.min(self.ctx.limits.max_buffer_size);
-        // The tables that grow with the triangles go in pages of one binding each
-        // (`crate::paging`), up to MAX_PAGES; each further page binds one more storage
-        // buffer in the stages that read it.
+        // The tables that grow with the triangles and the surface tables go in pages of
+        // one binding each (`crate::paging`), up to MAX_PAGES; each further page binds one
+        // more storage buffer in the stages that read it.
+        let surface_words = scene.geometry.surface.layout().map(|l| l.bytes() / 4);
         let Some(pages) = TablePages::of_scene(scene, &self.ctx.limits) else {
-            return Err(GpuError::Limits(format!(
-                "the scene's world records or BVH need more than {MAX_PAGES} pages of {} records (one storage binding of {binding} bytes each)",
-                1u64 << page_shift(&self.ctx.limits)
-            )));
+            let word_page = 1u64 << word_page_shift(&self.ctx.limits);
+            return Err(GpuError::Limits(match surface_words {
+                None => "the scene's textures, texture coordinates and vertex colours need 2^32 words or more, past what a shader can index".to_string(),
+                Some(words) if words.div_ceil(word_page) > MAX_PAGES as u64 => format!(
+                    "the scene's textures, texture coordinates and vertex colours need {} bytes: more than {MAX_PAGES} pages of {word_page} words (one storage binding of {binding} bytes each)",
+                    words * 4
+                ),
+                Some(_) => format!(
+                    "the scene's world records or BVH need more than {MAX_PAGES} pages of {} records (one storage binding of {binding} bytes each)",
+                    1u64 << page_shift(&self.ctx.limits)
+                ),
+            }));
         };
         let extra = pages.extra_bindings(&Table::ALL);
         let most = match (plan.bounce_depth() > 0, scene.geometry.triangles.has_references()) {
@@ -1057,7 +1067,7 @@ impl GpuBackend {
         };
         if extra > 0 && most + extra > storage {
             return Err(GpuError::Limits(format!(
-                "the scene's world records and BVH take {} pages on this device (one storage binding of {binding} bytes each), which with the frame's other tables bind up to {} storage buffers per shader stage; this device allows {storage}",
+                "the scene's world records, BVH and surface tables take {} pages on this device (one storage binding of {binding} bytes each), which with the frame's other tables bind up to {} storage buffers per shader stage; this device allows {storage}",
                 extra + Table::ALL.len() as u32,
                 most + extra
             )));
@@ -1078,15 +1088,6 @@ impl GpuBackend {
             return Err(GpuError::Limits(format!(
                 "reflection and refraction in a scene with objects by reference bind {BY_REFERENCE_BOUNCE_STORAGE_BUFFERS} storage buffers per shader stage (bounce_trace); this device allows {storage} (render with max depth 0)"
             )));
-        }
-        match scene.geometry.surface.layout().map(|l| l.bytes()) {
-            Some(bytes) if bytes <= binding => {}
-            need => {
-                return Err(GpuError::Limits(format!(
-                    "the scene's textures, texture coordinates and vertex colours need {} bytes in one storage binding; this device allows {binding}",
-                    need.map_or_else(|| "2^34 or more".to_string(), |b| b.to_string())
-                )))
-            }
         }
         let bounces = self.ctx.limits.max_storage_buffers_per_shader_stage >= BOUNCE_STORAGE_BUFFERS;
         match (plan.bounce_depth(), bounces) {

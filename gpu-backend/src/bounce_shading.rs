@@ -52,7 +52,8 @@ impl BounceShadingStage {
         entries.push(storage_entry(14, false));
         entries.extend([storage_entry(15, true), uniform_entry(16)]);
         entries.extend([uniform_entry(17), storage_entry(18, true), uniform_entry(19)]);
-        entries.extend(s.flags_pages().layout_entries(&[crate::paging::Table::Triangles]));
+        entries
+            .extend(s.flags_pages().layout_entries(&[crate::paging::Table::Triangles, crate::paging::Table::Surface]));
         let (pipeline, layout) = specialized_pipeline(ctx, "bounce_shading", &source, &entries, &s.shading_constants());
         BounceShadingStage { pipeline, layout }
     }
@@ -98,13 +99,13 @@ impl BounceShadingStage {
                 links,
                 child_radiance,
                 &b.radiance,
-                &scene.surface.words,
+                scene.surface.words.first(),
                 &scene.surface.layout,
                 &scene.ambient_light,
                 &scene.ambient_texels,
                 &frame.slot_params,
             ],
-            scene.flags_table_pages(),
+            scene.flags_table_pages().into_iter().chain(scene.surface.words.further()),
         );
         crate::shader::encode_list_pass(encoder, "bounce_shading", &self.pipeline, &bind_group, &b.ray_count, timing);
     }

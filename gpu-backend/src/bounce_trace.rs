@@ -44,8 +44,8 @@ pub fn shader_source(s: Specialization) -> String {
 }
 
 /// The paged tables the stage reads ([`crate::paging`]).
-const PAGED_TABLES: [Table; 5] =
-    [Table::Nodes, Table::LeafTriangles, Table::PrimIndices, Table::Triangles, Table::Normals];
+const PAGED_TABLES: [Table; 6] =
+    [Table::Nodes, Table::LeafTriangles, Table::PrimIndices, Table::Triangles, Table::Normals, Table::Surface];
 
 /// The `bounce_trace` stage: one pipeline.
 pub struct BounceTraceStage {
@@ -103,7 +103,7 @@ impl BounceTraceStage {
             &b.hits,
             &b.surfaces,
             &b.counters,
-            &scene.surface.words,
+            scene.surface.words.first(),
             &scene.surface.layout,
             &scene.objects,
             &scene.instances,
@@ -115,10 +115,16 @@ impl BounceTraceStage {
             (false, true) => &buffers[..15],
             (false, false) => &buffers[..14],
         };
-        let further =
-            [&scene.bvh_nodes, &scene.bvh_leaf_triangles, &scene.bvh_prim_indices, &scene.triangles, &scene.normals]
-                .into_iter()
-                .flat_map(|t| t.further());
+        let further = [
+            &scene.bvh_nodes,
+            &scene.bvh_leaf_triangles,
+            &scene.bvh_prim_indices,
+            &scene.triangles,
+            &scene.normals,
+            &scene.surface.words,
+        ]
+        .into_iter()
+        .flat_map(|t| t.further());
         let bind_group = bind_paged_buffers(ctx, "bounce_trace", &self.layout, bound, further);
         crate::shader::encode_list_pass(encoder, "bounce_trace", &self.pipeline, &bind_group, &b.ray_count, timing);
     }

@@ -165,7 +165,8 @@ pub struct SceneBuffers {
     /// ([`hyrt_core::kernels::ibl::AmbientLight::texels`]; one zero texel without one).
     pub ambient_texels: wgpu::Buffer,
     /// The surface tables (materials, texture coordinates, vertex colours, textures),
-    /// packed into one binding with their layout; one unread word without them.
+    /// packed into one table of words (in pages where they outgrow one binding) with their
+    /// layout; one unread word without them.
     pub surface: SurfaceBuffers,
     pub triangle_count: u32,
     pub object_count: u32,
@@ -230,7 +231,7 @@ impl SceneBuffers {
             bvh_prim_indices: PagedBuffer::upload::<u32>(ctx, Table::PrimIndices, prim_indices, pages),
             instances: upload::<InstanceRecord>(ctx, "instances", instances),
             specialization,
-            surface: SurfaceBuffers::new(ctx, &g.surface, &g.objects),
+            surface: SurfaceBuffers::new(ctx, &g.surface, &g.objects, pages),
             triangle_count: g.triangles.len() as u32,
             object_count: g.objects.len() as u32,
             light_count: g.lights.len() as u32,
@@ -423,7 +424,7 @@ impl SceneBuffers {
             self.held_lights.clone_from(&g.lights);
         }
         if !changes.objects.is_empty() && !g.surface.is_empty() {
-            self.surface = SurfaceBuffers::new(ctx, &g.surface, &g.objects);
+            self.surface = SurfaceBuffers::new(ctx, &g.surface, &g.objects, self.specialization.pages);
         }
     }
 }

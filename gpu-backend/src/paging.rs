@@ -2,36 +2,52 @@
 //!
 //! A device binds at most `max_storage_buffer_binding_size` bytes of a buffer at once
 //! (lavapipe: 128 MiB, 2.8 million world records). The scene tables that grow with the
-//! triangle count are uploaded in pages of `1 << shift` records, each page a buffer and
-//! a binding of its own:
+//! triangle count or with the textures are uploaded in pages, each page a buffer and a
+//! binding of its own: the record tables in pages of `1 << shift` records, the surface
+//! tables' words in pages of `1 << word_shift` words:
 //!
-//! | index space | tables ([`Table`]) | record bytes |
-//! |---|---|---:|
-//! | stored world record | `triangles`, `normals` | 48, 36 |
-//! | BVH leaf slot | `bvh_leaf_triangles`, `bvh_prim_indices` | 48, 4 |
-//! | BVH node | `bvh_nodes` | 32 |
+//! | index space | tables ([`Table`]) | record bytes | page |
+//! |---|---|---:|---|
+//! | stored world record | `triangles`, `normals` | 48, 36 | `1 << shift` records |
+//! | BVH leaf slot | `bvh_leaf_triangles`, `bvh_prim_indices` | 48, 4 | `1 << shift` records |
+//! | BVH node | `bvh_nodes` | 32 | `1 << shift` records |
+//! | surface table word | `surface` (materials, texture coordinates, vertex colours, tangents, textures: [`crate::texture::SurfaceBuffers`]) | 4 | `1 << word_shift` words |
+//!
+//! Still in one binding each: the shared meshes' words of objects by reference
+//! (`mesh_words`) and their placements, the objects, lights and instances
+//! ([`crate::backend::GpuBackend`] refuses a scene where one exceeds it).
 //!
 //! `shift` is the device's ([`page_shift`]): the largest with a page of the largest record
-//! (48 bytes) within one binding. A scene whose tables each fit one page is uploaded and
+//! (48 bytes) within one binding; `word_shift` ([`word_page_shift`]) the largest with a
+//! page of words within one binding (lavapipe: 25, a whole 128 MiB binding, where pages of
+//! `1 << shift` words would hold 8 MiB). A scene whose tables each fit one page is uploaded and
 //! compiled as before ([`TablePages::default`]): its shaders are the same text. Otherwise
 //! the stages that read a paged table are compiled for its page count ([`TablePages`], part
 //! of the scene's [`crate::texture::Specialization`]): [`paged_source`] declares the further
 //! pages in the table's group at [`page_binding`] and rewrites every `table[i]` of the
-//! source into `table_at(i)`, whose switch reads page `i >> shift` at `i & mask`. Those are
+//! source into `table_at(i)` (`surface_word(i)` for the surface tables, whose stages
+//! define a `surface_at` of their own), whose switch reads page `i >> shift` at `i & mask`. Those are
 //! the same records the unpaged table holds at `i`, so frames are the same bits; what a
 //! device can hold is bounded by its memory, not by one binding.
 //!
 //! Each further page is one more storage buffer bound per stage: a stage that reads every
 //! paged table (`bounce_trace`) binds `(pages - 1)` more for each, within the adapter's
 //! `max_storage_buffers_per_shader_stage` (lavapipe: 32), which
-//! [`crate::backend::GpuBackend`] checks before a frame.
+//! [`crate::backend::GpuBackend`] checks before a frame. The surface tables are read at
+//! many places of the largest stages (texels, materials, alpha tests, normal maps in the
+//! bounce stages): their accessor reads every page and selects one, without a branch; with
+//! a switch (or ifs) at each read, lavapipe crashed (a SIGSEGV in its command thread) on
+//! the bounce stages of textured cases at three pages.
 
 /// The most pages of one table.
 pub const MAX_PAGES: u32 = 16;
 
 /// Bytes of the largest record of a paged table (a `TriangleRecord`): a page of any
-/// table fits one binding.
+/// record table fits one binding.
 const LARGEST_RECORD_BYTES: u64 = 48;
+
+/// Bytes of a word of the surface tables.
+const WORD_BYTES: u64 = 4;
 
 /// The first binding of the further pages: page `k` (from 1) of table `t` is at
 /// [`page_binding`]`(t, k)`, in the group that declares the table's first page. Above
@@ -51,11 +67,13 @@ pub enum Table {
     PrimIndices,
     /// `array<BvhNode>`.
     Nodes,
+    /// `array<u32>`: the surface tables, packed ([`hyrt_core::geometry::SurfaceTables::packed`]).
+    Surface,
 }
 
 impl Table {
-    pub const ALL: [Table; 5] =
-        [Table::Triangles, Table::Normals, Table::LeafTriangles, Table::PrimIndices, Table::Nodes];
+    pub const ALL: [Table; 6] =
+        [Table::Triangles, Table::Normals, Table::LeafTriangles, Table::PrimIndices, Table::Nodes, Table::Surface];
 
     /// The name of the table's (first page's) binding in the WGSL.
     pub fn name(self) -> &'static str {
@@ -65,7 +83,24 @@ impl Table {
             Table::LeafTriangles => "bvh_leaf_triangles",
             Table::PrimIndices => "bvh_prim_indices",
             Table::Nodes => "bvh_nodes",
+            Table::Surface => "surface",
         }
+    }
+
+    /// The name of the accessor [`paged_source`] defines: `NAME_at`, but `surface_word` for
+    /// the surface tables (the stages that read them define `surface_at`: the surface
+    /// record at a hit).
+    pub fn accessor(self) -> String {
+        match self {
+            Table::Surface => "surface_word".to_string(),
+            _ => format!("{}_at", self.name()),
+        }
+    }
+
+    /// Whether the table is of words, paged by [`TablePages::word_shift`] (else by
+    /// [`TablePages::shift`]).
+    pub fn is_words(self) -> bool {
+        self == Table::Surface
     }
 
     /// Bytes of one record: what one index of its index space takes (nine floats for the
@@ -74,7 +109,7 @@ impl Table {
         match self {
             Table::Triangles | Table::LeafTriangles => 48,
             Table::Normals => 36,
-            Table::PrimIndices => 4,
+            Table::PrimIndices | Table::Surface => 4,
             Table::Nodes => 32,
         }
     }
@@ -106,9 +141,18 @@ pub fn page_shift(limits: &wgpu::Limits) -> u32 {
     (binding / LARGEST_RECORD_BYTES).max(1).ilog2().min(31)
 }
 
-/// How a scene's paged tables are split: the page shift and each index space's page
+/// log2 of the words per page of the surface tables on a device with `limits`: the largest
+/// with a page of words within one storage binding (and one buffer). Lavapipe's 128 MiB:
+/// 25 (33,554,432 words).
+pub fn word_page_shift(limits: &wgpu::Limits) -> u32 {
+    let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+    (binding / WORD_BYTES).max(1).ilog2().min(31)
+}
+
+/// How a scene's paged tables are split: the page shifts and each index space's page
 /// count. The default (every count 0) is a scene whose tables fit one page each: nothing
-/// paged, the shaders as written.
+/// paged, the shaders as written. The record tables and the word tables are paged
+/// independently: either may be paged while the other is not.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct TablePages {
     /// log2 of the records per page ([`page_shift`]); 0 when nothing is paged.
@@ -119,11 +163,17 @@ pub struct TablePages {
     pub slots: u8,
     /// Pages of the BVH's nodes.
     pub nodes: u8,
+    /// log2 of the words per page of the surface tables ([`word_page_shift`]); 0 when
+    /// they are not paged.
+    pub word_shift: u8,
+    /// Pages of the surface tables' words.
+    pub surface: u8,
 }
 
 impl TablePages {
     /// The pages of tables of `triangles` stored records, `slots` leaf slots and `nodes`
-    /// nodes with `1 << shift` records a page; `None` past [`MAX_PAGES`] pages.
+    /// nodes with `1 << shift` records a page (no word table paged); `None` past
+    /// [`MAX_PAGES`] pages.
     pub fn of_counts(triangles: u64, slots: u64, nodes: u64, shift: u32) -> Option<TablePages> {
         let pages = |n: u64| n.div_ceil(1 << shift).max(1);
         let (t, s, n) = (pages(triangles), pages(slots), pages(nodes));
@@ -132,8 +182,20 @@ impl TablePages {
         }
         Some(match t.max(s).max(n) {
             1 => TablePages::default(),
-            _ => TablePages { shift: shift as u8, triangles: t as u8, slots: s as u8, nodes: n as u8 },
+            _ => {
+                TablePages { shift: shift as u8, triangles: t as u8, slots: s as u8, nodes: n as u8, ..Self::default() }
+            }
         })
+    }
+
+    /// `self` with surface tables of `surface` words in pages of `1 << word_shift` words;
+    /// `None` past [`MAX_PAGES`] pages.
+    pub fn with_surface(self, surface: u64, word_shift: u32) -> Option<TablePages> {
+        match surface.div_ceil(1 << word_shift).max(1) {
+            1 => Some(TablePages { word_shift: 0, surface: 0, ..self }),
+            s if s > MAX_PAGES as u64 => None,
+            s => Some(TablePages { word_shift: word_shift as u8, surface: s as u8, ..self }),
+        }
     }
 
     /// The pages of `scene`'s tables on a device with `limits`; `None` past [`MAX_PAGES`].
@@ -145,13 +207,22 @@ impl TablePages {
             ),
             None => (scene.bvh.leaf_triangles.len() as u64, scene.bvh.nodes.len() as u64),
         };
-        let triangles = scene.geometry.triangles.stored_records().len() as u64;
-        Self::of_counts(triangles, slots, nodes, page_shift(limits))
+        let g = &scene.geometry;
+        let triangles = g.triangles.stored_records().len() as u64;
+        // Past 2^32 words the tables cannot be indexed: more pages than any device has.
+        let surface = g.surface.layout().map_or(u64::MAX, |l| l.bytes() / WORD_BYTES);
+        Self::of_counts(triangles, slots, nodes, page_shift(limits))?.with_surface(surface, word_page_shift(limits))
     }
 
     /// Whether some table is paged.
     pub fn any(self) -> bool {
-        self.pages(Table::Triangles).max(self.pages(Table::LeafTriangles)).max(self.pages(Table::Nodes)) > 1
+        Table::ALL.iter().any(|&t| self.pages(t) > 1)
+    }
+
+    /// log2 of the elements per page of `table`: [`TablePages::word_shift`] for the surface
+    /// tables, else [`TablePages::shift`].
+    pub fn shift_of(self, table: Table) -> u32 {
+        u32::from(if table.is_words() { self.word_shift } else { self.shift })
     }
 
     /// Pages of `table` (1 when unpaged).
@@ -160,13 +231,15 @@ impl TablePages {
             Table::Triangles | Table::Normals => self.triangles,
             Table::LeafTriangles | Table::PrimIndices => self.slots,
             Table::Nodes => self.nodes,
+            Table::Surface => self.surface,
         };
         u32::from(n).max(1)
     }
 
-    /// Records of `table` per page: `1 << shift`, or every record when it is unpaged.
+    /// Records of `table` per page: `1 << shift` (`1 << word_shift` words for the surface
+    /// tables), or every record when it is unpaged.
     pub fn page_records(self, table: Table) -> Option<u64> {
-        (self.pages(table) > 1).then(|| 1u64 << self.shift)
+        (self.pages(table) > 1).then(|| 1u64 << self.shift_of(table))
     }
 
     /// Storage buffers the further pages add to a stage that binds `tables`.
@@ -203,6 +276,8 @@ impl PagedBuffer {
             },
             Some(records) => {
                 let page_bytes = records * table.record_bytes();
+                let room = page_bytes * u64::from(pages.pages(table));
+                assert!(bytes.len() as u64 <= room, "{label}: {} bytes in {pages:?}", bytes.len());
                 let pages = (0..pages.pages(table) as usize)
                     .map(|k| {
                         let lo = (k as u64 * page_bytes).min(bytes.len() as u64) as usize;
@@ -266,14 +341,14 @@ pub fn paged_source(source: &str, pages: TablePages) -> String {
         let name = table.name();
         let Some((group, element)) = declaration(&out, name) else { continue };
         debug_assert!(!out.contains(&format!("arrayLength(&{name})")), "{name} is paged: no arrayLength");
-        out = rewrite_indexing(&out, name);
+        out = rewrite_indexing(&out, name, &table.accessor());
         for k in 1..n {
             out += &format!(
                 "@group({group}) @binding({}) var<storage, read> {name}_page{k}: array<{element}>;\n",
                 page_binding(table, k)
             );
         }
-        out += &accessor(table, &element, n, u32::from(pages.shift));
+        out += &accessor(table, &element, n, pages.shift_of(table));
     }
     out
 }
@@ -290,23 +365,23 @@ fn declaration(source: &str, name: &str) -> Option<(u32, String)> {
     Some((group, element))
 }
 
-/// `source` with every `name[expr]` (the identifier alone, not a longer one ending in it)
-/// replaced by `name_at(expr)`; brackets inside `expr` are matched.
-fn rewrite_indexing(source: &str, name: &str) -> String {
+/// `source` with every `name[expr]` (the identifier alone, not a longer one ending in it,
+/// nor a field `.name`) replaced by `accessor(expr)`; brackets inside `expr` are matched.
+fn rewrite_indexing(source: &str, name: &str, accessor: &str) -> String {
     let pattern = format!("{name}[");
     let mut out = String::with_capacity(source.len());
     let mut rest = source;
     while let Some(at) = rest.find(&pattern) {
         let before = rest[..at].chars().next_back();
-        let is_identifier = |c: char| c.is_ascii_alphanumeric() || c == '_';
-        if before.is_some_and(is_identifier) {
+        let continues = |c: char| c.is_ascii_alphanumeric() || c == '_' || c == '.';
+        if before.is_some_and(continues) {
             out += &rest[..at + pattern.len()];
             rest = &rest[at + pattern.len()..];
             continue;
         }
         out += &rest[..at];
-        out += name;
-        out += "_at(";
+        out += accessor;
+        out += "(";
         let mut depth = 1;
         let body = &rest[at + pattern.len()..];
         let mut end = body.len();
@@ -324,16 +399,19 @@ fn rewrite_indexing(source: &str, name: &str) -> String {
             }
         }
         assert!(end < body.len(), "unmatched bracket after {name}[");
-        out += &body[..end];
+        // The index may read the table too (`name[name[i]]`).
+        out += &rewrite_indexing(&body[..end], name, accessor);
         out += ")";
         rest = &body[end + 1..];
     }
     out + rest
 }
 
-/// `NAME_at(i)`: element `i` of the table as if unpaged, read from its page.
+/// `NAME_at(i)` ([`Table::accessor`]): element `i` of the table as if unpaged, read from
+/// its page.
 fn accessor(table: Table, element: &str, pages: u32, shift: u32) -> String {
     let name = table.name();
+    let function = table.accessor();
     let per = table.elements_per_record();
     // The page of element `i` (record `i / per`), and where it starts in elements.
     let (page, local) = match per {
@@ -342,8 +420,21 @@ fn accessor(table: Table, element: &str, pages: u32, shift: u32) -> String {
     };
     let mut s = format!(
         "// Element `i` of `{name}` as if it were one array: page `i >> {shift}` of its records\n\
-         // (hyrt_gpu::paging).\nfn {name}_at(i: u32) -> {element} {{\n    let page = {page};\n    let local = {local};\n    switch page {{\n"
+         // (hyrt_gpu::paging).\nfn {function}(i: u32) -> {element} {{\n    let page = {page};\n    let local = {local};\n"
     );
+    if table.is_words() {
+        // Every page read and one selected, without branches: the surface tables are read
+        // at many places of the largest stages, and a branch at each (a switch, or ifs)
+        // crashed lavapipe (Mesa 24: SIGSEGV in its command thread) in the bounce stages.
+        // A read past a shorter page's end is in bounds of the binding or reads a value
+        // WGSL allows (never the one selected).
+        s += &format!("    var e = {name}[local];\n");
+        for k in 1..pages {
+            s += &format!("    e = select(e, {name}_page{k}[local], page == {k}u);\n");
+        }
+        return s + "    return e;\n}\n";
+    }
+    s += "    switch page {\n";
     for k in 1..pages {
         s += &format!("        case {k}u: {{\n            return {name}_page{k}[local];\n        }}\n");
     }
@@ -375,12 +466,51 @@ mod tests {
         let source = "@group(1) @binding(4) var<storage, read> triangles: array<TriangleRecord>;\n\
                       @group(1) @binding(5) var<storage, read> normals: array<f32>;\n\
                       fn f(i: u32) -> f32 { return triangles[ids[i]].v0.x + normals[9u * i] + my_triangles[i]; }\n";
-        let pages = TablePages { shift: 3, triangles: 3, slots: 1, nodes: 1 };
+        let pages = TablePages { shift: 3, triangles: 3, slots: 1, nodes: 1, ..TablePages::default() };
         let s = paged_source(source, pages);
         assert!(s.contains("return triangles_at(ids[i]).v0.x + normals_at(9u * i) + my_triangles[i];"), "{s}");
         assert!(s.contains("@group(1) @binding(65) var<storage, read> triangles_page1: array<TriangleRecord>;"));
         assert!(s.contains("@group(1) @binding(82) var<storage, read> normals_page2: array<f32>;"));
         assert!(s.contains("let local = i - page * (9u << 3u);"));
         assert_eq!(paged_source(source, TablePages::default()), source);
+    }
+
+    /// The surface tables are paged by word, in pages of a whole binding (not of 48-byte
+    /// records), independently of the record tables; their accessor is `surface_word`
+    /// (the stages define a `surface_at` of their own), and neither `surface_at(` nor
+    /// `surfaces[i]` nor a field `.surface[` is rewritten.
+    #[test]
+    fn surface_words_are_paged_by_word() {
+        let limits = wgpu::Limits { max_storage_buffer_binding_size: 128 << 20, ..wgpu::Limits::default() };
+        assert_eq!(word_page_shift(&limits), 25);
+        assert_eq!(Table::Surface.record_bytes() << 25, 128 << 20);
+        // 300 MiB of surface words: 3 pages of 128 MiB; the record tables unpaged.
+        let p = TablePages::default().with_surface(300 << 18, 25).unwrap();
+        assert_eq!((p.pages(Table::Surface), p.pages(Table::Triangles)), (3, 1));
+        assert_eq!((p.shift, p.word_shift, p.page_records(Table::Surface)), (0, 25, Some(1 << 25)));
+        assert!(p.any());
+        assert_eq!(TablePages::default().with_surface(1 << 25, 25), Some(TablePages::default()));
+        assert_eq!(TablePages::default().with_surface(16 << 25, 25).map(|p| p.surface), Some(16));
+        assert_eq!(TablePages::default().with_surface((16 << 25) + 1, 25), None);
+        // Both kinds paged: each by its own shift.
+        let both = TablePages::of_counts(3 << 21, 10, 10, 21).unwrap().with_surface(5 << 25, 25).unwrap();
+        assert_eq!((both.pages(Table::Normals), both.pages(Table::Surface)), (3, 5));
+        assert_eq!((both.shift_of(Table::Normals), both.shift_of(Table::Surface)), (21, 25));
+
+        let source = "@group(0) @binding(9) var<storage, read> surface: array<u32>;\n\
+                      fn f(at: u32) -> u32 { return surface[surface[at] + 1u] + surfaces[at].x + out.surface[0]; }\n\
+                      fn g() -> SurfaceRecord { return surface_at(0u); }\n";
+        let pages = TablePages { word_shift: 4, surface: 3, ..TablePages::default() };
+        let s = paged_source(source, pages);
+        assert!(s.contains("return surface_word(surface_word(at) + 1u) + surfaces[at].x + out.surface[0]; }"), "{s}");
+        assert!(s.contains("return surface_at(0u);"), "{s}");
+        assert!(s.contains("@group(0) @binding(145) var<storage, read> surface_page1: array<u32>;"), "{s}");
+        assert!(s.contains("@group(0) @binding(146) var<storage, read> surface_page2: array<u32>;"), "{s}");
+        assert!(s.contains("fn surface_word(i: u32) -> u32 {"), "{s}");
+        assert!(s.contains("let page = i >> 4u;") && s.contains("let local = i & 15u;"), "{s}");
+        assert!(s.contains("e = select(e, surface_page2[local], page == 2u);") && !s.contains("switch"), "{s}");
+        // Paged record tables alone leave the surface tables as written.
+        let records = TablePages { shift: 3, triangles: 3, slots: 1, nodes: 1, ..TablePages::default() };
+        assert_eq!(paged_source(source, records), source);
     }
 }

@@ -21,8 +21,10 @@
 //! a hit, (0, 0, 0, 0) on ray-traced pixels when the weight is 1, alpha 1 where shaded.
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
+use crate::paging::{paged_source, Table};
 use crate::shader::{
-    bind_buffers, encode_pixel_pass, specialized_pipeline, storage_entry, surface_shading_source_for, uniform_entry,
+    bind_paged_buffers, encode_pixel_pass, specialized_pipeline, storage_entry, surface_shading_source_for,
+    uniform_entry,
 };
 use crate::texture::Specialization;
 use crate::GpuContext;
@@ -54,6 +56,7 @@ impl RasterShadingStage {
             ),
             s.denoised.then_some(VISIBILITY),
         );
+        let source = paged_source(&source, s.pages);
         let visibility = [storage_entry(VISIBILITY, true)];
         let (pipeline, layout) = specialized_pipeline(
             ctx,
@@ -76,6 +79,7 @@ impl RasterShadingStage {
                     uniform_entry(12),       // slot params
                 ][..],
                 if s.denoised { &visibility } else { &[] },
+                &s.pages.layout_entries(&[Table::Surface]),
             ]
             .concat(),
             &s.shading_constants(),
@@ -95,7 +99,7 @@ impl RasterShadingStage {
         timing: Option<(&wgpu::QuerySet, u32)>,
     ) {
         let visibility = [&frame.visibility];
-        let bind_group = bind_buffers(
+        let bind_group = bind_paged_buffers(
             ctx,
             "raster_shading",
             &self.layout,
@@ -109,7 +113,7 @@ impl RasterShadingStage {
                     &frame.raster,
                     &frame.gbuffer,
                     &frame.camera,
-                    &scene.surface.words,
+                    scene.surface.words.first(),
                     &scene.surface.layout,
                     &scene.ambient_light,
                     &scene.ambient_texels,
@@ -118,6 +122,7 @@ impl RasterShadingStage {
                 if self.denoised { &visibility } else { &[] },
             ]
             .concat(),
+            scene.surface.words.further(),
         );
         encode_pixel_pass(encoder, "raster_shading", &self.pipeline, &bind_group, frame.width, frame.band.rows, timing);
     }

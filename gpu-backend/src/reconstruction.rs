@@ -206,15 +206,20 @@ fn main(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wid: v
 /// `hyrt_core::kernels::texture::Materials::normal_mapped`). The CPU runs the same kernels
 /// at the same points (`hyrt_cpu::reconstruction::normal_mapping_into`,
 /// `hyrt_cpu::bounce_trace`). Compiled with `SURFACE_TABLES` on (a normal-mapped scene
-/// has surface tables).
+/// has surface tables), and for the pages of its surface tables ([`crate::paging`]).
 pub struct NormalMapping {
     primary: (wgpu::ComputePipeline, wgpu::BindGroupLayout),
     secondary: (wgpu::ComputePipeline, wgpu::BindGroupLayout),
 }
 
 impl NormalMapping {
-    /// Compile both passes.
+    /// Compile both passes for surface tables in one binding.
     pub fn new(ctx: &GpuContext) -> Self {
+        Self::paged(ctx, TablePages::default())
+    }
+
+    /// Compile both passes for surface tables in the pages `pages` gives them.
+    pub fn paged(ctx: &GpuContext, pages: TablePages) -> Self {
         use crate::shader::{shading_source, specialized_pipeline, storage_entry, uniform_entry};
         let common = format!(
             "{}\n{}\nconst NORMAL_MAPPING_WG: u32 = {}u;\n{}",
@@ -231,9 +236,10 @@ impl NormalMapping {
             storage_entry(4, false),
         ];
         let constants = [("SURFACE_TABLES", 1.0), ("ALPHA_TESTED", 0.0)];
+        let surface_pages = pages.layout_entries(&[crate::paging::Table::Surface]);
         let build = |label: &str, entry: &str, own: &[wgpu::BindGroupLayoutEntry]| {
-            let source = shading_source(&format!("{common}{entry}"));
-            let entries: Vec<_> = shared.iter().chain(own).copied().collect();
+            let source = paged_source(&shading_source(&format!("{common}{entry}")), pages);
+            let entries: Vec<_> = shared.iter().chain(own).chain(&surface_pages).copied().collect();
             specialized_pipeline(ctx, label, &source, &entries, &constants)
         };
         NormalMapping {
@@ -265,13 +271,14 @@ impl NormalMapping {
         let buffers = [
             &frame.params,
             &scene.objects,
-            &scene.surface.words,
+            scene.surface.words.first(),
             &scene.surface.layout,
             &frame.surfaces,
             &frame.gbuffer,
             &frame.camera,
         ];
-        let group = crate::shader::bind_buffers(ctx, "reconstruction normal mapping", layout, &buffers);
+        let further = scene.surface.words.further();
+        let group = crate::shader::bind_paged_buffers(ctx, "reconstruction normal mapping", layout, &buffers, further);
         let mut pass = crate::timing::begin_timed_pass(encoder, "reconstruction normal mapping", None);
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, &group, &[]);
@@ -293,14 +300,15 @@ impl NormalMapping {
         let buffers = [
             &frame.params,
             &scene.objects,
-            &scene.surface.words,
+            scene.surface.words.first(),
             &scene.surface.layout,
             &b.surfaces,
             &b.rays,
             &b.ray_count,
             &b.hits,
         ];
-        let group = crate::shader::bind_buffers(ctx, "bounce_trace normal mapping", layout, &buffers);
+        let further = scene.surface.words.further();
+        let group = crate::shader::bind_paged_buffers(ctx, "bounce_trace normal mapping", layout, &buffers, further);
         crate::shader::encode_list_pass(encoder, "bounce_trace normal mapping", pipeline, &group, &b.ray_count, None);
     }
 }

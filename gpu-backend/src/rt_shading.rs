@@ -31,7 +31,8 @@
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
 use crate::shader::{
-    bind_buffers, encode_pixel_pass, specialized_pipeline, storage_entry, surface_shading_source_for, uniform_entry,
+    bind_paged_buffers, encode_pixel_pass, specialized_pipeline, storage_entry, surface_shading_source_for,
+    uniform_entry,
 };
 use crate::texture::Specialization;
 use crate::GpuContext;
@@ -66,7 +67,7 @@ fn rt_buffers<'a>(scene: &'a SceneBuffers, frame: &'a FrameBuffers) -> [&'a wgpu
         &frame.params,
         &frame.rt,
         &frame.gbuffer,
-        &scene.surface.words,
+        scene.surface.words.first(),
         &scene.surface.layout,
         &scene.ambient_light,
         &scene.ambient_texels,
@@ -119,8 +120,10 @@ impl RtShadingStage {
             ),
             s.denoised.then_some(RT_VISIBILITY),
         );
+        let source = crate::paging::paged_source(&source, s.pages);
         let visibility = [storage_entry(RT_VISIBILITY, true)];
-        let entries = [rt_entries().as_slice(), if s.denoised { &visibility } else { &[] }].concat();
+        let pages = s.pages.layout_entries(&[crate::paging::Table::Surface]);
+        let entries = [rt_entries().as_slice(), if s.denoised { &visibility } else { &[] }, &pages].concat();
         let (pipeline, layout) = specialized_pipeline(ctx, "rt_shading", &source, &entries, &s.shading_constants());
         RtShadingStage { pipeline, layout, denoised: s.denoised }
     }
@@ -138,7 +141,7 @@ impl RtShadingStage {
     ) {
         let visibility = [&frame.visibility];
         let buffers = [rt_buffers(scene, frame).as_slice(), if self.denoised { &visibility } else { &[] }].concat();
-        let bind_group = bind_buffers(ctx, "rt_shading", &self.layout, &buffers);
+        let bind_group = bind_paged_buffers(ctx, "rt_shading", &self.layout, &buffers, scene.surface.words.further());
         encode_pixel_pass(encoder, "rt_shading", &self.pipeline, &bind_group, frame.width, frame.band.rows, timing);
     }
 }
@@ -157,7 +160,7 @@ impl RtShadingBouncingStage {
         );
         let source = crate::paging::paged_source(&source, s.flags_pages());
         let visibility = [storage_entry(RT_BOUNCING_VISIBILITY, true)];
-        let pages = s.flags_pages().layout_entries(&[crate::paging::Table::Triangles]);
+        let pages = s.flags_pages().layout_entries(&[crate::paging::Table::Triangles, crate::paging::Table::Surface]);
         let (pipeline, layout) = specialized_pipeline(
             ctx,
             "rt_shading (bounces)",
@@ -200,7 +203,7 @@ impl RtShadingBouncingStage {
                 if self.denoised { &visibility } else { &[] },
             ]
             .concat(),
-            scene.flags_table_pages(),
+            scene.flags_table_pages().into_iter().chain(scene.surface.words.further()),
         );
         encode_pixel_pass(encoder, "rt_shading", &self.pipeline, &bind_group, frame.width, frame.band.rows, timing);
     }

@@ -44,7 +44,8 @@ impl SecondaryRaysStage {
         entries.extend((3..=9).map(|i| storage_entry(i, true)));
         entries.extend((10..=12).map(|i| storage_entry(i, false)));
         entries.extend([storage_entry(13, true), uniform_entry(14)]);
-        entries.extend(s.flags_pages().layout_entries(&[crate::paging::Table::Triangles]));
+        entries
+            .extend(s.flags_pages().layout_entries(&[crate::paging::Table::Triangles, crate::paging::Table::Surface]));
         SecondaryRaysStage { scan: ListScan::new(ctx, "secondary_rays", &module, &entries, &s.constants()) }
     }
 
@@ -82,10 +83,10 @@ impl SecondaryRaysStage {
             &b.rays,
             &b.links,
             &b.counters,
-            &scene.surface.words,
+            scene.surface.words.first(),
             &scene.surface.layout,
         ];
-        let further = scene.flags_table_pages();
+        let further = scene.flags_table_pages().into_iter().chain(scene.surface.words.further()).collect();
         self.scan.encode_paged(ctx, encoder, "secondary_rays", 2 * b.parents, &buffers, further, &b.ray_count, timing);
     }
 }

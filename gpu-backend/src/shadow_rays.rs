@@ -81,7 +81,7 @@ impl ShadowRaysStage {
         if s.two_level {
             entries.push(storage_entry(12, true));
         }
-        entries.extend(s.pages.layout_entries(&[Table::Nodes, Table::LeafTriangles]));
+        entries.extend(s.pages.layout_entries(&[Table::Nodes, Table::LeafTriangles, Table::Surface]));
         let layout = ctx.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("shadow_rays"),
             entries: &entries,
@@ -135,13 +135,14 @@ impl ShadowRaysStage {
             list.shadow,
             list.params,
             list.counters,
-            &scene.surface.words,
+            scene.surface.words.first(),
             &scene.surface.layout,
             &frame.slot_params,
             &scene.instances,
         ];
         let bound = if self.two_level { &buffers[..] } else { &buffers[..12] };
-        let further = scene.bvh_nodes.further().chain(scene.bvh_leaf_triangles.further());
+        let further =
+            scene.bvh_nodes.further().chain(scene.bvh_leaf_triangles.further()).chain(scene.surface.words.further());
         let bind_group = bind_paged_buffers(ctx, "shadow_rays", &self.layout, bound, further);
         // SHADOW_NO_RAY is 0.
         encoder.clear_buffer(list.shadow, 0, None);

@@ -7,8 +7,9 @@
 //! # One buffer for every surface table
 //! The material records (with each object's first triangle), texture coordinates, vertex
 //! colours, texture records, the sRGB decoding table and the texels are one
-//! `surface: array<u32>` binding, with a uniform [`SurfaceLayout`] that says where each
-//! table starts: the bounce stages bind 13 storage buffers without them, of the (at most)
+//! `surface: array<u32>` binding (in pages of one binding each where they outgrow one:
+//! [`crate::paging`], [`crate::paging::Table::Surface`]), with a uniform [`SurfaceLayout`]
+//! that says where each table starts: the bounce stages bind 13 storage buffers without them, of the (at most)
 //! 16 per stage that [`crate::GpuContext`] asks for, and `shadow_rays` 7, of the 8 a
 //! WebGPU-default device allows, so each stage that reads the tables adds one storage
 //! buffer, not five (`shadow_rays` finds a leaf triangle's global index from the objects'
@@ -49,9 +50,8 @@ use hyrt_core::geometry::SurfaceTables;
 use hyrt_core::kernels::texture::{LOD_MIN_AREA, LOD_MIN_COSINE, UNORM8_SCALE};
 use wgpu::util::DeviceExt;
 
-use crate::paging::TablePages;
+use crate::paging::{PagedBuffer, Table, TablePages};
 
-use crate::gpu_buffer::upload;
 use crate::wgsl::f32_literal;
 use crate::GpuContext;
 
@@ -170,7 +170,7 @@ impl Specialization {
         ambient_image: false,
         stochastic: false,
         denoised: false,
-        pages: TablePages { shift: 0, triangles: 0, slots: 0, nodes: 0 },
+        pages: TablePages { shift: 0, triangles: 0, slots: 0, nodes: 0, word_shift: 0, surface: 0 },
     };
 
     /// What `tables` need (a single-level scene).
@@ -201,12 +201,13 @@ impl Specialization {
         }
     }
 
-    /// The pages of the table the triangle flags are read from
+    /// The pages of the stages that read the triangle flags
     /// ([`crate::world_triangles::triangle_flags_wgsl`]): the triangles' in a scene of stored
-    /// objects; none with objects by reference (the placements, never paged).
+    /// objects, none with objects by reference (the flags are the placements', never
+    /// paged); the surface tables' in either.
     pub fn flags_pages(self) -> TablePages {
         match self.by_reference {
-            true => TablePages::default(),
+            true => TablePages { shift: 0, triangles: 0, slots: 0, nodes: 0, ..self.pages },
             false => self.pages,
         }
     }
@@ -245,8 +246,9 @@ impl Specialization {
 /// A scene without them gets one zero word and the zero layout: WebGPU bindings cannot be
 /// empty, and no shader reads the word then (module docs).
 pub struct SurfaceBuffers {
-    /// `array<u32>`: every table, packed.
-    pub words: wgpu::Buffer,
+    /// `array<u32>`: every table, packed; in pages of one storage binding each where they
+    /// outgrow one ([`crate::paging::Table::Surface`]).
+    pub words: PagedBuffer,
     /// Uniform [`SurfaceLayout`]: where each table starts in `words`.
     pub layout: wgpu::Buffer,
     /// The layout `layout` holds.
@@ -256,10 +258,16 @@ pub struct SurfaceBuffers {
 }
 
 impl SurfaceBuffers {
-    /// Pack and upload `tables` of a scene with `objects`. Panics if they hold 2^32 words
-    /// or more ([`SurfaceTables::layout`]; `GpuBackend` refuses such scenes first, as any
-    /// that exceed a storage binding).
-    pub fn new(ctx: &GpuContext, tables: &SurfaceTables, objects: &[ObjectRecord]) -> SurfaceBuffers {
+    /// Pack and upload `tables` of a scene with `objects`, in the pages `pages` gives them
+    /// ([`TablePages::surface`]). Panics if they hold 2^32 words or more
+    /// ([`SurfaceTables::layout`]; `GpuBackend` refuses such scenes first, as any whose
+    /// tables need more than [`crate::paging::MAX_PAGES`] pages).
+    pub fn new(
+        ctx: &GpuContext,
+        tables: &SurfaceTables,
+        objects: &[ObjectRecord],
+        pages: TablePages,
+    ) -> SurfaceBuffers {
         let (record, words) = tables.packed(objects).expect("surface tables of fewer than 2^32 words");
         debug_assert_eq!(record.validate(), Ok(()));
         debug_assert_eq!(tables.textures.validate(), Ok(()));
@@ -269,7 +277,7 @@ impl SurfaceBuffers {
             usage: wgpu::BufferUsages::UNIFORM,
         });
         SurfaceBuffers {
-            words: upload::<u32>(ctx, "surface tables", &words),
+            words: PagedBuffer::upload(ctx, Table::Surface, &words, pages),
             layout,
             record,
             specialization: Specialization::of(tables),

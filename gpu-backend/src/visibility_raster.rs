@@ -570,9 +570,10 @@ impl VisibilityRasterStage {
             } else {
                 entries.extend([
                     wgpu::BindGroupEntry { binding: 10, resource: frame.params.as_entire_binding() },
-                    wgpu::BindGroupEntry { binding: 11, resource: scene.surface.words.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 11, resource: scene.surface.words.first().as_entire_binding() },
                     wgpu::BindGroupEntry { binding: 12, resource: scene.surface.layout.as_entire_binding() },
                 ]);
+                entries.extend(scene.surface.words.further());
             }
             entries.extend(by_reference.iter().cloned());
             ctx.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries: &entries })

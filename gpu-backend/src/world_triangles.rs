@@ -126,12 +126,13 @@ mod tests {
     }
 
     /// The same stages with their tables in pages ([`crate::paging`]: three pages of the
-    /// world records, two of the leaf slots and of the nodes) parse, validate and use only
-    /// exact operations, and read no paged table but through its accessor.
+    /// world records, two of the leaf slots and of the nodes, three of the surface tables'
+    /// words) parse, validate and use only exact operations, and read no paged table but
+    /// through its accessor.
     #[test]
     fn stages_parse_with_tables_in_pages() {
         use crate::paging::{paged_source, TablePages};
-        let pages = TablePages { shift: 20, triangles: 3, slots: 2, nodes: 2 };
+        let pages = TablePages { shift: 20, triangles: 3, slots: 2, nodes: 2, word_shift: 24, surface: 3 };
         for by_reference in [false, true] {
             let s = Specialization { by_reference, two_level: by_reference, pages, ..Specialization::PLAIN };
             let mut sources = vec![
@@ -145,13 +146,16 @@ mod tests {
             }
             for (stage, source) in sources {
                 assert_eq!(inexact_operations(&source), Ok(Vec::new()), "{stage}, by reference: {by_reference}");
-                for table in ["triangles", "normals", "bvh_nodes", "bvh_leaf_triangles", "bvh_prim_indices"] {
+                let tables = ["triangles", "normals", "bvh_nodes", "bvh_leaf_triangles", "bvh_prim_indices", "surface"];
+                for table in tables {
                     let pattern = format!("{table}[");
                     let reads = source
                         .match_indices(&pattern)
                         .filter(|(i, _)| !source[..*i].ends_with(|c: char| c.is_ascii_alphanumeric() || c == '_'))
                         .count();
-                    let accessor = usize::from(source.contains(&format!("fn {table}_at(")));
+                    let accessor = usize::from(
+                        source.contains(&format!("fn {table}_at(")) || source.contains(&format!("fn {table}_word(")),
+                    );
                     // The accessor's own read of the first page is the only one left.
                     let stored_flags = stage == "bounce_shading" && by_reference;
                     assert!(reads <= accessor || stored_flags, "{stage}: {reads} reads of {table} past its pages");

@@ -259,12 +259,16 @@ fn every_stage_uses_only_exact_operations() {
     use hyrt_gpu::texture::Specialization;
     use hyrt_gpu::visibility_raster::{VisibilityMode, VisibilityRasterStage};
     // Every flag alone and in pairs, all of them at once, and tables in pages (with and
-    // without two levels and objects by reference): the flags choose fragments of source,
-    // and an inexact operation lies in one fragment or where two meet. 31 of the 128
-    // combinations of flags (each about 8 s of CI's debug run on lavapipe).
-    let paged = hyrt_gpu::paging::TablePages { shift: 20, triangles: 3, slots: 2, nodes: 2 };
+    // without two levels and objects by reference; the surface tables' words in pages with
+    // every flag that reads them): the flags choose fragments of source, and an inexact
+    // operation lies in one fragment or where two meet. 33 of the 128 combinations of
+    // flags (each about 8 s of CI's debug run on lavapipe).
+    use hyrt_gpu::paging::TablePages;
+    let paged = TablePages { shift: 20, triangles: 3, slots: 2, nodes: 2, ..TablePages::default() };
+    let surface = TablePages { word_shift: 24, surface: 3, ..paged };
     let combinations = (0..128u32).filter(|b| b.count_ones() <= 2 || *b == 127).map(|b| (b, Default::default()));
-    for (bits, pages) in combinations.chain([(0, paged), (4 | 64, paged), (1 | 2 | 4, paged)]) {
+    let paged_combinations = [(0, paged), (4 | 64, paged), (1 | 2 | 4, paged), (63, surface), (127, surface)];
+    for (bits, pages) in combinations.chain(paged_combinations) {
         let s = Specialization {
             surface_tables: bits & 1 != 0,
             alpha_tested: bits & 2 != 0,
@@ -299,4 +303,5 @@ fn every_stage_uses_only_exact_operations() {
     hyrt_gpu::composition::CompositionStage::new(&ctx);
     hyrt_gpu::reconstruction::ReconstructionStage::with_by_reference(&ctx);
     hyrt_gpu::reconstruction::NormalMapping::new(&ctx);
+    hyrt_gpu::reconstruction::NormalMapping::paged(&ctx, surface);
 }

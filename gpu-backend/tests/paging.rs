@@ -22,7 +22,7 @@ fn held(ctx: &hyrt_gpu::GpuContext, table: &PagedBuffer, words: usize) -> Vec<u3
 fn paged_buffer_holds_and_writes_the_table_across_pages() {
     let Some(ctx) = common::test_context() else { return };
     // Four indices a page: 18 indices in 5 pages, the last half full.
-    let pages = TablePages { shift: 2, triangles: 1, slots: 5, nodes: 1 };
+    let pages = TablePages { shift: 2, triangles: 1, slots: 5, nodes: 1, ..TablePages::default() };
     let data: Vec<u32> = (0..18).map(|i| 1000 + i).collect();
     let table = PagedBuffer::upload(&ctx, Table::PrimIndices, &data, pages);
     assert_eq!(table.pages().len(), 5);

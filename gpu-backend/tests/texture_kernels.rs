@@ -276,7 +276,7 @@ fn gpu_results(ctx: &GpuContext, tables: &SurfaceTables, objects: &[ObjectRecord
         contents: bytemuck::bytes_of(&FrameParams::new(1, 1, 0, 0.5).with_pixel_spread(SPREAD)),
         usage: wgpu::BufferUsages::UNIFORM,
     });
-    let surface = SurfaceBuffers::new(ctx, tables, objects);
+    let surface = SurfaceBuffers::new(ctx, tables, objects, Default::default());
     let query_buffer = upload(ctx, "queries", queries);
     let object_buffer = upload(ctx, "objects", objects);
     let words = queries.len() * RESULT_WORDS;
@@ -287,7 +287,7 @@ fn gpu_results(ctx: &GpuContext, tables: &SurfaceTables, objects: &[ObjectRecord
         ctx,
         "texture kernels test",
         &layout,
-        &[&params, &surface.words, &surface.layout, &query_buffer, &object_buffer, &results],
+        &[&params, surface.words.first(), &surface.layout, &query_buffer, &object_buffer, &results],
     );
     let mut encoder = ctx.device.create_command_encoder(&Default::default());
     {
@@ -719,7 +719,7 @@ fn has_subnormal_input(q: &Query) -> bool {
 #[test]
 fn a_scene_without_surface_tables_binds_one_dummy_word_and_the_zero_layout() {
     let Some(ctx) = test_context() else { return };
-    let empty = SurfaceBuffers::new(&ctx, &SurfaceTables::default(), &[]);
+    let empty = SurfaceBuffers::new(&ctx, &SurfaceTables::default(), &[], Default::default());
     assert_eq!((empty.record, empty.specialization), (SurfaceLayout::default(), Specialization::PLAIN));
     let layout = std::mem::size_of::<SurfaceLayout>() as u64;
     assert_eq!((empty.words.size(), empty.layout.size()), (4, layout), "bindings cannot be empty");
