@@ -1072,12 +1072,14 @@ impl GpuBackend {
                 most + extra
             )));
         }
-        // The other world tables in one binding each: with objects by reference, each shared
-        // mesh once and a placement per object.
-        for (table, bytes) in world_table_bytes(scene).into_iter().skip(1) {
+        // The placements in one binding (the shared meshes' words are paged with the surface
+        // tables').
+        if scene.geometry.triangles.has_references() {
+            let objects = scene.geometry.objects.len() as u64;
+            let bytes = objects * std::mem::size_of::<hyrt_core::formats::PlacementRecord>() as u64;
             if bytes > binding {
                 return Err(GpuError::Limits(format!(
-                    "the scene's {table} need {bytes} bytes in one storage binding; this device allows {binding}"
+                    "the placements of the scene's {objects} objects need {bytes} bytes in one storage binding; this device allows {binding}"
                 )));
             }
         }

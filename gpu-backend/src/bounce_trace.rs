@@ -44,8 +44,15 @@ pub fn shader_source(s: Specialization) -> String {
 }
 
 /// The paged tables the stage reads ([`crate::paging`]).
-const PAGED_TABLES: [Table; 6] =
-    [Table::Nodes, Table::LeafTriangles, Table::PrimIndices, Table::Triangles, Table::Normals, Table::Surface];
+const PAGED_TABLES: [Table; 7] = [
+    Table::Nodes,
+    Table::LeafTriangles,
+    Table::PrimIndices,
+    Table::Triangles,
+    Table::Normals,
+    Table::Surface,
+    Table::MeshWords,
+];
 
 /// The `bounce_trace` stage: one pipeline.
 pub struct BounceTraceStage {
@@ -108,7 +115,7 @@ impl BounceTraceStage {
             &scene.objects,
             &scene.instances,
             &scene.placements,
-            &scene.mesh_words,
+            scene.mesh_words.first(),
         ];
         let bound = match (self.by_reference, self.two_level) {
             (true, _) => &buffers[..],
@@ -122,6 +129,7 @@ impl BounceTraceStage {
             &scene.triangles,
             &scene.normals,
             &scene.surface.words,
+            &scene.mesh_words,
         ]
         .into_iter()
         .flat_map(|t| t.further());

@@ -103,9 +103,10 @@ impl hyrt_core::formats::wgsl::WgslStruct for SlotParams {
 pub use crate::band::{BounceRoom, Room};
 
 /// Scene tables on the GPU (from a [`PreparedScene`]; built once per scene). The tables
-/// that grow with the triangles ([`PagedBuffer`]: `triangles`, `normals`, `bvh_nodes`,
-/// `bvh_leaf_triangles`, `bvh_prim_indices`) are split into pages of one storage binding
-/// each where they outgrow one ([`crate::paging`]; `specialization.pages` says how).
+/// that grow with the scene ([`PagedBuffer`]: `triangles`, `normals`, `bvh_nodes`,
+/// `bvh_leaf_triangles`, `bvh_prim_indices`, `mesh_words` and the surface tables' words)
+/// are split into pages of one storage binding each where they outgrow one
+/// ([`crate::paging`]; `specialization.pages` says how).
 pub struct SceneBuffers {
     /// `array<TriangleRecord>`: the world triangle table by global id; with objects by
     /// reference, the stored objects' records alone, by record index
@@ -123,7 +124,7 @@ pub struct SceneBuffers {
     /// `array<u32>`: every shared mesh's positions, normals and triangles, once
     /// ([`hyrt_core::geometry::WorldTriangles::mesh_words`]); one zero word without objects
     /// by reference.
-    pub mesh_words: wgpu::Buffer,
+    pub mesh_words: PagedBuffer,
     /// Where each mesh starts in `mesh_words`.
     mesh_offsets: Vec<MeshWords>,
     /// `array<ObjectRecord>`.
@@ -222,7 +223,7 @@ impl SceneBuffers {
             normals: PagedBuffer::upload(ctx, Table::Normals, &normals, pages),
             by_reference,
             placements: upload::<PlacementRecord>(ctx, "placements", &placements),
-            mesh_words: upload::<u32>(ctx, "mesh words", &mesh_words),
+            mesh_words: PagedBuffer::upload::<u32>(ctx, Table::MeshWords, &mesh_words, pages),
             mesh_offsets,
             objects: upload::<ObjectRecord>(ctx, "objects", &g.objects),
             lights: upload::<LightRecord>(ctx, "lights", &packed_lights(&g.lights, &g.emitters)),
@@ -266,10 +267,11 @@ impl SceneBuffers {
     /// is the one held, else into a new buffer, with every placement again (their offsets).
     fn write_meshes(&mut self, ctx: &GpuContext, scene: &PreparedScene) {
         let (words, offsets) = scene.geometry.triangles.mesh_words().expect("mesh words fewer than 2^32");
-        if offsets == self.mesh_offsets && (words.len() * 4) as u64 == self.mesh_words.size() {
-            ctx.queue.write_buffer(&self.mesh_words, 0, bytemuck::cast_slice(&words));
+        if offsets == self.mesh_offsets && (words.len() * 4).max(4) as u64 == self.mesh_words.size() {
+            self.mesh_words.write(&ctx.queue, 0, bytemuck::cast_slice(&words));
         } else {
-            self.mesh_words = upload::<u32>(ctx, "mesh words", &words);
+            let pages = self.specialization.pages;
+            self.mesh_words = PagedBuffer::upload::<u32>(ctx, Table::MeshWords, &words, pages);
             self.mesh_offsets = offsets;
             let placements = placement_records(&scene.geometry, &self.mesh_offsets);
             ctx.queue.write_buffer(&self.placements, 0, bytemuck::cast_slice(&placements));

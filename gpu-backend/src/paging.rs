@@ -11,10 +11,11 @@
 //! | stored world record | `triangles`, `normals` | 48, 36 | `1 << shift` records |
 //! | BVH leaf slot | `bvh_leaf_triangles`, `bvh_prim_indices` | 48, 4 | `1 << shift` records |
 //! | BVH node | `bvh_nodes` | 32 | `1 << shift` records |
+//! | shared mesh word | `mesh_words` | 4 | `1 << word_shift` words |
 //! | surface table word | `surface` (materials, texture coordinates, vertex colours, tangents, textures: [`crate::texture::SurfaceBuffers`]) | 4 | `1 << word_shift` words |
 //!
-//! Still in one binding each: the shared meshes' words of objects by reference
-//! (`mesh_words`) and their placements, the objects, lights and instances
+//! The shared meshes' words of objects by reference (`mesh_words`) are paged as the surface
+//! tables are. Still in one binding each: the placements, the objects, lights and instances
 //! ([`crate::backend::GpuBackend`] refuses a scene where one exceeds it).
 //!
 //! `shift` is the device's ([`page_shift`]): the largest with a page of the largest record
@@ -69,11 +70,21 @@ pub enum Table {
     Nodes,
     /// `array<u32>`: the surface tables, packed ([`hyrt_core::geometry::SurfaceTables::packed`]).
     Surface,
+    /// `array<u32>`: every shared mesh's positions, normals and triangles, once, for the
+    /// objects by reference ([`hyrt_core::geometry::WorldTriangles::mesh_words`]).
+    MeshWords,
 }
 
 impl Table {
-    pub const ALL: [Table; 6] =
-        [Table::Triangles, Table::Normals, Table::LeafTriangles, Table::PrimIndices, Table::Nodes, Table::Surface];
+    pub const ALL: [Table; 7] = [
+        Table::Triangles,
+        Table::Normals,
+        Table::LeafTriangles,
+        Table::PrimIndices,
+        Table::Nodes,
+        Table::Surface,
+        Table::MeshWords,
+    ];
 
     /// The name of the table's (first page's) binding in the WGSL.
     pub fn name(self) -> &'static str {
@@ -84,6 +95,7 @@ impl Table {
             Table::PrimIndices => "bvh_prim_indices",
             Table::Nodes => "bvh_nodes",
             Table::Surface => "surface",
+            Table::MeshWords => "mesh_words",
         }
     }
 
@@ -100,7 +112,7 @@ impl Table {
     /// Whether the table is of words, paged by [`TablePages::word_shift`] (else by
     /// [`TablePages::shift`]).
     pub fn is_words(self) -> bool {
-        self == Table::Surface
+        matches!(self, Table::Surface | Table::MeshWords)
     }
 
     /// Bytes of one record: what one index of its index space takes (nine floats for the
@@ -109,7 +121,7 @@ impl Table {
         match self {
             Table::Triangles | Table::LeafTriangles => 48,
             Table::Normals => 36,
-            Table::PrimIndices | Table::Surface => 4,
+            Table::PrimIndices | Table::Surface | Table::MeshWords => 4,
             Table::Nodes => 32,
         }
     }
@@ -168,6 +180,8 @@ pub struct TablePages {
     pub word_shift: u8,
     /// Pages of the surface tables' words.
     pub surface: u8,
+    /// Pages of the shared meshes' words (objects by reference).
+    pub mesh_words: u8,
 }
 
 impl TablePages {
@@ -188,14 +202,22 @@ impl TablePages {
         })
     }
 
-    /// `self` with surface tables of `surface` words in pages of `1 << word_shift` words;
-    /// `None` past [`MAX_PAGES`] pages.
-    pub fn with_surface(self, surface: u64, word_shift: u32) -> Option<TablePages> {
-        match surface.div_ceil(1 << word_shift).max(1) {
-            1 => Some(TablePages { word_shift: 0, surface: 0, ..self }),
-            s if s > MAX_PAGES as u64 => None,
-            s => Some(TablePages { word_shift: word_shift as u8, surface: s as u8, ..self }),
+    /// `self` with surface tables of `surface` words and shared meshes of `mesh` words in
+    /// pages of `1 << word_shift` words; `None` past [`MAX_PAGES`] pages.
+    pub fn with_words(self, surface: u64, mesh: u64, word_shift: u32) -> Option<TablePages> {
+        let pages = |n: u64| n.div_ceil(1 << word_shift).max(1);
+        let (s, m) = (pages(surface), pages(mesh));
+        match s.max(m) {
+            1 => Some(TablePages { word_shift: 0, surface: 0, mesh_words: 0, ..self }),
+            n if n > MAX_PAGES as u64 => None,
+            _ => Some(TablePages { word_shift: word_shift as u8, surface: s as u8, mesh_words: m as u8, ..self }),
         }
+    }
+
+    /// `self` with surface tables of `surface` words (and no shared meshes) in pages of
+    /// `1 << word_shift` words; `None` past [`MAX_PAGES`] pages.
+    pub fn with_surface(self, surface: u64, word_shift: u32) -> Option<TablePages> {
+        self.with_words(surface, 0, word_shift)
     }
 
     /// The pages of `scene`'s tables on a device with `limits`; `None` past [`MAX_PAGES`].
@@ -211,7 +233,8 @@ impl TablePages {
         let triangles = g.triangles.stored_records().len() as u64;
         // Past 2^32 words the tables cannot be indexed: more pages than any device has.
         let surface = g.surface.layout().map_or(u64::MAX, |l| l.bytes() / WORD_BYTES);
-        Self::of_counts(triangles, slots, nodes, page_shift(limits))?.with_surface(surface, word_page_shift(limits))
+        let mesh = if g.triangles.has_references() { g.triangles.mesh_word_count() as u64 } else { 0 };
+        Self::of_counts(triangles, slots, nodes, page_shift(limits))?.with_words(surface, mesh, word_page_shift(limits))
     }
 
     /// Whether some table is paged.
@@ -232,6 +255,7 @@ impl TablePages {
             Table::LeafTriangles | Table::PrimIndices => self.slots,
             Table::Nodes => self.nodes,
             Table::Surface => self.surface,
+            Table::MeshWords => self.mesh_words,
         };
         u32::from(n).max(1)
     }

@@ -151,9 +151,9 @@ impl ReconstructionStage {
             &frame.params,
         ];
         if scene.by_reference {
-            buffers.extend([&scene.placements, &scene.mesh_words]);
+            buffers.extend([&scene.placements, scene.mesh_words.first()]);
         }
-        let further = scene.triangles.further().chain(scene.normals.further());
+        let further = scene.triangles.further().chain(scene.normals.further()).chain(scene.mesh_words.further());
         let group = crate::shader::bind_paged_buffers(ctx, "reconstruction", layout, &buffers, further);
         let mut pass = crate::timing::begin_timed_pass(encoder, "reconstruction", timing);
         pass.set_pipeline(pipeline);

@@ -170,7 +170,7 @@ impl Specialization {
         ambient_image: false,
         stochastic: false,
         denoised: false,
-        pages: TablePages { shift: 0, triangles: 0, slots: 0, nodes: 0, word_shift: 0, surface: 0 },
+        pages: TablePages { shift: 0, triangles: 0, slots: 0, nodes: 0, word_shift: 0, surface: 0, mesh_words: 0 },
     };
 
     /// What `tables` need (a single-level scene).

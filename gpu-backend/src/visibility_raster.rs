@@ -423,9 +423,10 @@ impl VisibilityRasterStage {
                 wgpu::BindGroupEntry { binding: BY_REFERENCE_BINDING, resource: scene.placements.as_entire_binding() },
                 wgpu::BindGroupEntry {
                     binding: BY_REFERENCE_BINDING + 1,
-                    resource: scene.mesh_words.as_entire_binding(),
+                    resource: scene.mesh_words.first().as_entire_binding(),
                 },
             ]);
+            entries.extend(scene.mesh_words.further());
         }
         entries
     }

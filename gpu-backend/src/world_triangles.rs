@@ -132,7 +132,8 @@ mod tests {
     #[test]
     fn stages_parse_with_tables_in_pages() {
         use crate::paging::{paged_source, TablePages};
-        let pages = TablePages { shift: 20, triangles: 3, slots: 2, nodes: 2, word_shift: 24, surface: 3 };
+        let pages =
+            TablePages { shift: 20, triangles: 3, slots: 2, nodes: 2, word_shift: 24, surface: 3, mesh_words: 2 };
         for by_reference in [false, true] {
             let s = Specialization { by_reference, two_level: by_reference, pages, ..Specialization::PLAIN };
             let mut sources = vec![
@@ -146,7 +147,15 @@ mod tests {
             }
             for (stage, source) in sources {
                 assert_eq!(inexact_operations(&source), Ok(Vec::new()), "{stage}, by reference: {by_reference}");
-                let tables = ["triangles", "normals", "bvh_nodes", "bvh_leaf_triangles", "bvh_prim_indices", "surface"];
+                let tables = [
+                    "triangles",
+                    "normals",
+                    "bvh_nodes",
+                    "bvh_leaf_triangles",
+                    "bvh_prim_indices",
+                    "surface",
+                    "mesh_words",
+                ];
                 for table in tables {
                     let pattern = format!("{table}[");
                     let reads = source

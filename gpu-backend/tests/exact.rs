@@ -265,7 +265,7 @@ fn every_stage_uses_only_exact_operations() {
     // flags (each about 8 s of CI's debug run on lavapipe).
     use hyrt_gpu::paging::TablePages;
     let paged = TablePages { shift: 20, triangles: 3, slots: 2, nodes: 2, ..TablePages::default() };
-    let surface = TablePages { word_shift: 24, surface: 3, ..paged };
+    let surface = TablePages { word_shift: 24, surface: 3, mesh_words: 2, ..paged };
     let combinations = (0..128u32).filter(|b| b.count_ones() <= 2 || *b == 127).map(|b| (b, Default::default()));
     let paged_combinations = [(0, paged), (4 | 64, paged), (1 | 2 | 4, paged), (63, surface), (127, surface)];
     for (bits, pages) in combinations.chain(paged_combinations) {
