@@ -1139,20 +1139,15 @@ pub fn world_table_bytes(scene: &PreparedScene) -> Vec<(String, u64)> {
 /// ([`world_table_bytes`]), their normals, the BVH (both levels), the objects, lights and
 /// instances, and the surface tables; the environment's and ambient light's texels aside.
 pub fn scene_table_bytes(scene: &PreparedScene) -> u64 {
-    use hyrt_core::formats::{BvhNode, InstanceRecord, LightRecord, ObjectRecord, TriangleRecord};
+    use hyrt_core::formats::{InstanceRecord, LightRecord, ObjectRecord};
     use std::mem::size_of;
     let g = &scene.geometry;
     let world: u64 = world_table_bytes(scene).iter().map(|(_, b)| *b).fold(0, u64::saturating_add);
-    let normals = g.triangles.stored_records().len() as u64 * 36;
-    let (nodes, slots, instances) = match &scene.levels {
-        Some(l) => (
-            l.top.len() + l.bottoms.iter().map(|b| b.nodes.len()).sum::<usize>(),
-            l.bottoms.iter().map(|b| b.leaf_triangles.len()).sum::<usize>(),
-            l.instances.len(),
-        ),
-        None => (scene.bvh.nodes.len(), scene.bvh.leaf_triangles.len(), 0),
-    };
-    let bvh = nodes * size_of::<BvhNode>() + slots * (size_of::<TriangleRecord>() + 4);
+    let normals = g.triangles.stored_records().len() as u64 * Table::Normals.record_bytes();
+    let (nodes, slots) = crate::paging::bvh_counts(scene);
+    let instances = scene.levels.as_ref().map_or(0, |l| l.instances.len());
+    let slot_bytes = Table::LeafTriangles.record_bytes() + Table::PrimIndices.record_bytes();
+    let bvh = (nodes as u64 * Table::Nodes.record_bytes() + slots as u64 * slot_bytes) as usize;
     let records = g.objects.len() * size_of::<ObjectRecord>()
         + (g.lights.len() + g.emitters.len()) * size_of::<LightRecord>()
         + instances * size_of::<InstanceRecord>();

@@ -145,6 +145,18 @@ pub fn page_binding(table: Table, k: u32) -> u32 {
     PAGE_BINDING + table.index() * MAX_PAGES + k
 }
 
+/// The nodes and leaf slots of `scene`'s BVH as the device holds it: both levels packed
+/// ([`hyrt_core::bvh::two_level::PackedLevels`]), or the one tree.
+pub fn bvh_counts(scene: &hyrt_core::frame::PreparedScene) -> (usize, usize) {
+    match &scene.levels {
+        Some(l) => (
+            l.top.len() + l.bottoms.iter().map(|b| b.nodes.len()).sum::<usize>(),
+            l.bottoms.iter().map(|b| b.leaf_triangles.len()).sum::<usize>(),
+        ),
+        None => (scene.bvh.nodes.len(), scene.bvh.leaf_triangles.len()),
+    }
+}
+
 /// log2 of the records per page on a device with `limits`: the largest with a page of
 /// 48-byte records within one storage binding (and one buffer). Lavapipe's 128 MiB: 21
 /// (2,097,152 records, 96 MiB).
@@ -214,21 +226,10 @@ impl TablePages {
         }
     }
 
-    /// `self` with surface tables of `surface` words (and no shared meshes) in pages of
-    /// `1 << word_shift` words; `None` past [`MAX_PAGES`] pages.
-    pub fn with_surface(self, surface: u64, word_shift: u32) -> Option<TablePages> {
-        self.with_words(surface, 0, word_shift)
-    }
-
     /// The pages of `scene`'s tables on a device with `limits`; `None` past [`MAX_PAGES`].
     pub fn of_scene(scene: &hyrt_core::frame::PreparedScene, limits: &wgpu::Limits) -> Option<TablePages> {
-        let (slots, nodes) = match &scene.levels {
-            Some(l) => (
-                l.bottoms.iter().map(|b| b.leaf_triangles.len() as u64).sum(),
-                l.top.len() as u64 + l.bottoms.iter().map(|b| b.nodes.len() as u64).sum::<u64>(),
-            ),
-            None => (scene.bvh.leaf_triangles.len() as u64, scene.bvh.nodes.len() as u64),
-        };
+        let (nodes, slots) = bvh_counts(scene);
+        let (nodes, slots) = (nodes as u64, slots as u64);
         let g = &scene.geometry;
         let triangles = g.triangles.stored_records().len() as u64;
         // Past 2^32 words the tables cannot be indexed: more pages than any device has.
@@ -509,15 +510,15 @@ mod tests {
         assert_eq!(word_page_shift(&limits), 25);
         assert_eq!(Table::Surface.record_bytes() << 25, 128 << 20);
         // 300 MiB of surface words: 3 pages of 128 MiB; the record tables unpaged.
-        let p = TablePages::default().with_surface(300 << 18, 25).unwrap();
+        let p = TablePages::default().with_words(300 << 18, 0, 25).unwrap();
         assert_eq!((p.pages(Table::Surface), p.pages(Table::Triangles)), (3, 1));
         assert_eq!((p.shift, p.word_shift, p.page_records(Table::Surface)), (0, 25, Some(1 << 25)));
         assert!(p.any());
-        assert_eq!(TablePages::default().with_surface(1 << 25, 25), Some(TablePages::default()));
-        assert_eq!(TablePages::default().with_surface(16 << 25, 25).map(|p| p.surface), Some(16));
-        assert_eq!(TablePages::default().with_surface((16 << 25) + 1, 25), None);
+        assert_eq!(TablePages::default().with_words(1 << 25, 0, 25), Some(TablePages::default()));
+        assert_eq!(TablePages::default().with_words(16 << 25, 0, 25).map(|p| p.surface), Some(16));
+        assert_eq!(TablePages::default().with_words((16 << 25) + 1, 0, 25), None);
         // Both kinds paged: each by its own shift.
-        let both = TablePages::of_counts(3 << 21, 10, 10, 21).unwrap().with_surface(5 << 25, 25).unwrap();
+        let both = TablePages::of_counts(3 << 21, 10, 10, 21).unwrap().with_words(5 << 25, 0, 25).unwrap();
         assert_eq!((both.pages(Table::Normals), both.pages(Table::Surface)), (3, 5));
         assert_eq!((both.shift_of(Table::Normals), both.shift_of(Table::Surface)), (21, 25));
 

@@ -267,15 +267,25 @@ struct Setups {
     stride: u64,
 }
 
+/// Batches of at most `batch` triangles in a scene of `triangles` (one when empty).
+fn batch_count(triangles: u32, batch: u32) -> u32 {
+    triangles.div_ceil(batch).max(1)
+}
+
+/// Batch `k`'s first triangle and triangle count.
+fn batch_range(triangles: u32, batch: u32, k: u32) -> (u32, u32) {
+    let first = k * batch;
+    (first, batch.min(triangles - first))
+}
+
 impl Setups {
     fn batches(&self) -> u32 {
-        self.triangles.div_ceil(self.batch).max(1)
+        batch_count(self.triangles, self.batch)
     }
 
     /// Batch `k`'s first triangle and triangle count.
     fn batch_range(&self, k: u32) -> (u32, u32) {
-        let first = k * self.batch;
-        (first, self.batch.min(self.triangles - first))
+        batch_range(self.triangles, self.batch, k)
     }
 
     /// Batch `k`'s `RasterBatch` record, for binding 15.
@@ -415,8 +425,9 @@ impl VisibilityRasterStage {
 
     /// The bindings that go with the triangles' in every bind group of the stage: the
     /// by-reference tables (placements, mesh words) from [`BY_REFERENCE_BINDING`] on, for a
-    /// stage compiled for them, and the triangles' further pages ([`crate::paging`]).
-    fn by_reference_entries<'a>(&self, scene: &'a SceneBuffers) -> Vec<wgpu::BindGroupEntry<'a>> {
+    /// stage compiled for them, and the further pages of the triangles and mesh words
+    /// ([`crate::paging`]).
+    fn scene_entries<'a>(&self, scene: &'a SceneBuffers) -> Vec<wgpu::BindGroupEntry<'a>> {
         let mut entries: Vec<wgpu::BindGroupEntry<'a>> = scene.triangles.further().collect();
         if self.by_reference {
             entries.extend([
@@ -477,11 +488,11 @@ impl VisibilityRasterStage {
                 let batch = batch_triangles(&ctx.limits).min(triangles.max(1));
                 let slots = ((batch as f64 * CLIPPED_SLOTS_PER_TRIANGLE) as u32).max(MIN_CLIPPED_SLOTS);
                 let stride = u64::from(ctx.limits.min_uniform_buffer_offset_alignment).max(RASTER_BATCH_BYTES);
-                let batches = triangles.div_ceil(batch).max(1);
+                let batches = batch_count(triangles, batch);
                 let mut records = vec![0u8; (u64::from(batches) * stride) as usize];
                 for k in 0..batches {
-                    let first = k * batch;
-                    let words = [first, batch.min(triangles - first), 0, 0];
+                    let (first, count) = batch_range(triangles, batch, k);
+                    let words = [first, count, 0, 0];
                     let at = (u64::from(k) * stride) as usize;
                     records[at..at + RASTER_BATCH_BYTES as usize].copy_from_slice(bytemuck::cast_slice(&words));
                 }
@@ -529,7 +540,7 @@ impl VisibilityRasterStage {
             return;
         }
         debug_assert_eq!(self.by_reference, scene.by_reference, "a raster compiled for the scene's world triangles");
-        let by_reference = self.by_reference_entries(scene);
+        let scene_entries = self.scene_entries(scene);
         let targets = self.targets(ctx, width, frame.rows);
         let (Some(setup), Some(setup_layout)) = (&self.setup, &self.setup_layout) else {
             // Hardware interpolated: no setup records, one draw of every triangle.
@@ -542,7 +553,7 @@ impl VisibilityRasterStage {
                         wgpu::BindGroupEntry { binding: 1, resource: frame.camera.as_entire_binding() },
                         wgpu::BindGroupEntry { binding: 10, resource: frame.params.as_entire_binding() },
                     ],
-                    &by_reference[..],
+                    &scene_entries[..],
                 ]
                 .concat(),
             });
@@ -576,7 +587,7 @@ impl VisibilityRasterStage {
                 ]);
                 entries.extend(scene.surface.words.further());
             }
-            entries.extend(by_reference.iter().cloned());
+            entries.extend(scene_entries.iter().cloned());
             ctx.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout, entries: &entries })
         };
         for k in 0..batches {
@@ -689,7 +700,7 @@ impl VisibilityRasterStage {
                     wgpu::BindGroupEntry { binding: 4, resource: frame.gbuffer.as_entire_binding() },
                     wgpu::BindGroupEntry { binding: 10, resource: frame.params.as_entire_binding() },
                 ][..],
-                &self.by_reference_entries(scene)[..],
+                &self.scene_entries(scene)[..],
                 // Records made on read keep their products apart with `camera.pad`.
                 if self.by_reference { &camera[..] } else { &[] },
             ]
