@@ -9,12 +9,18 @@
 //! ```text
 //! cargo run --release -p hyrt-benches --features embree --example ray_contest -- \
 //!     [--threads N] [--rounds N] [--simd avx2|avx512|sse2|portable] [--kind shadow|primary|both|bounce]
-//!     [--packets-only | --singles-only] [--with-avx2] SCENE...
+//!     [--packets-only | --singles-only] [--with-avx2] [--with-auto] SCENE...
 //! ```
+//!
+//! The contenders run in a pool whose workers are pinned one per CPU
+//! (`hyrt_benches::bench::peers::contest_pool`, as in the report).
+//! `RAY_CONTEST_ROUNDS=1` in the environment also prints every contender's time round by
+//! round (a whole phase of rounds at one thread's speed is the scheduler, not the tracer).
 //!
 //! `--with-avx2`: at the AVX-512 level, also each traversal compiled for AVX2 alone,
 //! interleaved with the rest, so that one run says which level is faster per ray kind
-//! (issue 36's per-kind SIMD level).
+//! (issue 36's per-kind SIMD level). `--with-auto`: also the traversals the stages run where
+//! they measure their level (`packet-auto`, `single-auto`).
 //!
 //! `--kind bounce` traces the frame's reflection and refraction rays (closest hit; scenes
 //! with mirrors or glass only) instead.
@@ -52,6 +58,8 @@ struct Args {
     singles_only: bool,
     /// At the AVX-512 level, also each traversal at AVX2.
     with_avx2: bool,
+    /// Also the stages' measured traversals (`packet-auto`, `single-auto`).
+    with_auto: bool,
 }
 
 fn parse() -> Result<Args, String> {
@@ -65,6 +73,7 @@ fn parse() -> Result<Args, String> {
         packets_only: false,
         singles_only: false,
         with_avx2: false,
+        with_auto: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(arg) = it.next() {
@@ -87,6 +96,7 @@ fn parse() -> Result<Args, String> {
             "--packets-only" => a.packets_only = true,
             "--singles-only" => a.singles_only = true,
             "--with-avx2" => a.with_avx2 = true,
+            "--with-auto" => a.with_auto = true,
             "all" => a.scenes.extend(ALL.iter().map(|s| s.to_string())),
             s if s.starts_with("--") => return Err(format!("unknown option {s}")),
             s => a.scenes.push(s.to_string()),
@@ -110,6 +120,9 @@ fn print(kind: &str, scene: &str, rays: usize, names: &[String], ms: &[Vec<f64>]
     for (n, m) in names.iter().zip(ms) {
         let med = median(m).unwrap_or(f64::NAN);
         println!("  {n:<44} {med:>8.2} ms {:>7.2} Mrays/s", rays as f64 / med / 1e3);
+        if std::env::var_os("RAY_CONTEST_ROUNDS").is_some() {
+            println!("    rounds: {:?}", m.iter().map(|x| (x * 100.0).round() / 100.0).collect::<Vec<_>>());
+        }
     }
     if ms.len() == hyrt {
         return;
@@ -196,7 +209,7 @@ fn main() {
     let level = SimdLevel::detect();
     println!("SIMD level {}, {} threads, {} rounds", level.name(), args.threads, args.rounds);
     println!("Embree: {}", hyrt_benches::bench::peers::embree_peer());
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(args.threads).build().expect("rayon pool");
+    let pool = hyrt_benches::bench::peers::contest_pool(args.threads);
     let mut hyrt = if args.packets_only {
         vec![Traversal::Packet(level)]
     } else if args.singles_only {
@@ -211,6 +224,17 @@ fn main() {
         };
         let twins: Vec<Traversal> = hyrt.iter().map(avx2).collect();
         hyrt.extend(twins);
+    }
+    if args.with_auto && hyrt_cpu::traversal::tuning::applies() {
+        let auto: Vec<Traversal> = hyrt
+            .iter()
+            .filter_map(|t| match t {
+                Traversal::Packet(l) if *l == level => Some(Traversal::PacketAuto),
+                Traversal::Single(l) if *l == level => Some(Traversal::SingleAuto),
+                _ => None,
+            })
+            .collect();
+        hyrt.extend(auto);
     }
     for name in &args.scenes {
         let scene = match load_manifest(name) {

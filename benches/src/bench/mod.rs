@@ -286,7 +286,7 @@ fn header(options: &BenchOptions, cpu: &FrameBackend, gpu: Option<&FrameBackend>
     t.row([
         "settings".to_string(),
         format!(
-            "{}; {} frames per measurement (medians, after one warm-up frame), {} interleaved rounds per peer contest (after a warm-up round; ratios taken round by round; a list its fastest contender traces in under {} ms is traced several times in each turn, until the turn lasts that long (at most {} passes), and timed per pass); Table 2 at {}x{}; BVH preset {}",
+            "{}; {} frames per measurement (medians, after one warm-up frame), {} interleaved rounds per peer contest (after a warm-up round; ratios taken round by round; a list its fastest contender traces in under {} ms is traced several times in each turn, until the turn lasts that long (at most {} passes), and timed per pass; every contender in one pool whose workers are pinned one per CPU); Table 2 at {}x{}; BVH preset {}",
             if options.quick { "--quick" } else { "full" },
             options.frames,
             options.repeats,

@@ -186,6 +186,66 @@ pub fn embree_peer() -> String {
     }
 }
 
+/// The thread pool of a contest of ray tracers: `threads` workers, each pinned to a CPU of
+/// its own (the `i`-th of the process's affinity mask) where the mask has that many; every
+/// contender of a contest runs on it, Embree's runs as hyrt's.
+///
+/// Unpinned, the scheduler sometimes left both workers of a fresh two-thread pool on one
+/// core for a whole short contest (bursts of a few milliseconds, the workers asleep in
+/// between, so the load balancer never moved one): on this project's 2-core AMD EPYC the
+/// far bunny's 39,781 shadow rays took 4.8 ms a round at "2 threads", one thread's time,
+/// for the first 8 of 15 rounds and 2.6 ms after, for every contender alike; pinned, 2.6
+/// ms from the first round (`RAY_CONTEST_ROUNDS=1 ray_contest --packets-only --kind shadow
+/// bunny_far`). Whole frames (the CPU backend's own pool, busy through the frame) measured
+/// the same pinned and unpinned (`hyrt render --frames 30 --threads 2`, five scenes).
+pub fn contest_pool(threads: usize) -> rayon::ThreadPool {
+    let cpus = allowed_cpus();
+    let pin = threads <= cpus.len();
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .start_handler(move |i| {
+            if pin {
+                pin_current_thread(cpus[i]);
+            }
+        })
+        .build()
+        .expect("rayon pool")
+}
+
+/// The CPUs this process may run on, in increasing order (empty where unknown).
+#[cfg(target_os = "linux")]
+fn allowed_cpus() -> Vec<usize> {
+    // SAFETY: `sched_getaffinity` writes at most `size_of::<cpu_set_t>()` bytes into `set`,
+    // a zeroed plain-old-data bit set; `CPU_ISSET` reads within it.
+    unsafe {
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        if libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set) != 0 {
+            return Vec::new();
+        }
+        (0..libc::CPU_SETSIZE as usize).filter(|&c| libc::CPU_ISSET(c, &set)).collect()
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn allowed_cpus() -> Vec<usize> {
+    Vec::new()
+}
+
+/// Pin the calling thread to `cpu` (best effort: a failure leaves it unpinned).
+#[cfg(target_os = "linux")]
+fn pin_current_thread(cpu: usize) {
+    // SAFETY: `set` is a zeroed bit set with `cpu` (below `CPU_SETSIZE`, from
+    // `allowed_cpus`) set; `sched_setaffinity(0, ..)` applies to the calling thread only.
+    unsafe {
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        libc::CPU_SET(cpu, &mut set);
+        libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &set);
+    }
+}
+
+#[cfg(not(target_os = "linux"))]
+fn pin_current_thread(_cpu: usize) {}
+
 /// Trace `rays` with `trace` (one call per chunk) in `pool`; `out` gets one answer per ray.
 #[cfg_attr(not(feature = "embree"), allow(dead_code))]
 fn in_chunks<T: Send>(
@@ -375,7 +435,7 @@ fn measure_scene(
     let embree_ref = None;
     for &threads in &options.peer_threads {
         progress.set_message(format!("peers: {} shadow and primary rays, {threads} threads", row.name));
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("rayon pool");
+        let pool = contest_pool(threads);
         // hyrt's whole frame with the same threads, right before the rays are traced: the
         // CPU backend's default executor, fused for the paper's frame.
         let render = |source| BenchError::Render { scene: row.name.to_string(), source };

@@ -213,7 +213,7 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<SoftShadows
 fn trace_contest(prepared: &PreparedScene, frame: &Frame, threads: usize, rounds: usize) -> (f64, Option<f64>) {
     let rays = &frame.rays;
     let g = &prepared.geometry;
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("a thread pool");
+    let pool = super::peers::contest_pool(threads);
     let mut out = Vec::new();
     let mut hyrt =
         || pool.install(|| occluded_batch_into(&prepared.bvh, g.traversal_table(), rays, Traversal::simd(), &mut out));
