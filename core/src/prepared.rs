@@ -318,7 +318,9 @@ impl PreparedScene {
         } else {
             let bottoms =
                 levels.mesh_bottom.get(mesh).filter(|&&b| b != INVALID_ID).map(|&b| vec![b]).unwrap_or_default();
-            self.record(SceneChanges { objects: users, bottoms, ..SceneChanges::default() });
+            // Emitters move with the deformed triangles, as with a move (`move_objects`).
+            let lights = !self.geometry.emitters.is_empty();
+            self.record(SceneChanges { objects: users, lights, bottoms });
         }
         Ok(())
     }

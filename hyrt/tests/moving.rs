@@ -187,3 +187,33 @@ fn objects_by_reference_render_the_stored_tables_frame() {
     referenced.deform_mesh(&scene, mesh).unwrap();
     frames(&mut renderer, &referenced, &stored_of(&scene), &scene, "deformed");
 }
+
+/// A deforming emissive mesh (`emissive_lights`): its emitters move with its triangles, so
+/// the revision names the light table, as a move does (a device holding the scene writes
+/// the emitter table again), and the lights are those of the deformed scene prepared again.
+#[test]
+fn a_deformed_emissive_mesh_rewrites_the_light_table() {
+    let mut scene = Scene::default_scene();
+    scene.emissive_lights = true;
+    let moving = sphere(&scene);
+    let (mesh, material) = (scene.objects[moving as usize].mesh, scene.objects[moving as usize].material);
+    scene.materials[material].emissive = Vec3::new(2.0, 1.5, 1.0);
+    let mut renderer = cpu();
+    let mut prepared = renderer.prepare_moving(&scene, &[moving]);
+    assert!(!prepared.geometry.emitters.is_empty(), "the sphere emits");
+    let (id, revision) = (prepared.id(), prepared.revision());
+    for p in &mut scene.meshes[mesh].positions {
+        *p *= 1.0 + 0.2 * p.y;
+    }
+    prepared.deform_mesh(&scene, mesh).unwrap();
+    assert_eq!(prepared.id(), id, "the same triangles: a revision of the same scene");
+    let changes = prepared.changes_since(revision).unwrap();
+    assert!(changes.lights, "the emitters moved with the mesh: {changes:?}");
+    let again = renderer.prepare_moving(&scene, &[moving]);
+    let bits = |l: &[hyrt::formats::LightRecord]| bytemuck::cast_slice::<_, u8>(l).to_vec();
+    assert!(bits(&prepared.geometry.lights) == bits(&again.geometry.lights), "lights as prepared again");
+    let opts = FrameOptions::default();
+    let a = renderer.render(&prepared, &camera(&scene), W, H, &opts).unwrap();
+    let b = renderer.render(&again, &camera(&scene), W, H, &opts).unwrap();
+    assert_eq!(a.final_srgb8(), b.final_srgb8());
+}
