@@ -26,7 +26,7 @@ use crate::buffers::{
 use crate::compaction::CompactionStage;
 use crate::composition::CompositionStage;
 use crate::gpu_buffer::{extend_from_bytes, read_back_each, read_back_many};
-use crate::paging::{page_shift, word_page_shift, Table, TablePages, MAX_PAGES};
+use crate::paging::{object_page_shift, page_shift, word_page_shift, Table, TablePages, MAX_PAGES};
 use crate::present::Present;
 use crate::raster_shading::RasterShadingStage;
 use crate::reconstruction::{NormalMapping, ReconstructionStage};
@@ -1041,9 +1041,9 @@ impl GpuBackend {
             )));
         }
         let binding = self.ctx.limits.max_storage_buffer_binding_size.min(self.ctx.limits.max_buffer_size);
-        // The tables that grow with the triangles and the surface tables go in pages of
-        // one binding each (`crate::paging`), up to MAX_PAGES; each further page binds one
-        // more storage buffer in the stages that read it.
+        // The tables that grow with the triangles or the objects and the surface tables go
+        // in pages of one binding each (`crate::paging`), up to MAX_PAGES; each further page
+        // binds one more storage buffer in the stages that read it.
         let surface_words = scene.geometry.surface.layout().map(|l| l.bytes() / 4);
         let Some(pages) = TablePages::of_scene(scene, &self.ctx.limits) else {
             let word_page = 1u64 << word_page_shift(&self.ctx.limits);
@@ -1054,8 +1054,9 @@ impl GpuBackend {
                     words * 4
                 ),
                 Some(_) => format!(
-                    "the scene's world records or BVH need more than {MAX_PAGES} pages of {} records (one storage binding of {binding} bytes each)",
-                    1u64 << page_shift(&self.ctx.limits)
+                    "the scene's world records, BVH, placements, objects or instances need more than {MAX_PAGES} pages (of {} world records or BVH nodes, of {} objects or instances: one storage binding of {binding} bytes each)",
+                    1u64 << page_shift(&self.ctx.limits),
+                    1u64 << object_page_shift(&self.ctx.limits)
                 ),
             }));
         };
@@ -1067,21 +1068,21 @@ impl GpuBackend {
         };
         if extra > 0 && most + extra > storage {
             return Err(GpuError::Limits(format!(
-                "the scene's world records, BVH and surface tables take {} pages on this device (one storage binding of {binding} bytes each), which with the frame's other tables bind up to {} storage buffers per shader stage; this device allows {storage}",
+                "the scene's world records, BVH, per-object tables (placements, objects, instances) and surface tables take {} pages on this device (one storage binding of {binding} bytes each), which with the frame's other tables bind up to {} storage buffers per shader stage; this device allows {storage}",
                 extra + Table::ALL.len() as u32,
                 most + extra
             )));
         }
-        // The placements in one binding (the shared meshes' words are paged with the surface
-        // tables').
-        if scene.geometry.triangles.has_references() {
-            let objects = scene.geometry.objects.len() as u64;
-            let bytes = objects * std::mem::size_of::<hyrt_core::formats::PlacementRecord>() as u64;
-            if bytes > binding {
-                return Err(GpuError::Limits(format!(
-                    "the placements of the scene's {objects} objects need {bytes} bytes in one storage binding; this device allows {binding}"
-                )));
-            }
+        // The lights and the emitter table packed after them in one binding.
+        let g = &scene.geometry;
+        let lights = (g.lights.len() + g.emitters.len()) as u64;
+        let bytes = lights * std::mem::size_of::<hyrt_core::formats::LightRecord>() as u64;
+        if bytes > binding {
+            return Err(GpuError::Limits(format!(
+                "the scene's {} lights and {} emissive triangles need {bytes} bytes in one storage binding; this device allows {binding}",
+                g.lights.len(),
+                g.emitters.len()
+            )));
         }
         if scene.geometry.triangles.has_references()
             && plan.bounce_depth() > 0

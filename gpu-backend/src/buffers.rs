@@ -104,8 +104,8 @@ pub use crate::band::{BounceRoom, Room};
 
 /// Scene tables on the GPU (from a [`PreparedScene`]; built once per scene). The tables
 /// that grow with the scene ([`PagedBuffer`]: `triangles`, `normals`, `bvh_nodes`,
-/// `bvh_leaf_triangles`, `bvh_prim_indices`, `mesh_words` and the surface tables' words)
-/// are split into pages of one storage binding each where they outgrow one
+/// `bvh_leaf_triangles`, `bvh_prim_indices`, `placements`, `objects`, `instances`,
+/// `mesh_words` and the surface tables' words) are split into pages of one storage binding each where they outgrow one
 /// ([`crate::paging`]; `specialization.pages` says how).
 pub struct SceneBuffers {
     /// `array<TriangleRecord>`: the world triangle table by global id; with objects by
@@ -120,7 +120,7 @@ pub struct SceneBuffers {
     pub by_reference: bool,
     /// `array<PlacementRecord>`, one per object, with objects by reference; one zero record
     /// (read by no stage) otherwise.
-    pub placements: wgpu::Buffer,
+    pub placements: PagedBuffer,
     /// `array<u32>`: every shared mesh's positions, normals and triangles, once
     /// ([`hyrt_core::geometry::WorldTriangles::mesh_words`]); one zero word without objects
     /// by reference.
@@ -128,7 +128,7 @@ pub struct SceneBuffers {
     /// Where each mesh starts in `mesh_words`.
     mesh_offsets: Vec<MeshWords>,
     /// `array<ObjectRecord>`.
-    pub objects: wgpu::Buffer,
+    pub objects: PagedBuffer,
     /// `array<LightRecord>`: the frame's lights ([`SceneBuffers::set_lighting`]: the scene's,
     /// with area lights given the frame's samples and seeds), then the scene's emitter table
     /// ([`hyrt_core::geometry::WorldGeometry::emitters`]), one [`emitter_slot`] per emitter
@@ -150,7 +150,7 @@ pub struct SceneBuffers {
     pub bvh_prim_indices: PagedBuffer,
     /// `array<InstanceRecord>`: a two-level scene's instances, each naming its level's
     /// root in `bvh_nodes`; one zero record (bound by no stage) for a single-level scene.
-    pub instances: wgpu::Buffer,
+    pub instances: PagedBuffer,
     /// The pipelines the scene needs ([`Specialization::of_scene`]).
     pub specialization: Specialization,
     /// Uniform [`EnvironmentRecord`]: what secondary rays that leave the scene see.
@@ -222,15 +222,15 @@ impl SceneBuffers {
             triangles: PagedBuffer::upload::<TriangleRecord>(ctx, Table::Triangles, triangles, pages),
             normals: PagedBuffer::upload(ctx, Table::Normals, &normals, pages),
             by_reference,
-            placements: upload::<PlacementRecord>(ctx, "placements", &placements),
+            placements: PagedBuffer::upload::<PlacementRecord>(ctx, Table::Placements, &placements, pages),
             mesh_words: PagedBuffer::upload::<u32>(ctx, Table::MeshWords, &mesh_words, pages),
             mesh_offsets,
-            objects: upload::<ObjectRecord>(ctx, "objects", &g.objects),
+            objects: PagedBuffer::upload::<ObjectRecord>(ctx, Table::Objects, &g.objects, pages),
             lights: upload::<LightRecord>(ctx, "lights", &packed_lights(&g.lights, &g.emitters)),
             bvh_nodes: PagedBuffer::upload::<BvhNode>(ctx, Table::Nodes, nodes, pages),
             bvh_leaf_triangles: PagedBuffer::upload::<TriangleRecord>(ctx, Table::LeafTriangles, leaf_triangles, pages),
             bvh_prim_indices: PagedBuffer::upload::<u32>(ctx, Table::PrimIndices, prim_indices, pages),
-            instances: upload::<InstanceRecord>(ctx, "instances", instances),
+            instances: PagedBuffer::upload::<InstanceRecord>(ctx, Table::Instances, instances, pages),
             specialization,
             surface: SurfaceBuffers::new(ctx, &g.surface, &g.objects, pages),
             triangle_count: g.triangles.len() as u32,
@@ -248,19 +248,41 @@ impl SceneBuffers {
     /// ([`crate::world_triangles::triangle_flags_wgsl`]): the placements with objects by
     /// reference, else the triangles.
     pub fn flags_table(&self) -> &wgpu::Buffer {
+        self.flags_paged().first()
+    }
+
+    /// The further pages of [`SceneBuffers::flags_table`] ([`crate::paging`]), then those
+    /// of `tables`.
+    pub fn flags_table_pages(&self, tables: &[Table]) -> Vec<wgpu::BindGroupEntry<'_>> {
+        self.flags_paged().further().chain(self.further_pages(tables)).collect()
+    }
+
+    fn flags_paged(&self) -> &PagedBuffer {
         match self.by_reference {
             true => &self.placements,
-            false => self.triangles.first(),
+            false => &self.triangles,
         }
     }
 
-    /// The further pages of [`SceneBuffers::flags_table`] ([`crate::paging`]): the
-    /// triangles' when they are the table, else none.
-    pub fn flags_table_pages(&self) -> Vec<wgpu::BindGroupEntry<'_>> {
-        match self.by_reference {
-            true => Vec::new(),
-            false => self.triangles.further().collect(),
+    /// The table `table` ([`crate::paging`]).
+    pub fn paged(&self, table: Table) -> &PagedBuffer {
+        match table {
+            Table::Triangles => &self.triangles,
+            Table::Normals => &self.normals,
+            Table::LeafTriangles => &self.bvh_leaf_triangles,
+            Table::PrimIndices => &self.bvh_prim_indices,
+            Table::Nodes => &self.bvh_nodes,
+            Table::Surface => &self.surface.words,
+            Table::MeshWords => &self.mesh_words,
+            Table::Placements => &self.placements,
+            Table::Objects => &self.objects,
+            Table::Instances => &self.instances,
         }
+    }
+
+    /// The further pages of `tables`, in order: none for an unpaged one.
+    pub fn further_pages(&self, tables: &[Table]) -> Vec<wgpu::BindGroupEntry<'_>> {
+        tables.iter().flat_map(|&t| self.paged(t).further()).collect()
     }
 
     /// Write the mesh words of `scene` again (a mesh deformed): in place when their layout
@@ -274,7 +296,7 @@ impl SceneBuffers {
             self.mesh_words = PagedBuffer::upload::<u32>(ctx, Table::MeshWords, &words, pages);
             self.mesh_offsets = offsets;
             let placements = placement_records(&scene.geometry, &self.mesh_offsets);
-            ctx.queue.write_buffer(&self.placements, 0, bytemuck::cast_slice(&placements));
+            self.placements.write(&ctx.queue, 0, bytemuck::cast_slice(&placements));
         }
     }
 
@@ -388,7 +410,7 @@ impl SceneBuffers {
                 true => {
                     let p = placement_record(g, o, &self.mesh_offsets);
                     let size = std::mem::size_of::<PlacementRecord>();
-                    write(&self.placements, o as usize * size, bytemuck::bytes_of(&p));
+                    self.placements.write(&ctx.queue, (o as usize * size) as u64, bytemuck::bytes_of(&p));
                     (!p.by_reference()).then_some(p.first_record as usize)
                 }
             };
@@ -399,11 +421,12 @@ impl SceneBuffers {
                 self.triangles.write(&ctx.queue, offset, bytemuck::cast_slice(&triangles));
                 self.normals.write(&ctx.queue, (first * 9 * 4) as u64, bytemuck::cast_slice(&corner_normals(g, range)));
             }
-            write(&self.objects, o as usize * std::mem::size_of::<ObjectRecord>(), bytemuck::bytes_of(record));
+            let offset = o as u64 * std::mem::size_of::<ObjectRecord>() as u64;
+            self.objects.write(&ctx.queue, offset, bytemuck::bytes_of(record));
         }
         if let (false, Some(levels)) = (changes.objects.is_empty(), &scene.levels) {
             self.bvh_nodes.write(&ctx.queue, 0, bytemuck::cast_slice(&levels.top));
-            write(&self.instances, 0, bytemuck::cast_slice(&levels.packed_instances()));
+            self.instances.write(&ctx.queue, 0, bytemuck::cast_slice(&levels.packed_instances()));
             // Refitted bottom levels (deformed meshes): same places, new boxes and vertices.
             for &b in &changes.bottoms {
                 let (node_base, nodes, slot_base) = levels.packed_bottom(b as usize);
