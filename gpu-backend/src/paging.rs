@@ -460,7 +460,7 @@ pub fn paged_source(source: &str, pages: TablePages) -> String {
 /// but the last full (each is uploaded at its records' size, [`PagedBuffer::upload`]),
 /// and the last page's `arrayLength`.
 fn paged_length(table: Table, pages: u32, shift: u32) -> String {
-    let full = u64::from(pages - 1) * u64::from(table.elements_per_record()) << shift;
+    let full = (u64::from(pages - 1) * u64::from(table.elements_per_record())) << shift;
     let full = u32::try_from(full).expect("a paged table of fewer than 2^32 elements");
     format!("({full}u + arrayLength(&{}_page{}))", table.name(), pages - 1)
 }
