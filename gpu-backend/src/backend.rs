@@ -222,7 +222,8 @@ pub struct GpuBackend {
     max_band_bytes: Option<u64>,
     /// [`GpuBackend::last_frame_bands`].
     last_bands: u32,
-    /// The `shadow_denoise` stage, built the first time a frame denoises.
+    /// The `shadow_denoise` stage, built the first time a frame denoises (again for a scene
+    /// whose lights are in other pages).
     shadow_denoise: Option<ShadowDenoiseStage>,
     /// What the last frame of the denoiser's temporal pass left for the next
     /// ([`FrameOptions::temporal`]), made by the first such frame.
@@ -396,9 +397,11 @@ impl GpuBackend {
         let denoised = plan.runs(Stage::ShadowDenoise);
         let of_scene = self.scene.as_ref().expect("scene buffers").2.specialization;
         self.stages(Specialization { stochastic, denoised, ..of_scene })?;
-        if denoised && self.shadow_denoise.is_none() {
+        // Compiled for the scene's lights' pages (`crate::paging`).
+        let light_pages = of_scene.pages.lights_only();
+        if denoised && self.shadow_denoise.as_ref().is_none_or(|s| s.pages != light_pages) {
             let ctx = &self.ctx;
-            self.shadow_denoise = Some(ctx.checked(|| ShadowDenoiseStage::new(ctx))?);
+            self.shadow_denoise = Some(ctx.checked(|| ShadowDenoiseStage::paged(ctx, light_pages))?);
         }
         // Shadow-mask slots per surface: one per light, or with area lights and ambient
         // occlusion the slots of `hyrt_core::kernels::soft_shadow`.
@@ -1054,7 +1057,7 @@ impl GpuBackend {
                     words * 4
                 ),
                 Some(_) => format!(
-                    "the scene's world records, BVH, placements, objects or instances need more than {MAX_PAGES} pages (of {} world records or BVH nodes, of {} objects or instances: one storage binding of {binding} bytes each)",
+                    "the scene's world records, BVH, placements, objects, instances or lights (emissive triangles) need more than {MAX_PAGES} pages (of {} world records or BVH nodes, of {} objects, instances or lights: one storage binding of {binding} bytes each)",
                     1u64 << page_shift(&self.ctx.limits),
                     1u64 << object_page_shift(&self.ctx.limits)
                 ),
@@ -1068,20 +1071,9 @@ impl GpuBackend {
         };
         if extra > 0 && most + extra > storage {
             return Err(GpuError::Limits(format!(
-                "the scene's world records, BVH, per-object tables (placements, objects, instances) and surface tables take {} pages on this device (one storage binding of {binding} bytes each), which with the frame's other tables bind up to {} storage buffers per shader stage; this device allows {storage}",
+                "the scene's world records, BVH, per-object tables (placements, objects, instances, lights) and surface tables take {} pages on this device (one storage binding of {binding} bytes each), which with the frame's other tables bind up to {} storage buffers per shader stage; this device allows {storage}",
                 extra + Table::ALL.len() as u32,
                 most + extra
-            )));
-        }
-        // The lights and the emitter table packed after them in one binding.
-        let g = &scene.geometry;
-        let lights = (g.lights.len() + g.emitters.len()) as u64;
-        let bytes = lights * std::mem::size_of::<hyrt_core::formats::LightRecord>() as u64;
-        if bytes > binding {
-            return Err(GpuError::Limits(format!(
-                "the scene's {} lights and {} emissive triangles need {bytes} bytes in one storage binding; this device allows {binding}",
-                g.lights.len(),
-                g.emitters.len()
             )));
         }
         if scene.geometry.triangles.has_references()

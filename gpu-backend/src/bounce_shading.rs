@@ -24,7 +24,8 @@ use crate::texture::Specialization;
 use crate::GpuContext;
 
 /// The paged tables the stage reads besides the triangle flags' ([`crate::paging`]).
-const PAGED_TABLES: [crate::paging::Table; 2] = [crate::paging::Table::Objects, crate::paging::Table::Surface];
+const PAGED_TABLES: [crate::paging::Table; 3] =
+    [crate::paging::Table::Objects, crate::paging::Table::Lights, crate::paging::Table::Surface];
 
 /// The `bounce_shading` stage: one pipeline.
 pub struct BounceShadingStage {
@@ -95,7 +96,7 @@ impl BounceShadingStage {
                 &b.shadow,
                 scene.objects.first(),
                 scene.flags_table(),
-                &scene.lights,
+                scene.lights.first(),
                 &scene.environment,
                 &scene.environment_texels,
                 links,

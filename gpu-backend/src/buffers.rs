@@ -15,7 +15,7 @@ use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan};
 
 use crate::band::Band;
 use crate::gpu_buffer::{storage, upload};
-use crate::paging::{PagedBuffer, Table};
+use crate::paging::{PagedBuffer, Table, TablePages};
 use crate::texture::{Specialization, SurfaceBuffers};
 use crate::{GpuContext, GpuError};
 
@@ -136,8 +136,9 @@ pub struct SceneBuffers {
     /// sample area lights read there (`shaders/soft_shadow.wgsl`'s `emitter_at`;
     /// [`SlotParams::emitters`] says how many). Packed rather than bound on its own: the
     /// shading stages already bind 8 storage buffers, WebGPU's default limit, and
-    /// `bounce_shading` [`crate::backend::BOUNCE_STORAGE_BUFFERS`].
-    pub lights: wgpu::Buffer,
+    /// `bounce_shading` [`crate::backend::BOUNCE_STORAGE_BUFFERS`]. In pages where the
+    /// emitters outgrow one binding ([`Table::Lights`]).
+    pub lights: PagedBuffer,
     /// `array<BvhNode>`: the flattened BVH ([`hyrt_core::bvh`]); empty BVH: one zero node and `bvh_node_count == 0`.
     /// A scene with two levels: every level's nodes, the top level's first
     /// ([`hyrt_core::bvh::two_level::PackedLevels`]).
@@ -226,7 +227,7 @@ impl SceneBuffers {
             mesh_words: PagedBuffer::upload::<u32>(ctx, Table::MeshWords, &mesh_words, pages),
             mesh_offsets,
             objects: PagedBuffer::upload::<ObjectRecord>(ctx, Table::Objects, &g.objects, pages),
-            lights: upload::<LightRecord>(ctx, "lights", &packed_lights(&g.lights, &g.emitters)),
+            lights: PagedBuffer::upload(ctx, Table::Lights, &packed_lights(&g.lights, &g.emitters), pages),
             bvh_nodes: PagedBuffer::upload::<BvhNode>(ctx, Table::Nodes, nodes, pages),
             bvh_leaf_triangles: PagedBuffer::upload::<TriangleRecord>(ctx, Table::LeafTriangles, leaf_triangles, pages),
             bvh_prim_indices: PagedBuffer::upload::<u32>(ctx, Table::PrimIndices, prim_indices, pages),
@@ -277,6 +278,7 @@ impl SceneBuffers {
             Table::Placements => &self.placements,
             Table::Objects => &self.objects,
             Table::Instances => &self.instances,
+            Table::Lights => &self.lights,
         }
     }
 
@@ -309,7 +311,7 @@ impl SceneBuffers {
         // By their bits: a record's fields compare as floats, where 0.0 == -0.0.
         let held: &[u8] = bytemuck::cast_slice(&self.held_lights);
         if !lights.is_empty() && bytemuck::cast_slice::<LightRecord, u8>(lights) != held {
-            ctx.queue.write_buffer(&self.lights, 0, bytemuck::cast_slice(lights));
+            self.lights.write(&ctx.queue, 0, bytemuck::cast_slice(lights));
             self.held_lights.clear();
             self.held_lights.extend_from_slice(lights);
         }
@@ -391,11 +393,6 @@ impl SceneBuffers {
     /// constants). Everything else (the bottom levels, the other objects) stays as uploaded.
     pub fn apply(&mut self, ctx: &GpuContext, scene: &PreparedScene, changes: &SceneChanges) {
         let g = &scene.geometry;
-        let write = |buffer: &wgpu::Buffer, offset: usize, bytes: &[u8]| {
-            if !bytes.is_empty() {
-                ctx.queue.write_buffer(buffer, offset as u64, bytes);
-            }
-        };
         if self.by_reference && !changes.bottoms.is_empty() {
             // Deformed meshes: their words again (a move writes none).
             self.write_meshes(ctx, scene);
@@ -443,8 +440,13 @@ impl SceneBuffers {
             let packed = packed_lights(&g.lights, &g.emitters);
             let bytes: &[u8] = bytemuck::cast_slice(&packed);
             match bytes.len() as u64 == self.lights.size() {
-                true => write(&self.lights, 0, bytes),
-                false => self.lights = upload::<LightRecord>(ctx, "lights", &packed),
+                true => self.lights.write(&ctx.queue, 0, bytes),
+                // Another length (a deformed emitter): its pages again, and the stages'
+                // (`check_supported` counted them).
+                false => {
+                    self.specialization.pages = TablePages::of_scene(scene, &ctx.limits).unwrap_or_default();
+                    self.lights = PagedBuffer::upload(ctx, Table::Lights, &packed, self.specialization.pages);
+                }
             }
             self.held_lights.clone_from(&g.lights);
         }

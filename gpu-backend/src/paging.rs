@@ -14,18 +14,19 @@
 //! | BVH node | `bvh_nodes` | 32 | `1 << shift` records |
 //! | object | `placements` (objects by reference), `objects` | 112, 64 | `1 << object_shift` records |
 //! | instance | `instances` (two levels) | 64 | `1 << object_shift` records |
+//! | light | `lights` (the frame's lights, then the emitter table: [`crate::buffers::SceneBuffers::lights`]) | 96 | `1 << object_shift` records |
 //! | shared mesh word | `mesh_words` | 4 | `1 << word_shift` words |
 //! | surface table word | `surface` (materials, texture coordinates, vertex colours, tangents, textures: [`crate::texture::SurfaceBuffers`]) | 4 | `1 << word_shift` words |
 //!
 //! The shared meshes' words of objects by reference (`mesh_words`) are paged as the surface
-//! tables are. Still in one binding: the lights and the emitter table packed after them
-//! ([`crate::buffers::SceneBuffers::lights`]: 96 bytes a record, 1.4 million lights and
-//! emissive triangles in lavapipe's 128 MiB; [`crate::backend::GpuBackend`] refuses a
-//! scene past it).
+//! tables are. The lights' pages are the only ones `compaction` and `shadow_denoise` read
+//! ([`TablePages::lights_only`]): those stages are compiled for them when a scene's
+//! emitters outgrow one binding (1.4 million emissive triangles on lavapipe), and again
+//! when a deformed emitter changes the table's length across a page.
 //!
 //! `shift` is the device's ([`page_shift`]): the largest with a page of the largest record
 //! (48 bytes) within one binding; `object_shift` ([`object_page_shift`]) the largest with a
-//! page of the largest per-object record (a 112-byte placement) within one binding
+//! page of the largest per-object or light record (a 112-byte placement) within one binding
 //! (lavapipe: 20, 1,048,576 objects); `word_shift` ([`word_page_shift`]) the largest with a
 //! page of words within one binding (lavapipe: 25, a whole 128 MiB binding, where pages of
 //! `1 << shift` words would hold 8 MiB). A scene whose tables each fit one page is uploaded and
@@ -93,10 +94,13 @@ pub enum Table {
     Objects,
     /// `array<InstanceRecord>`: a two-level scene's instances.
     Instances,
+    /// `array<LightRecord>`: the frame's lights, then the emitter table
+    /// ([`crate::buffers::SceneBuffers::lights`]).
+    Lights,
 }
 
 impl Table {
-    pub const ALL: [Table; 10] = [
+    pub const ALL: [Table; 11] = [
         Table::Triangles,
         Table::Normals,
         Table::LeafTriangles,
@@ -107,6 +111,7 @@ impl Table {
         Table::Placements,
         Table::Objects,
         Table::Instances,
+        Table::Lights,
     ];
 
     /// The name of the table's (first page's) binding in the WGSL.
@@ -122,6 +127,7 @@ impl Table {
             Table::Placements => "placements",
             Table::Objects => "objects",
             Table::Instances => "instances",
+            Table::Lights => "lights",
         }
     }
 
@@ -142,7 +148,7 @@ impl Table {
 
     /// Whether the table is of per-object records, paged by [`TablePages::object_shift`].
     pub fn is_per_object(self) -> bool {
-        matches!(self, Table::Placements | Table::Objects | Table::Instances)
+        matches!(self, Table::Placements | Table::Objects | Table::Instances | Table::Lights)
     }
 
     /// Bytes of one record: what one index of its index space takes (nine floats for the
@@ -155,6 +161,7 @@ impl Table {
             Table::Nodes => 32,
             Table::Placements => 112,
             Table::Objects | Table::Instances => 64,
+            Table::Lights => 96,
         }
     }
 
@@ -258,6 +265,8 @@ pub struct TablePages {
     pub objects: u8,
     /// Pages of the instances (two levels).
     pub instances: u8,
+    /// Pages of the lights and the emitter table after them.
+    pub lights: u8,
 }
 
 impl TablePages {
@@ -280,15 +289,25 @@ impl TablePages {
         })
     }
 
-    /// `self` with `placements` placements, `objects` object records and `instances`
-    /// instances in pages of `1 << object_shift` records; `None` past [`MAX_PAGES`] pages.
-    pub fn with_objects(self, placements: u64, objects: u64, instances: u64, object_shift: u32) -> Option<TablePages> {
-        Some(match page_counts([placements, objects, instances], object_shift)? {
-            None => TablePages { object_shift: 0, placements: 0, objects: 0, instances: 0, ..self },
-            Some([p, o, i]) => {
-                TablePages { object_shift: object_shift as u8, placements: p, objects: o, instances: i, ..self }
+    /// `self` with the per-object tables of `counts` records (`[placements, objects,
+    /// instances, lights]`, the lights with the emitter table) in pages of
+    /// `1 << object_shift` records; `None` past [`MAX_PAGES`] pages.
+    pub fn with_objects(self, counts: [u64; 4], object_shift: u32) -> Option<TablePages> {
+        Some(match page_counts(counts, object_shift)? {
+            None => TablePages { object_shift: 0, placements: 0, objects: 0, instances: 0, lights: 0, ..self },
+            Some([placements, objects, instances, lights]) => {
+                TablePages { object_shift: object_shift as u8, placements, objects, instances, lights, ..self }
             }
         })
+    }
+
+    /// `self`'s lights' pages alone: what the stages that read no other paged table
+    /// (`compaction`, `shadow_denoise`) are compiled for.
+    pub fn lights_only(self) -> TablePages {
+        match self.lights > 1 {
+            true => TablePages { object_shift: self.object_shift, lights: self.lights, ..TablePages::default() },
+            false => TablePages::default(),
+        }
     }
 
     /// The pages of `scene`'s tables on a device with `limits`; `None` past [`MAX_PAGES`].
@@ -303,9 +322,10 @@ impl TablePages {
         let objects = g.objects.len() as u64;
         let placements = if g.triangles.has_references() { objects } else { 0 };
         let instances = scene.levels.as_ref().map_or(0, |l| l.instances.len() as u64);
+        let lights = (g.lights.len() + g.emitters.len()) as u64;
         Self::of_counts(triangles, slots, nodes, page_shift(limits))?
             .with_words(surface, mesh, word_page_shift(limits))?
-            .with_objects(placements, objects, instances, object_page_shift(limits))
+            .with_objects([placements, objects, instances, lights], object_page_shift(limits))
     }
 
     /// Whether some table is paged.
@@ -335,6 +355,7 @@ impl TablePages {
             Table::Placements => self.placements,
             Table::Objects => self.objects,
             Table::Instances => self.instances,
+            Table::Lights => self.lights,
         };
         u32::from(n).max(1)
     }
@@ -640,20 +661,26 @@ mod tests {
         assert_eq!((object_page_shift(&small), page_shift(&small)), (11, 13));
         assert!(Table::Placements.record_bytes() << 11 <= 384 << 10);
         // 2.5 million objects by reference, as many instances: three pages of each.
-        let p = TablePages::default().with_objects(2_500_000, 2_500_000, 2_500_000, 20).unwrap();
+        let p = TablePages::default().with_objects([2_500_000, 2_500_000, 2_500_000, 0], 20).unwrap();
         assert_eq!((p.pages(Table::Placements), p.pages(Table::Objects), p.pages(Table::Instances)), (3, 3, 3));
         assert_eq!((p.shift_of(Table::Objects), p.shift_of(Table::Triangles), p.pages(Table::Triangles)), (20, 0, 1));
         assert_eq!(p.page_records(Table::Placements), Some(1 << 20));
         assert_eq!(p.extra_bindings(&Table::ALL), 6);
         // Stored objects: no placements, their records paged alone.
-        let stored = TablePages::default().with_objects(0, 1_500_000, 0, 20).unwrap();
+        let stored = TablePages::default().with_objects([0, 1_500_000, 0, 10], 20).unwrap();
         assert_eq!((stored.pages(Table::Placements), stored.pages(Table::Objects)), (1, 2));
-        assert_eq!(TablePages::default().with_objects(1 << 20, 1 << 20, 0, 20), Some(TablePages::default()));
-        assert_eq!(TablePages::default().with_objects(0, 16 << 20, 0, 20).map(|p| p.objects), Some(16));
-        assert_eq!(TablePages::default().with_objects(0, 0, (16 << 20) + 1, 20), None);
+        assert_eq!(TablePages::default().with_objects([1 << 20, 1 << 20, 0, 5], 20), Some(TablePages::default()));
+        assert_eq!(TablePages::default().with_objects([0, 16 << 20, 0, 0], 20).map(|p| p.objects), Some(16));
+        assert_eq!(TablePages::default().with_objects([0, 0, (16 << 20) + 1, 0], 20), None);
+        // 1.5 million emissive triangles: the lights in two pages, alone of their table's
+        // stages (`compaction`, `shadow_denoise`).
+        let lit = stored.with_objects([0, 10, 0, 1_500_000], 20).unwrap();
+        assert_eq!((lit.pages(Table::Lights), lit.pages(Table::Objects)), (2, 1));
+        assert_eq!(lit.lights_only(), TablePages { object_shift: 20, lights: 2, ..TablePages::default() });
+        assert_eq!(stored.lights_only(), TablePages::default());
         // Every kind paged, each by its shift.
         let all = TablePages::of_counts(3 << 21, 10, 10, 21).unwrap().with_words(5 << 25, 0, 25).unwrap();
-        let all = all.with_objects(0, 3 << 20, 0, 20).unwrap();
+        let all = all.with_objects([0, 3 << 20, 0, 0], 20).unwrap();
         assert_eq!((all.pages(Table::Normals), all.pages(Table::Surface), all.pages(Table::Objects)), (3, 5, 3));
 
         let source = "@group(0) @binding(13) var<storage, read> placements: array<PlacementRecord>;\n\

@@ -39,7 +39,7 @@ pub fn shader_source(s: Specialization) -> String {
 }
 
 /// The paged tables the stage reads ([`crate::paging`]).
-const PAGED_TABLES: [Table; 2] = [Table::Objects, Table::Surface];
+const PAGED_TABLES: [Table; 3] = [Table::Objects, Table::Lights, Table::Surface];
 
 /// The `raster_shading` stage.
 pub struct RasterShadingStage {
@@ -112,7 +112,7 @@ impl RasterShadingStage {
                     &frame.surfaces,
                     &frame.shadow,
                     scene.objects.first(),
-                    &scene.lights,
+                    scene.lights.first(),
                     &frame.params,
                     &frame.raster,
                     &frame.gbuffer,

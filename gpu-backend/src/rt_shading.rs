@@ -38,7 +38,8 @@ use crate::texture::Specialization;
 use crate::GpuContext;
 
 /// The paged tables the stages read besides the triangle flags' ([`crate::paging`]).
-const PAGED_TABLES: [crate::paging::Table; 2] = [crate::paging::Table::Objects, crate::paging::Table::Surface];
+const PAGED_TABLES: [crate::paging::Table; 3] =
+    [crate::paging::Table::Objects, crate::paging::Table::Lights, crate::paging::Table::Surface];
 
 /// The bindings of `shaders/rt_shading.wgsl`.
 fn rt_entries() -> [wgpu::BindGroupLayoutEntry; 13] {
@@ -65,7 +66,7 @@ fn rt_buffers<'a>(scene: &'a SceneBuffers, frame: &'a FrameBuffers) -> [&'a wgpu
         &frame.surfaces,
         &frame.shadow,
         scene.objects.first(),
-        &scene.lights,
+        scene.lights.first(),
         &frame.camera,
         &frame.params,
         &frame.rt,

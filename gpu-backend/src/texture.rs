@@ -182,6 +182,7 @@ impl Specialization {
             placements: 0,
             objects: 0,
             instances: 0,
+            lights: 0,
         },
     };
 

@@ -127,9 +127,9 @@ mod tests {
 
     /// The same stages with their tables in pages ([`crate::paging`]: three pages of the
     /// world records, two of the leaf slots and of the nodes, three of the surface tables'
-    /// words, three of the placements and objects, two of the instances) parse, validate
-    /// and use only exact operations, and read no paged table but through its accessor
-    /// (nor its `arrayLength`).
+    /// words, three of the placements and objects, two of the instances and of the lights)
+    /// parse, validate and use only exact operations, and read no paged table but through
+    /// its accessor (nor its `arrayLength`).
     #[test]
     fn stages_parse_with_tables_in_pages() {
         use crate::paging::{paged_source, TablePages};
@@ -145,6 +145,7 @@ mod tests {
             placements: 3,
             objects: 3,
             instances: 2,
+            lights: 2,
         };
         for by_reference in [false, true] {
             let s = Specialization { by_reference, two_level: by_reference, pages, ..Specialization::PLAIN };
@@ -161,6 +162,8 @@ mod tests {
                 ("shadow_rays", crate::shadow_rays::shader_source(s)),
                 ("normal mapping", normal_mapping),
                 ("secondary normal mapping", secondary_normal_mapping),
+                ("compaction", paged_source(&crate::compaction::compaction_wgsl(), pages.lights_only())),
+                ("shadow_denoise", paged_source(&crate::shadow_denoise::shadow_denoise_wgsl(), pages.lights_only())),
             ];
             for primitive_index in [false, true] {
                 let raster = crate::visibility_raster::shader_source(primitive_index, true, by_reference);
@@ -180,6 +183,7 @@ mod tests {
                     "placements",
                     "objects",
                     "instances",
+                    "lights",
                 ];
                 for table in tables {
                     let pattern = format!("{table}[");
