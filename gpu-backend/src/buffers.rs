@@ -105,8 +105,9 @@ pub use crate::band::{BounceRoom, Room};
 /// Scene tables on the GPU (from a [`PreparedScene`]; built once per scene). The tables
 /// that grow with the scene ([`PagedBuffer`]: `triangles`, `normals`, `bvh_nodes`,
 /// `bvh_leaf_triangles`, `bvh_prim_indices`, `placements`, `objects`, `instances`,
-/// `mesh_words` and the surface tables' words) are split into pages of one storage binding each where they outgrow one
-/// ([`crate::paging`]; `specialization.pages` says how).
+/// `lights`, `mesh_words` and the surface tables' words) are split into pages of one
+/// storage binding each where they outgrow one ([`crate::paging`]; `specialization.pages`
+/// says how).
 pub struct SceneBuffers {
     /// `array<TriangleRecord>`: the world triangle table by global id; with objects by
     /// reference, the stored objects' records alone, by record index
@@ -258,6 +259,7 @@ impl SceneBuffers {
         self.flags_paged().further().chain(self.further_pages(tables)).collect()
     }
 
+    /// The table the triangle flags are read from: the placements or the triangles.
     fn flags_paged(&self) -> &PagedBuffer {
         match self.by_reference {
             true => &self.placements,
