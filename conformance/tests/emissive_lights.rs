@@ -84,3 +84,37 @@ fn the_damaged_helmet_as_emitters_renders_on_the_gpu_as_on_the_cpu() {
     let emitters = compare_both_ways(&scene, (80, 60), "DamagedHelmet");
     assert!(emitters == 0 || emitters > 100, "{emitters} emitters: the helmet's glowing triangles");
 }
+
+/// Lights past one storage binding: `stochastic_gltf_emitters_mirror_bounces`, raw and
+/// denoised, its panel a 132 x 132 grid (34,848 emissive triangles), on a device whose
+/// storage bindings hold 2 MiB (the denoised frame in one band): the lights' table (96 bytes
+/// a record: the point light, then the emitter table) in three pages of 16,384
+/// ([`Table::Lights`], read by `compaction`, the
+/// shading stages, `bounce_shading` and `shadow_denoise`); every stage buffer is the CPU's
+/// bit for bit, the bounces' too.
+#[test]
+fn gpu_reads_lights_in_pages_as_the_cpu() {
+    use hyrt_gpu::paging::{Table, TablePages};
+    let Some(mut gpu) = hyrt_conformance::report::gpu_for_tests_with(Some(2 << 20)) else { return };
+    let mut cpu = CpuBackend::new(Some(2));
+    let named = |c: &hyrt_conformance::corpus::Case| c.name.ends_with("_gltf_emitters_mirror_bounces");
+    let mut cases = 0;
+    for mut case in hyrt_conformance::corpus::corpus().into_iter().filter(named) {
+        let started = std::time::Instant::now();
+        let panel = case.scene.meshes.iter().position(|m| m.name == "panel").expect("the panel");
+        case.scene.meshes[panel] = hyrt_core::scene::Mesh::grid("panel", 132);
+        let prepared = case.prepare(&cpu);
+        let pages = TablePages::of_scene(&prepared, &gpu.context().limits).expect("within MAX_PAGES");
+        assert_eq!(pages.pages(Table::Lights), 3, "{}: {pages:?}", case.name);
+        let reference = hyrt_conformance::report::render_case(&mut cpu, &prepared, &case).expect("cpu frame");
+        let frame = hyrt_conformance::report::render_case(&mut gpu, &prepared, &case).expect("gpu frame");
+        assert!(!reference.bounces.is_empty(), "{}: no bounce traced", case.name);
+        for cmp in compare_stages(&reference, &frame) {
+            assert!(cmp.is_exact(), "{}: cpu vs gpu: {} / {} differs: {cmp:?}", case.name, cmp.stage, cmp.buffer);
+        }
+        let emitters = prepared.geometry.emitters.len();
+        eprintln!("{}: {emitters} emitters, {pages:?}, {:.1} s", case.name, started.elapsed().as_secs_f64());
+        cases += 1;
+    }
+    assert_eq!(cases, 2, "the case raw and denoised");
+}

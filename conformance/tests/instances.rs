@@ -21,10 +21,9 @@ use std::sync::Arc;
 const COLUMNS: usize = 6;
 const ROWS: usize = 5;
 
-/// A floor baked in world space and a 6 x 5 grid of one torus mesh (2,304 triangles; every
-/// copy turned, scaled unevenly, every seventh mirrored; mirrors, rasterized and ray-traced
-/// diffuse copies), lit by two point lights: 69,120 triangles by reference.
-fn grid_scene() -> Scene {
+/// A floor baked in world space (8 x 8 quads) lit by two point lights, and `first`, the
+/// mesh its copies share, as object 1 with `material`: where the scenes of copies start.
+fn lit_floor_and(first: Mesh, material: Material) -> Scene {
     let mut s = Scene {
         lights: vec![
             Light::point(Vec3::new(-3.0, 6.0, 4.0), Vec3::ONE, 60.0),
@@ -34,32 +33,57 @@ fn grid_scene() -> Scene {
     };
     let grey = Material { name: "floor".into(), base_color: Vec3::splat(0.7), ..Material::grey() };
     s.add_object(Mesh::grid("floor", 8), grey, Mat4::from_scale(Vec3::splat(8.0)), RenderMode::RayTraced);
-    s.add_object(
-        Mesh::torus("torus", 0.35, 0.14, 48, 24),
-        Material { name: "torus 0".into(), base_color: Vec3::new(0.8, 0.3, 0.2), ..Material::grey() },
-        Mat4::IDENTITY,
-        RenderMode::RayTraced,
-    );
-    let mesh = s.objects[1].mesh;
-    let mirror = Material {
+    s.add_object(first, material, Mat4::IDENTITY, RenderMode::RayTraced);
+    s
+}
+
+/// The copies' mirror.
+fn mirror() -> Material {
+    Material {
         name: "mirror".into(),
         base_color: Vec3::splat(0.95),
         metallic: 1.0,
         roughness: 0.0,
         kind: MaterialKind::Specular,
         ..Material::grey()
-    };
+    }
+}
+
+/// Where copy `k` stands: at `at`, turned about y by `0.37 k` after `x_turn` about x,
+/// scaled by `scale`, mirrored in x when `k % 7 == 3`.
+fn copy_transform(k: usize, at: Vec3, mut scale: Vec3, x_turn: f32) -> Mat4 {
+    if k % 7 == 3 {
+        scale.x = -scale.x;
+    }
+    let turn = Quat::from_rotation_y(0.37 * k as f32) * Quat::from_rotation_x(x_turn);
+    Mat4::from_scale_rotation_translation(scale, turn, at)
+}
+
+/// Another object drawing object 1's mesh (shared: kept by reference) with material
+/// `material`.
+fn push_copy(s: &mut Scene, name: String, transform: Mat4, material: usize, render_mode: RenderMode) {
+    let (id, mesh) = (s.objects.len() as u32, s.objects[1].mesh);
+    s.objects.push(Object { id, name, mesh, transform, material, render_mode, source: Default::default() });
+}
+
+/// A camera at `eye` looking at `target`.
+fn camera(eye: Vec3, target: Vec3, fov_y_deg: f32) -> Camera {
+    Camera { eye, target, up: Vec3::Y, fov_y_deg, near: 0.05, far: 60.0 }
+}
+
+/// A floor baked in world space and a 6 x 5 grid of one torus mesh (2,304 triangles; every
+/// copy turned, scaled unevenly, every seventh mirrored; mirrors, rasterized and ray-traced
+/// diffuse copies), lit by two point lights: 69,120 triangles by reference.
+fn grid_scene() -> Scene {
+    let torus = Material { name: "torus 0".into(), base_color: Vec3::new(0.8, 0.3, 0.2), ..Material::grey() };
+    let mut s = lit_floor_and(Mesh::torus("torus", 0.35, 0.14, 48, 24), torus);
     for k in 0..COLUMNS * ROWS {
         let (c, r) = ((k % COLUMNS) as f32, (k / COLUMNS) as f32);
         let at = Vec3::new(-2.5 + c, 0.35 + 0.05 * r, -3.0 + r);
-        let mut scale = Vec3::new(1.0 + 0.05 * c, 1.0 - 0.04 * r, 0.9 + 0.03 * (c + r));
-        if k % 7 == 3 {
-            scale.x = -scale.x;
-        }
-        let turn = Quat::from_rotation_y(0.37 * k as f32) * Quat::from_rotation_x(0.9 + 0.11 * r);
-        let transform = Mat4::from_scale_rotation_translation(scale, turn, at);
+        let scale = Vec3::new(1.0 + 0.05 * c, 1.0 - 0.04 * r, 0.9 + 0.03 * (c + r));
+        let transform = copy_transform(k, at, scale, 0.9 + 0.11 * r);
         let (material, mode) = match k % 4 {
-            0 => (mirror.clone(), RenderMode::RayTraced),
+            0 => (mirror(), RenderMode::RayTraced),
             1 => (Material { base_color: Vec3::new(0.2, 0.5, 0.9), ..Material::grey() }, RenderMode::Raster),
             _ => (
                 Material { base_color: Vec3::new(0.3 + 0.02 * c, 0.7, 0.3), ..Material::grey() },
@@ -73,25 +97,10 @@ fn grid_scene() -> Scene {
             continue;
         }
         s.materials.push(material);
-        let id = s.objects.len() as u32;
-        s.objects.push(Object {
-            id,
-            name: format!("torus {k}"),
-            mesh,
-            transform,
-            material: s.materials.len() - 1,
-            render_mode: mode,
-            source: Default::default(),
-        });
+        let material = s.materials.len() - 1;
+        push_copy(&mut s, format!("torus {k}"), transform, material, mode);
     }
-    s.camera = Some(Camera {
-        eye: Vec3::new(0.0, 3.6, 4.2),
-        target: Vec3::new(0.0, 0.2, -1.2),
-        up: Vec3::Y,
-        fov_y_deg: 50.0,
-        near: 0.05,
-        far: 60.0,
-    });
+    s.camera = Some(camera(Vec3::new(0.0, 3.6, 4.2), Vec3::new(0.0, 0.2, -1.2), 50.0));
     s
 }
 
@@ -184,6 +193,85 @@ fn gpu_renders_past_one_binding_in_batches_and_pages_as_the_cpu() {
             same_frames(&mut cpu, &mut gpu, &prepared, &camera, &format!("{what}, {binding}-byte bindings"));
         }
     }
+}
+
+/// Copies of the cube in [`forest_scene`]: 100 x 50, past two pages of 2,048 placements.
+const FOREST: (usize, usize) = (100, 50);
+
+/// A floor baked in world space and a forest of [`FOREST`] small copies of one cube (12
+/// triangles each; turned, scaled unevenly, every seventh mirrored; mirrors, rasterized and
+/// ray-traced copies), row by row from the back: object `o` stands further forward the
+/// higher `o`, so that the camera sees copies of every page of the per-object tables.
+fn forest_scene() -> Scene {
+    let mut s = lit_floor_and(Mesh::cube("cube"), mirror());
+    let green = Material { name: "green".into(), base_color: Vec3::new(0.3, 0.7, 0.3), ..Material::grey() };
+    let blue = Material { name: "blue".into(), base_color: Vec3::new(0.2, 0.5, 0.9), ..Material::grey() };
+    let (mirror, materials) = (s.objects[1].material, s.materials.len());
+    s.materials.extend([green, blue]);
+    let (columns, rows) = FOREST;
+    for k in 0..columns * rows {
+        let (c, r) = ((k % columns) as f32, (k / columns) as f32);
+        let at = Vec3::new(-4.0 + 0.08 * c, 0.04, -6.0 + 0.13 * r);
+        let scale = Vec3::new(0.025 + 0.0002 * c, 0.03 - 0.0002 * r, 0.02 + 0.0001 * (c + r));
+        let transform = copy_transform(k, at, scale, 0.2 + 0.01 * r);
+        match k % 4 {
+            _ if k == 0 => s.objects[1].transform = transform,
+            0 => push_copy(&mut s, format!("cube {k}"), transform, mirror, RenderMode::RayTraced),
+            1 => push_copy(&mut s, format!("cube {k}"), transform, materials + 1, RenderMode::Raster),
+            _ => push_copy(&mut s, format!("cube {k}"), transform, materials, RenderMode::RayTraced),
+        }
+    }
+    s.camera = Some(camera(Vec3::new(0.0, 2.2, 2.4), Vec3::new(0.0, 0.0, -2.6), 60.0));
+    s
+}
+
+/// Objects past one storage binding: a forest of 5,000 copies of one cube by reference
+/// on a device whose storage bindings hold 384 KiB (the raster's 4,096 clipped-setup slots
+/// need as much): their placements (112 bytes each),
+/// object records and instances in three pages of 2,048 ([`Table::Placements`],
+/// [`Table::Objects`], [`Table::Instances`]; the top level's nodes in pages too); every
+/// buffer is the CPU's bit for bit, the bounces' too, before and after a copy of the last
+/// page moves. The G-buffer sees objects of every page.
+#[test]
+fn gpu_reads_objects_in_pages_as_the_cpu() {
+    const BINDING: u64 = 384 << 10;
+    let Some(mut gpu) = gpu_for_tests_with(Some(BINDING)) else { return };
+    let mut scene = forest_scene();
+    let mut cpu = CpuBackend::new(Some(2));
+    let moving = [(scene.objects.len() - 40) as u32];
+    let mut prepared = hyrt_cpu::bvh_build::prepare_moving(&scene, BvhPreset::default(), &moving);
+    assert!(prepared.geometry.triangles.has_references());
+    let limits = gpu.context().limits.clone();
+    let pages = TablePages::of_scene(&prepared, &limits).unwrap();
+    let per_page = pages.page_records(Table::Placements).expect("placements in pages");
+    assert_eq!(per_page, 2048, "{pages:?}");
+    for table in [Table::Placements, Table::Objects, Table::Instances] {
+        assert_eq!(pages.pages(table), 3, "{table:?}: {pages:?}");
+    }
+    assert!(u64::from(moving[0]) >= 2 * per_page, "the moving copy is in the last page");
+    let camera = CameraRecord::new(&scene.camera.unwrap(), 96, 64);
+    let options = FrameOptions { stage_outputs: true, max_depth: 2, ..FrameOptions::default() };
+    for what in ["as prepared", "after a move"] {
+        if what == "after a move" {
+            let o = moving[0] as usize;
+            scene.objects[o].transform = Mat4::from_translation(Vec3::new(0.1, 0.05, 0.1)) * scene.objects[o].transform;
+            prepared.move_objects(&scene, &moving).unwrap();
+        }
+        let started = std::time::Instant::now();
+        let reference = cpu.render(&prepared, &camera, &options).expect("cpu frame");
+        let frame = gpu.render(&prepared, &camera, &options).expect("gpu frame");
+        let compared = compare_stages(&reference, &frame);
+        assert!(compared.iter().any(|c| c.buffer == "gbuffer"), "{what}: the G-buffer was compared");
+        for cmp in compared {
+            assert!(cmp.is_exact(), "{what}: cpu vs gpu: {} / {} differs: {cmp:?}", cmp.stage, cmp.buffer);
+        }
+        assert!(!reference.bounces.is_empty(), "{what}: no bounce traced");
+        let seen: std::collections::BTreeSet<u64> =
+            reference.gbuffer.iter().filter(|t| t.is_hit()).map(|t| u64::from(t.object) / per_page).collect();
+        assert_eq!(seen.len(), 3, "{what}: pages of the objects seen {seen:?}");
+        eprintln!("{what}: {pages:?}, {:.1} s", started.elapsed().as_secs_f64());
+    }
+    assert_eq!(gpu.scene_writes(), (1, 1), "the scene went to the device once, then the move");
 }
 
 /// `image` scaled up `k` times on each side, each texel a `k` x `k` block.

@@ -26,7 +26,7 @@ use crate::buffers::{
 use crate::compaction::CompactionStage;
 use crate::composition::CompositionStage;
 use crate::gpu_buffer::{extend_from_bytes, read_back_each, read_back_many};
-use crate::paging::{page_shift, word_page_shift, Table, TablePages, MAX_PAGES};
+use crate::paging::{object_page_shift, page_shift, word_page_shift, Table, TablePages, MAX_PAGES};
 use crate::present::Present;
 use crate::raster_shading::RasterShadingStage;
 use crate::reconstruction::{NormalMapping, ReconstructionStage};
@@ -222,7 +222,8 @@ pub struct GpuBackend {
     max_band_bytes: Option<u64>,
     /// [`GpuBackend::last_frame_bands`].
     last_bands: u32,
-    /// The `shadow_denoise` stage, built the first time a frame denoises.
+    /// The `shadow_denoise` stage, built the first time a frame denoises (again for a scene
+    /// whose lights are in other pages).
     shadow_denoise: Option<ShadowDenoiseStage>,
     /// What the last frame of the denoiser's temporal pass left for the next
     /// ([`FrameOptions::temporal`]), made by the first such frame.
@@ -396,9 +397,11 @@ impl GpuBackend {
         let denoised = plan.runs(Stage::ShadowDenoise);
         let of_scene = self.scene.as_ref().expect("scene buffers").2.specialization;
         self.stages(Specialization { stochastic, denoised, ..of_scene })?;
-        if denoised && self.shadow_denoise.is_none() {
+        // Compiled for the scene's lights' pages (`crate::paging`).
+        let light_pages = of_scene.pages.lights_only();
+        if denoised && self.shadow_denoise.as_ref().is_none_or(|s| s.pages != light_pages) {
             let ctx = &self.ctx;
-            self.shadow_denoise = Some(ctx.checked(|| ShadowDenoiseStage::new(ctx))?);
+            self.shadow_denoise = Some(ctx.checked(|| ShadowDenoiseStage::paged(ctx, light_pages))?);
         }
         // Shadow-mask slots per surface: one per light, or with area lights and ambient
         // occlusion the slots of `hyrt_core::kernels::soft_shadow`.
@@ -1041,9 +1044,9 @@ impl GpuBackend {
             )));
         }
         let binding = self.ctx.limits.max_storage_buffer_binding_size.min(self.ctx.limits.max_buffer_size);
-        // The tables that grow with the triangles and the surface tables go in pages of
-        // one binding each (`crate::paging`), up to MAX_PAGES; each further page binds one
-        // more storage buffer in the stages that read it.
+        // The tables that grow with the triangles or the objects and the surface tables go
+        // in pages of one binding each (`crate::paging`), up to MAX_PAGES; each further page
+        // binds one more storage buffer in the stages that read it.
         let surface_words = scene.geometry.surface.layout().map(|l| l.bytes() / 4);
         let Some(pages) = TablePages::of_scene(scene, &self.ctx.limits) else {
             let word_page = 1u64 << word_page_shift(&self.ctx.limits);
@@ -1054,8 +1057,9 @@ impl GpuBackend {
                     words * 4
                 ),
                 Some(_) => format!(
-                    "the scene's world records or BVH need more than {MAX_PAGES} pages of {} records (one storage binding of {binding} bytes each)",
-                    1u64 << page_shift(&self.ctx.limits)
+                    "the scene's world records, BVH, placements, objects, instances or lights (emissive triangles) need more than {MAX_PAGES} pages (of {} world records or BVH nodes, of {} objects, instances or lights: one storage binding of {binding} bytes each)",
+                    1u64 << page_shift(&self.ctx.limits),
+                    1u64 << object_page_shift(&self.ctx.limits)
                 ),
             }));
         };
@@ -1067,21 +1071,10 @@ impl GpuBackend {
         };
         if extra > 0 && most + extra > storage {
             return Err(GpuError::Limits(format!(
-                "the scene's world records, BVH and surface tables take {} pages on this device (one storage binding of {binding} bytes each), which with the frame's other tables bind up to {} storage buffers per shader stage; this device allows {storage}",
+                "the scene's world records, BVH, per-object tables (placements, objects, instances, lights) and surface tables take {} pages on this device (one storage binding of {binding} bytes each), which with the frame's other tables bind up to {} storage buffers per shader stage; this device allows {storage}",
                 extra + Table::ALL.len() as u32,
                 most + extra
             )));
-        }
-        // The placements in one binding (the shared meshes' words are paged with the surface
-        // tables').
-        if scene.geometry.triangles.has_references() {
-            let objects = scene.geometry.objects.len() as u64;
-            let bytes = objects * std::mem::size_of::<hyrt_core::formats::PlacementRecord>() as u64;
-            if bytes > binding {
-                return Err(GpuError::Limits(format!(
-                    "the placements of the scene's {objects} objects need {bytes} bytes in one storage binding; this device allows {binding}"
-                )));
-            }
         }
         if scene.geometry.triangles.has_references()
             && plan.bounce_depth() > 0

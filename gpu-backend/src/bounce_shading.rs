@@ -23,6 +23,10 @@ use crate::shader::{environment_wgsl, radiance_source, specialized_pipeline, sto
 use crate::texture::Specialization;
 use crate::GpuContext;
 
+/// The paged tables the stage reads besides the triangle flags' ([`crate::paging`]).
+const PAGED_TABLES: [crate::paging::Table; 3] =
+    [crate::paging::Table::Objects, crate::paging::Table::Lights, crate::paging::Table::Surface];
+
 /// The `bounce_shading` stage: one pipeline.
 pub struct BounceShadingStage {
     pipeline: wgpu::ComputePipeline,
@@ -52,8 +56,7 @@ impl BounceShadingStage {
         entries.push(storage_entry(14, false));
         entries.extend([storage_entry(15, true), uniform_entry(16)]);
         entries.extend([uniform_entry(17), storage_entry(18, true), uniform_entry(19)]);
-        entries
-            .extend(s.flags_pages().layout_entries(&[crate::paging::Table::Triangles, crate::paging::Table::Surface]));
+        entries.extend(s.flags_layout_entries(&PAGED_TABLES));
         let (pipeline, layout) = specialized_pipeline(ctx, "bounce_shading", &source, &entries, &s.shading_constants());
         BounceShadingStage { pipeline, layout }
     }
@@ -91,9 +94,9 @@ impl BounceShadingStage {
                 &b.hits,
                 &b.surfaces,
                 &b.shadow,
-                &scene.objects,
+                scene.objects.first(),
                 scene.flags_table(),
-                &scene.lights,
+                scene.lights.first(),
                 &scene.environment,
                 &scene.environment_texels,
                 links,
@@ -105,7 +108,7 @@ impl BounceShadingStage {
                 &scene.ambient_texels,
                 &frame.slot_params,
             ],
-            scene.flags_table_pages().into_iter().chain(scene.surface.words.further()),
+            scene.flags_table_pages(&PAGED_TABLES),
         );
         crate::shader::encode_list_pass(encoder, "bounce_shading", &self.pipeline, &bind_group, &b.ray_count, timing);
     }

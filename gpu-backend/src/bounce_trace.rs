@@ -44,7 +44,7 @@ pub fn shader_source(s: Specialization) -> String {
 }
 
 /// The paged tables the stage reads ([`crate::paging`]).
-const PAGED_TABLES: [Table; 7] = [
+const PAGED_TABLES: [Table; 10] = [
     Table::Nodes,
     Table::LeafTriangles,
     Table::PrimIndices,
@@ -52,6 +52,9 @@ const PAGED_TABLES: [Table; 7] = [
     Table::Normals,
     Table::Surface,
     Table::MeshWords,
+    Table::Objects,
+    Table::Instances,
+    Table::Placements,
 ];
 
 /// The `bounce_trace` stage: one pipeline.
@@ -112,9 +115,9 @@ impl BounceTraceStage {
             &b.counters,
             scene.surface.words.first(),
             &scene.surface.layout,
-            &scene.objects,
-            &scene.instances,
-            &scene.placements,
+            scene.objects.first(),
+            scene.instances.first(),
+            scene.placements.first(),
             scene.mesh_words.first(),
         ];
         let bound = match (self.by_reference, self.two_level) {
@@ -122,17 +125,7 @@ impl BounceTraceStage {
             (false, true) => &buffers[..15],
             (false, false) => &buffers[..14],
         };
-        let further = [
-            &scene.bvh_nodes,
-            &scene.bvh_leaf_triangles,
-            &scene.bvh_prim_indices,
-            &scene.triangles,
-            &scene.normals,
-            &scene.surface.words,
-            &scene.mesh_words,
-        ]
-        .into_iter()
-        .flat_map(|t| t.further());
+        let further = scene.further_pages(&PAGED_TABLES);
         let bind_group = bind_paged_buffers(ctx, "bounce_trace", &self.layout, bound, further);
         crate::shader::encode_list_pass(encoder, "bounce_trace", &self.pipeline, &bind_group, &b.ray_count, timing);
     }

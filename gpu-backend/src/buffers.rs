@@ -15,7 +15,7 @@ use hyrt_core::plan::{BounceBuffer, FrameBuffer, FramePlan};
 
 use crate::band::Band;
 use crate::gpu_buffer::{storage, upload};
-use crate::paging::{PagedBuffer, Table};
+use crate::paging::{PagedBuffer, Table, TablePages};
 use crate::texture::{Specialization, SurfaceBuffers};
 use crate::{GpuContext, GpuError};
 
@@ -104,9 +104,10 @@ pub use crate::band::{BounceRoom, Room};
 
 /// Scene tables on the GPU (from a [`PreparedScene`]; built once per scene). The tables
 /// that grow with the scene ([`PagedBuffer`]: `triangles`, `normals`, `bvh_nodes`,
-/// `bvh_leaf_triangles`, `bvh_prim_indices`, `mesh_words` and the surface tables' words)
-/// are split into pages of one storage binding each where they outgrow one
-/// ([`crate::paging`]; `specialization.pages` says how).
+/// `bvh_leaf_triangles`, `bvh_prim_indices`, `placements`, `objects`, `instances`,
+/// `lights`, `mesh_words` and the surface tables' words) are split into pages of one
+/// storage binding each where they outgrow one ([`crate::paging`]; `specialization.pages`
+/// says how).
 pub struct SceneBuffers {
     /// `array<TriangleRecord>`: the world triangle table by global id; with objects by
     /// reference, the stored objects' records alone, by record index
@@ -120,7 +121,7 @@ pub struct SceneBuffers {
     pub by_reference: bool,
     /// `array<PlacementRecord>`, one per object, with objects by reference; one zero record
     /// (read by no stage) otherwise.
-    pub placements: wgpu::Buffer,
+    pub placements: PagedBuffer,
     /// `array<u32>`: every shared mesh's positions, normals and triangles, once
     /// ([`hyrt_core::geometry::WorldTriangles::mesh_words`]); one zero word without objects
     /// by reference.
@@ -128,7 +129,7 @@ pub struct SceneBuffers {
     /// Where each mesh starts in `mesh_words`.
     mesh_offsets: Vec<MeshWords>,
     /// `array<ObjectRecord>`.
-    pub objects: wgpu::Buffer,
+    pub objects: PagedBuffer,
     /// `array<LightRecord>`: the frame's lights ([`SceneBuffers::set_lighting`]: the scene's,
     /// with area lights given the frame's samples and seeds), then the scene's emitter table
     /// ([`hyrt_core::geometry::WorldGeometry::emitters`]), one [`emitter_slot`] per emitter
@@ -136,8 +137,9 @@ pub struct SceneBuffers {
     /// sample area lights read there (`shaders/soft_shadow.wgsl`'s `emitter_at`;
     /// [`SlotParams::emitters`] says how many). Packed rather than bound on its own: the
     /// shading stages already bind 8 storage buffers, WebGPU's default limit, and
-    /// `bounce_shading` [`crate::backend::BOUNCE_STORAGE_BUFFERS`].
-    pub lights: wgpu::Buffer,
+    /// `bounce_shading` [`crate::backend::BOUNCE_STORAGE_BUFFERS`]. In pages where the
+    /// emitters outgrow one binding ([`Table::Lights`]).
+    pub lights: PagedBuffer,
     /// `array<BvhNode>`: the flattened BVH ([`hyrt_core::bvh`]); empty BVH: one zero node and `bvh_node_count == 0`.
     /// A scene with two levels: every level's nodes, the top level's first
     /// ([`hyrt_core::bvh::two_level::PackedLevels`]).
@@ -150,7 +152,7 @@ pub struct SceneBuffers {
     pub bvh_prim_indices: PagedBuffer,
     /// `array<InstanceRecord>`: a two-level scene's instances, each naming its level's
     /// root in `bvh_nodes`; one zero record (bound by no stage) for a single-level scene.
-    pub instances: wgpu::Buffer,
+    pub instances: PagedBuffer,
     /// The pipelines the scene needs ([`Specialization::of_scene`]).
     pub specialization: Specialization,
     /// Uniform [`EnvironmentRecord`]: what secondary rays that leave the scene see.
@@ -222,15 +224,15 @@ impl SceneBuffers {
             triangles: PagedBuffer::upload::<TriangleRecord>(ctx, Table::Triangles, triangles, pages),
             normals: PagedBuffer::upload(ctx, Table::Normals, &normals, pages),
             by_reference,
-            placements: upload::<PlacementRecord>(ctx, "placements", &placements),
+            placements: PagedBuffer::upload::<PlacementRecord>(ctx, Table::Placements, &placements, pages),
             mesh_words: PagedBuffer::upload::<u32>(ctx, Table::MeshWords, &mesh_words, pages),
             mesh_offsets,
-            objects: upload::<ObjectRecord>(ctx, "objects", &g.objects),
-            lights: upload::<LightRecord>(ctx, "lights", &packed_lights(&g.lights, &g.emitters)),
+            objects: PagedBuffer::upload::<ObjectRecord>(ctx, Table::Objects, &g.objects, pages),
+            lights: PagedBuffer::upload(ctx, Table::Lights, &packed_lights(&g.lights, &g.emitters), pages),
             bvh_nodes: PagedBuffer::upload::<BvhNode>(ctx, Table::Nodes, nodes, pages),
             bvh_leaf_triangles: PagedBuffer::upload::<TriangleRecord>(ctx, Table::LeafTriangles, leaf_triangles, pages),
             bvh_prim_indices: PagedBuffer::upload::<u32>(ctx, Table::PrimIndices, prim_indices, pages),
-            instances: upload::<InstanceRecord>(ctx, "instances", instances),
+            instances: PagedBuffer::upload::<InstanceRecord>(ctx, Table::Instances, instances, pages),
             specialization,
             surface: SurfaceBuffers::new(ctx, &g.surface, &g.objects, pages),
             triangle_count: g.triangles.len() as u32,
@@ -248,19 +250,43 @@ impl SceneBuffers {
     /// ([`crate::world_triangles::triangle_flags_wgsl`]): the placements with objects by
     /// reference, else the triangles.
     pub fn flags_table(&self) -> &wgpu::Buffer {
+        self.flags_paged().first()
+    }
+
+    /// The further pages of [`SceneBuffers::flags_table`] ([`crate::paging`]), then those
+    /// of `tables`.
+    pub fn flags_table_pages(&self, tables: &[Table]) -> Vec<wgpu::BindGroupEntry<'_>> {
+        self.flags_paged().further().chain(self.further_pages(tables)).collect()
+    }
+
+    /// The table the triangle flags are read from: the placements or the triangles.
+    fn flags_paged(&self) -> &PagedBuffer {
         match self.by_reference {
             true => &self.placements,
-            false => self.triangles.first(),
+            false => &self.triangles,
         }
     }
 
-    /// The further pages of [`SceneBuffers::flags_table`] ([`crate::paging`]): the
-    /// triangles' when they are the table, else none.
-    pub fn flags_table_pages(&self) -> Vec<wgpu::BindGroupEntry<'_>> {
-        match self.by_reference {
-            true => Vec::new(),
-            false => self.triangles.further().collect(),
+    /// The table `table` ([`crate::paging`]).
+    pub fn paged(&self, table: Table) -> &PagedBuffer {
+        match table {
+            Table::Triangles => &self.triangles,
+            Table::Normals => &self.normals,
+            Table::LeafTriangles => &self.bvh_leaf_triangles,
+            Table::PrimIndices => &self.bvh_prim_indices,
+            Table::Nodes => &self.bvh_nodes,
+            Table::Surface => &self.surface.words,
+            Table::MeshWords => &self.mesh_words,
+            Table::Placements => &self.placements,
+            Table::Objects => &self.objects,
+            Table::Instances => &self.instances,
+            Table::Lights => &self.lights,
         }
+    }
+
+    /// The further pages of `tables`, in order: none for an unpaged one.
+    pub fn further_pages(&self, tables: &[Table]) -> Vec<wgpu::BindGroupEntry<'_>> {
+        tables.iter().flat_map(|&t| self.paged(t).further()).collect()
     }
 
     /// Write the mesh words of `scene` again (a mesh deformed): in place when their layout
@@ -274,7 +300,7 @@ impl SceneBuffers {
             self.mesh_words = PagedBuffer::upload::<u32>(ctx, Table::MeshWords, &words, pages);
             self.mesh_offsets = offsets;
             let placements = placement_records(&scene.geometry, &self.mesh_offsets);
-            ctx.queue.write_buffer(&self.placements, 0, bytemuck::cast_slice(&placements));
+            self.placements.write(&ctx.queue, 0, bytemuck::cast_slice(&placements));
         }
     }
 
@@ -287,7 +313,7 @@ impl SceneBuffers {
         // By their bits: a record's fields compare as floats, where 0.0 == -0.0.
         let held: &[u8] = bytemuck::cast_slice(&self.held_lights);
         if !lights.is_empty() && bytemuck::cast_slice::<LightRecord, u8>(lights) != held {
-            ctx.queue.write_buffer(&self.lights, 0, bytemuck::cast_slice(lights));
+            self.lights.write(&ctx.queue, 0, bytemuck::cast_slice(lights));
             self.held_lights.clear();
             self.held_lights.extend_from_slice(lights);
         }
@@ -369,11 +395,6 @@ impl SceneBuffers {
     /// constants). Everything else (the bottom levels, the other objects) stays as uploaded.
     pub fn apply(&mut self, ctx: &GpuContext, scene: &PreparedScene, changes: &SceneChanges) {
         let g = &scene.geometry;
-        let write = |buffer: &wgpu::Buffer, offset: usize, bytes: &[u8]| {
-            if !bytes.is_empty() {
-                ctx.queue.write_buffer(buffer, offset as u64, bytes);
-            }
-        };
         if self.by_reference && !changes.bottoms.is_empty() {
             // Deformed meshes: their words again (a move writes none).
             self.write_meshes(ctx, scene);
@@ -388,7 +409,7 @@ impl SceneBuffers {
                 true => {
                     let p = placement_record(g, o, &self.mesh_offsets);
                     let size = std::mem::size_of::<PlacementRecord>();
-                    write(&self.placements, o as usize * size, bytemuck::bytes_of(&p));
+                    self.placements.write(&ctx.queue, (o as usize * size) as u64, bytemuck::bytes_of(&p));
                     (!p.by_reference()).then_some(p.first_record as usize)
                 }
             };
@@ -399,11 +420,12 @@ impl SceneBuffers {
                 self.triangles.write(&ctx.queue, offset, bytemuck::cast_slice(&triangles));
                 self.normals.write(&ctx.queue, (first * 9 * 4) as u64, bytemuck::cast_slice(&corner_normals(g, range)));
             }
-            write(&self.objects, o as usize * std::mem::size_of::<ObjectRecord>(), bytemuck::bytes_of(record));
+            let offset = o as u64 * std::mem::size_of::<ObjectRecord>() as u64;
+            self.objects.write(&ctx.queue, offset, bytemuck::bytes_of(record));
         }
         if let (false, Some(levels)) = (changes.objects.is_empty(), &scene.levels) {
             self.bvh_nodes.write(&ctx.queue, 0, bytemuck::cast_slice(&levels.top));
-            write(&self.instances, 0, bytemuck::cast_slice(&levels.packed_instances()));
+            self.instances.write(&ctx.queue, 0, bytemuck::cast_slice(&levels.packed_instances()));
             // Refitted bottom levels (deformed meshes): same places, new boxes and vertices.
             for &b in &changes.bottoms {
                 let (node_base, nodes, slot_base) = levels.packed_bottom(b as usize);
@@ -420,8 +442,13 @@ impl SceneBuffers {
             let packed = packed_lights(&g.lights, &g.emitters);
             let bytes: &[u8] = bytemuck::cast_slice(&packed);
             match bytes.len() as u64 == self.lights.size() {
-                true => write(&self.lights, 0, bytes),
-                false => self.lights = upload::<LightRecord>(ctx, "lights", &packed),
+                true => self.lights.write(&ctx.queue, 0, bytes),
+                // Another length (a deformed emitter): its pages again, and the stages'
+                // (`check_supported` counted them).
+                false => {
+                    self.specialization.pages = TablePages::of_scene(scene, &ctx.limits).unwrap_or_default();
+                    self.lights = PagedBuffer::upload(ctx, Table::Lights, &packed, self.specialization.pages);
+                }
             }
             self.held_lights.clone_from(&g.lights);
         }

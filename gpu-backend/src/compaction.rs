@@ -57,9 +57,10 @@
 //! are the CPU's on the same terms. On lavapipe the conformance corpus finds no
 //! difference.
 
-use std::sync::OnceLock;
+use std::sync::{Arc, Mutex, OnceLock};
 
 use crate::buffers::{FrameBuffers, ListBuffers, SceneBuffers};
+use crate::paging::{paged_source, Table, TablePages};
 use crate::scan::{pipeline, scan_wgsl, ListScan, Scratch};
 use crate::shader::{
     bind_buffers, main_pipeline, preamble, ray_wgsl, shader_module, shading_helpers, soft_shadow_wgsl, storage_entry,
@@ -108,6 +109,9 @@ pub struct CompactionStage {
     stochastic: OnceLock<ListScan>,
     /// The stage's module, which both scans compile.
     module: wgpu::ShaderModule,
+    /// The scans of scenes whose lights are in pages ([`TablePages::lights_only`]), plain
+    /// and stochastic, each built the first time a frame needs it.
+    paged: Mutex<Vec<(TablePages, bool, Arc<ListScan>)>>,
     /// Banded frames: where each light's rays start in the list (`shaders/light_starts.wgsl`).
     light_starts: (wgpu::ComputePipeline, wgpu::BindGroupLayout),
     scatter_indices: wgpu::ComputePipeline,
@@ -142,6 +146,7 @@ impl CompactionStage {
             scan,
             stochastic: OnceLock::new(),
             module,
+            paged: Mutex::new(Vec::new()),
             test_layout,
         }
     }
@@ -152,6 +157,21 @@ impl CompactionStage {
             let constant = Specialization { stochastic: true, ..Specialization::PLAIN }.stochastic_constant();
             ListScan::new(ctx, "compaction (stochastic)", &self.module, &list_entries(), &[constant])
         })
+    }
+
+    /// The scan of frames whose lights are in the pages `pages` gives them
+    /// ([`crate::paging`]), stochastic or not: compiled now if no frame needed it before.
+    fn paged_scan(&self, ctx: &GpuContext, pages: TablePages, stochastic: bool) -> Arc<ListScan> {
+        let mut cache = self.paged.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, _, scan)) = cache.iter().find(|(p, s, _)| (*p, *s) == (pages, stochastic)) {
+            return scan.clone();
+        }
+        let module = shader_module(ctx, "compaction (lights in pages)", &paged_source(&compaction_wgsl(), pages));
+        let constant = Specialization { stochastic, ..Specialization::PLAIN }.stochastic_constant();
+        let entries = [list_entries().as_slice(), &pages.layout_entries(&[Table::Lights])].concat();
+        let scan = Arc::new(ListScan::new(ctx, "compaction (lights in pages)", &module, &entries, &[constant]));
+        cache.push((pages, stochastic, scan.clone()));
+        scan
     }
 
     /// Flag, scan and scatter the shadow rays of the primary hits: `frame.rays` and
@@ -183,15 +203,25 @@ impl CompactionStage {
         let buffers = [
             &frame.params,
             list.surfaces,
-            &scene.lights,
+            scene.lights.first(),
             list.shadow_rays,
             list.params,
             list.live,
             &scene.ambient_light,
             &frame.slot_params,
         ];
-        let scan = if frame.stochastic { self.stochastic_scan(ctx) } else { &self.scan };
-        scan.encode(ctx, encoder, "compaction", n, &buffers, list.shadow_ray_count, timing);
+        let pages = scene.specialization.pages.lights_only();
+        let paged;
+        let scan = match (pages.any(), frame.stochastic) {
+            (true, stochastic) => {
+                paged = self.paged_scan(ctx, pages, stochastic);
+                &*paged
+            }
+            (false, true) => self.stochastic_scan(ctx),
+            (false, false) => &self.scan,
+        };
+        let further = scene.further_pages(&[Table::Lights]);
+        scan.encode_paged(ctx, encoder, "compaction", n, &buffers, further, list.shadow_ray_count, timing);
         if frame.banded && frame.slots > 0 {
             let (pipeline, layout) = &self.light_starts;
             let group = bind_buffers(

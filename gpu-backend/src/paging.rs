@@ -2,24 +2,32 @@
 //!
 //! A device binds at most `max_storage_buffer_binding_size` bytes of a buffer at once
 //! (lavapipe: 128 MiB, 2.8 million world records). The scene tables that grow with the
-//! triangle count or with the textures are uploaded in pages, each page a buffer and a
-//! binding of its own: the record tables in pages of `1 << shift` records, the surface
-//! tables' words in pages of `1 << word_shift` words:
+//! triangle count, with the object count or with the textures are uploaded in pages, each
+//! page a buffer and a binding of its own: the record tables in pages of `1 << shift`
+//! records, the per-object tables in pages of `1 << object_shift` records, the word tables
+//! in pages of `1 << word_shift` words:
 //!
 //! | index space | tables ([`Table`]) | record bytes | page |
 //! |---|---|---:|---|
 //! | stored world record | `triangles`, `normals` | 48, 36 | `1 << shift` records |
 //! | BVH leaf slot | `bvh_leaf_triangles`, `bvh_prim_indices` | 48, 4 | `1 << shift` records |
 //! | BVH node | `bvh_nodes` | 32 | `1 << shift` records |
+//! | object | `placements` (objects by reference), `objects` | 112, 64 | `1 << object_shift` records |
+//! | instance | `instances` (two levels) | 64 | `1 << object_shift` records |
+//! | light | `lights` (the frame's lights, then the emitter table: [`crate::buffers::SceneBuffers::lights`]) | 96 | `1 << object_shift` records |
 //! | shared mesh word | `mesh_words` | 4 | `1 << word_shift` words |
 //! | surface table word | `surface` (materials, texture coordinates, vertex colours, tangents, textures: [`crate::texture::SurfaceBuffers`]) | 4 | `1 << word_shift` words |
 //!
 //! The shared meshes' words of objects by reference (`mesh_words`) are paged as the surface
-//! tables are. Still in one binding each: the placements, the objects, lights and instances
-//! ([`crate::backend::GpuBackend`] refuses a scene where one exceeds it).
+//! tables are. The lights' pages are the only ones `compaction` and `shadow_denoise` read
+//! ([`TablePages::lights_only`]): those stages are compiled for them when a scene's
+//! emitters outgrow one binding (1.4 million emissive triangles on lavapipe), and again
+//! when a deformed emitter changes the table's length across a page.
 //!
 //! `shift` is the device's ([`page_shift`]): the largest with a page of the largest record
-//! (48 bytes) within one binding; `word_shift` ([`word_page_shift`]) the largest with a
+//! (48 bytes) within one binding; `object_shift` ([`object_page_shift`]) the largest with a
+//! page of the largest per-object or light record (a 112-byte placement) within one binding
+//! (lavapipe: 20, 1,048,576 objects); `word_shift` ([`word_page_shift`]) the largest with a
 //! page of words within one binding (lavapipe: 25, a whole 128 MiB binding, where pages of
 //! `1 << shift` words would hold 8 MiB). A scene whose tables each fit one page is uploaded and
 //! compiled as before ([`TablePages::default`]): its shaders are the same text. Otherwise
@@ -27,7 +35,10 @@
 //! of the scene's [`crate::texture::Specialization`]): [`paged_source`] declares the further
 //! pages in the table's group at [`page_binding`] and rewrites every `table[i]` of the
 //! source into `table_at(i)` (`surface_word(i)` for the surface tables, whose stages
-//! define a `surface_at` of their own), whose switch reads page `i >> shift` at `i & mask`. Those are
+//! define a `surface_at` of their own), whose switch reads page `i >> shift` at `i & mask`,
+//! and every `arrayLength(&table)` into the records of the full pages plus the last page's
+//! `arrayLength` (each page is uploaded at its records' size: the placements' binary search
+//! of `shaders/world_triangles.wgsl`). Those are
 //! the same records the unpaged table holds at `i`, so frames are the same bits; what a
 //! device can hold is bounded by its memory, not by one binding.
 //!
@@ -46,6 +57,10 @@ pub const MAX_PAGES: u32 = 16;
 /// Bytes of the largest record of a paged table (a `TriangleRecord`): a page of any
 /// record table fits one binding.
 const LARGEST_RECORD_BYTES: u64 = 48;
+
+/// Bytes of the largest record of a per-object table (a `PlacementRecord`): a page of
+/// placements, objects or instances fits one binding.
+const LARGEST_OBJECT_RECORD_BYTES: u64 = 112;
 
 /// Bytes of a word of the surface tables.
 const WORD_BYTES: u64 = 4;
@@ -73,10 +88,19 @@ pub enum Table {
     /// `array<u32>`: every shared mesh's positions, normals and triangles, once, for the
     /// objects by reference ([`hyrt_core::geometry::WorldTriangles::mesh_words`]).
     MeshWords,
+    /// `array<PlacementRecord>`: one per object, with objects by reference.
+    Placements,
+    /// `array<ObjectRecord>`: one per object.
+    Objects,
+    /// `array<InstanceRecord>`: a two-level scene's instances.
+    Instances,
+    /// `array<LightRecord>`: the frame's lights, then the emitter table
+    /// ([`crate::buffers::SceneBuffers::lights`]).
+    Lights,
 }
 
 impl Table {
-    pub const ALL: [Table; 7] = [
+    pub const ALL: [Table; 11] = [
         Table::Triangles,
         Table::Normals,
         Table::LeafTriangles,
@@ -84,6 +108,10 @@ impl Table {
         Table::Nodes,
         Table::Surface,
         Table::MeshWords,
+        Table::Placements,
+        Table::Objects,
+        Table::Instances,
+        Table::Lights,
     ];
 
     /// The name of the table's (first page's) binding in the WGSL.
@@ -96,6 +124,10 @@ impl Table {
             Table::Nodes => "bvh_nodes",
             Table::Surface => "surface",
             Table::MeshWords => "mesh_words",
+            Table::Placements => "placements",
+            Table::Objects => "objects",
+            Table::Instances => "instances",
+            Table::Lights => "lights",
         }
     }
 
@@ -109,10 +141,14 @@ impl Table {
         }
     }
 
-    /// Whether the table is of words, paged by [`TablePages::word_shift`] (else by
-    /// [`TablePages::shift`]).
+    /// Whether the table is of words, paged by [`TablePages::word_shift`].
     pub fn is_words(self) -> bool {
         matches!(self, Table::Surface | Table::MeshWords)
+    }
+
+    /// Whether the table is of per-object records, paged by [`TablePages::object_shift`].
+    pub fn is_per_object(self) -> bool {
+        matches!(self, Table::Placements | Table::Objects | Table::Instances | Table::Lights)
     }
 
     /// Bytes of one record: what one index of its index space takes (nine floats for the
@@ -123,6 +159,9 @@ impl Table {
             Table::Normals => 36,
             Table::PrimIndices | Table::Surface | Table::MeshWords => 4,
             Table::Nodes => 32,
+            Table::Placements => 112,
+            Table::Objects | Table::Instances => 64,
+            Table::Lights => 96,
         }
     }
 
@@ -157,20 +196,43 @@ pub fn bvh_counts(scene: &hyrt_core::frame::PreparedScene) -> (usize, usize) {
     }
 }
 
+/// log2 of the records of `record_bytes` bytes per page on a device with `limits`: the
+/// largest with a page within one storage binding (and one buffer).
+fn shift_for(limits: &wgpu::Limits, record_bytes: u64) -> u32 {
+    let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+    (binding / record_bytes).max(1).ilog2().min(31)
+}
+
 /// log2 of the records per page on a device with `limits`: the largest with a page of
 /// 48-byte records within one storage binding (and one buffer). Lavapipe's 128 MiB: 21
 /// (2,097,152 records, 96 MiB).
 pub fn page_shift(limits: &wgpu::Limits) -> u32 {
-    let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
-    (binding / LARGEST_RECORD_BYTES).max(1).ilog2().min(31)
+    shift_for(limits, LARGEST_RECORD_BYTES)
 }
 
 /// log2 of the words per page of the surface tables on a device with `limits`: the largest
 /// with a page of words within one storage binding (and one buffer). Lavapipe's 128 MiB:
 /// 25 (33,554,432 words).
 pub fn word_page_shift(limits: &wgpu::Limits) -> u32 {
-    let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
-    (binding / WORD_BYTES).max(1).ilog2().min(31)
+    shift_for(limits, WORD_BYTES)
+}
+
+/// log2 of the records per page of the per-object tables (placements, objects, instances)
+/// on a device with `limits`: the largest with a page of 112-byte placements within one
+/// storage binding (and one buffer). Lavapipe's 128 MiB: 20 (1,048,576 objects, 112 MiB).
+pub fn object_page_shift(limits: &wgpu::Limits) -> u32 {
+    shift_for(limits, LARGEST_OBJECT_RECORD_BYTES)
+}
+
+/// The pages of tables of `counts` records in pages of `1 << shift`: `None` past
+/// [`MAX_PAGES`], `Some(None)` where each fits one page (nothing paged).
+fn page_counts<const N: usize>(counts: [u64; N], shift: u32) -> Option<Option<[u8; N]>> {
+    let pages = counts.map(|n| n.div_ceil(1 << shift).max(1));
+    match pages.iter().copied().max().unwrap_or(1) {
+        1 => Some(None),
+        n if n > MAX_PAGES as u64 => None,
+        _ => Some(Some(pages.map(|p| p as u8))),
+    }
 }
 
 /// How a scene's paged tables are split: the page shifts and each index space's page
@@ -194,6 +256,17 @@ pub struct TablePages {
     pub surface: u8,
     /// Pages of the shared meshes' words (objects by reference).
     pub mesh_words: u8,
+    /// log2 of the records per page of the per-object tables ([`object_page_shift`]); 0
+    /// when none is paged.
+    pub object_shift: u8,
+    /// Pages of the placements (objects by reference).
+    pub placements: u8,
+    /// Pages of the object records.
+    pub objects: u8,
+    /// Pages of the instances (two levels).
+    pub instances: u8,
+    /// Pages of the lights and the emitter table after them.
+    pub lights: u8,
 }
 
 impl TablePages {
@@ -201,28 +274,39 @@ impl TablePages {
     /// nodes with `1 << shift` records a page (no word table paged); `None` past
     /// [`MAX_PAGES`] pages.
     pub fn of_counts(triangles: u64, slots: u64, nodes: u64, shift: u32) -> Option<TablePages> {
-        let pages = |n: u64| n.div_ceil(1 << shift).max(1);
-        let (t, s, n) = (pages(triangles), pages(slots), pages(nodes));
-        if t.max(s).max(n) > MAX_PAGES as u64 {
-            return None;
-        }
-        Some(match t.max(s).max(n) {
-            1 => TablePages::default(),
-            _ => {
-                TablePages { shift: shift as u8, triangles: t as u8, slots: s as u8, nodes: n as u8, ..Self::default() }
-            }
+        Some(match page_counts([triangles, slots, nodes], shift)? {
+            None => TablePages::default(),
+            Some([t, s, n]) => TablePages { shift: shift as u8, triangles: t, slots: s, nodes: n, ..Self::default() },
         })
     }
 
     /// `self` with surface tables of `surface` words and shared meshes of `mesh` words in
     /// pages of `1 << word_shift` words; `None` past [`MAX_PAGES`] pages.
     pub fn with_words(self, surface: u64, mesh: u64, word_shift: u32) -> Option<TablePages> {
-        let pages = |n: u64| n.div_ceil(1 << word_shift).max(1);
-        let (s, m) = (pages(surface), pages(mesh));
-        match s.max(m) {
-            1 => Some(TablePages { word_shift: 0, surface: 0, mesh_words: 0, ..self }),
-            n if n > MAX_PAGES as u64 => None,
-            _ => Some(TablePages { word_shift: word_shift as u8, surface: s as u8, mesh_words: m as u8, ..self }),
+        Some(match page_counts([surface, mesh], word_shift)? {
+            None => TablePages { word_shift: 0, surface: 0, mesh_words: 0, ..self },
+            Some([s, m]) => TablePages { word_shift: word_shift as u8, surface: s, mesh_words: m, ..self },
+        })
+    }
+
+    /// `self` with the per-object tables of `counts` records (`[placements, objects,
+    /// instances, lights]`, the lights with the emitter table) in pages of
+    /// `1 << object_shift` records; `None` past [`MAX_PAGES`] pages.
+    pub fn with_objects(self, counts: [u64; 4], object_shift: u32) -> Option<TablePages> {
+        Some(match page_counts(counts, object_shift)? {
+            None => TablePages { object_shift: 0, placements: 0, objects: 0, instances: 0, lights: 0, ..self },
+            Some([placements, objects, instances, lights]) => {
+                TablePages { object_shift: object_shift as u8, placements, objects, instances, lights, ..self }
+            }
+        })
+    }
+
+    /// `self`'s lights' pages alone: what the stages that read no other paged table
+    /// (`compaction`, `shadow_denoise`) are compiled for.
+    pub fn lights_only(self) -> TablePages {
+        match self.lights > 1 {
+            true => TablePages { object_shift: self.object_shift, lights: self.lights, ..TablePages::default() },
+            false => TablePages::default(),
         }
     }
 
@@ -235,7 +319,13 @@ impl TablePages {
         // Past 2^32 words the tables cannot be indexed: more pages than any device has.
         let surface = g.surface.layout().map_or(u64::MAX, |l| l.bytes() / WORD_BYTES);
         let mesh = if g.triangles.has_references() { g.triangles.mesh_word_count() as u64 } else { 0 };
-        Self::of_counts(triangles, slots, nodes, page_shift(limits))?.with_words(surface, mesh, word_page_shift(limits))
+        let objects = g.objects.len() as u64;
+        let placements = if g.triangles.has_references() { objects } else { 0 };
+        let instances = scene.levels.as_ref().map_or(0, |l| l.instances.len() as u64);
+        let lights = (g.lights.len() + g.emitters.len()) as u64;
+        Self::of_counts(triangles, slots, nodes, page_shift(limits))?
+            .with_words(surface, mesh, word_page_shift(limits))?
+            .with_objects([placements, objects, instances, lights], object_page_shift(limits))
     }
 
     /// Whether some table is paged.
@@ -243,10 +333,15 @@ impl TablePages {
         Table::ALL.iter().any(|&t| self.pages(t) > 1)
     }
 
-    /// log2 of the elements per page of `table`: [`TablePages::word_shift`] for the surface
-    /// tables, else [`TablePages::shift`].
+    /// log2 of the elements per page of `table`: [`TablePages::word_shift`] for the word
+    /// tables, [`TablePages::object_shift`] for the per-object ones, else
+    /// [`TablePages::shift`].
     pub fn shift_of(self, table: Table) -> u32 {
-        u32::from(if table.is_words() { self.word_shift } else { self.shift })
+        u32::from(match table {
+            t if t.is_words() => self.word_shift,
+            t if t.is_per_object() => self.object_shift,
+            _ => self.shift,
+        })
     }
 
     /// Pages of `table` (1 when unpaged).
@@ -257,6 +352,10 @@ impl TablePages {
             Table::Nodes => self.nodes,
             Table::Surface => self.surface,
             Table::MeshWords => self.mesh_words,
+            Table::Placements => self.placements,
+            Table::Objects => self.objects,
+            Table::Instances => self.instances,
+            Table::Lights => self.lights,
         };
         u32::from(n).max(1)
     }
@@ -365,7 +464,7 @@ pub fn paged_source(source: &str, pages: TablePages) -> String {
         }
         let name = table.name();
         let Some((group, element)) = declaration(&out, name) else { continue };
-        debug_assert!(!out.contains(&format!("arrayLength(&{name})")), "{name} is paged: no arrayLength");
+        out = out.replace(&format!("arrayLength(&{name})"), &paged_length(table, n, pages.shift_of(table)));
         out = rewrite_indexing(&out, name, &table.accessor());
         for k in 1..n {
             out += &format!(
@@ -376,6 +475,15 @@ pub fn paged_source(source: &str, pages: TablePages) -> String {
         out += &accessor(table, &element, n, pages.shift_of(table));
     }
     out
+}
+
+/// The elements of `table` in `pages` pages of `1 << shift` records, in WGSL: every page
+/// but the last full (each is uploaded at its records' size, [`PagedBuffer::upload`]),
+/// and the last page's `arrayLength`.
+fn paged_length(table: Table, pages: u32, shift: u32) -> String {
+    let full = (u64::from(pages - 1) * u64::from(table.elements_per_record())) << shift;
+    let full = u32::try_from(full).expect("a paged table of fewer than 2^32 elements");
+    format!("({full}u + arrayLength(&{}_page{}))", table.name(), pages - 1)
 }
 
 /// The group and element type of `name`'s read-only storage declaration in `source`.
@@ -475,7 +583,7 @@ mod tests {
     fn pages_fit_one_binding() {
         let limits = wgpu::Limits { max_storage_buffer_binding_size: 128 << 20, ..wgpu::Limits::default() };
         assert_eq!(page_shift(&limits), 21);
-        for t in Table::ALL {
+        for t in Table::ALL.into_iter().filter(|t| !t.is_per_object()) {
             assert!(t.record_bytes() << 21 <= 128 << 20, "{t:?}");
         }
         // Four dragons, stored: 3,485,656 records, 2 pages; everything else one page.
@@ -537,5 +645,54 @@ mod tests {
         // Paged record tables alone leave the surface tables as written.
         let records = TablePages { shift: 3, triangles: 3, slots: 1, nodes: 1, ..TablePages::default() };
         assert_eq!(paged_source(source, records), source);
+    }
+    /// The per-object tables are paged by their own shift (a page of 112-byte placements
+    /// within one binding), independently of the others; `arrayLength` of a paged table
+    /// counts its full pages and the last page's records.
+    #[test]
+    fn objects_are_paged_by_placement() {
+        let limits = wgpu::Limits { max_storage_buffer_binding_size: 128 << 20, ..wgpu::Limits::default() };
+        assert_eq!(object_page_shift(&limits), 20);
+        for t in Table::ALL.into_iter().filter(|t| t.is_per_object()) {
+            assert!(t.record_bytes() << 20 <= 128 << 20, "{t:?}");
+        }
+        // 384 KiB bindings: 2,048 placements a page (3,510 would fit), 8,192 world records.
+        let small = wgpu::Limits { max_storage_buffer_binding_size: 384 << 10, ..wgpu::Limits::default() };
+        assert_eq!((object_page_shift(&small), page_shift(&small)), (11, 13));
+        assert!(Table::Placements.record_bytes() << 11 <= 384 << 10);
+        // 2.5 million objects by reference, as many instances: three pages of each.
+        let p = TablePages::default().with_objects([2_500_000, 2_500_000, 2_500_000, 0], 20).unwrap();
+        assert_eq!((p.pages(Table::Placements), p.pages(Table::Objects), p.pages(Table::Instances)), (3, 3, 3));
+        assert_eq!((p.shift_of(Table::Objects), p.shift_of(Table::Triangles), p.pages(Table::Triangles)), (20, 0, 1));
+        assert_eq!(p.page_records(Table::Placements), Some(1 << 20));
+        assert_eq!(p.extra_bindings(&Table::ALL), 6);
+        // Stored objects: no placements, their records paged alone.
+        let stored = TablePages::default().with_objects([0, 1_500_000, 0, 10], 20).unwrap();
+        assert_eq!((stored.pages(Table::Placements), stored.pages(Table::Objects)), (1, 2));
+        assert_eq!(TablePages::default().with_objects([1 << 20, 1 << 20, 0, 5], 20), Some(TablePages::default()));
+        assert_eq!(TablePages::default().with_objects([0, 16 << 20, 0, 0], 20).map(|p| p.objects), Some(16));
+        assert_eq!(TablePages::default().with_objects([0, 0, (16 << 20) + 1, 0], 20), None);
+        // 1.5 million emissive triangles: the lights in two pages, alone of their table's
+        // stages (`compaction`, `shadow_denoise`).
+        let lit = stored.with_objects([0, 10, 0, 1_500_000], 20).unwrap();
+        assert_eq!((lit.pages(Table::Lights), lit.pages(Table::Objects)), (2, 1));
+        assert_eq!(lit.lights_only(), TablePages { object_shift: 20, lights: 2, ..TablePages::default() });
+        assert_eq!(stored.lights_only(), TablePages::default());
+        // Every kind paged, each by its shift.
+        let all = TablePages::of_counts(3 << 21, 10, 10, 21).unwrap().with_words(5 << 25, 0, 25).unwrap();
+        let all = all.with_objects([0, 3 << 20, 0, 0], 20).unwrap();
+        assert_eq!((all.pages(Table::Normals), all.pages(Table::Surface), all.pages(Table::Objects)), (3, 5, 3));
+
+        let source = "@group(0) @binding(13) var<storage, read> placements: array<PlacementRecord>;\n\
+                      fn n() -> u32 { return arrayLength(&placements) + placements[2u].first_triangle; }\n";
+        let pages = TablePages { object_shift: 11, placements: 3, ..TablePages::default() };
+        let s = paged_source(source, pages);
+        assert!(
+            s.contains("return (4096u + arrayLength(&placements_page2)) + placements_at(2u).first_triangle;"),
+            "{s}"
+        );
+        assert!(s.contains("@group(0) @binding(177) var<storage, read> placements_page1: array<PlacementRecord>;"));
+        assert!(s.contains("let page = i >> 11u;") && s.contains("let local = i & 2047u;"), "{s}");
+        assert_eq!(paged_source(source, TablePages { object_shift: 11, objects: 3, ..TablePages::default() }), source);
     }
 }

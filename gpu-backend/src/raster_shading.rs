@@ -29,6 +29,18 @@ use crate::shader::{
 use crate::texture::Specialization;
 use crate::GpuContext;
 
+/// The WGSL of the stage for scenes that need `s`.
+pub fn shader_source(s: Specialization) -> String {
+    let source = surface_shading_source_for(
+        &format!("{}\n{}", include_str!("shaders/primary_object.wgsl"), include_str!("shaders/raster_shading.wgsl")),
+        s.denoised.then_some(VISIBILITY),
+    );
+    paged_source(&source, s.pages)
+}
+
+/// The paged tables the stage reads ([`crate::paging`]).
+const PAGED_TABLES: [Table; 3] = [Table::Objects, Table::Lights, Table::Surface];
+
 /// The `raster_shading` stage.
 pub struct RasterShadingStage {
     pipeline: wgpu::ComputePipeline,
@@ -48,15 +60,7 @@ impl RasterShadingStage {
 
     /// Compile the stage's pipeline for scenes whose surface tables need `s`.
     pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
-        let source = surface_shading_source_for(
-            &format!(
-                "{}\n{}",
-                include_str!("shaders/primary_object.wgsl"),
-                include_str!("shaders/raster_shading.wgsl")
-            ),
-            s.denoised.then_some(VISIBILITY),
-        );
-        let source = paged_source(&source, s.pages);
+        let source = shader_source(s);
         let visibility = [storage_entry(VISIBILITY, true)];
         let (pipeline, layout) = specialized_pipeline(
             ctx,
@@ -79,7 +83,7 @@ impl RasterShadingStage {
                     uniform_entry(12),       // slot params
                 ][..],
                 if s.denoised { &visibility } else { &[] },
-                &s.pages.layout_entries(&[Table::Surface]),
+                &s.pages.layout_entries(&PAGED_TABLES),
             ]
             .concat(),
             &s.shading_constants(),
@@ -107,8 +111,8 @@ impl RasterShadingStage {
                 &[
                     &frame.surfaces,
                     &frame.shadow,
-                    &scene.objects,
-                    &scene.lights,
+                    scene.objects.first(),
+                    scene.lights.first(),
                     &frame.params,
                     &frame.raster,
                     &frame.gbuffer,
@@ -122,7 +126,7 @@ impl RasterShadingStage {
                 if self.denoised { &visibility } else { &[] },
             ]
             .concat(),
-            scene.surface.words.further(),
+            scene.further_pages(&PAGED_TABLES),
         );
         encode_pixel_pass(encoder, "raster_shading", &self.pipeline, &bind_group, frame.width, frame.band.rows, timing);
     }

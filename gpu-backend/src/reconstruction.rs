@@ -21,7 +21,7 @@
 use hyrt_core::frame::PrimaryBarycentrics;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
-use crate::paging::{paged_source, TablePages};
+use crate::paging::{paged_source, Table, TablePages};
 use crate::shader::{preamble, ray_wgsl, shader_module, surface_wgsl};
 use crate::GpuContext;
 
@@ -63,6 +63,9 @@ pub struct ReconstructionStage {
 
 /// A kind of scene: objects by reference or not, and its tables' pages.
 type Kind = (bool, TablePages);
+
+/// The paged tables the normal-mapping passes read ([`crate::paging`]).
+const NORMAL_MAPPING_TABLES: [Table; 2] = [Table::Objects, Table::Surface];
 
 /// The pipelines of one kind of scene.
 struct Pipelines {
@@ -144,16 +147,17 @@ impl ReconstructionStage {
         let mut buffers = vec![
             scene.triangles.first(),
             scene.normals.first(),
-            &scene.objects,
+            scene.objects.first(),
             &frame.camera,
             &frame.gbuffer,
             &frame.surfaces,
             &frame.params,
         ];
         if scene.by_reference {
-            buffers.extend([&scene.placements, scene.mesh_words.first()]);
+            buffers.extend([scene.placements.first(), scene.mesh_words.first()]);
         }
-        let further = scene.triangles.further().chain(scene.normals.further()).chain(scene.mesh_words.further());
+        let tables = [Table::Triangles, Table::Normals, Table::Objects, Table::Placements, Table::MeshWords];
+        let further = scene.further_pages(&tables);
         let group = crate::shader::bind_paged_buffers(ctx, "reconstruction", layout, &buffers, further);
         let mut pass = crate::timing::begin_timed_pass(encoder, "reconstruction", timing);
         pass.set_pipeline(pipeline);
@@ -206,7 +210,8 @@ fn main(@builtin(local_invocation_index) lid: u32, @builtin(workgroup_id) wid: v
 /// `hyrt_core::kernels::texture::Materials::normal_mapped`). The CPU runs the same kernels
 /// at the same points (`hyrt_cpu::reconstruction::normal_mapping_into`,
 /// `hyrt_cpu::bounce_trace`). Compiled with `SURFACE_TABLES` on (a normal-mapped scene
-/// has surface tables), and for the pages of its surface tables ([`crate::paging`]).
+/// has surface tables), and for the pages of its object records and surface tables
+/// ([`crate::paging`]).
 pub struct NormalMapping {
     primary: (wgpu::ComputePipeline, wgpu::BindGroupLayout),
     secondary: (wgpu::ComputePipeline, wgpu::BindGroupLayout),
@@ -218,9 +223,9 @@ impl NormalMapping {
         Self::paged(ctx, TablePages::default())
     }
 
-    /// Compile both passes for surface tables in the pages `pages` gives them.
-    pub fn paged(ctx: &GpuContext, pages: TablePages) -> Self {
-        use crate::shader::{shading_source, specialized_pipeline, storage_entry, uniform_entry};
+    /// The WGSL of the primary and the secondary pass for tables in the pages `pages` gives
+    /// them.
+    pub fn shader_sources(pages: TablePages) -> [String; 2] {
         let common = format!(
             "{}\n{}\nconst NORMAL_MAPPING_WG: u32 = {}u;\n{}",
             crate::texture::texture_wgsl(),
@@ -228,6 +233,15 @@ impl NormalMapping {
             crate::shader::SHADOW_RAYS_WORKGROUP_SIZE,
             include_str!("shaders/normal_mapping.wgsl")
         );
+        [PRIMARY_NORMAL_MAPPING, SECONDARY_NORMAL_MAPPING]
+            .map(|entry| paged_source(&crate::shader::shading_source(&format!("{common}{entry}")), pages))
+    }
+
+    /// Compile both passes for object records and surface tables in the pages `pages`
+    /// gives them.
+    pub fn paged(ctx: &GpuContext, pages: TablePages) -> Self {
+        use crate::shader::{specialized_pipeline, storage_entry, uniform_entry};
+        let [primary, secondary] = Self::shader_sources(pages);
         let shared = [
             uniform_entry(0),
             storage_entry(1, true),
@@ -236,21 +250,16 @@ impl NormalMapping {
             storage_entry(4, false),
         ];
         let constants = [("SURFACE_TABLES", 1.0), ("ALPHA_TESTED", 0.0)];
-        let surface_pages = pages.layout_entries(&[crate::paging::Table::Surface]);
-        let build = |label: &str, entry: &str, own: &[wgpu::BindGroupLayoutEntry]| {
-            let source = paged_source(&shading_source(&format!("{common}{entry}")), pages);
+        let surface_pages = pages.layout_entries(&NORMAL_MAPPING_TABLES);
+        let build = |label: &str, source: &str, own: &[wgpu::BindGroupLayoutEntry]| {
             let entries: Vec<_> = shared.iter().chain(own).chain(&surface_pages).copied().collect();
-            specialized_pipeline(ctx, label, &source, &entries, &constants)
+            specialized_pipeline(ctx, label, source, &entries, &constants)
         };
         NormalMapping {
-            primary: build(
-                "reconstruction normal mapping",
-                PRIMARY_NORMAL_MAPPING,
-                &[storage_entry(5, true), uniform_entry(6)],
-            ),
+            primary: build("reconstruction normal mapping", &primary, &[storage_entry(5, true), uniform_entry(6)]),
             secondary: build(
                 "bounce_trace normal mapping",
-                SECONDARY_NORMAL_MAPPING,
+                &secondary,
                 &[storage_entry(5, true), storage_entry(6, true), storage_entry(7, true)],
             ),
         }
@@ -270,14 +279,14 @@ impl NormalMapping {
         let (pipeline, layout) = &self.primary;
         let buffers = [
             &frame.params,
-            &scene.objects,
+            scene.objects.first(),
             scene.surface.words.first(),
             &scene.surface.layout,
             &frame.surfaces,
             &frame.gbuffer,
             &frame.camera,
         ];
-        let further = scene.surface.words.further();
+        let further = scene.further_pages(&NORMAL_MAPPING_TABLES);
         let group = crate::shader::bind_paged_buffers(ctx, "reconstruction normal mapping", layout, &buffers, further);
         let mut pass = crate::timing::begin_timed_pass(encoder, "reconstruction normal mapping", None);
         pass.set_pipeline(pipeline);
@@ -299,7 +308,7 @@ impl NormalMapping {
         let (pipeline, layout) = &self.secondary;
         let buffers = [
             &frame.params,
-            &scene.objects,
+            scene.objects.first(),
             scene.surface.words.first(),
             &scene.surface.layout,
             &b.surfaces,
@@ -307,7 +316,7 @@ impl NormalMapping {
             &b.ray_count,
             &b.hits,
         ];
-        let further = scene.surface.words.further();
+        let further = scene.further_pages(&NORMAL_MAPPING_TABLES);
         let group = crate::shader::bind_paged_buffers(ctx, "bounce_trace normal mapping", layout, &buffers, further);
         crate::shader::encode_list_pass(encoder, "bounce_trace normal mapping", pipeline, &group, &b.ray_count, None);
     }

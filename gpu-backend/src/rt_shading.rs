@@ -37,6 +37,10 @@ use crate::shader::{
 use crate::texture::Specialization;
 use crate::GpuContext;
 
+/// The paged tables the stages read besides the triangle flags' ([`crate::paging`]).
+const PAGED_TABLES: [crate::paging::Table; 3] =
+    [crate::paging::Table::Objects, crate::paging::Table::Lights, crate::paging::Table::Surface];
+
 /// The bindings of `shaders/rt_shading.wgsl`.
 fn rt_entries() -> [wgpu::BindGroupLayoutEntry; 13] {
     [
@@ -61,8 +65,8 @@ fn rt_buffers<'a>(scene: &'a SceneBuffers, frame: &'a FrameBuffers) -> [&'a wgpu
     [
         &frame.surfaces,
         &frame.shadow,
-        &scene.objects,
-        &scene.lights,
+        scene.objects.first(),
+        scene.lights.first(),
         &frame.camera,
         &frame.params,
         &frame.rt,
@@ -86,6 +90,34 @@ const RT_VISIBILITY: u32 = 13;
 /// The binding of `frame.visibility` in `rt_shading` (bounces) of a denoised frame (after
 /// [`rt_entries`] and the first bounce's three).
 const RT_BOUNCING_VISIBILITY: u32 = 16;
+
+/// The WGSL of [`RtShadingStage`] for scenes that need `s`.
+pub fn shader_source(s: Specialization) -> String {
+    let source = surface_shading_source_for(
+        &format!(
+            "{}\n{}\n{PAPER_RT_PIXEL}",
+            include_str!("shaders/rt_shading.wgsl"),
+            include_str!("shaders/primary_object.wgsl")
+        ),
+        s.denoised.then_some(RT_VISIBILITY),
+    );
+    crate::paging::paged_source(&source, s.pages)
+}
+
+/// The WGSL of [`RtShadingBouncingStage`] for scenes that need `s` (its triangle flags
+/// read as [`crate::world_triangles::triangle_flags_wgsl`] says).
+pub fn bouncing_shader_source(s: Specialization) -> String {
+    let source = crate::shader::radiance_source_for(
+        &format!(
+            "{}\n{}\n{}",
+            include_str!("shaders/rt_shading.wgsl"),
+            include_str!("shaders/rt_shading_bouncing.wgsl"),
+            crate::world_triangles::triangle_flags_wgsl(0, 13, s.by_reference)
+        ),
+        s.denoised.then_some(RT_BOUNCING_VISIBILITY),
+    );
+    crate::paging::paged_source(&source, s.flags_pages())
+}
 
 /// The `rt_shading` stage of the paper's frame.
 pub struct RtShadingStage {
@@ -112,17 +144,9 @@ impl RtShadingStage {
 
     /// Compile the stage's pipeline for scenes whose surface tables need `s`.
     pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
-        let source = surface_shading_source_for(
-            &format!(
-                "{}\n{}\n{PAPER_RT_PIXEL}",
-                include_str!("shaders/rt_shading.wgsl"),
-                include_str!("shaders/primary_object.wgsl")
-            ),
-            s.denoised.then_some(RT_VISIBILITY),
-        );
-        let source = crate::paging::paged_source(&source, s.pages);
+        let source = shader_source(s);
         let visibility = [storage_entry(RT_VISIBILITY, true)];
-        let pages = s.pages.layout_entries(&[crate::paging::Table::Surface]);
+        let pages = s.pages.layout_entries(&PAGED_TABLES);
         let entries = [rt_entries().as_slice(), if s.denoised { &visibility } else { &[] }, &pages].concat();
         let (pipeline, layout) = specialized_pipeline(ctx, "rt_shading", &source, &entries, &s.shading_constants());
         RtShadingStage { pipeline, layout, denoised: s.denoised }
@@ -141,7 +165,8 @@ impl RtShadingStage {
     ) {
         let visibility = [&frame.visibility];
         let buffers = [rt_buffers(scene, frame).as_slice(), if self.denoised { &visibility } else { &[] }].concat();
-        let bind_group = bind_paged_buffers(ctx, "rt_shading", &self.layout, &buffers, scene.surface.words.further());
+        let bind_group =
+            bind_paged_buffers(ctx, "rt_shading", &self.layout, &buffers, scene.further_pages(&PAGED_TABLES));
         encode_pixel_pass(encoder, "rt_shading", &self.pipeline, &bind_group, frame.width, frame.band.rows, timing);
     }
 }
@@ -149,18 +174,9 @@ impl RtShadingStage {
 impl RtShadingBouncingStage {
     /// Compile the stage's pipeline for scenes whose surface tables need `s`.
     pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
-        let source = crate::shader::radiance_source_for(
-            &format!(
-                "{}\n{}\n{}",
-                include_str!("shaders/rt_shading.wgsl"),
-                include_str!("shaders/rt_shading_bouncing.wgsl"),
-                crate::world_triangles::triangle_flags_wgsl(0, 13, s.by_reference)
-            ),
-            s.denoised.then_some(RT_BOUNCING_VISIBILITY),
-        );
-        let source = crate::paging::paged_source(&source, s.flags_pages());
+        let source = bouncing_shader_source(s);
         let visibility = [storage_entry(RT_BOUNCING_VISIBILITY, true)];
-        let pages = s.flags_pages().layout_entries(&[crate::paging::Table::Triangles, crate::paging::Table::Surface]);
+        let pages = s.flags_layout_entries(&PAGED_TABLES);
         let (pipeline, layout) = specialized_pipeline(
             ctx,
             "rt_shading (bounces)",
@@ -203,7 +219,7 @@ impl RtShadingBouncingStage {
                 if self.denoised { &visibility } else { &[] },
             ]
             .concat(),
-            scene.flags_table_pages().into_iter().chain(scene.surface.words.further()),
+            scene.flags_table_pages(&PAGED_TABLES),
         );
         encode_pixel_pass(encoder, "rt_shading", &self.pipeline, &bind_group, frame.width, frame.band.rows, timing);
     }

@@ -245,23 +245,9 @@ impl ListScan {
     }
 
     /// Flag, scan and scatter `n` elements with the stage's group 1 `list` (buffers at
-    /// bindings 0, 1, ...), the list's count into `count`. Scratch is kept per `n`.
-    #[allow(clippy::too_many_arguments)]
-    pub fn encode(
-        &self,
-        ctx: &GpuContext,
-        encoder: &mut wgpu::CommandEncoder,
-        label: &str,
-        n: u32,
-        list: &[&wgpu::Buffer],
-        count: &wgpu::Buffer,
-        timing: Option<(&wgpu::QuerySet, u32)>,
-    ) {
-        self.encode_paged(ctx, encoder, label, n, list, Vec::new(), count, timing)
-    }
-
-    /// [`ListScan::encode`] with `further` entries in group 1 after the list's buffers:
-    /// the further pages of a paged table among them ([`crate::paging`]).
+    /// bindings 0, 1, ...) and `further` entries after them (the further pages of a paged
+    /// table among them, [`crate::paging`]), the list's count into `count`. Scratch is kept
+    /// per `n`.
     #[allow(clippy::too_many_arguments)]
     pub fn encode_paged(
         &self,

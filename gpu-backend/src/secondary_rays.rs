@@ -22,6 +22,24 @@ use crate::shader::{ray_wgsl, shader_module, storage_entry, uniform_entry};
 use crate::texture::{materials_wgsl, texture_wgsl, Specialization};
 use crate::GpuContext;
 
+/// The paged tables the stage reads besides the triangle flags' ([`crate::paging`]).
+const PAGED_TABLES: [crate::paging::Table; 2] = [crate::paging::Table::Objects, crate::paging::Table::Surface];
+
+/// The WGSL of the stage for scenes that need `s` (its triangle flags read as
+/// [`crate::world_triangles::triangle_flags_wgsl`] says).
+pub fn shader_source(s: Specialization) -> String {
+    let source = shading_source(
+        &(ray_wgsl()
+            + &texture_wgsl()
+            + &materials_wgsl()
+            + &bounce_wgsl()
+            + include_str!("shaders/secondary_rays.wgsl")
+            + &crate::world_triangles::triangle_flags_wgsl(1, 4, s.by_reference)
+            + &scan_wgsl()),
+    );
+    crate::paging::paged_source(&source, s.flags_pages())
+}
+
 /// The `secondary_rays` stage: the shared scan over its module.
 pub struct SecondaryRaysStage {
     scan: ListScan,
@@ -30,22 +48,12 @@ pub struct SecondaryRaysStage {
 impl SecondaryRaysStage {
     /// Compile the stage's pipelines for scenes whose surface tables need `s`.
     pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
-        let source = shading_source(
-            &(ray_wgsl()
-                + &texture_wgsl()
-                + &materials_wgsl()
-                + &bounce_wgsl()
-                + include_str!("shaders/secondary_rays.wgsl")
-                + &crate::world_triangles::triangle_flags_wgsl(1, 4, s.by_reference)
-                + &scan_wgsl()),
-        );
-        let module = shader_module(ctx, "secondary_rays", &crate::paging::paged_source(&source, s.flags_pages()));
+        let module = shader_module(ctx, "secondary_rays", &shader_source(s));
         let mut entries = vec![uniform_entry(0), uniform_entry(1), uniform_entry(2)];
         entries.extend((3..=9).map(|i| storage_entry(i, true)));
         entries.extend((10..=12).map(|i| storage_entry(i, false)));
         entries.extend([storage_entry(13, true), uniform_entry(14)]);
-        entries
-            .extend(s.flags_pages().layout_entries(&[crate::paging::Table::Triangles, crate::paging::Table::Surface]));
+        entries.extend(s.flags_layout_entries(&PAGED_TABLES));
         SecondaryRaysStage { scan: ListScan::new(ctx, "secondary_rays", &module, &entries, &s.constants()) }
     }
 
@@ -73,7 +81,7 @@ impl SecondaryRaysStage {
             &frame.params,
             &b.list,
             &frame.camera,
-            &scene.objects,
+            scene.objects.first(),
             scene.flags_table(),
             &frame.gbuffer,
             parent_surfaces,
@@ -86,7 +94,7 @@ impl SecondaryRaysStage {
             scene.surface.words.first(),
             &scene.surface.layout,
         ];
-        let further = scene.flags_table_pages().into_iter().chain(scene.surface.words.further()).collect();
+        let further = scene.flags_table_pages(&PAGED_TABLES);
         self.scan.encode_paged(ctx, encoder, "secondary_rays", 2 * b.parents, &buffers, further, &b.ray_count, timing);
     }
 }

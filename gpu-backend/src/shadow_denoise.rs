@@ -30,6 +30,7 @@ use hyrt_core::kernels::temporal::{
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
 use crate::gpu_buffer::{storage, upload};
+use crate::paging::{paged_source, Table, TablePages};
 use crate::shader::{preamble, shader_module, shading_helpers, soft_shadow_wgsl, storage_entry, uniform_entry};
 use crate::wgsl::f32_literal;
 use crate::{GpuContext, GpuError};
@@ -392,6 +393,8 @@ struct Pass {
 
 /// The `shadow_denoise` stage: one pipeline per pass.
 pub struct ShadowDenoiseStage {
+    /// The lights' pages it was compiled for ([`TablePages::lights_only`]).
+    pub pages: TablePages,
     raw: Pass,
     temporal: Pass,
     tiles: Pass,
@@ -402,11 +405,21 @@ pub struct ShadowDenoiseStage {
 impl ShadowDenoiseStage {
     /// Compile the stage's pipelines.
     pub fn new(ctx: &GpuContext) -> Self {
+        Self::paged(ctx, TablePages::default())
+    }
+
+    /// Compile the stage's pipelines for lights in the pages `pages` gives them
+    /// ([`TablePages::lights_only`]; none by default).
+    pub fn paged(ctx: &GpuContext, pages: TablePages) -> Self {
         use Binding::*;
-        let module = shader_module(ctx, "shadow_denoise", &shadow_denoise_wgsl());
+        let module = shader_module(ctx, "shadow_denoise", &paged_source(&shadow_denoise_wgsl(), pages));
+        let light_pages = pages.layout_entries(&[Table::Lights]);
         let pass = |entry: &str, bindings: &'static [Binding]| {
             let label = format!("shadow_denoise {entry}");
-            let entries: Vec<_> = bindings.iter().map(|b| b.entry()).collect();
+            let mut entries: Vec<_> = bindings.iter().map(|b| b.entry()).collect();
+            if bindings.contains(&Lights) {
+                entries.extend_from_slice(&light_pages);
+            }
             let layout = ctx
                 .device
                 .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(&label), entries: &entries });
@@ -426,6 +439,7 @@ impl ShadowDenoiseStage {
             Pass { pipeline, layout, bindings }
         };
         ShadowDenoiseStage {
+            pages,
             raw: pass("raw_pass", &[Params, SlotParams, AmbientLight, Surfaces, Shadow, Lights, RawOut]),
             temporal: pass(
                 "temporal_pass",
@@ -484,7 +498,7 @@ impl ShadowDenoiseStage {
         let group =
             |pass: &Pass, uniform: &wgpu::Buffer, raw: &wgpu::Buffer, input: &wgpu::Buffer, output: &wgpu::Buffer| {
                 use Binding::*;
-                let entries: Vec<wgpu::BindGroupEntry> = pass
+                let mut entries: Vec<wgpu::BindGroupEntry> = pass
                     .bindings
                     .iter()
                     .map(|&b| {
@@ -498,7 +512,7 @@ impl ShadowDenoiseStage {
                             Denoise => uniform,
                             Surfaces => &frame.surfaces,
                             Shadow => &frame.shadow,
-                            Lights => &scene.lights,
+                            Lights => scene.lights.first(),
                             RawOut => &d.raw,
                             Raw => raw,
                             SigmaOut | Sigma => &d.sigma,
@@ -518,6 +532,9 @@ impl ShadowDenoiseStage {
                         wgpu::BindGroupEntry { binding: b as u32, resource: buffer.as_entire_binding() }
                     })
                     .collect();
+                if pass.bindings.contains(&Lights) {
+                    entries.extend(scene.further_pages(&[Table::Lights]));
+                }
                 ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("shadow_denoise"),
                     layout: &pass.layout,

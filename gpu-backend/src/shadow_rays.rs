@@ -33,6 +33,27 @@ pub use crate::shader::{MAX_WORKGROUPS_PER_DIMENSION, SHADOW_RAYS_WORKGROUP_SIZE
 use crate::texture::{texture_wgsl, Specialization};
 use crate::GpuContext;
 
+/// The paged tables the stage reads ([`crate::paging`]; the instances with two levels).
+const PAGED_TABLES: [Table; 4] = [Table::Nodes, Table::LeafTriangles, Table::Surface, Table::Instances];
+
+/// The WGSL of the stage for scenes that need `s`.
+pub fn shader_source(s: Specialization) -> String {
+    // The walk of the scene's BVH: one tree, or two levels with the instances' binding.
+    let walk = if s.two_level {
+        concat!(include_str!("shaders/instance.wgsl"), include_str!("shaders/shadow_two_level.wgsl"))
+    } else {
+        "fn trace_occluded(ray: RayRecord) -> bool {\n    return occluded_any(ray);\n}\n"
+    };
+    let source = preamble()
+        + &slot_params_wgsl()
+        + &ray_wgsl()
+        + EXACT_PRODUCTS
+        + &texture_wgsl()
+        + include_str!("shaders/shadow_rays.wgsl")
+        + walk;
+    crate::paging::paged_source(&source, s.pages)
+}
+
 /// The `shadow_rays` stage: one pipeline, one bind group layout.
 pub struct ShadowRaysStage {
     pipeline: wgpu::ComputePipeline,
@@ -49,21 +70,7 @@ impl ShadowRaysStage {
 
     /// Compile the stage's pipeline for scenes whose surface tables need `s`.
     pub fn specialized(ctx: &GpuContext, s: Specialization) -> Self {
-        // The walk of the scene's BVH: one tree, or two levels with the instances' binding.
-        let walk = if s.two_level {
-            concat!(include_str!("shaders/instance.wgsl"), include_str!("shaders/shadow_two_level.wgsl"))
-        } else {
-            "fn trace_occluded(ray: RayRecord) -> bool {\n    return occluded_any(ray);\n}\n"
-        };
-        let source = preamble()
-            + &slot_params_wgsl()
-            + &ray_wgsl()
-            + EXACT_PRODUCTS
-            + &texture_wgsl()
-            + include_str!("shaders/shadow_rays.wgsl")
-            + walk;
-        let source = crate::paging::paged_source(&source, s.pages);
-        let module = shader_module(ctx, "shadow_rays", &source);
+        let module = shader_module(ctx, "shadow_rays", &shader_source(s));
         let mut entries = vec![
             uniform_entry(0),
             storage_entry(1, true),
@@ -81,7 +88,7 @@ impl ShadowRaysStage {
         if s.two_level {
             entries.push(storage_entry(12, true));
         }
-        entries.extend(s.pages.layout_entries(&[Table::Nodes, Table::LeafTriangles, Table::Surface]));
+        entries.extend(s.pages.layout_entries(&PAGED_TABLES));
         let layout = ctx.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("shadow_rays"),
             entries: &entries,
@@ -138,11 +145,10 @@ impl ShadowRaysStage {
             scene.surface.words.first(),
             &scene.surface.layout,
             &frame.slot_params,
-            &scene.instances,
+            scene.instances.first(),
         ];
         let bound = if self.two_level { &buffers[..] } else { &buffers[..12] };
-        let further =
-            scene.bvh_nodes.further().chain(scene.bvh_leaf_triangles.further()).chain(scene.surface.words.further());
+        let further = scene.further_pages(&PAGED_TABLES);
         let bind_group = bind_paged_buffers(ctx, "shadow_rays", &self.layout, bound, further);
         // SHADOW_NO_RAY is 0.
         encoder.clear_buffer(list.shadow, 0, None);

@@ -170,7 +170,20 @@ impl Specialization {
         ambient_image: false,
         stochastic: false,
         denoised: false,
-        pages: TablePages { shift: 0, triangles: 0, slots: 0, nodes: 0, word_shift: 0, surface: 0, mesh_words: 0 },
+        pages: TablePages {
+            shift: 0,
+            triangles: 0,
+            slots: 0,
+            nodes: 0,
+            word_shift: 0,
+            surface: 0,
+            mesh_words: 0,
+            object_shift: 0,
+            placements: 0,
+            objects: 0,
+            instances: 0,
+            lights: 0,
+        },
     };
 
     /// What `tables` need (a single-level scene).
@@ -203,13 +216,21 @@ impl Specialization {
 
     /// The pages of the stages that read the triangle flags
     /// ([`crate::world_triangles::triangle_flags_wgsl`]): the triangles' in a scene of stored
-    /// objects, none with objects by reference (the flags are the placements', never
-    /// paged); the surface tables' in either.
+    /// objects, with objects by reference the placements' (where the flags are) and no
+    /// other record table's; the per-object and word tables' in either.
     pub fn flags_pages(self) -> TablePages {
         match self.by_reference {
             true => TablePages { shift: 0, triangles: 0, slots: 0, nodes: 0, ..self.pages },
             false => self.pages,
         }
+    }
+
+    /// The layout entries of the further pages a stage that reads the triangle flags binds:
+    /// the flags table's ([`Specialization::flags_pages`]), then those of `tables`; what
+    /// [`crate::buffers::SceneBuffers::flags_table_pages`] binds.
+    pub fn flags_layout_entries(self, tables: &[Table]) -> Vec<wgpu::BindGroupLayoutEntry> {
+        let flags = self.flags_pages();
+        [flags.layout_entries(&[Table::Triangles, Table::Placements]), flags.layout_entries(tables)].concat()
     }
 
     /// The constants' values, as pipelines take them.

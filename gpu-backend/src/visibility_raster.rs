@@ -71,6 +71,7 @@ use crate::shader::{preamble, shader_module};
 use std::sync::Mutex;
 
 use crate::buffers::{FrameBuffers, SceneBuffers};
+use crate::paging::Table;
 use crate::texture::Specialization;
 use crate::GpuContext;
 
@@ -425,19 +426,22 @@ impl VisibilityRasterStage {
 
     /// The bindings that go with the triangles' in every bind group of the stage: the
     /// by-reference tables (placements, mesh words) from [`BY_REFERENCE_BINDING`] on, for a
-    /// stage compiled for them, and the further pages of the triangles and mesh words
-    /// ([`crate::paging`]).
+    /// stage compiled for them, and the further pages of the triangles, placements and mesh
+    /// words ([`crate::paging`]).
     fn scene_entries<'a>(&self, scene: &'a SceneBuffers) -> Vec<wgpu::BindGroupEntry<'a>> {
         let mut entries: Vec<wgpu::BindGroupEntry<'a>> = scene.triangles.further().collect();
         if self.by_reference {
             entries.extend([
-                wgpu::BindGroupEntry { binding: BY_REFERENCE_BINDING, resource: scene.placements.as_entire_binding() },
+                wgpu::BindGroupEntry {
+                    binding: BY_REFERENCE_BINDING,
+                    resource: scene.placements.first().as_entire_binding(),
+                },
                 wgpu::BindGroupEntry {
                     binding: BY_REFERENCE_BINDING + 1,
                     resource: scene.mesh_words.first().as_entire_binding(),
                 },
             ]);
-            entries.extend(scene.mesh_words.further());
+            entries.extend(scene.further_pages(&[Table::Placements, Table::MeshWords]));
         }
         entries
     }

@@ -127,19 +127,43 @@ mod tests {
 
     /// The same stages with their tables in pages ([`crate::paging`]: three pages of the
     /// world records, two of the leaf slots and of the nodes, three of the surface tables'
-    /// words) parse, validate and use only exact operations, and read no paged table but
-    /// through its accessor.
+    /// words, three of the placements and objects, two of the instances and of the lights)
+    /// parse, validate and use only exact operations, and read no paged table but through
+    /// its accessor (nor its `arrayLength`).
     #[test]
     fn stages_parse_with_tables_in_pages() {
         use crate::paging::{paged_source, TablePages};
-        let pages =
-            TablePages { shift: 20, triangles: 3, slots: 2, nodes: 2, word_shift: 24, surface: 3, mesh_words: 2 };
+        let pages = TablePages {
+            shift: 20,
+            triangles: 3,
+            slots: 2,
+            nodes: 2,
+            word_shift: 24,
+            surface: 3,
+            mesh_words: 2,
+            object_shift: 19,
+            placements: 3,
+            objects: 3,
+            instances: 2,
+            lights: 2,
+        };
         for by_reference in [false, true] {
             let s = Specialization { by_reference, two_level: by_reference, pages, ..Specialization::PLAIN };
+            let [normal_mapping, secondary_normal_mapping] =
+                crate::reconstruction::NormalMapping::shader_sources(pages);
             let mut sources = vec![
                 ("reconstruction", paged_source(&crate::reconstruction::shader_source(by_reference), pages)),
                 ("bounce_trace", crate::bounce_trace::shader_source(s)),
                 ("bounce_shading", crate::bounce_shading::shader_source(s)),
+                ("rt_shading", crate::rt_shading::shader_source(s)),
+                ("rt_shading (bounces)", crate::rt_shading::bouncing_shader_source(s)),
+                ("raster_shading", crate::raster_shading::shader_source(s)),
+                ("secondary_rays", crate::secondary_rays::shader_source(s)),
+                ("shadow_rays", crate::shadow_rays::shader_source(s)),
+                ("normal mapping", normal_mapping),
+                ("secondary normal mapping", secondary_normal_mapping),
+                ("compaction", paged_source(&crate::compaction::compaction_wgsl(), pages.lights_only())),
+                ("shadow_denoise", paged_source(&crate::shadow_denoise::shadow_denoise_wgsl(), pages.lights_only())),
             ];
             for primitive_index in [false, true] {
                 let raster = crate::visibility_raster::shader_source(primitive_index, true, by_reference);
@@ -147,6 +171,7 @@ mod tests {
             }
             for (stage, source) in sources {
                 assert_eq!(inexact_operations(&source), Ok(Vec::new()), "{stage}, by reference: {by_reference}");
+                assert!(!source.contains("arrayLength(&placements)"), "{stage}: the placements' length in pages");
                 let tables = [
                     "triangles",
                     "normals",
@@ -155,6 +180,10 @@ mod tests {
                     "bvh_prim_indices",
                     "surface",
                     "mesh_words",
+                    "placements",
+                    "objects",
+                    "instances",
+                    "lights",
                 ];
                 for table in tables {
                     let pattern = format!("{table}[");
@@ -165,8 +194,12 @@ mod tests {
                     let accessor = usize::from(
                         source.contains(&format!("fn {table}_at(")) || source.contains(&format!("fn {table}_word(")),
                     );
-                    // The accessor's own read of the first page is the only one left.
-                    let stored_flags = stage == "bounce_shading" && by_reference;
+                    // The accessor's own read of the first page is the only one left. The
+                    // stages that read the triangle flags from the placements are compiled
+                    // without the world records' pages (`Specialization::flags_pages`).
+                    let flags_stage = ["bounce_shading", "rt_shading (bounces)", "secondary_rays"].contains(&stage);
+                    let stored_flags =
+                        flags_stage && by_reference && !["surface", "placements", "objects"].contains(&table);
                     assert!(reads <= accessor || stored_flags, "{stage}: {reads} reads of {table} past its pages");
                 }
             }

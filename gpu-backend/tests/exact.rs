@@ -259,15 +259,17 @@ fn every_stage_uses_only_exact_operations() {
     use hyrt_gpu::texture::Specialization;
     use hyrt_gpu::visibility_raster::{VisibilityMode, VisibilityRasterStage};
     // Every flag alone and in pairs, all of them at once, and tables in pages (with and
-    // without two levels and objects by reference; the surface tables' words in pages with
-    // every flag that reads them): the flags choose fragments of source, and an inexact
+    // without two levels and objects by reference, the per-object tables and lights with them; the
+    // surface tables' words in pages with every flag that reads them): the flags choose
+    // fragments of source, and an inexact
     // operation lies in one fragment or where two meet. 33 of the 128 combinations of
     // flags (each about 8 s of CI's debug run on lavapipe).
     use hyrt_gpu::paging::TablePages;
     let paged = TablePages { shift: 20, triangles: 3, slots: 2, nodes: 2, ..TablePages::default() };
-    let surface = TablePages { word_shift: 24, surface: 3, mesh_words: 2, ..paged };
+    let objects = TablePages { object_shift: 19, placements: 3, objects: 3, instances: 2, lights: 2, ..paged };
+    let surface = TablePages { word_shift: 24, surface: 3, mesh_words: 2, ..objects };
     let combinations = (0..128u32).filter(|b| b.count_ones() <= 2 || *b == 127).map(|b| (b, Default::default()));
-    let paged_combinations = [(0, paged), (4 | 64, paged), (1 | 2 | 4, paged), (63, surface), (127, surface)];
+    let paged_combinations = [(0, paged), (4 | 64, objects), (1 | 2 | 4, paged), (63, surface), (127, surface)];
     for (bits, pages) in combinations.chain(paged_combinations) {
         let s = Specialization {
             surface_tables: bits & 1 != 0,
@@ -300,6 +302,7 @@ fn every_stage_uses_only_exact_operations() {
     VisibilityRasterStage::with_id_source(&ctx, false);
     hyrt_gpu::compaction::CompactionStage::new(&ctx);
     hyrt_gpu::shadow_denoise::ShadowDenoiseStage::new(&ctx);
+    hyrt_gpu::shadow_denoise::ShadowDenoiseStage::paged(&ctx, surface.lights_only());
     hyrt_gpu::composition::CompositionStage::new(&ctx);
     hyrt_gpu::reconstruction::ReconstructionStage::with_by_reference(&ctx);
     hyrt_gpu::reconstruction::NormalMapping::new(&ctx);

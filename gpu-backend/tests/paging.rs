@@ -41,3 +41,28 @@ fn paged_buffer_holds_and_writes_the_table_across_pages() {
     whole.write(&ctx.queue, 12, bytemuck::cast_slice(&[7u32, 8, 9, 10, 11, 12, 13]));
     assert_eq!(held(&ctx, &whole, 18)[3..10], [7, 8, 9, 10, 11, 12, 13]);
 }
+
+/// Placements (112-byte records) in pages of the per-object tables' shift: every page but
+/// the last holds `1 << object_shift` records, the last exactly the rest (the stages count
+/// the table by the last page's `arrayLength`); writes land in their pages, across them
+/// too (objects moved together).
+#[test]
+fn placements_are_paged_at_their_records_size() {
+    let Some(ctx) = common::test_context() else { return };
+    // Four placements a page: ten in 3 pages, the last two records long.
+    let pages = TablePages { object_shift: 2, placements: 3, ..TablePages::default() };
+    let records: Vec<[u32; 28]> = (0..10u32).map(|r| std::array::from_fn(|w| 100 * r + w as u32)).collect();
+    let table = PagedBuffer::upload(&ctx, Table::Placements, &records, pages);
+    assert_eq!(table.pages().iter().map(|p| p.size()).collect::<Vec<_>>(), [448, 448, 224]);
+    assert_eq!(table.further().map(|e| e.binding).collect::<Vec<_>>(), [177, 178]);
+    let words = records.len() * 28;
+    let mut expected: Vec<u32> = records.iter().flatten().copied().collect();
+    assert_eq!(held(&ctx, &table, words), expected);
+    // Record 5 (page 1), then records 3 to 8 (pages 0 to 2).
+    for (first, count) in [(5usize, 1usize), (3, 6)] {
+        let patch: Vec<u32> = (0..count * 28).map(|w| 7_000_000 + (first * 28 + w) as u32).collect();
+        table.write(&ctx.queue, (first * 112) as u64, bytemuck::cast_slice(&patch));
+        expected[first * 28..(first + count) * 28].copy_from_slice(&patch);
+        assert_eq!(held(&ctx, &table, words), expected, "after writing {count} from record {first}");
+    }
+}
