@@ -436,9 +436,10 @@ impl SceneBuffers {
                 self.bvh_leaf_triangles.write(&ctx.queue, slot_offset, bytemuck::cast_slice(leaf));
             }
         }
-        // Moved emitters move the emitter table (a deformed one too, which its change does
-        // not log as the lights'), whose length may change with the light count's the same.
-        if changes.lights || (!changes.objects.is_empty() && !g.emitters.is_empty()) {
+        // The lights changed, or emitters moved or deformed (`PreparedScene::move_objects` and
+        // `deform_mesh` log those as the lights' too): the emitter table's length may change
+        // with the light count's the same.
+        if changes.lights {
             let packed = packed_lights(&g.lights, &g.emitters);
             let bytes: &[u8] = bytemuck::cast_slice(&packed);
             match bytes.len() as u64 == self.lights.size() {
