@@ -8,7 +8,7 @@
 //!
 //! ```text
 //! cargo run --release -p hyrt-benches --features embree --example ray_contest -- \
-//!     [--threads N] [--rounds N] [--simd avx2|avx512|sse2|portable] [--kind shadow|primary|both|bounce]
+//!     [--threads N] [--rounds N] [--passes N] [--simd avx2|avx512|sse2|portable] [--kind shadow|primary|both|bounce]
 //!     [--packets-only | --singles-only] [--with-avx2] [--with-auto] SCENE...
 //! ```
 //!
@@ -20,7 +20,9 @@
 //! `--with-avx2`: at the AVX-512 level, also each traversal compiled for AVX2 alone,
 //! interleaved with the rest, so that one run says which level is faster per ray kind
 //! (issue 36's per-kind SIMD level). `--with-auto`: also the traversals the stages run where
-//! they measure their level (`packet-auto`, `single-auto`).
+//! they measure their level (`packet-auto`, `single-auto`). `--passes N`: each contender's
+//! turn traces the list N times in a row (times per pass), as the report's contest does for
+//! short lists.
 //!
 //! `--kind bounce` traces the frame's reflection and refraction rays (closest hit; scenes
 //! with mirrors or glass only) instead.
@@ -47,6 +49,8 @@ const SIZE: (u32, u32) = (1280, 720);
 struct Args {
     threads: usize,
     rounds: usize,
+    /// Passes of the list in each contender's turn (the time per pass is reported).
+    passes: usize,
     shadow: bool,
     primary: bool,
     /// The frame's reflection and refraction rays (closest hit), with `--kind bounce`.
@@ -66,6 +70,7 @@ fn parse() -> Result<Args, String> {
     let mut a = Args {
         threads: 2,
         rounds: 5,
+        passes: 1,
         shadow: true,
         primary: true,
         bounce: false,
@@ -81,6 +86,7 @@ fn parse() -> Result<Args, String> {
         match arg.as_str() {
             "--threads" => a.threads = value("--threads")?.parse().map_err(|e| format!("--threads: {e}"))?,
             "--rounds" => a.rounds = value("--rounds")?.parse().map_err(|e| format!("--rounds: {e}"))?,
+            "--passes" => a.passes = value("--passes")?.parse().map_err(|e| format!("--passes: {e}"))?,
             "--simd" => {
                 let v = value("--simd")?;
                 let level = SimdLevel::from_name(&v).ok_or(format!("--simd: unknown level {v}"))?;
@@ -176,17 +182,21 @@ impl Contest<'_> {
         let ms = {
             let trace = &trace;
             let mut runs: Vec<Box<dyn FnMut() + '_>> = Vec::new();
+            let passes = self.args.passes.max(1);
             for (&t, o) in self.hyrt.iter().zip(outs.iter_mut()) {
-                runs.push(Box::new(move || pool.install(|| trace(rays, t, o))));
+                runs.push(Box::new(move || (0..passes).for_each(|_| pool.install(|| trace(rays, t, o)))));
             }
             if !self.args.packets_only && !self.args.singles_only {
                 for (&(_, f), o) in peers.iter().zip(e_outs.iter_mut()) {
                     let e = self.embree;
-                    runs.push(Box::new(move || pool.install(|| embree_chunks(rays, o, |r, o| f(e, r, o)))));
+                    runs.push(Box::new(move || {
+                        (0..passes).for_each(|_| pool.install(|| embree_chunks(rays, o, |r, o| f(e, r, o))))
+                    }));
                 }
             }
             let mut refs: Vec<&mut dyn FnMut()> = runs.iter_mut().map(|r| &mut **r as &mut dyn FnMut()).collect();
-            interleaved_ms(self.args.rounds, &mut refs)
+            let ms = interleaved_ms(self.args.rounds, &mut refs);
+            ms.into_iter().map(|m| m.into_iter().map(|x| x / passes as f64).collect()).collect::<Vec<Vec<f64>>>()
         };
         for (t, o) in self.hyrt.iter().zip(&outs) {
             let differ = o.iter().zip(&reference).filter(|(a, b)| a != b).count();

@@ -286,12 +286,12 @@ fn header(options: &BenchOptions, cpu: &FrameBackend, gpu: Option<&FrameBackend>
     t.row([
         "settings".to_string(),
         format!(
-            "{}; {} frames per measurement (medians, after one warm-up frame), {} interleaved rounds per peer contest (after a warm-up round; ratios taken round by round; a list its fastest contender traces in under {} ms is traced several times in each turn, until the turn lasts that long (at most {} passes), and timed per pass; every contender in one pool whose workers are pinned one per CPU); Table 2 at {}x{}; BVH preset {}",
+            "{}; {} frames per measurement (medians, after one warm-up frame), at least {} interleaved rounds per peer contest (after a warm-up round; ratios taken round by round; each turn traces the list once, as a frame does; a list whose rounds would take its fastest contender under {} ms gets more rounds, at most {}; every contender in one pool whose workers are pinned one per CPU); Table 2 at {}x{}; BVH preset {}",
             if options.quick { "--quick" } else { "full" },
             options.frames,
             options.repeats,
-            peers::MIN_TURN_MS,
-            peers::MAX_PASSES,
+            peers::MIN_CONTEST_MS,
+            peers::MAX_ROUNDS,
             options.table_size.0,
             options.table_size.1,
             BvhPreset::default().name(),

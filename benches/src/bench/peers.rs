@@ -304,21 +304,26 @@ type Run<'a> = Box<dyn FnMut() + 'a>;
 /// A contender of a ray list's contest: its name in the tables and its run.
 type Contender<'a> = (String, Run<'a>);
 
-/// Least time one contender's turn of a round should last. A list its fastest contender
-/// traces in less (the far horse's 6,085 shadow rays take about a millisecond on two
-/// threads) is traced several times in a row each turn, the same number for every
-/// contender, and a round's time is the turn's over that number: a turn of a millisecond
-/// is as long as the scheduler's and the thread pool's wake-up jitter, which moved that
-/// row's ratio between 0.79 and 0.87 from run to run.
-pub const MIN_TURN_MS: f64 = 20.0;
+/// Least time the rounds of a contest should add up to for its fastest contender. Each
+/// turn traces the list once, as a frame does; a list its fastest contender traces in less
+/// than this over the asked rounds (the far horse's 6,085 shadow rays take half a
+/// millisecond on two threads) is contested over more rounds, at most [`MAX_ROUNDS`].
+///
+/// Not several passes a turn, as earlier reports did: a list traced again and again in a
+/// row lets each tracer's caches and branch predictors learn it, which no frame does, and
+/// that favours tracers unequally. The far horse's shadow rays at 40 passes a turn against
+/// one (`ray_contest --passes 40`, 2 threads, pinned, 15 rounds, twice): Embree's
+/// `rtcOccluded8` 0.50 to 0.30 ms a pass, hyrt's packets 0.53 to 0.45, so the ratio went
+/// from 0.96-0.97 to 0.67-0.68. The wake-up jitter those passes were meant to average out
+/// came from a pool's workers sharing a core, which [`contest_pool`] removes.
+pub const MIN_CONTEST_MS: f64 = 60.0;
 
-/// Most passes of a list in one turn (a list of a few rays would otherwise ask for
-/// thousands).
-pub const MAX_PASSES: usize = 64;
+/// Most rounds of one contest (a list of a few rays would otherwise ask for thousands).
+pub const MAX_ROUNDS: usize = 64;
 
-/// Run the contenders of one ray list in interleaved rounds ([`interleaved_ms`]): their
-/// runs, in order, each turn `passes` runs of the list (at least [`MIN_TURN_MS`] for the
-/// fastest contender, from one timed pass of each), a round's time per pass.
+/// Run the contenders of one ray list in interleaved rounds ([`interleaved_ms`]), each
+/// turn one pass of the list: at least `rounds` rounds, more for a short list
+/// ([`contest_rounds`], from one timed pass of each contender).
 fn contest(rounds: usize, threads: usize, rays: usize, contenders: Vec<Contender<'_>>) -> Vec<RayRun> {
     let (names, mut runs): (Vec<String>, Vec<Run<'_>>) = contenders.into_iter().unzip();
     let fastest = runs
@@ -329,22 +334,19 @@ fn contest(rounds: usize, threads: usize, rays: usize, contenders: Vec<Contender
             t.elapsed().as_secs_f64() * 1e3
         })
         .fold(f64::INFINITY, f64::min);
-    let passes = passes_per_turn(fastest);
-    let mut turns: Vec<Run<'_>> =
-        runs.iter_mut().map(|run| Box::new(move || (0..passes).for_each(|_| run())) as Run<'_>).collect();
-    let mut refs: Vec<&mut dyn FnMut()> = turns.iter_mut().map(|r| &mut **r as &mut dyn FnMut()).collect();
-    let ms = interleaved_ms(rounds, &mut refs);
-    let per_pass = |ms: Vec<f64>| ms.into_iter().map(|m| m / passes as f64).collect();
-    names.iter().zip(ms).map(|(name, ms)| RayRun::of_rounds(name, threads, rays, per_pass(ms))).collect()
+    let mut refs: Vec<&mut dyn FnMut()> = runs.iter_mut().map(|r| &mut **r as &mut dyn FnMut()).collect();
+    let ms = interleaved_ms(contest_rounds(rounds, fastest), &mut refs);
+    names.iter().zip(ms).map(|(name, ms)| RayRun::of_rounds(name, threads, rays, ms)).collect()
 }
 
-/// Passes of a list per turn for a fastest pass of `fastest_ms`: enough for
-/// [`MIN_TURN_MS`], at least 1, at most [`MAX_PASSES`].
-fn passes_per_turn(fastest_ms: f64) -> usize {
+/// Rounds of a contest asked for `rounds` whose fastest pass took `fastest_ms`: enough for
+/// [`MIN_CONTEST_MS`], at least `rounds`, at most [`MAX_ROUNDS`] (or `rounds` if more).
+fn contest_rounds(rounds: usize, fastest_ms: f64) -> usize {
+    let most = MAX_ROUNDS.max(rounds);
     if fastest_ms.is_finite() && fastest_ms > 0.0 {
-        ((MIN_TURN_MS / fastest_ms).ceil() as usize).clamp(1, MAX_PASSES)
+        ((MIN_CONTEST_MS / fastest_ms).ceil() as usize).clamp(rounds, most)
     } else {
-        1
+        rounds
     }
 }
 
@@ -1031,27 +1033,27 @@ mod tests {
     use super::*;
 
     #[test]
-    fn short_lists_are_traced_several_times_a_turn() {
-        assert_eq!(passes_per_turn(1.0), 20);
-        assert_eq!(passes_per_turn(7.0), 3);
-        assert_eq!(passes_per_turn(MIN_TURN_MS), 1);
-        assert_eq!(passes_per_turn(500.0), 1);
-        assert_eq!(passes_per_turn(1e-6), MAX_PASSES);
-        assert_eq!(passes_per_turn(0.0), 1);
-        assert_eq!(passes_per_turn(f64::NAN), 1);
+    fn short_lists_get_more_rounds() {
+        assert_eq!(contest_rounds(3, 1.0), 60);
+        assert_eq!(contest_rounds(3, 7.0), 9);
+        assert_eq!(contest_rounds(3, MIN_CONTEST_MS), 3);
+        assert_eq!(contest_rounds(3, 500.0), 3);
+        assert_eq!(contest_rounds(3, 1e-6), MAX_ROUNDS);
+        assert_eq!(contest_rounds(100, 1e-6), 100);
+        assert_eq!(contest_rounds(3, 0.0), 3);
+        assert_eq!(contest_rounds(3, f64::NAN), 3);
     }
 
-    /// Each contender runs the same number of passes a turn, and the times are per pass.
+    /// Every turn is one pass of each contender: one timed pass, the warm-up turn and the
+    /// rounds (the most, for instant passes), as many for both.
     #[test]
-    fn contest_times_are_per_pass() {
+    fn contest_turns_are_one_pass() {
         use std::cell::Cell;
         let (a, b) = (Cell::new(0usize), Cell::new(0usize));
         let contenders: Vec<Contender<'_>> =
             vec![("a".into(), Box::new(|| a.set(a.get() + 1))), ("b".into(), Box::new(|| b.set(b.get() + 1)))];
         let runs = contest(3, 1, 10, contenders);
-        // Instant passes: the most passes a turn, for both: one timed pass, the warm-up
-        // turn and three rounds.
-        assert_eq!((a.get(), b.get()), (1 + 4 * MAX_PASSES, 1 + 4 * MAX_PASSES));
+        assert_eq!((a.get(), b.get()), (2 + MAX_ROUNDS, 2 + MAX_ROUNDS));
         assert_eq!(runs.len(), 2);
     }
 
