@@ -289,14 +289,22 @@ impl SceneBuffers {
         tables.iter().flat_map(|&t| self.paged(t).further()).collect()
     }
 
+    /// The pages of `scene`'s tables on this device, taken again for a table whose length
+    /// changed (its stages follow the specialization; `check_supported` counted them).
+    fn pages_again(&mut self, ctx: &GpuContext, scene: &PreparedScene) -> TablePages {
+        self.specialization.pages = TablePages::of_scene(scene, &ctx.limits).unwrap_or_default();
+        self.specialization.pages
+    }
+
     /// Write the mesh words of `scene` again (a mesh deformed): in place when their layout
-    /// is the one held, else into a new buffer, with every placement again (their offsets).
+    /// is the one held, else into new pages (the scene's pages taken again), with every
+    /// placement again (their offsets).
     fn write_meshes(&mut self, ctx: &GpuContext, scene: &PreparedScene) {
         let (words, offsets) = scene.geometry.triangles.mesh_words().expect("mesh words fewer than 2^32");
         if offsets == self.mesh_offsets && (words.len() * 4).max(4) as u64 == self.mesh_words.size() {
             self.mesh_words.write(&ctx.queue, 0, bytemuck::cast_slice(&words));
         } else {
-            let pages = self.specialization.pages;
+            let pages = self.pages_again(ctx, scene);
             self.mesh_words = PagedBuffer::upload::<u32>(ctx, Table::MeshWords, &words, pages);
             self.mesh_offsets = offsets;
             let placements = placement_records(&scene.geometry, &self.mesh_offsets);
@@ -447,8 +455,8 @@ impl SceneBuffers {
                 // Another length (a deformed emitter): its pages again, and the stages'
                 // (`check_supported` counted them).
                 false => {
-                    self.specialization.pages = TablePages::of_scene(scene, &ctx.limits).unwrap_or_default();
-                    self.lights = PagedBuffer::upload(ctx, Table::Lights, &packed, self.specialization.pages);
+                    let pages = self.pages_again(ctx, scene);
+                    self.lights = PagedBuffer::upload(ctx, Table::Lights, &packed, pages);
                 }
             }
             self.held_lights.clone_from(&g.lights);

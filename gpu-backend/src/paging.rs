@@ -270,6 +270,23 @@ pub struct TablePages {
 }
 
 impl TablePages {
+    /// Nothing paged: every table in one binding ([`TablePages::default`], usable in
+    /// constants).
+    pub const UNPAGED: TablePages = TablePages {
+        shift: 0,
+        triangles: 0,
+        slots: 0,
+        nodes: 0,
+        word_shift: 0,
+        surface: 0,
+        mesh_words: 0,
+        object_shift: 0,
+        placements: 0,
+        objects: 0,
+        instances: 0,
+        lights: 0,
+    };
+
     /// The pages of tables of `triangles` stored records, `slots` leaf slots and `nodes`
     /// nodes with `1 << shift` records a page (no word table paged); `None` past
     /// [`MAX_PAGES`] pages.
@@ -581,6 +598,7 @@ mod tests {
 
     #[test]
     fn pages_fit_one_binding() {
+        assert_eq!(TablePages::UNPAGED, TablePages::default());
         let limits = wgpu::Limits { max_storage_buffer_binding_size: 128 << 20, ..wgpu::Limits::default() };
         assert_eq!(page_shift(&limits), 21);
         for t in Table::ALL.into_iter().filter(|t| !t.is_per_object()) {

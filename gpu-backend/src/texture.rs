@@ -170,20 +170,7 @@ impl Specialization {
         ambient_image: false,
         stochastic: false,
         denoised: false,
-        pages: TablePages {
-            shift: 0,
-            triangles: 0,
-            slots: 0,
-            nodes: 0,
-            word_shift: 0,
-            surface: 0,
-            mesh_words: 0,
-            object_shift: 0,
-            placements: 0,
-            objects: 0,
-            instances: 0,
-            lights: 0,
-        },
+        pages: TablePages::UNPAGED,
     };
 
     /// What `tables` need (a single-level scene).
