@@ -453,6 +453,51 @@ fn lanes_alone_in_dense_leaves_match_scalar() {
     assert!(occluded > n / 8 && occluded < rays.len() - n / 8, "{occluded} of {} occluded", rays.len());
 }
 
+/// Coherent shadow rays in each of the eight direction octants, so that every octant copy
+/// of the any-hit packet walk runs (a packet takes its octant's walk when its lanes'
+/// directions share their signs; the rays of each group here do): from a cap of points
+/// just off a dense sphere towards a light in that octant, a smaller sphere half way
+/// stopping some of them. Each octant gives both answers.
+#[test]
+fn octant_packets_match_scalar() {
+    let signs: Vec<Vec3> = (0..8)
+        .map(|o| {
+            Vec3::new(
+                if o & 1 != 0 { -1.0 } else { 1.0 },
+                if o & 2 != 0 { -1.0 } else { 1.0 },
+                if o & 4 != 0 { -1.0 } else { 1.0 },
+            )
+        })
+        .collect();
+    let mut meshes = vec![(Mesh::uv_sphere("dense", 64, 32), Mat4::from_scale(Vec3::splat(2.0)))];
+    for s in &signs {
+        let at = Mat4::from_translation(*s * 4.0) * Mat4::from_scale(Vec3::splat(0.25));
+        meshes.push((Mesh::uv_sphere("occluder", 16, 8), at));
+    }
+    let g = mesh_scene(meshes);
+    let bvh = Bvh::build(&g, BvhPreset::Medium);
+    for (o, s) in signs.iter().enumerate() {
+        let light = *s * 8.0;
+        let l = s.normalize();
+        let e1 = l.cross(Vec3::Y + Vec3::X * 0.3).normalize();
+        let e2 = l.cross(e1);
+        let n = 32;
+        let rays: Vec<RayRecord> = (0..n * n)
+            .map(|k| {
+                let (u, v) = ((k % n) as f32 / n as f32 - 0.5, (k / n) as f32 / n as f32 - 0.5);
+                let p = (l + (e1 * u + e2 * v) * 2.0).normalize() * 2.0 * (1.0 + 1e-3);
+                ray(p, light - p, 1e-4, 1.0)
+            })
+            .collect();
+        for r in &rays {
+            let d = Vec3::from(r.direction);
+            assert_eq!(d.signum(), *s, "octant {o}: every ray in the light's octant");
+        }
+        let occluded = check(&g, &bvh, &rays);
+        assert!(occluded > 0 && occluded < rays.len(), "octant {o}: {occluded} of {} occluded", rays.len());
+    }
+}
+
 /// The backend's shadow traversal setting changes nothing in the frame.
 #[test]
 fn backend_frames_are_identical_with_scalar_and_simd_shadow_rays() {

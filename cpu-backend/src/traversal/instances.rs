@@ -35,7 +35,7 @@ use hyrt_core::bvh::{ClosestHit, BVH_CULL_SLACK};
 use hyrt_core::formats::RayRecord;
 use hyrt_core::kernels::texture::SurfaceView;
 
-use super::packet::{self, AnyHitLanes, ClosestHitLanes, ClosestLanes, Level, Occluder, Packet};
+use super::packet::{self, AnyHitLanes, ClosestHitLanes, ClosestLanes, Level, Occluder, Packet, ANY_OCTANT};
 use crate::lanes::{Lanes, LANES};
 
 /// A lane with no ray: an empty interval, which `Packet::new` rejects.
@@ -98,7 +98,7 @@ pub(crate) fn occluded<L: Lanes>(
                     if cache.bottom != inst.bottom {
                         *cache = InstanceCache { bottom: inst.bottom, occluder: None };
                     }
-                    packet::occluded(&Level::instance(levels, i), view, &po, &mut cache.occluder)
+                    packet::occluded::<_, false>(&Level::instance(levels, i), view, &po, &mut cache.occluder)
                 }
                 None => {
                     let mut hit = 0;
@@ -121,7 +121,7 @@ pub(crate) fn occluded<L: Lanes>(
             }
         },
     );
-    traverse(&levels.top, &AnyHitLanes(p), &mut done, leaf_test);
+    traverse(&levels.top, &AnyHitLanes::<L, ANY_OCTANT>(p), &mut done, leaf_test);
     done
 }
 

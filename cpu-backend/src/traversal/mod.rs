@@ -144,12 +144,12 @@
 //!   is mostly one wide leaf near its origin (0.65 hand-offs per ray on the far horse,
 //!   0.63 wide nodes each), which the lone-lane leaf test already serves, and a stop found
 //!   alone does not refresh the packet's occluder cache.
-//! * The packets' node test compiled per octant as the single rays' (`Packet::enter` with
-//!   the near plane's index a constant, nine copies of the any-hit walk with the mixed
-//!   case): not measured, because `hyrt-cpu`'s release build ran past 15 minutes (1m47
-//!   without it). The any-hit walk is inlined with its leaf tests into every chunk
-//!   function at every SIMD level; a per-octant packet walk needs those entry points
-//!   narrowed first.
+//! * The packets' node test compiled per octant as the single rays' (nine copies of the
+//!   any-hit walk, the mixed case included): not measured then, because `hyrt-cpu`'s
+//!   release build ran past 15 minutes. It has since landed in a narrower form: eight
+//!   octant copies of the world-space any-hit walk only, the mixed and non-finite packets
+//!   left to the generic one (`packet::occluded`, `AnyHitLanes`): 5 to 9% less time on
+//!   every scene measured, for about 20 seconds more of release build.
 //!
 //! Two-level scenes (moving objects, shared meshes): the world-space level is traced as
 //! above, then the object-space instances in packets (module `instances`,
@@ -973,7 +973,7 @@ fn occluded_packets<L: Lanes>(
             }
             continue;
         };
-        let hit = packet::occluded(&packet::Level::world(bvh), view, &p, &mut cache);
+        let hit = packet::occluded::<L, true>(&packet::Level::world(bvh), view, &p, &mut cache);
         // A fixed-size array copied out, not a loop over the slice: the loop was vectorized
         // for 64 answers at a time in zmm registers, whose constants every call of the
         // AVX-512 entry point broadcast (Intel lowers the clock for 512-bit work).
