@@ -457,7 +457,9 @@ fn lanes_alone_in_dense_leaves_match_scalar() {
 /// of the any-hit packet walk runs (a packet takes its octant's walk when its lanes'
 /// directions share their signs; the rays of each group here do): from a cap of points
 /// just off a dense sphere towards a light in that octant, a smaller sphere half way
-/// stopping some of them. Each octant gives both answers.
+/// stopping some of them; and rays from the light back across the sphere, which share one
+/// origin (the closest-hit packets' frustum walk, also compiled per octant). Each octant
+/// gives both answers.
 #[test]
 fn octant_packets_match_scalar() {
     let signs: Vec<Vec3> = (0..8)
@@ -495,6 +497,25 @@ fn octant_packets_match_scalar() {
         }
         let occluded = check(&g, &bvh, &rays);
         assert!(occluded > 0 && occluded < rays.len(), "octant {o}: {occluded} of {} occluded", rays.len());
+        // From the light to a square across the dense sphere's front, its corners past the
+        // sphere: one origin, so the closest-hit packets take the frustum walk, in the
+        // opposite octant.
+        let eye_rays: Vec<RayRecord> = (0..n * n)
+            .map(|k| {
+                let (u, v) = ((k % n) as f32 / n as f32 - 0.5, (k / n) as f32 / n as f32 - 0.5);
+                let q = l * 2.0 + (e1 * u + e2 * v) * 5.0;
+                ray(light, q - light, 0.0, f32::INFINITY)
+            })
+            .collect();
+        for r in &eye_rays {
+            assert_eq!(
+                Vec3::from(r.direction).signum(),
+                -*s,
+                "octant {o}: every ray from the light in the opposite octant"
+            );
+        }
+        let hits = check(&g, &bvh, &eye_rays);
+        assert!(hits > 0 && hits < eye_rays.len(), "octant {o}: {hits} of {} rays from the light hit", eye_rays.len());
     }
 }
 

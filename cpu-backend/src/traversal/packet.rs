@@ -281,7 +281,7 @@ impl<'a, L: Lanes> Packet<'a, L> {
     /// constants (the octant walks of [`AnyHitLanes`]) the plane loads are fixed offsets and
     /// the NaN-safe branch of [`slab_bounds`] is gone.
     #[inline(always)]
-    fn enter_signed(&self, node: &BvhNode, t_far: L::F, near: [usize; 3], finite_inv: bool) -> u32 {
+    pub(super) fn enter_signed(&self, node: &BvhNode, t_far: L::F, near: [usize; 3], finite_inv: bool) -> u32 {
         // The scalar order: x, y, z for both running bounds.
         let mut tn = [self.box_t_min; 3];
         let mut tf = [t_far; 3];
@@ -520,10 +520,24 @@ pub(super) struct AnyHitLanes<'p, 'a, L: Lanes, const O: u8>(pub &'p Packet<'a, 
 /// [`AnyHitLanes`]'s octant for packets of any direction signs.
 pub(super) const ANY_OCTANT: u8 = 8;
 
+/// [`Packet::near`] of a packet whose lanes lie in `octant` (bit `a` set where the inverse
+/// direction's component `a` is negative): axis `a`'s near plane is the box maximum, index
+/// `4 + a` of a node read as `[f32; 8]`, where the bit is set, else the minimum, `a`.
+#[inline(always)]
+pub(super) const fn octant_near(octant: u8) -> [usize; 3] {
+    let o = octant as usize;
+    [(o & 1) << 2, 1 + ((o >> 1 & 1) << 2), 2 + ((o >> 2 & 1) << 2)]
+}
+
+/// The octant of a packet whose lanes share their direction signs (not [`Packet::mixed`]).
+#[inline(always)]
+pub(super) fn packet_octant<L: Lanes>(p: &Packet<'_, L>) -> u8 {
+    debug_assert!(!p.mixed);
+    (0..3).map(|a| u8::from(p.near[a] >= 4) << a).sum()
+}
+
 impl<L: Lanes, const O: u8> AnyHitLanes<'_, '_, L, O> {
-    /// [`Packet::near`] of a packet in octant `O`.
-    const NEAR: [usize; 3] =
-        [(O as usize & 1) << 2, 1 + ((O as usize >> 1 & 1) << 2), 2 + ((O as usize >> 2 & 1) << 2)];
+    const NEAR: [usize; 3] = octant_near(O);
 
     /// The lanes that enter `node`'s box.
     #[inline(always)]
@@ -686,21 +700,22 @@ pub(crate) fn occluded<L: Lanes, const OCTANTS: bool>(
         }
     }
     if OCTANTS && !p.mixed && p.finite_inv {
-        let octant = (0..3).map(|a| u8::from(p.near[a] >= 4) << a).sum::<u8>();
-        match octant {
-            0 => traverse(nodes, &AnyHitLanes::<L, 0>(p), &mut done, leaf_test),
-            1 => traverse(nodes, &AnyHitLanes::<L, 1>(p), &mut done, leaf_test),
-            2 => traverse(nodes, &AnyHitLanes::<L, 2>(p), &mut done, leaf_test),
-            3 => traverse(nodes, &AnyHitLanes::<L, 3>(p), &mut done, leaf_test),
-            4 => traverse(nodes, &AnyHitLanes::<L, 4>(p), &mut done, leaf_test),
-            5 => traverse(nodes, &AnyHitLanes::<L, 5>(p), &mut done, leaf_test),
-            6 => traverse(nodes, &AnyHitLanes::<L, 6>(p), &mut done, leaf_test),
-            _ => traverse(nodes, &AnyHitLanes::<L, 7>(p), &mut done, leaf_test),
-        };
+        octant_walk!(packet_octant(p), any_hit_walk::<L>(nodes, p, &mut done, leaf_test));
     } else {
-        traverse(nodes, &AnyHitLanes::<L, ANY_OCTANT>(p), &mut done, leaf_test);
+        any_hit_walk::<L, ANY_OCTANT>(nodes, p, &mut done, leaf_test);
     }
     done
+}
+
+/// The any-hit walk of `p` with the node test of octant `O` ([`AnyHitLanes`]).
+#[inline(always)]
+fn any_hit_walk<L: Lanes, const O: u8>(
+    nodes: &[BvhNode],
+    p: &Packet<'_, L>,
+    done: &mut u32,
+    leaf_test: impl FnMut(Leaf, u32, &mut u32) -> LeafFlow,
+) {
+    traverse(nodes, &AnyHitLanes::<L, O>(p), done, leaf_test);
 }
 
 /// Any hit of the lanes `m` against a leaf one lane at a time, each lane's ray against all

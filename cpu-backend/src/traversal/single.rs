@@ -128,34 +128,6 @@ const fn near_far_rows<const O: u8>(a: usize) -> (usize, usize) {
     (WideNode::plane_row(a, negative), WideNode::plane_row(a, !negative))
 }
 
-/// `$walk::<$lanes, O>($args)` for the octant `O` equal to `$octant` (0 to 7): one copy of
-/// each walk per octant, as Embree's and tinybvh's direction-sign kernels, so that the
-/// node test's plane rows are constant offsets rather than per-ray indices held in
-/// registers or reloaded (issue 36, item 3). With the leaf's vertex rows picked once per
-/// ray ([`WideRay::vertex_rows`]) instead of per row, measured against the walk with
-/// per-ray plane rows (AMD EPYC, AVX2, one thread, `ray_contest --singles-only`): callgrind
-/// instructions per ray 1,326 to 1,013 on the near bunny's shadow rays and 3,808 to 3,174 on
-/// the teaser's reflection and refraction rays; time (the two binaries alternated three
-/// times, medians of seven rounds) the dragon's shadow rays 193 to 152 ms, the teaser's 231
-/// to 189, the near bunny's 28.0 to 22.3, the far horse's 1.75 to 1.46, the teaser's
-/// reflections and refractions 49.5 to 43.3. Specialising on the permutation axis `kz` as
-/// well (24 copies; tried before the vertex rows were picked per ray) measured no faster
-/// than the octants alone, at more than twice the compile time.
-macro_rules! octant_walk {
-    ($octant:expr, $walk:ident::<$lanes:ty>($($arg:expr),*)) => {
-        match $octant {
-            0 => $walk::<$lanes, 0>($($arg),*),
-            1 => $walk::<$lanes, 1>($($arg),*),
-            2 => $walk::<$lanes, 2>($($arg),*),
-            3 => $walk::<$lanes, 3>($($arg),*),
-            4 => $walk::<$lanes, 4>($($arg),*),
-            5 => $walk::<$lanes, 5>($($arg),*),
-            6 => $walk::<$lanes, 6>($($arg),*),
-            _ => $walk::<$lanes, 7>($($arg),*),
-        }
-    };
-}
-
 /// The traversal stack of one ray: (child reference, entry distance). Allocated once per
 /// chunk of rays and reused.
 pub(crate) type Stack = Vec<(u32, f32)>;
