@@ -22,6 +22,14 @@ pub const ALL_LANES: u32 = (1 << LANES) - 1;
 /// Eight f32 lanes; masks are lanes with all bits set (true) or clear (false).
 pub(crate) trait Lanes: Copy {
     type F: Copy;
+    /// Whether the packet walks are compiled once per ray octant at this level
+    /// (`octant_walk!`): the AVX2 and AVX-512 levels the stages run. The SSE2 and portable
+    /// levels, fallbacks for CPUs without AVX2, walk with the octant read at run time and
+    /// spare the build the copies: `hyrt-cpu`'s release build 57 s against 2m25 with them,
+    /// for SSE2 walks about 5 to 8% slower (one thread, `ray_contest --simd sse2`: the
+    /// teaser's reflections 31 to 33.5 ms single, the dragon's shadow rays 89 to 94 ms in
+    /// packets).
+    const OCTANT_WALKS: bool = false;
     fn splat(x: f32) -> Self::F;
     fn load(a: &[f32; LANES]) -> Self::F;
     fn store(v: Self::F) -> [f32; LANES];
@@ -469,6 +477,7 @@ mod x86 {
 
     impl Lanes for Avx2 {
         type F = __m256;
+        const OCTANT_WALKS: bool = true;
         #[inline(always)]
         fn triangle_lanes(tris: [&TriangleRecord; LANES]) -> [[Self::F; 3]; 3] {
             // SAFETY: see the type's docs; unaligned loads of four in-bounds words of a

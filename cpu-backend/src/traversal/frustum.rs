@@ -72,6 +72,7 @@ use hyrt_core::kernels::texture::SurfaceView;
 
 use super::packet::{octant_near, ClosestLanes, Level, Packet};
 use super::single::Stack;
+use super::ANY_OCTANT;
 use crate::lanes::{Lanes, LANES};
 
 /// The bounds of a packet's rays for the wide node test, per axis: the origin and
@@ -244,8 +245,10 @@ fn lane_range<L: Lanes>(x: L::F, valid: L::F) -> (f32, f32) {
 /// binaries with and without alternated three times, medians of nine rounds): 2 to 3% less
 /// time on every run of the dragon's, the teaser's, Sponza's and the near bunny's primary
 /// rays at AVX-512 (the dragon 42.3 to 41.7 ms, the teaser 41.5 to 40.4) and at AVX2 (the
-/// dragon 44.0 to 43.1 ms), for about 50 seconds more of `hyrt-cpu`'s release build. `O`
-/// is the packet's octant (`packet::packet_octant`, given by the caller's `octant_walk!`).
+/// dragon 44.0 to 43.1 ms). `O`
+/// is the packet's octant (`packet::packet_octant`, given by the caller's `octant_walk!`),
+/// or `ANY_OCTANT` to read it from the packet at run time (the levels without
+/// `Lanes::OCTANT_WALKS`).
 #[inline(always)]
 pub(crate) fn closest_hit<L: Lanes, const O: u8>(
     bvh: &Bvh,
@@ -255,7 +258,7 @@ pub(crate) fn closest_hit<L: Lanes, const O: u8>(
     stack: &mut Stack,
     out: &mut [Option<ClosestHit>],
 ) {
-    let near = octant_near(O);
+    let near = if O == ANY_OCTANT { p.near } else { octant_near(O) };
     let near_is_max = near.map(|i| i >= 4);
     let wide = &bvh.wide;
     let widen = L::splat(1.0 + BVH_CULL_SLACK);

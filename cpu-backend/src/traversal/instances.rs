@@ -35,7 +35,8 @@ use hyrt_core::bvh::{ClosestHit, BVH_CULL_SLACK};
 use hyrt_core::formats::RayRecord;
 use hyrt_core::kernels::texture::SurfaceView;
 
-use super::packet::{self, AnyHitLanes, ClosestHitLanes, ClosestLanes, Level, Occluder, Packet, ANY_OCTANT};
+use super::packet::{self, AnyHitLanes, ClosestHitLanes, ClosestLanes, Level, Occluder, Packet};
+use super::ANY_OCTANT;
 use crate::lanes::{Lanes, LANES};
 
 /// A lane with no ray: an empty interval, which `Packet::new` rejects.

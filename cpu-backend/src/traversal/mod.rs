@@ -149,7 +149,10 @@
 //!   release build ran past 15 minutes. It has since landed in a narrower form: eight
 //!   octant copies of the world-space any-hit walk only, the mixed and non-finite packets
 //!   left to the generic one (`packet::occluded`, `AnyHitLanes`): 5 to 9% less time on
-//!   every scene measured, for about 20 seconds more of release build. Folding the far
+//!   every scene measured. Only the AVX2 and AVX-512 levels compile walks per octant
+//!   (`Lanes::OCTANT_WALKS`; the single rays' too): with the SSE2 and portable fallbacks
+//!   compiled per octant as well, `hyrt-cpu`'s release build took 2m25 on this project's
+//!   2-core host, against 57 s without (1m15 before the packets' octant walks). Folding the far
 //!   planes' `SLAB_FAR_SCALE` into a second inverse direction (`inv * S'`, `S'` two ulps
 //!   above the scale, conservative where the lanes' `t_min >= 0` and `inv * S'` stays
 //!   finite; one multiply less per plane) measured within the noise on the dragon, the far
@@ -178,6 +181,12 @@
 /// well (24 copies; tried before the vertex rows were picked per ray) measured no faster
 /// than the octants alone, at more than twice the compile time. For the packets, see
 /// `packet::occluded`.
+/// The octant parameter of a walk compiled for no one octant: the walk reads the ray's
+/// or the packet's octant at run time (the levels without `Lanes::OCTANT_WALKS`, the
+/// packets whose lanes' signs differ). Octants proper are 0 to 7 (bit `a` set where the
+/// inverse direction's component `a` is negative).
+const ANY_OCTANT: u8 = 8;
+
 macro_rules! octant_walk {
     ($octant:expr, $($walk:ident)::+ ::<$lanes:ty>($($arg:expr),*)) => {
         match $octant {
@@ -1036,9 +1045,10 @@ fn closest_hit_packets<L: Lanes>(
         };
         let coherent = if bvh.wide.is_empty() { None } else { frustum::Frustum::new(&p, extent) };
         match coherent {
-            Some(f) => {
+            Some(f) if L::OCTANT_WALKS => {
                 octant_walk!(packet::packet_octant(&p), frustum::closest_hit::<L>(bvh, view, &p, &f, &mut stack, out))
             }
+            Some(f) => frustum::closest_hit::<L, ANY_OCTANT>(bvh, view, &p, &f, &mut stack, out),
             None => packet::closest_hit(&packet::Level::world(bvh), view, &p, out),
         }
     }

@@ -49,6 +49,7 @@ use hyrt_core::kernels::ray::{permute_axes, WatertightRay, SLAB_FAR_SCALE};
 use hyrt_core::kernels::texture::{alpha_accepts, SurfaceView};
 
 use super::watertight;
+use super::ANY_OCTANT;
 use crate::lanes::{slab_bounds, Lanes, ALL_LANES, LANES};
 
 /// A tree as the packets' leaf tests see it: a single-level [`Bvh`] (its slots hold global
@@ -517,9 +518,6 @@ fn lanes(m: u32) -> Option<u32> {
 /// octant ([`Packet::enter_signed`]).
 pub(super) struct AnyHitLanes<'p, 'a, L: Lanes, const O: u8>(pub &'p Packet<'a, L>);
 
-/// [`AnyHitLanes`]'s octant for packets of any direction signs.
-pub(super) const ANY_OCTANT: u8 = 8;
-
 /// [`Packet::near`] of a packet whose lanes lie in `octant` (bit `a` set where the inverse
 /// direction's component `a` is negative): axis `a`'s near plane is the box maximum, index
 /// `4 + a` of a node read as `[f32; 8]`, where the bit is set, else the minimum, `a`.
@@ -647,9 +645,9 @@ pub(crate) struct Occluder {
 /// the binaries with and without alternated three times, medians of nine rounds): the
 /// dragon 66.7 to 61.9 ms, the far bunny 5.16 to 4.69, the far horse 0.87 to 0.80, the
 /// teaser 51.7 to 47.8 at AVX-512; the dragon 66.6 to 63.3 and Sponza 42.0 to 40.1 at AVX2.
-/// (The octant walks cost the release build of `hyrt-cpu` about 20 seconds, so only the
-/// world-space walk, which every frame's shadow rays take, has them; object-space
-/// instances walk with [`ANY_OCTANT`].)
+/// (Only the world-space walk, which every frame's shadow rays take, has octant copies,
+/// at the levels with `Lanes::OCTANT_WALKS`: object-space instances walk with
+/// [`ANY_OCTANT`], to spare the build.)
 #[inline(always)]
 pub(crate) fn occluded<L: Lanes, const OCTANTS: bool>(
     level: &Level,
@@ -699,7 +697,7 @@ pub(crate) fn occluded<L: Lanes, const OCTANTS: bool>(
             return done;
         }
     }
-    if OCTANTS && !p.mixed && p.finite_inv {
+    if OCTANTS && L::OCTANT_WALKS && !p.mixed && p.finite_inv {
         octant_walk!(packet_octant(p), any_hit_walk::<L>(nodes, p, &mut done, leaf_test));
     } else {
         any_hit_walk::<L, ANY_OCTANT>(nodes, p, &mut done, leaf_test);

@@ -124,15 +124,17 @@ use hyrt_core::kernels::ray::{
 };
 
 use super::watertight::{self, LaneHits, RaySpace};
+use super::ANY_OCTANT;
 use crate::lanes::{slab_bounds, Lanes, LANES};
 
 const _: () = assert!(hyrt_core::bvh::wide::WIDE == LANES);
 
 /// The rows of [`WideNode::planes`] holding axis `a`'s near and far planes for a ray of
-/// octant `O` (the box maximum is the near plane where the inverse direction is negative).
+/// octant `octant` (the box maximum is the near plane where the inverse direction is
+/// negative).
 #[inline(always)]
-const fn near_far_rows<const O: u8>(a: usize) -> (usize, usize) {
-    let negative = O >> a & 1 != 0;
+const fn near_far_rows(octant: u8, a: usize) -> (usize, usize) {
+    let negative = octant >> a & 1 != 0;
     (WideNode::plane_row(a, negative), WideNode::plane_row(a, !negative))
 }
 
@@ -204,15 +206,17 @@ impl<L: Lanes> WideRay<L> {
     }
 
     /// The slab test of the node's children for `[box_t_min, t_far]`: the mask of children
-    /// entered and every lane's entry distance. `O` is the ray's octant.
+    /// entered and every lane's entry distance. `O` is the ray's octant, or
+    /// [`ANY_OCTANT`] to read it from the ray.
     #[inline(always)]
     fn enter<const O: u8>(&self, node: &WideNode, t_far: L::F) -> (u32, [f32; LANES]) {
-        debug_assert_eq!(O, self.octant);
+        debug_assert!(O == ANY_OCTANT || O == self.octant);
+        let octant = if O == ANY_OCTANT { self.octant } else { O };
         let mut tn = [self.box_t_min; 3];
         let mut tf = [t_far; 3];
         let planes = node.planes();
         for a in 0..3 {
-            let (near, far) = near_far_rows::<O>(a);
+            let (near, far) = near_far_rows(octant, a);
             let (near, far) = (&planes[near], &planes[far]);
             tn[a] = L::mul(L::sub(L::load(near), self.origin[a]), self.inv_dir[a]);
             tf[a] = L::mul(L::mul(L::sub(L::load(far), self.origin[a]), self.inv_dir[a]), L::splat(SLAB_FAR_SCALE));
@@ -281,10 +285,14 @@ pub(super) fn push_nearest_last(
 #[inline(always)]
 pub(crate) fn closest_hit<L: Lanes>(wide: &WideBvh, ray: &RayRecord, stack: &mut [(u32, f32)]) -> Option<ClosestHit> {
     let r = WideRay::<L>::new(ray)?;
-    octant_walk!(r.octant, closest_hit_in::<L>(wide, &r, stack))
+    if L::OCTANT_WALKS {
+        octant_walk!(r.octant, closest_hit_in::<L>(wide, &r, stack))
+    } else {
+        closest_hit_in::<L, ANY_OCTANT>(wide, &r, stack)
+    }
 }
 
-/// [`closest_hit`] for a ray of octant `O`.
+/// [`closest_hit`] for a ray of octant `O` (or [`ANY_OCTANT`]).
 #[inline(always)]
 fn closest_hit_in<L: Lanes, const O: u8>(
     wide: &WideBvh,
@@ -378,10 +386,14 @@ pub(crate) fn occluded<L: Lanes>(wide: &WideBvh, ray: &RayRecord, stack: &mut [(
     let Some(r) = WideRay::<L>::new(ray) else {
         return false;
     };
-    octant_walk!(r.octant, occluded_in::<L>(wide, &r, stack))
+    if L::OCTANT_WALKS {
+        octant_walk!(r.octant, occluded_in::<L>(wide, &r, stack))
+    } else {
+        occluded_in::<L, ANY_OCTANT>(wide, &r, stack)
+    }
 }
 
-/// [`occluded`] for a ray of octant `O`.
+/// [`occluded`] for a ray of octant `O` (or [`ANY_OCTANT`]).
 #[inline(always)]
 fn occluded_in<L: Lanes, const O: u8>(wide: &WideBvh, r: &WideRay<L>, stack: &mut [(u32, f32)]) -> bool {
     let t_far = L::splat(r.t_max * (1.0 + BVH_CULL_SLACK));
