@@ -99,7 +99,7 @@ pub(crate) fn occluded<L: Lanes>(
                     if cache.bottom != inst.bottom {
                         *cache = InstanceCache { bottom: inst.bottom, occluder: None };
                     }
-                    packet::occluded::<_, false>(&Level::instance(levels, i), view, &po, &mut cache.occluder)
+                    packet::occluded(&Level::instance(levels, i), view, &po, &mut cache.occluder)
                 }
                 None => {
                     let mut hit = 0;

@@ -147,8 +147,8 @@
 //! * The packets' node test compiled per octant as the single rays' (nine copies of the
 //!   any-hit walk, the mixed case included): not measured then, because `hyrt-cpu`'s
 //!   release build ran past 15 minutes. It has since landed in a narrower form: eight
-//!   octant copies of the world-space any-hit walk only, the mixed and non-finite packets
-//!   left to the generic one (`packet::occluded`, `AnyHitLanes`): 5 to 9% less time on
+//!   octant copies of the any-hit walk, the mixed and non-finite packets left to the
+//!   generic one (`packet::occluded`, `AnyHitLanes`): 5 to 9% less time on
 //!   every scene measured. Only the AVX2 and AVX-512 levels compile walks per octant
 //!   (`Lanes::OCTANT_WALKS`; the single rays' too): with the SSE2 and portable fallbacks
 //!   compiled per octant as well, `hyrt-cpu`'s release build took 2m25 on this project's
@@ -1016,7 +1016,7 @@ fn occluded_packets<L: Lanes>(
             }
             continue;
         };
-        let hit = packet::occluded::<L, true>(&packet::Level::world(bvh), view, &p, &mut cache);
+        let hit = packet::occluded::<L>(&packet::Level::world(bvh), view, &p, &mut cache);
         // A fixed-size array copied out, not a loop over the slice: the loop was vectorized
         // for 64 answers at a time in zmm registers, whose constants every call of the
         // AVX-512 entry point broadcast (Intel lowers the clock for 512-bit work).
