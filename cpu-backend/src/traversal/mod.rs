@@ -152,7 +152,8 @@
 //!   every scene measured. Only the AVX2 and AVX-512 levels compile walks per octant
 //!   (`Lanes::OCTANT_WALKS`; the single rays' too): with the SSE2 and portable fallbacks
 //!   compiled per octant as well, `hyrt-cpu`'s release build took 2m25 on this project's
-//!   2-core host, against 57 s without (1m15 before the packets' octant walks). Folding the far
+//!   2-core host, against 57 s without (1m13 once object-space instances took them too;
+//!   1m15 before the packets' octant walks). Folding the far
 //!   planes' `SLAB_FAR_SCALE` into a second inverse direction (`inv * S'`, `S'` two ulps
 //!   above the scale, conservative where the lanes' `t_min >= 0` and `inv * S'` stays
 //!   finite; one multiply less per plane) measured within the noise on the dragon, the far
