@@ -26,10 +26,9 @@ pub(crate) trait Lanes: Copy {
     /// (`octant_walk!`): the AVX2 and AVX-512 levels the stages run. The SSE2 and portable
     /// levels, fallbacks for CPUs without AVX2, walk with the octant read at run time and
     /// spare the build the copies: `hyrt-cpu`'s release build 57 s against 2m25 with them
-    /// (1m13 since object-space instances take the octant walks too),
-    /// for SSE2 walks about 5 to 8% slower (one thread, `ray_contest --simd sse2`: the
-    /// teaser's reflections 31 to 33.5 ms single, the dragon's shadow rays 89 to 94 ms in
-    /// packets).
+    /// (1m13 since object-space instances take the octant walks too), for SSE2 walks about
+    /// 5 to 8% slower (one thread, `ray_contest --simd sse2`: the teaser's reflections 31 to
+    /// 33.5 ms single, the dragon's shadow rays 89 to 94 ms in packets).
     const OCTANT_WALKS: bool = false;
     fn splat(x: f32) -> Self::F;
     fn load(a: &[f32; LANES]) -> Self::F;

@@ -483,11 +483,12 @@ fn octant_packets_match_scalar() {
         let l = s.normalize();
         let e1 = l.cross(Vec3::Y + Vec3::X * 0.3).normalize();
         let e2 = l.cross(e1);
+        // An n x n grid of offsets across the light's direction, row by row (coherent).
         let n = 32;
+        let across = |k: usize| e1 * ((k % n) as f32 / n as f32 - 0.5) + e2 * ((k / n) as f32 / n as f32 - 0.5);
         let rays: Vec<RayRecord> = (0..n * n)
             .map(|k| {
-                let (u, v) = ((k % n) as f32 / n as f32 - 0.5, (k / n) as f32 / n as f32 - 0.5);
-                let p = (l + (e1 * u + e2 * v) * 2.0).normalize() * 2.0 * (1.0 + 1e-3);
+                let p = (l + across(k) * 2.0).normalize() * 2.0 * (1.0 + 1e-3);
                 ray(p, light - p, 1e-4, 1.0)
             })
             .collect();
@@ -502,8 +503,7 @@ fn octant_packets_match_scalar() {
         // opposite octant.
         let eye_rays: Vec<RayRecord> = (0..n * n)
             .map(|k| {
-                let (u, v) = ((k % n) as f32 / n as f32 - 0.5, (k / n) as f32 / n as f32 - 0.5);
-                let q = l * 2.0 + (e1 * u + e2 * v) * 5.0;
+                let q = l * 2.0 + across(k) * 5.0;
                 ray(light, q - light, 0.0, f32::INFINITY)
             })
             .collect();

@@ -239,16 +239,15 @@ fn lane_range<L: Lanes>(x: L::F, valid: L::F) -> (f32, f32) {
 /// are visited nearest first by the frustum's entry bound; a popped child is skipped when
 /// that bound lies beyond every lane's widened closest hit.
 ///
-/// Compiled once per octant: the frustum's near planes and the leaves'
-/// per-lane box tests ([`Packet::enter_signed`]) read the node's rows at constant offsets.
-/// Measured (AMD EPYC, one thread, `ray_contest --packets-only --kind primary`, the
-/// binaries with and without alternated three times, medians of nine rounds): 2 to 3% less
-/// time on every run of the dragon's, the teaser's, Sponza's and the near bunny's primary
-/// rays at AVX-512 (the dragon 42.3 to 41.7 ms, the teaser 41.5 to 40.4) and at AVX2 (the
-/// dragon 44.0 to 43.1 ms). `O`
-/// is the packet's octant (`packet::packet_octant`, given by the caller's `octant_walk!`),
-/// or `ANY_OCTANT` to read it from the packet at run time (the levels without
-/// `Lanes::OCTANT_WALKS`).
+/// `O` is the packet's octant (`packet::packet_octant`, given by the caller's
+/// `octant_walk!`), or `ANY_OCTANT` to read it from the packet at run time (the levels
+/// without `Lanes::OCTANT_WALKS`). Compiled once per octant, the frustum's near planes and
+/// the leaves' per-lane box tests ([`Packet::enter_signed`]) read the node's rows at
+/// constant offsets. Measured (AMD EPYC, one thread, `ray_contest --packets-only --kind
+/// primary`, the binaries with and without alternated three times, medians of nine
+/// rounds): 2 to 3% less time on every run of the dragon's, the teaser's, Sponza's and the
+/// near bunny's primary rays at AVX-512 (the dragon 42.3 to 41.7 ms, the teaser 41.5 to
+/// 40.4) and at AVX2 (the dragon 44.0 to 43.1 ms).
 #[inline(always)]
 pub(crate) fn closest_hit<L: Lanes, const O: u8>(
     bvh: &Bvh,

@@ -148,13 +148,12 @@
 //!   any-hit walk, the mixed case included): not measured then, because `hyrt-cpu`'s
 //!   release build ran past 15 minutes. It has since landed in a narrower form: eight
 //!   octant copies of the any-hit walk, the mixed and non-finite packets left to the
-//!   generic one (`packet::occluded`, `AnyHitLanes`): 5 to 9% less time on
-//!   every scene measured. Only the AVX2 and AVX-512 levels compile walks per octant
+//!   generic one (`packet::occluded`, `AnyHitLanes`): 5 to 9% less time on every scene
+//!   measured. Only the AVX2 and AVX-512 levels compile walks per octant
 //!   (`Lanes::OCTANT_WALKS`; the single rays' too): with the SSE2 and portable fallbacks
 //!   compiled per octant as well, `hyrt-cpu`'s release build took 2m25 on this project's
 //!   2-core host, against 57 s without (1m13 once object-space instances took them too;
-//!   1m15 before the packets' octant walks). Folding the far
-//!   planes' `SLAB_FAR_SCALE` into a second inverse direction (`inv * S'`, `S'` two ulps
+//!   1m15 before the packets' octant walks). Folding the far planes' `SLAB_FAR_SCALE` into a second inverse direction (`inv * S'`, `S'` two ulps
 //!   above the scale, conservative where the lanes' `t_min >= 0` and `inv * S'` stays
 //!   finite; one multiply less per plane) measured within the noise on the dragon, the far
 //!   bunny, the far horse and the teaser, so the octant walks keep the scalar test's form.
@@ -167,27 +166,27 @@
 //! rayon pool (use [`with_threads`] for a given thread count); results are in ray order
 //! and independent of the thread count.
 
-/// `$walk::<$lanes, O>($args)` for the octant `O` equal to `$octant` (0 to 7): one copy of
-/// each walk per octant (the single rays' `single::WideRay::octant`, the packets'
-/// `packet::packet_octant`), as Embree's and tinybvh's direction-sign kernels, so that the
-/// node test's plane rows are constant offsets rather than per-ray indices held in
-/// registers or reloaded (issue 36, item 3). For the single rays, with the leaf's vertex
-/// rows picked once per ray (`single::WideRay::vertex_rows`) instead of per row, measured
-/// against the walk with per-ray plane rows (AMD EPYC, AVX2, one thread, `ray_contest --singles-only`): callgrind
-/// instructions per ray 1,326 to 1,013 on the near bunny's shadow rays and 3,808 to 3,174 on
-/// the teaser's reflection and refraction rays; time (the two binaries alternated three
-/// times, medians of seven rounds) the dragon's shadow rays 193 to 152 ms, the teaser's 231
-/// to 189, the near bunny's 28.0 to 22.3, the far horse's 1.75 to 1.46, the teaser's
-/// reflections and refractions 49.5 to 43.3. Specialising on the permutation axis `kz` as
-/// well (24 copies; tried before the vertex rows were picked per ray) measured no faster
-/// than the octants alone, at more than twice the compile time. For the packets, see
-/// `packet::occluded`.
 /// The octant parameter of a walk compiled for no one octant: the walk reads the ray's
 /// or the packet's octant at run time (the levels without `Lanes::OCTANT_WALKS`, the
 /// packets whose lanes' signs differ). Octants proper are 0 to 7 (bit `a` set where the
 /// inverse direction's component `a` is negative).
 const ANY_OCTANT: u8 = 8;
 
+/// `$walk::<$lanes, O>($args)` for the octant `O` equal to `$octant` (0 to 7): one copy of
+/// each walk per octant (the single rays' `single::WideRay::octant`, the packets'
+/// `packet::packet_octant`), as Embree's and tinybvh's direction-sign kernels, so that the
+/// node test's plane rows are constant offsets rather than per-ray indices held in
+/// registers or reloaded (issue 36, item 3). For the single rays, with the leaf's vertex
+/// rows picked once per ray (`single::WideRay::vertex_rows`) instead of per row, measured
+/// against the walk with per-ray plane rows (AMD EPYC, AVX2, one thread, `ray_contest
+/// --singles-only`): callgrind instructions per ray 1,326 to 1,013 on the near bunny's
+/// shadow rays and 3,808 to 3,174 on the teaser's reflection and refraction rays; time
+/// (the two binaries alternated three times, medians of seven rounds) the dragon's shadow
+/// rays 193 to 152 ms, the teaser's 231 to 189, the near bunny's 28.0 to 22.3, the far
+/// horse's 1.75 to 1.46, the teaser's reflections and refractions 49.5 to 43.3. Specialising on the permutation axis `kz` as
+/// well (24 copies; tried before the vertex rows were picked per ray) measured no faster
+/// than the octants alone, at more than twice the compile time. For the packets, see
+/// `packet::occluded`.
 macro_rules! octant_walk {
     ($octant:expr, $($walk:ident)::+ ::<$lanes:ty>($($arg:expr),*)) => {
         match $octant {

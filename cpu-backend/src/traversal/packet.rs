@@ -639,9 +639,9 @@ pub(crate) struct Occluder {
 /// At the levels with `Lanes::OCTANT_WALKS`, a packet whose lanes share the signs of their
 /// directions and have finite inverse directions (the usual case: [`Packet::mixed`] and
 /// [`Packet::finite_inv`]) walks with a node test compiled for its octant ([`AnyHitLanes`]
-/// of that octant), the others with [`ANY_OCTANT`]. The same node tests, operation for operation; the octant's plane
-/// offsets are constants and the tests for mixed signs and infinite inverses are gone from
-/// the walk. Measured (AMD EPYC, one thread, `ray_contest --packets-only --kind shadow`,
+/// of that octant), the others with [`ANY_OCTANT`]. The same node tests, operation for
+/// operation; the octant's plane offsets are constants and the tests for mixed signs and
+/// infinite inverses are gone from the walk. Measured (AMD EPYC, one thread, `ray_contest --packets-only --kind shadow`,
 /// the binaries with and without alternated three times, medians of nine rounds): the
 /// dragon 66.7 to 61.9 ms, the far bunny 5.16 to 4.69, the far horse 0.87 to 0.80, the
 /// teaser 51.7 to 47.8 at AVX-512; the dragon 66.6 to 63.3 and Sponza 42.0 to 40.1 at AVX2.
