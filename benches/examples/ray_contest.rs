@@ -9,7 +9,7 @@
 //! ```text
 //! cargo run --release -p hyrt-benches --features embree --example ray_contest -- \
 //!     [--threads N] [--rounds N] [--passes N] [--simd avx2|avx512|sse2|portable] [--kind shadow|primary|both|bounce]
-//!     [--packets-only | --singles-only] [--with-avx2] [--with-auto] SCENE...
+//!     [--packets-only | --singles-only | --embree-only] [--with-avx2] [--with-auto] SCENE...
 //! ```
 //!
 //! The contenders run in a pool whose workers are pinned one per CPU
@@ -28,7 +28,8 @@
 //! with mirrors or glass only) instead.
 //!
 //! `--packets-only` times hyrt's packets alone (no Embree, no single rays), `--singles-only`
-//! its single rays alone: for profiling.
+//! its single rays alone, `--embree-only` Embree's packets alone: for profiling (e.g.
+//! `valgrind --tool=callgrind --toggle-collect=rtcIntersect8`).
 //! SCENE is a manifest name of `assets/scenes` (teaser, sponza, horse_near, horse_far,
 //! bunny_near, bunny_far, dragon); `all` is all of them.
 
@@ -60,6 +61,8 @@ struct Args {
     packets_only: bool,
     /// Only hyrt's single rays (for profiling them alone).
     singles_only: bool,
+    /// Only Embree's runs (for profiling the peer alone).
+    embree_only: bool,
     /// At the AVX-512 level, also each traversal at AVX2.
     with_avx2: bool,
     /// Also the stages' measured traversals (`packet-auto`, `single-auto`).
@@ -77,6 +80,7 @@ fn parse() -> Result<Args, String> {
         scenes: Vec::new(),
         packets_only: false,
         singles_only: false,
+        embree_only: false,
         with_avx2: false,
         with_auto: false,
     };
@@ -101,6 +105,7 @@ fn parse() -> Result<Args, String> {
             },
             "--packets-only" => a.packets_only = true,
             "--singles-only" => a.singles_only = true,
+            "--embree-only" => a.embree_only = true,
             "--with-avx2" => a.with_avx2 = true,
             "--with-auto" => a.with_auto = true,
             "all" => a.scenes.extend(ALL.iter().map(|s| s.to_string())),
@@ -220,7 +225,9 @@ fn main() {
     println!("SIMD level {}, {} threads, {} rounds", level.name(), args.threads, args.rounds);
     println!("Embree: {}", hyrt_benches::bench::peers::embree_peer());
     let pool = hyrt_benches::bench::peers::contest_pool(args.threads);
-    let mut hyrt = if args.packets_only {
+    let mut hyrt = if args.embree_only {
+        Vec::new()
+    } else if args.packets_only {
         vec![Traversal::Packet(level)]
     } else if args.singles_only {
         vec![Traversal::Single(level)]
