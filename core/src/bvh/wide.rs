@@ -4,17 +4,34 @@
 //! triangles as structure of arrays ([`WideLeaf`]: one ray against all of a leaf's
 //! triangles at once).
 //!
-//! Built by collapsing the binary tree top down (after Wald et al. 2008, "Getting rid of
-//! packets", and Ylitie et al. 2017): a wide node starts from its binary node's two
-//! children and repeatedly replaces the inner child with the largest surface area by its
-//! two children, until it has [`WIDE`] children or none left to open. A binary subtree
-//! holding at most [`WIDE`] triangles is not opened: it becomes one wide leaf (its slots
-//! are adjacent, the tree being depth first), tested in one go with its root's box. That
-//! fills the lanes of the leaf test (the teaser's binary leaves hold 4 triangles on
-//! average) and removes the narrow wide nodes that held only two small leaves.
+//! Built by collapsing the binary tree with the surface area heuristic, optimally for it
+//! (Ylitie et al. 2017, "Efficient incoherent ray traversal on GPUs through compressed wide
+//! BVHs", section 4): every child of a wide node is a binary node, either a wide node of
+//! its own or a wide leaf (a binary subtree of at most [`WIDE`] triangles: its slots are
+//! adjacent, the tree being depth first, and its triangles are tested in one go under its
+//! root's box). A dynamic program over the binary tree, children before parents, gives
+//! each subtree's least cost as at most `i` children of a wide node, `i` from 1 to
+//! [`WIDE`]: a wide node costs its box's area, a wide leaf [`WIDE_LEAF_COST`] times its
+//! box's area (the 8-lane leaf test costs the same for one triangle or eight); the root's
+//! plan is then read back top down ([`SahPlan`]).
 //!
-//! Smaller wide leaves (subtrees of at most 4 triangles merged instead of 8, issue 36's
-//! "small leaves") measured slower for the single rays on this 8-lane leaf test (AMD EPYC,
+//! It replaced a greedy collapse (Wald et al. 2008, "Getting rid of packets": each wide
+//! node repeatedly opens its inner child of largest area, every subtree of at most
+//! [`WIDE`] triangles one leaf), which merged subtrees whose triangles lie far apart into
+//! one large leaf box and opened nodes by area alone: the plan's surface area cost is 2
+//! to 10% lower on the test grids. Measured (AMD EPYC, one thread, `ray_contest`, medians
+//! of 9 to 15 rounds, ms; the two collapses switched in one binary and alternated, then
+//! the final binary against the previous one): the teaser's reflection and refraction
+//! rays (single rays) 24.8 to 25.8 against 25.9 to 27.7 at AVX-512 (final binary: 26.0
+//! against 26.7 to 26.9, three alternations; two threads, against Embree's best, 0.96 to
+//! 1.01 against 0.95), 25.9 to 26.1 against 26.5 to 27.3 at AVX2; single-ray shadow rays:
+//! the teaser 106.8 to 110.4 against 112.0 to 114.0, the near horse 7.95 to 8.02 against
+//! 8.38 to 8.52, the dragon 87.6 to 88.1 against 86.3 to 86.7; primary rays (frustum
+//! packets) within the noise, the dragon 40.9 to 41.4 against 42.1 to 42.8. The leaf cost
+//! was measured from 0.6 to 2.5 ([`WIDE_LEAF_COST`]).
+//!
+//! Smaller wide leaves (with the greedy collapse: subtrees of at most 4 triangles merged
+//! instead of 8, issue 36's "small leaves") measured slower for the single rays on this 8-lane leaf test (AMD EPYC,
 //! AVX2, one thread, `ray_contest --singles-only`, the two alternated three times on a
 //! noisy host): the dragon's shadow rays 197 to 212 ms against 170 to 212, the far
 //! bunny's 12.3 to 14.6 against 10.9 to 12.1; the teaser's reflection rays within the
@@ -50,6 +67,13 @@ pub const WIDE_LEAF_INDEX_BITS: u32 = 28;
 const INDEX_MASK: u32 = (1 << WIDE_LEAF_INDEX_BITS) - 1;
 const _: () = assert!(BVH_MAX_LEAF_SIZE as usize <= 1 << (31 - WIDE_LEAF_INDEX_BITS));
 const _: () = assert!(BVH_MAX_LEAF_SIZE as usize <= WIDE);
+
+/// The cost of a wide leaf per unit of box area, relative to a wide node's, in the
+/// collapse's surface area heuristic: 1, one 8-lane leaf test (five cache lines) costing
+/// about a node test (four). Measured on the teaser's reflection rays (AMD EPYC, one
+/// thread, `ray_contest --singles-only --kind bounce`): flat from 0.6 to 1.2 (25.3 to 25.8
+/// ms), 2.5 slower (25.7 to 27.6).
+pub const WIDE_LEAF_COST: f32 = 1.0;
 
 /// Entries of a single-ray traversal stack over a wide tree of binary depth at most
 /// [`BVH_STACK_SIZE`](super::BVH_STACK_SIZE): a wide level consumes at least one binary
@@ -200,6 +224,95 @@ fn subtree_slots(nodes: &[BvhNode]) -> Vec<Option<(u32, u32)>> {
     ranges
 }
 
+/// The collapse's plan (see the module docs): for every binary node `b` and slot count `i`
+/// (1 to [`WIDE`]), the least cost of `b`'s subtree as at most `i` children of a wide node,
+/// and how it is reached.
+struct SahPlan {
+    /// `cost[b][i - 1]`.
+    cost: Vec<[f32; WIDE]>,
+    /// `split[b][i - 1]`: 0 for `b` itself as one child (see `leaf`), else `j`: `b`'s left
+    /// binary child as at most `j` children and its right one as at most `i - j`.
+    split: Vec<[u8; WIDE]>,
+    /// `b` as one child: a wide leaf (true), or a wide node whose [`WIDE`] slots go
+    /// `inner[b]` to the left binary child and the rest to the right one.
+    leaf: Vec<bool>,
+    inner: Vec<u8>,
+}
+
+impl SahPlan {
+    /// The plan of `nodes` (children after their parents), `ranges` their subtrees' slots
+    /// ([`subtree_slots`]), a wide leaf costing `leaf_cost` times its area.
+    fn new(nodes: &[BvhNode], ranges: &[Option<(u32, u32)>], leaf_cost: f32) -> SahPlan {
+        let n = nodes.len();
+        let mut p =
+            SahPlan { cost: vec![[0.0; WIDE]; n], split: vec![[0; WIDE]; n], leaf: vec![false; n], inner: vec![0; n] };
+        for b in (0..n).rev() {
+            // Boxes of giant extent overflow the area (an infinite or, flat, a NaN product):
+            // their costs are infinite and the plan still valid, if not the best.
+            let area = half_area(&nodes[b]);
+            let area = if area.is_nan() { f32::INFINITY } else { area };
+            if nodes[b].is_leaf() {
+                p.cost[b] = [leaf_cost * area; WIDE];
+                p.leaf[b] = true;
+                continue;
+            }
+            let (l, r) = (nodes[b].left_or_first as usize, nodes[b].left_or_first as usize + 1);
+            let (cl, cr) = (p.cost[l], p.cost[r]);
+            // The best split of `i` slots between the two children: (cost, left share).
+            let best = |i: usize| {
+                let mut best = (cl[0] + cr[i - 2], 1);
+                for j in 2..i {
+                    let c = cl[j - 1] + cr[i - j - 1];
+                    if c < best.0 {
+                        best = (c, j);
+                    }
+                }
+                best
+            };
+            let (below, j) = best(WIDE);
+            let node = area + below;
+            let fits = ranges[b].is_some_and(|(_, count)| count as usize <= WIDE);
+            let leaf = if fits { leaf_cost * area } else { f32::INFINITY };
+            let one = leaf.min(node);
+            p.leaf[b] = fits && leaf <= node;
+            p.inner[b] = j as u8;
+            p.cost[b][0] = one;
+            for i in 2..=WIDE {
+                let (c, j) = best(i);
+                (p.cost[b][i - 1], p.split[b][i - 1]) = if c < one { (c, j as u8) } else { (one, 0) };
+            }
+        }
+        p
+    }
+
+    /// The children of the wide node made of binary node `b`, in depth-first order, each
+    /// with whether it is a leaf. A root that is a wide leaf makes a wide root with one
+    /// child.
+    fn children(&self, nodes: &[BvhNode], b: usize) -> Vec<(usize, bool)> {
+        if self.leaf[b] {
+            return vec![(b, true)];
+        }
+        let mut out = Vec::with_capacity(WIDE);
+        let l = nodes[b].left_or_first as usize;
+        let j = self.inner[b] as usize;
+        self.emit(nodes, l, j, &mut out);
+        self.emit(nodes, l + 1, WIDE - j, &mut out);
+        out
+    }
+
+    /// The children that binary node `b` becomes with at most `i` slots.
+    fn emit(&self, nodes: &[BvhNode], b: usize, i: usize, out: &mut Vec<(usize, bool)>) {
+        match self.split[b][i - 1] as usize {
+            0 => out.push((b, self.leaf[b])),
+            j => {
+                let l = nodes[b].left_or_first as usize;
+                self.emit(nodes, l, j, out);
+                self.emit(nodes, l + 1, i - j, out);
+            }
+        }
+    }
+}
+
 /// Surface area of a binary node's box (half of it: only compared).
 fn half_area(n: &BvhNode) -> f32 {
     let e = n.max() - n.min();
@@ -214,14 +327,13 @@ impl WideBvh {
             return WideBvh::default();
         }
         let ranges = subtree_slots(nodes);
-        // A binary node becomes a wide leaf when its subtree's triangles fit one leaf.
-        let is_leaf = |b: usize| ranges[b].is_some_and(|(_, count)| count as usize <= WIDE);
+        let plan = SahPlan::new(nodes, &ranges, WIDE_LEAF_COST);
         let mut wide: Vec<WideNode> = vec![WideNode::zeroed()];
         let (mut leaves, mut first_slots) = (Vec::new(), Vec::new());
         // (binary node, wide node to fill), depth first.
         let mut todo = vec![(0usize, 0usize)];
         while let Some((b, w)) = todo.pop() {
-            let children = Self::expand(nodes, b, &is_leaf);
+            let children = plan.children(nodes, b);
             let mut node = WideNode {
                 lo: [[f32::INFINITY; WIDE]; 3],
                 hi: [[f32::NEG_INFINITY; WIDE]; 3],
@@ -230,14 +342,14 @@ impl WideBvh {
                 pad: [0; 7],
             };
             let mut inner = Vec::new();
-            for (k, &c) in children.iter().enumerate() {
+            for (k, &(c, leaf)) in children.iter().enumerate() {
                 let n = &nodes[c];
                 for a in 0..3 {
                     node.lo[a][k] = n.aabb_min[a];
                     node.hi[a][k] = n.aabb_max[a];
                 }
                 node.child[k] = match ranges[c] {
-                    Some((first, count)) if is_leaf(c) => {
+                    Some((first, count)) if leaf => {
                         let r = WideChild::Leaf { leaf: leaves.len() as u32, count };
                         leaves.push(WideLeaf::new(bvh, first, count));
                         first_slots.push(first);
@@ -259,32 +371,6 @@ impl WideBvh {
             todo.extend(inner.into_iter().rev());
         }
         WideBvh { nodes: wide, leaves, first_slots }
-    }
-
-    /// The binary nodes that become the children of the wide node of binary node `b`, in
-    /// depth-first order. A root that is a wide leaf becomes a wide root with one child.
-    fn expand(nodes: &[BvhNode], b: usize, is_leaf: &impl Fn(usize) -> bool) -> Vec<usize> {
-        if is_leaf(b) {
-            return vec![b];
-        }
-        let l = nodes[b].left_or_first as usize;
-        let mut children = vec![l, l + 1];
-        while children.len() < WIDE {
-            // The inner child with the largest area (the first of equals).
-            let mut best: Option<(usize, f32)> = None;
-            for (k, &c) in children.iter().enumerate() {
-                if !is_leaf(c) {
-                    let a = half_area(&nodes[c]);
-                    if best.is_none_or(|(_, b)| a > b) {
-                        best = Some((k, a));
-                    }
-                }
-            }
-            let Some((k, _)) = best else { break };
-            let l = nodes[children[k]].left_or_first as usize;
-            children.splice(k..=k, [l, l + 1]);
-        }
-        children
     }
 
     /// True if there is no wide view (use the binary tree).
@@ -438,8 +524,10 @@ mod tests {
     }
 
     /// Every preset, from one triangle (a leaf root) to a few thousand: the view validates
-    /// against its tree, nodes are wide, and subtrees of at most `WIDE` triangles are one
-    /// leaf (no wide node has only leaves that could have been one).
+    /// against its tree, nodes are wide, a tree of at most `WIDE` triangles is one leaf,
+    /// and the view's surface area cost is the plan's least cost, at most that of the
+    /// greedy collapse it replaced (each node opening its inner child of largest area,
+    /// every subtree of at most `WIDE` triangles one leaf).
     #[test]
     fn collapsed_views_validate_and_merge_small_subtrees() {
         for n in [1, 2, 7, 8, 9, 100, 3000] {
@@ -454,21 +542,87 @@ mod tests {
                     assert_eq!((wide.nodes.len(), wide.leaves.len()), (1, 1), "{n} triangles, {preset:?}");
                     assert_eq!(wide.nodes[0].count, 1);
                 }
-                for node in &wide.nodes {
-                    let leaf_slots: u32 = (0..node.count as usize)
-                        .map(|k| match WideChild::decode(node.child[k]) {
-                            WideChild::Leaf { count, .. } => count,
-                            WideChild::Node(_) => u32::MAX / 16,
-                        })
-                        .sum();
-                    assert!(node.count == 1 || leaf_slots as usize > WIDE, "{n} triangles, {preset:?}: {node:?}");
-                }
+                let plan = SahPlan::new(&bvh.nodes, &subtree_slots(&bvh.nodes), WIDE_LEAF_COST);
+                let (got, want) = (view_cost(wide), plan.cost[0][0]);
+                // The plan sums children first, the view node by node: rounding apart.
+                let close = |a: f32, b: f32| (a - b).abs() <= 1e-4 * b.abs().max(1e-30);
+                assert!(close(got, want), "{n} triangles, {preset:?}: view cost {got}, plan {want}");
+                let greedy = greedy_cost(&bvh);
+                assert!(want <= greedy * (1.0 + 1e-4), "{n} triangles, {preset:?}: {want} > greedy {greedy}");
                 if n == 3000 {
                     let children: u32 = wide.nodes.iter().map(|w| w.count).sum();
                     assert!(children as f32 / wide.nodes.len() as f32 > 3.0, "{preset:?}: narrow nodes");
                 }
             }
         }
+    }
+
+    /// The surface area cost of a wide view as [`SahPlan`] counts it: each wide node but the
+    /// root its box's area (the root's binary node's, summed over its children's planes
+    /// here as the union), each leaf `WIDE_LEAF_COST` times its box's area.
+    fn view_cost(wide: &WideBvh) -> f32 {
+        let area = |lo: Vec3, hi: Vec3| {
+            let e = hi - lo;
+            e.x * e.y + e.y * e.z + e.z * e.x
+        };
+        let mut cost = 0.0;
+        let mut todo = vec![(0usize, None)];
+        while let Some((w, own)) = todo.pop() {
+            let node = &wide.nodes[w];
+            let mut union = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+            for k in 0..node.count as usize {
+                let lo = Vec3::new(node.lo[0][k], node.lo[1][k], node.lo[2][k]);
+                let hi = Vec3::new(node.hi[0][k], node.hi[1][k], node.hi[2][k]);
+                union = (union.0.min(lo), union.1.max(hi));
+                match WideChild::decode(node.child[k]) {
+                    WideChild::Leaf { .. } => cost += WIDE_LEAF_COST * area(lo, hi),
+                    WideChild::Node(c) => todo.push((c as usize, Some(area(lo, hi)))),
+                }
+            }
+            // A wide root with one leaf child is that leaf; otherwise the root's own box.
+            let leaf_root = node.count == 1 && matches!(WideChild::decode(node.child[0]), WideChild::Leaf { .. });
+            cost += own.unwrap_or(if leaf_root { 0.0 } else { area(union.0, union.1) });
+        }
+        cost
+    }
+
+    /// The cost of the greedy collapse the plan replaced.
+    fn greedy_cost(bvh: &Bvh) -> f32 {
+        let nodes = &bvh.nodes;
+        let ranges = subtree_slots(nodes);
+        let is_leaf = |b: usize| ranges[b].is_some_and(|(_, count)| count as usize <= WIDE);
+        if is_leaf(0) {
+            return WIDE_LEAF_COST * half_area(&nodes[0]);
+        }
+        let mut cost = 0.0;
+        let mut todo = vec![0usize];
+        while let Some(b) = todo.pop() {
+            cost += half_area(&nodes[b]);
+            let l = nodes[b].left_or_first as usize;
+            let mut children = vec![l, l + 1];
+            while children.len() < WIDE {
+                let inner = children.iter().enumerate().filter(|&(_, &c)| !is_leaf(c));
+                let best = inner.fold(None, |best: Option<(usize, f32)>, (k, &c)| {
+                    let a = half_area(&nodes[c]);
+                    if best.is_none_or(|(_, b)| a > b) {
+                        Some((k, a))
+                    } else {
+                        best
+                    }
+                });
+                let Some((k, _)) = best else { break };
+                let l = nodes[children[k]].left_or_first as usize;
+                children.splice(k..=k, [l, l + 1]);
+            }
+            for c in children {
+                if is_leaf(c) {
+                    cost += WIDE_LEAF_COST * half_area(&nodes[c]);
+                } else {
+                    todo.push(c);
+                }
+            }
+        }
+        cost
     }
 
     #[test]
