@@ -13,7 +13,7 @@
 //! each subtree's least cost as at most `i` children of a wide node, `i` from 1 to
 //! [`WIDE`]: a wide node costs its box's area, a wide leaf [`WIDE_LEAF_COST`] times its
 //! box's area (the 8-lane leaf test costs the same for one triangle or eight); the root's
-//! plan is then read back top down ([`SahPlan`]).
+//! plan is then read back top down (`SahPlan`).
 //!
 //! It replaced a greedy collapse (Wald et al. 2008, "Getting rid of packets": each wide
 //! node repeatedly opens its inner child of largest area, every subtree of at most
