@@ -36,13 +36,14 @@
 //! dragon's 78 ms (423,265).
 //!
 //! Smaller wide leaves (with the greedy collapse: subtrees of at most 4 triangles merged
-//! instead of 8, issue 36's "small leaves") measured slower for the single rays on this 8-lane leaf test (AMD EPYC,
-//! AVX2, one thread, `ray_contest --singles-only`, the two alternated three times on a
-//! noisy host): the dragon's shadow rays 197 to 212 ms against 170 to 212, the far
-//! bunny's 12.3 to 14.6 against 10.9 to 12.1; the teaser's reflection rays within the
-//! noise. A 4-triangle leaf fills half the lanes of the test it costs. Leaves storing only
-//! their used lanes, and child boxes quantized to bytes (nodes of two lines), were measured
-//! too and not kept: see the single-ray walk's docs in `hyrt-cpu` (`traversal::single`).
+//! instead of 8, issue 36's "small leaves") measured slower for the single rays on this
+//! 8-lane leaf test (AMD EPYC, AVX2, one thread, `ray_contest --singles-only`, the two
+//! alternated three times on a noisy host): the dragon's shadow rays 197 to 212 ms against
+//! 170 to 212, the far bunny's 12.3 to 14.6 against 10.9 to 12.1; the teaser's reflection
+//! rays within the noise. A 4-triangle leaf fills half the lanes of the test it costs.
+//! Leaves storing only their used lanes, and child boxes quantized to bytes (nodes of two
+//! lines), were measured too and not kept: see the single-ray walk's docs in `hyrt-cpu`
+//! (`traversal::single`).
 //!
 //! Children keep the binary tree's depth-first order, and wide nodes are numbered depth
 //! first, so the layout keeps the binary tree's locality. No box is recomputed: every
@@ -320,7 +321,12 @@ impl SahPlan {
 
 /// Surface area of a binary node's box (half of it: only compared).
 fn half_area(n: &BvhNode) -> f32 {
-    let e = n.max() - n.min();
+    box_half_area(n.min(), n.max())
+}
+
+/// Half the surface area of the box from `lo` to `hi`.
+fn box_half_area(lo: glam::Vec3, hi: glam::Vec3) -> f32 {
+    let e = hi - lo;
     e.x * e.y + e.y * e.z + e.z * e.x
 }
 
@@ -566,10 +572,7 @@ mod tests {
     /// root its box's area (the root's binary node's, summed over its children's planes
     /// here as the union), each leaf `WIDE_LEAF_COST` times its box's area.
     fn view_cost(wide: &WideBvh) -> f32 {
-        let area = |lo: Vec3, hi: Vec3| {
-            let e = hi - lo;
-            e.x * e.y + e.y * e.z + e.z * e.x
-        };
+        let area = box_half_area;
         let mut cost = 0.0;
         let mut todo = vec![(0usize, None)];
         while let Some((w, own)) = todo.pop() {

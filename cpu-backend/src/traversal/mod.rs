@@ -153,10 +153,11 @@
 //!   (`Lanes::OCTANT_WALKS`; the single rays' too): with the SSE2 and portable fallbacks
 //!   compiled per octant as well, `hyrt-cpu`'s release build took 2m25 on this project's
 //!   2-core host, against 57 s without (1m13 once object-space instances took them too;
-//!   1m15 before the packets' octant walks). Folding the far planes' `SLAB_FAR_SCALE` into a second inverse direction (`inv * S'`, `S'` two ulps
-//!   above the scale, conservative where the lanes' `t_min >= 0` and `inv * S'` stays
-//!   finite; one multiply less per plane) measured within the noise on the dragon, the far
-//!   bunny, the far horse and the teaser, so the octant walks keep the scalar test's form.
+//!   1m15 before the packets' octant walks). Folding the far planes' `SLAB_FAR_SCALE` into
+//!   a second inverse direction (`inv * S'`, `S'` two ulps above the scale, conservative
+//!   where the lanes' `t_min >= 0` and `inv * S'` stays finite; one multiply less per
+//!   plane) measured within the noise on the dragon, the far bunny, the far horse and the
+//!   teaser, so the octant walks keep the scalar test's form.
 //! * Slab distances as one fused multiply-add per plane, `plane * inv + offset` with the
 //!   offset `-origin * inv` per lane (Embree's form), in the octant walks (AVX2 with FMA,
 //!   AVX-512). Unguarded, it is not conservative: the offset's rounding (up to `u |origin *
@@ -199,25 +200,36 @@ const ANY_OCTANT: u8 = 8;
 /// rows picked once per ray (`single::WideRay::vertex_rows`) instead of per row, measured
 /// against the walk with per-ray plane rows (AMD EPYC, AVX2, one thread, `ray_contest
 /// --singles-only`): callgrind instructions per ray 1,326 to 1,013 on the near bunny's
-/// shadow rays and 3,808 to 3,174 on the teaser's reflection and refraction rays; time
-/// (the two binaries alternated three times, medians of seven rounds) the dragon's shadow
-/// rays 193 to 152 ms, the teaser's 231 to 189, the near bunny's 28.0 to 22.3, the far
-/// horse's 1.75 to 1.46, the teaser's reflections and refractions 49.5 to 43.3. Specialising on the permutation axis `kz` as
-/// well (24 copies; tried before the vertex rows were picked per ray) measured no faster
-/// than the octants alone, at more than twice the compile time. For the packets, see
-/// `packet::occluded`.
+/// shadow rays and 3,808 to 3,174 on the teaser's reflection and refraction rays; time (the
+/// two binaries alternated three times, medians of seven rounds) the dragon's shadow rays
+/// 193 to 152 ms, the teaser's 231 to 189, the near bunny's 28.0 to 22.3, the far horse's
+/// 1.75 to 1.46, the teaser's reflections and refractions 49.5 to 43.3. Specialising on the
+/// permutation axis `kz` as well (24 copies; tried before the vertex rows were picked per
+/// ray) measured no faster than the octants alone, at more than twice the compile time. For
+/// the packets, see `packet::occluded`.
+///
+/// At the levels without `Lanes::OCTANT_WALKS`, or where the optional condition of
+/// `octant_walk!(if $cond => $octant, ...)` is false (`$octant` is then not evaluated), the
+/// one walk of [`ANY_OCTANT`] instead.
 macro_rules! octant_walk {
-    ($octant:expr, $($walk:ident)::+ ::<$lanes:ty>($($arg:expr),*)) => {
-        match $octant {
-            0 => $($walk)::+::<$lanes, 0>($($arg),*),
-            1 => $($walk)::+::<$lanes, 1>($($arg),*),
-            2 => $($walk)::+::<$lanes, 2>($($arg),*),
-            3 => $($walk)::+::<$lanes, 3>($($arg),*),
-            4 => $($walk)::+::<$lanes, 4>($($arg),*),
-            5 => $($walk)::+::<$lanes, 5>($($arg),*),
-            6 => $($walk)::+::<$lanes, 6>($($arg),*),
-            _ => $($walk)::+::<$lanes, 7>($($arg),*),
+    (if $cond:expr => $octant:expr, $($walk:ident)::+ ::<$lanes:ty>($($arg:expr),*)) => {
+        if <$lanes as $crate::lanes::Lanes>::OCTANT_WALKS && $cond {
+            match $octant {
+                0 => $($walk)::+::<$lanes, 0>($($arg),*),
+                1 => $($walk)::+::<$lanes, 1>($($arg),*),
+                2 => $($walk)::+::<$lanes, 2>($($arg),*),
+                3 => $($walk)::+::<$lanes, 3>($($arg),*),
+                4 => $($walk)::+::<$lanes, 4>($($arg),*),
+                5 => $($walk)::+::<$lanes, 5>($($arg),*),
+                6 => $($walk)::+::<$lanes, 6>($($arg),*),
+                _ => $($walk)::+::<$lanes, 7>($($arg),*),
+            }
+        } else {
+            $($walk)::+::<$lanes, { $crate::traversal::ANY_OCTANT }>($($arg),*)
         }
+    };
+    ($octant:expr, $($walk:ident)::+ ::<$lanes:ty>($($arg:expr),*)) => {
+        octant_walk!(if true => $octant, $($walk)::+::<$lanes>($($arg),*))
     };
 }
 
@@ -1064,10 +1076,9 @@ fn closest_hit_packets<L: Lanes>(
         };
         let coherent = if bvh.wide.is_empty() { None } else { frustum::Frustum::new(&p, extent) };
         match coherent {
-            Some(f) if L::OCTANT_WALKS => {
+            Some(f) => {
                 octant_walk!(packet::packet_octant(&p), frustum::closest_hit::<L>(bvh, view, &p, &f, &mut stack, out))
             }
-            Some(f) => frustum::closest_hit::<L, ANY_OCTANT>(bvh, view, &p, &f, &mut stack, out),
             None => packet::closest_hit(&packet::Level::world(bvh), view, &p, out),
         }
     }

@@ -641,15 +641,15 @@ pub(crate) struct Occluder {
 /// [`Packet::finite_inv`]) walks with a node test compiled for its octant ([`AnyHitLanes`]
 /// of that octant), the others with [`ANY_OCTANT`]. The same node tests, operation for
 /// operation; the octant's plane offsets are constants and the tests for mixed signs and
-/// infinite inverses are gone from the walk. Measured (AMD EPYC, one thread, `ray_contest --packets-only --kind shadow`,
-/// the binaries with and without alternated three times, medians of nine rounds): the
-/// dragon 66.7 to 61.9 ms, the far bunny 5.16 to 4.69, the far horse 0.87 to 0.80, the
-/// teaser 51.7 to 47.8 at AVX-512; the dragon 66.6 to 63.3 and Sponza 42.0 to 40.1 at AVX2.
-/// Object-space instances (`instances::occluded`) take the octant walks too: the paper's
-/// frame of the teaser with its bunny moving, two levels against the flat scene (staged
-/// executor, `moving_report --no-gpu --frames 9`, the binaries alternated three times)
-/// 1.14 to 1.16 against 1.18 to 1.24, the 16 moving bunnies 1.09 to 1.12 against 1.12 to
-/// 1.13.
+/// infinite inverses are gone from the walk. Measured (AMD EPYC, one thread, `ray_contest
+/// --packets-only --kind shadow`, the binaries with and without alternated three times,
+/// medians of nine rounds): the dragon 66.7 to 61.9 ms, the far bunny 5.16 to 4.69, the far
+/// horse 0.87 to 0.80, the teaser 51.7 to 47.8 at AVX-512; the dragon 66.6 to 63.3 and
+/// Sponza 42.0 to 40.1 at AVX2. Object-space instances (`instances::occluded`) take the
+/// octant walks too: the paper's frame of the teaser with its bunny moving, two levels
+/// against the flat scene (staged executor, `moving_report --no-gpu --frames 9`, the
+/// binaries alternated three times) 1.14 to 1.16 against 1.18 to 1.24, the 16 moving
+/// bunnies 1.09 to 1.12 against 1.12 to 1.13.
 #[inline(always)]
 pub(crate) fn occluded<L: Lanes>(
     level: &Level,
@@ -699,11 +699,7 @@ pub(crate) fn occluded<L: Lanes>(
             return done;
         }
     }
-    if L::OCTANT_WALKS && !p.mixed && p.finite_inv {
-        octant_walk!(packet_octant(p), any_hit_walk::<L>(nodes, p, &mut done, leaf_test));
-    } else {
-        any_hit_walk::<L, ANY_OCTANT>(nodes, p, &mut done, leaf_test);
-    }
+    octant_walk!(if !p.mixed && p.finite_inv => packet_octant(p), any_hit_walk::<L>(nodes, p, &mut done, leaf_test));
     done
 }
 

@@ -296,11 +296,7 @@ pub(super) fn push_nearest_last(
 #[inline(always)]
 pub(crate) fn closest_hit<L: Lanes>(wide: &WideBvh, ray: &RayRecord, stack: &mut [(u32, f32)]) -> Option<ClosestHit> {
     let r = WideRay::<L>::new(ray)?;
-    if L::OCTANT_WALKS {
-        octant_walk!(r.octant, closest_hit_in::<L>(wide, &r, stack))
-    } else {
-        closest_hit_in::<L, ANY_OCTANT>(wide, &r, stack)
-    }
+    octant_walk!(r.octant, closest_hit_in::<L>(wide, &r, stack))
 }
 
 /// [`closest_hit`] for a ray of octant `O` (or [`ANY_OCTANT`]).
@@ -397,11 +393,7 @@ pub(crate) fn occluded<L: Lanes>(wide: &WideBvh, ray: &RayRecord, stack: &mut [(
     let Some(r) = WideRay::<L>::new(ray) else {
         return false;
     };
-    if L::OCTANT_WALKS {
-        octant_walk!(r.octant, occluded_in::<L>(wide, &r, stack))
-    } else {
-        occluded_in::<L, ANY_OCTANT>(wide, &r, stack)
-    }
+    octant_walk!(r.octant, occluded_in::<L>(wide, &r, stack))
 }
 
 /// [`occluded`] for a ray of octant `O` (or [`ANY_OCTANT`]).
