@@ -94,7 +94,16 @@
 //! * A walk without the child-order branch (both children pushed with their lane masks,
 //!   empty masks not pushed, every node popped). That branch causes 61% of the
 //!   mispredicted branches on the far bunny (callgrind `--branch-sim`), but passing every
-//!   step through the stack was 12 to 54% slower (the teaser 53 against 82 ms).
+//!   step through the stack was 12 to 54% slower (the teaser 53 against 82 ms). The same
+//!   branch replaced by selects while the near child stays in registers (any hit: the
+//!   left child next when a lane enters it, else the right; the right child's entry
+//!   written to the stack at every inner node and kept by adding `both entered` to the
+//!   stack pointer; one branch left, on neither child entered) was slower too (`ray_contest
+//!   --packets-only --kind shadow --rounds 15 --threads 1`, interleaved round by round in
+//!   one process, ms): at AVX-512 the far bunny 5.10 against 4.83, the dragon 66.1 against
+//!   61.9, the teaser 62.9 against 48.3; at AVX2 the far bunny 5.33 against 5.08, the near
+//!   horse 6.58 against 5.88. The selects wait for both children's box tests, where the
+//!   predicted branch lets the next node's loads start before the tests resolve.
 //! * Choosing single rays for a whole packet whose origins spread over more than `k`
 //!   times the mean leaf box (the far horse's packets span dozens of leaves): the far
 //!   horse went from 0.73 to 0.90 times Embree at `k = 1`, but the dragon fell from 0.82

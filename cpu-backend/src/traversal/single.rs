@@ -66,6 +66,18 @@
 //! lane compares and a population count (28.3 to 29.7 against 25.0 to 26.2, and the
 //! frustum packets' primary rays 2 to 12% slower); a node entered on exactly two children
 //! visiting the nearer without the insertion loop (25.6 to 25.8 against 25.0 to 25.2).
+//! Also not kept (the variant behind a switch, interleaved round by round in one process,
+//! `ray_contest --singles-only --kind bounce --rounds 21 --threads 1 teaser`, three runs,
+//! ms): the entered children pushed through a sorting network, with no branch on their
+//! order (each lane's key its distance's bits with the slot in the low four, the six
+//! compare-exchange stages of a bitonic sort of eight keys in one register, the children
+//! and distances permuted by the sorted slots and stored as eight entries, the entered
+//! ones first), the nearest child taken by a min-reduction of the keys: at AVX-512 26.9,
+//! 28.2 and 28.6 against 26.2, 27.1 and 28.0 for the insertion, at AVX2 29.6 and 26.5
+//! against 28.9 and 26.2; reading the nearest back from the stack instead of reducing was
+//! slower still (about 10%). The insertion mispredicts, but the core runs ahead on its
+//! predictions, while the network's six dependent stages sit on the walk's chain at every
+//! node with two or more children entered.
 //!
 //! Against Embree, the teaser's reflection and refraction rays (callgrind `--cache-sim=yes
 //! --branch-sim=yes`, AVX2 lanes and Embree's AVX2 `rtcIntersect8`, `ray_contest --kind
