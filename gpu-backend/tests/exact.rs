@@ -247,23 +247,64 @@ fn inexact_operations_are_named() {
     assert_eq!(inexact_operations(&clean).expect("parses"), Vec::<String>::new());
 }
 
+/// A context on wgpu's noop device: wgpu parses and validates every shader module and
+/// pipeline created on it (naga's validator, the layouts against the modules), and no
+/// driver compiles anything. Its adapter reports every feature and the most permissive
+/// limits; the context asks for the features and the limits lavapipe gives (CI's device),
+/// so the stages choose the same sources there as on lavapipe.
+fn noop_context(lavapipe: Option<&GpuContext>) -> GpuContext {
+    let (features, limits) = match lavapipe {
+        Some(ctx) => (ctx.device.features(), ctx.limits.clone()),
+        None => (
+            wgpu::Features::PRIMITIVE_INDEX | wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::SHADER_EARLY_DEPTH_TEST,
+            wgpu::Limits::default(),
+        ),
+    };
+    let mut desc = wgpu::InstanceDescriptor::new_without_display_handle();
+    desc.backends = wgpu::Backends::NOOP;
+    desc.backend_options.noop = wgpu::NoopBackendOptions {
+        enable: true,
+        limits: Some(limits.clone()),
+        features: Some(features),
+        ..Default::default()
+    };
+    let instance = wgpu::Instance::new(desc);
+    let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions::default()))
+        .expect("the noop adapter");
+    let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("hyrt noop"),
+        required_features: features,
+        required_limits: limits,
+        ..Default::default()
+    }))
+    .expect("a noop device");
+    GpuContext::from_device(&adapter, device, queue)
+}
+
 /// Every stage of the GPU backend, in the specializations below, compiles without an
-/// inexact operation: `shader_module` refuses one with a panic in debug builds.
+/// inexact operation: `shader_module` refuses one with a panic in debug builds. The stages
+/// are built on wgpu's noop device ([`noop_context`]: the same WGSL, parsed and validated,
+/// not compiled by a driver: the 38 combinations took about 300 s of CI's debug run on
+/// lavapipe, almost all of it lavapipe compiling pipelines), and the combination of every
+/// flag, with the surface tables in pages, once more on lavapipe, so that a driver compiles
+/// the largest sources too.
 #[test]
 fn every_stage_uses_only_exact_operations() {
     if !cfg!(debug_assertions) {
         eprintln!("SKIPPED: the check runs in debug builds (shader_module)");
         return;
     }
-    let Some(ctx) = test_context() else { return };
+    let lavapipe = test_context();
+    let ctx = noop_context(lavapipe.as_ref());
+    assert_eq!(ctx.info.backend, wgpu::Backend::Noop);
     use hyrt_gpu::texture::Specialization;
     use hyrt_gpu::visibility_raster::{VisibilityMode, VisibilityRasterStage};
     // Every flag alone and in pairs, all of them at once, and tables in pages (with and
-    // without two levels and objects by reference, the per-object tables and lights with them; the
-    // surface tables' words in pages with every flag that reads them): the flags choose
-    // fragments of source, and an inexact
-    // operation lies in one fragment or where two meet. 33 of the 128 combinations of
-    // flags (each about 8 s of CI's debug run on lavapipe).
+    // without two levels and objects by reference, the per-object tables and lights with
+    // them; the surface tables' words in pages with every flag that reads them): the flags
+    // choose fragments of source, and an inexact operation lies in one fragment or where two
+    // meet. 33 of the 128 combinations of flags, and 5 paged ones (each about 8 s of CI's
+    // debug run on lavapipe; a fraction of a second on the noop device).
     use hyrt_gpu::paging::TablePages;
     let paged = TablePages { shift: 20, triangles: 3, slots: 2, nodes: 2, ..TablePages::default() };
     let objects = TablePages { object_shift: 19, placements: 3, objects: 3, instances: 2, lights: 2, ..paged };
@@ -307,4 +348,27 @@ fn every_stage_uses_only_exact_operations() {
     hyrt_gpu::reconstruction::ReconstructionStage::with_by_reference(&ctx);
     hyrt_gpu::reconstruction::NormalMapping::new(&ctx);
     hyrt_gpu::reconstruction::NormalMapping::paged(&ctx, surface);
+    // The largest sources on the driver CI renders with: every flag, the surface tables in
+    // pages (objects by reference where a stage reads them, as above).
+    let Some(lavapipe) = lavapipe else { return };
+    let all = Specialization {
+        surface_tables: true,
+        alpha_tested: true,
+        two_level: true,
+        by_reference: true,
+        normal_mapped: true,
+        ambient_image: true,
+        stochastic: true,
+        denoised: true,
+        pages: surface,
+    };
+    hyrt_gpu::bounce_shading::BounceShadingStage::specialized(&lavapipe, all);
+    hyrt_gpu::bounce_trace::BounceTraceStage::specialized(&lavapipe, all);
+    hyrt_gpu::rt_shading::RtShadingBouncingStage::specialized(&lavapipe, all);
+    hyrt_gpu::secondary_rays::SecondaryRaysStage::specialized(&lavapipe, all);
+    let direct = Specialization { by_reference: false, ..all };
+    hyrt_gpu::raster_shading::RasterShadingStage::specialized(&lavapipe, direct);
+    hyrt_gpu::rt_shading::RtShadingStage::specialized(&lavapipe, direct);
+    hyrt_gpu::shadow_rays::ShadowRaysStage::specialized(&lavapipe, direct);
+    VisibilityRasterStage::specialized(&lavapipe, VisibilityMode::Exact, all);
 }
