@@ -29,14 +29,18 @@
 //! Child order is the packet's own, so a lane may see nodes in another order than the
 //! scalar traversal (which goes to the child it enters first). Any hit: left child first,
 //! as stored (measured about 15% faster on the teaser's shadow rays than near-first by a
-//! majority vote of the lanes' entry distances). Closest hit: near first by the children's
-//! box centres along the first valid lane's direction (as fast as the vote, and it does
-//! not wait for the box tests). The order does not change results: for any hit that changes nothing (a lane
-//! enters a node exactly when its ray passes the box tests of the node and all its
-//! ancestors, as in the scalar traversal, so the result "some triangle of some reachable
-//! leaf is hit" is the same); for closest hit the result is the minimum `(t, triangle)`
-//! over the same triangles except in the rounding corner case described at
-//! `BVH_CULL_SLACK`.
+//! majority vote of the lanes' entry distances; and against the closest-hit order, which
+//! does not wait for the box tests, `ray_contest --packets-only --kind shadow --rounds 15
+//! --threads 1`, the three interleaved in one process, ms: near first by the box centres
+//! along the first lane's direction 75.7 on the dragon, 6.00 on the far bunny and 56.7 on
+//! the teaser, far first 68.9, 5.80 and 54.5, left first 65.5, 5.20 and 51.7). Closest hit:
+//! near first by the children's box centres along the first valid lane's direction (as fast
+//! as the vote, and it does not wait for the box tests). The order does not change results:
+//! for any hit that changes nothing (a lane enters a node exactly when its ray passes the
+//! box tests of the node and all its ancestors, as in the scalar traversal, so the result
+//! "some triangle of some reachable leaf is hit" is the same); for closest hit the result
+//! is the minimum `(t, triangle)` over the same triangles except in the rounding corner
+//! case described at `BVH_CULL_SLACK`.
 //!
 //! [`ray_aabb_conservative`]: hyrt_core::kernels::ray::ray_aabb_conservative
 
