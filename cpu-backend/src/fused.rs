@@ -6,21 +6,21 @@
 //! tile-local G-buffer, and right after (in a scene the raster takes in batches, after the
 //! last batch) each of its [`FUSED_TILE`]-square tiles runs the rest of the plan from
 //! those texels while they are in cache (the raster's per-tile hook,
-//! [`TileHook`](crate::visibility_raster::TileHook)):
+//! `visibility_raster::TileHook`):
 //!
 //! 1. `reconstruction` of the tile's pixels into tile-local surfaces, a
-//!    [`TILE_WIDTH`] x [`TILE_HEIGHT`] block of eight pixels at a time
-//!    ([`Reconstruct::block`]: core's kernel in eight SIMD lanes);
+//!    `TILE_WIDTH` x `TILE_HEIGHT` block of eight pixels at a time
+//!    (`reconstruction::Reconstruct::block`: core's kernel in eight SIMD lanes);
 //! 2. `compaction` and `shadow_rays`, light by light: the tile's active (pixel, light)
 //!    pairs ([`needs_shadow_ray`]) become rays ([`shadow_ray`], the pixel numbered in the
 //!    whole image as the staged list numbers it), both kernels over a block's eight
-//!    surfaces at once ([`crate::compaction::lanes`]), in the staged traversal's order (one
+//!    surfaces at once (`compaction::lanes`), in the staged traversal's order (one
 //!    packet per block whose every pixel is active), traced at once on this thread
 //!    (`occluded_serial`, then the object-space pass of a two-level scene), and their
 //!    answers written to a tile-local shadow mask ([`shadow_code`]);
 //! 3. `rt_shading`, `raster_shading` and `composition` into the final image, a block of
-//!    eight pixels at a time ([`crate::rt_shading::lanes`], [`crate::raster_shading::lanes`],
-//!    [`crate::composition::lanes`]: the stages' kernels in eight SIMD lanes, each lane on
+//!    eight pixels at a time (`rt_shading::lanes`, `raster_shading::lanes`,
+//!    `composition::lanes`: the stages' kernels in eight SIMD lanes, each lane on
 //!    its own object's record, or where materials vary over surfaces (textures, vertex
 //!    colours) on the record the scalar stages shade its pixel with, its texture lookups
 //!    made pixel by pixel: `Primary::object`). The pixels that bounce are finished later
@@ -73,8 +73,6 @@
 //! [`needs_shadow_ray`]: hyrt_core::kernels::shadow::needs_shadow_ray
 //! [`shadow_ray`]: hyrt_core::kernels::shadow::shadow_ray
 //! [`shadow_code`]: hyrt_core::kernels::shadow::shadow_code
-//! [`TILE_WIDTH`]: crate::traversal::tiles::TILE_WIDTH
-//! [`TILE_HEIGHT`]: crate::traversal::tiles::TILE_HEIGHT
 
 use std::collections::TryReserveError;
 
@@ -374,7 +372,7 @@ pub struct FusedFrame {
 }
 
 /// Run a fused frame on the current rayon pool: `visibility_raster`, and in each of its
-/// [`TILE_SIZE`](crate::visibility_raster::TILE_SIZE)-square tiles, right after the tile's
+/// [`TILE_SIZE`]-square tiles, right after the tile's
 /// texels are final, the fused steps over its [`FUSED_TILE`]-square tiles, from the
 /// tile-local texels (see the module docs). The G-buffer goes into `gbuffer` when given
 /// (the caller keeps it), else nowhere whole-image; the final image into `final_image`

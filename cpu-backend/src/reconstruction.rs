@@ -4,8 +4,8 @@
 //! Inputs: the G-buffer, the world geometry, the camera eye (and, for re-intersected
 //! barycentrics, the camera). Output: the surface buffer. A per-pixel map of
 //! [`hyrt_core::kernels::reconstruction::reconstruct_texel`] (or its re-intersected form),
-//! which both executors run a [`TILE_WIDTH`] x [`TILE_HEIGHT`] block of eight pixels at a
-//! time ([`blocks`]: [`Reconstruct::block`], the kernel in eight SIMD lanes, bit for bit
+//! which both executors run a `TILE_WIDTH` x `TILE_HEIGHT` block of eight pixels at a
+//! time (`blocks`: `Reconstruct::block`, the kernel in eight SIMD lanes, bit for bit
 //! the scalar kernel [`Reconstruct::pixel`]): the staged frame over bands of whole rows,
 //! the fused frame (`crate::fused`) over each tile.
 
@@ -41,7 +41,7 @@ pub fn reconstruction(gbuffer: &[GBufferTexel], geometry: &WorldGeometry, eye: V
 
 /// [`reconstruction`] into a caller-owned buffer, reusing its allocation. The raster's
 /// barycentrics do not depend on where a pixel lies, so the texels are taken as an image
-/// [`TILE_WIDTH`] pixels wide: a block is eight consecutive texels.
+/// `TILE_WIDTH` pixels wide: a block is eight consecutive texels.
 pub fn reconstruction_into(
     gbuffer: &[GBufferTexel],
     geometry: &WorldGeometry,
@@ -148,7 +148,7 @@ impl<'a> Reconstruct<'a> {
     }
 }
 
-/// The triangle setups of a block of [`LANES`] pixels ([`Reconstruct::block`]), kept from
+/// The triangle setups of a block of [`LANES`] pixels (`Reconstruct::block`), kept from
 /// block to block: neighbouring blocks usually share triangles.
 #[derive(Default)]
 pub struct BlockSetups {

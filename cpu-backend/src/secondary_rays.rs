@@ -115,7 +115,7 @@ const SPAWN_CHUNK: usize = 1024;
 /// cannot hold the list or the links (the frame then fails with
 /// `RenderError::OutOfMemory` instead of aborting).
 ///
-/// Parents go in chunks of [`SPAWN_CHUNK`], each chunk's links numbered from its first ray,
+/// Parents go in chunks of `SPAWN_CHUNK`, each chunk's links numbered from its first ray,
 /// then moved by the chunk's start in the list. Where materials do not vary over surfaces a
 /// parent's rays are cheap to make, and each chunk spawns twice: once to count its rays,
 /// once to write them into its place in `rays` (no buffer but the list). Where they vary

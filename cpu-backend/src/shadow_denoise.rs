@@ -4,7 +4,7 @@
 //! ([`raw_channels`]), the 8 x 8 tiles that need filtering per channel ([`tile_agrees`]:
 //! not those fully lit or in umbra), then [`DENOISE_PASSES`] à-trous passes
 //! ([`atrous_pixel`]), row by row in parallel; where frames follow each other
-//! ([`hyrt_core::options::FrameOptions::temporal`]), the temporal pass
+//! ([`hyrt_core::frame::FrameOptions::temporal`]), the temporal pass
 //! ([`hyrt_core::kernels::temporal`]) against the previous frame the backend kept
 //! ([`TemporalHistory`]). Deterministic: each output is a fixed sum over fixed taps,
 //! whatever the thread count.
@@ -46,7 +46,7 @@ pub struct DenoiseScratch {
 /// pass.
 #[derive(Clone, Debug)]
 pub struct TemporalHistory {
-    /// The prepared scene it showed ([`hyrt_core::prepared::PreparedScene::id`]); `None`
+    /// The prepared scene it showed ([`hyrt_core::frame::PreparedScene::id`]); `None`
     /// before any frame. Another scene starts afresh.
     pub scene: Option<u64>,
     /// Its camera.
@@ -79,7 +79,7 @@ impl Default for TemporalHistory {
 }
 
 /// A frame's temporal pass: the scene it shows, the objects' maps now
-/// ([`hyrt_core::prepared::PreparedScene::object_maps`]) and the history, which the pass
+/// ([`hyrt_core::frame::PreparedScene::object_maps`]) and the history, which the pass
 /// reads and then replaces with this frame.
 pub struct Temporal<'a> {
     pub scene: u64,

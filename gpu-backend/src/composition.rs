@@ -1,5 +1,5 @@
 //! Stage `composition` (per pixel [`hyrt_core::kernels::shading::compose`], as
-//! [`hyrt_cpu::composition`]): the final image as
+//! `hyrt_cpu::composition`): the final image as
 //! the weighted mean `(1 - weight) * raster + weight * rt` (paper 3.5) where the
 //! ray-traced image has coverage (alpha > 0), with alpha 1; the raster texel
 //! unchanged elsewhere. One compute invocation per pixel.

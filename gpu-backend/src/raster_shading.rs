@@ -1,5 +1,5 @@
 //! Stage `raster_shading` (per pixel [`hyrt_core::kernels::shading::shade_raster_pixel`],
-//! as [`hyrt_cpu::raster_shading`]): the ordinary
+//! as `hyrt_cpu::raster_shading`): the ordinary
 //! raster shader (paper 3.4), Lambert from every light whose shadow ray reached it
 //! plus ambient, on the pixels of rasterized objects, and on those of ray-traced
 //! objects only when the composition weight is below 1; one compute invocation per pixel.

@@ -1,5 +1,5 @@
 //! Stage `rt_shading` (per pixel [`hyrt_core::kernels::shading::shade_rt_pixel`], as
-//! [`hyrt_cpu::rt_shading`]): shade the pixels of
+//! `hyrt_cpu::rt_shading`): shade the pixels of
 //! ray-traced objects (paper 3.3) with Lambert + Blinn-Phong specular from every
 //! light whose shadow ray reached it, plus ambient; one compute invocation per pixel.
 //!

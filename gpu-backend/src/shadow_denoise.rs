@@ -1,4 +1,4 @@
-//! Stage `shadow_denoise` (as [`hyrt_cpu::shadow_denoise::shadow_denoise_into`]): the
+//! Stage `shadow_denoise` (as `hyrt_cpu::shadow_denoise::shadow_denoise_into`): the
 //! stochastic visibility of area lights and ambient occlusion, filtered over the band's
 //! surfaces with the WGSL mirrors of [`hyrt_core::kernels::denoise`]
 //! (`shaders/shadow_denoise.wgsl`), in the CPU stage's order: each pixel's raw channels,
@@ -111,7 +111,7 @@ pub fn denoise_wgsl() -> String {
 /// | 0 | `usable` | u32 | 1 where the history is this scene's with these channels (else the pass copies the raw channels, lengths 0) |
 /// | 4 | `motion_count` | u32 | motion records in `motion` |
 /// | 8 | `pad` | 2 x u32 | zero |
-/// | 16 | `samples` | 4 x vec4<u32> | per channel, its samples per frame ([`hyrt_core::kernels::denoise::channel_samples`]), channel `c` at `[c / 4][c % 4]` |
+/// | 16 | `samples` | `4 x vec4<u32>` | per channel, its samples per frame ([`hyrt_core::kernels::denoise::channel_samples`]), channel `c` at `[c / 4][c % 4]` |
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct TemporalParams {

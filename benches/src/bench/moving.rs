@@ -38,7 +38,7 @@ use super::report::{count, num, Section, Table};
 use super::stats::{interleaved_rounds_ms, median, range, round_ratios, FrameSummary};
 use super::{paper_frame, BenchError, BenchOptions, BenchScene, FrameBackend};
 
-/// Instances of the many-instances scene (a grid of [`GRID_X`] by `GRID / GRID_X`) in full
+/// Instances of the many-instances scene (a grid of `GRID_X` by `GRID / GRID_X`) in full
 /// runs; [`GRID_QUICK`] in quick runs.
 pub const GRID: usize = 64;
 pub const GRID_QUICK: usize = 16;

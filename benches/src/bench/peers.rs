@@ -159,7 +159,7 @@ pub struct Peers {
 }
 
 /// The Embree the peer is: its version, the ISA its run-time dispatch selected on this
-/// machine and the BVH it builds for triangle scenes ([`super::embree::EmbreeBuild`];
+/// machine and the BVH it builds for triangle scenes (`embree::EmbreeBuild`;
 /// "not found" and why, when Embree's output did not say), or why there is none.
 pub fn embree_peer() -> String {
     #[cfg(feature = "embree")]

@@ -8,7 +8,7 @@ use super::wgsl::wgsl_struct;
 use super::{INVALID_ID, TRI_ALPHA_TEST, TRI_INWARD, TRI_RAY_TRACED};
 
 /// Where one object's world triangles are, for a device reading a table with objects by
-/// reference ([`crate::geometry::WorldTriangles::placement_records`]): in the stored table
+/// reference ([`crate::geometry::WorldTriangles::placement_record`]): in the stored table
 /// (`first_record`), or made on read from its mesh's words (positions, normals, indices:
 /// [`crate::geometry::WorldTriangles::mesh_words`]) under its transform, by the operations
 /// of [`crate::geometry::world_record`] and [`crate::geometry::world_normals`].

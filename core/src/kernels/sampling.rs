@@ -15,7 +15,7 @@
 //!
 //! Owen scrambling keeps the Sobol' points' stratification: every prefix of `2^m` samples
 //! of a stream has exactly one point in each of the `2^m` elementary intervals of any
-//! shape (a (0, m, 2)-net: [`tests`] checks it), while different streams are independent
+//! shape (a (0, m, 2)-net: its tests check it), while different streams are independent
 //! random scramblings (decorrelated between pixels, lights and frames:
 //! [`sample_seed`]). Everything is integer arithmetic modulo 2^32 and one exact conversion
 //! to f32 ([`unit_f32`]), so the GPU's twin gives the same bits.
@@ -125,7 +125,7 @@ const SOBOL_BYTES: [[u32; 256]; 4] = {
 /// Point `index` of the first two dimensions of the Sobol' sequence, as 32-bit fractions:
 /// the van der Corput sequence (the reversed bits) and Sobol's second dimension, the xor
 /// of the direction numbers ([`sobol_direction`]) of the index's set bits (by bytes,
-/// [`SOBOL_BYTES`]).
+/// `SOBOL_BYTES`).
 #[inline]
 pub fn sobol_2d(index: u32) -> [u32; 2] {
     let [b0, b1, b2, b3] = index.to_le_bytes();
