@@ -104,6 +104,23 @@ pub const SPLIT_LEAF_MARGIN: f32 = gamma(16);
 /// differently than a brute-force search would (deterministically either way).
 pub const BVH_CULL_SLACK: f32 = 1.0 / 4096.0;
 
+/// The traversal cost, against a triangle test's 1, with which obvhs' leaf collapse of the
+/// default preset ([`BvhPreset::Medium`]) weighs keeping an inner node against merging its
+/// subtree of at most `max_prims_per_leaf` (8) triangles into one leaf. obvhs' own
+/// `medium_build` says 3. hyrt's walks test a leaf's triangles eight at a time (the
+/// packets' lone lanes against all of a leaf's triangles at once, the wide view's leaves
+/// in one SIMD test), so a node visit costs more here than a triangle, and larger leaves
+/// pay: measured with both trees in one process, interleaved round by round
+/// (`ray_contest --packets-only --kind shadow --rounds 15 --threads 1`, AMD EPYC, ms,
+/// 3 then 5), at AVX-512 the dragon 62.3 and 58.5, the far bunny 5.15 and 4.80, the far
+/// horse 0.79 and 0.73, the near bunny 10.4 and 9.9, the teaser 48.0 and 48.5; at AVX2 the
+/// dragon 62.5 and 60.2, the far bunny 4.97 and 4.66, the far horse 0.81 and 0.76, Sponza
+/// 39.4 and 39.7, the near horse 5.79 and 5.72; primary rays the dragon 41.0 and 39.9, the
+/// teaser 40.4 both; the teaser's reflections one at a time 25.7 and 25.5. 8 built the
+/// same trees as 5 on these scenes, 1 was 25 to 30% slower on the dragon's, the far
+/// bunny's and the far horse's shadow rays. Results do not depend on the tree.
+pub const MEDIUM_COLLAPSE_TRAVERSAL_COST: f32 = 5.0;
+
 /// obvhs build presets, fastest build to best tree.
 ///
 /// The default is [`BvhPreset::Medium`]. The BVH is built once per scene, so tree quality
@@ -125,7 +142,8 @@ pub const BVH_CULL_SLACK: f32 = 1.0 / 4096.0;
 /// within about 7% of `VerySlow`'s work for a sixth of its build time (which would be
 /// seconds on million-triangle scenes); the pre-split presets also duplicate triangles
 /// in leaves. obvhs itself describes `medium_build` as "around the same build time as
-/// embree but with faster traversal".
+/// embree but with faster traversal". (The table predates `Medium`'s leaf collapse cost of
+/// [`MEDIUM_COLLAPSE_TRAVERSAL_COST`]: its row is obvhs' `medium_build` as it is.)
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum BvhPreset {
     Fastest,
@@ -154,7 +172,10 @@ impl BvhPreset {
             BvhPreset::Fastest => BvhBuildParams::fastest_build(),
             BvhPreset::VeryFast => BvhBuildParams::very_fast_build(),
             BvhPreset::Fast => BvhBuildParams::fast_build(),
-            BvhPreset::Medium => BvhBuildParams::medium_build(),
+            BvhPreset::Medium => BvhBuildParams {
+                collapse_traversal_cost: MEDIUM_COLLAPSE_TRAVERSAL_COST,
+                ..BvhBuildParams::medium_build()
+            },
             BvhPreset::Slow => BvhBuildParams::slow_build(),
             BvhPreset::VerySlow => BvhBuildParams::very_slow_build(),
         }
