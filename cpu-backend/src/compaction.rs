@@ -10,7 +10,8 @@
 //! The compaction itself ([`compact`]) is a parallel, stable, deterministic
 //! exclusive prefix sum over u32 flags; it equals
 //! [`hyrt_core::kernels::scan::compact_sequential`] for every input. The per-pair
-//! kernels ([`needs_shadow_ray`], [`shadow_ray`](hyrt_core::kernels::shadow::shadow_ray)) are [`hyrt_core::kernels::shadow`]'s.
+//! kernels ([`needs_shadow_ray`], [`shadow_ray`](hyrt_core::kernels::shadow::shadow_ray))
+//! are [`hyrt_core::kernels::shadow`]'s.
 //!
 //! A frame that does not return a ray list (no `FrameOptions::stage_outputs`: the
 //! primary hits' list and every bounce depth's) does not write it: the stage keeps the

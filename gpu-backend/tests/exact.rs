@@ -324,21 +324,7 @@ fn every_stage_uses_only_exact_operations() {
             denoised: bits & 32 != 0 && bits & 1 != 0,
             pages,
         };
-        hyrt_gpu::bounce_shading::BounceShadingStage::specialized(&ctx, s);
-        hyrt_gpu::bounce_trace::BounceTraceStage::specialized(&ctx, s);
-        hyrt_gpu::rt_shading::RtShadingBouncingStage::specialized(&ctx, s);
-        hyrt_gpu::secondary_rays::SecondaryRaysStage::specialized(&ctx, s);
-        // These three compile the same source with or without objects by reference (they
-        // read no triangle by id): once is enough, which spares CI's debug run 192
-        // pipelines on lavapipe.
-        if !s.by_reference {
-            hyrt_gpu::raster_shading::RasterShadingStage::specialized(&ctx, s);
-            hyrt_gpu::rt_shading::RtShadingStage::specialized(&ctx, s);
-            hyrt_gpu::shadow_rays::ShadowRaysStage::specialized(&ctx, s);
-        }
-        for mode in [VisibilityMode::Exact, VisibilityMode::HardwareInterpolated] {
-            VisibilityRasterStage::specialized(&ctx, mode, s);
-        }
+        specialized_stages(&ctx, s, &[VisibilityMode::Exact, VisibilityMode::HardwareInterpolated]);
     }
     VisibilityRasterStage::with_id_source(&ctx, false);
     hyrt_gpu::compaction::CompactionStage::new(&ctx);
@@ -349,7 +335,7 @@ fn every_stage_uses_only_exact_operations() {
     hyrt_gpu::reconstruction::NormalMapping::new(&ctx);
     hyrt_gpu::reconstruction::NormalMapping::paged(&ctx, surface);
     // The largest sources on the driver CI renders with: every flag, the surface tables in
-    // pages (objects by reference where a stage reads them, as above).
+    // pages.
     let Some(lavapipe) = lavapipe else { return };
     let all = Specialization {
         surface_tables: true,
@@ -362,13 +348,27 @@ fn every_stage_uses_only_exact_operations() {
         denoised: true,
         pages: surface,
     };
-    hyrt_gpu::bounce_shading::BounceShadingStage::specialized(&lavapipe, all);
-    hyrt_gpu::bounce_trace::BounceTraceStage::specialized(&lavapipe, all);
-    hyrt_gpu::rt_shading::RtShadingBouncingStage::specialized(&lavapipe, all);
-    hyrt_gpu::secondary_rays::SecondaryRaysStage::specialized(&lavapipe, all);
-    let direct = Specialization { by_reference: false, ..all };
-    hyrt_gpu::raster_shading::RasterShadingStage::specialized(&lavapipe, direct);
-    hyrt_gpu::rt_shading::RtShadingStage::specialized(&lavapipe, direct);
-    hyrt_gpu::shadow_rays::ShadowRaysStage::specialized(&lavapipe, direct);
-    VisibilityRasterStage::specialized(&lavapipe, VisibilityMode::Exact, all);
+    specialized_stages(&lavapipe, all, &[VisibilityMode::Exact]);
+}
+
+/// The stages whose source depends on the [`Specialization`](hyrt_gpu::texture::Specialization)
+/// `s`, built on `ctx`: `visibility_raster` in each of `modes`.
+fn specialized_stages(
+    ctx: &GpuContext,
+    s: hyrt_gpu::texture::Specialization,
+    modes: &[hyrt_gpu::visibility_raster::VisibilityMode],
+) {
+    hyrt_gpu::bounce_shading::BounceShadingStage::specialized(ctx, s);
+    hyrt_gpu::bounce_trace::BounceTraceStage::specialized(ctx, s);
+    hyrt_gpu::rt_shading::RtShadingBouncingStage::specialized(ctx, s);
+    hyrt_gpu::secondary_rays::SecondaryRaysStage::specialized(ctx, s);
+    // These three compile the same source with or without objects by reference (they read
+    // no triangle by id): built without.
+    let direct = hyrt_gpu::texture::Specialization { by_reference: false, ..s };
+    hyrt_gpu::raster_shading::RasterShadingStage::specialized(ctx, direct);
+    hyrt_gpu::rt_shading::RtShadingStage::specialized(ctx, direct);
+    hyrt_gpu::shadow_rays::ShadowRaysStage::specialized(ctx, direct);
+    for &mode in modes {
+        hyrt_gpu::visibility_raster::VisibilityRasterStage::specialized(ctx, mode, s);
+    }
 }
