@@ -136,6 +136,46 @@
 //! into the slab distances (Embree's `q * (scale * inv) + (origin - o) * inv`) would need
 //! an error bound of its own to stay conservative.
 //!
+//! Where the closest-hit walk's time goes, and four more variants not kept (issue 36; the
+//! teaser's reflection and refraction rays, AMD EPYC, one thread, `ray_contest
+//! --singles-only --kind bounce --rounds 15` to `21`, variants behind a switch in one
+//! process unless said otherwise, ms; every variant gave the scalar answers ray for ray):
+//!
+//! * *Cache misses are not the bound.* Every ray traced twice in a row, the second walk
+//!   finding its nodes and leaves in L1: 50.0 against 26.1 once, so the second walk
+//!   costs 24. Loads that miss take under a tenth of the time; the rest is the chain from
+//!   a node's plane rows through the slab distances and the entered mask to the next
+//!   child's reference, and the mispredicted branches on it. This is why the variants with
+//!   fewer lines per visit above lost to their added instructions.
+//! * *Embree's hybrid for closest hit.* Those of eight consecutive rays that share an
+//!   octant walk the wide nodes together (each child's box for all lanes, the lanes' mask
+//!   and entry distances on a packet stack, Embree's rule for the next child: one nearer
+//!   for some lane replaces it), each lane going on alone from a leaf, or from a node that
+//!   at most `T` lanes enter, with its closest hit so far: 28.1 against 25.1 at Embree's
+//!   `T` = 7, 28.1 at `T` = 4. Per ray 0.69 node visits of the packet (of about 14) and 2.5
+//!   restarts alone: these rays share little of the tree, and the top nodes they share
+//!   stay in L1. (Embree's `rtcIntersect8` is about 5% faster than its `rtcIntersect1` on
+//!   these rays, and this walk about as fast as `rtcIntersect1`.)
+//! * *The previous ray's leaf first* (the leaf that held the previous ray's hit tested
+//!   before the root, for a tight bound from the start, and skipped when reached again):
+//!   26.2 against 25.8.
+//! * *Children ordered by octant at the collapse* (Ylitie et al. 2017: slot `s` takes the
+//!   child lying furthest towards the corner with sign bits `s`, greedily by the dot
+//!   product of its centre's offset with that diagonal; empty slots between), visited in
+//!   the order `j ^ octant` (the entered mask permuted by bit swaps or by a table), the
+//!   others pushed far to near without a branch (no insertion, no branch on how many
+//!   children were entered): 26.0 against 25.7 for the insertion on the same tree, 27.0 to
+//!   27.2 against 26.7 in a second run; that order on the tree as collapsed, 30.2.
+//! * *The far scale folded into a second inverse direction*, `(far - origin) * inv_far`
+//!   with `inv_far = inv_dir * (SLAB_FAR_SCALE + 2^-22)`: one product fewer on the chain,
+//!   and a superset of the scalar test's boxes (proved and property-tested for rays with
+//!   `t_min >= 0`, inverse directions of at least 2^-30 and every origin and plane
+//!   coordinate zero or at least 2^-64, other rays left to the generic walk). 2.3% faster
+//!   behind a switch in one binary at AVX-512 and AVX2, but as its own binary, alternated
+//!   three times with the previous one: AVX2 26.33 to 26.76 against 26.35 to 26.77,
+//!   AVX-512 26.51 to 27.10 against 26.14 to 26.40. (Also within the noise: prefetching
+//!   each node's line of child references on arrival.)
+//!
 //! [`ray_aabb_conservative`]: hyrt_core::kernels::ray::ray_aabb_conservative
 
 use glam::Vec3;
