@@ -1,6 +1,7 @@
 //! Adapter and device selection.
 
 use crate::exact::FloatProbe;
+use crate::shader::FloatOps;
 use crate::GpuError;
 
 /// Environment variable that allows a software adapter (Mesa lavapipe) when set to `1`.
@@ -41,6 +42,11 @@ pub struct GpuContext {
     /// Fragment shaders may declare conservative depth (wgpu `SHADER_EARLY_DEPTH_TEST`):
     /// `visibility_raster` then keeps early depth tests while writing `frag_depth`.
     pub early_depth_test: bool,
+    /// How the shaders of pipelines built on this context divide and take square roots:
+    /// through the exact helpers (the default), or with the device's own operations to
+    /// measure what the helpers cost ([`FloatOps::Device`]). Set it before building a
+    /// backend on the context.
+    pub float_ops: FloatOps,
     /// The start-up float check, run on the first [`GpuContext::float_probe`] call.
     probe: std::sync::OnceLock<Result<FloatProbe, GpuError>>,
 }
@@ -54,6 +60,7 @@ impl std::fmt::Debug for GpuContext {
             .field("primitive_index", &self.primitive_index)
             .field("timestamps", &self.timestamps)
             .field("early_depth_test", &self.early_depth_test)
+            .field("float_ops", &self.float_ops)
             .finish()
     }
 }
@@ -167,6 +174,7 @@ impl GpuContext {
             primitive_index: features.contains(wgpu::Features::PRIMITIVE_INDEX),
             timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
             early_depth_test: features.contains(wgpu::Features::SHADER_EARLY_DEPTH_TEST),
+            float_ops: FloatOps::Exact,
             probe: std::sync::OnceLock::new(),
         })
     }
@@ -189,6 +197,7 @@ impl GpuContext {
             early_depth_test: features.contains(wgpu::Features::SHADER_EARLY_DEPTH_TEST),
             device,
             queue,
+            float_ops: FloatOps::Exact,
             probe: std::sync::OnceLock::new(),
         }
     }
@@ -204,7 +213,10 @@ impl GpuContext {
             if self.primitive_index { "@builtin(primitive_index)" } else { "flat-interpolated vertex ids" },
             if self.timestamps { "available" } else { "unavailable" },
             if self.early_depth_test { "available" } else { "unavailable" },
-        )
+        ) + match self.float_ops {
+            FloatOps::Exact => "",
+            FloatOps::Device => "; division and square roots by the device's own `/` and `sqrt`, not the exact helpers",
+        }
     }
 
     /// What the device's float arithmetic guarantees, as far as bit-identity with the CPU

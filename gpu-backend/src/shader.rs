@@ -426,10 +426,44 @@ pub fn inexact_operations(source: &str) -> Result<Vec<String>, String> {
     Ok(found)
 }
 
+/// How shaders divide floats and take square roots ([`GpuContext::float_ops`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FloatOps {
+    /// Through the exact helpers (`div_rn`, `sqrt_rn`, `shaders/exact.wgsl`): IEEE 754's
+    /// correctly rounded `/` and `sqrt` on any device, bit for bit the CPU's.
+    #[default]
+    Exact,
+    /// `div_rn` and `sqrt_rn` as WGSL's own `/` and `sqrt`, for measuring what the helpers
+    /// cost (the report's table). Bit for bit the CPU's only where the device rounds those
+    /// correctly, as lavapipe does; real GPUs compute `a * rcp(b)` (issue 39).
+    Device,
+}
+
+/// The exact helpers' definitions in the preamble, and what [`FloatOps::Device`] puts in
+/// their place.
+const DIV_RN_EXACT: &str = "fn div_rn(a: f32, b: f32) -> f32 {\n    return div_rn_skewed(a, b, 0);\n}";
+const DIV_RN_DEVICE: &str = "fn div_rn(a: f32, b: f32) -> f32 {\n    return a / b;\n}";
+const SQRT_RN_EXACT: &str = "fn sqrt_rn(x: f32) -> f32 {\n    return sqrt_rn_skewed(x, 0);\n}";
+const SQRT_RN_DEVICE: &str = "fn sqrt_rn(x: f32) -> f32 {\n    return sqrt(x);\n}";
+
+/// `source` as a stage is built with `ops`: unchanged for [`FloatOps::Exact`]; for
+/// [`FloatOps::Device`], the preamble's `div_rn` and `sqrt_rn` (where the source has the
+/// preamble) return the device's `a / b` and `sqrt(x)`.
+pub fn with_float_ops(source: &str, ops: FloatOps) -> std::borrow::Cow<'_, str> {
+    match ops {
+        FloatOps::Exact => source.into(),
+        FloatOps::Device => {
+            source.replacen(DIV_RN_EXACT, DIV_RN_DEVICE, 1).replacen(SQRT_RN_EXACT, SQRT_RN_DEVICE, 1).into()
+        }
+    }
+}
+
 /// The shader module of a stage's WGSL. In debug builds (every test run) each distinct
 /// source is first checked by [`inexact_operations`] and refused with a panic that names
 /// the offending functions: a stage that divides or takes a root with the device's own
 /// operations would differ from the CPU reference on real GPUs, though not on lavapipe.
+/// The module is built from the source [`with_float_ops`] gives for the context's
+/// [`GpuContext::float_ops`] (the check reads the source as written).
 pub fn shader_module(ctx: &GpuContext, label: &str, source: &str) -> wgpu::ShaderModule {
     if cfg!(debug_assertions) {
         use std::collections::HashSet;
@@ -454,7 +488,7 @@ pub fn shader_module(ctx: &GpuContext, label: &str, source: &str) -> wgpu::Shade
     }
     ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(label),
-        source: wgpu::ShaderSource::Wgsl(source.into()),
+        source: wgpu::ShaderSource::Wgsl(with_float_ops(source, ctx.float_ops)),
     })
 }
 
@@ -623,6 +657,24 @@ pub(crate) fn encode_list_pass(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `FloatOps::Device` turns exactly the two helpers into the device's operations, and
+    /// `FloatOps::Exact` changes nothing.
+    #[test]
+    fn device_float_ops_replace_exactly_the_helpers() {
+        let source = preamble();
+        assert_eq!(with_float_ops(&source, FloatOps::Exact), source.as_str());
+        let device = with_float_ops(&source, FloatOps::Device);
+        assert_eq!(
+            inexact_operations(&device),
+            Ok(vec![
+                "div_rn: float Divide (use div_rn)".to_string(),
+                "sqrt_rn: Sqrt (use sqrt_rn, div_rn or the written-out kernels)".to_string()
+            ])
+        );
+        // A source without the preamble (no helpers) is left as it is.
+        assert_eq!(with_float_ops("fn f() {}", FloatOps::Device), "fn f() {}");
+    }
 
     /// The sample sequence, area-light and occlusion mirrors parse, validate and use only
     /// exact operations in both kinds of stage they are written for: after the shading

@@ -35,7 +35,7 @@ pub struct Bounces {
 }
 
 /// Median milliseconds of each step label over `frames` (in the last frame's order).
-fn step_medians(frames: &[FrameStats]) -> Vec<(String, f64)> {
+pub(super) fn step_medians(frames: &[FrameStats]) -> Vec<(String, f64)> {
     let Some(last) = frames.last() else { return Vec::new() };
     last.stage_ms
         .iter()

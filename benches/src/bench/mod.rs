@@ -9,6 +9,7 @@
 //! repetitions within this one run; nothing here asserts a speed.
 
 pub mod bounces;
+pub mod exact_helpers;
 pub mod hit_points;
 pub mod instancing;
 pub mod machine;
@@ -328,6 +329,7 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Report, Ben
     let peers = peers::run(options, &table2, progress)?;
     let scaling = scaling::run(options, &table2, &mut cpu, gpu.as_mut(), &mut notes, progress)?;
     let bounces = bounces::run(options, &table2, &mut cpu, gpu.as_mut(), progress)?;
+    let exact_helpers = exact_helpers::run(options, &table2, gpu.as_mut(), progress)?;
     let soft_shadows = soft_shadows::run(options, progress)?;
     // Last, so that its 871 million triangles disturb no other measurement; its peak
     // resident memory is counted from a reset (what the process held before is reported).
@@ -337,6 +339,7 @@ pub fn run(options: &BenchOptions, progress: &ProgressBar) -> Result<Report, Ben
     let mut sections = vec![
         table2.section(),
         bounces.section(&table2),
+        exact_helpers.section(&table2),
         soft_shadows.section(&options.out_dir),
         peers.section(&table2),
         scaling.section.clone(),
