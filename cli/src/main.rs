@@ -798,14 +798,15 @@ fn conformance(args: ConformanceArgs) -> Result<(), String> {
         }
     }
     let mut reference = hyrt::CpuBackend::new(Some(2));
-    let (mut candidate, name): (Box<dyn hyrt::Backend>, String) = match args.against {
+    let (mut candidate, name, missing_guarantees): (Box<dyn hyrt::Backend>, String, Vec<String>) = match args.against {
         CandidateArg::Gpu => {
             let policy = if args.allow_software_gpu { AdapterPolicy::AllowSoftware } else { AdapterPolicy::from_env() };
             let gpu = hyrt::GpuBackend::new(policy).map_err(|e| e.to_string())?;
             let name = format!("gpu: {}", gpu.describe());
-            (Box::new(gpu), name)
+            let missing = hyrt_conformance::report::missing_guarantees(gpu.context());
+            (Box::new(gpu), name, missing)
         }
-        CandidateArg::Cpu1 => (Box::new(hyrt::CpuBackend::new(Some(1))), "cpu, 1 thread".into()),
+        CandidateArg::Cpu1 => (Box::new(hyrt::CpuBackend::new(Some(1))), "cpu, 1 thread".into(), Vec::new()),
     };
     eprintln!("reference: cpu, 2 threads; candidate: {name}; {} cases", cases.len());
     let mut results = Vec::with_capacity(cases.len());
@@ -813,7 +814,7 @@ fn conformance(args: ConformanceArgs) -> Result<(), String> {
         eprintln!("[{}/{}] {} ({}x{})", i + 1, cases.len(), case.name, case.width, case.height);
         results.push(run_case(&mut reference, candidate.as_mut(), case));
     }
-    let report = Report { reference: "cpu, 2 threads".into(), candidate: name, results };
+    let report = Report { reference: "cpu, 2 threads".into(), candidate: name, missing_guarantees, results };
     // The recorded deviations describe the GPU backend on lavapipe; any other candidate
     // (another driver, the CPU on one thread) is held to exact agreement.
     let known = match args.against {
@@ -833,7 +834,12 @@ fn conformance(args: ConformanceArgs) -> Result<(), String> {
         for v in &violations {
             eprintln!("  {v}");
         }
-        Err(format!("{} differences beyond the recorded deviations", violations.len()))
+        let missing = if report.missing_guarantees.is_empty() {
+            String::new()
+        } else {
+            format!(" (the float probe found missing: {})", report.missing_guarantees.join(", "))
+        };
+        Err(format!("{} differences beyond the recorded deviations{missing}", violations.len()))
     }
 }
 

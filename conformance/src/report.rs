@@ -214,6 +214,15 @@ pub fn render_case(backend: &mut dyn Backend, prepared: &PreparedScene, case: &C
 /// fail there rather than skip) and otherwise says SKIPPED and returns `None`. Any other
 /// failure to start (a shader that does not compile, a validation error) is a bug and
 /// panics everywhere: it must not pass for a missing adapter.
+/// What [`Report::missing_guarantees`] holds for a GPU candidate on `ctx`: the guarantees
+/// its float probe found missing, or the probe's failure.
+pub fn missing_guarantees(ctx: &hyrt_gpu::GpuContext) -> Vec<String> {
+    match ctx.float_probe() {
+        Ok(probe) => probe.missing().into_iter().map(String::from).collect(),
+        Err(e) => vec![format!("float probe failed: {e}")],
+    }
+}
+
 pub fn gpu_for_tests() -> Option<hyrt_gpu::backend::GpuBackend> {
     gpu_for_tests_with(None)
 }
@@ -256,6 +265,12 @@ pub struct Report {
     pub reference: String,
     /// The candidate backend (the GPU adapter, or "cpu, 1 thread" for determinism runs).
     pub candidate: String,
+    /// The guarantees the candidate's float probe found missing
+    /// (`hyrt_gpu::exact::FloatProbe::missing`, or the probe's failure); empty when they
+    /// are met or the candidate is no GPU. Every difference is recorded against them: a
+    /// device without them still renders, and its report says under which missing
+    /// guarantees each stage differs ([`Report::summary_markdown`], [`Report::check`]).
+    pub missing_guarantees: Vec<String>,
     pub results: Vec<CaseResult>,
 }
 
@@ -264,14 +279,25 @@ const BUFFERS: [&str; 8] = ["gbuffer", "surfaces", "rays", "occluded", "shadow",
 
 impl Report {
     /// Every violation of the recorded deviations, and every improvement on them.
+    ///
+    /// On a candidate with missing guarantees each violation names them.
     pub fn check(&self, known: &KnownDeviations) -> (Vec<String>, Vec<String>) {
         let (mut v, mut i) = (Vec::new(), Vec::new());
         for r in &self.results {
             let (a, b) = check(r, known);
-            v.extend(a);
+            v.extend(a.into_iter().map(|a| match self.attribution() {
+                Some(m) => format!("{a} [{m}]"),
+                None => a,
+            }));
             i.extend(b);
         }
         (v, i)
+    }
+
+    /// "the float probe found missing: ..." where the candidate lacks guarantees.
+    fn attribution(&self) -> Option<String> {
+        (!self.missing_guarantees.is_empty())
+            .then(|| format!("the float probe found missing: {}", self.missing_guarantees.join(", ")))
     }
 
     fn comparisons<'a>(&'a self, buffer: &'a str) -> impl Iterator<Item = (&'a CaseResult, &'a BufferComparison)> + 'a {
@@ -294,11 +320,18 @@ impl Report {
             self.results.len(),
             ran
         );
+        if let Some(m) = self.attribution() {
+            let _ = writeln!(
+                s,
+                "The candidate lacks guarantees bit-identity relies on ({m}): the differences of every stage are \
+                 recorded against them in the last column.\n"
+            );
+        }
         let _ = writeln!(
             s,
-            "| stage | buffer | elements | integer mismatches | cases with integer mismatches | float words differing | worst ulp | worst case |"
+            "| stage | buffer | elements | integer mismatches | cases with integer mismatches | float words differing | worst ulp | worst case | missing guarantees (float probe) |"
         );
-        let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---:|---|");
+        let _ = writeln!(s, "|---|---|---:|---:|---:|---:|---:|---|---|");
         for buffer in BUFFERS {
             let (mut elements, mut ints, mut floats, mut worst) = (0usize, 0usize, 0u64, (0u64, String::new()));
             let mut int_cases = 0;
@@ -314,9 +347,16 @@ impl Report {
                 }
             }
             let Some(stage) = stage else { continue };
+            let missing = if ints == 0 && floats == 0 {
+                "-".to_string()
+            } else if self.missing_guarantees.is_empty() {
+                "none".to_string()
+            } else {
+                self.missing_guarantees.join(", ")
+            };
             let _ = writeln!(
                 s,
-                "| {stage} | {buffer} | {elements} | {ints} | {int_cases} | {floats} | {} | {} |",
+                "| {stage} | {buffer} | {elements} | {ints} | {int_cases} | {floats} | {} | {} | {missing} |",
                 worst.0,
                 if worst.1.is_empty() { "-".into() } else { worst.1.replace('|', "/") }
             );
@@ -464,32 +504,42 @@ mod tests {
         }
     }
 
-    #[test]
-    fn known_deviations_round_trip_and_ratchet() {
-        let known = KnownDeviations {
-            deviations: vec![Deviation { case: "c".into(), buffer: "gbuffer".into(), int_mismatches: 2, max_ulp: 10 }],
-        };
-        assert_eq!(toml::from_str::<KnownDeviations>(&known.to_toml()).unwrap(), known);
-        let mut g = BufferComparison {
-            stage: Stage::VisibilityRaster,
-            buffer: "gbuffer".into(),
+    /// A buffer of 9 elements, `int_mismatches` of them differing in integer words.
+    fn comparison(stage: Stage, buffer: &str, int_mismatches: usize) -> BufferComparison {
+        BufferComparison {
+            stage,
+            buffer: buffer.into(),
             elements: 9,
-            int_mismatches: 3,
+            int_mismatches,
             first_int: None,
             float_words: 0,
             ulp_histogram: [0; ULP_BUCKETS],
             worst: None,
             pixel_ulps: None,
-        };
-        let result = |g: &BufferComparison| CaseResult {
+        }
+    }
+
+    /// Case "c" (3x3) with these comparisons.
+    fn case_result(comparisons: Vec<BufferComparison>) -> CaseResult {
+        CaseResult {
             name: "c".into(),
             stresses: "",
             width: 3,
             height: 3,
             triangles: 1,
             rays: 0,
-            outcome: Ok(vec![g.clone()]),
+            outcome: Ok(comparisons),
+        }
+    }
+
+    #[test]
+    fn known_deviations_round_trip_and_ratchet() {
+        let known = KnownDeviations {
+            deviations: vec![Deviation { case: "c".into(), buffer: "gbuffer".into(), int_mismatches: 2, max_ulp: 10 }],
         };
+        assert_eq!(toml::from_str::<KnownDeviations>(&known.to_toml()).unwrap(), known);
+        let mut g = comparison(Stage::VisibilityRaster, "gbuffer", 3);
+        let result = |g: &BufferComparison| case_result(vec![g.clone()]);
         let (v, _) = check(&result(&g), &known);
         assert_eq!(v.len(), 1, "3 > 2 recorded: {v:?}");
         g.int_mismatches = 1;
@@ -497,5 +547,31 @@ mod tests {
         assert!(v.is_empty() && i.len() == 1, "fewer than recorded is an improvement");
         let other = CaseResult { name: "d".into(), ..result(&g) };
         assert_eq!(check(&other, &known).0.len(), 1, "an unlisted case must be exact");
+    }
+
+    /// A candidate whose float probe found guarantees missing: every stage that differs,
+    /// and every violation, names them; stages that agree name nothing.
+    #[test]
+    fn differences_are_recorded_against_the_missing_guarantees() {
+        let case =
+            case_result(vec![comparison(Stage::VisibilityRaster, "gbuffer", 0), comparison(Stage::RtShading, "rt", 2)]);
+        let mut report = Report {
+            reference: "cpu".into(),
+            candidate: "gpu".into(),
+            missing_guarantees: vec!["subnormals kept".into(), "guarded products apart".into()],
+            results: vec![case],
+        };
+        let summary = report.summary_markdown();
+        let row = |buffer: &str| summary.lines().find(|l| l.contains(&format!("| {buffer} |"))).unwrap().to_string();
+        assert!(row("rt").ends_with("| subnormals kept, guarded products apart |"), "{summary}");
+        assert!(row("gbuffer").ends_with("| - |"), "{summary}");
+        assert!(summary.contains("the float probe found missing: subnormals kept, guarded products apart"));
+        let (violations, _) = report.check(&KnownDeviations::default());
+        assert_eq!(violations.len(), 1);
+        assert!(violations[0].ends_with("[the float probe found missing: subnormals kept, guarded products apart]"));
+        // A candidate that meets the guarantees: differences say so, violations stay plain.
+        report.missing_guarantees.clear();
+        assert!(report.summary_markdown().lines().any(|l| l.contains("| rt |") && l.ends_with("| none |")));
+        assert!(!report.check(&KnownDeviations::default()).0[0].contains("float probe"));
     }
 }

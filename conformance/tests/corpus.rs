@@ -7,7 +7,8 @@
 use hyrt_conformance::compare::compare_stages;
 use hyrt_conformance::corpus::corpus;
 use hyrt_conformance::report::{
-    gpu_for_tests, known_deviations_path, render_case, render_pair, run_case, KnownDeviations, Report,
+    gpu_for_tests, known_deviations_path, missing_guarantees, render_case, render_pair, run_case, KnownDeviations,
+    Report,
 };
 use hyrt_core::formats::CameraRecord;
 use hyrt_core::frame::{Backend, Executor, FrameOptions, PrimaryBarycentrics};
@@ -20,8 +21,9 @@ fn conformance_gpu_matches_cpu_on_every_stage_of_the_corpus() {
     let Some(mut gpu) = gpu_for_tests() else { return };
     let mut cpu = CpuBackend::new(Some(2));
     let candidate = format!("gpu: {}", gpu.describe());
+    let missing_guarantees = missing_guarantees(gpu.context());
     let results = corpus().iter().map(|case| run_case(&mut cpu, &mut gpu, case)).collect();
-    let report = Report { reference: "cpu, 2 threads".into(), candidate, results };
+    let report = Report { reference: "cpu, 2 threads".into(), candidate, missing_guarantees, results };
     let path = known_deviations_path();
     if std::env::var_os("HYRT_CONFORMANCE_BLESS").is_some() {
         std::fs::write(&path, KnownDeviations::from_report(&report).to_toml()).expect("write known deviations");

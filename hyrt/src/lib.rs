@@ -68,7 +68,7 @@ pub use hyrt_cpu::traversal::tuning as simd_tuning;
 /// `CpuBackend::set_bounce_traversal`) and which SIMD level it runs.
 pub use hyrt_cpu::traversal::{force_simd_level, SimdLevel, Traversal};
 #[cfg(feature = "gpu")]
-pub use hyrt_gpu::{backend::GpuBackend, wgpu, AdapterPolicy, GpuContext};
+pub use hyrt_gpu::{backend::GpuBackend, shader::FloatOps, wgpu, AdapterPolicy, GpuContext};
 
 /// Which adapters a GPU backend accepts (the `gpu` feature is off: there is none).
 #[cfg(not(feature = "gpu"))]
