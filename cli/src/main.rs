@@ -834,11 +834,7 @@ fn conformance(args: ConformanceArgs) -> Result<(), String> {
         for v in &violations {
             eprintln!("  {v}");
         }
-        let missing = if report.missing_guarantees.is_empty() {
-            String::new()
-        } else {
-            format!(" (the float probe found missing: {})", report.missing_guarantees.join(", "))
-        };
+        let missing = report.attribution().map_or(String::new(), |m| format!(" ({m})"));
         Err(format!("{} differences beyond the recorded deviations{missing}", violations.len()))
     }
 }

@@ -209,11 +209,6 @@ pub fn render_case(backend: &mut dyn Backend, prepared: &PreparedScene, case: &C
     backend.render(prepared, &camera, &opts).map_err(|e| e.to_string())
 }
 
-/// The GPU backend for the conformance tests (software adapters allowed: lavapipe in CI).
-/// Without an adapter it panics when `CI` is set (CI installs lavapipe: a GPU test must
-/// fail there rather than skip) and otherwise says SKIPPED and returns `None`. Any other
-/// failure to start (a shader that does not compile, a validation error) is a bug and
-/// panics everywhere: it must not pass for a missing adapter.
 /// What [`Report::missing_guarantees`] holds for a GPU candidate on `ctx`: the guarantees
 /// its float probe found missing, or the probe's failure.
 pub fn missing_guarantees(ctx: &hyrt_gpu::GpuContext) -> Vec<String> {
@@ -223,6 +218,11 @@ pub fn missing_guarantees(ctx: &hyrt_gpu::GpuContext) -> Vec<String> {
     }
 }
 
+/// The GPU backend for the conformance tests (software adapters allowed: lavapipe in CI).
+/// Without an adapter it panics when `CI` is set (CI installs lavapipe: a GPU test must
+/// fail there rather than skip) and otherwise says SKIPPED and returns `None`. Any other
+/// failure to start (a shader that does not compile, a validation error) is a bug and
+/// panics everywhere: it must not pass for a missing adapter.
 pub fn gpu_for_tests() -> Option<hyrt_gpu::backend::GpuBackend> {
     gpu_for_tests_with(None)
 }
@@ -283,9 +283,10 @@ impl Report {
     /// On a candidate with missing guarantees each violation names them.
     pub fn check(&self, known: &KnownDeviations) -> (Vec<String>, Vec<String>) {
         let (mut v, mut i) = (Vec::new(), Vec::new());
+        let attribution = self.attribution();
         for r in &self.results {
             let (a, b) = check(r, known);
-            v.extend(a.into_iter().map(|a| match self.attribution() {
+            v.extend(a.into_iter().map(|a| match &attribution {
                 Some(m) => format!("{a} [{m}]"),
                 None => a,
             }));
@@ -295,7 +296,7 @@ impl Report {
     }
 
     /// "the float probe found missing: ..." where the candidate lacks guarantees.
-    fn attribution(&self) -> Option<String> {
+    pub fn attribution(&self) -> Option<String> {
         (!self.missing_guarantees.is_empty())
             .then(|| format!("the float probe found missing: {}", self.missing_guarantees.join(", ")))
     }

@@ -16,7 +16,7 @@ use indicatif::ProgressBar;
 
 use super::bounces::step_medians;
 use super::report::{num, Section, Table};
-use super::stats::median;
+use super::stats::FrameSummary;
 use super::table2::Table2;
 use super::{BenchError, BenchOptions, FrameBackend};
 
@@ -91,8 +91,7 @@ pub fn run(
             (label, ms, d)
         })
         .collect();
-    let frame_ms =
-        |s: &[FrameStats]| median(&s.iter().map(FrameStats::frame_ms).collect::<Vec<_>>()).unwrap_or(f64::NAN);
+    let frame_ms = |s: &[FrameStats]| FrameSummary::from_frames(s).map_or(f64::NAN, |s| s.frame_ms);
     let bits = |f: &Frame| f.final_image.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
     Ok(ExactHelpers::Measured(ExactCost {
         scene: row.name.clone(),
