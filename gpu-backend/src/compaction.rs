@@ -61,10 +61,10 @@ use std::sync::{Arc, Mutex, OnceLock};
 
 use crate::buffers::{FrameBuffers, ListBuffers, SceneBuffers};
 use crate::paging::{paged_source, Table, TablePages};
-use crate::scan::{pipeline, scan_wgsl, ListScan, Scratch};
+use crate::scan::{pipeline, scan_entries, scan_wgsl, ListScan, Scratch};
 use crate::shader::{
     bind_buffers, main_pipeline, preamble, ray_wgsl, shader_module, shading_helpers, soft_shadow_wgsl, storage_entry,
-    uniform_entry,
+    uniform_entry, StageModule,
 };
 use crate::texture::Specialization;
 
@@ -108,7 +108,7 @@ pub struct CompactionStage {
     /// traces stochastic rays.
     stochastic: OnceLock<ListScan>,
     /// The stage's module, which both scans compile.
-    module: wgpu::ShaderModule,
+    module: StageModule,
     /// The scans of scenes whose lights are in pages ([`TablePages::lights_only`]), plain
     /// and stochastic, each built the first time a frame needs it.
     paged: Mutex<Vec<(TablePages, bool, Arc<ListScan>)>>,
@@ -125,24 +125,28 @@ impl CompactionStage {
         let module = shader_module(ctx, "compaction", &compaction_wgsl());
         let plain = Specialization::PLAIN.stochastic_constant();
         let scan = ListScan::new(ctx, "compaction", &module, &list_entries(), &[plain]);
+        let test_entries = [storage_entry(8, false)];
         let test_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("compaction scan test"),
-            entries: &[storage_entry(8, false)],
+            entries: &test_entries,
         });
-        let with_test = [Some(&scan.scan_layout), Some(&test_layout)];
+        let scan_entries = scan_entries();
+        let with_test = [(&scan.scan_layout, scan_entries.as_slice()), (&test_layout, test_entries.as_slice())];
         let starts_module =
             shader_module(ctx, "compaction light starts", &(preamble() + include_str!("shaders/light_starts.wgsl")));
+        let starts_entries =
+            [storage_entry(0, true), storage_entry(1, true), storage_entry(2, false), storage_entry(3, true)];
         let starts_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("compaction light starts"),
-            entries: &[storage_entry(0, true), storage_entry(1, true), storage_entry(2, false), storage_entry(3, true)],
+            entries: &starts_entries,
         });
         CompactionStage {
             light_starts: (
-                main_pipeline(ctx, "compaction light starts", &starts_module, &starts_layout, &[]),
+                main_pipeline("compaction light starts", &starts_module, &starts_layout, &starts_entries, &[]),
                 starts_layout,
             ),
-            scatter_indices: pipeline(device, &module, "scatter_indices", &with_test, &[plain]),
-            reduce_for_test: pipeline(device, &module, "reduce", &with_test, &[plain]),
+            scatter_indices: pipeline(&module, "scatter_indices", &with_test, &[plain]),
+            reduce_for_test: pipeline(&module, "reduce", &with_test, &[plain]),
             scan,
             stochastic: OnceLock::new(),
             module,

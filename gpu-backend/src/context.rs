@@ -2,6 +2,7 @@
 
 use crate::exact::FloatProbe;
 use crate::shader::FloatOps;
+use crate::spirv::ShaderDelivery;
 use crate::GpuError;
 
 /// Environment variable that allows a software adapter (Mesa lavapipe) when set to `1`.
@@ -47,6 +48,11 @@ pub struct GpuContext {
     /// measure what the helpers cost ([`FloatOps::Device`]). Set it before building a
     /// backend on the context.
     pub float_ops: FloatOps,
+    /// How the shaders reach the driver: hyrt's own SPIR-V with every float operation
+    /// `NoContraction` and the device's float-controls modes, through wgpu's passthrough,
+    /// where the device offers it; else WGSL through wgpu ([`ShaderDelivery`]). Set it
+    /// (to [`ShaderDelivery::Wgsl`]) before building a backend on the context to compare.
+    pub shader_delivery: ShaderDelivery,
     /// The start-up float check, run on the first [`GpuContext::float_probe`] call.
     probe: std::sync::OnceLock<Result<FloatProbe, GpuError>>,
 }
@@ -61,6 +67,7 @@ impl std::fmt::Debug for GpuContext {
             .field("timestamps", &self.timestamps)
             .field("early_depth_test", &self.early_depth_test)
             .field("float_ops", &self.float_ops)
+            .field("shader_delivery", &self.shader_delivery)
             .finish()
     }
 }
@@ -136,8 +143,11 @@ impl GpuContext {
             return Err(GpuError::SoftwareOnly { name: format!("{} ({})", info.name, info.driver) });
         }
         let offered = adapter.features();
-        let wanted =
-            wgpu::Features::PRIMITIVE_INDEX | wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::SHADER_EARLY_DEPTH_TEST;
+        // Passthrough: the shaders reach the driver as hyrt's own SPIR-V (`crate::spirv`).
+        let wanted = wgpu::Features::PRIMITIVE_INDEX
+            | wgpu::Features::TIMESTAMP_QUERY
+            | wgpu::Features::SHADER_EARLY_DEPTH_TEST
+            | wgpu::Features::PASSTHROUGH_SHADERS;
         let features = offered & wanted;
         // The adapter's real limits where hyrt's frames grow with the image: the render
         // targets' side (lavapipe: 16384, WebGPU's default 8192) and buffer sizes. Frames
@@ -166,7 +176,6 @@ impl GpuContext {
         }))
         .map_err(|e| GpuError::RequestDevice { adapter: info.name.clone(), message: e.to_string() })?;
         Ok(GpuContext {
-            adapter,
             device,
             queue,
             info,
@@ -175,6 +184,8 @@ impl GpuContext {
             timestamps: features.contains(wgpu::Features::TIMESTAMP_QUERY),
             early_depth_test: features.contains(wgpu::Features::SHADER_EARLY_DEPTH_TEST),
             float_ops: FloatOps::Exact,
+            shader_delivery: ShaderDelivery::for_adapter(&adapter, features),
+            adapter,
             probe: std::sync::OnceLock::new(),
         })
     }
@@ -183,7 +194,8 @@ impl GpuContext {
     /// adapter, device and queue), so hyrt's passes run beside the application's and
     /// its frames can stay on the GPU ([`crate::backend::GpuBackend::render_to_texture`]).
     /// hyrt uses the features the device was created with: `PRIMITIVE_INDEX`,
-    /// `TIMESTAMP_QUERY` and `SHADER_EARLY_DEPTH_TEST` where present (all optional),
+    /// `TIMESTAMP_QUERY`, `SHADER_EARLY_DEPTH_TEST` and `PASSTHROUGH_SHADERS` (for
+    /// [`ShaderDelivery::Spirv`]) where present (all optional),
     /// and its limits as they are. Stages whose buffers exceed those limits fail with
     /// [`GpuError::Limits`].
     pub fn from_device(adapter: &wgpu::Adapter, device: wgpu::Device, queue: wgpu::Queue) -> GpuContext {
@@ -198,14 +210,16 @@ impl GpuContext {
             device,
             queue,
             float_ops: FloatOps::Exact,
+            shader_delivery: ShaderDelivery::for_adapter(adapter, features),
             probe: std::sync::OnceLock::new(),
         }
     }
 
-    /// A one-line description: adapter, type, driver, and the features in use.
+    /// A one-line description: adapter, type, driver, the features in use, and how the
+    /// shaders reach the driver.
     pub fn describe(&self) -> String {
         format!(
-            "{} ({:?}, {} {}); triangle ids via {}; timestamp queries {}; conservative depth {}",
+            "{} ({:?}, {} {}); triangle ids via {}; timestamp queries {}; conservative depth {}; {}",
             self.info.name,
             self.info.device_type,
             self.info.driver,
@@ -213,6 +227,7 @@ impl GpuContext {
             if self.primitive_index { "@builtin(primitive_index)" } else { "flat-interpolated vertex ids" },
             if self.timestamps { "available" } else { "unavailable" },
             if self.early_depth_test { "available" } else { "unavailable" },
+            self.shader_delivery.describe(),
         ) + match self.float_ops {
             FloatOps::Exact => "",
             FloatOps::Device => "; division and square roots by the device's own `/` and `sqrt`, not the exact helpers",

@@ -8,8 +8,10 @@
 //! (`gpu-backend/tests/exact.rs`) and [`FloatProbe`] use it.
 //!
 //! [`FloatProbe`] is the start-up check of what the GPU backend relies on: the helpers'
-//! results on hard cases, rounding to nearest even, subnormals kept, and products kept
-//! apart from the sums they feed where a shader says so (`rounded`, `mul`). It also says
+//! results on hard cases, rounding to nearest even, subnormals kept, products kept
+//! apart from the sums they feed where a shader says so (`rounded`, `mul`), and no
+//! contraction anywhere (the shaders reach the driver as SPIR-V with every float
+//! operation `NoContraction`, [`crate::spirv`], and a plain `a * b + c` comes back unfused). It also says
 //! what the device's own `/` and `sqrt` do on the same hard cases, which is why the
 //! helpers exist. [`GpuContext::float_probe`](crate::GpuContext::float_probe) runs it
 //! once per context.
@@ -40,7 +42,8 @@ use hyrt_core::kernels::exact::EXACT_ESTIMATE_UNITS;
 use wgpu::util::DeviceExt;
 
 use crate::gpu_buffer::{read_back, storage, upload};
-use crate::shader::{bind_buffers, main_pipeline, preamble, storage_entry, uniform_entry};
+use crate::shader::{bind_buffers, main_pipeline, preamble, storage_entry, uniform_entry, StageModule};
+use crate::spirv::ShaderDelivery;
 use crate::{GpuContext, GpuError};
 
 /// What [`ExactKernel`] computes per element, from operands `a`, `b`, `c` (f32 bits).
@@ -184,17 +187,16 @@ impl ExactKernel {
         let source = format!("{}\nconst GROUPS_PER_ROW: u32 = {GROUPS_PER_ROW}u;\n{ops}{JOB_WGSL}{ENTRY}", preamble());
         let entries = [uniform_entry(0), storage_entry(1, true), storage_entry(2, false)];
         // The one module that uses the device's own `/` and `sqrt` on purpose (to report
-        // them), so it is not made through `shader_module`, which refuses them.
+        // them), so it is not made through `shader_module`, which refuses them. It reaches
+        // the driver as every stage's does (`GpuContext::shader_delivery`), so the probe
+        // measures what the stages get.
         ctx.checked(|| {
-            let module = ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("exact helpers"),
-                source: wgpu::ShaderSource::Wgsl(source.into()),
-            });
+            let module = StageModule::new(ctx, "exact helpers", &source);
             let layout = ctx.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("exact helpers"),
                 entries: &entries,
             });
-            let pipeline = main_pipeline(ctx, "exact helpers", &module, &layout, &[]);
+            let pipeline = main_pipeline("exact helpers", &module, &layout, &entries, &[]);
             ExactKernel { pipeline, layout }
         })
     }
@@ -292,9 +294,9 @@ impl std::fmt::Display for Rounding {
     }
 }
 
-/// The result of the start-up float check ([`FloatProbe::run`]). The first four fields are
-/// what bit-identity with the CPU needs ([`FloatProbe::guarantees_met`]); the last three
-/// describe the device.
+/// The result of the start-up float check ([`FloatProbe::run`]). The first four fields and
+/// the shaders' delivery with no contraction observed are what bit-identity with the CPU
+/// needs ([`FloatProbe::guarantees_met`]); the other fields describe the device.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct FloatProbe {
     /// `div_rn` and `sqrt_rn` cases that differ from IEEE 754 (0 on a conforming device).
@@ -308,9 +310,12 @@ pub struct FloatProbe {
     /// A product behind the shaders' barrier (`rounded(a * b) + c`) stays rounded apart
     /// from the sum (false: the device fused it, and shaded bits will differ).
     pub guarded_products_apart: bool,
-    /// A plain `a * b + c` came back fused (allowed by WGSL; shaders guard every product
-    /// that feeds a sum).
+    /// A plain `a * b + c` came back fused (allowed by WGSL; SPIR-V's `NoContraction`,
+    /// which [`ShaderDelivery::Spirv`] puts on every float operation, forbids it; shaders
+    /// guard every product that feeds a sum all the same).
     pub plain_mul_add_fused: bool,
+    /// How the shaders, the probe's included, reached the driver.
+    pub delivery: ShaderDelivery,
     /// The device's own `/` on the hard cases.
     pub device_div: Rounding,
     /// The device's own `sqrt` on the hard cases.
@@ -424,6 +429,7 @@ impl FloatProbe {
             subnormals_kept,
             guarded_products_apart: guarded == 0,
             plain_mul_add_fused: plain != 0,
+            delivery: ctx.shader_delivery,
             device_div,
             device_sqrt,
         })
@@ -431,7 +437,13 @@ impl FloatProbe {
 
     /// Everything bit-identity with the CPU reference relies on holds.
     pub fn guarantees_met(&self) -> bool {
-        self.helpers_off == 0 && self.nearest_even && self.subnormals_kept && self.guarded_products_apart
+        self.missing().is_empty()
+    }
+
+    /// Float operations reach the driver decorated `NoContraction`, and the plain
+    /// `a * b + c` came back unfused: the device honours it.
+    pub fn no_contraction(&self) -> bool {
+        self.delivery.no_contraction() && !self.plain_mul_add_fused
     }
 
     /// The guarantees that fail, by the names conformance reports use.
@@ -448,6 +460,9 @@ impl FloatProbe {
         }
         if !self.guarded_products_apart {
             v.push("guarded products apart");
+        }
+        if !self.no_contraction() {
+            v.push("no contraction");
         }
         v
     }
@@ -469,13 +484,14 @@ impl std::fmt::Display for FloatProbe {
         }
         write!(
             f,
-            "{}, subnormals {}, guarded products {}); device's own `/` {}, `sqrt` {}; plain a*b+c {}; helpers correct estimates up to {EXACT_ESTIMATE_UNITS} units off",
+            "{}, subnormals {}, guarded products {}); device's own `/` {}, `sqrt` {}; plain a*b+c {}; helpers correct estimates up to {EXACT_ESTIMATE_UNITS} units off; {}",
             if self.nearest_even { "round to nearest even" } else { "NOT round to nearest even" },
             if self.subnormals_kept { "kept" } else { "FLUSHED" },
             if self.guarded_products_apart { "apart" } else { "FUSED" },
             self.device_div,
             self.device_sqrt,
             if self.plain_mul_add_fused { "fused" } else { "rounded twice" },
+            self.delivery.describe(),
         )
     }
 }

@@ -31,6 +31,7 @@ pub mod secondary_rays;
 pub mod shader;
 pub mod shadow_denoise;
 pub mod shadow_rays;
+pub mod spirv;
 pub mod texture;
 pub mod timing;
 pub mod visibility_raster;

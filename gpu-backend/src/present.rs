@@ -85,11 +85,12 @@ impl Present {
                 },
                 count: None,
             };
+            let entries = [storage_entry(0, true), uniform_entry(1), texture_entry, storage_entry(3, true)];
             let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("present"),
-                entries: &[storage_entry(0, true), uniform_entry(1), texture_entry, storage_entry(3, true)],
+                entries: &entries,
             });
-            (main_pipeline(ctx, "present", &module, &layout, &[]), layout)
+            (main_pipeline("present", &module, &layout, &entries, &[]), layout)
         });
         let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
         let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {

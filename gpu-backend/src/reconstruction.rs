@@ -108,17 +108,10 @@ impl ReconstructionStage {
 impl Pipelines {
     fn new(ctx: &GpuContext, (by_reference, pages): Kind) -> Self {
         let module = shader_module(ctx, "reconstruction", &paged_source(&shader_source(by_reference), pages));
+        // The layout as wgpu would derive it (a passthrough module has no reflection).
         let pipeline = |entry: &str| {
-            let p = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("reconstruction"),
-                layout: None,
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            });
-            let layout = p.get_bind_group_layout(0);
-            (p, layout)
+            let (group, layout) = module.derived_layout("reconstruction", &[(entry, wgpu::ShaderStages::COMPUTE)]);
+            (module.compute_pipeline("reconstruction", entry, &layout, &[]), group)
         };
         Pipelines { raster: pipeline("main"), reintersected: pipeline("main_reintersected") }
     }

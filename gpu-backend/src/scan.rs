@@ -23,7 +23,7 @@ use std::collections::HashMap;
 use std::sync::Mutex;
 
 use crate::gpu_buffer::storage;
-use crate::shader::{dynamic_uniform_entry, storage_entry, MAX_WORKGROUPS_PER_DIMENSION};
+use crate::shader::{dynamic_uniform_entry, storage_entry, StageModule, MAX_WORKGROUPS_PER_DIMENSION};
 use crate::{GpuContext, GpuError};
 
 /// Threads per scan workgroup. Tunable: larger means fewer tiles but more barrier
@@ -157,36 +157,25 @@ pub(crate) struct ListScan {
     scratch: Mutex<HashMap<u32, Scratch>>,
 }
 
+/// The entries of the scan's group-0 layout.
+pub(crate) fn scan_entries() -> [wgpu::BindGroupLayoutEntry; 4] {
+    [dynamic_uniform_entry(0), storage_entry(1, false), storage_entry(2, false), storage_entry(3, false)]
+}
+
 /// The scan's group-0 layout.
 pub(crate) fn scan_layout(device: &wgpu::Device) -> wgpu::BindGroupLayout {
-    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-        label: Some("scan"),
-        entries: &[dynamic_uniform_entry(0), storage_entry(1, false), storage_entry(2, false), storage_entry(3, false)],
-    })
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some("scan"), entries: &scan_entries() })
 }
 
 /// A compute pipeline of `module`'s `entry` over `groups`, with values for the module's
 /// pipeline-overridable `constants`.
 pub(crate) fn pipeline(
-    device: &wgpu::Device,
-    module: &wgpu::ShaderModule,
+    module: &StageModule,
     entry: &str,
-    groups: &[Option<&wgpu::BindGroupLayout>],
+    groups: &[(&wgpu::BindGroupLayout, &[wgpu::BindGroupLayoutEntry])],
     constants: &[(&str, f64)],
 ) -> wgpu::ComputePipeline {
-    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some(entry),
-        bind_group_layouts: groups,
-        immediate_size: 0,
-    });
-    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some(entry),
-        layout: Some(&layout),
-        module,
-        entry_point: Some(entry),
-        compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
-        cache: None,
-    })
+    module.compute_pipeline(entry, entry, &module.pipeline_layout(entry, groups), constants)
 }
 
 impl ListScan {
@@ -195,7 +184,7 @@ impl ListScan {
     pub fn new(
         ctx: &GpuContext,
         label: &str,
-        module: &wgpu::ShaderModule,
+        module: &StageModule,
         entries: &[wgpu::BindGroupLayoutEntry],
         constants: &[(&str, f64)],
     ) -> Self {
@@ -203,13 +192,15 @@ impl ListScan {
         let scan_layout = scan_layout(device);
         let list_layout =
             device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries });
-        let with_list = [Some(&scan_layout), Some(&list_layout)];
+        let scan_entries = scan_entries();
+        let scan = (&scan_layout, scan_entries.as_slice());
+        let with_list = [scan, (&list_layout, entries)];
         ListScan {
-            flags_reduce: pipeline(device, module, "flags_reduce", &with_list, constants),
-            reduce: pipeline(device, module, "reduce", &[Some(&scan_layout)], constants),
-            scan_top: pipeline(device, module, "scan_top", &[Some(&scan_layout)], constants),
-            downsweep: pipeline(device, module, "downsweep", &[Some(&scan_layout)], constants),
-            scatter: pipeline(device, module, "scatter", &with_list, constants),
+            flags_reduce: pipeline(module, "flags_reduce", &with_list, constants),
+            reduce: pipeline(module, "reduce", &[scan], constants),
+            scan_top: pipeline(module, "scan_top", &[scan], constants),
+            downsweep: pipeline(module, "downsweep", &[scan], constants),
+            scatter: pipeline(module, "scatter", &with_list, constants),
             scan_layout,
             list_layout,
             scratch: Mutex::new(HashMap::new()),

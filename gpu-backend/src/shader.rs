@@ -24,6 +24,7 @@ use hyrt_core::kernels::shadow::SHADOW_T_MAX_POINT;
 use crate::buffers::SlotParams;
 use hyrt_core::formats::{LIGHT_EMITTERS, LIGHT_QUAD, LIGHT_SPHERE, LIGHT_SUN};
 
+use crate::spirv::{self, ShaderDelivery};
 use crate::wgsl::f32_literal;
 use crate::GpuContext;
 
@@ -463,8 +464,9 @@ pub fn with_float_ops(source: &str, ops: FloatOps) -> std::borrow::Cow<'_, str> 
 /// the offending functions: a stage that divides or takes a root with the device's own
 /// operations would differ from the CPU reference on real GPUs, though not on lavapipe.
 /// The module is built from the source [`with_float_ops`] gives for the context's
-/// [`GpuContext::float_ops`] (the check reads the source as written).
-pub fn shader_module(ctx: &GpuContext, label: &str, source: &str) -> wgpu::ShaderModule {
+/// [`GpuContext::float_ops`] (the check reads the source as written), and reaches the
+/// driver as the context's [`GpuContext::shader_delivery`] says.
+pub fn shader_module(ctx: &GpuContext, label: &str, source: &str) -> StageModule {
     if cfg!(debug_assertions) {
         use std::collections::HashSet;
         use std::sync::Mutex;
@@ -486,10 +488,186 @@ pub fn shader_module(ctx: &GpuContext, label: &str, source: &str) -> wgpu::Shade
             }
         }
     }
-    ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(label),
-        source: wgpu::ShaderSource::Wgsl(with_float_ops(source, ctx.float_ops)),
-    })
+    StageModule::new(ctx, label, &with_float_ops(source, ctx.float_ops))
+}
+
+/// A stage's shader module as the context delivers it ([`ShaderDelivery`]): WGSL compiled
+/// by wgpu, or the parsed module from which each pipeline's SPIR-V is written
+/// ([`crate::spirv::write_entry`]) with its constants resolved. Pipelines are made
+/// through it ([`StageModule::compute_pipeline`], [`StageModule::entry`]) so that the
+/// two deliveries build the same pipelines.
+pub struct StageModule {
+    label: String,
+    device: wgpu::Device,
+    /// The parsed and validated module (for the derived layouts; and the SPIR-V).
+    module: naga::Module,
+    info: naga::valid::ModuleInfo,
+    delivery: ShaderDelivery,
+    /// wgpu's module of the WGSL, for [`ShaderDelivery::Wgsl`].
+    wgsl: Option<wgpu::ShaderModule>,
+}
+
+/// One entry point's module and the pipeline constants still to give it (none where the
+/// SPIR-V has them resolved), for a pipeline's stage descriptor.
+pub struct EntryModule<'a> {
+    pub module: wgpu::ShaderModule,
+    pub constants: &'a [(&'a str, f64)],
+}
+
+/// A pipeline layout, and the binding numbers of each of its groups: a pipeline's SPIR-V
+/// names Vulkan's bindings, which wgpu numbers by rank within a group (its Vulkan
+/// backend gives a bind group layout's entries, sorted by binding number, the Vulkan
+/// bindings 0, 1, 2, ..., and maps WGSL's numbers to those when it writes SPIR-V
+/// itself), so [`StageModule::entry`] writes the same map.
+pub struct StageLayout {
+    pub layout: wgpu::PipelineLayout,
+    /// Per group, its binding numbers in increasing order.
+    bindings: Vec<Vec<u32>>,
+}
+
+impl StageModule {
+    /// `source` (already past [`with_float_ops`]) as `ctx` delivers it, not checked by
+    /// [`inexact_operations`]: only the float probe's kernel, which uses the device's own
+    /// operations on purpose, is made this way directly.
+    pub fn new(ctx: &GpuContext, label: &str, source: &str) -> StageModule {
+        let module = naga::front::wgsl::parse_str(source)
+            .unwrap_or_else(|e| panic!("shader {label} does not parse: {}", e.emit_to_string(source)));
+        let info = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::all())
+            .validate(&module)
+            .unwrap_or_else(|e| panic!("shader {label} does not validate: {}", e.emit_to_string(source)));
+        let wgsl = (ctx.shader_delivery == ShaderDelivery::Wgsl).then(|| {
+            ctx.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            })
+        });
+        StageModule {
+            label: label.to_string(),
+            device: ctx.device.clone(),
+            module,
+            info,
+            delivery: ctx.shader_delivery,
+            wgsl,
+        }
+    }
+
+    /// The module for entry point `entry` (`stage`) of a pipeline over `layout`, with
+    /// `constants` for its pipeline-overridable constants. With
+    /// `HYRT_DUMP_SPIRV=<folder>` in the environment, each SPIR-V module written is also
+    /// saved there as `<label>.<entry>.spv` (for `spirv-val` and `spirv-dis`).
+    pub fn entry<'a>(
+        &self,
+        entry: &str,
+        stage: naga::ShaderStage,
+        layout: &StageLayout,
+        constants: &'a [(&'a str, f64)],
+    ) -> EntryModule<'a> {
+        match self.delivery {
+            ShaderDelivery::Wgsl => EntryModule { module: self.wgsl.clone().expect("WGSL module"), constants },
+            ShaderDelivery::Spirv { lang_version, float_controls } => {
+                let target = spirv::EntryTarget { lang_version, float_controls, bindings: &layout.bindings };
+                let words = spirv::write_entry(&self.module, &self.info, entry, stage, constants, &target)
+                    .unwrap_or_else(|e| panic!("shader {}: {e}", self.label));
+                if let Some(dir) = std::env::var_os("HYRT_DUMP_SPIRV") {
+                    let name = format!("{}.{entry}.spv", self.label.replace(|c: char| !c.is_ascii_alphanumeric(), "_"));
+                    let _ = std::fs::write(std::path::Path::new(&dir).join(name), bytemuck::cast_slice(&words));
+                }
+                let entry_points =
+                    [wgpu::PassthroughShaderEntryPoint { name: entry.into(), workgroup_size: (0, 0, 0) }];
+                // SAFETY: the words are naga's SPIR-V of a module naga validated, written
+                // with wgpu's own options for Vulkan and its binding map for `layout`, with
+                // decorations and execution modes added that the device supports
+                // (`ShaderDelivery::for_adapter`).
+                let module = unsafe {
+                    self.device.create_shader_module_passthrough(wgpu::ShaderModuleDescriptorPassthrough {
+                        label: Some(&self.label),
+                        entry_points: entry_points.as_slice().into(),
+                        spirv: Some(words.into()),
+                        ..Default::default()
+                    })
+                };
+                EntryModule { module, constants: &[] }
+            }
+        }
+    }
+
+    /// The compute pipeline of `entry` over `layout`, with values for the module's
+    /// pipeline-overridable `constants`.
+    pub fn compute_pipeline(
+        &self,
+        label: &str,
+        entry: &str,
+        layout: &StageLayout,
+        constants: &[(&str, f64)],
+    ) -> wgpu::ComputePipeline {
+        let m = self.entry(entry, naga::ShaderStage::Compute, layout, constants);
+        self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(label),
+            layout: Some(&layout.layout),
+            module: &m.module,
+            entry_point: Some(entry),
+            compilation_options: wgpu::PipelineCompilationOptions { constants: m.constants, ..Default::default() },
+            cache: None,
+        })
+    }
+
+    /// The bind group layouts, with their entries, of a pipeline over `entries` (name,
+    /// stages), derived from the module as wgpu derives them for `layout: None`
+    /// ([`spirv::derived_layout_entries`]): a passthrough module has no reflection.
+    pub fn derived_layouts(
+        &self,
+        entries: &[(&str, wgpu::ShaderStages)],
+    ) -> Vec<(wgpu::BindGroupLayout, Vec<wgpu::BindGroupLayoutEntry>)> {
+        spirv::derived_layout_entries(&self.module, &self.info, entries)
+            .unwrap_or_else(|e| panic!("shader {}: {e}", self.label))
+            .into_iter()
+            .map(|entries| {
+                let layout = self.device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some(&self.label),
+                    entries: &entries,
+                });
+                (layout, entries)
+            })
+            .collect()
+    }
+
+    /// [`StageModule::derived_layouts`] of entry points that use group 0 alone, and the
+    /// pipeline layout over it.
+    pub fn derived_layout(
+        &self,
+        label: &str,
+        entries: &[(&str, wgpu::ShaderStages)],
+    ) -> (wgpu::BindGroupLayout, StageLayout) {
+        let mut layouts = self.derived_layouts(entries);
+        assert_eq!(layouts.len(), 1, "shader {}: the entry points use other groups than 0", self.label);
+        let (group, entries) = layouts.remove(0);
+        let layout = self.pipeline_layout(label, &[(&group, &entries)]);
+        (group, layout)
+    }
+
+    /// The pipeline layout over `groups`: each group's layout with the entries it was
+    /// made of.
+    pub fn pipeline_layout(
+        &self,
+        label: &str,
+        groups: &[(&wgpu::BindGroupLayout, &[wgpu::BindGroupLayoutEntry])],
+    ) -> StageLayout {
+        let layouts: Vec<Option<&wgpu::BindGroupLayout>> = groups.iter().map(|(g, _)| Some(*g)).collect();
+        let layout = self.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(label),
+            bind_group_layouts: &layouts,
+            immediate_size: 0,
+        });
+        let bindings = groups
+            .iter()
+            .map(|(_, entries)| {
+                let mut b: Vec<u32> = entries.iter().map(|e| e.binding).collect();
+                b.sort_unstable();
+                b
+            })
+            .collect();
+        StageLayout { layout, bindings }
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -559,31 +737,19 @@ pub fn specialized_pipeline(
     let device = &ctx.device;
     let module = shader_module(ctx, label, source);
     let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries });
-    (main_pipeline(ctx, label, &module, &layout, constants), layout)
+    (main_pipeline(label, &module, &layout, entries, constants), layout)
 }
 
-/// The compute pipeline of entry point `main` of `module` over one bind group layout, with
-/// values for its pipeline-overridable `constants`.
+/// The compute pipeline of entry point `main` of `module` over one bind group layout (made
+/// of `entries`), with values for its pipeline-overridable `constants`.
 pub(crate) fn main_pipeline(
-    ctx: &GpuContext,
     label: &str,
-    module: &wgpu::ShaderModule,
+    module: &StageModule,
     layout: &wgpu::BindGroupLayout,
+    entries: &[wgpu::BindGroupLayoutEntry],
     constants: &[(&str, f64)],
 ) -> wgpu::ComputePipeline {
-    let pipeline_layout = ctx.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some(label),
-        bind_group_layouts: &[Some(layout)],
-        immediate_size: 0,
-    });
-    ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some(label),
-        layout: Some(&pipeline_layout),
-        module,
-        entry_point: Some("main"),
-        compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
-        cache: None,
-    })
+    module.compute_pipeline(label, "main", &module.pipeline_layout(label, &[(layout, entries)]), constants)
 }
 
 /// A bind group of whole buffers at bindings 0, 1, 2, ...

@@ -93,19 +93,8 @@ impl ShadowRaysStage {
             label: Some("shadow_rays"),
             entries: &entries,
         });
-        let pipeline_layout = ctx.device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("shadow_rays"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("shadow_rays"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("shadow_rays"),
-            compilation_options: wgpu::PipelineCompilationOptions { constants: &s.constants(), ..Default::default() },
-            cache: None,
-        });
+        let pipeline_layout = module.pipeline_layout("shadow_rays", &[(&layout, &entries)]);
+        let pipeline = module.compute_pipeline("shadow_rays", "shadow_rays", &pipeline_layout, &s.constants());
         ShadowRaysStage { pipeline, layout, two_level: s.two_level }
     }
 

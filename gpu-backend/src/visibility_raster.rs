@@ -355,13 +355,23 @@ impl VisibilityRasterStage {
             VisibilityMode::HardwareInterpolated => interpolated_shader_source(primitive_index, s.by_reference),
         };
         let module = shader_module(ctx, "visibility_raster", &crate::paging::paged_source(&source, s.pages));
+        // The layouts as wgpu would derive them (a passthrough module has no reflection).
+        let (raster_layout, raster_pipeline_layout) = module.derived_layout(
+            "visibility_raster",
+            &[("vs_main", wgpu::ShaderStages::VERTEX), ("fs_main", wgpu::ShaderStages::FRAGMENT)],
+        );
+        let vertex = module.entry("vs_main", naga::ShaderStage::Vertex, &raster_pipeline_layout, &[]);
+        let fragment = module.entry("fs_main", naga::ShaderStage::Fragment, &raster_pipeline_layout, constants);
         let raster = ctx.device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("visibility_raster"),
-            layout: None,
+            layout: Some(&raster_pipeline_layout.layout),
             vertex: wgpu::VertexState {
-                module: &module,
+                module: &vertex.module,
                 entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: vertex.constants,
+                    ..Default::default()
+                },
                 buffers: &[],
             },
             primitive: wgpu::PrimitiveState {
@@ -382,9 +392,12 @@ impl VisibilityRasterStage {
             }),
             multisample: Default::default(),
             fragment: Some(wgpu::FragmentState {
-                module: &module,
+                module: &fragment.module,
                 entry_point: Some("fs_main"),
-                compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: fragment.constants,
+                    ..Default::default()
+                },
                 targets: &[
                     Some(wgpu::ColorTargetState { format: ID_FORMAT, blend: None, write_mask: wgpu::ColorWrites::ALL }),
                     Some(wgpu::ColorTargetState {
@@ -397,22 +410,17 @@ impl VisibilityRasterStage {
             multiview_mask: None,
             cache: None,
         });
-        let compute = |label, entry_point| {
-            ctx.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(label),
-                layout: None,
-                module: &module,
-                entry_point: Some(entry_point),
-                compilation_options: Default::default(),
-                cache: None,
-            })
+        let compute = |label: &str, entry_point: &str| {
+            let (group, layout) = module.derived_layout(label, &[(entry_point, wgpu::ShaderStages::COMPUTE)]);
+            (module.compute_pipeline(label, entry_point, &layout, &[]), group)
         };
         let setup = (mode == VisibilityMode::Exact).then(|| compute("visibility_raster setup", "setup"));
-        let resolve = compute("visibility_raster resolve", "resolve");
+        let (resolve, resolve_layout) = compute("visibility_raster resolve", "resolve");
+        let (setup, setup_layout) = setup.unzip();
         VisibilityRasterStage {
-            setup_layout: setup.as_ref().map(|p| p.get_bind_group_layout(0)),
-            raster_layout: raster.get_bind_group_layout(0),
-            resolve_layout: resolve.get_bind_group_layout(0),
+            setup_layout,
+            raster_layout,
+            resolve_layout,
             setup,
             raster,
             resolve,

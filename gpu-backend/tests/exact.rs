@@ -26,6 +26,7 @@ use common::test_context;
 use hyrt_core::kernels::exact::sweep_operands;
 use hyrt_gpu::exact::{same_bits, ExactKernel, ExactOp};
 use hyrt_gpu::shader::{inexact_operations, FloatOps};
+use hyrt_gpu::spirv::ShaderDelivery;
 use hyrt_gpu::GpuContext;
 
 fn f(bits: u32) -> f32 {
@@ -218,6 +219,52 @@ fn the_probe_finds_the_guarantees_on_this_adapter() {
     assert!(probe.guarantees_met(), "{}: {probe}", ctx.info.name);
     assert_eq!(probe.helpers_off, 0);
     assert!(probe.helper_cases > 10_000, "{probe}");
+    // lavapipe offers wgpu's passthrough and the float controls below: the shaders reach it
+    // as hyrt's SPIR-V, and it honours NoContraction.
+    if hyrt_gpu::context::is_software(&ctx.info) {
+        let ShaderDelivery::Spirv { float_controls, .. } = probe.delivery else {
+            panic!("lavapipe gets WGSL: {probe}")
+        };
+        assert!(float_controls.rounding_mode_rte && float_controls.signed_zero_inf_nan_preserve, "{probe}");
+        assert!(!probe.plain_mul_add_fused, "{probe}");
+        assert!(ctx.describe().contains("NoContraction"), "{}", ctx.describe());
+    }
+}
+
+/// The shaders given to wgpu as WGSL (where a device offers no passthrough) render the
+/// same frame, bit for bit, as the CPU and as the SPIR-V hyrt writes (the shaders guard
+/// the products whose rounding matters), and the probe names the guarantee they lack.
+#[test]
+fn wgsl_delivery_renders_the_reference_and_names_what_it_lacks() {
+    let Some(mut ctx) = test_context() else { return };
+    ctx.shader_delivery = ShaderDelivery::Wgsl;
+    let probe = ctx.float_probe().expect("float probe").clone();
+    assert_eq!(probe.delivery, ShaderDelivery::Wgsl);
+    assert!(probe.missing().contains(&"no contraction"), "{probe}");
+    assert!(ctx.describe().contains("WGSL through wgpu"), "{}", ctx.describe());
+    let (frame, reference) = default_frame_and_reference(ctx);
+    let bits = |v: &[[f32; 4]]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&frame.final_image), bits(&reference.final_image));
+    assert_eq!(frame.stats.rays_per_kind, reference.stats.rays_per_kind);
+}
+
+/// The default scene's frame with its bounces (96 x 54) on `ctx`, and the CPU reference's.
+fn default_frame_and_reference(ctx: hyrt_gpu::GpuContext) -> (hyrt_core::frame::Frame, hyrt_core::frame::Frame) {
+    use hyrt_core::bvh::BvhPreset;
+    use hyrt_core::formats::CameraRecord;
+    use hyrt_core::frame::{Backend, FrameOptions};
+    use hyrt_core::geometry::WorldGeometry;
+    use hyrt_core::scene::Scene;
+    let mut gpu = hyrt_gpu::backend::GpuBackend::with_context(ctx).expect("pipelines");
+    let scene = Scene::default_scene();
+    let mut cpu = hyrt_cpu::backend::CpuBackend::new(Some(2));
+    let prepared = cpu.prepare(WorldGeometry::build(&scene), BvhPreset::default());
+    let camera = CameraRecord::new(&scene.camera.expect("camera"), 96, 54);
+    let options = FrameOptions::default();
+    let reference = cpu.render(&prepared, &camera, &options).expect("CPU frame");
+    let frame = gpu.render(&prepared, &camera, &options).expect("GPU frame");
+    assert!(!reference.stats.bounces.is_empty());
+    (frame, reference)
 }
 
 /// The IR check finds every inexact operation it is meant to, and passes the helpers.
@@ -228,11 +275,6 @@ fn the_probe_finds_the_guarantees_on_this_adapter() {
 /// so: issue 39.)
 #[test]
 fn device_float_ops_render_the_reference_where_the_device_rounds_correctly() {
-    use hyrt_core::bvh::BvhPreset;
-    use hyrt_core::formats::CameraRecord;
-    use hyrt_core::frame::{Backend, FrameOptions};
-    use hyrt_core::geometry::WorldGeometry;
-    use hyrt_core::scene::Scene;
     let Some(mut ctx) = test_context() else { return };
     let probe = ctx.float_probe().expect("float probe").clone();
     if probe.device_div.off != 0 || probe.device_sqrt.off != 0 {
@@ -241,16 +283,8 @@ fn device_float_ops_render_the_reference_where_the_device_rounds_correctly() {
         return;
     }
     ctx.float_ops = FloatOps::Device;
-    let mut gpu = hyrt_gpu::backend::GpuBackend::with_context(ctx).expect("pipelines");
-    assert!(gpu.describe().contains("device's own `/` and `sqrt`"), "{}", gpu.describe());
-    let scene = Scene::default_scene();
-    let mut cpu = hyrt_cpu::backend::CpuBackend::new(Some(2));
-    let prepared = cpu.prepare(WorldGeometry::build(&scene), BvhPreset::default());
-    let camera = CameraRecord::new(&scene.camera.expect("camera"), 96, 54);
-    let options = FrameOptions::default();
-    let reference = cpu.render(&prepared, &camera, &options).expect("CPU frame");
-    let frame = gpu.render(&prepared, &camera, &options).expect("GPU frame");
-    assert!(!reference.stats.bounces.is_empty());
+    assert!(ctx.describe().contains("device's own `/` and `sqrt`"), "{}", ctx.describe());
+    let (frame, reference) = default_frame_and_reference(ctx);
     let bits = |v: &[[f32; 4]]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
     assert_eq!(bits(&frame.final_image), bits(&reference.final_image));
     assert_eq!(frame.stats.rays_per_kind, reference.stats.rays_per_kind);
