@@ -9,6 +9,10 @@
 //! explicitly, so a missing driver never falls back to GL silently), hardware
 //! preferred; a software adapter (Mesa lavapipe) only when the caller allows it
 //! ([`context::AdapterPolicy::AllowSoftware`], or `HYRT_GPU_ALLOW_SOFTWARE=1`).
+//!
+//! The shaders are WGSL; where the device offers wgpu's passthrough they reach the driver
+//! as SPIR-V hyrt writes from them ([`spirv`]: every float operation `NoContraction`, the
+//! device's float-controls modes declared), else as WGSL through wgpu.
 
 pub mod backend;
 pub mod band;

@@ -564,8 +564,9 @@ impl StageModule {
     ) -> EntryModule<'a> {
         match self.delivery {
             ShaderDelivery::Wgsl => EntryModule { module: self.wgsl.clone().expect("WGSL module"), constants },
-            ShaderDelivery::Spirv { lang_version, float_controls } => {
-                let target = spirv::EntryTarget { lang_version, float_controls, bindings: &layout.bindings };
+            ShaderDelivery::Spirv { lang_version, float_controls, robustness } => {
+                let target =
+                    spirv::EntryTarget { lang_version, float_controls, robustness, bindings: &layout.bindings };
                 let words = spirv::write_entry(&self.module, &self.info, entry, stage, constants, &target)
                     .unwrap_or_else(|e| panic!("shader {}: {e}", self.label));
                 if let Some(dir) = std::env::var_os("HYRT_DUMP_SPIRV") {

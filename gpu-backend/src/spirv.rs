@@ -72,6 +72,23 @@ impl FloatControls {
     }
 }
 
+/// What the device's robustness features guarantee of out-of-bounds accesses and of
+/// workgroup memory, as wgpu's Vulkan backend finds and enables them: where they hold,
+/// the shaders need no bounds checks or zeroing of their own (wgpu writes none).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Robustness {
+    /// `robustBufferAccess2` (`VK_EXT_robustness2`): buffer accesses out of bounds read
+    /// zero and write nothing.
+    pub buffers: bool,
+    /// `robustImageAccess2`, or else `robustImageAccess` (Vulkan 1.3,
+    /// `VK_EXT_image_robustness`): image loads out of bounds are defined.
+    pub images: bool,
+    /// `shaderZeroInitializeWorkgroupMemory` (Vulkan 1.3,
+    /// `VK_KHR_zero_initialize_workgroup_memory`): the driver zeroes workgroup memory, so
+    /// the shaders declare it zeroed instead of writing the zeros themselves.
+    pub zeroed_workgroup_memory: bool,
+}
+
 /// How a context's shaders reach the driver ([`crate::GpuContext::shader_delivery`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ShaderDelivery {
@@ -87,6 +104,8 @@ pub enum ShaderDelivery {
         lang_version: (u8, u8),
         /// The execution modes declared on every entry point.
         float_controls: FloatControls,
+        /// Which bounds checks the shaders leave to the device.
+        robustness: Robustness,
     },
 }
 
@@ -131,7 +150,8 @@ impl ShaderDelivery {
         } else {
             FloatControls::default()
         };
-        ShaderDelivery::Spirv { lang_version, float_controls }
+        let robustness = robustness_of(&hal, api);
+        ShaderDelivery::Spirv { lang_version, float_controls, robustness }
     }
 
     /// Whether every float operation reaches the driver decorated `NoContraction`.
@@ -143,18 +163,64 @@ impl ShaderDelivery {
     pub fn describe(&self) -> String {
         match self {
             ShaderDelivery::Wgsl => "shaders as WGSL through wgpu (no passthrough: the driver may contract)".into(),
-            ShaderDelivery::Spirv { lang_version: (major, minor), float_controls } => {
+            ShaderDelivery::Spirv { lang_version: (major, minor), float_controls, robustness } => {
                 let modes = float_controls.names();
-                format!(
-                    "shaders as SPIR-V {major}.{minor} through passthrough, every float operation NoContraction{}",
-                    if modes.is_empty() {
-                        ", no float-controls mode offered".into()
-                    } else {
-                        format!(", {}", modes.join(", "))
-                    }
-                )
+                let modes = if modes.is_empty() {
+                    ", no float-controls mode offered".into()
+                } else {
+                    format!(", {}", modes.join(", "))
+                };
+                let checked: Vec<&str> = [(!robustness.buffers, "buffers"), (!robustness.images, "image loads")]
+                    .into_iter()
+                    .filter_map(|(checked, what)| checked.then_some(what))
+                    .collect();
+                let checks = if checked.is_empty() {
+                    "bounds left to the device's robustness".to_string()
+                } else {
+                    format!("bounds checked in the shader on {}", checked.join(" and "))
+                };
+                format!("shaders as SPIR-V {major}.{minor} through passthrough, every float operation NoContraction{modes}, {checks}")
             }
         }
+    }
+}
+
+/// The robustness wgpu's Vulkan backend enables on a device of this adapter (it turns on
+/// `VK_EXT_robustness2` and image robustness wherever the adapter has them).
+fn robustness_of(hal: &wgpu::hal::vulkan::Adapter, api: u32) -> Robustness {
+    let capabilities = hal.physical_device_capabilities();
+    let shared = hal.shared_instance();
+    if shared.instance_api_version() < vulkan_1(1) {
+        return Robustness::default();
+    }
+    let robustness2 = capabilities.supports_extension(ash::ext::robustness2::NAME);
+    let image_robustness = api >= vulkan_1(3) || capabilities.supports_extension(ash::ext::image_robustness::NAME);
+    let zero_init =
+        api >= vulkan_1(3) || capabilities.supports_extension(ash::khr::zero_initialize_workgroup_memory::NAME);
+    let mut r2 = ash::vk::PhysicalDeviceRobustness2FeaturesEXT::default();
+    let mut images = ash::vk::PhysicalDeviceImageRobustnessFeatures::default();
+    let mut zeroed = ash::vk::PhysicalDeviceZeroInitializeWorkgroupMemoryFeatures::default();
+    let mut features = ash::vk::PhysicalDeviceFeatures2::default();
+    if robustness2 {
+        features = features.push_next(&mut r2);
+    }
+    if image_robustness {
+        features = features.push_next(&mut images);
+    }
+    if zero_init {
+        features = features.push_next(&mut zeroed);
+    }
+    // SAFETY: a query into structures this function owns, each chained only where the
+    // device has its extension, on the physical device of the instance it came from.
+    unsafe { shared.raw_instance().get_physical_device_features2(hal.raw_physical_device(), &mut features) };
+    Robustness {
+        buffers: robustness2 && r2.robust_buffer_access2 != 0,
+        images: if robustness2 {
+            r2.robust_image_access2 != 0
+        } else {
+            image_robustness && images.robust_image_access != 0
+        },
+        zeroed_workgroup_memory: zero_init && zeroed.shader_zero_initialize_workgroup_memory != 0,
     }
 }
 
@@ -179,14 +245,15 @@ fn float_controls_of(fc: &ash::vk::PhysicalDeviceFloatControlsProperties) -> Flo
 pub struct EntryTarget<'a> {
     pub lang_version: (u8, u8),
     pub float_controls: FloatControls,
+    pub robustness: Robustness,
     pub bindings: &'a [Vec<u32>],
 }
 
 /// The SPIR-V of entry point `entry` (`stage`) of a validated module, with the
 /// pipeline-overridable `constants` resolved, written with the options wgpu's Vulkan
-/// backend writes with (bounds checks by clamping, loops bounded, workgroup memory
-/// zeroed by the shader; each WGSL binding at the Vulkan binding of its rank in its group)
-/// and [`patch`]ed for the target's float controls. An error names a binding the entry
+/// backend writes with (bounds checks by clamping, and workgroup memory zeroed by the
+/// shader, where the device's [`Robustness`] does not make them needless; loops bounded;
+/// each WGSL binding at the Vulkan binding of its rank in its group) and [`patch`]ed for the target's float controls. An error names a binding the entry
 /// point uses that the layout lacks.
 pub fn write_entry(
     module: &naga::Module,
@@ -210,7 +277,8 @@ pub fn write_entry(
             );
         }
     }
-    let restrict = naga::proc::BoundsCheckPolicy::Restrict;
+    use naga::proc::BoundsCheckPolicy::{Restrict, Unchecked};
+    let checks = |left_to_device: bool| if left_to_device { Unchecked } else { Restrict };
     let options = spv::Options {
         lang_version: target.lang_version,
         // wgpu's flags on Vulkan (no Y flip or depth clamp in the shader: the viewport
@@ -220,12 +288,16 @@ pub fn write_entry(
         binding_map,
         capabilities: None,
         bounds_check_policies: naga::proc::BoundsCheckPolicies {
-            index: restrict,
-            buffer: restrict,
-            image_load: restrict,
-            binding_array: naga::proc::BoundsCheckPolicy::Unchecked,
+            index: Restrict,
+            buffer: checks(target.robustness.buffers),
+            image_load: checks(target.robustness.images),
+            binding_array: Unchecked,
         },
-        zero_initialize_workgroup_memory: spv::ZeroInitializeWorkgroupMemoryMode::Polyfill,
+        zero_initialize_workgroup_memory: if target.robustness.zeroed_workgroup_memory {
+            spv::ZeroInitializeWorkgroupMemoryMode::Native
+        } else {
+            spv::ZeroInitializeWorkgroupMemoryMode::Polyfill
+        },
         force_loop_bounding: true,
         ray_query_initialization_tracking: true,
         trace_ray_argument_validation: true,
@@ -244,7 +316,7 @@ pub fn write_entry(
 /// The float arithmetic instructions `NoContraction` is put on: everything that rounds a
 /// sum or a product (negation and conversions are exact or alone; extended instructions
 /// such as `Fma` are not used by the shaders, whose IR check refuses `fma`).
-const FLOAT_ARITHMETIC: [spirv::Op; 13] = [
+pub const FLOAT_ARITHMETIC: [spirv::Op; 13] = [
     spirv::Op::FAdd,
     spirv::Op::FSub,
     spirv::Op::FMul,
@@ -523,7 +595,8 @@ fn b(@builtin(global_invocation_id) gid: vec3<u32>) {
     ) -> Result<Vec<u32>, String> {
         let (module, info) = parsed();
         let bindings = [vec![0, 1], vec![0]];
-        let target = EntryTarget { lang_version, float_controls, bindings: &bindings };
+        let target =
+            EntryTarget { lang_version, float_controls, robustness: Robustness::default(), bindings: &bindings };
         write_entry(&module, &info, entry, naga::ShaderStage::Compute, constants, &target)
     }
 
@@ -600,7 +673,12 @@ fn b(@builtin(global_invocation_id) gid: vec3<u32>) {
             .validate(&module)
             .unwrap();
         let write = |bindings: &[Vec<u32>]| {
-            let target = EntryTarget { lang_version: (1, 5), float_controls: FloatControls::default(), bindings };
+            let target = EntryTarget {
+                lang_version: (1, 5),
+                float_controls: FloatControls::default(),
+                robustness: Robustness::default(),
+                bindings,
+            };
             write_entry(&module, &info, "main", naga::ShaderStage::Compute, &[], &target)
         };
         let binding_decorations = |words: &[u32]| -> Vec<u32> {
