@@ -563,7 +563,29 @@ impl StageModule {
         constants: &'a [(&'a str, f64)],
     ) -> EntryModule<'a> {
         match self.delivery {
-            ShaderDelivery::Wgsl => EntryModule { module: self.wgsl.clone().expect("WGSL module"), constants },
+            ShaderDelivery::Wgsl => {
+                if cfg!(debug_assertions) {
+                    // What a device with passthrough would be given must be writable for
+                    // this layout too (every binding the entry point uses in it): checked
+                    // here so that the noop device's run over every specialization
+                    // (`tests/exact.rs`) covers the SPIR-V path, which it cannot take.
+                    let all_modes = spirv::FloatControls {
+                        rounding_mode_rte: true,
+                        denorm_preserve: true,
+                        signed_zero_inf_nan_preserve: true,
+                    };
+                    let target = spirv::EntryTarget {
+                        lang_version: (1, 6),
+                        float_controls: all_modes,
+                        robustness: spirv::Robustness::default(),
+                        bindings: &layout.bindings,
+                    };
+                    if let Err(e) = spirv::write_entry(&self.module, &self.info, entry, stage, constants, &target) {
+                        panic!("shader {}: no SPIR-V for passthrough: {e}", self.label);
+                    }
+                }
+                EntryModule { module: self.wgsl.clone().expect("WGSL module"), constants }
+            }
             ShaderDelivery::Spirv { lang_version, float_controls, robustness } => {
                 let target =
                     spirv::EntryTarget { lang_version, float_controls, robustness, bindings: &layout.bindings };

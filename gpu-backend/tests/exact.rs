@@ -352,7 +352,9 @@ fn noop_context(lavapipe: Option<&GpuContext>) -> GpuContext {
 }
 
 /// Every stage of the GPU backend, in the specializations below, compiles without an
-/// inexact operation: `shader_module` refuses one with a panic in debug builds. The stages
+/// inexact operation: `shader_module` refuses one with a panic in debug builds; and every
+/// pipeline's SPIR-V for passthrough can be written for its layout (`StageModule::entry`
+/// writes it in debug builds where the device takes WGSL, as the noop device does). The stages
 /// are built on wgpu's noop device ([`noop_context`]: the same WGSL, parsed and validated,
 /// not compiled by a driver: the 38 combinations took about 300 s of CI's debug run on
 /// lavapipe, almost all of it lavapipe compiling pipelines), and the combination of every
