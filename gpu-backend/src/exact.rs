@@ -314,7 +314,9 @@ pub struct FloatProbe {
     /// which [`ShaderDelivery::Spirv`] puts on every float operation, forbids it; shaders
     /// guard every product that feeds a sum all the same).
     pub plain_mul_add_fused: bool,
-    /// How the shaders, the probe's included, reached the driver.
+    /// How the shaders, the probe's included, reached the driver (described by
+    /// [`GpuContext::describe`](crate::GpuContext::describe), not by this probe's `Display`,
+    /// which the backend's description prints after the context's).
     pub delivery: ShaderDelivery,
     /// The device's own `/` on the hard cases.
     pub device_div: Rounding,
@@ -484,14 +486,13 @@ impl std::fmt::Display for FloatProbe {
         }
         write!(
             f,
-            "{}, subnormals {}, guarded products {}); device's own `/` {}, `sqrt` {}; plain a*b+c {}; helpers correct estimates up to {EXACT_ESTIMATE_UNITS} units off; {}",
+            "{}, subnormals {}, guarded products {}); device's own `/` {}, `sqrt` {}; plain a*b+c {}; helpers correct estimates up to {EXACT_ESTIMATE_UNITS} units off",
             if self.nearest_even { "round to nearest even" } else { "NOT round to nearest even" },
             if self.subnormals_kept { "kept" } else { "FLUSHED" },
             if self.guarded_products_apart { "apart" } else { "FUSED" },
             self.device_div,
             self.device_sqrt,
             if self.plain_mul_add_fused { "fused" } else { "rounded twice" },
-            self.delivery.describe(),
         )
     }
 }
