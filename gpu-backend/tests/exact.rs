@@ -18,7 +18,13 @@
 //! `exhaustive_quotients_match_ieee`: `div_rn` with each of the core's fixed operands
 //! (`hyrt_core::kernels::exact::sweep_operands`) as dividend and as divisor over all 2^32
 //! bit patterns (2.6 * 10^11 quotients, 260 times the random pairs: hours on lavapipe;
-//! the CPU checks them on one thread).
+//! the CPU checks them on one thread). `HYRT_SWEEP_OPERANDS=a..b` restricts it to the
+//! operands at indices `a..b` of the 30, to run it in parts:
+//!
+//! ```text
+//! HYRT_SWEEP_OPERANDS=0..8 XDG_RUNTIME_DIR=$(mktemp -d) CI=1 \
+//!     cargo test --release -p hyrt-gpu --test exact -- --ignored exhaustive_quotients
+//! ```
 
 mod common;
 
@@ -188,9 +194,25 @@ fn exhaustive_roots_match_ieee() {
 fn exhaustive_quotients_match_ieee() {
     let Some(ctx) = test_context() else { return };
     let kernel = ExactKernel::new(&ctx).expect("exact kernel");
-    let fixed = sweep_operands();
+    let fixed = chosen_sweep_operands();
     for start in (0..1u64 << 32).step_by(1 << 24) {
         sweep_quotients(&ctx, &kernel, start as u32, 1 << 24, &fixed);
+    }
+}
+
+/// The fixed operands of [`exhaustive_quotients_match_ieee`]: every one of
+/// `sweep_operands()`, or those at the indices `a..b` that `HYRT_SWEEP_OPERANDS=a..b`
+/// names, so that the sweep can run in parts (about 7 minutes an operand on lavapipe here).
+fn chosen_sweep_operands() -> Vec<f32> {
+    let all = sweep_operands();
+    let Ok(range) = std::env::var("HYRT_SWEEP_OPERANDS") else { return all };
+    let parsed = range.split_once("..").and_then(|(a, b)| Some((a.parse::<usize>().ok()?, b.parse::<usize>().ok()?)));
+    match parsed {
+        Some((a, b)) if a < b && b <= all.len() => {
+            eprintln!("sweeping operands {a}..{b} of {}: {:?}", all.len(), &all[a..b]);
+            all[a..b].to_vec()
+        }
+        _ => panic!("HYRT_SWEEP_OPERANDS={range}: expected a..b with a < b <= {}", all.len()),
     }
 }
 
