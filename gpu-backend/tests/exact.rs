@@ -17,8 +17,9 @@
 //! AMD EPYC); `random_quotients_match_ieee`: 10^9 random pairs (52 s there);
 //! `exhaustive_quotients_match_ieee`: `div_rn` with each of the core's fixed operands
 //! (`hyrt_core::kernels::exact::sweep_operands`) as dividend and as divisor over all 2^32
-//! bit patterns (2.6 * 10^11 quotients, 260 times the random pairs: hours on lavapipe;
-//! the CPU checks them on one thread). `HYRT_SWEEP_OPERANDS=a..b` restricts it to the
+//! bit patterns (2.6 * 10^11 quotients, 260 times the random pairs: 96 to 110 s an operand,
+//! about 52 minutes in all on lavapipe here, the sweep needing no operands uploaded; the
+//! CPU checks them on one thread). `HYRT_SWEEP_OPERANDS=a..b` restricts it to the
 //! operands at indices `a..b` of the 30, to run it in parts:
 //!
 //! ```text
@@ -202,7 +203,7 @@ fn exhaustive_quotients_match_ieee() {
 
 /// The fixed operands of [`exhaustive_quotients_match_ieee`]: every one of
 /// `sweep_operands()`, or those at the indices `a..b` that `HYRT_SWEEP_OPERANDS=a..b`
-/// names, so that the sweep can run in parts (about 7 minutes an operand on lavapipe here).
+/// names, so that the sweep can run in parts (about 100 s an operand on lavapipe here).
 fn chosen_sweep_operands() -> Vec<f32> {
     let all = sweep_operands();
     let Ok(range) = std::env::var("HYRT_SWEEP_OPERANDS") else { return all };
