@@ -569,14 +569,9 @@ impl StageModule {
                     // this layout too (every binding the entry point uses in it): checked
                     // here so that the noop device's run over every specialization
                     // (`tests/exact.rs`) covers the SPIR-V path, which it cannot take.
-                    let all_modes = spirv::FloatControls {
-                        rounding_mode_rte: true,
-                        denorm_preserve: true,
-                        signed_zero_inf_nan_preserve: true,
-                    };
                     let target = spirv::EntryTarget {
                         lang_version: (1, 6),
-                        float_controls: all_modes,
+                        float_controls: spirv::FloatControls::ALL,
                         robustness: spirv::Robustness::default(),
                         bindings: &layout.bindings,
                     };

@@ -40,19 +40,14 @@ pub struct FloatControls {
 }
 
 impl FloatControls {
+    /// Every mode: what a device that offers them all is given, and what the debug build's
+    /// check of the SPIR-V path writes ([`crate::shader::StageModule::entry`]).
+    pub const ALL: FloatControls =
+        FloatControls { rounding_mode_rte: true, denorm_preserve: true, signed_zero_inf_nan_preserve: true };
+
     /// The declared modes by their SPIR-V names, in declaration order.
-    pub fn names(&self) -> Vec<&'static str> {
-        let mut v = Vec::new();
-        if self.rounding_mode_rte {
-            v.push("RoundingModeRTE");
-        }
-        if self.denorm_preserve {
-            v.push("DenormPreserve");
-        }
-        if self.signed_zero_inf_nan_preserve {
-            v.push("SignedZeroInfNanPreserve");
-        }
-        v
+    pub fn names(&self) -> Vec<String> {
+        self.modes().iter().map(|(mode, _)| format!("{mode:?}")).collect()
     }
 
     /// The execution modes and the capabilities that declare them.
@@ -600,12 +595,9 @@ fn b(@builtin(global_invocation_id) gid: vec3<u32>) {
         write_entry(&module, &info, entry, naga::ShaderStage::Compute, constants, &target)
     }
 
-    const ALL_MODES: FloatControls =
-        FloatControls { rounding_mode_rte: true, denorm_preserve: true, signed_zero_inf_nan_preserve: true };
-
     #[test]
     fn every_float_operation_is_decorated_no_contraction_and_nothing_else() {
-        let words = write("a", &[("SCALE", 3.0)], (1, 6), ALL_MODES).unwrap();
+        let words = write("a", &[("SCALE", 3.0)], (1, 6), FloatControls::ALL).unwrap();
         let ins = instructions(&words);
         let float_results: Vec<u32> =
             ins.iter().filter(|(op, _)| FLOAT_ARITHMETIC.contains(op)).map(|(_, operands)| operands[1]).collect();
@@ -636,17 +628,18 @@ fn b(@builtin(global_invocation_id) gid: vec3<u32>) {
 
     #[test]
     fn the_device_modes_are_declared_on_the_entry_point_with_their_capabilities() {
-        let words = write("b", &[], (1, 5), ALL_MODES).unwrap();
+        let words = write("b", &[], (1, 5), FloatControls::ALL).unwrap();
         let ins = instructions(&words);
         let entry = ins.iter().find(|(op, _)| *op == spirv::Op::EntryPoint).unwrap().1[1];
-        for (mode, capability) in ALL_MODES.modes() {
+        assert_eq!(FloatControls::ALL.names(), ["RoundingModeRTE", "DenormPreserve", "SignedZeroInfNanPreserve"]);
+        for (mode, capability) in FloatControls::ALL.modes() {
             assert!(ins.contains(&(spirv::Op::Capability, vec![capability as u32])), "{capability:?}");
             assert!(ins.contains(&(spirv::Op::ExecutionMode, vec![entry, mode as u32, 32])), "{mode:?}");
         }
         let none = write("b", &[], (1, 5), FloatControls::default()).unwrap();
         assert!(!instructions(&none).iter().any(|(op, o)| *op == spirv::Op::ExecutionMode && o.get(2) == Some(&32)));
         // Before SPIR-V 1.4 the modes are an extension's, which the patch does not add.
-        assert!(write("b", &[], (1, 3), ALL_MODES).is_err());
+        assert!(write("b", &[], (1, 3), FloatControls::ALL).is_err());
         assert!(write("b", &[], (1, 3), FloatControls::default()).is_ok());
     }
 
