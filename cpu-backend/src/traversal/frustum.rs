@@ -276,7 +276,7 @@ pub(crate) fn closest_hit<L: Lanes, const O: u8>(
                 continue 'walk;
             }
         }
-        super::single::push_nearest_last(mask, &t, |k| entry(node, k), stack, &mut sp);
+        super::single::push_nearest_last(mask, |k| t[k], |k| entry(node, k), stack, &mut sp);
         loop {
             if sp == 0 {
                 break 'walk;
