@@ -207,6 +207,24 @@
 //! 24.4 to 24.6 against 24.5 to 25.1 ms at AVX-512, 24.6 to 25.3 against 24.9 to 25.5 at
 //! AVX2 (seven pairs).
 //!
+//! Tried after those and not kept (same measurement, separate binaries alternated three
+//! or four times, ms): a node entered on exactly two children taking the nearer by
+//! selects and pushing the other (Embree's two-child case, no branch on their order and
+//! no insertion): 24.2 to 24.9 against 24.2 to 24.7, neutral; the leaf bits of a node's
+//! children read with one sign-mask of its child references, so that a one-child descent
+//! into an inner node skips the node-or-leaf decode: 24.0 to 24.4 against 23.7 to 24.0 at
+//! AVX-512, 24.8 to 25.3 against 24.0 to 24.8 at AVX2 (the decode it skips is predicted
+//! from the branch just before it); `codegen-units = 1` for the release build: within the
+//! noise. Where the row stands against Embree after these (`hyrt bench --quick`, 2
+//! threads): 0.96 at AVX-512 and 0.95 with `--simd avx2`, hyrt's single rays ahead of
+//! Embree's `rtcIntersect1` (12.44 against 12.84 ms) and 3 to 4% behind its
+//! `rtcIntersect8`. (That contest runs its contenders in a fixed cyclic order, so Embree's
+//! `rtcIntersect8` always follows its `rtcIntersect1` on the same tree, warm; in
+//! `ray_contest`, where it follows hyrt's single rays, it took 24.9 ms against the
+//! report's 24.3 at one thread, hyrt's single rays 25.2 and 25.1. With every contender's
+//! pass run three times in a row, `--passes 3`, hyrt's ratio was 0.98 and 0.99 against
+//! 1.00 and 1.01 for one pass: Embree's more compact tree gains more from warm caches.)
+//!
 //! [`ray_aabb_conservative`]: hyrt_core::kernels::ray::ray_aabb_conservative
 
 use glam::Vec3;
