@@ -215,7 +215,11 @@
 //! into an inner node skips the node-or-leaf decode: 24.0 to 24.4 against 23.7 to 24.0 at
 //! AVX-512, 24.8 to 25.3 against 24.0 to 24.8 at AVX2 (the decode it skips is predicted
 //! from the branch just before it); `codegen-units = 1` for the release build: within the
-//! noise. Where the row stands against Embree after these (`hyrt bench --quick`, 2
+//! noise. The generic walk alone (no octant copies, the plane rows picked per ray at run
+//! time) was only 1 to 3% slower on these rays (AVX-512 24.5 to 25.2 against 24.4 to 24.8,
+//! AVX2 25.3 to 25.6 against 24.8), against 12 to 20% on shadow rays: rays of mixed
+//! octants spread over eight copies of the walk's branches. Where the row stands against
+//! Embree after these (`hyrt bench --quick`, 2
 //! threads): 0.96 at AVX-512 and 0.95 with `--simd avx2`, hyrt's single rays ahead of
 //! Embree's `rtcIntersect1` (12.44 against 12.84 ms) and 3 to 4% behind its
 //! `rtcIntersect8`. (That contest runs its contenders in a fixed cyclic order, so Embree's
