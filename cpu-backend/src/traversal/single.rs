@@ -218,7 +218,10 @@
 //! noise. The generic walk alone (no octant copies, the plane rows picked per ray at run
 //! time) was only 1 to 3% slower on these rays (AVX-512 24.5 to 25.2 against 24.4 to 24.8,
 //! AVX2 25.3 to 25.6 against 24.8), against 12 to 20% on shadow rays: rays of mixed
-//! octants spread over eight copies of the walk's branches. Where the row stands against
+//! octants spread over eight copies of the walk's branches. The generic walk with each
+//! ray's plane rows picked once (row indices into the node read as rows) instead of per
+//! node was slower still: 25.4 to 26.1 against 24.9 to 26.0 at AVX-512, 26.6 to 27.3
+//! against 25.7 to 25.9 at AVX2. Where the row stands against
 //! Embree after these (`hyrt bench --quick`, 2
 //! threads): 0.96 at AVX-512 and 0.95 with `--simd avx2`, hyrt's single rays ahead of
 //! Embree's `rtcIntersect1` (12.44 against 12.84 ms) and 3 to 4% behind its
