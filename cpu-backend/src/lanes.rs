@@ -551,7 +551,7 @@ mod x86 {
         fn lane(a: Self::F, lane: usize) -> f32 {
             // A permute instead of a store and a narrower load from it.
             // SAFETY: see the type's docs.
-            unsafe { _mm256_cvtss_f32(_mm256_permutevar8x32_ps(a, _mm256_set1_epi32(lane as i32))) }
+            unsafe { _mm256_cvtss_f32(Self::broadcast_lane(a, lane)) }
         }
         #[inline(always)]
         fn div(a: Self::F, b: Self::F) -> Self::F {

@@ -221,9 +221,8 @@
 //! octants spread over eight copies of the walk's branches. The generic walk with each
 //! ray's plane rows picked once (row indices into the node read as rows) instead of per
 //! node was slower still: 25.4 to 26.1 against 24.9 to 26.0 at AVX-512, 26.6 to 27.3
-//! against 25.7 to 25.9 at AVX2. Where the row stands against
-//! Embree after these (`hyrt bench --quick`, 2
-//! threads): 0.96 at AVX-512 and 0.95 with `--simd avx2`, hyrt's single rays ahead of
+//! against 25.7 to 25.9 at AVX2. Where the row stands against Embree after these (`hyrt
+//! bench --quick`, 2 threads): 0.96 at AVX-512 and 0.95 with `--simd avx2`, hyrt's single rays ahead of
 //! Embree's `rtcIntersect1` (12.44 against 12.84 ms) and 3 to 4% behind its
 //! `rtcIntersect8`. (That contest runs its contenders in a fixed cyclic order, so Embree's
 //! `rtcIntersect8` always follows its `rtcIntersect1` on the same tree, warm; in
@@ -317,11 +316,12 @@ impl<L: Lanes> WideRay<L> {
 
     /// The slab test of the node's children for `[box_t_min, t_far]`: the mask of children
     /// entered and every lane's entry distance. `O` is the ray's octant, or
-    /// [`ANY_OCTANT`] to read it from the ray.
+    /// [`ANY_OCTANT`] to read it from the ray; `finite_inv` is [`Self::finite_inv`], or
+    /// `true` where the caller's walk takes only such rays (as `packet`'s `enter_signed`).
     #[inline(always)]
-    fn enter<const O: u8, const FINITE: bool>(&self, node: &WideNode, t_far: L::F) -> (u32, L::F) {
+    fn enter<const O: u8>(&self, node: &WideNode, t_far: L::F, finite_inv: bool) -> (u32, L::F) {
         debug_assert!(O == ANY_OCTANT || O == self.octant);
-        debug_assert!(!FINITE || O == ANY_OCTANT || self.finite_inv);
+        debug_assert!(!finite_inv || self.finite_inv);
         let octant = if O == ANY_OCTANT { self.octant } else { O };
         let mut tn = [self.box_t_min; 3];
         let mut tf = [t_far; 3];
@@ -330,8 +330,6 @@ impl<L: Lanes> WideRay<L> {
             tn[a] = L::mul(L::sub(L::load(near), self.origin[a]), self.inv_dir[a]);
             tf[a] = L::mul(L::mul(L::sub(L::load(far), self.origin[a]), self.inv_dir[a]), L::splat(SLAB_FAR_SCALE));
         }
-        // The closest-hit octant walks take only rays with finite inverse directions.
-        let finite_inv = (FINITE && O != ANY_OCTANT) || self.finite_inv;
         let (t_enter, t_exit) = slab_bounds::<L>(tn, tf, self.box_t_min, t_far, finite_inv);
         let used = (1u32 << node.count) - 1;
         (L::bits(L::le(t_enter, t_exit)) & used, t_enter)
@@ -422,7 +420,8 @@ fn closest_hit_in<L: Lanes, const O: u8>(
         match WideChild::decode(current) {
             WideChild::Node(n) => {
                 let node = &wide.nodes[n as usize];
-                let (mask, t) = r.enter::<O, true>(node, t_far_lanes);
+                // The octant walks take only rays with finite inverse directions.
+                let (mask, t) = r.enter::<O>(node, t_far_lanes, O != ANY_OCTANT || r.finite_inv);
                 if mask & mask.wrapping_sub(1) == 0 && mask != 0 {
                     // One child entered: visit it next.
                     current = node.child[mask.trailing_zeros() as usize & (WIDE - 1)];
@@ -510,7 +509,7 @@ fn occluded_in<L: Lanes, const O: u8>(wide: &WideBvh, r: &WideRay<L>, stack: &mu
         match WideChild::decode(current) {
             WideChild::Node(n) => {
                 let node = &wide.nodes[n as usize];
-                let mut mask = r.enter::<O, false>(node, t_far).0;
+                let mut mask = r.enter::<O>(node, t_far, r.finite_inv).0;
                 if mask != 0 {
                     let first = mask.trailing_zeros() as usize;
                     mask &= mask - 1;
