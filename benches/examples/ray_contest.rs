@@ -8,7 +8,7 @@
 //!
 //! ```text
 //! cargo run --release -p hyrt-benches --features embree --example ray_contest -- \
-//!     [--threads N] [--rounds N] [--passes N] [--simd avx2|avx512|sse2|portable] [--kind shadow|primary|both|bounce]
+//!     [--threads N] [--rounds N] [--passes N] [--cold MB] [--simd avx2|avx512|sse2|portable] [--kind shadow|primary|both|bounce]
 //!     [--packets-only | --singles-only | --embree-only] [--with-avx2] [--with-auto] SCENE...
 //! ```
 //!
@@ -24,6 +24,15 @@
 //! turn traces the list N times in a row (times per pass), as the report's contest does for
 //! short lists.
 //!
+//! `--cold MB`: before every timed turn each worker of the pool reads a buffer of `MB`
+//! megabytes (untimed), so that every contender starts with caches holding none of its
+//! data, instead of what the contender before it left there. Without it a contender that
+//! follows one sharing its structure starts warm: in the report's contest Embree's
+//! `rtcIntersect8` always follows its `rtcIntersect1` on the same tree, while hyrt's single
+//! rays follow its packets, which walk the binary tree and not the wide view (as in a
+//! frame, where the bounce stage follows the shadow stage). Give at least twice the
+//! last-level cache (`--cold 96` on this project's EPYC with 32 MB of L3).
+//!
 //! `--kind bounce` traces the frame's reflection and refraction rays (closest hit; scenes
 //! with mirrors or glass only) instead.
 //!
@@ -36,7 +45,7 @@
 use hyrt_benches::bench::embree::EmbreeScene;
 use hyrt_benches::bench::peers::{frame_rays, frame_shadow_rays, PeerScene};
 use hyrt_benches::bench::scenes::load_manifest;
-use hyrt_benches::bench::stats::{interleaved_ms, median, round_ratios};
+use hyrt_benches::bench::stats::{interleaved_turns_ms, median, round_ratios};
 use hyrt_core::formats::{CameraRecord, RayRecord};
 use hyrt_core::kernels::camera::primary_rays;
 use hyrt_cpu::traversal::{
@@ -52,6 +61,8 @@ struct Args {
     rounds: usize,
     /// Passes of the list in each contender's turn (the time per pass is reported).
     passes: usize,
+    /// Megabytes read by every worker before each timed turn (0: none).
+    cold_mb: usize,
     shadow: bool,
     primary: bool,
     /// The frame's reflection and refraction rays (closest hit), with `--kind bounce`.
@@ -74,6 +85,7 @@ fn parse() -> Result<Args, String> {
         threads: 2,
         rounds: 5,
         passes: 1,
+        cold_mb: 0,
         shadow: true,
         primary: true,
         bounce: false,
@@ -91,6 +103,7 @@ fn parse() -> Result<Args, String> {
             "--threads" => a.threads = value("--threads")?.parse().map_err(|e| format!("--threads: {e}"))?,
             "--rounds" => a.rounds = value("--rounds")?.parse().map_err(|e| format!("--rounds: {e}"))?,
             "--passes" => a.passes = value("--passes")?.parse().map_err(|e| format!("--passes: {e}"))?,
+            "--cold" => a.cold_mb = value("--cold")?.parse().map_err(|e| format!("--cold: {e}"))?,
             "--simd" => {
                 let v = value("--simd")?;
                 let level = SimdLevel::from_name(&v).ok_or(format!("--simd: unknown level {v}"))?;
@@ -200,7 +213,16 @@ impl Contest<'_> {
                 }
             }
             let mut refs: Vec<&mut dyn FnMut()> = runs.iter_mut().map(|r| &mut **r as &mut dyn FnMut()).collect();
-            let ms = interleaved_ms(self.args.rounds, &mut refs);
+            // Read with a stride of one cache line; the sum keeps the reads.
+            let sweep: Vec<u64> = (0..(self.args.cold_mb << 17) as u64).collect();
+            let mut evict = || {
+                if !sweep.is_empty() {
+                    pool.broadcast(|_| {
+                        std::hint::black_box(sweep.iter().step_by(8).fold(0u64, |a, &x| a.wrapping_add(x)))
+                    });
+                }
+            };
+            let ms = interleaved_turns_ms(self.args.rounds, &mut |_| {}, &mut evict, &mut refs);
             ms.into_iter().map(|m| m.into_iter().map(|x| x / passes as f64).collect()).collect::<Vec<Vec<f64>>>()
         };
         for (t, o) in self.hyrt.iter().zip(&outs) {

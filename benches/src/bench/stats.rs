@@ -132,6 +132,18 @@ pub fn interleaved_rounds_ms(
     setup: &mut dyn FnMut(usize),
     contenders: &mut [&mut dyn FnMut()],
 ) -> Vec<Vec<f64>> {
+    interleaved_turns_ms(rounds, setup, &mut || {}, contenders)
+}
+
+/// [`interleaved_rounds_ms`] with `before_turn` also run untimed right before every
+/// timed turn, e.g. evicting the caches so that no contender starts from what the one
+/// before it left there (`ray_contest --cold`).
+pub fn interleaved_turns_ms(
+    rounds: usize,
+    setup: &mut dyn FnMut(usize),
+    before_turn: &mut dyn FnMut(),
+    contenders: &mut [&mut dyn FnMut()],
+) -> Vec<Vec<f64>> {
     setup(0);
     contenders.iter_mut().for_each(|c| c());
     let n = contenders.len();
@@ -140,6 +152,7 @@ pub fn interleaved_rounds_ms(
         setup(r + 1);
         for j in 0..n {
             let i = (j + r) % n;
+            before_turn();
             let t = std::time::Instant::now();
             contenders[i]();
             ms[i].push(t.elapsed().as_secs_f64() * 1e3);
@@ -188,6 +201,18 @@ mod interleaving_tests {
         assert_eq!(order.into_inner(), "0ab1ab2ba");
         assert_eq!(range(&[3.0, 1.0, 2.0]), Some((1.0, 3.0)));
         assert_eq!(range(&[]), None);
+    }
+
+    #[test]
+    fn interleaved_turns_run_the_hook_before_every_timed_turn_only() {
+        let order = std::cell::RefCell::new(String::new());
+        let mut setup = |r: usize| order.borrow_mut().push_str(&r.to_string());
+        let mut flush = || order.borrow_mut().push('.');
+        let (mut a, mut b) = (|| order.borrow_mut().push('a'), || order.borrow_mut().push('b'));
+        let ms = interleaved_turns_ms(2, &mut setup, &mut flush, &mut [&mut a, &mut b]);
+        assert!(ms.iter().all(|m| m.len() == 2));
+        // Not before the untimed warm-up.
+        assert_eq!(order.into_inner(), "0ab1.a.b2.b.a");
     }
 
     #[test]
