@@ -231,6 +231,36 @@
 //! pass run three times in a row, `--passes 3`, hyrt's ratio was 0.98 and 0.99 against
 //! 1.00 and 1.01 for one pass: Embree's more compact tree gains more from warm caches.)
 //!
+//! Where the closest-hit walk's samples fall (`perf record -e cpu-clock` on `ray_contest
+//! --singles-only --kind bounce --threads 1`, AVX-512, one octant copy of the walk): the
+//! node test 36%, the insertion of several entered children 20%, the leaf test and its
+//! hits 35%, the pops 5%, the one-child descent 4%. Tried against that and not kept (the
+//! teaser's reflection and refraction rays, one thread, AVX-512, `ray_contest
+//! --singles-only --kind bounce --rounds 11` to `15`, separate binaries or a switch read
+//! once, alternated three or four times, ms; every variant gave the scalar answers):
+//!
+//! * *Other trees.* The wide view collapsed from other obvhs trees of the same triangles:
+//!   leaves of one triangle (the collapse then forms every wide leaf itself), obvhs' leaf
+//!   collapse at traversal costs 1, 3 and 5, its spatial pre-splits with leaves of one or
+//!   up to eight triangles: 23.6 to 26.9 against 23.7 to 25.9 for today's tree, all within
+//!   the noise. The tree is not where these rays lose.
+//! * *No bounds checks* on the walk's node, leaf, stack and child reads (unchecked
+//!   indexing, as an experiment): 25.5 to 26.3 against 25.5 to 25.8. The checks (about a
+//!   hundred instructions a ray) are predicted and cost nothing measurable.
+//! * *Eight rays prepared at once* (the constants of [`WideRay`] for eight consecutive
+//!   rays computed lane-wise as `Packet::new` does, each walk starting from broadcasts of
+//!   its lane): 25.4 to 27.0 against 25.1 to 26.4. The set-up is off the walk's chain.
+//!
+//! Whether a contender starts warm matters more than these: `ray_contest --cold 96` reads
+//! 96 MB on every worker before each timed turn, and the teaser's reflections then run
+//! at 0.99 to 1.00 of Embree's `rtcIntersect8` at two threads, as without it (three
+//! alternations), while the report's contest, where `rtcIntersect8` follows
+//! `rtcIntersect1` on the same tree and hyrt's single rays follow its packets on the
+//! binary tree, gave 0.96 (0.90 to 0.99) at the same commit. A frame does the same: its
+//! bounce stage follows the shadow stage, whose packets walk the binary tree and its leaf
+//! records, not the wide view. Sharing one set of leaves between the packets and the
+//! single rays (the one wide tree) is what would give these rays warm leaves.
+//!
 //! [`ray_aabb_conservative`]: hyrt_core::kernels::ray::ray_aabb_conservative
 
 use glam::Vec3;
