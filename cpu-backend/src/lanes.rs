@@ -79,12 +79,6 @@ pub(crate) trait Lanes: Copy {
         Self::splat(Self::store(a)[lane])
     }
 
-    /// Lane `lane` of `a` (`lane < LANES`).
-    #[inline(always)]
-    fn lane(a: Self::F, lane: usize) -> f32 {
-        Self::store(a)[lane]
-    }
-
     /// The least lane, for lanes holding no NaN (which of two equal zeros is unspecified;
     /// the value compares equal either way).
     #[inline(always)]
@@ -548,12 +542,6 @@ mod x86 {
             unsafe { _mm256_permutevar8x32_ps(a, _mm256_set1_epi32(lane as i32)) }
         }
         #[inline(always)]
-        fn lane(a: Self::F, lane: usize) -> f32 {
-            // A permute instead of a store and a narrower load from it.
-            // SAFETY: see the type's docs.
-            unsafe { _mm256_cvtss_f32(Self::broadcast_lane(a, lane)) }
-        }
-        #[inline(always)]
         fn div(a: Self::F, b: Self::F) -> Self::F {
             avx!(_mm256_div_ps, a, b)
         }
@@ -797,7 +785,6 @@ pub(crate) mod tests {
         same(L::abs(a), Portable::abs(p));
         for (lane, &x) in SAMPLES.iter().enumerate() {
             same(L::broadcast_lane(a, lane), [x; LANES]);
-            assert_eq!(L::lane(a, lane).to_bits(), x.to_bits(), "lane {lane}");
         }
         same(L::xor(a, b), Portable::xor(p, q));
         same(L::xor(a, L::splat(-0.0)), SAMPLES.map(|x| -x));

@@ -279,7 +279,7 @@ fn hyrt_method(reference: &str, traversal: Traversal) -> String {
         // report's header says which).
         Traversal::Packet(_) | Traversal::PacketAuto => format!("hyrt packets of 8 (`{}`)", traversal.name()),
         Traversal::Single(_) | Traversal::SingleAuto => {
-            format!("hyrt single rays, 8-wide tree (`{}`)", traversal.name())
+            format!("hyrt single rays, 16-wide nodes (`{}`)", traversal.name())
         }
     }
 }

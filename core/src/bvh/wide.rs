@@ -1,7 +1,9 @@
-//! An 8-wide view of the binary [`super::Bvh`]: the same boxes with up to [`WIDE`]
-//! children per node, for the CPU's single-ray SIMD traversal (one ray against the eight
-//! child boxes of a node at once, as Embree's `rtcIntersect1` does), and each leaf's
-//! triangles as structure of arrays ([`WideLeaf`]: one ray against all of a leaf's
+//! A wide view of the binary [`super::Bvh`] for the CPU's SIMD traversals: the same boxes
+//! with up to [`WIDE`] children per node ([`WideNode`], the frustum packets' nodes: eight
+//! child boxes against a packet's frustum at once), the same boxes again with up to
+//! [`WIDE16`] children per node over the same leaves ([`WideNode16`], the single rays'
+//! nodes: one ray against sixteen child boxes, two registers of eight lanes), and each
+//! leaf's triangles as structure of arrays ([`WideLeaf`]: one ray against all of a leaf's
 //! triangles at once).
 //!
 //! Built by collapsing the binary tree with the surface area heuristic, optimally for it
@@ -44,6 +46,17 @@
 //! Leaves storing only their used lanes, and child boxes quantized to bytes (nodes of two
 //! lines), were measured too and not kept: see the single-ray walk's docs in `hyrt-cpu`
 //! (`traversal::single`).
+//!
+//! The 16-wide nodes come from the same dynamic program with sixteen slots a node, whose
+//! leaves are given: exactly the 8-wide view's leaves, never opened, so both node sets
+//! share one copy of the leaves. Their surface area cost is at most the 8-wide nodes'
+//! (those are one of the plans it weighs). The single rays walk them because the walk is
+//! bound by the chain from node to node and the branches on it, not by the box tests: the
+//! teaser's reflection and refraction rays visit 10.1 nodes each instead of 13.5 (4 wide:
+//! 20.5), for the same 3.7 leaves, and run about 5% faster at AVX-512 (see the single-ray
+//! walk's docs in `hyrt-cpu`). Building them adds 3 to 7% to `bvh_build` (`hyrt render
+//! --frames 1 --threads 2`, three alternations: the dragon 673 to 695 ms against 643 to
+//! 679, the near bunny 35.5 to 37.4 against 33.5 to 35.5).
 //!
 //! Children keep the binary tree's depth-first order, and wide nodes are numbered depth
 //! first, so the layout keeps the binary tree's locality. No box is recomputed: every
@@ -124,6 +137,52 @@ impl WideNode {
     }
 }
 
+/// Children per node of the single-ray walks' nodes ([`WideNode16`]): two registers of
+/// eight lanes.
+pub const WIDE16: usize = 2 * WIDE;
+
+/// Entries of a single-ray traversal stack over the [`WideNode16`] nodes (and over the
+/// 8-wide nodes, which need fewer): a level consumes at least one binary level, and
+/// visiting a node leaves at most `WIDE16 - 1` more entries than it took.
+pub const WIDE16_STACK_SIZE: usize = (WIDE16 - 1) * super::BVH_STACK_SIZE + 1;
+
+/// One node of the single-ray walks: the boxes of up to [`WIDE16`] children as structure
+/// of arrays, each row in two halves of eight lanes, and their references. Its children
+/// are [`WideNode16`]s and the leaves of [`WideBvh::leaves`].
+///
+/// | offset | field | type | meaning |
+/// |---:|---|---|---|
+/// | 0 | `lo` | [[[f32; 8]; 2]; 3] | box minimum of child `8 h + k` at `lo[axis][h][k]` |
+/// | 192 | `hi` | [[[f32; 8]; 2]; 3] | box maximum, the same way |
+/// | 384 | `child` | [u32; 16] | inner: index into [`WideBvh::nodes16`]; leaf: as [`WideNode::child`] |
+/// | 448 | `count` | u32 | children in use (the first `count`; 1 to 16) |
+/// | 452 | `pad` | [u32; 15] | zero |
+///
+/// 512 bytes, eight cache lines. Unused children have the empty box and reference 0, as
+/// in [`WideNode`].
+#[repr(C, align(64))]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct WideNode16 {
+    pub lo: [[[f32; WIDE]; 2]; 3],
+    pub hi: [[[f32; WIDE]; 2]; 3],
+    pub child: [u32; WIDE16],
+    pub count: u32,
+    pub pad: [u32; 15],
+}
+const _: () = assert!(std::mem::size_of::<WideNode16>() == 512);
+
+impl WideNode16 {
+    /// Axis `a`'s near and far plane rows (both halves), as [`WideNode::near_far`].
+    #[inline(always)]
+    pub fn near_far(&self, a: usize, negative: bool) -> (&[[f32; WIDE]; 2], &[[f32; WIDE]; 2]) {
+        if negative {
+            (&self.hi[a], &self.lo[a])
+        } else {
+            (&self.lo[a], &self.hi[a])
+        }
+    }
+}
+
 /// The triangles of one binary leaf, lane `k` holding its `k`-th slot (`first + k`), as
 /// structure of arrays for a one-ray, eight-triangle test.
 ///
@@ -183,6 +242,9 @@ pub struct WideBvh {
     pub leaves: Vec<WideLeaf>,
     /// The first slot of each leaf (its binary leaf's `left_or_first`).
     pub first_slots: Vec<u32>,
+    /// The same leaves under nodes of up to [`WIDE16`] children, root first: the tree the
+    /// single-ray walks take (see the module docs). Empty with `nodes`.
+    pub nodes16: Vec<WideNode16>,
 }
 
 impl WideLeaf {
@@ -229,35 +291,51 @@ fn subtree_slots(nodes: &[BvhNode]) -> Vec<Option<(u32, u32)>> {
     ranges
 }
 
+/// Which binary subtrees may become wide leaves in a [`SahPlan`].
+enum LeafRule<'a> {
+    /// Any subtree of at most [`WIDE`] triangles, when that costs less (the 8-wide view).
+    Fits,
+    /// Exactly the binary nodes marked: each is a leaf and is never opened (the 16-wide
+    /// nodes over the 8-wide view's leaves).
+    Given(&'a [bool]),
+}
+
 /// The collapse's plan (see the module docs): for every binary node `b` and slot count `i`
-/// (1 to [`WIDE`]), the least cost of `b`'s subtree as at most `i` children of a wide node,
+/// (1 to `W`), the least cost of `b`'s subtree as at most `i` children of a `W`-wide node,
 /// and how it is reached.
-struct SahPlan {
+struct SahPlan<const W: usize> {
     /// `cost[b][i - 1]`.
-    cost: Vec<[f32; WIDE]>,
+    cost: Vec<[f32; W]>,
     /// `split[b][i - 1]`: 0 for `b` itself as one child (see `leaf`), else `j`: `b`'s left
     /// binary child as at most `j` children and its right one as at most `i - j`.
-    split: Vec<[u8; WIDE]>,
-    /// `b` as one child: a wide leaf (true), or a wide node whose [`WIDE`] slots go
+    split: Vec<[u8; W]>,
+    /// `b` as one child: a wide leaf (true), or a wide node whose `W` slots go
     /// `inner[b]` to the left binary child and the rest to the right one.
     leaf: Vec<bool>,
     inner: Vec<u8>,
 }
 
-impl SahPlan {
+impl<const W: usize> SahPlan<W> {
     /// The plan of `nodes` (children after their parents), `ranges` their subtrees' slots
-    /// ([`subtree_slots`]), a wide leaf costing `leaf_cost` times its area.
-    fn new(nodes: &[BvhNode], ranges: &[Option<(u32, u32)>], leaf_cost: f32) -> SahPlan {
+    /// ([`subtree_slots`]), a wide leaf costing `leaf_cost` times its area, leaves as
+    /// `rule` allows.
+    fn new(nodes: &[BvhNode], ranges: &[Option<(u32, u32)>], leaf_cost: f32, rule: LeafRule<'_>) -> Self {
         let n = nodes.len();
         let mut p =
-            SahPlan { cost: vec![[0.0; WIDE]; n], split: vec![[0; WIDE]; n], leaf: vec![false; n], inner: vec![0; n] };
+            SahPlan { cost: vec![[0.0; W]; n], split: vec![[0; W]; n], leaf: vec![false; n], inner: vec![0; n] };
         for b in (0..n).rev() {
             // Boxes of giant extent overflow the area (an infinite or, flat, a NaN product):
             // their costs are infinite and the plan still valid, if not the best.
             let area = half_area(&nodes[b]);
             let area = if area.is_nan() { f32::INFINITY } else { area };
-            if nodes[b].is_leaf() {
-                p.cost[b] = [leaf_cost * area; WIDE];
+            let given = match rule {
+                LeafRule::Fits => None,
+                LeafRule::Given(leaves) => Some(leaves[b]),
+            };
+            if nodes[b].is_leaf() || given == Some(true) {
+                // A binary leaf under a given leaf is never reached; one that is not
+                // under one cannot be (the given leaves cover every slot).
+                p.cost[b] = [if given == Some(false) { f32::INFINITY } else { leaf_cost * area }; W];
                 p.leaf[b] = true;
                 continue;
             }
@@ -274,15 +352,15 @@ impl SahPlan {
                 }
                 best
             };
-            let (below, j) = best(WIDE);
+            let (below, j) = best(W);
             let node = area + below;
-            let fits = ranges[b].is_some_and(|(_, count)| count as usize <= WIDE);
+            let fits = given.is_none() && ranges[b].is_some_and(|(_, count)| count as usize <= WIDE);
             let leaf = if fits { leaf_cost * area } else { f32::INFINITY };
             let one = leaf.min(node);
             p.leaf[b] = fits && leaf <= node;
             p.inner[b] = j as u8;
             p.cost[b][0] = one;
-            for i in 2..=WIDE {
+            for i in 2..=W {
                 let (c, j) = best(i);
                 (p.cost[b][i - 1], p.split[b][i - 1]) = if c < one { (c, j as u8) } else { (one, 0) };
             }
@@ -297,11 +375,11 @@ impl SahPlan {
         if self.leaf[b] {
             return vec![(b, true)];
         }
-        let mut out = Vec::with_capacity(WIDE);
+        let mut out = Vec::with_capacity(W);
         let l = nodes[b].left_or_first as usize;
         let j = self.inner[b] as usize;
         self.emit(nodes, l, j, &mut out);
-        self.emit(nodes, l + 1, WIDE - j, &mut out);
+        self.emit(nodes, l + 1, W - j, &mut out);
         out
     }
 
@@ -329,6 +407,49 @@ fn box_half_area(lo: glam::Vec3, hi: glam::Vec3) -> f32 {
     e.x * e.y + e.y * e.z + e.z * e.x
 }
 
+/// The 16-wide nodes over the wide leaves `leaf_refs` (each binary node made a wide leaf,
+/// with its reference): the same dynamic program with [`WIDE16`] slots and exactly those
+/// leaves, read back depth first. `None` if the plan made a leaf of another node (it
+/// cannot: the given leaves are never opened).
+fn collapse16(nodes: &[BvhNode], ranges: &[Option<(u32, u32)>], leaf_refs: &[Option<u32>]) -> Option<Vec<WideNode16>> {
+    let given: Vec<bool> = leaf_refs.iter().map(Option::is_some).collect();
+    let plan = SahPlan::<WIDE16>::new(nodes, ranges, WIDE_LEAF_COST, LeafRule::Given(&given));
+    let mut out = vec![WideNode16::zeroed()];
+    // (binary node, 16-wide node to fill), depth first.
+    let mut todo = vec![(0usize, 0usize)];
+    while let Some((b, w)) = todo.pop() {
+        let children = plan.children(nodes, b);
+        let mut node = WideNode16 {
+            lo: [[[f32::INFINITY; WIDE]; 2]; 3],
+            hi: [[[f32::NEG_INFINITY; WIDE]; 2]; 3],
+            child: [0; WIDE16],
+            count: children.len() as u32,
+            pad: [0; 15],
+        };
+        let mut inner = Vec::new();
+        for (k, &(c, leaf)) in children.iter().enumerate() {
+            let (h, j) = (k / WIDE, k % WIDE);
+            for a in 0..3 {
+                node.lo[a][h][j] = nodes[c].aabb_min[a];
+                node.hi[a][h][j] = nodes[c].aabb_max[a];
+            }
+            node.child[k] = match (leaf_refs[c], leaf) {
+                (Some(r), true) => r,
+                (None, false) => {
+                    let index = out.len() + inner.len();
+                    inner.push((c, index));
+                    index as u32
+                }
+                _ => return None,
+            };
+        }
+        out[w] = node;
+        out.resize(out.len() + inner.len(), WideNode16::zeroed());
+        todo.extend(inner.into_iter().rev());
+    }
+    Some(out)
+}
+
 impl WideBvh {
     /// Collapse `bvh`'s binary tree (see the module docs).
     pub fn collapse(bvh: &Bvh) -> WideBvh {
@@ -337,9 +458,11 @@ impl WideBvh {
             return WideBvh::default();
         }
         let ranges = subtree_slots(nodes);
-        let plan = SahPlan::new(nodes, &ranges, WIDE_LEAF_COST);
+        let plan = SahPlan::<WIDE>::new(nodes, &ranges, WIDE_LEAF_COST, LeafRule::Fits);
         let mut wide: Vec<WideNode> = vec![WideNode::zeroed()];
         let (mut leaves, mut first_slots) = (Vec::new(), Vec::new());
+        // The reference of each binary node made a wide leaf.
+        let mut leaf_refs = vec![None; nodes.len()];
         // (binary node, wide node to fill), depth first.
         let mut todo = vec![(0usize, 0usize)];
         while let Some((b, w)) = todo.pop() {
@@ -364,7 +487,7 @@ impl WideBvh {
                         leaves.push(WideLeaf::new(bvh, first, count));
                         first_slots.push(first);
                         match r.encode() {
-                            Some(r) => r,
+                            Some(r) => *leaf_refs[c].insert(r),
                             None => return WideBvh::default(),
                         }
                     }
@@ -380,7 +503,10 @@ impl WideBvh {
             // Depth first: the first child's subtree next.
             todo.extend(inner.into_iter().rev());
         }
-        WideBvh { nodes: wide, leaves, first_slots }
+        let Some(nodes16) = collapse16(nodes, &ranges, &leaf_refs) else {
+            return WideBvh::default();
+        };
+        WideBvh { nodes: wide, leaves, first_slots, nodes16 }
     }
 
     /// True if there is no wide view (use the binary tree).
@@ -410,57 +536,26 @@ impl WideBvh {
             .filter_map(|(r, n)| r.map(|r| (r, corners(n.aabb_min, n.aabb_max).map(f32::to_bits))))
             .collect();
         let mut seen = Vec::new();
-        let mut referenced = vec![false; self.nodes.len()];
-        for (i, n) in self.nodes.iter().enumerate() {
-            if !(1..=WIDE as u32).contains(&n.count) {
-                return Err(format!("wide node {i}: {} children", n.count));
+        // Each leaf's reference and box bits, as the 8-wide nodes give them.
+        let mut leaf_refs = vec![None; self.leaves.len()];
+        validate_nodes("wide", &self.nodes, |i, k, leaf, count, b| {
+            let (Some(l), Some(&first)) = (self.leaves.get(leaf as usize), self.first_slots.get(leaf as usize)) else {
+                return Err(format!("wide node {i}: leaf {leaf} out of range"));
+            };
+            if first as usize + count as usize > bvh.leaf_triangles.len()
+                || bytemuck::bytes_of(l) != bytemuck::bytes_of(&WideLeaf::new(bvh, first, count))
+            {
+                return Err(format!("wide leaf {leaf} differs from slots {first}.. of the binary tree"));
             }
-            for k in 0..WIDE {
-                let b = corners([n.lo[0][k], n.lo[1][k], n.lo[2][k]], [n.hi[0][k], n.hi[1][k], n.hi[2][k]]);
-                if k >= n.count as usize {
-                    if b[..3].iter().any(|&x| x != f32::INFINITY) || b[3..].iter().any(|&x| x != f32::NEG_INFINITY) {
-                        return Err(format!("wide node {i}: unused child {k} has a box"));
-                    }
-                    continue;
-                }
-                match WideChild::decode(n.child[k]) {
-                    WideChild::Node(c) => {
-                        let c = c as usize;
-                        if c <= i || c >= self.nodes.len() || std::mem::replace(&mut referenced[c], true) {
-                            return Err(format!("wide node {i}: child {k} names node {c} badly"));
-                        }
-                        // Boxes nest: the child node's children lie in this child's box.
-                        let m = &self.nodes[c];
-                        let inside =
-                            (0..m.count as usize).all(|j| (0..3).all(|a| m.lo[a][j] >= b[a] && m.hi[a][j] <= b[3 + a]));
-                        if !inside {
-                            return Err(format!("wide node {c} is not inside its box in node {i}"));
-                        }
-                    }
-                    WideChild::Leaf { leaf, count } => {
-                        let (Some(l), Some(&first)) =
-                            (self.leaves.get(leaf as usize), self.first_slots.get(leaf as usize))
-                        else {
-                            return Err(format!("wide node {i}: leaf {leaf} out of range"));
-                        };
-                        if first as usize + count as usize > bvh.leaf_triangles.len()
-                            || bytemuck::bytes_of(l) != bytemuck::bytes_of(&WideLeaf::new(bvh, first, count))
-                        {
-                            return Err(format!("wide leaf {leaf} differs from slots {first}.. of the binary tree"));
-                        }
-                        if subtrees.get(&(first, count)) != Some(&b.map(f32::to_bits)) {
-                            return Err(format!("wide leaf {leaf}: no binary subtree with its slots and box"));
-                        }
-                        seen.push((first, count));
-                    }
-                }
+            if subtrees.get(&(first, count)) != Some(&b.map(f32::to_bits)) {
+                return Err(format!("wide leaf {leaf}: no binary subtree with its slots and box"));
             }
-        }
+            seen.push((first, count));
+            leaf_refs[leaf as usize] = Some((self.nodes[i].child[k], b.map(f32::to_bits)));
+            Ok(())
+        })?;
         if seen.len() != self.leaves.len() || self.first_slots.len() != self.leaves.len() {
             return Err(format!("{} leaves referenced, {} stored", seen.len(), self.leaves.len()));
-        }
-        if referenced.iter().skip(1).any(|r| !r) {
-            return Err("a wide node is not referenced".into());
         }
         // The leaves partition the slots.
         seen.sort_unstable();
@@ -474,8 +569,118 @@ impl WideBvh {
         if next as usize != bvh.leaf_triangles.len() {
             return Err(format!("slots {next}.. in no wide leaf"));
         }
+        self.validate_nodes16(&leaf_refs)
+    }
+
+    /// The 16-wide nodes: every leaf referenced once, with the reference and the box the
+    /// 8-wide nodes give it (`leaf_refs`), and [`validate_nodes`]' structure.
+    fn validate_nodes16(&self, leaf_refs: &[Option<(u32, [u32; 6])>]) -> Result<(), String> {
+        if self.nodes16.is_empty() {
+            return Err("no 16-wide nodes".into());
+        }
+        let mut seen = vec![false; self.leaves.len()];
+        validate_nodes("16-wide", &self.nodes16, |i, k, leaf, _, b| {
+            let l = leaf as usize;
+            if leaf_refs.get(l).copied().flatten() != Some((self.nodes16[i].child[k], b.map(f32::to_bits))) {
+                return Err(format!("16-wide node {i}: child {k} is not leaf {leaf} as the 8-wide nodes give it"));
+            }
+            if std::mem::replace(&mut seen[l], true) {
+                return Err(format!("16-wide nodes: leaf {leaf} referenced twice"));
+            }
+            Ok(())
+        })?;
+        if seen.iter().any(|s| !s) {
+            return Err("a leaf is in no 16-wide node".into());
+        }
         Ok(())
     }
+}
+
+/// What [`validate_nodes`] reads of a node of either set.
+trait NodeView {
+    /// Children slots.
+    const WIDTH: usize;
+    /// Children in use.
+    fn used(&self) -> u32;
+    /// Child `k`'s box as (min x, y, z, max x, y, z).
+    fn slot_box(&self, k: usize) -> [f32; 6];
+    /// Child `k`'s reference.
+    fn slot_ref(&self, k: usize) -> u32;
+}
+
+impl NodeView for WideNode {
+    const WIDTH: usize = WIDE;
+    fn used(&self) -> u32 {
+        self.count
+    }
+    fn slot_box(&self, k: usize) -> [f32; 6] {
+        [self.lo[0][k], self.lo[1][k], self.lo[2][k], self.hi[0][k], self.hi[1][k], self.hi[2][k]]
+    }
+    fn slot_ref(&self, k: usize) -> u32 {
+        self.child[k]
+    }
+}
+
+impl NodeView for WideNode16 {
+    const WIDTH: usize = WIDE16;
+    fn used(&self) -> u32 {
+        self.count
+    }
+    fn slot_box(&self, k: usize) -> [f32; 6] {
+        let (h, j) = (k / WIDE, k % WIDE);
+        [self.lo[0][h][j], self.lo[1][h][j], self.lo[2][h][j], self.hi[0][h][j], self.hi[1][h][j], self.hi[2][h][j]]
+    }
+    fn slot_ref(&self, k: usize) -> u32 {
+        self.child[k]
+    }
+}
+
+/// The structure both node sets share (`what` names the set in errors): every node but
+/// the root is referenced once, after its parent, and its children's boxes lie inside its
+/// box there; unused children have the empty box. Each leaf child goes to `leaf(node,
+/// slot, leaf index, triangle count, its box)`.
+fn validate_nodes<N: NodeView>(
+    what: &str,
+    nodes: &[N],
+    mut leaf: impl FnMut(usize, usize, u32, u32, [f32; 6]) -> Result<(), String>,
+) -> Result<(), String> {
+    let mut referenced = vec![false; nodes.len()];
+    for (i, n) in nodes.iter().enumerate() {
+        if !(1..=N::WIDTH as u32).contains(&n.used()) {
+            return Err(format!("{what} node {i}: {} children", n.used()));
+        }
+        for k in 0..N::WIDTH {
+            let b = n.slot_box(k);
+            if k >= n.used() as usize {
+                if b[..3].iter().any(|&x| x != f32::INFINITY) || b[3..].iter().any(|&x| x != f32::NEG_INFINITY) {
+                    return Err(format!("{what} node {i}: unused child {k} has a box"));
+                }
+                continue;
+            }
+            match WideChild::decode(n.slot_ref(k)) {
+                WideChild::Node(c) => {
+                    let c = c as usize;
+                    if c <= i || c >= nodes.len() || std::mem::replace(&mut referenced[c], true) {
+                        return Err(format!("{what} node {i}: child {k} names node {c} badly"));
+                    }
+                    // Boxes nest: the child node's children lie in this child's box.
+                    let m = &nodes[c];
+                    let inside = (0..m.used() as usize).all(|j| {
+                        let m = m.slot_box(j);
+                        (0..3).all(|a| m[a] >= b[a] && m[3 + a] <= b[3 + a])
+                    });
+                    if !inside {
+                        return Err(format!("{what} node {c} is not inside its box in node {i}"));
+                    }
+                }
+                WideChild::Leaf { leaf: l, count } => leaf(i, k, l, count, b)?,
+            }
+        }
+    }
+    if referenced.iter().skip(1).any(|r| !r) {
+        return Err(format!("a {what} node is not referenced"));
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -552,11 +757,17 @@ mod tests {
                     assert_eq!((wide.nodes.len(), wide.leaves.len()), (1, 1), "{n} triangles, {preset:?}");
                     assert_eq!(wide.nodes[0].count, 1);
                 }
-                let plan = SahPlan::new(&bvh.nodes, &subtree_slots(&bvh.nodes), WIDE_LEAF_COST);
-                let (got, want) = (view_cost(wide), plan.cost[0][0]);
+                let ranges = subtree_slots(&bvh.nodes);
+                let plan = SahPlan::<WIDE>::new(&bvh.nodes, &ranges, WIDE_LEAF_COST, LeafRule::Fits);
+                let (got, want) = (view_cost(&wide.nodes), plan.cost[0][0]);
                 // The plan sums children first, the view node by node: rounding apart.
                 let close = |a: f32, b: f32| (a - b).abs() <= 1e-4 * b.abs().max(1e-30);
                 assert!(close(got, want), "{n} triangles, {preset:?}: view cost {got}, plan {want}");
+                // The 16-wide nodes over the same leaves: their plan's cost, and at most the
+                // 8-wide nodes' (those are one plan of at most 16 children a node).
+                let got16 = view_cost(&wide.nodes16);
+                assert!(got16 <= got * (1.0 + 1e-4), "{n} triangles, {preset:?}: 16-wide {got16} > 8-wide {got}");
+                assert!(wide.nodes16.len() <= wide.nodes.len(), "{n} triangles, {preset:?}");
                 let greedy = greedy_cost(&bvh);
                 assert!(want <= greedy * (1.0 + 1e-4), "{n} triangles, {preset:?}: {want} > greedy {greedy}");
                 if n == 3000 {
@@ -567,27 +778,28 @@ mod tests {
         }
     }
 
-    /// The surface area cost of a wide view as [`SahPlan`] counts it: each wide node but the
-    /// root its box's area (the root's binary node's, summed over its children's planes
-    /// here as the union), each leaf `WIDE_LEAF_COST` times its box's area.
-    fn view_cost(wide: &WideBvh) -> f32 {
+    /// The surface area cost of a wide view's nodes (either set) as [`SahPlan`] counts it:
+    /// each node but the root its box's area (the root's binary node's, summed over its
+    /// children's planes here as the union), each leaf `WIDE_LEAF_COST` times its box's
+    /// area.
+    fn view_cost<N: NodeView>(nodes: &[N]) -> f32 {
         let area = box_half_area;
         let mut cost = 0.0;
         let mut todo = vec![(0usize, None)];
         while let Some((w, own)) = todo.pop() {
-            let node = &wide.nodes[w];
+            let node = &nodes[w];
             let mut union = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-            for k in 0..node.count as usize {
-                let lo = Vec3::new(node.lo[0][k], node.lo[1][k], node.lo[2][k]);
-                let hi = Vec3::new(node.hi[0][k], node.hi[1][k], node.hi[2][k]);
+            for k in 0..node.used() as usize {
+                let b = node.slot_box(k);
+                let (lo, hi) = (Vec3::new(b[0], b[1], b[2]), Vec3::new(b[3], b[4], b[5]));
                 union = (union.0.min(lo), union.1.max(hi));
-                match WideChild::decode(node.child[k]) {
+                match WideChild::decode(node.slot_ref(k)) {
                     WideChild::Leaf { .. } => cost += WIDE_LEAF_COST * area(lo, hi),
                     WideChild::Node(c) => todo.push((c as usize, Some(area(lo, hi)))),
                 }
             }
             // A wide root with one leaf child is that leaf; otherwise the root's own box.
-            let leaf_root = node.count == 1 && matches!(WideChild::decode(node.child[0]), WideChild::Leaf { .. });
+            let leaf_root = node.used() == 1 && matches!(WideChild::decode(node.slot_ref(0)), WideChild::Leaf { .. });
             cost += own.unwrap_or(if leaf_root { 0.0 } else { area(union.0, union.1) });
         }
         cost
@@ -646,6 +858,25 @@ mod tests {
         let mut bad = bvh.clone();
         let k = (0..WIDE).find(|&k| matches!(WideChild::decode(bad.wide.nodes[0].child[k]), WideChild::Node(_)));
         bad.wide.nodes[0].child[k.unwrap()] = 0;
+        assert!(bad.wide.validate(&bvh).is_err());
+        // The 16-wide nodes: a box, a leaf named twice, a node not referenced.
+        let mut bad = bvh.clone();
+        bad.wide.nodes16[0].hi[1][0][0] -= 0.001;
+        assert!(bad.wide.validate(&bvh).is_err());
+        let mut bad = bvh.clone();
+        let leaves: Vec<usize> = (0..WIDE16)
+            .filter(|&k| matches!(WideChild::decode(bad.wide.nodes16[1].child[k]), WideChild::Leaf { .. }))
+            .collect();
+        assert!(leaves.len() >= 2, "a 16-wide node with two leaves");
+        let n = &mut bad.wide.nodes16[1];
+        n.child[leaves[1]] = n.child[leaves[0]];
+        for a in 0..3 {
+            let (h0, j0, h1, j1) = (leaves[0] / WIDE, leaves[0] % WIDE, leaves[1] / WIDE, leaves[1] % WIDE);
+            (n.lo[a][h1][j1], n.hi[a][h1][j1]) = (n.lo[a][h0][j0], n.hi[a][h0][j0]);
+        }
+        assert!(bad.wide.validate(&bvh).is_err());
+        let mut bad = bvh.clone();
+        bad.wide.nodes16.push(WideNode16::zeroed());
         assert!(bad.wide.validate(&bvh).is_err());
         assert!(WideBvh::default().validate(&bvh).is_err());
         assert!(WideBvh::default().validate(&Bvh::default()).is_ok());

@@ -1,8 +1,9 @@
 //! Batch ray traversal: every ray of a list through the scene's [`Bvh`], one ray at a
 //! time with the scalar reference ([`Bvh::occluded`], [`Bvh::closest_hit`]), in packets
 //! of [`LANES`] consecutive rays traced together with SIMD (module `packet`: primary and
-//! shadow rays), or one ray at a time through the 8-wide view of the same tree with SIMD
-//! box and leaf tests (module `single`: reflection and refraction rays, which spread out).
+//! shadow rays), or one ray at a time through the 16-wide nodes of the same tree's wide
+//! view with SIMD box and leaf tests (module `single`: reflection and refraction rays,
+//! which spread out).
 //! Closest-hit packets whose rays travel together (primary rays from one eye) go through
 //! the 8-wide view instead, one frustum test per wide node for the whole packet (module
 //! `frustum`); the others, and every any-hit packet, walk the binary tree.
@@ -406,7 +407,7 @@ pub enum Traversal {
     /// Packets of [`LANES`] rays at the given SIMD level (an unavailable level falls back
     /// to the best available one).
     Packet(SimdLevel),
-    /// One ray at a time through the 8-wide view of the BVH (`Bvh::wide`), the eight
+    /// One ray at a time through the wide view of the BVH (`Bvh::wide`), the sixteen
     /// child boxes of a node, or the triangles of a leaf, tested at once at the given SIMD
     /// level (module `single`). For rays that do not travel together. A BVH without a
     /// wide view is traced with packets.

@@ -1,13 +1,33 @@
-//! One ray at a time through the 8-wide view of the BVH ([`WideBvh`]): the ray's slab
-//! test runs against a node's eight child boxes at once, one child per lane, then the
-//! children it enters are visited nearest first (closest hit) or in stored order (any
-//! hit). This is the path for rays that do not travel together (reflections off curved
-//! mirrors, refractions), where a packet's lanes diverge and most of its box tests are
-//! wasted; Embree's `rtcIntersect1` is the peer. (Measured in one `hyrt bench --quick`,
-//! 2 threads, AVX-512 lanes: the teaser's 75,529 secondary rays at 5.4 Mrays/s against
-//! 4.3 in packets and Embree's `rtcIntersect1` at 5.5; primary rays 12.9 against
-//! `rtcIntersect1`'s 11.3; but 2 to 3 times slower than the packets on primary and shadow
-//! rays, the bunny's and the dragon's shadow rays included, so those stay in packets.)
+//! One ray at a time through the wide view of the BVH ([`WideBvh`]): the ray's slab test
+//! runs against a node's sixteen child boxes at once ([`WideNode16`], two halves of eight
+//! lanes), then the children it enters are visited nearest first (closest hit) or in
+//! stored order (any hit); the leaves are the view's 8-triangle leaves ([`WideLeaf`]).
+//! This is the path for rays that do not travel together (reflections off curved mirrors,
+//! refractions), where a packet's lanes diverge and most of its box tests are wasted;
+//! Embree's `rtcIntersect1` and its `rtcIntersect8` (which walks the lanes of an
+//! incoherent packet one at a time) are the peers. (Measured in one `hyrt bench --quick`,
+//! 2 threads, AVX-512 lanes, with 8-wide nodes: the teaser's 75,529 secondary rays at 5.4
+//! Mrays/s against 4.3 in packets and Embree's `rtcIntersect1` at 5.5; primary rays 12.9
+//! against `rtcIntersect1`'s 11.3; but 2 to 3 times slower than the packets on primary and
+//! shadow rays, the bunny's and the dragon's shadow rays included, so those stay in
+//! packets.)
+//!
+//! Sixteen children a node, not eight: the walk waits on a chain of dependent steps from
+//! one node to the next (a node's plane rows, its slab distances, the entered mask, the
+//! next child's reference) and on the branches along it, not on the box tests'
+//! arithmetic, so a flatter tree with twice the box tests a node is faster. The teaser's
+//! reflection and refraction rays visit 10.1 nodes each instead of 13.5 (the same 3.7
+//! leaves; counted with a scalar walk of both trees), and a node entered on several
+//! children takes the nearest of sixteen. Measured against the 8-wide nodes (AMD EPYC,
+//! one thread, `ray_contest --singles-only --rounds 9` to `11`, the two binaries
+//! alternated two or three times, ms): the teaser's reflections at AVX-512 23.9 to 24.5
+//! against 25.2 to 25.8, at AVX2 25.8 to 25.9 against 26.1 to 28.0; shadow rays one at a
+//! time, the far horse 0.66 to 0.69 against 0.76 to 0.80, the far bunny 5.54 to 5.56
+//! against 6.39 to 6.53, the dragon 79.8 to 84.8 against 87.3 to 91.9. Reading each
+//! entered child's distance with a permute of its half (a branch on the half first) was
+//! 2 to 3% slower than storing the two halves once and reading by slot. The 16-wide nodes
+//! are a second set of nodes over the same leaves (the frustum packets keep the 8-wide
+//! ones), built by the same dynamic program (`hyrt_core::bvh::wide`).
 //!
 //! Results are the scalar reference's (`Bvh::occluded`, `Bvh::closest_hit`) ray for ray:
 //!
@@ -24,6 +44,9 @@
 //!   reached in.
 //! * A node popped from the stack is skipped when its entry distance lies beyond the
 //!   widened closest hit so far: the scalar pop test.
+//!
+//! The measurements below were taken on the 8-wide nodes ([`WideNode`]) unless they say
+//! otherwise.
 //!
 //! Where the time goes (AMD EPYC, AVX2, one thread; counted with a counter build of this
 //! walk, profiled with `perf record` on `ray_contest --singles-only`; before the wide
@@ -262,9 +285,10 @@
 //! single rays (the one wide tree) is what would give these rays warm leaves.
 //!
 //! [`ray_aabb_conservative`]: hyrt_core::kernels::ray::ray_aabb_conservative
+//! [`WideNode`]: hyrt_core::bvh::wide::WideNode
 
 use glam::Vec3;
-use hyrt_core::bvh::wide::{WideBvh, WideChild, WideLeaf, WideNode, WIDE, WIDE_STACK_SIZE};
+use hyrt_core::bvh::wide::{WideBvh, WideChild, WideLeaf, WideNode16, WIDE, WIDE16, WIDE16_STACK_SIZE};
 use hyrt_core::bvh::{ClosestHit, BVH_CULL_SLACK};
 use hyrt_core::formats::{RayRecord, INVALID_ID};
 use hyrt_core::kernels::ray::{
@@ -281,9 +305,10 @@ const _: () = assert!(hyrt_core::bvh::wide::WIDE == LANES);
 /// chunk of rays and reused.
 pub(crate) type Stack = Vec<(u32, f32)>;
 
-/// A stack with room for any tree `Bvh::build` returns.
+/// A stack with room for any tree `Bvh::build` returns (for the 16-wide nodes, so also
+/// for the 8-wide ones of the frustum walk).
 pub(crate) fn new_stack() -> Stack {
-    vec![(0, 0.0); WIDE_STACK_SIZE]
+    vec![(0, 0.0); WIDE16_STACK_SIZE]
 }
 
 /// One ray prepared for the wide traversal: the scalar traversal's constants, and the
@@ -344,25 +369,33 @@ impl<L: Lanes> WideRay<L> {
         })
     }
 
-    /// The slab test of the node's children for `[box_t_min, t_far]`: the mask of children
-    /// entered and every lane's entry distance. `O` is the ray's octant, or
-    /// [`ANY_OCTANT`] to read it from the ray; `finite_inv` is [`Self::finite_inv`], or
-    /// `true` where the caller's walk takes only such rays (as `packet`'s `enter_signed`).
+    /// The slab test of the node's children for `[box_t_min, t_far]`, one half of eight
+    /// at a time: the mask of children entered (child `8 h + k` at bit `8 h + k`) and each
+    /// half's entry distances. `O` is the ray's octant, or [`ANY_OCTANT`] to read it from
+    /// the ray; `finite_inv` is [`Self::finite_inv`], or `true` where the caller's walk
+    /// takes only such rays (as `packet`'s `enter_signed`).
     #[inline(always)]
-    fn enter<const O: u8>(&self, node: &WideNode, t_far: L::F, finite_inv: bool) -> (u32, L::F) {
+    fn enter<const O: u8>(&self, node: &WideNode16, t_far: L::F, finite_inv: bool) -> (u32, [L::F; 2]) {
         debug_assert!(O == ANY_OCTANT || O == self.octant);
         debug_assert!(!finite_inv || self.finite_inv);
         let octant = if O == ANY_OCTANT { self.octant } else { O };
-        let mut tn = [self.box_t_min; 3];
-        let mut tf = [t_far; 3];
-        for a in 0..3 {
-            let (near, far) = node.near_far(a, octant >> a & 1 != 0);
-            tn[a] = L::mul(L::sub(L::load(near), self.origin[a]), self.inv_dir[a]);
-            tf[a] = L::mul(L::mul(L::sub(L::load(far), self.origin[a]), self.inv_dir[a]), L::splat(SLAB_FAR_SCALE));
+        let mut mask = 0;
+        let mut entry = [t_far; 2];
+        for (h, entry) in entry.iter_mut().enumerate() {
+            let mut tn = [self.box_t_min; 3];
+            let mut tf = [t_far; 3];
+            for a in 0..3 {
+                let (near, far) = node.near_far(a, octant >> a & 1 != 0);
+                tn[a] = L::mul(L::sub(L::load(&near[h]), self.origin[a]), self.inv_dir[a]);
+                tf[a] =
+                    L::mul(L::mul(L::sub(L::load(&far[h]), self.origin[a]), self.inv_dir[a]), L::splat(SLAB_FAR_SCALE));
+            }
+            let (t_enter, t_exit) = slab_bounds::<L>(tn, tf, self.box_t_min, t_far, finite_inv);
+            mask |= L::bits(L::le(t_enter, t_exit)) << (WIDE * h);
+            *entry = t_enter;
         }
-        let (t_enter, t_exit) = slab_bounds::<L>(tn, tf, self.box_t_min, t_far, finite_inv);
-        let used = (1u32 << node.count) - 1;
-        (L::bits(L::le(t_enter, t_exit)) & used, t_enter)
+        let used = ((1u64 << node.count) - 1) as u32;
+        (mask & used, entry)
     }
 }
 
@@ -449,17 +482,21 @@ fn closest_hit_in<L: Lanes, const O: u8>(
     'walk: loop {
         match WideChild::decode(current) {
             WideChild::Node(n) => {
-                let node = &wide.nodes[n as usize];
+                let node = &wide.nodes16[n as usize];
                 // The octant walks take only rays with finite inverse directions.
                 let (mask, t) = r.enter::<O>(node, t_far_lanes, O != ANY_OCTANT || r.finite_inv);
                 if mask & mask.wrapping_sub(1) == 0 && mask != 0 {
                     // One child entered: visit it next.
-                    current = node.child[mask.trailing_zeros() as usize & (WIDE - 1)];
+                    current = node.child[mask.trailing_zeros() as usize & (WIDE16 - 1)];
                     continue 'walk;
                 }
                 if mask != 0 {
-                    // Several: the nearest next, the others on the stack.
-                    push_nearest_last(mask, |k| L::lane(t, k), |k| node.child[k], stack, &mut sp);
+                    // Several: the nearest next, the others on the stack. The entry
+                    // distances stored once and read by slot (a permute per child would
+                    // first branch on its half).
+                    let (t0, t1) = (L::store(t[0]), L::store(t[1]));
+                    let t: [f32; WIDE16] = std::array::from_fn(|k| if k < WIDE { t0[k] } else { t1[k - WIDE] });
+                    push_nearest_last(mask, |k| t[k & (WIDE16 - 1)], |k| node.child[k & (WIDE16 - 1)], stack, &mut sp);
                     sp -= 1;
                     current = stack[sp].0;
                     continue 'walk;
@@ -538,7 +575,7 @@ fn occluded_in<L: Lanes, const O: u8>(wide: &WideBvh, r: &WideRay<L>, stack: &mu
     loop {
         match WideChild::decode(current) {
             WideChild::Node(n) => {
-                let node = &wide.nodes[n as usize];
+                let node = &wide.nodes16[n as usize];
                 let mut mask = r.enter::<O>(node, t_far, r.finite_inv).0;
                 if mask != 0 {
                     let first = mask.trailing_zeros() as usize;
@@ -546,10 +583,10 @@ fn occluded_in<L: Lanes, const O: u8>(wide: &WideBvh, r: &WideRay<L>, stack: &mu
                     while mask != 0 {
                         let k = 31 - mask.leading_zeros() as usize;
                         mask &= !(1 << k);
-                        stack[sp].0 = node.child[k];
+                        stack[sp].0 = node.child[k & (WIDE16 - 1)];
                         sp += 1;
                     }
-                    current = node.child[first];
+                    current = node.child[first & (WIDE16 - 1)];
                     continue;
                 }
             }
