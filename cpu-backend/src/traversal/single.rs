@@ -27,7 +27,13 @@
 //! entered child's distance with a permute of its half (a branch on the half first) was
 //! 2 to 3% slower than storing the two halves once and reading by slot. The 16-wide nodes
 //! are a second set of nodes over the same leaves (the frustum packets keep the 8-wide
-//! ones), built by the same dynamic program (`hyrt_core::bvh::wide`).
+//! ones), built by the same dynamic program (`hyrt_core::bvh::wide`). In the quick report
+//! (`hyrt bench --quick`, 2 threads) the teaser's reflections went from 0.96 (0.90 to 0.99)
+//! to 1.01 (0.80 to 1.03) of Embree's `rtcIntersect8` at AVX-512 (12.06 ms against 12.21;
+//! `rtcIntersect1` 13.10). With `--simd avx2` they did not move: 13.18 ms against 13.02
+//! for the 8-wide nodes in an earlier run of the same day, 0.93 (0.89 to 0.96) of
+//! `rtcIntersect8` in that run against 0.98 in the earlier one, Embree's own time moving
+//! by 4% between the two.
 //!
 //! Results are the scalar reference's (`Bvh::occluded`, `Bvh::closest_hit`) ray for ray:
 //!
