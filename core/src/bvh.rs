@@ -841,6 +841,15 @@ impl Bvh {
         self.nodes.is_empty()
     }
 
+    /// Bytes held by the tree: its nodes, slots and triangle copies, and its wide view
+    /// ([`wide::WideBvh::bytes`]).
+    pub fn bytes(&self) -> usize {
+        std::mem::size_of_val(self.nodes.as_slice())
+            + std::mem::size_of_val(self.prim_indices.as_slice())
+            + std::mem::size_of_val(self.leaf_triangles.as_slice())
+            + self.wide.bytes()
+    }
+
     /// The node buffer as bytes, for upload.
     pub fn node_bytes(&self) -> &[u8] {
         bytemuck::cast_slice(&self.nodes)
@@ -907,6 +916,25 @@ mod tests {
             let hit = median.closest_hit(g.stored_table(), &ray(c + Vec3::Z, Vec3::NEG_Z)).unwrap();
             assert_eq!(hit.triangle, i as u32);
         }
+    }
+
+    /// `Bvh::bytes` counts the wide view beside the binary tree, at the documented sizes
+    /// (the report's memory rows take it).
+    #[test]
+    fn bytes_count_the_binary_tree_and_the_wide_view() {
+        let tris: Vec<[Vec3; 3]> = (0..300)
+            .map(|i| {
+                let c = Vec3::new((i % 17) as f32, (i / 17) as f32, (i % 5) as f32 * 0.3);
+                [c, c + Vec3::X * 0.5, c + Vec3::Y * 0.5]
+            })
+            .collect();
+        let bvh = Bvh::build(&geometry(&tris), BvhPreset::Medium);
+        let w = &bvh.wide;
+        assert!(!w.nodes16.is_empty() && !w.leaves.is_empty());
+        let wide = 256 * w.nodes.len() + 512 * w.nodes16.len() + 320 * w.leaves.len() + 4 * w.first_slots.len();
+        assert_eq!(w.bytes(), wide);
+        let binary = 32 * bvh.nodes.len() + 4 * bvh.prim_indices.len() + 48 * bvh.leaf_triangles.len();
+        assert_eq!(bvh.bytes(), binary + wide);
     }
 
     /// Pinned (found by a randomized search): with spatial splits and few triangles,

@@ -599,14 +599,10 @@ impl TwoLevelBvh {
         self.closest_hit_filtered(ray, |_, _, _, _| true)
     }
 
-    /// Bytes held by the levels' nodes, slots and triangle copies, and the instances.
+    /// Bytes held by the levels (nodes, slots, triangle copies and wide views:
+    /// [`Bvh::bytes`]) and the instances.
     pub fn bytes(&self) -> usize {
-        let bottom = |b: &Bvh| {
-            std::mem::size_of_val(b.nodes.as_slice())
-                + std::mem::size_of_val(b.prim_indices.as_slice())
-                + std::mem::size_of_val(b.leaf_triangles.as_slice())
-        };
-        self.bottoms.iter().map(bottom).sum::<usize>()
+        self.bottoms.iter().map(Bvh::bytes).sum::<usize>()
             + std::mem::size_of_val(self.top.as_slice())
             + std::mem::size_of_val(self.instances.as_slice())
     }

@@ -451,6 +451,14 @@ fn collapse16(nodes: &[BvhNode], ranges: &[Option<(u32, u32)>], leaf_refs: &[Opt
 }
 
 impl WideBvh {
+    /// Bytes held by the view: both sets of nodes, the leaves and their first slots.
+    pub fn bytes(&self) -> usize {
+        std::mem::size_of_val(self.nodes.as_slice())
+            + std::mem::size_of_val(self.nodes16.as_slice())
+            + std::mem::size_of_val(self.leaves.as_slice())
+            + std::mem::size_of_val(self.first_slots.as_slice())
+    }
+
     /// Collapse `bvh`'s binary tree (see the module docs).
     pub fn collapse(bvh: &Bvh) -> WideBvh {
         let nodes = &bvh.nodes;
