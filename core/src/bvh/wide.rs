@@ -414,37 +414,44 @@ fn box_half_area(lo: glam::Vec3, hi: glam::Vec3) -> f32 {
 fn collapse16(nodes: &[BvhNode], ranges: &[Option<(u32, u32)>], leaf_refs: &[Option<u32>]) -> Option<Vec<WideNode16>> {
     let given: Vec<bool> = leaf_refs.iter().map(Option::is_some).collect();
     let plan = SahPlan::<WIDE16>::new(nodes, ranges, WIDE_LEAF_COST, LeafRule::Given(&given));
-    let mut out = vec![WideNode16::zeroed()];
-    // (binary node, 16-wide node to fill), depth first.
+    read_back(nodes, &plan, |c, leaf| match (leaf_refs[c], leaf) {
+        (Some(r), true) => Some(Some(r)),
+        (None, false) => Some(None),
+        _ => None,
+    })
+}
+
+/// The nodes of `plan` over the binary `nodes`, root first, depth first (a node's first
+/// child's subtree right after it). Each child `c` of a node goes to `leaf(c, the plan
+/// makes it a leaf)`: `Some(Some(reference))` for a wide leaf, `Some(None)` for a node of
+/// its own (numbered in that order), `None` to give up (then `None`).
+fn read_back<N: NodeView, const W: usize>(
+    nodes: &[BvhNode],
+    plan: &SahPlan<W>,
+    mut leaf: impl FnMut(usize, bool) -> Option<Option<u32>>,
+) -> Option<Vec<N>> {
+    const { assert!(N::WIDTH == W, "a plan of the nodes' width") };
+    let mut out = vec![N::zeroed()];
+    // (binary node, wide node to fill), depth first.
     let mut todo = vec![(0usize, 0usize)];
     while let Some((b, w)) = todo.pop() {
         let children = plan.children(nodes, b);
-        let mut node = WideNode16 {
-            lo: [[[f32::INFINITY; WIDE]; 2]; 3],
-            hi: [[[f32::NEG_INFINITY; WIDE]; 2]; 3],
-            child: [0; WIDE16],
-            count: children.len() as u32,
-            pad: [0; 15],
-        };
+        let mut node = N::empty(children.len() as u32);
         let mut inner = Vec::new();
-        for (k, &(c, leaf)) in children.iter().enumerate() {
-            let (h, j) = (k / WIDE, k % WIDE);
-            for a in 0..3 {
-                node.lo[a][h][j] = nodes[c].aabb_min[a];
-                node.hi[a][h][j] = nodes[c].aabb_max[a];
-            }
-            node.child[k] = match (leaf_refs[c], leaf) {
-                (Some(r), true) => r,
-                (None, false) => {
+        for (k, &(c, is_leaf)) in children.iter().enumerate() {
+            let r = match leaf(c, is_leaf)? {
+                Some(r) => r,
+                None => {
                     let index = out.len() + inner.len();
                     inner.push((c, index));
                     index as u32
                 }
-                _ => return None,
             };
+            node.set_slot(k, &nodes[c], r);
         }
         out[w] = node;
-        out.resize(out.len() + inner.len(), WideNode16::zeroed());
+        out.resize(out.len() + inner.len(), N::zeroed());
+        // Depth first: the first child's subtree next.
         todo.extend(inner.into_iter().rev());
     }
     Some(out)
@@ -467,50 +474,21 @@ impl WideBvh {
         }
         let ranges = subtree_slots(nodes);
         let plan = SahPlan::<WIDE>::new(nodes, &ranges, WIDE_LEAF_COST, LeafRule::Fits);
-        let mut wide: Vec<WideNode> = vec![WideNode::zeroed()];
         let (mut leaves, mut first_slots) = (Vec::new(), Vec::new());
         // The reference of each binary node made a wide leaf.
         let mut leaf_refs = vec![None; nodes.len()];
-        // (binary node, wide node to fill), depth first.
-        let mut todo = vec![(0usize, 0usize)];
-        while let Some((b, w)) = todo.pop() {
-            let children = plan.children(nodes, b);
-            let mut node = WideNode {
-                lo: [[f32::INFINITY; WIDE]; 3],
-                hi: [[f32::NEG_INFINITY; WIDE]; 3],
-                child: [0; WIDE],
-                count: children.len() as u32,
-                pad: [0; 7],
-            };
-            let mut inner = Vec::new();
-            for (k, &(c, leaf)) in children.iter().enumerate() {
-                let n = &nodes[c];
-                for a in 0..3 {
-                    node.lo[a][k] = n.aabb_min[a];
-                    node.hi[a][k] = n.aabb_max[a];
-                }
-                node.child[k] = match ranges[c] {
-                    Some((first, count)) if leaf => {
-                        let r = WideChild::Leaf { leaf: leaves.len() as u32, count };
-                        leaves.push(WideLeaf::new(bvh, first, count));
-                        first_slots.push(first);
-                        match r.encode() {
-                            Some(r) => *leaf_refs[c].insert(r),
-                            None => return WideBvh::default(),
-                        }
-                    }
-                    _ => {
-                        let index = wide.len() + inner.len();
-                        inner.push((c, index));
-                        index as u32
-                    }
-                };
+        let wide = read_back::<WideNode, WIDE>(nodes, &plan, |c, leaf| match ranges[c] {
+            Some((first, count)) if leaf => {
+                let r = WideChild::Leaf { leaf: leaves.len() as u32, count }.encode()?;
+                leaves.push(WideLeaf::new(bvh, first, count));
+                first_slots.push(first);
+                Some(Some(*leaf_refs[c].insert(r)))
             }
-            wide[w] = node;
-            wide.resize(wide.len() + inner.len(), WideNode::zeroed());
-            // Depth first: the first child's subtree next.
-            todo.extend(inner.into_iter().rev());
-        }
+            _ => Some(None),
+        });
+        let Some(wide) = wide else {
+            return WideBvh::default();
+        };
         let Some(nodes16) = collapse16(nodes, &ranges, &leaf_refs) else {
             return WideBvh::default();
         };
@@ -604,10 +582,14 @@ impl WideBvh {
     }
 }
 
-/// What [`validate_nodes`] reads of a node of either set.
-trait NodeView {
+/// A node of either set, as [`read_back`] writes it and [`validate_nodes`] reads it.
+trait NodeView: Zeroable + Copy {
     /// Children slots.
     const WIDTH: usize;
+    /// A node of `count` children, every slot empty (the empty box, reference 0).
+    fn empty(count: u32) -> Self;
+    /// Child `k`: binary node `n`'s box and the reference `r`.
+    fn set_slot(&mut self, k: usize, n: &BvhNode, r: u32);
     /// Children in use.
     fn used(&self) -> u32;
     /// Child `k`'s box as (min x, y, z, max x, y, z).
@@ -618,6 +600,22 @@ trait NodeView {
 
 impl NodeView for WideNode {
     const WIDTH: usize = WIDE;
+    fn empty(count: u32) -> Self {
+        WideNode {
+            lo: [[f32::INFINITY; WIDE]; 3],
+            hi: [[f32::NEG_INFINITY; WIDE]; 3],
+            child: [0; WIDE],
+            count,
+            pad: [0; 7],
+        }
+    }
+    fn set_slot(&mut self, k: usize, n: &BvhNode, r: u32) {
+        for a in 0..3 {
+            self.lo[a][k] = n.aabb_min[a];
+            self.hi[a][k] = n.aabb_max[a];
+        }
+        self.child[k] = r;
+    }
     fn used(&self) -> u32 {
         self.count
     }
@@ -631,6 +629,23 @@ impl NodeView for WideNode {
 
 impl NodeView for WideNode16 {
     const WIDTH: usize = WIDE16;
+    fn empty(count: u32) -> Self {
+        WideNode16 {
+            lo: [[[f32::INFINITY; WIDE]; 2]; 3],
+            hi: [[[f32::NEG_INFINITY; WIDE]; 2]; 3],
+            child: [0; WIDE16],
+            count,
+            pad: [0; 15],
+        }
+    }
+    fn set_slot(&mut self, k: usize, n: &BvhNode, r: u32) {
+        let (h, j) = (k / WIDE, k % WIDE);
+        for a in 0..3 {
+            self.lo[a][h][j] = n.aabb_min[a];
+            self.hi[a][h][j] = n.aabb_max[a];
+        }
+        self.child[k] = r;
+    }
     fn used(&self) -> u32 {
         self.count
     }
