@@ -33,7 +33,20 @@
 //! `rtcIntersect1` 13.10). With `--simd avx2` they did not move: 13.18 ms against 13.02
 //! for the 8-wide nodes in an earlier run of the same day, 0.93 (0.89 to 0.96) of
 //! `rtcIntersect8` in that run against 0.98 in the earlier one, Embree's own time moving
-//! by 4% between the two.
+//! by 4% between the two. On a Zen 3 EPYC (family 25 model 1, AVX2 and no AVX-512; one
+//! thread, `ray_contest --singles-only --kind bounce --rounds 11`, the binaries alternated
+//! three times) the teaser's reflections took 27.2 to 27.4 ms against 28.8 to 29.6 with the
+//! 8-wide nodes, so the wider node holds there too.
+//!
+//! Tried on that Zen 3 and not kept (the same command; the host was noisy, with the same
+//! binary moving from 27 to 34 ms between runs): the second half of the node test skipped
+//! for nodes of at most eight children (a branch on slot 8's box being empty; 45% of the
+//! teaser's 16-wide nodes have at most eight): 27.7 to 28.1 ms against 28.0 to 30.1, and the
+//! dragon's shadow rays 87.7 to 116.6 against 85.6 to 106.2, within the noise both ways;
+//! and, as an upper bound before writing its error argument, the far planes' scale folded
+//! into a second inverse direction (one multiply less per plane, not yet shown
+//! conservative): about 2% in five alternations (pair ratios 0.93 to 1.05), too little for
+//! a second rounding argument.
 //!
 //! Results are the scalar reference's (`Bvh::occluded`, `Bvh::closest_hit`) ray for ray:
 //!
