@@ -124,6 +124,18 @@ pub struct WideNode {
 const _: () = assert!(std::mem::size_of::<WideNode>() == 256);
 
 impl WideNode {
+    /// A node of `count` children with every slot empty: the empty box (`lo = +inf`,
+    /// `hi = -inf`), which no slab test enters, and reference 0. The form of unused slots.
+    pub fn empty(count: u32) -> Self {
+        WideNode {
+            lo: [[f32::INFINITY; WIDE]; 3],
+            hi: [[f32::NEG_INFINITY; WIDE]; 3],
+            child: [0; WIDE],
+            count,
+            pad: [0; 7],
+        }
+    }
+
     /// Axis `a`'s near and far plane rows for a ray whose inverse direction on that axis
     /// is negative (`negative`: the maxima are the near planes) or not. Field reads, with
     /// no run-time check, for the single-ray walks' node test.
@@ -172,6 +184,17 @@ pub struct WideNode16 {
 const _: () = assert!(std::mem::size_of::<WideNode16>() == 512);
 
 impl WideNode16 {
+    /// A node of `count` children with every slot empty, as [`WideNode::empty`].
+    pub fn empty(count: u32) -> Self {
+        WideNode16 {
+            lo: [[[f32::INFINITY; WIDE]; 2]; 3],
+            hi: [[[f32::NEG_INFINITY; WIDE]; 2]; 3],
+            child: [0; WIDE16],
+            count,
+            pad: [0; 15],
+        }
+    }
+
     /// Axis `a`'s near and far plane rows (both halves), as [`WideNode::near_far`].
     #[inline(always)]
     pub fn near_far(&self, a: usize, negative: bool) -> (&[[f32; WIDE]; 2], &[[f32; WIDE]; 2]) {
@@ -586,7 +609,7 @@ impl WideBvh {
 trait NodeView: Zeroable + Copy {
     /// Children slots.
     const WIDTH: usize;
-    /// A node of `count` children, every slot empty (the empty box, reference 0).
+    /// The node's own `empty`: `count` children, every slot empty.
     fn empty(count: u32) -> Self;
     /// Child `k`: binary node `n`'s box and the reference `r`.
     fn set_slot(&mut self, k: usize, n: &BvhNode, r: u32);
@@ -601,13 +624,7 @@ trait NodeView: Zeroable + Copy {
 impl NodeView for WideNode {
     const WIDTH: usize = WIDE;
     fn empty(count: u32) -> Self {
-        WideNode {
-            lo: [[f32::INFINITY; WIDE]; 3],
-            hi: [[f32::NEG_INFINITY; WIDE]; 3],
-            child: [0; WIDE],
-            count,
-            pad: [0; 7],
-        }
+        WideNode::empty(count)
     }
     fn set_slot(&mut self, k: usize, n: &BvhNode, r: u32) {
         for a in 0..3 {
@@ -630,13 +647,7 @@ impl NodeView for WideNode {
 impl NodeView for WideNode16 {
     const WIDTH: usize = WIDE16;
     fn empty(count: u32) -> Self {
-        WideNode16 {
-            lo: [[[f32::INFINITY; WIDE]; 2]; 3],
-            hi: [[[f32::NEG_INFINITY; WIDE]; 2]; 3],
-            child: [0; WIDE16],
-            count,
-            pad: [0; 15],
-        }
+        WideNode16::empty(count)
     }
     fn set_slot(&mut self, k: usize, n: &BvhNode, r: u32) {
         let (h, j) = (k / WIDE, k % WIDE);

@@ -376,13 +376,7 @@ mod tests {
     /// A wide node of eight boxes `(centre, half extent)`, the last `8 - count` unused
     /// (the empty box, as `WideBvh` stores them).
     fn node(boxes: &[(Vec3, Vec3)], count: usize) -> WideNode {
-        let mut n = WideNode {
-            lo: [[f32::INFINITY; LANES]; 3],
-            hi: [[f32::NEG_INFINITY; LANES]; 3],
-            child: [0; LANES],
-            count: count as u32,
-            pad: [0; 7],
-        };
+        let mut n = WideNode::empty(count as u32);
         for (k, (c, h)) in boxes.iter().take(count).enumerate() {
             for a in 0..3 {
                 n.lo[a][k] = c[a] - h[a];

@@ -704,13 +704,7 @@ mod tests {
                 // Rejected before any node test (a zero direction).
                 return Ok(());
             };
-            let mut node = WideNode16 {
-                lo: [[[f32::INFINITY; WIDE]; 2]; 3],
-                hi: [[[f32::NEG_INFINITY; WIDE]; 2]; 3],
-                child: [0; WIDE16],
-                count: count as u32,
-                pad: [0; 15],
-            };
+            let mut node = WideNode16::empty(count as u32);
             for (k, (c, h)) in boxes.iter().take(count).enumerate() {
                 for a in 0..3 {
                     node.lo[a][k / WIDE][k % WIDE] = c[a] - h[a];
@@ -747,13 +741,7 @@ mod tests {
         };
         let r = WideRay::<Portable>::new(&ray).unwrap();
         assert!(!r.finite_inv);
-        let mut node = WideNode16 {
-            lo: [[[f32::INFINITY; WIDE]; 2]; 3],
-            hi: [[[f32::NEG_INFINITY; WIDE]; 2]; 3],
-            child: [0; WIDE16],
-            count: 1,
-            pad: [0; 15],
-        };
+        let mut node = WideNode16::empty(1);
         for a in 0..3 {
             node.lo[a][0][0] = [-1.0, 1.0, -1.0][a];
             node.hi[a][0][0] = [1.0, 2.0, 1.0][a];
