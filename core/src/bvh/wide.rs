@@ -94,11 +94,6 @@ const _: () = assert!(BVH_MAX_LEAF_SIZE as usize <= WIDE);
 /// ms), 2.5 slower (25.7 to 27.6).
 pub const WIDE_LEAF_COST: f32 = 1.0;
 
-/// Entries of a single-ray traversal stack over a wide tree of binary depth at most
-/// [`BVH_STACK_SIZE`](super::BVH_STACK_SIZE): a wide level consumes at least one binary
-/// level, and visiting a node leaves at most `WIDE - 1` more entries than it took.
-pub const WIDE_STACK_SIZE: usize = (WIDE - 1) * super::BVH_STACK_SIZE + 1;
-
 /// One wide node: the boxes of up to [`WIDE`] children as structure of arrays, and their
 /// references.
 ///
@@ -133,18 +128,6 @@ impl WideNode {
             child: [0; WIDE],
             count,
             pad: [0; 7],
-        }
-    }
-
-    /// Axis `a`'s near and far plane rows for a ray whose inverse direction on that axis
-    /// is negative (`negative`: the maxima are the near planes) or not. Field reads, with
-    /// no run-time check, for the single-ray walks' node test.
-    #[inline(always)]
-    pub fn near_far(&self, a: usize, negative: bool) -> (&[f32; WIDE], &[f32; WIDE]) {
-        if negative {
-            (&self.hi[a], &self.lo[a])
-        } else {
-            (&self.lo[a], &self.hi[a])
         }
     }
 }
@@ -195,7 +178,9 @@ impl WideNode16 {
         }
     }
 
-    /// Axis `a`'s near and far plane rows (both halves), as [`WideNode::near_far`].
+    /// Axis `a`'s near and far plane rows (both halves) for a ray whose inverse direction
+    /// on that axis is negative (`negative`: the maxima are the near planes) or not. Field
+    /// reads, with no run-time check, for the single-ray walks' node test.
     #[inline(always)]
     pub fn near_far(&self, a: usize, negative: bool) -> (&[[f32; WIDE]; 2], &[[f32; WIDE]; 2]) {
         if negative {
@@ -746,11 +731,13 @@ mod tests {
 
     #[test]
     fn near_far_rows_swap_with_the_direction_sign() {
-        let mut node = WideNode::zeroed();
+        let mut node = WideNode16::zeroed();
         for a in 0..3 {
-            for k in 0..WIDE {
-                node.lo[a][k] = (10 * a + k) as f32;
-                node.hi[a][k] = -((10 * a + k) as f32) - 1.0;
+            for h in 0..2 {
+                for k in 0..WIDE {
+                    node.lo[a][h][k] = (100 * a + 10 * h + k) as f32;
+                    node.hi[a][h][k] = -((100 * a + 10 * h + k) as f32) - 1.0;
+                }
             }
         }
         for a in 0..3 {

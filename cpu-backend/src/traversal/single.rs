@@ -237,7 +237,7 @@
 //! depth, the division and the bound; the any-hit walk already did), and its octant
 //! walks take only rays whose inverse directions are finite (the others go to the
 //! generic walk), so the node test has no branch on it; the plane rows are the node's
-//! fields ([`WideNode::near_far`]), with no run-time alignment check of a byte view. The
+//! fields ([`WideNode16::near_far`]), with no run-time alignment check of a byte view. The
 //! teaser's reflections, one thread, `ray_contest --singles-only --kind bounce --rounds
 //! 41`, the binaries alternated five times, ms: AVX-512 25.2 to 25.5 against 25.6 to 26.2,
 //! AVX2 25.8 to 26.5 against 25.9 to 26.4 (unchanged). The same finite-direction split in
@@ -341,7 +341,7 @@ struct WideRay<L: Lanes> {
     /// The ray's octant: bit `a` set where the inverse direction's component `a` is
     /// negative (its sign bit, as the scalar slab test reads it). The walks are compiled
     /// once per octant ([`octant_walk!`]), so a node test loads its near and far plane rows
-    /// from constant offsets ([`WideNode::near_far`]).
+    /// from constant offsets ([`WideNode16::near_far`]).
     octant: u8,
     /// The leaf vertices' rows in the ray's axis order (`permute_axes`'s `kx, ky, kz`):
     /// picked once per ray instead of once per leaf row.
