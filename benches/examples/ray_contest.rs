@@ -8,7 +8,7 @@
 //!
 //! ```text
 //! cargo run --release -p hyrt-benches --features embree --example ray_contest -- \
-//!     [--threads N] [--rounds N] [--passes N] [--cold MB] [--simd avx2|avx512|sse2|portable] [--kind shadow|primary|both|bounce]
+//!     [--threads N] [--rounds N] [--passes N] [--cold MB] [--simd avx2|avx512|sse2|portable] [--kind shadow|primary|both|bounce|from-lights]
 //!     [--packets-only | --singles-only | --embree-only] [--with-avx2] [--with-auto] SCENE...
 //! ```
 //!
@@ -34,7 +34,14 @@
 //! last-level cache (`--cold 96` on this project's EPYC with 32 MB of L3).
 //!
 //! `--kind bounce` traces the frame's reflection and refraction rays (closest hit; scenes
-//! with mirrors or glass only) instead.
+//! with mirrors or glass only) instead. `--kind from-lights` traces the frame's shadow rays
+//! to point and spot lights backwards, from each light to the ray's origin, as closest-hit
+//! rays (origin `o + d`, direction `-d`, `t` from `1 - t_max` to 1; directional lights'
+//! rays left out): every ray of a packet leaves one point (up to the rounding of `o + d`),
+//! and the directions part where the list of active pixels jumps from one pixel row to the
+//! next, the frustum packets' hard case (`traversal::frustum`'s `MAX_IDLE_LEAF_BOXES`).
+//! Only hyrt's own answers are compared (with its scalar reference); the backward rays
+//! answer differently from the forward ones near the origins' surfaces.
 //!
 //! `--packets-only` times hyrt's packets alone (no Embree, no single rays), `--singles-only`
 //! its single rays alone, `--embree-only` Embree's packets alone: for profiling (e.g.
@@ -67,6 +74,9 @@ struct Args {
     primary: bool,
     /// The frame's reflection and refraction rays (closest hit), with `--kind bounce`.
     bounce: bool,
+    /// The frame's shadow rays traced from their lights (closest hit), with `--kind
+    /// from-lights`.
+    from_lights: bool,
     scenes: Vec<String>,
     /// Only hyrt's packets (for profiling them alone).
     packets_only: bool,
@@ -89,6 +99,7 @@ fn parse() -> Result<Args, String> {
         shadow: true,
         primary: true,
         bounce: false,
+        from_lights: false,
         scenes: Vec::new(),
         packets_only: false,
         singles_only: false,
@@ -114,6 +125,7 @@ fn parse() -> Result<Args, String> {
                 "primary" => a.shadow = false,
                 "both" => {}
                 "bounce" => (a.shadow, a.primary, a.bounce) = (false, false, true),
+                "from-lights" => (a.shadow, a.primary, a.from_lights) = (false, false, true),
                 k => return Err(format!("--kind: unknown kind {k}")),
             },
             "--packets-only" => a.packets_only = true,
@@ -235,6 +247,25 @@ impl Contest<'_> {
     }
 }
 
+/// The rays of `shadow` to point and spot lights (finite `t_max`; their direction ends at
+/// the light), backwards: from `o + d` along `-d` for `t` from `1 - t_max` to 1.
+fn from_lights(shadow: &[RayRecord]) -> Vec<RayRecord> {
+    shadow
+        .iter()
+        .filter(|r| r.t_max.is_finite())
+        .map(|r| {
+            let (o, d) = (r.origin, r.direction);
+            RayRecord {
+                origin: [o[0] + d[0], o[1] + d[1], o[2] + d[2]],
+                direction: [-d[0], -d[1], -d[2]],
+                t_min: 1.0 - r.t_max,
+                t_max: 1.0,
+                ..*r
+            }
+        })
+        .collect()
+}
+
 fn main() {
     let args = match parse() {
         Ok(a) => a,
@@ -326,6 +357,14 @@ fn main() {
         }
         if args.primary {
             closest("primary rays", &primary_rays(&camera));
+        }
+        if args.from_lights {
+            let rays = from_lights(&frame_shadow_rays(&row).expect("frame"));
+            if rays.is_empty() {
+                println!("{name}: no shadow rays to point or spot lights");
+            } else {
+                closest("shadow rays from the lights", &rays);
+            }
         }
     }
 }

@@ -394,6 +394,40 @@ fn tiled_shadow_rays_answer_as_the_list_order() {
     }
 }
 
+/// Closest-hit packets from one point whose rays part in two clusters (a list of active
+/// pixels that jumps from the end of one pixel row to the start of the next): the
+/// coherent walk gives up on them and the binary packets take over
+/// (`traversal::frustum`'s `MAX_IDLE_LEAF_BOXES`), with the same answers, interleaved
+/// with packets of neighbouring rays that stay in the coherent walk.
+#[test]
+fn packets_from_one_point_parted_in_two_match_scalar() {
+    let g = mesh_scene(vec![
+        (Mesh::grid("grid", 96), Mat4::from_scale(Vec3::new(10.0, 1.0, 10.0))),
+        (
+            Mesh::uv_sphere("sphere", 24, 12),
+            Mat4::from_translation(Vec3::new(1.5, 0.6, 1.5)) * Mat4::from_scale(Vec3::splat(0.5)),
+        ),
+    ]);
+    let bvh = Bvh::build(&g, BvhPreset::default());
+    let eye = Vec3::new(0.2, 1.5, 0.1);
+    let mut rays = Vec::new();
+    for k in 0..64 {
+        let row = (k / 8) as f32;
+        for i in 0..8 {
+            // Odd packets: four rays near the eye's foot, four toward the far corner.
+            let (x, z) = if k % 2 == 1 && i >= 4 {
+                (4.5 - 0.01 * i as f32, 4.0 - 0.1 * row)
+            } else {
+                (0.5 + 0.6 * row + 0.01 * i as f32, 0.4 + 0.05 * i as f32)
+            };
+            let t_max = if i % 3 == 0 { 2.5 } else { f32::INFINITY };
+            rays.push(ray(eye, Vec3::new(x, 0.0, z) - eye, 0.0, t_max));
+        }
+    }
+    let occluded = check(&g, &bvh, &rays);
+    assert!(occluded > rays.len() / 2, "{occluded} of {}", rays.len());
+}
+
 /// Packets whose rays diverge: every packet mixes direction octants and dominant axes
 /// (the per-lane near planes and axis permutations of the packet code), from inside and
 /// outside a closed sphere and a cube.

@@ -1087,7 +1087,13 @@ fn closest_hit_packets<L: Lanes>(
         let coherent = if bvh.wide.is_empty() { None } else { frustum::Frustum::new(&p, extent) };
         match coherent {
             Some(f) => {
-                octant_walk!(packet::packet_octant(&p), frustum::closest_hit::<L>(bvh, view, &p, &f, &mut stack, out))
+                let done = octant_walk!(
+                    packet::packet_octant(&p),
+                    frustum::closest_hit::<L>(bvh, view, &p, &f, &mut stack, out)
+                );
+                if !done {
+                    packet::closest_hit(&packet::Level::world(bvh), view, &p, out);
+                }
             }
             None => packet::closest_hit(&packet::Level::world(bvh), view, &p, out),
         }
