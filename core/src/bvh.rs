@@ -144,6 +144,23 @@ pub const MEDIUM_COLLAPSE_TRAVERSAL_COST: f32 = 5.0;
 /// in leaves. obvhs itself describes `medium_build` as "around the same build time as
 /// embree but with faster traversal". (The table predates `Medium`'s leaf collapse cost of
 /// [`MEDIUM_COLLAPSE_TRAVERSAL_COST`]: its row is obvhs' `medium_build` as it is.)
+///
+/// More reinsertion or a wider PLOC search on top of `Medium` (issue 36, AMD EPYC Zen 3),
+/// counted on the frames' shadow rays in the scalar any-hit walk (binary nodes visited /
+/// triangles tested per ray; a temporary counter in the walk) with the build time of the
+/// dragon's 871,818 triangles and of the teaser's 135,905 (one process, 2 threads):
+///
+/// | on top of `Medium` | far horse | far bunny | dragon | teaser | Sponza | build: dragon, teaser |
+/// |---|---:|---:|---:|---:|---:|---:|
+/// | nothing | 22.8 / 15.0 | 25.3 / 14.4 | 10.4 / 3.55 | 23.1 / 5.13 | 21.2 / 4.01 | 0.60 s, 53 ms |
+/// | reinsertion ratio 0.3 | 22.3 / 14.6 | 24.7 / 14.1 | 10.1 / 3.31 | 21.3 / 4.78 | 21.3 / 3.87 | 2.2 s, 277 ms |
+/// | reinsertion ratio 1.0 | 21.6 / 13.9 | 24.2 / 13.7 | 9.9 / 3.02 | 21.7 / 5.06 | 20.9 / 3.79 | 7.1 s, 684 ms |
+/// | search distance 32 | 22.8 / 14.9 | 25.6 / 14.3 | 10.4 / 3.50 | 27.1 / 5.26 | 21.2 / 4.74 | 0.75 s, 103 ms |
+///
+/// 2 to 8% less work for 4 to 12 times the build (the teaser's primary rays: 11% fewer
+/// nodes at 0.3); timed (reinsertion 0.3 with a search distance of 24, `ray_contest
+/// --kind shadow`, 2 threads, alternated twice with `Medium`, each against Embree), the
+/// shadow rays' change was within the host's noise: not taken.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum BvhPreset {
     Fastest,
