@@ -14,10 +14,10 @@
 //! close together ([`MAX_ORIGIN_SPREAD`]); [`Frustum::new`] declines other packets, which
 //! take the binary path. Packets from one point whose directions part are caught during
 //! the walk, by the leaf boxes their frustum lets through and no lane enters
-//! ([`MAX_IDLE_LEAF_BOXES`]), and take the binary path too. Primary rays from one eye are the case it is for: measured on the
-//! teaser's 921,600 primary rays (1280x720, one thread, interleaved rounds, the
-//! `ray_contest` example), 7.9 wide nodes, 2.4 leaf boxes and 12.6 triangle tests per
-//! packet, and 15.2 Mrays/s against the binary packets' 10.3 (before the triangle culling
+//! ([`MAX_IDLE_LEAF_BOXES`]), and take the binary path too. Primary rays from one eye are
+//! the case it is for: measured on the teaser's 921,600 primary rays (1280x720, one
+//! thread, interleaved rounds, the `ray_contest` example), 7.9 wide nodes, 2.4 leaf boxes
+//! and 12.6 triangle tests per packet, and 15.2 Mrays/s against the binary packets' 10.3 (before the triangle culling
 //! and the facing below); the committed report (`hyrt bench --quick`, 2 threads) has the
 //! teaser's primary rays at 30.3 Mrays/s, 0.88 of Embree's coherent `rtcIntersect8`, where
 //! the binary packets were at 0.65.

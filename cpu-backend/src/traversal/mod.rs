@@ -189,9 +189,9 @@
 //!   operation.
 //! * Shadow rays traced backwards, from each point or spot light to the ray's origin (as
 //!   `ray_contest --kind from-lights` makes them, every ray of a packet from one point;
-//!   timed as any hit in the binary packets in a throw-away build of the contest): slower (two threads: the far horse 0.72 against
-//!   0.62 ms, the dragon 44 against 39 ms), and a different answer near the origins'
-//!   surfaces (102 of the far horse's 176 occluded rays, 8,316 of the dragon's
+//!   timed as any hit in the binary packets in a throw-away build of the contest): slower
+//!   (two threads: the far horse 0.72 against 0.62 ms, the dragon 44 against 39 ms), and
+//!   a different answer near the origins' surfaces (102 of the far horse's 176 occluded rays, 8,316 of the dragon's
 //!   1,058,277): the origin offset is made for a ray leaving the surface, and a ray
 //!   arriving there would need a bound on its `t`'s error near 1 instead.
 //!
@@ -1092,17 +1092,16 @@ fn closest_hit_packets<L: Lanes>(
             continue;
         };
         let coherent = if bvh.wide.is_empty() { None } else { frustum::Frustum::new(&p, extent) };
-        match coherent {
+        // The frustum walk may give up on a packet (`frustum::closest_hit`): the binary
+        // walk then takes it, as it takes the packets the frustum declines.
+        let done = match coherent {
             Some(f) => {
-                let done = octant_walk!(
-                    packet::packet_octant(&p),
-                    frustum::closest_hit::<L>(bvh, view, &p, &f, &mut stack, out)
-                );
-                if !done {
-                    packet::closest_hit(&packet::Level::world(bvh), view, &p, out);
-                }
+                octant_walk!(packet::packet_octant(&p), frustum::closest_hit::<L>(bvh, view, &p, &f, &mut stack, out))
             }
-            None => packet::closest_hit(&packet::Level::world(bvh), view, &p, out),
+            None => false,
+        };
+        if !done {
+            packet::closest_hit(&packet::Level::world(bvh), view, &p, out);
         }
     }
 }
