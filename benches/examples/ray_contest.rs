@@ -9,7 +9,7 @@
 //! ```text
 //! cargo run --release -p hyrt-benches --features embree --example ray_contest -- \
 //!     [--threads N] [--rounds N] [--passes N] [--cold MB] [--simd avx2|avx512|sse2|portable] [--kind shadow|primary|both|bounce|from-lights]
-//!     [--packets-only | --singles-only | --embree-only] [--with-avx2] [--with-auto] SCENE...
+//!     [--packets-only | --singles-only | --embree-only] [--with-avx2] [--with-auto] [--list-order] SCENE...
 //! ```
 //!
 //! The contenders run in a pool whose workers are pinned one per CPU
@@ -32,6 +32,11 @@
 //! rays follow its packets, which walk the binary tree and not the wide view (as in a
 //! frame, where the bounce stage follows the shadow stage). Give at least twice the
 //! last-level cache (`--cold 96` on this project's EPYC with 32 MB of L3).
+//!
+//! The shadow rays are traced in the order the report's contest traces them: 2x4 pixel tiles
+//! per light (`hyrt_cpu::traversal::sort_into_tiles`, the order of a CPU frame without
+//! stage outputs). `--list-order` keeps the frame's list as compaction wrote it (light,
+//! then pixel row after pixel row), the order of a frame that keeps its stage outputs.
 //!
 //! `--kind bounce` traces the frame's reflection and refraction rays (closest hit; scenes
 //! with mirrors or glass only) instead. `--kind from-lights` traces the frame's shadow rays
@@ -56,7 +61,8 @@ use hyrt_benches::bench::stats::{interleaved_turns_ms, median, round_ratios};
 use hyrt_core::formats::{CameraRecord, RayRecord};
 use hyrt_core::kernels::camera::primary_rays;
 use hyrt_cpu::traversal::{
-    closest_hit_batch_into, force_simd_level, occluded_batch_into, SimdLevel, Traversal, TRAVERSAL_CHUNK,
+    closest_hit_batch_into, force_simd_level, occluded_batch_into, sort_into_tiles, SimdLevel, Traversal,
+    TRAVERSAL_CHUNK,
 };
 use rayon::prelude::*;
 
@@ -88,6 +94,7 @@ struct Args {
     with_avx2: bool,
     /// Also the stages' measured traversals (`packet-auto`, `single-auto`).
     with_auto: bool,
+    list_order: bool,
 }
 
 fn parse() -> Result<Args, String> {
@@ -106,6 +113,7 @@ fn parse() -> Result<Args, String> {
         embree_only: false,
         with_avx2: false,
         with_auto: false,
+        list_order: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(arg) = it.next() {
@@ -133,6 +141,7 @@ fn parse() -> Result<Args, String> {
             "--embree-only" => a.embree_only = true,
             "--with-avx2" => a.with_avx2 = true,
             "--with-auto" => a.with_auto = true,
+            "--list-order" => a.list_order = true,
             "all" => a.scenes.extend(ALL.iter().map(|s| s.to_string())),
             s if s.starts_with("--") => return Err(format!("unknown option {s}")),
             s => a.scenes.push(s.to_string()),
@@ -322,7 +331,10 @@ fn main() {
         let embree = EmbreeScene::new(g, &format!("threads={}", args.threads)).expect("Embree scene");
         let contest = Contest { args: &args, pool: &pool, hyrt: &hyrt, embree: &embree, scene: name };
         if args.shadow {
-            let rays = frame_shadow_rays(&row).expect("frame");
+            let mut rays = frame_shadow_rays(&row).expect("frame");
+            if !args.list_order {
+                sort_into_tiles(&mut rays, row.camera.width);
+            }
             contest.run(
                 "shadow rays",
                 &rays,

@@ -1,9 +1,12 @@
 //! Peers in the same run, on the same rays, with the same threads:
 //!
-//! * shadow rays from a real frame's ray list (`Frame::rays`), traced by hyrt's CPU stage
-//!   ([`hyrt_cpu::shadow_rays::shadow_rays`]) and by Intel Embree 3 (`rtcOccluded1`, and
-//!   `rtcOccluded8` on packets of 8 consecutive rays, with the default incoherent context
-//!   and with the context flagged coherent);
+//! * shadow rays from a real frame's ray list (`Frame::rays`), in the order a CPU frame
+//!   without stage outputs traces them (2x4 pixel tiles per light, [`sort_into_tiles`]:
+//!   both executors trace packets of those tiles; only a frame that keeps its stage outputs
+//!   traces the list in compaction's row order), traced by hyrt's
+//!   CPU stage ([`hyrt_cpu::shadow_rays::shadow_rays`]) and by Intel Embree 3
+//!   (`rtcOccluded1`, and `rtcOccluded8` on packets of 8 consecutive rays, with the default
+//!   incoherent context and with the context flagged coherent);
 //! * primary rays (one per pixel, [`primary_rays`]) traced by [`Bvh::closest_hit`] and by
 //!   Embree (`rtcIntersect1`, `rtcIntersect8` in both contexts);
 //! * the reflection and refraction rays of a real frame (every bounce's ray list of a
@@ -27,7 +30,7 @@ use hyrt_core::kernels::camera::primary_rays;
 use hyrt_core::stage::Stage;
 use hyrt_cpu::shadow_rays::SHADOW_OCCLUDED;
 use hyrt_cpu::traversal::{
-    closest_hit_batch_into, occluded_batch_into, Traversal, TRAVERSAL_CHUNK as SHADOW_RAY_CHUNK,
+    closest_hit_batch_into, occluded_batch_into, sort_into_tiles, Traversal, TRAVERSAL_CHUNK as SHADOW_RAY_CHUNK,
 };
 use indicatif::ProgressBar;
 use rayon::prelude::*;
@@ -397,7 +400,8 @@ fn measure_scene(
 ) -> Result<(ScenePeers, Option<String>), BenchError> {
     let g: &WorldGeometry = &row.prepared.geometry;
     let bvh: &Bvh = &row.prepared.bvh;
-    let (shadow, secondary) = frame_rays(row)?;
+    let (mut shadow, secondary) = frame_rays(row)?;
+    sort_into_tiles(&mut shadow, row.camera.width);
     let primary = primary_rays(&row.camera);
     let max_threads = options.peer_threads.iter().copied().max().unwrap_or(1);
     #[cfg(feature = "embree")]
@@ -763,7 +767,9 @@ impl Peers {
              hyrt's closest-hit packets do the same where their rays travel together (one frustum test per node \
              of the 8-wide tree; primary rays) and walk the binary tree lane by lane otherwise; its any-hit \
              packets always walk the binary tree. Shadow rays are a real {w}x{h} frame's ray list \
-             (`Frame::rays`), primary rays one per pixel through its centre. Embree's triangle test is not watertight, hyrt's is: rays through shared \
+             (`Frame::rays`) in the order a CPU frame without stage outputs traces them (the default fused \
+             executor and the staged one): 2x4 pixel tiles per light (`hyrt_cpu::traversal::sort_into_tiles`), \
+             so every tracer's packets of 8 consecutive rays are 2x4 tiles; primary rays one per pixel through its centre. Embree's triangle test is not watertight, hyrt's is: rays through shared \
              edges or vertices may differ, and the count of such rays is reported as measured."
         );
         match (&self.embree_missing, &self.embree) {

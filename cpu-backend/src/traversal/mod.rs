@@ -268,6 +268,7 @@ use hyrt_core::kernels::texture::{alpha_accepts, SurfaceView};
 pub use crate::lanes::LANES;
 use crate::lanes::{avx2_entry_points, dispatch, Lanes};
 use packet::Packet;
+pub use tiles::{sort_into_tiles, tile_key};
 
 /// Any-hit answer of [`occluded_batch_into`] and its siblings (the output values of
 /// `shadow_rays`): something lies between the ray origin and the light.

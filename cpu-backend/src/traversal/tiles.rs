@@ -21,6 +21,9 @@
 //! teaser and Sponza (`ray_contest`, one thread: 5 to 15% slower there, 7 to 15% faster on
 //! the bunnies and horses).
 
+use hyrt_core::formats::RayRecord;
+use rayon::slice::ParallelSliceMut;
+
 use super::LANES;
 
 /// Pixels per tile along a row.
@@ -28,6 +31,30 @@ pub const TILE_WIDTH: u32 = 2;
 /// Rows per tile.
 pub const TILE_HEIGHT: u32 = 4;
 const _: () = assert!((TILE_WIDTH * TILE_HEIGHT) as usize == LANES);
+
+/// Where the ray of `light` at `pixel` (of an image `width` pixels wide, `pixel = y * width
+/// + x`) comes in tile order: by light, tile row, tile column, then row and column within
+/// the tile. The order [`tile_order`] gives each window, and so the whole list's.
+#[inline]
+pub fn tile_key(light: u32, pixel: u32, width: u32) -> (u32, u32, u32, u32, u32) {
+    let width = width.max(1);
+    let (x, y) = (pixel % width, pixel / width);
+    (light, y / TILE_HEIGHT, x / TILE_WIDTH, y % TILE_HEIGHT, x % TILE_WIDTH)
+}
+
+/// Sort a frame's shadow rays (each with its `light` and `pixel`, an image `width` pixels
+/// wide) into the order a frame that makes them as it traces them traces them
+/// ([`super::occluded_pairs_tiled_into`], the fused executor's `shadow_rays`): stable, by
+/// [`tile_key`]. For a list in compaction's order the result is exactly that order (tested
+/// below); every ray's answer is its own, so tracing the sorted list gives the same answers,
+/// permuted.
+///
+/// For lists given as records that are traced more than once, or by another tracer as well
+/// (`hyrt bench`'s peers trace the frame's shadow rays so, hyrt's packets and Embree's
+/// alike). A list traced once gains less than the sort costs (see the module docs).
+pub fn sort_into_tiles(rays: &mut [RayRecord], width: u32) {
+    rays.par_sort_by_key(|r| tile_key(r.light, r.pixel, width));
+}
 
 /// The tile row (light, band of [`TILE_HEIGHT`] image rows) of pair `k = light * pixels +
 /// pixel` in an image `width` pixels wide.
@@ -144,9 +171,8 @@ mod tests {
         out
     }
 
-    fn tile_key(width: u32, (l, p): (u32, u32)) -> (u32, u32, u32, u32, u32) {
-        let (x, y) = (p % width, p / width);
-        (l, y / TILE_HEIGHT, x / TILE_WIDTH, y % TILE_HEIGHT, x % TILE_WIDTH)
+    fn key(width: u32, (l, p): (u32, u32)) -> (u32, u32, u32, u32, u32) {
+        tile_key(l, p, width)
     }
 
     /// The order is a permutation, sorted by (light, tile row, tile column, row, column),
@@ -185,12 +211,42 @@ mod tests {
                             assert!(!std::mem::replace(&mut seen[o as usize], true), "position twice");
                         }
                         assert!(seen.iter().all(|&s| s));
-                        let keys: Vec<_> = order.iter().map(|&o| tile_key(width, list[start + o as usize])).collect();
+                        let keys: Vec<_> = order.iter().map(|&o| key(width, list[start + o as usize])).collect();
                         assert!(keys.windows(2).all(|w| w[0] < w[1]), "{width}x{height} mask {m}: not in tile order");
                         start = end;
                     }
                     assert_eq!(start, list.len());
                 }
+            }
+        }
+    }
+
+    /// A list of rays in compaction's order sorted by [`sort_into_tiles`] is the order the
+    /// windows' [`tile_order`] traces, ray for ray (full images, odd sizes, sparse masks).
+    #[test]
+    fn sort_into_tiles_is_the_tiled_tracing_order() {
+        let masks: [&dyn Fn(u32, u32, u32) -> bool; 2] = [&|_, _, _| true, &|l, x, y| (x * 7 + y * 3 + l) % 5 < 2];
+        for (width, height) in [(16, 8), (37, 19), (1, 9), (40, 1)] {
+            for keep in masks {
+                let list = pairs(width, height, 3, keep);
+                let pixels = width * height;
+                let ks: Vec<u32> = list.iter().map(|&(l, p)| l * pixels + p).collect();
+                let mut traced = Vec::new();
+                let mut start = 0;
+                for end in windows(&ks, pixels, width, 8) {
+                    let (mut c, mut order) = (Vec::new(), Vec::new());
+                    coords(&ks[start..end], pixels, width, &mut c);
+                    tile_order(&c, &mut order);
+                    traced.extend(order.iter().map(|&o| list[start + o as usize]));
+                    start = end;
+                }
+                let mut rays: Vec<RayRecord> = list
+                    .iter()
+                    .map(|&(light, pixel)| RayRecord { light, pixel, ..bytemuck::Zeroable::zeroed() })
+                    .collect();
+                sort_into_tiles(&mut rays, width);
+                let sorted: Vec<(u32, u32)> = rays.iter().map(|r| (r.light, r.pixel)).collect();
+                assert_eq!(sorted, traced, "{width}x{height}");
             }
         }
     }
