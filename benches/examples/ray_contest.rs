@@ -94,6 +94,7 @@ struct Args {
     with_avx2: bool,
     /// Also the stages' measured traversals (`packet-auto`, `single-auto`).
     with_auto: bool,
+    /// The shadow rays in compaction's order, not sorted into tiles.
     list_order: bool,
 }
 
