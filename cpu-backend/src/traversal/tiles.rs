@@ -171,10 +171,6 @@ mod tests {
         out
     }
 
-    fn key(width: u32, (l, p): (u32, u32)) -> (u32, u32, u32, u32, u32) {
-        tile_key(l, p, width)
-    }
-
     /// The order is a permutation, sorted by (light, tile row, tile column, row, column),
     /// on full images, odd sizes (partial tiles at the right and bottom edges) and sparse
     /// masks, and windows cover the list in whole tile rows.
@@ -211,7 +207,13 @@ mod tests {
                             assert!(!std::mem::replace(&mut seen[o as usize], true), "position twice");
                         }
                         assert!(seen.iter().all(|&s| s));
-                        let keys: Vec<_> = order.iter().map(|&o| key(width, list[start + o as usize])).collect();
+                        let keys: Vec<_> = order
+                            .iter()
+                            .map(|&o| {
+                                let (l, p) = list[start + o as usize];
+                                tile_key(l, p, width)
+                            })
+                            .collect();
                         assert!(keys.windows(2).all(|w| w[0] < w[1]), "{width}x{height} mask {m}: not in tile order");
                         start = end;
                     }
