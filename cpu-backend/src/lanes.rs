@@ -12,7 +12,7 @@
 //! [`ray_aabb_conservative`](hyrt_core::kernels::ray::ray_aabb_conservative) with
 //! `a = candidate, b = acc`.
 
-use hyrt_core::formats::TriangleRecord;
+use hyrt_core::formats::{RayRecord, TriangleRecord};
 
 /// Lanes per packet.
 pub const LANES: usize = 8;
@@ -89,6 +89,21 @@ pub(crate) trait Lanes: Copy {
     #[inline(always)]
     fn max_lane(a: Self::F) -> f32 {
         Self::store(a).into_iter().fold(f32::NEG_INFINITY, f32::max)
+    }
+
+    /// The first eight words of eight rays as lanes (origin x, y, z, `t_min`, direction x,
+    /// y, z, `t_max`), word `w` of `rays[k]` in lane `k` of row `w`: a transpose, no
+    /// arithmetic.
+    #[inline(always)]
+    fn ray_lanes(rays: &[RayRecord; LANES]) -> [Self::F; 8] {
+        let mut soa = [[0.0f32; LANES]; 8];
+        for (k, r) in rays.iter().enumerate() {
+            let f: &[f32; 16] = bytemuck::cast_ref(r);
+            for (w, row) in soa.iter_mut().enumerate() {
+                row[k] = f[w];
+            }
+        }
+        soa.map(|row| Self::load(&row))
     }
 
     /// The vertices of eight triangles as lanes, `[vertex][axis]` with lane `k` from
@@ -273,7 +288,7 @@ pub(crate) use x86::{Avx2, Sse2};
 
 #[cfg(target_arch = "x86_64")]
 mod x86 {
-    use super::{Lanes, TriangleRecord, LANES};
+    use super::{Lanes, RayRecord, TriangleRecord, LANES};
     use std::arch::x86_64::*;
 
     /// Two SSE2 registers (x86-64 baseline: always available).
@@ -478,6 +493,34 @@ mod x86 {
     impl Lanes for Avx2 {
         type F = __m256;
         const OCTANT_WALKS: bool = true;
+        #[inline(always)]
+        fn ray_lanes(rays: &[RayRecord; LANES]) -> [Self::F; 8] {
+            // SAFETY: see the type's docs; unaligned loads of the first eight words of each
+            // (64-byte) record.
+            unsafe {
+                let r = |k: usize| _mm256_loadu_ps((&rays[k] as *const RayRecord).cast::<f32>());
+                let (r0, r1, r2, r3, r4, r5, r6, r7) = (r(0), r(1), r(2), r(3), r(4), r(5), r(6), r(7));
+                // The 8x8 transpose: pairs of rows interleaved, then quadruples, then halves.
+                let (a0, a1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpackhi_ps(r0, r1));
+                let (a2, a3) = (_mm256_unpacklo_ps(r2, r3), _mm256_unpackhi_ps(r2, r3));
+                let (a4, a5) = (_mm256_unpacklo_ps(r4, r5), _mm256_unpackhi_ps(r4, r5));
+                let (a6, a7) = (_mm256_unpacklo_ps(r6, r7), _mm256_unpackhi_ps(r6, r7));
+                let (b0, b1) = (_mm256_shuffle_ps::<0x44>(a0, a2), _mm256_shuffle_ps::<0xEE>(a0, a2));
+                let (b2, b3) = (_mm256_shuffle_ps::<0x44>(a1, a3), _mm256_shuffle_ps::<0xEE>(a1, a3));
+                let (b4, b5) = (_mm256_shuffle_ps::<0x44>(a4, a6), _mm256_shuffle_ps::<0xEE>(a4, a6));
+                let (b6, b7) = (_mm256_shuffle_ps::<0x44>(a5, a7), _mm256_shuffle_ps::<0xEE>(a5, a7));
+                [
+                    _mm256_permute2f128_ps::<0x20>(b0, b4),
+                    _mm256_permute2f128_ps::<0x20>(b1, b5),
+                    _mm256_permute2f128_ps::<0x20>(b2, b6),
+                    _mm256_permute2f128_ps::<0x20>(b3, b7),
+                    _mm256_permute2f128_ps::<0x31>(b0, b4),
+                    _mm256_permute2f128_ps::<0x31>(b1, b5),
+                    _mm256_permute2f128_ps::<0x31>(b2, b6),
+                    _mm256_permute2f128_ps::<0x31>(b3, b7),
+                ]
+            }
+        }
         #[inline(always)]
         fn triangle_lanes(tris: [&TriangleRecord; LANES]) -> [[Self::F; 3]; 3] {
             // SAFETY: see the type's docs; unaligned loads of four in-bounds words of a
@@ -833,6 +876,25 @@ pub(crate) mod tests {
                 let want: [f32; LANES] = std::array::from_fn(|k| [records[k].v0, records[k].v1, records[k].v2][i][a]);
                 assert_eq!(portable[i][a].map(f32::to_bits), want.map(f32::to_bits));
             }
+        }
+        // The transpose of eight ray records' first eight words: every word to its lane.
+        let rays: [RayRecord; LANES] = std::array::from_fn(|k| {
+            let w = |i: usize| SAMPLES[(k + i) % LANES] + (100 * k + 10 * i) as f32;
+            RayRecord {
+                origin: [w(0), w(1), w(2)],
+                t_min: w(3),
+                direction: [w(4), w(5), w(6)],
+                t_max: w(7),
+                pixel: 11,
+                kind: 12,
+                ..bytemuck::Zeroable::zeroed()
+            }
+        });
+        let (lanes, portable) = (L::ray_lanes(&rays), Portable::ray_lanes(&rays));
+        for (w, (row, want)) in lanes.into_iter().zip(portable).enumerate() {
+            same(row, want);
+            let words: [f32; LANES] = std::array::from_fn(|k| bytemuck::cast_ref::<RayRecord, [f32; 16]>(&rays[k])[w]);
+            assert_eq!(want.map(f32::to_bits), words.map(f32::to_bits));
         }
         // Horizontal extremes of NaN-free lanes, the extreme in every position.
         for k in 0..LANES {

@@ -161,24 +161,39 @@ impl<'a, L: Lanes> Packet<'a, L> {
     /// inverse direction on axis `kz`, the same division). Nothing here branches per lane:
     /// the per-lane code it replaced took about a quarter of the any-hit time on the
     /// teaser's shadow rays.
+    ///
+    /// A full packet's records come in through one 8x8 transpose in registers
+    /// ([`Lanes::ray_lanes`]). The scalar copy into an array that the lanes were then loaded
+    /// from (kept for a short packet) wrote 64 words and read them back as eight vectors,
+    /// each load waiting on eight smaller stores it cannot be forwarded from: 6.1% of the
+    /// dragon's packet time in `perf record` samples (AMD EPYC, AVX2, one thread,
+    /// `ray_contest --packets-only --kind shadow`), 4.6% after; the two binaries
+    /// alternated three times, the dragon 62.8 to 67.8 ms against 66.3 to 70.8, the
+    /// teaser 50.1 to 51.9 against 51.2 to 52.7.
     #[inline(always)]
     pub fn new(rays: &'a [RayRecord]) -> Option<Self> {
         debug_assert!(rays.len() <= LANES);
         // Structure of arrays. Lanes past the end get origin 0, direction 1, an empty
         // interval: invalid, with finite quotients (never used).
-        let mut soa = [[0.0f32; LANES]; 8];
-        for lane in &mut soa[4..7] {
-            *lane = [1.0; LANES];
-        }
-        for (i, r) in rays.iter().enumerate() {
-            let f: &[f32; 16] = bytemuck::cast_ref(r);
-            for (a, lane) in soa.iter_mut().enumerate() {
-                lane[i] = f[a];
+        let w = match <&[RayRecord; LANES]>::try_from(rays) {
+            Ok(full) => L::ray_lanes(full),
+            Err(_) => {
+                let mut soa = [[0.0f32; LANES]; 8];
+                for lane in &mut soa[4..7] {
+                    *lane = [1.0; LANES];
+                }
+                for (i, r) in rays.iter().enumerate() {
+                    let f: &[f32; 16] = bytemuck::cast_ref(r);
+                    for (a, lane) in soa.iter_mut().enumerate() {
+                        lane[i] = f[a];
+                    }
+                }
+                soa.map(|row| L::load(&row))
             }
-        }
-        let o = [L::load(&soa[0]), L::load(&soa[1]), L::load(&soa[2])];
-        let d = [L::load(&soa[4]), L::load(&soa[5]), L::load(&soa[6])];
-        let (t_min, t_max) = (L::load(&soa[3]), L::load(&soa[7]));
+        };
+        let o = [w[0], w[1], w[2]];
+        let d = [w[4], w[5], w[6]];
+        let (t_min, t_max) = (w[3], w[7]);
         let zero = L::splat(0.0);
         let inf = L::splat(f32::INFINITY);
         // `Vec3::is_finite` of origin and direction (NaN compares false), `dir != 0`
