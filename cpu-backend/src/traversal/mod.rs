@@ -227,6 +227,31 @@
 //!   a different answer near the origins' surfaces (102 of the far horse's 176 occluded rays, 8,316 of the dragon's
 //!   1,058,277): the origin offset is made for a ray leaving the surface, and a ray
 //!   arriving there would need a bound on its `t`'s error near 1 instead.
+//! * The tree's arrays on 2 MiB pages. Embree's BVH lives on transparent huge pages (59 MB
+//!   of `AnonHugePages` in `ray_contest`'s mappings on the dragon; this host's THP setting
+//!   is `madvise`), hyrt's on 4 KiB pages, and the dragon's 52 MB of nodes and leaf records
+//!   are far past the 2,048 entries (8 MB) of Zen 3's second-level TLB. The nodes, leaf
+//!   records and wide view advised `MADV_HUGEPAGE` and collapsed (`MADV_COLLAPSE`) after
+//!   `bvh_build`, and measured against the same binary without (two threads, `ray_contest
+//!   --kind shadow --rounds 11 dragon`, alternated three times): 32.4 to 33.2 ms either way;
+//!   the dragon's single rays and the teaser's reflections (one thread) within 1%. Page
+//!   walks are not where the time goes.
+//! * Where the time goes now, the dragon's shadow rays in packets (`perf record` at 10 kHz,
+//!   one thread, each sample's address followed through its inlined frames with
+//!   `addr2line -i`): the walk and its node tests 47% (the first read of a node's planes
+//!   10%), the lone-lane leaf tests 39% (the first read of the leaf's records 10 to 13%),
+//!   the slot loop's leaf tests 7%, `Packet::new` 5%. Per packet (2x4 pixels): 15 inner
+//!   nodes, 2.65 leaves, 2.43 of them taken lane by lane (4.4 lane tests), 0.8 packet
+//!   tests of a triangle. Two ways to hide the leaf records' first read were slower (one
+//!   thread, `--packets-only`, the binaries alternated three times, ms): prefetching an
+//!   entered leaf child's records in the node test (the dragon 66.4 to 68.5 against 64.2 to
+//!   65.0, the far bunny, the near horse and the teaser 4 to 10% slower), and deferring the
+//!   leaves taken lane by lane (up to eight queued, their records prefetched when queued,
+//!   tested when the queue fills or the walk ends; a lane such a leaf would stop walks on
+//!   meanwhile): the dragon 71.0 to 72.0 against 64.3 to 66.3, the teaser 58.6 to 62.8
+//!   against 51.2 to 52.0. Also measured: from one thread to two, hyrt's packets scale 1.93
+//!   times on the dragon and Embree's `rtcOccluded8` 2.03 times (61.7 to 32.0 ms against
+//!   65.2 to 32.1, one run): one thread is 1.06 of Embree, two 1.00.
 //!
 //! Two-level scenes (moving objects, shared meshes): the world-space level is traced as
 //! above, then the object-space instances in packets (module `instances`,
