@@ -48,6 +48,17 @@
 //! conservative): about 2% in five alternations (pair ratios 0.93 to 1.05), too little for
 //! a second rounding argument.
 //!
+//! Tried on the Zen 3 since and not kept (one thread, `ray_contest --singles-only --kind
+//! bounce --rounds 11 teaser`, the two binaries alternated three times, ms): a node entered
+//! on several children visiting the nearest (a scan of the entered slots with selects) and
+//! pushing the others unsorted in stored order, instead of pushing them nearest last: 28.4
+//! to 28.8 against 25.9 to 26.1 (the unsorted stack pops far children before near ones,
+//! which the closest hit then no longer culls); and, again, the far planes' scale folded
+//! into a second inverse direction: 25.3 to 26.0 against 26.1 to 26.2, the same 2% as before,
+//! and still without a complete argument that it enters every box the scalar test enters
+//! (two ulps above the scale cover normal distances with `t_min >= 0`; a subnormal slab
+//! distance, from an origin and a plane both within 2^-125 of zero, is not covered).
+//!
 //! Results are the scalar reference's (`Bvh::occluded`, `Bvh::closest_hit`) ray for ray:
 //!
 //! * The box test of a child is [`ray_aabb_conservative`] with the interval of the scalar
