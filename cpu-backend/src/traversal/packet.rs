@@ -168,8 +168,8 @@ impl<'a, L: Lanes> Packet<'a, L> {
     /// each load waiting on eight smaller stores it cannot be forwarded from: 6.1% of the
     /// dragon's packet time in `perf record` samples (AMD EPYC, AVX2, one thread,
     /// `ray_contest --packets-only --kind shadow`), 4.6% after; the two binaries
-    /// alternated three times, the dragon 62.8 to 67.8 ms against 66.3 to 70.8, the
-    /// teaser 50.1 to 51.9 against 51.2 to 52.7.
+    /// alternated three times (`--rounds 11`), the dragon 64.1 to 67.8 ms against 66.3 to
+    /// 70.8, the teaser 50.7 to 51.9 against 51.2 to 52.4, the near bunny unchanged.
     #[inline(always)]
     pub fn new(rays: &'a [RayRecord]) -> Option<Self> {
         debug_assert!(rays.len() <= LANES);
