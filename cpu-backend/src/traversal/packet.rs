@@ -162,9 +162,9 @@ impl<'a, L: Lanes> Packet<'a, L> {
     /// the per-lane code it replaced took about a quarter of the any-hit time on the
     /// teaser's shadow rays.
     ///
-    /// A full packet's records come in through one 8x8 transpose in registers
-    /// ([`Lanes::ray_lanes`]). The scalar copy into an array that the lanes were then loaded
-    /// from (kept for a short packet) wrote 64 words and read them back as eight vectors,
+    /// The records come in through one 8x8 transpose in registers ([`Lanes::ray_lanes`]; a
+    /// short packet padded to eight first). The scalar copy into an array that the lanes were
+    /// then loaded from, which it replaced, wrote 64 words and read them back as eight vectors,
     /// each load waiting on eight smaller stores it cannot be forwarded from: 6.1% of the
     /// dragon's packet time in `perf record` samples (AMD EPYC, AVX2, one thread,
     /// `ray_contest --packets-only --kind shadow`), 4.6% after; the two binaries
@@ -173,22 +173,13 @@ impl<'a, L: Lanes> Packet<'a, L> {
     #[inline(always)]
     pub fn new(rays: &'a [RayRecord]) -> Option<Self> {
         debug_assert!(rays.len() <= LANES);
-        // Structure of arrays. Lanes past the end get origin 0, direction 1, an empty
-        // interval: invalid, with finite quotients (never used).
+        // Structure of arrays. A short packet is padded with rays of origin 0, direction 1
+        // and an empty interval: invalid, with finite quotients (never used).
         let w = match <&[RayRecord; LANES]>::try_from(rays) {
             Ok(full) => L::ray_lanes(full),
             Err(_) => {
-                let mut soa = [[0.0f32; LANES]; 8];
-                for lane in &mut soa[4..7] {
-                    *lane = [1.0; LANES];
-                }
-                for (i, r) in rays.iter().enumerate() {
-                    let f: &[f32; 16] = bytemuck::cast_ref(r);
-                    for (a, lane) in soa.iter_mut().enumerate() {
-                        lane[i] = f[a];
-                    }
-                }
-                soa.map(|row| L::load(&row))
+                let pad = RayRecord { direction: [1.0; 3], ..bytemuck::Zeroable::zeroed() };
+                L::ray_lanes(&std::array::from_fn(|i| rays.get(i).copied().unwrap_or(pad)))
             }
         };
         let o = [w[0], w[1], w[2]];
