@@ -75,6 +75,7 @@ mod avx2;
 mod avx512;
 #[cfg(target_arch = "x86_64")]
 mod lanes;
+mod setup;
 
 /// Side of a square screen tile in pixels (llvmpipe's `TILE_SIZE` is 64 too): a
 /// tile's scratch buffers (depth and winner: 8 bytes per pixel, 32 KiB) stay in L1/L2.
@@ -669,11 +670,10 @@ fn setup_triangles(
     chunks: std::ops::Range<usize>,
 ) -> SetupTriangles {
     let n = geometry.triangles.len();
+    let level = SimdLevel::detect();
     let setup = |tris: &[TriangleRecord]| {
         let mut out = Vec::with_capacity(tris.len() + tris.len() / 8);
-        for t in tris {
-            setup_triangle(t, camera, frame, &mut out);
-        }
+        setup::setup_chunk(tris, camera, frame, level, &mut out);
         bin_chunk(out, frame)
     };
     let chunks = chunks
@@ -741,7 +741,9 @@ const VIEWPORT_OUTCODES: [u32; 4] = [1 << 6, 1 << 7, 1 << 8, 1 << 9];
 /// Outcode bits of the clip planes (`CLIP_PLANES`).
 const CLIP_OUTCODES: u32 = (1 << CLIP_PLANES.len()) - 1;
 
-/// Clip, project and snap one triangle; push zero or more sub-triangles.
+/// Clip, project and snap one triangle; push zero or more sub-triangles. The scalar
+/// setup, which the setup in lanes (module `setup`) must equal triangle for triangle.
+#[cfg_attr(not(test), allow(dead_code))]
 fn setup_triangle(tri: &TriangleRecord, camera: &CameraRecord, frame: &Frame, out: &mut Vec<RasterTriangle>) {
     let (m, eye) = (&camera.view_proj, camera.eye);
     let clip = [
@@ -749,6 +751,13 @@ fn setup_triangle(tri: &TriangleRecord, camera: &CameraRecord, frame: &Frame, ou
         clip_position_from_eye(m, eye, tri.v1),
         clip_position_from_eye(m, eye, tri.v2),
     ];
+    setup_from_clip(tri, clip, frame, out);
+}
+
+/// [`setup_triangle`] from the clip positions of the triangle's vertices
+/// (`clip_position_from_eye`): reject, clip, project, snap; push zero or more
+/// sub-triangles.
+fn setup_from_clip(tri: &TriangleRecord, clip: [[f32; 4]; 3], frame: &Frame, out: &mut Vec<RasterTriangle>) {
     let mut finite = true;
     for c in &clip {
         finite &= c[0].is_finite() & c[1].is_finite() & c[2].is_finite() & c[3].is_finite();
@@ -777,7 +786,7 @@ fn setup_triangle(tri: &TriangleRecord, camera: &CameraRecord, frame: &Frame, ou
     if all != 0 {
         return;
     }
-    let flags = GBUF_HIT | if tri.flags & TRI_RAY_TRACED != 0 { GBUF_RAY_TRACED } else { 0 };
+    let flags = raster_flags(tri);
     let corners = ClipVertex::triangle(clip);
     let outside = any & CLIP_OUTCODES;
     if outside == 0 {
@@ -825,6 +834,32 @@ fn emit_triangle(
         }
         win[k] = p;
     }
+    finish_triangle(src, flags, unclipped, v, win, fixed, frame, out);
+}
+
+/// The G-buffer flags every fragment of `tri` starts with (the back-face flag is added
+/// per sub-triangle by [`finish_triangle`]).
+#[inline]
+fn raster_flags(tri: &TriangleRecord) -> u32 {
+    GBUF_HIT | if tri.flags & TRI_RAY_TRACED != 0 { GBUF_RAY_TRACED } else { 0 }
+}
+
+/// The end of [`emit_triangle`], from its vertices' window positions `win` and snapped
+/// coordinates `fixed` (each vertex finite, `w > 0`, within [`MAX_FIXED_COORD`]): cull
+/// zero-area triangles, normalize the winding and push the triangle if its pixel box
+/// within the image is not empty.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn finish_triangle(
+    src: &TriangleRecord,
+    flags: u32,
+    unclipped: bool,
+    v: [&ClipVertex; 3],
+    win: [[f32; 3]; 3],
+    fixed: [[i64; 2]; 3],
+    frame: &Frame,
+    out: &mut Vec<RasterTriangle>,
+) {
     let area = triangle_area2(fixed[0], fixed[1], fixed[2]);
     if area == 0 {
         return;
@@ -1791,6 +1826,111 @@ mod tests {
                 prop_assert_eq!(got, row);
                 walk.step();
             }
+        }
+    }
+
+    /// The setup of `tris` in lanes at every level this CPU has equals the scalar setup
+    /// (`setup_triangle`, one triangle at a time), triangle for triangle and bit for bit
+    /// (the `Debug` form shows every field, `-0.0` and `0.0` apart).
+    fn assert_setups_agree(tris: &[TriangleRecord], camera: &CameraRecord) {
+        let frame = Frame::new(camera);
+        let mut expect = Vec::new();
+        for t in tris {
+            setup_triangle(t, camera, &frame, &mut expect);
+        }
+        let expect = format!("{expect:?}");
+        for level in SimdLevel::available() {
+            let mut out = Vec::new();
+            setup::setup_chunk(tris, camera, &frame, level, &mut out);
+            assert_eq!(format!("{out:?}"), expect, "setup in lanes at {level:?}");
+        }
+    }
+
+    /// A world coordinate: mostly around the camera, some far out, some special.
+    fn coordinate() -> impl Strategy<Value = f32> {
+        prop_oneof![
+            8 => -4.0f32..4.0,
+            1 => -1.0e6f32..1.0e6,
+            1 => prop::sample::select(vec![0.0, -0.0, 2.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e30, -3e38, 1e-30]),
+        ]
+    }
+
+    /// A triangle around a coordinate, from a hundred-thousandth of a unit to 10^4 units
+    /// across: most of the small ones fall between pixel centres.
+    fn triangle() -> impl Strategy<Value = TriangleRecord> {
+        (
+            prop::array::uniform3(coordinate()),
+            prop::array::uniform3(-1.0f32..1.0),
+            prop::array::uniform3(-1.0f32..1.0),
+            prop::sample::select(vec![1e-5f32, 1e-3, 1e-2, 0.3, 3.0, 1e4]),
+            any::<bool>(),
+        )
+            .prop_map(|(c, a, b, size, traced)| TriangleRecord {
+                v0: c,
+                object: 0,
+                v1: [c[0] + a[0] * size, c[1] + a[1] * size, c[2] + a[2] * size],
+                triangle: 0,
+                v2: [c[0] + b[0] * size, c[1] + b[1] * size, c[2] + b[2] * size],
+                flags: if traced { TRI_RAY_TRACED } else { 0 },
+            })
+    }
+
+    proptest! {
+        #[test]
+        fn setup_in_lanes_equals_the_scalar_setup(
+            tris in prop::collection::vec(triangle(), 1..120),
+            eye in prop::array::uniform3(-2.0f32..2.0),
+            fov in 10.0f32..150.0,
+            near in prop::sample::select(vec![1e-3f32, 0.1, 1.0]),
+            w in 1u32..400,
+            h in 1u32..300,
+        ) {
+            let camera = Camera { eye: Vec3::from(eye), target: Vec3::new(0.0, 0.0, -3.0), up: Vec3::Y, fov_y_deg: fov, near, far: 100.0 };
+            assert_setups_agree(&tris, &CameraRecord::new(&camera, w, h));
+        }
+    }
+
+    /// The setup in lanes on the cases the lanes decide themselves: a fine mesh far away
+    /// (triangles between pixel centres), meshes crossing the near plane and the image's
+    /// sides, vertices far into the guard band (snapped coordinates past 2^23) and beyond
+    /// it, a vertex at the eye, non-finite vertices; in groups of eight and a partial one.
+    #[test]
+    fn setup_in_lanes_equals_the_scalar_setup_on_hard_cases() {
+        let mut scene = Scene::default();
+        let fine = Mesh::uv_sphere("fine", 96, 48);
+        for (k, (x, z, scale)) in
+            [(0.0, -40.0, 1.0), (0.5, 1.5, 1.0), (-3.0, -1.0, 2.0), (0.0, -3.0, 0.05)].into_iter().enumerate()
+        {
+            let mode = if k % 2 == 0 { RenderMode::Raster } else { RenderMode::RayTraced };
+            let place = Mat4::from_translation(Vec3::new(x, 0.0, z)) * Mat4::from_scale(Vec3::splat(scale));
+            scene.add_object(fine.clone(), Material::grey(), place, mode);
+        }
+        let mut tris: Vec<TriangleRecord> = WorldGeometry::build(&scene).triangles.as_slice().unwrap().to_vec();
+        let eye = Vec3::new(0.0, 0.0, 2.0);
+        let t =
+            |v0: [f32; 3], v1: [f32; 3], v2: [f32; 3]| TriangleRecord { v0, object: 0, v1, triangle: 0, v2, flags: 0 };
+        tris.extend([
+            // A vertex at the eye; one behind it.
+            t(eye.into(), [0.1, 0.0, 0.0], [0.0, 0.1, 0.0]),
+            t([0.0, 0.0, 3.0], [0.3, 0.0, -1.0], [0.0, 0.3, -1.0]),
+            // Far into the guard band (window x about 2^17 pixels: snapped past 2^23), and
+            // beyond it.
+            t([0.0, 0.0, -1.0], [200.0, 0.0, -1.0], [0.0, 0.2, -1.0]),
+            t([0.0, 0.0, -1.0], [2.0e6, 0.0, -1.0], [0.0, 0.2, -1.0]),
+            t([-300.0, -1.0, -1.0], [300.0, -1.0, -1.0], [0.0, 400.0, -1.0]),
+            // Non-finite vertices.
+            t([f32::NAN, 0.0, -1.0], [0.1, 0.0, -1.0], [0.0, 0.1, -1.0]),
+            t([0.0, 0.0, -1.0], [f32::INFINITY, 0.0, -1.0], [0.0, 0.1, -1.0]),
+            t([0.0, 0.0, -1.0], [0.1, 0.0, -1.0], [0.0, f32::NEG_INFINITY, -1.0]),
+            // Zero area, and a point.
+            t([0.0, 0.0, -1.0], [0.1, 0.1, -1.0], [0.2, 0.2, -1.0]),
+            t([0.0, 0.0, -1.0], [0.0, 0.0, -1.0], [0.0, 0.0, -1.0]),
+        ]);
+        let camera = camera_towards_z(eye, 60.0, 0.1, 50.0);
+        for (w, h) in [(1280, 720), (67, 131), (1, 1)] {
+            let cam = CameraRecord::new(&camera, w, h);
+            assert_setups_agree(&tris, &cam);
+            assert_setups_agree(&tris[tris.len() - 13..], &cam);
         }
     }
 }
