@@ -171,10 +171,7 @@ impl<L: Lanes> View<L> {
     fn clip(&self, v: &[L::F; 3]) -> [L::F; 4] {
         let d = [L::sub(v[0], self.eye[0]), L::sub(v[1], self.eye[1]), L::sub(v[2], self.eye[2])];
         let m = &self.m;
-        let row = |r: usize| {
-            L::add(L::add(L::add(L::mul(m[r], d[0]), L::mul(m[4 + r], d[1])), L::mul(m[8 + r], d[2])), m[12 + r])
-        };
-        [row(0), row(1), row(2), row(3)]
+        [clip_row::<L>(m, 0, &d), clip_row::<L>(m, 1, &d), clip_row::<L>(m, 2, &d), clip_row::<L>(m, 3, &d)]
     }
 
     /// The clip positions of the triangles with vertices `v` (`[vertex][axis]`, world
@@ -185,7 +182,6 @@ impl<L: Lanes> View<L> {
         let clip = [self.clip(&v[0]), self.clip(&v[1]), self.clip(&v[2])];
         let zero = L::splat(0.0);
         let ones = L::eq(zero, zero);
-        let finite = |x: L::F| L::lt(L::abs(x), L::splat(f32::INFINITY));
         let mut not_finite = zero;
         // Per outcode bit, whether every vertex has it (`all`), and whether some vertex
         // lies beyond a clip plane (`clipped`).
@@ -193,7 +189,7 @@ impl<L: Lanes> View<L> {
         let mut clipped = zero;
         for c in &clip {
             for x in c {
-                not_finite = L::or(not_finite, L::andnot(finite(*x), ones));
+                not_finite = L::or(not_finite, L::andnot(finite::<L>(*x), ones));
             }
             for (p, plane) in CLIP_PLANES.iter().enumerate() {
                 let beyond = L::lt(plane_distance::<L>(*plane, c, &self.guard), zero);
@@ -218,7 +214,7 @@ impl<L: Lanes> View<L> {
         let mut fixed = [[zero; 2]; 3];
         for (i, c) in clip.iter().enumerate() {
             let p = clip_to_window::<L>(c, self.size);
-            let ok = L::and(L::and(finite(p[0]), finite(p[1])), L::and(finite(p[2]), L::lt(zero, c[3])));
+            let ok = L::and(L::and(finite::<L>(p[0]), finite::<L>(p[1])), L::and(finite::<L>(p[2]), L::lt(zero, c[3])));
             bad = L::or(bad, L::andnot(ok, ones));
             for a in 0..2 {
                 let f = snap_to_fixed::<L>(p[a]);
@@ -248,6 +244,20 @@ impl<L: Lanes> View<L> {
         let unclipped = L::andnot(L::or(L::or(skipped, clipped), bad), ones);
         Classified { clip, win, fixed, nothing: L::bits(nothing), unclipped: L::bits(unclipped) }
     }
+}
+
+/// Row `r` of `clip_position`: `((m[r] * d.x + m[4 + r] * d.y) + m[8 + r] * d.z) + m[12 + r]`.
+/// (Functions, not closures, around lane operations: a closure does not inherit its
+/// entry point's target features.)
+#[inline(always)]
+fn clip_row<L: Lanes>(m: &[L::F; 16], r: usize, d: &[L::F; 3]) -> L::F {
+    L::add(L::add(L::add(L::mul(m[r], d[0]), L::mul(m[4 + r], d[1])), L::mul(m[8 + r], d[2])), m[12 + r])
+}
+
+/// All ones where `x` is finite (not infinite, not NaN).
+#[inline(always)]
+fn finite<L: Lanes>(x: L::F) -> L::F {
+    L::lt(L::abs(x), L::splat(f32::INFINITY))
 }
 
 /// `clip_plane_distance(plane, c, guard)` per lane, the same operations.
