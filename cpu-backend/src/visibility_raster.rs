@@ -881,11 +881,7 @@ fn finish_triangle(
     if bbox[0] > bbox[2] || bbox[1] > bbox[3] {
         return;
     }
-    if bbox[0] == bbox[2] && bbox[1] == bbox[3] && !covers_centre(xs, ys, bbox[0], bbox[1]) {
-        // One candidate pixel, not covered: the tile would find no fragment.
-        return;
-    }
-    out.push(RasterTriangle {
+    let t = RasterTriangle {
         x: [xs[0] as i32, xs[1] as i32, xs[2] as i32],
         y: [ys[0] as i32, ys[1] as i32, ys[2] as i32],
         bbox: [bbox[0] as i32, bbox[1] as i32, bbox[2] as i32, bbox[3] as i32],
@@ -899,20 +895,13 @@ fn finish_triangle(
         flags,
         interior: shows_interior(flags & GBUF_BACK_FACE != 0, src.flags & TRI_INWARD != 0),
         masked: src.flags & TRI_ALPHA_TEST != 0,
-    });
-}
-
-/// Whether the counter-clockwise triangle with snapped vertices `(xs[i], ys[i])` covers
-/// the centre of pixel `(px, py)`: the tiles' test (`EdgeStepper`'s biased edge values,
-/// [`pixel_covered`]).
-#[inline]
-fn covers_centre(xs: [i64; 3], ys: [i64; 3], px: i64, py: i64) -> bool {
-    let p = pixel_center_fixed(px, py);
-    let biased = std::array::from_fn(|i| {
-        let (a, b) = ([xs[(i + 1) % 3], ys[(i + 1) % 3]], [xs[(i + 2) % 3], ys[(i + 2) % 3]]);
-        edge_function(a, b, p) + edge_bias(a, b)
-    });
-    pixel_covered(biased)
+    };
+    // One candidate pixel whose centre the triangle does not cover (the tiles' biased
+    // edge values there, `EdgeStepper`): the tile would find no fragment.
+    if bbox[0] == bbox[2] && bbox[1] == bbox[3] && !pixel_covered(EdgeStepper::new(&t, bbox[0], bbox[1]).start) {
+        return;
+    }
+    out.push(t);
 }
 
 #[inline]
