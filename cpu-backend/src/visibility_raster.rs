@@ -337,6 +337,9 @@ pub(crate) struct TileTexels<'a> {
     /// Row-major, [`TILE_SIZE`] texels a row: texel `(lx, ly)` of the tile is
     /// `texels[ly * TILE_SIZE + lx]` (for `lx < size.0`).
     pub texels: &'a [GBufferTexel],
+    /// Every texel of the tile is [`GBufferTexel::MISS`]: no triangle was binned to it.
+    /// A hook may skip reading them (they are the misses all the same).
+    pub all_miss: bool,
 }
 
 /// What runs on each raster tile right after its texels are final, while they are in
@@ -445,8 +448,12 @@ fn raster_tiles<H: TileHook>(
                 .into_par_iter()
                 .enumerate()
                 .map_init(TileScratch::new, |scratch, (tile, rows)| {
-                    scratch.clear();
                     let rows = rows.expect("a G-buffer where no hook reads the tiles");
+                    if tris.tile_is_empty(tile) {
+                        rows.into_iter().for_each(|r| r.fill(GBufferTexel::MISS));
+                        return 0;
+                    }
+                    scratch.clear();
                     raster_tile(kernel, &tris, tile, frame.tile_rect(tile), scratch, rows, alpha, Resolve::Every)
                 })
                 .sum();
@@ -459,10 +466,16 @@ fn raster_tiles<H: TileHook>(
             .map_init(
                 || (TileScratch::new(), LocalTexels::new(), hook.scratch()),
                 |(scratch, local, hs), (tile, (rows, out))| {
-                    scratch.clear();
                     let rect = frame.tile_rect(tile);
-                    let covered =
-                        raster_tile(kernel, &tris, tile, rect, scratch, local.rows(rect), alpha, Resolve::Every);
+                    // A tile no triangle is binned to: its texels are misses, and the hook
+                    // is told so.
+                    let covered = if tris.tile_is_empty(tile) {
+                        local.set_all_miss();
+                        0
+                    } else {
+                        scratch.clear();
+                        raster_tile(kernel, &tris, tile, rect, scratch, local.rows(rect), alpha, Resolve::Every)
+                    };
                     if let Some(rows) = rows {
                         local.copy_to(rows);
                     }
@@ -495,8 +508,7 @@ fn raster_tiles<H: TileHook>(
         let tiles = slices.into_par_iter().zip(scratches.par_iter_mut()).enumerate();
         match hook.take_if(|_| b + 1 == batches.len()) {
             None => tiles.for_each(|(tile, (rows, scratch))| {
-                scratch.winner.fill(NO_WINNER);
-                raster_tile(kernel, &tris, tile, frame.tile_rect(tile), scratch, rows, alpha, resolve);
+                batch_tile(kernel, &tris, tile, frame.tile_rect(tile), scratch, rows, alpha, resolve);
             }),
             // The last batch: each tile's texels are final after its resolve.
             Some((hook, outs)) => {
@@ -505,10 +517,9 @@ fn raster_tiles<H: TileHook>(
                     .map_init(
                         || (LocalTexels::new(), hook.scratch()),
                         |(local, hs), ((tile, (mut rows, scratch)), out)| {
-                            scratch.winner.fill(NO_WINNER);
                             let rect = frame.tile_rect(tile);
                             let reborrowed = rows.iter_mut().map(|r| &mut **r).collect();
-                            raster_tile(kernel, &tris, tile, rect, scratch, reborrowed, alpha, resolve);
+                            batch_tile(kernel, &tris, tile, rect, scratch, reborrowed, alpha, resolve);
                             local.copy_from(&rows);
                             hook.tile(hs, local.texels(rect), out)
                         },
@@ -523,34 +534,75 @@ fn raster_tiles<H: TileHook>(
     RasterTiles { covered, counts, setup }
 }
 
-/// A tile-local G-buffer: one tile's texels, [`TILE_SIZE`] a row.
-struct LocalTexels(Box<[GBufferTexel]>);
+/// A tile-local G-buffer: one tile's texels, [`TILE_SIZE`] a row, and whether every one
+/// is [`GBufferTexel::MISS`] (so that a run of empty tiles writes them once, not once a
+/// tile).
+struct LocalTexels {
+    texels: Box<[GBufferTexel]>,
+    all_miss: bool,
+}
 
 impl LocalTexels {
     fn new() -> LocalTexels {
-        LocalTexels(vec![GBufferTexel::MISS; TILE_PIXELS].into_boxed_slice())
+        LocalTexels { texels: vec![GBufferTexel::MISS; TILE_PIXELS].into_boxed_slice(), all_miss: true }
     }
-    /// The rows of the tile with inclusive pixel rectangle `rect`, for [`resolve_tile`].
+    /// The rows of the tile with inclusive pixel rectangle `rect`, for [`resolve_tile`]
+    /// (which writes them: they are no longer taken for misses).
     fn rows(&mut self, rect: [i32; 4]) -> Vec<&mut [GBufferTexel]> {
+        self.all_miss = false;
         let (tw, th) = ((rect[2] - rect[0] + 1) as usize, (rect[3] - rect[1] + 1) as usize);
-        self.0.chunks_mut(TILE_SIZE as usize).take(th).map(|r| &mut r[..tw]).collect()
+        self.texels.chunks_mut(TILE_SIZE as usize).take(th).map(|r| &mut r[..tw]).collect()
+    }
+    /// Every texel a miss (a tile no triangle is binned to), written only where they
+    /// were not all misses already.
+    fn set_all_miss(&mut self) {
+        if !self.all_miss {
+            self.texels.fill(GBufferTexel::MISS);
+            self.all_miss = true;
+        }
     }
     fn texels(&self, rect: [i32; 4]) -> TileTexels<'_> {
         let size = ((rect[2] - rect[0] + 1) as usize, (rect[3] - rect[1] + 1) as usize);
-        TileTexels { origin: (rect[0] as usize, rect[1] as usize), size, texels: &self.0 }
+        TileTexels { origin: (rect[0] as usize, rect[1] as usize), size, texels: &self.texels, all_miss: self.all_miss }
     }
     /// Copy the tile's rows out to a whole-image G-buffer's.
     fn copy_to(&self, rows: Vec<&mut [GBufferTexel]>) {
-        for (row, local) in rows.into_iter().zip(self.0.chunks(TILE_SIZE as usize)) {
+        for (row, local) in rows.into_iter().zip(self.texels.chunks(TILE_SIZE as usize)) {
             row.copy_from_slice(&local[..row.len()]);
         }
     }
     /// Copy the tile's rows in from a whole-image G-buffer's.
     fn copy_from(&mut self, rows: &[&mut [GBufferTexel]]) {
-        for (row, local) in rows.iter().zip(self.0.chunks_mut(TILE_SIZE as usize)) {
+        self.all_miss = false;
+        for (row, local) in rows.iter().zip(self.texels.chunks_mut(TILE_SIZE as usize)) {
             local[..row.len()].copy_from_slice(row);
         }
     }
+}
+
+/// One tile of one batch of [`raster_tiles`]: the batch's triangles binned to it depth
+/// tested against what earlier batches left in `scratch`, then resolved into `rows` as
+/// `resolve` says. A tile the batch bins nothing to has no winner in it: only the first
+/// batch's misses are written.
+#[allow(clippy::too_many_arguments)]
+fn batch_tile(
+    kernel: TileKernel,
+    tris: &SetupTriangles,
+    tile: usize,
+    rect: [i32; 4],
+    scratch: &mut TileScratch,
+    rows: Vec<&mut [GBufferTexel]>,
+    alpha: Option<AlphaTests>,
+    resolve: Resolve,
+) {
+    if tris.tile_is_empty(tile) {
+        if resolve == Resolve::Every {
+            rows.into_iter().for_each(|r| r.fill(GBufferTexel::MISS));
+        }
+        return;
+    }
+    scratch.winner.fill(NO_WINNER);
+    raster_tile(kernel, tris, tile, rect, scratch, rows, alpha, resolve);
 }
 
 /// Which texels of a tile [`resolve_tile`] writes.
@@ -656,6 +708,15 @@ impl SetupChunk {
 /// global order.
 struct SetupTriangles {
     chunks: Vec<SetupChunk>,
+}
+
+impl SetupTriangles {
+    /// No triangle is binned to `tile`: every pixel of it is a miss, with nothing to
+    /// rasterize or resolve.
+    #[inline]
+    fn tile_is_empty(&self, tile: usize) -> bool {
+        self.chunks.iter().all(|c| c.bin_start[tile] == c.bin_start[tile + 1])
+    }
 }
 
 impl SetupTriangles {
