@@ -711,19 +711,17 @@ struct SetupTriangles {
 }
 
 impl SetupTriangles {
-    /// No triangle is binned to `tile`: every pixel of it is a miss, with nothing to
-    /// rasterize or resolve.
-    #[inline]
-    fn tile_is_empty(&self, tile: usize) -> bool {
-        self.chunks.iter().all(|c| c.bin_start[tile] == c.bin_start[tile + 1])
-    }
-}
-
-impl SetupTriangles {
     #[inline]
     fn get(&self, reference: u32) -> &RasterTriangle {
         &self.chunks[(reference >> CHUNK_INDEX_BITS) as usize].tris
             [(reference & ((1 << CHUNK_INDEX_BITS) - 1)) as usize]
+    }
+
+    /// No triangle is binned to `tile`: every pixel of it is a miss, with nothing to
+    /// rasterize or resolve.
+    #[inline]
+    fn tile_is_empty(&self, tile: usize) -> bool {
+        self.chunks.iter().all(|c| c.bin(tile).is_empty())
     }
 }
 
