@@ -402,6 +402,28 @@ fn raster_cases(b: &mut Builder) {
     );
     b.add("raster_closed_meshes", "closed meshes (sphere, torus, cube): shared edges, silhouettes", s, cam, w, h);
 
+    // One closed mesh wound outward as a whole: a cube with an inside-out cube in front of
+    // it. The faces of the small cube that face the camera show its interior, which the
+    // raster drops for a closed object wholly in front of the near plane; its far faces,
+    // which face the camera, show instead.
+    let mut s = Scene { lights: lights.clone(), ..Scene::default() };
+    let (big, small) = (Mesh::cube("big"), Mesh::cube("small"));
+    let (mut pos, mut idx) = (big.positions.clone(), big.indices.clone());
+    let to_small = Mat4::from_translation(Vec3::new(0.2, 0.1, 1.8)) * Mat4::from_scale(Vec3::splat(0.35));
+    let base = pos.len() as u32;
+    pos.extend(small.positions.iter().map(|p| to_small.transform_point3(*p)));
+    idx.extend(small.indices.iter().map(|t| [t[0] + base, t[2] + base, t[1] + base]));
+    let rotation = Mat4::from_quat(Quat::from_rotation_y(0.4) * Quat::from_rotation_x(0.3));
+    s.add_object(mesh("inside_out", pos, idx), diffuse("inside_out", Vec3::new(0.3, 0.6, 0.8)), rotation, RASTER);
+    b.add(
+        "raster_closed_mesh_interior_dropped",
+        "a closed mesh with an inside-out part in front: the faces that show its interior dropped",
+        s,
+        cam,
+        w,
+        h,
+    );
+
     // Vertices on pixel centres, on 1/256 and on 1/512 ties (exactly between two subpixel
     // positions: the rounding rule decides).
     for (name, frac, stresses) in [

@@ -13,8 +13,9 @@
 //! - *offsets that grow with the coordinates*: a fixed 256-ulp origin offset is about 2
 //!   units at 1e5, more than the gap between a floor and the shell above it.
 //!
-//! Each case has one shell (object 0, ray traced, grey, no back-face culling anywhere) and
-//! a floor under it (object 1, rasterized) at a gap of a fifth of the shell's half size,
+//! Each case has one shell (object 0, ray traced, grey; rays meet both faces of every
+//! triangle, and the raster drops only the faces that show the inside of a closed shell
+//! no pixel can see into) and a floor under it (object 1, rasterized) at a gap of a fifth of the shell's half size,
 //! and that gap is never under 100 ulps of the coordinates ([`MIN_FEATURE_ULPS`]):
 //! placements far from the origin scale the scene up until it is. The shells
 //! ([`ShellKind`]): a cube of 8 shared vertices (12 triangles), an icosphere subdivided to

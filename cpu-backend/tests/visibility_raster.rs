@@ -6,7 +6,7 @@
 use std::collections::HashMap;
 
 use hyrt_core::formats::{CameraRecord, GBufferTexel, GBUF_BACK_FACE, GBUF_HIT, GBUF_RAY_TRACED};
-use hyrt_core::geometry::WorldGeometry;
+use hyrt_core::geometry::{MeshWinding, WorldGeometry};
 use hyrt_core::glam::{DMat4, DVec3, DVec4, Mat4, Quat, Vec3, Vec4};
 use hyrt_core::kernels::raster::FIXED_ONE;
 use hyrt_core::scene::{Camera, Material, Mesh, RenderMode, Scene};
@@ -1328,4 +1328,105 @@ fn visibility_raster_closed_convex_meshes_show_no_interior_on_silhouettes() {
         }
     }
     assert!(shown > 1_000_000, "{shown} pixels");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Interiors of closed objects (`WorldGeometry::interior_culls`)
+// ---------------------------------------------------------------------------------------------
+
+/// `g` with no object's interior dropped: every mesh taken as open.
+fn without_interior_culls(g: &WorldGeometry) -> WorldGeometry {
+    let mut open = g.clone();
+    open.windings.iter_mut().for_each(|w| *w = MeshWinding::Open);
+    open
+}
+
+/// Closed meshes seen from outside, wholly in front of the near plane: dropping the
+/// triangles that show their interior changes no texel (the uv sphere, the torus, the
+/// cube, raster and ray traced, near and far, and a mirrored cube, whose back faces are
+/// its exterior).
+#[test]
+fn visibility_raster_closed_objects_seen_from_outside_same_texels_without_their_interiors() {
+    let cam = CameraRecord::new(&look_camera(Vec3::new(0.4, 0.9, 4.0), Vec3::ZERO, 50.0, 0.05, 50.0), 160, 120);
+    let scene = scene_with(
+        vec![
+            (weld(Mesh::uv_sphere("s", 32, 16)), Mat4::from_translation(Vec3::new(-1.0, 0.0, 0.0)), RenderMode::Raster),
+            (
+                Mesh::torus("t", 0.6, 0.25, 24, 12),
+                Mat4::from_translation(Vec3::new(1.0, 0.2, -1.0)),
+                RenderMode::RayTraced,
+            ),
+            (Mesh::cube("c"), Mat4::from_translation(Vec3::new(0.0, -0.8, 2.5)), RenderMode::Raster),
+            (
+                Mesh::cube("m"),
+                Mat4::from_scale_rotation_translation(
+                    Vec3::new(-0.5, 0.5, 0.5),
+                    Quat::from_rotation_y(0.7),
+                    Vec3::new(0.3, 1.0, 1.5),
+                ),
+                RenderMode::Raster,
+            ),
+        ],
+        None,
+    );
+    let (g, out) = render(&scene, &cam);
+    assert_eq!(g.interior_culls(&cam), vec![0b1111], "every object closed and in front of the near plane");
+    let all = visibility_raster(&without_interior_culls(&g), &cam);
+    assert!(out.covered_pixels > 4000, "{} pixels", out.covered_pixels);
+    assert_eq!(out.gbuffer, all.gbuffer);
+}
+
+/// An inside-out cube (a closed part wound inward) in front of a closed cube, in one
+/// mesh that is closed and wound outward as a whole: the faces of the small cube that face
+/// the camera show its interior and are dropped, so the pixels behind them show its far
+/// faces, which face the camera; drawn whole, the near faces (back faces, nearest) win.
+/// Elsewhere the texels are the same.
+#[test]
+fn visibility_raster_drops_the_interior_faces_of_a_closed_object() {
+    let big = Mesh::cube("big");
+    let mut small = Mesh::cube("small");
+    small.indices.iter_mut().for_each(|t| t.swap(1, 2));
+    let mut mesh = Mesh { name: "one".into(), ..Default::default() };
+    for (m, t) in [
+        (&big, Mat4::IDENTITY),
+        (&small, Mat4::from_scale_rotation_translation(Vec3::splat(0.25), Quat::IDENTITY, Vec3::new(0.0, 0.0, 2.0))),
+    ] {
+        let base = mesh.positions.len() as u32;
+        mesh.positions.extend(m.positions.iter().map(|p| t.transform_point3(*p)));
+        mesh.indices.extend(m.indices.iter().map(|i| i.map(|k| k + base)));
+    }
+    let small_ids = big.indices.len() as u32..mesh.indices.len() as u32;
+    let cam = CameraRecord::new(&look_camera(Vec3::new(0.0, 0.0, 6.0), Vec3::ZERO, 40.0, 0.1, 20.0), 64, 64);
+    let (g, out) = render(&scene_with(vec![raster(mesh)], None), &cam);
+    assert_eq!(g.windings, vec![MeshWinding::Outward]);
+    assert_eq!(g.interior_culls(&cam), vec![1]);
+    let all = visibility_raster(&without_interior_culls(&g), &cam);
+    let centre = 32 * 64 + 32;
+    let (culled, drawn) = (out.gbuffer[centre], all.gbuffer[centre]);
+    assert!(small_ids.contains(&culled.triangle) && small_ids.contains(&drawn.triangle), "{culled:?} {drawn:?}");
+    assert_eq!(culled.flags & GBUF_BACK_FACE, 0, "a far face of the small cube, facing the camera: {culled:?}");
+    assert_ne!(drawn.flags & GBUF_BACK_FACE, 0, "a near face of the small cube, facing away: {drawn:?}");
+    assert!(culled.depth > drawn.depth);
+    let changed: Vec<usize> = (0..out.gbuffer.len()).filter(|&i| out.gbuffer[i] != all.gbuffer[i]).collect();
+    assert!(
+        changed.iter().all(|&i| small_ids.contains(&all.gbuffer[i].triangle)),
+        "only the small cube's pixels change"
+    );
+    assert!(changed.len() > 20, "{} pixels", changed.len());
+}
+
+/// No interior is dropped where a pixel can see it: the camera inside a closed cube sees
+/// its back faces, and a cube across the near plane shows its inside through the cut.
+#[test]
+fn visibility_raster_keeps_interiors_a_pixel_can_see() {
+    let inside =
+        CameraRecord::new(&look_camera(Vec3::new(0.1, 0.2, 0.3), Vec3::new(0.0, 0.0, -1.0), 60.0, 0.01, 10.0), 32, 32);
+    let (g, out) = render(&scene_with(vec![raster(Mesh::cube("c"))], None), &inside);
+    assert_eq!(g.interior_culls(&inside), vec![0]);
+    assert!(out.gbuffer.iter().all(|t| t.flags & GBUF_HIT != 0 && t.flags & GBUF_BACK_FACE != 0));
+    // The near plane, 0.6 in front of the eye at z = 0.8, cuts the cube (-1 to 1) open.
+    let cut = CameraRecord::new(&look_camera(Vec3::new(0.0, 0.0, 1.4), Vec3::ZERO, 60.0, 0.6, 10.0), 32, 32);
+    let (g, out) = render(&scene_with(vec![raster(Mesh::cube("c"))], None), &cut);
+    assert_eq!(g.interior_culls(&cut), vec![0]);
+    assert_ne!(out.gbuffer[16 * 32 + 16].flags & GBUF_BACK_FACE, 0, "the inside, through the cut");
 }

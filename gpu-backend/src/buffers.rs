@@ -171,6 +171,11 @@ pub struct SceneBuffers {
     /// packed into one table of words (in pages where they outgrow one binding) with their
     /// layout; one unread word without them.
     pub surface: SurfaceBuffers,
+    /// `array<u32>`: the objects whose triangles that show their interior the raster's
+    /// setup drops this frame, one bit each
+    /// ([`hyrt_core::geometry::WorldGeometry::interior_culls`], written per frame by
+    /// [`SceneBuffers::set_interior_culls`]; none until then).
+    pub interior_culls: wgpu::Buffer,
     pub triangle_count: u32,
     pub object_count: u32,
     pub light_count: u32,
@@ -178,6 +183,8 @@ pub struct SceneBuffers {
     /// What `lights` and `ambient_light` hold now (the scene's, or the last frame's).
     held_lights: Vec<LightRecord>,
     held_ambient: AmbientLightRecord,
+    /// What `interior_culls` holds now.
+    held_interior_culls: Vec<u32>,
 }
 
 impl SceneBuffers {
@@ -210,6 +217,8 @@ impl SceneBuffers {
         let ambient_header = uniform(ctx, "ambient light", std::mem::size_of::<AmbientLightRecord>() as u64);
         ctx.queue.write_buffer(&ambient_header, 0, bytemuck::bytes_of(&ambient));
         let packed = scene.levels.as_ref().map(|l| l.packed());
+        // As many words as `WorldGeometry::interior_culls` gives, no object culled.
+        let culls_none = vec![0u32; g.objects.len().div_ceil(32).max(1)];
         let specialization = Specialization::of_scene(scene, &ctx.limits);
         let pages = specialization.pages;
         let (nodes, leaf_triangles, prim_indices, instances) = match &packed {
@@ -235,6 +244,8 @@ impl SceneBuffers {
             instances: PagedBuffer::upload::<InstanceRecord>(ctx, Table::Instances, instances, pages),
             specialization,
             surface: SurfaceBuffers::new(ctx, &g.surface, &g.objects, pages),
+            interior_culls: upload::<u32>(ctx, "interior culls", &culls_none),
+            held_interior_culls: culls_none,
             triangle_count: g.triangles.len() as u32,
             object_count: g.objects.len() as u32,
             light_count: g.lights.len() as u32,
@@ -309,6 +320,18 @@ impl SceneBuffers {
             self.mesh_offsets = offsets;
             let placements = placement_records(&scene.geometry, &self.mesh_offsets);
             self.placements.write(&ctx.queue, 0, bytemuck::cast_slice(&placements));
+        }
+    }
+
+    /// Set the objects whose interior the raster's setup drops this frame
+    /// ([`hyrt_core::geometry::WorldGeometry::interior_culls`] for the frame's camera),
+    /// writing them where they differ from what the buffer holds.
+    pub fn set_interior_culls(&mut self, ctx: &GpuContext, bits: &[u32]) {
+        debug_assert_eq!(bits.len(), self.held_interior_culls.len(), "one bit per object of the scene");
+        if bits != self.held_interior_culls.as_slice() {
+            ctx.queue.write_buffer(&self.interior_culls, 0, bytemuck::cast_slice(bits));
+            self.held_interior_culls.clear();
+            self.held_interior_culls.extend_from_slice(bits);
         }
     }
 

@@ -4,7 +4,8 @@
 //! compute pass resolves the targets into [`FrameBuffers::gbuffer`], texel for texel
 //! the format of `hyrt_cpu::visibility_raster`.
 //!
-//! Reads: `scene.triangles`, `frame.camera`, `scene.surface` (alpha tests). Writes:
+//! Reads: `scene.triangles`, `frame.camera`, `scene.surface` (alpha tests),
+//! `scene.interior_culls`. Writes:
 //! `frame.gbuffer` (every texel).
 //!
 //! Raster pass (`vs_main` / `fs_main` in `shaders/visibility_raster.wgsl`): the
@@ -39,7 +40,11 @@
 //!   triangle carries its id); [`VisibilityRasterStage::triangle_id_source`] says which.
 //!
 //! Setup pass (`setup`, exact mode): one thread per triangle runs the reference's setup
-//! once and records what the raster pass needs (`RasterSetup`, 80 bytes). Triangles are
+//! once and records what the raster pass needs (`RasterSetup`, 80 bytes); an unclipped
+//! triangle that shows the interior of an object whose bit is set in
+//! [`SceneBuffers::interior_culls`] (the CPU's `WorldGeometry::interior_culls` for the
+//! frame's camera: closed meshes wholly in front of the near plane) is recorded as
+//! nothing to draw, as the reference drops it. Triangles are
 //! set up and drawn in batches whose records fit one storage binding
 //! ([`batch_triangles`]: 1.67 million triangles under lavapipe's 128 MiB), each batch a
 //! setup pass then a raster pass that keeps the targets and depth of the batches before
@@ -101,7 +106,8 @@ pub enum VisibilityMode {
     /// differ on rounding ties and depth near-ties, barycentrics by up to 1e-1 on
     /// sub-pixel triangles; no alpha test: alpha-tested triangles are drawn without their
     /// holes). Only for benchmarks that measure the device as a plain rasterizer of the
-    /// same pass.
+    /// same pass. It draws every triangle: no setup pass, so no closed object's interior
+    /// is dropped.
     HardwareInterpolated,
 }
 
@@ -578,7 +584,8 @@ impl VisibilityRasterStage {
         let setups = self.setups(ctx, scene.triangle_count);
         let batches = setups.batches();
         let run_setup = frame.band.first_row == 0 || batches > 1;
-        // Bindings: setup writes 6 (setups), 8 (clipped), 9 (count); the raster reads 5, 7,
+        // Bindings: setup writes 6 (setups), 8 (clipped), 9 (count) and reads the interior
+        // culls (16); the raster reads 5, 7,
         // the band (10) and the surface tables (11, 12); both read the batch (15).
         let group = |label, layout, k: u32, setup: bool| {
             let first_binding = if setup { 6 } else { 5 };
@@ -590,7 +597,10 @@ impl VisibilityRasterStage {
                 wgpu::BindGroupEntry { binding: 15, resource: setups.batch_binding(k) },
             ];
             if setup {
-                entries.push(wgpu::BindGroupEntry { binding: 9, resource: setups.clipped_count.as_entire_binding() });
+                entries.extend([
+                    wgpu::BindGroupEntry { binding: 9, resource: setups.clipped_count.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 16, resource: scene.interior_culls.as_entire_binding() },
+                ]);
             } else {
                 entries.extend([
                     wgpu::BindGroupEntry { binding: 10, resource: frame.params.as_entire_binding() },

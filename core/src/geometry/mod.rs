@@ -19,7 +19,7 @@ use bytemuck::Zeroable;
 use glam::{DVec3, Mat3, Mat4, Vec2, Vec3};
 
 use crate::formats::{
-    EmitterRecord, LightRecord, MaterialRecord, ObjectRecord, SurfaceLayout, TextureSet, TriangleRecord,
+    CameraRecord, EmitterRecord, LightRecord, MaterialRecord, ObjectRecord, SurfaceLayout, TextureSet, TriangleRecord,
     TriangleUvRecord, EMITTER_DOUBLE_SIDED, LIGHT_EMITTERS, MAT_ALPHA_TEST, MAT_ANY_TEXTURE, MAT_EMISSIVE,
     MAT_METALLIC_ROUGHNESS, MAT_NORMAL, MAT_OCCLUSION, MAT_TEXTURED, MAT_VERTEX_COLORS, OBJ_RAY_TRACED, TEXEL_LINEAR,
     TEXEL_SRGB, TRI_ALPHA_TEST, TRI_INWARD, TRI_RAY_TRACED,
@@ -806,6 +806,28 @@ impl WorldGeometry {
     /// never whole in memory (build it with [`WorldGeometry::build`]).
     pub fn stored_table(&self) -> &[TriangleRecord] {
         self.triangles.as_slice().expect("a world table with every object stored (WorldGeometry::build)")
+    }
+
+    /// The objects whose triangles that show their interior the raster drops this frame
+    /// ([`crate::kernels::raster::culls_interior`]), one bit per object (object `o` at bit
+    /// `o % 32` of word `o / 32`), at least one word: closed meshes ([`MeshWinding`] not
+    /// open), without an alpha test (its holes show the inside) and without a non-finite
+    /// vertex (the raster skips such triangles, which opens the surface), whose world
+    /// bounds lie wholly in front of `camera`'s near plane
+    /// ([`crate::kernels::raster::interior_hidden`]).
+    pub fn interior_culls(&self, camera: &CameraRecord) -> Vec<u32> {
+        let mut bits = vec![0u32; self.objects.len().div_ceil(32).max(1)];
+        for (o, ((record, winding), extent)) in self.objects.iter().zip(&self.windings).zip(&self.extents).enumerate() {
+            let closed = *winding != MeshWinding::Open && record.triangle_count > 0;
+            if closed
+                && extent.non_finite_triangles == 0
+                && self.triangles.flags(record.first_triangle as usize) & TRI_ALPHA_TEST == 0
+                && crate::kernels::raster::interior_hidden(camera, extent.lo.into(), extent.hi.into())
+            {
+                bits[o / 32] |= 1 << (o % 32);
+            }
+        }
+        bits
     }
 
     /// The world record of global triangle `id` ([`WorldTriangles::get`]).

@@ -490,6 +490,69 @@ pub fn pixel_span(min: i64, max: i64) -> [i64; 2] {
     [(min + (FIXED_ONE - 1)) >> SUBPIXEL_BITS, (max - 1) >> SUBPIXEL_BITS]
 }
 
+/// How far in front of the near plane every corner of a closed object's bounds must lie
+/// before the raster drops the triangles that show the object's interior
+/// ([`interior_hidden`]), relative to the sum of the magnitudes of the clip coordinate's
+/// terms: 2^-18.
+///
+/// Where it comes from: the raster computes a vertex's clip `z` and `w` in f32
+/// ([`clip_position_from_eye`]: one subtraction per coordinate, then three products and
+/// three sums), each operation rounding by at most 2^-24 relative, so the computed value
+/// lies within `6 * 2^-24` (plus second-order terms) of the exact one times the sum of the
+/// magnitudes of its terms (`|m_i (v_i - eye_i)|` and the constant). [`interior_hidden`]
+/// evaluates the exact values at the corners of the bounds in f64 (rounding near 2^-53 of
+/// the same sum); 2^-18, ten times `6 * 2^-24`, leaves every vertex within the bounds a
+/// strictly positive computed clip `z` and `w`.
+pub const INTERIOR_CULL_NEAR_MARGIN: f64 = 1.0 / 262_144.0;
+
+/// Whether no pixel can see the interior of a closed surface whose world vertices all lie
+/// within `lo..=hi`: every point of those bounds lies in front of the camera's near plane
+/// (clip `z > 0` and `w > 0`, by [`INTERIOR_CULL_NEAR_MARGIN`]). Then the eye is outside
+/// the bounds, and the raster clips no triangle of the surface at the near plane (which
+/// would open it). Along every pixel's ray the first crossing of a closed surface seen from
+/// outside enters it, through a triangle that shows the exterior; the raster's other clip
+/// planes (the far plane, the guard band) only cut away what lies beyond that crossing or
+/// outside every pixel's ray. After snapping, too, a pixel centre that a triangle showing
+/// the interior covers is covered by one showing the exterior (on a closed surface the
+/// triangles over a point, counted with the sign of their area, sum to zero, and the
+/// top-left rule counts a shared edge once, the same way for the two triangles that fold
+/// over it). So dropping those triangles ([`culls_interior`]) leaves no pixel uncovered;
+/// a pixel it changes is one where a triangle showing the interior was nearer than the
+/// exterior in front of it after rounding (see [`INTERIOR_DEPTH_BIAS_ULPS`]).
+///
+/// False for empty bounds (`lo > hi` on an axis) and for non-finite ones.
+pub fn interior_hidden(camera: &crate::formats::CameraRecord, lo: [f32; 3], hi: [f32; 3]) -> bool {
+    let finite = lo.iter().chain(&hi).all(|c| c.is_finite());
+    if !finite || (0..3).any(|i| lo[i] > hi[i]) {
+        return false;
+    }
+    let m = &camera.view_proj;
+    // Rows 2 (z: the near plane is z >= 0) and 3 (w) of the column-major matrix, as
+    // `clip_position_from_eye` applies it to `v - eye`. Affine in `v`: least at a corner.
+    [2usize, 3].into_iter().all(|r| {
+        let constant = f64::from(m[12 + r]);
+        let (mut least, mut size) = (constant, constant.abs());
+        for i in 0..3 {
+            let a = f64::from(m[4 * i + r]);
+            let eye = f64::from(camera.eye[i]);
+            let (near, far) = (a * (f64::from(lo[i]) - eye), a * (f64::from(hi[i]) - eye));
+            least += near.min(far);
+            size += near.abs().max(far.abs());
+        }
+        least > INTERIOR_CULL_NEAR_MARGIN * size
+    })
+}
+
+/// Whether the raster drops an unclipped triangle of `object` that shows its interior
+/// side ([`shows_interior`]): `object`'s bit in `bits`, one bit per object, object `o` at
+/// bit `o % 32` of word `o / 32` (set where [`interior_hidden`] holds for a closed object:
+/// `hyrt_core::geometry::WorldGeometry::interior_culls`); objects past the words are not
+/// culled. WGSL: `culls_interior`.
+#[inline]
+pub fn culls_interior(bits: &[u32], object: u32) -> bool {
+    bits.get((object / 32) as usize).is_some_and(|w| (w >> (object % 32)) & 1 != 0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -724,6 +787,63 @@ mod tests {
             let (q, r) = (n.div_euclid(4), n.rem_euclid(4));
             let expect = match r { 0 | 1 => q, 3 => q + 1, _ => if q % 2 == 0 { q } else { q + 1 } };
             prop_assert_eq!(snap_to_fixed(v), expect);
+        }
+    }
+
+    /// The camera of `eye` looking at the origin (near 0.1), 64x64 pixels.
+    fn camera_at(eye: [f32; 3]) -> crate::formats::CameraRecord {
+        let mut c = crate::scene::Camera::look_at(glam::Vec3::from(eye), glam::Vec3::ZERO, glam::Vec3::Y);
+        c.near = 0.1;
+        crate::formats::CameraRecord::new(&c, 64, 64)
+    }
+
+    #[test]
+    fn interior_hidden_holds_for_bounds_wholly_in_front_of_the_near_plane_only() {
+        let cam = camera_at([0.0, 0.0, 5.0]);
+        // In front, in view and beside it (off screen, but in front of the plane).
+        assert!(interior_hidden(&cam, [-1.0; 3], [1.0; 3]));
+        assert!(interior_hidden(&cam, [40.0, -1.0, -1.0], [41.0, 1.0, 1.0]));
+        // The eye inside; the bounds across the near plane (4.9 from the eye along -z is
+        // z = 0.1 .. the plane at z = 4.9); behind the eye; touching the eye.
+        assert!(!interior_hidden(&cam, [-1.0, -1.0, -1.0], [1.0, 1.0, 6.0]));
+        assert!(!interior_hidden(&cam, [-1.0, -1.0, 4.85], [1.0, 1.0, 4.95]));
+        assert!(!interior_hidden(&cam, [-1.0, -1.0, 6.0], [1.0, 1.0, 7.0]));
+        assert!(!interior_hidden(&cam, [-1.0, -1.0, 0.0], [1.0, 1.0, 5.0]));
+        // Just in front of the near plane (z = 4.9) and just across it.
+        assert!(interior_hidden(&cam, [-1.0, -1.0, 0.0], [1.0, 1.0, 4.899]));
+        assert!(!interior_hidden(&cam, [-1.0, -1.0, 0.0], [1.0, 1.0, 4.901]));
+        // Empty and non-finite bounds.
+        assert!(!interior_hidden(&cam, [1.0; 3], [-1.0; 3]));
+        assert!(!interior_hidden(&cam, [f32::NAN, 0.0, 0.0], [1.0; 3]));
+        assert!(!interior_hidden(&cam, [-1.0; 3], [f32::INFINITY, 1.0, 1.0]));
+    }
+
+    #[test]
+    fn culls_interior_reads_one_bit_per_object() {
+        let bits = [0b101u32, 1 << 31];
+        let culled: Vec<u32> = (0..80).filter(|&o| culls_interior(&bits, o)).collect();
+        assert_eq!(culled, vec![0, 2, 63]);
+        assert!(!culls_interior(&[], 0));
+    }
+
+    proptest! {
+        /// Every vertex of bounds `interior_hidden` accepts computes, as the raster
+        /// computes it, a clip position strictly in front of the near plane with `w > 0`:
+        /// no triangle within them is clipped at the near plane.
+        #[test]
+        fn interior_hidden_bounds_give_positive_clip_z_and_w(
+            eye in prop::array::uniform3(-50.0f32..50.0),
+            lo in prop::array::uniform3(-50.0f32..50.0),
+            size in prop::array::uniform3(0.0f32..20.0),
+            t in prop::array::uniform3(0.0f32..=1.0),
+        ) {
+            prop_assume!(eye.iter().map(|c| c * c).sum::<f32>() > 1e-2);
+            let cam = camera_at(eye);
+            let hi = [lo[0] + size[0], lo[1] + size[1], lo[2] + size[2]];
+            prop_assume!(interior_hidden(&cam, lo, hi));
+            let v: [f32; 3] = std::array::from_fn(|i| (lo[i] + t[i] * (hi[i] - lo[i])).clamp(lo[i], hi[i]));
+            let c = clip_position_from_eye(&cam.view_proj, cam.eye, v);
+            prop_assert!(c[2] > 0.0 && c[3] > 0.0, "{v:?}: clip {c:?}");
         }
     }
 }

@@ -99,6 +99,15 @@ struct RasterBatch {
 // fragments of triangles flagged TRI_ALPHA_TEST.
 @group(0) @binding(11) var<storage, read> surface: array<u32>;
 @group(0) @binding(12) var<uniform> surface_layout: SurfaceLayout;
+// The objects whose triangles that show their interior the setup drops this frame, one
+// bit each (hyrt_core::geometry::WorldGeometry::interior_culls; setup pass only).
+@group(0) @binding(16) var<storage, read> interior_culls: array<u32>;
+
+// mirrors hyrt_core::kernels::raster::culls_interior
+fn culls_interior(object: u32) -> bool {
+    let word = object / 32u;
+    return word < arrayLength(&interior_culls) && ((interior_culls[word] >> (object % 32u)) & 1u) != 0u;
+}
 
 // Largest window coordinate (pixels) for which a vertex is handed to the hardware
 // pre-snapped: its NDC position is rebuilt from the reference's fixed-point position,
@@ -181,7 +190,10 @@ fn setup(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
         let lo = vec2<i32>(min(min(ts.xs.x, ts.xs.y), ts.xs.z), min(min(ts.ys.x, ts.ys.y), ts.ys.z));
         let hi = vec2<i32>(max(max(ts.xs.x, ts.xs.y), ts.xs.z), max(max(ts.ys.x, ts.ys.y), ts.ys.z));
         out.box_ = pixel_box(lo, hi);
-        if any(out.box_.zw <= out.box_.xy) {
+        // The inside of a closed object no pixel can see (cpu-backend visibility_raster
+        // `finish_triangle`; clipped triangles are kept, there as here).
+        let interior = shows_interior(ts.back, (t.flags & TRI_INWARD) != 0u);
+        if any(out.box_.zw <= out.box_.xy) || (interior && culls_interior(t.object)) {
             setups_out[index] = out;
             return;
         }
