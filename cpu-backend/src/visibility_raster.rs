@@ -128,7 +128,8 @@ pub struct VisibilityOutput {
 
 /// Per-pixel coverage counts without depth test: how many rasterized triangles
 /// cover each pixel centre, split by facing. Produced by [`coverage_counts`] with
-/// exactly the setup, binning and tile traversal of [`visibility_raster`]; used to
+/// exactly the setup, binning and tile traversal of [`visibility_raster`], but for every
+/// triangle (the interiors of closed objects the raster drops included); used to
 /// check watertightness (no holes, no double coverage) and by conformance tests.
 #[derive(Clone, Debug)]
 pub struct CoverageCounts {
@@ -671,7 +672,7 @@ fn raster_tile(
 
 /// Count, per pixel, the front- and back-facing rasterized triangles covering its
 /// centre, with the same setup, binning and traversal as [`visibility_raster`] but
-/// no depth test. For a closed mesh inside the view volume every pixel has as many
+/// no depth test and no triangle dropped for showing a closed object's interior. For a closed mesh inside the view volume every pixel has as many
 /// front as back coverings; for an open, flat mesh every pixel of its footprint is
 /// covered exactly once.
 pub fn coverage_counts(geometry: &WorldGeometry, camera: &CameraRecord) -> CoverageCounts {
