@@ -15,8 +15,8 @@
 //!
 //! Each case has one shell (object 0, ray traced, grey; rays meet both faces of every
 //! triangle, and the raster drops only the faces that show the inside of a closed shell
-//! no pixel can see into) and a floor under it (object 1, rasterized) at a gap of a fifth of the shell's half size,
-//! and that gap is never under 100 ulps of the coordinates ([`MIN_FEATURE_ULPS`]):
+//! no pixel can see into) and a floor under it (object 1, rasterized) at a gap of a fifth
+//! of the shell's half size, and that gap is never under 100 ulps of the coordinates ([`MIN_FEATURE_ULPS`]):
 //! placements far from the origin scale the scene up until it is. The shells
 //! ([`ShellKind`]): a cube of 8 shared vertices (12 triangles), an icosphere subdivided to
 //! 5,120 triangles, a box of 6 x 8 x 8 two-triangle quads sharing their edges, and the

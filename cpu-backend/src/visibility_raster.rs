@@ -672,9 +672,9 @@ fn raster_tile(
 
 /// Count, per pixel, the front- and back-facing rasterized triangles covering its
 /// centre, with the same setup, binning and traversal as [`visibility_raster`] but
-/// no depth test and no triangle dropped for showing a closed object's interior. For a closed mesh inside the view volume every pixel has as many
-/// front as back coverings; for an open, flat mesh every pixel of its footprint is
-/// covered exactly once.
+/// no depth test and no triangle dropped for showing a closed object's interior. For a
+/// closed mesh inside the view volume every pixel has as many front as back coverings;
+/// for an open, flat mesh every pixel of its footprint is covered exactly once.
 pub fn coverage_counts(geometry: &WorldGeometry, camera: &CameraRecord) -> CoverageCounts {
     let (w, h) = (camera.width as usize, camera.height as usize);
     let mut counts = vec![[0u32; 2]; w * h];

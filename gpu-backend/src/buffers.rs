@@ -218,7 +218,7 @@ impl SceneBuffers {
         ctx.queue.write_buffer(&ambient_header, 0, bytemuck::bytes_of(&ambient));
         let packed = scene.levels.as_ref().map(|l| l.packed());
         // As many words as `WorldGeometry::interior_culls` gives, no object culled.
-        let culls_none = vec![0u32; g.objects.len().div_ceil(32).max(1)];
+        let culls_none = vec![0u32; hyrt_core::kernels::raster::interior_cull_words(g.objects.len())];
         let specialization = Specialization::of_scene(scene, &ctx.limits);
         let pages = specialization.pages;
         let (nodes, leaf_triangles, prim_indices, instances) = match &packed {

@@ -810,13 +810,13 @@ impl WorldGeometry {
 
     /// The objects whose triangles that show their interior the raster drops this frame
     /// ([`crate::kernels::raster::culls_interior`]), one bit per object (object `o` at bit
-    /// `o % 32` of word `o / 32`), at least one word: closed meshes ([`MeshWinding`] not
+    /// `o % 32` of word `o / 32`, [`crate::kernels::raster::interior_cull_words`]): closed meshes ([`MeshWinding`] not
     /// open), without an alpha test (its holes show the inside) and without a non-finite
     /// vertex (the raster skips such triangles, which opens the surface), whose world
     /// bounds lie wholly in front of `camera`'s near plane
     /// ([`crate::kernels::raster::interior_hidden`]).
     pub fn interior_culls(&self, camera: &CameraRecord) -> Vec<u32> {
-        let mut bits = vec![0u32; self.objects.len().div_ceil(32).max(1)];
+        let mut bits = vec![0u32; crate::kernels::raster::interior_cull_words(self.objects.len())];
         for (o, ((record, winding), extent)) in self.objects.iter().zip(&self.windings).zip(&self.extents).enumerate() {
             let closed = *winding != MeshWinding::Open && record.triangle_count > 0;
             if closed

@@ -543,6 +543,14 @@ pub fn interior_hidden(camera: &crate::formats::CameraRecord, lo: [f32; 3], hi: 
     })
 }
 
+/// The words of the interior-cull bits of `objects` objects (one bit each, 32 a word, at
+/// least one word, as WebGPU binds no empty buffer): the length of
+/// `hyrt_core::geometry::WorldGeometry::interior_culls`.
+#[inline]
+pub fn interior_cull_words(objects: usize) -> usize {
+    objects.div_ceil(32).max(1)
+}
+
 /// Whether the raster drops an unclipped triangle of `object` that shows its interior
 /// side ([`shows_interior`]): `object`'s bit in `bits`, one bit per object, object `o` at
 /// bit `o % 32` of word `o / 32` (set where [`interior_hidden`] holds for a closed object:
