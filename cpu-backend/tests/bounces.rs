@@ -449,3 +449,78 @@ fn rt_shading_pixels_that_do_not_bounce_keep_their_bits() {
     assert!(f.stats.skipped.iter().any(|s| s.reason == SkipReason::NoMirrorsOrGlass));
     assert!(f.stats.bounces.is_empty());
 }
+
+/// `secondary_rays` writes each parent's rays into room sized by `spawn_bound` and moves
+/// the chunks of 1024 parents down over the room their parents left unused: its lists and
+/// links are those of a plain loop of `spawn` over the parents in order, at depth 1 (one
+/// parent per pixel) and deeper (one per ray of the bounce before), for every thread count.
+/// The glass cube seen from above reflects totally inside (parents of glass that spawn one
+/// ray of their two) and a half-silvered mirror's weights fall below the cut-off deeper
+/// down, in more than one chunk.
+#[test]
+fn secondary_rays_equal_a_plain_loop_of_spawn() {
+    use hyrt_core::kernels::bounce::{primary_parent, secondary_parent, spawn, spawn_bound};
+    use hyrt_core::kernels::texture::Materials;
+    use hyrt_cpu::secondary_rays::{secondary_rays_into, Parents};
+
+    let mut scene = Scene::default();
+    scene.add_object(Mesh::cube("cube"), glass(1.5), Mat4::IDENTITY, RenderMode::RayTraced);
+    add_mirror(&mut scene, mirror(0.1), 4.0, -1.5, true, Vec3::ZERO);
+    let cam = camera(Vec3::new(3.0, 4.0, 2.0), Vec3::new(0.0, 0.6, 0.0), 40.0);
+    let f = render_default(&scene, &cam, (96, 80), 3);
+    let g = WorldGeometry::build(&scene);
+    let materials = Materials::plain(&g.objects);
+    let eye = Vec3::from(CameraRecord::new(&cam, 96, 80).eye);
+    let mut short = 0;
+    for depth in 1..=3u32 {
+        let parents = match depth {
+            1 => Parents::Primary { gbuffer: &f.gbuffer, surfaces: &f.surfaces, eye },
+            _ => {
+                let b = &f.bounces[depth as usize - 2];
+                Parents::Secondary { rays: &b.rays, hits: &b.hits, surfaces: &b.surfaces }
+            }
+        };
+        // The plain loop, and how many parents spawn fewer rays than their bound.
+        let (mut want, mut want_links) = (Vec::new(), Vec::new());
+        for i in 0..parents.len() {
+            let p = match parents {
+                Parents::Primary { gbuffer, surfaces, eye } => {
+                    primary_parent(&gbuffer[i], &surfaces[i], eye, i as u32, &materials)
+                }
+                Parents::Secondary { rays, hits, surfaces } => {
+                    secondary_parent(&rays[i], &hits[i], &surfaces[i], &materials)
+                }
+                Parents::Pixels { .. } => unreachable!(),
+            };
+            let mut link = [INVALID_ID; 2];
+            let spawned = spawn(&p, &g.triangles, depth);
+            for (lobe, ray) in spawned.into_iter().enumerate() {
+                if let Some(ray) = ray {
+                    link[lobe] = want.len() as u32;
+                    want.push(ray);
+                }
+            }
+            let s = p.surface;
+            let bound = if s.is_hit() { spawn_bound(s, &g.objects[s.object as usize]) } else { 0 };
+            let n = spawned.iter().flatten().count() as u32;
+            assert!(n <= bound, "depth {depth}, parent {i}: {n} rays, bound {bound}");
+            short += (n < bound) as usize;
+            want_links.push(link);
+        }
+        assert!(parents.len() > 1024 || depth > 1, "depth 1 spans more than one chunk");
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            // Reused buffers, as a frame reuses them, first holding more than the list.
+            let (mut rays, mut links) = (want.repeat(2), vec![[7, 7]; parents.len() + 5]);
+            pool.install(|| secondary_rays_into(parents, &materials, &g.triangles, depth, &mut rays, &mut links))
+                .unwrap();
+            assert!(
+                bytemuck::cast_slice::<_, u8>(&rays) == bytemuck::cast_slice::<_, u8>(&want),
+                "depth {depth}, {threads} threads"
+            );
+            assert_eq!(links, want_links, "depth {depth}, {threads} threads");
+        }
+        assert!(!want.is_empty(), "depth {depth} spawns rays");
+    }
+    assert!(short > 100, "{short} parents spawn fewer rays than their bound");
+}
