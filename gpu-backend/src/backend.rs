@@ -390,8 +390,11 @@ impl GpuBackend {
         let lighting = scene.frame_lighting(options);
         let held = &mut self.scene.as_mut().expect("scene buffers").2;
         let ambient = lighting.ambient.record();
-        ctx.checked(|| held.set_lighting(ctx, &lighting.lights, &ambient))?;
-        held.set_interior_culls(ctx, &scene.geometry.interior_culls(camera));
+        let culls = scene.geometry.interior_culls(camera);
+        ctx.checked(|| {
+            held.set_lighting(ctx, &lighting.lights, &ambient);
+            held.set_interior_culls(ctx, &culls);
+        })?;
         // The pipelines this scene's surface tables and the frame's rays need, built before
         // the first frame that needs them.
         let stochastic = plan.stochastic();
