@@ -149,14 +149,7 @@ pub fn secondary_rays_into(
         .into_par_iter()
         .map(|c| {
             (c * SPAWN_CHUNK..n.min((c + 1) * SPAWN_CHUNK))
-                .map(|i| {
-                    let s = parents.surface(i);
-                    if s.is_hit() {
-                        spawn_bound(s, &objects[s.object as usize]) as usize
-                    } else {
-                        0
-                    }
-                })
+                .map(|i| spawn_bound(parents.surface(i), objects) as usize)
                 .sum()
         })
         .collect();

@@ -501,7 +501,7 @@ fn secondary_rays_equal_a_plain_loop_of_spawn() {
                 }
             }
             let s = p.surface;
-            let bound = if s.is_hit() { spawn_bound(s, &g.objects[s.object as usize]) } else { 0 };
+            let bound = spawn_bound(s, &g.objects);
             let n = spawned.iter().flatten().count() as u32;
             assert!(n <= bound, "depth {depth}, parent {i}: {n} rays, bound {bound}");
             short += (n < bound) as usize;

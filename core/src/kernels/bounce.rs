@@ -454,16 +454,21 @@ pub fn spawn(p: &Parent, triangles: &WorldTriangles, depth: u32) -> [Option<RayR
     }
 }
 
-/// The most rays [`spawn`] makes for a parent on surface `s` of object `obj` (the object
-/// as the scene holds it: [`Materials::at`] changes no field this reads): none for a miss
-/// or an object that does not [`bounce`](bounces), one (the reflection) for a mirror, two
-/// for glass, whose refraction is the second lobe. An executor sizes a bounce's ray list
+/// The most rays [`spawn`] makes for a parent on surface `s`, its object read from
+/// `objects` (the records as the scene holds them: [`Materials::at`] changes no field this
+/// reads; only a hit's object is read): none for a miss or an object that does not
+/// [`bounce`](bounces), one (the reflection) for a mirror, two for glass, whose refraction
+/// is the second lobe. An executor sizes a bounce's ray list
 /// by it before spawning, so that each parent spawns once, straight into its place
 /// (the CPU's `secondary_rays`). The property test `spawn_never_exceeds_its_bound`
 /// checks it against [`spawn`].
 #[inline]
-pub fn spawn_bound(s: &SurfaceRecord, obj: &ObjectRecord) -> u32 {
-    if !s.is_hit() || !bounces(obj) {
+pub fn spawn_bound(s: &SurfaceRecord, objects: &[ObjectRecord]) -> u32 {
+    if !s.is_hit() {
+        return 0;
+    }
+    let obj = &objects[s.object as usize];
+    if !bounces(obj) {
         0
     } else if obj.material_kind == MATERIAL_GLASS {
         2
@@ -643,7 +648,7 @@ mod tests {
             } else {
                 SurfaceRecord::MISS
             };
-            let bound = spawn_bound(&s, &obj);
+            let bound = spawn_bound(&s, std::slice::from_ref(&obj));
             if !s.is_hit() || !bounces(&obj) {
                 prop_assert_eq!(bound, 0);
             } else {
