@@ -38,6 +38,22 @@
 //! previous packet's occluder first, and whose lanes leave the walk one by one), and on
 //! the dragon's at 11.1 against 14.0.
 //!
+//! Two packets under one frustum were tried and not kept (issue 36; AMD EPYC Zen 5, AVX-512,
+//! one thread, `ray_contest --kind primary --packets-only --rounds 7`, the two binaries
+//! alternated twice, ms): consecutive packets (sixteen pixels of a row) whose frusta agree
+//! in octant and whose joined origins stay within [`MAX_ORIGIN_SPREAD`] walked the wide
+//! nodes once under the joined frustum (its bounds the extremes of both, the far bound the
+//! greater), each packet testing a leaf's box and triangles with its own lanes and bound.
+//! The teaser 33.9 to 35.6 against 36.6 to 39.1 and Sponza 30.0 to 33.1 against 30.5 to
+//! 33.0, but the dragon 41.0 to 43.6 against 36.6 to 38.8 and the near bunny 13.6 to 14.9
+//! against 13.2 to 14.7; culling each packet's leaf triangles by its own frustum instead of
+//! the joined one changed neither. On dense meshes the longer frustum lets through leaves
+//! that one of its packets does not enter (the interval bounds of a 1x16 row of rays are
+//! looser than two 1x8 ones), and the node tests saved at the top of the tree do not pay
+//! for them. (Lane operations in closures, such as a `map` of `Packet::new` over the
+//! group's rays, are not compiled with the entry point's target features: the first build
+//! ran four times slower.)
+//!
 //! # Why the results are the scalar reference's
 //!
 //! The frustum test only rejects a child when every valid lane's own slab test (the
