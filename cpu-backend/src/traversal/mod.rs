@@ -272,7 +272,7 @@
 //!   `rtcIntersect8`, the ratio unchanged.
 //! * The same split on an AMD EPYC Zen 5 (AVX-512 at full width; Embree on its AVX-512
 //!   kernels; hyrt's packets at AVX-512, 256-bit operations), where the dragon's row was
-//!   the one shadow-ray row below 1.0 in the quick report (0.95 and 0.98 in two runs; 1.07
+//!   the one shadow-ray row below 1.0 in the quick report (0.92 to 0.99 in four runs; 1.07
 //!   at one thread: hyrt 55.9 ms against Embree's `rtcOccluded8` 59.8, then 27.8 against
 //!   27.6 at two, Embree scaling 2.17 times and hyrt 2.01). `ray_contest --kind shadow
 //!   --rounds 11` with the same throw-away filter (origin `y` below or above 0.06), ms:
@@ -284,18 +284,18 @@
 //!
 //!   The row is lost on the floor's rays, and at two threads: from one thread to two,
 //!   hyrt's packets scale 1.67 to 1.92 times on them (21.8 ms; 11.3 to 13.1 in six runs at
-//!   two threads), Embree's 1.93 to 2.11 (20.8; 9.9 to 10.8). Counted per packet (a counter build): the floor's
-//!   packets test 13.4 binary nodes (6.5 of them entered by no lane) and 0.84 leaves (0.79
-//!   lane by lane, 1.6 lanes and 5.6 triangles each: leaves of the dragon's base that rays
-//!   passing by it enter); the dragon's test 102 nodes (41 entered by none) and 10.6 leaves
-//!   (9.6 lane by lane). Where the floor's time goes (`perf record`, one thread; two threads
-//!   the same within 1%): node tests 24%, the walk 21%, the lone-lane leaf tests 35% (the
-//!   records' transpose, with their first reads, 21%), `Packet::new` 9%. Not the cause of
-//!   the scaling: rayon's chunks (4,096 rays a chunk instead of 1,024: within the noise,
-//!   both tracers use the same chunks) or two hardware threads of one core (two copies of
-//!   an `openssl speed sha256` run at full speed on the two CPUs at once). This VM has no
-//!   hardware performance counters, so the L3 and memory traffic of the two threads could
-//!   not be counted.
+//!   two threads), Embree's 1.93 to 2.11 (20.8; 9.9 to 10.8). Counted per packet (a counter
+//!   build): the floor's packets test 13.4 binary nodes (6.5 of them entered by no lane)
+//!   and 0.84 leaves (0.79 lane by lane, 1.6 lanes and 5.6 triangles each: leaves of the
+//!   dragon's base that rays passing by it enter); the dragon's test 102 nodes (41 entered
+//!   by none) and 10.6 leaves (9.6 lane by lane). Where the floor's time goes (`perf
+//!   record`, one thread; two threads the same within 1%): node tests 24%, the walk 21%,
+//!   the lone-lane leaf tests 35% (the records' transpose, with their first reads, 21%),
+//!   `Packet::new` 9%. Not the cause of the scaling: rayon's chunks (4,096 rays a chunk
+//!   instead of 1,024: within the noise, both tracers use the same chunks) or two hardware
+//!   threads of one core (two copies of an `openssl speed sha256` run at full speed on the
+//!   two CPUs at once). This VM has no hardware performance counters, so the L3 and memory
+//!   traffic of the two threads could not be counted.
 //!
 //! Two-level scenes (moving objects, shared meshes): the world-space level is traced as
 //! above, then the object-space instances in packets (module `instances`,
