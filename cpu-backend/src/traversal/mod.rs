@@ -296,6 +296,40 @@
 //!   threads of one core (two copies of an `openssl speed sha256` run at full speed on the
 //!   two CPUs at once). This VM has no hardware performance counters, so the L3 and memory
 //!   traffic of the two threads could not be counted.
+//! * Where on the floor the dragon's row is lost (Zen 5, one thread, `ray_contest --kind
+//!   shadow --rounds 11 --passes 5` on windows of 30,000 to 60,000 of the floor's rays in
+//!   tile order, a throw-away filter): the windows far from the dragon (2 to 5 binary node
+//!   tests a packet, no leaf) run at 1.0 to 1.4 of Embree's `rtcOccluded8`; the windows of
+//!   floor rays passing under and through the dragon (36 to 45 node tests, 2.8 to 3.5
+//!   leaves, 2 to 2.75 of the 8 lanes occluded a packet) at 0.81 to 0.93. There Embree's
+//!   `rtcOccluded8` runs 1.26 to 1.30 times as fast as its own `rtcOccluded1`, which
+//!   hyrt's single rays match (3.16, 3.01 and 1.96 ms against 3.03, 3.09 and 1.92), while
+//!   hyrt's binary packets run 1.12 to 1.23 times its single rays (2.78, 2.68 and 1.60 ms;
+//!   Embree 2.40, 2.42 and 1.48). The gap is what Embree's packets gain where eight
+//!   coherent rays go deep into a dense mesh. Three walks tried for it (issue 36), each
+//!   the scalar answers ray for ray, interleaved with the binary packets round by round in
+//!   one process (a switch read per turn), not kept:
+//!   - The wide tree's upper levels under the packet's frustum (one `Frustum` test of a
+//!     wide node's eight children for all lanes, as the primary rays' walk), each wide
+//!     leaf it lets through handed to the binary walk at the binary subtree it was made of
+//!     (a per-lane box test first, then the core walk started at that node, with the
+//!     occluder cache and the lone-lane leaf tests). Whole lists, ms: Sponza 31.5 against
+//!     35.6, but the teaser 43.2 against 41.6 and the dragon 78.9 against 63.2 (its floor's
+//!     rays 31.2 against 26.2, its surface's 50.7 against 36.8); the bunnies and horses
+//!     within 2%. On the dragon the frustum lets through 7.6 leaf boxes a packet, of which
+//!     lanes enter 2.5: the interval bounds of rays converging on a light are loose beside
+//!     a dense mesh.
+//!   - Packets on the 8-wide nodes with exact per-lane child tests (each child's box for
+//!     the lanes that entered the node, their mask on the stack), a child entered by at
+//!     most `T` lanes and every leaf handed to the binary walk from its binary node with
+//!     those lanes: on the two hardest floor windows, 3.07 and 2.27 ms against 2.54 and
+//!     2.21 at `T` = 0, 3.13 and 2.39 against 2.56 and 2.20 at `T` = 3, 2.73 and 2.75
+//!     against 2.34 and 2.36 at `T` = 7 (Embree's threshold). (A leaf test closure passed
+//!     on as `&mut F` is called out of line and compiled without the target features,
+//!     eight times slower: wrap it in an `#[inline(always)]` closure.)
+//!   - Any hit visiting the nearer child first (the closest hit's order by the first
+//!     lane's direction) instead of the left, on two hard windows (a build counting node
+//!     and leaf visits, both variants): 2.78 and 2.96 ms against 2.63 and 2.82.
 //!
 //! Two-level scenes (moving objects, shared meshes): the world-space level is traced as
 //! above, then the object-space instances in packets (module `instances`,
