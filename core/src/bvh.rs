@@ -59,7 +59,7 @@ use obvhs::{bvh2::builder::build_bvh2_from_tris, triangle::Triangle, BvhBuildPar
 
 use crate::formats::{RayRecord, TriangleRecord, INVALID_ID, TRI_ALPHA_TEST};
 use crate::geometry::WorldGeometry;
-use crate::kernels::ray::{gamma, ray_aabb_conservative, safe_inverse_dir, WatertightRay};
+use crate::kernels::ray::{gamma, ray_aabb_conservative, safe_inverse_dir, TriangleHit, WatertightRay};
 
 pub mod traversal;
 pub mod two_level;
@@ -229,6 +229,20 @@ pub struct ClosestHit {
     pub v: f32,
     /// The ray hit the triangle's back face ([`crate::kernels::ray::TriangleHit::back_face`]).
     pub back_face: bool,
+}
+
+impl ClosestHit {
+    /// Take `hit` on triangle `triangle` where it is nearer than this one, or as near with
+    /// a lower triangle index (the scalar walk's rule for ties, so that a closest hit does
+    /// not depend on the order its triangles are tested in); whether it was taken.
+    #[inline(always)]
+    pub fn take_if_closer(&mut self, triangle: u32, hit: TriangleHit) -> bool {
+        let closer = hit.t < self.t || (hit.t == self.t && triangle < self.triangle);
+        if closer {
+            *self = ClosestHit { triangle, t: hit.t, u: hit.u, v: hit.v, back_face: hit.back_face };
+        }
+        closer
+    }
 }
 
 /// A flattened BVH; see the module docs for the layout.

@@ -49,7 +49,7 @@ use hyrt_core::bvh::traversal::{inline_leaf_test, traverse, Leaf, LeafFlow, Node
 use hyrt_core::bvh::two_level::{TwoLevelBvh, INSTANCE_ALPHA_TEST, INSTANCE_IDENTITY};
 use hyrt_core::bvh::{Bvh, BvhNode, ClosestHit, BVH_CULL_SLACK};
 use hyrt_core::formats::{RayRecord, TriangleRecord, INVALID_ID, TRI_ALPHA_TEST};
-use hyrt_core::kernels::ray::{permute_axes, WatertightRay, SLAB_FAR_SCALE};
+use hyrt_core::kernels::ray::{permute_axes, TriangleHit, WatertightRay, SLAB_FAR_SCALE};
 use hyrt_core::kernels::texture::{alpha_accepts, SurfaceView};
 
 use super::watertight;
@@ -402,10 +402,7 @@ impl<'a, L: Lanes> Packet<'a, L> {
             while lanes != 0 {
                 let i = lanes.trailing_zeros() as usize;
                 lanes &= lanes - 1;
-                let (r, tri) = (&self.rays[i], tri(i));
-                let h = WatertightRay::new(r.origin.into(), r.direction.into())
-                    .and_then(|w| w.intersect(r.t_min, r.t_max, tri[0].into(), tri[1].into(), tri[2].into()));
-                if let Some(h) = h {
+                if let Some(h) = self.scalar_lane(i, tri(i)) {
                     hit |= 1 << i;
                     (ts[i], us[i], vs[i]) = (h.t, h.u, h.v);
                 }
@@ -428,6 +425,16 @@ impl<'a, L: Lanes> Packet<'a, L> {
     /// lane ([`occluded_lanes_alone`] confirms them; the alpha test is not applied here).
     #[inline(always)]
     pub(super) fn lane_candidates(&self, lane: usize, v: &[[L::F; 3]; 3], active: u32) -> u32 {
+        let h = self.lane_test(lane, v, active);
+        h.hit | h.exact
+    }
+
+    /// The test of [`Self::lane_candidates`] itself: lane `lane`'s ray against the
+    /// triangles of `v`, the lanes `active`, with every lane's `t, u, v` and determinant
+    /// (the values [`Self::intersect`] computes for this lane against each triangle) and
+    /// the lanes left to the scalar kernel (`exact`).
+    #[inline(always)]
+    pub(super) fn lane_test(&self, lane: usize, v: &[[L::F; 3]; 3], active: u32) -> watertight::LaneHits<L> {
         // The lane's own constants, `WatertightRay::new` of its ray, taken from the lanes
         // where `Packet::new` computed them (the same operations, bit for bit).
         let own = |x: L::F| L::broadcast_lane(x, lane);
@@ -443,8 +450,24 @@ impl<'a, L: Lanes> Packet<'a, L> {
         // `Self::transform`'s operations: permuted vertex minus permuted origin, then shear.
         let ray_space = |p: &[L::F; 3]| leaf_ray_space::<L>(p, kz, &o, &shear);
         let p = [ray_space(&v[0]), ray_space(&v[1]), ray_space(&v[2])];
-        let h = watertight::intersect::<L, false>(active, p, &shear, own(self.t_min), own(self.t_max));
-        h.hit | h.exact
+        watertight::intersect::<L, false>(active, p, &shear, own(self.t_min), own(self.t_max))
+    }
+
+    /// Whether lane `lane`'s hit of determinant `det` is on a back face
+    /// (`WatertightRay::back_face` with the lane's shear).
+    #[inline(always)]
+    pub(super) fn lane_back_face(&self, lane: usize, det: f32) -> bool {
+        (det > 0.0) == (L::store(self.shear[2])[lane] > 0.0)
+    }
+
+    /// Lane `lane`'s ray against the vertices `v` with the scalar kernel
+    /// (`WatertightRay::intersect`, as [`Self::intersect`] redoes the lanes it cannot
+    /// decide).
+    #[inline(never)]
+    pub(super) fn scalar_lane(&self, lane: usize, v: [[f32; 3]; 3]) -> Option<TriangleHit> {
+        let r = &self.rays[lane];
+        WatertightRay::new(r.origin.into(), r.direction.into())
+            .and_then(|w| w.intersect(r.t_min, r.t_max, v[0].into(), v[1].into(), v[2].into()))
     }
 
     /// [`Self::intersect`] against the triangle in leaf slot `slot` of `level`, its hits

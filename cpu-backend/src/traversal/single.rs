@@ -593,11 +593,8 @@ fn closest_hit_in<L: Lanes, const O: u8>(
                     } else {
                         Some(TriangleHit { t: t[k], u: u[k], v: v[k], back_face: r.wt.back_face(det[k]) })
                     };
-                    let Some(hit) = hit else { continue };
-                    let id = leaf.ids[k];
-                    if hit.t < best.t || (hit.t == best.t && id < best.triangle) {
-                        best = ClosestHit { triangle: id, t: hit.t, u: hit.u, v: hit.v, back_face: hit.back_face };
-                        improved = true;
+                    if let Some(hit) = hit {
+                        improved |= best.take_if_closer(leaf.ids[k], hit);
                     }
                 }
                 if improved {
