@@ -232,12 +232,19 @@ pub struct ClosestHit {
 }
 
 impl ClosestHit {
-    /// Take `hit` on triangle `triangle` where it is nearer than this one, or as near with
-    /// a lower triangle index (the scalar walk's rule for ties, so that a closest hit does
-    /// not depend on the order its triangles are tested in); whether it was taken.
+    /// Whether a hit on triangle `triangle` at `t` is nearer than this one, or as near with
+    /// a lower triangle index: the rule for ties of every closest-hit walk, so that a
+    /// closest hit does not depend on the order its triangles are tested in.
+    #[inline(always)]
+    pub fn is_closer(&self, triangle: u32, t: f32) -> bool {
+        t < self.t || (t == self.t && triangle < self.triangle)
+    }
+
+    /// Take `hit` on triangle `triangle` where it [`Self::is_closer`]; whether it was
+    /// taken.
     #[inline(always)]
     pub fn take_if_closer(&mut self, triangle: u32, hit: TriangleHit) -> bool {
-        let closer = hit.t < self.t || (hit.t == self.t && triangle < self.triangle);
+        let closer = self.is_closer(triangle, hit.t);
         if closer {
             *self = ClosestHit { triangle, t: hit.t, u: hit.u, v: hit.v, back_face: hit.back_face };
         }
@@ -842,8 +849,10 @@ impl Bvh {
                     let t = &self.leaf_triangles[slot as usize];
                     if let Some(h) = r.wt.intersect(r.t_min, r.t_max, t.v0.into(), t.v1.into(), t.v2.into()) {
                         let id = id_of(slot);
-                        let closer = h.t < *t_best || (h.t == *t_best && id < best.triangle);
-                        if closer && ((t.flags | alpha_flags) & TRI_ALPHA_TEST == 0 || accept(slot, id, h.u, h.v)) {
+                        // `*t_best` is `best.t`: both change only together, below.
+                        if best.is_closer(id, h.t)
+                            && ((t.flags | alpha_flags) & TRI_ALPHA_TEST == 0 || accept(slot, id, h.u, h.v))
+                        {
                             *best = ClosestHit { triangle: id, t: h.t, u: h.u, v: h.v, back_face: h.back_face };
                             *t_best = h.t;
                             found = true;

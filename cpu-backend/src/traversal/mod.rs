@@ -1196,13 +1196,12 @@ const PREFETCH_PACKETS_AHEAD: usize = 4;
 /// records' transpose). Measured with and without, interleaved round by round in one
 /// process (AMD EPYC Zen 5, AVX-512, `ray_contest --packets-only --rounds 21`, medians of
 /// the per-round ratios, with / without; with the switch inverted, 1.12 to 1.69 on the
-/// primary rays):
-/// primary rays at two threads, the dragon 0.89 and 0.91, Sponza 0.85 and 0.87, the teaser
-/// 0.86 and 0.87, the horses and bunnies 0.69 to 0.80; at one thread the dragon 0.91,
-/// Sponza 0.91, the teaser 0.84, the rest 0.72 to 0.79. Shadow rays in tile order at two
-/// threads: the teaser 0.85, Sponza 0.88, the near bunny 0.86, the dragon 0.92, the near
-/// horse 0.95; the far horse's and the far bunny's short lists (6,085 and 39,781 rays)
-/// within the noise. One to sixteen packets ahead measured alike (the teaser's and the
+/// primary rays). Primary rays at two threads: the dragon 0.89 and 0.91, Sponza 0.85 and
+/// 0.87, the teaser 0.86 and 0.87, the horses and bunnies 0.69 to 0.80; at one thread the
+/// dragon 0.91, Sponza 0.91, the teaser 0.84, the rest 0.72 to 0.79. Shadow rays in tile
+/// order at two threads: the teaser 0.85, Sponza 0.88, the near bunny 0.86, the dragon
+/// 0.92, the near horse 0.95; the far horse's and the far bunny's short lists (6,085 and
+/// 39,781 rays) within the noise. One to sixteen packets ahead measured alike (the teaser's and the
 /// dragon's primary rays 0.87 to 0.91); four leaves about a microsecond. (An earlier try
 /// at two packets ahead with the non-temporal hint measured within the noise on the
 /// dragon's shadow rays.) The single rays' loop gained nothing from it (the teaser's
