@@ -32,7 +32,7 @@ use hyrt_core::geometry::WorldGeometry;
 use hyrt_core::kernels::camera::primary_ray;
 use hyrt_core::scene::{
     AlphaMode, Camera, Filter, Light, Material, Mesh, RenderMode, Sampler, Scene, TextureBinding, TextureImage,
-    UvTransform, Wrap,
+    UvTransform, VertexAttributes, Wrap,
 };
 use hyrt_cpu::backend::CpuBackend;
 use hyrt_cpu::bounce_trace::bounce_trace_into;
@@ -65,6 +65,12 @@ fn on_fence(x: f32, y: f32) -> Option<((bool, bool), bool)> {
 }
 
 fn fence_scene(fence_mode: RenderMode) -> Scene {
+    fence_scene_of(Mesh::uv_quad("fence"), fence_mode)
+}
+
+/// The fence scene with the fence made of `fence` (a mesh over the square from (-1, -1) to
+/// (1, 1) in the plane z = 0 with `uv_quad`'s texture coordinates).
+fn fence_scene_of(fence_mesh: Mesh, fence_mode: RenderMode) -> Scene {
     let mut scene = Scene::default();
     let wall = Mesh { name: "wall".into(), ..Mesh::uv_quad("wall") };
     let grey = Material { base_color: Vec3::splat(0.5), ..Material::grey() };
@@ -102,7 +108,7 @@ fn fence_scene(fence_mode: RenderMode) -> Scene {
         alpha_mode: AlphaMode::Mask { cutoff: 0.5 },
         ..Material::grey()
     };
-    scene.add_object(Mesh::uv_quad("fence"), fence, Mat4::IDENTITY, fence_mode);
+    scene.add_object(fence_mesh, fence, Mat4::IDENTITY, fence_mode);
     scene.lights.push(Light::Directional { direction: Vec3::NEG_Z, color: Vec3::ONE, intensity: 1.0 });
     scene
 }
@@ -300,5 +306,58 @@ fn packets_test_alpha_as_the_scalar_reference_does() {
             };
             assert_eq!(bits(a), bits(b), "{traversal:?}: ray {k}");
         }
+    }
+}
+
+/// The fence as `Mesh::grid(n)` stood up in the plane z = 0 over the square from (-1, -1)
+/// to (1, 1), with `uv_quad`'s texture coordinates: the same texels on `2 n^2` triangles.
+fn dense_fence(n: u32) -> Mesh {
+    let grid = Mesh::grid("fence", n);
+    // The grid's (x, 0, z) in [-0.5, 0.5]^2 becomes (2x, -2z, 0): u = x + 1/2, v = z + 1/2.
+    let uv = grid.positions.iter().map(|p| Vec2::new(p.x + 0.5, p.z + 0.5)).collect();
+    let positions = grid.positions.iter().map(|p| Vec3::new(2.0 * p.x, -2.0 * p.z, 0.0)).collect();
+    // The same turn keeps the triangles' winding facing the normal (+z).
+    Mesh {
+        positions,
+        normals: Some(vec![Vec3::Z; grid.positions.len()]),
+        attributes: VertexAttributes { tex_coords: [Some(uv), None], ..VertexAttributes::default() },
+        ..grid
+    }
+}
+
+/// Shadow rays through a densely tessellated alpha-masked fence, neighbours in the list far
+/// apart, so that a packet's lanes part at once and enter the fence's leaves one or two at
+/// a time: the any-hit packets test such leaves lane by lane (`occluded_lanes_alone`),
+/// where a hit on an alpha-tested triangle must still pass its texel. Every SIMD traversal
+/// gives the scalar reference's answers, and the rays find both holes and opaque texels.
+#[test]
+fn packets_whose_lanes_part_test_alpha_as_the_scalar_reference_does() {
+    use hyrt_cpu::traversal::occluded_alpha_batch_into;
+    let scene = fence_scene_of(dense_fence(48), RenderMode::RayTraced);
+    let cpu = CpuBackend::new(Some(2));
+    let prepared = cpu.prepare(WorldGeometry::build(&scene), BvhPreset::default());
+    let (g, bvh) = (&prepared.geometry, &prepared.bvh);
+    assert_eq!(g.triangle_count(), 2 + 2 * 48 * 48);
+    let view = g.surface.view();
+    // From points of the wall towards a light above the fence: ray k goes from the point
+    // of index (k * 7919) mod n of a 64 x 64 grid of wall points.
+    let n = 64 * 64;
+    let rays: Vec<RayRecord> = (0..n)
+        .map(|k| {
+            let i = k * 7919 % n;
+            let p = Vec3::new((i % 64) as f32 / 32.0 - 0.98, (i / 64) as f32 / 32.0 - 0.98, -1.0);
+            let light = Vec3::new(0.1, -0.2, 4.0);
+            reflection_ray(p, light - p, 1.0, k as u32)
+        })
+        .collect();
+    let mut reference = Vec::new();
+    occluded_alpha_batch_into(bvh, g.stored_table(), &view, &rays, Traversal::Scalar, &mut reference);
+    let occluded = reference.iter().filter(|&&o| o == hyrt_cpu::traversal::SHADOW_OCCLUDED).count();
+    assert!(occluded > n / 4 && occluded < 3 * n / 4, "{occluded} of {n} occluded");
+    for traversal in Traversal::available_simd() {
+        let mut any = Vec::new();
+        occluded_alpha_batch_into(bvh, g.stored_table(), &view, &rays, traversal, &mut any);
+        let differ = any.iter().zip(&reference).filter(|(a, b)| a != b).count();
+        assert_eq!(differ, 0, "{traversal:?}: {differ} of {n} rays differ from the scalar reference");
     }
 }

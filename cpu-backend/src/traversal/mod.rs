@@ -47,11 +47,11 @@
 //! so a lane drops out of subtrees it misses, and rays with different direction signs
 //! take per-lane near planes. A leaf entered by fewer lanes than it holds triangles is
 //! tested one lane at a time, each lane's ray against all its triangles at once (the
-//! records transposed into lanes, `Lanes::triangle_lanes`), its candidates confirmed by the
-//! packet test (`packet::occluded_lanes_alone`): where lanes part, at the leaves around
-//! their own origins, that replaces one mostly idle packet test per triangle. A packet with
-//! fewer than two valid rays is traced one ray at a time with the scalar code (the
-//! per-packet fallback).
+//! records transposed into lanes, `Lanes::triangle_lanes`; the undecided and alpha-tested
+//! hits confirmed by the packet test, `packet::occluded_lanes_alone`): where lanes part,
+//! at the leaves around their own origins, that replaces one mostly idle packet test per
+//! triangle. A packet with fewer than two valid rays is traced one ray at a time with the
+//! scalar code (the per-packet fallback).
 //!
 //! SIMD level: AVX2 (8 lanes in one register) when the CPU has it, compiled for AVX-512
 //! too where the CPU has that (same operations, more registers and mask registers), else
