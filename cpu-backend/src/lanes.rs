@@ -775,22 +775,27 @@ macro_rules! dispatch {
 }
 pub(crate) use dispatch;
 
-/// `$generic` on the AVX2 lanes, compiled once with AVX2 (`$avx2`) and once with the
-/// AVX-512 features of [`SimdLevel::Avx512`](crate::traversal::SimdLevel) (`$avx512`: the
-/// same lanes; `Avx2`'s contract holds, AVX-512F implies AVX2). `$generic` must be
-/// `#[inline(always)]` down to its lanes' operations, so that they compile with the
-/// features. Callers must have detected the features.
+/// `$generic` on the AVX2 lanes, compiled once with the features of
+/// [`SimdLevel::Avx2`](crate::traversal::SimdLevel) (`$avx2`) and once with those of
+/// [`SimdLevel::Avx512`](crate::traversal::SimdLevel) (`$avx512`: the same lanes; `Avx2`'s
+/// contract holds, AVX-512F implies AVX2). Both levels include the bit-manipulation
+/// instructions every AVX2 CPU has (BMI1, BMI2, LZCNT, POPCNT; integer only, no float
+/// result changes): the walks' lane masks use `popcnt`, `tzcnt` and `blsr` instead of
+/// their multi-instruction fallbacks. `$generic` must be `#[inline(always)]` down to its
+/// lanes' operations, so that they compile with the features. Callers must have detected
+/// the features ([`SimdLevel::is_available`](crate::traversal::SimdLevel::is_available)
+/// lists the same ones).
 macro_rules! avx2_entry_points {
     ($generic:ident, $avx2:ident, $avx512:ident, ($($arg:ident: $ty:ty),*) $(-> $ret:ty)?) => {
         #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = "avx2")]
+        #[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]
         #[allow(clippy::too_many_arguments)]
         unsafe fn $avx2($($arg: $ty),*) $(-> $ret)? {
             $generic::<$crate::lanes::Avx2>($($arg),*)
         }
 
         #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = "avx2,avx512f,avx512vl,avx512dq,avx512bw")]
+        #[target_feature(enable = "avx2,avx512f,avx512vl,avx512dq,avx512bw,bmi1,bmi2,lzcnt,popcnt")]
         #[allow(clippy::too_many_arguments)]
         unsafe fn $avx512($($arg: $ty),*) $(-> $ret)? {
             $generic::<$crate::lanes::Avx2>($($arg),*)

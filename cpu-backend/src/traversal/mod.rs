@@ -425,7 +425,8 @@ pub enum SimdLevel {
     /// faster on the teaser's, Sponza's, the bunny's and the dragon's shadow and primary
     /// rays on this project's AMD EPYC). Detected at run time.
     Avx512,
-    /// 256-bit AVX2 registers (x86-64 with AVX2, detected at run time).
+    /// 256-bit AVX2 registers (x86-64 with AVX2 and the bit-manipulation instructions
+    /// that come with it, BMI1, BMI2, LZCNT and POPCNT; detected at run time).
     Avx2,
     /// Two 128-bit SSE2 registers (every x86-64 CPU).
     Sse2,
@@ -497,7 +498,7 @@ impl SimdLevel {
             if SimdLevel::Avx512.is_available() {
                 return SimdLevel::Avx512;
             }
-            if is_x86_feature_detected!("avx2") {
+            if SimdLevel::Avx2.is_available() {
                 return SimdLevel::Avx2;
             }
             SimdLevel::Sse2
@@ -511,14 +512,22 @@ impl SimdLevel {
         match self {
             #[cfg(target_arch = "x86_64")]
             SimdLevel::Avx512 => {
-                is_x86_feature_detected!("avx2")
+                SimdLevel::Avx2.is_available()
                     && is_x86_feature_detected!("avx512f")
                     && is_x86_feature_detected!("avx512vl")
                     && is_x86_feature_detected!("avx512dq")
                     && is_x86_feature_detected!("avx512bw")
             }
             #[cfg(target_arch = "x86_64")]
-            SimdLevel::Avx2 => is_x86_feature_detected!("avx2"),
+            // The features of `lanes::avx2_entry_points`: AVX2 and the bit-manipulation
+            // instructions every AVX2 CPU has.
+            SimdLevel::Avx2 => {
+                is_x86_feature_detected!("avx2")
+                    && is_x86_feature_detected!("bmi1")
+                    && is_x86_feature_detected!("bmi2")
+                    && is_x86_feature_detected!("lzcnt")
+                    && is_x86_feature_detected!("popcnt")
+            }
             #[cfg(target_arch = "x86_64")]
             SimdLevel::Sse2 => true,
             #[cfg(not(target_arch = "x86_64"))]
