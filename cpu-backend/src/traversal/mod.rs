@@ -236,6 +236,15 @@
 //!   --kind shadow --rounds 11 dragon`, alternated three times): 32.4 to 33.2 ms either way;
 //!   the dragon's single rays and the teaser's reflections (one thread) within 1%. Page
 //!   walks are not where the time goes.
+//! * Sibling pairs of the binary tree kept on one cache line. `BvhNode` is 32-byte aligned
+//!   and the pairs start at odd indices (the root alone at 0), so whether a pair shares a
+//!   line depends on where the allocator put the array: in `ray_contest` the dragon's, the
+//!   near bunny's and the far horse's pairs straddled two lines, the teaser's and Sponza's
+//!   did not. The same tree copied to arrays at both alignments, interleaved round by
+//!   round in one process (Zen 5, AVX2, one thread, `--packets-only --kind both`): 0.99 to
+//!   1.02 of the straddling copy's time on the dragon, the near bunny, the near horse and
+//!   the teaser, shadow and primary rays. The second line comes with the first (the
+//!   adjacent-line prefetcher), so the layout stays as it is.
 //! * Where the time goes now, the dragon's shadow rays in packets (`perf record` at 10 kHz,
 //!   one thread, each sample's address followed through its inlined frames with
 //!   `addr2line -i`): the walk and its node tests 47% (the first read of a node's planes

@@ -69,6 +69,20 @@
 //! 26.8, and the first, unguarded version 26.4 to 27.9. The 2% of the first runs (25.3 to
 //! 26.0 against 26.1 to 26.2) did not come back: a code-layout effect, not the multiply.
 //!
+//! Tried on the Zen 5 (AVX-512, family 26) and not kept (one thread, `ray_contest
+//! --singles-only --kind bounce --rounds 31 teaser`, each variant behind a switch read per
+//! turn and interleaved round by round with the plain walk in one process; medians of the
+//! per-round ratios, AVX2 and AVX-512): the second half skipped again, now flagged in the
+//! node's reference (a bit the parent's child slot carries, so nothing more is read): 1.00
+//! both; the entered children ordered without data-dependent branches (each one's rank
+//! among them from SIMD compares of the entry distances, then written to its stack slot):
+//! 1.08 and 1.07; two entered children ordered by one select, the nearer kept in registers
+//! instead of pushed and popped: 1.01 and 1.00 when ties go to the higher slot first, as the
+//! insertion sort's do, but 1.04 and 1.03 when they go to the lower slot; ties (children
+//! entered at `t_min`, whose boxes hold the ray's origin) broken by exit distance: 1.04
+//! and 1.05 nearest exit first, 1.09 farthest exit first. The tie order alone moves the
+//! teaser's reflections by 3%, but none of the orders tried beat slot order.
+//!
 //! Results are the scalar reference's (`Bvh::occluded`, `Bvh::closest_hit`) ray for ray:
 //!
 //! * The box test of a child is [`ray_aabb_conservative`] with the interval of the scalar
