@@ -143,7 +143,10 @@
 //!   leaf child's triangle records as soon as its parent's pair is read (the dragon 3%
 //!   faster, the horses and bunnies 1 to 6% slower). The leaf records' loads are 16% of the
 //!   dragon's packet time and the node loads about 11%, but they sit on the walk's
-//!   dependency chain, which a prefetch one step ahead hardly shortens.
+//!   dependency chain, which a prefetch one step ahead hardly shortens. A third time, on
+//!   the Zen 5 and only for a leaf pushed as the far child (its records prefetched while
+//!   the near subtree is walked; a `NodeTest` hook at the push): the dragon 0.99 and 1.01
+//!   at AVX2 and AVX-512, the near bunny, the far horse and the teaser 1.00 to 1.02.
 //! * Embree's hybrid on the 8-wide tree (issue 36): packets walking the wide nodes (each
 //!   child's box tested for all lanes, the entering lanes' mask on the stack with the
 //!   child), a node entered by at most `T` lanes finished by each of them alone through the
