@@ -248,6 +248,14 @@
 //!   1.02 of the straddling copy's time on the dragon, the near bunny, the near horse and
 //!   the teaser, shadow and primary rays. The second line comes with the first (the
 //!   adjacent-line prefetcher), so the layout stays as it is.
+//! * Two more on the Zen 5 (AVX2, one thread, `ray_contest --kind shadow --packets-only
+//!   --rounds 11`, the two binaries alternated three times, ms): the lone-lane leaf test
+//!   out of line (its own AVX2 function, so that the walk's registers stay the walk's):
+//!   the dragon 53.4 to 55.1 against 50.7 to 53.2, the teaser 36.2 to 37.7 against 35.5 to
+//!   36.0; and the occluder cache dropped after a packet it stopped no lane of (so that
+//!   lit regions stop retesting a stale leaf): the dragon 48.9 to 53.5 against 50.7 to
+//!   52.9, the teaser 35.3 to 36.4 against 35.2 to 35.5, the near horse 4.46 to 4.53
+//!   against 4.34 to 4.49: within the noise or slower.
 //! * Where the time goes now, the dragon's shadow rays in packets (`perf record` at 10 kHz,
 //!   one thread, each sample's address followed through its inlined frames with
 //!   `addr2line -i`): the walk and its node tests 47% (the first read of a node's planes
