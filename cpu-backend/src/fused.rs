@@ -87,7 +87,7 @@ use hyrt_core::formats::{
 use hyrt_core::frame::{FrameOptions, PreparedScene};
 use hyrt_core::kernels::reconstruction::primary_normal_mapped;
 use hyrt_core::kernels::shading::BACKGROUND_RGBA;
-use hyrt_core::kernels::shadow::shadow_code;
+use hyrt_core::kernels::shadow::{shadow_code, shadow_ray_record};
 use hyrt_core::kernels::texture::Materials;
 use hyrt_core::plan::{Composition, FramePlan, Step};
 
@@ -739,20 +739,31 @@ fn tile_shadow_rays<L: Lanes>(
                 (lx, ly) if lx < tw && ly < th => &surfaces[ly * tw + lx],
                 _ => &SurfaceRecord::MISS,
             }));
-            let origin = store3::<L>(block.origin);
+            let o = block.origin;
             for (l, light) in lights.iter().enumerate() {
                 let (mut active, direction, t_max) = shadow_rays_lanes::<L>(&block, light);
                 if active == 0 {
                     continue;
                 }
-                let direction = store3::<L>(direction);
+                // Each lane's first eight words (origin, `t_min`, direction, `t_max`) by a
+                // transpose in registers; the rest is `shadow_ray_record`'s constants and
+                // the pixel.
+                let d = direction;
+                let t = [L::splat(0.0), L::splat(t_max)];
+                let words = L::transpose8([o[0], o[1], o[2], t[0], d[0], d[1], d[2], t[1]]);
+                let template = shadow_ray_record([0.0; 3], [0.0; 3], t_max, l as u32, 0);
                 while active != 0 {
                     // An active lane is a hit, so a pixel of the tile.
                     let j = active.trailing_zeros() as usize;
                     active &= active - 1;
                     let (lx, ly) = at_lane(j);
-                    let pixel = first_pixel + ly as u32 * width + lx as u32;
-                    let ray = shadow_ray_of_lane(&origin, &direction, t_max, j, l as u32, pixel);
+                    let mut ray = RayRecord { pixel: first_pixel + ly as u32 * width + lx as u32, ..template };
+                    bytemuck::cast_mut::<RayRecord, [[f32; 8]; 2]>(&mut ray)[0] = L::store(words[j]);
+                    debug_assert_eq!(
+                        ray,
+                        shadow_ray_of_lane(&store3::<L>(o), &store3::<L>(d), t_max, j, l as u32, ray.pixel),
+                        "fused shadow ray"
+                    );
                     debug_assert_eq!(ray.validate(), Ok(()), "fused shadow ray");
                     rays[l].push(ray);
                     at[l].push((ly * tw + lx) as u32);

@@ -50,6 +50,9 @@ pub(crate) trait Lanes: Copy {
     fn or(a: Self::F, b: Self::F) -> Self::F;
     /// `!a & b`.
     fn andnot(a: Self::F, b: Self::F) -> Self::F;
+    /// All ones where the lanes' bit patterns are equal (an integer comparison: NaN
+    /// patterns such as `INVALID_ID` compare as words).
+    fn eq_bits(a: Self::F, b: Self::F) -> Self::F;
     /// `a ^ b` (bitwise; with `-0.0`, a sign flip: the exact `-a`).
     fn xor(a: Self::F, b: Self::F) -> Self::F;
     /// The lanes' bit patterns added as wrapping 32-bit integers (`next_float_up` and
@@ -96,29 +99,49 @@ pub(crate) trait Lanes: Copy {
     /// arithmetic.
     #[inline(always)]
     fn ray_lanes(rays: &[RayRecord; LANES]) -> [Self::F; 8] {
-        let mut soa = [[0.0f32; LANES]; 8];
-        for (k, r) in rays.iter().enumerate() {
-            let f: &[f32; 16] = bytemuck::cast_ref(r);
-            for (w, row) in soa.iter_mut().enumerate() {
-                row[k] = f[w];
-            }
-        }
-        soa.map(|row| Self::load(&row))
+        let word = |k: usize| Self::load(&bytemuck::cast_ref::<RayRecord, [[f32; 8]; 2]>(&rays[k])[0]);
+        Self::transpose8([word(0), word(1), word(2), word(3), word(4), word(5), word(6), word(7)])
     }
 
-    /// The vertices of eight triangles as lanes, `[vertex][axis]` with lane `k` from
-    /// `tris[k]`: a transpose of the records' vertex words, no arithmetic.
+    /// The 8x8 transpose: lane `k` of row `w` of the result is lane `w` of `rows[k]`.
     #[inline(always)]
-    fn triangle_lanes(tris: [&TriangleRecord; LANES]) -> [[Self::F; 3]; 3] {
-        let mut v = [[[0.0f32; LANES]; 3]; 3];
-        for (k, t) in tris.iter().enumerate() {
-            for (i, p) in [t.v0, t.v1, t.v2].into_iter().enumerate() {
-                for a in 0..3 {
-                    v[i][a][k] = p[a];
+    fn transpose8(rows: [Self::F; 8]) -> [Self::F; 8] {
+        let rows = rows.map(Self::store);
+        std::array::from_fn(|w| Self::load(&std::array::from_fn(|k| rows[k][w])))
+    }
+
+    /// Eight records of twelve words (48 bytes: [`TriangleRecord`], `SurfaceRecord`) as
+    /// lanes, `[quad][word]`: word `4 * q + w` of `records[k]` in lane `k` of `out[q][w]`.
+    /// A transpose, no arithmetic.
+    #[inline(always)]
+    fn quad_lanes(records: [&[f32; 12]; LANES]) -> [[Self::F; 4]; 3] {
+        let mut v = [[[0.0f32; LANES]; 4]; 3];
+        for (k, r) in records.iter().enumerate() {
+            for (q, quad) in v.iter_mut().enumerate() {
+                for (w, word) in quad.iter_mut().enumerate() {
+                    word[k] = r[4 * q + w];
                 }
             }
         }
         v.map(|v| v.map(|a| Self::load(&a)))
+    }
+
+    /// The vertices of eight triangles as lanes, `[vertex][axis]` with lane `k` from
+    /// `tris[k]`: a transpose of the records' vertex words ([`Lanes::quad_lanes`]: each
+    /// vertex and the word after it are a quad), no arithmetic.
+    #[inline(always)]
+    fn triangle_lanes(tris: [&TriangleRecord; LANES]) -> [[Self::F; 3]; 3] {
+        let [v0, v1, v2] = Self::quad_lanes([
+            bytemuck::cast_ref(tris[0]),
+            bytemuck::cast_ref(tris[1]),
+            bytemuck::cast_ref(tris[2]),
+            bytemuck::cast_ref(tris[3]),
+            bytemuck::cast_ref(tris[4]),
+            bytemuck::cast_ref(tris[5]),
+            bytemuck::cast_ref(tris[6]),
+            bytemuck::cast_ref(tris[7]),
+        ]);
+        [[v0[0], v0[1], v0[2]], [v1[0], v1[1], v1[2]], [v2[0], v2[1], v2[2]]]
     }
 
     #[inline(always)]
@@ -241,6 +264,10 @@ impl Lanes for Portable {
         map2(a, b, |a, b| f32::from_bits(!a.to_bits() & b.to_bits()))
     }
     #[inline(always)]
+    fn eq_bits(a: Self::F, b: Self::F) -> Self::F {
+        map2(a, b, |a, b| mask(a.to_bits() == b.to_bits()))
+    }
+    #[inline(always)]
     fn xor(a: Self::F, b: Self::F) -> Self::F {
         map2(a, b, |a, b| f32::from_bits(a.to_bits() ^ b.to_bits()))
     }
@@ -288,7 +315,7 @@ pub(crate) use x86::{Avx2, Sse2};
 
 #[cfg(target_arch = "x86_64")]
 mod x86 {
-    use super::{Lanes, RayRecord, TriangleRecord, LANES};
+    use super::{Lanes, RayRecord, LANES};
     use std::arch::x86_64::*;
 
     /// Two SSE2 registers (x86-64 baseline: always available).
@@ -305,22 +332,22 @@ mod x86 {
     impl Lanes for Sse2 {
         type F = [__m128; 2];
         #[inline(always)]
-        fn triangle_lanes(tris: [&TriangleRecord; LANES]) -> [[Self::F; 3]; 3] {
+        fn quad_lanes(w: [&[f32; 12]; LANES]) -> [[Self::F; 4]; 3] {
             // SAFETY: SSE2 is baseline; unaligned loads of four in-bounds words of a
-            // record (`[f32; 12]`: each vertex and the word after it).
+            // record (`[f32; 12]`: quad `q` is words `4 * q ..`).
             unsafe {
-                let w: [&[f32; 12]; LANES] = tris.map(bytemuck::cast_ref);
-                let mut out = [[[_mm_setzero_ps(); 2]; 3]; 3];
-                for (i, vertex) in out.iter_mut().enumerate() {
+                let mut out = [[[_mm_setzero_ps(); 2]; 4]; 3];
+                for (q, quad) in out.iter_mut().enumerate() {
                     for (h, half) in [0, 4].into_iter().enumerate() {
-                        let r = |k: usize| _mm_loadu_ps(w[half + k].as_ptr().add(4 * i));
+                        let r = |k: usize| _mm_loadu_ps(w[half + k].as_ptr().add(4 * q));
                         let (r0, r1, r2, r3) = (r(0), r(1), r(2), r(3));
-                        // [x0 x1 y0 y1], [z0 z1 . .], [x2 x3 y2 y3], [z2 z3 . .].
+                        // [x0 x1 y0 y1], [z0 z1 w0 w1], [x2 x3 y2 y3], [z2 z3 w2 w3].
                         let (u0, u1) = (_mm_unpacklo_ps(r0, r1), _mm_unpackhi_ps(r0, r1));
                         let (u2, u3) = (_mm_unpacklo_ps(r2, r3), _mm_unpackhi_ps(r2, r3));
-                        vertex[0][h] = _mm_shuffle_ps::<0x44>(u0, u2);
-                        vertex[1][h] = _mm_shuffle_ps::<0xEE>(u0, u2);
-                        vertex[2][h] = _mm_shuffle_ps::<0x44>(u1, u3);
+                        quad[0][h] = _mm_shuffle_ps::<0x44>(u0, u2);
+                        quad[1][h] = _mm_shuffle_ps::<0xEE>(u0, u2);
+                        quad[2][h] = _mm_shuffle_ps::<0x44>(u1, u3);
+                        quad[3][h] = _mm_shuffle_ps::<0xEE>(u1, u3);
                     }
                 }
                 out
@@ -398,6 +425,14 @@ mod x86 {
         #[inline(always)]
         fn andnot(a: Self::F, b: Self::F) -> Self::F {
             sse2!(_mm_andnot_ps, a, b)
+        }
+        #[inline(always)]
+        fn eq_bits(a: Self::F, b: Self::F) -> Self::F {
+            let eq = |a: __m128, b: __m128| {
+                // SAFETY: SSE2 is baseline.
+                unsafe { _mm_castsi128_ps(_mm_cmpeq_epi32(_mm_castps_si128(a), _mm_castps_si128(b))) }
+            };
+            [eq(a[0], b[0]), eq(a[1], b[1])]
         }
         #[inline(always)]
         fn xor(a: Self::F, b: Self::F) -> Self::F {
@@ -497,10 +532,14 @@ mod x86 {
         fn ray_lanes(rays: &[RayRecord; LANES]) -> [Self::F; 8] {
             // SAFETY: see the type's docs; unaligned loads of the first eight words of each
             // (64-byte) record.
+            let r = |k: usize| unsafe { _mm256_loadu_ps((&rays[k] as *const RayRecord).cast::<f32>()) };
+            Self::transpose8([r(0), r(1), r(2), r(3), r(4), r(5), r(6), r(7)])
+        }
+        #[inline(always)]
+        fn transpose8([r0, r1, r2, r3, r4, r5, r6, r7]: [Self::F; 8]) -> [Self::F; 8] {
+            // SAFETY: see the type's docs.
             unsafe {
-                let r = |k: usize| _mm256_loadu_ps((&rays[k] as *const RayRecord).cast::<f32>());
-                let (r0, r1, r2, r3, r4, r5, r6, r7) = (r(0), r(1), r(2), r(3), r(4), r(5), r(6), r(7));
-                // The 8x8 transpose: pairs of rows interleaved, then quadruples, then halves.
+                // Pairs of rows interleaved, then quadruples, then halves.
                 let (a0, a1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpackhi_ps(r0, r1));
                 let (a2, a3) = (_mm256_unpacklo_ps(r2, r3), _mm256_unpackhi_ps(r2, r3));
                 let (a4, a5) = (_mm256_unpacklo_ps(r4, r5), _mm256_unpackhi_ps(r4, r5));
@@ -522,29 +561,29 @@ mod x86 {
             }
         }
         #[inline(always)]
-        fn triangle_lanes(tris: [&TriangleRecord; LANES]) -> [[Self::F; 3]; 3] {
+        fn quad_lanes(w: [&[f32; 12]; LANES]) -> [[Self::F; 4]; 3] {
             // SAFETY: see the type's docs; unaligned loads of four in-bounds words of a
-            // record (`[f32; 12]`: each vertex and the word after it).
+            // record (`[f32; 12]`: quad `q` is words `4 * q ..`).
             unsafe {
-                let w: [&[f32; 12]; LANES] = tris.map(bytemuck::cast_ref);
-                let mut out = [[_mm256_setzero_ps(); 3]; 3];
-                for (i, vertex) in out.iter_mut().enumerate() {
-                    // Row k: triangle k's vertex in the low half, triangle k + 4's in the high.
+                let mut out = [[_mm256_setzero_ps(); 4]; 3];
+                for (q, quad) in out.iter_mut().enumerate() {
+                    // Row k: record k's quad in the low half, record k + 4's in the high.
                     let r = |k: usize| {
-                        let lo = _mm_loadu_ps(w[k].as_ptr().add(4 * i));
+                        let lo = _mm_loadu_ps(w[k].as_ptr().add(4 * q));
                         _mm256_insertf128_ps::<1>(
                             _mm256_castps128_ps256(lo),
-                            _mm_loadu_ps(w[k + 4].as_ptr().add(4 * i)),
+                            _mm_loadu_ps(w[k + 4].as_ptr().add(4 * q)),
                         )
                     };
                     let (r0, r1, r2, r3) = (r(0), r(1), r(2), r(3));
-                    // Per half: [x0 x1 y0 y1], [z0 z1 . .], [x2 x3 y2 y3], [z2 z3 . .].
+                    // Per half: [x0 x1 y0 y1], [z0 z1 w0 w1], [x2 x3 y2 y3], [z2 z3 w2 w3].
                     let (u0, u1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpackhi_ps(r0, r1));
                     let (u2, u3) = (_mm256_unpacklo_ps(r2, r3), _mm256_unpackhi_ps(r2, r3));
-                    *vertex = [
+                    *quad = [
                         _mm256_shuffle_ps::<0x44>(u0, u2),
                         _mm256_shuffle_ps::<0xEE>(u0, u2),
                         _mm256_shuffle_ps::<0x44>(u1, u3),
+                        _mm256_shuffle_ps::<0xEE>(u1, u3),
                     ];
                 }
                 out
@@ -627,6 +666,11 @@ mod x86 {
         #[inline(always)]
         fn andnot(a: Self::F, b: Self::F) -> Self::F {
             avx!(_mm256_andnot_ps, a, b)
+        }
+        #[inline(always)]
+        fn eq_bits(a: Self::F, b: Self::F) -> Self::F {
+            // SAFETY: see the type's docs.
+            unsafe { _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_castps_si256(a), _mm256_castps_si256(b))) }
         }
         #[inline(always)]
         fn xor(a: Self::F, b: Self::F) -> Self::F {
@@ -882,6 +926,25 @@ pub(crate) mod tests {
                 assert_eq!(portable[i][a].map(f32::to_bits), want.map(f32::to_bits));
             }
         }
+        // The same records as twelve words each, the ids' words included.
+        let words: [&[f32; 12]; LANES] = std::array::from_fn(|k| bytemuck::cast_ref(&records[k]));
+        let (lanes, portable) = (L::quad_lanes(words), Portable::quad_lanes(words));
+        for q in 0..3 {
+            for w in 0..4 {
+                same(lanes[q][w], portable[q][w]);
+                let want: [f32; LANES] = std::array::from_fn(|k| words[k][4 * q + w]);
+                assert_eq!(portable[q][w].map(f32::to_bits), want.map(f32::to_bits));
+            }
+        }
+        // Bit-pattern equality: NaN patterns equal themselves, `-0` is not `+0`.
+        let ids = [u32::MAX, 0, 0x8000_0000, 0x7fc0_0000, u32::MAX, 1, 7, u32::MAX].map(f32::from_bits);
+        let invalid = L::splat(f32::from_bits(u32::MAX));
+        assert_eq!(L::bits(L::eq_bits(L::load(&ids), invalid)), 0b1001_0001);
+        assert_eq!(
+            Portable::bits(Portable::eq_bits(Portable::load(&ids), Portable::splat(f32::from_bits(u32::MAX)))),
+            0b1001_0001
+        );
+        assert_eq!(L::bits(L::eq_bits(L::load(&ids), L::splat(0.0))), 0b10);
         // The transpose of eight ray records' first eight words: every word to its lane.
         let rays: [RayRecord; LANES] = std::array::from_fn(|k| {
             let w = |i: usize| SAMPLES[(k + i) % LANES] + (100 * k + 10 * i) as f32;

@@ -20,7 +20,7 @@ use hyrt_core::kernels::reconstruction::{
 use hyrt_core::kernels::texture::Materials;
 use rayon::prelude::*;
 
-use crate::lanes::{avx2_entry_points, dispatch, Lanes, LANES};
+use crate::lanes::{avx2_entry_points, dispatch, mask_lanes, Lanes, LANES};
 use crate::traversal::intersect_each;
 use crate::traversal::tiles::{TILE_HEIGHT, TILE_WIDTH};
 use crate::traversal::SimdLevel;
@@ -237,12 +237,30 @@ fn reintersected_lanes<L: crate::lanes::Lanes>(
     // `reintersected_barycentrics`: the camera ray over `0 < t < inf`. A miss lane's zero
     // direction (and empty interval) makes it a lane that hits nothing.
     let direction = primary_directions::<L>(camera, xy);
+    // The records' first eight words by a transpose in registers ([`Lanes::transpose8`]):
+    // the eye, `t_min` 0, the direction and `t_max` +inf in a hit lane, zeros in a miss's.
+    // The rest of each record stays zero: the test reads no more.
+    let h = mask_lanes::<L>(hit);
+    let [ex, ey, ez] = camera.eye;
+    let words = L::transpose8([
+        L::and(h, L::splat(ex)),
+        L::and(h, L::splat(ey)),
+        L::and(h, L::splat(ez)),
+        L::splat(0.0),
+        L::and(h, direction[0]),
+        L::and(h, direction[1]),
+        L::and(h, direction[2]),
+        L::and(h, L::splat(f32::INFINITY)),
+    ]);
     let mut rays = [<RayRecord as bytemuck::Zeroable>::zeroed(); LANES];
-    for (k, ray) in rays.iter_mut().enumerate().filter(|(k, _)| hit >> k & 1 == 1) {
-        // The rest of the record (t_min 0 included) stays zero: the test reads no more.
-        (ray.origin, ray.t_max) = (camera.eye, f32::INFINITY);
-        ray.direction = [direction[0][k], direction[1][k], direction[2][k]];
-        debug_assert_eq!(ray.direction, primary_ray(camera, xy[k].0, xy[k].1).direction, "lane {k}");
+    for (ray, words) in rays.iter_mut().zip(words) {
+        bytemuck::cast_mut::<RayRecord, [[f32; 8]; 2]>(ray)[0] = L::store(words);
+    }
+    if cfg!(debug_assertions) {
+        for (k, ray) in rays.iter().enumerate().filter(|(k, _)| hit >> k & 1 == 1) {
+            let want = primary_ray(camera, xy[k].0, xy[k].1).direction;
+            assert_eq!(ray.direction.map(f32::to_bits), want.map(f32::to_bits), "lane {k}");
+        }
     }
     match intersect_each::<L>(&rays, std::array::from_fn(|k| setups[k].record())) {
         Some((met, us, vs)) => {
@@ -356,7 +374,7 @@ avx2_entry_points!(
 /// an IEEE f32 operation, so each lane's direction is the scalar kernel's bit for bit
 /// (`tests`' re-intersection proptest, and a debug assertion per lane).
 #[inline(always)]
-fn primary_directions<L: Lanes>(camera: &CameraRecord, xy: [(u32, u32); LANES]) -> [[f32; LANES]; 3] {
+fn primary_directions<L: Lanes>(camera: &CameraRecord, xy: [(u32, u32); LANES]) -> [L::F; 3] {
     let (mut x, mut y) = ([0.0f32; LANES], [0.0f32; LANES]);
     for k in 0..LANES {
         // Exact: pixel coordinates are below 2^24.
@@ -376,7 +394,7 @@ fn primary_directions<L: Lanes>(camera: &CameraRecord, xy: [(u32, u32); LANES]) 
         let xyz = L::add(xy, L::mul(L::splat(m[8 + r]), one));
         *far = L::add(xyz, L::mul(L::splat(m[12 + r]), one));
     }
-    [L::store(L::div(far[0], far[3])), L::store(L::div(far[1], far[3])), L::store(L::div(far[2], far[3]))]
+    [L::div(far[0], far[3]), L::div(far[1], far[3]), L::div(far[2], far[3])]
 }
 
 /// Debug builds: every record valid.

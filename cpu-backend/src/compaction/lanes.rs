@@ -17,7 +17,7 @@
 //! [`next_float_up`]: hyrt_core::kernels::ray::next_float_up
 //! [`next_float_down`]: hyrt_core::kernels::ray::next_float_down
 
-use hyrt_core::formats::{LightRecord, RayRecord, SurfaceRecord, LIGHT_DIRECTIONAL, LIGHT_SPOT};
+use hyrt_core::formats::{LightRecord, RayRecord, SurfaceRecord, INVALID_ID, LIGHT_DIRECTIONAL, LIGHT_SPOT};
 use hyrt_core::kernels::ray::OFFSET_ERROR_SCALE;
 use hyrt_core::kernels::shading::MIN_LIGHT_DISTANCE_SQ;
 use hyrt_core::kernels::shadow::{shadow_ray_record, SHADOW_T_MAX_POINT};
@@ -40,28 +40,43 @@ pub(crate) struct SurfaceLanes<L: Lanes> {
     pub origin: [L::F; 3],
 }
 
+/// The words of eight surface records as lanes, by quads (a transpose in registers,
+/// [`Lanes::quad_lanes`]): `[position, position_error]`, `[normal, object]`,
+/// `[geometric_normal, triangle]`; and the lanes that are hits
+/// ([`SurfaceRecord::is_hit`]: the object word is not `INVALID_ID`, compared as a word).
+///
+/// It replaced eleven arrays filled word by word and loaded back as vectors, each load
+/// waiting on eight scalar stores it cannot be forwarded from.
+#[inline(always)]
+pub(crate) fn surface_quads<L: Lanes>(s: [&SurfaceRecord; LANES]) -> ([[L::F; 4]; 3], L::F) {
+    let quads = L::quad_lanes([
+        bytemuck::cast_ref(s[0]),
+        bytemuck::cast_ref(s[1]),
+        bytemuck::cast_ref(s[2]),
+        bytemuck::cast_ref(s[3]),
+        bytemuck::cast_ref(s[4]),
+        bytemuck::cast_ref(s[5]),
+        bytemuck::cast_ref(s[6]),
+        bytemuck::cast_ref(s[7]),
+    ]);
+    let zero = L::splat(0.0);
+    let miss = L::eq_bits(quads[1][3], L::splat(f32::from_bits(INVALID_ID)));
+    (quads, L::andnot(miss, L::eq(zero, zero)))
+}
+
 impl<L: Lanes> SurfaceLanes<L> {
-    /// The lanes of eight surfaces (a transpose) and their shadow rays' origins.
+    /// The lanes of eight surfaces ([`surface_quads`]) and their shadow rays' origins.
     #[inline(always)]
     pub fn load(s: [&SurfaceRecord; LANES]) -> SurfaceLanes<L> {
-        let mut w = [[0.0f32; LANES]; 11];
-        for (k, r) in s.iter().enumerate() {
-            w[0][k] = f32::from_bits(if r.is_hit() { u32::MAX } else { 0 });
-            for a in 0..3 {
-                w[1 + a][k] = r.position[a];
-                w[4 + a][k] = r.normal[a];
-                w[7 + a][k] = r.geometric_normal[a];
-            }
-            w[10][k] = r.position_error;
-        }
-        let position = [L::load(&w[1]), L::load(&w[2]), L::load(&w[3])];
-        let geometric_normal = [L::load(&w[7]), L::load(&w[8]), L::load(&w[9])];
+        let ([p, n, g], hit) = surface_quads::<L>(s);
+        let position = [p[0], p[1], p[2]];
+        let geometric_normal = [g[0], g[1], g[2]];
         SurfaceLanes {
-            hit: L::load(&w[0]),
+            hit,
             position,
-            normal: [L::load(&w[4]), L::load(&w[5]), L::load(&w[6])],
+            normal: [n[0], n[1], n[2]],
             geometric_normal,
-            origin: offset_ray_origin_lanes::<L>(position, L::load(&w[10]), geometric_normal),
+            origin: offset_ray_origin_lanes::<L>(position, p[3], geometric_normal),
         }
     }
 }

@@ -33,7 +33,7 @@ use hyrt_core::kernels::shading::{
     AmbientLight, AMBIENT, BACKGROUND_RGBA, DIELECTRIC_F0, ENVIRONMENT_SPECULAR, GGX_MIN_ALPHA,
 };
 
-use crate::compaction::lanes::light_incidence_lanes;
+use crate::compaction::lanes::{light_incidence_lanes, surface_quads};
 use crate::lanes::{dot3, mask_lanes, normalize_or_zero_lanes, select3, splat3, sub3, zero3, Lanes, LANES};
 
 // No closures around lane operations (`map`, `from_fn`): a closure does not inherit its
@@ -76,44 +76,98 @@ impl<L: Lanes> PrimaryLanes<L> {
     /// [`Self::load`] with lane `k` shaded with the record `shaded[k]` (read where it is a
     /// hit): the material at its pixel where materials vary. Whether it is ray traced is its
     /// object's (`objects`), as in the scalar stages.
+    ///
+    /// The surfaces come in by a transpose in registers ([`surface_quads`]). Where every
+    /// hit lane is on one object shaded with one record (most blocks of most frames) its
+    /// fields are splatted and masked to the hits; otherwise they are gathered lane by
+    /// lane. Either way a miss's lanes hold zeros.
     #[inline(always)]
     pub fn load_shaded(
         s: [&SurfaceRecord; LANES],
         objects: &[ObjectRecord],
         shaded: [&ObjectRecord; LANES],
     ) -> PrimaryLanes<L> {
-        let mut w = [[0.0f32; LANES]; 18];
+        let ([p, n, _], hit) = surface_quads::<L>(s);
+        let position = [p[0], p[1], p[2]];
+        let normal = [n[0], n[1], n[2]];
+        // The first hit lane's object and record, if every hit lane shares them.
+        let mut one: Option<(u32, &ObjectRecord)> = None;
+        let mut uniform = true;
+        for (r, obj) in s.iter().zip(shaded) {
+            if !r.is_hit() {
+                continue;
+            }
+            match one {
+                None => one = Some((r.object, obj)),
+                Some((o, first)) => uniform &= o == r.object && std::ptr::eq(first, obj),
+            }
+        }
+        let zero = L::splat(0.0);
+        let Some((o, obj)) = one else {
+            return PrimaryLanes {
+                hit,
+                ray_traced: zero,
+                gltf: zero,
+                position,
+                normal,
+                base_color: [zero; 3],
+                metallic: zero,
+                roughness: zero,
+                emissive: [zero; 3],
+                occlusion: zero,
+            };
+        };
+        if uniform {
+            let flags = objects[o as usize].flags;
+            let flag = |bit: u32| if flags & bit != 0 { hit } else { zero };
+            return PrimaryLanes {
+                hit,
+                ray_traced: flag(OBJ_RAY_TRACED),
+                gltf: flag(OBJ_GLTF_BRDF),
+                position,
+                normal,
+                base_color: [
+                    L::and(hit, L::splat(obj.base_color[0])),
+                    L::and(hit, L::splat(obj.base_color[1])),
+                    L::and(hit, L::splat(obj.base_color[2])),
+                ],
+                metallic: L::and(hit, L::splat(obj.metallic)),
+                roughness: L::and(hit, L::splat(obj.roughness)),
+                emissive: [
+                    L::and(hit, L::splat(obj.emissive[0])),
+                    L::and(hit, L::splat(obj.emissive[1])),
+                    L::and(hit, L::splat(obj.emissive[2])),
+                ],
+                occlusion: L::and(hit, L::splat(obj.occlusion)),
+            };
+        }
+        let mut w = [[0.0f32; LANES]; 11];
         for (k, (r, obj)) in s.iter().zip(shaded).enumerate() {
             if !r.is_hit() {
                 continue;
             }
             let flags = objects[r.object as usize].flags;
-            w[0][k] = f32::from_bits(u32::MAX);
-            w[1][k] = f32::from_bits(if flags & OBJ_RAY_TRACED != 0 { u32::MAX } else { 0 });
+            w[0][k] = f32::from_bits(if flags & OBJ_RAY_TRACED != 0 { u32::MAX } else { 0 });
+            w[1][k] = f32::from_bits(if flags & OBJ_GLTF_BRDF != 0 { u32::MAX } else { 0 });
             for a in 0..3 {
-                w[2 + a][k] = r.position[a];
-                w[5 + a][k] = r.normal[a];
-                w[8 + a][k] = obj.base_color[a];
+                w[2 + a][k] = obj.base_color[a];
+                w[7 + a][k] = obj.emissive[a];
             }
-            w[11][k] = obj.metallic;
-            w[12][k] = obj.roughness;
-            w[13][k] = f32::from_bits(if flags & OBJ_GLTF_BRDF != 0 { u32::MAX } else { 0 });
-            for a in 0..3 {
-                w[14 + a][k] = obj.emissive[a];
-            }
-            w[17][k] = obj.occlusion;
+            w[5][k] = obj.metallic;
+            w[6][k] = obj.roughness;
+            w[10][k] = obj.occlusion;
         }
         PrimaryLanes {
-            hit: L::load(&w[0]),
-            ray_traced: L::load(&w[1]),
-            gltf: L::load(&w[13]),
-            position: [L::load(&w[2]), L::load(&w[3]), L::load(&w[4])],
-            normal: [L::load(&w[5]), L::load(&w[6]), L::load(&w[7])],
-            base_color: [L::load(&w[8]), L::load(&w[9]), L::load(&w[10])],
-            metallic: L::load(&w[11]),
-            roughness: L::load(&w[12]),
-            emissive: [L::load(&w[14]), L::load(&w[15]), L::load(&w[16])],
-            occlusion: L::load(&w[17]),
+            hit,
+            ray_traced: L::load(&w[0]),
+            gltf: L::load(&w[1]),
+            position,
+            normal,
+            base_color: [L::load(&w[2]), L::load(&w[3]), L::load(&w[4])],
+            metallic: L::load(&w[5]),
+            roughness: L::load(&w[6]),
+            emissive: [L::load(&w[7]), L::load(&w[8]), L::load(&w[9])],
+            occlusion: L::load(&w[10]),
         }
     }
 }

@@ -15,11 +15,11 @@
 //! [`interpolate_normal`]: hyrt_core::kernels::barycentric::interpolate_normal
 //! [`orient_to_seen_side`]: hyrt_core::kernels::shading::orient_to_seen_side
 
-use hyrt_core::formats::SurfaceRecord;
+use hyrt_core::formats::{SurfaceRecord, INVALID_ID};
 use hyrt_core::kernels::barycentric::gamma;
 use hyrt_core::kernels::reconstruction::TriangleSetup;
 
-use crate::lanes::{dot3, mask_lanes, store3, Lanes, LANES};
+use crate::lanes::{dot3, mask_lanes, Lanes, LANES};
 
 // No closures around lane operations (`map`, `from_fn`): a closure does not inherit its
 // caller's target features, so its lane operations would not inline into the AVX2 entry
@@ -191,22 +191,51 @@ pub(crate) fn surfaces_lanes<L: Lanes>(
 impl<L: Lanes> SurfaceLanes8<L> {
     /// Lane `k`'s record ([`SurfaceRecord::MISS`] for a miss), its triangle from
     /// `setups[k]`. Meaningless for a lane of [`Self::viewer_facing`].
+    ///
+    /// The records are written by two transposes in registers ([`Lanes::transpose8`]):
+    /// words 0 to 7 (position, error bound, normal, object) and 8 to 11 (geometric normal,
+    /// triangle), each lane's floats masked to its hit (a miss's are `+0`, as in
+    /// [`SurfaceRecord::MISS`]). It replaced a record built field by field from the lanes
+    /// stored to arrays.
     #[inline(always)]
     pub fn records(&self, setups: [&TriangleSetup; LANES]) -> [SurfaceRecord; LANES] {
-        let hit = L::bits(self.hit);
-        let (p, n, g) = (store3::<L>(self.position), store3::<L>(self.normal), store3::<L>(self.geometric_normal));
-        let err = L::store(self.position_error);
-        std::array::from_fn(|k| match hit >> k & 1 {
-            0 => SurfaceRecord::MISS,
-            _ => SurfaceRecord {
-                position: [p[0][k], p[1][k], p[2][k]],
-                position_error: err[k],
-                normal: [n[0][k], n[1][k], n[2][k]],
-                object: setups[k].record().object,
-                geometric_normal: [g[0][k], g[1][k], g[2][k]],
-                triangle: setups[k].index() as u32,
-            },
-        })
+        let (h, hit) = (self.hit, L::bits(self.hit));
+        let mut ids = [[f32::from_bits(INVALID_ID); LANES]; 2];
+        for k in 0..LANES {
+            if hit >> k & 1 != 0 {
+                ids[0][k] = f32::from_bits(setups[k].record().object);
+                ids[1][k] = f32::from_bits(setups[k].index() as u32);
+            }
+        }
+        let (p, n, g, zero) = (&self.position, &self.normal, &self.geometric_normal, L::splat(0.0));
+        let first = L::transpose8([
+            L::and(h, p[0]),
+            L::and(h, p[1]),
+            L::and(h, p[2]),
+            L::and(h, self.position_error),
+            L::and(h, n[0]),
+            L::and(h, n[1]),
+            L::and(h, n[2]),
+            L::load(&ids[0]),
+        ]);
+        let last = L::transpose8([
+            L::and(h, g[0]),
+            L::and(h, g[1]),
+            L::and(h, g[2]),
+            L::load(&ids[1]),
+            zero,
+            zero,
+            zero,
+            zero,
+        ]);
+        let mut out = [SurfaceRecord::MISS; LANES];
+        for (k, record) in out.iter_mut().enumerate() {
+            let words: &mut [f32; 12] = bytemuck::cast_mut(record);
+            let (a, b) = (L::store(first[k]), L::store(last[k]));
+            words[..8].copy_from_slice(&a);
+            words[8..].copy_from_slice(&b[..4]);
+        }
+        out
     }
 }
 
