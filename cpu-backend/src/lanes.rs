@@ -50,6 +50,12 @@ pub(crate) trait Lanes: Copy {
     fn or(a: Self::F, b: Self::F) -> Self::F;
     /// `!a & b`.
     fn andnot(a: Self::F, b: Self::F) -> Self::F;
+    /// For lanes holding integers of magnitude at most 2^24, the signs of `a * b - c * d`,
+    /// exactly: the lanes where it is negative and those where it is zero, as bit masks
+    /// (lane `i` is bit `i`). Computed in f64: each product (below 2^48) is exact, and the
+    /// difference of two exact values is correctly rounded, so it is negative or zero
+    /// exactly when the exact value is.
+    fn cross_sign_bits(a: Self::F, b: Self::F, c: Self::F, d: Self::F) -> (u32, u32);
     /// All ones where the lanes' bit patterns are equal (an integer comparison: NaN
     /// patterns such as `INVALID_ID` compare as words).
     fn eq_bits(a: Self::F, b: Self::F) -> Self::F;
@@ -268,6 +274,16 @@ impl Lanes for Portable {
         map2(a, b, |a, b| mask(a.to_bits() == b.to_bits()))
     }
     #[inline(always)]
+    fn cross_sign_bits(a: Self::F, b: Self::F, c: Self::F, d: Self::F) -> (u32, u32) {
+        let (mut neg, mut zero) = (0, 0);
+        for i in 0..LANES {
+            let x = a[i] as f64 * b[i] as f64 - c[i] as f64 * d[i] as f64;
+            neg |= ((x < 0.0) as u32) << i;
+            zero |= ((x == 0.0) as u32) << i;
+        }
+        (neg, zero)
+    }
+    #[inline(always)]
     fn xor(a: Self::F, b: Self::F) -> Self::F {
         map2(a, b, |a, b| f32::from_bits(a.to_bits() ^ b.to_bits()))
     }
@@ -433,6 +449,31 @@ mod x86 {
                 unsafe { _mm_castsi128_ps(_mm_cmpeq_epi32(_mm_castps_si128(a), _mm_castps_si128(b))) }
             };
             [eq(a[0], b[0]), eq(a[1], b[1])]
+        }
+        #[inline(always)]
+        fn cross_sign_bits(a: Self::F, b: Self::F, c: Self::F, d: Self::F) -> (u32, u32) {
+            // SAFETY: SSE2 is baseline.
+            unsafe {
+                let (mut neg, mut zero) = (0, 0);
+                for (shift, q) in [0, 2, 4, 6].into_iter().zip([0, 0, 1, 1]) {
+                    // Lanes `shift` and `shift + 1`: the low or the high pair of register `q`.
+                    let (a, b, c, d) = if shift % 4 == 0 {
+                        (a[q], b[q], c[q], d[q])
+                    } else {
+                        (
+                            _mm_movehl_ps(a[q], a[q]),
+                            _mm_movehl_ps(b[q], b[q]),
+                            _mm_movehl_ps(c[q], c[q]),
+                            _mm_movehl_ps(d[q], d[q]),
+                        )
+                    };
+                    let ab = _mm_mul_pd(_mm_cvtps_pd(a), _mm_cvtps_pd(b));
+                    let x = _mm_sub_pd(ab, _mm_mul_pd(_mm_cvtps_pd(c), _mm_cvtps_pd(d)));
+                    neg |= (_mm_movemask_pd(_mm_cmplt_pd(x, _mm_setzero_pd())) as u32) << shift;
+                    zero |= (_mm_movemask_pd(_mm_cmpeq_pd(x, _mm_setzero_pd())) as u32) << shift;
+                }
+                (neg, zero)
+            }
         }
         #[inline(always)]
         fn xor(a: Self::F, b: Self::F) -> Self::F {
@@ -671,6 +712,36 @@ mod x86 {
         fn eq_bits(a: Self::F, b: Self::F) -> Self::F {
             // SAFETY: see the type's docs.
             unsafe { _mm256_castsi256_ps(_mm256_cmpeq_epi32(_mm256_castps_si256(a), _mm256_castps_si256(b))) }
+        }
+        #[inline(always)]
+        fn cross_sign_bits(a: Self::F, b: Self::F, c: Self::F, d: Self::F) -> (u32, u32) {
+            // SAFETY: see the type's docs. (No closures: they would not inherit AVX.)
+            unsafe {
+                let (mut neg, mut zero) = (0, 0);
+                for half in 0..2 {
+                    let (a, b, c, d) = if half == 0 {
+                        (
+                            _mm256_castps256_ps128(a),
+                            _mm256_castps256_ps128(b),
+                            _mm256_castps256_ps128(c),
+                            _mm256_castps256_ps128(d),
+                        )
+                    } else {
+                        (
+                            _mm256_extractf128_ps::<1>(a),
+                            _mm256_extractf128_ps::<1>(b),
+                            _mm256_extractf128_ps::<1>(c),
+                            _mm256_extractf128_ps::<1>(d),
+                        )
+                    };
+                    let ab = _mm256_mul_pd(_mm256_cvtps_pd(a), _mm256_cvtps_pd(b));
+                    let x = _mm256_sub_pd(ab, _mm256_mul_pd(_mm256_cvtps_pd(c), _mm256_cvtps_pd(d)));
+                    let z = _mm256_setzero_pd();
+                    neg |= (_mm256_movemask_pd(_mm256_cmp_pd::<_CMP_LT_OQ>(x, z)) as u32) << (4 * half);
+                    zero |= (_mm256_movemask_pd(_mm256_cmp_pd::<_CMP_EQ_OQ>(x, z)) as u32) << (4 * half);
+                }
+                (neg, zero)
+            }
         }
         #[inline(always)]
         fn xor(a: Self::F, b: Self::F) -> Self::F {
@@ -936,6 +1007,22 @@ pub(crate) mod tests {
                 assert_eq!(portable[q][w].map(f32::to_bits), want.map(f32::to_bits));
             }
         }
+        // Exact signs of `a * b - c * d` for integers up to 2^24: products that differ
+        // by one where f32 products would round to the same value.
+        let big = 16_777_215.0f32; // 2^24 - 1
+        let (a, b, c, d) = (
+            [big, big, -big, 3.0, 0.0, big, -5.0, 16_777_216.0],
+            [big, -big, big, 4.0, 7.0, big - 2.0, 0.0, 16_777_216.0],
+            [big - 1.0, big - 1.0, big + 1.0, 2.0, 1.0, big - 1.0, 0.0, 16_777_216.0],
+            [big + 1.0, -(big + 1.0), big - 1.0, 6.0, 0.0, big - 1.0, 9.0, 16_777_216.0],
+        );
+        // (2^24-1)^2 - (2^24-2)(2^24) = 1; -(2^24-1)^2 + (2^24-2)(2^24) = -1;
+        // -(2^24-1)^2 - (2^24)(2^24-2) < 0; 12 - 12 = 0; 0 - 0 = 0; (2^24-1)(2^24-3) - (2^24-2)^2 = -1;
+        // 0 - 0 = 0; 2^48 - 2^48 = 0.
+        let want = (0b0010_0110, 0b1101_1000);
+        let lanes = |v: [f32; LANES]| L::load(&v);
+        assert_eq!(L::cross_sign_bits(lanes(a), lanes(b), lanes(c), lanes(d)), want);
+        assert_eq!(Portable::cross_sign_bits(a, b, c, d), want);
         // Bit-pattern equality: NaN patterns equal themselves, `-0` is not `+0`.
         let ids = [u32::MAX, 0, 0x8000_0000, 0x7fc0_0000, u32::MAX, 1, 7, u32::MAX].map(f32::from_bits);
         let invalid = L::splat(f32::from_bits(u32::MAX));

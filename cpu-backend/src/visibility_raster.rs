@@ -1933,7 +1933,13 @@ mod tests {
     /// (`setup_triangle`, one triangle at a time), triangle for triangle and bit for bit
     /// (the `Debug` form shows every field, `-0.0` and `0.0` apart).
     fn assert_setups_agree(tris: &[TriangleRecord], camera: &CameraRecord) {
-        let frame = Frame::new(camera);
+        assert_setups_agree_culling(tris, camera, Vec::new());
+    }
+
+    /// [`assert_setups_agree`] in a frame that drops the interiors of the objects whose
+    /// bits are set in `interior_culls` (`culls_interior`).
+    fn assert_setups_agree_culling(tris: &[TriangleRecord], camera: &CameraRecord, interior_culls: Vec<u32>) {
+        let frame = Frame { interior_culls, ..Frame::new(camera) };
         let mut expect = Vec::new();
         for t in tris {
             setup_triangle(t, camera, &frame, &mut expect);
@@ -1987,6 +1993,26 @@ mod tests {
         ) {
             let camera = Camera { eye: Vec3::from(eye), target: Vec3::new(0.0, 0.0, -3.0), up: Vec3::Y, fov_y_deg: fov, near, far: 100.0 };
             assert_setups_agree(&tris, &CameraRecord::new(&camera, w, h));
+        }
+
+        /// The same with objects whose interiors are dropped: triangles of four objects,
+        /// some wound inward (`TRI_INWARD`), in a frame that culls the interiors of the
+        /// objects in `culls` (the lanes drop those triangles before the scalar code does).
+        #[test]
+        fn setup_in_lanes_equals_the_scalar_setup_culling_interiors(
+            tris in prop::collection::vec((triangle(), 0u32..4, any::<bool>()), 1..120),
+            eye in prop::array::uniform3(-2.0f32..2.0),
+            fov in 10.0f32..150.0,
+            w in 1u32..400,
+            h in 1u32..300,
+            culls in 0u32..16,
+        ) {
+            let tris: Vec<TriangleRecord> = tris
+                .into_iter()
+                .map(|(t, object, inward)| TriangleRecord { object, flags: t.flags | if inward { TRI_INWARD } else { 0 }, ..t })
+                .collect();
+            let camera = Camera { eye: Vec3::from(eye), target: Vec3::new(0.0, 0.0, -3.0), up: Vec3::Y, fov_y_deg: fov, near: 0.1, far: 100.0 };
+            assert_setups_agree_culling(&tris, &CameraRecord::new(&camera, w, h), vec![culls]);
         }
     }
 

@@ -39,9 +39,10 @@
 //! [`pixel_span`]: hyrt_core::kernels::raster::pixel_span
 //! [`setup_triangle`]: super::setup_triangle
 
-use hyrt_core::formats::{CameraRecord, TriangleRecord};
+use hyrt_core::formats::{CameraRecord, TriangleRecord, TRI_INWARD};
 use hyrt_core::kernels::raster::{
-    ClipPlane, ClipVertex, CLIP_PLANES, F32_INTEGER_THRESHOLD, FIXED_ONE_F32, MAX_FIXED_COORD, PIXEL_CENTER_OFFSET,
+    culls_interior, ClipPlane, ClipVertex, CLIP_PLANES, F32_INTEGER_THRESHOLD, FIXED_ONE_F32, MAX_FIXED_COORD,
+    PIXEL_CENTER_OFFSET,
 };
 
 use super::{finish_triangle, raster_flags, setup_from_clip, Frame, RasterTriangle};
@@ -76,6 +77,10 @@ fn setup_lanes<L: Lanes>(tris: &[TriangleRecord], camera: &CameraRecord, frame: 
         let v = L::triangle_lanes(std::array::from_fn(|k| &group[k.min(group.len() - 1)]));
         let lanes = view.classify(&v);
         let mut live = !lanes.nothing & ((1u32 << group.len()) - 1);
+        if live == 0 {
+            continue;
+        }
+        live &= !lanes.dropped_by_finish(live & lanes.unclipped, group, frame);
         if live == 0 {
             continue;
         }
@@ -131,6 +136,53 @@ struct Classified<L: Lanes> {
     /// position finite, `w > 0` and snapped coordinates within `MAX_FIXED_COORD`:
     /// `emit_triangle` would reach `finish_triangle` with `win` and `fixed`.
     unclipped: u32,
+}
+
+impl<L: Lanes> Classified<L> {
+    /// Of the lanes `unclipped` (a subset of [`Classified::unclipped`], triangles `group`),
+    /// those `finish_triangle` would drop before anything else: a zero doubled area
+    /// (`triangle_area2` of the snapped coordinates), or the interior of an object whose
+    /// interior is hidden (`shows_interior` of the winding and `TRI_INWARD`, and
+    /// `culls_interior`). Decided exactly, for lanes whose snapped coordinates are at most
+    /// 2^23 in magnitude (32,768 pixels: every triangle near the image): their differences
+    /// are exact in f32 and the area's sign is exact ([`Lanes::cross_sign_bits`]); other
+    /// lanes are left to `finish_triangle`. On a closed mesh about half of the triangles
+    /// with a pixel centre in their box show its interior; they no longer go through the
+    /// scalar code.
+    #[inline(always)]
+    fn dropped_by_finish(&self, unclipped: u32, group: &[TriangleRecord], frame: &Frame) -> u32 {
+        let f = &self.fixed;
+        let limit = L::splat(8_388_608.0); // 2^23
+        let mut small = L::le(L::abs(f[0][0]), limit);
+        for (i, vertex) in f.iter().enumerate() {
+            for (a, &x) in vertex.iter().enumerate() {
+                if i + a > 0 {
+                    small = L::and(small, L::le(L::abs(x), limit));
+                }
+            }
+        }
+        let lanes = unclipped & L::bits(small);
+        if lanes == 0 {
+            return 0;
+        }
+        // `triangle_area2(v0, v1, v2)` = `(y1 - y0) * (x2 - x0) - (x1 - x0) * (y2 - y0)`.
+        let (dx1, dy1) = (L::sub(f[1][0], f[0][0]), L::sub(f[1][1], f[0][1]));
+        let (dx2, dy2) = (L::sub(f[2][0], f[0][0]), L::sub(f[2][1], f[0][1]));
+        let (back, degenerate) = L::cross_sign_bits(dy1, dx2, dx1, dy2);
+        let mut drop = degenerate;
+        if !frame.interior_culls.is_empty() {
+            let (mut inward, mut culls) = (0u32, 0u32);
+            for (k, tri) in group.iter().enumerate() {
+                if lanes >> k & 1 != 0 {
+                    inward |= ((tri.flags & TRI_INWARD != 0) as u32) << k;
+                    culls |= (culls_interior(&frame.interior_culls, tri.object) as u32) << k;
+                }
+            }
+            // `shows_interior(back_face, inward)`: `back_face != inward`.
+            drop |= (back ^ inward) & culls;
+        }
+        drop & lanes
+    }
 }
 
 /// The camera and frame constants of the setup, in lanes.
