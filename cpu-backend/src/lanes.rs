@@ -137,16 +137,7 @@ pub(crate) trait Lanes: Copy {
     /// vertex and the word after it are a quad), no arithmetic.
     #[inline(always)]
     fn triangle_lanes(tris: [&TriangleRecord; LANES]) -> [[Self::F; 3]; 3] {
-        let [v0, v1, v2] = Self::quad_lanes([
-            bytemuck::cast_ref(tris[0]),
-            bytemuck::cast_ref(tris[1]),
-            bytemuck::cast_ref(tris[2]),
-            bytemuck::cast_ref(tris[3]),
-            bytemuck::cast_ref(tris[4]),
-            bytemuck::cast_ref(tris[5]),
-            bytemuck::cast_ref(tris[6]),
-            bytemuck::cast_ref(tris[7]),
-        ]);
+        let [v0, v1, v2] = Self::quad_lanes(words12(tris));
         [[v0[0], v0[1], v0[2]], [v1[0], v1[1], v1[2]], [v2[0], v2[1], v2[2]]]
     }
 
@@ -158,6 +149,14 @@ pub(crate) trait Lanes: Copy {
     fn ge(a: Self::F, b: Self::F) -> Self::F {
         Self::le(b, a)
     }
+}
+
+/// Eight 48-byte records as the twelve words each that [`Lanes::quad_lanes`] reads.
+#[inline(always)]
+pub(crate) fn words12<T: bytemuck::Pod>(r: [&T; LANES]) -> [&[f32; 12]; LANES] {
+    // Spelt out: no closure (`map`) on the lanes' paths.
+    let w = bytemuck::cast_ref::<T, [f32; 12]>;
+    [w(r[0]), w(r[1]), w(r[2]), w(r[3]), w(r[4]), w(r[5]), w(r[6]), w(r[7])]
 }
 
 /// The running bounds of the slab test (`ray_aabb_conservative`): the largest of the near

@@ -22,7 +22,7 @@ use hyrt_core::kernels::ray::OFFSET_ERROR_SCALE;
 use hyrt_core::kernels::shading::MIN_LIGHT_DISTANCE_SQ;
 use hyrt_core::kernels::shadow::{shadow_ray_record, SHADOW_T_MAX_POINT};
 
-use crate::lanes::{dot3, splat3, sub3, Lanes, LANES};
+use crate::lanes::{dot3, splat3, sub3, words12, Lanes, LANES};
 
 // No closures below (`map`, `from_fn`): a closure does not inherit its caller's target
 // features, so lane operations inside one would not inline into the AVX2 entry points.
@@ -49,16 +49,7 @@ pub(crate) struct SurfaceLanes<L: Lanes> {
 /// waiting on eight scalar stores it cannot be forwarded from.
 #[inline(always)]
 pub(crate) fn surface_quads<L: Lanes>(s: [&SurfaceRecord; LANES]) -> ([[L::F; 4]; 3], L::F) {
-    let quads = L::quad_lanes([
-        bytemuck::cast_ref(s[0]),
-        bytemuck::cast_ref(s[1]),
-        bytemuck::cast_ref(s[2]),
-        bytemuck::cast_ref(s[3]),
-        bytemuck::cast_ref(s[4]),
-        bytemuck::cast_ref(s[5]),
-        bytemuck::cast_ref(s[6]),
-        bytemuck::cast_ref(s[7]),
-    ]);
+    let quads = L::quad_lanes(words12(s));
     let zero = L::splat(0.0);
     let miss = L::eq_bits(quads[1][3], L::splat(f32::from_bits(INVALID_ID)));
     (quads, L::andnot(miss, L::eq(zero, zero)))
