@@ -41,8 +41,8 @@
 
 use hyrt_core::formats::{CameraRecord, TriangleRecord, TRI_INWARD};
 use hyrt_core::kernels::raster::{
-    culls_interior, ClipPlane, ClipVertex, CLIP_PLANES, F32_INTEGER_THRESHOLD, FIXED_ONE_F32, MAX_FIXED_COORD,
-    PIXEL_CENTER_OFFSET,
+    culls_interior, shows_interior, ClipPlane, ClipVertex, CLIP_PLANES, F32_INTEGER_THRESHOLD, FIXED_ONE_F32,
+    MAX_FIXED_COORD, PIXEL_CENTER_OFFSET,
 };
 
 use super::{finish_triangle, raster_flags, setup_from_clip, Frame, RasterTriangle};
@@ -138,6 +138,12 @@ struct Classified<L: Lanes> {
     unclipped: u32,
 }
 
+/// The greatest magnitude of a snapped coordinate (2^23, 32,768 pixels) for which the
+/// lanes decide a triangle's area sign ([`Classified::dropped_by_finish`]): the differences
+/// of such coordinates (at most 2^24) are exact in f32, and their products (at most 2^48)
+/// exact in f64 ([`Lanes::cross_sign_bits`]).
+const EXACT_AREA_COORD: f32 = 8_388_608.0;
+
 impl<L: Lanes> Classified<L> {
     /// Of the lanes `unclipped` (a subset of [`Classified::unclipped`], triangles `group`),
     /// those `finish_triangle` would drop before anything else: a zero doubled area
@@ -152,13 +158,11 @@ impl<L: Lanes> Classified<L> {
     #[inline(always)]
     fn dropped_by_finish(&self, unclipped: u32, group: &[TriangleRecord], frame: &Frame) -> u32 {
         let f = &self.fixed;
-        let limit = L::splat(8_388_608.0); // 2^23
-        let mut small = L::le(L::abs(f[0][0]), limit);
-        for (i, vertex) in f.iter().enumerate() {
-            for (a, &x) in vertex.iter().enumerate() {
-                if i + a > 0 {
-                    small = L::and(small, L::le(L::abs(x), limit));
-                }
+        let limit = L::splat(EXACT_AREA_COORD);
+        let mut small = L::eq(limit, limit);
+        for vertex in f {
+            for &x in vertex {
+                small = L::and(small, L::le(L::abs(x), limit));
             }
         }
         let lanes = unclipped & L::bits(small);
@@ -171,15 +175,10 @@ impl<L: Lanes> Classified<L> {
         let (back, degenerate) = L::cross_sign_bits(dy1, dx2, dx1, dy2);
         let mut drop = degenerate;
         if !frame.interior_culls.is_empty() {
-            let (mut inward, mut culls) = (0u32, 0u32);
-            for (k, tri) in group.iter().enumerate() {
-                if lanes >> k & 1 != 0 {
-                    inward |= ((tri.flags & TRI_INWARD != 0) as u32) << k;
-                    culls |= (culls_interior(&frame.interior_culls, tri.object) as u32) << k;
-                }
+            for (k, tri) in group.iter().enumerate().filter(|(k, _)| lanes >> k & 1 != 0) {
+                let interior = shows_interior(back >> k & 1 != 0, tri.flags & TRI_INWARD != 0);
+                drop |= ((interior && culls_interior(&frame.interior_culls, tri.object)) as u32) << k;
             }
-            // `shows_interior(back_face, inward)`: `back_face != inward`.
-            drop |= (back ^ inward) & culls;
         }
         drop & lanes
     }
