@@ -660,12 +660,23 @@ fn tile_shading<L: Lanes>(
                 PrimaryLanes::<L>::load(block_surfaces, objects)
             };
             lit.fill(0);
-            for j in 0..LANES {
-                let (lx, ly) = at_lane(j);
-                if inside((lx, ly)) {
-                    let codes = &shadow[(ly * tw + lx) * nl..][..nl];
-                    for (lit, &code) in lit.iter_mut().zip(codes) {
-                        *lit |= ((code == SHADOW_LIT) as u32) << j;
+            if bx + BW <= tw && by + BH <= th {
+                // The usual block, whole inside the tile: its two rows' codes, lane by lane
+                // for each light, without a bounds test per lane.
+                let rows: [&[u8]; BH] = std::array::from_fn(|r| &shadow[((by + r) * tw + bx) * nl..][..BW * nl]);
+                for (l, lit) in lit.iter_mut().enumerate() {
+                    for j in 0..LANES {
+                        *lit |= ((rows[j / BW][(j % BW) * nl + l] == SHADOW_LIT) as u32) << j;
+                    }
+                }
+            } else {
+                for j in 0..LANES {
+                    let (lx, ly) = at_lane(j);
+                    if inside((lx, ly)) {
+                        let codes = &shadow[(ly * tw + lx) * nl..][..nl];
+                        for (lit, &code) in lit.iter_mut().zip(codes) {
+                            *lit |= ((code == SHADOW_LIT) as u32) << j;
+                        }
                     }
                 }
             }
@@ -677,14 +688,8 @@ fn tile_shading<L: Lanes>(
                 None => none,
             };
             let out = composition_lanes::<L>(steps.composition, raster, rt, inputs.weight);
-            // Lane `j`'s texel (a transpose).
-            let mut texels = [[0.0f32; 4]; LANES];
-            for (c, channel) in out.into_iter().enumerate() {
-                for (texel, x) in texels.iter_mut().zip(L::store(channel)) {
-                    texel[c] = x;
-                }
-            }
-            for (j, texel) in texels.into_iter().enumerate() {
+            // Lane `j`'s texel: a transpose in registers.
+            for (j, texel) in L::quads(out).into_iter().enumerate() {
                 let (lx, ly) = at_lane(j);
                 if inside((lx, ly)) {
                     rows[ly][lx] = texel;

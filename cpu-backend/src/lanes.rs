@@ -132,6 +132,15 @@ pub(crate) trait Lanes: Copy {
         v.map(|v| v.map(|a| Self::load(&a)))
     }
 
+    /// Four rows as eight quads, lane `k` of `rows[w]` in word `w` of quad `k` (one quad of
+    /// [`Lanes::quad_lanes`] the other way, e.g. four colour channels to eight RGBA texels):
+    /// a transpose, no arithmetic.
+    #[inline(always)]
+    fn quads(rows: [Self::F; 4]) -> [[f32; 4]; LANES] {
+        let rows = rows.map(Self::store);
+        std::array::from_fn(|k| std::array::from_fn(|w| rows[w][k]))
+    }
+
     /// The vertices of eight triangles as lanes, `[vertex][axis]` with lane `k` from
     /// `tris[k]`: a transpose of the records' vertex words ([`Lanes::quad_lanes`]: each
     /// vertex and the word after it are a quad), no arithmetic.
@@ -364,6 +373,25 @@ mod x86 {
                         quad[2][h] = _mm_shuffle_ps::<0x44>(u1, u3);
                         quad[3][h] = _mm_shuffle_ps::<0xEE>(u1, u3);
                     }
+                }
+                out
+            }
+        }
+        #[inline(always)]
+        fn quads(rows: [Self::F; 4]) -> [[f32; 4]; LANES] {
+            // SAFETY: SSE2 is baseline; unaligned stores of four words into each quad.
+            unsafe {
+                let mut out = [[0.0f32; 4]; LANES];
+                for h in 0..2 {
+                    let [r0, r1, r2, r3] = rows.map(|r| r[h]);
+                    // [x0 y0 x1 y1], [x2 y2 x3 y3], [z0 w0 z1 w1], [z2 w2 z3 w3].
+                    let (u0, u1) = (_mm_unpacklo_ps(r0, r1), _mm_unpackhi_ps(r0, r1));
+                    let (u2, u3) = (_mm_unpacklo_ps(r2, r3), _mm_unpackhi_ps(r2, r3));
+                    let q = &mut out[4 * h..4 * h + 4];
+                    _mm_storeu_ps(q[0].as_mut_ptr(), _mm_movelh_ps(u0, u2));
+                    _mm_storeu_ps(q[1].as_mut_ptr(), _mm_movehl_ps(u2, u0));
+                    _mm_storeu_ps(q[2].as_mut_ptr(), _mm_movelh_ps(u1, u3));
+                    _mm_storeu_ps(q[3].as_mut_ptr(), _mm_movehl_ps(u3, u1));
                 }
                 out
             }
@@ -625,6 +653,28 @@ mod x86 {
                         _mm256_shuffle_ps::<0x44>(u1, u3),
                         _mm256_shuffle_ps::<0xEE>(u1, u3),
                     ];
+                }
+                out
+            }
+        }
+        #[inline(always)]
+        fn quads([r0, r1, r2, r3]: [Self::F; 4]) -> [[f32; 4]; LANES] {
+            // SAFETY: see the type's docs; unaligned stores of four words into each quad.
+            unsafe {
+                // Per half: [x0 y0 x1 y1], [x2 y2 x3 y3], [z0 w0 z1 w1], [z2 w2 z3 w3].
+                let (u0, u1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpackhi_ps(r0, r1));
+                let (u2, u3) = (_mm256_unpacklo_ps(r2, r3), _mm256_unpackhi_ps(r2, r3));
+                // Quad k in the low half, quad k + 4 in the high.
+                let q = [
+                    _mm256_shuffle_ps::<0x44>(u0, u2),
+                    _mm256_shuffle_ps::<0xEE>(u0, u2),
+                    _mm256_shuffle_ps::<0x44>(u1, u3),
+                    _mm256_shuffle_ps::<0xEE>(u1, u3),
+                ];
+                let mut out = [[0.0f32; 4]; LANES];
+                for (k, q) in q.into_iter().enumerate() {
+                    _mm_storeu_ps(out[k].as_mut_ptr(), _mm256_castps256_ps128(q));
+                    _mm_storeu_ps(out[k + 4].as_mut_ptr(), _mm256_extractf128_ps::<1>(q));
                 }
                 out
             }
@@ -1004,6 +1054,15 @@ pub(crate) mod tests {
                 same(lanes[q][w], portable[q][w]);
                 let want: [f32; LANES] = std::array::from_fn(|k| words[k][4 * q + w]);
                 assert_eq!(portable[q][w].map(f32::to_bits), want.map(f32::to_bits));
+            }
+        }
+        // And back: four rows of lanes to eight quads.
+        for q in 0..3 {
+            let (got, want) = (L::quads(lanes[q]), Portable::quads(portable[q]));
+            for k in 0..LANES {
+                assert_eq!(got[k].map(f32::to_bits), want[k].map(f32::to_bits), "quad {q}, lane {k}");
+                let record: [f32; 4] = std::array::from_fn(|w| words[k][4 * q + w]);
+                assert_eq!(want[k].map(f32::to_bits), record.map(f32::to_bits), "quad {q}, lane {k}");
             }
         }
         // Exact signs of `a * b - c * d` for integers up to 2^24: products that differ
