@@ -82,7 +82,8 @@ use std::collections::TryReserveError;
 
 use glam::Vec3;
 use hyrt_core::formats::{
-    CameraRecord, GBufferTexel, LightRecord, ObjectRecord, RayRecord, SurfaceRecord, SHADOW_LIT, SHADOW_NO_RAY,
+    CameraRecord, GBufferTexel, LightRecord, ObjectRecord, RayRecord, SurfaceRecord, INVALID_ID, SHADOW_LIT,
+    SHADOW_NO_RAY,
 };
 use hyrt_core::frame::{FrameOptions, PreparedScene};
 use hyrt_core::kernels::reconstruction::primary_normal_mapped;
@@ -359,6 +360,8 @@ struct TileInputs<'a> {
     traversal: Traversal,
     /// The SIMD level of the per-pixel kernels ([`SimdLevel::detect`], as the raster's).
     level: SimdLevel,
+    /// Whether the tiles prefetch their pixels' triangle records ([`prefetch_triangles`]).
+    prefetch_triangles: bool,
 }
 
 /// What [`fused_frame`] counts and times, and the pixels its tiles deferred.
@@ -411,6 +414,7 @@ pub fn fused_frame(
         weight: options.weight,
         traversal,
         level: SimdLevel::detect(),
+        prefetch_triangles: scene.geometry.triangles.bytes() >= PREFETCH_TRIANGLES_MIN_BYTES,
     };
     let area = raster_area(camera);
     if area != (w, h) {
@@ -472,6 +476,48 @@ fn background(inputs: &TileInputs) -> [f32; 4] {
     composition_pixel(inputs.steps.composition, &BACKGROUND_RGBA, &[0.0; 4], inputs.weight)
 }
 
+/// Least size of the world triangle table (records and corner normals) for which the fused
+/// tiles ask for the records of the triangles their pixels show before reconstructing
+/// them ([`prefetch_triangles`]): half the 32 MB L3 of the machine measured (AMD EPYC Zen
+/// 5). A smaller table mostly stays cached from one frame to the next, and the pass over
+/// the texels then costs more than it saves: with it, Sponza's fused tiles (5.6 MB of
+/// records and normals) took 1.016 of the time without it and the teaser's (11 MB) 1.019,
+/// by minima of alternated runs (`hyrt render --frames 15 --threads 1`). The dragon's (73
+/// MB) took 0.916 at one thread and 0.900 at two (medians of eleven alternations of
+/// `--frames 9`; 0.945 and 0.857 by minima), the images identical.
+const PREFETCH_TRIANGLES_MIN_BYTES: usize = 16 << 20;
+
+/// Ask for the cache lines of the triangle records and corner normals that the texels of a
+/// `tw` x `th` tile show (`texel(lx, ly)`), one triangle at a time along each row, all
+/// before reconstruction reads the first: a burst of independent misses, where the
+/// reconstruction's blocks would each wait on their own. On the dragon, whose pixels
+/// nearly all show triangles of their own in a table far larger than the L3, the fused
+/// tiles took 0.967 of their time (minima of 15 alternations, one thread) with the
+/// prefetch of each value's first line, 0.964 of that again with every line a value
+/// touches (half the 48-byte records straddle two); `TriangleSetup::new`'s share of the
+/// samples fell from 6.5% to 3.9%. Asking one or two blocks ahead inside the
+/// reconstruction instead gained nothing (`reconstruction::blocks`' docs).
+#[inline(never)]
+fn prefetch_triangles<'t>(
+    g: &hyrt_core::geometry::WorldGeometry,
+    texel: impl Fn(usize, usize) -> &'t GBufferTexel,
+    (tw, th): (usize, usize),
+) {
+    for ly in 0..th {
+        let mut last = (INVALID_ID, INVALID_ID);
+        for lx in 0..tw {
+            let t = texel(lx, ly);
+            if t.is_hit() && (t.object, t.triangle) != last {
+                last = (t.object, t.triangle);
+                if let Some((record, normals)) = g.triangles.stored_at(g.global_triangle(t.object, t.triangle)) {
+                    crate::visibility_raster::prefetch_lines(record);
+                    crate::visibility_raster::prefetch_lines(normals);
+                }
+            }
+        }
+    }
+}
+
 /// A fused tile's texels: texel `(lx, ly)` of the tile is `texels[ly * stride + lx]`.
 #[derive(Clone, Copy)]
 struct TexelTile<'a> {
@@ -502,6 +548,9 @@ fn tile(
             any_hit |= t.is_hit();
             counts.ray_traced_pixels += (t.is_hit() && t.is_ray_traced()) as u64;
         }
+    }
+    if inputs.prefetch_triangles {
+        prefetch_triangles(g, texel, (tw, th));
     }
     // A tile no triangle covers: the background, which every plan composes there.
     if !any_hit {

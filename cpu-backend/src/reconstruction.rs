@@ -322,7 +322,9 @@ pub(crate) fn blocks(
 /// triangle of its own; with the prefetch that function's share of the frame's samples fell
 /// from 4.3% to 2.3%, but the block loop's rose by as much, and the frame did not move
 /// (`hyrt render assets/scenes/dragon.toml --frames 9 --threads 1`, the two binaries
-/// alternated four times: 1.02 and 0.99 of the previous frame, AMD EPYC Zen 5).
+/// alternated four times: 1.02 and 0.99 of the previous frame, AMD EPYC Zen 5). What the
+/// fused tiles keep instead: every record the tile's pixels show asked for at once before
+/// its first block (`fused::prefetch_triangles`), a burst of independent misses.
 /// Also tried: the lanes of a block whose pixels lie on different triangles (`SetupLanes`
 /// in `lanes`) by two transposes in registers (the record, and the corner and geometric
 /// normals made contiguous in `TriangleSetup`) instead of 22 arrays filled word by word:

@@ -1032,6 +1032,20 @@ mod tests {
         }
         assert_eq!(g.triangles.stored_records().len(), stored_records as usize);
         assert_eq!(g.triangles.stored_normals().len(), stored_records as usize);
+        // Where a stored triangle's record and normals lie (what the fused tiles prefetch):
+        // the very values `get` and `normals` give; none for an object by reference.
+        for (o, r) in g.objects.iter().enumerate() {
+            for id in (r.first_triangle..r.first_triangle + r.triangle_count).map(|i| i as usize) {
+                match g.triangles.stored_at(id) {
+                    Some((record, normals)) => {
+                        assert!(o % 2 == 0, "object {o} is by reference");
+                        assert_eq!(bytemuck::bytes_of(record), bytemuck::bytes_of(&g.triangles.get(id)));
+                        assert_eq!(*normals, g.triangles.normals(id), "triangle {id}");
+                    }
+                    None => assert!(o % 2 == 1, "object {o} is stored"),
+                }
+            }
+        }
         let all_stored = WorldGeometry::build(&scene);
         for (o, r) in all_stored.objects.iter().enumerate() {
             let p = all_stored.triangles.placement_record(o as u32, r.first_triangle, r.triangle_count, &[]);

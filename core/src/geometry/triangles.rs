@@ -296,6 +296,23 @@ impl WorldTriangles {
         }
     }
 
+    /// Where triangle `id`'s record and corner normals are stored, for a caller that asks
+    /// for their cache lines ahead of reading them; `None` for an object by reference
+    /// (made on demand from its mesh).
+    #[inline]
+    pub fn stored_at(&self, id: usize) -> Option<(&TriangleRecord, &[Vec3; 3])> {
+        let i = if self.placements.is_empty() {
+            id
+        } else {
+            let (o, local) = self.locate(id);
+            match &self.placements[o] {
+                Placement::Stored { first_record } => *first_record as usize + local,
+                Placement::ByReference(_) => return None,
+            }
+        };
+        Some((self.records.get(i)?, self.normals.get(i)?))
+    }
+
     /// Triangle `id`'s `TRI_*` flags (without making its record).
     #[inline]
     pub fn flags(&self, id: usize) -> u32 {
