@@ -593,13 +593,25 @@ fn frame_race(
     let contenders: Vec<Contender<'_>> =
         vec![("hyrt".to_string(), Box::new(frame_run)), (format!("{hit_name} + {occ_name}"), Box::new(embree_run))];
     let pixels = (row.camera.width * row.camera.height) as usize;
-    let mut runs = contest(options.frames, threads, pixels, contenders).into_iter();
+    let mut runs = contest(race_rounds(options), threads, pixels, contenders).into_iter();
     if let Some(source) = failed {
         return Err(BenchError::Render { scene: row.name.to_string(), source });
     }
     let (Some(hyrt), Some(mut embree)) = (runs.next(), runs.next()) else { unreachable!("two contenders") };
     embree.rays = primary.len() + shadow.len();
     Ok((Some(FrameRace { threads, hyrt, embree }), executor))
+}
+
+/// Least rounds of a race of whole frames ([`FrameRace`], [`StagedRace`]): `--frames`
+/// (5 with `--quick`) gave five or six rounds of these 50 to 150 ms turns, and a busy host
+/// then moved a row's median by a third between two runs (the near bunny at one thread:
+/// 1.21 (1.00–1.41) and 0.76 (0.74–1.19), consecutive `--quick` reports); 15 rounds cost
+/// about half a minute more over the peers' scenes.
+const MIN_RACE_ROUNDS: usize = 15;
+
+/// Rounds of a race of whole frames: `--frames`, at least [`MIN_RACE_ROUNDS`].
+fn race_rounds(options: &BenchOptions) -> usize {
+    options.frames.max(MIN_RACE_ROUNDS)
 }
 
 /// [`StagedRace`] in `pool`.
@@ -630,7 +642,7 @@ fn staged_race(
         (hyrt_method("Bvh::closest_hit", traversal), Box::new(rays_run)),
     ];
     let pixels = (row.camera.width * row.camera.height) as usize;
-    let runs = contest(options.frames, threads, pixels, contenders);
+    let runs = contest(race_rounds(options), threads, pixels, contenders);
     let render = |source| BenchError::Render { scene: row.name.to_string(), source };
     if let Some(source) = failed {
         return Err(render(source));
