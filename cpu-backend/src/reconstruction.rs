@@ -191,25 +191,22 @@ impl Reconstruct<'_> {
         cache.setups.clear();
         let (mut hit, mut back) = (0u32, 0u32);
         let (mut u, mut v, mut at) = ([0.0f32; LANES], [0.0f32; LANES], [0usize; LANES]);
+        // The usual block inside one triangle: its setup once, every lane's index 0.
         let first = texels[0];
-        if texels.iter().all(|t| t.is_hit() && t.triangle == first.triangle && t.object == first.object) {
-            // The usual block inside one triangle: its setup once, every lane's index 0.
+        let one = texels.iter().all(|t| t.is_hit() && (t.object, t.triangle) == (first.object, first.triangle));
+        if one {
             cache.of(geometry, geometry.global_triangle(first.object, first.triangle));
-            for (k, t) in texels.iter().enumerate() {
-                (u[k], v[k]) = (t.bary_u, t.bary_v);
-                back |= ((t.flags & GBUF_BACK_FACE != 0) as u32) << k;
+        }
+        for (k, t) in texels.iter().enumerate() {
+            if !t.is_hit() {
+                continue;
             }
-            hit = crate::lanes::ALL_LANES;
-        } else {
-            for (k, t) in texels.iter().enumerate() {
-                if !t.is_hit() {
-                    continue;
-                }
+            if !one {
                 at[k] = cache.of(geometry, geometry.global_triangle(t.object, t.triangle));
-                (u[k], v[k]) = (t.bary_u, t.bary_v);
-                hit |= 1 << k;
-                back |= ((t.flags & GBUF_BACK_FACE != 0) as u32) << k;
             }
+            (u[k], v[k]) = (t.bary_u, t.bary_v);
+            hit |= 1 << k;
+            back |= ((t.flags & GBUF_BACK_FACE != 0) as u32) << k;
         }
         let Some(&last) = cache.setups.last() else {
             return [SurfaceRecord::MISS; LANES];

@@ -1389,22 +1389,11 @@ fn rasterize_tile<S: FragmentSink>(tris: &SetupTriangles, tile: usize, rect: [i3
 /// How many bin items ahead [`rasterize_tile`] prefetches the triangle record.
 const PREFETCH_AHEAD: usize = 4;
 
-/// Ask for the cache lines of `value` (a hint; no effect on results).
+/// Ask for the cache lines of `value` (a hint; no effect on results): one per 64 bytes of
+/// its size, from its first byte.
 #[inline(always)]
 fn prefetch<T>(value: &T) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let p = value as *const T as *const i8;
-        let mut offset = 0;
-        while offset < std::mem::size_of::<T>() {
-            // SAFETY: a prefetch never faults; the address lies within `value`.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(p.add(offset)) };
-            offset += 64;
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = value;
+    prefetch_run(value, std::mem::size_of::<T>().div_ceil(64));
 }
 
 /// Ask for every cache line `value` touches (a hint; no effect on results): its first
@@ -1413,11 +1402,17 @@ fn prefetch<T>(value: &T) {
 /// line per 64 bytes of size from its start.
 #[inline(always)]
 pub(crate) fn prefetch_lines<T>(value: &T) {
+    let offset = value as *const T as usize % 64;
+    prefetch_run(value, (offset + std::mem::size_of::<T>()).div_ceil(64));
+}
+
+/// Prefetch `lines` cache lines, 64 bytes apart, from `value`'s first byte.
+#[inline(always)]
+fn prefetch_run<T>(value: &T, lines: usize) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
         let p = value as *const T as *const i8;
-        let lines = (p as usize % 64 + std::mem::size_of::<T>()).div_ceil(64);
         for line in 0..lines {
             // SAFETY: a prefetch never faults; the address lies within `value` or on a line
             // it touches.
@@ -1425,7 +1420,7 @@ pub(crate) fn prefetch_lines<T>(value: &T) {
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = value;
+    let _ = (value, lines);
 }
 
 /// Hand the covered pixel centres of one triangle inside tile `rect` to `sink`.

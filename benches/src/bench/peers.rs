@@ -577,13 +577,13 @@ fn frame_race(
     let mut cpu = hyrt_cpu::backend::CpuBackend::new(Some(threads));
     let mut frame = Frame::default();
     let mut failed = None;
-    let mut executor = Executor::default();
     let (mut hits, mut blocked) = (vec![None; primary.len()], vec![false; shadow.len()]);
     let frame_run = || {
         let options = super::paper_frame();
-        match hyrt_core::frame::Backend::render_into(&mut cpu, row.prepared, &row.camera, &options, &mut frame) {
-            Ok(()) => executor = frame.stats.executor,
-            Err(e) => failed = Some(e),
+        if let Err(e) =
+            hyrt_core::frame::Backend::render_into(&mut cpu, row.prepared, &row.camera, &options, &mut frame)
+        {
+            failed = Some(e);
         }
     };
     let embree_run = || {
@@ -599,7 +599,7 @@ fn frame_race(
     }
     let (Some(hyrt), Some(mut embree)) = (runs.next(), runs.next()) else { unreachable!("two contenders") };
     embree.rays = primary.len() + shadow.len();
-    Ok((Some(FrameRace { threads, hyrt, embree }), executor))
+    Ok((Some(FrameRace { threads, hyrt, embree }), frame.stats.executor))
 }
 
 /// Least rounds of a race of whole frames ([`FrameRace`], [`StagedRace`]): `--frames`
